@@ -1,0 +1,27 @@
+"""Exceptions raised by the planner layer."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class PlannerError(Exception):
+    """Base class of every planner error."""
+
+
+class UnsupportedModel(PlannerError):
+    """The Pinocchio model has a joint type the symbolic kinematics does not support."""
+
+
+class PlanningFailed(PlannerError):
+    """The optimizer found no plan; ``diagnosis`` explains it in task terms.
+
+    Attributes:
+        plan: The (failed) Plan at the returned point, when there is one.
+        diagnosis: e.g. "right_hand target 'reach' is 0.21 m beyond reach at t = 1.50 s".
+    """
+
+    def __init__(self, diagnosis: str, plan: Any = None) -> None:
+        self.diagnosis = diagnosis
+        self.plan = plan
+        super().__init__(diagnosis)

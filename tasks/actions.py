@@ -1,0 +1,333 @@
+"""Actions: what a user asks for, before it becomes a TaskSpec.
+
+An :class:`Action` names a primitive of the registry and its parameters in SI units. The
+registry (:data:`REGISTRY`) lists every primitive with a typed parameter schema (names,
+units, defaults, ranges, choices) that the language layer, the CLI (``wbmp actions``) and
+the LLM backend's JSON schema are all generated from. Each primitive also declares which
+body part it drives, so upper-body actions can be overlaid on lower-body ones.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from tasks.exceptions import TaskDefinitionError, UnknownAction
+
+SIDES = ("left", "right")
+ARMS = ("left", "right", "both")
+DIRECTIONS = ("forward", "backward", "left", "right")
+REACH_DIRECTIONS = ("forward", "up", "down", "left", "right", "backward")
+HEAD_DIRECTIONS = ("left", "right", "up", "down")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Param:
+    """One parameter of a primitive.
+
+    Attributes:
+        name: Parameter name (``depth``).
+        kind: ``float``, ``int``, ``choice``, ``vec3`` or ``bool``.
+        unit: SI unit (``m``, ``s``, ``rad``) or ``""``/``count``.
+        default: Value used when the user does not give one (None = optional, no value).
+        minimum, maximum: Inclusive range for ``float``/``int`` (robot limits may be tighter).
+        choices: Allowed values for ``choice``.
+        description: One line for ``wbmp actions``.
+    """
+
+    name: str
+    kind: str
+    unit: str = ""
+    default: Any = None
+    minimum: float | None = None
+    maximum: float | None = None
+    choices: tuple[str, ...] = ()
+    description: str = ""
+
+    def validate(self, action: str, value: Any) -> Any:
+        """Return ``value`` normalized to the parameter's type, or raise TaskDefinitionError."""
+        who = f"{action} {self.name}"
+        if value is None:
+            return None
+        if self.kind == "float":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise TaskDefinitionError(f"{who} must be a number [{self.unit}], got {value!r}")
+            value = float(value)
+        elif self.kind == "int":
+            if isinstance(value, float) and value.is_integer():
+                value = int(value)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise TaskDefinitionError(f"{who} must be a whole number, got {value!r}")
+        elif self.kind == "choice":
+            if value not in self.choices:
+                raise TaskDefinitionError(f"{who} must be one of {', '.join(self.choices)}, got {value!r}")
+            return value
+        elif self.kind == "vec3":
+            if (not isinstance(value, (list, tuple)) or len(value) != 3
+                    or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)):
+                raise TaskDefinitionError(f"{who} must be three numbers [{self.unit}], got {value!r}")
+            return tuple(float(x) for x in value)
+        elif self.kind == "bool":
+            if not isinstance(value, bool):
+                raise TaskDefinitionError(f"{who} must be true or false, got {value!r}")
+            return value
+        if self.minimum is not None and value < self.minimum:
+            raise TaskDefinitionError(f"{who} {_fmt(value, self.unit)} is below the minimum {_fmt(self.minimum, self.unit)}")
+        if self.maximum is not None and value > self.maximum:
+            raise TaskDefinitionError(f"{who} {_fmt(value, self.unit)} is above the maximum {_fmt(self.maximum, self.unit)}")
+        return value
+
+    def to_json_schema(self) -> dict[str, Any]:
+        """JSON-schema fragment of this parameter."""
+        if self.kind == "float":
+            s: dict[str, Any] = {"type": "number"}
+        elif self.kind == "int":
+            s = {"type": "integer"}
+        elif self.kind == "choice":
+            s = {"type": "string", "enum": list(self.choices)}
+        elif self.kind == "vec3":
+            s = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
+        else:
+            s = {"type": "boolean"}
+        if self.minimum is not None:
+            s["minimum"] = self.minimum
+        if self.maximum is not None:
+            s["maximum"] = self.maximum
+        desc = self.description + (f" [{self.unit}]" if self.unit and self.unit != "count" else "")
+        if desc:
+            s["description"] = desc
+        if self.default is not None:
+            s["default"] = list(self.default) if isinstance(self.default, tuple) else self.default
+        return s
+
+
+def _fmt(value: float, unit: str) -> str:
+    return f"{value:g} {unit}".strip() if unit not in ("", "count") else f"{value:g}"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ActionSchema:
+    """A primitive's signature: name, body part, parameters.
+
+    Attributes:
+        name: Registry key (``squat``).
+        summary: One sentence for ``wbmp actions``.
+        body: ``lower`` (legs, CoM), ``upper`` (arms, head) or ``whole``; an ``upper`` action can
+            be overlaid on a ``lower`` one.
+        dynamic: Needs contact forces (steps, jumps).
+        params: Parameter schemas.
+    """
+
+    name: str
+    summary: str
+    body: str
+    params: tuple[Param, ...] = ()
+    dynamic: bool = False
+
+    def param(self, name: str) -> Param:
+        """The parameter ``name`` (TaskDefinitionError listing the known ones otherwise)."""
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise TaskDefinitionError(
+            f"{self.name} has no parameter {name!r}; its parameters are {', '.join(p.name for p in self.params) or 'none'}"
+        )
+
+    def resolve(self, params: Mapping[str, Any]) -> dict[str, Any]:
+        """Validated parameters with defaults filled in."""
+        out = {}
+        for key, value in params.items():
+            out[key] = self.param(key).validate(self.name, value)
+        for p in self.params:
+            if out.get(p.name) is None:
+                out[p.name] = p.default
+        return out
+
+    def to_json_schema(self) -> dict[str, Any]:
+        """JSON schema of ``{"action": name, "params": {...}}`` for this primitive."""
+        return {
+            "type": "object",
+            "properties": {
+                "action": {"const": self.name},
+                "params": {
+                    "type": "object",
+                    "properties": {p.name: p.to_json_schema() for p in self.params},
+                    "additionalProperties": False,
+                },
+                "overlay": {"type": "boolean"},
+            },
+            "required": ["action"],
+            "additionalProperties": False,
+            "description": self.summary,
+        }
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Action:
+    """One requested action: a registry name and parameters (SI units).
+
+    ``overlay=True`` means the action runs at the same time as the previous one (``wave while
+    squatting`` is ``[squat, wave(overlay=True)]``); otherwise actions run one after another.
+    """
+
+    name: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+    overlay: bool = False
+
+    def __post_init__(self) -> None:
+        schema = get_action(self.name)
+        object.__setattr__(self, "params", _FrozenDict(schema.resolve(self.params)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"action": name, "params": {...}}`` (+ ``"overlay": true`` when set)."""
+        params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.params.items() if v is not None}
+        out: dict[str, Any] = {"action": self.name, "params": params}
+        if self.overlay:
+            out["overlay"] = True
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Action:
+        """Inverse of :meth:`to_dict` (TaskDefinitionError on bad content)."""
+        if not isinstance(data, Mapping) or "action" not in data:
+            raise TaskDefinitionError(f"an action must be an object with an 'action' key, got {data!r}")
+        unknown = sorted(set(data) - {"action", "params", "overlay"})
+        if unknown:
+            raise TaskDefinitionError(f"action {data.get('action')!r}: unknown key(s) {unknown}")
+        params = data.get("params") or {}
+        if not isinstance(params, Mapping):
+            raise TaskDefinitionError(f"action {data['action']!r}: params must be an object")
+        overlay = data.get("overlay", False)
+        if not isinstance(overlay, bool):
+            raise TaskDefinitionError(f"action {data['action']!r}: overlay must be true or false")
+        return cls(name=str(data["action"]), params=dict(params), overlay=overlay)
+
+
+class _FrozenDict(dict):
+    """A dict that refuses mutation and hashes by content (keeps Action frozen in spirit)."""
+
+    def _refuse(self, *args, **kwargs):
+        raise TypeError("action parameters are read-only; build a new Action")
+
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _refuse  # type: ignore[assignment]
+
+    def __hash__(self) -> int:  # type: ignore[override]
+        return hash(tuple(sorted(self.items())))
+
+
+def _choice(name: str, choices: tuple[str, ...], default: str | None, description: str) -> Param:
+    return Param(name=name, kind="choice", choices=choices, default=default, description=description)
+
+
+def _repeat(default: int = 1) -> Param:
+    return Param(name="repeat", kind="int", unit="count", default=default, minimum=1, maximum=10,
+                 description="how many times")
+
+
+REGISTRY: dict[str, ActionSchema] = {
+    s.name: s
+    for s in (
+        ActionSchema(name="stand", summary="Stand still in the reference posture.", body="whole", params=(
+            Param(name="duration", kind="float", unit="s", default=1.0, minimum=0.2, maximum=30.0,
+                  description="how long"),
+        )),
+        ActionSchema(name="squat", summary="Lower the body by bending the knees, then stand up again.", body="lower", params=(
+            Param(name="depth", kind="float", unit="m", default=0.15, minimum=0.02, maximum=0.6,
+                  description="how far the centre of mass goes down"),
+            _repeat(1),
+            Param(name="duration", kind="float", unit="s", default=2.0, minimum=0.8, maximum=10.0,
+                  description="time for one squat, down and up"),
+        )),
+        ActionSchema(name="wave", summary="Raise a hand above the shoulder and wave it side to side.", body="upper", params=(
+            _choice("arm", ARMS, "right", "which hand waves"),
+            _repeat(2),
+            Param(name="duration", kind="float", unit="s", default=0.8, minimum=0.3, maximum=4.0,
+                  description="time for one wave, out and back"),
+        )),
+        ActionSchema(name="reach", summary="Move a hand to a point, given in the base frame or as a direction.", body="upper", params=(
+            _choice("hand", SIDES, "right", "which hand reaches"),
+            Param(name="target", kind="vec3", unit="m", default=None,
+                  description="point to reach in the robot's base frame (x forward, y left, z up)"),
+            _choice("direction", REACH_DIRECTIONS, None, "direction to reach in, from the hand's rest position"),
+            Param(name="distance", kind="float", unit="m", default=0.2, minimum=0.0, maximum=1.5,
+                  description="how far to reach along direction"),
+            Param(name="duration", kind="float", unit="s", default=2.0, minimum=0.5, maximum=10.0,
+                  description="time to reach and come back"),
+        )),
+        ActionSchema(name="raise_arms", summary="Raise one or both arms overhead.", body="upper", params=(
+            _choice("arm", ARMS, "both", "which arm"),
+            Param(name="duration", kind="float", unit="s", default=2.0, minimum=0.5, maximum=10.0,
+                  description="time to raise and lower"),
+        )),
+        ActionSchema(name="bow", summary="Bend the torso forward and come back up.", body="whole", params=(
+            Param(name="angle", kind="float", unit="rad", default=0.35, minimum=0.05, maximum=1.0,
+                  description="forward tilt of the torso"),
+            Param(name="duration", kind="float", unit="s", default=2.5, minimum=0.8, maximum=10.0,
+                  description="time to bow and come back"),
+        )),
+        ActionSchema(name="turn_head", summary="Look in a direction by turning the head (robots with a neck).", body="upper", params=(
+            _choice("direction", HEAD_DIRECTIONS, "left", "where to look"),
+            Param(name="angle", kind="float", unit="rad", default=0.5, minimum=0.05, maximum=1.3,
+                  description="how far to turn"),
+            Param(name="duration", kind="float", unit="s", default=2.0, minimum=0.5, maximum=10.0,
+                  description="time to look and come back"),
+        )),
+        ActionSchema(name="lean", summary="Shift the body's weight in a direction without moving the feet.", body="lower", params=(
+            _choice("direction", DIRECTIONS, "forward", "lean direction"),
+            Param(name="amount", kind="float", unit="m", default=0.04, minimum=0.005, maximum=0.3,
+                  description="centre-of-mass shift"),
+            Param(name="duration", kind="float", unit="s", default=2.0, minimum=0.5, maximum=10.0,
+                  description="time to lean and come back"),
+        )),
+        ActionSchema(name="balance", summary="Stand on one foot, then put the other foot down again.", body="lower", params=(
+            _choice("foot", SIDES, "left", "the stance foot"),
+            Param(name="duration", kind="float", unit="s", default=2.0, minimum=0.5, maximum=20.0,
+                  description="time on one foot"),
+        )),
+        ActionSchema(name="step", summary="Take steps in a direction.", body="lower", dynamic=True, params=(
+            _choice("direction", DIRECTIONS, "forward", "step direction"),
+            Param(name="length", kind="float", unit="m", default=0.15, minimum=0.01, maximum=2.0,
+                  description="length of each step"),
+            Param(name="count", kind="int", unit="count", default=2, minimum=1, maximum=20,
+                  description="number of steps"),
+        )),
+        ActionSchema(name="walk", summary="Walk a distance in a direction.", body="lower", dynamic=True, params=(
+            _choice("direction", DIRECTIONS, "forward", "walking direction"),
+            Param(name="distance", kind="float", unit="m", default=0.6, minimum=0.05, maximum=10.0,
+                  description="distance to cover"),
+        )),
+        ActionSchema(name="turn", summary="Turn in place (left/counter-clockwise positive).", body="lower", dynamic=True, params=(
+            Param(name="angle", kind="float", unit="rad", default=math.pi / 2, minimum=-math.pi, maximum=math.pi,
+                  description="yaw change, left positive (REP 103)"),
+        )),
+        ActionSchema(name="jump", summary="Crouch, jump up (and optionally forward), land on both feet.", body="lower", dynamic=True, params=(
+            Param(name="height", kind="float", unit="m", default=0.08, minimum=0.01, maximum=1.5,
+                  description="rise of the centre of mass above standing"),
+            Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=2.0,
+                  description="forward displacement"),
+        )),
+    )
+}
+
+
+def get_action(name: str) -> ActionSchema:
+    """Registry entry of ``name`` (UnknownAction naming close matches otherwise)."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise UnknownAction(name, sorted(REGISTRY)) from None
+
+
+def actions_json_schema() -> dict[str, Any]:
+    """JSON schema of an action list ``{"actions": [...]}``: the same for every parser backend."""
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "wbmp action plan",
+        "type": "object",
+        "properties": {
+            "actions": {"type": "array", "minItems": 1, "items": {"oneOf": [s.to_json_schema() for s in REGISTRY.values()]}},
+        },
+        "required": ["actions"],
+    }

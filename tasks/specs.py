@@ -1,0 +1,354 @@
+"""Task specifications: what the robot should do, as data.
+
+A :class:`TaskSpec` is a sequence of timed :class:`Phase`\\ s. Each phase holds the set of
+:class:`Contact`\\ s (a foot frame fixed at a ground placement) that are active during it.
+Over the whole horizon, :class:`FrameTarget`\\ s ask a frame (a hand, the head, the torso)
+to reach a position and/or orientation at a time or over a time window,
+:class:`CoMTarget`\\ s ask the centre of mass for a position, :class:`CoMBounds` keep it in a
+box and/or over the support polygon, and :class:`JointTarget`\\ s ask a joint for an angle.
+
+Conventions: SI units (m, s, rad, N), the world frame is z-up with the ground at z = 0,
+orientations are roll-pitch-yaw ``(r, p, y)`` with ``R = Rz(y) Ry(p) Rx(r)`` (Pinocchio's
+``rpy`` convention), frames are named by Pinocchio frame name or by robot role
+(``left_foot``, ``right_hand``, ``head``, ``torso``, ``base``; see ``robots.ROLES``).
+Every spec is frozen, validated on construction, and round-trips exactly through JSON
+(:func:`tasks.serialize.spec_to_dict` / :func:`tasks.serialize.spec_from_dict`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+from tasks.exceptions import TaskDefinitionError
+
+Vec3 = tuple[float, float, float]
+OptVec3 = tuple[float | None, float | None, float | None]
+Window = tuple[float, float]
+
+SPEC_VERSION = 1
+
+
+class Priority(enum.Enum):
+    """How a target enters the optimization problem."""
+
+    HARD = "hard"  # constraint: |error| <= tolerance
+    SOFT = "soft"  # weighted least-squares cost
+
+
+def _finite(owner: str, field_name: str, values) -> None:
+    for v in values:
+        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
+            raise TaskDefinitionError(f"{owner}: {field_name} must hold finite numbers, got {values!r}")
+
+
+def _vec3(owner: str, field_name: str, value, *, optional_items: bool = False) -> None:
+    if not isinstance(value, tuple) or len(value) != 3:
+        raise TaskDefinitionError(f"{owner}: {field_name} must be a 3-tuple, got {value!r}")
+    if not optional_items and any(v is None for v in value):
+        raise TaskDefinitionError(f"{owner}: {field_name} must not contain null")
+    _finite(owner, field_name, value)
+
+
+def _window(owner: str, window: Window | None) -> None:
+    if window is None:
+        return
+    if not isinstance(window, tuple) or len(window) != 2:
+        raise TaskDefinitionError(f"{owner}: window must be (t_start, t_end) [s], got {window!r}")
+    _finite(owner, "window", window)
+    if not 0.0 <= window[0] <= window[1]:
+        raise TaskDefinitionError(f"{owner}: window must satisfy 0 <= t_start <= t_end, got {window!r}")
+
+
+def _nonneg(owner: str, field_name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
+        raise TaskDefinitionError(f"{owner}: {field_name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Pose:
+    """A placement in the world: position [m] and roll-pitch-yaw [rad]."""
+
+    position: Vec3
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        _vec3("pose", "position", self.position)
+        _vec3("pose", "rpy", self.rpy)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Contact:
+    """A foot (or other body) held fixed in 6D at a ground placement during a phase.
+
+    Attributes:
+        frame: Frame name or role (``left_foot``); its z axis is the contact normal.
+        placement: Where the frame is held [m, rad].
+        friction_coefficient: Coulomb friction [-]; None takes the robot profile's.
+    """
+
+    frame: str
+    placement: Pose
+    friction_coefficient: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.frame:
+            raise TaskDefinitionError("contact: frame must be a non-empty frame name or role")
+        if self.friction_coefficient is not None and not self.friction_coefficient > 0.0:
+            raise TaskDefinitionError(f"contact {self.frame}: friction_coefficient must be > 0")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Phase:
+    """A time interval with a fixed contact set.
+
+    Attributes:
+        name: Label used in reports ("stand", "squat down", "flight").
+        duration: Length of the phase [s].
+        contacts: Contacts held during the whole phase; empty means flight.
+        swing_height: Clearance of a swinging foot: a foot frame that is in contact in some
+            phase but not in this one must have its sole this high at the phase's middle [m].
+    """
+
+    name: str
+    duration: float
+    contacts: tuple[Contact, ...] = ()
+    swing_height: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration) and self.duration > 0):
+            raise TaskDefinitionError(f"phase {self.name!r}: duration must be > 0 s, got {self.duration!r}")
+        frames = [c.frame for c in self.contacts]
+        if len(set(frames)) != len(frames):
+            raise TaskDefinitionError(f"phase {self.name!r}: a frame appears in two contacts: {frames}")
+        _nonneg(f"phase {self.name!r}", "swing_height", self.swing_height)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FrameTarget:
+    """Ask a frame for a position and/or orientation at a time or over a window.
+
+    Attributes:
+        name: Unique label, used in reports ("right hand up #1").
+        frame: Frame name or role (``right_hand``).
+        position: Target position in the world [m]; None = no position target.
+        rpy: Target orientation in the world [rad]; None = no orientation target.
+        axes: Which position axes count, e.g. ``(False, False, True)`` for height only.
+        time: Instant of the target [s]; with ``window`` None and ``time`` None: end of horizon.
+        window: (t_start, t_end) [s]: the target holds on every knot inside.
+        tolerance: Allowed position error for HARD targets and in reports [m].
+        orientation_tolerance: Allowed orientation error [rad].
+        priority: HARD (constraint) or SOFT (cost).
+        weight: Cost weight for SOFT targets [1/m^2].
+    """
+
+    name: str
+    frame: str
+    position: Vec3 | None = None
+    rpy: Vec3 | None = None
+    axes: tuple[bool, bool, bool] = (True, True, True)
+    time: float | None = None
+    window: Window | None = None
+    tolerance: float = 0.01
+    orientation_tolerance: float = 0.05
+    priority: Priority = Priority.HARD
+    weight: float = 100.0
+
+    def __post_init__(self) -> None:
+        who = f"target {self.name!r}"
+        if not self.frame:
+            raise TaskDefinitionError(f"{who}: frame must be a frame name or role")
+        if self.position is None and self.rpy is None:
+            raise TaskDefinitionError(f"{who}: give a position, an rpy orientation, or both")
+        if self.position is not None:
+            _vec3(who, "position", self.position)
+        if self.rpy is not None:
+            _vec3(who, "rpy", self.rpy)
+        if len(self.axes) != 3 or not any(self.axes):
+            raise TaskDefinitionError(f"{who}: axes must be three booleans, at least one true")
+        if self.time is not None and self.window is not None:
+            raise TaskDefinitionError(f"{who}: give time or window, not both")
+        if self.time is not None:
+            _nonneg(who, "time", self.time)
+        _window(who, self.window)
+        _nonneg(who, "tolerance", self.tolerance)
+        _nonneg(who, "orientation_tolerance", self.orientation_tolerance)
+        _nonneg(who, "weight", self.weight)
+        if not isinstance(self.priority, Priority):
+            raise TaskDefinitionError(f"{who}: priority must be 'hard' or 'soft'")
+
+
+HandTarget = FrameTarget  # the name the design documents use for hand targets
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CoMTarget:
+    """Ask the centre of mass for a position (per axis; None = free) at a time or window.
+
+    Attributes:
+        name: Unique label ("squat bottom #2").
+        position: Target CoM position in the world [m]; None entries are free.
+        time, window, tolerance, priority, weight: as in :class:`FrameTarget`.
+    """
+
+    name: str
+    position: OptVec3
+    time: float | None = None
+    window: Window | None = None
+    tolerance: float = 0.01
+    priority: Priority = Priority.HARD
+    weight: float = 100.0
+
+    def __post_init__(self) -> None:
+        who = f"CoM target {self.name!r}"
+        _vec3(who, "position", self.position, optional_items=True)
+        if all(v is None for v in self.position):
+            raise TaskDefinitionError(f"{who}: at least one position axis must be set")
+        if self.time is not None and self.window is not None:
+            raise TaskDefinitionError(f"{who}: give time or window, not both")
+        if self.time is not None:
+            _nonneg(who, "time", self.time)
+        _window(who, self.window)
+        _nonneg(who, "tolerance", self.tolerance)
+        _nonneg(who, "weight", self.weight)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CoMBounds:
+    """Keep the centre of mass inside a box and/or over the support polygon.
+
+    Attributes:
+        name: Label ("balance").
+        lower: Box lower corner in the world [m]; None entries are unbounded.
+        upper: Box upper corner in the world [m]; None entries are unbounded.
+        support_polygon: Keep the CoM ground projection inside the convex hull of the active
+            soles, shrunk by ``margin`` (only in phases with contacts).
+        margin: Inward margin of the support polygon [m].
+        window: (t_start, t_end) [s]; None = the whole horizon.
+    """
+
+    name: str = "balance"
+    lower: OptVec3 = (None, None, None)
+    upper: OptVec3 = (None, None, None)
+    support_polygon: bool = True
+    margin: float = 0.02
+    window: Window | None = None
+
+    def __post_init__(self) -> None:
+        who = f"CoM bounds {self.name!r}"
+        _vec3(who, "lower", self.lower, optional_items=True)
+        _vec3(who, "upper", self.upper, optional_items=True)
+        for lo, hi in zip(self.lower, self.upper, strict=True):
+            if lo is not None and hi is not None and lo > hi:
+                raise TaskDefinitionError(f"{who}: lower {self.lower} exceeds upper {self.upper}")
+        _nonneg(who, "margin", self.margin)
+        _window(who, self.window)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class JointTarget:
+    """Ask one joint for an angle [rad] (or position [m]) at a time or window, as a cost."""
+
+    name: str
+    joint: str
+    value: float
+    time: float | None = None
+    window: Window | None = None
+    weight: float = 10.0
+
+    def __post_init__(self) -> None:
+        who = f"joint target {self.name!r}"
+        _finite(who, "value", (self.value,))
+        if self.time is not None and self.window is not None:
+            raise TaskDefinitionError(f"{who}: give time or window, not both")
+        if self.time is not None:
+            _nonneg(who, "time", self.time)
+        _window(who, self.window)
+        _nonneg(who, "weight", self.weight)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TaskSpec:
+    """A whole-body motion request, independent of any solver.
+
+    Attributes:
+        robot: Robot name (``talos``) or profile path.
+        phases: Consecutive phases; the horizon is the sum of their durations.
+        targets: Frame targets (hands, head, torso...).
+        com_targets: Centre-of-mass targets.
+        com_bounds: Centre-of-mass bounds.
+        joint_targets: Joint angle targets (costs).
+        dt: Knot spacing of the transcription [s] (rounded per phase to whole knots).
+        dynamic: Model CoM dynamics with contact forces (needed for jumps and fast steps).
+        posture_weight: Cost weight pulling towards the standing posture [-].
+        smoothness_weight: Cost weight on accelerations [-].
+        name: A label for reports.
+        description: Free text (the sentence it came from).
+    """
+
+    robot: str = "talos"
+    phases: tuple[Phase, ...]
+    targets: tuple[FrameTarget, ...] = ()
+    com_targets: tuple[CoMTarget, ...] = ()
+    com_bounds: tuple[CoMBounds, ...] = (CoMBounds(),)
+    joint_targets: tuple[JointTarget, ...] = ()
+    dt: float = 0.075
+    dynamic: bool = False
+    posture_weight: float = 1e-2
+    smoothness_weight: float = 1e-3
+    name: str = ""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.phases:
+            raise TaskDefinitionError("task spec: at least one phase is needed")
+        if not (isinstance(self.dt, (int, float)) and 0.005 <= self.dt <= 0.5):
+            raise TaskDefinitionError(f"task spec: dt must be in [0.005, 0.5] s, got {self.dt!r}")
+        _nonneg("task spec", "posture_weight", self.posture_weight)
+        _nonneg("task spec", "smoothness_weight", self.smoothness_weight)
+        names = [t.name for t in (*self.targets, *self.com_targets, *self.com_bounds, *self.joint_targets)]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise TaskDefinitionError(f"task spec: names must be unique, repeated: {dup}")
+        horizon = self.horizon
+        for item in (*self.targets, *self.com_targets, *self.joint_targets, *self.com_bounds):
+            t = getattr(item, "time", None)
+            w = item.window
+            latest = max([x for x in (t, *(w or ())) if x is not None], default=0.0)
+            if latest > horizon + 1e-9:
+                raise TaskDefinitionError(
+                    f"{type(item).__name__} {item.name!r}: time {latest:g} s is after the end of the "
+                    f"motion ({horizon:g} s)"
+                )
+
+    @property
+    def horizon(self) -> float:
+        """Total duration [s]."""
+        return float(sum(p.duration for p in self.phases))
+
+    def phase_start_times(self) -> tuple[float, ...]:
+        """Start time of each phase [s]."""
+        out, t = [], 0.0
+        for p in self.phases:
+            out.append(t)
+            t += p.duration
+        return tuple(out)
+
+    def phase_at(self, t: float) -> int:
+        """Index of the phase active at time ``t`` [s] (the later one at a boundary)."""
+        starts = self.phase_start_times()
+        idx = 0
+        for i, s in enumerate(starts):
+            if t >= s - 1e-9:
+                idx = i
+        return idx
+
+    def contact_frames(self) -> tuple[str, ...]:
+        """Every frame that is in contact in some phase, in order of first appearance."""
+        seen: list[str] = []
+        for p in self.phases:
+            for c in p.contacts:
+                if c.frame not in seen:
+                    seen.append(c.frame)
+        return tuple(seen)

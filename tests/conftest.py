@@ -1,0 +1,42 @@
+"""Session-wide fixtures: robots are loaded once, random draws are seeded."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import settings
+
+settings.register_profile("ci", derandomize=True, max_examples=60, deadline=None)
+settings.load_profile("ci")
+
+ROBOT_NAMES = ("talos", "g1", "romeo", "icub")
+
+
+@pytest.fixture(scope="session")
+def talos():
+    """The default robot, loaded once."""
+    from robots import load_robot
+
+    return load_robot("talos")
+
+
+@pytest.fixture(scope="session")
+def g1():
+    """Unitree G1, loaded once."""
+    from robots import load_robot
+
+    return load_robot("g1")
+
+
+@pytest.fixture(scope="session", params=ROBOT_NAMES)
+def any_robot(request):
+    """Each built-in robot in turn, loaded once per session."""
+    from robots import load_robot
+
+    return load_robot(request.param)
+
+
+@pytest.fixture
+def rng():
+    """A seeded generator: every random draw in the suite is reproducible."""
+    return np.random.default_rng(20261121)

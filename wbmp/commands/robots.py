@@ -1,0 +1,55 @@
+"""``wbmp robots``: the robots wbmp knows, with sizes and named frames."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from wbmp.errors import ExitCode
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("robots", help="list the robots with nq/nv, mass, height and named frames",
+                       description="List the built-in robots (or one profile file) with their sizes and frames.")
+    p.add_argument("robot", nargs="*", help="robot names or profile files (default: all built-in robots)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(run=run)
+
+
+def describe(name: str) -> dict:
+    """A JSON-friendly summary of one robot."""
+    from robots import ROLES, load_robot
+
+    r = load_robot(name)
+    return {
+        "name": r.name,
+        "description": r.profile.description,
+        "nq": r.nq,
+        "nv": r.nv,
+        "actuated_joints": r.nv - 6,
+        "mass": round(r.mass, 3),
+        "height": round(r.height(), 3),
+        "frames": {role: r.profile.frame(role) for role in ROLES if r.profile.frame(role)},
+        "sole": {"x": [r.profile.sole.x_min, r.profile.sole.x_max], "y": [r.profile.sole.y_min, r.profile.sole.y_max]},
+        "reference_posture": r.profile.reference_posture,
+        "urdf": r.urdf_path,
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    from robots import available_robots
+
+    names = args.robot or available_robots()
+    rows = [describe(n) for n in names]
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return ExitCode.OK
+    for i, row in enumerate(rows):
+        default = "  (default)" if i == 0 and not args.robot else ""
+        print(f"{row['name']}{default}: {row['description']}")
+        print(f"  nq {row['nq']}, nv {row['nv']}, {row['actuated_joints']} actuated joints, "
+              f"mass {row['mass']:.1f} kg, height {row['height']:.2f} m, standing posture '{row['reference_posture']}'")
+        frames = ", ".join(f"{k}={v}" for k, v in row["frames"].items())
+        print(f"  frames: {frames}")
+        print(f"  sole [m]: x {row['sole']['x']}, y {row['sole']['y']}")
+    return ExitCode.OK
