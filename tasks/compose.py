@@ -1,0 +1,204 @@
+"""Composition: a list of actions becomes one :class:`~tasks.specs.TaskSpec`.
+
+Actions run one after another (``then``); an action with ``overlay=True`` runs at the same
+time as the action before it (``wave while squatting`` is ``[squat, wave(overlay=True)]``).
+An action and the overlays that follow it form a *group*:
+
+- every action of a group starts at the group's start and is stretched to the longest one
+  (a wave overlaid on a shorter squat makes the squat slower, never the wave faster);
+- two actions of a group must not drive the same body part (legs and CoM, torso, head, left
+  arm, right arm): ``squat`` + ``lean`` or ``wave right`` + ``reach right`` are refused;
+- at most one action of a group may change the contacts (only ``balance`` does now), and the
+  group's phases are that action's (or the first action's).
+
+The spec starts and ends with ``stand_time`` of standing still on both feet, and groups are
+separated by ``transition_time`` of double support: every action starts from and returns to
+the standing posture (squats end at the standing CoM height, hands are brought back to rest),
+so the transitions go through the standing posture. All times are on the knot grid of ``dt``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from robots.model import Robot
+from tasks.actions import Action
+from tasks.exceptions import TaskDefinitionError
+from tasks.primitives import (
+    DEFAULT_DT,
+    Fragment,
+    Stance,
+    compile_action,
+    get_primitive,
+    knot_time,
+    nominal_duration,
+    standing_geometry,
+)
+from tasks.specs import CoMBounds, Contact, Phase, TaskSpec
+
+STAND_TIME = 0.6  # [s] standing still at the start and at the end
+TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
+DT_MAX = 0.1  # [s] coarser grids cannot resolve a wave
+
+PART_WORDS = {"legs": "the legs", "com": "the centre of mass", "torso": "the torso", "head": "the head",
+              "left_arm": "the left arm", "right_arm": "the right arm"}
+
+
+def group_actions(actions: Sequence[Action]) -> list[list[tuple[int, Action]]]:
+    """Split actions into groups: an action followed by its overlays, with 0-based indices."""
+    groups: list[list[tuple[int, Action]]] = []
+    for i, a in enumerate(actions):
+        if a.overlay:
+            if not groups:
+                raise TaskDefinitionError(
+                    f"action 1 ({a.name}) is an overlay but nothing runs before it; "
+                    "an overlay runs alongside the previous action"
+                )
+            groups[-1].append((i, a))
+        else:
+            groups.append([(i, a)])
+    return groups
+
+
+def _as_action(a: Action | Mapping[str, Any], i: int) -> Action:
+    if isinstance(a, Action):
+        return a
+    if isinstance(a, Mapping):
+        return Action.from_dict(a)
+    raise TaskDefinitionError(f"action {i + 1}: expected an Action or an action object, got {a!r}")
+
+
+def _where(i: int, action: Action, n: int) -> str:
+    return f"action {i + 1} ({action.name}): " if n > 1 else ""
+
+
+def _check_parts(group: list[tuple[int, Action]]) -> None:
+    seen: dict[str, tuple[int, Action]] = {}
+    for i, a in group:
+        for part in sorted(get_primitive(a.name).parts(dict(a.params))):
+            if part in seen:
+                j, b = seen[part]
+                raise TaskDefinitionError(
+                    f"action {i + 1} ({a.name}) cannot run at the same time as action {j + 1} ({b.name}): "
+                    f"both drive {PART_WORDS.get(part, part)}; run them one after the other (\"then\")"
+                )
+            seen[part] = (i, a)
+
+
+def _stand_phase(name: str, duration: float, robot: Robot, stance: Stance) -> Phase:
+    contacts = tuple(Contact(frame=robot.frame(f"{s}_foot"), placement=stance.sole(s)) for s in ("left", "right"))
+    return Phase(name=name, duration=duration, contacts=contacts)
+
+
+def compile_actions(
+    actions: Sequence[Action | Mapping[str, Any]],
+    robot: Robot,
+    *,
+    dt: float = DEFAULT_DT,
+    stand_time: float = STAND_TIME,
+    transition_time: float = TRANSITION_TIME,
+    name: str = "",
+    description: str = "",
+) -> TaskSpec:
+    """Compile a sequence of actions (with overlays) into one TaskSpec for ``robot``.
+
+    Args:
+        actions: Actions in order (``Action`` or their dictionary form); ``overlay=True`` runs an
+            action alongside the previous one.
+        robot: The robot; every target is computed from its standing posture.
+        dt: Knot spacing [s] of the spec; every phase boundary and target time is a knot.
+        stand_time: Standing still at the start and at the end [s] (rounded up to knots).
+        transition_time: Standing between consecutive groups [s] (rounded up to knots; 0 = none).
+        name: Spec name (default: the action names joined by ``", then "``).
+        description: Free text (e.g. the sentence the actions came from).
+
+    Returns:
+        The TaskSpec, whose horizon is the sum of the stand, action and transition times.
+
+    Raises:
+        TaskDefinitionError: no action, an overlay first, two overlaid actions driving the same
+            body part, a parameter beyond the robot's limits, or a primitive not available yet;
+            the message names the action (``action 2 (squat): ...``) when there are several.
+    """
+    if not (isinstance(dt, (int, float)) and 0.005 <= dt <= DT_MAX):
+        raise TaskDefinitionError(f"dt must be in [0.005, {DT_MAX:g}] s, got {dt!r}")
+    for what, value in (("stand_time", stand_time), ("transition_time", transition_time)):
+        if not (isinstance(value, (int, float)) and 0.0 <= value <= 10.0):
+            raise TaskDefinitionError(f"{what} must be in [0, 10] s, got {value!r}")
+    actions = [_as_action(a, i) for i, a in enumerate(actions)]
+    if not actions:
+        raise TaskDefinitionError("no action to compile; give at least one action")
+    n = len(actions)
+    groups = group_actions(actions)
+
+    def knots(seconds: float) -> int:
+        return int(-(-round(seconds / dt, 6) // 1))  # ceil, robust to 0.6/0.075 = 7.999999
+
+    stance = Stance.standing(robot)
+    phases: list[Phase] = []
+    k = 0
+    if knots(stand_time):
+        phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
+        k += knots(stand_time)
+    fragments: list[Fragment] = []
+    for gi, group in enumerate(groups):
+        if gi > 0 and knots(transition_time):
+            phases.append(_stand_phase("transition", knot_time(knots(transition_time), dt), robot, stance))
+            k += knots(transition_time)
+        _check_parts(group)
+        durations = []
+        for i, a in group:
+            try:
+                durations.append(nominal_duration(a, robot))
+            except TaskDefinitionError as e:
+                raise type(e)(f"{_where(i, a, n)}{e}") from None
+        length = max(durations)
+        group_fragments = []
+        for i, a in group:
+            try:
+                group_fragments.append(compile_action(a, robot, t0=knot_time(k, dt), dt=dt, duration=length,
+                                                      stance=stance, label=f"{i + 1} {a.name}"))
+            except TaskDefinitionError as e:
+                raise type(e)(f"{_where(i, a, n)}{e}") from None
+        movers = [f for f in group_fragments if f.changes_contacts]
+        if len(movers) > 1:
+            a, b = movers[0].action, movers[1].action
+            raise TaskDefinitionError(f"{a.name} and {b.name} both change the feet's contacts; run them one after the other")
+        owner = movers[0] if movers else group_fragments[0]
+        phases.extend(owner.phases)
+        k += round(owner.duration / dt)
+        stance = owner.end_stance
+        fragments.extend(group_fragments)
+    if knots(stand_time):
+        phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
+    margin = standing_geometry(robot).support_margin
+    bounds = (CoMBounds(name="balance", support_polygon=True, margin=margin),)
+    return TaskSpec(
+        robot=robot.name,
+        phases=tuple(phases),
+        targets=tuple(t for f in fragments for t in f.targets),
+        com_targets=tuple(t for f in fragments for t in f.com_targets),
+        com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
+        joint_targets=tuple(t for f in fragments for t in f.joint_targets),
+        dt=dt,
+        dynamic=any(f.dynamic for f in fragments),
+        name=name or describe_actions(actions),
+        description=description,
+    )
+
+
+def describe_actions(actions: Sequence[Action]) -> str:
+    """A short text of an action list: ``"wave, then squat while wave"``."""
+    out = ""
+    for i, a in enumerate(actions):
+        if i == 0:
+            out = a.name
+        elif a.overlay:
+            out += f" while {a.name}"
+        else:
+            out += f", then {a.name}"
+    return out
+
+
+__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "group_actions"]
