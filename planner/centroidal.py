@@ -1,0 +1,562 @@
+r"""Centroidal dynamics with contact forces, as CasADi expressions the trajectory NLP adds per knot.
+
+A kinematic plan keeps the centre of mass over the support polygon. A dynamic plan (walking
+faster than quasi-statically, jumping) instead lets the contact forces carry the body: at every
+knot :math:`k` with a known centre of mass :math:`c_k` (the symbolic CoM of the configuration,
+or a CoM state)
+
+.. math::
+
+    m\,(\ddot c_k - g) = \sum_i f_{k,i}, \qquad
+    \ddot c_k \approx \frac{c_{k+1} - 2 c_k + c_{k-1}}{\Delta t^2},
+
+where the :math:`f_{k,i}` are 3D forces in the world frame at the corners :math:`p_i` of each
+active sole (one point for a point contact). Each corner force lies in a friction pyramid of the
+contact frame (normal :math:`n`, tangents :math:`t_1, t_2`):
+
+.. math::
+
+    n^\top f \ge 0, \qquad |t_j^\top f| \le \mu' \, n^\top f, \quad
+    \mu' = \mu / \sqrt 2 \text{ (inner pyramid) or } \mu,
+
+so the resultant of one foot's corner forces is a non-negative combination of points of the
+sole: the centre of pressure stays inside the sole rectangle without a separate constraint.
+An inactive contact has no force variables at all (forces are zero in flight). The rate of
+angular momentum about the CoM that these forces imply,
+
+.. math::
+
+    \dot L_k = \sum_i (p_i - c_k) \times f_{k,i},
+
+is penalized in the cost (the kinematic model does not track the whole-body angular momentum;
+keeping its rate small keeps the forces consistent with a body that does not spin).
+
+Scaling: the decision variables are the forces divided by the body weight :math:`m\,|g|`
+(dimensionless, ~1 in total when standing) and the dynamics residual is divided by
+:math:`m\,|g|` too, which keeps IPOPT's Jacobian entries near one.
+
+Functions here work on CasADi ``SX``/``MX`` (and numpy where stated); :func:`build_centroidal`
+assembles them over a knot grid into a :class:`CentroidalTerms` record that the NLP builder
+concatenates to its own variables, constraints and cost. Numeric checks on a finished plan
+(:func:`friction_violation`, :func:`center_of_pressure`, :func:`cop_violation`) use numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from planner.exceptions import PlannerError
+from robots.model import Robot
+from tasks.specs import Contact, TaskSpec
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2], world frame (z up)
+
+
+# ---------------------------------------------------------------------------------------------
+# Contact geometry
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ContactGeometry:
+    """A contact bound to a robot: where its force points are and how its cone is oriented.
+
+    Attributes:
+        frame: Pinocchio frame name of the contact (the key of ``Plan.forces``).
+        rotation: Contact frame orientation in the world (3, 3); column 2 is the normal.
+        position: Contact frame origin in the world (3,) [m].
+        points_in_world: Force application points (n, 3) [m]: the sole corners (n = 4) of a
+            foot, the frame origin (n = 1) of a point contact.
+        points_in_frame: The same points in the contact frame (n, 3) [m].
+        friction_coefficient: Coulomb friction coefficient [-].
+    """
+
+    frame: str
+    rotation: np.ndarray
+    position: np.ndarray
+    points_in_world: np.ndarray
+    points_in_frame: np.ndarray
+    friction_coefficient: float
+
+    @property
+    def n_points(self) -> int:
+        """Number of force points (4 for a sole, 1 for a point contact)."""
+        return int(self.points_in_world.shape[0])
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Contact normal in the world (3,)."""
+        return self.rotation[:, 2]
+
+
+def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0) -> ContactGeometry:
+    """Bind a spec :class:`~tasks.specs.Contact` to ``robot``: frame name, corners, friction.
+
+    A foot frame (the robot's ``left_foot``/``right_foot``) gets the four corners of the profile's
+    sole rectangle (mirrored for the right foot), moved inward by ``cop_margin``; any other frame
+    is a point contact at its origin.
+
+    Args:
+        contact: The spec contact (frame by name or role, placement, optional friction).
+        robot: The robot it applies to.
+        cop_margin: Inward margin of the sole rectangle that the centre of pressure keeps [m].
+
+    Returns:
+        The bound geometry.
+
+    Raises:
+        PlannerError: ``cop_margin`` leaves no sole area.
+        robots.exceptions.FrameNotFound: the frame does not exist on the robot.
+    """
+    fid = robot.frame_id(contact.frame)
+    frame = robot.model.frames[fid].name
+    rotation = pin.rpy.rpyToMatrix(*contact.placement.rpy)
+    position = np.asarray(contact.placement.position, dtype=float)
+    side = robot.foot_side(frame)
+    if side is None:
+        local = np.zeros((1, 3))
+    else:
+        sole = robot.profile.sole
+        if 2 * cop_margin >= min(sole.x_max - sole.x_min, sole.y_max - sole.y_min):
+            raise PlannerError(
+                f"CoP margin {cop_margin:g} m leaves no area of {robot.name}'s "
+                f"{sole.x_max - sole.x_min:.3f} x {sole.y_max - sole.y_min:.3f} m sole"
+            )
+        corners = np.array(sole.corners(side), dtype=float)
+        centre = corners.mean(axis=0)
+        shrunk = centre + (corners - centre) * (
+            1.0 - 2.0 * cop_margin / np.array([sole.x_max - sole.x_min, sole.y_max - sole.y_min])
+        )
+        local = np.column_stack([shrunk, np.zeros(4)])
+    mu = contact.friction_coefficient or robot.profile.friction_coefficient
+    return ContactGeometry(
+        frame=frame,
+        rotation=rotation,
+        position=position,
+        points_in_world=local @ rotation.T + position,
+        points_in_frame=local,
+        friction_coefficient=float(mu),
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Per-knot expressions (CasADi; numpy inputs work too where noted)
+# ---------------------------------------------------------------------------------------------
+
+
+def com_acceleration(c_prev: Any, c: Any, c_next: Any, dt: float) -> Any:
+    """Central finite-difference CoM acceleration :math:`(c_{k+1} - 2c_k + c_{k-1})/\\Delta t^2`.
+
+    Args:
+        c_prev, c, c_next: CoM at knots k-1, k, k+1 (3,) [m] (CasADi or numpy).
+        dt: Knot spacing [s].
+
+    Returns:
+        The acceleration (3,) [m/s^2], same type as the inputs.
+    """
+    return (c_next - 2 * c + c_prev) / (dt * dt)
+
+
+def com_dynamics_residual(mass: float, com_acc: Any, total_force: Any, gravity: np.ndarray = GRAVITY) -> Any:
+    """Newton's law for the centre of mass: :math:`m(\\ddot c - g) - \\sum f` (zero when met) [N].
+
+    Args:
+        mass: Total mass [kg].
+        com_acc: CoM acceleration (3,) [m/s^2].
+        total_force: Sum of the contact forces (3,) in the world [N].
+        gravity: Gravity (3,) [m/s^2].
+
+    Returns:
+        The residual (3,) [N].
+    """
+    return mass * (com_acc - gravity) - total_force
+
+
+def friction_pyramid(force: Any, rotation: np.ndarray, mu: float, *, inner: bool = True) -> ca.SX | ca.MX | ca.DM:
+    """Friction-pyramid rows of one force; every entry must be >= 0 [N].
+
+    Rows: :math:`n^\\top f`, :math:`\\mu' n^\\top f - t_1^\\top f`, :math:`\\mu' n^\\top f + t_1^\\top f`,
+    :math:`\\mu' n^\\top f - t_2^\\top f`, :math:`\\mu' n^\\top f + t_2^\\top f`, with
+    :math:`\\mu' = \\mu/\\sqrt 2` for the inner pyramid (inside the Coulomb cone) and :math:`\\mu`
+    for the outer one.
+
+    Args:
+        force: Force (3,) in the world [N] (CasADi or numpy).
+        rotation: Contact frame in the world (3, 3); columns t1, t2, n.
+        mu: Friction coefficient [-].
+        inner: Use the inner pyramid (conservative).
+
+    Returns:
+        The 5 rows (CasADi column).
+    """
+    mu_p = mu / math.sqrt(2.0) if inner else mu
+    local = ca.mtimes(ca.DM(rotation.T), force)
+    fn = local[2]
+    return ca.vertcat(fn, mu_p * fn - local[0], mu_p * fn + local[0], mu_p * fn - local[1], mu_p * fn + local[1])
+
+
+def angular_momentum_rate(com: Any, points: np.ndarray, forces: Sequence[Any]) -> Any:
+    """Rate of angular momentum about the CoM implied by point forces, :math:`\\sum (p_i - c) \\times f_i`.
+
+    Args:
+        com: CoM (3,) [m] (CasADi).
+        points: Application points (n, 3) in the world [m].
+        forces: n forces (3,) in the world [N] (CasADi).
+
+    Returns:
+        :math:`\\dot L` (3,) [N m].
+    """
+    total = ca.DM.zeros(3)
+    for p, f in zip(points, forces, strict=True):
+        total = total + ca.cross(ca.DM(p) - com, f)
+    return total
+
+
+# ---------------------------------------------------------------------------------------------
+# Assembly over a knot grid
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CentroidalSettings:
+    """Weights and options of the centroidal terms.
+
+    Attributes:
+        force_weight: Cost on the squared weight-normalized corner forces (spreads the load over
+            the corners, centres the CoP) [-].
+        angular_momentum_weight: Cost on :math:`|\\dot L / (m g)|^2` [1/m^2].
+        inner_pyramid: Use the inner friction pyramid (:math:`\\mu/\\sqrt 2`).
+        cop_margin: Inward margin of the sole rectangle for the CoP [m].
+        max_force: Upper bound of one corner's normal force, in body weights [-].
+    """
+
+    force_weight: float = 1e-2
+    angular_momentum_weight: float = 1.0
+    inner_pyramid: bool = True
+    cop_margin: float = 0.005
+    max_force: float = 10.0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ConstraintBlock:
+    """One named group of constraint rows ``lower <= expr <= upper``.
+
+    Attributes:
+        name: Group name for reports ("CoM dynamics", "friction left_sole_link").
+        knot: Knot index the rows belong to.
+        expr: CasADi column.
+        lower, upper: Bounds (same length as ``expr``).
+    """
+
+    name: str
+    knot: int
+    expr: Any
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CentroidalTerms:
+    """Everything the NLP needs to add for CoM dynamics with contact forces.
+
+    The force variables are normalized by the body weight: ``f = weight * u``.
+
+    Attributes:
+        variables: All force variables ``u`` (column, length n).
+        lower, upper, initial: Bounds and initial guess of ``variables`` (n,).
+        constraints: Constraint groups (dynamics, friction).
+        cost: Scalar cost (force regularization + angular momentum rate).
+        weight: Body weight :math:`m|g|` [N] (to turn ``u`` into newtons).
+        contacts: Per knot, the active contacts' geometry.
+        force_index: Per knot, frame -> indices into ``variables`` of its (n_points, 3) forces.
+        frames: Every contact frame, in order of first activity.
+        dynamics_knots: Knots that carry the dynamics equation.
+    """
+
+    variables: Any
+    lower: np.ndarray
+    upper: np.ndarray
+    initial: np.ndarray
+    constraints: tuple[ConstraintBlock, ...]
+    cost: Any
+    weight: float
+    contacts: tuple[tuple[ContactGeometry, ...], ...]
+    force_index: tuple[Mapping[str, np.ndarray], ...]
+    frames: tuple[str, ...]
+    dynamics_knots: tuple[int, ...]
+
+    @property
+    def n_variables(self) -> int:
+        """Number of force variables."""
+        return int(self.lower.shape[0])
+
+    def g(self) -> tuple[Any, np.ndarray, np.ndarray]:
+        """All constraint rows stacked: (expr, lower, upper)."""
+        if not self.constraints:
+            return ca.DM.zeros(0, 1), np.zeros(0), np.zeros(0)
+        return (
+            ca.vertcat(*[b.expr for b in self.constraints]),
+            np.concatenate([b.lower for b in self.constraints]),
+            np.concatenate([b.upper for b in self.constraints]),
+        )
+
+    def corner_forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
+        """Corner forces per frame from a solution ``values`` of :attr:`variables` [N].
+
+        Returns:
+            frame -> (T, n_points, 3) world forces, zero at knots where the contact is inactive
+            (and at the first and last knot, which carry no dynamics).
+        """
+        values = np.asarray(values, dtype=float).reshape(-1)
+        T = len(self.force_index)
+        out: dict[str, np.ndarray] = {}
+        for k, index in enumerate(self.force_index):
+            for frame, idx in index.items():
+                if frame not in out:
+                    n = idx.shape[0]
+                    out[frame] = np.zeros((T, n, 3))
+                out[frame][k] = values[idx] * self.weight
+        for frame in self.frames:
+            out.setdefault(frame, np.zeros((T, 1, 3)))
+        return out
+
+    def forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
+        """Total force per contact frame (T, 3) in the world [N] (the sum over its corners)."""
+        return {f: c.sum(axis=1) for f, c in self.corner_forces(values).items()}
+
+
+def contacts_per_knot(spec: TaskSpec, robot: Robot, t: Sequence[float], *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
+    """Active contacts of ``spec`` at each knot time (the later phase at a phase boundary).
+
+    Args:
+        spec: The task.
+        robot: The robot.
+        t: Knot times [s].
+        cop_margin: Inward sole margin [m].
+
+    Returns:
+        One tuple of bound contacts per knot.
+    """
+    bound = [tuple(contact_geometry(c, robot, cop_margin=cop_margin) for c in p.contacts) for p in spec.phases]
+    return tuple(bound[spec.phase_at(float(tk))] for tk in t)
+
+
+def build_centroidal(
+    com: Sequence[Any],
+    dt: float,
+    contacts: Sequence[Sequence[ContactGeometry]],
+    mass: float,
+    *,
+    settings: CentroidalSettings = CentroidalSettings(),
+    gravity: np.ndarray = GRAVITY,
+    symbol: type = ca.SX,
+) -> CentroidalTerms:
+    """Force variables, CoM dynamics, friction pyramids and the angular-momentum cost on a grid.
+
+    The dynamics hold at the interior knots ``1 .. T-2`` (a central difference needs both
+    neighbours); force variables exist there for every active contact point. The first and the
+    last knot carry no forces: the NLP fixes or bounds their velocities itself.
+
+    Args:
+        com: CoM per knot (T entries, each (3,) CasADi) [m].
+        dt: Knot spacing [s].
+        contacts: Active contacts per knot (T entries); empty = flight.
+        mass: Total mass [kg].
+        settings: Weights and options.
+        gravity: Gravity in the world [m/s^2].
+        symbol: ``casadi.SX`` or ``casadi.MX`` for the new variables.
+
+    Returns:
+        The terms to add to the NLP.
+
+    Raises:
+        PlannerError: ``com`` and ``contacts`` differ in length, or fewer than 3 knots.
+    """
+    T = len(com)
+    if len(contacts) != T:
+        raise PlannerError(f"centroidal terms: {T} CoM knots but {len(contacts)} contact sets")
+    if T < 3:
+        raise PlannerError(f"centroidal terms: need at least 3 knots for CoM accelerations, got {T}")
+    weight = float(mass * np.linalg.norm(gravity))
+    g_unit = np.asarray(gravity, dtype=float) / np.linalg.norm(gravity)
+    syms: list[Any] = []
+    lower: list[np.ndarray] = []
+    upper: list[np.ndarray] = []
+    initial: list[np.ndarray] = []
+    blocks: list[ConstraintBlock] = []
+    index: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
+    frames: list[str] = []
+    cost = 0
+    n = 0
+    dyn_knots = []
+    for k in range(1, T - 1):
+        active = contacts[k]
+        n_points = sum(c.n_points for c in active)
+        total = ca.DM.zeros(3)
+        points, forces = [], []
+        for c in active:
+            if c.frame not in frames:
+                frames.append(c.frame)
+            u = symbol.sym(f"u_{c.frame}_{k}", 3 * c.n_points)
+            syms.append(u)
+            index[k][c.frame] = np.arange(n, n + 3 * c.n_points).reshape(c.n_points, 3)
+            n += 3 * c.n_points
+            # bounds in the world: the pyramid rows do the work; keep boxes generous but finite
+            lo = np.tile([-settings.max_force, -settings.max_force, -settings.max_force], c.n_points)
+            hi = np.tile([settings.max_force, settings.max_force, settings.max_force], c.n_points)
+            if np.allclose(c.normal, [0.0, 0.0, 1.0]):
+                lo[2::3] = 0.0  # unilateral on flat ground as a bound (cheaper than a row)
+            lower.append(lo)
+            upper.append(hi)
+            guess = np.zeros((c.n_points, 3))
+            guess[:] = c.normal / max(n_points, 1)
+            initial.append(guess.reshape(-1))
+            rows = []
+            for i in range(c.n_points):
+                f_i = u[3 * i : 3 * i + 3]
+                total = total + f_i
+                points.append(c.points_in_world[i])
+                forces.append(f_i)
+                rows.append(friction_pyramid(f_i, c.rotation, c.friction_coefficient, inner=settings.inner_pyramid))
+            expr = ca.vertcat(*rows)
+            blocks.append(ConstraintBlock(
+                name=f"friction {c.frame}", knot=k, expr=expr,
+                lower=np.zeros(expr.shape[0]), upper=np.full(expr.shape[0], np.inf),
+            ))
+            cost = cost + settings.force_weight * dt * ca.sumsqr(u)
+        acc = com_acceleration(com[k - 1], com[k], com[k + 1], dt)
+        # normalized Newton: (c'' - g)/|g| - sum u = 0
+        residual = (acc / float(np.linalg.norm(gravity)) - ca.DM(g_unit)) - total
+        blocks.append(ConstraintBlock(name="CoM dynamics", knot=k, expr=residual, lower=np.zeros(3), upper=np.zeros(3)))
+        dyn_knots.append(k)
+        if forces and settings.angular_momentum_weight > 0.0:
+            ldot = angular_momentum_rate(com[k], np.asarray(points), forces)  # in body weights x m
+            cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
+    variables = ca.vertcat(*syms) if syms else symbol(0, 1)
+    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+    return CentroidalTerms(
+        variables=variables,
+        lower=cat(lower),
+        upper=cat(upper),
+        initial=cat(initial),
+        constraints=tuple(blocks),
+        cost=cost,
+        weight=weight,
+        contacts=tuple(tuple(c) for c in contacts),
+        force_index=tuple(index),
+        frames=tuple(frames),
+        dynamics_knots=tuple(dyn_knots),
+    )
+
+
+def build_centroidal_for_spec(
+    spec: TaskSpec,
+    robot: Robot,
+    t: Sequence[float],
+    com: Sequence[Any],
+    *,
+    settings: CentroidalSettings = CentroidalSettings(),
+    symbol: type = ca.SX,
+) -> CentroidalTerms:
+    """:func:`build_centroidal` for a spec on a uniform knot grid ``t`` (the trajopt entry point).
+
+    Args:
+        spec: The task (its phases give the contact sets).
+        robot: The robot (mass, soles, friction).
+        t: Knot times (T,) [s], uniformly spaced.
+        com: Symbolic CoM per knot (T entries) [m].
+        settings: Weights and options.
+        symbol: ``casadi.SX`` or ``casadi.MX``.
+
+    Returns:
+        The terms to add to the NLP.
+
+    Raises:
+        PlannerError: the grid is not uniform or too short.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        raise PlannerError(f"dynamic plan: need at least 3 knots, got {t.size}")
+    steps = np.diff(t)
+    if np.ptp(steps) > 1e-9 * max(1.0, float(t[-1])):
+        raise PlannerError("dynamic plan: the knot grid must be uniform")
+    contacts = contacts_per_knot(spec, robot, t, cop_margin=settings.cop_margin)
+    return build_centroidal(com, float(steps[0]), contacts, robot.mass, settings=settings, symbol=symbol)
+
+
+# ---------------------------------------------------------------------------------------------
+# Numeric checks on a finished plan
+# ---------------------------------------------------------------------------------------------
+
+
+def friction_violation(forces: np.ndarray, rotation: np.ndarray, mu: float) -> np.ndarray:
+    """How far each force is outside the Coulomb cone and the unilateral half-space [N].
+
+    Args:
+        forces: (..., 3) world forces [N].
+        rotation: Contact frame in the world (3, 3).
+        mu: Friction coefficient [-].
+
+    Returns:
+        (...,) violation >= 0: ``max(0, |f_t| - mu f_n, -f_n)``.
+    """
+    local = np.asarray(forces, dtype=float) @ np.asarray(rotation)
+    fn = local[..., 2]
+    ft = np.linalg.norm(local[..., :2], axis=-1)
+    return np.maximum(0.0, np.maximum(ft - mu * fn, -fn))
+
+
+def center_of_pressure(points_in_frame: np.ndarray, forces: np.ndarray, rotation: np.ndarray, *, min_normal: float = 1e-6) -> np.ndarray:
+    """Centre of pressure of corner forces in the contact frame (x, y) [m]; NaN when unloaded.
+
+    Args:
+        points_in_frame: Corner points (n, 3) in the contact frame [m].
+        forces: (T, n, 3) world forces [N].
+        rotation: Contact frame in the world (3, 3).
+        min_normal: Total normal force below which the CoP is undefined [N].
+
+    Returns:
+        (T, 2) CoP in the contact frame.
+    """
+    fn = np.asarray(forces, dtype=float) @ np.asarray(rotation)[:, 2]  # (T, n)
+    total = fn.sum(axis=1)
+    cop = np.full((fn.shape[0], 2), np.nan)
+    ok = total > min_normal
+    cop[ok] = (fn[ok] @ points_in_frame[:, :2]) / total[ok, None]
+    return cop
+
+
+def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[float, float]) -> np.ndarray:
+    """Distance of each CoP (T, 2) outside the rectangle ``x_range`` x ``y_range`` [m] (0 inside, NaN ignored)."""
+    cop = np.asarray(cop, dtype=float)
+    dx = np.maximum(0.0, np.maximum(x_range[0] - cop[:, 0], cop[:, 0] - x_range[1]))
+    dy = np.maximum(0.0, np.maximum(y_range[0] - cop[:, 1], cop[:, 1] - y_range[1]))
+    out = np.hypot(dx, dy)
+    return np.where(np.isnan(out), 0.0, out)
+
+
+__all__ = [
+    "GRAVITY",
+    "CentroidalSettings",
+    "CentroidalTerms",
+    "ConstraintBlock",
+    "ContactGeometry",
+    "angular_momentum_rate",
+    "build_centroidal",
+    "build_centroidal_for_spec",
+    "center_of_pressure",
+    "com_acceleration",
+    "com_dynamics_residual",
+    "contact_geometry",
+    "contacts_per_knot",
+    "cop_violation",
+    "friction_pyramid",
+    "friction_violation",
+]

@@ -1,0 +1,230 @@
+"""CoM dynamics with contact forces: CasADi expressions against numpy, and small solves."""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from planner.centroidal import (
+    GRAVITY,
+    CentroidalSettings,
+    angular_momentum_rate,
+    build_centroidal,
+    build_centroidal_for_spec,
+    center_of_pressure,
+    com_acceleration,
+    com_dynamics_residual,
+    contact_geometry,
+    contacts_per_knot,
+    cop_violation,
+    friction_pyramid,
+    friction_violation,
+)
+from planner.exceptions import PlannerError
+from tasks.specs import Contact, Phase, Pose, TaskSpec
+from tests.tolerances import SYMBOLIC_ATOL
+
+
+def _feet(robot, *, yaw: float = 0.0) -> tuple[Contact, Contact]:
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, robot.q_standing)
+    out = []
+    for side in ("left", "right"):
+        p = data.oMf[robot.frame_id(f"{side}_foot")].translation
+        out.append(Contact(frame=f"{side}_foot", placement=Pose(position=tuple(float(x) for x in p), rpy=(0.0, 0.0, yaw))))
+    return tuple(out)
+
+
+def _rot(rng) -> np.ndarray:
+    return pin.rpy.rpyToMatrix(*rng.uniform(-0.6, 0.6, 3))
+
+
+def test_sole_corners_match_the_robot(talos, g1):
+    """Margin 0: the force points are the robot's sole corners at the standing posture."""
+    for robot in (talos, g1):
+        for side, contact in zip(("left", "right"), _feet(robot), strict=True):
+            geo = contact_geometry(contact, robot)
+            assert geo.frame == robot.frame(f"{side}_foot")
+            assert geo.n_points == 4
+            np.testing.assert_allclose(geo.points_in_world, robot.sole_corners_in_world(robot.q_standing, side), atol=1e-9)
+            assert geo.friction_coefficient == robot.profile.friction_coefficient
+
+
+def test_cop_margin_shrinks_the_sole(talos):
+    """A 1 cm margin moves every corner 1 cm inward in x and y; an oversized margin is refused."""
+    contact = _feet(talos)[0]
+    full = contact_geometry(contact, talos).points_in_frame
+    shrunk = contact_geometry(contact, talos, cop_margin=0.01).points_in_frame
+    np.testing.assert_allclose(np.abs(full[:, :2] - shrunk[:, :2]), 0.01, atol=1e-12)
+    with pytest.raises(PlannerError, match="leaves no area"):
+        contact_geometry(contact, talos, cop_margin=0.07)
+
+
+def test_point_contact_and_friction_override(talos):
+    """A non-foot frame is a single point at its origin; the contact's own mu wins over the profile's."""
+    c = Contact(frame="right_hand", placement=Pose(position=(0.3, -0.3, 0.8)), friction_coefficient=0.3)
+    geo = contact_geometry(c, talos)
+    assert geo.n_points == 1
+    np.testing.assert_allclose(geo.points_in_world, [[0.3, -0.3, 0.8]])
+    assert geo.friction_coefficient == 0.3
+
+
+@pytest.mark.parametrize("inner", [True, False])
+def test_friction_pyramid_against_numpy(rng, inner):
+    """The CasADi rows equal the numpy formula; all rows >= 0 exactly inside the pyramid."""
+    f = ca.SX.sym("f", 3)
+    for _ in range(50):
+        R = _rot(rng)
+        mu = float(rng.uniform(0.2, 1.2))
+        fun = ca.Function("pyr", [f], [friction_pyramid(f, R, mu, inner=inner)])
+        force = rng.normal(size=3) * 100 + R[:, 2] * 150
+        got = np.array(fun(force)).ravel()
+        local = R.T @ force
+        mp = mu / math.sqrt(2) if inner else mu
+        ref = np.array([local[2], mp * local[2] - local[0], mp * local[2] + local[0], mp * local[2] - local[1], mp * local[2] + local[1]])
+        np.testing.assert_allclose(got, ref, atol=SYMBOLIC_ATOL)
+        inside = local[2] >= 0 and abs(local[0]) <= mp * local[2] and abs(local[1]) <= mp * local[2]
+        assert inside == bool(np.all(got >= 0))
+        if inner and inside:
+            assert friction_violation(force, R, mu) == 0.0  # the inner pyramid is inside the cone
+
+
+def test_angular_momentum_rate_against_numpy(rng):
+    """sum (p_i - c) x f_i, symbolic vs numpy, and its Jacobian w.r.t. the CoM vs the analytic one."""
+    c = ca.SX.sym("c", 3)
+    fs = [ca.SX.sym(f"f{i}", 3) for i in range(4)]
+    points = rng.normal(size=(4, 3))
+    expr = angular_momentum_rate(c, points, fs)
+    fun = ca.Function("ldot", [c, *fs], [expr, ca.jacobian(expr, c)])
+    for _ in range(20):
+        cv = rng.normal(size=3)
+        fv = rng.normal(size=(4, 3)) * 50
+        val, jac = fun(cv, *fv)
+        ref = sum(np.cross(p - cv, f) for p, f in zip(points, fv, strict=True))
+        np.testing.assert_allclose(np.array(val).ravel(), ref, atol=SYMBOLIC_ATOL)
+        total = fv.sum(axis=0)  # d/dc of -c x F = F x dc -> skew(F)
+        skew = np.array([[0, -total[2], total[1]], [total[2], 0, -total[0]], [-total[1], total[0], 0]])
+        np.testing.assert_allclose(np.array(jac), skew, atol=SYMBOLIC_ATOL)
+
+
+def test_com_acceleration_is_exact_on_parabolas(rng):
+    """The central difference is exact for constant acceleration; the residual is m(c'' - g) - F."""
+    a = rng.normal(size=3)
+    dt = 0.05
+    c = [0.5 * a * (k * dt) ** 2 + 0.3 * k * dt for k in range(3)]
+    np.testing.assert_allclose(com_acceleration(*c, dt), a, atol=1e-9)
+    m = 90.0
+    np.testing.assert_allclose(com_dynamics_residual(m, a, m * (a - GRAVITY)), 0.0, atol=1e-9)
+    np.testing.assert_allclose(com_dynamics_residual(m, GRAVITY, np.zeros(3)), 0.0, atol=1e-12)  # free fall
+
+
+def _solve_forces(terms, com_values, com_syms):
+    """Minimize the centroidal cost over the forces for a fixed numeric CoM trajectory."""
+    g, lbg, ubg = terms.g()
+    subs = ca.vertcat(*com_syms)
+    fix = ca.vertcat(*[ca.DM(c) for c in com_values])
+    g = ca.substitute(g, subs, fix)
+    cost = ca.substitute(ca.SX(terms.cost), subs, fix)
+    solver = ca.nlpsol("s", "ipopt", {"x": terms.variables, "f": cost, "g": g},
+                       {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-10}})
+    sol = solver(x0=terms.initial, lbx=terms.lower, ubx=terms.upper, lbg=lbg, ubg=ubg)
+    return solver.stats(), np.array(sol["x"]).ravel()
+
+
+def test_standing_forces_carry_the_weight_and_put_the_cop_under_the_com(talos):
+    """Static CoM over the feet: forces sum to m g, friction holds, and the net CoP is the CoM projection."""
+    feet = tuple(contact_geometry(c, talos) for c in _feet(talos))
+    T = 5
+    com_syms = [ca.SX.sym(f"c{k}", 3) for k in range(T)]
+    c0 = np.array([0.03, 0.02, 0.87])
+    terms = build_centroidal(com_syms, 0.1, [feet] * T, talos.mass,
+                             settings=CentroidalSettings(angular_momentum_weight=100.0, force_weight=1e-6, cop_margin=0.0))
+    assert terms.n_variables == 3 * 2 * 4 * 3  # 3 interior knots x 2 feet x 4 corners x 3D
+    assert terms.dynamics_knots == (1, 2, 3)
+    stats, x = _solve_forces(terms, [c0] * T, com_syms)
+    assert stats["success"]
+    forces = terms.forces(x)
+    corners = terms.corner_forces(x)
+    total = forces[feet[0].frame] + forces[feet[1].frame]
+    np.testing.assert_allclose(total[1:-1], np.tile(-talos.mass * GRAVITY, (3, 1)), rtol=1e-7, atol=1e-6)
+    np.testing.assert_allclose(total[[0, -1]], 0.0)  # no dynamics, no forces at the end knots
+    points = np.vstack([f.points_in_world for f in feet])
+    stacked = np.concatenate([corners[f.frame] for f in feet], axis=1)  # (T, 8, 3)
+    fz = stacked[1:-1, :, 2]
+    cop = fz @ points[:, :2] / fz.sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(cop, np.tile(c0[:2], (3, 1)), atol=1e-5)
+    for f in feet:
+        assert friction_violation(corners[f.frame][1:-1], f.rotation, f.friction_coefficient).max() <= 1e-6
+        assert corners[f.frame][1:-1, :, 2].min() >= -1e-8
+
+
+def test_com_outside_the_support_needs_angular_momentum(talos):
+    """With the CoM 0.3 m ahead of the toes, the forces cannot have a zero moment about it."""
+    feet = tuple(contact_geometry(c, talos) for c in _feet(talos))
+    T = 3
+    com_syms = [ca.SX.sym(f"c{k}", 3) for k in range(T)]
+    terms = build_centroidal(com_syms, 0.1, [feet] * T, talos.mass, settings=CentroidalSettings(force_weight=0.0))
+    stats, x = _solve_forces(terms, [np.array([0.4, 0.0, 0.87])] * T, com_syms)
+    assert stats["success"]
+    corners = terms.corner_forces(x)
+    pts = np.vstack([f.points_in_world for f in feet])
+    fk = np.concatenate([corners[f.frame][1] for f in feet])
+    ldot = sum(np.cross(p - [0.4, 0.0, 0.87], f) for p, f in zip(pts, fk, strict=True))
+    # best case: all weight at the toes, 0.3 m short of the CoM -> |L'| >= m g (0.4 - 0.1)
+    assert abs(ldot[1]) >= talos.mass * 9.81 * 0.3 * (1 - 1e-6)
+
+
+def test_flight_has_no_force_and_needs_a_ballistic_com(talos):
+    """Flight knots get no variables; their dynamics rows vanish only for free fall."""
+    feet = tuple(contact_geometry(c, talos) for c in _feet(talos))
+    T, dt = 6, 0.05
+    sets = [feet, feet, (), (), feet, feet]
+    com_syms = [ca.SX.sym(f"c{k}", 3) for k in range(T)]
+    terms = build_centroidal(com_syms, dt, sets, talos.mass)
+    assert set(terms.force_index[2]) == set() and set(terms.force_index[3]) == set()
+    assert set(terms.force_index[1]) == {f.frame for f in feet}
+    dyn = [b for b in terms.constraints if b.name == "CoM dynamics" and b.knot in (2, 3)]
+    fun = ca.Function("dyn", com_syms, [ca.vertcat(*[b.expr for b in dyn])])
+    ballistic = [np.array([0.0, 0.0, 0.9 + 1.0 * k * dt]) + 0.5 * GRAVITY * (k * dt) ** 2 for k in range(T)]
+    np.testing.assert_allclose(np.array(fun(*ballistic)).ravel(), 0.0, atol=1e-9)
+    hovering = [np.array([0.0, 0.0, 0.9])] * T
+    np.testing.assert_allclose(np.array(fun(*hovering)).ravel(), [0, 0, 1, 0, 0, 1], atol=1e-9)  # 1 g short
+
+
+def test_spec_grid_follows_the_phases(talos):
+    """build_centroidal_for_spec: contact sets per knot from the phases, the later phase at a boundary."""
+    feet = _feet(talos)
+    spec = TaskSpec(robot="talos", phases=(
+        Phase(name="push", duration=0.2, contacts=feet),
+        Phase(name="flight", duration=0.2),
+        Phase(name="land", duration=0.2, contacts=feet),
+    ), dt=0.05, dynamic=True)
+    t = np.linspace(0.0, 0.6, 13)
+    sets = contacts_per_knot(spec, talos, t)
+    assert [len(s) for s in sets] == [2, 2, 2, 2, 0, 0, 0, 0, 2, 2, 2, 2, 2]
+    com = [ca.SX.sym(f"c{k}", 3) for k in range(13)]
+    terms = build_centroidal_for_spec(spec, talos, t, com)
+    assert terms.n_variables == (3 + 4) * 2 * 4 * 3  # knots 1-3 and 8-11 carry two soles
+    with pytest.raises(PlannerError, match="uniform"):
+        build_centroidal_for_spec(spec, talos, np.array([0.0, 0.1, 0.15, 0.6]), com[:4])
+
+
+def test_numeric_cop_and_friction_checks(talos):
+    """center_of_pressure / cop_violation / friction_violation on hand-made forces."""
+    geo = contact_geometry(_feet(talos)[0], talos)
+    f = np.zeros((3, 4, 3))
+    f[0, :, 2] = 100.0  # uniform: CoP at the sole centre
+    f[1, 1, 2] = 100.0  # all on the front-right corner (x_max, y_min)
+    cop = center_of_pressure(geo.points_in_frame, f, geo.rotation)
+    np.testing.assert_allclose(cop[0], geo.points_in_frame[:, :2].mean(axis=0), atol=1e-12)
+    np.testing.assert_allclose(cop[1], geo.points_in_frame[1, :2], atol=1e-12)
+    assert np.isnan(cop[2]).all()  # unloaded
+    sole = talos.profile.sole
+    viol = cop_violation(np.array([[0.0, 0.0], [sole.x_max + 0.03, 0.0], [np.nan, np.nan]]), (sole.x_min, sole.x_max), (sole.y_min, sole.y_max))
+    np.testing.assert_allclose(viol, [0.0, 0.03, 0.0], atol=1e-12)
+    R = np.eye(3)
+    np.testing.assert_allclose(friction_violation(np.array([[70.0, 0.0, 100.0], [80.0, 0.0, 100.0], [0.0, 0.0, -5.0]]), R, 0.7), [0.0, 10.0, 5.0], atol=1e-9)
