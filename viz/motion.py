@@ -1,0 +1,300 @@
+"""Numbers every view needs: resampled motions, geometry placements, CoM, ZMP, support polygons.
+
+Everything here is a pure function of explicit objects (a :class:`robots.Robot`, arrays, a
+:class:`planner.plan.Plan`, an execution-like object); nothing draws and nothing is cached
+between calls. The viewers (:mod:`viz.scene`) and the plots (:mod:`viz.plots`) share it so
+that the HTML replay, the live viewer and the PNGs show the same numbers.
+
+Conventions: world frame z-up, ground at z = 0, configurations in Pinocchio order with the
+free-flyer quaternion stored (x, y, z, w), times in seconds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from robots import Robot
+
+GRAVITY = 9.81  # [m/s^2]
+
+
+class VizInputError(ValueError):
+    """A motion given to a viewer or plot has the wrong shape or is empty."""
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Motion:
+    """A configuration trajectory on a time grid, with whatever else is known about it.
+
+    Attributes:
+        label: ``"planned"`` or ``"simulated"``.
+        t: Times (T,) [s], increasing.
+        q: Configurations (T, nq), Pinocchio order.
+        v: Velocities (T, nv) or None.
+        tau: Actuated joint torques (T, nv - 6) [N m] or None.
+        forces: Contact force per frame name, (T, 3) in the world [N]; may be empty.
+    """
+
+    label: str
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray | None = None
+    tau: np.ndarray | None = None
+    forces: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Length of the motion [s]."""
+        return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
+
+
+def _array(owner: str, name: str, value, ncols: int | None) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim != 2 or (ncols is not None and arr.shape[1] != ncols) or arr.shape[0] == 0:
+        want = f"(T, {ncols})" if ncols is not None else "(T, n)"
+        raise VizInputError(f"{owner}: {name} must be a non-empty {want} array, got shape {arr.shape}")
+    return arr
+
+
+def plan_motion(robot: Robot, plan) -> Motion:
+    """The planned motion of a :class:`planner.plan.Plan` as a :class:`Motion`.
+
+    Raises:
+        VizInputError: the plan's arrays do not match the robot.
+    """
+    t = np.asarray(plan.t, dtype=float).reshape(-1)
+    q = _array("plan", "q", plan.q, robot.nq)
+    if len(t) != len(q):
+        raise VizInputError(f"plan: t has {len(t)} knots but q has {len(q)} rows")
+    v = _array("plan", "v", plan.v, robot.nv) if plan.v is not None and len(plan.v) else None
+    forces = {k: np.asarray(f, dtype=float) for k, f in (plan.forces or {}).items()}
+    return Motion(label="planned", t=t, q=q, v=v, forces=forces)
+
+
+def _first_attr(obj, names: tuple[str, ...]):
+    for n in names:
+        if isinstance(obj, Mapping) and n in obj:
+            return obj[n]
+        if hasattr(obj, n):
+            return getattr(obj, n)
+    return None
+
+
+def execution_motion(robot: Robot, execution) -> Motion | None:
+    """The simulated motion of an execution (``sim`` result or a motion file's arrays).
+
+    Reads ``t``/``exec_t``, ``q``/``exec_q``, optionally ``v``/``exec_v``,
+    ``tau``/``exec_tau`` and ``forces``/``contact_forces`` (mapping frame -> (T, 3)), from
+    attributes or mapping keys, so it accepts both a ``sim`` Execution and the dictionary of
+    ``exec_*`` arrays stored in a motion file.
+
+    Returns:
+        None when ``execution`` is None or holds no configurations.
+
+    Raises:
+        VizInputError: the arrays do not match the robot.
+    """
+    if execution is None:
+        return None
+    t = _first_attr(execution, ("t", "exec_t", "time", "times"))
+    q = _first_attr(execution, ("q", "exec_q"))
+    if t is None or q is None or len(q) == 0:
+        return None
+    t = np.asarray(t, dtype=float).reshape(-1)
+    q = _array("execution", "q", q, robot.nq)
+    if len(t) != len(q):
+        raise VizInputError(f"execution: t has {len(t)} samples but q has {len(q)} rows")
+    v = _first_attr(execution, ("v", "exec_v"))
+    tau = _first_attr(execution, ("tau", "exec_tau", "torques"))
+    forces = _first_attr(execution, ("forces", "contact_forces", "exec_forces"))
+    return Motion(
+        label="simulated",
+        t=t,
+        q=q,
+        v=_array("execution", "v", v, robot.nv) if v is not None and len(v) else None,
+        tau=_array("execution", "tau", tau, robot.nv - 6) if tau is not None and len(tau) else None,
+        forces={k: np.asarray(f, dtype=float) for k, f in dict(forces or {}).items()},
+    )
+
+
+def resample(robot: Robot, motion: Motion, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Configurations on a uniform grid of ``fps`` frames per second.
+
+    Interpolation is geodesic on the configuration manifold (``pin.interpolate``), so the
+    base rotation stays a unit quaternion. The last sample is always the motion's end.
+
+    Args:
+        robot: The robot of the motion.
+        motion: The motion to sample.
+        fps: Frames per second [1/s], > 0.
+
+    Returns:
+        ``(times, qs)``: times (F,) [s] starting at 0, configurations (F, nq).
+    """
+    t, q = motion.t, motion.q
+    if len(t) == 1:
+        return np.zeros(1), q.copy()
+    t0 = float(t[0])
+    n = max(2, int(np.floor((t[-1] - t0) * fps + 1e-9)) + 1)
+    times = np.linspace(0.0, (n - 1) / fps, n)
+    if times[-1] < t[-1] - t0 - 1e-9:
+        times = np.append(times, t[-1] - t0)
+    times = np.minimum(times, t[-1] - t0)
+    qs = np.empty((len(times), q.shape[1]))
+    idx = np.clip(np.searchsorted(t - t0, times, side="right") - 1, 0, len(t) - 2)
+    for i, (k, s) in enumerate(zip(idx, times, strict=True)):
+        h = t[k + 1] - t[k]
+        alpha = float(np.clip((s - (t[k] - t0)) / h, 0.0, 1.0)) if h > 0 else 0.0
+        qs[i] = pin.interpolate(robot.model, q[k], q[k + 1], alpha)
+    return times, qs
+
+
+def geometry_placements(robot: Robot, qs: np.ndarray) -> np.ndarray:
+    """Rigid world placement of every visual geometry at every configuration.
+
+    The mesh scale is NOT included (it may be negative: 13 Talos meshes are mirrored), so
+    each 4x4 is a proper rigid transform whose rotation converts to a quaternion.
+
+    Returns:
+        Array (n_geometries, F, 4, 4), geometries in ``robot.visual_model`` order.
+    """
+    model, data = robot.model, robot.data()
+    gmodel = robot.visual_model
+    gdata = pin.GeometryData(gmodel)
+    out = np.empty((len(gmodel.geometryObjects), len(qs), 4, 4))
+    for f, q in enumerate(qs):
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, gmodel, gdata)
+        for g in range(len(gmodel.geometryObjects)):
+            out[g, f] = gdata.oMg[g].homogeneous
+    return out
+
+
+def com_trajectory(robot: Robot, qs: np.ndarray) -> np.ndarray:
+    """Centre of mass (F, 3) [m] of each configuration."""
+    model, data = robot.model, robot.data()
+    return np.array([pin.centerOfMass(model, data, q).copy() for q in qs])
+
+
+def frame_trajectory(robot: Robot, qs: np.ndarray, frame: str) -> np.ndarray:
+    """World position (F, 3) [m] of a frame (name or role) at each configuration."""
+    model, data = robot.model, robot.data()
+    fid = robot.frame_id(frame)
+    out = np.empty((len(qs), 3))
+    for i, q in enumerate(qs):
+        pin.framesForwardKinematics(model, data, q)
+        out[i] = data.oMf[fid].translation
+    return out
+
+
+def zmp_from_com(t: np.ndarray, com: np.ndarray) -> np.ndarray:
+    """Zero-moment point (T, 2) on flat ground from the CoM trajectory [m].
+
+    Cart-table model (rate of angular momentum neglected):
+    :math:`p = c_{xy} - c_z \\ddot c_{xy} / (\\ddot c_z + g)`, with :math:`\\ddot c` from
+    second-order finite differences on the (possibly non-uniform) grid. Where the vertical
+    acceleration cancels gravity (flight), the ZMP is undefined and returned as NaN.
+    """
+    t = np.asarray(t, dtype=float)
+    com = np.asarray(com, dtype=float)
+    if len(t) < 3:
+        return com[:, :2].copy()
+    vel = np.gradient(com, t, axis=0)
+    acc = np.gradient(vel, t, axis=0)
+    denom = acc[:, 2] + GRAVITY
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zmp = com[:, :2] - (com[:, 2] / denom)[:, None] * acc[:, :2]
+    zmp[denom < 0.1 * GRAVITY] = np.nan
+    return zmp
+
+
+def contact_sole_corners(robot: Robot, q: np.ndarray, frame: str) -> np.ndarray:
+    """Corners (4, 3) of the contact surface of ``frame`` at ``q``, in the world [m].
+
+    Feet use the profile's sole rectangle; any other contact frame gets a 5 cm square.
+    """
+    side = robot.foot_side(robot.profile.frame(frame) or frame)
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    oMf = data.oMf[robot.frame_id(frame)]
+    if side is not None:
+        xy = np.array(robot.profile.sole.corners(side))
+    else:
+        xy = 0.025 * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
+    local = np.column_stack([xy, np.zeros(len(xy))])
+    return local @ oMf.rotation.T + oMf.translation
+
+
+def convex_hull_2d(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull (H, 2) of 2D points (monotone chain)."""
+    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in np.asarray(points)[:, :2]})
+    if len(pts) <= 2:
+        return np.array(pts, dtype=float)
+
+    def cross(o, a, b) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1], dtype=float)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SupportPhase:
+    """The support polygon of one phase of a plan.
+
+    Attributes:
+        name: Phase name.
+        start, end: Phase interval [s].
+        frames: Contact frames active in the phase.
+        soles: Corners (4, 3) of each active contact surface [m], keyed by frame.
+        polygon: Counter-clockwise convex hull (H, 2) of all soles [m]; empty in flight.
+    """
+
+    name: str
+    start: float
+    end: float
+    frames: tuple[str, ...]
+    soles: Mapping[str, np.ndarray]
+    polygon: np.ndarray
+
+
+def support_phases(robot: Robot, plan) -> list[SupportPhase]:
+    """Support polygon of every phase of ``plan``, from the planned configuration mid-phase."""
+    spec = plan.spec
+    t = np.asarray(plan.t, dtype=float)
+    out = []
+    for phase, start in zip(spec.phases, spec.phase_start_times(), strict=True):
+        end = start + phase.duration
+        k = int(np.argmin(np.abs(t - 0.5 * (start + end))))
+        frames = tuple(c.frame for c in phase.contacts)
+        soles = {f: contact_sole_corners(robot, plan.q[k], f) for f in frames}
+        pts = np.vstack(list(soles.values())) if soles else np.zeros((0, 3))
+        hull = convex_hull_2d(pts) if len(pts) else np.zeros((0, 2))
+        out.append(SupportPhase(name=phase.name, start=start, end=end, frames=frames, soles=soles,
+                                polygon=hull))
+    return out
+
+
+def point_in_polygon_margin(point: np.ndarray, polygon: np.ndarray) -> float:
+    """Signed distance [m] of a 2D point inside a convex CCW polygon (> 0 inside)."""
+    if len(polygon) < 3:
+        return float("-inf")
+    d = np.inf
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        edge = b - a
+        n = np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)  # inward for CCW
+        d = min(d, float(n @ (point - a)))
+    return d

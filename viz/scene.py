@@ -1,0 +1,359 @@
+"""Build a meshcat scene for a plan: robot meshes, contacts, targets, CoM path, support polygon.
+
+Every function takes the meshcat ``Visualizer`` it draws into; nothing here keeps a viewer. The
+same functions feed the live viewer (:mod:`viz.live`) and the offline HTML (:mod:`viz.html`,
+where the visualizer's window only records the commands).
+
+Scene tree (under meshcat's ``/meshcat`` root)::
+
+    wbmp/robot/<motion>/<geometry>        rigid placement of one visual geometry (animated)
+    wbmp/robot/<motion>/<geometry>/mesh   the mesh, with its static scale (may be negative)
+    wbmp/contacts/<frame>/<i>             a sole at its i-th distinct placement (shown when active)
+    wbmp/support/<phase index>            support polygon of a phase, on the ground
+    wbmp/targets/<target name>            frame target (sphere of radius = tolerance, min 2 cm)
+    wbmp/com/path                         planned CoM path (line)
+    wbmp/com/point, wbmp/com/ground       CoM and its ground projection (animated)
+
+Why ``<geometry>`` and ``<geometry>/mesh`` are separate nodes: animation tracks carry a
+position and a quaternion, and a mirrored mesh (negative scale) has no rotation quaternion, so
+the scale lives on a child node that never moves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import meshcat.geometry as mg
+import numpy as np
+import pinocchio as pin
+
+from robots import Robot
+from viz import motion as vm
+
+ROOT = "wbmp"
+PLANNED_COLOR = None  # keep the URDF colours
+SIMULATED_COLOR = (0.25, 0.45, 0.95)
+CONTACT_COLOR = 0x2E9E4F
+SUPPORT_COLOR = 0x1B7A3A
+TARGET_COLOR = 0xF08C00
+COM_COLOR = 0xD62828
+COM_PATH_COLOR = 0xB01020
+HAND_PATH_COLOR = 0x6A4C93
+
+
+def node_name(text: str) -> str:
+    """A meshcat path component: no slashes, no spaces."""
+    return "".join(c if (c.isalnum() or c in "-_.") else "_" for c in text) or "_"
+
+
+def _rgb_int(rgb: Sequence[float]) -> int:
+    r, g, b = (int(round(255 * float(np.clip(x, 0.0, 1.0)))) for x in rgb[:3])
+    return (r << 16) + (g << 8) + b
+
+
+def _mesh_material(rgba: Sequence[float], override: tuple[float, float, float] | None,
+                   opacity: float) -> mg.MeshPhongMaterial:
+    rgb = override if override is not None else tuple(rgba[:3])
+    if max(rgb) < 0.08:  # pitch-black meshes (iCub) vanish against the floor: lift them
+        rgb = (0.22, 0.22, 0.24)
+    alpha = float(rgba[3]) * opacity if override is None else opacity
+    return mg.MeshPhongMaterial(color=_rgb_int(rgb), opacity=alpha, transparent=alpha < 1.0,
+                                shininess=30)
+
+
+def _geometry_object(geom: pin.GeometryObject) -> tuple[mg.Geometry | None, np.ndarray]:
+    """(meshcat geometry, static 4x4 transform of the mesh node) for a visual geometry."""
+    static = np.eye(4)
+    path = geom.meshPath or ""
+    ext = path.rsplit(".", 1)[-1].lower() if "." in path else ""
+    if ext in ("stl", "dae", "obj"):
+        static[:3, :3] = np.diag(np.asarray(geom.meshScale, dtype=float))
+        if ext == "stl":
+            return mg.StlMeshGeometry.from_file(path), static
+        with open(path, encoding="utf-8", errors="replace") as f:
+            text = f.read()
+        cls = mg.DaeMeshGeometry if ext == "dae" else mg.ObjMeshGeometry
+        return cls(text), static
+    shape = geom.geometry
+    kind = type(shape).__name__
+    if kind == "Box":
+        return mg.Box([float(2.0 * h) for h in shape.halfSide]), static
+    if kind == "Sphere":
+        return mg.Sphere(float(shape.radius)), static
+    if kind in ("Cylinder", "Capsule"):
+        # three.js cylinders run along y; URDF/coal cylinders along z.
+        static[:3, :3] = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+        return mg.Cylinder(float(2.0 * shape.halfLength), float(shape.radius)), static
+    return None, static
+
+
+def add_robot(vis, robot: Robot, *, motion: str = "planned",
+              color: tuple[float, float, float] | None = PLANNED_COLOR, opacity: float = 1.0) -> list[str]:
+    """Load the robot's visual meshes under ``wbmp/robot/<motion>``.
+
+    Args:
+        vis: A ``meshcat.Visualizer`` (live or recording).
+        robot: The robot.
+        motion: Sub-tree name (``planned``, ``simulated``).
+        color: RGB in [0, 1] overriding the URDF colours, or None to keep them.
+        opacity: Opacity in [0, 1].
+
+    Returns:
+        The node name of each visual geometry (in ``robot.visual_model`` order; None-free:
+        geometries meshcat cannot show get an empty node).
+    """
+    base = vis[ROOT]["robot"][motion]
+    names = []
+    for geom in robot.visual_model.geometryObjects:
+        name = node_name(geom.name)
+        names.append(name)
+        obj, static = _geometry_object(geom)
+        if obj is None:
+            continue
+        node = base[name]["mesh"]
+        node.set_object(obj, _mesh_material(geom.meshColor, color, opacity))
+        node.set_transform(static)
+    return names
+
+
+def set_robot_configuration(vis, robot: Robot, q: np.ndarray, *, motion: str = "planned") -> None:
+    """Place the robot's geometries at configuration ``q`` (no animation)."""
+    base = vis[ROOT]["robot"][motion]
+    placements = vm.geometry_placements(robot, np.asarray(q, dtype=float)[None, :])
+    for g, geom in enumerate(robot.visual_model.geometryObjects):
+        base[node_name(geom.name)].set_transform(placements[g, 0])
+
+
+def add_ground(vis, *, half_size: float = 2.0, spacing: float = 0.25) -> None:
+    """A light floor with a grid at z = 0 (replaces meshcat's grid and axes, which are hidden).
+
+    Args:
+        vis: A ``meshcat.Visualizer``.
+        half_size: Half the side of the square floor [m].
+        spacing: Grid spacing [m].
+    """
+    vis["/Grid"].set_property("visible", False)
+    vis["/Axes"].set_property("visible", False)
+    floor = vis[ROOT]["ground"]
+    floor["plane"].set_object(mg.Box([2 * half_size, 2 * half_size, 0.002]),
+                              mg.MeshLambertMaterial(color=0xD9DCE1))
+    floor["plane"].set_transform(_translation([0.0, 0.0, -0.0012]))
+    ticks = np.arange(-half_size, half_size + 1e-9, spacing)
+    segs = []
+    for x in ticks:
+        segs += [[x, -half_size, 0.0005], [x, half_size, 0.0005], [-half_size, x, 0.0005], [half_size, x, 0.0005]]
+    pts = np.asarray(segs, dtype=np.float32).T
+    floor["grid"].set_object(mg.LineSegments(mg.PointsGeometry(pts), mg.LineBasicMaterial(color=0xA4A9B2)))
+
+
+def _translation(p: Sequence[float]) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def _line(points: np.ndarray, color: int, *, loop: bool = False, width: float = 2.0) -> mg.Object:
+    pts = np.asarray(points, dtype=np.float32).T
+    cls = mg.LineLoop if loop else mg.Line
+    return cls(mg.PointsGeometry(pts), mg.LineBasicMaterial(color=color, linewidth=width))
+
+
+def _sole_box(corners: np.ndarray) -> tuple[mg.Box, np.ndarray]:
+    """A thin box covering a sole rectangle given by its 4 world corners."""
+    c = np.asarray(corners, dtype=float)
+    ex, ey = c[1] - c[0], c[3] - c[0]
+    lx, ly = float(np.linalg.norm(ex)), float(np.linalg.norm(ey))
+    R = np.eye(3)
+    R[:, 0] = ex / lx
+    R[:, 2] = np.cross(ex, ey) / np.linalg.norm(np.cross(ex, ey))
+    R[:, 1] = np.cross(R[:, 2], R[:, 0])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = c.mean(axis=0) + R[:, 2] * 0.002
+    return mg.Box([lx, ly, 0.004]), T
+
+
+def add_markers(vis, robot: Robot, plan, *, com: np.ndarray | None = None) -> dict[str, list[tuple[float, bool]]]:
+    """Draw contacts, support polygons, frame targets and the planned CoM path.
+
+    Args:
+        vis: A ``meshcat.Visualizer``.
+        robot: The robot.
+        plan: A :class:`planner.plan.Plan`.
+        com: Planned CoM path (T, 3) [m]; default ``plan.com``.
+
+    Returns:
+        Visibility schedule of the phase-dependent nodes: node path (relative to the
+        visualizer) -> [(time [s], visible), ...], for :func:`animation_message`.
+    """
+    root = vis[ROOT]
+    schedule: dict[str, list[tuple[float, bool]]] = {}
+    phases = vm.support_phases(robot, plan)
+
+    # contacts: one node per distinct sole placement of each frame
+    seen: dict[str, list[np.ndarray]] = {}
+    for p_index, ph in enumerate(phases):
+        for frame, corners in ph.soles.items():
+            places = seen.setdefault(frame, [])
+            match = next((i for i, c in enumerate(places) if np.abs(c - corners).max() < 5e-3), None)
+            if match is None:
+                places.append(corners)
+                match = len(places) - 1
+                box, T = _sole_box(corners)
+                node = root["contacts"][node_name(frame)][str(match)]
+                node["sole"].set_object(box, mg.MeshLambertMaterial(color=CONTACT_COLOR, opacity=0.8))
+                node["sole"].set_transform(T)
+            key = f"{ROOT}/contacts/{node_name(frame)}/{match}"
+            schedule.setdefault(key, [])
+            schedule[key].append((ph.start, True))
+            schedule[key].append((ph.end, False))
+        if len(ph.polygon) >= 3:
+            ring = np.column_stack([ph.polygon, np.full(len(ph.polygon), 0.003)])
+            root["support"][str(p_index)].set_object(_line(ring, SUPPORT_COLOR, loop=True, width=3.0))
+            key = f"{ROOT}/support/{p_index}"
+            schedule[key] = [(ph.start, True), (ph.end, False)]
+
+    # frame targets
+    for target in plan.spec.targets:
+        if target.position is None:
+            continue
+        radius = max(float(target.tolerance), 0.02)
+        node = root["targets"][node_name(target.name)]
+        node.set_object(mg.Sphere(radius), mg.MeshLambertMaterial(color=TARGET_COLOR, opacity=0.6))
+        node.set_transform(_translation(target.position))
+
+    com_path = np.asarray(plan.com if com is None else com, dtype=float)
+    if len(com_path) >= 2:
+        root["com"]["path"].set_object(_line(com_path, COM_PATH_COLOR, width=3.0))
+        ground = com_path.copy()
+        ground[:, 2] = 0.002
+        root["com"]["ground_path"].set_object(_line(ground, COM_PATH_COLOR, width=1.0))
+    root["com"]["point"].set_object(mg.Sphere(0.03), mg.MeshLambertMaterial(color=COM_COLOR))
+    # a flat disk: meshcat cylinders run along y, so the (static) child node turns it upright
+    disk = root["com"]["ground"]["disk"]
+    disk.set_object(mg.Cylinder(0.004, 0.025), mg.MeshLambertMaterial(color=COM_COLOR))
+    disk.set_transform(np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]]))
+    return _finish_schedule(schedule)
+
+
+def _finish_schedule(schedule: dict[str, list[tuple[float, bool]]]) -> dict[str, list[tuple[float, bool]]]:
+    """Merge touching intervals: [(0,T),(1,F),(1,T),(2,F)] -> [(0,T),(2,F)]."""
+    out = {}
+    for key, events in schedule.items():
+        events = sorted(events, key=lambda e: (e[0], e[1]))  # at a tie, False first then True
+        merged: list[tuple[float, bool]] = []
+        for t, vis_ in events:
+            if merged and abs(merged[-1][0] - t) < 1e-9:
+                merged[-1] = (t, vis_ or merged[-1][1])
+            else:
+                merged.append((t, vis_))
+        if merged and merged[0][0] > 1e-9:
+            merged.insert(0, (0.0, False))
+        out[key] = merged
+    return out
+
+
+def _track(name: str, kind: str, times: Iterable[float], values: np.ndarray) -> dict:
+    return {
+        "name": "." + name,
+        "type": kind,
+        "times": [float(t) for t in times],
+        "values": [float(x) for x in np.asarray(values, dtype=float).reshape(-1)],
+    }
+
+
+def _bool_track(times: Iterable[float], values: Iterable[bool]) -> dict:
+    return {"name": ".visible", "type": "boolean", "times": [float(t) for t in times],
+            "values": [bool(v) for v in values]}
+
+
+def _clip(tracks: list[dict]) -> dict:
+    return {"fps": 1.0, "name": "default", "tracks": tracks}
+
+
+def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str = "planned",
+                      fps: float = 30.0, markers: bool = True) -> tuple[list[dict], float]:
+    """Animation clips (meshcat's lowered form) that replay ``motion`` on the robot.
+
+    Args:
+        vis: The visualizer (only its path is used).
+        robot: The robot.
+        motion: Planned or simulated motion.
+        robot_node: Which ``wbmp/robot/<node>`` sub-tree to animate.
+        fps: Key frames per second [1/s].
+        markers: Also animate the CoM point and its ground projection.
+
+    Returns:
+        ``(clips, duration)``: a list of ``{"path", "clip"}`` dicts and the duration [s].
+    """
+    times, qs = vm.resample(robot, motion, fps)
+    placements = vm.geometry_placements(robot, qs)
+    base = vis[ROOT]["robot"][robot_node]
+    clips = []
+    for g, geom in enumerate(robot.visual_model.geometryObjects):
+        Ts = placements[g]
+        pos = Ts[:, :3, 3]
+        quat = np.array([pin.Quaternion(T[:3, :3]).coeffs() for T in Ts])  # x, y, z, w
+        # keep consecutive quaternions in the same hemisphere (cheaper interpolation)
+        for i in range(1, len(quat)):
+            if quat[i] @ quat[i - 1] < 0:
+                quat[i] = -quat[i]
+        clips.append({
+            "path": base[node_name(geom.name)].path.lower(),
+            "clip": _clip([_track("position", "vector3", times, pos),
+                           _track("quaternion", "quaternion", times, quat)]),
+        })
+    if markers:
+        com = vm.com_trajectory(robot, qs)
+        ground = com.copy()
+        ground[:, 2] = 0.0
+        clips.append({"path": vis[ROOT]["com"]["point"].path.lower(),
+                      "clip": _clip([_track("position", "vector3", times, com)])})
+        clips.append({"path": vis[ROOT]["com"]["ground"].path.lower(),
+                      "clip": _clip([_track("position", "vector3", times, ground)])})
+    return clips, float(times[-1])
+
+
+def visibility_animations(vis, schedule: dict[str, list[tuple[float, bool]]], duration: float) -> list[dict]:
+    """Clips that switch phase-dependent nodes on and off (see :func:`add_markers`)."""
+    clips = []
+    for key, events in schedule.items():
+        node = vis
+        for part in key.split("/"):
+            node = node[part]
+        times = [min(t, duration) for t, _ in events]
+        values = [v for _, v in events]
+        if times[-1] < duration:
+            times.append(duration)
+            values.append(values[-1])
+        clips.append({"path": node.path.lower(), "clip": _clip([_bool_track(times, values)])})
+    return clips
+
+
+def animation_message(clips: list[dict], *, play: bool = True, loop: bool = True) -> dict:
+    """The lowered ``set_animation`` command meshcat's viewer understands."""
+    return {
+        "type": "set_animation",
+        "path": "",
+        "animations": clips,
+        "options": {"play": bool(play), "repetitions": 1_000_000 if loop else 1,
+                    "clampWhenFinished": True},
+    }
+
+
+def camera_view(robot: Robot, plan_com: np.ndarray | None = None) -> dict[str, list[float]]:
+    """A three-quarter front view framing the robot: camera position and orbit target.
+
+    Returns:
+        ``{"position": [...], "target": [...]}`` in meshcat's camera frame (three.js y-up:
+        world (x, y, z) -> (x, z, -y)).
+    """
+    h = max(robot.height(), 0.5)
+    centre = np.zeros(3) if plan_com is None or len(plan_com) == 0 else np.mean(plan_com, axis=0)
+    target_w = np.array([centre[0], centre[1], 0.5 * h])
+    eye_w = target_w + h * np.array([1.35, 0.95, 0.35])
+
+    def to_cam(p: np.ndarray) -> list[float]:
+        return [float(p[0]), float(p[2]), float(-p[1])]
+
+    return {"position": to_cam(eye_w), "target": to_cam(target_w)}
