@@ -1,0 +1,41 @@
+"""Language layer: English and Chinese instructions to registry actions.
+
+``parse("wave your right hand twice, then squat")`` returns an :class:`ActionPlan` of
+:class:`tasks.actions.Action` objects. The default ``rules`` backend is deterministic and
+offline, driven by ``vocabulary.json`` (a new primitive needs words, not parser code); the
+``llm`` backend asks an OpenAI-compatible server and validates its reply against the same
+registry schema. Every failure is a :class:`LanguageError` with a one-line message.
+"""
+
+from language.exceptions import (
+    AmbiguousInstruction,
+    BackendError,
+    EmptyInstruction,
+    InvalidParameter,
+    LanguageError,
+    LLMError,
+    LLMReplyInvalid,
+    LLMUnavailable,
+    NoAction,
+    UnknownWords,
+    UnsupportedInstruction,
+)
+from language.parse import BACKENDS, parse
+from language.plan import ActionPlan
+
+__all__ = [
+    "BACKENDS",
+    "ActionPlan",
+    "AmbiguousInstruction",
+    "BackendError",
+    "EmptyInstruction",
+    "InvalidParameter",
+    "LLMError",
+    "LLMReplyInvalid",
+    "LLMUnavailable",
+    "LanguageError",
+    "NoAction",
+    "UnknownWords",
+    "UnsupportedInstruction",
+    "parse",
+]

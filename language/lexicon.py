@@ -1,0 +1,362 @@
+"""The lexicon: vocabulary phrases compiled into a longest-match table over atoms.
+
+``vocabulary.json`` lists, per registry action, the words that name it and how the slots of a
+sentence (side, direction, count, length, angle, duration, adverbs) map to its parameters,
+plus the word classes shared by all actions (filler, sequencing, numbers' units...). This
+module loads it once, checks it against :data:`tasks.actions.REGISTRY` (every action has
+English and Chinese words; every parameter it names exists with the right kind), and builds
+the phrase table that :meth:`Lexicon.segment` matches, longest phrase first, over the atoms of
+:mod:`language.normalize`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from language.exceptions import VocabularyError
+from language.normalize import CJK, PUNCT, Atom, phrase_key, read_number
+from tasks.actions import REGISTRY, ActionSchema
+
+VOCABULARY_PATH = Path(__file__).with_name("vocabulary.json")
+LANGUAGES = ("en", "zh")
+
+# Item kinds produced by the segmenter.
+TRIGGER = "trigger"  # names an action; value: tuple of (action, required body or None)
+FILLER = "filler"
+SEQ = "seq"
+OVERLAY = "overlay"
+AGAIN = "again"
+NEG = "negation"
+TIMES = "times"
+CLASSIFIER = "classifier"
+LR = "lr"  # value: "left" | "right"
+SIDE = "side"  # value: "both"
+DIR = "dir"  # value: "forward" | "backward" | "up" | "down"
+ROT = "rot"  # value: +1 (counter-clockwise) | -1 (clockwise)
+BODY = "body"  # value: (name, plural)
+ADV = "adv"  # value: adverb key
+UNIT = "unit"  # value: unit name (key of Lexicon.units)
+NUM = "num"  # value: int | float
+NEARMISS = "nearmiss"  # value: suggested action or None
+UNKNOWN = "unknown"
+PUNCTUATION = "punct"
+
+SLOT_KEYS = ("side", "direction", "count", "length", "angle", "duration")
+BARE_LEFT_RIGHT = ("side", "direction", "sign", None)
+
+
+@dataclass(frozen=True, slots=True)
+class Item:
+    """One recognised word or phrase of an instruction.
+
+    Attributes:
+        kind: One of the item kinds of this module (``trigger``, ``num``, ``lr``...).
+        value: Kind-specific value (action candidates, number, ``"left"``...).
+        text: The words as written (normalized).
+        start, end: Character span in the normalized text.
+    """
+
+    kind: str
+    value: Any
+    text: str
+    start: int
+    end: int
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Unit:
+    """A unit word's quantity (``length``, ``angle``, ``duration``) and factor to SI [m, rad, s]."""
+
+    name: str
+    quantity: str
+    factor: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ActionWords:
+    """How one action is named and how sentence slots map to its parameters.
+
+    Attributes:
+        name: Registry action name.
+        body: Body words that may appear with it (``hand`` for wave).
+        side: Parameter taking ``left``/``right``/``both`` from ``left hand``, ``双手`` (or None).
+        direction: Choice parameter taking a direction word (or None).
+        bare_left_right: Where a ``left``/``right`` not followed by a body word goes: ``side``,
+            ``direction``, ``sign`` (sign of a signed angle, left positive) or None (not allowed).
+        direction_params: Direction words that set parameters instead (``jump forward``).
+        ignore_directions: Direction words that add nothing (``squat down``, ``jump up``).
+        ignore_sides: Side words that add nothing (``jump with both feet``).
+        count: Parameter taking ``N times`` (None: the action is repeated N times instead).
+        length: Parameter taking a length [m]; ``length_by_direction`` overrides it per direction.
+        angle: Parameter taking an angle [rad]; ``signed_angle``: left/counter-clockwise positive.
+        duration: Parameter taking a duration [s].
+        adverbs: Adverb key -> parameter values; a value is a number (SI) or ``{"scale": k}`` of
+            the registry default.
+        absorbs: Actions whose words this one takes over in the same clause (``walk 3 steps``).
+    """
+
+    name: str
+    body: tuple[str, ...] = ()
+    side: str | None = None
+    direction: str | None = None
+    bare_left_right: str | None = None
+    direction_params: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    ignore_directions: tuple[str, ...] = ()
+    ignore_sides: tuple[str, ...] = ()
+    count: str | None = None
+    length: str | None = None
+    length_by_direction: Mapping[str, str] = field(default_factory=dict)
+    angle: str | None = None
+    signed_angle: bool = False
+    duration: str | None = None
+    adverbs: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    absorbs: tuple[str, ...] = ()
+
+
+class Lexicon:
+    """Compiled vocabulary: phrase table, action slot maps, units, suggestions."""
+
+    def __init__(self, data: Mapping[str, Any]) -> None:
+        self.phrases: dict[tuple[str, ...], tuple[tuple[str, Any], ...]] = {}
+        self.after_number: dict[tuple[str, ...], tuple[tuple[str, Any], ...]] = {}
+        self.actions: dict[str, ActionWords] = {}
+        self.action_bodies: dict[str, set[str]] = {}
+        self.action_words: dict[str, dict[str, list[str]]] = {}
+        self.units: dict[str, Unit] = {}
+        self.adverbs: set[str] = set(data["values"]["adv"])
+        self.bodies: set[str] = set(data["values"]["body"])
+        for name, spec in data["units"].items():
+            self.units[name] = Unit(name=name, quantity=spec["quantity"], factor=float(spec["factor"]))
+        self._load_actions(data["actions"])
+        self._load_words(data)
+        self.max_len = max(len(k) for k in (*self.phrases, *self.after_number))
+        self._check_registry()
+
+    # -- loading -------------------------------------------------------------------------
+    def _add(self, table: dict, phrase: str, entry: tuple[tuple[str, Any], ...], where: str) -> None:
+        key = phrase_key(phrase)
+        if not key:
+            raise VocabularyError(f"vocabulary {where}: empty phrase {phrase!r}")
+        old = table.get(key)
+        if old is None:
+            table[key] = entry
+            return
+        merged = _merge(old, entry)
+        if merged is None:
+            raise VocabularyError(f"vocabulary {where}: {phrase!r} already means {old}, cannot also mean {entry}")
+        table[key] = merged
+
+    def _load_actions(self, actions: Mapping[str, Any]) -> None:
+        for name, spec in actions.items():
+            if name not in REGISTRY:
+                raise VocabularyError(f"vocabulary names action {name!r}, which is not in the registry ({', '.join(REGISTRY)})")
+            unknown = set(spec) - {"words", "with_body", "phrases", *(f.name for f in ActionWords.__dataclass_fields__.values())}
+            if unknown:
+                raise VocabularyError(f"vocabulary action {name!r}: unknown key(s) {sorted(unknown)}")
+            words: dict[str, list[str]] = {lang: [] for lang in LANGUAGES}
+            for lang, phrases in spec.get("words", {}).items():
+                for phrase in phrases:
+                    self._add(self.phrases, phrase, ((TRIGGER, ((name, None),)),), f"{name}.words")
+                    words[lang].append(phrase)
+            self.action_bodies[name] = set(spec.get("with_body", {}))
+            for body, by_lang in spec.get("with_body", {}).items():
+                if body not in self.bodies:
+                    raise VocabularyError(f"vocabulary action {name!r}: unknown body word class {body!r}")
+                for lang, phrases in by_lang.items():
+                    for phrase in phrases:
+                        self._add(self.phrases, phrase, ((TRIGGER, ((name, body),)),), f"{name}.with_body")
+                        words[lang].append(f"{phrase} ({body})")
+            for phrase, extras in spec.get("phrases", {}).items():
+                entry = ((TRIGGER, ((name, None),)), *(_parse_item(x, f"{name}.phrases") for x in extras))
+                self._add(self.phrases, phrase, entry, f"{name}.phrases")
+                words["zh" if any("\u3400" <= ch <= "\u9fff" for ch in phrase) else "en"].append(phrase)
+            self.action_words[name] = words
+            kwargs = {k: v for k, v in spec.items() if k not in ("words", "with_body", "phrases")}
+            for key in ("body", "ignore_directions", "ignore_sides", "absorbs"):
+                if key in kwargs:
+                    kwargs[key] = tuple(kwargs[key])
+            self.actions[name] = ActionWords(name=name, **kwargs)
+
+    def _load_words(self, data: Mapping[str, Any]) -> None:
+        words = data["words"]
+        for kind in (FILLER, SEQ, OVERLAY, AGAIN, TIMES, CLASSIFIER):
+            for phrases in words[kind].values():
+                for p in phrases:
+                    self._add(self.phrases, p, ((kind, None),), f"words.{kind}")
+        for phrases in words["negation"].values():
+            for p in phrases:
+                self._add(self.phrases, p, ((NEG, None),), "words.negation")
+        for phrases in words["times_after_number"].values():
+            for p in phrases:
+                self._add(self.after_number, p, ((TIMES, None),), "words.times_after_number")
+        values = data["values"]
+        for kind in (LR, SIDE, DIR, ADV, UNIT):
+            for value, by_lang in values[kind].items():
+                if kind == UNIT and value not in self.units:
+                    raise VocabularyError(f"vocabulary: unit word class {value!r} has no entry in 'units'")
+                for phrases in by_lang.values():
+                    for p in phrases:
+                        self._add(self.phrases, p, ((kind, value),), f"values.{kind}.{value}")
+        for value, by_lang in values[ROT].items():
+            for phrases in by_lang.values():
+                for p in phrases:
+                    self._add(self.phrases, p, ((ROT, int(value)),), f"values.rot.{value}")
+        for plural, group in ((False, values["body"]), (True, values["body_plural"])):
+            for name, by_lang in group.items():
+                for phrases in by_lang.values():
+                    for p in phrases:
+                        self._add(self.phrases, p, ((BODY, (name, plural)),), f"values.body.{name}")
+        for phrase, items in data["compounds"].items():
+            self._add(self.phrases, phrase, tuple(_parse_item(x, "compounds") for x in items), "compounds")
+        self.near_misses: dict[str, str | None] = {}
+        for by_word in data["near_misses"].values():
+            for word, action in by_word.items():
+                if action is not None and action not in REGISTRY:
+                    raise VocabularyError(f"vocabulary near_misses: {word!r} suggests unknown action {action!r}")
+                self._add(self.phrases, word, ((NEARMISS, action),), "near_misses")
+                self.near_misses[word] = action
+        self.suggestion_index: dict[str, str] = {}
+        for name, by_lang in self.action_words.items():
+            for phrases in by_lang.values():
+                for p in phrases:
+                    self.suggestion_index.setdefault(p.split(" (")[0], name)
+            self.suggestion_index.setdefault(name.replace("_", " "), name)
+
+    def _check_registry(self) -> None:
+        for name, schema in REGISTRY.items():
+            words = self.action_words.get(name)
+            if words is None or not all(words[lang] for lang in LANGUAGES):
+                raise VocabularyError(f"vocabulary: action {name!r} needs English and Chinese words")
+            aw = self.actions[name]
+            for key in SLOT_KEYS:
+                param = getattr(aw, key)
+                if param is not None:
+                    _check_param(schema, param, key)
+            for direction, param in aw.length_by_direction.items():
+                _check_param(schema, param, f"length_by_direction.{direction}")
+            for direction, params in aw.direction_params.items():
+                for p in params:
+                    _check_param(schema, p, f"direction_params.{direction}")
+            for adverb, params in aw.adverbs.items():
+                if adverb not in self.adverbs:
+                    raise VocabularyError(f"vocabulary action {name!r}: unknown adverb {adverb!r}")
+                for p in params:
+                    _check_param(schema, p, f"adverbs.{adverb}")
+            if aw.bare_left_right not in BARE_LEFT_RIGHT:
+                raise VocabularyError(f"vocabulary action {name!r}: bare_left_right must be one of {BARE_LEFT_RIGHT}")
+            for body in aw.body:
+                if body not in self.bodies:
+                    raise VocabularyError(f"vocabulary action {name!r}: unknown body word class {body!r}")
+            for other in aw.absorbs:
+                if other not in REGISTRY:
+                    raise VocabularyError(f"vocabulary action {name!r}: absorbs unknown action {other!r}")
+            for key in ("side", "direction"):
+                param = getattr(aw, key)
+                if param is not None and schema.param(param).kind != "choice":
+                    raise VocabularyError(f"vocabulary action {name!r}: {key} parameter {param!r} is not a choice")
+
+    # -- use -----------------------------------------------------------------------------
+    def _longest(self, table: Mapping, texts: list[str], i: int) -> tuple[int, tuple | None]:
+        for n in range(min(self.max_len, len(texts) - i), 0, -1):
+            entry = table.get(tuple(texts[i : i + n]))
+            if entry is not None:
+                return n, entry
+        return 0, None
+
+    def segment(self, atoms: list[Atom], normalized: str) -> list[Item]:
+        """Items of an atomized instruction: longest known phrase (or longer number) first.
+
+        Unknown atoms become ``unknown`` items (adjacent unknown Chinese characters merged).
+        """
+        texts = [a.text for a in atoms]
+        items: list[Item] = []
+        i = 0
+        while i < len(atoms):
+            atom = atoms[i]
+            if atom.kind == PUNCT:
+                items.append(Item(PUNCTUATION, None, atom.text, atom.start, atom.end))
+                i += 1
+                continue
+            n, entry = 0, None
+            if items and items[-1].kind == NUM:
+                n, entry = self._longest(self.after_number, texts, i)
+            if not n:
+                n, entry = self._longest(self.phrases, texts, i)
+            number = read_number(atoms, i)
+            if number is not None and number[1] > n:
+                value, n = number
+                end = atoms[i + n - 1].end
+                items.append(Item(NUM, value, normalized[atom.start : end], atom.start, end))
+            elif n:
+                end = atoms[i + n - 1].end
+                text = normalized[atom.start : end]
+                items.extend(Item(kind, value, text, atom.start, end) for kind, value in entry)
+            else:
+                n = 1
+                prev = items[-1] if items else None
+                if (atom.kind == CJK and prev is not None and prev.kind == UNKNOWN and prev.end == atom.start
+                        and all("\u3400" <= ch <= "\u9fff" for ch in prev.text)):
+                    items[-1] = Item(UNKNOWN, None, prev.text + atom.text, prev.start, atom.end)
+                else:
+                    items.append(Item(UNKNOWN, None, atom.text, atom.start, atom.end))
+            i += n
+        return items
+
+    def suggest(self, word: str) -> str | None:
+        """The known action closest to an unknown word (near-miss list, then spelling)."""
+        if word in self.near_misses:
+            return self.near_misses[word]
+        cutoff = 0.5 if any("\u3400" <= ch <= "\u9fff" for ch in word) else 0.75
+        close = difflib.get_close_matches(word, list(self.suggestion_index), n=1, cutoff=cutoff)
+        return self.suggestion_index[close[0]] if close else None
+
+
+def _merge(old: tuple, new: tuple) -> tuple | None:
+    """Union of two entries that differ only in their trigger candidates (None if they clash)."""
+    if len(old) != len(new):
+        return None
+    out = []
+    for (k1, v1), (k2, v2) in zip(old, new, strict=True):
+        if k1 != k2:
+            return None
+        if k1 == TRIGGER:
+            out.append((k1, tuple(dict.fromkeys((*v1, *v2)))))
+        elif v1 != v2:
+            return None
+        else:
+            out.append((k1, v1))
+    return tuple(out)
+
+
+def _parse_item(spec: str, where: str) -> tuple[str, Any]:
+    kind, _, value = spec.partition(":")
+    if kind == NUM:
+        number = float(value)
+        return NUM, int(number) if number.is_integer() else number
+    if kind == BODY:
+        return BODY, (value.rstrip("+"), value.endswith("+"))
+    if kind in (TIMES,):
+        return TIMES, None
+    if kind in (ADV, DIR, LR, SIDE, UNIT):
+        return kind, value
+    raise VocabularyError(f"vocabulary {where}: cannot read item {spec!r}")
+
+
+def _check_param(schema: ActionSchema, param: str, where: str) -> None:
+    try:
+        schema.param(param)
+    except Exception as e:
+        raise VocabularyError(f"vocabulary action {schema.name!r} {where}: {e}") from None
+
+
+@functools.cache
+def get_lexicon() -> Lexicon:
+    """The lexicon of the packaged vocabulary, loaded once."""
+    with VOCABULARY_PATH.open(encoding="utf-8") as f:
+        return Lexicon(json.load(f))

@@ -1,0 +1,111 @@
+"""ActionPlan: what a parser backend returns.
+
+An :class:`ActionPlan` holds the actions in order (each a validated
+:class:`tasks.actions.Action`, with the registry defaults filled in) and remembers which
+parameters the sentence actually stated. :meth:`ActionPlan.to_dict` gives only the stated
+ones, so ``"squat"`` prints ``{"action": "squat", "params": {}}`` and the defaults stay the
+registry's (or the robot's) business when the action is compiled.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from language.exceptions import LanguageError
+from tasks.actions import Action
+from tasks.exceptions import TaskDefinitionError
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ActionPlan:
+    """Parsed actions of one instruction.
+
+    Attributes:
+        actions: Actions in order; an action with ``overlay=True`` runs at the same time as the
+            one before it (an upper-body action on a lower-body one).
+        backend: Parser that produced it (``rules`` or ``llm``).
+        text: The instruction as given.
+        given: For each action, the names of the parameters the instruction stated (the other
+            entries of ``Action.params`` are registry defaults).
+    """
+
+    actions: tuple[Action, ...]
+    backend: str
+    text: str
+    given: tuple[frozenset[str], ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "actions", tuple(self.actions))
+        if not self.given:
+            given = tuple(frozenset(k for k, v in a.params.items() if v is not None) for a in self.actions)
+            object.__setattr__(self, "given", given)
+        else:
+            object.__setattr__(self, "given", tuple(frozenset(g) for g in self.given))
+        if len(self.given) != len(self.actions):
+            raise ValueError(f"ActionPlan: {len(self.given)} 'given' sets for {len(self.actions)} actions")
+
+    def stated_params(self, index: int) -> dict[str, Any]:
+        """Parameters of action ``index`` that the instruction stated (SI units)."""
+        action = self.actions[index]
+        return {k: (list(v) if isinstance(v, tuple) else v)
+                for k, v in action.params.items() if k in self.given[index] and v is not None}
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"actions": [{"action": NAME, "params": {...}}], "backend": NAME}`` with stated params only."""
+        out = []
+        for i, action in enumerate(self.actions):
+            entry: dict[str, Any] = {"action": action.name, "params": self.stated_params(i)}
+            if action.overlay:
+                entry["overlay"] = True
+            out.append(entry)
+        return {"actions": out, "backend": self.backend}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, text: str = "") -> ActionPlan:
+        """Inverse of :meth:`to_dict` (LanguageError on bad content)."""
+        if not isinstance(data, Mapping) or not isinstance(data.get("actions"), Sequence) or isinstance(data.get("actions"), str):
+            raise LanguageError("an action plan must be an object with an 'actions' list")
+        actions, given = [], []
+        for i, entry in enumerate(data["actions"]):
+            try:
+                action = Action.from_dict(entry)
+            except TaskDefinitionError as e:
+                raise LanguageError(f"actions[{i}]: {e}") from None
+            actions.append(action)
+            given.append(frozenset((entry.get("params") or {}).keys()))
+        if not actions:
+            raise LanguageError("an action plan needs at least one action")
+        return cls(actions=tuple(actions), backend=str(data.get("backend", "rules")), text=text, given=tuple(given))
+
+    def __len__(self) -> int:
+        return len(self.actions)
+
+    def describe(self) -> str:
+        """Human-readable lines, one per action: stated parameters, then the defaults used."""
+        from tasks.actions import REGISTRY
+
+        lines = []
+        for i, action in enumerate(self.actions):
+            schema = REGISTRY[action.name]
+            stated = self.stated_params(i)
+            defaults = {k: v for k, v in action.params.items() if k not in stated and v is not None}
+
+            def fmt(d: Mapping[str, Any]) -> str:
+                parts = []
+                for k, v in d.items():
+                    unit = schema.param(k).unit
+                    if isinstance(v, float):
+                        v = f"{v:.4g}"
+                    parts.append(f"{k}={v}" + (f" {unit}" if unit and unit != "count" else ""))
+                return ", ".join(parts)
+
+            prefix = "   + at the same time: " if action.overlay else f"{sum(not a.overlay for a in self.actions[: i + 1])}. "
+            line = f"{prefix}{action.name}"
+            if stated:
+                line += f"  {fmt(stated)}"
+            if defaults:
+                line += f"  (defaults: {fmt(defaults)})"
+            lines.append(line)
+        return "\n".join(lines)
