@@ -1,0 +1,439 @@
+r"""Whole-body inverse-dynamics QP controller that tracks a Plan.
+
+Every tick solves one quadratic program in the joint accelerations :math:`a` (nv) and the contact
+forces :math:`f`: four corner forces per planar sole, 3D each, expressed in the sole frame.
+
+Constraints:
+
+* floating-base dynamics, the first six rows of :math:`M a + h = J_c^\top f`;
+* stance contacts, :math:`J_c a + \dot J_c v = -K_p e - K_d \dot e` (6D per sole, in the sole
+  frame; Baumgarte feedback pulls a drifting sole back to where it touched down);
+* friction pyramids per corner, :math:`|f_x|, |f_y| \le \mu f_z` (hence :math:`f_z \ge 0`),
+  which keeps the centre of pressure inside the sole rectangle;
+* torque limits on the actuated rows, :math:`|M a + h - J_c^\top f|_{6:} \le \tau_{max}`.
+
+Costs (weighted least squares on accelerations, PD + feed-forward from the plan): centre of
+mass, base orientation, hands and every frame a spec target names, swing feet, joint posture,
+plus small regularizations of :math:`a` and :math:`f`. A contact frame that is not in stance
+has its force columns removed from the dynamics (the regularization then sets its forces to 0).
+
+Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
+CoM Jacobian and the velocity-product accelerations), one ``centerOfMass`` at zero
+acceleration for the CoM drift, and per frame a Jacobian and a drift read from the filled data.
+The QP is a persistent dense proxsuite problem that is updated and warm-started from the
+previous solution (DESIGN.md section 4). Any other backend name goes through ``qpsolvers``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from planner.exceptions import PlannerError
+from planner.plan import Plan
+from planner.wbc_reference import PlanReference
+from robots.model import Robot
+
+INFINITY = 1e20  # proxsuite treats bounds this large as absent
+_LOCAL = pin.ReferenceFrame.LOCAL
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class ControllerError(PlannerError):
+    """The whole-body controller was misconfigured (unknown backend, bad reference)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WbcSettings:
+    """Weights, gains and solver options of the whole-body controller.
+
+    Gains are stiffnesses [1/s^2]; each damping is :math:`2\\sqrt{K_p}` (critical).
+
+    Attributes:
+        backend: ``"proxsuite"`` (persistent dense solver, warm-started) or a ``qpsolvers``
+            solver name (``"proxqp"``, ``"daqp"``, ``"quadprog"``, ``"osqp"``...).
+        dt: Controller period [s]; the reference is sampled on this grid.
+        com_weight, hand_weight, foot_weight, base_weight, posture_weight: Task weights [-].
+        orientation_factor: Orientation rows of frame tasks get ``weight * orientation_factor``.
+        force_weight: Regularization of corner forces [1/N^2].
+        acceleration_weight: Regularization of accelerations [-].
+        com_kp, frame_kp, foot_kp, base_kp, posture_kp: PD stiffnesses [1/s^2].
+        contact_kp: Baumgarte stiffness on stance-sole drift [1/s^2].
+        friction_scale: Fraction of the friction coefficient the controller may use [-].
+        torque_scale: Fraction of each torque limit the controller may use [-].
+        com_drift: Include the CoM velocity-product term (one extra Pinocchio call, ~7 us).
+        eps_abs: QP absolute tolerance. max_iter: QP iteration cap.
+    """
+
+    backend: str = "proxsuite"
+    dt: float = 0.001
+    com_weight: float = 10.0
+    hand_weight: float = 1.0
+    foot_weight: float = 10.0
+    base_weight: float = 1.0
+    posture_weight: float = 1e-3
+    orientation_factor: float = 0.1
+    force_weight: float = 1e-7
+    acceleration_weight: float = 1e-6
+    com_kp: float = 100.0
+    frame_kp: float = 100.0
+    foot_kp: float = 200.0
+    base_kp: float = 100.0
+    posture_kp: float = 100.0
+    contact_kp: float = 10.0
+    friction_scale: float = 0.9
+    torque_scale: float = 1.0
+    com_drift: bool = True
+    eps_abs: float = 1e-6
+    max_iter: int = 200
+
+    def __post_init__(self) -> None:
+        for name in (
+            "com_weight", "hand_weight", "foot_weight", "base_weight", "posture_weight", "orientation_factor",
+            "force_weight", "acceleration_weight", "com_kp", "frame_kp", "foot_kp", "base_kp", "posture_kp",
+            "contact_kp",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ControllerError(f"WbcSettings.{name} must be a finite number >= 0, got {value!r}")
+        if not (self.force_weight > 0 and self.acceleration_weight > 0):
+            raise ControllerError("WbcSettings: force_weight and acceleration_weight must be > 0")
+        if not 0 < self.friction_scale <= 1 or not 0 < self.torque_scale:
+            raise ControllerError("WbcSettings: friction_scale must be in (0, 1] and torque_scale > 0")
+        if not self.dt > 0:
+            raise ControllerError(f"WbcSettings.dt must be > 0 s, got {self.dt!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class TickInfo:
+    """What the last tick did.
+
+    Attributes:
+        ok: The QP solved (otherwise the previous torque was reused).
+        iterations: QP iterations.
+        status: Backend status text.
+        contact_forces: Contact frame -> planned net force in the world (3,) [N].
+    """
+
+    ok: bool
+    iterations: int
+    status: str
+    contact_forces: dict[str, np.ndarray]
+
+
+class _Task:
+    """A tracked frame: rows in the stacked task matrix."""
+
+    __slots__ = ("frame_id", "name", "row", "sqrt_w_pos", "sqrt_w_rot", "track")
+
+    def __init__(self, name: str, frame_id: int, row: int, track: Any) -> None:
+        self.name, self.frame_id, self.row, self.track = name, frame_id, row, track
+        self.sqrt_w_pos = 0.0
+        self.sqrt_w_rot = 0.0
+
+
+class WholeBodyController:
+    """Inverse-dynamics QP controller (see the module docstring).
+
+    Args:
+        robot: The robot to control (its Pinocchio model is used read-only).
+        settings: Weights, gains and backend.
+
+    Example:
+        >>> ctrl = WholeBodyController(robot)
+        >>> ctrl.reset(q, v)
+        >>> tau = ctrl.compute(t, q, v, plan)  # (nv - 6,) [N m]
+    """
+
+    def __init__(self, robot: Robot, settings: WbcSettings | None = None) -> None:
+        self.robot = robot
+        self.settings = settings if settings is not None else WbcSettings()
+        self.model = robot.model
+        self.data = robot.model.createData()
+        nv = self.model.nv
+        self.nv = nv
+        self.nu = nv - 6
+        self.torque_limits = robot.torque_limits * self.settings.torque_scale
+        mu = robot.profile.friction_coefficient * self.settings.friction_scale
+        self._mu = mu
+        self._zero_a = np.zeros(nv)
+        backend = self.settings.backend
+        if backend != "proxsuite":
+            import qpsolvers
+
+            if backend not in qpsolvers.available_solvers:
+                raise ControllerError(
+                    f"QP backend {backend!r} is not installed; available: proxsuite, "
+                    f"{', '.join(qpsolvers.available_solvers)} (install e.g. the 'daqp' or 'quadprog' package)"
+                )
+        self._reference: PlanReference | None = None
+        self._reference_key: int | None = None
+        self._layout: tuple[str, ...] | None = None
+        self._qp: Any = None
+        self._q0: np.ndarray | None = None
+        self._prev_tau = np.zeros(self.nu)
+        self.last: TickInfo | None = None
+        self.failures = 0
+
+    # ------------------------------------------------------------------ reference handling
+    def reference_for(self, plan: Plan) -> PlanReference:
+        """The dense reference of ``plan`` (built once per plan, then reused)."""
+        if self._reference is None or self._reference_key != id(plan) or self._reference.plan is not plan:
+            self._reference = PlanReference(plan, self.robot, dt=self.settings.dt)
+            self._reference_key = id(plan)
+        return self._reference
+
+    def reset(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Forget the solver state and contact anchors; the next tick starts from ``q``, ``v``.
+
+        Args:
+            q: Configuration (nq,), Pinocchio order.
+            v: Velocity (nv,).
+        """
+        self._qp = None
+        self._layout = None
+        self._anchors: dict[str, pin.SE3] = {}
+        self._was_active: dict[str, bool] = {}
+        self._x = None
+        self._prev_tau = np.zeros(self.nu)
+        self._q0 = np.array(q, dtype=float)
+        self.failures = 0
+        self.last = None
+
+    # ------------------------------------------------------------------ problem layout
+    def _build_layout(self, ref: PlanReference) -> None:
+        s = self.settings
+        model, nv = self.model, self.nv
+        self._contacts = list(ref.contact_frames)
+        self._contact_ids = [model.getFrameId(nm) for nm in self._contacts]
+        nc = len(self._contacts)
+        self.n = nv + 12 * nc
+        self.n_eq = 6 + 6 * nc
+        self.n_in = 16 * nc + self.nu
+        # corner geometry (sole frame) and the constant force -> wrench map G0 (6 x 12)
+        self._g0 = []
+        for name in self._contacts:
+            side = self.robot.foot_side(name) or "left"
+            corners = np.array([[x, y, 0.0] for x, y in self.robot.profile.sole.corners(side)])
+            g0 = np.zeros((6, 12))
+            for k, c in enumerate(corners):
+                g0[:3, 3 * k : 3 * k + 3] = np.eye(3)
+                g0[3:, 3 * k : 3 * k + 3] = pin.skew(c)
+            self._g0.append(g0)
+        # tracked frames: hands + spec targets + swing phases of contact frames
+        hand_names = [self.robot.frame(r) for r in ("left_hand", "right_hand") if self.robot.has_role(r)]
+        target_names = [model.frames[self.robot.frame_id(t.frame)].name for t in ref.plan.spec.targets]
+        tracked = list(dict.fromkeys([*hand_names, *target_names, *self._contacts]))
+        self._tasks: list[_Task] = []
+        row = 3  # CoM rows first
+        for name in tracked:
+            self._tasks.append(_Task(name, model.getFrameId(name), row, ref.frames[name]))
+            row += 6
+        self._n_task_rows = row
+        self._T = np.zeros((row, nv))
+        self._r = np.zeros(row)
+        # constant matrices
+        self.H = np.zeros((self.n, self.n))
+        self.g = np.zeros(self.n)
+        self.A = np.zeros((self.n_eq, self.n))
+        self.b = np.zeros(self.n_eq)
+        self.C = np.zeros((self.n_in, self.n))
+        self.l = np.full(self.n_in, -INFINITY)
+        self.u = np.zeros(self.n_in)
+        mu = self._mu
+        pyramid = np.array([[1.0, 0.0, -mu], [-1.0, 0.0, -mu], [0.0, 1.0, -mu], [0.0, -1.0, -mu]])
+        for i in range(nc):
+            for k in range(4):
+                r0 = 16 * i + 4 * k
+                c0 = nv + 12 * i + 3 * k
+                self.C[r0 : r0 + 4, c0 : c0 + 3] = pyramid
+        self._tau_rows = slice(16 * nc, 16 * nc + self.nu)
+        self._reg = np.concatenate([np.full(nv, s.acceleration_weight), np.full(12 * nc, s.force_weight)])
+        # posture weights on the actuated joints, base orientation on the angular base rows
+        self._diag_a = np.zeros(nv)
+        self._diag_a[3:6] = s.base_weight
+        self._diag_a[6:] = s.posture_weight
+        self._kd = {k: 2.0 * math.sqrt(getattr(s, k)) for k in ("com_kp", "frame_kp", "foot_kp", "base_kp",
+                                                                 "posture_kp", "contact_kp")}
+        self._layout = tuple(self._contacts)
+        self._qp = None
+        self._x = np.zeros(self.n)
+        self._S = np.zeros((nv, 12 * nc))
+
+    # ------------------------------------------------------------------ the tick
+    def compute(self, t: float, q: np.ndarray, v: np.ndarray, reference: Plan | PlanReference) -> np.ndarray:
+        """Joint torques for the current state.
+
+        Args:
+            t: Time since the start of the plan [s].
+            q: Measured configuration (nq,), Pinocchio order, quaternion (x, y, z, w).
+            v: Measured velocity (nv,), Pinocchio convention.
+            reference: The Plan to track (its dense reference is built on first use), or a
+                :class:`~planner.wbc_reference.PlanReference`.
+
+        Returns:
+            Actuated joint torques (nv - 6,) [N m], within the torque limits.
+        """
+        ref = reference if isinstance(reference, PlanReference) else self.reference_for(reference)
+        if self._layout is None or self._layout != ref.contact_frames:
+            if self._q0 is None:
+                self.reset(q, v)
+            self._build_layout(ref)
+        s = self.settings
+        model, data, nv = self.model, self.data, self.nv
+        k = ref.index(t)
+        kd = self._kd
+
+        pin.computeAllTerms(model, data, q, v)
+        M = data.M
+        h = data.nle
+        T, r = self._T, self._r
+        # ---- CoM
+        com = data.com[0]
+        vcom = data.vcom[0]
+        sw = math.sqrt(s.com_weight)
+        T[:3] = sw * data.Jcom
+        acc = (ref.com_acceleration[k] + s.com_kp * (ref.com[k] - com)
+               + kd["com_kp"] * (ref.com_velocity[k] - vcom))
+        if s.com_drift:
+            pin.centerOfMass(model, data, q, v, self._zero_a)
+            acc = acc - data.acom[0]
+        r[:3] = sw * acc
+
+        # ---- contacts (stance) and frame tasks
+        A, b, C = self.A, self.b, self.C
+        S = self._S
+        active_row = ref.active[k]
+        forces_cols = []
+        for i, (name, fid) in enumerate(zip(self._contacts, self._contact_ids, strict=True)):
+            active = bool(active_row[i])
+            rows = slice(6 + 6 * i, 12 + 6 * i)
+            cols = slice(nv + 12 * i, nv + 12 * i + 12)
+            if active:
+                placement = pin.updateFramePlacement(model, data, fid)
+                if not self._was_active.get(name, False):
+                    self._anchors[name] = placement.copy()
+                J = pin.getFrameJacobian(model, data, fid, _LOCAL)
+                drift = pin.getFrameClassicalAcceleration(model, data, fid, _LOCAL).vector
+                vel = pin.getFrameVelocity(model, data, fid, _LOCAL).vector
+                anchor = self._anchors[name]
+                err = np.empty(6)
+                err[:3] = placement.rotation.T @ (placement.translation - anchor.translation)
+                err[3:] = pin.log3(anchor.rotation.T @ placement.rotation)
+                A[rows, :nv] = J
+                b[rows] = -drift - s.contact_kp * err - kd["contact_kp"] * vel
+                S[:, 12 * i : 12 * i + 12] = J.T @ self._g0[i]
+                forces_cols.append((name, cols, placement.rotation))
+            else:
+                A[rows, :nv] = 0.0
+                b[rows] = 0.0
+                S[:, 12 * i : 12 * i + 12] = 0.0
+            self._was_active[name] = active
+
+        contact_set = {nm for nm, _, _ in forces_cols}
+        for task in self._tasks:
+            rows = slice(task.row, task.row + 6)
+            is_contact = task.name in self._layout
+            if is_contact and task.name in contact_set:
+                T[rows] = 0.0
+                r[rows] = 0.0
+                continue
+            w = s.foot_weight if is_contact else s.hand_weight
+            kp = s.foot_kp if is_contact else s.frame_kp
+            kdv = kd["foot_kp"] if is_contact else kd["frame_kp"]
+            sw_p = math.sqrt(w)
+            sw_r = math.sqrt(w * s.orientation_factor)
+            fid = task.frame_id
+            placement = pin.updateFramePlacement(model, data, fid)
+            J = pin.getFrameJacobian(model, data, fid, _LWA)
+            drift = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+            vel = pin.getFrameVelocity(model, data, fid, _LWA).vector
+            tr = task.track
+            rot = placement.rotation
+            err = np.empty(6)
+            err[:3] = tr.position[k] - placement.translation
+            err[3:] = rot @ pin.log3(rot.T @ tr.rotation[k])
+            acc6 = tr.acceleration[k] + kp * err + kdv * (tr.velocity[k] - vel) - drift
+            T[task.row : task.row + 3] = sw_p * J[:3]
+            T[task.row + 3 : task.row + 6] = sw_r * J[3:]
+            r[task.row : task.row + 3] = sw_p * acc6[:3]
+            r[task.row + 3 : task.row + 6] = sw_r * acc6[3:]
+
+        # ---- posture + base orientation (diagonal terms)
+        dq = pin.difference(model, q, ref.q[k])
+        a_post = ref.a[k] + s.posture_kp * dq + kd["posture_kp"] * (ref.v[k] - v)
+        a_post[3:6] = ref.a[k, 3:6] + s.base_kp * dq[3:6] + kd["base_kp"] * (ref.v[k, 3:6] - v[3:6])
+
+        # ---- QP matrices
+        H, g = self.H, self.g
+        H[:nv, :nv] = T.T @ T
+        H[np.diag_indices(self.n)] += self._reg
+        H[np.diag_indices(nv)] += self._diag_a
+        g[:nv] = -(T.T @ r) - self._diag_a * a_post
+        # dynamics rows (floating base)
+        A[:6, :nv] = M[:6]
+        A[:6, nv:] = -S[:6]
+        b[:6] = -h[:6]
+        # torque rows
+        tau_rows = self._tau_rows
+        C[tau_rows, :nv] = M[6:]
+        C[tau_rows, nv:] = -S[6:]
+        self.l[tau_rows] = -self.torque_limits - h[6:]
+        self.u[tau_rows] = self.torque_limits - h[6:]
+
+        x, ok, iterations, status = self._solve()
+        if ok:
+            a = x[:nv]
+            f = x[nv:]
+            tau = M[6:] @ a + h[6:] - S[6:] @ f
+            np.clip(tau, -self.torque_limits, self.torque_limits, out=tau)
+            self._prev_tau = tau
+            self._x = x
+        else:
+            self.failures += 1
+            tau = self._prev_tau.copy()
+            f = self._x[nv:]
+        forces = {}
+        for name, cols, rot in forces_cols:
+            local = f[cols.start - nv : cols.stop - nv].reshape(4, 3).sum(axis=0)
+            forces[name] = rot @ local
+        self.last = TickInfo(ok, iterations, status, forces)
+        return tau
+
+    def _solve(self) -> tuple[np.ndarray, bool, int, str]:
+        s = self.settings
+        if s.backend == "proxsuite":
+            import proxsuite
+
+            if self._qp is None:
+                qp = proxsuite.proxqp.dense.QP(self.n, self.n_eq, self.n_in)
+                qp.settings.eps_abs = s.eps_abs
+                qp.settings.eps_rel = 0.0
+                qp.settings.max_iter = s.max_iter
+                qp.settings.verbose = False
+                qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+                qp.init(self.H, self.g, self.A, self.b, self.C, self.l, self.u)
+                self._qp = qp
+            else:
+                self._qp.update(self.H, self.g, self.A, self.b, self.C, self.l, self.u, update_preconditioner=False)
+            self._qp.solve()
+            res = self._qp.results
+            status = res.info.status
+            ok = status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+            x = res.x
+            if ok and not np.all(np.isfinite(x)):
+                ok = False
+            return x.copy(), ok, int(res.info.iter), str(status).split(".")[-1]
+        import qpsolvers
+
+        finite_l = self.l > -INFINITY / 2
+        G = np.vstack([self.C, -self.C[finite_l]])
+        hvec = np.concatenate([self.u, -self.l[finite_l]])
+        x = qpsolvers.solve_qp(self.H, self.g, G, hvec, self.A, self.b, solver=s.backend, initvals=self._x)
+        if x is None or not np.all(np.isfinite(x)):
+            return np.zeros(self.n), False, 0, "failed"
+        return x, True, 0, "solved"

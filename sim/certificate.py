@@ -1,0 +1,97 @@
+"""The certificate of a simulated motion: every physical check with its number and verdict."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Check:
+    """One named check of a simulated motion.
+
+    Attributes:
+        name: What was checked ("base height", "left_foot slip", "target 'wave #1'").
+        value: The measured worst value [unit].
+        limit: The accepted bound [unit].
+        unit: ``m``, ``rad``, ``%``, ``count``...
+        ok: Verdict.
+        time: Time of the worst value (or of the first violation) [s].
+        message: The failure in words (empty when ok).
+        upper: True when ``value`` must stay <= ``limit``, False when it must stay >= ``limit``.
+    """
+
+    name: str
+    value: float
+    limit: float
+    unit: str
+    ok: bool
+    time: float
+    message: str = ""
+    upper: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict (NaN/inf become None)."""
+        return {
+            "name": self.name,
+            "value": _json_float(self.value),
+            "limit": _json_float(self.limit),
+            "unit": self.unit,
+            "ok": bool(self.ok),
+            "time": _json_float(self.time),
+            "message": self.message,
+            "upper": self.upper,
+        }
+
+
+def _json_float(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Certificate:
+    """Pass/fail verdict of a simulated motion with the evidence.
+
+    Attributes:
+        ok: Every check passed.
+        checks: The checks in a fixed order (fall, contacts, slip, torque, tracking, targets).
+        reason: The earliest failure in words ("fell at t = 1.23 s (base height 0.42 m <
+            0.60 m)"); empty when ok.
+    """
+
+    ok: bool
+    checks: tuple[Check, ...]
+    reason: str = ""
+
+    @classmethod
+    def from_checks(cls, checks: tuple[Check, ...]) -> Certificate:
+        """Build the verdict: ok when all pass; the reason is the failure that happened first."""
+        failed = [c for c in checks if not c.ok]
+        if not failed:
+            return cls(ok=True, checks=checks, reason="")
+        first = min(failed, key=lambda c: (c.time if math.isfinite(c.time) else math.inf))
+        return cls(ok=False, checks=checks, reason=first.message or f"{first.name} failed")
+
+    def check(self, name: str) -> Check:
+        """The check called ``name`` (KeyError listing the names otherwise)."""
+        for c in self.checks:
+            if c.name == name:
+                return c
+        raise KeyError(f"no check {name!r}; checks are {[c.name for c in self.checks]}")
+
+    def summary(self) -> str:
+        """Multi-line human-readable table."""
+        head = "certificate: PASS" if self.ok else f"certificate: FAIL - {self.reason}"
+        lines = [head]
+        for c in self.checks:
+            mark = "ok  " if c.ok else "FAIL"
+            rel = "<=" if c.upper else ">="
+            lines.append(
+                f"  {mark} {c.name:<34} {c.value:10.4g} {c.unit:<5} ({rel} {c.limit:.4g}, t = {c.time:.3f} s)"
+            )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {"ok": bool(self.ok), "reason": self.reason, "checks": [c.to_dict() for c in self.checks]}

@@ -1,0 +1,76 @@
+"""The result of a closed-loop simulation."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sim.certificate import Certificate
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """Something that happened during the simulation.
+
+    Attributes:
+        time: When [s].
+        kind: ``push``, ``qp_failure``, ``unplanned_contact``, ``fall``, ``torque_limit``, ``stopped``.
+        message: Details in words.
+    """
+
+    time: float
+    kind: str
+    message: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {"time": float(self.time), "kind": self.kind, "message": self.message}
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Execution:
+    """A simulated motion.
+
+    Attributes:
+        t: Sample times (T',) [s], one per controller tick.
+        q: Configurations (T', nq), Pinocchio order, quaternion (x, y, z, w).
+        v: Velocities (T', nv), Pinocchio convention.
+        tau: Applied actuated torques (T', nv - 6) [N m].
+        com: Centre of mass (T', 3) [m].
+        contact_forces: Contact frame -> net floor force on that sole in the world (T', 3) [N].
+        events: What happened, in time order.
+        certificate: The verdict with its checks.
+        wall_time: Wall-clock time of the loop [s].
+        realtime_factor: Simulated time / wall time [-].
+        tick_times: Controller tick durations [s] (T',).
+        timestep: MuJoCo timestep [s].
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    tau: np.ndarray
+    com: np.ndarray
+    contact_forces: Mapping[str, np.ndarray]
+    events: tuple[Event, ...]
+    certificate: Certificate
+    wall_time: float = 0.0
+    realtime_factor: float = 0.0
+    tick_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    timestep: float = 0.001
+
+    @property
+    def ok(self) -> bool:
+        """The certificate passed."""
+        return self.certificate.ok
+
+    def summary(self) -> str:
+        """The certificate table plus timing."""
+        tick = 1e6 * float(np.median(self.tick_times)) if len(self.tick_times) else float("nan")
+        return (
+            f"simulated {self.t[-1]:.2f} s in {self.wall_time:.2f} s ({self.realtime_factor:.1f}x real time, "
+            f"controller tick median {tick:.0f} us)\n" + self.certificate.summary()
+        )

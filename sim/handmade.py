@@ -1,0 +1,200 @@
+"""Hand-made plans built by numeric inverse kinematics, without the trajectory optimizer.
+
+They serve as controller tests and benchmarks that do not depend on the planner: standing
+still, a slow squat (CoM lowered with both soles fixed), an arm motion (a hand raised and
+brought back) and deliberately broken plans (a stance foot dragged sideways). Each knot is
+solved by damped Gauss-Newton from the previous one: both soles held in 6D, the CoM
+horizontal position held (or moved), the base orientation held, a hand moved, and a small
+pull towards the standing posture. Velocities and accelerations are central finite
+differences; the plan starts and ends at rest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pinocchio as pin
+
+from planner.plan import Plan, SolverStats, SolveStatus
+from robots.model import Robot
+from tasks.specs import CoMBounds, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
+
+Offset = Callable[[float], np.ndarray]
+
+
+def smooth_bump(duration: float) -> Callable[[float], float]:
+    """0 -> 1 -> 0 over ``duration`` [s], with zero slope at both ends."""
+    return lambda t: 0.5 * (1.0 - np.cos(2.0 * np.pi * min(max(t / duration, 0.0), 1.0)))
+
+
+def _pose_of(placement: pin.SE3) -> Pose:
+    rpy = pin.rpy.matrixToRpy(placement.rotation)
+    return Pose(position=tuple(float(x) for x in placement.translation), rpy=tuple(float(x) for x in rpy))
+
+
+def ik_plan(
+    robot: Robot,
+    *,
+    duration: float,
+    dt: float = 0.05,
+    com_offset: Offset | None = None,
+    hand_offsets: dict[str, Offset] | None = None,
+    foot_offsets: dict[str, Offset] | None = None,
+    targets: tuple[FrameTarget, ...] = (),
+    name: str = "handmade",
+    q_start: np.ndarray | None = None,
+) -> Plan:
+    """A double-support plan by numeric IK over a uniform grid.
+
+    Args:
+        robot: The robot.
+        duration: Length [s].
+        dt: Knot spacing [s].
+        com_offset: CoM displacement from its start as a function of time [m].
+        hand_offsets: Hand role -> displacement of that hand from its start [m].
+        foot_offsets: Foot role -> displacement of that sole from its start [m] (the spec still
+            holds the foot in contact: a deliberately inconsistent plan).
+        targets: Frame targets to put in the spec.
+        name: Spec name.
+        q_start: Start configuration (default: the robot's standing posture).
+
+    Returns:
+        A Plan with ``SolveStatus.SOLVED`` statistics.
+    """
+    model, data = robot.model, robot.data()
+    q = np.array(robot.q_standing if q_start is None else q_start, dtype=float)
+    hand_offsets = hand_offsets or {}
+    foot_offsets = foot_offsets or {}
+    pin.framesForwardKinematics(model, data, q)
+    feet = {role: robot.frame_id(role) for role in ("left_foot", "right_foot")}
+    foot0 = {role: data.oMf[fid].copy() for role, fid in feet.items()}
+    hands = {role: robot.frame_id(role) for role in hand_offsets}
+    hand0 = {role: data.oMf[fid].translation.copy() for role, fid in hands.items()}
+    com0 = pin.centerOfMass(model, data, q).copy()
+    rot0 = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+    q_posture = q.copy()
+    n = int(round(duration / dt)) + 1
+    times = dt * np.arange(n)
+    qs = np.empty((n, model.nq))
+    for k, t in enumerate(times):
+        for _ in range(30):
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            errs, jacs = [], []
+            for role, fid in feet.items():
+                target = foot0[role].copy()
+                if role in foot_offsets:
+                    target.translation = target.translation + foot_offsets[role](t)
+                cur = data.oMf[fid]
+                err = pin.log6(target.actInv(cur)).vector
+                J = pin.Jlog6(target.actInv(cur)) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
+                errs.append(30.0 * err)
+                jacs.append(30.0 * J)
+            com = pin.centerOfMass(model, data, q)
+            com_target = com0 + (com_offset(t) if com_offset is not None else 0.0)
+            errs.append(3.0 * (com - com_target))
+            jacs.append(3.0 * pin.jacobianCenterOfMass(model, data, q))
+            for role, fid in hands.items():
+                p = data.oMf[fid].translation
+                errs.append(3.0 * (p - hand0[role] - hand_offsets[role](t)))
+                jacs.append(3.0 * pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3])
+            rot = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+            errs.append(pin.log3(rot0.T @ rot))
+            jb = np.zeros((3, model.nv))
+            jb[:, 3:6] = np.eye(3)
+            jacs.append(jb)
+            errs.append(0.03 * pin.difference(model, q_posture, q)[6:])
+            jacs.append(np.hstack([np.zeros((model.nv - 6, 6)), 0.03 * np.eye(model.nv - 6)]))
+            e = np.concatenate(errs)
+            J = np.vstack(jacs)
+            step = -np.linalg.solve(J.T @ J + 1e-8 * np.eye(model.nv), J.T @ e)
+            q = pin.integrate(model, q, step)
+            if np.linalg.norm(step) < 1e-10:
+                break
+        q = np.clip(q, model.lowerPositionLimit, model.upperPositionLimit) if model.nq > 7 else q
+        qs[k] = q
+    vs = np.zeros((n, model.nv))
+    for k in range(1, n - 1):
+        vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
+    acc = np.zeros((n, model.nv))
+    acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
+    coms = np.array([pin.centerOfMass(model, data, qk) for qk in qs])
+    contacts = tuple(
+        Contact(frame=role, placement=_pose_of(foot0[role])) for role in ("left_foot", "right_foot")
+    )
+    spec = TaskSpec(
+        robot=robot.name,
+        phases=(Phase(name="stand", duration=float(times[-1]), contacts=contacts),),
+        targets=targets,
+        com_bounds=(CoMBounds(),),
+        dt=dt,
+        name=name,
+    )
+    return Plan(
+        robot=robot.name,
+        spec=spec,
+        t=times,
+        q=qs,
+        v=vs,
+        a=acc,
+        com=coms,
+        stats=SolverStats(status=SolveStatus.SOLVED, backend="handmade-ik"),
+    )
+
+
+def standing_plan(robot: Robot, *, duration: float = 2.0, dt: float = 0.05) -> Plan:
+    """Stand still in the standing posture for ``duration`` [s]."""
+    return ik_plan(robot, duration=duration, dt=dt, name="stand")
+
+
+def squat_plan(robot: Robot, *, depth: float = 0.15, duration: float = 3.0, dt: float = 0.05) -> Plan:
+    """Lower the CoM by ``depth`` [m] and come back up, soles fixed."""
+    bump = smooth_bump(duration)
+    return ik_plan(robot, duration=duration, dt=dt, com_offset=lambda t: np.array([0.0, 0.0, -depth * bump(t)]),
+                   name="squat")
+
+
+def arm_plan(
+    robot: Robot,
+    *,
+    side: str = "right",
+    offset: tuple[float, float, float] = (0.15, 0.0, 0.25),
+    duration: float = 3.0,
+    dt: float = 0.05,
+    tolerance: float = 0.02,
+) -> Plan:
+    """Move one hand by ``offset`` [m] and back; a FrameTarget asks for the top at mid-motion."""
+    bump = smooth_bump(duration)
+    role = f"{side}_hand"
+    shift = np.array(offset, dtype=float)
+    draft = ik_plan(robot, duration=duration, dt=dt, hand_offsets={role: lambda t: shift * bump(t)}, name="arm")
+    mid = len(draft.t) // 2
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, draft.q[mid])
+    top = data.oMf[robot.frame_id(role)].translation
+    target = FrameTarget(
+        name=f"{side} hand up",
+        frame=role,
+        position=tuple(float(x) for x in top),
+        time=float(draft.t[mid]),
+        tolerance=tolerance,
+        priority=Priority.HARD,
+    )
+    spec = TaskSpec(
+        robot=draft.spec.robot, phases=draft.spec.phases, targets=(target,), com_bounds=draft.spec.com_bounds,
+        dt=draft.spec.dt, name="arm",
+    )
+    return Plan(robot=draft.robot, spec=spec, t=draft.t, q=draft.q, v=draft.v, a=draft.a, com=draft.com,
+                stats=draft.stats)
+
+
+def feet_apart_plan(robot: Robot, *, distance: float = 0.25, duration: float = 2.0, dt: float = 0.05) -> Plan:
+    """An infeasible plan: the right sole is dragged ``distance`` [m] outwards while it is in stance."""
+    ramp = lambda t: 0.5 * (1.0 - np.cos(np.pi * min(t / duration, 1.0)))  # noqa: E731
+    return ik_plan(
+        robot, duration=duration, dt=dt,
+        foot_offsets={"right_foot": lambda t: np.array([0.0, -distance * ramp(t), 0.0])},
+        com_offset=lambda t: np.array([0.0, -0.5 * distance * ramp(t), 0.0]),
+        name="feet apart",
+    )

@@ -1,0 +1,264 @@
+"""A MuJoCo model built from the robot's own URDF, with index maps to Pinocchio.
+
+The URDF that Pinocchio loaded is rewritten in memory (DESIGN.md section 5, measured with
+MuJoCo 4.0): ``package://`` mesh URIs become absolute file names, a ``<mujoco><compiler/>``
+tag keeps every body (``fusestatic="false"``), and the root link hangs from a new ``world``
+link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
+:class:`mujoco.MjSpec` we then add
+
+* a floor plane (z = 0) with the profile's friction coefficient,
+* one thin box per sole, the profile's sole rectangle with its bottom face on the sole frame
+  (the foot meshes stop colliding, so the feet touch the floor exactly where the controller's
+  contact model says they do),
+* a torque actuator per actuated joint, saturating at the URDF effort limit.
+
+Robot geometries collide with the floor only (no self-collision). Joints are matched to
+Pinocchio by name, so either joint order works. Conventions: MuJoCo's free joint stores the
+quaternion ``(w, x, y, z)`` and the base linear velocity in the world frame; Pinocchio stores
+``(x, y, z, w)`` and the linear velocity in the base frame. :class:`SimModel` converts.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from sim.exceptions import SimModelError
+
+ROOT_JOINT = "wbmp_root"
+FLOOR = "wbmp_floor"
+SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thick
+ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # robot geoms collide with the floor only
+FLOOR_CONTYPE, FLOOR_CONAFFINITY = 1, 2
+
+
+@dataclass(frozen=True, eq=False)
+class SimModel:
+    """A compiled MuJoCo model of a robot plus the maps between MuJoCo and Pinocchio.
+
+    Attributes:
+        robot: The robot it was built from.
+        model: The compiled ``mujoco.MjModel`` (treat as read-only).
+        qpos_index: For each Pinocchio actuated-joint configuration index ``7..nq-1``, the MuJoCo
+            qpos index (nq - 7,).
+        dof_index: For each Pinocchio actuated velocity index ``6..nv-1``, the MuJoCo dof index.
+        actuator_index: For each actuated Pinocchio joint (nv - 6,), the MuJoCo actuator index.
+        sole_geoms: Foot role (``left_foot``) -> MuJoCo geom id of its sole box.
+        geom_body_names: MuJoCo body name of every geom (ngeom,).
+        floor_geom: Geom id of the floor.
+        torque_limits: Actuator limits in Pinocchio order (nv - 6,) [N m].
+    """
+
+    robot: Robot
+    model: mujoco.MjModel
+    qpos_index: np.ndarray
+    dof_index: np.ndarray
+    actuator_index: np.ndarray
+    sole_geoms: dict[str, int]
+    geom_body_names: tuple[str, ...]
+    floor_geom: int
+    torque_limits: np.ndarray
+    xml: str = field(repr=False, default="")
+
+    def data(self) -> mujoco.MjData:
+        """A fresh ``mujoco.MjData``."""
+        return mujoco.MjData(self.model)
+
+    def set_state(self, data: mujoco.MjData, q: np.ndarray, v: np.ndarray | None = None) -> None:
+        """Write a Pinocchio state (q (nq,), v (nv,)) into MuJoCo data, then run mj_forward."""
+        qpos = np.empty(self.model.nq)
+        qpos[:3] = q[:3]
+        qpos[3] = q[6]
+        qpos[4:7] = q[3:6]
+        qpos[self.qpos_index] = q[7:]
+        qvel = np.zeros(self.model.nv)
+        if v is not None:
+            rot = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+            qvel[:3] = rot @ v[:3]
+            qvel[3:6] = v[3:6]
+            qvel[self.dof_index] = v[6:]
+        data.qpos[:] = qpos
+        data.qvel[:] = qvel
+        mujoco.mj_forward(self.model, data)
+
+    def state(self, data: mujoco.MjData, q: np.ndarray, v: np.ndarray) -> None:
+        """Read MuJoCo data into Pinocchio-convention ``q`` (nq,) and ``v`` (nv,) in place."""
+        qpos, qvel = data.qpos, data.qvel
+        q[:3] = qpos[:3]
+        q[3:6] = qpos[4:7]
+        q[6] = qpos[3]
+        q[7:] = qpos[self.qpos_index]
+        w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
+        # R^T @ world linear velocity, R from the unit quaternion (w, x, y, z)
+        vx, vy, vz = qvel[0], qvel[1], qvel[2]
+        v[0] = (1 - 2 * (y * y + z * z)) * vx + 2 * (x * y + w * z) * vy + 2 * (x * z - w * y) * vz
+        v[1] = 2 * (x * y - w * z) * vx + (1 - 2 * (x * x + z * z)) * vy + 2 * (y * z + w * x) * vz
+        v[2] = 2 * (x * z + w * y) * vx + 2 * (y * z - w * x) * vy + (1 - 2 * (x * x + y * y)) * vz
+        v[3:6] = qvel[3:6]
+        v[6:] = qvel[self.dof_index]
+
+
+def _rewrite_urdf(robot: Robot) -> str:
+    text = Path(robot.urdf_path).read_text(encoding="utf-8")
+
+    def resolve(match: re.Match[str]) -> str:
+        rest = match.group(1)
+        for directory in robot.package_dirs:
+            path = Path(directory) / rest
+            if path.is_file():
+                return f'filename="{path}"'
+        raise SimModelError(
+            f"robot {robot.name!r}: mesh 'package://{rest}' not found under {list(robot.package_dirs)}"
+        )
+
+    text = re.sub(r'filename="package://([^"]+)"', resolve, text)
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as e:
+        raise SimModelError(f"robot {robot.name!r}: cannot parse URDF {robot.urdf_path}: {e}") from None
+    for old in root.findall("mujoco"):
+        root.remove(old)
+    children = {j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None}
+    roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
+    if len(roots) != 1:
+        raise SimModelError(f"robot {robot.name!r}: the URDF must have exactly one root link, found {roots}")
+    tag = ET.SubElement(root, "mujoco")
+    ET.SubElement(
+        tag, "compiler", discardvisual="true", fusestatic="false", strippath="false", balanceinertia="true"
+    )
+    ET.SubElement(root, "link", name="world")
+    joint = ET.SubElement(root, "joint", name=ROOT_JOINT, type="floating")
+    ET.SubElement(joint, "parent", link="world")
+    ET.SubElement(joint, "child", link=roots[0])
+    return ET.tostring(root, encoding="unicode")
+
+
+@functools.cache
+def _cached(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
+    return _build(robot, timestep, joint_friction)
+
+
+def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool = True) -> SimModel:
+    """Build (once per robot and options) the MuJoCo model of ``robot``.
+
+    Args:
+        robot: A loaded robot.
+        timestep: MuJoCo integration step [s].
+        joint_friction: Keep the URDF's joint ``damping`` and ``friction`` (MuJoCo frictionloss);
+            False simulates frictionless joints.
+
+    Returns:
+        The compiled model with its index maps.
+
+    Raises:
+        SimModelError: The URDF cannot be converted (missing meshes, several roots, unmatched joints).
+    """
+    return _cached(robot, float(timestep), bool(joint_friction))
+
+
+def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
+    xml = _rewrite_urdf(robot)
+    try:
+        spec = mujoco.MjSpec.from_string(xml)
+    except ValueError as e:
+        raise SimModelError(f"robot {robot.name!r}: MuJoCo cannot load the URDF: {e}") from None
+    pmodel = robot.model
+    mu = float(robot.profile.friction_coefficient)
+    spec.option.timestep = timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+
+    for geom in spec.geoms:
+        geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
+        geom.friction = [mu, 0.005, 0.0001]
+    floor = spec.worldbody.add_geom()
+    floor.name = FLOOR
+    floor.type = mujoco.mjtGeom.mjGEOM_PLANE
+    floor.size = [0.0, 0.0, 0.05]
+    floor.friction = [mu, 0.005, 0.0001]
+    floor.contype, floor.conaffinity = FLOOR_CONTYPE, FLOOR_CONAFFINITY
+
+    bodies = {b.name: b for b in spec.bodies}
+    joints = {j.name: j for j in spec.joints}
+    sole_names = {}
+    for role in ("left_foot", "right_foot"):
+        frame = pmodel.frames[robot.frame_id(role)]
+        joint_name = pmodel.names[frame.parentJoint]
+        if joint_name not in joints:
+            raise SimModelError(f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo")
+        body = joints[joint_name].parent
+        for geom in body.geoms:  # the foot mesh: the sole box replaces it
+            geom.contype, geom.conaffinity = 0, 0
+        for child in bodies.values():  # fixed children (sole links) of the ankle body
+            if child.parent is not None and child.parent.name == body.name and not child.joints:
+                for geom in child.geoms:
+                    geom.contype, geom.conaffinity = 0, 0
+        side = role.split("_")[0]
+        corners = np.array(robot.profile.sole.corners(side))
+        centre = np.array([corners[:, 0].mean(), corners[:, 1].mean(), 0.5 * SOLE_THICKNESS])
+        half = [0.5 * np.ptp(corners[:, 0]), 0.5 * np.ptp(corners[:, 1]), 0.5 * SOLE_THICKNESS]
+        placement = frame.placement
+        sole = body.add_geom()
+        sole.name = f"wbmp_{role}_sole"
+        sole.type = mujoco.mjtGeom.mjGEOM_BOX
+        sole.size = half
+        sole.pos = placement.rotation @ centre + placement.translation
+        quat = pin.Quaternion(placement.rotation)
+        sole.quat = [quat.w, quat.x, quat.y, quat.z]
+        sole.friction = [mu, 0.005, 0.0001]
+        sole.contype, sole.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
+        sole.mass = 0.0
+        sole.density = 0.0
+        sole_names[role] = sole.name
+
+    actuated = list(pmodel.names)[2:]
+    limits = np.array(pmodel.effortLimit, dtype=float)[6:]
+    for name, limit in zip(actuated, limits, strict=True):
+        if name not in joints:
+            raise SimModelError(f"robot {robot.name!r}: Pinocchio joint {name!r} has no MuJoCo joint")
+        if not joint_friction:
+            joints[name].damping = 0.0
+            joints[name].frictionloss = 0.0
+        act = spec.add_actuator()
+        act.name = f"wbmp_motor_{name}"
+        act.target = name
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrlrange = [-limit, limit]
+        act.gear = [1.0, 0, 0, 0, 0, 0]
+    try:
+        model = spec.compile()
+    except ValueError as e:
+        raise SimModelError(f"robot {robot.name!r}: MuJoCo cannot compile the model: {e}") from None
+
+    qpos_index, dof_index, actuator_index = [], [], []
+    for name in actuated:
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if int(model.jnt_type[jid]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            raise SimModelError(f"robot {robot.name!r}: joint {name!r} is not a 1-dof joint in MuJoCo")
+        qpos_index.append(model.jnt_qposadr[jid])
+        dof_index.append(model.jnt_dofadr[jid])
+        actuator_index.append(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"wbmp_motor_{name}"))
+    if int(model.jnt_type[0]) != int(mujoco.mjtJoint.mjJNT_FREE):
+        raise SimModelError(f"robot {robot.name!r}: MuJoCo did not make the root joint a free joint")
+    sole_geoms = {role: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for role, n in sole_names.items()}
+    body_names = tuple(model.body(int(model.geom_bodyid[g])).name for g in range(model.ngeom))
+    return SimModel(
+        robot=robot,
+        model=model,
+        qpos_index=np.array(qpos_index, dtype=int),
+        dof_index=np.array(dof_index, dtype=int),
+        actuator_index=np.array(actuator_index, dtype=int),
+        sole_geoms=sole_geoms,
+        geom_body_names=body_names,
+        floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR),
+        torque_limits=limits,
+        xml=xml,
+    )
