@@ -212,17 +212,20 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
         if not previous:
             raise NoAction(f'no action in "{clause.text(normalized)}": known actions are {known_actions()}')
         name = previous[-1].action.name  # "turn left, then right"
-    params, copies = _slots(name, clause, lx, normalized)
+    params, copies, sources = _slots(name, clause, lx, normalized)
     try:
         action = Action(name=name, params=params)
     except TaskDefinitionError as e:
-        raise InvalidParameter(f'"{clause.text(normalized)}": {e}') from None
+        words = next((w for p, w in sources.items() if str(e).startswith(f"{name} {p} ")), None)
+        where = clause.text(normalized)
+        quote = f'"{words}" in "{where}"' if words and words != where else f'"{where}"'
+        raise InvalidParameter(f"{quote}: {e}") from None
     parsed = ParsedAction(action, frozenset(params))
     return [parsed] * copies
 
 
-def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[dict[str, Any], int]:
-    """Parameters stated in a clause, and how many copies of the action it asks for."""
+def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[dict[str, Any], int, dict[str, str]]:
+    """Parameters stated in a clause, how many copies of the action it asks for, and the words of each parameter."""
     aw = lx.actions[name]
     schema = REGISTRY[name]
     items = clause.items
@@ -258,13 +261,13 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         nxt = items[nxt_i] if nxt_i is not None else None
         if it.kind == NUM:
             if nxt is not None and nxt.kind == UNIT:
-                _add_quantity(quantities, lx, it, nxt, where)
+                _add_quantity(quantities, lx, it, nxt, where, normalized)
                 consumed.add(nxt_i)
             elif nxt is not None and nxt.kind == TIMES:
                 counts.append((it.value, it))
                 consumed.add(nxt_i)
-            elif nxt is not None and nxt.kind == TRIGGER:
-                counts.append((it.value, it))  # "3 squats", "三步"
+            elif nxt is not None and _trigger_follows(items, nxt_i):
+                counts.append((it.value, it))  # "3 squats", "三步", "two big steps"
             elif nxt is not None and nxt.kind == BODY and it.value in (1, 2):
                 if it.value == 2:
                     sides.append(("both", it))  # "two hands", "两只手"
@@ -301,6 +304,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
             raise misfit(it)
 
     params: dict[str, Any] = {}
+    sources: dict[str, str] = {}  # parameter -> the words that set it (for error messages)
     # side: "left hand", "双手", or a plural body word ("raise your hands")
     if not sides and plural is not None and aw.side is not None:
         sides.append(("both", plural))
@@ -339,6 +343,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
                 raise AmbiguousInstruction(f'"{adverb_values[p][1].text}" and "{it.text}" in "{where}" ask for different {name} {p}')
             adverb_values[p] = (value, it)
     params.update({p: v for p, (v, _) in adverb_values.items()})
+    sources.update({p: it.text for p, (_, it) in adverb_values.items()})
     # quantities with units: an explicit number wins over an adverb ("jump 30 cm high")
     for quantity, (value, it) in quantities.items():
         if quantity == "length":
@@ -348,6 +353,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         if param is None:
             raise misfit(it, f": {name} takes no {quantity}")
         params[param] = value
+        sources[param] = it.text
     # sign of a signed angle: left / counter-clockwise positive (REP 103)
     sign = _one(signs, where, "turning directions")
     if sign is not None:
@@ -360,6 +366,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         elif angle < 0:
             raise AmbiguousInstruction(f'"{it.text}" and a negative angle in "{where}": give one of them')
         params[aw.angle] = sign[0] * abs(angle)
+        sources.setdefault(aw.angle, it.text)
     # count
     copies = 1
     count = _one(counts, where, "counts")
@@ -371,11 +378,19 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
             n = int(n)
         if aw.count is not None:
             params[aw.count] = n
+            sources[aw.count] = it.text
         elif 1 <= n <= MAX_COPIES:
             copies = n
         else:
             raise InvalidParameter(f'"{it.text}" in "{where}": {name} can be repeated 1 to {MAX_COPIES} times')
-    return params, copies
+    return params, copies, sources
+
+
+def _trigger_follows(items: Sequence[Item], j: int) -> bool:
+    """True if ``items[j]`` is a trigger, possibly after adverbs (``two big steps``)."""
+    while j < len(items) and items[j].kind == ADV:
+        j += 1
+    return j < len(items) and items[j].kind == TRIGGER
 
 
 def _next_index(items: Sequence[Item], i: int) -> int | None:
@@ -386,16 +401,16 @@ def _next_index(items: Sequence[Item], i: int) -> int | None:
     return j if j < len(items) else None
 
 
-def _add_quantity(quantities: dict, lx: Lexicon, num: Item, unit_item: Item, where: str) -> None:
+def _add_quantity(quantities: dict, lx: Lexicon, num: Item, unit_item: Item, where: str, normalized: str) -> None:
     unit = lx.units[unit_item.value]
     value = num.value * unit.factor
     if unit.quantity != "angle":  # 30 cm is 0.3 m, not 0.30000000000000004; degrees stay exact radians
         value = float(f"{value:.12g}")
     if unit.quantity in quantities:
         raise AmbiguousInstruction(
-            f'"{quantities[unit.quantity][1].text}" and "{num.text} {unit_item.text}" in "{where}": give one {unit.quantity}'
+            f'"{quantities[unit.quantity][1].text}" and "{normalized[num.start : unit_item.end]}" in "{where}": give one {unit.quantity}'
         )
-    quantities[unit.quantity] = (value, Item(NUM, value, f"{num.text} {unit_item.text}".replace("  ", " "), num.start, unit_item.end))
+    quantities[unit.quantity] = (value, Item(NUM, value, normalized[num.start : unit_item.end], num.start, unit_item.end))
 
 
 def _one(values: list[tuple[Any, Item]], where: str, what: str) -> tuple[Any, Item] | None:
@@ -428,9 +443,11 @@ def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -
     names = ", ".join(p.action.name for _, ps in group for p in ps)
     whole = [p.action.name for p in base if REGISTRY[p.action.name].body != "lower"]
     if whole or len(base) != 1:
+        upper = ", ".join(n for n, s in REGISTRY.items() if s.body == "upper")
+        lower = ", ".join(n for n, s in REGISTRY.items() if s.body == "lower")
         reason = (f"{', '.join(whole)} moves the whole body" if whole
-                  else "only an upper-body action (wave, reach, raise_arms, turn_head) can run with one lower-body action"
-                  if base else "at least one of them must use the legs (squat, lean, balance, step, walk, turn, jump)")
+                  else f"only upper-body actions ({upper}) can run with one lower-body action"
+                  if base else f"one of them must be a lower-body action ({lower})")
         raise UnsupportedInstruction(f'cannot do {names} at the same time: {reason}')
     out = [base[0]]
     for p in tops:
