@@ -7,16 +7,22 @@ Public entry points (pure functions over explicit objects; no module-level viewe
 - :func:`write_plots` -- PNGs: CoM/ZMP vs support polygon, joints vs limits, torques, forces,
   keyframes.
 - :mod:`viz.progress` -- a small stderr progress display (bar, quiet or JSON lines).
+
+The entry points are imported lazily, so ``import viz.progress`` stays cheap (no meshcat,
+matplotlib or Pinocchio import).
 """
 
 from __future__ import annotations
 
-import warnings
+import importlib
+from typing import Any
 
-with warnings.catch_warnings():  # pyzmq (imported by meshcat) warns on import under numpy 2
-    warnings.simplefilter("ignore", DeprecationWarning)
-    import meshcat  # noqa: F401
+__all__ = ["serve", "write_html", "write_plots"]
 
-from viz.html import write_html  # noqa: E402
+_LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots"}
 
-__all__ = ["write_html"]
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'viz' has no attribute {name!r}")

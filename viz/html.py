@@ -21,13 +21,12 @@ import tempfile
 from importlib import resources
 from pathlib import Path
 
-import meshcat
 import numpy as np
-import umsgpack
 
 from robots import Robot
 from viz import motion as vm
 from viz import scene
+from viz._meshcat import meshcat, umsgpack
 
 FPS = 30.0  # key frames per second of the replay
 

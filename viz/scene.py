@@ -23,12 +23,12 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-import meshcat.geometry as mg
 import numpy as np
 import pinocchio as pin
 
 from robots import Robot
 from viz import motion as vm
+from viz._meshcat import mg
 
 ROOT = "wbmp"
 PLANNED_COLOR = None  # keep the URDF colours

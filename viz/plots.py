@@ -1,0 +1,382 @@
+"""PNG plots of a plan (and its simulation): balance, joint limits, torques, forces, keyframes.
+
+Matplotlib's Agg canvas draws into figures created directly (no ``pyplot`` state, no display);
+each file is written atomically. :func:`write_plots` returns the paths it wrote:
+
+- ``com_support.png``: top view of the CoM (and ZMP for dynamic plans) over the support
+  polygons, CoM/ZMP x and y against the polygon's extent, and the signed distance to the
+  polygon edge over time.
+- ``joints.png``: every joint's position and velocity as a fraction of its limits over time, and
+  the worst fraction per joint.
+- ``torques.png`` (when simulated): torque as a fraction of the limit, over time and per joint.
+- ``contact_forces.png`` (dynamic plan or simulation): normal force and friction use per contact.
+- ``keyframes.png``: side and front stick figures of the robot at a few instants.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # no display; harmless when already set
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
+
+from robots import Robot  # noqa: E402
+from viz import motion as vm  # noqa: E402
+
+DPI = 100
+PLAN_COLOR = "#c1121f"
+ZMP_COLOR = "#1d4ed8"
+SIM_COLOR = "#2a9d8f"
+SUPPORT_FACE = "#9bd3a8"
+SUPPORT_EDGE = "#1b7a3a"
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    FigureCanvasAgg(fig)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=DPI, format="png")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _is_dynamic(plan) -> bool:
+    return bool(plan.forces) or bool(getattr(plan.spec, "dynamic", False))
+
+
+def plot_com_support(path: Path, robot: Robot, plan, *, simulated: vm.Motion | None = None) -> Path:
+    """CoM (and ZMP when dynamic) against the support polygon; see the module docstring."""
+    t = np.asarray(plan.t, dtype=float)
+    com = np.asarray(plan.com, dtype=float)
+    phases = vm.support_phases(robot, plan)
+    dynamic = _is_dynamic(plan)
+    zmp = vm.zmp_from_com(t, com) if dynamic else None
+    sim_t = sim_com = None
+    if simulated is not None:
+        step = max(1, len(simulated.t) // 400)
+        sim_t = simulated.t[::step]
+        sim_com = vm.com_trajectory(robot, simulated.q[::step])
+
+    fig = Figure(figsize=(15, 5.2))
+    ax_top, ax_xy, ax_margin = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.1, 1.3, 1.3]})
+    for ph in phases:
+        if len(ph.polygon) >= 3:
+            ax_top.add_patch(PolygonPatch(ph.polygon, closed=True, facecolor=SUPPORT_FACE, alpha=0.35,
+                                          edgecolor=SUPPORT_EDGE, lw=1.0))
+        for corners in ph.soles.values():
+            ax_top.add_patch(PolygonPatch(corners[:, :2], closed=True, fill=False, edgecolor="#555", lw=0.8))
+    ax_top.plot(com[:, 0], com[:, 1], color=PLAN_COLOR, lw=2, label="CoM (plan)")
+    ax_top.plot(com[0, 0], com[0, 1], "o", color=PLAN_COLOR, ms=5)
+    if zmp is not None:
+        ax_top.plot(zmp[:, 0], zmp[:, 1], "--", color=ZMP_COLOR, lw=1.5, label="ZMP (plan)")
+    if sim_com is not None:
+        ax_top.plot(sim_com[:, 0], sim_com[:, 1], ":", color=SIM_COLOR, lw=2, label="CoM (simulated)")
+    ax_top.set_aspect("equal", adjustable="datalim")
+    ax_top.set_xlabel("x [m]")
+    ax_top.set_ylabel("y [m]")
+    ax_top.set_title("top view: CoM over the support polygon")
+    ax_top.legend(loc="best", fontsize=8)
+    ax_top.grid(alpha=0.3)
+
+    for axis, name, style in ((0, "x", "-"), (1, "y", "-")):
+        ax_xy.plot(t, com[:, axis], style, lw=2, label=f"CoM {name}",
+                   color=PLAN_COLOR if axis == 0 else "#e76f51")
+        if zmp is not None:
+            ax_xy.plot(t, zmp[:, axis], "--", lw=1.2, label=f"ZMP {name}",
+                       color=ZMP_COLOR if axis == 0 else "#4895ef")
+    for ph in phases:
+        if len(ph.polygon) >= 3:
+            for axis, color in ((0, PLAN_COLOR), (1, "#e76f51")):
+                lo, hi = ph.polygon[:, axis].min(), ph.polygon[:, axis].max()
+                ax_xy.fill_between([ph.start, ph.end], [lo, lo], [hi, hi], color=color, alpha=0.08, lw=0)
+                ax_xy.hlines([lo, hi], ph.start, ph.end, colors=color, linestyles=":", lw=0.8)
+    ax_xy.set_xlabel("t [s]")
+    ax_xy.set_ylabel("[m]")
+    ax_xy.set_title("CoM x, y and the support polygon's extent")
+    ax_xy.legend(loc="best", fontsize=8)
+    ax_xy.grid(alpha=0.3)
+
+    def margins(times: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        out = np.full(len(times), np.nan)
+        for i, (ti, p) in enumerate(zip(times, xy, strict=True)):
+            ph = phases[plan.spec.phase_at(float(ti))]
+            if len(ph.polygon) >= 3 and np.all(np.isfinite(p)):
+                out[i] = vm.point_in_polygon_margin(p, ph.polygon)
+        return out
+
+    ax_margin.plot(t, margins(t, com[:, :2]), lw=2, color=PLAN_COLOR, label="CoM (plan)")
+    if zmp is not None:
+        ax_margin.plot(t, margins(t, zmp), "--", lw=1.5, color=ZMP_COLOR, label="ZMP (plan)")
+    if sim_com is not None:
+        ax_margin.plot(sim_t - sim_t[0], margins(sim_t - sim_t[0], sim_com[:, :2]), ":", lw=2,
+                       color=SIM_COLOR, label="CoM (simulated)")
+    required = [b.margin for b in plan.spec.com_bounds if b.support_polygon]
+    ax_margin.axhline(0.0, color="k", lw=1)
+    if required:
+        ax_margin.axhline(max(required), color=SUPPORT_EDGE, ls=":", lw=1, label=f"required margin {max(required):.3f} m")
+    for ph in phases:
+        ax_margin.axvline(ph.start, color="#999", lw=0.5)
+    ax_margin.set_xlabel("t [s]")
+    ax_margin.set_ylabel("distance inside the polygon [m] (< 0: outside)")
+    ax_margin.set_title("margin to the support polygon edge")
+    ax_margin.legend(loc="best", fontsize=8)
+    ax_margin.grid(alpha=0.3)
+    fig.suptitle(_title(robot, plan), fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _title(robot: Robot, plan) -> str:
+    name = plan.spec.description or plan.spec.name or "plan"
+    return f"{name}  ({robot.name}, {float(plan.t[-1]):.2f} s)"
+
+
+def _revolute_joints(robot: Robot) -> list[tuple[str, int, int]]:
+    """(name, idx_q, idx_v) of every one-dof actuated joint."""
+    out = []
+    model = robot.model
+    for j in range(2, model.njoints):
+        jm = model.joints[j]
+        if jm.nq == 1 and jm.nv == 1:
+            out.append((model.names[j], jm.idx_q, jm.idx_v))
+    return out
+
+
+def _fractions(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Position within [lo, hi] mapped to [-1, 1] around the middle (|x| = 1 at a limit)."""
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = (values - mid) / half
+    out[:, ~np.isfinite(half) | (half <= 0)] = 0.0
+    return out
+
+
+def _worst_labels(ax, t: np.ndarray, series: np.ndarray, names: list[str], n: int = 5) -> None:
+    worst = np.argsort(-np.nanmax(np.abs(series), axis=0))[:n]
+    for k in worst:
+        ax.plot(t, series[:, k], lw=1.6, label=names[k])
+    ax.legend(loc="lower left", fontsize=7, ncol=2)
+
+
+def plot_joints(path: Path, robot: Robot, plan) -> Path:
+    """Joint positions and velocities against their limits; see the module docstring."""
+    t = np.asarray(plan.t, dtype=float)
+    joints = _revolute_joints(robot)
+    names = [j[0] for j in joints]
+    iq = np.array([j[1] for j in joints], dtype=int)
+    iv = np.array([j[2] for j in joints], dtype=int)
+    q = np.asarray(plan.q, dtype=float)[:, iq]
+    pos = _fractions(q, robot.lower_limits[iq], robot.upper_limits[iq])
+    vmax = robot.velocity_limits[iv]
+    if plan.v is not None and len(plan.v):
+        v = np.asarray(plan.v, dtype=float)[:, iv]
+    else:
+        v = np.gradient(q, t, axis=0) if len(t) > 1 else np.zeros_like(q)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vel = np.where(np.isfinite(vmax) & (vmax > 0), v / vmax, 0.0)
+
+    fig = Figure(figsize=(15, max(6.0, 0.16 * len(names) + 1.5)))
+    gs = fig.add_gridspec(2, 2, width_ratios=[1.6, 1.0])
+    ax_p, ax_v, ax_bar = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[:, 1])
+    for ax, series, what in ((ax_p, pos, "position"), (ax_v, vel, "velocity")):
+        ax.plot(t, series, color="#bbb", lw=0.7)
+        _worst_labels(ax, t, series, names)
+        for lim in (-1.0, 1.0):
+            ax.axhline(lim, color="k", lw=1.2, ls="--")
+        ax.set_ylim(-1.15, 1.15)
+        ax.set_xlabel("t [s]")
+        ax.grid(alpha=0.3)
+    ax_p.set_ylabel("position in range [-1 = lower, +1 = upper]")
+    ax_p.set_title("joint positions against their limits (5 closest labelled)")
+    ax_v.set_ylabel("velocity / limit")
+    ax_v.set_title("joint velocities against their limits")
+    worst_p = np.abs(pos).max(axis=0)
+    worst_v = np.abs(vel).max(axis=0)
+    y = np.arange(len(names))
+    ax_bar.barh(y - 0.2, worst_p, height=0.4, color="#457b9d", label="position")
+    ax_bar.barh(y + 0.2, worst_v, height=0.4, color="#e76f51", label="velocity")
+    ax_bar.axvline(1.0, color="k", lw=1.2, ls="--")
+    ax_bar.set_yticks(y, names, fontsize=7)
+    ax_bar.invert_yaxis()
+    ax_bar.set_xlim(0, max(1.1, float(np.nanmax([worst_p.max(initial=0), worst_v.max(initial=0)])) * 1.05))
+    ax_bar.set_xlabel("worst |fraction of the limit| (1 = at the limit)")
+    ax_bar.set_title("worst use of each joint's range")
+    ax_bar.legend(loc="lower right", fontsize=8)
+    ax_bar.grid(alpha=0.3, axis="x")
+    fig.suptitle(_title(robot, plan), fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_torques(path: Path, robot: Robot, plan, simulated: vm.Motion) -> Path:
+    """Simulated torques against the limits."""
+    joints = _revolute_joints(robot)
+    names = [j[0] for j in joints]
+    iv = np.array([j[2] for j in joints], dtype=int) - 6
+    tau = np.asarray(simulated.tau, dtype=float)[:, iv]
+    t = simulated.t[: len(tau)] - simulated.t[0]
+    lim = robot.torque_limits[iv]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(lim > 0, tau / lim, 0.0)
+    fig = Figure(figsize=(15, max(6.0, 0.16 * len(names) + 1.5)))
+    ax_t, ax_bar = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.6, 1.0]})
+    ax_t.plot(t, frac, color="#bbb", lw=0.6)
+    _worst_labels(ax_t, t, frac, names)
+    for lim_line in (-1.0, 1.0):
+        ax_t.axhline(lim_line, color="k", lw=1.2, ls="--")
+    ax_t.set_xlabel("t [s]")
+    ax_t.set_ylabel("torque / limit")
+    ax_t.set_title("simulated joint torques against their limits (5 largest labelled)")
+    ax_t.grid(alpha=0.3)
+    worst = np.abs(frac).max(axis=0)
+    y = np.arange(len(names))
+    ax_bar.barh(y, worst, color=["#c1121f" if w > 1 else "#457b9d" for w in worst])
+    ax_bar.axvline(1.0, color="k", lw=1.2, ls="--")
+    ax_bar.set_yticks(y, names, fontsize=7)
+    ax_bar.invert_yaxis()
+    ax_bar.set_xlabel("worst |torque| / limit")
+    ax_bar.set_title("peak torque per joint")
+    ax_bar.grid(alpha=0.3, axis="x")
+    fig.suptitle(_title(robot, plan), fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_contact_forces(path: Path, robot: Robot, plan, simulated: vm.Motion | None) -> Path | None:
+    """Normal force and friction use per contact, planned and/or simulated."""
+    series = []
+    if plan.forces:
+        series.append(("plan", np.asarray(plan.t, dtype=float), plan.forces, "-"))
+    if simulated is not None and simulated.forces:
+        series.append(("simulated", simulated.t - simulated.t[0], simulated.forces, ":"))
+    if not series:
+        return None
+    mu = robot.profile.friction_coefficient
+    fig = Figure(figsize=(13, 6.5))
+    ax_n, ax_f = fig.subplots(2, 1, sharex=True)
+    colors = ["#1d4ed8", "#c1121f", "#2a9d8f", "#f4a261", "#6a4c93", "#555"]
+    frames = sorted({f for _, _, forces, _ in series for f in forces})
+    for label, t, forces, style in series:
+        for frame, f in forces.items():
+            f = np.asarray(f, dtype=float)
+            n = min(len(t), len(f))
+            color = colors[frames.index(frame) % len(colors)]
+            fn = f[:n, 2]
+            ft = np.linalg.norm(f[:n, :2], axis=1)
+            ax_n.plot(t[:n], fn, style, color=color, lw=1.5, label=f"{frame} ({label})")
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(fn > 1.0, ft / fn, np.nan)
+            ax_f.plot(t[:n], ratio, style, color=color, lw=1.5, label=f"{frame} ({label})")
+    weight = robot.mass * vm.GRAVITY
+    ax_n.axhline(weight, color="k", ls="--", lw=1, label=f"body weight {weight:.0f} N")
+    ax_n.set_ylabel("normal force [N]")
+    ax_n.set_title("contact forces")
+    ax_n.legend(loc="best", fontsize=8)
+    ax_n.grid(alpha=0.3)
+    ax_f.axhline(mu, color="k", ls="--", lw=1, label=f"friction coefficient {mu:.2f}")
+    ax_f.set_ylabel("|tangential| / normal")
+    ax_f.set_xlabel("t [s]")
+    ax_f.legend(loc="best", fontsize=8)
+    ax_f.grid(alpha=0.3)
+    fig.suptitle(_title(robot, plan), fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def skeleton_segments(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Line segments (S, 2, 3) of a stick figure at ``q``: parent joint -> child joint, plus the
+    hands, feet and head frames [m]."""
+    model, data = robot.model, robot.data()
+    pin.framesForwardKinematics(model, data, q)
+    segs = []
+    for j in range(2, model.njoints):
+        parent = model.parents[j]
+        segs.append((data.oMi[parent].translation.copy(), data.oMi[j].translation.copy()))
+    for role in ("left_hand", "right_hand", "left_foot", "right_foot", "head"):
+        if robot.has_role(role):
+            fid = robot.frame_id(role)
+            j = model.frames[fid].parentJoint
+            segs.append((data.oMi[j].translation.copy(), data.oMf[fid].translation.copy()))
+    return np.array(segs)
+
+
+def plot_keyframes(path: Path, robot: Robot, plan, *, count: int = 6) -> Path:
+    """Side (x-z) and front (y-z) stick figures at ``count`` evenly spaced instants."""
+    t = np.asarray(plan.t, dtype=float)
+    ks = np.unique(np.linspace(0, len(t) - 1, min(count, len(t))).round().astype(int))
+    q = np.asarray(plan.q, dtype=float)
+    h = robot.height()
+    spacing = 0.9 * h
+    fig = Figure(figsize=(2.3 * len(ks) + 1, 7.5))
+    ax_side, ax_front = fig.subplots(2, 1)
+    phases = vm.support_phases(robot, plan)
+    data = robot.data()
+    for col, k in enumerate(ks):
+        segs = skeleton_segments(robot, q[k])
+        com = pin.centerOfMass(robot.model, data, q[k])
+        ph = phases[plan.spec.phase_at(float(t[k]))]
+        for ax, (a, b) in ((ax_side, (0, 2)), (ax_front, (1, 2))):
+            off = col * spacing - (q[k, a] if a < 2 else 0.0)
+            for p0, p1 in segs:
+                ax.plot([p0[a] + off, p1[a] + off], [p0[b], p1[b]], color="#264653", lw=1.6,
+                        solid_capstyle="round")
+            ax.plot(com[a] + off, com[b], "o", color=PLAN_COLOR, ms=6)
+            ax.plot([com[a] + off] * 2, [0.0, com[b]], ":", color=PLAN_COLOR, lw=0.8)
+            for corners in ph.soles.values():
+                lo, hi = corners[:, a].min() + off, corners[:, a].max() + off
+                ax.plot([lo, hi], [0.0, 0.0], color=SUPPORT_EDGE, lw=4, solid_capstyle="butt")
+            ax.text(col * spacing, -0.08 * h, f"t = {t[k]:.2f} s", ha="center", va="top", fontsize=9)
+    for ax, title in ((ax_side, "side view (x forward, z up)"), (ax_front, "front view (y left, z up)")):
+        ax.axhline(0.0, color="#888", lw=1)
+        ax.set_aspect("equal")
+        ax.set_ylim(-0.15 * h, 1.08 * h)
+        ax.set_xlim(-0.5 * spacing, (len(ks) - 0.5) * spacing)
+        ax.set_xticks([])
+        ax.set_ylabel("z [m]")
+        ax.set_title(title, fontsize=10)
+    fig.suptitle(_title(robot, plan) + "  -  red: centre of mass, green: contact soles", fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=None) -> list[Path]:
+    """Write the PNG plots of ``plan`` (and of ``execution`` when given) into ``directory``.
+
+    Args:
+        directory: Output folder (created if missing).
+        robot: The robot.
+        plan: A :class:`planner.plan.Plan`.
+        execution: Optional simulated execution (``sim`` Execution or ``exec_*`` mapping).
+
+    Returns:
+        The files written, in the order of the module docstring.
+
+    Raises:
+        VizInputError: the plan or execution arrays do not match the robot.
+    """
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    vm.plan_motion(robot, plan)  # shape checks
+    simulated = vm.execution_motion(robot, execution)
+    paths = [plot_com_support(out / "com_support.png", robot, plan, simulated=simulated),
+             plot_joints(out / "joints.png", robot, plan)]
+    if simulated is not None and simulated.tau is not None:
+        paths.append(plot_torques(out / "torques.png", robot, plan, simulated))
+    forces = plot_contact_forces(out / "contact_forces.png", robot, plan, simulated)
+    if forces is not None:
+        paths.append(forces)
+    paths.append(plot_keyframes(out / "keyframes.png", robot, plan))
+    return paths
