@@ -179,7 +179,11 @@ def com_dynamics_residual(mass: float, com_acc: Any, total_force: Any, gravity: 
     return mass * (com_acc - gravity) - total_force
 
 
-def friction_pyramid(force: Any, rotation: np.ndarray, mu: float, *, inner: bool = True) -> ca.SX | ca.MX | ca.DM:
+def _casadi(x: Any) -> Any:
+    return x if isinstance(x, (ca.SX, ca.MX, ca.DM)) else ca.DM(np.asarray(x, dtype=float))
+
+
+def friction_pyramid(force: Any, rotation: Any, mu: Any, *, inner: bool = True) -> Any:
     """Friction-pyramid rows of one force; every entry must be >= 0 [N].
 
     Rows: :math:`n^\\top f`, :math:`\\mu' n^\\top f - t_1^\\top f`, :math:`\\mu' n^\\top f + t_1^\\top f`,
@@ -189,15 +193,15 @@ def friction_pyramid(force: Any, rotation: np.ndarray, mu: float, *, inner: bool
 
     Args:
         force: Force (3,) in the world [N] (CasADi or numpy).
-        rotation: Contact frame in the world (3, 3); columns t1, t2, n.
-        mu: Friction coefficient [-].
+        rotation: Contact frame in the world (3, 3), columns t1, t2, n (numpy or CasADi).
+        mu: Friction coefficient [-] (number or CasADi).
         inner: Use the inner pyramid (conservative).
 
     Returns:
         The 5 rows (CasADi column).
     """
     mu_p = mu / math.sqrt(2.0) if inner else mu
-    local = ca.mtimes(ca.DM(rotation.T), force)
+    local = ca.mtimes(_casadi(rotation).T, _casadi(force))
     fn = local[2]
     return ca.vertcat(fn, mu_p * fn - local[0], mu_p * fn + local[0], mu_p * fn - local[1], mu_p * fn + local[1])
 
@@ -207,7 +211,7 @@ def angular_momentum_rate(com: Any, points: np.ndarray, forces: Sequence[Any]) -
 
     Args:
         com: CoM (3,) [m] (CasADi).
-        points: Application points (n, 3) in the world [m].
+        points: n application points (3,) in the world [m] (numpy rows or CasADi).
         forces: n forces (3,) in the world [N] (CasADi).
 
     Returns:
@@ -215,7 +219,7 @@ def angular_momentum_rate(com: Any, points: np.ndarray, forces: Sequence[Any]) -
     """
     total = ca.DM.zeros(3)
     for p, f in zip(points, forces, strict=True):
-        total = total + ca.cross(ca.DM(p) - com, f)
+        total = total + ca.cross(_casadi(p) - com, f)
     return total
 
 
@@ -266,24 +270,31 @@ class ConstraintBlock:
 class CentroidalTerms:
     """Everything the NLP needs to add for CoM dynamics with contact forces.
 
-    The force variables are normalized by the body weight: ``f = weight * u``.
+    The force variables are normalized by the body weight: ``f = weight * u``. The contact
+    geometry (corner points, orientation, friction) enters as NLP *parameters*, so that one
+    built solver serves every placement with the same contact pattern (:attr:`structure`).
 
     Attributes:
         variables: All force variables ``u`` (column, length n).
         lower, upper, initial: Bounds and initial guess of ``variables`` (n,).
+        parameters: Parameter symbols (column) of the contact geometry.
+        parameter_values: Their values (same length).
         constraints: Constraint groups (dynamics, friction).
         cost: Scalar cost (force regularization + angular momentum rate).
         weight: Body weight :math:`m|g|` [N] (to turn ``u`` into newtons).
         contacts: Per knot, the active contacts' geometry.
-        force_index: Per knot, frame -> indices into ``variables`` of its (n_points, 3) forces.
+        force_index: Per knot, frame -> indices (n_points, 3) into ``variables``.
         frames: Every contact frame, in order of first activity.
         dynamics_knots: Knots that carry the dynamics equation.
+        structure: Hashable description of the NLP graph these terms add (no numbers).
     """
 
     variables: Any
     lower: np.ndarray
     upper: np.ndarray
     initial: np.ndarray
+    parameters: Any
+    parameter_values: np.ndarray
     constraints: tuple[ConstraintBlock, ...]
     cost: Any
     weight: float
@@ -291,6 +302,7 @@ class CentroidalTerms:
     force_index: tuple[Mapping[str, np.ndarray], ...]
     frames: tuple[str, ...]
     dynamics_knots: tuple[int, ...]
+    structure: tuple
 
     @property
     def n_variables(self) -> int:
@@ -320,8 +332,7 @@ class CentroidalTerms:
         for k, index in enumerate(self.force_index):
             for frame, idx in index.items():
                 if frame not in out:
-                    n = idx.shape[0]
-                    out[frame] = np.zeros((T, n, 3))
+                    out[frame] = np.zeros((T, idx.shape[0], 3))
                 out[frame][k] = values[idx] * self.weight
         for frame in self.frames:
             out.setdefault(frame, np.zeros((T, 1, 3)))
@@ -348,9 +359,13 @@ def contacts_per_knot(spec: TaskSpec, robot: Robot, t: Sequence[float], *, cop_m
     return tuple(bound[spec.phase_at(float(tk))] for tk in t)
 
 
+def _geometry_values(c: ContactGeometry) -> np.ndarray:
+    return np.concatenate([c.points_in_world.ravel(), c.rotation.ravel(order="F"), [c.friction_coefficient]])
+
+
 def build_centroidal(
     com: Sequence[Any],
-    dt: float,
+    dt: Any,
     contacts: Sequence[Sequence[ContactGeometry]],
     mass: float,
     *,
@@ -366,12 +381,12 @@ def build_centroidal(
 
     Args:
         com: CoM per knot (T entries, each (3,) CasADi) [m].
-        dt: Knot spacing [s].
+        dt: Knot spacing [s] (a number or a CasADi parameter).
         contacts: Active contacts per knot (T entries); empty = flight.
         mass: Total mass [kg].
         settings: Weights and options.
         gravity: Gravity in the world [m/s^2].
-        symbol: ``casadi.SX`` or ``casadi.MX`` for the new variables.
+        symbol: ``casadi.SX`` or ``casadi.MX`` for the new variables and parameters.
 
     Returns:
         The terms to add to the NLP.
@@ -384,47 +399,54 @@ def build_centroidal(
         raise PlannerError(f"centroidal terms: {T} CoM knots but {len(contacts)} contact sets")
     if T < 3:
         raise PlannerError(f"centroidal terms: need at least 3 knots for CoM accelerations, got {T}")
-    weight = float(mass * np.linalg.norm(gravity))
-    g_unit = np.asarray(gravity, dtype=float) / np.linalg.norm(gravity)
+    g_norm = float(np.linalg.norm(gravity))
+    weight = float(mass * g_norm)
+    g_unit = np.asarray(gravity, dtype=float) / g_norm
     syms: list[Any] = []
+    psyms: list[Any] = []
+    pvals: list[np.ndarray] = []
     lower: list[np.ndarray] = []
     upper: list[np.ndarray] = []
     initial: list[np.ndarray] = []
     blocks: list[ConstraintBlock] = []
     index: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
     frames: list[str] = []
+    structure: list[tuple] = []
     cost = 0
     n = 0
     dyn_knots = []
     for k in range(1, T - 1):
         active = contacts[k]
         n_points = sum(c.n_points for c in active)
+        structure.append((k, tuple((c.frame, c.n_points) for c in active)))
         total = ca.DM.zeros(3)
         points, forces = [], []
         for c in active:
             if c.frame not in frames:
                 frames.append(c.frame)
-            u = symbol.sym(f"u_{c.frame}_{k}", 3 * c.n_points)
+            m = c.n_points
+            u = symbol.sym(f"u_{c.frame}_{k}", 3 * m)
+            prm = symbol.sym(f"contact_{c.frame}_{k}", 3 * m + 10)
             syms.append(u)
-            index[k][c.frame] = np.arange(n, n + 3 * c.n_points).reshape(c.n_points, 3)
-            n += 3 * c.n_points
-            # bounds in the world: the pyramid rows do the work; keep boxes generous but finite
-            lo = np.tile([-settings.max_force, -settings.max_force, -settings.max_force], c.n_points)
-            hi = np.tile([settings.max_force, settings.max_force, settings.max_force], c.n_points)
+            psyms.append(prm)
+            pvals.append(_geometry_values(c))
+            index[k][c.frame] = np.arange(n, n + 3 * m).reshape(m, 3)
+            n += 3 * m
+            lo = np.full(3 * m, -settings.max_force)
+            hi = np.full(3 * m, settings.max_force)
             if np.allclose(c.normal, [0.0, 0.0, 1.0]):
-                lo[2::3] = 0.0  # unilateral on flat ground as a bound (cheaper than a row)
+                lo[2::3] = 0.0  # unilateral on flat ground also as a bound (bounds are values)
             lower.append(lo)
             upper.append(hi)
-            guess = np.zeros((c.n_points, 3))
-            guess[:] = c.normal / max(n_points, 1)
-            initial.append(guess.reshape(-1))
+            initial.append(np.tile(c.normal / max(n_points, 1), m))
+            R = ca.reshape(prm[3 * m : 3 * m + 9], 3, 3)
             rows = []
-            for i in range(c.n_points):
+            for i in range(m):
                 f_i = u[3 * i : 3 * i + 3]
                 total = total + f_i
-                points.append(c.points_in_world[i])
+                points.append(prm[3 * i : 3 * i + 3])
                 forces.append(f_i)
-                rows.append(friction_pyramid(f_i, c.rotation, c.friction_coefficient, inner=settings.inner_pyramid))
+                rows.append(friction_pyramid(f_i, R, prm[3 * m + 9], inner=settings.inner_pyramid))
             expr = ca.vertcat(*rows)
             blocks.append(ConstraintBlock(
                 name=f"friction {c.frame}", knot=k, expr=expr,
@@ -432,20 +454,20 @@ def build_centroidal(
             ))
             cost = cost + settings.force_weight * dt * ca.sumsqr(u)
         acc = com_acceleration(com[k - 1], com[k], com[k + 1], dt)
-        # normalized Newton: (c'' - g)/|g| - sum u = 0
-        residual = (acc / float(np.linalg.norm(gravity)) - ca.DM(g_unit)) - total
+        residual = (acc / g_norm - ca.DM(g_unit)) - total  # normalized Newton: (c'' - g)/|g| = sum u
         blocks.append(ConstraintBlock(name="CoM dynamics", knot=k, expr=residual, lower=np.zeros(3), upper=np.zeros(3)))
         dyn_knots.append(k)
         if forces and settings.angular_momentum_weight > 0.0:
-            ldot = angular_momentum_rate(com[k], np.asarray(points), forces)  # in body weights x m
+            ldot = angular_momentum_rate(com[k], points, forces)  # [m x body weights]
             cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
-    variables = ca.vertcat(*syms) if syms else symbol(0, 1)
     cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
     return CentroidalTerms(
-        variables=variables,
+        variables=ca.vertcat(*syms) if syms else symbol(0, 1),
         lower=cat(lower),
         upper=cat(upper),
         initial=cat(initial),
+        parameters=ca.vertcat(*psyms) if psyms else symbol(0, 1),
+        parameter_values=cat(pvals),
         constraints=tuple(blocks),
         cost=cost,
         weight=weight,
@@ -453,6 +475,7 @@ def build_centroidal(
         force_index=tuple(index),
         frames=tuple(frames),
         dynamics_knots=tuple(dyn_knots),
+        structure=(settings.inner_pyramid, settings.angular_momentum_weight > 0.0, tuple(structure)),
     )
 
 
@@ -465,10 +488,10 @@ def build_centroidal_for_spec(
     settings: CentroidalSettings = CentroidalSettings(),
     symbol: type = ca.SX,
 ) -> CentroidalTerms:
-    """:func:`build_centroidal` for a spec on a uniform knot grid ``t`` (the trajopt entry point).
+    """:func:`build_centroidal` for a spec on a uniform knot grid ``t``.
 
     Args:
-        spec: The task (its phases give the contact sets).
+        spec: The task (its phases give the contact sets, the later phase at a boundary).
         robot: The robot (mass, soles, friction).
         t: Knot times (T,) [s], uniformly spaced.
         com: Symbolic CoM per knot (T entries) [m].

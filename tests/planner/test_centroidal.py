@@ -125,8 +125,8 @@ def test_com_acceleration_is_exact_on_parabolas(rng):
 def _solve_forces(terms, com_values, com_syms):
     """Minimize the centroidal cost over the forces for a fixed numeric CoM trajectory."""
     g, lbg, ubg = terms.g()
-    subs = ca.vertcat(*com_syms)
-    fix = ca.vertcat(*[ca.DM(c) for c in com_values])
+    subs = ca.vertcat(*com_syms, terms.parameters)
+    fix = ca.vertcat(*[ca.DM(c) for c in com_values], ca.DM(terms.parameter_values))
     g = ca.substitute(g, subs, fix)
     cost = ca.substitute(ca.SX(terms.cost), subs, fix)
     solver = ca.nlpsol("s", "ipopt", {"x": terms.variables, "f": cost, "g": g},
@@ -188,6 +188,7 @@ def test_flight_has_no_force_and_needs_a_ballistic_com(talos):
     assert set(terms.force_index[2]) == set() and set(terms.force_index[3]) == set()
     assert set(terms.force_index[1]) == {f.frame for f in feet}
     dyn = [b for b in terms.constraints if b.name == "CoM dynamics" and b.knot in (2, 3)]
+    assert not ca.depends_on(ca.vertcat(*[b.expr for b in dyn]), terms.parameters)
     fun = ca.Function("dyn", com_syms, [ca.vertcat(*[b.expr for b in dyn])])
     ballistic = [np.array([0.0, 0.0, 0.9 + 1.0 * k * dt]) + 0.5 * GRAVITY * (k * dt) ** 2 for k in range(T)]
     np.testing.assert_allclose(np.array(fun(*ballistic)).ravel(), 0.0, atol=1e-9)
@@ -228,3 +229,44 @@ def test_numeric_cop_and_friction_checks(talos):
     np.testing.assert_allclose(viol, [0.0, 0.03, 0.0], atol=1e-12)
     R = np.eye(3)
     np.testing.assert_allclose(friction_violation(np.array([[70.0, 0.0, 100.0], [80.0, 0.0, 100.0], [0.0, 0.0, -5.0]]), R, 0.7), [0.0, 10.0, 5.0], atol=1e-9)
+
+
+def test_contact_geometry_enters_as_parameters(talos):
+    """Two placements with the same contact pattern share the structure; only the values differ."""
+    feet = _feet(talos)
+    moved = tuple(Contact(frame=c.frame, placement=Pose(position=(c.placement.position[0] + 0.3, c.placement.position[1], 0.0),
+                                                        rpy=(0.0, 0.0, 0.4))) for c in feet)
+    com = [ca.SX.sym(f"c{k}", 3) for k in range(4)]
+    a = build_centroidal(com, 0.1, [tuple(contact_geometry(c, talos) for c in feet)] * 4, talos.mass)
+    b = build_centroidal(com, 0.1, [tuple(contact_geometry(c, talos) for c in moved)] * 4, talos.mass)
+    assert a.structure == b.structure
+    assert a.parameter_values.shape == b.parameter_values.shape == (2 * 2 * (12 + 10),)
+    assert not np.allclose(a.parameter_values, b.parameter_values)
+    g, _, _ = a.g()
+    assert ca.depends_on(g, a.parameters)  # friction rows use the rotation parameters
+    single = build_centroidal(com, 0.1, [tuple(contact_geometry(c, talos) for c in feet[:1])] * 4, talos.mass)
+    assert single.structure != a.structure
+
+
+def test_symbolic_dt_and_pyramid_with_parameters(talos, rng):
+    """dt as a CasADi parameter and the parameterized pyramid rows give the numeric values."""
+    feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.3))
+    dt = ca.SX.sym("dt")
+    com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
+    terms = build_centroidal(com, dt, [feet] * 3, talos.mass, settings=CentroidalSettings(inner_pyramid=False))
+    g, _, _ = terms.g()
+    fun = ca.Function("g", [terms.variables, terms.parameters, dt, *com], [g])
+    u = rng.uniform(0.0, 0.2, terms.n_variables)
+    cs = [rng.normal(size=3) for _ in range(3)]
+    got = np.array(fun(u, terms.parameter_values, 0.05, *cs)).ravel()
+    ref = []
+    for f in feet:
+        idx = terms.force_index[1][f.frame]
+        for i in range(4):
+            local = f.rotation.T @ u[idx[i]]
+            mu = f.friction_coefficient
+            ref += [local[2], mu * local[2] - local[0], mu * local[2] + local[0], mu * local[2] - local[1], mu * local[2] + local[1]]
+    acc = (cs[2] - 2 * cs[1] + cs[0]) / 0.05**2
+    total = u.reshape(-1, 3).sum(axis=0)
+    ref += list(acc / 9.81 - np.array([0, 0, -1.0]) - total)
+    np.testing.assert_allclose(got, ref, atol=1e-9)
