@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from language.exceptions import LanguageError
-from tasks.actions import Action
+from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
 
 
@@ -49,8 +49,9 @@ class ActionPlan:
     def stated_params(self, index: int) -> dict[str, Any]:
         """Parameters of action ``index`` that the instruction stated (SI units)."""
         action = self.actions[index]
+        order = [p.name for p in REGISTRY[action.name].params]  # registry order: stable output
         return {k: (list(v) if isinstance(v, tuple) else v)
-                for k, v in action.params.items() if k in self.given[index] and v is not None}
+                for k in order if k in self.given[index] and (v := action.params.get(k)) is not None}
 
     def to_dict(self) -> dict[str, Any]:
         """``{"actions": [{"action": NAME, "params": {...}}], "backend": NAME}`` with stated params only."""
@@ -84,8 +85,6 @@ class ActionPlan:
 
     def describe(self) -> str:
         """Human-readable lines, one per action: stated parameters, then the defaults used."""
-        from tasks.actions import REGISTRY
-
         lines = []
         for i, action in enumerate(self.actions):
             schema = REGISTRY[action.name]

@@ -456,7 +456,7 @@ def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -
 
 
 def _given_params(p: ParsedAction) -> dict[str, Any]:
-    return {k: p.action.params[k] for k in p.given}
+    return {k: v for k, v in p.action.params.items() if k in p.given}
 
 
 __all__ = ["ParsedAction", "known_actions", "parse_rules"]
