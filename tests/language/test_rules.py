@@ -173,3 +173,21 @@ def test_inconsistent_vocabulary_is_refused(edit, fragment):
     edit(data)
     with pytest.raises(VocabularyError, match=fragment):
         Lexicon(data)
+
+
+def test_parse_is_well_under_a_millisecond():
+    """Median parse time over the corpus sentences < 1 ms (benchmarks/bench_parse.py has the full table)."""
+    import statistics
+    import time
+
+    from tests.language.corpus import load_corpus
+
+    texts = [c.text for c in load_corpus() if c.expected is not None]
+    for t in texts:
+        parse(t)  # warm-up: the vocabulary loads once
+    times = []
+    for t in texts:
+        t0 = time.perf_counter()
+        parse(t)
+        times.append(time.perf_counter() - t0)
+    assert statistics.median(times) < 1e-3, f"median {statistics.median(times) * 1e6:.0f} us"
