@@ -15,7 +15,7 @@ from __future__ import annotations
 from robots.model import Robot
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
-from tasks.primitives import balance, dynamic, posture, reach, squat, wave
+from tasks.primitives import balance, dynamic, jump, locomotion, posture, reach, squat, wave
 from tasks.primitives.base import DEFAULT_DT, PARTS, Fragment, FragmentBuilder, Primitive, knot_time, to_knot
 from tasks.primitives.dynamic import NotAvailableYet
 from tasks.primitives.geometry import Stance, StandingGeometry, standing_geometry
@@ -32,10 +32,10 @@ PRIMITIVES: dict[str, Primitive] = {
         posture.TURN_HEAD,
         posture.LEAN,
         balance.PRIMITIVE,
-        dynamic.STEP,
-        dynamic.WALK,
-        dynamic.TURN,
-        dynamic.JUMP,
+        locomotion.STEP,
+        locomotion.WALK,
+        locomotion.TURN,
+        jump.PRIMITIVE,
     )
 }
 

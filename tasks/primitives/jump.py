@@ -1,0 +1,265 @@
+"""``jump(height [m], forward [m])``: crouch, push off, fly, land, recover.
+
+``height`` is the rise of the centre of mass during the flight, from take-off to apex (the
+jump height that a flight time measures: :math:`h = g T^2 / 8`). The flight phase has no
+contact and lasts :math:`T = 2\\sqrt{2h/g}`, rounded *up* to whole knots (at least
+``MIN_FLIGHT_KNOTS``) and never stretched, so the planned rise is at least ``height``. Under the
+planner's CoM dynamics the flight is ballistic, which fixes the rise; the take-off height is the
+planner's choice.
+
+Phases (both feet down except in flight):
+
+1. ``crouch`` (``CROUCH_TIME``): the CoM goes down to ``z_standing - crouch depth`` (HARD);
+   the depth is the take-off drop (below) plus a push stroke long enough to reach the take-off
+   speed at a mean upward acceleration of ``PUSH_ACCELERATION`` g, within ``squat_depth_max``.
+2. ``push off`` (``PUSH_TIME``): the legs extend and accelerate the body.
+3. ``flight``: no contact; each foot ``swing_height`` above the ground at mid-flight.
+4. ``landing`` (``LAND_TIME``): the feet land ``forward`` ahead (heading frame), the legs absorb.
+5. ``recover`` (the rest): back to the standing CoM height over the landing feet (HARD).
+
+Feasibility in task terms: a rise ``h`` needs a take-off speed :math:`v_0 = \\sqrt{2 g h}`
+(+ the knot rounding of the flight). :func:`takeoff_speeds` estimates, for crouches of
+increasing depth, the fastest the CoM can move straight up with both soles flat on the ground
+and every leg joint within its velocity limit (base translating vertically, upper body still).
+A jump whose take-off speed exceeds ``TAKEOFF_MARGIN`` times the best of these is refused with
+the numbers (e.g. a 1 m jump needs 4.4 m/s; Talos's legs give about 1.9 m/s).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.exceptions import TaskDefinitionError
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
+from tasks.primitives.geometry import Stance, _se3, heading_frame, standing_geometry
+from tasks.specs import Contact, Pose, Priority
+
+G = 9.81  # [m/s^2]
+CROUCH_TIME = 0.6  # [s]
+PUSH_TIME = 0.3  # [s]
+LAND_TIME = 0.4  # [s]
+RECOVER_TIME = 0.6  # [s]
+MIN_FLIGHT_KNOTS = 2
+TAKEOFF_MARGIN = 0.9  # plan with at most this fraction of the estimated take-off speed
+PUSH_ACCELERATION = 0.8  # [g] mean upward acceleration over the push stroke
+MIN_STROKE = 0.04  # [m]
+CROUCH_STEP = 0.025  # [m] base-height grid of the take-off speed estimate
+CROUCH_TOLERANCE = 0.02  # [m] CoM height at the bottom of the crouch
+END_TOLERANCE = 0.01  # [m] CoM at the end
+APEX_WEIGHT = 10.0  # soft apex target (shapes the take-off height)
+FLIGHT_CLEARANCE_MAX = 0.02  # [m] sole height at mid-flight
+PARTS = frozenset({"legs", "com"})
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TakeoffSpeed:
+    """Fastest straight-up CoM speed with the base lowered by ``base_drop``.
+
+    Attributes:
+        base_drop: How far the base is lowered from standing [m].
+        com_drop: How far the CoM is below its standing height [m].
+        speed: Largest upward CoM speed with both soles flat and leg joints within their
+            velocity limits [m/s].
+        limiting_joint: The joint that reaches its velocity limit first.
+    """
+
+    base_drop: float
+    com_drop: float
+    speed: float
+    limiting_joint: str
+
+
+def flight_time(height: float) -> float:
+    """Ballistic flight time of a CoM rise ``height`` [m]: :math:`2\\sqrt{2h/g}` [s]."""
+    return 2.0 * math.sqrt(2.0 * height / G)
+
+
+def _leg_joints(robot: Robot) -> list[int]:
+    out = []
+    for side in ("left", "right"):
+        joint = robot.model.frames[robot.frame_id(f"{side}_foot")].parentJoint
+        out += [j for j in robot.model.supports[joint] if j > 1]
+    return out
+
+
+def _crouch(robot: Robot, base_drop: float, legs: list[int], q_guess: np.ndarray) -> np.ndarray | None:
+    """Standing posture with the base lowered by ``base_drop``, soles kept (Newton on the legs)."""
+    model, data = robot.model, robot.data()
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    fids = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    targets = [pin.SE3(data.oMf[f]) for f in fids]
+    q = q_guess.copy()
+    q[2] = robot.q_standing[2] - base_drop
+    idx = [model.joints[j].idx_v for j in legs]
+    for _ in range(30):
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        errs, jacs = [], []
+        for fid, target in zip(fids, targets, strict=True):
+            M = target.actInv(data.oMf[fid])
+            errs.append(pin.log6(M).vector)
+            jacs.append(pin.Jlog6(M) @ pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL))
+        e = np.concatenate(errs)
+        if np.linalg.norm(e) < 1e-9:
+            lo, hi = robot.lower_limits, robot.upper_limits
+            return q if np.all(q[7:] >= lo[7:] - 1e-9) and np.all(q[7:] <= hi[7:] + 1e-9) else None
+        dq = np.zeros(model.nv)
+        dq[idx] = -np.linalg.lstsq(np.vstack(jacs)[:, idx], e, rcond=None)[0]
+        q = pin.integrate(model, q, dq)
+    return None
+
+
+def _straight_up_speed(robot: Robot, q: np.ndarray) -> tuple[float, str]:
+    """Largest upward CoM speed at ``q`` for a vertical base motion with the soles fixed."""
+    model, data = robot.model, robot.data()
+    pin.computeJointJacobians(model, data, q)
+    pin.framesForwardKinematics(model, data, q)
+    J = np.vstack([pin.getFrameJacobian(model, data, robot.frame_id(f"{s}_foot"), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+                   for s in ("left", "right")])
+    base = np.zeros(6)
+    base[:3] = pin.Quaternion(q[3:7]).matrix().T @ np.array([0.0, 0.0, 1.0])  # world up, in the base frame
+    joints = np.linalg.lstsq(J[:, 6:], -J[:, :6] @ base, rcond=None)[0]
+    v = np.concatenate([base, joints])
+    ratio = np.abs(joints) / np.maximum(robot.velocity_limits[6:], 1e-9)
+    i = int(np.argmax(ratio))
+    scale = 1.0 / ratio[i]
+    com_vz = float((pin.jacobianCenterOfMass(model, data, q) @ v)[2])
+    return float(com_vz * scale), robot.joint_names[i]
+
+
+@functools.cache
+def takeoff_speeds(robot: Robot) -> tuple[TakeoffSpeed, ...]:
+    """Take-off speed estimates for crouches from standing to ``squat_depth_max`` (cached).
+
+    Returns:
+        One entry per reachable crouch (joint limits respected), shallowest first.
+    """
+    legs = _leg_joints(robot)
+    data = robot.data()
+    z0 = float(pin.centerOfMass(robot.model, data, robot.q_standing)[2])
+    out = []
+    q = robot.q_standing.copy()
+    n = int(math.floor(robot.profile.squat_depth_max / CROUCH_STEP + 1e-9))
+    for i in range(n + 1):
+        drop = i * CROUCH_STEP
+        qc = _crouch(robot, drop, legs, q)
+        if qc is None:
+            break
+        q = qc
+        speed, joint = _straight_up_speed(robot, q)
+        com_drop = z0 - float(pin.centerOfMass(robot.model, data, q)[2])
+        out.append(TakeoffSpeed(base_drop=drop, com_drop=com_drop, speed=float(speed), limiting_joint=joint))
+    return tuple(out)
+
+
+def _best(robot: Robot) -> TakeoffSpeed:
+    speeds = takeoff_speeds(robot)
+    if not speeds:
+        raise TaskDefinitionError(f"jump: cannot estimate {robot.name}'s take-off speed (no crouch posture found)")
+    return max(speeds, key=lambda s: s.speed)
+
+
+def max_jump_height(robot: Robot) -> float:
+    """Largest flight rise the primitive plans for ``robot`` [m] (before knot rounding)."""
+    return (TAKEOFF_MARGIN * _best(robot).speed) ** 2 / (2.0 * G)
+
+
+def check(params: dict, robot: Robot) -> None:
+    """Refuse jumps beyond the legs' take-off speed or forward jumps beyond the longest step."""
+    h, fwd = params["height"], params["forward"]
+    v0 = math.sqrt(2.0 * G * h)
+    best = _best(robot)
+    if v0 > TAKEOFF_MARGIN * best.speed:
+        raise TaskDefinitionError(
+            f"jump height {h:g} m needs a take-off speed of {v0:.2f} m/s (sqrt(2 g h), a {flight_time(h):.2f} s "
+            f"flight); {robot.name}'s leg joint speed limits let its centre of mass rise at about {best.speed:.2f} m/s "
+            f"at best (from a {best.com_drop:.2f} m crouch, {best.limiting_joint} at its limit), enough for about "
+            f"{best.speed ** 2 / (2 * G):.2f} m; with a safety margin, ask for at most {max_jump_height(robot):.2f} m"
+        )
+    limit = robot.profile.step_length_max
+    if fwd > limit + 1e-12:
+        raise TaskDefinitionError(
+            f"jump forward {fwd:g} m is beyond {robot.name}'s {limit:.2f} m (its longest step); "
+            f"ask for at most {limit:.2f} m"
+        )
+
+
+def limits(robot: Robot) -> dict[str, str]:
+    """Robot-specific ranges of ``height`` and ``forward``."""
+    return {
+        "height": f"at most {max_jump_height(robot):.2f} m on {robot.name} (take-off speed of its legs)",
+        "forward": f"at most {robot.profile.step_length_max:.2f} m on {robot.name}",
+    }
+
+
+def nominal_duration(params: dict, robot: Robot) -> float:
+    """Crouch + push + flight + landing + recover [s]."""
+    return CROUCH_TIME + PUSH_TIME + flight_time(params["height"]) + LAND_TIME + RECOVER_TIME
+
+
+def takeoff_point(robot: Robot, speed: float) -> TakeoffSpeed:
+    """The shallowest crouch whose straight-up speed covers ``speed / TAKEOFF_MARGIN`` (else the best)."""
+    for s in takeoff_speeds(robot):
+        if TAKEOFF_MARGIN * s.speed >= speed:
+            return s
+    return _best(robot)
+
+
+def build(b: FragmentBuilder) -> Fragment:
+    """Crouch, push off, flight (whole knots, never stretched), landing, recover."""
+    robot, dt, h, fwd = b.robot, b.dt, b.params["height"], b.params["forward"]
+    n_flight = max(MIN_FLIGHT_KNOTS, math.ceil(flight_time(h) / dt - 1e-9))
+    T = n_flight * dt
+    v0 = G * T / 2.0  # take-off speed of the rounded flight
+    rise = G * T * T / 8.0
+    n_crouch = max(2, round(CROUCH_TIME / dt))
+    n_push = max(2, round(PUSH_TIME / dt))
+    n_land = max(2, round(LAND_TIME / dt))
+    n_recover = b.n_knots - (n_crouch + n_push + n_flight + n_land)
+    if n_recover < 2:
+        n_crouch -= 2 - n_recover
+        n_recover = 2
+    g = standing_geometry(robot)
+    z0 = b.world_z(float(g.com[2]))
+    takeoff = takeoff_point(robot, v0)
+    stroke = max(MIN_STROKE, v0 * v0 / (2.0 * PUSH_ACCELERATION * G))
+    depth = min(takeoff.com_drop + stroke, robot.profile.squat_depth_max)
+    # knot boundaries, as nominal times the builder maps back onto exactly these knots
+    bounds = np.cumsum([n_crouch, n_push, n_flight, n_land, n_recover])
+
+    def tau(k: int) -> float:
+        return float(k) * dt / b.scale
+
+    heading = b.stance.heading()
+    shift = heading.rotation @ np.array([fwd, 0.0, 0.0])
+    landing = {}
+    for side in ("left", "right"):
+        pose = b.stance.sole(side)
+        landing[side] = Pose(position=tuple(float(x) for x in np.asarray(pose.position) + shift), rpy=pose.rpy)
+    land_contacts = tuple(Contact(frame=robot.frame(f"{s}_foot"), placement=landing[s]) for s in ("left", "right"))
+    end_stance = Stance(left=landing["left"], right=landing["right"])
+    b.com_target("crouch", (None, None, z0 - depth), time=tau(bounds[0]), tolerance=CROUCH_TOLERANCE)
+    k_apex = bounds[1] + n_flight // 2
+    t_apex = (n_flight // 2) * dt
+    apex = z0 - takeoff.com_drop + v0 * t_apex - 0.5 * G * t_apex**2
+    b.com_target("flight apex", (None, None, apex), time=tau(k_apex), tolerance=0.02,
+                 priority=Priority.SOFT, weight=APEX_WEIGHT)
+    mid = heading_frame(_se3(landing["left"]), _se3(landing["right"])).translation
+    b.com_target("landed and standing", (float(mid[0]), float(mid[1]), z0), time=tau(bounds[4]), tolerance=END_TOLERANCE)
+    b.phase("crouch", tau(bounds[0]))
+    b.phase("push off", tau(bounds[1]))
+    b.phase("flight", tau(bounds[2]), (), swing_height=min(FLIGHT_CLEARANCE_MAX, rise / 3.0))
+    b.phase("landing", tau(bounds[3]), land_contacts)
+    b.phase("recover", tau(bounds[4]), land_contacts)
+    b.end_stance = end_stance
+    return b.finish(PARTS, dynamic=True)
+
+
+PRIMITIVE = Primitive(name="jump", nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,
+                      check=check, limits=limits, dynamic=True)
