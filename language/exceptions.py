@@ -10,7 +10,14 @@ from collections.abc import Sequence
 
 
 class LanguageError(ValueError):
-    """Base class of every error about an instruction (the CLI exits with code 2)."""
+    """Base class of every error about an instruction (the CLI exits with code 2).
+
+    The message is always one line: runs of whitespace (newlines in a quoted instruction
+    included) become one space.
+    """
+
+    def __init__(self, message: str = "") -> None:
+        super().__init__(" ".join(str(message).split()))
 
 
 class EmptyInstruction(LanguageError):

@@ -191,3 +191,35 @@ def test_parse_is_well_under_a_millisecond():
         parse(t)
         times.append(time.perf_counter() - t0)
     assert statistics.median(times) < 1e-3, f"median {statistics.median(times) * 1e6:.0f} us"
+
+
+def test_random_vocabulary_sentences_never_crash():
+    """Seeded random strings of vocabulary phrases: a plan or a one-line LanguageError, nothing else."""
+    import random
+
+    lx = get_lexicon()
+    phrases = sorted(" ".join(k) if k[0].isascii() else "".join(k) for k in lx.phrases)
+    phrases += ["3", "0.5", "-2", "两", "十二", ",", "。", "1e9", "999"]
+    rng = random.Random(20261122)
+    parsed = 0
+    for _ in range(3000):
+        text = " ".join(rng.choice(phrases) for _ in range(rng.randint(1, 6)))
+        try:
+            plan = parse(text)
+        except LanguageError as e:
+            assert "\n" not in str(e), text
+            continue
+        parsed += 1
+        assert plan.actions and not plan.actions[0].overlay, text
+    assert parsed > 100  # the generator does reach the accepting paths
+
+
+from hypothesis import given, strategies as st  # noqa: E402
+
+
+@given(st.text(max_size=40))
+def test_arbitrary_text_gives_a_plan_or_a_language_error(text):
+    try:
+        parse(text)
+    except LanguageError as e:
+        assert str(e) and "\n" not in str(e) and "\r" not in str(e)
