@@ -429,29 +429,33 @@ def _with_body(lx: Lexicon, name: str) -> set[str]:
 
 
 def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -> list[ParsedAction]:
-    """One lower-body action with upper-body actions run at the same time (``overlay=True``)."""
-    base: list[ParsedAction] = []
-    tops: list[ParsedAction] = []
+    """Actions said to run at the same time: the one that is not upper-body first, the others overlaid.
+
+    At most one action of the group may use more than the upper body (registry ``body`` is
+    ``lower`` or ``whole``); it becomes the base. If all are upper-body, the first one said is
+    the base. Which body parts really collide (two actions on one arm) is the tasks layer's call.
+    """
     for clause, parsed in group:
         if len(parsed) != 1:
             raise UnsupportedInstruction(
                 f'"{clause.text(normalized)}": an action repeated by count cannot run at the same time as another; '
                 f'use a count the action has (e.g. "wave twice")'
             )
-        body = REGISTRY[parsed[0].action.name].body
-        (tops if body == "upper" else base).append(parsed[0])
-    names = ", ".join(p.action.name for _, ps in group for p in ps)
-    whole = [p.action.name for p in base if REGISTRY[p.action.name].body != "lower"]
-    if whole or len(base) != 1:
+    actions = [parsed[0] for _, parsed in group]
+    bases = [p for p in actions if REGISTRY[p.action.name].body != "upper"]
+    if len(bases) > 1:
         upper = ", ".join(n for n, s in REGISTRY.items() if s.body == "upper")
-        lower = ", ".join(n for n, s in REGISTRY.items() if s.body == "lower")
-        reason = (f"{', '.join(whole)} moves the whole body" if whole
-                  else f"only upper-body actions ({upper}) can run with one lower-body action"
-                  if base else f"one of them must be a lower-body action ({lower})")
-        raise UnsupportedInstruction(f'cannot do {names} at the same time: {reason}')
-    out = [base[0]]
-    for p in tops:
-        out.append(ParsedAction(Action(name=p.action.name, params=dict(_given_params(p)), overlay=True), p.given))
+        said = " and ".join(f'"{c.text(normalized)}"' for c, ps in group if REGISTRY[ps[0].action.name].body != "upper")
+        names = " and ".join(p.action.name for p in bases)
+        raise UnsupportedInstruction(
+            f"cannot do {said} at the same time: {names} both move the legs or the whole body; "
+            f"only upper-body actions ({upper}) can run alongside another action"
+        )
+    base = bases[0] if bases else actions[0]
+    out = [base]
+    for p in actions:
+        if p is not base:
+            out.append(ParsedAction(Action(name=p.action.name, params=_given_params(p), overlay=True), p.given))
     return out
 
 
