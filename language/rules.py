@@ -73,7 +73,7 @@ class ParsedAction:
 
 @dataclass(slots=True)
 class _Clause:
-    connector: str | None  # SEQ, OVERLAY or None (first clause)
+    connector: str | None  # SEQ, OVERLAY, PUNCTUATION (a bare comma) or None (first clause)
     items: list[Item]
 
     def text(self, normalized: str) -> str:
@@ -151,18 +151,20 @@ def _split(items: list[Item]) -> list[_Clause]:
             continue
         if it.kind in (SEQ, OVERLAY, PUNCTUATION):
             if current:
-                clauses.append(_Clause(connector, current))
+                _close(clauses, current, connector)
                 current, connector = [], None
             if it.kind == OVERLAY:
                 if not clauses:
                     leading_overlay = True  # "while squatting, wave" / "一边挥手一边蹲"
                 connector = OVERLAY
-            elif clauses and connector is None:
+            elif it.kind == SEQ and clauses and connector != OVERLAY:
                 connector = SEQ
+            elif clauses and connector is None:
+                connector = PUNCTUATION
             continue
         current.append(it)
     if current:
-        clauses.append(_Clause(connector, current))
+        _close(clauses, current, connector)
         connector = None
     if clauses:
         clauses[0].connector = None
@@ -172,6 +174,14 @@ def _split(items: list[Item]) -> list[_Clause]:
         if connector == OVERLAY:  # "wave and squat at the same time"
             clauses[-1].connector = OVERLAY
     return clauses
+
+
+def _close(clauses: list[_Clause], items: list[Item], connector: str | None) -> None:
+    """End a clause; after a bare comma, a part without an action word continues the last clause."""
+    if connector == PUNCTUATION and clauses and not any(it.kind in (TRIGGER, AGAIN) for it in items):
+        clauses[-1].items.extend(items)  # "walk forward, 2 meters" is one walk
+    else:
+        clauses.append(_Clause(connector, items))
 
 
 def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None:
