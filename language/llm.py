@@ -40,6 +40,8 @@ FEW_SHOT = (
     "向左看",
 )
 MAX_REPLY_BYTES = 1 << 20  # refuse absurd responses [bytes]
+#: Keyword options of :func:`parse_llm` (what ``parse(..., backend="llm", **options)`` accepts).
+OPTIONS = ("url", "model", "api_key", "timeout", "json_mode", "temperature")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

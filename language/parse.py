@@ -35,7 +35,10 @@ def parse(text: str, *, backend: str = "rules", **llm_options: Any) -> ActionPla
         return ActionPlan(actions=tuple(p.action for p in parsed), backend="rules", text=text,
                           given=tuple(p.given for p in parsed))
     if backend == "llm":
-        from language.llm import parse_llm
+        from language.llm import OPTIONS, parse_llm
 
+        unknown = sorted(set(llm_options) - set(OPTIONS))
+        if unknown:
+            raise BackendError(f"unknown LLM option(s) {', '.join(unknown)}; known: {', '.join(OPTIONS)}")
         return parse_llm(text, **llm_options)
     raise BackendError(f"unknown parser backend {backend!r}; use one of {', '.join(BACKENDS)}")

@@ -187,6 +187,8 @@ def test_unknown_backend_and_options():
         parse("wave", backend="gpt")
     with pytest.raises(BackendError, match="takes no options"):
         parse("wave", url="http://x")
+    with pytest.raises(BackendError, match="unknown LLM option.*max_tokens"):
+        parse("wave", backend="llm", url="http://127.0.0.1:9/v1", model="m", max_tokens=5)
 
 
 def test_every_failure_is_a_language_error():
