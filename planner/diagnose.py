@@ -1,0 +1,292 @@
+"""Constraint report and failure diagnosis, with Pinocchio numerics (independent of CasADi).
+
+* :func:`check_plan`: every constraint group's worst violation over the horizon, its unit
+  and time (stance soles, swing clearance, CoM support polygon and box, frame and CoM
+  targets, joint position and velocity limits).
+* :func:`precheck`: contradictions visible before solving (a first phase whose contacts are
+  not where the robot stands, a support polygon narrower than twice the margin, a CoM box
+  that misses the polygon, a target before the robot can move).
+* :func:`diagnose_failure`: after a failed solve, a sentence in task terms. Hard targets are
+  relaxed into costs and the problem is solved again: a target still missed by more than its
+  tolerance is the culprit, and the relaxed solution tells by how much.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from planner.formulation import Layout, halfplanes, knots_of, placement_of, support_polygon
+from planner.plan import ConstraintCheck, Plan
+from planner.settings import PlannerSettings
+from tasks.specs import Priority
+
+START_TOLERANCE = 1e-3  # [m], [rad]: first-phase contacts vs the standing soles
+
+
+def finite_differences(model: pin.Model, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities and accelerations consistent with ``q`` on the manifold.
+
+    ``v_k = difference(q_k, q_{k+1}) / dt`` and ``a_k = (v_{k+1} - v_k) / dt`` (explicit Euler:
+    ``q_{k+1} = integrate(q_k, v_k dt)``, ``v_{k+1} = v_k + a_k dt``); the last entries are 0.
+    """
+    T = len(q)
+    v = np.zeros((T, model.nv))
+    for k in range(T - 1):
+        v[k] = pin.difference(model, q[k], q[k + 1]) / dt
+    a = np.zeros((T, model.nv))
+    a[:-1] = (v[1:] - v[:-1]) / dt
+    return v, a
+
+
+def _worst(name: str, values: np.ndarray, times: np.ndarray, tolerance: float, unit: str) -> ConstraintCheck:
+    if len(values) == 0:
+        return ConstraintCheck(name=name, violation=0.0, tolerance=tolerance, unit=unit, time=0.0)
+    i = int(np.argmax(values))
+    return ConstraintCheck(name=name, violation=float(max(values[i], 0.0)), tolerance=tolerance, unit=unit,
+                           time=float(times[i]))
+
+
+def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
+               settings: PlannerSettings) -> list[ConstraintCheck]:
+    """Every constraint group's worst violation, evaluated with Pinocchio at the knots."""
+    robot, spec, t = lay.robot, lay.spec, lay.t
+    model, data = robot.model, robot.data()
+    placements = []
+    for qk in q:
+        pin.framesForwardKinematics(model, data, qk)
+        placements.append([data.oMf[i].copy() for i in range(model.nframes)])
+    checks: list[ConstraintCheck] = []
+    # stance soles
+    names: dict[int, str] = {}
+    pos_err: dict[int, list] = {}
+    rot_err: dict[int, list] = {}
+    for k, active in enumerate(lay.contacts_at):
+        for fid, (frame, M) in active.items():
+            names.setdefault(fid, frame)
+            oMf = placements[k][fid]
+            pos_err.setdefault(fid, []).append((np.linalg.norm(oMf.translation - M.translation), t[k]))
+            rot_err.setdefault(fid, []).append((np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)), t[k]))
+    for fid, frame in names.items():
+        pe, rt = np.array(pos_err[fid]).T
+        checks.append(_worst(f"{frame} contact position", pe, rt, settings.contact_tolerance, "m"))
+        re, rt = np.array(rot_err[fid]).T
+        checks.append(_worst(f"{frame} contact orientation", re, rt, settings.contact_tolerance, "rad"))
+    # swing clearance (from the layout's clearance terms)
+    clear: dict[str, list] = {}
+    for term in lay.terms:
+        if term.kind == "clearance":
+            z = placements[term.knot][term.structure[1]].translation[2]
+            frame = term.label.split()[0]
+            clear.setdefault(f"{frame} clearance", []).append((term.lower[0] - z, t[term.knot]))
+    for name, rows in clear.items():
+        vals, times = np.array(rows).T
+        checks.append(_worst(name, vals, times, settings.polygon_tolerance, "m"))
+    # CoM bounds
+    for bounds in spec.com_bounds:
+        ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)
+        poly, box = [], []
+        for k in ks:
+            if bounds.support_polygon:
+                hull = support_polygon(lay, k)
+                if len(hull) >= 3:
+                    A, b = halfplanes(hull)
+                    poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
+            viol = 0.0
+            for i in range(3):
+                lo, hi = bounds.lower[i], bounds.upper[i]
+                if lo is not None:
+                    viol = max(viol, lo - com[k, i])
+                if hi is not None:
+                    viol = max(viol, com[k, i] - hi)
+            box.append((viol, t[k]))
+        if bounds.support_polygon and poly:
+            vals, times = np.array(poly).T
+            checks.append(_worst(f"CoM bound {bounds.name!r} support polygon", vals, times,
+                                 settings.polygon_tolerance, "m"))
+        if any(x is not None for x in (*bounds.lower, *bounds.upper)) and box:
+            vals, times = np.array(box).T
+            checks.append(_worst(f"CoM bound {bounds.name!r} box", vals, times, settings.polygon_tolerance, "m"))
+    # frame targets
+    for target in spec.targets:
+        fid = robot.frame_id(target.frame)
+        ks = knots_of(t, target.time, target.window, lay.N)
+        tol_scale = 1.0 if target.priority is Priority.HARD else math.inf
+        if target.position is not None:
+            axes = np.array(target.axes)
+            errs = [np.linalg.norm((placements[k][fid].translation - np.array(target.position))[axes]) for k in ks]
+            checks.append(_worst(f"{target.frame} target {target.name!r}", np.array(errs), t[ks],
+                                 target.tolerance * tol_scale + 1e-9, "m"))
+        if target.rpy is not None:
+            R_t = pin.rpy.rpyToMatrix(*target.rpy)
+            errs = [np.linalg.norm(pin.log3(R_t.T @ placements[k][fid].rotation)) for k in ks]
+            checks.append(_worst(f"{target.frame} orientation target {target.name!r}", np.array(errs), t[ks],
+                                 target.orientation_tolerance * tol_scale + 1e-9, "rad"))
+    for target in spec.com_targets:
+        ks = knots_of(t, target.time, target.window, lay.N)
+        axes = np.array([v is not None for v in target.position])
+        goal = np.array([0.0 if v is None else v for v in target.position])
+        errs = [np.linalg.norm((com[k] - goal)[axes]) for k in ks]
+        tol = target.tolerance if target.priority is Priority.HARD else math.inf
+        checks.append(_worst(f"CoM target {target.name!r}", np.array(errs), t[ks], tol + 1e-9, "m"))
+    # joint limits
+    lower = np.asarray(model.lowerPositionLimit, dtype=float)[7:]
+    upper = np.asarray(model.upperPositionLimit, dtype=float)[7:]
+    lower = np.where(np.abs(lower) < 1e10, lower, -np.inf)
+    upper = np.where(np.abs(upper) < 1e10, upper, np.inf)
+    viol = np.maximum(lower - q[:, 7:], q[:, 7:] - upper).max(axis=1)
+    checks.append(_worst("joint position limits", viol, t, settings.limit_tolerance, "rad"))
+    vmax = np.asarray(model.velocityLimit, dtype=float)[6:]
+    vmax = np.where((vmax > 0) & (vmax < 1e10), vmax, np.inf)
+    vviol = (np.abs(v[:, 6:]) - vmax).max(axis=1)
+    checks.append(_worst("joint velocity limits", vviol, t, settings.limit_tolerance / lay.dt, "rad/s"))
+    return checks
+
+
+def _polygon_room(A: np.ndarray, b: np.ndarray, lower=None, upper=None) -> float:
+    """Radius of the largest disc inside ``A x <= b`` (and the xy box) [m]; < 0 when empty."""
+    from scipy.optimize import linprog
+
+    # maximise s subject to A x + s <= b (rows of A are unit vectors)
+    A_ub = np.hstack([A, np.ones((len(A), 1))])
+    bnds = [(lower[0], upper[0]) if lower is not None else (None, None),
+            (lower[1], upper[1]) if lower is not None else (None, None), (None, 1.0)]
+    res = linprog(c=[0.0, 0.0, -1.0], A_ub=A_ub, b_ub=b, bounds=bnds, method="highs")
+    if res.status == 2:  # infeasible: only with a box
+        return -math.inf
+    return float(-res.fun) if res.success else math.inf
+
+
+def precheck(lay: Layout) -> str:
+    """A task-level explanation of a contradiction visible before solving, or ``""``."""
+    robot, spec = lay.robot, lay.spec
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, lay.q_ref)
+    first = spec.phases[0]
+    for c in first.contacts:
+        fid = robot.frame_id(c.frame)
+        M = placement_of(c.placement)
+        oMf = data.oMf[fid]
+        dp = float(np.linalg.norm(oMf.translation - M.translation))
+        dr = float(np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)))
+        if dp > START_TOLERANCE or dr > START_TOLERANCE:
+            where = ", ".join(f"{x:.3f}" for x in oMf.translation)
+            return (f"contact {c.frame} in the first phase {first.name!r} is {dp:.3f} m / {dr:.3f} rad away from "
+                    f"where the robot starts standing (foot at [{where}] m); the first phase's contacts must match "
+                    "the standing posture")
+    com0 = np.array(pin.centerOfMass(robot.model, data, lay.q_ref))
+    for bounds in spec.com_bounds:
+        ks = range(lay.N + 1) if bounds.window is None else knots_of(lay.t, None, bounds.window, lay.N)
+        seen_phases = set()
+        for k in ks:
+            phase = lay.phase_name(k)
+            for i in range(3):
+                lo, hi = bounds.lower[i], bounds.upper[i]
+                axis = "xyz"[i]
+                if k < 2 and ((lo is not None and com0[i] < lo - 1e-9) or (hi is not None and com0[i] > hi + 1e-9)):
+                    return (f"CoM bound {bounds.name!r} cannot hold at the start (t = {lay.t[k]:.2f} s, phase "
+                            f"{phase!r}): the standing CoM {axis} = {com0[i]:.3f} m is outside "
+                            f"[{_fmt(lo)}, {_fmt(hi)}] m")
+            if not bounds.support_polygon or phase in seen_phases:
+                continue
+            seen_phases.add(phase)
+            hull = support_polygon(lay, k)
+            if len(hull) < 3:
+                continue
+            A, b = halfplanes(hull)
+            room = _polygon_room(A, b - bounds.margin)
+            if room < 0:
+                width = 2 * _polygon_room(A, b)
+                return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: the support polygon is "
+                        f"{width:.3f} m wide, and the margin {bounds.margin:.3f} m on each side leaves no room")
+            if any(bounds.lower[i] is not None or bounds.upper[i] is not None for i in range(2)):
+                lo = [-1e3 if v is None else v for v in bounds.lower[:2]]
+                hi = [1e3 if v is None else v for v in bounds.upper[:2]]
+                if _polygon_room(A, b - bounds.margin, lo, hi) == -math.inf:
+                    return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: its box "
+                            f"x [{_fmt(bounds.lower[0])}, {_fmt(bounds.upper[0])}] m, y [{_fmt(bounds.lower[1])}, "
+                            f"{_fmt(bounds.upper[1])}] m does not overlap the support polygon shrunk by "
+                            f"{bounds.margin:.3f} m")
+    for target in spec.targets:
+        ks = knots_of(lay.t, target.time, target.window, lay.N)
+        if target.priority is Priority.HARD and target.position is not None and all(k < 2 for k in ks):
+            p = data.oMf[robot.frame_id(target.frame)].translation
+            err = float(np.linalg.norm((p - np.array(target.position))[np.array(target.axes)]))
+            if err > target.tolerance:
+                return (f"{target.frame} target {target.name!r} at t = {lay.t[ks[0]]:.2f} s comes before the robot "
+                        f"can move (first motion at t = {lay.t[2]:.2f} s); it is {err:.3f} m away at the start")
+    return ""
+
+
+def _fmt(v) -> str:
+    return "-inf" if v is None else f"{v:.3f}"
+
+
+RELAXED_WEIGHT = 1e4  # [1/m^2] weight of a hard target turned into a cost while diagnosing
+
+
+def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: dict) -> str:
+    """Explain a failed solve in task terms (which item, when, by how much)."""
+    from planner.formulation import make_layout
+    from planner.trajopt import _make_plan, solve_layout
+
+    spec = lay.spec
+    hard = [tg for tg in spec.targets if tg.priority is Priority.HARD]
+    hard_com = [tg for tg in spec.com_targets if tg.priority is Priority.HARD]
+    if settings.diagnose and (hard or hard_com):
+        relaxed_spec = dataclasses.replace(
+            spec,
+            targets=tuple(dataclasses.replace(tg, priority=Priority.SOFT, weight=RELAXED_WEIGHT) if tg in hard else tg
+                          for tg in spec.targets),
+            com_targets=tuple(dataclasses.replace(tg, priority=Priority.SOFT, weight=RELAXED_WEIGHT)
+                              if tg in hard_com else tg for tg in spec.com_targets),
+        )
+        relaxed_lay = make_layout(relaxed_spec, lay.robot)
+        dq, stats, _ = solve_layout(relaxed_lay, dataclasses.replace(settings, compile=False))
+        if stats.status.ok:
+            relaxed = _make_plan(relaxed_lay, dq, stats, settings)
+            misses = []
+            for chk in relaxed.checks:
+                item = _target_of(chk.name, hard, hard_com)
+                if item is None:
+                    continue
+                tol = item.tolerance if "orientation" not in chk.name else item.orientation_tolerance
+                if chk.violation > tol:
+                    misses.append((chk.violation - tol, chk, item))
+            if misses:
+                misses.sort(key=lambda m: -m[0])
+                gap, chk, item = misses[0]
+                unit = "rad" if chk.unit == "rad" else "m"
+                what = chk.name.split(" target ")[0] + (" orientation" if unit == "rad" and "orientation" not in chk.name else "")
+                text = (f"{chk.name} is {gap:.2f} {unit} beyond reach at t = {chk.time:.2f} s "
+                        f"(closest {chk.violation:.2f} {unit}, tolerance {tol:g} {unit})")
+                del what
+                if len(misses) > 1:
+                    text += "; also " + ", ".join(f"{m[1].name} ({m[0]:.2f} {m[1].unit})" for m in misses[1:])
+                return text
+    # no target to blame: the worst violated group at the returned point
+    bad = sorted((c for c in failed.checks if not c.ok), key=lambda c: -(c.violation / max(c.tolerance, 1e-12)))
+    status = failed.stats.status.value
+    if not bad:
+        return f"the solver stopped: {status} ({failed.stats.raw_status}) after {failed.stats.iterations} iterations"
+    c = bad[0]
+    phase = spec.phases[spec.phase_at(c.time)].name
+    if c.name.startswith("CoM bound"):
+        name = c.name.split(" support polygon")[0].split(" box")[0]
+        return (f"{name} cannot hold in phase {phase!r}: the CoM ends {c.violation:.3f} m outside at "
+                f"t = {c.time:.2f} s ({status})")
+    return (f"{c.name} violated by {c.violation:.3g} {c.unit} at t = {c.time:.2f} s in phase {phase!r} "
+            f"({status})")
+
+
+def _target_of(check_name: str, hard, hard_com):
+    for tg in hard:
+        if check_name.endswith(f"target {tg.name!r}"):
+            return tg
+    for tg in hard_com:
+        if check_name == f"CoM target {tg.name!r}":
+            return tg
+    return None

@@ -1,0 +1,407 @@
+"""From a TaskSpec to a list of per-knot terms: the problem's layout, before any CasADi.
+
+The transcription (DESIGN.md section 3) uses a uniform knot grid ``t_k = k dt``, ``k = 0..N``.
+The decision variables are the tangent displacements ``dq_k`` (nv) around the reference
+``q_ref`` (the standing posture). Knots 0 and 1 are fixed at ``dq = 0`` (start at rest) and
+knot N repeats knot N-1 (end at rest), so the variables are ``dq_2 .. dq_{N-1}``.
+
+Each spec item becomes :class:`Term`\\ s at knots. A term separates
+
+* its *structure* (kind, knot, frame, axes, hard/soft: what the NLP graph looks like), which
+  keys the solver cache, from
+* its *values* (target positions, placements, polygon edges, weights as CasADi parameters;
+  bounds as ``lbg``/``ubg``), which change from solve to solve without a rebuild.
+
+One function per formulation piece (contacts, swing clearance, balance, frame targets, CoM
+targets, joint targets). CoM dynamics with contact forces (``spec.dynamic``) would add pieces
+with their own variables in the same way.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from planner.exceptions import PlannerError
+from robots.model import Robot
+from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
+
+INF = math.inf
+MIN_INTERVALS = 4  # the rest constraints use two knots at each end
+
+
+@dataclass(eq=False)
+class Term:
+    """One constraint or cost at one knot.
+
+    Attributes:
+        kind: ``contact``, ``clearance``, ``polygon``, ``com_box``, ``frame_pos``, ``frame_rot``,
+            ``com_pos``, ``joint``.
+        knot: Knot index (0..N).
+        structure: Hashable description of the expression (no numeric values).
+        params: Numeric parameters fed to the NLP (flattened).
+        lower, upper: Bounds of the constraint rows (empty for a cost term).
+        label: What the report calls it ("left_foot contact", "target 'reach'").
+        group: The report group it belongs to (several knots share a group).
+        item: The spec item it comes from (for diagnoses).
+        phase: Name of the phase at this knot.
+        unit: Unit of the rows.
+    """
+
+    kind: str
+    knot: int
+    structure: tuple
+    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    upper: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    label: str = ""
+    item: object = None
+    phase: str = ""
+
+    @property
+    def is_cost(self) -> bool:
+        """True when the term only adds to the cost."""
+        return len(self.lower) == 0
+
+    @property
+    def n_rows(self) -> int:
+        """Number of constraint rows."""
+        return len(self.lower)
+
+
+@dataclass(eq=False)
+class Layout:
+    """The problem of one spec on one robot, as data.
+
+    Attributes:
+        robot: The robot.
+        spec: The spec.
+        N: Number of intervals (knots 0..N).
+        dt: Knot spacing [s].
+        t: Knot times (N+1,) [s].
+        phase_of_knot: Phase index per knot (the later phase at a boundary).
+        contacts_at: Per knot, the contacts active there (frame id -> (spec frame, placement)).
+        frame_ids: Frame ids the terms use, in a fixed order.
+        terms: Every term.
+        q_ref: Reference (= start) configuration (nq,).
+    """
+
+    robot: Robot
+    spec: TaskSpec
+    N: int
+    dt: float
+    t: np.ndarray
+    phase_of_knot: list[int]
+    contacts_at: list[dict[int, tuple[str, pin.SE3]]]
+    frame_ids: list[int]
+    terms: list[Term]
+    q_ref: np.ndarray
+
+    @property
+    def variable_knots(self) -> range:
+        """Knots whose dq is a decision variable."""
+        return range(2, self.N)
+
+    def free_knot(self, k: int) -> int:
+        """The knot whose variables define knot ``k`` (N maps to N-1)."""
+        return min(k, self.N - 1)
+
+    def structure(self) -> tuple:
+        """Hashable structure of the NLP (no numeric values)."""
+        return (
+            self.N,
+            tuple(self.frame_ids),
+            tuple((t.knot, t.structure, len(t.params), t.n_rows) for t in self.terms),
+        )
+
+    def phase_name(self, k: int) -> str:
+        """Name of the phase at knot ``k``."""
+        return self.spec.phases[self.phase_of_knot[k]].name
+
+
+def placement_of(pose) -> pin.SE3:
+    """pin.SE3 of a spec Pose (position + roll-pitch-yaw)."""
+    return pin.SE3(pin.rpy.rpyToMatrix(*pose.rpy), np.array(pose.position, dtype=float))
+
+
+def knot_grid(spec: TaskSpec) -> tuple[int, float, np.ndarray]:
+    """Uniform grid over the horizon: (N intervals, dt [s], times (N+1,) [s])."""
+    horizon = spec.horizon
+    N = max(MIN_INTERVALS, int(round(horizon / spec.dt)))
+    dt = horizon / N
+    return N, dt, np.linspace(0.0, horizon, N + 1)
+
+
+def knots_of(layout_t: np.ndarray, time: float | None, window, N: int) -> list[int]:
+    """Knots where a timed item applies: nearest to ``time``, every knot in ``window``, or N."""
+    dt = layout_t[1] - layout_t[0]
+    if window is not None:
+        ks = [k for k in range(N + 1) if window[0] - 1e-9 <= layout_t[k] <= window[1] + 1e-9]
+        if not ks:
+            ks = [int(round(0.5 * (window[0] + window[1]) / dt))]
+        return ks
+    if time is None:
+        return [N]
+    return [min(N, max(0, int(round(time / dt))))]
+
+
+def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
+    """Lay the spec out on the knot grid (raises FrameNotFound for unknown frames).
+
+    Raises:
+        robots.FrameNotFound: a spec item names a frame the robot does not have.
+        PlannerError: the spec asks for something the kinematic planner cannot model.
+    """
+    N, dt, t = knot_grid(spec)
+    starts = spec.phase_start_times()
+    phase_of_knot = [spec.phase_at(float(tk)) for tk in t]
+    # Contacts per knot: the union of the phases touching the knot (a contact holds at both
+    # ends of its phase), the later phase winning if a frame appears in both.
+    contacts_at: list[dict[int, tuple[str, pin.SE3]]] = []
+    for k, tk in enumerate(t):
+        active: dict[int, tuple[str, pin.SE3]] = {}
+        for i, ph in enumerate(spec.phases):
+            end = starts[i] + ph.duration
+            if starts[i] - 1e-9 <= tk <= end + 1e-9:
+                for c in ph.contacts:
+                    active[robot.frame_id(c.frame)] = (c.frame, placement_of(c.placement))
+        contacts_at.append(active)
+    lay = Layout(robot=robot, spec=spec, N=N, dt=dt, t=t, phase_of_knot=phase_of_knot,
+                 contacts_at=contacts_at, frame_ids=[], terms=[], q_ref=np.array(robot.q_standing))
+    contact_terms(lay)
+    swing_terms(lay)
+    for bounds in spec.com_bounds:
+        balance_terms(lay, bounds)
+    for target in spec.targets:
+        frame_target_terms(lay, target)
+    for target in spec.com_targets:
+        com_target_terms(lay, target)
+    for target in spec.joint_targets:
+        joint_target_terms(lay, target)
+    used = sorted({t.structure[1] for t in lay.terms if t.kind in ("contact", "clearance", "frame_pos", "frame_rot")})
+    lay.frame_ids = used
+    return lay
+
+
+def _use(lay: Layout, k: int) -> bool:
+    """Constraints live on variable knots only (knots 0, 1 are fixed; N repeats N-1)."""
+    return 2 <= k <= lay.N - 1
+
+
+def contact_terms(lay: Layout) -> None:
+    """Stance soles fixed in 6D to their placement: 3 position rows [m] + 3 rotation rows [rad]."""
+    for k in range(lay.N + 1):
+        if not _use(lay, k):
+            continue
+        for fid, (frame, M) in lay.contacts_at[k].items():
+            lay.terms.append(Term(
+                kind="contact", knot=k, structure=("contact", fid),
+                params=np.concatenate([M.translation, M.rotation.T.ravel()]),  # column-major R
+                lower=np.zeros(6), upper=np.zeros(6),
+                label=f"{frame} contact", phase=lay.phase_name(k),
+            ))
+
+
+def swing_terms(lay: Layout) -> None:
+    """Feet off the ground stay above it; at a phase's middle they clear ``swing_height`` [m]."""
+    spec, robot = lay.spec, lay.robot
+    contact_frames = {robot.frame_id(f): f for f in spec.contact_frames()}
+    starts = spec.phase_start_times()
+    for fid, frame in contact_frames.items():
+        for k in range(lay.N + 1):
+            if not _use(lay, k) or fid in lay.contacts_at[k]:
+                continue
+            lay.terms.append(Term(
+                kind="clearance", knot=k, structure=("clearance", fid),
+                lower=np.array([0.0]), upper=np.array([INF]),
+                label=f"{frame} above ground", phase=lay.phase_name(k),
+            ))
+        for i, ph in enumerate(spec.phases):
+            if any(robot.frame_id(c.frame) == fid for c in ph.contacts) or ph.swing_height <= 0:
+                continue
+            k = int(round((starts[i] + 0.5 * ph.duration) / lay.dt))
+            if not _use(lay, k) or fid in lay.contacts_at[k]:
+                continue
+            lay.terms.append(Term(
+                kind="clearance", knot=k, structure=("clearance", fid),
+                lower=np.array([ph.swing_height]), upper=np.array([INF]),
+                label=f"{frame} swing clearance", phase=ph.name,
+            ))
+
+
+def support_polygon(lay: Layout, k: int) -> np.ndarray:
+    """Corners (M, 2) of the convex hull of the active soles at knot ``k`` [m], counter-clockwise."""
+    robot = lay.robot
+    pts = []
+    for fid, (frame, M) in lay.contacts_at[k].items():
+        side = robot.foot_side(robot.model.frames[fid].name)
+        if side is None:
+            continue  # a hand or other contact: not part of the sole polygon
+        corners = np.array([[x, y, 0.0] for x, y in robot.profile.sole.corners(side)])
+        pts.extend((corners @ M.rotation.T + M.translation)[:, :2])
+    return convex_hull(np.array(pts)) if pts else np.zeros((0, 2))
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull of 2D points (Andrew's monotone chain)."""
+    pts = sorted(set(map(tuple, np.round(points, 12))))
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def halfplanes(hull: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(A, b) with ``A x <= b`` for a counter-clockwise convex polygon; rows have unit norm."""
+    A, b = [], []
+    for i in range(len(hull)):
+        p0, p1 = hull[i], hull[(i + 1) % len(hull)]
+        e = p1 - p0
+        n = np.array([e[1], -e[0]]) / np.linalg.norm(e)  # outward normal of a CCW polygon
+        A.append(n)
+        b.append(float(n @ p0))
+    return np.array(A), np.array(b)
+
+
+POLYGON_ROWS = {1: 4, 2: 8}  # padded number of rows by number of active soles
+
+
+def balance_terms(lay: Layout, bounds: CoMBounds) -> None:
+    """CoM ground projection inside the support polygon shrunk by the margin, plus the box."""
+    ks = range(lay.N + 1) if bounds.window is None else knots_of(lay.t, None, bounds.window, lay.N)
+    axes = tuple(lo is not None or hi is not None for lo, hi in zip(bounds.lower, bounds.upper, strict=True))
+    for k in ks:
+        if not _use(lay, k):
+            continue
+        if bounds.support_polygon:
+            hull = support_polygon(lay, k)
+            if len(hull) >= 3:
+                A, b = halfplanes(hull)
+                n_feet = sum(1 for fid in lay.contacts_at[k] if lay.robot.foot_side(lay.robot.model.frames[fid].name))
+                rows = max(POLYGON_ROWS.get(n_feet, 4 * n_feet), len(A))
+                A_pad = np.zeros((rows, 2))
+                b_pad = np.full(rows, 1.0)
+                A_pad[: len(A)] = A
+                b_pad[: len(A)] = b - bounds.margin
+                lay.terms.append(Term(
+                    kind="polygon", knot=k, structure=("polygon", rows),
+                    params=A_pad.T.ravel(), lower=np.full(rows, -INF), upper=b_pad,
+                    label=f"CoM bound {bounds.name!r} (support polygon)", item=bounds,
+                    phase=lay.phase_name(k),
+                ))
+        if any(axes):
+            lo = np.array([-INF if v is None else v for v, a in zip(bounds.lower, axes, strict=True) if a])
+            hi = np.array([INF if v is None else v for v, a in zip(bounds.upper, axes, strict=True) if a])
+            lay.terms.append(Term(
+                kind="com_box", knot=k, structure=("com_box", axes), lower=lo, upper=hi,
+                label=f"CoM bound {bounds.name!r} (box)", item=bounds, phase=lay.phase_name(k),
+            ))
+
+
+HARD_EQUALITY_TOLERANCE = 1e-6  # [m] or [rad]: below it a hard target becomes an equality
+BOX_SHRINK = 0.995  # hard targets: the NLP keeps the error this far inside the tolerance
+
+
+def _target_upper(mode: str, n: int, tolerance: float) -> np.ndarray:
+    """Row bounds of a hard target: |err_i| <= 0.995 tol / sqrt(n) (a box inside the ball)."""
+    if mode == "soft":
+        return np.zeros(0)
+    if mode == "eq":
+        return np.zeros(n)
+    return np.full(n, BOX_SHRINK * tolerance / math.sqrt(n))
+
+
+def frame_target_terms(lay: Layout, target: FrameTarget) -> None:
+    """Frame position/orientation targets at their knots, hard (ball constraint) or soft (cost)."""
+    fid = lay.robot.frame_id(target.frame)
+    ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
+    for kk in ks:
+        k = kk
+        if kk < 2:
+            continue  # fixed start knots: checked in the report only
+        scale = 1.0 / len(ks)
+        if target.position is not None:
+            mode = _mode(target.priority, target.tolerance)
+            upper = _target_upper(mode, sum(target.axes), target.tolerance)
+            lay.terms.append(Term(
+                kind="frame_pos", knot=kk, structure=("frame_pos", fid, target.axes, mode),
+                params=np.array([*target.position, target.weight * scale]),
+                lower=-upper,
+                upper=upper, label=f"{target.frame} target {target.name!r}", item=target,
+                phase=lay.phase_name(k),
+            ))
+        if target.rpy is not None:
+            mode = _mode(target.priority, target.orientation_tolerance)
+            s = math.sin(min(target.orientation_tolerance, math.pi / 2))
+            upper = _target_upper(mode, 3, s)
+            R = pin.rpy.rpyToMatrix(*target.rpy)
+            lay.terms.append(Term(
+                kind="frame_rot", knot=kk, structure=("frame_rot", fid, mode),
+                params=np.array([*R.T.ravel(), target.weight * scale]),
+                lower=-upper,
+                upper=upper, label=f"{target.frame} orientation target {target.name!r}", item=target,
+                phase=lay.phase_name(k),
+            ))
+
+
+def com_target_terms(lay: Layout, target: CoMTarget) -> None:
+    """CoM position targets (per axis) at their knots, hard or soft."""
+    axes = tuple(v is not None for v in target.position)
+    ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
+    for kk in ks:
+        k = kk
+        if kk < 2:
+            continue
+        mode = _mode(target.priority, target.tolerance)
+        upper = _target_upper(mode, sum(axes), target.tolerance)
+        lay.terms.append(Term(
+            kind="com_pos", knot=kk, structure=("com_pos", axes, mode),
+            params=np.array([0.0 if v is None else v for v in target.position]
+                            + [target.weight / len(ks)]),
+            lower=-upper,
+            upper=upper, label=f"CoM target {target.name!r}", item=target, phase=lay.phase_name(k),
+        ))
+
+
+def joint_target_terms(lay: Layout, target: JointTarget) -> None:
+    """Joint angle targets as weighted costs."""
+    model = lay.robot.model
+    if not model.existJointName(target.joint):
+        raise PlannerError(
+            f"joint target {target.name!r}: robot {lay.robot.name!r} has no joint {target.joint!r}"
+        )
+    jid = model.getJointId(target.joint)
+    if model.joints[jid].nv != 1:
+        raise PlannerError(f"joint target {target.name!r}: joint {target.joint!r} is not a one-dof joint")
+    iv = model.joints[jid].idx_v
+    ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
+    for kk in ks:
+        k = kk
+        if kk < 2:
+            continue
+        lay.terms.append(Term(
+            kind="joint", knot=kk, structure=("joint", iv),
+            params=np.array([target.value, target.weight / len(ks)]),
+            label=f"joint target {target.name!r}", item=target, phase=lay.phase_name(k),
+        ))
+
+
+def _mode(priority: Priority, tolerance: float) -> str:
+    if priority is Priority.SOFT:
+        return "soft"
+    return "eq" if tolerance < HARD_EQUALITY_TOLERANCE else "box"

@@ -1,0 +1,57 @@
+"""Planner settings: solver options and the solver cache, as a frozen dataclass."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+def default_cache_dir() -> str:
+    """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp``."""
+    env = os.environ.get("WBMP_CACHE_DIR")
+    return env if env else str(Path.home() / ".cache" / "wbmp")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PlannerSettings:
+    """How :func:`planner.trajopt.plan` builds and solves the NLP.
+
+    Attributes:
+        max_iterations: IPOPT iteration limit.
+        tolerance: IPOPT convergence tolerance (``tol``) [-].
+        constraint_tolerance: IPOPT ``constr_viol_tol`` [constraint units: m, rad].
+        print_level: IPOPT print level (0 = silent, 5 = per-iteration table).
+        use_cache: Reuse solvers in this process and compiled solvers on disk.
+        compile: Compile new solvers to C with gcc and store them in ``cache_dir`` (needs
+            ``use_cache``). Off: solvers are built in memory (CasADi SX, no compilation).
+        cache_dir: Directory of the on-disk solver cache (default ``$WBMP_CACHE_DIR`` or
+            ``~/.cache/wbmp``).
+        compile_flags: gcc optimization flags for generated code.
+        contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
+        limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
+        polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
+        diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
+            culprit and how far it is.
+    """
+
+    max_iterations: int = 200
+    tolerance: float = 1e-6
+    constraint_tolerance: float = 1e-7
+    print_level: int = 0
+    use_cache: bool = True
+    compile: bool = False
+    cache_dir: str = field(default_factory=default_cache_dir)
+    compile_flags: tuple[str, ...] = ("-O1",)
+    contact_tolerance: float = 1e-4
+    limit_tolerance: float = 1e-6
+    polygon_tolerance: float = 1e-5
+    diagnose: bool = True
+
+    def __post_init__(self) -> None:
+        from planner.exceptions import PlannerError
+
+        if self.max_iterations < 1:
+            raise PlannerError(f"settings: max_iterations must be >= 1, got {self.max_iterations}")
+        if not self.tolerance > 0 or not self.constraint_tolerance > 0:
+            raise PlannerError("settings: tolerance and constraint_tolerance must be > 0")
