@@ -212,21 +212,33 @@ def zmp_from_com(t: np.ndarray, com: np.ndarray) -> np.ndarray:
     return zmp
 
 
+def _contact_xy(robot: Robot, frame: str) -> np.ndarray:
+    side = robot.foot_side(robot.profile.frame(frame) or frame)
+    if side is not None:
+        return np.array(robot.profile.sole.corners(side), dtype=float)
+    return 0.025 * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
+
+
 def contact_sole_corners(robot: Robot, q: np.ndarray, frame: str) -> np.ndarray:
-    """Corners (4, 3) of the contact surface of ``frame`` at ``q``, in the world [m].
+    """Corners (4, 3) of the contact surface of ``frame`` at configuration ``q``, in the world [m].
 
     Feet use the profile's sole rectangle; any other contact frame gets a 5 cm square.
     """
-    side = robot.foot_side(robot.profile.frame(frame) or frame)
     data = robot.data()
     pin.framesForwardKinematics(robot.model, data, q)
     oMf = data.oMf[robot.frame_id(frame)]
-    if side is not None:
-        xy = np.array(robot.profile.sole.corners(side))
-    else:
-        xy = 0.025 * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
+    xy = _contact_xy(robot, frame)
     local = np.column_stack([xy, np.zeros(len(xy))])
     return local @ oMf.rotation.T + oMf.translation
+
+
+def contact_corners_at_placement(robot: Robot, contact) -> np.ndarray:
+    """Corners (4, 3) of a spec :class:`tasks.specs.Contact` at its requested placement [m]."""
+    R = pin.rpy.rpyToMatrix(*(float(a) for a in contact.placement.rpy))
+    p = np.asarray(contact.placement.position, dtype=float)
+    xy = _contact_xy(robot, contact.frame)
+    local = np.column_stack([xy, np.zeros(len(xy))])
+    return local @ R.T + p
 
 
 def convex_hull_2d(points: np.ndarray) -> np.ndarray:
@@ -272,15 +284,13 @@ class SupportPhase:
 
 
 def support_phases(robot: Robot, plan) -> list[SupportPhase]:
-    """Support polygon of every phase of ``plan``, from the planned configuration mid-phase."""
+    """Support polygon of every phase of ``plan``, from the contact placements of its spec."""
     spec = plan.spec
-    t = np.asarray(plan.t, dtype=float)
     out = []
     for phase, start in zip(spec.phases, spec.phase_start_times(), strict=True):
         end = start + phase.duration
-        k = int(np.argmin(np.abs(t - 0.5 * (start + end))))
         frames = tuple(c.frame for c in phase.contacts)
-        soles = {f: contact_sole_corners(robot, plan.q[k], f) for f in frames}
+        soles = {c.frame: contact_corners_at_placement(robot, c) for c in phase.contacts}
         pts = np.vstack(list(soles.values())) if soles else np.zeros((0, 3))
         hull = convex_hull_2d(pts) if len(pts) else np.zeros((0, 2))
         out.append(SupportPhase(name=phase.name, start=start, end=end, frames=frames, soles=soles,

@@ -1,0 +1,141 @@
+"""The standalone HTML replay: self-contained, complete, atomic."""
+
+from __future__ import annotations
+
+import base64
+import html.parser
+import json
+import re
+
+import numpy as np
+import pytest
+
+from viz import html as vh
+from viz import scene
+from viz._meshcat import umsgpack
+
+URL_ATTRS = {"src", "href", "data", "poster", "action", "formaction", "srcset", "background"}
+
+
+class _Refs(html.parser.HTMLParser):
+    """Every URL-valued attribute, and the text of each script element."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.refs: list[tuple[str, str, str]] = []
+        self.scripts: list[str] = []
+        self._in_script = False
+
+    def handle_starttag(self, tag, attrs):
+        for name, value in attrs:
+            if name in URL_ATTRS and value is not None:
+                self.refs.append((tag, name, value))
+        if tag == "script":
+            self._in_script = True
+            self.scripts.append("")
+
+    def handle_endtag(self, tag):
+        if tag == "script":
+            self._in_script = False
+
+    def handle_data(self, data):
+        if self._in_script:
+            self.scripts[-1] += data
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory, talos, synth_plan, synth_execution):
+    path = tmp_path_factory.mktemp("html") / "motion.html"
+    out = vh.write_html(path, talos, synth_plan, execution=synth_execution, title="synthetic <squat>")
+    return out, out.read_text(encoding="utf-8")
+
+
+def _data(text: str) -> dict:
+    m = re.search(r'<script type="application/json" id="wbmp-data">(.*?)</script>', text, re.S)
+    return json.loads(m.group(1))
+
+
+def test_written_atomically_and_nothing_left_behind(page):
+    path, text = page
+    assert path.is_file() and path.stat().st_size > 1_000_000  # the meshes are inside
+    assert [p.name for p in path.parent.iterdir()] == ["motion.html"]  # no temporary file left
+    assert "<title>synthetic &lt;squat&gt;</title>" in text
+
+
+def test_no_external_resource(page):
+    """No attribute points outside the file, and no script of ours can fetch anything.
+
+    "External URL" here means anything the page would load: src/href-like attributes must be
+    absent or data: URIs, CSS must have no url(...), and our own code (everything except
+    meshcat's bundle) must not contain http(s):// or protocol-relative //host, nor call
+    fetch/XMLHttpRequest/WebSocket/import(). The bundle's only URL strings are XML namespaces
+    ("http://www.w3.org/1999/xhtml"), which name and never load anything.
+    """
+    _, text = page
+    parser = _Refs()
+    parser.feed(text)
+    bad = [r for r in parser.refs if not r[2].startswith("data:")]
+    assert bad == [], f"external references: {bad}"
+    assert not re.search(r"url\(\s*['\"]?(?!data:)", text.split("<script", 1)[0]), "CSS url() in the head"
+    bundle = vh.meshcat_bundle()
+    ours = [s for s in parser.scripts if s.strip() != bundle.strip()]
+    assert len(ours) == len(parser.scripts) - 1, "the meshcat bundle is embedded exactly once"
+    own_code = "\n".join(ours) + text.split("<script", 1)[0]
+    for pattern in (r"https?://", r"(?<![:\w])//[\w-]+\.[\w.-]+", r"\bfetch\(", r"XMLHttpRequest",
+                    r"new WebSocket", r"\bimport\("):
+        assert not re.search(pattern, own_code), f"our code matches {pattern!r}"
+    bundle_urls = set(re.findall(r"https?://[^\s\"')]+", bundle))
+    assert bundle_urls <= {"http://www.w3.org/1999/xhtml"}, bundle_urls
+
+
+def test_scene_has_every_mesh_and_the_markers(page, talos, synth_plan):
+    _, text = page
+    data = _data(text)
+    cmds = [umsgpack.unpackb(base64.b64decode(c)) for c in data["scene"]]
+    objects = {c["path"] for c in cmds if c["type"] == "set_object"}
+    for g in talos.visual_model.geometryObjects:
+        assert f"/meshcat/wbmp/robot/planned/{scene.node_name(g.name)}/mesh" in objects
+    lf = scene.node_name(talos.frame("left_foot"))
+    for path in (f"/meshcat/wbmp/contacts/{lf}/0/sole", "/meshcat/wbmp/support/0",
+                 "/meshcat/wbmp/targets/right_hand_mark", "/meshcat/wbmp/com/path"):
+        assert path in objects, path
+    # the static mesh transforms carry the (negative) scales: 13 mirrored Talos meshes
+    scales = [np.asarray(c["matrix"]).reshape(4, 4).T[:3, :3] for c in cmds
+              if c["type"] == "set_transform" and c["path"].endswith("/mesh")]
+    assert sum(np.linalg.det(s) < 0 for s in scales) == 13
+    target = next(c for c in cmds if c["type"] == "set_transform" and c["path"].endswith("right_hand_mark"))
+    np.testing.assert_allclose(np.asarray(target["matrix"]).reshape(4, 4).T[:3, 3], (0.35, -0.35, 1.1))
+
+
+def test_planned_and_simulated_animations(page, talos, synth_plan, synth_execution):
+    _, text = page
+    data = _data(text)
+    assert set(data["motions"]) == {"planned", "simulated"}
+    assert data["durations"]["planned"] == pytest.approx(synth_plan.t[-1])
+    assert data["durations"]["simulated"] == pytest.approx(synth_execution["exec_t"][-1])
+    anim = umsgpack.unpackb(base64.b64decode(data["motions"]["planned"]))
+    assert anim["type"] == "set_animation"
+    by_path = {a["path"]: a["clip"]["tracks"] for a in anim["animations"]}
+    n_geoms = len(talos.visual_model.geometryObjects)
+    robot_clips = [p for p in by_path if p.startswith("/meshcat/wbmp/robot/planned/")]
+    assert len(robot_clips) == n_geoms
+    for p in robot_clips:
+        quat = np.asarray(by_path[p][1]["values"]).reshape(-1, 4)
+        np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-9)
+    # the CoM marker follows the planned CoM: keys at 30 fps, first and last equal plan.com
+    com = np.asarray(by_path["/meshcat/wbmp/com/point"][0]["values"]).reshape(-1, 3)
+    np.testing.assert_allclose(com[0], synth_plan.com[0], atol=1e-9)
+    np.testing.assert_allclose(com[-1], synth_plan.com[-1], atol=1e-9)
+    assert len(com) == int(round(synth_plan.t[-1] * vh.FPS)) + 1
+    # the base link goes down by the squat depth at mid-motion
+    base = np.asarray(by_path[f"/meshcat/wbmp/robot/planned/{scene.node_name(talos.visual_model.geometryObjects[0].name)}"][0]["values"]).reshape(-1, 3)
+    assert base[0, 2] - base[len(base) // 2, 2] == pytest.approx(0.12, abs=1e-3)
+
+
+def test_bad_plan_shape_is_a_clear_error(tmp_path, talos, synth_plan):
+    import dataclasses
+
+    bad = dataclasses.replace(synth_plan, q=synth_plan.q[:, :10])
+    with pytest.raises(vh.vm.VizInputError, match=r"plan: q must be a non-empty \(T, 39\) array"):
+        vh.write_html(tmp_path / "bad.html", talos, bad)
+    assert list(tmp_path.iterdir()) == []

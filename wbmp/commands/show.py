@@ -1,0 +1,82 @@
+"""``wbmp show``: replay a saved motion file in the live viewer, or write its HTML/plots."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from wbmp.errors import CliError, ExitCode
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "show",
+        help="replay a motion file (.npz) in the live 3D viewer, or write HTML/plots from it",
+        description="Replay a motion file written by `wbmp solve --out motion.npz`. By default a live "
+                    "meshcat viewer starts on 127.0.0.1 and loops the motion until Ctrl-C. With --html "
+                    "or --plots, the files are written instead (add --view to also start the viewer).",
+        epilog="examples: wbmp show motion.npz  |  wbmp show motion.npz --html motion.html  |  "
+               "wbmp show motion.npz --plots plots/",
+    )
+    p.add_argument("motion", help="motion file (.npz) written by wbmp solve --out")
+    p.add_argument("--html", metavar="FILE", help="write a standalone HTML replay (no server, works offline)")
+    p.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
+    p.add_argument("--view", action="store_true", help="start the live viewer even with --html/--plots")
+    p.add_argument("--port", type=int, default=None,
+                   help="web port of the live viewer (default: first free port from 7000)")
+    p.add_argument("--open", action="store_true", help="open the live viewer in the default browser")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    p.add_argument("--json", action="store_true", help="progress as JSON lines on stderr")
+    p.set_defaults(run=run)
+
+
+def load(path: str):
+    """(robot, plan, execution arrays or None) of a motion file, with one-line errors."""
+    from robots import load_robot
+
+    if not Path(path).is_file():
+        raise CliError(f"motion file {path!r} does not exist (write one with `wbmp solve ... --out {path}`)",
+                       ExitCode.USAGE)
+    try:
+        from wbmp.motionfile import load_motion
+    except ImportError as e:  # pragma: no cover - the motion-file module ships with wbmp
+        raise CliError(f"cannot read motion files in this build: {e}", ExitCode.INTERNAL) from None
+    try:
+        motion = load_motion(path)
+    except (OSError, ValueError, KeyError) as e:
+        raise CliError(f"{path}: not a readable wbmp motion file ({e})", ExitCode.USAGE) from None
+    robot = load_robot(motion.robot_name)
+    return robot, motion.plan, motion.execution_arrays
+
+
+def run(args: argparse.Namespace) -> int:
+    from viz.progress import make_progress
+
+    if args.port is not None and not 1 <= args.port <= 65535:
+        raise CliError(f"--port must be in 1..65535, got {args.port}", ExitCode.USAGE)
+    progress = make_progress(quiet=args.quiet, json_lines=args.json)
+    with progress.stage("loading the motion"):
+        robot, plan, execution = load(args.motion)
+    if args.html:
+        from viz import write_html
+
+        with progress.stage(f"writing {args.html}"):
+            out = write_html(args.html, robot, plan, execution=execution,
+                             title=plan.spec.description or plan.spec.name or Path(args.motion).stem)
+        print(f"html: {out}")
+    if args.plots:
+        from viz import write_plots
+
+        with progress.stage(f"writing plots to {args.plots}"):
+            paths = write_plots(args.plots, robot, plan, execution=execution)
+        for p in paths:
+            print(f"plot: {p}")
+    if (args.html or args.plots) and not args.view:
+        return ExitCode.OK
+    from viz.live import ViewerError, serve
+
+    try:
+        serve(robot, plan, execution=execution, port=args.port, open_browser=args.open)
+    except ViewerError as e:
+        raise CliError(f"live viewer: {e}", ExitCode.INTERNAL) from None
+    return ExitCode.OK
