@@ -124,10 +124,13 @@ def start_server(*, port: int | None = None, timeout: float = START_TIMEOUT) -> 
                     if key in ("zmq_url", "web_url"):
                         urls[key] = value
         if len(urls) < 2:
+            stop_server(proc)
             err = _drain_stderr(proc)
             raise ViewerError(f"the meshcat server exited before it was ready{': ' + err if err else ''}")
     except BaseException:
         stop_server(proc)
+        if not proc.stderr.closed:
+            _drain_stderr(proc)
         raise
     # stderr carries the server's websocket log: keep reading it so the pipe never fills
     threading.Thread(target=_discard, args=(proc.stderr,), daemon=True).start()
@@ -135,20 +138,26 @@ def start_server(*, port: int | None = None, timeout: float = START_TIMEOUT) -> 
 
 
 def _drain_stderr(proc: subprocess.Popen) -> str:
+    """Last line of the (dead or dying) server's stderr; closes the pipe."""
     try:
-        proc.wait(timeout=1.0)
+        proc.wait(timeout=2.0)
         lines = proc.stderr.read().decode("utf-8", "replace").strip().splitlines()
     except (subprocess.TimeoutExpired, OSError, ValueError):
-        return ""
+        lines = []
+    finally:
+        proc.stderr.close()
     return lines[-1] if lines else ""
 
 
 def _discard(stream) -> None:
+    """Read a pipe until EOF (the server's exit), then close it."""
     try:
         while stream.read(65536):
             pass
     except (OSError, ValueError):
         pass
+    finally:
+        stream.close()
 
 
 def stop_server(proc: subprocess.Popen, *, timeout: float = STOP_TIMEOUT) -> None:

@@ -1,0 +1,116 @@
+"""The live meshcat viewer: loopback only, URL printed, scene + looping animation, always stopped."""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import os
+import socket
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from viz.live import ServerInfo, ViewerError, serve
+from viz._meshcat import umsgpack
+
+READY_TIMEOUT = 60.0  # [s] the machine may be busy
+STOP_TIMEOUT = 10.0  # [s] bound for the viewer to stop after stop_event
+
+
+def listening_addresses(port: int) -> set[str]:
+    """Local addresses (hex, as in /proc/net/tcp*) of sockets listening on ``port``."""
+    out = set()
+    for name in ("/proc/net/tcp", "/proc/net/tcp6"):
+        path = Path(name)
+        if not path.exists():
+            continue
+        for line in path.read_text().splitlines()[1:]:
+            fields = line.split()
+            addr, hex_port = fields[1].rsplit(":", 1)
+            if fields[3] == "0A" and int(hex_port, 16) == port:
+                out.add(addr)
+    return out
+
+
+LOOPBACK = {"0100007F", "00000000000000000000000001000000"}  # 127.0.0.1, ::1
+
+
+def _receive_scene(web_url: str, quiet_for: float = 3.0) -> list[dict]:
+    from tornado.websocket import websocket_connect
+
+    async def run() -> list[dict]:
+        conn = await websocket_connect(web_url.replace("http://", "ws://").replace("/static/", "/"))
+        messages = []
+        while True:
+            try:
+                msg = await asyncio.wait_for(conn.read_message(), quiet_for)
+            except asyncio.TimeoutError:
+                break
+            if msg is None:
+                break
+            messages.append(umsgpack.unpackb(msg))
+        conn.close()
+        return messages
+
+    return asyncio.run(run())
+
+
+def test_live_viewer_serves_on_loopback_and_stops(talos, synth_plan, synth_execution):
+    stop = threading.Event()
+    ready: list[ServerInfo] = []
+    errors: list[BaseException] = []
+    out = io.StringIO()
+
+    def target() -> None:
+        try:
+            serve(talos, synth_plan, execution=synth_execution, stop_event=stop, stream=out,
+                  on_ready=ready.append)
+        except BaseException as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    thread = threading.Thread(target=target, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + READY_TIMEOUT
+    while not ready and thread.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    try:
+        assert ready, f"viewer not ready: {errors}"
+        info = ready[0]
+        assert info.web_url.startswith("http://127.0.0.1:") and info.web_url in out.getvalue()
+        web_port = int(info.web_url.split(":")[2].split("/")[0])
+        zmq_port = int(info.zmq_url.rsplit(":", 1)[1])
+        for port in (web_port, zmq_port):
+            addrs = listening_addresses(port)
+            assert addrs and addrs <= LOOPBACK, f"port {port} listens on {addrs}"
+        with urllib.request.urlopen(info.web_url, timeout=10) as r:
+            assert r.status == 200 and b"MeshCat" in r.read()
+        messages = _receive_scene(info.web_url)
+        kinds = [m["type"] for m in messages]
+        n_geoms = len(talos.visual_model.geometryObjects)
+        assert kinds.count("set_object") >= 2 * n_geoms  # planned + simulated robots
+        (anim,) = [m for m in messages if m["type"] == "set_animation"]
+        assert anim["options"]["repetitions"] > 1000  # loops
+        paths = {a["path"] for a in anim["animations"]}
+        assert sum(p.startswith("/meshcat/wbmp/robot/planned/") for p in paths) == n_geoms
+        assert sum(p.startswith("/meshcat/wbmp/robot/simulated/") for p in paths) == n_geoms
+    finally:
+        stop.set()
+        thread.join(STOP_TIMEOUT)
+    assert not thread.is_alive(), f"serve() did not return within {STOP_TIMEOUT} s of stop_event"
+    assert errors == []
+    with pytest.raises(ProcessLookupError):
+        os.kill(ready[0].pid, 0)  # the server process is gone (and reaped)
+
+
+def test_busy_port_is_a_clear_error(talos, synth_plan):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        port = s.getsockname()[1]
+        t0 = time.monotonic()
+        with pytest.raises(ViewerError, match="exited before it was ready"):
+            serve(talos, synth_plan, port=port, stream=io.StringIO())
+        assert time.monotonic() - t0 < READY_TIMEOUT
