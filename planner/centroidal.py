@@ -54,7 +54,7 @@ import pinocchio as pin
 
 from planner.exceptions import PlannerError
 from robots.model import Robot
-from tasks.specs import Contact, TaskSpec
+from tasks.specs import Contact, Pose, TaskSpec
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2], world frame (z up)
 
@@ -515,6 +515,109 @@ def build_centroidal_for_spec(
 
 
 # ---------------------------------------------------------------------------------------------
+# Integration with the trajectory NLP (planner.trajopt)
+# ---------------------------------------------------------------------------------------------
+
+
+def layout_contacts(lay: Any, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
+    """Per knot of a :class:`planner.formulation.Layout`, the contacts it holds, as geometry.
+
+    A contact holds at both ends of its phase (the layout's ``contacts_at``), so forces may act
+    at the knot where a foot lifts off or touches down. The friction coefficient is the spec
+    contact's own, else the robot profile's.
+
+    Args:
+        lay: The layout.
+        cop_margin: Inward sole margin for the centre of pressure [m].
+
+    Returns:
+        One tuple of contacts per knot (0..N).
+    """
+    robot, spec = lay.robot, lay.spec
+    starts = spec.phase_start_times()
+    out = []
+    for k, active in enumerate(lay.contacts_at):
+        tk = float(lay.t[k])
+        mus: dict[int, float | None] = {}
+        for i, ph in enumerate(spec.phases):
+            if starts[i] - 1e-9 <= tk <= starts[i] + ph.duration + 1e-9:
+                for c in ph.contacts:
+                    mus[robot.frame_id(c.frame)] = c.friction_coefficient
+        geos = []
+        for fid, (_frame, M) in active.items():
+            contact = Contact(
+                frame=robot.model.frames[fid].name,
+                placement=Pose(position=tuple(float(x) for x in M.translation),
+                               rpy=tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation))),
+                friction_coefficient=mus.get(fid),
+            )
+            geos.append(contact_geometry(contact, robot, cop_margin=cop_margin))
+        out.append(tuple(geos))
+    return tuple(out)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DynamicTerms:
+    """What a dynamic plan adds to the kinematic NLP: centroidal terms + sole corners above ground.
+
+    Attributes:
+        centroidal: Forces, CoM dynamics, friction, angular-momentum cost.
+        corner_rows: (knot, frame id, corner) of every "sole corner above the ground" row.
+        corner_expr: Those rows (column; lower bound 0, upper +inf) [m].
+    """
+
+    centroidal: CentroidalTerms
+    corner_rows: tuple[tuple[int, int, int], ...]
+    corner_expr: Any
+
+    @property
+    def structure(self) -> tuple:
+        """Hashable structure (for the solver cache key)."""
+        return (self.centroidal.structure, self.corner_rows)
+
+    def g(self) -> tuple[Any, np.ndarray, np.ndarray]:
+        """All rows: centroidal constraints, then the corner rows."""
+        g, lo, hi = self.centroidal.g()
+        n = len(self.corner_rows)
+        return ca.vertcat(g, self.corner_expr), np.concatenate([lo, np.zeros(n)]), np.concatenate([hi, np.full(n, np.inf)])
+
+
+def dynamic_terms(lay: Any, kinematics: Any, dt: Any, *, settings: CentroidalSettings = CentroidalSettings(),
+                  first_free_knot: int = 2) -> DynamicTerms:
+    """The dynamic part of a plan's NLP for a :class:`planner.formulation.Layout`.
+
+    Args:
+        lay: The layout (grid, contacts per knot, robot).
+        kinematics: ``k -> {"com": SX(3), "frames": {frame id: (p, R)}}`` of the NLP (its CoM
+            and frame placements at knot ``k``, 0..N); the foot frames must be among the frames.
+        dt: Knot spacing (CasADi parameter or number) [s].
+        settings: Weights and options.
+        first_free_knot: Knots before it are fixed (no corner rows there).
+
+    Returns:
+        The terms; their variables go after the NLP's own, parameters likewise.
+    """
+    robot = lay.robot
+    com = [kinematics(k)["com"] for k in range(lay.N + 1)]
+    contacts = layout_contacts(lay, cop_margin=settings.cop_margin)
+    centroidal = build_centroidal(com, dt, contacts, robot.mass, settings=settings)
+    rows, exprs = [], []
+    sole = robot.profile.sole
+    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    for k in range(first_free_knot, lay.N):
+        for fid in feet:
+            if fid in lay.contacts_at[k]:
+                continue
+            pos, R = kinematics(k)["frames"][fid]
+            side = robot.foot_side(robot.model.frames[fid].name)
+            for i, (x, y) in enumerate(sole.corners(side)):
+                rows.append((k, fid, i))
+                exprs.append((pos + ca.mtimes(R, ca.DM([x, y, 0.0])))[2])
+    return DynamicTerms(centroidal=centroidal, corner_rows=tuple(rows),
+                        corner_expr=ca.vertcat(*exprs) if exprs else ca.SX(0, 1))
+
+
+# ---------------------------------------------------------------------------------------------
 # Numeric checks on a finished plan
 # ---------------------------------------------------------------------------------------------
 
@@ -565,12 +668,174 @@ def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[
     return np.where(np.isnan(out), 0.0, out)
 
 
+def heading_guess(lay: Any) -> np.ndarray:
+    """Initial guess of the chart displacements (N+1, nv): the base follows the feet.
+
+    At each knot the base keeps its standing pose relative to the *heading* of the placements in
+    use (the mean position and yaw of the feet's latest contact placements), interpolated
+    linearly in time between consecutive touch-downs; the joints stay at the reference. This
+    keeps the contact rotation errors small for turns (the antisymmetric rotation error is
+    singular at 90 degrees) and the feet close to their placements for steps.
+
+    Args:
+        lay: The layout (``q_ref`` is the standing posture the chart is centred on).
+
+    Returns:
+        ``dq`` per knot; knots 0 and 1 are zero.
+    """
+    robot = lay.robot
+    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    latest: dict[int, pin.SE3] = {}
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, lay.q_ref)
+    for fid in feet:
+        latest[fid] = pin.SE3(data.oMf[fid])
+    start = _mean_heading([latest[f] for f in feet])
+    headings = []
+    for active in lay.contacts_at:
+        for fid, (_frame, M) in active.items():
+            if fid in latest:
+                latest[fid] = M
+        headings.append(_mean_heading([latest[f] for f in feet]))
+    # smooth the jumps of the heading (a swing moves it at touch-down) by a centred moving average
+    H = np.array(headings)
+    H[:, 2] = np.unwrap(H[:, 2])
+    width = max(1, int(round(0.5 * (lay.N + 1) / max(1, len(lay.spec.phases)))))
+    kernel = np.ones(2 * width + 1) / (2 * width + 1)
+    padded = np.pad(H, ((width, width), (0, 0)), mode="edge")
+    H = np.column_stack([np.convolve(padded[:, i], kernel, mode="valid") for i in range(3)])
+    base_ref = lay.q_ref[:3]
+    R_ref = pin.Quaternion(lay.q_ref[3:7]).matrix()
+    rel = base_ref[:2] - start[:2]
+    rel_local = _rz2(-start[2]) @ rel
+    dq = np.zeros((lay.N + 1, robot.nv))
+    for k in range(2, lay.N + 1):
+        x, y, yaw = H[k]
+        dyaw = yaw - start[2]
+        p = np.array([*(np.array([x, y]) + _rz2(yaw) @ rel_local), base_ref[2]])
+        dq[k, :3] = R_ref.T @ (p - base_ref)
+        dq[k, 3:6] = R_ref.T @ np.array([0.0, 0.0, dyaw])
+    return dq
+
+
+def _rz2(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def _mean_heading(placements: Sequence[pin.SE3]) -> np.ndarray:
+    yaws = [math.atan2(M.rotation[1, 0], M.rotation[0, 0]) for M in placements]
+    yaw = math.atan2(sum(math.sin(y) for y in yaws), sum(math.cos(y) for y in yaws))
+    mid = np.mean([M.translation[:2] for M in placements], axis=0)
+    return np.array([mid[0], mid[1], yaw])
+
+
+def dynamic_checks(
+    lay: Any,
+    q: np.ndarray,
+    com: np.ndarray,
+    terms: DynamicTerms,
+    force_values: np.ndarray,
+    *,
+    force_tolerance: float = 1e-3,
+    position_tolerance: float = 1e-5,
+) -> list[ConstraintCheck]:
+    """Report of a dynamic plan, recomputed with Pinocchio and numpy from the solution.
+
+    Groups: Newton's law for the CoM (with the Pinocchio CoM of the returned configurations),
+    the friction cone (the true Coulomb cone, not the pyramid) and the centre of pressure inside
+    each sole rectangle per contact frame, no force at a knot without contact, and every sole
+    corner of a swinging foot above the ground.
+
+    Args:
+        lay: The layout.
+        q: Configurations (N+1, nq).
+        com: CoM per knot (N+1, 3) [m].
+        terms: The dynamic terms of the NLP.
+        force_values: Solution values of ``terms.centroidal.variables``.
+        force_tolerance: Accepted force-law violation, as a fraction of the body weight [-].
+        position_tolerance: Accepted CoP excursion and corner depth [m].
+
+    Returns:
+        One :class:`~planner.plan.ConstraintCheck` per group.
+    """
+    from planner.plan import ConstraintCheck
+
+    cen = terms.centroidal
+    t = np.asarray(lay.t, dtype=float)
+    dt = float(t[1] - t[0])
+    tol_n = force_tolerance * cen.weight
+    corners = cen.corner_forces(force_values)
+    checks: list[ConstraintCheck] = []
+
+    def worst(name: str, values: list[tuple[float, float]], tol: float, unit: str) -> None:
+        if not values:
+            return
+        v, tt = max(values, key=lambda x: x[0])
+        checks.append(ConstraintCheck(name=name, violation=max(0.0, float(v)), tolerance=tol, unit=unit, time=float(tt)))
+
+    newton = []
+    mass = cen.weight / float(np.linalg.norm(GRAVITY))
+    for k in cen.dynamics_knots:
+        acc = (com[k + 1] - 2 * com[k] + com[k - 1]) / dt**2
+        total = sum((corners[f][k].sum(axis=0) for f in corners), np.zeros(3))
+        newton.append((float(np.linalg.norm(com_dynamics_residual(mass, acc, total))), t[k]))
+    worst("CoM dynamics m(c'' - g) = sum f", newton, tol_n, "N")
+    friction: dict[str, list] = {}
+    cop: dict[str, list] = {}
+    idle = []
+    for k, active in enumerate(cen.contacts):
+        held = {c.frame for c in active} if k in cen.dynamics_knots else set()
+        for frame, f in corners.items():
+            if frame not in held:
+                idle.append((float(np.abs(f[k]).max()), t[k]))
+        if k not in cen.dynamics_knots:
+            continue
+        for c in active:
+            fk = corners[c.frame][k]
+            friction.setdefault(c.frame, []).append((float(friction_violation(fk, c.rotation, c.friction_coefficient).max()), t[k]))
+            full = contact_geometry_points(lay.robot, c.frame)
+            if full is not None:
+                p = center_of_pressure(c.points_in_frame, fk[None], c.rotation)
+                viol = cop_violation(p, (full[:, 0].min(), full[:, 0].max()), (full[:, 1].min(), full[:, 1].max()))
+                cop.setdefault(c.frame, []).append((float(viol[0]), t[k]))
+    for frame, rows in friction.items():
+        worst(f"{frame} friction cone", rows, tol_n, "N")
+    for frame, rows in cop.items():
+        worst(f"{frame} centre of pressure in the sole", rows, position_tolerance, "m")
+    worst("no contact force without contact", idle, 0.0, "N")
+    model, data = lay.robot.model, lay.robot.data()
+    depth = []
+    sole = lay.robot.profile.sole
+    by_knot: dict[int, list[tuple[int, int]]] = {}
+    for k, fid, i in terms.corner_rows:
+        by_knot.setdefault(k, []).append((fid, i))
+    for k, rows in by_knot.items():
+        pin.framesForwardKinematics(model, data, q[k])
+        for fid, i in rows:
+            side = lay.robot.foot_side(model.frames[fid].name)
+            x, y = sole.corners(side)[i]
+            z = float((data.oMf[fid].act(np.array([x, y, 0.0])))[2])
+            depth.append((-z, t[k]))
+    worst("swing sole corners above the ground", depth, position_tolerance, "m")
+    return checks
+
+
+def contact_geometry_points(robot: Robot, frame: str) -> np.ndarray | None:
+    """The full (unshrunk) sole rectangle corners (4, 2) of a foot frame in its frame, None otherwise."""
+    side = robot.foot_side(frame)
+    if side is None:
+        return None
+    return np.array(robot.profile.sole.corners(side), dtype=float)
+
+
 __all__ = [
     "GRAVITY",
     "CentroidalSettings",
     "CentroidalTerms",
     "ConstraintBlock",
     "ContactGeometry",
+    "DynamicTerms",
     "angular_momentum_rate",
     "build_centroidal",
     "build_centroidal_for_spec",
@@ -578,8 +843,13 @@ __all__ = [
     "com_acceleration",
     "com_dynamics_residual",
     "contact_geometry",
+    "contact_geometry_points",
     "contacts_per_knot",
+    "dynamic_checks",
+    "dynamic_terms",
+    "layout_contacts",
     "cop_violation",
     "friction_pyramid",
     "friction_violation",
+    "heading_guess",
 ]
