@@ -8,8 +8,9 @@ An action and the overlays that follow it form a *group*:
   (a wave overlaid on a shorter squat makes the squat slower, never the wave faster);
 - two actions of a group must not drive the same body part (legs and CoM, torso, head, left
   arm, right arm): ``squat`` + ``lean`` or ``wave right`` + ``reach right`` are refused;
-- at most one action of a group may change the contacts (only ``balance`` does now), and the
-  group's phases are that action's (or the first action's).
+- at most one action of a group may change the contacts (balance, step, walk, turn, jump), and
+  the group's phases are that action's (or the first action's); the actions after it start
+  from where its feet end (``Fragment.end_stance``).
 
 The spec starts and ends with ``stand_time`` of standing still on both feet, and groups are
 separated by ``transition_time`` of double support: every action starts from and returns to

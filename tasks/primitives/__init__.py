@@ -6,8 +6,8 @@ world-frame targets from the robot's standing posture, and places phases and tar
 knot grid from ``t0``. :func:`tasks.compose.compile_actions` assembles fragments into one spec.
 
 One module per primitive or family: :mod:`.squat`, :mod:`.wave`, :mod:`.reach`,
-:mod:`.posture` (stand, raise_arms, bow, turn_head, lean), :mod:`.balance`, and
-:mod:`.dynamic` (step, walk, turn, jump: registered, not yet compilable).
+:mod:`.posture` (stand, raise_arms, bow, turn_head, lean), :mod:`.balance`, and the dynamic
+ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,8 @@ from __future__ import annotations
 from robots.model import Robot
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
-from tasks.primitives import balance, dynamic, jump, locomotion, posture, reach, squat, wave
+from tasks.primitives import balance, jump, locomotion, posture, reach, squat, wave
 from tasks.primitives.base import DEFAULT_DT, PARTS, Fragment, FragmentBuilder, Primitive, knot_time, to_knot
-from tasks.primitives.dynamic import NotAvailableYet
 from tasks.primitives.geometry import Stance, StandingGeometry, standing_geometry
 
 PRIMITIVES: dict[str, Primitive] = {
@@ -113,7 +112,6 @@ __all__ = [
     "PRIMITIVES",
     "Fragment",
     "FragmentBuilder",
-    "NotAvailableYet",
     "Primitive",
     "Stance",
     "StandingGeometry",
