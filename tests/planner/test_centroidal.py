@@ -270,3 +270,49 @@ def test_symbolic_dt_and_pyramid_with_parameters(talos, rng):
     total = u.reshape(-1, 3).sum(axis=0)
     ref += list(acc / 9.81 - np.array([0, 0, -1.0]) - total)
     np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+def test_layout_contacts_hold_at_both_ends_of_a_phase(talos):
+    """On a step spec, the lift-off and touch-down knots carry both feet; single support one."""
+    from planner.centroidal import layout_contacts
+    from planner.formulation import make_layout
+    from tasks.actions import Action
+    from tasks.compose import compile_actions
+
+    spec = compile_actions([Action(name="step", params={"direction": "forward", "length": 0.1, "count": 1})], talos, dt=0.1)
+    lay = make_layout(spec, talos)
+    sets = layout_contacts(lay, cop_margin=0.0)
+    counts = [len(s) for s in sets]
+    starts = np.cumsum([0.0, *[p.duration for p in spec.phases]])
+    single = [i for i, p in enumerate(spec.phases) if len(p.contacts) == 1]
+    for i in single:
+        k0, k1 = round(starts[i] / lay.dt), round(starts[i + 1] / lay.dt)
+        assert counts[k0] == 2 and counts[k1] == 2  # the swing foot is held at lift-off and touch-down
+        assert all(c == 1 for c in counts[k0 + 1 : k1])
+    # the moved right foot's corners at the end are 0.1 m ahead of the standing ones
+    right = [c for c in sets[-1] if c.frame == talos.frame("right_foot")][0]
+    np.testing.assert_allclose(right.points_in_world - talos.sole_corners_in_world(talos.q_standing, "right"), [[0.1, 0, 0]] * 4, atol=1e-9)
+
+
+def test_heading_guess_follows_the_feet(talos):
+    """After a 90 deg turn the guessed base yaw is 90 deg; the first two knots are not moved."""
+    from planner.centroidal import heading_guess
+    from planner.formulation import make_layout
+    from planner.symbolic import chart_to_configuration
+    from tasks.actions import Action
+    from tasks.compose import compile_actions
+
+    spec = compile_actions([Action(name="turn", params={"angle": math.pi / 2})], talos, dt=0.1)
+    lay = make_layout(spec, talos)
+    dq = heading_guess(lay)
+    np.testing.assert_allclose(dq[:2], 0.0)
+    q_end = chart_to_configuration(talos.model, lay.q_ref, dq[-1])
+    R0 = pin.Quaternion(lay.q_ref[3:7]).matrix()
+    R1 = pin.Quaternion(q_end[3:7]).matrix()
+    yaw = math.atan2((R1 @ R0.T)[1, 0], (R1 @ R0.T)[0, 0])
+    assert yaw == pytest.approx(math.pi / 2, abs=1e-6)
+    data = talos.data()
+    for side in ("left", "right"):  # with the joints at the reference, the feet land on their final placements
+        pin.framesForwardKinematics(talos.model, data, q_end)
+        final = [c for c in spec.phases[-1].contacts if c.frame == talos.frame(f"{side}_foot")][0]
+        np.testing.assert_allclose(data.oMf[talos.frame_id(f"{side}_foot")].translation[:2], final.placement.position[:2], atol=1e-6)
