@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+import proxsuite
 
 from planner.exceptions import PlannerError
 from planner.plan import Plan
@@ -67,6 +68,7 @@ class WbcSettings:
         torque_scale: Fraction of each torque limit the controller may use [-].
         com_drift: Include the CoM velocity-product term (one extra Pinocchio call, ~7 us).
         eps_abs: QP absolute tolerance. max_iter: QP iteration cap.
+        dense_backend: proxsuite dense factorization: ``Automatic``, ``PrimalDualLDLT`` or ``PrimalLDLT``.
     """
 
     backend: str = "proxsuite"
@@ -89,7 +91,8 @@ class WbcSettings:
     torque_scale: float = 1.0
     com_drift: bool = True
     eps_abs: float = 1e-6
-    max_iter: int = 200
+    max_iter: int = 50
+    dense_backend: str = "Automatic"
 
     def __post_init__(self) -> None:
         for name in (
@@ -115,25 +118,28 @@ class TickInfo:
     Attributes:
         ok: The QP solved (otherwise the previous torque was reused).
         iterations: QP iterations.
-        status: Backend status text.
-        contact_forces: Contact frame -> planned net force in the world (3,) [N].
+        status: Backend status (a proxsuite ``QPSolverOutput`` or a text).
     """
 
     ok: bool
     iterations: int
-    status: str
-    contact_forces: dict[str, np.ndarray]
+    status: Any
 
 
 class _Task:
     """A tracked frame: rows in the stacked task matrix."""
 
-    __slots__ = ("frame_id", "name", "row", "sqrt_w_pos", "sqrt_w_rot", "track")
+    __slots__ = ("contact_index", "enabled", "err", "frame_id", "kd", "kp", "name", "row", "sqrt_w", "track")
 
-    def __init__(self, name: str, frame_id: int, row: int, track: Any) -> None:
+    def __init__(self, name: str, frame_id: int, row: int, track: Any, *, contact_index: int,
+                 weight: float, orientation_factor: float, kp: float) -> None:
         self.name, self.frame_id, self.row, self.track = name, frame_id, row, track
-        self.sqrt_w_pos = 0.0
-        self.sqrt_w_rot = 0.0
+        self.contact_index = contact_index
+        self.sqrt_w = np.sqrt(np.array([weight] * 3 + [weight * orientation_factor] * 3))
+        self.kp = kp
+        self.kd = 2.0 * math.sqrt(kp)
+        self.enabled = True
+        self.err = np.zeros(6)
 
 
 class WholeBodyController:
@@ -158,6 +164,8 @@ class WholeBodyController:
         self.nv = nv
         self.nu = nv - 6
         self.torque_limits = robot.torque_limits * self.settings.torque_scale
+        # force variables are scaled so that one unit is the per-corner share of the weight
+        self._f_scale = robot.mass * 9.81 / 8.0  # [N]
         mu = robot.profile.friction_coefficient * self.settings.friction_scale
         self._mu = mu
         self._zero_a = np.zeros(nv)
@@ -224,6 +232,7 @@ class WholeBodyController:
                 g0[:3, 3 * k : 3 * k + 3] = np.eye(3)
                 g0[3:, 3 * k : 3 * k + 3] = pin.skew(c)
             self._g0.append(g0)
+        self._g0s = [g0 * self._f_scale for g0 in self._g0]
         # tracked frames: hands + spec targets + swing phases of contact frames
         hand_names = [self.robot.frame(r) for r in ("left_hand", "right_hand") if self.robot.has_role(r)]
         target_names = [model.frames[self.robot.frame_id(t.frame)].name for t in ref.plan.spec.targets]
@@ -231,7 +240,12 @@ class WholeBodyController:
         self._tasks: list[_Task] = []
         row = 3  # CoM rows first
         for name in tracked:
-            self._tasks.append(_Task(name, model.getFrameId(name), row, ref.frames[name]))
+            ci = self._contacts.index(name) if name in self._contacts else -1
+            self._tasks.append(_Task(
+                name, model.getFrameId(name), row, ref.frames[name], contact_index=ci,
+                weight=s.foot_weight if ci >= 0 else s.hand_weight, orientation_factor=s.orientation_factor,
+                kp=s.foot_kp if ci >= 0 else s.frame_kp,
+            ))
             row += 6
         self._n_task_rows = row
         self._T = np.zeros((row, nv))
@@ -252,11 +266,20 @@ class WholeBodyController:
                 c0 = nv + 12 * i + 3 * k
                 self.C[r0 : r0 + 4, c0 : c0 + 3] = pyramid
         self._tau_rows = slice(16 * nc, 16 * nc + self.nu)
-        self._reg = np.concatenate([np.full(nv, s.acceleration_weight), np.full(12 * nc, s.force_weight)])
+        self._reg = np.concatenate([np.full(nv, s.acceleration_weight), np.full(12 * nc, s.force_weight * self._f_scale**2)])
         # posture weights on the actuated joints, base orientation on the angular base rows
         self._diag_a = np.zeros(nv)
         self._diag_a[3:6] = s.base_weight
         self._diag_a[6:] = s.posture_weight
+        self._diag_a_total = self._diag_a + self._reg[:nv]
+        self._kp_post = np.zeros(nv)
+        self._kp_post[3:6] = s.base_kp
+        self._kp_post[6:] = s.posture_kp
+        self._kd_post = 2.0 * np.sqrt(self._kp_post)
+        self.H[np.diag_indices(self.n)] = self._reg  # the force block keeps it; the a block is rewritten
+        self._h_diag_a = self.H.reshape(-1)[: nv * (self.n + 1) : self.n + 1]
+        self._l_tau = self.l[16 * nc :]
+        self._u_tau = self.u[16 * nc :]
         self._kd = {k: 2.0 * math.sqrt(getattr(s, k)) for k in ("com_kp", "frame_kp", "foot_kp", "base_kp",
                                                                  "posture_kp", "contact_kp")}
         self._layout = tuple(self._contacts)
@@ -308,11 +331,10 @@ class WholeBodyController:
         A, b, C = self.A, self.b, self.C
         S = self._S
         active_row = ref.active[k]
-        forces_cols = []
+        stance = []
         for i, (name, fid) in enumerate(zip(self._contacts, self._contact_ids, strict=True)):
             active = bool(active_row[i])
             rows = slice(6 + 6 * i, 12 + 6 * i)
-            cols = slice(nv + 12 * i, nv + 12 * i + 12)
             if active:
                 placement = pin.updateFramePlacement(model, data, fid)
                 if not self._was_active.get(name, False):
@@ -326,53 +348,44 @@ class WholeBodyController:
                 err[3:] = pin.log3(anchor.rotation.T @ placement.rotation)
                 A[rows, :nv] = J
                 b[rows] = -drift - s.contact_kp * err - kd["contact_kp"] * vel
-                S[:, 12 * i : 12 * i + 12] = J.T @ self._g0[i]
-                forces_cols.append((name, cols, placement.rotation))
+                S[:, 12 * i : 12 * i + 12] = J.T @ self._g0s[i]
+                stance.append((i, placement.rotation))
             else:
                 A[rows, :nv] = 0.0
                 b[rows] = 0.0
                 S[:, 12 * i : 12 * i + 12] = 0.0
             self._was_active[name] = active
 
-        contact_set = {nm for nm, _, _ in forces_cols}
         for task in self._tasks:
-            rows = slice(task.row, task.row + 6)
-            is_contact = task.name in self._layout
-            if is_contact and task.name in contact_set:
-                T[rows] = 0.0
-                r[rows] = 0.0
+            tr = task.track
+            if task.contact_index >= 0 and active_row[task.contact_index]:
+                if task.enabled:
+                    T[task.row : task.row + 6] = 0.0
+                    r[task.row : task.row + 6] = 0.0
+                    task.enabled = False
                 continue
-            w = s.foot_weight if is_contact else s.hand_weight
-            kp = s.foot_kp if is_contact else s.frame_kp
-            kdv = kd["foot_kp"] if is_contact else kd["frame_kp"]
-            sw_p = math.sqrt(w)
-            sw_r = math.sqrt(w * s.orientation_factor)
+            task.enabled = True
             fid = task.frame_id
             placement = pin.updateFramePlacement(model, data, fid)
             J = pin.getFrameJacobian(model, data, fid, _LWA)
             drift = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
             vel = pin.getFrameVelocity(model, data, fid, _LWA).vector
-            tr = task.track
             rot = placement.rotation
-            err = np.empty(6)
+            err = task.err
             err[:3] = tr.position[k] - placement.translation
             err[3:] = rot @ pin.log3(rot.T @ tr.rotation[k])
-            acc6 = tr.acceleration[k] + kp * err + kdv * (tr.velocity[k] - vel) - drift
-            T[task.row : task.row + 3] = sw_p * J[:3]
-            T[task.row + 3 : task.row + 6] = sw_r * J[3:]
-            r[task.row : task.row + 3] = sw_p * acc6[:3]
-            r[task.row + 3 : task.row + 6] = sw_r * acc6[3:]
+            acc6 = tr.acceleration[k] + task.kp * err + task.kd * (tr.velocity[k] - vel) - drift
+            T[task.row : task.row + 6] = task.sqrt_w[:, None] * J
+            r[task.row : task.row + 6] = task.sqrt_w * acc6
 
         # ---- posture + base orientation (diagonal terms)
         dq = pin.difference(model, q, ref.q[k])
-        a_post = ref.a[k] + s.posture_kp * dq + kd["posture_kp"] * (ref.v[k] - v)
-        a_post[3:6] = ref.a[k, 3:6] + s.base_kp * dq[3:6] + kd["base_kp"] * (ref.v[k, 3:6] - v[3:6])
+        a_post = ref.a[k] + self._kp_post * dq + self._kd_post * (ref.v[k] - v)
 
         # ---- QP matrices
         H, g = self.H, self.g
         H[:nv, :nv] = T.T @ T
-        H[np.diag_indices(self.n)] += self._reg
-        H[np.diag_indices(nv)] += self._diag_a
+        self._h_diag_a += self._diag_a_total
         g[:nv] = -(T.T @ r) - self._diag_a * a_post
         # dynamics rows (floating base)
         A[:6, :nv] = M[:6]
@@ -382,35 +395,53 @@ class WholeBodyController:
         tau_rows = self._tau_rows
         C[tau_rows, :nv] = M[6:]
         C[tau_rows, nv:] = -S[6:]
-        self.l[tau_rows] = -self.torque_limits - h[6:]
-        self.u[tau_rows] = self.torque_limits - h[6:]
+        np.subtract(-self.torque_limits, h[6:], out=self._l_tau)
+        np.subtract(self.torque_limits, h[6:], out=self._u_tau)
 
         x, ok, iterations, status = self._solve()
         if ok:
-            a = x[:nv]
-            f = x[nv:]
-            tau = M[6:] @ a + h[6:] - S[6:] @ f
+            tau = M[6:] @ x[:nv] + h[6:] - S[6:] @ x[nv:]
             np.clip(tau, -self.torque_limits, self.torque_limits, out=tau)
             self._prev_tau = tau
             self._x = x
         else:
             self.failures += 1
             tau = self._prev_tau.copy()
-            f = self._x[nv:]
-        forces = {}
-        for name, cols, rot in forces_cols:
-            local = f[cols.start - nv : cols.stop - nv].reshape(4, 3).sum(axis=0)
-            forces[name] = rot @ local
-        self.last = TickInfo(ok, iterations, status, forces)
+        self._stance_rotations = stance
+        self.last = TickInfo(ok, iterations, status)
         return tau
+
+    def acceleration(self) -> np.ndarray:
+        """Joint accelerations of the last QP solution (nv,)."""
+        return self._x[: self.nv].copy()
+
+    def corner_forces(self) -> dict[str, np.ndarray]:
+        """Corner forces (4, 3) of every contact frame in its sole frame, last QP solution [N]."""
+        f = self._x[self.nv :] * self._f_scale
+        return {name: f[12 * i : 12 * i + 12].reshape(4, 3).copy() for i, name in enumerate(self._contacts)}
+
+    def contact_jacobian_transpose(self) -> np.ndarray:
+        """:math:`J_c^\\top` mapping the stacked corner forces to generalized forces, last tick (nv, 12 nc)."""
+        return self._S / self._f_scale
+
+    def contact_forces(self) -> dict[str, np.ndarray]:
+        """Net force of each stance contact in the world from the last tick's QP (3,) [N]."""
+        out = {}
+        if self._x is None:
+            return out
+        f = self._x[self.nv :] * self._f_scale
+        for i, rot in self._stance_rotations:
+            out[self._contacts[i]] = rot @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(axis=0)
+        return out
 
     def _solve(self) -> tuple[np.ndarray, bool, int, str]:
         s = self.settings
         if s.backend == "proxsuite":
-            import proxsuite
-
             if self._qp is None:
-                qp = proxsuite.proxqp.dense.QP(self.n, self.n_eq, self.n_in)
+                qp = proxsuite.proxqp.dense.QP(
+                    self.n, self.n_eq, self.n_in, False, proxsuite.proxqp.dense.HessianType.Dense,
+                    getattr(proxsuite.proxqp.dense.DenseBackend, s.dense_backend),
+                )
                 qp.settings.eps_abs = s.eps_abs
                 qp.settings.eps_rel = 0.0
                 qp.settings.max_iter = s.max_iter
@@ -427,7 +458,7 @@ class WholeBodyController:
             x = res.x
             if ok and not np.all(np.isfinite(x)):
                 ok = False
-            return x.copy(), ok, int(res.info.iter), str(status).split(".")[-1]
+            return x.copy(), ok, int(res.info.iter), status
         import qpsolvers
 
         finite_l = self.l > -INFINITY / 2

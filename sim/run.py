@@ -247,8 +247,17 @@ def simulate(
     events.sort(key=lambda e: e.time)
     checks = _certify(
         robot, sm, ref, s, ts, qs, taus, coms, contact_flags, foot_frames, other_contacts,
-        fall_height, max_tilt, len(qp_failure_times), n_done,
+        fall_height, max_tilt, len(qp_failure_times), qp_failure_times[0] if qp_failure_times else 0.0, n_done,
     )
+    certificate = Certificate.from_checks(checks)
+    zmp = plan_zmp_excursion(robot, ref)
+    if zmp is not None:
+        events.append(Event(zmp[1], "plan_zmp", f"the plan's ZMP leaves the support polygon by {zmp[0]:.3f} m"))
+        events.sort(key=lambda e: e.time)
+        if not certificate.ok:
+            certificate = replace(certificate, reason=(
+                f"{certificate.reason}; the plan itself is dynamically infeasible: its ZMP leaves the support "
+                f"polygon by {zmp[0]:.3f} m at t = {zmp[1]:.2f} s"))
     return Execution(
         t=ts,
         q=qs,
@@ -257,12 +266,53 @@ def simulate(
         com=coms,
         contact_forces={frame: forces[i] for i, frame in enumerate(foot_frames)},
         events=tuple(events),
-        certificate=Certificate.from_checks(checks),
+        certificate=certificate,
         wall_time=wall,
         realtime_factor=(ts[-1] + control_dt) / wall if wall > 0 else math.inf,
         tick_times=tick_times,
         timestep=s.timestep,
     )
+
+
+def plan_zmp_excursion(robot: Robot, ref: PlanReference, *, tolerance: float = 0.005) -> tuple[float, float] | None:
+    """Largest distance of the plan's ZMP outside its support polygon, with its time.
+
+    The ZMP is that of the CoM reference, :math:`c_{xy} - c_z \\ddot c_{xy} / (g + \\ddot c_z)` (flat
+    ground, angular momentum neglected); the support polygon is the convex hull of the active
+    soles' corners of the plan.
+
+    Returns:
+        ``(distance [m], time [s])`` when the ZMP leaves the polygon by more than ``tolerance``,
+        else None.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    g = 9.81
+    acc = ref.com_acceleration
+    zmp = ref.com[:, :2] - ref.com[:, 2:3] * acc[:, :2] / (g + acc[:, 2:3])
+    worst, worst_t = 0.0, 0.0
+    step = max(1, int(round(0.01 / ref.dt)))
+    corners_local = {}
+    for name in ref.contact_frames:
+        side = robot.foot_side(name) or "left"
+        corners_local[name] = np.array([[x, y, 0.0] for x, y in robot.profile.sole.corners(side)])
+    for i in range(0, ref.n, step):
+        pts = []
+        for c, name in enumerate(ref.contact_frames):
+            if ref.active[i, c]:
+                tr = ref.frames[name]
+                pts.append(corners_local[name] @ tr.rotation[i].T + tr.position[i])
+        if not pts:
+            continue
+        pts2 = np.vstack(pts)[:, :2]
+        try:
+            hull = ConvexHull(pts2)
+        except QhullError:  # degenerate polygon (a line): skip the sample
+            continue
+        dist = float(np.max(hull.equations[:, :2] @ zmp[i] + hull.equations[:, 2]))
+        if dist > worst:
+            worst, worst_t = dist, float(ref.times[i] - ref.times[0])
+    return (worst, worst_t) if worst > tolerance else None
 
 
 def _certify(
@@ -280,6 +330,7 @@ def _certify(
     fall_height: float,
     max_tilt: float,
     qp_failures: int,
+    qp_first: float,
     n_ticks: int,
 ) -> tuple[Check, ...]:
     model = robot.model
@@ -394,7 +445,7 @@ def _certify(
     ratio = qp_failures / max(n_ticks, 1)
     checks.append(Check(
         name="QP failures", value=100 * ratio, limit=100 * s.qp_failure_limit, unit="%",
-        ok=ratio <= s.qp_failure_limit, time=0.0,
+        ok=ratio <= s.qp_failure_limit, time=qp_first,
         message=f"the controller QP failed on {qp_failures} of {n_ticks} ticks",
     ))
     # ---- CoM tracking
