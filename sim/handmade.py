@@ -11,6 +11,7 @@ differences; the plan starts and ends at rest.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -187,6 +188,13 @@ def arm_plan(
     )
     return Plan(robot=draft.robot, spec=spec, t=draft.t, q=draft.q, v=draft.v, a=draft.a, com=draft.com,
                 stats=draft.stats)
+
+
+def with_torque_limits(robot: Robot, scale: float) -> Robot:
+    """A copy of ``robot`` whose joint torque limits are multiplied by ``scale`` (for what-if checks)."""
+    model = pin.Model(robot.model)
+    model.effortLimit = np.array(robot.model.effortLimit) * scale
+    return dataclasses.replace(robot, model=model, _frame_ids={})
 
 
 def feet_apart_plan(robot: Robot, *, distance: float = 0.25, duration: float = 2.0, dt: float = 0.05) -> Plan:

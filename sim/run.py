@@ -79,6 +79,7 @@ class SimSettings:
         fall_height_margin: A fall is the base this far below its lowest planned height [m].
         max_tilt: A fall is the base tilted this much more than planned [rad].
         slip_limit: Largest horizontal sole displacement during a stance [m].
+        placement_limit: Largest horizontal distance of a stance sole from the plan's [m].
         torque_fraction_limit: Largest |tau| / limit [-].
         com_error_limit: Largest CoM tracking error [m].
         hand_error_limit: Largest hand tracking error [m].
@@ -95,6 +96,7 @@ class SimSettings:
     fall_height_margin: float = 0.25
     max_tilt: float = 0.6
     slip_limit: float = 0.01
+    placement_limit: float = 0.02
     torque_fraction_limit: float = 0.98
     com_error_limit: float = 0.05
     hand_error_limit: float = 0.05
@@ -421,6 +423,17 @@ def _certify(
                 start = None
         role = robot.foot_side(frame)
         label = f"{role}_foot" if role else frame
+        planned_xy = ref.frames[frame].position[idx, :2]
+        gap = np.where(act, np.linalg.norm(foot_xy[j] - planned_xy, axis=1), 0.0)
+        kg = int(np.argmax(gap))
+        over_gap = np.nonzero(gap > s.placement_limit)[0]
+        kg_first = int(over_gap[0]) if len(over_gap) else kg
+        checks.append(Check(
+            name=f"{label} placement error", value=float(gap[kg]), limit=s.placement_limit, unit="m",
+            ok=bool(gap[kg] <= s.placement_limit), time=float(ts[kg_first]),
+            message=f"{label} is {gap[kg]:.3f} m from its planned stance placement (> {s.placement_limit:.3f} m) "
+            f"from t = {ts[kg_first]:.2f} s",
+        ))
         checks.append(Check(
             name=f"{label} slip", value=worst, limit=s.slip_limit, unit="m", ok=worst <= s.slip_limit, time=worst_t,
             message=f"{label} slipped {worst:.3f} m > {s.slip_limit:.3f} m at t = {worst_t:.2f} s",
