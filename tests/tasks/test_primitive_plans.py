@@ -1,0 +1,241 @@
+"""Plan-level behaviour: each primitive's plan does what the primitive promises.
+
+Every plan is solved once per session (shared through the ``solve`` fixture) with the
+in-memory solver (no C compilation), on a 0.1 s knot grid, and checked with Pinocchio numerics
+on ``plan.q``: squat depth reached ``repeat`` times, the waving hand crossing its midline
+``2 * repeat`` times above the shoulder, the reaching hand within its tolerance, raised hands
+above the head, the torso and head turned, the CoM shifted, the one-foot stance's CoM over
+that sole with the other foot in the air, and compositions of three actions in one plan.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from tasks.actions import Action
+from tasks.compose import compile_actions
+from tasks.primitives import standing_geometry
+from tasks.primitives.geometry import inside_polygon_margin, sole_polygon
+from tasks.primitives.wave import wave_geometry
+
+planner_trajopt = pytest.importorskip("planner.trajopt")
+
+DT = 0.1  # [s] knot spacing of the plans under test
+HARD_SLACK = 1e-4  # [m, rad] solver tolerance on top of a hard target's own tolerance
+
+
+@pytest.fixture(scope="session")
+def solve():
+    """``solve(robot, actions) -> (spec, plan)``, each distinct request solved once."""
+    from planner.settings import PlannerSettings
+
+    cache: dict = {}
+    settings = PlannerSettings(compile=False)
+
+    def _solve(robot, actions):
+        key = (robot.name, json.dumps([a.to_dict() for a in actions], sort_keys=True))
+        if key not in cache:
+            spec = compile_actions(actions, robot, dt=DT)
+            plan = planner_trajopt.plan(spec, robot, settings=settings, throw=False)
+            cache[key] = (spec, plan)
+        spec, plan = cache[key]
+        assert plan.ok, f"{robot.name} {spec.name}: {plan.stats.status.value} ({plan.stats.raw_status}), " \
+                        f"{plan.diagnosis}\n{plan.summary()}"
+        return spec, plan
+
+    return _solve
+
+
+def _frame_positions(robot, plan, role):
+    data = robot.data()
+    fid = robot.frame_id(role)
+    out = []
+    for q in plan.q:
+        pin.framesForwardKinematics(robot.model, data, q)
+        out.append(data.oMf[fid].translation.copy())
+    return np.array(out)
+
+
+def _frame_rotations(robot, plan, role):
+    data = robot.data()
+    fid = robot.frame_id(role)
+    out = []
+    for q in plan.q:
+        pin.framesForwardKinematics(robot.model, data, q)
+        out.append(data.oMf[fid].rotation.copy())
+    return out
+
+
+def _knots_in(plan, window):
+    return [k for k, t in enumerate(plan.t) if window[0] - 1e-9 <= t <= window[1] + 1e-9]
+
+
+def _target(spec, contains):
+    (t,) = [t for t in (*spec.targets, *spec.com_targets) if contains in t.name]
+    return t
+
+
+def _count_dips(z, low, high):
+    """Number of times ``z`` goes below ``low`` after having been above ``high``."""
+    count, armed = 0, True
+    for v in z:
+        if armed and v <= low:
+            count, armed = count + 1, False
+        elif not armed and v >= high:
+            armed = True
+    return count
+
+
+def _count_crossings(s, h):
+    """Sign changes of ``s`` with hysteresis ``h`` (a crossing goes from > h to < -h or back)."""
+    count, side = 0, 0
+    for v in s:
+        new = 1 if v > h else -1 if v < -h else side
+        if side and new != side:
+            count += 1
+        side = new
+    return count
+
+
+ROBOTS = ["talos", "g1"]
+
+
+@pytest.fixture(scope="module", params=ROBOTS)
+def robot(request):
+    from robots import load_robot
+
+    return load_robot(request.param)
+
+
+def test_squat_reaches_its_depth_each_repetition(robot, solve):
+    """squat(depth 0.12 m, repeat 2): the CoM dips to standing - 0.12 m (within 1 cm) twice,
+    rising back to standing height in between, soles fixed."""
+    depth = 0.12
+    spec, plan = solve(robot, [Action(name="squat", params={"depth": depth, "repeat": 2})])
+    z0 = standing_geometry(robot).com[2]
+    z = plan.com[:, 2]
+    assert _count_dips(z, z0 - depth + 0.01 + HARD_SLACK, z0 - 0.01 - HARD_SLACK) == 2
+    assert z.min() >= z0 - depth - 0.01 - HARD_SLACK
+    for c in spec.com_targets:
+        k = int(round(c.time / plan.dt))
+        assert abs(plan.com[k, 2] - c.position[2]) <= c.tolerance + HARD_SLACK
+
+
+@pytest.mark.parametrize("arm", ["right", "left"])
+def test_wave_crosses_the_midline_above_the_shoulder(robot, solve, arm):
+    """wave(repeat 2): while waving, the hand is above the shoulder's standing height and crosses
+    its midline 4 times (hysteresis: a third of the amplitude on each side)."""
+    repeat = 2
+    spec, plan = solve(robot, [Action(name="wave", params={"arm": arm, "repeat": repeat})])
+    g = standing_geometry(robot)
+    w = wave_geometry(g, arm)
+    band = _target(spec, "hand above shoulder")
+    ks = _knots_in(plan, band.window)
+    hand = _frame_positions(robot, plan, f"{arm}_hand")[ks]
+    assert np.all(hand[:, 2] > g.position(f"{arm}_shoulder")[2])
+    offsets = (hand - w["midline"]) @ w["outward"]
+    assert _count_crossings(offsets, w["amplitude"] / 3) == 2 * repeat
+
+
+def test_reach_gets_the_hand_to_the_point(robot, solve):
+    """reach(forward 0.15 m): the hand is within 1 cm of the point over the hold window."""
+    spec, plan = solve(robot, [Action(name="reach", params={"hand": "left", "direction": "forward", "distance": 0.15})])
+    t = _target(spec, "reach point")
+    ks = _knots_in(plan, t.window)
+    hand = _frame_positions(robot, plan, "left_hand")[ks]
+    err = np.linalg.norm(hand - np.array(t.position), axis=1)
+    assert len(ks) >= 2 and err.max() <= t.tolerance + HARD_SLACK
+    assert np.linalg.norm(_frame_positions(robot, plan, "left_hand")[0] - t.position) > 0.14
+
+
+def test_balance_keeps_the_com_over_the_stance_sole(robot, solve):
+    """balance(left foot): during the one-foot phase the CoM ground projection is inside the
+    left sole and the right foot is off the ground (>= 3 cm over the middle of the phase)."""
+    spec, plan = solve(robot, [Action(name="balance", params={"foot": "left", "duration": 1.5})])
+    i = next(i for i, p in enumerate(spec.phases) if len(p.contacts) == 1)
+    start = spec.phase_start_times()[i]
+    ks = _knots_in(plan, (start, start + spec.phases[i].duration))
+    polygon = sole_polygon(robot, robot.q_standing, "left")
+    margins = [inside_polygon_margin(polygon, plan.com[k, :2]) for k in ks]
+    assert min(margins) > 0.0
+    lift = _target(spec, "right foot lifted")
+    right = _frame_positions(robot, plan, "right_foot")
+    assert right[_knots_in(plan, lift.window), 2].min() >= 0.03 - HARD_SLACK
+    assert right[[0, -1], 2] == pytest.approx([0.0, 0.0], abs=1e-3)
+
+
+@pytest.mark.slow
+def test_raised_hands_go_above_the_head(robot, solve):
+    """raise_arms(both): both hands above the robot's highest standing frame while held."""
+    spec, plan = solve(robot, [Action(name="raise_arms")])
+    ks = _knots_in(plan, _target(spec, "left hand raised").window)
+    for side in ("left", "right"):
+        assert _frame_positions(robot, plan, f"{side}_hand")[ks, 2].min() > robot.height()
+
+
+@pytest.mark.slow
+def test_bow_tilts_the_torso(robot, solve):
+    """bow(0.3 rad): the torso's up axis leans forward by 0.3 rad (within 0.05 rad) while held."""
+    spec, plan = solve(robot, [Action(name="bow", params={"angle": 0.3})])
+    ks = _knots_in(plan, _target(spec, "torso bowed").window)
+    R0 = standing_geometry(robot).rotation("torso")
+    rots = _frame_rotations(robot, plan, "torso")
+    for k in ks:
+        up = rots[k] @ R0.T @ np.array([0.0, 0.0, 1.0])
+        assert np.arctan2(up[0], up[2]) == pytest.approx(0.3, abs=0.05 + HARD_SLACK)
+
+
+@pytest.mark.slow
+def test_lean_shifts_the_com(robot, solve):
+    """lean(left 3 cm): the CoM moves 3 cm left (within 1 cm) while held and comes back."""
+    spec, plan = solve(robot, [Action(name="lean", params={"direction": "left", "amount": 0.03})])
+    ks = _knots_in(plan, _target(spec, "lean left").window)
+    com0 = standing_geometry(robot).com
+    assert np.all(np.abs(plan.com[ks, 1] - com0[1] - 0.03) <= 0.01 + HARD_SLACK)
+    assert abs(plan.com[-1, 1] - com0[1]) <= 0.01 + HARD_SLACK
+
+
+@pytest.mark.slow
+def test_turn_head_on_talos(talos, solve):
+    """turn_head(left 0.5 rad) on Talos: the head frame yaws 0.5 rad (within 0.05 rad) while held."""
+    spec, plan = solve(talos, [Action(name="turn_head", params={"direction": "left", "angle": 0.5})])
+    ks = _knots_in(plan, _target(spec, "head turned").window)
+    R0 = standing_geometry(talos).rotation("head")
+    rots = _frame_rotations(talos, plan, "head")
+    for k in ks:
+        fwd = rots[k] @ R0.T @ np.array([1.0, 0.0, 0.0])
+        assert np.arctan2(fwd[1], fwd[0]) == pytest.approx(0.5, abs=0.05 + HARD_SLACK)
+
+
+def test_three_actions_in_one_plan(talos, solve):
+    """wave, then squat, then raise_arms: one plan; each part meets its intent."""
+    actions = [Action(name="wave", params={"repeat": 1}), Action(name="squat", params={"depth": 0.1}),
+               Action(name="raise_arms", params={"arm": "left"})]
+    spec, plan = solve(talos, actions)
+    g = standing_geometry(talos)
+    band = _target(spec, "1 wave: right hand above shoulder")
+    hand = _frame_positions(talos, plan, "right_hand")
+    ks = _knots_in(plan, band.window)
+    w = wave_geometry(g, "right")
+    assert _count_crossings((hand[ks] - w["midline"]) @ w["outward"], w["amplitude"] / 3) == 2
+    assert _count_dips(plan.com[:, 2], g.com[2] - 0.09 + HARD_SLACK, g.com[2] - 0.01 - HARD_SLACK) == 1
+    raised = _target(spec, "3 raise_arms: left hand raised")
+    assert _frame_positions(talos, plan, "left_hand")[_knots_in(plan, raised.window), 2].min() > talos.height()
+
+
+@pytest.mark.slow
+def test_wave_while_squatting_in_one_plan(g1, solve):
+    """squat with a wave overlaid on G1: the CoM dips once while the hand crosses 4 times."""
+    actions = [Action(name="squat", params={"depth": 0.1}), Action(name="wave", params={"repeat": 2}, overlay=True)]
+    spec, plan = solve(g1, actions)
+    g = standing_geometry(g1)
+    assert _count_dips(plan.com[:, 2], g.com[2] - 0.09 + HARD_SLACK, g.com[2] - 0.01 - HARD_SLACK) == 1
+    band = _target(spec, "2 wave: right hand above shoulder")
+    ks = _knots_in(plan, band.window)
+    hand = _frame_positions(g1, plan, "right_hand")[ks]
+    w = wave_geometry(g, "right")
+    assert _count_crossings((hand - w["midline"]) @ w["outward"], w["amplitude"] / 3) == 4
