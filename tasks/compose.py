@@ -10,7 +10,8 @@ An action and the overlays that follow it form a *group*:
   arm, right arm): ``squat`` + ``lean`` or ``wave right`` + ``reach right`` are refused;
 - at most one action of a group may change the contacts (balance, step, walk, turn, jump), and
   the group's phases are that action's (or the first action's); the actions after it start
-  from where its feet end (``Fragment.end_stance``).
+  from where its feet end (``Fragment.end_stance``). Nothing may be overlaid on an action that
+  moves the feet (step, walk, turn): the overlay's targets are fixed where the robot stands.
 
 The spec starts and ends with ``stand_time`` of standing still on both feet, and groups are
 separated by ``transition_time`` of double support: every action starts from and returns to
@@ -167,6 +168,12 @@ def compile_actions(
             a, b = movers[0].action, movers[1].action
             raise TaskDefinitionError(f"{a.name} and {b.name} both change the feet's contacts; run them one after the other")
         owner = movers[0] if movers else group_fragments[0]
+        if len(group) > 1 and owner.end_stance != stance:
+            others = ", ".join(f.action.name for f in group_fragments if f is not owner)
+            raise TaskDefinitionError(
+                f"{others} cannot run while {owner.action.name} moves the feet (its targets are fixed "
+                f"where the robot stands); run them one after the other (\"then\")"
+            )
         phases.extend(owner.phases)
         k += round(owner.duration / dt)
         stance = owner.end_stance

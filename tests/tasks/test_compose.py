@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -77,14 +78,15 @@ def test_overlay_runs_alongside_and_stretches_the_shorter_action(talos):
         ([Action(name="squat"), Action(name="lean", overlay=True)], "both drive"),
         ([Action(name="balance"), Action(name="bow", overlay=True)], "both drive"),
         ([Action(name="wave", overlay=True)], "is an overlay but nothing runs before it"),
+        ([Action(name="walk"), Action(name="wave", overlay=True)], "wave cannot run while walk moves the feet"),
         ([], "no action to compile"),
         ([Action(name="wave"), Action(name="squat", params={"depth": 0.5})],
          r"action 2 \(squat\): squat depth 0.5 m is beyond talos's reachable 0.35 m"),
     ],
 )
 def test_bad_compositions_are_refused(talos, actions, message):
-    """Conflicting overlays, a leading overlay, nothing at all and out-of-range parameters are
-    TaskDefinitionErrors naming the action."""
+    """Conflicting overlays, a leading overlay, an overlay on moving feet, nothing at all and
+    out-of-range parameters are TaskDefinitionErrors naming the action."""
     with pytest.raises(TaskDefinitionError, match=message):
         compile_actions(actions, talos)
 
@@ -201,3 +203,17 @@ def test_composition_timing_properties(talos, actions, dt):
             assert lo - 1e-9 <= t <= hi + 1e-9, item.name
     assert spec_from_json(spec_to_json(spec)) == spec
     assert spec.name == describe_actions(actions)
+
+
+def test_actions_after_a_turn_follow_the_new_heading(talos):
+    """After turn(pi/2), reach forward points along the world's +y, from the turned hand's rest
+    position; the closing stand phase holds the feet where the turn put them."""
+    import math
+
+    spec = compile_actions([Action(name="turn", params={"angle": math.pi / 2}),
+                            Action(name="reach", params={"direction": "forward", "distance": 0.2})], talos)
+    (point,) = [t for t in spec.targets if "reach point" in t.name]
+    (rest,) = [t for t in spec.targets if "back at rest" in t.name]
+    assert np.allclose(np.subtract(point.position, rest.position), [0.0, 0.2, 0.0], atol=1e-9)
+    last = spec.phases[-1]
+    assert all(abs(c.placement.rpy[2] - math.pi / 2) < 1e-6 for c in last.contacts)
