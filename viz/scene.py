@@ -28,7 +28,7 @@ import pinocchio as pin
 
 from robots import Robot
 from viz import motion as vm
-from viz._meshcat import mg
+from viz._meshcat import mg, umsgpack
 
 ROOT = "wbmp"
 PLANNED_COLOR = None  # keep the URDF colours
@@ -61,19 +61,51 @@ def _mesh_material(rgba: Sequence[float], override: tuple[float, float, float] |
                                 shininess=30)
 
 
+class _MeshFile(mg.MeshGeometry):
+    """A mesh file sent as is (``_meshfile_geometry``, the non-deprecated name in meshcat.js)."""
+
+    def lower(self, object_data):
+        return {"type": "_meshfile_geometry", "uuid": self.uuid, "format": self.mesh_format,
+                "data": self.contents}
+
+
+def _stl_file(path: str) -> _MeshFile:
+    with open(path, "rb") as f:
+        data = f.read()
+    return _MeshFile(umsgpack.Ext(0x12, data), "stl")  # 0x12: meshcat's Uint8Array extension
+
+
+def _triangles(geom: pin.GeometryObject) -> mg.TriangularMeshGeometry | None:
+    """The mesh as loaded by Pinocchio/coal (already scaled), or None if it is not a mesh."""
+    shape = geom.geometry
+    if hasattr(shape, "tri_indices") and hasattr(shape, "num_tris") and shape.num_tris > 0:
+        vertices = np.asarray(shape.vertices(), dtype=np.float32)
+        tris = (shape.tri_indices(k) for k in range(shape.num_tris))
+        faces = np.array([(t[0], t[1], t[2]) for t in tris], dtype=np.uint32)
+    else:
+        return None
+    if np.prod(np.sign(np.asarray(geom.meshScale, dtype=float))) < 0:
+        faces = faces[:, [0, 2, 1]]  # a mirror turns the triangles inside out: restore the winding
+    return mg.TriangularMeshGeometry(vertices, faces)
+
+
 def _geometry_object(geom: pin.GeometryObject) -> tuple[mg.Geometry | None, np.ndarray]:
-    """(meshcat geometry, static 4x4 transform of the mesh node) for a visual geometry."""
+    """(meshcat geometry, static 4x4 transform of the mesh node) for a visual geometry.
+
+    STL files are sent as they are (three.js' STL loader gives crisp per-face normals) with
+    the mesh scale, possibly negative, on the static node. Other meshes (Collada, OBJ) are sent
+    as the triangles Pinocchio loaded, which already include the scale: three.js' Collada
+    loader fails on some multi-part files (iCub).
+    """
     static = np.eye(4)
     path = geom.meshPath or ""
     ext = path.rsplit(".", 1)[-1].lower() if "." in path else ""
-    if ext in ("stl", "dae", "obj"):
+    if ext == "stl":
         static[:3, :3] = np.diag(np.asarray(geom.meshScale, dtype=float))
-        if ext == "stl":
-            return mg.StlMeshGeometry.from_file(path), static
-        with open(path, encoding="utf-8", errors="replace") as f:
-            text = f.read()
-        cls = mg.DaeMeshGeometry if ext == "dae" else mg.ObjMeshGeometry
-        return cls(text), static
+        return _stl_file(path), static
+    tris = _triangles(geom)
+    if tris is not None:
+        return tris, static
     shape = geom.geometry
     kind = type(shape).__name__
     if kind == "Box":
