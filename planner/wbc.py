@@ -65,6 +65,8 @@ class WbcSettings:
         com_kp, frame_kp, foot_kp, base_kp, posture_kp: PD stiffnesses [1/s^2].
         contact_kp: Baumgarte stiffness on stance-sole drift [1/s^2].
         friction_scale: Fraction of the friction coefficient the controller may use [-].
+        cop_margin: The corner forces act this far inside the sole rectangle, which keeps the centre
+            of pressure off the sole's edges [m].
         torque_scale: Fraction of each torque limit the controller may use [-].
         com_drift: Include the CoM velocity-product term (one extra Pinocchio call, ~7 us).
         eps_abs: QP absolute tolerance. max_iter: QP iteration cap.
@@ -88,6 +90,7 @@ class WbcSettings:
     posture_kp: float = 100.0
     contact_kp: float = 10.0
     friction_scale: float = 0.9
+    cop_margin: float = 0.01
     torque_scale: float = 1.0
     com_drift: bool = True
     eps_abs: float = 1e-6
@@ -227,6 +230,10 @@ class WholeBodyController:
         for name in self._contacts:
             side = self.robot.foot_side(name) or "left"
             corners = np.array([[x, y, 0.0] for x, y in self.robot.profile.sole.corners(side)])
+            centre = corners.mean(axis=0)
+            half = np.abs(corners - centre).max(axis=0)
+            shrink = np.clip((half - s.cop_margin) / np.where(half > 0, half, 1.0), 0.0, 1.0)
+            corners = centre + (corners - centre) * shrink
             g0 = np.zeros((6, 12))
             for k, c in enumerate(corners):
                 g0[:3, 3 * k : 3 * k + 3] = np.eye(3)

@@ -1,0 +1,212 @@
+"""Benchmark of the whole-body controller and the closed-loop simulation (a script, not a test).
+
+Measures on Talos, with the task that DESIGN.md quotes for TSID (two 6D sole contacts, CoM,
+posture, one moving hand):
+
+1. the controller tick in closed loop in MuJoCo (wall clock and thread CPU time, median / p99),
+   with a breakdown (Pinocchio numerics, QP update + solve),
+2. the real-time factor of the whole loop (``sim.simulate``: controller + physics + logging),
+3. the same recorded QPs solved by proxsuite (persistent, warm-started) and by every
+   backend that ``qpsolvers`` finds installed (each call builds the problem anew).
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_wbc.py [--seconds 3] [--json out.json] [--plan handmade|trajopt]
+
+The machine is shared: wall-clock numbers are noisy, so the thread CPU time is printed too.
+The TSID peer runs in its own environment: ``bash benchmarks/peers/run_tsid.sh``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+
+from planner.wbc import WbcSettings, WholeBodyController  # noqa: E402
+from robots import load_robot  # noqa: E402
+from sim import SimSettings, build_model, simulate  # noqa: E402
+from sim.handmade import arm_plan  # noqa: E402
+
+TARGET_MEDIAN_US = 150.0
+TARGET_P99_US = 400.0
+TARGET_RTF = 2.0
+
+
+def _stats(samples: list[float]) -> dict[str, float]:
+    a = 1e6 * np.asarray(samples)
+    return {"median_us": float(np.median(a)), "p99_us": float(np.percentile(a, 99)), "mean_us": float(a.mean())}
+
+
+def make_plan(robot, kind: str, seconds: float):
+    """The benchmark motion: a hand-made right-hand raise, or the trajectory optimizer's wave."""
+    if kind == "trajopt":
+        from planner.trajopt import plan as trajopt_plan
+        from tasks.actions import Action
+        from tasks.compose import compile_actions
+
+        return trajopt_plan(compile_actions([Action(name="reach", params={"direction": "forward"})], robot), robot)
+    return arm_plan(robot, duration=seconds, dt=0.05)
+
+
+def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
+    """Run the controller in closed loop at 1 kHz; time every tick; keep the QPs for the backend comparison."""
+    sm = build_model(robot, timestep=0.001)
+    d = sm.data()
+    ctrl = WholeBodyController(robot, settings)
+    ref = ctrl.reference_for(plan)
+    q = np.array(plan.q[0])
+    v = np.zeros(robot.nv)
+    sm.set_state(d, q, v)
+    ctrl.reset(q, v)
+    wall, cpu, iters, problems = [], [], [], []
+    for i in range(ref.n):
+        sm.state(d, q, v)
+        t0, c0 = time.perf_counter(), time.thread_time()
+        tau = ctrl.compute(i * 0.001, q, v, ref)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.thread_time() - c0)
+        iters.append(ctrl.last.iterations)
+        if i % 10 == 0:
+            problems.append(tuple(x.copy() for x in (ctrl.H, ctrl.g, ctrl.A, ctrl.b, ctrl.C, ctrl.l, ctrl.u)))
+        d.ctrl[sm.actuator_index] = tau
+        mujoco.mj_step(sm.model, d)
+    # breakdown on the final state: the Pinocchio part alone
+    model, data = robot.model, robot.data()
+    zero = np.zeros(robot.nv)
+    fids = [robot.frame_id(r) for r in ("left_foot", "right_foot", "left_hand", "right_hand")]
+    pin_times = []
+    for _ in range(2000):
+        t0 = time.thread_time()
+        pin.computeAllTerms(model, data, q, v)
+        pin.centerOfMass(model, data, q, v, zero)
+        for fid in fids:
+            pin.updateFramePlacement(model, data, fid)
+            pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            pin.getFrameClassicalAcceleration(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            pin.getFrameVelocity(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        pin_times.append(time.thread_time() - t0)
+    qp_times = []
+    qp = ctrl._qp  # the persistent solver, for its update + solve cost alone
+    if qp is not None:
+        for prob in problems:
+            t0 = time.thread_time()
+            qp.update(*prob, update_preconditioner=False)
+            qp.solve()
+            qp_times.append(time.thread_time() - t0)
+    out = {
+        "ticks": len(wall),
+        "wall": _stats(wall),
+        "cpu": _stats(cpu),
+        "qp_iterations_mean": float(np.mean(iters)),
+        "pinocchio_cpu": _stats(pin_times),
+        "qp_update_solve_cpu": _stats(qp_times) if qp_times else None,
+        "qp_size": {"n": ctrl.n, "n_eq": ctrl.n_eq, "n_in": ctrl.n_in},
+    }
+    return out, problems
+
+
+def backend_comparison(problems: list) -> dict[str, dict]:
+    """Solve the recorded QPs with every qpsolvers backend (cold, one call each) and proxsuite (persistent)."""
+    import proxsuite
+    import qpsolvers
+
+    results = {}
+    H, g, A, b, C, l, u = problems[0]
+    qp = proxsuite.proxqp.dense.QP(len(g), len(b), len(l))
+    qp.settings.eps_abs = 1e-6
+    qp.settings.eps_rel = 0.0
+    qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+    qp.init(H, g, A, b, C, l, u)
+    qp.solve()
+    ref_x = []
+    times = []
+    for prob in problems:
+        t0 = time.perf_counter()
+        qp.update(*prob, update_preconditioner=False)
+        qp.solve()
+        times.append(time.perf_counter() - t0)
+        ref_x.append(qp.results.x.copy())
+    results["proxsuite (persistent, warm start)"] = {**_stats(times), "max_dx": 0.0}
+    for solver in qpsolvers.available_solvers:
+        times, dx = [], []
+        for prob, x_ref in zip(problems, ref_x, strict=True):
+            H, g, A, b, C, l, u = prob
+            finite = l > -1e19
+            G = np.vstack([C, -C[finite]])
+            h = np.concatenate([u, -l[finite]])
+            t0 = time.perf_counter()
+            x = qpsolvers.solve_qp(H, g, G, h, A, b, solver=solver)
+            times.append(time.perf_counter() - t0)
+            dx.append(np.inf if x is None else float(np.abs(x - x_ref).max()))
+        results[f"qpsolvers:{solver} (rebuilt each call)"] = {**_stats(times), "max_dx": float(max(dx))}
+    missing = sorted({"daqp", "quadprog", "osqp", "proxqp"} - set(qpsolvers.available_solvers))
+    if missing:
+        results["not installed"] = {"solvers": missing}
+    return results
+
+
+def realtime_factor(robot, plan) -> dict[str, float]:
+    """Whole loop (controller + MuJoCo + logging + certificate) against simulated time."""
+    t0 = time.perf_counter()
+    ex = simulate(plan, robot, settings=SimSettings(settle_time=0.5))
+    total = time.perf_counter() - t0
+    return {
+        "simulated_s": float(ex.t[-1]),
+        "loop_wall_s": ex.wall_time,
+        "realtime_factor_loop": ex.realtime_factor,
+        "realtime_factor_with_setup_and_certificate": float(ex.t[-1]) / total,
+        "certificate_ok": ex.certificate.ok,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=3.0, help="motion length [s]")
+    parser.add_argument("--plan", choices=("handmade", "trajopt"), default="handmade")
+    parser.add_argument("--json", type=Path, help="write the numbers to this file")
+    args = parser.parse_args(argv)
+
+    robot = load_robot("talos")
+    plan = make_plan(robot, args.plan, args.seconds)
+    load = os.getloadavg()[0]
+    print(f"Talos, {args.plan} plan of {plan.t[-1]:.1f} s; load average {load:.1f} on {os.cpu_count()} cores")
+    ticks, problems = closed_loop_ticks(robot, plan, WbcSettings())
+    print(f"controller tick ({ticks['ticks']} ticks, QP n={ticks['qp_size']['n']} n_eq={ticks['qp_size']['n_eq']} "
+          f"n_in={ticks['qp_size']['n_in']}, {ticks['qp_iterations_mean']:.2f} iterations/tick):")
+    for kind in ("wall", "cpu"):
+        s = ticks[kind]
+        flag = "meets" if s["median_us"] <= TARGET_MEDIAN_US and s["p99_us"] <= TARGET_P99_US else "misses"
+        print(f"  {kind:<5} median {s['median_us']:7.1f} us  p99 {s['p99_us']:7.1f} us  ({flag} the target "
+              f"{TARGET_MEDIAN_US:.0f}/{TARGET_P99_US:.0f} us)")
+    print(f"  of which Pinocchio numerics  median {ticks['pinocchio_cpu']['median_us']:.1f} us (CPU)")
+    if ticks["qp_update_solve_cpu"]:
+        print(f"  of which QP update + solve   median {ticks['qp_update_solve_cpu']['median_us']:.1f} us (CPU)")
+    backends = backend_comparison(problems)
+    print(f"QP backends on {len(problems)} recorded ticks (wall):")
+    for name, s in backends.items():
+        if name == "not installed":
+            print(f"  not installed here: {', '.join(s['solvers'])}")
+            continue
+        print(f"  {name:<42} median {s['median_us']:8.1f} us  p99 {s['p99_us']:8.1f} us  max |dx| {s['max_dx']:.1e}")
+    rtf = realtime_factor(robot, plan)
+    print(f"simulation: {rtf['simulated_s']:.2f} s simulated, loop {rtf['realtime_factor_loop']:.2f}x real time "
+          f"({rtf['realtime_factor_with_setup_and_certificate']:.2f}x with setup and certificate; target "
+          f">= {TARGET_RTF:.0f}x); certificate {'PASS' if rtf['certificate_ok'] else 'FAIL'}")
+    if args.json:
+        args.json.write_text(json.dumps({"load_average": load, "tick": ticks, "backends": backends,
+                                         "simulation": rtf}, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
