@@ -13,6 +13,7 @@ Scene tree (under meshcat's ``/meshcat`` root)::
     wbmp/targets/<target name>            frame target (sphere of radius = tolerance, min 2 cm)
     wbmp/com/path                         planned CoM path (line)
     wbmp/com/point, wbmp/com/ground       CoM and its ground projection (animated)
+    wbmp/paths/<frame>                    planned path of each frame that has a target
 
 Why ``<geometry>`` and ``<geometry>/mesh`` are separate nodes: animation tracks carry a
 position and a quaternion, and a mirrored mesh (negative scale) has no rotation quaternion, so
@@ -245,8 +246,13 @@ def add_markers(vis, robot: Robot, plan, *, com: np.ndarray | None = None) -> di
             key = f"{ROOT}/support/{p_index}"
             schedule[key] = [(ph.start, True), (ph.end, False)]
 
-    # frame targets
+    # frame targets, and the planned path of each targeted frame
+    drawn: set[str] = set()
     for target in plan.spec.targets:
+        if target.frame not in drawn and len(plan.q) >= 2:
+            drawn.add(target.frame)
+            path = vm.frame_trajectory(robot, np.asarray(plan.q, dtype=float), target.frame)
+            root["paths"][node_name(target.frame)].set_object(_line(path, HAND_PATH_COLOR, width=2.0))
         if target.position is None:
             continue
         radius = max(float(target.tolerance), 0.02)

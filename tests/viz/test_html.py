@@ -97,7 +97,8 @@ def test_scene_has_every_mesh_and_the_markers(page, talos, synth_plan):
         assert f"/meshcat/wbmp/robot/planned/{scene.node_name(g.name)}/mesh" in objects
     lf = scene.node_name(talos.frame("left_foot"))
     for path in (f"/meshcat/wbmp/contacts/{lf}/0/sole", "/meshcat/wbmp/support/0",
-                 "/meshcat/wbmp/targets/right_hand_mark", "/meshcat/wbmp/com/path"):
+                 "/meshcat/wbmp/targets/right_hand_mark", "/meshcat/wbmp/com/path",
+                 "/meshcat/wbmp/paths/right_hand"):
         assert path in objects, path
     # the static mesh transforms carry the (negative) scales: 13 mirrored Talos meshes
     scales = [np.asarray(c["matrix"]).reshape(4, 4).T[:3, :3] for c in cmds
