@@ -28,7 +28,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import casadi as ca
-import numpy as np
 
 from planner.formulation import Layout
 from planner.settings import PlannerSettings
@@ -72,15 +71,19 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
     solver = None
     entry = Path(settings.cache_dir) / "planner" / key
     if settings.use_cache and settings.compile:
-        solver = _load_entry(entry, key, settings, progress)
+        solver = _load_entry(lay, entry, key, settings, progress)
     if solver is None:
         if progress:
             progress("building the solver for this task structure (first time; cached afterwards)")
-        nlp, nl = build_nlp(lay)
+        nlp, derivatives, nl = build_nlp(lay)
         if settings.use_cache and settings.compile:
-            solver = _compile_entry(entry, key, nlp, nl, settings, progress)
+            solver = _compile_entry(entry, key, nlp, derivatives, nl, settings, progress)
+            compiled = _load_entry(lay, entry, key, settings, None)
+            if compiled is not None:
+                compiled.origin = "built"
+                solver = compiled
         if solver is None:
-            function = ca.nlpsol("wbmp_plan", "ipopt", nlp, ipopt_options(settings))
+            function = ca.nlpsol("wbmp_plan", "ipopt", nlp, {**ipopt_options(settings), **derivatives})
             solver = Solver(function=function, nlp_layout=nl, origin="built")
     solver.build_time = time.perf_counter() - t0
     if settings.use_cache:
@@ -99,8 +102,8 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _load_entry(entry: Path, key: str, settings: PlannerSettings, progress):
-    from planner.trajopt import NlpLayout, Solver, ipopt_options
+def _load_entry(lay: Layout, entry: Path, key: str, settings: PlannerSettings, progress):
+    from planner.trajopt import Solver, ipopt_options, make_nlp_layout
 
     lib, meta_path = entry / LIBRARY, entry / META
     if not entry.exists():
@@ -109,13 +112,13 @@ def _load_entry(entry: Path, key: str, settings: PlannerSettings, progress):
         meta = json.loads(meta_path.read_text())
         if meta.get("key") != key or meta.get("sha256") != _sha(lib):
             raise ValueError("key or checksum mismatch")
-        nl = NlpLayout(n_x=int(meta["n_x"]), n_g=int(meta["n_g"]), term_rows=list(meta["term_rows"]),
-                       velocity_rows=int(meta["velocity_rows"]),
-                       velocity_joints=np.array(meta["velocity_joints"], dtype=int))
+        nl = make_nlp_layout(lay)
+        if (int(meta["n_x"]), int(meta["n_g"])) != (nl.n_x, nl.n_g):
+            raise ValueError("size mismatch")
         if progress:
             progress("loading the compiled solver from the cache")
         function = ca.nlpsol("wbmp_plan", "ipopt", str(lib), ipopt_options(settings))
-        if function.size1_in(0) != nl.n_x:
+        if function.sparsity_in("x0").size1() != nl.n_x or function.sparsity_in("lbg").size1() != nl.n_g:
             raise ValueError("size mismatch")
         return Solver(function=function, nlp_layout=nl, origin="disk")
     except Exception:  # noqa: BLE001 - any defect in an entry means: rebuild it
@@ -123,48 +126,76 @@ def _load_entry(entry: Path, key: str, settings: PlannerSettings, progress):
         return None
 
 
-def _compile_entry(entry: Path, key: str, nlp: dict, nl, settings: PlannerSettings, progress):
-    """Generate C code for the NLP, compile it, store it atomically; None if gcc fails."""
+ORACLE_FUNCTIONS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
+
+
+def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, settings: PlannerSettings,
+                   progress):
+    """Build the solver, generate C code for its functions, compile, store atomically.
+
+    Returns the in-memory solver (compiled or not); a failed compilation only means that the
+    next process builds again.
+    """
     from planner.trajopt import Solver, ipopt_options
 
+    builder = ca.nlpsol("wbmp_plan", "ipopt", nlp, {**ipopt_options(settings), **derivatives})
+    solver = Solver(function=builder, nlp_layout=nl, origin="built")
     gcc = shutil.which("gcc")
     if gcc is None:
-        return None
+        return solver
     entry.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
     try:
         if progress:
             progress("generating C code for the solver")
-        builder = ca.nlpsol("wbmp_plan", "ipopt", nlp, ipopt_options(settings))
+        cg = ca.CodeGenerator("nlp.c")
+        cg.add(ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]], ["x", "p"], ["f", "g"]))
+        for name in ORACLE_FUNCTIONS:
+            cg.add(builder.get_function(name))
         cwd = os.getcwd()
         os.chdir(tmp)
         try:
-            builder.generate_dependencies("nlp.c")
+            cg.generate()
         finally:
             os.chdir(cwd)
         if progress:
-            progress("compiling the solver with gcc (first time for this task structure)")
+            progress(f"compiling the solver with gcc {' '.join(settings.compile_flags)} "
+                     "(first time for this task structure)")
         cmd = [gcc, "-fPIC", "-shared", *settings.compile_flags, "nlp.c", "-o", LIBRARY, "-lm"]
-        done = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=600)
-        if done.returncode != 0:
-            return Solver(function=builder, nlp_layout=nl, origin="built")
+        if not _run_gcc(cmd, tmp, settings.compile_timeout):
+            return solver
         (tmp / "nlp.c").unlink()
         meta = {
             "key": key, "sha256": _sha(tmp / LIBRARY), "n_x": nl.n_x, "n_g": nl.n_g,
-            "term_rows": nl.term_rows, "velocity_rows": nl.velocity_rows,
-            "velocity_joints": [int(i) for i in nl.velocity_joints],
-            "casadi": ca.__version__, "created": time.time(),
+            "casadi": ca.__version__, "flags": list(settings.compile_flags), "created": time.time(),
         }
         (tmp / META).write_text(json.dumps(meta))
         shutil.rmtree(entry, ignore_errors=True)
         try:
             os.replace(tmp, entry)
         except OSError:  # another process stored it first
-            shutil.rmtree(tmp, ignore_errors=True)
-        return Solver(function=builder, nlp_layout=nl, origin="built")
-    except (OSError, subprocess.SubprocessError, RuntimeError):
-        shutil.rmtree(tmp, ignore_errors=True)
-        return None
+            pass
+        return solver
+    except (OSError, RuntimeError):
+        return solver
     finally:
-        if tmp.exists() and tmp != entry:
-            shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
+    """Run gcc in its own process group; on timeout kill the group (cc1 included)."""
+    import signal
+
+    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    try:
+        proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        return False
+    except BaseException:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        raise
+    return proc.returncode == 0

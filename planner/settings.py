@@ -27,7 +27,9 @@ class PlannerSettings:
             ``use_cache``). Off: solvers are built in memory (CasADi SX, no compilation).
         cache_dir: Directory of the on-disk solver cache (default ``$WBMP_CACHE_DIR`` or
             ``~/.cache/wbmp``).
-        compile_flags: gcc optimization flags for generated code.
+        compile_flags: gcc flags for generated code (``-O0``: the code is ~3 MB for Talos and
+            ``-O1`` takes 4x longer to compile for little solve-time gain).
+        compile_timeout: Give up compiling after this long [s] (the plan still runs in memory).
         contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
         limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
@@ -40,9 +42,10 @@ class PlannerSettings:
     constraint_tolerance: float = 1e-7
     print_level: int = 0
     use_cache: bool = True
-    compile: bool = False
+    compile: bool = True
     cache_dir: str = field(default_factory=default_cache_dir)
-    compile_flags: tuple[str, ...] = ("-O1",)
+    compile_flags: tuple[str, ...] = ("-O0",)
+    compile_timeout: float = 300.0
     contact_tolerance: float = 1e-4
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5
