@@ -239,3 +239,15 @@ def test_wave_while_squatting_in_one_plan(g1, solve):
     hand = _frame_positions(g1, plan, "right_hand")[ks]
     w = wave_geometry(g, "right")
     assert _count_crossings((hand - w["midline"]) @ w["outward"], w["amplitude"] / 3) == 4
+
+
+@pytest.mark.slow
+def test_reach_out_of_range_is_explained_by_the_planner(talos):
+    """A base-frame point 1.5 m ahead is not refused by the primitive; the planner fails and its
+    diagnosis names the reach target and how far it is missed."""
+    from planner.settings import PlannerSettings
+
+    spec = compile_actions([Action(name="reach", params={"target": (1.5, -0.3, 0.3)})], talos, dt=DT)
+    plan = planner_trajopt.plan(spec, talos, settings=PlannerSettings(compile=False), throw=False)
+    assert not plan.ok
+    assert "reach: right hand at the reach point" in plan.diagnosis and "beyond reach" in plan.diagnosis
