@@ -330,6 +330,7 @@ def ipopt_options(settings: PlannerSettings) -> dict:
             "constr_viol_tol": float(settings.constraint_tolerance),
             "linear_solver": "mumps",
             "mu_strategy": "adaptive",
+            "obj_scaling_factor": float(settings.objective_scaling),
         },
     }
 
