@@ -259,9 +259,9 @@ def plot_contact_forces(path: Path, robot: Robot, plan, simulated: vm.Motion | N
     """Normal force and friction use per contact, planned and/or simulated."""
     series = []
     if plan.forces:
-        series.append(("plan", np.asarray(plan.t, dtype=float), plan.forces, "-"))
+        series.append(("plan", np.asarray(plan.t, dtype=float), plan.forces, "--"))
     if simulated is not None and simulated.forces:
-        series.append(("simulated", simulated.t - simulated.t[0], simulated.forces, ":"))
+        series.append(("simulated", simulated.t - simulated.t[0], simulated.forces, "-"))
     if not series:
         return None
     mu = robot.profile.friction_coefficient
@@ -276,10 +276,10 @@ def plot_contact_forces(path: Path, robot: Robot, plan, simulated: vm.Motion | N
             color = colors[frames.index(frame) % len(colors)]
             fn = f[:n, 2]
             ft = np.linalg.norm(f[:n, :2], axis=1)
-            ax_n.plot(t[:n], fn, style, color=color, lw=1.5, label=f"{frame} ({label})")
+            ax_n.plot(t[:n], fn, style, color=color, lw=1.2, label=f"{frame} ({label})")
             with np.errstate(divide="ignore", invalid="ignore"):
                 ratio = np.where(fn > 1.0, ft / fn, np.nan)
-            ax_f.plot(t[:n], ratio, style, color=color, lw=1.5, label=f"{frame} ({label})")
+            ax_f.plot(t[:n], ratio, style, color=color, lw=1.0, label=f"{frame} ({label})")
     weight = robot.mass * vm.GRAVITY
     ax_n.axhline(weight, color="k", ls="--", lw=1, label=f"body weight {weight:.0f} N")
     ax_n.set_ylabel("normal force [N]")

@@ -109,8 +109,15 @@ class Progress:
                             fraction=st["fraction"], message=message)
             self._draw()
 
-    def __call__(self, message: str) -> None:
-        """A one-off message (also usable as a ``Callable[[str], None]`` progress callback)."""
+    def __call__(self, message: str | float) -> None:
+        """A one-off message; a number is taken as the current stage's fraction done.
+
+        So the display is usable both as a ``Callable[[str], None]`` (planner, pipeline) and as
+        a ``Callable[[float], None]`` (the simulator's progress) callback.
+        """
+        if isinstance(message, (int, float)) and not isinstance(message, bool):
+            self.update(float(message))
+            return
         with self._lock:
             if self._stages:
                 self._stages[-1]["message"] = message

@@ -75,6 +75,14 @@ def test_live_line_shows_bar_and_message():
     assert line.endswith("iteration 10")
 
 
+def test_numbers_are_fractions_so_the_simulator_can_report():
+    out = io.StringIO()
+    p = Progress("json", stream=out)
+    with p.stage("simulating"):
+        p(0.3)
+    assert json.loads(out.getvalue().splitlines()[1])["fraction"] == 0.3
+
+
 def test_unknown_mode():
     with pytest.raises(ValueError, match="progress mode must be one of"):
         Progress("fancy")
