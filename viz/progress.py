@@ -13,7 +13,8 @@ Modes:
 - ``bar``: on a terminal, one self-erasing line redrawn 10 times a second (spinner, stage,
   elapsed time, a bar when a fraction is known, the last message), replaced at the end of the
   stage by ``done <stage> (1.23 s)``. On a non-terminal stream (a log file, CI) the live line is
-  skipped and only the final line of each stage (and one-off messages) are written.
+  skipped and only the final line of each stage (and one-off messages) are written. Stages
+  shorter than ``min_duration`` (1 s) show nothing at all: the display is for long steps.
 - ``json``: one JSON object per line: ``{"event": "start"|"progress"|"end"|"message", "stage",
   "elapsed", "fraction", "message", "ok"}``, for machines.
 - ``quiet``: nothing at all.
@@ -46,13 +47,14 @@ class Progress:
         stream: Where to write; default ``sys.stderr``.
         live: Redraw a live line; default: only when ``stream`` is a terminal.
         clock: Time source [s] (tests pass a fake one).
+        min_duration: In ``bar`` mode, stages shorter than this show nothing [s].
 
     Raises:
         ValueError: unknown mode.
     """
 
     def __init__(self, mode: str = "bar", *, stream: TextIO | None = None, live: bool | None = None,
-                 clock=time.monotonic) -> None:
+                 clock=time.monotonic, min_duration: float = 1.0) -> None:
         if mode not in MODES:
             raise ValueError(f"progress mode must be one of {MODES}, got {mode!r}")
         self.mode = mode
@@ -60,6 +62,7 @@ class Progress:
         isatty = getattr(self.stream, "isatty", lambda: False)
         self.live = (mode == "bar" and bool(isatty())) if live is None else (live and mode == "bar")
         self._clock = clock
+        self.min_duration = float(min_duration)
         self._lock = threading.RLock()
         self._stages: list[dict] = []
         self._thread: threading.Thread | None = None
@@ -87,7 +90,7 @@ class Progress:
                 if not self._stages:
                     self._stop_thread()
                 self._clear_line()
-                if self.mode == "bar":
+                if self.mode == "bar" and elapsed >= self.min_duration:
                     mark = "done" if ok else "FAILED"
                     self._write(f"{mark} {name} ({elapsed:.2f} s)\n")
                 self._emit_json("end", name, elapsed=elapsed, ok=ok)
@@ -123,7 +126,8 @@ class Progress:
                 self._stages[-1]["message"] = message
                 self._emit_json("progress", self._stages[-1]["name"],
                                 elapsed=self._clock() - self._stages[-1]["start"], message=message)
-                if not self.live and self.mode == "bar":
+                if not self.live and self.mode == "bar" and \
+                        self._clock() - self._stages[0]["start"] >= self.min_duration:
                     self._write(f"  {message}\n")
                 self._draw()
                 return
@@ -175,6 +179,8 @@ class Progress:
 
     def _draw(self) -> None:
         if not self.live or not self._stages:
+            return
+        if self._clock() - self._stages[0]["start"] < self.min_duration:
             return
         text = self.line()[:119]
         pad = max(0, self._width - len(text))

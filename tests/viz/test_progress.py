@@ -58,9 +58,11 @@ def test_bar_on_a_non_terminal_writes_whole_lines_only():
     with p.stage("building"):
         p.update(0.5)
         clock.now += 2.0
+        with p.stage("quick step"):
+            clock.now += 0.2  # under a second: nothing shown
     text = out.getvalue()
     assert "\r" not in text
-    assert text == "done building (2.00 s)\n"
+    assert text == "done building (2.20 s)\n"
 
 
 def test_live_line_shows_bar_and_message():

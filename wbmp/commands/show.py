@@ -54,6 +54,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.port is not None and not 1 <= args.port <= 65535:
         raise CliError(f"--port must be in 1..65535, got {args.port}", ExitCode.USAGE)
+    if not Path(args.motion).is_file():
+        raise CliError(f"motion file {args.motion!r} does not exist (write one with `wbmp solve ... --out "
+                       f"{args.motion}`)", ExitCode.USAGE)
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     with progress.stage("loading the motion"):
         robot, plan, execution = load(args.motion)
