@@ -557,115 +557,77 @@ def layout_contacts(lay: Any, *, cop_margin: float = 0.0) -> tuple[tuple[Contact
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class DynamicTerms:
-    """What a dynamic plan adds to the kinematic NLP: centroidal terms + sole corners above ground.
+class CentroidalFunction:
+    """The centroidal terms of a layout as one SX function, for an MX (or SX) NLP.
+
+    ``function(C, U, P, dt) -> (g, cost)`` with ``C`` the CoM per knot (3, N+1) [m], ``U`` the
+    force variables, ``P`` the contact parameters and ``dt`` the knot spacing [s]. Calling it
+    with MX arguments puts a single node in the NLP graph whose derivatives CasADi computes on
+    the SX expressions.
 
     Attributes:
-        centroidal: Forces, CoM dynamics, friction, angular-momentum cost.
-        corner_rows: (knot, frame id, corner) of every "sole corner above the ground" row.
-        corner_expr: Those rows (column; lower bound 0, upper +inf) [m].
+        function: The CasADi function.
+        terms: The terms (bounds, initial guess, parameter values, force indices).
+        corner_rows: (knot, foot frame id, corner) of the "sole corner above the ground" rows
+            for feet not in contact at a variable knot (corner in the profile's order).
+        lbg, ubg: Bounds of the function's ``g`` rows.
     """
 
-    centroidal: CentroidalTerms
+    function: ca.Function
+    terms: CentroidalTerms
     corner_rows: tuple[tuple[int, int, int], ...]
-    corner_expr: Any
+    lbg: np.ndarray
+    ubg: np.ndarray
 
     @property
     def structure(self) -> tuple:
         """Hashable structure (for the solver cache key)."""
-        return (self.centroidal.structure, self.corner_rows)
-
-    def g(self) -> tuple[Any, np.ndarray, np.ndarray]:
-        """All rows: centroidal constraints, then the corner rows."""
-        g, lo, hi = self.centroidal.g()
-        n = len(self.corner_rows)
-        return ca.vertcat(g, self.corner_expr), np.concatenate([lo, np.zeros(n)]), np.concatenate([hi, np.full(n, np.inf)])
+        return (self.terms.structure, self.corner_rows)
 
 
-def dynamic_terms(lay: Any, kinematics: Any, dt: Any, *, settings: CentroidalSettings = CentroidalSettings(),
-                  first_free_knot: int = 2) -> DynamicTerms:
-    """The dynamic part of a plan's NLP for a :class:`planner.formulation.Layout`.
+def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSettings(),
+                        first_free_knot: int = 2) -> CentroidalFunction:
+    """Build :class:`CentroidalFunction` for a :class:`planner.formulation.Layout`.
 
     Args:
-        lay: The layout (grid, contacts per knot, robot).
-        kinematics: ``k -> {"com": SX(3), "frames": {frame id: (p, R)}}`` of the NLP (its CoM
-            and frame placements at knot ``k``, 0..N); the foot frames must be among the frames.
-        dt: Knot spacing (CasADi parameter or number) [s].
+        lay: The layout (grid, contacts held per knot, robot).
         settings: Weights and options.
-        first_free_knot: Knots before it are fixed (no corner rows there).
+        first_free_knot: Knots before it are fixed (no corner rows there); knot N repeats N-1.
 
     Returns:
-        The terms; their variables go after the NLP's own, parameters likewise.
+        The function, its terms and the corner-row selection.
     """
-    robot = lay.robot
-    com = [kinematics(k)["com"] for k in range(lay.N + 1)]
+    N = lay.N
+    C = ca.SX.sym("com", 3, N + 1)
+    dt = ca.SX.sym("dt")
     contacts = layout_contacts(lay, cop_margin=settings.cop_margin)
-    centroidal = build_centroidal(com, dt, contacts, robot.mass, settings=settings)
-    rows, exprs = [], []
-    sole = robot.profile.sole
-    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
-    for k in range(first_free_knot, lay.N):
-        for fid in feet:
-            if fid in lay.contacts_at[k]:
-                continue
-            pos, R = kinematics(k)["frames"][fid]
-            side = robot.foot_side(robot.model.frames[fid].name)
-            for i, (x, y) in enumerate(sole.corners(side)):
-                rows.append((k, fid, i))
-                exprs.append((pos + ca.mtimes(R, ca.DM([x, y, 0.0])))[2])
-    return DynamicTerms(centroidal=centroidal, corner_rows=tuple(rows),
-                        corner_expr=ca.vertcat(*exprs) if exprs else ca.SX(0, 1))
+    terms = build_centroidal([C[:, k] for k in range(N + 1)], dt, contacts, lay.robot.mass, settings=settings)
+    g, lbg, ubg = terms.g()
+    fn = ca.Function("centroidal", [C, terms.variables, terms.parameters, dt], [g, terms.cost],
+                     ["com", "u", "p", "dt"], ["g", "cost"])
+    feet = [lay.robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    rows = tuple((k, fid, i) for k in range(first_free_knot, N) for fid in feet
+                 if fid not in lay.contacts_at[k] for i in range(4))
+    return CentroidalFunction(function=fn, terms=terms, corner_rows=rows, lbg=lbg, ubg=ubg)
 
 
-# ---------------------------------------------------------------------------------------------
-# Numeric checks on a finished plan
-# ---------------------------------------------------------------------------------------------
-
-
-def friction_violation(forces: np.ndarray, rotation: np.ndarray, mu: float) -> np.ndarray:
-    """How far each force is outside the Coulomb cone and the unilateral half-space [N].
+def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
+    """Heights (8,) of the left then right sole corners from symbolic joint placements [m].
 
     Args:
-        forces: (..., 3) world forces [N].
-        rotation: Contact frame in the world (3, 3).
-        mu: Friction coefficient [-].
+        kin: A :class:`planner.symbolic.SymbolicKinematics`.
+        oMi: Its joint placements at one knot.
+        robot: The robot (foot frames, sole rectangle).
 
     Returns:
-        (...,) violation >= 0: ``max(0, |f_t| - mu f_n, -f_n)``.
+        CasADi column: left corners 0..3, right corners 0..3 (profile order).
     """
-    local = np.asarray(forces, dtype=float) @ np.asarray(rotation)
-    fn = local[..., 2]
-    ft = np.linalg.norm(local[..., :2], axis=-1)
-    return np.maximum(0.0, np.maximum(ft - mu * fn, -fn))
-
-
-def center_of_pressure(points_in_frame: np.ndarray, forces: np.ndarray, rotation: np.ndarray, *, min_normal: float = 1e-6) -> np.ndarray:
-    """Centre of pressure of corner forces in the contact frame (x, y) [m]; NaN when unloaded.
-
-    Args:
-        points_in_frame: Corner points (n, 3) in the contact frame [m].
-        forces: (T, n, 3) world forces [N].
-        rotation: Contact frame in the world (3, 3).
-        min_normal: Total normal force below which the CoP is undefined [N].
-
-    Returns:
-        (T, 2) CoP in the contact frame.
-    """
-    fn = np.asarray(forces, dtype=float) @ np.asarray(rotation)[:, 2]  # (T, n)
-    total = fn.sum(axis=1)
-    cop = np.full((fn.shape[0], 2), np.nan)
-    ok = total > min_normal
-    cop[ok] = (fn[ok] @ points_in_frame[:, :2]) / total[ok, None]
-    return cop
-
-
-def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[float, float]) -> np.ndarray:
-    """Distance of each CoP (T, 2) outside the rectangle ``x_range`` x ``y_range`` [m] (0 inside, NaN ignored)."""
-    cop = np.asarray(cop, dtype=float)
-    dx = np.maximum(0.0, np.maximum(x_range[0] - cop[:, 0], cop[:, 0] - x_range[1]))
-    dy = np.maximum(0.0, np.maximum(y_range[0] - cop[:, 1], cop[:, 1] - y_range[1]))
-    out = np.hypot(dx, dy)
-    return np.where(np.isnan(out), 0.0, out)
+    out = []
+    for side in ("left", "right"):
+        R, p = kin.frame_placement(oMi, robot.frame_id(f"{side}_foot"))
+        for x, y in robot.profile.sole.corners(side):
+            out.append((p + ca.mtimes(R, ca.DM([x, y, 0.0])))[2])
+    return ca.vertcat(*out)
 
 
 def heading_guess(lay: Any) -> np.ndarray:
@@ -730,11 +692,63 @@ def _mean_heading(placements: Sequence[pin.SE3]) -> np.ndarray:
     return np.array([mid[0], mid[1], yaw])
 
 
+# ---------------------------------------------------------------------------------------------
+# Numeric checks on a finished plan
+# ---------------------------------------------------------------------------------------------
+
+
+def friction_violation(forces: np.ndarray, rotation: np.ndarray, mu: float) -> np.ndarray:
+    """How far each force is outside the Coulomb cone and the unilateral half-space [N].
+
+    Args:
+        forces: (..., 3) world forces [N].
+        rotation: Contact frame in the world (3, 3).
+        mu: Friction coefficient [-].
+
+    Returns:
+        (...,) violation >= 0: ``max(0, |f_t| - mu f_n, -f_n)``.
+    """
+    local = np.asarray(forces, dtype=float) @ np.asarray(rotation)
+    fn = local[..., 2]
+    ft = np.linalg.norm(local[..., :2], axis=-1)
+    return np.maximum(0.0, np.maximum(ft - mu * fn, -fn))
+
+
+def center_of_pressure(points_in_frame: np.ndarray, forces: np.ndarray, rotation: np.ndarray, *, min_normal: float = 1e-6) -> np.ndarray:
+    """Centre of pressure of corner forces in the contact frame (x, y) [m]; NaN when unloaded.
+
+    Args:
+        points_in_frame: Corner points (n, 3) in the contact frame [m].
+        forces: (T, n, 3) world forces [N].
+        rotation: Contact frame in the world (3, 3).
+        min_normal: Total normal force below which the CoP is undefined [N].
+
+    Returns:
+        (T, 2) CoP in the contact frame.
+    """
+    fn = np.asarray(forces, dtype=float) @ np.asarray(rotation)[:, 2]  # (T, n)
+    total = fn.sum(axis=1)
+    cop = np.full((fn.shape[0], 2), np.nan)
+    ok = total > min_normal
+    cop[ok] = (fn[ok] @ points_in_frame[:, :2]) / total[ok, None]
+    return cop
+
+
+def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[float, float]) -> np.ndarray:
+    """Distance of each CoP (T, 2) outside the rectangle ``x_range`` x ``y_range`` [m] (0 inside, NaN ignored)."""
+    cop = np.asarray(cop, dtype=float)
+    dx = np.maximum(0.0, np.maximum(x_range[0] - cop[:, 0], cop[:, 0] - x_range[1]))
+    dy = np.maximum(0.0, np.maximum(y_range[0] - cop[:, 1], cop[:, 1] - y_range[1]))
+    out = np.hypot(dx, dy)
+    return np.where(np.isnan(out), 0.0, out)
+
+
 def dynamic_checks(
     lay: Any,
     q: np.ndarray,
     com: np.ndarray,
-    terms: DynamicTerms,
+    terms: CentroidalTerms,
+    corner_rows: Sequence[tuple[int, int, int]],
     force_values: np.ndarray,
     *,
     force_tolerance: float = 1e-3,
@@ -751,8 +765,9 @@ def dynamic_checks(
         lay: The layout.
         q: Configurations (N+1, nq).
         com: CoM per knot (N+1, 3) [m].
-        terms: The dynamic terms of the NLP.
-        force_values: Solution values of ``terms.centroidal.variables``.
+        terms: The centroidal terms of the NLP.
+        corner_rows: (knot, foot frame id, corner) rows of swinging sole corners.
+        force_values: Solution values of ``terms.variables``.
         force_tolerance: Accepted force-law violation, as a fraction of the body weight [-].
         position_tolerance: Accepted CoP excursion and corner depth [m].
 
@@ -761,7 +776,7 @@ def dynamic_checks(
     """
     from planner.plan import ConstraintCheck
 
-    cen = terms.centroidal
+    cen = terms
     t = np.asarray(lay.t, dtype=float)
     dt = float(t[1] - t[0])
     tol_n = force_tolerance * cen.weight
@@ -808,7 +823,7 @@ def dynamic_checks(
     depth = []
     sole = lay.robot.profile.sole
     by_knot: dict[int, list[tuple[int, int]]] = {}
-    for k, fid, i in terms.corner_rows:
+    for k, fid, i in corner_rows:
         by_knot.setdefault(k, []).append((fid, i))
     for k, rows in by_knot.items():
         pin.framesForwardKinematics(model, data, q[k])
@@ -832,24 +847,25 @@ def contact_geometry_points(robot: Robot, frame: str) -> np.ndarray | None:
 __all__ = [
     "GRAVITY",
     "CentroidalSettings",
+    "CentroidalFunction",
     "CentroidalTerms",
     "ConstraintBlock",
     "ContactGeometry",
-    "DynamicTerms",
     "angular_momentum_rate",
     "build_centroidal",
     "build_centroidal_for_spec",
     "center_of_pressure",
+    "centroidal_function",
     "com_acceleration",
     "com_dynamics_residual",
     "contact_geometry",
     "contact_geometry_points",
     "contacts_per_knot",
     "dynamic_checks",
-    "dynamic_terms",
     "layout_contacts",
     "cop_violation",
     "friction_pyramid",
     "friction_violation",
     "heading_guess",
+    "sole_corner_heights",
 ]
