@@ -316,3 +316,44 @@ def test_heading_guess_follows_the_feet(talos):
         pin.framesForwardKinematics(talos.model, data, q_end)
         final = [c for c in spec.phases[-1].contacts if c.frame == talos.frame(f"{side}_foot")][0]
         np.testing.assert_allclose(data.oMf[talos.frame_id(f"{side}_foot")].translation[:2], final.placement.position[:2], atol=1e-6)
+
+
+def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
+    """Standing still: the weight split over the 8 corners passes every check; a sliding force fails friction."""
+    from planner.centroidal import centroidal_function, dynamic_checks
+    from planner.formulation import make_layout
+    from tasks.actions import Action
+    from tasks.compose import compile_actions
+
+    spec = compile_actions([Action(name="step", params={"direction": "forward", "length": 0.1, "count": 1})], talos, dt=0.1)
+    lay = make_layout(spec, talos)
+    cf = centroidal_function(lay, settings=CentroidalSettings(cop_margin=0.0))
+    terms = cf.terms
+    assert cf.function.n_in() == 4 and terms.n_variables > 0
+    # every swing knot has the 4 corners of the lifted foot
+    swing = {(k, fid) for k, fid, _ in cf.corner_rows}
+    assert all(fid not in lay.contacts_at[k] for k, fid in swing)
+    assert len(cf.corner_rows) == 4 * len(swing)
+    # a static plan: q standing everywhere, CoM constant, weight shared by the active corners
+    q = np.tile(talos.q_standing, (lay.N + 1, 1))
+    com = np.tile(pin.centerOfMass(talos.model, talos.data(), talos.q_standing), (lay.N + 1, 1))
+    u = np.zeros(terms.n_variables)
+    for k in terms.dynamics_knots:
+        idx = np.concatenate([i.reshape(-1, 3) for i in terms.force_index[k].values()])
+        u[idx[:, 2]] = 1.0 / len(idx)
+    g, cost = cf.function(np.array(com.T), u, terms.parameter_values, lay.dt)
+    g = np.array(g).ravel()
+    assert np.all(g >= cf.lbg - 1e-9) and np.all(g <= cf.ubg + 1e-9)
+    # swing corners: at standing the "swinging" foot is on the ground (0 m), which the check accepts
+    checks = {c.name: c for c in dynamic_checks(lay, q, com, terms, cf.corner_rows, u)}
+    assert all(c.ok for c in checks.values()), [c for c in checks.values() if not c.ok]
+    assert checks["CoM dynamics m(c'' - g) = sum f"].violation < 1e-6
+    k = terms.dynamics_knots[0]
+    frame, idx = next(iter(terms.force_index[k].items()))
+    u_bad = u.copy()
+    u_bad[idx[0, 0]] = u[idx[0, 2]]  # tangential force = normal force: mu = 1 > 0.7
+    bad = {c.name: c for c in dynamic_checks(lay, q, com, terms, cf.corner_rows, u_bad)}
+    assert not bad[f"{frame} friction cone"].ok
+    expected = (1.0 - talos.profile.friction_coefficient) * u[idx[0, 2]] * terms.weight
+    assert bad[f"{frame} friction cone"].violation == pytest.approx(expected, rel=1e-9)
+    assert not bad["CoM dynamics m(c'' - g) = sum f"].ok  # the extra force is unbalanced
