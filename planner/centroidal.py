@@ -630,6 +630,140 @@ def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
     return ca.vertcat(*out)
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DynamicBlocks:
+    """The dynamic part of a stage-wise NLP with its hand-assembled derivatives (MX).
+
+    The NLP's variables are ``[x_kin; u]`` (the chart displacements of the variable knots, then
+    the force variables). Rows: the centroidal rows (dynamics, friction), then the sole-corner
+    heights of swinging feet.
+
+    Attributes:
+        f: Cost added to the objective.
+        g: Constraint rows (column).
+        lbg, ubg: Their bounds.
+        grad_x, grad_u: Gradient of ``f`` [MX columns].
+        jac_x, jac_u: Jacobian of ``g`` w.r.t. ``x_kin`` and ``u``.
+        hess_xx, hess_xu, hess_uu: Hessian blocks of ``lam_f f + lam . g``.
+    """
+
+    f: Any
+    g: Any
+    lbg: np.ndarray
+    ubg: np.ndarray
+    grad_x: Any
+    grad_u: Any
+    jac_x: Any
+    jac_u: Any
+    hess_xx: Any
+    hess_xu: Any
+    hess_uu: Any
+
+
+def _kinematic_functions(lay: Any) -> tuple[ca.Function, ca.Function]:
+    """SX functions of one knot: (dq, q_ref) -> (c, Jc, z, Jz) and (dq, q_ref, nu, eta) -> hess(nu.c + eta.z)."""
+    from planner.symbolic import SymbolicKinematics
+
+    robot = lay.robot
+    kin = SymbolicKinematics(robot.model)
+    dq = ca.SX.sym("dq", robot.nv)
+    q_ref = ca.SX.sym("q_ref", robot.nq)
+    oMi = kin.joint_placements(q_ref, dq)
+    c = kin.com(oMi)
+    z = sole_corner_heights(kin, oMi, robot)
+    nu = ca.SX.sym("nu", 3)
+    eta = ca.SX.sym("eta", 8)
+    first = ca.Function("dyn_kin", [dq, q_ref], [c, ca.jacobian(c, dq), z, ca.jacobian(z, dq)])
+    second = ca.Function("dyn_kin_hess", [dq, q_ref, nu, eta], [ca.hessian(ca.dot(nu, c) + ca.dot(eta, z), dq)[0]])
+    return first, second
+
+
+def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: Any, p: Any, dt: Any,
+                   lam_f: Any, lam: Any) -> DynamicBlocks:
+    """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
+
+    The CoM ``c_k`` and the sole-corner heights of every variable knot come from one mapped SX
+    function (value and Jacobian), their curvature from a second one (the Hessian of
+    ``nu_k . c_k + eta_k . z_k`` with the multipliers ``nu_k`` the centroidal rows put on
+    ``c_k``); the centroidal function's own derivatives w.r.t. ``(C, u)`` are chained through
+    the CoM Jacobians. Knots 0 and 1 are at ``dq = 0`` (constant), knot N repeats N-1.
+
+    Args:
+        lay: The layout.
+        cf: The centroidal function of the layout.
+        x_kin: Chart displacements of knots 2..N-1 (MX, nv (N-2)).
+        u: Force variables (MX, ``cf.terms.n_variables``).
+        q_ref: Reference configuration (MX, nq).
+        p: Contact parameters (MX, ``cf.terms.parameter_values.size``).
+        dt: Knot spacing (MX scalar) [s].
+        lam_f: Objective multiplier (MX scalar).
+        lam: Multipliers of this block's rows (MX, len(lbg)).
+
+    Returns:
+        The blocks.
+    """
+    robot, N = lay.robot, lay.N
+    nv, n = robot.nv, lay.N - 2
+    first, second = _kinematic_functions(lay)
+    X = ca.reshape(x_kin, nv, n)
+    Qr = ca.repmat(q_ref, 1, n)
+    Cv, JC, Z, JZ = first.map(n)(X, Qr)
+    c0 = first(ca.MX.zeros(nv), q_ref)[0]
+    C = ca.horzcat(c0, c0, Cv, Cv[:, n - 1])
+    # selection E: vec(C) (3(N+1)) <- vec(Cv) (3n); knot N copies knot N-1
+    rows, cols = [], []
+    for k in range(2, N + 1):
+        j = min(k, N - 1) - 2
+        rows += [3 * k + i for i in range(3)]
+        cols += [3 * j + i for i in range(3)]
+    E = ca.DM(ca.Sparsity.triplet(3 * (N + 1), 3 * n, rows, cols), 1.0)
+    M = ca.mtimes(E, ca.diagcat(*ca.horzsplit(JC, nv)))  # d vec(C) / d x_kin
+    # centroidal function derivatives w.r.t. (vec C, u)
+    Cs = ca.SX.sym("C", 3, N + 1)
+    Us = ca.SX.sym("u", cf.terms.n_variables)
+    Ps = ca.SX.sym("p", cf.terms.parameter_values.size)
+    dts = ca.SX.sym("dt")
+    gs, fs = cf.function(Cs, Us, Ps, dts)
+    n_c = gs.numel()
+    ls = ca.SX.sym("lam", n_c)
+    sig = ca.SX.sym("sigma")
+    w = ca.vertcat(ca.vec(Cs), Us)
+    lag = sig * fs + ca.dot(ls, gs)
+    dfun = ca.Function("dyn_centroidal_d", [Cs, Us, Ps, dts, sig, ls],
+                       [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w), ca.gradient(lag, w), ca.hessian(lag, w)[0]])
+    lam_c = lam[:n_c]
+    lam_z = lam[n_c:]
+    g_c, f_c, J_w, G_w, L_w, H_w = dfun(C, u, p, dt, lam_f, lam_c)
+    m = 3 * (N + 1)
+    J_C, J_U = J_w[:, :m], J_w[:, m:]
+    G_C, G_U = G_w[:m], G_w[m:]
+    H_CC, H_CU, H_UU = H_w[:m, :m], H_w[:m, m:], H_w[m:, m:]
+    nu = ca.reshape(ca.mtimes(E.T, L_w[:m]), 3, n)  # multipliers on each variable knot's CoM
+    # swinging sole corners: rows picked from Z (8 x n)
+    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    zr = [(k - 2) * 8 + feet.index(fid) * 4 + i for k, fid, i in cf.corner_rows]
+    n_z = len(zr)
+    Sz = ca.DM(ca.Sparsity.triplet(n_z, 8 * n, list(range(n_z)), zr), 1.0)
+    g_z = ca.mtimes(Sz, ca.vec(Z))
+    jac_z = ca.mtimes(Sz, ca.diagcat(*ca.horzsplit(JZ, nv)))
+    eta = ca.reshape(ca.mtimes(Sz.T, lam_z), 8, n) if n_z else ca.MX.zeros(8, n)
+    HK = second.map(n)(X, Qr, nu, eta)
+    hess_xx = ca.mtimes(M.T, ca.mtimes(H_CC, M)) + ca.diagcat(*ca.horzsplit(HK, nv))
+    return DynamicBlocks(
+        f=f_c,
+        g=ca.vertcat(g_c, g_z),
+        lbg=np.concatenate([cf.lbg, np.zeros(n_z)]),
+        ubg=np.concatenate([cf.ubg, np.full(n_z, np.inf)]),
+        grad_x=ca.mtimes(M.T, G_C),
+        grad_u=G_U,
+        jac_x=ca.vertcat(ca.mtimes(J_C, M), jac_z),
+        jac_u=ca.vertcat(J_U, ca.MX(n_z, cf.terms.n_variables)),
+        hess_xx=hess_xx,
+        hess_xu=ca.mtimes(M.T, H_CU),
+        hess_uu=H_UU,
+    )
+
+
 def heading_guess(lay: Any) -> np.ndarray:
     """Initial guess of the chart displacements (N+1, nv): the base follows the feet.
 
@@ -851,6 +985,7 @@ __all__ = [
     "CentroidalTerms",
     "ConstraintBlock",
     "ContactGeometry",
+    "DynamicBlocks",
     "angular_momentum_rate",
     "build_centroidal",
     "build_centroidal_for_spec",
@@ -861,6 +996,7 @@ __all__ = [
     "contact_geometry",
     "contact_geometry_points",
     "contacts_per_knot",
+    "dynamic_blocks",
     "dynamic_checks",
     "layout_contacts",
     "cop_violation",

@@ -357,3 +357,40 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
     expected = (1.0 - talos.profile.friction_coefficient) * u[idx[0, 2]] * terms.weight
     assert bad[f"{frame} friction cone"].violation == pytest.approx(expected, rel=1e-9)
     assert not bad["CoM dynamics m(c'' - g) = sum f"].ok  # the extra force is unbalanced
+
+
+def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
+    """Hand-assembled gradient, Jacobian and Lagrangian Hessian equal CasADi AD at a random point."""
+    from planner.centroidal import centroidal_function, dynamic_blocks
+    from planner.formulation import make_layout
+
+    feet = _feet(talos)
+    spec = TaskSpec(robot="talos", phases=(
+        Phase(name="push", duration=0.2, contacts=feet),
+        Phase(name="flight", duration=0.2),
+        Phase(name="land", duration=0.2, contacts=feet),
+    ), dt=0.1, dynamic=True)
+    lay = make_layout(spec, talos)
+    cf = centroidal_function(lay)
+    nv, n = talos.nv, lay.N - 2
+    x = ca.MX.sym("x", nv * n)
+    u = ca.MX.sym("u", cf.terms.n_variables)
+    q_ref = ca.MX.sym("q_ref", talos.nq)
+    p = ca.MX.sym("p", cf.terms.parameter_values.size)
+    dt = ca.MX.sym("dt")
+    lam_f = ca.MX.sym("lam_f")
+    n_g = len(cf.lbg) + len(cf.corner_rows)
+    lam = ca.MX.sym("lam", n_g)
+    b = dynamic_blocks(lay, cf, x, u, q_ref, p, dt, lam_f, lam)
+    assert b.g.numel() == n_g == len(b.lbg)
+    assert len(cf.corner_rows) == 8 * sum(1 for k in range(2, lay.N) if not lay.contacts_at[k])
+    w = ca.vertcat(x, u)
+    lag = lam_f * b.f + ca.dot(lam, b.g)
+    ours = ca.Function("ours", [x, u, q_ref, p, dt, lam_f, lam], [
+        ca.vertcat(b.grad_x, b.grad_u), ca.horzcat(b.jac_x, b.jac_u),
+        ca.vertcat(ca.horzcat(b.hess_xx, b.hess_xu), ca.horzcat(b.hess_xu.T, b.hess_uu))])
+    ad = ca.Function("ad", [x, u, q_ref, p, dt, lam_f, lam], [ca.gradient(b.f, w), ca.jacobian(b.g, w), ca.hessian(lag, w)[0]])
+    args = [rng.normal(size=nv * n) * 0.05, rng.uniform(0, 0.2, cf.terms.n_variables), talos.q_standing,
+            cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g)]
+    for a, r in zip(ours(*args), ad(*args), strict=True):
+        np.testing.assert_allclose(np.array(ca.densify(a)), np.array(ca.densify(r)), atol=1e-8, rtol=1e-8)
