@@ -1,0 +1,109 @@
+"""``wbmp show`` and ``wbmp export`` on a real motion file."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+motionfile = pytest.importorskip("wbmp.motionfile")
+
+from wbmp.cli import main  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def motion_path(tmp_path_factory, talos, synth_plan, synth_execution):
+    ex = synth_execution
+    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    path = tmp_path_factory.mktemp("motion") / "squat.npz"
+    return motionfile.save_motion(path, synth_plan, talos, execution=execution,
+                                  report={"certificate": {"ok": True}})
+
+
+def test_export_json_has_the_same_numbers(tmp_path, motion_path, synth_plan, synth_execution, capsys):
+    out = tmp_path / "m.json"
+    assert main(["export", str(motion_path), "--format", "json", "--out", str(out)]) == 0
+    assert f"json: {out}" in capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    for key in ("t", "q", "v", "com"):
+        np.testing.assert_array_equal(np.asarray(doc[key]), getattr(synth_plan, key), err_msg=key)
+    np.testing.assert_array_equal(np.asarray(doc["exec_q"]), synth_execution["exec_q"])
+    np.testing.assert_array_equal(np.asarray(doc["exec_tau"]), synth_execution["exec_tau"])
+    assert doc["robot"] == "talos" and doc["spec"]["name"] == "synthetic squat"
+    assert doc["report"]["certificate"] == {"ok": True}
+
+
+def test_export_csv_has_the_same_numbers(tmp_path, motion_path, synth_plan, synth_execution, talos):
+    out = tmp_path / "m.csv"
+    assert main(["export", str(motion_path), "--out", str(out)]) == 0  # format from the suffix
+    lines = out.read_text().splitlines()
+    meta = {ln[2:].split(":", 1)[0]: json.loads(ln[2:].split(":", 1)[1]) for ln in lines if ln.startswith("# ")}
+    assert meta["robot"] == "talos" and meta["spec"]["name"] == "synthetic squat"
+    header = next(ln for ln in lines if not ln.startswith("#")).split(",")
+    assert header[:4] == ["t", "q_base_x", "q_base_y", "q_base_z"]
+    assert f"q_{talos.joint_names[0]}" in header and header[-3:] == ["com_x", "com_y", "com_z"]
+    rows = np.loadtxt(out, delimiter=",", comments="#", skiprows=len(meta) + 1)
+    np.testing.assert_array_equal(rows[:, 0], synth_plan.t)
+    np.testing.assert_array_equal(rows[:, 1:1 + talos.nq], synth_plan.q)
+    np.testing.assert_array_equal(rows[:, -3:], synth_plan.com)
+    exec_rows = np.loadtxt(tmp_path / "m.exec.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(exec_rows[:, 0], synth_execution["exec_t"])
+    np.testing.assert_array_equal(exec_rows[:, -(talos.nv - 6):], synth_execution["exec_tau"])
+
+
+def test_export_refuses_contradictions(tmp_path, motion_path, capsys):
+    assert main(["export", str(motion_path), "--format", "csv", "--out", str(tmp_path / "x.json")]) == 2
+    assert "ends in .json but --format is csv" in capsys.readouterr().err
+    assert main(["export", str(tmp_path / "missing.npz")]) == 2
+
+
+def test_show_writes_html_and_plots_without_a_server(tmp_path, motion_path, talos, capsys):
+    html, plots = tmp_path / "m.html", tmp_path / "plots"
+    assert main(["show", str(motion_path), "--html", str(html), "--plots", str(plots), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert f"html: {html}" in out and "plot: " in out
+    text = html.read_text()
+    assert '"simulated"' in text and "synthetic squat" in text  # the execution came along
+    assert sorted(p.name for p in plots.iterdir()) == ["com_support.png", "joints.png", "keyframes.png",
+                                                        "torques.png"]
+    assert main(["show", str(tmp_path / "missing.npz")]) == 2
+
+
+@pytest.mark.slow
+def test_show_live_stops_on_ctrl_c(motion_path):
+    """`wbmp show motion.npz` prints a loopback URL, serves, and on SIGINT exits 0 with the
+    server's port closed."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen([sys.executable, "-m", "wbmp.cli", "show", str(motion_path), "--quiet"],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90.0
+        line = ""
+        while "http://" not in line and time.monotonic() < deadline and proc.poll() is None:
+            line = proc.stdout.readline()
+        assert "http://127.0.0.1:" in line, f"no URL printed: {line!r} {proc.stderr.read() if proc.poll() else ''}"
+        port = int(line.split("http://127.0.0.1:")[1].split("/")[0])
+        import urllib.request
+
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/static/", timeout=10) as r:
+            assert r.status == 200
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=15) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+    with pytest.raises(OSError):
+        urllib.request.urlopen(f"http://127.0.0.1:{port}/static/", timeout=5)
