@@ -69,7 +69,8 @@ class WbcSettings:
             of pressure off the sole's edges [m].
         torque_scale: Fraction of each torque limit the controller may use [-].
         com_drift: Include the CoM velocity-product term (one extra Pinocchio call, ~7 us).
-        eps_abs: QP absolute tolerance. max_iter: QP iteration cap.
+        eps_abs: QP absolute tolerance. max_iter, max_iter_in: proxsuite outer / inner iteration caps
+            (they bound the cost of a failing tick).
         dense_backend: proxsuite dense factorization: ``Automatic``, ``PrimalDualLDLT`` or ``PrimalLDLT``.
     """
 
@@ -95,6 +96,7 @@ class WbcSettings:
     com_drift: bool = True
     eps_abs: float = 1e-6
     max_iter: int = 50
+    max_iter_in: int = 1500
     dense_backend: str = "Automatic"
 
     def __post_init__(self) -> None:
@@ -414,6 +416,7 @@ class WholeBodyController:
         else:
             self.failures += 1
             tau = self._prev_tau.copy()
+            self._qp = None  # cold start (and a fresh preconditioner) on the next tick
         self._stance_rotations = stance
         self.last = TickInfo(ok, iterations, status)
         return tau
@@ -452,6 +455,7 @@ class WholeBodyController:
                 qp.settings.eps_abs = s.eps_abs
                 qp.settings.eps_rel = 0.0
                 qp.settings.max_iter = s.max_iter
+                qp.settings.max_iter_in = s.max_iter_in
                 qp.settings.verbose = False
                 qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
                 qp.init(self.H, self.g, self.A, self.b, self.C, self.l, self.u)

@@ -86,6 +86,7 @@ class SimSettings:
         target_margin: Execution tolerance added to each spec target's tolerance [m].
         qp_failure_limit: Largest fraction of controller ticks whose QP failed [-].
         stop_after_fall: Simulated time kept after a fall before stopping [s].
+        stop_after_qp_failure: Stop when the controller QP has failed on every tick for this long [s].
     """
 
     timestep: float = 0.001
@@ -103,6 +104,7 @@ class SimSettings:
     target_margin: float = 0.03
     qp_failure_limit: float = 0.01
     stop_after_fall: float = 0.3
+    stop_after_qp_failure: float = 0.5
 
     def __post_init__(self) -> None:
         if not (self.timestep > 0 and self.control_every >= 1 and self.settle_time >= 0):
@@ -183,6 +185,7 @@ def simulate(
     was_failures = 0
     qp_failure_times: list[float] = []
 
+    failing_since: float | None = None
     wall0 = time.perf_counter()
     n_done = 0
     for i in range(n_ticks):
@@ -194,6 +197,9 @@ def simulate(
         if ctrl.failures != was_failures:
             was_failures = ctrl.failures
             qp_failure_times.append(t)
+            failing_since = t if failing_since is None else failing_since
+        else:
+            failing_since = None
         d.ctrl[sm.actuator_index] = tau
         ts[i] = t
         qs[i] = q
@@ -222,6 +228,10 @@ def simulate(
             events.append(Event(t, "fall", f"base height {q[2]:.2f} m, tilt {math.degrees(_tilt(q[3:7])):.0f} deg"))
         if fallen_at is not None and t - fallen_at >= s.stop_after_fall:
             events.append(Event(t, "stopped", "simulation stopped after the fall"))
+            break
+        if failing_since is not None and t - failing_since >= s.stop_after_qp_failure:
+            events.append(Event(t, "stopped", f"simulation stopped: the controller QP failed on every tick since "
+                                              f"t = {failing_since:.3f} s"))
             break
         for _ in range(s.control_every):
             if push is not None:
