@@ -13,6 +13,11 @@ def default_cache_dir() -> str:
     return env if env else str(Path.home() / ".cache" / "wbmp")
 
 
+def default_compile() -> bool:
+    """False when ``$WBMP_COMPILE`` is ``0`` (no gcc, no disk cache), else True."""
+    return os.environ.get("WBMP_COMPILE", "1").strip() not in ("0", "false", "no")
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PlannerSettings:
     """How :func:`planner.trajopt.plan` builds and solves the NLP.
@@ -26,7 +31,8 @@ class PlannerSettings:
             constraints, and 1000 cut the Talos squat from 25 to 17 iterations.
         use_cache: Reuse solvers in this process and compiled solvers on disk.
         compile: Compile new solvers to C with gcc and store them in ``cache_dir`` (needs
-            ``use_cache``). Off: solvers are built in memory (CasADi SX, no compilation).
+            ``use_cache``; default True unless ``$WBMP_COMPILE=0``). Off: solvers are built in
+            memory only (no gcc).
         cache_dir: Directory of the on-disk solver cache (default ``$WBMP_CACHE_DIR`` or
             ``~/.cache/wbmp``).
         compile_flags: gcc flags for generated code (``-O0``: the code is ~3 MB for Talos and
@@ -45,7 +51,7 @@ class PlannerSettings:
     print_level: int = 0
     objective_scaling: float = 1000.0
     use_cache: bool = True
-    compile: bool = True
+    compile: bool = field(default_factory=default_compile)
     cache_dir: str = field(default_factory=default_cache_dir)
     compile_flags: tuple[str, ...] = ("-O0",)
     compile_timeout: float = 300.0
