@@ -37,11 +37,12 @@ from tasks.primitives import (
     nominal_duration,
     standing_geometry,
 )
-from tasks.specs import CoMBounds, Contact, Phase, TaskSpec
+from tasks.specs import CoMBounds, Contact, JointTarget, Phase, TaskSpec
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
 DT_MAX = 0.1  # [s] coarser grids cannot resolve a wave
+WAYPOINT_WEIGHT = 100.0  # cost weight of each joint's standing angle at a transition [1/rad^2]
 
 PART_WORDS = {"legs": "the legs", "com": "the centre of mass", "torso": "the torso", "head": "the head",
               "left_arm": "the left arm", "right_arm": "the right arm"}
@@ -93,6 +94,23 @@ def _stand_phase(name: str, duration: float, robot: Robot, stance: Stance) -> Ph
     return Phase(name=name, duration=duration, contacts=contacts)
 
 
+def standing_waypoint(robot: Robot, label: str, time: float, *, weight: float = WAYPOINT_WEIGHT) -> tuple[JointTarget, ...]:
+    """Joint targets (costs) that bring every one-dof joint to its standing angle at ``time``.
+
+    The standing posture is defined by joint angles, so the waypoint holds wherever the feet
+    are (after a turn too); the base follows from the stance contacts.
+    """
+    model = robot.model
+    out = []
+    for j in range(2, model.njoints):
+        joint = model.joints[j]
+        if joint.nv != 1:
+            continue
+        out.append(JointTarget(name=f"{label}: {model.names[j]} at standing", joint=model.names[j],
+                               value=float(robot.q_standing[joint.idx_q]), time=time, weight=weight))
+    return tuple(out)
+
+
 def compile_actions(
     actions: Sequence[Action | Mapping[str, Any]],
     robot: Robot,
@@ -139,15 +157,19 @@ def compile_actions(
 
     stance = Stance.standing(robot)
     phases: list[Phase] = []
+    waypoints: list[JointTarget] = []
     k = 0
     if knots(stand_time):
         phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
         k += knots(stand_time)
+        waypoints.extend(standing_waypoint(robot, "start", knot_time(k, dt)))
     fragments: list[Fragment] = []
     for gi, group in enumerate(groups):
         if gi > 0 and knots(transition_time):
-            phases.append(_stand_phase("transition", knot_time(knots(transition_time), dt), robot, stance))
-            k += knots(transition_time)
+            n_tr = knots(transition_time)
+            phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
+            waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
+            k += n_tr
         _check_parts(group)
         durations = []
         for i, a in group:
@@ -179,7 +201,10 @@ def compile_actions(
         stance = owner.end_stance
         fragments.extend(group_fragments)
     if knots(stand_time):
+        waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
         phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
+        k += knots(stand_time)
+    waypoints.extend(standing_waypoint(robot, "end", knot_time(k, dt)))
     margin = standing_geometry(robot).support_margin
     bounds = (CoMBounds(name="balance", support_polygon=True, margin=margin),)
     return TaskSpec(
@@ -188,7 +213,7 @@ def compile_actions(
         targets=tuple(t for f in fragments for t in f.targets),
         com_targets=tuple(t for f in fragments for t in f.com_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
-        joint_targets=tuple(t for f in fragments for t in f.joint_targets),
+        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
         name=name or describe_actions(actions),

@@ -150,6 +150,8 @@ def build_turn_head(b: FragmentBuilder) -> Fragment:
     rot = turned_head_rotation(b.robot, b.params["direction"], b.params["angle"])
     b.frame_target(f"head turned {b.params['direction']}", "head", rpy=b.world_rotation(rot),
                    window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), orientation_tolerance=ORIENTATION_TOLERANCE)
+    b.frame_target("head forward again", "head", rpy=b.world_rotation(b.geometry.rotation("head")), time=T,
+                   orientation_tolerance=ORIENTATION_TOLERANCE)
     b.phase(f"look {b.params['direction']}", T)
     return b.finish(frozenset({"head"}))
 

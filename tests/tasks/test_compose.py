@@ -18,8 +18,23 @@ def _stand_contacts(robot, phase):
     return {c.frame for c in phase.contacts} == {robot.frame("left_foot"), robot.frame("right_foot")}
 
 
+WAYPOINT_LABELS = ("start", "transition", "stand", "end")
+
+
 def _items(spec):
-    return (*spec.targets, *spec.com_targets, *spec.joint_targets)
+    """The actions' own targets (the standing waypoints excluded)."""
+    return tuple(t for t in (*spec.targets, *spec.com_targets, *spec.joint_targets)
+                 if not t.name.startswith(WAYPOINT_LABELS))
+
+
+def _waypoint_times(spec):
+    """Label -> time of each standing waypoint (every one-dof joint at its standing angle)."""
+    out: dict[str, set] = {}
+    for t in spec.joint_targets:
+        label = t.name.split(":")[0]
+        if label.startswith(WAYPOINT_LABELS):
+            out.setdefault(label, set()).add(t.time)
+    return out
 
 
 def _times(item):
@@ -44,6 +59,15 @@ def test_sequence_starts_and_ends_standing_with_transitions(talos):
     # both actions end at the standing posture: squat top at its end, hand back at rest at the wave's end
     assert max(c.time for c in spec.com_targets) == pytest.approx(spec.horizon - STAND_TIME)
     assert spec.name == "wave, then squat"
+    # standing waypoints: end of the first stand, middle of the transition, start and end of the last stand
+    times = _waypoint_times(spec)
+    assert {k: min(v) for k, v in times.items() if len(v) == 1} == pytest.approx({
+        "start": STAND_TIME, "transition 1": squat_start - TRANSITION_TIME / 2,
+        "stand": spec.horizon - STAND_TIME, "end": spec.horizon})
+    n_joints = sum(1 for j in talos.model.joints[2:] if j.nv == 1)
+    assert len(spec.joint_targets) == 4 * n_joints
+    q = {t.joint: t.value for t in spec.joint_targets}
+    assert q["leg_left_4_joint"] == pytest.approx(talos.q_standing[talos.model.joints[talos.model.getJointId("leg_left_4_joint")].idx_q])
 
 
 def test_repetition_of_an_action(g1):
@@ -195,7 +219,13 @@ def test_composition_timing_properties(talos, actions, dt):
         spans.append((lo, hi, {f"{i + 1} {a.name}" for i, a in group}))
     for (_, hi0, _), (lo1, _, _) in zip(spans, spans[1:]):
         assert lo1 - hi0 == pytest.approx(TRANSITION_TIME, abs=dt)
-    for item in (*spec.targets, *spec.com_targets):
+    for label, times in _waypoint_times(spec).items():
+        (t,) = times
+        to_knot(t, dt)
+        if label.startswith("transition"):
+            i = int(label.split()[1])
+            assert spans[i - 1][1] <= t <= spans[i][0]
+    for item in _items(spec):
         label = item.name.split(":")[0]
         (lo, hi) = next((lo, hi) for lo, hi, labels in spans if label in labels)
         for t in _times(item):

@@ -79,6 +79,22 @@ def _target(spec, contains):
     return t
 
 
+STANDING_JOINT_ATOL = 0.01  # [rad] joint angles at a standing waypoint
+STANDING_COM_ATOL = 0.005  # [m] CoM at a standing waypoint
+
+
+def _assert_passes_through_standing(robot, spec, plan):
+    """At every standing waypoint of the spec the joints are at their standing angles and the
+    CoM at its standing position."""
+    times = sorted({t.time for t in spec.joint_targets if t.name.startswith(("start", "transition", "stand", "end"))})
+    assert times
+    for t in times:
+        k = int(round(t / plan.dt))
+        dq = pin.difference(robot.model, robot.q_standing, plan.q[k])[6:]
+        assert np.abs(dq).max() <= STANDING_JOINT_ATOL, f"t = {t:g} s"
+        assert np.linalg.norm(plan.com[k] - standing_geometry(robot).com) <= STANDING_COM_ATOL, f"t = {t:g} s"
+
+
 def _count_dips(z, low, high):
     """Number of times ``z`` goes below ``low`` after having been above ``high``."""
     count, armed = 0, True
@@ -212,7 +228,8 @@ def test_turn_head_on_talos(talos, solve):
 
 
 def test_three_actions_in_one_plan(talos, solve):
-    """wave, then squat, then raise_arms: one plan; each part meets its intent."""
+    """wave, then squat, then raise_arms: one plan; each part meets its intent, and the robot
+    passes through its standing posture between them."""
     actions = [Action(name="wave", params={"repeat": 1}), Action(name="squat", params={"depth": 0.1}),
                Action(name="raise_arms", params={"arm": "left"})]
     spec, plan = solve(talos, actions)
@@ -225,6 +242,7 @@ def test_three_actions_in_one_plan(talos, solve):
     assert _count_dips(plan.com[:, 2], g.com[2] - 0.09 + HARD_SLACK, g.com[2] - 0.01 - HARD_SLACK) == 1
     raised = _target(spec, "3 raise_arms: left hand raised")
     assert _frame_positions(talos, plan, "left_hand")[_knots_in(plan, raised.window), 2].min() > talos.height()
+    _assert_passes_through_standing(talos, spec, plan)
 
 
 @pytest.mark.slow
@@ -239,6 +257,7 @@ def test_wave_while_squatting_in_one_plan(g1, solve):
     hand = _frame_positions(g1, plan, "right_hand")[ks]
     w = wave_geometry(g, "right")
     assert _count_crossings((hand - w["midline"]) @ w["outward"], w["amplitude"] / 3) == 4
+    _assert_passes_through_standing(g1, spec, plan)
 
 
 @pytest.mark.slow
