@@ -126,7 +126,8 @@ def plot_com_support(path: Path, robot: Robot, plan, *, simulated: vm.Motion | N
     required = [b.margin for b in plan.spec.com_bounds if b.support_polygon]
     ax_margin.axhline(0.0, color="k", lw=1)
     if required:
-        ax_margin.axhline(max(required), color=SUPPORT_EDGE, ls=":", lw=1, label=f"required margin {max(required):.3f} m")
+        ax_margin.axhline(max(required), color=SUPPORT_EDGE, ls=":", lw=1,
+                          label=f"required margin {max(required):.3f} m")
     for ph in phases:
         ax_margin.axvline(ph.start, color="#999", lw=0.5)
     ax_margin.set_xlabel("t [s]")

@@ -10,6 +10,7 @@ import re
 import numpy as np
 import pytest
 
+from tests.viz.conftest import SQUAT_DEPTH
 from viz import html as vh
 from viz import scene
 from viz._meshcat import umsgpack
@@ -129,8 +130,9 @@ def test_planned_and_simulated_animations(page, talos, synth_plan, synth_executi
     np.testing.assert_allclose(com[-1], synth_plan.com[-1], atol=1e-9)
     assert len(com) == int(round(synth_plan.t[-1] * vh.FPS)) + 1
     # the base link goes down by the squat depth at mid-motion
-    base = np.asarray(by_path[f"/meshcat/wbmp/robot/planned/{scene.node_name(talos.visual_model.geometryObjects[0].name)}"][0]["values"]).reshape(-1, 3)
-    assert base[0, 2] - base[len(base) // 2, 2] == pytest.approx(0.12, abs=1e-3)
+    base_node = scene.node_name(talos.visual_model.geometryObjects[0].name)
+    base = np.asarray(by_path[f"/meshcat/wbmp/robot/planned/{base_node}"][0]["values"]).reshape(-1, 3)
+    assert base[0, 2] - base[len(base) // 2, 2] == pytest.approx(SQUAT_DEPTH, abs=1e-3)
 
 
 def test_bad_plan_shape_is_a_clear_error(tmp_path, talos, synth_plan):
