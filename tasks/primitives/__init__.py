@@ -13,7 +13,7 @@ ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`.
 from __future__ import annotations
 
 from robots.model import Robot
-from tasks.actions import REGISTRY, Action
+from tasks.actions import REGISTRY, Action, get_action
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import balance, jump, locomotion, posture, reach, squat, wave
 from tasks.primitives.base import DEFAULT_DT, PARTS, Fragment, FragmentBuilder, Primitive, knot_time, to_knot
@@ -45,13 +45,12 @@ del missing
 
 
 def get_primitive(name: str) -> Primitive:
-    """The primitive of a registered action name."""
-    REGISTRY_ENTRY = REGISTRY.get(name)  # noqa: N806
-    if REGISTRY_ENTRY is None or name not in PRIMITIVES:
-        from tasks.actions import get_action
-
-        get_action(name)  # raises UnknownAction with suggestions
-    return PRIMITIVES[name]
+    """The primitive of a registered action name (UnknownAction with suggestions otherwise)."""
+    prim = PRIMITIVES.get(name)
+    if prim is None:
+        get_action(name)  # raises UnknownAction naming close matches
+        raise TaskDefinitionError(f"action {name!r} has no primitive")  # pragma: no cover
+    return prim
 
 
 def check_action(action: Action, robot: Robot) -> None:
