@@ -270,3 +270,26 @@ def test_reach_out_of_range_is_explained_by_the_planner(talos):
     plan = planner_trajopt.plan(spec, talos, settings=PlannerSettings(compile=False), throw=False)
     assert not plan.ok
     assert "reach: right hand at the reach point" in plan.diagnosis and "beyond reach" in plan.diagnosis
+
+
+@pytest.mark.slow
+def test_squat_at_the_profile_maximum_is_feasible(robot, solve):
+    """The deepest squat the profile allows (Talos 0.35 m, G1 0.25 m) plans, reaching its depth."""
+    depth = robot.profile.squat_depth_max
+    spec, plan = solve(robot, [Action(name="squat", params={"depth": depth})])
+    z0 = standing_geometry(robot).com[2]
+    assert plan.com[:, 2].min() <= z0 - depth + 0.01 + HARD_SLACK
+
+
+@pytest.mark.slow
+def test_both_hands_wave_as_mirror_images(talos, solve):
+    """wave(both, repeat 3): each hand crosses its own midline 6 times above its shoulder."""
+    spec, plan = solve(talos, [Action(name="wave", params={"arm": "both", "repeat": 3})])
+    g = standing_geometry(talos)
+    for side in ("left", "right"):
+        band = _target(spec, f"{side} hand above shoulder")
+        ks = _knots_in(plan, band.window)
+        hand = _frame_positions(talos, plan, f"{side}_hand")[ks]
+        w = wave_geometry(g, side)
+        assert np.all(hand[:, 2] > g.position(f"{side}_shoulder")[2])
+        assert _count_crossings((hand - w["midline"]) @ w["outward"], w["amplitude"] / 3) == 6
