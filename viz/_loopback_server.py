@@ -2,8 +2,9 @@
 
 meshcat 0.3.2's server binds its ZMQ socket to 127.0.0.1 but its web server to every
 interface. This entry point reuses meshcat's bridge and only changes where the web server
-listens. It prints ``zmq_url=...`` and ``web_url=...`` on stdout (the parent reads them) and
-exits when its parent closes its standard input or sends SIGTERM.
+listens, and serves its own index page (meshcat's, plus a ``#target=x,y,z`` fragment that aims
+the camera's orbit target). It prints ``zmq_url=...`` and ``web_url=...`` on stdout (the parent
+reads them) and exits when its parent closes its standard input or sends SIGTERM.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import signal
 import sys
 import threading
 import warnings
+from pathlib import Path
 
 HOST = "127.0.0.1"
 
@@ -34,10 +36,19 @@ def main(argv: list[str] | None = None) -> int:
         def listen(self, port, address=None, **kwargs):  # noqa: ARG002 - always loopback
             return super().listen(port, address=HOST, **kwargs)
 
+    index = (Path(__file__).with_name("live_index.html")).read_bytes()
+
+    class IndexHandler(tornado.web.RequestHandler):
+        def get(self) -> None:
+            self.set_header("Content-Type", "text/html; charset=utf-8")
+            self.set_header("Cache-Control", "no-store")
+            self.write(index)
+
     class LoopbackBridge(zmqserver.ZMQWebSocketBridge):
         def make_app(self):
-            # the same two routes as meshcat's own make_app, on a loopback-only application
+            # meshcat's two routes (static files, websocket) plus our index page, loopback only
             return LoopbackApplication([
+                (r"/static/", IndexHandler),
                 (r"/static/(.*)", zmqserver.StaticFileHandlerNoCache,
                  {"path": zmqserver.VIEWER_ROOT, "default_filename": zmqserver.VIEWER_HTML}),
                 (r"/", zmqserver.WebSocketHandler, {"bridge": self}),

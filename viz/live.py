@@ -181,11 +181,11 @@ def stop_server(proc: subprocess.Popen, *, timeout: float = STOP_TIMEOUT) -> Non
             pass
 
 
-def load_scene(vis, robot: Robot, plan, *, execution=None) -> float:
+def load_scene(vis, robot: Robot, plan, *, execution=None) -> tuple[float, list[float]]:
     """Draw the plan (and the simulated robot, translucent blue) and start the looping animation.
 
     Returns:
-        The motion duration [s].
+        The motion duration [s] and the camera's orbit target (camera frame) for the page URL.
     """
     planned = vm.plan_motion(robot, plan)
     simulated = vm.execution_motion(robot, execution)
@@ -206,7 +206,7 @@ def load_scene(vis, robot: Robot, plan, *, execution=None) -> float:
     cam = scene.camera_view(robot, plan.com)
     vis["/Cameras/default/rotated/<object>"].set_property("position", cam["position"])
     vis.window.send_lowered(scene.animation_message(clips, play=True, loop=True))
-    return duration
+    return duration, cam["target"]
 
 
 def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_browser: bool = False,
@@ -239,15 +239,16 @@ def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_b
     try:
         window = LiveWindow(info.zmq_url)
         vis = meshcat.Visualizer(window=window)
-        duration = load_scene(vis, robot, plan, execution=execution)
-        print(f"meshcat viewer: {info.web_url}  ({duration:.2f} s motion, looping; Ctrl-C to stop)",
+        duration, target = load_scene(vis, robot, plan, execution=execution)
+        url = info.web_url + "#target=" + ",".join(f"{x:.3f}" for x in target)
+        print(f"meshcat viewer: {url}  ({duration:.2f} s motion, looping; Ctrl-C to stop)",
               file=out, flush=True)
         if on_ready is not None:
             on_ready(info)
         if open_browser:
             import webbrowser
 
-            webbrowser.open(info.web_url, new=2)
+            webbrowser.open(url, new=2)
         while stop_event is None or not stop_event.is_set():
             if proc.poll() is not None:
                 raise ViewerError(f"the meshcat server exited unexpectedly (code {proc.returncode})")
