@@ -5,11 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from tasks.actions import REGISTRY, Action
 from tasks.compose import compile_actions
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import PRIMITIVES, compile_action, standing_geometry, to_knot
+from tasks.primitives import nominal_duration as nominal_duration_of
 from tasks.primitives.posture import bowed_torso_rotation, raised_hand_position
 from tasks.primitives.wave import wave_geometry
 from tasks.serialize import spec_from_json, spec_to_json
@@ -218,3 +221,43 @@ def test_compile_action_places_a_fragment_on_the_grid(talos):
     assert compile_action(a, talos, t0=0.0, dt=0.05, duration=0.5).duration == pytest.approx(1.0)
     with pytest.raises(TaskDefinitionError, match="not on the knot grid"):
         compile_action(a, talos, t0=0.31, dt=0.05)
+
+
+@st.composite
+def registry_actions(draw, names=tuple(AVAILABLE)):
+    """Any action of the registry with parameters drawn from its declared ranges and choices."""
+    schema = REGISTRY[draw(st.sampled_from(names))]
+    params = {}
+    for p in schema.params:
+        if draw(st.booleans()):
+            continue  # keep the default
+        if p.kind == "float":
+            params[p.name] = draw(st.floats(p.minimum, p.maximum, allow_nan=False))
+        elif p.kind == "int":
+            params[p.name] = draw(st.integers(int(p.minimum), int(p.maximum)))
+        elif p.kind == "choice":
+            params[p.name] = draw(st.sampled_from(p.choices))
+        elif p.kind == "vec3":
+            params[p.name] = tuple(draw(st.floats(-1.0, 1.0)) for _ in range(3))
+    return Action(name=schema.name, params=params)
+
+
+@given(action=registry_actions(), robot_name=st.sampled_from(["talos", "g1"]))
+def test_any_registry_parameters_compile_or_are_refused_clearly(action, robot_name):
+    """Whatever the registry accepts either compiles to a spec whose targets lie within a few
+    metres of the robot, or is refused with a message that names the action and, for robot
+    limits, the robot."""
+    from robots import load_robot
+
+    robot = load_robot(robot_name)
+    try:
+        spec = compile_actions([action], robot)
+    except TaskDefinitionError as e:
+        msg = str(e)
+        assert action.name in msg or "reach needs" in msg or robot_name in msg, msg
+        assert "\n" not in msg
+        return
+    for t in spec.targets:
+        if t.position is not None:
+            assert np.linalg.norm(np.array(t.position) - standing_geometry(robot).com) < 3.0
+    assert spec.horizon >= nominal_duration_of(action, robot)
