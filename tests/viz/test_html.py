@@ -142,3 +142,15 @@ def test_bad_plan_shape_is_a_clear_error(tmp_path, talos, synth_plan):
     with pytest.raises(vh.vm.VizInputError, match=r"plan: q must be a non-empty \(T, 39\) array"):
         vh.write_html(tmp_path / "bad.html", talos, bad)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_every_robot_gets_every_mesh(any_robot):
+    """STL (Talos, G1) and Collada (Romeo, iCub) meshes all become scene objects."""
+    from tests.viz.conftest import synthetic_plan
+
+    text = vh.build_page(any_robot, synthetic_plan(any_robot, duration=1.0, dt=0.25))
+    cmds = [umsgpack.unpackb(base64.b64decode(c)) for c in _data(text)["scene"]]
+    meshes = [c for c in cmds if c["type"] == "set_object" and "/wbmp/robot/planned/" in c["path"]]
+    assert len(meshes) == len(any_robot.visual_model.geometryObjects)
+    kinds = {c["object"]["geometries"][0]["type"] for c in meshes}
+    assert kinds <= {"_meshfile_geometry", "BufferGeometry", "BoxGeometry", "CylinderGeometry", "SphereGeometry"}
