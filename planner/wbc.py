@@ -40,8 +40,9 @@ from planner.wbc_reference import PlanReference
 from robots.model import Robot
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
-_LOCAL = pin.ReferenceFrame.LOCAL
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_VEE_A = [7, 2, 3]  # flattened (R^T R_ref) entries (2,1), (0,2), (1,0)
+_VEE_B = [5, 6, 1]  # and (1,2), (2,0), (0,1): vee(R - R^T) / 2 = sin(angle) * axis
 
 
 class ControllerError(PlannerError):
@@ -131,22 +132,6 @@ class TickInfo:
     status: Any
 
 
-class _Task:
-    """A tracked frame: rows in the stacked task matrix."""
-
-    __slots__ = ("contact_index", "enabled", "err", "frame_id", "kd", "kp", "name", "row", "sqrt_w", "track")
-
-    def __init__(self, name: str, frame_id: int, row: int, track: Any, *, contact_index: int,
-                 weight: float, orientation_factor: float, kp: float) -> None:
-        self.name, self.frame_id, self.row, self.track = name, frame_id, row, track
-        self.contact_index = contact_index
-        self.sqrt_w = np.sqrt(np.array([weight] * 3 + [weight * orientation_factor] * 3))
-        self.kp = kp
-        self.kd = 2.0 * math.sqrt(kp)
-        self.enabled = True
-        self.err = np.zeros(6)
-
-
 class WholeBodyController:
     """Inverse-dynamics QP controller (see the module docstring).
 
@@ -209,8 +194,6 @@ class WholeBodyController:
         """
         self._qp = None
         self._layout = None
-        self._anchors: dict[str, pin.SE3] = {}
-        self._was_active: dict[str, bool] = {}
         self._x = None
         self._prev_tau = np.zeros(self.nu)
         self._q0 = np.array(q, dtype=float)
@@ -222,13 +205,12 @@ class WholeBodyController:
         s = self.settings
         model, nv = self.model, self.nv
         self._contacts = list(ref.contact_frames)
-        self._contact_ids = [model.getFrameId(nm) for nm in self._contacts]
         nc = len(self._contacts)
         self.n = nv + 12 * nc
         self.n_eq = 6 + 6 * nc
         self.n_in = 16 * nc + self.nu
-        # corner geometry (sole frame) and the constant force -> wrench map G0 (6 x 12)
-        self._g0 = []
+        # corner geometry (sole frame, pulled cop_margin inside) and the force -> wrench map G0 (6 x 12)
+        g0s = []
         for name in self._contacts:
             side = self.robot.foot_side(name) or "left"
             corners = np.array([[x, y, 0.0] for x, y in self.robot.profile.sole.corners(side)])
@@ -240,25 +222,47 @@ class WholeBodyController:
             for k, c in enumerate(corners):
                 g0[:3, 3 * k : 3 * k + 3] = np.eye(3)
                 g0[3:, 3 * k : 3 * k + 3] = pin.skew(c)
-            self._g0.append(g0)
-        self._g0s = [g0 * self._f_scale for g0 in self._g0]
-        # tracked frames: hands + spec targets + swing phases of contact frames
+            g0s.append(g0 * self._f_scale)
+        self._g0s = g0s
+        # frames: contact frames first (stance rows), then hands and spec target frames
         hand_names = [self.robot.frame(r) for r in ("left_hand", "right_hand") if self.robot.has_role(r)]
         target_names = [model.frames[self.robot.frame_id(t.frame)].name for t in ref.plan.spec.targets]
-        tracked = list(dict.fromkeys([*hand_names, *target_names, *self._contacts]))
-        self._tasks: list[_Task] = []
-        row = 3  # CoM rows first
-        for name in tracked:
-            ci = self._contacts.index(name) if name in self._contacts else -1
-            self._tasks.append(_Task(
-                name, model.getFrameId(name), row, ref.frames[name], contact_index=ci,
-                weight=s.foot_weight if ci >= 0 else s.hand_weight, orientation_factor=s.orientation_factor,
-                kp=s.foot_kp if ci >= 0 else s.frame_kp,
-            ))
-            row += 6
-        self._n_task_rows = row
-        self._T = np.zeros((row, nv))
-        self._r = np.zeros(row)
+        others = [nm for nm in dict.fromkeys([*hand_names, *target_names]) if nm not in self._contacts]
+        self._frames = [*self._contacts, *others]
+        self._frame_ids = [model.getFrameId(nm) for nm in self._frames]
+        nf = len(self._frames)
+        nrow = 3 + 6 * nf  # CoM rows, then 6 rows per frame (linear, angular; world-aligned)
+        self._nrow = nrow
+        # stacked references on the dense grid (n, ...): positions (CoM first), rotations, velocities, accelerations
+        self._ref_pos = np.concatenate([ref.com[:, None, :]] + [ref.frames[nm].position[:, None, :] for nm in self._frames], axis=1)
+        self._ref_rot = np.stack([ref.frames[nm].rotation for nm in self._frames], axis=1)
+        self._ref_vel = np.concatenate([ref.com_velocity] + [ref.frames[nm].velocity for nm in self._frames], axis=1)
+        self._ref_acc = np.concatenate([ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames], axis=1)
+        # per-row gains and weights of the tracking tasks
+        kp = np.empty(nrow)
+        w = np.empty(nrow)
+        kp[:3], w[:3] = s.com_kp, s.com_weight
+        for i, nm in enumerate(self._frames):
+            rows = slice(3 + 6 * i, 9 + 6 * i)
+            is_contact = nm in self._contacts
+            kp[rows] = s.foot_kp if is_contact else s.frame_kp
+            wt = s.foot_weight if is_contact else s.hand_weight
+            w[rows] = [wt] * 3 + [wt * s.orientation_factor] * 3
+        self._kp_task, self._sqrt_w_task = kp, np.sqrt(w)
+        self._J = np.zeros((nrow, nv))
+        self._drift = np.zeros(nrow)
+        self._err = np.zeros(nrow)
+        self._err_frames = self._err[3:].reshape(nf, 6)
+        self._pos = np.zeros((1 + nf, 3))
+        self._rots = np.zeros((nf, 3, 3))
+        self._anchor_pos = np.zeros((nf, 3))
+        self._anchor_rot = np.tile(np.eye(3), (nf, 1, 1))
+        self._active_key: bytes | None = None
+        self._active_flags: tuple[bool, ...] | None = None
+        self._target_pos = np.zeros((nf, 3))
+        self._target_rot = np.zeros((nf, 3, 3))
+        self._last_rots = np.zeros((nf, 3, 3))
+        self._T = np.zeros((nrow, nv))
         # constant matrices
         self.H = np.zeros((self.n, self.n))
         self.g = np.zeros(self.n)
@@ -285,16 +289,41 @@ class WholeBodyController:
         self._kp_post[3:6] = s.base_kp
         self._kp_post[6:] = s.posture_kp
         self._kd_post = 2.0 * np.sqrt(self._kp_post)
+        self._post_feedforward = ref.a + self._kd_post * ref.v
         self.H[np.diag_indices(self.n)] = self._reg  # the force block keeps it; the a block is rewritten
         self._h_diag_a = self.H.reshape(-1)[: nv * (self.n + 1) : self.n + 1]
         self._l_tau = self.l[16 * nc :]
         self._u_tau = self.u[16 * nc :]
-        self._kd = {k: 2.0 * math.sqrt(getattr(s, k)) for k in ("com_kp", "frame_kp", "foot_kp", "base_kp",
-                                                                 "posture_kp", "contact_kp")}
+        self._G = np.zeros((6, 12))
         self._layout = tuple(self._contacts)
         self._qp = None
         self._x = np.zeros(self.n)
         self._S = np.zeros((nv, 12 * nc))
+        self._stance: list[int] = []
+
+    def _set_active(self, active: tuple[bool, ...], key: bytes, ref: PlanReference) -> None:
+        """Gains, weights, masks and feed-forward terms for a new set of stance contacts."""
+        s = self.settings
+        nc, nrow = len(self._contacts), self._nrow
+        on = np.zeros(nrow, dtype=bool)
+        for i, a in enumerate(active):
+            if a:
+                on[3 + 6 * i : 9 + 6 * i] = True
+        kp = np.where(on, s.contact_kp, self._kp_task)
+        self._kp_rows = kp
+        self._kd_rows = 2.0 * np.sqrt(kp)
+        mask = (~on).astype(float)  # stance rows track the anchor at rest
+        self._feedforward = (self._ref_acc + self._kd_rows * self._ref_vel) * mask
+        self._w_rows = np.where(on, 0.0, self._sqrt_w_task)
+        self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
+        self._frame_active = np.zeros(len(self._frames), dtype=bool)
+        self._frame_active[:nc] = active
+        self._stance = [i for i, a in enumerate(active) if a]
+        for i, a in enumerate(active):
+            if not a:
+                self._S[:, 12 * i : 12 * i + 12] = 0.0
+        self._active_key = key
+        self._active_flags = active
 
     # ------------------------------------------------------------------ the tick
     def compute(self, t: float, q: np.ndarray, v: np.ndarray, reference: Plan | PlanReference) -> np.ndarray:
@@ -315,82 +344,67 @@ class WholeBodyController:
             if self._q0 is None:
                 self.reset(q, v)
             self._build_layout(ref)
-        s = self.settings
         model, data, nv = self.model, self.data, self.nv
         k = ref.index(t)
-        kd = self._kd
 
         pin.computeAllTerms(model, data, q, v)
         M = data.M
         h = data.nle
-        T, r = self._T, self._r
-        # ---- CoM
-        com = data.com[0]
-        vcom = data.vcom[0]
-        sw = math.sqrt(s.com_weight)
-        T[:3] = sw * data.Jcom
-        acc = (ref.com_acceleration[k] + s.com_kp * (ref.com[k] - com)
-               + kd["com_kp"] * (ref.com_velocity[k] - vcom))
-        if s.com_drift:
+        J, drift, pos, rots = self._J, self._drift, self._pos, self._rots
+        # ---- CoM rows
+        J[:3] = data.Jcom
+        pos[0] = data.com[0]
+        if self.settings.com_drift:
             pin.centerOfMass(model, data, q, v, self._zero_a)
-            acc = acc - data.acom[0]
-        r[:3] = sw * acc
-
-        # ---- contacts (stance) and frame tasks
-        A, b, C = self.A, self.b, self.C
-        S = self._S
-        active_row = ref.active[k]
-        stance = []
-        for i, (name, fid) in enumerate(zip(self._contacts, self._contact_ids, strict=True)):
-            active = bool(active_row[i])
-            rows = slice(6 + 6 * i, 12 + 6 * i)
-            if active:
-                placement = pin.updateFramePlacement(model, data, fid)
-                if not self._was_active.get(name, False):
-                    self._anchors[name] = placement.copy()
-                J = pin.getFrameJacobian(model, data, fid, _LOCAL)
-                drift = pin.getFrameClassicalAcceleration(model, data, fid, _LOCAL).vector
-                vel = pin.getFrameVelocity(model, data, fid, _LOCAL).vector
-                anchor = self._anchors[name]
-                err = np.empty(6)
-                err[:3] = placement.rotation.T @ (placement.translation - anchor.translation)
-                err[3:] = pin.log3(anchor.rotation.T @ placement.rotation)
-                A[rows, :nv] = J
-                b[rows] = -drift - s.contact_kp * err - kd["contact_kp"] * vel
-                S[:, 12 * i : 12 * i + 12] = J.T @ self._g0s[i]
-                stance.append((i, placement.rotation))
-            else:
-                A[rows, :nv] = 0.0
-                b[rows] = 0.0
-                S[:, 12 * i : 12 * i + 12] = 0.0
-            self._was_active[name] = active
-
-        for task in self._tasks:
-            tr = task.track
-            if task.contact_index >= 0 and active_row[task.contact_index]:
-                if task.enabled:
-                    T[task.row : task.row + 6] = 0.0
-                    r[task.row : task.row + 6] = 0.0
-                    task.enabled = False
-                continue
-            task.enabled = True
-            fid = task.frame_id
+            drift[:3] = data.acom[0]
+        # ---- frame rows (world-aligned): Jacobian, drift J'v, placement
+        for i, fid in enumerate(self._frame_ids):
             placement = pin.updateFramePlacement(model, data, fid)
-            J = pin.getFrameJacobian(model, data, fid, _LWA)
-            drift = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
-            vel = pin.getFrameVelocity(model, data, fid, _LWA).vector
-            rot = placement.rotation
-            err = task.err
-            err[:3] = tr.position[k] - placement.translation
-            err[3:] = rot @ pin.log3(rot.T @ tr.rotation[k])
-            acc6 = tr.acceleration[k] + task.kp * err + task.kd * (tr.velocity[k] - vel) - drift
-            T[task.row : task.row + 6] = task.sqrt_w[:, None] * J
-            r[task.row : task.row + 6] = task.sqrt_w * acc6
-
+            J[3 + 6 * i : 9 + 6 * i] = pin.getFrameJacobian(model, data, fid, _LWA)
+            drift[3 + 6 * i : 9 + 6 * i] = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+            pos[1 + i] = placement.translation
+            rots[i] = placement.rotation
+        key = ref.active[k].tobytes()
+        if key != self._active_key:
+            active = tuple(bool(a) for a in ref.active[k])
+            was = self._active_flags
+            for i, a in enumerate(active):
+                if a and not (was is not None and was[i]):
+                    self._anchor_pos[i] = pos[1 + i]  # the sole is held where it touched down
+                    self._anchor_rot[i] = rots[i]
+            self._set_active(active, key, ref)
+        target_pos, target_rot = self._target_pos, self._target_rot
+        np.copyto(target_pos, self._ref_pos[k, 1:])
+        np.copyto(target_rot, self._ref_rot[k])
+        if self._stance:
+            np.copyto(target_pos, self._anchor_pos, where=self._frame_active[:, None])
+            np.copyto(target_rot, self._anchor_rot, where=self._frame_active[:, None, None])
+        # ---- errors: CoM, positions, orientations (small-angle, sin-axis form, world-aligned)
+        err = self._err
+        err[:3] = self._ref_pos[k, 0] - pos[0]
+        ef = self._err_frames
+        ef[:, :3] = target_pos - pos[1:]
+        rel = (rots.transpose(0, 2, 1) @ target_rot).reshape(-1, 9)
+        ef[:, 3:] = (rots @ (0.5 * (rel[:, _VEE_A] - rel[:, _VEE_B]))[:, :, None])[:, :, 0]
+        a_des = self._feedforward[k] + self._kp_rows * err - self._kd_rows * (J @ v) - drift
+        # ---- stance contacts: equality rows and force map
+        A, b, S = self.A, self.b, self._S
+        nsr = 6 * len(self._contacts)
+        A[6:, :nv] = J[3 : 3 + nsr] * self._stance_rows[:, None]
+        b[6:] = a_des[3 : 3 + nsr] * self._stance_rows
+        G = self._G
+        for i in self._stance:
+            rot = rots[i]
+            G[:3] = rot @ self._g0s[i][:3]
+            G[3:] = rot @ self._g0s[i][3:]
+            S[:, 12 * i : 12 * i + 12] = J[3 + 6 * i : 9 + 6 * i].T @ G
+        # ---- tracking tasks (rows of stance contacts have weight 0)
+        wr = self._w_rows
+        T = self._T
+        np.multiply(wr[:, None], J, out=T)
+        r = wr * a_des
         # ---- posture + base orientation (diagonal terms)
-        dq = pin.difference(model, q, ref.q[k])
-        a_post = ref.a[k] + self._kp_post * dq + self._kd_post * (ref.v[k] - v)
-
+        a_post = self._post_feedforward[k] + self._kp_post * pin.difference(model, q, ref.q[k]) - self._kd_post * v
         # ---- QP matrices
         H, g = self.H, self.g
         H[:nv, :nv] = T.T @ T
@@ -402,6 +416,7 @@ class WholeBodyController:
         b[:6] = -h[:6]
         # torque rows
         tau_rows = self._tau_rows
+        C = self.C
         C[tau_rows, :nv] = M[6:]
         C[tau_rows, nv:] = -S[6:]
         np.subtract(-self.torque_limits, h[6:], out=self._l_tau)
@@ -417,7 +432,7 @@ class WholeBodyController:
             self.failures += 1
             tau = self._prev_tau.copy()
             self._qp = None  # cold start (and a fresh preconditioner) on the next tick
-        self._stance_rotations = stance
+        self._last_rots = rots.copy()
         self.last = TickInfo(ok, iterations, status)
         return tau
 
@@ -440,8 +455,8 @@ class WholeBodyController:
         if self._x is None:
             return out
         f = self._x[self.nv :] * self._f_scale
-        for i, rot in self._stance_rotations:
-            out[self._contacts[i]] = rot @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(axis=0)
+        for i in self._stance:
+            out[self._contacts[i]] = self._last_rots[i] @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(axis=0)
         return out
 
     def _solve(self) -> tuple[np.ndarray, bool, int, str]:
