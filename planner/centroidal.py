@@ -729,11 +729,12 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: 
     sig = ca.SX.sym("sigma")
     w = ca.vertcat(ca.vec(Cs), Us)
     lag = sig * fs + ca.dot(ls, gs)
-    dfun = ca.Function("dyn_centroidal_d", [Cs, Us, Ps, dts, sig, ls],
-                       [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w), ca.gradient(lag, w), ca.hessian(lag, w)[0]])
+    d1 = ca.Function("dyn_centroidal_d1", [Cs, Us, Ps, dts], [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w)])
+    d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.gradient(lag, w), ca.hessian(lag, w)[0]])
     lam_c = lam[:n_c]
     lam_z = lam[n_c:]
-    g_c, f_c, J_w, G_w, L_w, H_w = dfun(C, u, p, dt, lam_f, lam_c)
+    g_c, f_c, J_w, G_w = d1(C, u, p, dt)
+    L_w, H_w = d2(C, u, p, dt, lam_f, lam_c)
     m = 3 * (N + 1)
     J_C, J_U = J_w[:, :m], J_w[:, m:]
     G_C, G_U = G_w[:m], G_w[m:]

@@ -37,7 +37,7 @@ import pinocchio as pin
 from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
-from tasks.primitives.geometry import Stance, _se3, heading_frame, standing_geometry
+from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import Contact, Pose, Priority
 
 G = 9.81  # [m/s^2]
@@ -250,8 +250,9 @@ def build(b: FragmentBuilder) -> Fragment:
     apex = z0 - takeoff.com_drop + v0 * t_apex - 0.5 * G * t_apex**2
     b.com_target("flight apex", (None, None, apex), time=tau(k_apex), tolerance=0.02,
                  priority=Priority.SOFT, weight=APEX_WEIGHT)
-    mid = heading_frame(_se3(landing["left"]), _se3(landing["right"])).translation
-    b.com_target("landed and standing", (float(mid[0]), float(mid[1]), z0), time=tau(bounds[4]), tolerance=END_TOLERANCE)
+    home = end_stance.transform_from_standing(robot).act(g.com)
+    b.com_target("landed and standing", (float(home[0]), float(home[1]), float(home[2])), time=tau(bounds[4]),
+                 tolerance=END_TOLERANCE)
     b.phase("crouch", tau(bounds[0]))
     b.phase("push off", tau(bounds[1]))
     b.phase("flight", tau(bounds[2]), (), swing_height=min(FLIGHT_CLEARANCE_MAX, rise / 3.0))

@@ -3,7 +3,7 @@
 Each compiles the contact sequence of :mod:`tasks.footsteps` (weight shift, single and double
 support per step with the robot's step timing, settling) from the current stance, marks the
 fragment dynamic (the planner adds CoM dynamics with contact forces), and asks for the CoM to
-end between the final feet (HARD, ``END_TOLERANCE``). The fragment's ``end_stance`` is where
+end where it is when standing, relative to the final feet (HARD, ``END_TOLERANCE``). The fragment's ``end_stance`` is where
 the feet land, so the actions that follow are carried along (after ``turn(pi/2)``,
 ``forward`` is the new heading).
 """
@@ -15,7 +15,7 @@ import math
 from robots.model import Robot
 from tasks.footsteps import ContactSequence, footsteps, lateral_step_max, turn, walk
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
-from tasks.primitives.geometry import Stance, _se3, heading_frame
+from tasks.primitives.geometry import Stance, standing_geometry
 
 END_TOLERANCE = 0.02  # [m] CoM ground projection at the end vs the point between the feet
 PARTS = frozenset({"legs", "com"})
@@ -59,8 +59,8 @@ def _primitive(name: str) -> Primitive:
         last = seq.phases[-1]
         b.phase(last.name, seq.duration, last.contacts, swing_height=last.swing_height)
         end = Stance(left=seq.left, right=seq.right)
-        mid = heading_frame(*(_se3(p) for p in (seq.left, seq.right))).translation
-        b.com_target("CoM between the feet", (float(mid[0]), float(mid[1]), None), time=seq.duration,
+        home = end.transform_from_standing(b.robot).act(standing_geometry(b.robot).com)
+        b.com_target("CoM back over the feet", (float(home[0]), float(home[1]), None), time=seq.duration,
                      tolerance=END_TOLERANCE)
         b.end_stance = end
         return b.finish(PARTS, dynamic=True)

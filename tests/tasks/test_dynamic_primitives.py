@@ -42,8 +42,9 @@ def test_four_steps_forward_spec(name, request):
     end = spec.phases[-1].contacts
     x0 = standing_feet(robot)[0].position[0]
     assert [c.placement.position[0] - x0 for c in end] == pytest.approx([0.6, 0.6])
-    (target,) = [t for t in spec.com_targets if "between the feet" in t.name]
-    assert target.position[0] == pytest.approx(0.6 + x0)
+    (target,) = [t for t in spec.com_targets if "back over the feet" in t.name]
+    com0 = standing_geometry(robot).com
+    assert target.position[:2] == pytest.approx((com0[0] + 0.6, com0[1]))  # the standing CoM, carried 0.6 m
 
 
 def test_turn_then_step_follows_the_new_heading(talos):
