@@ -38,6 +38,7 @@ ZMP_COLOR = "#1d4ed8"
 SIM_COLOR = "#2a9d8f"
 SUPPORT_FACE = "#9bd3a8"
 SUPPORT_EDGE = "#1b7a3a"
+MAX_SAMPLES = 2000  # points per line for simulated (1 kHz) signals
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -227,8 +228,9 @@ def plot_torques(path: Path, robot: Robot, plan, simulated: vm.Motion) -> Path:
     joints = _revolute_joints(robot)
     names = [j[0] for j in joints]
     iv = np.array([j[2] for j in joints], dtype=int) - 6
-    tau = np.asarray(simulated.tau, dtype=float)[:, iv]
-    t = simulated.t[: len(tau)] - simulated.t[0]
+    step = max(1, len(simulated.tau) // MAX_SAMPLES)  # 1 kHz simulations: plot <= MAX_SAMPLES points
+    tau = np.asarray(simulated.tau, dtype=float)[::step, iv]
+    t = (simulated.t - simulated.t[0])[::step][: len(tau)]
     lim = robot.torque_limits[iv]
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.where(lim > 0, tau / lim, 0.0)
@@ -262,7 +264,9 @@ def plot_contact_forces(path: Path, robot: Robot, plan, simulated: vm.Motion | N
     if plan.forces:
         series.append(("plan", np.asarray(plan.t, dtype=float), plan.forces, "--"))
     if simulated is not None and simulated.forces:
-        series.append(("simulated", simulated.t - simulated.t[0], simulated.forces, "-"))
+        step = max(1, len(simulated.t) // MAX_SAMPLES)
+        series.append(("simulated", (simulated.t - simulated.t[0])[::step],
+                       {k: np.asarray(f)[::step] for k, f in simulated.forces.items()}, "-"))
     if not series:
         return None
     mu = robot.profile.friction_coefficient
