@@ -217,11 +217,16 @@ def add_markers(vis, robot: Robot, plan, *, com: np.ndarray | None = None) -> di
 
     Returns:
         Visibility schedule of the phase-dependent nodes: node path (relative to the
-        visualizer) -> [(time [s], visible), ...], for :func:`animation_message`.
+        visualizer) -> [(time [s], visible), ...], for :func:`visibility_animations`. What is
+        active in the last phase stays visible at the very end.
     """
     root = vis[ROOT]
     schedule: dict[str, list[tuple[float, bool]]] = {}
     phases = vm.support_phases(robot, plan)
+    horizon = plan.spec.horizon
+
+    def interval(start: float, end: float) -> list[tuple[float, bool]]:
+        return [(start, True)] if end >= horizon - 1e-9 else [(start, True), (end, False)]
 
     # contacts: one node per distinct sole placement of each frame
     seen: dict[str, list[np.ndarray]] = {}
@@ -237,14 +242,12 @@ def add_markers(vis, robot: Robot, plan, *, com: np.ndarray | None = None) -> di
                 node["sole"].set_object(box, mg.MeshLambertMaterial(color=CONTACT_COLOR, opacity=0.8))
                 node["sole"].set_transform(T)
             key = f"{ROOT}/contacts/{node_name(frame)}/{match}"
-            schedule.setdefault(key, [])
-            schedule[key].append((ph.start, True))
-            schedule[key].append((ph.end, False))
+            schedule.setdefault(key, []).extend(interval(ph.start, ph.end))
         if len(ph.polygon) >= 3:
             ring = np.column_stack([ph.polygon, np.full(len(ph.polygon), 0.003)])
             root["support"][str(p_index)].set_object(_line(ring, SUPPORT_COLOR, loop=True, width=3.0))
             key = f"{ROOT}/support/{p_index}"
-            schedule[key] = [(ph.start, True), (ph.end, False)]
+            schedule[key] = interval(ph.start, ph.end)
 
     # frame targets, and the planned path of each targeted frame
     drawn: set[str] = set()
@@ -287,7 +290,7 @@ def _finish_schedule(schedule: dict[str, list[tuple[float, bool]]]) -> dict[str,
                 merged.append((t, vis_))
         if merged and merged[0][0] > 1e-9:
             merged.insert(0, (0.0, False))
-        out[key] = merged
+        out[key] = [e for i, e in enumerate(merged) if i == 0 or e[1] != merged[i - 1][1]]
     return out
 
 

@@ -154,3 +154,29 @@ def test_every_robot_gets_every_mesh(any_robot):
     assert len(meshes) == len(any_robot.visual_model.geometryObjects)
     kinds = {c["object"]["geometries"][0]["type"] for c in meshes}
     assert kinds <= {"_meshfile_geometry", "BufferGeometry", "BoxGeometry", "CylinderGeometry", "SphereGeometry"}
+
+
+def test_contact_visibility_follows_the_phases(talos):
+    """A sole that lifts in the middle phase is hidden during it and shown again after."""
+    from planner.plan import Plan, SolverStats, SolveStatus
+    from tasks.specs import Contact, Phase, Pose, TaskSpec
+    from viz._meshcat import meshcat
+
+    left = Contact(frame=talos.frame("left_foot"), placement=Pose(position=(0.0, 0.1, 0.0)))
+    right = Contact(frame=talos.frame("right_foot"), placement=Pose(position=(0.0, -0.1, 0.0)))
+    spec = TaskSpec(robot="talos", phases=(Phase(name="a", duration=1.0, contacts=(left, right)),
+                                           Phase(name="b", duration=0.5, contacts=(left,)),
+                                           Phase(name="c", duration=1.0, contacts=(left, right))))
+    t = np.linspace(0.0, 2.5, 11)
+    q = np.tile(talos.q_standing, (len(t), 1))
+    plan = Plan(robot="talos", spec=spec, t=t, q=q, v=np.zeros((11, talos.nv)), a=np.zeros((11, talos.nv)),
+                com=np.zeros((11, 3)), stats=SolverStats(status=SolveStatus.SOLVED))
+    vis = meshcat.Visualizer(window=vh.RecordingWindow())
+    schedule = scene.add_markers(vis, talos, plan)
+    rf, lf = scene.node_name(talos.frame("right_foot")), scene.node_name(talos.frame("left_foot"))
+    assert schedule[f"wbmp/contacts/{rf}/0"] == [(0.0, True), (1.0, False), (1.5, True)]
+    assert schedule[f"wbmp/contacts/{lf}/0"] == [(0.0, True)]  # never lifted, merged into one interval
+    assert schedule["wbmp/support/1"] == [(0.0, False), (1.0, True), (1.5, False)]
+    clips = scene.visibility_animations(vis, schedule, 2.5)
+    track = next(c["clip"]["tracks"][0] for c in clips if c["path"].endswith(f"contacts/{rf}/0"))
+    assert track["times"] == [0.0, 1.0, 1.5, 2.5] and track["values"] == [True, False, True, True]
