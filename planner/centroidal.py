@@ -53,6 +53,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import PlannerError
+from planner.plan import ConstraintCheck
 from robots.model import Robot
 from tasks.specs import Contact, Pose, TaskSpec
 
@@ -765,6 +766,167 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: 
     )
 
 
+# ---------------------------------------------------------------------------------------------
+# The dynamic layout: what planner.trajopt calls for a spec with dynamic = True
+# ---------------------------------------------------------------------------------------------
+
+
+def _layout_class():
+    from planner.formulation import Layout
+
+    return Layout
+
+
+class DynamicLayout(_layout_class()):  # type: ignore[misc]
+    """A :class:`planner.formulation.Layout` with CoM dynamics and contact forces.
+
+    Built by :func:`to_dynamic_layout`. Its :meth:`structure` adds the force pattern (contacts per
+    knot, swinging sole corners), so the solver cache never confuses it with a kinematic
+    layout or with another contact pattern.
+
+    Attributes:
+        centroidal_settings: Weights and options of the dynamic terms.
+        kinematic_terms: Number of chart variables ``nv (N - 2)`` (the forces follow).
+    """
+
+    centroidal_settings: CentroidalSettings
+    _cf: CentroidalFunction | None
+
+    def centroidal(self) -> CentroidalFunction:
+        """The centroidal function of this layout (built once)."""
+        if self._cf is None:
+            self._cf = centroidal_function(self, settings=self.centroidal_settings)
+        return self._cf
+
+    def structure(self) -> tuple:
+        """Kinematic structure + the dynamic one."""
+        return (super().structure(), "dynamic", self.centroidal().structure, self.centroidal_settings)
+
+    @property
+    def n_kinematic(self) -> int:
+        """Number of chart variables (the force variables come after them)."""
+        return self.robot.nv * (self.N - 2)
+
+
+def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSettings()) -> DynamicLayout:
+    """The dynamic version of a kinematic layout.
+
+    The support-polygon rows on the CoM are dropped except at the last variable knot (the robot
+    ends at rest there): with contact forces, balance is the centre of pressure inside the
+    soles, which the corner forces guarantee at every knot.
+
+    Args:
+        lay: The layout of a spec (``planner.formulation.make_layout``).
+        settings: Weights and options of the dynamic terms.
+
+    Returns:
+        The dynamic layout (a new object; ``lay`` is not changed).
+    """
+    import dataclasses
+
+    fields = {f.name: getattr(lay, f.name) for f in dataclasses.fields(lay)}
+    fields["terms"] = [t for t in lay.terms if t.kind != "polygon" or t.knot == lay.N - 1]
+    out = DynamicLayout(**fields)
+    out.centroidal_settings = settings
+    out._cf = None
+    return out
+
+
+def dynamic_sizes(lay: DynamicLayout) -> tuple[int, int]:
+    """(force variables, dynamic constraint rows) of a dynamic layout."""
+    cf = lay.centroidal()
+    return cf.terms.n_variables, len(cf.lbg) + len(cf.corner_rows)
+
+
+def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
+    """Add the forces, CoM dynamics and sole-corner rows to a stage-wise kinematic NLP.
+
+    Args:
+        lay: The dynamic layout.
+        nlp: ``{x, p, f, g}`` of the kinematic NLP (MX).
+        derivatives: Its ``grad_f``, ``jac_g``, ``hess_lag`` functions (nlpsol options).
+
+    Returns:
+        The extended ``(nlp, derivatives)``: variables ``[x; u]``, parameters ``[p; contact
+        geometry]``, rows ``[g; dynamic rows]``.
+    """
+    cf = lay.centroidal()
+    robot = lay.robot
+    n_x, n_p, n_g = nlp["x"].numel(), nlp["p"].numel(), nlp["g"].numel()
+    n_u, n_gd = dynamic_sizes(lay)
+    n_pd = cf.terms.parameter_values.size
+    x = ca.MX.sym("x", n_x + n_u)
+    p = ca.MX.sym("p", n_p + n_pd)
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", n_g + n_gd)
+    xk, u, pk, pd = x[:n_x], x[n_x:], p[:n_p], p[n_p:]
+    nq = robot.nq
+    b = dynamic_blocks(lay, cf, xk, u, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:])
+    f_k, grad_k = derivatives["grad_f"](xk, pk)
+    g_k, jac_k = derivatives["jac_g"](xk, pk)
+    h_k = derivatives["hess_lag"](xk, pk, lam_f, lam_g[:n_g])
+    f = f_k + b.f
+    g = ca.vertcat(g_k, b.g)
+    grad = ca.vertcat(grad_k + b.grad_x, b.grad_u)
+    jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u)), ca.horzcat(b.jac_x, b.jac_u))
+    hess = ca.vertcat(ca.horzcat(h_k + ca.triu(b.hess_xx), b.hess_xu),
+                      ca.horzcat(ca.MX(n_u, n_x), ca.triu(b.hess_uu)))
+    out = {
+        "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
+        "jac_g": ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
+        "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess], ["x", "p", "lam_f", "lam_g"],
+                                ["triu_hess_gamma_x_x"]),
+    }
+    return {"x": x, "p": p, "f": f, "g": g}, out
+
+
+def extend_values(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray, ubg: np.ndarray,
+                  p: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Bounds and parameter values of the extended NLP from the kinematic ones."""
+    cf = lay.centroidal()
+    n_z = len(cf.corner_rows)
+    return (
+        np.concatenate([lbx, cf.terms.lower]),
+        np.concatenate([ubx, cf.terms.upper]),
+        np.concatenate([lbg, cf.lbg, np.zeros(n_z)]),
+        np.concatenate([ubg, cf.ubg, np.full(n_z, np.inf)]),
+        np.concatenate([p, cf.terms.parameter_values]),
+    )
+
+
+def initial_guess(lay: DynamicLayout) -> np.ndarray:
+    """Initial ``[x; u]``: the heading warm start for the chart, the weight shared by the corners."""
+    dq = heading_guess(lay)
+    return np.concatenate([dq[2:lay.N].ravel(), lay.centroidal().terms.initial])
+
+
+def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
+    """Support-polygon CoM bounds of a dynamic plan, where they apply: at the last knot (at rest).
+
+    Args:
+        lay: The layout.
+        com: CoM per knot (N+1, 3) [m].
+        tolerance: Accepted excursion [m].
+
+    Returns:
+        One check per support-polygon bound of the spec.
+    """
+    from planner.formulation import halfplanes, support_polygon
+    from planner.plan import ConstraintCheck
+
+    out = []
+    k = lay.N
+    hull = support_polygon(lay, k)
+    for bounds in lay.spec.com_bounds:
+        if not bounds.support_polygon or len(hull) < 3:
+            continue
+        A, b = halfplanes(hull)
+        viol = max(0.0, float(np.max(A @ com[k, :2] - (b - bounds.margin))))
+        out.append(ConstraintCheck(name=f"CoM bound {bounds.name!r} support polygon at rest", violation=viol,
+                                   tolerance=tolerance, unit="m", time=float(lay.t[k])))
+    return out
+
+
 def heading_guess(lay: Any) -> np.ndarray:
     """Initial guess of the chart displacements (N+1, nv): the base follows the feet.
 
@@ -909,8 +1071,6 @@ def dynamic_checks(
     Returns:
         One :class:`~planner.plan.ConstraintCheck` per group.
     """
-    from planner.plan import ConstraintCheck
-
     cen = terms
     t = np.asarray(lay.t, dtype=float)
     dt = float(t[1] - t[0])
@@ -987,6 +1147,7 @@ __all__ = [
     "ConstraintBlock",
     "ContactGeometry",
     "DynamicBlocks",
+    "DynamicLayout",
     "angular_momentum_rate",
     "build_centroidal",
     "build_centroidal_for_spec",
@@ -999,6 +1160,12 @@ __all__ = [
     "contacts_per_knot",
     "dynamic_blocks",
     "dynamic_checks",
+    "dynamic_sizes",
+    "extend_nlp",
+    "extend_values",
+    "initial_guess",
+    "rest_polygon_checks",
+    "to_dynamic_layout",
     "layout_contacts",
     "cop_violation",
     "friction_pyramid",
