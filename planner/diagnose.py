@@ -146,18 +146,33 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     return checks
 
 
-def _polygon_room(A: np.ndarray, b: np.ndarray, lower=None, upper=None) -> float:
-    """Radius of the largest disc inside ``A x <= b`` (and the xy box) [m]; < 0 when empty."""
-    from scipy.optimize import linprog
+def _has_point(A: np.ndarray, b: np.ndarray) -> bool:
+    """True when ``{x in R^2 : A x <= b}`` is non-empty (a bounded region has a vertex where two
+    boundary lines cross, so checking every crossing is exact)."""
+    n = len(A)
+    for i in range(n):
+        for j in range(i + 1, n):
+            M = np.array([A[i], A[j]])
+            if abs(np.linalg.det(M)) < 1e-12:
+                continue
+            x = np.linalg.solve(M, np.array([b[i], b[j]]))
+            if np.all(A @ x <= b + 1e-12):
+                return True
+    return False
 
-    # maximise s subject to A x + s <= b (rows of A are unit vectors)
-    A_ub = np.hstack([A, np.ones((len(A), 1))])
-    bnds = [(lower[0], upper[0]) if lower is not None else (None, None),
-            (lower[1], upper[1]) if lower is not None else (None, None), (None, 1.0)]
-    res = linprog(c=[0.0, 0.0, -1.0], A_ub=A_ub, b_ub=b, bounds=bnds, method="highs")
-    if res.status == 2:  # infeasible: only with a box
+
+def _polygon_room(A: np.ndarray, b: np.ndarray, lower=None, upper=None) -> float:
+    """Radius of the largest disc inside ``A x <= b`` (and the xy box) [m]; -inf when empty."""
+    if lower is not None:
+        A = np.vstack([A, [[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]]])
+        b = np.concatenate([b, [-lower[0], upper[0], -lower[1], upper[1]]])
+    if not _has_point(A, b):
         return -math.inf
-    return float(-res.fun) if res.success else math.inf
+    lo, hi = 0.0, 10.0
+    for _ in range(40):  # bisection on the inward offset [m]
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _has_point(A, b - mid) else (lo, mid)
+    return lo
 
 
 def precheck(lay: Layout) -> str:
@@ -198,7 +213,7 @@ def precheck(lay: Layout) -> str:
                 continue
             A, b = halfplanes(hull)
             room = _polygon_room(A, b - bounds.margin)
-            if room < 0:
+            if room == -math.inf:
                 width = 2 * _polygon_room(A, b)
                 return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: the support polygon is "
                         f"{width:.3f} m wide, and the margin {bounds.margin:.3f} m on each side leaves no room")
