@@ -30,5 +30,13 @@ bench: $(STAMP)
 bench-quick: $(STAMP)
 	$(BIN)/wbmp bench --quick
 
+# Peers (Crocoddyl, TSID) in their own environments .venv-crocoddyl and .venv-tsid (never .venv):
+# the first run compiles TSID from source (long); results go to benchmarks/results/peers/.
+.PHONY: bench-peers
+bench-peers: $(STAMP)
+	bash benchmarks/peers/setup.sh || echo "some peer environments are unavailable; continuing with the others"
+	$(PYTHON) benchmarks/peers/run_peers.py
+	$(BIN)/wbmp bench --quick --peers
+
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

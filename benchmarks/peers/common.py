@@ -67,3 +67,12 @@ def write_json(path: str | None, payload: dict) -> None:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     p.write_text(json.dumps(payload, indent=2, sort_keys=False) + "\n")
+
+
+def machine_tag(info: dict) -> str:
+    """Short file-name tag of the machine, as ``wbmp bench`` writes it: ``xeon-2.50ghz-2c``."""
+    model = info.get("cpu_model", "cpu").lower()
+    words = [w for w in model.replace("(r)", "").replace("(tm)", "").replace("@", " ").split()
+             if w not in ("intel", "amd", "processor", "cpu", "core")]
+    tag = "-".join(words[:1] + [w for w in words[1:] if "ghz" in w])
+    return f"{tag or 'cpu'}-{info.get('cores', 0)}c"

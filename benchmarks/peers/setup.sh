@@ -12,12 +12,13 @@
 #
 # Usage: bash benchmarks/peers/setup.sh [crocoddyl|tsid|all]   (default: all)
 # Idempotent: an environment whose imports already work is left alone. CMEEL_JOBS sets the
-# number of compile jobs (default 2). Exit code 3 when an environment cannot be made.
+# number of compile jobs (default 2); the C++ unit tests are not built (CMEEL_RUN_TESTS=OFF). Exit code 3 when an environment cannot be made.
 set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 PY="${PYTHON:-$(command -v python3.11 || command -v python3)}"
 WHAT="${1:-all}"
 export CMEEL_JOBS="${CMEEL_JOBS:-2}"
+export CMEEL_RUN_TESTS="${CMEEL_RUN_TESTS:-OFF}"  # skip building and running the C++ unit tests
 export PIP_DISABLE_PIP_VERSION_CHECK=1
 status=0
 
