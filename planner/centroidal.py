@@ -240,6 +240,8 @@ class CentroidalSettings:
         inner_pyramid: Use the inner friction pyramid (:math:`\\mu/\\sqrt 2`).
         cop_margin: Inward margin of the sole rectangle for the CoP [m].
         max_force: Upper bound of one corner's normal force, in body weights [-].
+        force_tolerance: Accepted violation of the force checks in the report, as a fraction of
+            the body weight [-].
     """
 
     force_weight: float = 1e-2
@@ -247,6 +249,7 @@ class CentroidalSettings:
     inner_pyramid: bool = True
     cop_margin: float = 0.005
     max_force: float = 10.0
+    force_tolerance: float = 1e-3
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -880,9 +883,9 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
     return {"x": x, "p": p, "f": f, "g": g}, out
 
 
-def extend_values(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray, ubg: np.ndarray,
-                  p: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Bounds and parameter values of the extended NLP from the kinematic ones."""
+def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
+                  ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bounds of the extended NLP from the kinematic ones (force boxes, dynamic rows)."""
     cf = lay.centroidal()
     n_z = len(cf.corner_rows)
     return (
@@ -890,8 +893,12 @@ def extend_values(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.
         np.concatenate([ubx, cf.terms.upper]),
         np.concatenate([lbg, cf.lbg, np.zeros(n_z)]),
         np.concatenate([ubg, cf.ubg, np.full(n_z, np.inf)]),
-        np.concatenate([p, cf.terms.parameter_values]),
     )
+
+
+def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:
+    """Parameter values of the extended NLP: the kinematic ones, then the contact geometry."""
+    return np.concatenate([p, lay.centroidal().terms.parameter_values])
 
 
 def initial_guess(lay: DynamicLayout) -> np.ndarray:
@@ -1131,6 +1138,58 @@ def dynamic_checks(
     return checks
 
 
+def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
+                        checks: Sequence[ConstraintCheck], settings: Any) -> list[ConstraintCheck]:
+    """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
+    (the last knot), plus the dynamic checks (:func:`dynamic_checks`).
+
+    Args:
+        lay: The dynamic layout.
+        q: Configurations (N+1, nq).
+        com: CoM per knot (N+1, 3) [m].
+        forces: Solution values of the force variables (None: none available).
+        checks: The kinematic report (``planner.diagnose.check_plan``).
+        settings: ``PlannerSettings`` (``polygon_tolerance`` [m]).
+
+    Returns:
+        The checks.
+    """
+    out = [c for c in checks if not (c.name.startswith("CoM bound") and c.name.endswith("support polygon"))]
+    out += rest_polygon_checks(lay, com, settings.polygon_tolerance)
+    if forces is not None:
+        cf = lay.centroidal()
+        out += dynamic_checks(lay, q, com, cf.terms, cf.corner_rows, forces,
+                              force_tolerance=lay.centroidal_settings.force_tolerance,
+                              position_tolerance=settings.polygon_tolerance)
+    return out
+
+
+def diagnose_dynamic(lay: Any, failed: Any) -> str:
+    """Explain a failed dynamic plan in task terms: the worst violated group, when, in which phase."""
+    spec = lay.spec
+    status = failed.stats.status.value
+    bad = sorted((c for c in failed.checks if not c.ok), key=lambda c: -(c.violation / max(c.tolerance, 1e-12)))
+    if not bad:
+        return (f"the solver stopped: {status} ({failed.stats.raw_status}) after {failed.stats.iterations} "
+                "iterations, with every checked constraint met")
+    c = bad[0]
+    phase = spec.phases[spec.phase_at(c.time)].name
+    text = (f"{c.name} violated by {c.violation:.3g} {c.unit} at t = {c.time:.2f} s in phase {phase!r} ({status})")
+    hints = {
+        "friction": "the feet would slip: ask for shorter or slower steps",
+        "CoM dynamics": "the contact forces cannot move the body as planned: ask for a slower motion",
+        "velocity": "the joints would move faster than their limits: ask for a slower or smaller motion",
+        "CoM target": "the centre of mass cannot reach the target in time",
+    }
+    for key, hint in hints.items():
+        if key in c.name:
+            text += f"; {hint}"
+            break
+    if len(bad) > 1:
+        text += "; also " + ", ".join(f"{b.name} ({b.violation:.2g} {b.unit})" for b in bad[1:4])
+    return text
+
+
 def contact_geometry_points(robot: Robot, frame: str) -> np.ndarray | None:
     """The full (unshrunk) sole rectangle corners (4, 2) of a foot frame in its frame, None otherwise."""
     side = robot.foot_side(frame)
@@ -1159,10 +1218,13 @@ __all__ = [
     "contact_geometry_points",
     "contacts_per_knot",
     "dynamic_blocks",
+    "diagnose_dynamic",
     "dynamic_checks",
+    "dynamic_plan_checks",
     "dynamic_sizes",
     "extend_nlp",
-    "extend_values",
+    "extend_bounds",
+    "extend_parameters",
     "initial_guess",
     "rest_polygon_checks",
     "to_dynamic_layout",
