@@ -92,7 +92,7 @@ class WbcSettings:
     posture_kp: float = 100.0
     contact_kp: float = 10.0
     friction_scale: float = 0.9
-    cop_margin: float = 0.01
+    cop_margin: float = 0.0
     torque_scale: float = 1.0
     com_drift: bool = True
     eps_abs: float = 1e-6

@@ -19,7 +19,7 @@ import tsid
 from example_robot_data import robots_loader
 
 MU = 0.7 * 0.9  # friction coefficient used by the wbmp controller (profile x friction_scale)
-SOLE_X, SOLE_Y = 0.09, 0.05  # wbmp's sole rectangle (0.10 x 0.06) less its 1 cm CoP margin [m]
+SOLE_X, SOLE_Y = 0.10, 0.06  # wbmp's Talos sole rectangle (half sizes) [m]
 W_COM, W_HAND, W_POSTURE, W_FORCE = 10.0, 1.0, 1e-3, 1e-7
 KP_COM, KP_HAND, KP_POSTURE, KP_CONTACT = 100.0, 100.0, 100.0, 10.0
 
