@@ -92,18 +92,21 @@ def build_page(robot: Robot, plan, *, execution=None, title: str = "") -> str:
     payload = json.dumps(data, separators=(",", ":"))
     return (template
             .replace("{{TITLE}}", html.escape(page_title))
-            .replace("{{SUBTITLE}}", html.escape(_subtitle(robot, plan, simulated)))
+            .replace("{{SUBTITLE}}", html.escape(_subtitle(robot, plan, simulated, execution)))
             .replace("{{MESHCAT}}", meshcat_bundle())
             .replace("{{DATA}}", payload.replace("</", "<\\/")))
 
 
-def _subtitle(robot: Robot, plan, simulated: vm.Motion | None) -> str:
+def _subtitle(robot: Robot, plan, simulated: vm.Motion | None, execution=None) -> str:
     parts = [robot.name, f"{float(plan.t[-1]):.2f} s", f"{len(plan.t)} knots"]
     stats = getattr(plan, "stats", None)
     if stats is not None:
         parts.append(f"solver: {stats.status.name.lower()}")
     if simulated is not None:
-        parts.append("simulation included")
+        certificate = getattr(execution, "certificate", None)
+        ok = getattr(certificate, "ok", None)
+        parts.append("simulation included" if ok is None else
+                     f"simulation: {'certified' if ok else 'FAILED the check'}")
     return " · ".join(parts)
 
 
