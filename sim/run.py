@@ -124,7 +124,7 @@ def simulate(
     *,
     push: Push | None = None,
     settings: SimSettings | None = None,
-    progress: Callable[[float], None] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> Execution:
     """Track ``plan`` with the whole-body controller in MuJoCo and certify the motion.
 
@@ -137,7 +137,7 @@ def simulate(
         robot: The robot it was planned for.
         push: An optional force on the base.
         settings: Simulation and certificate options.
-        progress: Called with the fraction done (0..1) about ten times a run.
+        progress: Called with a short message ("simulated 1.2 of 3.7 s") about ten times a run.
 
     Returns:
         The execution, with its certificate.
@@ -238,11 +238,11 @@ def simulate(
                 tt = d.time
                 d.xfrc_applied[base_body, :3] = push_force if push.time <= tt < push.time + push.duration else 0.0
             mujoco.mj_step(m, d)
-        if progress is not None and i % report_every == 0:
-            progress(i / n_ticks)
+        if progress is not None and i % report_every == 0 and i > 0:
+            progress(f"simulated {t:.1f} of {duration:.1f} s")
     wall = time.perf_counter() - wall0
     if progress is not None:
-        progress(1.0)
+        progress(f"simulated {ts[n_done - 1] if n_done else 0.0:.1f} s in {wall:.1f} s; certifying")
 
     sl = slice(0, n_done)
     ts, qs, vs, taus, coms, tick_times = ts[sl], qs[sl], vs[sl], taus[sl], coms[sl], tick_times[sl]

@@ -13,9 +13,13 @@ from sim.handmade import arm_plan, feet_apart_plan, squat_plan, standing_plan, w
 GRAVITY = 9.81  # [m/s^2]
 
 
+MESSAGES: list[str] = []
+
+
 @pytest.fixture(scope="module")
 def stand_run(talos):
-    return simulate(standing_plan(talos, duration=1.0), talos, settings=SimSettings(settle_time=0.3))
+    return simulate(standing_plan(talos, duration=1.0), talos, settings=SimSettings(settle_time=0.3),
+                    progress=MESSAGES.append)
 
 
 @pytest.fixture(scope="module")
@@ -48,6 +52,13 @@ def test_standing_still_passes_and_forces_carry_the_weight(talos, stand_run):
     np.testing.assert_allclose(total, [0.0, 0.0, talos.mass * GRAVITY], atol=0.02 * talos.mass * GRAVITY)
     assert ex.certificate.check("left_foot slip").value < 0.002
     assert ex.certificate.check("CoM tracking error").value < 0.01
+
+
+def test_progress_reports_simulated_time(stand_run):
+    """The progress callback receives about ten one-line messages, ending with the certification."""
+    assert 5 <= len(MESSAGES) <= 12
+    assert all(isinstance(m, str) and "\n" not in m for m in MESSAGES)
+    assert MESSAGES[0].startswith("simulated 0.") and MESSAGES[-1].endswith("certifying")
 
 
 def test_certificate_serializes(stand_run):
