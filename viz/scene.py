@@ -8,7 +8,8 @@ Scene tree (under meshcat's ``/meshcat`` root)::
 
     wbmp/robot/<motion>/<geometry>        rigid placement of one visual geometry (animated)
     wbmp/robot/<motion>/<geometry>/mesh   the mesh, with its static scale (may be negative)
-    wbmp/contacts/<frame>/<i>             a sole at its i-th distinct placement (shown when active)
+    wbmp/contacts/<foot>/<i>              a sole at its i-th distinct placement (shown when active);
+                                          <foot> is left_foot/right_foot, else the frame name
     wbmp/support/<phase index>            support polygon of a phase, on the ground
     wbmp/targets/<target name>            frame target (sphere of radius = tolerance, min 2 cm)
     wbmp/com/path                         planned CoM path (line)
@@ -228,20 +229,22 @@ def add_markers(vis, robot: Robot, plan, *, com: np.ndarray | None = None) -> di
     def interval(start: float, end: float) -> list[tuple[float, bool]]:
         return [(start, True)] if end >= horizon - 1e-9 else [(start, True), (end, False)]
 
-    # contacts: one node per distinct sole placement of each frame
+    # contacts: one node per distinct sole placement of each frame (feet named by role)
     seen: dict[str, list[np.ndarray]] = {}
     for p_index, ph in enumerate(phases):
         for frame, corners in ph.soles.items():
-            places = seen.setdefault(frame, [])
+            side = robot.foot_side(robot.profile.frame(frame) or frame)
+            name = f"{side}_foot" if side else node_name(frame)
+            places = seen.setdefault(name, [])
             match = next((i for i, c in enumerate(places) if np.abs(c - corners).max() < 5e-3), None)
             if match is None:
                 places.append(corners)
                 match = len(places) - 1
                 box, T = _sole_box(corners)
-                node = root["contacts"][node_name(frame)][str(match)]
+                node = root["contacts"][name][str(match)]
                 node["sole"].set_object(box, mg.MeshLambertMaterial(color=CONTACT_COLOR, opacity=0.8))
                 node["sole"].set_transform(T)
-            key = f"{ROOT}/contacts/{node_name(frame)}/{match}"
+            key = f"{ROOT}/contacts/{name}/{match}"
             schedule.setdefault(key, []).extend(interval(ph.start, ph.end))
         if len(ph.polygon) >= 3:
             ring = np.column_stack([ph.polygon, np.full(len(ph.polygon), 0.003)])

@@ -96,8 +96,7 @@ def test_scene_has_every_mesh_and_the_markers(page, talos, synth_plan):
     objects = {c["path"] for c in cmds if c["type"] == "set_object"}
     for g in talos.visual_model.geometryObjects:
         assert f"/meshcat/wbmp/robot/planned/{scene.node_name(g.name)}/mesh" in objects
-    lf = scene.node_name(talos.frame("left_foot"))
-    for path in (f"/meshcat/wbmp/contacts/{lf}/0/sole", "/meshcat/wbmp/support/0",
+    for path in ("/meshcat/wbmp/contacts/left_foot/0/sole", "/meshcat/wbmp/contacts/right_foot/0/sole", "/meshcat/wbmp/support/0",
                  "/meshcat/wbmp/targets/right_hand_mark", "/meshcat/wbmp/com/path",
                  "/meshcat/wbmp/paths/right_hand"):
         assert path in objects, path
@@ -173,7 +172,7 @@ def test_contact_visibility_follows_the_phases(talos):
                 com=np.zeros((11, 3)), stats=SolverStats(status=SolveStatus.SOLVED))
     vis = meshcat.Visualizer(window=vh.RecordingWindow())
     schedule = scene.add_markers(vis, talos, plan)
-    rf, lf = scene.node_name(talos.frame("right_foot")), scene.node_name(talos.frame("left_foot"))
+    rf, lf = "right_foot", "left_foot"
     assert schedule[f"wbmp/contacts/{rf}/0"] == [(0.0, True), (1.0, False), (1.5, True)]
     assert schedule[f"wbmp/contacts/{lf}/0"] == [(0.0, True)]  # never lifted, merged into one interval
     assert schedule["wbmp/support/1"] == [(0.0, False), (1.0, True), (1.5, False)]
