@@ -152,12 +152,7 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
         cg.add(ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]], ["x", "p"], ["f", "g"]))
         for name in ORACLE_FUNCTIONS:
             cg.add(builder.get_function(name))
-        cwd = os.getcwd()
-        os.chdir(tmp)
-        try:
-            cg.generate()
-        finally:
-            os.chdir(cwd)
+        cg.generate(f"{tmp}{os.sep}")  # writes <tmp>/nlp.c (no chdir: other threads keep their cwd)
         if progress:
             progress(f"compiling the solver with gcc {' '.join(settings.compile_flags)} "
                      "(first time for this task structure)")
