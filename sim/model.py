@@ -224,7 +224,7 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         if name not in joints:
             raise SimModelError(f"robot {robot.name!r}: Pinocchio joint {name!r} has no MuJoCo joint")
         if not joint_friction:
-            joints[name].damping = 0.0
+            joints[name].damping = np.zeros_like(np.asarray(joints[name].damping))
             joints[name].frictionloss = 0.0
         act = spec.add_actuator()
         act.name = f"wbmp_motor_{name}"

@@ -83,3 +83,12 @@ def test_robot_geoms_touch_only_the_floor(talos_sim):
         for g2 in robot:
             assert not (m.geom_contype[g1] & m.geom_conaffinity[g2])
         assert m.geom_contype[g1] & m.geom_conaffinity[talos_sim.floor_geom]
+
+
+def test_joint_friction_switch(talos, talos_sim):
+    """By default the URDF's joint damping/friction are simulated; joint_friction=False removes them."""
+    m = talos_sim.model
+    dofs = talos_sim.dof_index
+    assert m.dof_damping[dofs].max() > 0 and m.dof_frictionloss[dofs].max() > 0
+    bare = build_model(talos, joint_friction=False).model
+    assert bare.dof_damping.max() == 0.0 and bare.dof_frictionloss.max() == 0.0
