@@ -251,6 +251,13 @@ def simulate(
     if qp_failure_times:
         events.append(Event(qp_failure_times[0], "qp_failure",
                             f"the QP failed on {len(qp_failure_times)} ticks (first at t = {qp_failure_times[0]:.3f} s)"))
+    frac = np.abs(taus) / sm.torque_limits
+    saturated = np.nonzero(frac.max(axis=1) > s.torque_fraction_limit)[0] if len(taus) else []
+    if len(saturated):
+        n0 = int(saturated[0])
+        j0 = int(np.argmax(frac[n0]))
+        events.append(Event(float(ts[n0]), "torque_limit",
+                            f"{robot.joint_names[j0]} at {100 * frac[n0, j0]:.0f}% of its torque limit"))
     seen_bodies: set[str] = set()
     for t_c, body in other_contacts:
         if body not in seen_bodies:

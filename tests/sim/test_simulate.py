@@ -106,6 +106,7 @@ def test_torque_limits_at_ten_percent_fail_on_torque(talos):
     assert "torque at 100% of its limit" in ex.certificate.reason
     assert not ex.certificate.check("base height").ok or not ex.certificate.check("base tilt").ok
     assert any(e.kind == "fall" for e in ex.events)
+    assert [e.kind for e in ex.events][0] == "torque_limit"
 
 
 def test_pushes_small_recovered_large_falls(talos):
