@@ -367,6 +367,90 @@ def _geometry_values(c: ContactGeometry) -> np.ndarray:
     return np.concatenate([c.points_in_world.ravel(), c.rotation.ravel(order="F"), [c.friction_coefficient]])
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CentroidalPattern:
+    """The numbers of :func:`build_centroidal` without any CasADi expression (cheap to make).
+
+    Same variable and row order as the terms; what a cached solver needs for a solve.
+
+    Attributes:
+        lower, upper, initial: Bounds and initial guess of the force variables (n,).
+        parameter_values: Contact geometry values.
+        lbg, ubg: Bounds of the centroidal rows.
+        weight, contacts, force_index, frames, dynamics_knots, structure: As in
+            :class:`CentroidalTerms`.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    initial: np.ndarray
+    parameter_values: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    weight: float
+    contacts: tuple[tuple[ContactGeometry, ...], ...]
+    force_index: tuple[Mapping[str, np.ndarray], ...]
+    frames: tuple[str, ...]
+    dynamics_knots: tuple[int, ...]
+    structure: tuple
+
+    n_variables = CentroidalTerms.n_variables
+    corner_forces = CentroidalTerms.corner_forces
+    forces = CentroidalTerms.forces
+
+
+def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: float, *,
+                       settings: CentroidalSettings = CentroidalSettings(),
+                       gravity: np.ndarray = GRAVITY) -> CentroidalPattern:
+    """Variable/row layout, bounds, initial guess and parameter values of :func:`build_centroidal`.
+
+    Args:
+        contacts: Active contacts per knot (T entries).
+        mass: Total mass [kg].
+        settings: Weights and options.
+        gravity: Gravity [m/s^2].
+
+    Returns:
+        The pattern (no CasADi).
+    """
+    T = len(contacts)
+    weight = float(mass * np.linalg.norm(gravity))
+    lower, upper, initial, pvals, lbg, ubg = [], [], [], [], [], []
+    index: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
+    frames: list[str] = []
+    structure = []
+    n = 0
+    for k in range(1, T - 1):
+        active = contacts[k]
+        n_points = sum(c.n_points for c in active)
+        structure.append((k, tuple((c.frame, c.n_points) for c in active)))
+        for c in active:
+            if c.frame not in frames:
+                frames.append(c.frame)
+            m = c.n_points
+            index[k][c.frame] = np.arange(n, n + 3 * m).reshape(m, 3)
+            n += 3 * m
+            lo = np.full(3 * m, -settings.max_force)
+            hi = np.full(3 * m, settings.max_force)
+            if np.allclose(c.normal, [0.0, 0.0, 1.0]):
+                lo[2::3] = 0.0  # unilateral on flat ground also as a bound (bounds are values)
+            lower.append(lo)
+            upper.append(hi)
+            initial.append(np.tile(c.normal / max(n_points, 1), m))
+            pvals.append(_geometry_values(c))
+            lbg.append(np.zeros(5 * m))
+            ubg.append(np.full(5 * m, np.inf))
+        lbg.append(np.zeros(3))
+        ubg.append(np.zeros(3))
+    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+    return CentroidalPattern(
+        lower=cat(lower), upper=cat(upper), initial=cat(initial), parameter_values=cat(pvals),
+        lbg=cat(lbg), ubg=cat(ubg), weight=weight, contacts=tuple(tuple(c) for c in contacts),
+        force_index=tuple(index), frames=tuple(frames), dynamics_knots=tuple(range(1, T - 1)),
+        structure=(settings.inner_pyramid, settings.angular_momentum_weight > 0.0, tuple(structure)),
+    )
+
+
 def build_centroidal(
     com: Sequence[Any],
     dt: Any,
@@ -609,10 +693,15 @@ def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSe
     g, lbg, ubg = terms.g()
     fn = ca.Function("centroidal", [C, terms.variables, terms.parameters, dt], [g, terms.cost],
                      ["com", "u", "p", "dt"], ["g", "cost"])
-    feet = [lay.robot.frame_id(f"{s}_foot") for s in ("left", "right")]
-    rows = tuple((k, fid, i) for k in range(first_free_knot, N) for fid in feet
-                 if fid not in lay.contacts_at[k] for i in range(4))
+    rows = swinging_corners(lay, first_free_knot=first_free_knot)
     return CentroidalFunction(function=fn, terms=terms, corner_rows=rows, lbg=lbg, ubg=ubg)
+
+
+def swinging_corners(lay: Any, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
+    """(knot, foot frame id, corner) of every sole corner of a foot not in contact at a variable knot."""
+    feet = [lay.robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    return tuple((k, fid, i) for k in range(first_free_knot, lay.N) for fid in feet
+                 if fid not in lay.contacts_at[k] for i in range(4))
 
 
 def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
@@ -794,16 +883,29 @@ class DynamicLayout(_layout_class()):  # type: ignore[misc]
 
     centroidal_settings: CentroidalSettings
     _cf: CentroidalFunction | None
+    _pattern: CentroidalPattern | None
 
     def centroidal(self) -> CentroidalFunction:
-        """The centroidal function of this layout (built once)."""
+        """The centroidal function of this layout (CasADi; built once, only to build a solver)."""
         if self._cf is None:
             self._cf = centroidal_function(self, settings=self.centroidal_settings)
         return self._cf
 
+    def pattern(self) -> CentroidalPattern:
+        """The numbers of the centroidal terms (no CasADi; what a cached solver needs)."""
+        if self._pattern is None:
+            contacts = layout_contacts(self, cop_margin=self.centroidal_settings.cop_margin)
+            self._pattern = centroidal_pattern(contacts, self.robot.mass, settings=self.centroidal_settings)
+        return self._pattern
+
+    def corner_rows(self) -> tuple[tuple[int, int, int], ...]:
+        """(knot, foot frame id, corner) of the sole-corner rows (feet not in contact)."""
+        return swinging_corners(self)
+
     def structure(self) -> tuple:
         """Kinematic structure + the dynamic one."""
-        return (super().structure(), "dynamic", self.centroidal().structure, self.centroidal_settings)
+        return (super().structure(), "dynamic", self.pattern().structure, self.corner_rows(),
+                self.centroidal_settings)
 
     @property
     def n_kinematic(self) -> int:
@@ -832,13 +934,14 @@ def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSetting
     out = DynamicLayout(**fields)
     out.centroidal_settings = settings
     out._cf = None
+    out._pattern = None
     return out
 
 
 def dynamic_sizes(lay: DynamicLayout) -> tuple[int, int]:
     """(force variables, dynamic constraint rows) of a dynamic layout."""
-    cf = lay.centroidal()
-    return cf.terms.n_variables, len(cf.lbg) + len(cf.corner_rows)
+    pat = lay.pattern()
+    return pat.n_variables, len(pat.lbg) + len(lay.corner_rows())
 
 
 def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
@@ -886,25 +989,25 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
 def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
                   ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Bounds of the extended NLP from the kinematic ones (force boxes, dynamic rows)."""
-    cf = lay.centroidal()
-    n_z = len(cf.corner_rows)
+    pat = lay.pattern()
+    n_z = len(lay.corner_rows())
     return (
-        np.concatenate([lbx, cf.terms.lower]),
-        np.concatenate([ubx, cf.terms.upper]),
-        np.concatenate([lbg, cf.lbg, np.zeros(n_z)]),
-        np.concatenate([ubg, cf.ubg, np.full(n_z, np.inf)]),
+        np.concatenate([lbx, pat.lower]),
+        np.concatenate([ubx, pat.upper]),
+        np.concatenate([lbg, pat.lbg, np.zeros(n_z)]),
+        np.concatenate([ubg, pat.ubg, np.full(n_z, np.inf)]),
     )
 
 
 def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:
     """Parameter values of the extended NLP: the kinematic ones, then the contact geometry."""
-    return np.concatenate([p, lay.centroidal().terms.parameter_values])
+    return np.concatenate([p, lay.pattern().parameter_values])
 
 
 def initial_guess(lay: DynamicLayout) -> np.ndarray:
     """Initial ``[x; u]``: the heading warm start for the chart, the weight shared by the corners."""
     dq = heading_guess(lay)
-    return np.concatenate([dq[2:lay.N].ravel(), lay.centroidal().terms.initial])
+    return np.concatenate([dq[2:lay.N].ravel(), lay.pattern().initial])
 
 
 def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
@@ -1157,8 +1260,7 @@ def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forc
     out = [c for c in checks if not (c.name.startswith("CoM bound") and c.name.endswith("support polygon"))]
     out += rest_polygon_checks(lay, com, settings.polygon_tolerance)
     if forces is not None:
-        cf = lay.centroidal()
-        out += dynamic_checks(lay, q, com, cf.terms, cf.corner_rows, forces,
+        out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,
                               force_tolerance=lay.centroidal_settings.force_tolerance,
                               position_tolerance=settings.polygon_tolerance)
     return out
@@ -1202,6 +1304,7 @@ __all__ = [
     "GRAVITY",
     "CentroidalSettings",
     "CentroidalFunction",
+    "CentroidalPattern",
     "CentroidalTerms",
     "ConstraintBlock",
     "ContactGeometry",
@@ -1212,6 +1315,7 @@ __all__ = [
     "build_centroidal_for_spec",
     "center_of_pressure",
     "centroidal_function",
+    "centroidal_pattern",
     "com_acceleration",
     "com_dynamics_residual",
     "contact_geometry",
@@ -1234,4 +1338,5 @@ __all__ = [
     "friction_violation",
     "heading_guess",
     "sole_corner_heights",
+    "swinging_corners",
 ]

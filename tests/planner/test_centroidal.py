@@ -394,3 +394,23 @@ def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
             cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g)]
     for a, r in zip(ours(*args), ad(*args), strict=True):
         np.testing.assert_allclose(np.array(ca.densify(a)), np.array(ca.densify(r)), atol=1e-8, rtol=1e-8)
+
+
+def test_pattern_matches_the_symbolic_terms(talos):
+    """The cheap numeric pattern has the terms' exact bounds, guess, values, rows and indices."""
+    from planner.centroidal import centroidal_pattern
+
+    feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.2))
+    sets = [feet, feet, (feet[0],), (), (feet[1],), feet, feet]
+    com = [ca.SX.sym(f"c{k}", 3) for k in range(len(sets))]
+    terms = build_centroidal(com, 0.05, sets, talos.mass)
+    pat = centroidal_pattern(sets, talos.mass)
+    for name in ("lower", "upper", "initial", "parameter_values"):
+        np.testing.assert_array_equal(getattr(pat, name), getattr(terms, name), err_msg=name)
+    _, lbg, ubg = terms.g()
+    np.testing.assert_array_equal(pat.lbg, lbg)
+    np.testing.assert_array_equal(pat.ubg, ubg)
+    assert pat.structure == terms.structure and pat.frames == terms.frames
+    assert pat.dynamics_knots == terms.dynamics_knots and pat.n_variables == terms.n_variables
+    for a, b in zip(pat.force_index, terms.force_index, strict=True):
+        assert a.keys() == b.keys() and all(np.array_equal(a[f], b[f]) for f in a)
