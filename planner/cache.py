@@ -143,8 +143,11 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
     gcc = shutil.which("gcc")
     if gcc is None:
         return solver
-    entry.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
+    except OSError:  # an unwritable cache directory: plan in memory
+        return solver
     try:
         if progress:
             progress("generating C code for the solver")

@@ -102,3 +102,12 @@ def test_cache_disabled_builds_every_time(talos):
     lay = make_layout(squat_spec(talos, 0.1, duration=2.0, dt=0.1), talos)
     assert get_solver(lay, settings).origin == "built"
     assert get_solver(lay, settings).origin == "built"
+
+
+def test_unwritable_cache_directory_still_plans(tmp_path, talos):
+    """A cache directory that cannot be created (a file is in the way) only costs the disk cache."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    settings = PlannerSettings(cache_dir=str(blocker / "cache"), compile=True, use_cache=False)
+    result = plan(squat_spec(talos, 0.05, duration=2.0, dt=0.1), talos, settings=settings)
+    assert result.ok and result.stats.cache == "built"
