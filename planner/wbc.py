@@ -459,32 +459,43 @@ class WholeBodyController:
             out[self._contacts[i]] = self._last_rots[i] @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(axis=0)
         return out
 
-    def _solve(self) -> tuple[np.ndarray, bool, int, str]:
+    def _new_qp(self) -> Any:
+        s = self.settings
+        qp = proxsuite.proxqp.dense.QP(
+            self.n, self.n_eq, self.n_in, False, proxsuite.proxqp.dense.HessianType.Dense,
+            getattr(proxsuite.proxqp.dense.DenseBackend, s.dense_backend),
+        )
+        qp.settings.eps_abs = s.eps_abs
+        qp.settings.eps_rel = 0.0
+        qp.settings.max_iter = s.max_iter
+        qp.settings.max_iter_in = s.max_iter_in
+        qp.settings.verbose = False
+        qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        qp.init(self.H, self.g, self.A, self.b, self.C, self.l, self.u)
+        return qp
+
+    def _qp_ok(self) -> bool:
+        res = self._qp.results
+        return bool(res.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED and np.all(np.isfinite(res.x)))
+
+    def _solve(self) -> tuple[np.ndarray, bool, int, Any]:
         s = self.settings
         if s.backend == "proxsuite":
-            if self._qp is None:
-                qp = proxsuite.proxqp.dense.QP(
-                    self.n, self.n_eq, self.n_in, False, proxsuite.proxqp.dense.HessianType.Dense,
-                    getattr(proxsuite.proxqp.dense.DenseBackend, s.dense_backend),
-                )
-                qp.settings.eps_abs = s.eps_abs
-                qp.settings.eps_rel = 0.0
-                qp.settings.max_iter = s.max_iter
-                qp.settings.max_iter_in = s.max_iter_in
-                qp.settings.verbose = False
-                qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-                qp.init(self.H, self.g, self.A, self.b, self.C, self.l, self.u)
-                self._qp = qp
+            fresh = self._qp is None
+            if fresh:
+                self._qp = self._new_qp()
             else:
                 self._qp.update(self.H, self.g, self.A, self.b, self.C, self.l, self.u, update_preconditioner=False)
             self._qp.solve()
-            res = self._qp.results
-            status = res.info.status
-            ok = status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
-            x = res.x
-            if ok and not np.all(np.isfinite(x)):
-                ok = False
-            return x.copy(), ok, int(res.info.iter), status
+            ok, iterations = self._qp_ok(), int(self._qp.results.info.iter)
+            if not ok and not fresh:
+                # a warm start from a far-away point can make proxsuite declare a feasible QP
+                # infeasible: retry cold, with a fresh preconditioner, before giving up
+                self._qp = self._new_qp()
+                self._qp.solve()
+                ok = self._qp_ok()
+                iterations += int(self._qp.results.info.iter)
+            return self._qp.results.x.copy(), ok, iterations, self._qp.results.info.status
         import qpsolvers
 
         finite_l = self.l > -INFINITY / 2
