@@ -47,6 +47,8 @@ class Execution:
         realtime_factor: Simulated time / wall time [-].
         tick_times: Controller tick durations [s] (T',).
         timestep: MuJoCo timestep [s].
+        joint_names: Actuated joint names, the column order of ``tau``.
+        torque_limits: Their torque limits (nv - 6,) [N m].
     """
 
     t: np.ndarray
@@ -61,6 +63,15 @@ class Execution:
     realtime_factor: float = 0.0
     tick_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timestep: float = 0.001
+    joint_names: tuple[str, ...] = ()
+    torque_limits: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def peak_torque_fractions(self) -> dict[str, float]:
+        """Peak |tau| / limit of each actuated joint over the run [-], in joint order."""
+        if not len(self.tau) or not len(self.torque_limits):
+            return {}
+        peaks = np.abs(self.tau).max(axis=0) / self.torque_limits
+        return {name: float(p) for name, p in zip(self.joint_names, peaks, strict=True)}
 
     @property
     def ok(self) -> bool:

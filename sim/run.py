@@ -290,6 +290,8 @@ def simulate(
         realtime_factor=(ts[-1] + control_dt) / wall if wall > 0 else math.inf,
         tick_times=tick_times,
         timestep=s.timestep,
+        joint_names=tuple(robot.joint_names),
+        torque_limits=sm.torque_limits.copy(),
     )
 
 

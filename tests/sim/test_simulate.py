@@ -51,6 +51,9 @@ def test_standing_still_passes_and_forces_carry_the_weight(talos, stand_run):
     total = sum(f[-200:].mean(axis=0) for f in ex.contact_forces.values())
     np.testing.assert_allclose(total, [0.0, 0.0, talos.mass * GRAVITY], atol=0.02 * talos.mass * GRAVITY)
     assert ex.certificate.check("left_foot slip").value < 0.002
+    fractions = ex.peak_torque_fractions()
+    assert list(fractions) == talos.joint_names
+    assert max(fractions.values()) == pytest.approx(ex.certificate.check("peak torque").value / 100)
     assert ex.certificate.check("CoM tracking error").value < 0.01
 
 
