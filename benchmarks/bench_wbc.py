@@ -44,7 +44,11 @@ TARGET_RTF = 2.0
 
 def _stats(samples: list[float]) -> dict[str, float]:
     a = 1e6 * np.asarray(samples)
-    return {"median_us": float(np.median(a)), "p99_us": float(np.percentile(a, 99)), "mean_us": float(a.mean())}
+    return {
+        "median_us": float(np.median(a)),
+        "p99_us": float(np.percentile(a, 99)),
+        "mean_us": float(a.mean()),
+    }
 
 
 def make_plan(robot, kind: str, seconds: float):
@@ -54,7 +58,9 @@ def make_plan(robot, kind: str, seconds: float):
         from tasks.actions import Action
         from tasks.compose import compile_actions
 
-        return trajopt_plan(compile_actions([Action(name="reach", params={"direction": "forward"})], robot), robot)
+        return trajopt_plan(
+            compile_actions([Action(name="reach", params={"direction": "forward"})], robot), robot
+        )
     return arm_plan(robot, duration=seconds, dt=0.05)
 
 
@@ -77,7 +83,9 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
         cpu.append(time.thread_time() - c0)
         iters.append(ctrl.last.iterations)
         if i % 10 == 0:
-            problems.append(tuple(x.copy() for x in (ctrl.H, ctrl.g, ctrl.A, ctrl.b, ctrl.C, ctrl.l, ctrl.u)))
+            problems.append(
+                tuple(x.copy() for x in (ctrl.H, ctrl.g, ctrl.A, ctrl.b, ctrl.C, ctrl.l, ctrl.u))
+            )
         d.ctrl[sm.actuator_index] = tau
         mujoco.mj_step(sm.model, d)
     # breakdown on the final state: the Pinocchio part alone
@@ -92,7 +100,9 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
         for fid in fids:
             pin.updateFramePlacement(model, data, fid)
             pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-            pin.getFrameClassicalAcceleration(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            pin.getFrameClassicalAcceleration(
+                model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            )
             pin.getFrameVelocity(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         pin_times.append(time.thread_time() - t0)
     qp_times = []
@@ -121,12 +131,12 @@ def backend_comparison(problems: list) -> dict[str, dict]:
     import qpsolvers
 
     results = {}
-    H, g, A, b, C, l, u = problems[0]
-    qp = proxsuite.proxqp.dense.QP(len(g), len(b), len(l))
+    H, g, A, b, C, lower, upper = problems[0]
+    qp = proxsuite.proxqp.dense.QP(len(g), len(b), len(lower))
     qp.settings.eps_abs = 1e-6
     qp.settings.eps_rel = 0.0
     qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-    qp.init(H, g, A, b, C, l, u)
+    qp.init(H, g, A, b, C, lower, upper)
     qp.solve()
     ref_x = []
     times = []
@@ -140,15 +150,18 @@ def backend_comparison(problems: list) -> dict[str, dict]:
     for solver in qpsolvers.available_solvers:
         times, dx = [], []
         for prob, x_ref in zip(problems, ref_x, strict=True):
-            H, g, A, b, C, l, u = prob
-            finite = l > -1e19
+            H, g, A, b, C, lower, upper = prob
+            finite = lower > -1e19
             G = np.vstack([C, -C[finite]])
-            h = np.concatenate([u, -l[finite]])
+            h = np.concatenate([upper, -lower[finite]])
             t0 = time.perf_counter()
             x = qpsolvers.solve_qp(H, g, G, h, A, b, solver=solver)
             times.append(time.perf_counter() - t0)
             dx.append(np.inf if x is None else float(np.abs(x - x_ref).max()))
-        results[f"qpsolvers:{solver} (rebuilt each call)"] = {**_stats(times), "max_dx": float(max(dx))}
+        results[f"qpsolvers:{solver} (rebuilt each call)"] = {
+            **_stats(times),
+            "max_dx": float(max(dx)),
+        }
     missing = sorted({"daqp", "quadprog", "osqp", "proxqp"} - set(qpsolvers.available_solvers))
     if missing:
         results["not installed"] = {"solvers": missing}
@@ -179,32 +192,54 @@ def main(argv: list[str] | None = None) -> int:
     robot = load_robot("talos")
     plan = make_plan(robot, args.plan, args.seconds)
     load = os.getloadavg()[0]
-    print(f"Talos, {args.plan} plan of {plan.t[-1]:.1f} s; load average {load:.1f} on {os.cpu_count()} cores")
+    print(
+        f"Talos, {args.plan} plan of {plan.t[-1]:.1f} s; load average {load:.1f} on {os.cpu_count()} cores"
+    )
     ticks, problems = closed_loop_ticks(robot, plan, WbcSettings())
-    print(f"controller tick ({ticks['ticks']} ticks, QP n={ticks['qp_size']['n']} n_eq={ticks['qp_size']['n_eq']} "
-          f"n_in={ticks['qp_size']['n_in']}, {ticks['qp_iterations_mean']:.2f} iterations/tick):")
+    print(
+        f"controller tick ({ticks['ticks']} ticks, QP n={ticks['qp_size']['n']} n_eq={ticks['qp_size']['n_eq']} "
+        f"n_in={ticks['qp_size']['n_in']}, {ticks['qp_iterations_mean']:.2f} iterations/tick):"
+    )
     for kind in ("wall", "cpu"):
         s = ticks[kind]
-        flag = "meets" if s["median_us"] <= TARGET_MEDIAN_US and s["p99_us"] <= TARGET_P99_US else "misses"
-        print(f"  {kind:<5} median {s['median_us']:7.1f} us  p99 {s['p99_us']:7.1f} us  ({flag} the target "
-              f"{TARGET_MEDIAN_US:.0f}/{TARGET_P99_US:.0f} us)")
-    print(f"  of which Pinocchio numerics  median {ticks['pinocchio_cpu']['median_us']:.1f} us (CPU)")
+        flag = (
+            "meets"
+            if s["median_us"] <= TARGET_MEDIAN_US and s["p99_us"] <= TARGET_P99_US
+            else "misses"
+        )
+        print(
+            f"  {kind:<5} median {s['median_us']:7.1f} us  p99 {s['p99_us']:7.1f} us  ({flag} the target "
+            f"{TARGET_MEDIAN_US:.0f}/{TARGET_P99_US:.0f} us)"
+        )
+    print(
+        f"  of which Pinocchio numerics  median {ticks['pinocchio_cpu']['median_us']:.1f} us (CPU)"
+    )
     if ticks["qp_update_solve_cpu"]:
-        print(f"  of which QP update + solve   median {ticks['qp_update_solve_cpu']['median_us']:.1f} us (CPU)")
+        print(
+            f"  of which QP update + solve   median {ticks['qp_update_solve_cpu']['median_us']:.1f} us (CPU)"
+        )
     backends = backend_comparison(problems)
     print(f"QP backends on {len(problems)} recorded ticks (wall):")
     for name, s in backends.items():
         if name == "not installed":
             print(f"  not installed here: {', '.join(s['solvers'])}")
             continue
-        print(f"  {name:<42} median {s['median_us']:8.1f} us  p99 {s['p99_us']:8.1f} us  max |dx| {s['max_dx']:.1e}")
+        print(
+            f"  {name:<42} median {s['median_us']:8.1f} us  p99 {s['p99_us']:8.1f} us  max |dx| {s['max_dx']:.1e}"
+        )
     rtf = realtime_factor(robot, plan)
-    print(f"simulation: {rtf['simulated_s']:.2f} s simulated, loop {rtf['realtime_factor_loop']:.2f}x real time "
-          f"({rtf['realtime_factor_with_setup_and_certificate']:.2f}x with setup and certificate; target "
-          f">= {TARGET_RTF:.0f}x); certificate {'PASS' if rtf['certificate_ok'] else 'FAIL'}")
+    print(
+        f"simulation: {rtf['simulated_s']:.2f} s simulated, loop {rtf['realtime_factor_loop']:.2f}x real time "
+        f"({rtf['realtime_factor_with_setup_and_certificate']:.2f}x with setup and certificate; target "
+        f">= {TARGET_RTF:.0f}x); certificate {'PASS' if rtf['certificate_ok'] else 'FAIL'}"
+    )
     if args.json:
-        args.json.write_text(json.dumps({"load_average": load, "tick": ticks, "backends": backends,
-                                         "simulation": rtf}, indent=2))
+        args.json.write_text(
+            json.dumps(
+                {"load_average": load, "tick": ticks, "backends": backends, "simulation": rtf},
+                indent=2,
+            )
+        )
     return 0
 
 

@@ -102,17 +102,32 @@ class WbcSettings:
 
     def __post_init__(self) -> None:
         for name in (
-            "com_weight", "hand_weight", "foot_weight", "base_weight", "posture_weight", "orientation_factor",
-            "force_weight", "acceleration_weight", "com_kp", "frame_kp", "foot_kp", "base_kp", "posture_kp",
+            "com_weight",
+            "hand_weight",
+            "foot_weight",
+            "base_weight",
+            "posture_weight",
+            "orientation_factor",
+            "force_weight",
+            "acceleration_weight",
+            "com_kp",
+            "frame_kp",
+            "foot_kp",
+            "base_kp",
+            "posture_kp",
             "contact_kp",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ControllerError(f"WbcSettings.{name} must be a finite number >= 0, got {value!r}")
+                raise ControllerError(
+                    f"WbcSettings.{name} must be a finite number >= 0, got {value!r}"
+                )
         if not (self.force_weight > 0 and self.acceleration_weight > 0):
             raise ControllerError("WbcSettings: force_weight and acceleration_weight must be > 0")
         if not 0 < self.friction_scale <= 1 or not 0 < self.torque_scale:
-            raise ControllerError("WbcSettings: friction_scale must be in (0, 1] and torque_scale > 0")
+            raise ControllerError(
+                "WbcSettings: friction_scale must be in (0, 1] and torque_scale > 0"
+            )
         if not self.dt > 0:
             raise ControllerError(f"WbcSettings.dt must be > 0 s, got {self.dt!r}")
 
@@ -180,7 +195,11 @@ class WholeBodyController:
     # ------------------------------------------------------------------ reference handling
     def reference_for(self, plan: Plan) -> PlanReference:
         """The dense reference of ``plan`` (built once per plan, then reused)."""
-        if self._reference is None or self._reference_key != id(plan) or self._reference.plan is not plan:
+        if (
+            self._reference is None
+            or self._reference_key != id(plan)
+            or self._reference.plan is not plan
+        ):
             self._reference = PlanReference(plan, self.robot, dt=self.settings.dt)
             self._reference_key = id(plan)
         return self._reference
@@ -225,19 +244,32 @@ class WholeBodyController:
             g0s.append(g0 * self._f_scale)
         self._g0s = g0s
         # frames: contact frames first (stance rows), then hands and spec target frames
-        hand_names = [self.robot.frame(r) for r in ("left_hand", "right_hand") if self.robot.has_role(r)]
-        target_names = [model.frames[self.robot.frame_id(t.frame)].name for t in ref.plan.spec.targets]
-        others = [nm for nm in dict.fromkeys([*hand_names, *target_names]) if nm not in self._contacts]
+        hand_names = [
+            self.robot.frame(r) for r in ("left_hand", "right_hand") if self.robot.has_role(r)
+        ]
+        target_names = [
+            model.frames[self.robot.frame_id(t.frame)].name for t in ref.plan.spec.targets
+        ]
+        others = [
+            nm for nm in dict.fromkeys([*hand_names, *target_names]) if nm not in self._contacts
+        ]
         self._frames = [*self._contacts, *others]
         self._frame_ids = [model.getFrameId(nm) for nm in self._frames]
         nf = len(self._frames)
         nrow = 3 + 6 * nf  # CoM rows, then 6 rows per frame (linear, angular; world-aligned)
         self._nrow = nrow
         # stacked references on the dense grid (n, ...): positions (CoM first), rotations, velocities, accelerations
-        self._ref_pos = np.concatenate([ref.com[:, None, :]] + [ref.frames[nm].position[:, None, :] for nm in self._frames], axis=1)
+        self._ref_pos = np.concatenate(
+            [ref.com[:, None, :]] + [ref.frames[nm].position[:, None, :] for nm in self._frames],
+            axis=1,
+        )
         self._ref_rot = np.stack([ref.frames[nm].rotation for nm in self._frames], axis=1)
-        self._ref_vel = np.concatenate([ref.com_velocity] + [ref.frames[nm].velocity for nm in self._frames], axis=1)
-        self._ref_acc = np.concatenate([ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames], axis=1)
+        self._ref_vel = np.concatenate(
+            [ref.com_velocity] + [ref.frames[nm].velocity for nm in self._frames], axis=1
+        )
+        self._ref_acc = np.concatenate(
+            [ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames], axis=1
+        )
         # per-row gains and weights of the tracking tasks
         kp = np.empty(nrow)
         w = np.empty(nrow)
@@ -279,7 +311,12 @@ class WholeBodyController:
                 c0 = nv + 12 * i + 3 * k
                 self.C[r0 : r0 + 4, c0 : c0 + 3] = pyramid
         self._tau_rows = slice(16 * nc, 16 * nc + self.nu)
-        self._reg = np.concatenate([np.full(nv, s.acceleration_weight), np.full(12 * nc, s.force_weight * self._f_scale**2)])
+        self._reg = np.concatenate(
+            [
+                np.full(nv, s.acceleration_weight),
+                np.full(12 * nc, s.force_weight * self._f_scale**2),
+            ]
+        )
         # posture weights on the actuated joints, base orientation on the angular base rows
         self._diag_a = np.zeros(nv)
         self._diag_a[3:6] = s.base_weight
@@ -290,7 +327,9 @@ class WholeBodyController:
         self._kp_post[6:] = s.posture_kp
         self._kd_post = 2.0 * np.sqrt(self._kp_post)
         self._post_feedforward = ref.a + self._kd_post * ref.v
-        self.H[np.diag_indices(self.n)] = self._reg  # the force block keeps it; the a block is rewritten
+        self.H[np.diag_indices(self.n)] = (
+            self._reg
+        )  # the force block keeps it; the a block is rewritten
         self._h_diag_a = self.H.reshape(-1)[: nv * (self.n + 1) : self.n + 1]
         self._l_tau = self.l[16 * nc :]
         self._u_tau = self.u[16 * nc :]
@@ -326,7 +365,9 @@ class WholeBodyController:
         self._active_flags = active
 
     # ------------------------------------------------------------------ the tick
-    def compute(self, t: float, q: np.ndarray, v: np.ndarray, reference: Plan | PlanReference) -> np.ndarray:
+    def compute(
+        self, t: float, q: np.ndarray, v: np.ndarray, reference: Plan | PlanReference
+    ) -> np.ndarray:
         """Joint torques for the current state.
 
         Args:
@@ -361,7 +402,9 @@ class WholeBodyController:
         for i, fid in enumerate(self._frame_ids):
             placement = pin.updateFramePlacement(model, data, fid)
             J[3 + 6 * i : 9 + 6 * i] = pin.getFrameJacobian(model, data, fid, _LWA)
-            drift[3 + 6 * i : 9 + 6 * i] = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+            drift[3 + 6 * i : 9 + 6 * i] = pin.getFrameClassicalAcceleration(
+                model, data, fid, _LWA
+            ).vector
             pos[1 + i] = placement.translation
             rots[i] = placement.rotation
         key = ref.active[k].tobytes()
@@ -404,7 +447,11 @@ class WholeBodyController:
         np.multiply(wr[:, None], J, out=T)
         r = wr * a_des
         # ---- posture + base orientation (diagonal terms)
-        a_post = self._post_feedforward[k] + self._kp_post * pin.difference(model, q, ref.q[k]) - self._kd_post * v
+        a_post = (
+            self._post_feedforward[k]
+            + self._kp_post * pin.difference(model, q, ref.q[k])
+            - self._kd_post * v
+        )
         # ---- QP matrices
         H, g = self.H, self.g
         H[:nv, :nv] = T.T @ T
@@ -443,7 +490,10 @@ class WholeBodyController:
     def corner_forces(self) -> dict[str, np.ndarray]:
         """Corner forces (4, 3) of every contact frame in its sole frame, last QP solution [N]."""
         f = self._x[self.nv :] * self._f_scale
-        return {name: f[12 * i : 12 * i + 12].reshape(4, 3).copy() for i, name in enumerate(self._contacts)}
+        return {
+            name: f[12 * i : 12 * i + 12].reshape(4, 3).copy()
+            for i, name in enumerate(self._contacts)
+        }
 
     def contact_jacobian_transpose(self) -> np.ndarray:
         """:math:`J_c^\\top` mapping the stacked corner forces to generalized forces, last tick (nv, 12 nc)."""
@@ -456,13 +506,19 @@ class WholeBodyController:
             return out
         f = self._x[self.nv :] * self._f_scale
         for i in self._stance:
-            out[self._contacts[i]] = self._last_rots[i] @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(axis=0)
+            out[self._contacts[i]] = self._last_rots[i] @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(
+                axis=0
+            )
         return out
 
     def _new_qp(self) -> Any:
         s = self.settings
         qp = proxsuite.proxqp.dense.QP(
-            self.n, self.n_eq, self.n_in, False, proxsuite.proxqp.dense.HessianType.Dense,
+            self.n,
+            self.n_eq,
+            self.n_in,
+            False,
+            proxsuite.proxqp.dense.HessianType.Dense,
             getattr(proxsuite.proxqp.dense.DenseBackend, s.dense_backend),
         )
         qp.settings.eps_abs = s.eps_abs
@@ -476,7 +532,10 @@ class WholeBodyController:
 
     def _qp_ok(self) -> bool:
         res = self._qp.results
-        return bool(res.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED and np.all(np.isfinite(res.x)))
+        return bool(
+            res.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+            and np.all(np.isfinite(res.x))
+        )
 
     def _solve(self) -> tuple[np.ndarray, bool, int, Any]:
         s = self.settings
@@ -485,7 +544,16 @@ class WholeBodyController:
             if fresh:
                 self._qp = self._new_qp()
             else:
-                self._qp.update(self.H, self.g, self.A, self.b, self.C, self.l, self.u, update_preconditioner=False)
+                self._qp.update(
+                    self.H,
+                    self.g,
+                    self.A,
+                    self.b,
+                    self.C,
+                    self.l,
+                    self.u,
+                    update_preconditioner=False,
+                )
             self._qp.solve()
             ok, iterations = self._qp_ok(), int(self._qp.results.info.iter)
             if not ok and not fresh:
@@ -501,7 +569,9 @@ class WholeBodyController:
         finite_l = self.l > -INFINITY / 2
         G = np.vstack([self.C, -self.C[finite_l]])
         hvec = np.concatenate([self.u, -self.l[finite_l]])
-        x = qpsolvers.solve_qp(self.H, self.g, G, hvec, self.A, self.b, solver=s.backend, initvals=self._x)
+        x = qpsolvers.solve_qp(
+            self.H, self.g, G, hvec, self.A, self.b, solver=s.backend, initvals=self._x
+        )
         if x is None or not np.all(np.isfinite(x)):
             return np.zeros(self.n), False, 0, "failed"
         return x, True, 0, "solved"

@@ -88,7 +88,9 @@ class PlanReference:
         duration: Plan duration [s].
     """
 
-    def __init__(self, plan: Plan, robot: Robot, *, dt: float = 0.001, frames: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self, plan: Plan, robot: Robot, *, dt: float = 0.001, frames: tuple[str, ...] = ()
+    ) -> None:
         model = robot.model
         self.plan = plan
         self.dt = float(dt)
@@ -103,7 +105,9 @@ class PlanReference:
         nk = len(plan.t)
 
         # chart coordinates at the knots: base position (world), rotation vector w.r.t. knot 0, joints
-        rot0 = pin.Quaternion(knots_q[0, 6], knots_q[0, 3], knots_q[0, 4], knots_q[0, 5]).toRotationMatrix()
+        rot0 = pin.Quaternion(
+            knots_q[0, 6], knots_q[0, 3], knots_q[0, 4], knots_q[0, 5]
+        ).toRotationMatrix()
         chart = np.empty((nk, 6 + model.nq - 7))
         dchart = np.empty_like(chart)
         for k in range(nk):
@@ -121,7 +125,11 @@ class PlanReference:
             spline = CubicSpline(plan.t, chart, bc_type=((1, dchart[0]), (1, dchart[-1])), axis=0)
             c, dc, ddc = spline(times), spline(times, 1), spline(times, 2)
         else:
-            c, dc, ddc = chart.repeat(n, axis=0), np.zeros((n, chart.shape[1])), np.zeros((n, chart.shape[1]))
+            c, dc, ddc = (
+                chart.repeat(n, axis=0),
+                np.zeros((n, chart.shape[1])),
+                np.zeros((n, chart.shape[1])),
+            )
 
         rot_rel, jr = _exp3_and_jr(c[:, 3:6])
         rot = rot0[None] @ rot_rel
@@ -149,7 +157,9 @@ class PlanReference:
                 names.append(robot.frame(role))
         for target in plan.spec.targets:
             names.append(model.frames[robot.frame_id(target.frame)].name)
-        self.contact_frames = tuple(model.frames[robot.frame_id(f)].name for f in plan.spec.contact_frames())
+        self.contact_frames = tuple(
+            model.frames[robot.frame_id(f)].name for f in plan.spec.contact_frames()
+        )
         names.extend(self.contact_frames)
         for extra in frames:
             names.append(model.frames[robot.frame_id(extra)].name)
@@ -180,7 +190,13 @@ class PlanReference:
         ddcom[-1] = 0.0
         self.com, self.com_velocity, self.com_acceleration = com, dcom, ddcom
         self.frames = {
-            nm: FrameTrack(frame_id=fid, position=pos[j], rotation=rots[j], velocity=vel[j], acceleration=acc[j])
+            nm: FrameTrack(
+                frame_id=fid,
+                position=pos[j],
+                rotation=rots[j],
+                velocity=vel[j],
+                acceleration=acc[j],
+            )
             for j, (nm, fid) in enumerate(zip(names, ids, strict=True))
         }
 
@@ -190,7 +206,11 @@ class PlanReference:
         for p, phase in enumerate(spec.phases):
             t_start = starts[p]
             t_end = t_start + phase.duration
-            mask = (times >= t_start - 1e-9) & (times < t_end - 1e-9) if p < len(spec.phases) - 1 else times >= t_start - 1e-9
+            mask = (
+                (times >= t_start - 1e-9) & (times < t_end - 1e-9)
+                if p < len(spec.phases) - 1
+                else times >= t_start - 1e-9
+            )
             for contact in phase.contacts:
                 name = model.frames[robot.frame_id(contact.frame)].name
                 active[mask, self.contact_frames.index(name)] = True

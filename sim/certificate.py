@@ -70,7 +70,7 @@ class Certificate:
         failed = [c for c in checks if not c.ok]
         if not failed:
             return cls(ok=True, checks=checks, reason="")
-        first = min(failed, key=lambda c: (c.time if math.isfinite(c.time) else math.inf))
+        first = min(failed, key=lambda c: c.time if math.isfinite(c.time) else math.inf)
         return cls(ok=False, checks=checks, reason=first.message or f"{first.name} failed")
 
     def check(self, name: str) -> Check:
@@ -94,4 +94,8 @@ class Certificate:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dict."""
-        return {"ok": bool(self.ok), "reason": self.reason, "checks": [c.to_dict() for c in self.checks]}
+        return {
+            "ok": bool(self.ok),
+            "reason": self.reason,
+            "checks": [c.to_dict() for c in self.checks],
+        }

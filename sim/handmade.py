@@ -31,7 +31,9 @@ def smooth_bump(duration: float) -> Callable[[float], float]:
 
 def _pose_of(placement: pin.SE3) -> Pose:
     rpy = pin.rpy.matrixToRpy(placement.rotation)
-    return Pose(position=tuple(float(x) for x in placement.translation), rpy=tuple(float(x) for x in rpy))
+    return Pose(
+        position=tuple(float(x) for x in placement.translation), rpy=tuple(float(x) for x in rpy)
+    )
 
 
 def ik_plan(
@@ -89,7 +91,9 @@ def ik_plan(
                     target.translation = target.translation + foot_offsets[role](t)
                 cur = data.oMf[fid]
                 err = pin.log6(target.actInv(cur)).vector
-                J = pin.Jlog6(target.actInv(cur)) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
+                J = pin.Jlog6(target.actInv(cur)) @ pin.getFrameJacobian(
+                    model, data, fid, pin.LOCAL
+                )
                 errs.append(30.0 * err)
                 jacs.append(30.0 * J)
             com = pin.centerOfMass(model, data, q)
@@ -99,7 +103,9 @@ def ik_plan(
             for role, fid in hands.items():
                 p = data.oMf[fid].translation
                 errs.append(3.0 * (p - hand0[role] - hand_offsets[role](t)))
-                jacs.append(3.0 * pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3])
+                jacs.append(
+                    3.0 * pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+                )
             rot = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
             errs.append(pin.log3(rot0.T @ rot))
             jb = np.zeros((3, model.nv))
@@ -149,11 +155,18 @@ def standing_plan(robot: Robot, *, duration: float = 2.0, dt: float = 0.05) -> P
     return ik_plan(robot, duration=duration, dt=dt, name="stand")
 
 
-def squat_plan(robot: Robot, *, depth: float = 0.15, duration: float = 3.0, dt: float = 0.05) -> Plan:
+def squat_plan(
+    robot: Robot, *, depth: float = 0.15, duration: float = 3.0, dt: float = 0.05
+) -> Plan:
     """Lower the CoM by ``depth`` [m] and come back up, soles fixed."""
     bump = smooth_bump(duration)
-    return ik_plan(robot, duration=duration, dt=dt, com_offset=lambda t: np.array([0.0, 0.0, -depth * bump(t)]),
-                   name="squat")
+    return ik_plan(
+        robot,
+        duration=duration,
+        dt=dt,
+        com_offset=lambda t: np.array([0.0, 0.0, -depth * bump(t)]),
+        name="squat",
+    )
 
 
 def arm_plan(
@@ -169,7 +182,9 @@ def arm_plan(
     bump = smooth_bump(duration)
     role = f"{side}_hand"
     shift = np.array(offset, dtype=float)
-    draft = ik_plan(robot, duration=duration, dt=dt, hand_offsets={role: lambda t: shift * bump(t)}, name="arm")
+    draft = ik_plan(
+        robot, duration=duration, dt=dt, hand_offsets={role: lambda t: shift * bump(t)}, name="arm"
+    )
     mid = len(draft.t) // 2
     data = robot.data()
     pin.framesForwardKinematics(robot.model, data, draft.q[mid])
@@ -183,11 +198,23 @@ def arm_plan(
         priority=Priority.HARD,
     )
     spec = TaskSpec(
-        robot=draft.spec.robot, phases=draft.spec.phases, targets=(target,), com_bounds=draft.spec.com_bounds,
-        dt=draft.spec.dt, name="arm",
+        robot=draft.spec.robot,
+        phases=draft.spec.phases,
+        targets=(target,),
+        com_bounds=draft.spec.com_bounds,
+        dt=draft.spec.dt,
+        name="arm",
     )
-    return Plan(robot=draft.robot, spec=spec, t=draft.t, q=draft.q, v=draft.v, a=draft.a, com=draft.com,
-                stats=draft.stats)
+    return Plan(
+        robot=draft.robot,
+        spec=spec,
+        t=draft.t,
+        q=draft.q,
+        v=draft.v,
+        a=draft.a,
+        com=draft.com,
+        stats=draft.stats,
+    )
 
 
 def with_torque_limits(robot: Robot, scale: float) -> Robot:
@@ -197,11 +224,15 @@ def with_torque_limits(robot: Robot, scale: float) -> Robot:
     return dataclasses.replace(robot, model=model, _frame_ids={})
 
 
-def feet_apart_plan(robot: Robot, *, distance: float = 0.25, duration: float = 2.0, dt: float = 0.05) -> Plan:
+def feet_apart_plan(
+    robot: Robot, *, distance: float = 0.25, duration: float = 2.0, dt: float = 0.05
+) -> Plan:
     """An infeasible plan: the right sole is dragged ``distance`` [m] outwards while it is in stance."""
     ramp = lambda t: 0.5 * (1.0 - np.cos(np.pi * min(t / duration, 1.0)))  # noqa: E731
     return ik_plan(
-        robot, duration=duration, dt=dt,
+        robot,
+        duration=duration,
+        dt=dt,
         foot_offsets={"right_foot": lambda t: np.array([0.0, -distance * ramp(t), 0.0])},
         com_offset=lambda t: np.array([0.0, -0.5 * distance * ramp(t), 0.0]),
         name="feet apart",

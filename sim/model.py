@@ -123,16 +123,27 @@ def _rewrite_urdf(robot: Robot) -> str:
     try:
         root = ET.fromstring(text)
     except ET.ParseError as e:
-        raise SimModelError(f"robot {robot.name!r}: cannot parse URDF {robot.urdf_path}: {e}") from None
+        raise SimModelError(
+            f"robot {robot.name!r}: cannot parse URDF {robot.urdf_path}: {e}"
+        ) from None
     for old in root.findall("mujoco"):
         root.remove(old)
-    children = {j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None}
+    children = {
+        j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None
+    }
     roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
     if len(roots) != 1:
-        raise SimModelError(f"robot {robot.name!r}: the URDF must have exactly one root link, found {roots}")
+        raise SimModelError(
+            f"robot {robot.name!r}: the URDF must have exactly one root link, found {roots}"
+        )
     tag = ET.SubElement(root, "mujoco")
     ET.SubElement(
-        tag, "compiler", discardvisual="true", fusestatic="false", strippath="false", balanceinertia="true"
+        tag,
+        "compiler",
+        discardvisual="true",
+        fusestatic="false",
+        strippath="false",
+        balanceinertia="true",
     )
     ET.SubElement(root, "link", name="world")
     joint = ET.SubElement(root, "joint", name=ROOT_JOINT, type="floating")
@@ -192,7 +203,9 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         frame = pmodel.frames[robot.frame_id(role)]
         joint_name = pmodel.names[frame.parentJoint]
         if joint_name not in joints:
-            raise SimModelError(f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo")
+            raise SimModelError(
+                f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo"
+            )
         body = joints[joint_name].parent
         for geom in body.geoms:  # the foot mesh: the sole box replaces it
             geom.contype, geom.conaffinity = 0, 0
@@ -222,7 +235,9 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
     limits = np.array(pmodel.effortLimit, dtype=float)[6:]
     for name, limit in zip(actuated, limits, strict=True):
         if name not in joints:
-            raise SimModelError(f"robot {robot.name!r}: Pinocchio joint {name!r} has no MuJoCo joint")
+            raise SimModelError(
+                f"robot {robot.name!r}: Pinocchio joint {name!r} has no MuJoCo joint"
+            )
         if not joint_friction:
             joints[name].damping = np.zeros_like(np.asarray(joints[name].damping))
             joints[name].frictionloss = 0.0
@@ -241,14 +256,26 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
     qpos_index, dof_index, actuator_index = [], [], []
     for name in actuated:
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if int(model.jnt_type[jid]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            raise SimModelError(f"robot {robot.name!r}: joint {name!r} is not a 1-dof joint in MuJoCo")
+        if int(model.jnt_type[jid]) not in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
+            raise SimModelError(
+                f"robot {robot.name!r}: joint {name!r} is not a 1-dof joint in MuJoCo"
+            )
         qpos_index.append(model.jnt_qposadr[jid])
         dof_index.append(model.jnt_dofadr[jid])
-        actuator_index.append(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"wbmp_motor_{name}"))
+        actuator_index.append(
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"wbmp_motor_{name}")
+        )
     if int(model.jnt_type[0]) != int(mujoco.mjtJoint.mjJNT_FREE):
-        raise SimModelError(f"robot {robot.name!r}: MuJoCo did not make the root joint a free joint")
-    sole_geoms = {role: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for role, n in sole_names.items()}
+        raise SimModelError(
+            f"robot {robot.name!r}: MuJoCo did not make the root joint a free joint"
+        )
+    sole_geoms = {
+        role: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n)
+        for role, n in sole_names.items()
+    }
     body_names = tuple(model.body(int(model.geom_bodyid[g])).name for g in range(model.ngeom))
     return SimModel(
         robot=robot,

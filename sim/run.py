@@ -21,7 +21,9 @@ from sim.exceptions import PushParseError, SimError
 from sim.execution import Event, Execution
 from sim.model import SimModel, build_model
 
-_PUSH_RE = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(?:N)?\s*@\s*(\d+(?:\.\d*)?|\.\d+)\s*(?:s)?\s*$")
+_PUSH_RE = re.compile(
+    r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(?:N)?\s*@\s*(\d+(?:\.\d*)?|\.\d+)\s*(?:s)?\s*$"
+)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -42,11 +44,15 @@ class Push:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.force) and math.isfinite(self.time) and self.time >= 0):
-            raise PushParseError(f"push: force must be finite and time >= 0 s, got {self.force!r}@{self.time!r}")
+            raise PushParseError(
+                f"push: force must be finite and time >= 0 s, got {self.force!r}@{self.time!r}"
+            )
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise PushParseError(f"push: duration must be > 0 s, got {self.duration!r}")
         if len(self.direction) != 3 or not np.linalg.norm(self.direction) > 0:
-            raise PushParseError(f"push: direction must be a non-zero 3-vector, got {self.direction!r}")
+            raise PushParseError(
+                f"push: direction must be a non-zero 3-vector, got {self.direction!r}"
+            )
 
     def force_in_world(self) -> np.ndarray:
         """The force vector [N]."""
@@ -62,7 +68,9 @@ def parse_push(text: str) -> Push:
     """
     match = _PUSH_RE.match(text or "")
     if not match:
-        raise PushParseError(f"push {text!r} is not FORCE@TIME, e.g. 80@1.5 (80 N on the base at t = 1.5 s)")
+        raise PushParseError(
+            f"push {text!r} is not FORCE@TIME, e.g. 80@1.5 (80 N on the base at t = 1.5 s)"
+        )
     return Push(force=float(match.group(1)), time=float(match.group(2)))
 
 
@@ -108,7 +116,9 @@ class SimSettings:
 
     def __post_init__(self) -> None:
         if not (self.timestep > 0 and self.control_every >= 1 and self.settle_time >= 0):
-            raise SimError("SimSettings: timestep must be > 0, control_every >= 1, settle_time >= 0")
+            raise SimError(
+                "SimSettings: timestep must be > 0, control_every >= 1, settle_time >= 0"
+            )
 
 
 def _tilt(quat_xyzw: np.ndarray) -> np.ndarray:
@@ -175,7 +185,9 @@ def simulate(
     base_body = 1
     push_force = push.force_in_world() if push is not None else None
     if push is not None:
-        events.append(Event(push.time, "push", f"{push.force:g} N on the base for {push.duration:g} s"))
+        events.append(
+            Event(push.time, "push", f"{push.force:g} N on the base for {push.duration:g} s")
+        )
     fall_height = float(np.min(ref.q[:, 2])) - s.fall_height_margin
     max_tilt = float(np.max(_tilt(ref.q[:, 3:7]))) + s.max_tilt
     fallen_at: float | None = None
@@ -225,18 +237,32 @@ def simulate(
         n_done = i + 1
         if fallen_at is None and (q[2] < fall_height or _tilt(q[3:7]) > max_tilt):
             fallen_at = t
-            events.append(Event(t, "fall", f"base height {q[2]:.2f} m, tilt {math.degrees(_tilt(q[3:7])):.0f} deg"))
+            events.append(
+                Event(
+                    t,
+                    "fall",
+                    f"base height {q[2]:.2f} m, tilt {math.degrees(_tilt(q[3:7])):.0f} deg",
+                )
+            )
         if fallen_at is not None and t - fallen_at >= s.stop_after_fall:
             events.append(Event(t, "stopped", "simulation stopped after the fall"))
             break
         if failing_since is not None and t - failing_since >= s.stop_after_qp_failure:
-            events.append(Event(t, "stopped", f"simulation stopped: the controller QP failed on every tick since "
-                                              f"t = {failing_since:.3f} s"))
+            events.append(
+                Event(
+                    t,
+                    "stopped",
+                    f"simulation stopped: the controller QP failed on every tick since "
+                    f"t = {failing_since:.3f} s",
+                )
+            )
             break
         for _ in range(s.control_every):
             if push is not None:
                 tt = d.time
-                d.xfrc_applied[base_body, :3] = push_force if push.time <= tt < push.time + push.duration else 0.0
+                d.xfrc_applied[base_body, :3] = (
+                    push_force if push.time <= tt < push.time + push.duration else 0.0
+                )
             mujoco.mj_step(m, d)
         if progress is not None and i % report_every == 0 and i > 0:
             progress(f"simulated {t:.1f} of {duration:.1f} s")
@@ -249,15 +275,25 @@ def simulate(
     forces = forces[:, sl]
     contact_flags = contact_flags[:, sl]
     if qp_failure_times:
-        events.append(Event(qp_failure_times[0], "qp_failure",
-                            f"the QP failed on {len(qp_failure_times)} ticks (first at t = {qp_failure_times[0]:.3f} s)"))
+        events.append(
+            Event(
+                qp_failure_times[0],
+                "qp_failure",
+                f"the QP failed on {len(qp_failure_times)} ticks (first at t = {qp_failure_times[0]:.3f} s)",
+            )
+        )
     frac = np.abs(taus) / sm.torque_limits
     saturated = np.nonzero(frac.max(axis=1) > s.torque_fraction_limit)[0] if len(taus) else []
     if len(saturated):
         n0 = int(saturated[0])
         j0 = int(np.argmax(frac[n0]))
-        events.append(Event(float(ts[n0]), "torque_limit",
-                            f"{robot.joint_names[j0]} at {100 * frac[n0, j0]:.0f}% of its torque limit"))
+        events.append(
+            Event(
+                float(ts[n0]),
+                "torque_limit",
+                f"{robot.joint_names[j0]} at {100 * frac[n0, j0]:.0f}% of its torque limit",
+            )
+        )
     seen_bodies: set[str] = set()
     for t_c, body in other_contacts:
         if body not in seen_bodies:
@@ -265,18 +301,40 @@ def simulate(
             events.append(Event(t_c, "unplanned_contact", f"{body} touched the floor"))
     events.sort(key=lambda e: e.time)
     checks = _certify(
-        robot, sm, ref, s, ts, qs, taus, coms, contact_flags, foot_frames, other_contacts,
-        fall_height, max_tilt, len(qp_failure_times), qp_failure_times[0] if qp_failure_times else 0.0, n_done,
+        robot,
+        sm,
+        ref,
+        s,
+        ts,
+        qs,
+        taus,
+        coms,
+        contact_flags,
+        foot_frames,
+        other_contacts,
+        fall_height,
+        max_tilt,
+        len(qp_failure_times),
+        qp_failure_times[0] if qp_failure_times else 0.0,
+        n_done,
     )
     certificate = Certificate.from_checks(checks)
     zmp = plan_zmp_excursion(robot, ref)
     if zmp is not None:
-        events.append(Event(zmp[1], "plan_zmp", f"the plan's ZMP leaves the support polygon by {zmp[0]:.3f} m"))
+        events.append(
+            Event(
+                zmp[1], "plan_zmp", f"the plan's ZMP leaves the support polygon by {zmp[0]:.3f} m"
+            )
+        )
         events.sort(key=lambda e: e.time)
         if not certificate.ok:
-            certificate = replace(certificate, reason=(
-                f"{certificate.reason}; the plan itself is dynamically infeasible: its ZMP leaves the support "
-                f"polygon by {zmp[0]:.3f} m at t = {zmp[1]:.2f} s"))
+            certificate = replace(
+                certificate,
+                reason=(
+                    f"{certificate.reason}; the plan itself is dynamically infeasible: its ZMP leaves the support "
+                    f"polygon by {zmp[0]:.3f} m at t = {zmp[1]:.2f} s"
+                ),
+            )
     return Execution(
         t=ts,
         q=qs,
@@ -295,7 +353,9 @@ def simulate(
     )
 
 
-def plan_zmp_excursion(robot: Robot, ref: PlanReference, *, tolerance: float = 0.005) -> tuple[float, float] | None:
+def plan_zmp_excursion(
+    robot: Robot, ref: PlanReference, *, tolerance: float = 0.005
+) -> tuple[float, float] | None:
     """Largest distance of the plan's ZMP outside its support polygon, with its time.
 
     The ZMP is that of the CoM reference, :math:`c_{xy} - c_z \\ddot c_{xy} / (g + \\ddot c_z)` (flat
@@ -363,19 +423,33 @@ def _certify(
     k = int(np.argmin(z))
     below = np.nonzero(z < fall_height)[0]
     tk = int(below[0]) if len(below) else k
-    checks.append(Check(
-        name="base height", value=float(z[tk]), limit=fall_height, unit="m", ok=not len(below),
-        time=float(ts[tk]), upper=False,
-        message=f"fell at t = {ts[tk]:.2f} s (base height {z[tk]:.2f} m < {fall_height:.2f} m)",
-    ))
+    checks.append(
+        Check(
+            name="base height",
+            value=float(z[tk]),
+            limit=fall_height,
+            unit="m",
+            ok=not len(below),
+            time=float(ts[tk]),
+            upper=False,
+            message=f"fell at t = {ts[tk]:.2f} s (base height {z[tk]:.2f} m < {fall_height:.2f} m)",
+        )
+    )
     tilt = _tilt(qs[:, 3:7])
     over = np.nonzero(tilt > max_tilt)[0]
     tk = int(over[0]) if len(over) else int(np.argmax(tilt))
-    checks.append(Check(
-        name="base tilt", value=float(tilt[tk]), limit=max_tilt, unit="rad", ok=not len(over), time=float(ts[tk]),
-        message=f"fell at t = {ts[tk]:.2f} s (base tilted {math.degrees(tilt[tk]):.0f} deg > "
-        f"{math.degrees(max_tilt):.0f} deg)",
-    ))
+    checks.append(
+        Check(
+            name="base tilt",
+            value=float(tilt[tk]),
+            limit=max_tilt,
+            unit="rad",
+            ok=not len(over),
+            time=float(ts[tk]),
+            message=f"fell at t = {ts[tk]:.2f} s (base tilted {math.degrees(tilt[tk]):.0f} deg > "
+            f"{math.degrees(max_tilt):.0f} deg)",
+        )
+    )
     # ---- contacts other than the planned ones
     planned = np.zeros_like(contact_flags)
     for i, frame in enumerate(foot_frames):
@@ -395,12 +469,21 @@ def _certify(
             names.append(frame)
     if bad_times:
         j = int(np.argmin(bad_times))
-        checks.append(Check(
-            name="unplanned contacts", value=float(len(set(names))), limit=0.0, unit="count", ok=False,
-            time=float(bad_times[j]), message=f"{names[j]} touched the floor at t = {bad_times[j]:.2f} s (not planned)",
-        ))
+        checks.append(
+            Check(
+                name="unplanned contacts",
+                value=float(len(set(names))),
+                limit=0.0,
+                unit="count",
+                ok=False,
+                time=float(bad_times[j]),
+                message=f"{names[j]} touched the floor at t = {bad_times[j]:.2f} s (not planned)",
+            )
+        )
     else:
-        checks.append(Check(name="unplanned contacts", value=0.0, limit=0.0, unit="count", ok=True, time=0.0))
+        checks.append(
+            Check(name="unplanned contacts", value=0.0, limit=0.0, unit="count", ok=True, time=0.0)
+        )
 
     # ---- foot slip per planned stance interval
     data = model.createData()
@@ -447,16 +530,29 @@ def _certify(
         kg = int(np.argmax(gap))
         over_gap = np.nonzero(gap > s.placement_limit)[0]
         kg_first = int(over_gap[0]) if len(over_gap) else kg
-        checks.append(Check(
-            name=f"{label} placement error", value=float(gap[kg]), limit=s.placement_limit, unit="m",
-            ok=bool(gap[kg] <= s.placement_limit), time=float(ts[kg_first]),
-            message=f"{label} is {gap[kg]:.3f} m from its planned stance placement (> {s.placement_limit:.3f} m) "
-            f"from t = {ts[kg_first]:.2f} s",
-        ))
-        checks.append(Check(
-            name=f"{label} slip", value=worst, limit=s.slip_limit, unit="m", ok=worst <= s.slip_limit, time=worst_t,
-            message=f"{label} slipped {worst:.3f} m > {s.slip_limit:.3f} m at t = {worst_t:.2f} s",
-        ))
+        checks.append(
+            Check(
+                name=f"{label} placement error",
+                value=float(gap[kg]),
+                limit=s.placement_limit,
+                unit="m",
+                ok=bool(gap[kg] <= s.placement_limit),
+                time=float(ts[kg_first]),
+                message=f"{label} is {gap[kg]:.3f} m from its planned stance placement (> {s.placement_limit:.3f} m) "
+                f"from t = {ts[kg_first]:.2f} s",
+            )
+        )
+        checks.append(
+            Check(
+                name=f"{label} slip",
+                value=worst,
+                limit=s.slip_limit,
+                unit="m",
+                ok=worst <= s.slip_limit,
+                time=worst_t,
+                message=f"{label} slipped {worst:.3f} m > {s.slip_limit:.3f} m at t = {worst_t:.2f} s",
+            )
+        )
 
     # ---- peak torque as a fraction of the limit
     limits = sm.torque_limits
@@ -467,37 +563,63 @@ def _certify(
     over = np.nonzero(frac.max(axis=1) > s.torque_fraction_limit)[0]
     first = int(over[0]) if len(over) else n_t
     j_first = int(np.argmax(frac[first]))
-    checks.append(Check(
-        name="peak torque", value=100 * peak, limit=100 * s.torque_fraction_limit, unit="%",
-        ok=peak <= s.torque_fraction_limit, time=float(ts[first]),
-        message=f"{robot.joint_names[j_first]} torque at {100 * frac[first, j_first]:.0f}% of its limit "
-        f"({limits[j_first]:g} N m) at t = {ts[first]:.2f} s" if len(over) else f"{joint} over its limit",
-    ))
+    checks.append(
+        Check(
+            name="peak torque",
+            value=100 * peak,
+            limit=100 * s.torque_fraction_limit,
+            unit="%",
+            ok=peak <= s.torque_fraction_limit,
+            time=float(ts[first]),
+            message=f"{robot.joint_names[j_first]} torque at {100 * frac[first, j_first]:.0f}% of its limit "
+            f"({limits[j_first]:g} N m) at t = {ts[first]:.2f} s"
+            if len(over)
+            else f"{joint} over its limit",
+        )
+    )
     # ---- controller health
     ratio = qp_failures / max(n_ticks, 1)
-    checks.append(Check(
-        name="QP failures", value=100 * ratio, limit=100 * s.qp_failure_limit, unit="%",
-        ok=ratio <= s.qp_failure_limit, time=qp_first,
-        message=f"the controller QP failed on {qp_failures} of {n_ticks} ticks",
-    ))
+    checks.append(
+        Check(
+            name="QP failures",
+            value=100 * ratio,
+            limit=100 * s.qp_failure_limit,
+            unit="%",
+            ok=ratio <= s.qp_failure_limit,
+            time=qp_first,
+            message=f"the controller QP failed on {qp_failures} of {n_ticks} ticks",
+        )
+    )
     # ---- CoM tracking
     com_err = np.linalg.norm(coms - ref.com[idx], axis=1)
     k = int(np.argmax(com_err))
-    checks.append(Check(
-        name="CoM tracking error", value=float(com_err[k]), limit=s.com_error_limit, unit="m",
-        ok=bool(com_err[k] <= s.com_error_limit), time=float(ts[k]),
-        message=f"CoM off its plan by {com_err[k]:.3f} m > {s.com_error_limit:.3f} m at t = {ts[k]:.2f} s",
-    ))
+    checks.append(
+        Check(
+            name="CoM tracking error",
+            value=float(com_err[k]),
+            limit=s.com_error_limit,
+            unit="m",
+            ok=bool(com_err[k] <= s.com_error_limit),
+            time=float(ts[k]),
+            message=f"CoM off its plan by {com_err[k]:.3f} m > {s.com_error_limit:.3f} m at t = {ts[k]:.2f} s",
+        )
+    )
     # ---- hand tracking
     for j, name in enumerate(hand_names):
         err = np.linalg.norm(hand_pos[j] - ref.frames[name].position[idx], axis=1)
         k = int(np.argmax(err))
         role = hand_roles[j]
-        checks.append(Check(
-            name=f"{role} tracking error", value=float(err[k]), limit=s.hand_error_limit, unit="m",
-            ok=bool(err[k] <= s.hand_error_limit), time=float(ts[k]),
-            message=f"{role} off its plan by {err[k]:.3f} m > {s.hand_error_limit:.3f} m at t = {ts[k]:.2f} s",
-        ))
+        checks.append(
+            Check(
+                name=f"{role} tracking error",
+                value=float(err[k]),
+                limit=s.hand_error_limit,
+                unit="m",
+                ok=bool(err[k] <= s.hand_error_limit),
+                time=float(ts[k]),
+                message=f"{role} off its plan by {err[k]:.3f} m > {s.hand_error_limit:.3f} m at t = {ts[k]:.2f} s",
+            )
+        )
     # ---- task targets measured in the simulation
     horizon = ref.duration
     for target in ref.plan.spec.targets:
@@ -507,13 +629,22 @@ def _certify(
         else:
             t_at = horizon if target.time is None else target.time
             mask = np.zeros(len(ts), dtype=bool)
-            mask[int(np.argmin(np.abs(ts - t_at)))] = abs(ts[int(np.argmin(np.abs(ts - t_at)))] - t_at) < 0.01
+            mask[int(np.argmin(np.abs(ts - t_at)))] = (
+                abs(ts[int(np.argmin(np.abs(ts - t_at)))] - t_at) < 0.01
+            )
         limit = target.tolerance + s.target_margin
         if not mask.any():
-            checks.append(Check(
-                name=f"target {target.name!r}", value=math.inf, limit=limit, unit="m", ok=False, time=float(ts[-1]),
-                message=f"target {target.name!r} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
-            ))
+            checks.append(
+                Check(
+                    name=f"target {target.name!r}",
+                    value=math.inf,
+                    limit=limit,
+                    unit="m",
+                    ok=False,
+                    time=float(ts[-1]),
+                    message=f"target {target.name!r} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
+                )
+            )
             continue
         err = np.zeros(len(ts))
         if target.position is not None:
@@ -530,10 +661,20 @@ def _certify(
         rot_m = np.where(mask, rot_err, -1.0)
         kr = int(np.argmax(rot_m))
         rot_ok = bool(rot_m[kr] <= rot_lim)
-        msg = (f"target {target.name!r} missed by {err_m[k]:.3f} m > {limit:.3f} m at t = {ts[k]:.2f} s"
-               if not ok else f"target {target.name!r} orientation off by {rot_m[kr]:.2f} rad > {rot_lim:.2f} rad")
-        checks.append(Check(
-            name=f"target {target.name!r}", value=float(err_m[k]), limit=limit, unit="m", ok=ok and rot_ok,
-            time=float(ts[k] if not ok else ts[kr]), message=msg,
-        ))
+        msg = (
+            f"target {target.name!r} missed by {err_m[k]:.3f} m > {limit:.3f} m at t = {ts[k]:.2f} s"
+            if not ok
+            else f"target {target.name!r} orientation off by {rot_m[kr]:.2f} rad > {rot_lim:.2f} rad"
+        )
+        checks.append(
+            Check(
+                name=f"target {target.name!r}",
+                value=float(err_m[k]),
+                limit=limit,
+                unit="m",
+                ok=ok and rot_ok,
+                time=float(ts[k] if not ok else ts[kr]),
+                message=msg,
+            )
+        )
     return tuple(checks)

@@ -41,7 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     formulation = tsid.InverseDynamicsFormulationAccForce("tsid", robot, False)
     formulation.computeProblemData(0.0, q, v)
     data = formulation.data()
-    corners = np.array([[SOLE_X, SOLE_X, -SOLE_X, -SOLE_X], [SOLE_Y, -SOLE_Y, SOLE_Y, -SOLE_Y], [0.0] * 4])
+    corners = np.array(
+        [[SOLE_X, SOLE_X, -SOLE_X, -SOLE_X], [SOLE_Y, -SOLE_Y, SOLE_Y, -SOLE_Y], [0.0] * 4]
+    )
     normal = np.array([0.0, 0.0, 1.0])
     for name in ("left_sole_link", "right_sole_link"):
         contact = tsid.Contact6d(f"contact_{name}", robot, name, corners, normal, MU, 1.0, 1000.0)
@@ -77,7 +79,9 @@ def main(argv: list[str] | None = None) -> int:
     for i in range(args.ticks):
         t = i * dt
         target = hand0.copy()
-        target.translation = hand0.translation + np.array([0.0, 0.0, 0.25 * 0.5 * (1 - np.cos(2 * np.pi * t / 3.0))])
+        target.translation = hand0.translation + np.array(
+            [0.0, 0.0, 0.25 * 0.5 * (1 - np.cos(2 * np.pi * t / 3.0))]
+        )
         hand_ref.setReference(target)
         hand.setReference(hand_ref.computeNext())
         t0 = time.perf_counter()
@@ -92,11 +96,18 @@ def main(argv: list[str] | None = None) -> int:
         v = v + dt * dv
         q = pin.integrate(model, q, dt * v)
     us = 1e6 * np.array(ticks[100:])
-    out = {"tsid": tsid.__version__ if hasattr(tsid, "__version__") else "?", "pin": pin.__version__,
-           "median_us": float(np.median(us)), "p99_us": float(np.percentile(us, 99)), "ticks": len(us),
-           "last_tau_norm": float(np.linalg.norm(tau))}
-    print(f"TSID tick (Talos, 2 contacts + CoM + posture + hand): median {out['median_us']:.1f} us, "
-          f"p99 {out['p99_us']:.1f} us over {out['ticks']} ticks")
+    out = {
+        "tsid": tsid.__version__ if hasattr(tsid, "__version__") else "?",
+        "pin": pin.__version__,
+        "median_us": float(np.median(us)),
+        "p99_us": float(np.percentile(us, 99)),
+        "ticks": len(us),
+        "last_tau_norm": float(np.linalg.norm(tau)),
+    }
+    print(
+        f"TSID tick (Talos, 2 contacts + CoM + posture + hand): median {out['median_us']:.1f} us, "
+        f"p99 {out['p99_us']:.1f} us over {out['ticks']} ticks"
+    )
     if args.json:
         args.json.write_text(json.dumps(out, indent=2))
     return 0

@@ -25,7 +25,11 @@ def arm(talos):
 
 
 def _perturbed_state(robot, rng):
-    q = pin.integrate(robot.model, robot.q_standing, np.concatenate([np.zeros(6), 0.02 * rng.standard_normal(robot.nv - 6)]))
+    q = pin.integrate(
+        robot.model,
+        robot.q_standing,
+        np.concatenate([np.zeros(6), 0.02 * rng.standard_normal(robot.nv - 6)]),
+    )
     v = 0.05 * rng.standard_normal(robot.nv)
     return q, v
 
@@ -94,7 +98,9 @@ def test_qpsolvers_backend_matches_proxsuite(talos, arm, rng):
         ctrl = WholeBodyController(talos, WbcSettings(backend=backend))
         ctrl.reset(q, v)
         taus[backend] = ctrl.compute(0.5, q, v, arm)
-    np.testing.assert_allclose(taus["proxqp"], taus["proxsuite"], atol=1e-2, err_msg="backend=proxqp")
+    np.testing.assert_allclose(
+        taus["proxqp"], taus["proxsuite"], atol=1e-2, err_msg="backend=proxqp"
+    )
 
 
 def test_unknown_backend_is_refused(talos):
@@ -133,8 +139,12 @@ def test_hand_task_pulls_the_hand_towards_its_reference(talos, arm):
     hand = talos.frame("right_hand")
     data = talos.data()
     pin.framesForwardKinematics(talos.model, data, q)
-    ref.frames[hand].position[k] = data.oMf[talos.frame_id(hand)].translation + np.array([0.0, 0.0, 0.05])
+    ref.frames[hand].position[k] = data.oMf[talos.frame_id(hand)].translation + np.array(
+        [0.0, 0.0, 0.05]
+    )
     ctrl.compute(float(ref.times[k]), q, v, ref)
     pin.forwardKinematics(talos.model, data, q, v, ctrl.acceleration())
-    acc = pin.getFrameClassicalAcceleration(talos.model, data, talos.frame_id(hand), pin.LOCAL_WORLD_ALIGNED).linear
+    acc = pin.getFrameClassicalAcceleration(
+        talos.model, data, talos.frame_id(hand), pin.LOCAL_WORLD_ALIGNED
+    ).linear
     assert acc[2] > 1.0  # kp 100 * 0.05 m = 5 m/s^2 asked, shared with the other tasks

@@ -78,7 +78,11 @@ def test_sole_boxes_sit_on_the_sole_frames(talos, talos_sim):
 def test_robot_geoms_touch_only_the_floor(talos_sim):
     """Self-collision is off: robot geoms have contype/conaffinity that only pair with the floor."""
     m = talos_sim.model
-    robot = [g for g in range(m.ngeom) if g != talos_sim.floor_geom and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    robot = [
+        g
+        for g in range(m.ngeom)
+        if g != talos_sim.floor_geom and (m.geom_contype[g] or m.geom_conaffinity[g])
+    ]
     for g1 in robot[:10]:
         for g2 in robot:
             assert not (m.geom_contype[g1] & m.geom_conaffinity[g2])

@@ -19,7 +19,9 @@ def _plan(robot, name: str, **params):
 
 def test_reach_forward_passes(talos):
     """A forward reach with the right hand passes, and its targets are met in the simulation."""
-    ex = simulate(_plan(talos, "reach", direction="forward"), talos, settings=SimSettings(settle_time=0.2))
+    ex = simulate(
+        _plan(talos, "reach", direction="forward"), talos, settings=SimSettings(settle_time=0.2)
+    )
     cert = ex.certificate
     assert cert.ok, cert.summary()
     targets = [c for c in cert.checks if c.name.startswith("target")]

@@ -18,19 +18,30 @@ MESSAGES: list[str] = []
 
 @pytest.fixture(scope="module")
 def stand_run(talos):
-    return simulate(standing_plan(talos, duration=1.0), talos, settings=SimSettings(settle_time=0.3),
-                    progress=MESSAGES.append)
+    return simulate(
+        standing_plan(talos, duration=1.0),
+        talos,
+        settings=SimSettings(settle_time=0.3),
+        progress=MESSAGES.append,
+    )
 
 
 @pytest.fixture(scope="module")
 def squat_run(talos):
-    return simulate(squat_plan(talos, depth=0.15, duration=2.5), talos, settings=SimSettings(settle_time=0.3))
+    return simulate(
+        squat_plan(talos, depth=0.15, duration=2.5), talos, settings=SimSettings(settle_time=0.3)
+    )
 
 
 def test_parse_push():
     """'80@1.5' is 80 N at 1.5 s along +x for 0.1 s; bad text raises a one-line ValueError."""
     push = parse_push("80@1.5")
-    assert (push.force, push.time, push.duration, push.direction) == (80.0, 1.5, 0.1, (1.0, 0.0, 0.0))
+    assert (push.force, push.time, push.duration, push.direction) == (
+        80.0,
+        1.5,
+        0.1,
+        (1.0, 0.0, 0.0),
+    )
     assert parse_push(" 120.5N @ 0.25s ").force == 120.5
     for bad in ("80", "80@", "@1", "eighty@1", "80@-1", "80@1@2", ""):
         with pytest.raises(PushParseError) as err:
@@ -44,12 +55,18 @@ def test_standing_still_passes_and_forces_carry_the_weight(talos, stand_run):
     ex = stand_run
     assert ex.certificate.ok, ex.certificate.summary()
     n = len(ex.t)
-    assert ex.q.shape == (n, talos.nq) and ex.v.shape == (n, talos.nv) and ex.tau.shape == (n, talos.nv - 6)
+    assert (
+        ex.q.shape == (n, talos.nq)
+        and ex.v.shape == (n, talos.nv)
+        and ex.tau.shape == (n, talos.nv - 6)
+    )
     assert ex.com.shape == (n, 3)
     np.testing.assert_allclose(np.linalg.norm(ex.q[:, 3:7], axis=1), 1.0, atol=1e-9)
     np.testing.assert_allclose(np.diff(ex.t), 0.001, atol=1e-12)
     total = sum(f[-200:].mean(axis=0) for f in ex.contact_forces.values())
-    np.testing.assert_allclose(total, [0.0, 0.0, talos.mass * GRAVITY], atol=0.02 * talos.mass * GRAVITY)
+    np.testing.assert_allclose(
+        total, [0.0, 0.0, talos.mass * GRAVITY], atol=0.02 * talos.mass * GRAVITY
+    )
     assert ex.certificate.check("left_foot slip").value < 0.002
     fractions = ex.peak_torque_fractions()
     assert list(fractions) == talos.joint_names
@@ -69,8 +86,16 @@ def test_certificate_serializes(stand_run):
     d = json.loads(json.dumps(stand_run.certificate.to_dict()))
     assert d["ok"] is True and d["reason"] == ""
     names = {c["name"] for c in d["checks"]}
-    assert {"base height", "base tilt", "unplanned contacts", "left_foot slip", "right_foot slip", "peak torque",
-            "CoM tracking error", "right_hand tracking error"} <= names
+    assert {
+        "base height",
+        "base tilt",
+        "unplanned contacts",
+        "left_foot slip",
+        "right_foot slip",
+        "peak torque",
+        "CoM tracking error",
+        "right_hand tracking error",
+    } <= names
     text = stand_run.certificate.summary()
     assert text.startswith("certificate: PASS") and len(text.splitlines()) == len(d["checks"]) + 1
 
@@ -94,7 +119,11 @@ def test_arm_motion_meets_its_target(talos):
 
 def test_feet_forced_apart_fails_on_the_foot(talos):
     """A plan that drags a stance foot 25 cm sideways fails, naming that foot."""
-    ex = simulate(feet_apart_plan(talos, distance=0.25, duration=1.5), talos, settings=SimSettings(settle_time=0.1))
+    ex = simulate(
+        feet_apart_plan(talos, distance=0.25, duration=1.5),
+        talos,
+        settings=SimSettings(settle_time=0.1),
+    )
     assert not ex.certificate.ok
     assert ex.certificate.reason.startswith("right_foot is 0.2")
     assert "planned stance placement" in ex.certificate.reason
@@ -104,7 +133,11 @@ def test_feet_forced_apart_fails_on_the_foot(talos):
 def test_torque_limits_at_ten_percent_fail_on_torque(talos):
     """With 10 % of the torque limits, the robot cannot stand: the first failure is a saturated joint."""
     weak = with_torque_limits(talos, 0.1)
-    ex = simulate(standing_plan(weak, duration=1.0), weak, settings=SimSettings(settle_time=0.0, stop_after_fall=0.05))
+    ex = simulate(
+        standing_plan(weak, duration=1.0),
+        weak,
+        settings=SimSettings(settle_time=0.0, stop_after_fall=0.05),
+    )
     assert not ex.certificate.ok
     assert "torque at 100% of its limit" in ex.certificate.reason
     assert not ex.certificate.check("base height").ok or not ex.certificate.check("base tilt").ok
@@ -115,12 +148,20 @@ def test_torque_limits_at_ten_percent_fail_on_torque(talos):
 def test_pushes_small_recovered_large_falls(talos):
     """A 40 N push is absorbed; a 3000 N push for 0.1 s knocks the robot over (reported as a fall)."""
     plan = standing_plan(talos, duration=1.2)
-    small = simulate(plan, talos, push=Push(force=40.0, time=0.3), settings=SimSettings(settle_time=0.2))
+    small = simulate(
+        plan, talos, push=Push(force=40.0, time=0.3), settings=SimSettings(settle_time=0.2)
+    )
     assert small.certificate.ok, small.certificate.summary()
     assert any(e.kind == "push" for e in small.events)
-    big = simulate(plan, talos, push=Push(force=3000.0, time=0.2, duration=0.1),
-                   settings=SimSettings(settle_time=0.5, stop_after_fall=0.05))
+    big = simulate(
+        plan,
+        talos,
+        push=Push(force=3000.0, time=0.2, duration=0.1),
+        settings=SimSettings(settle_time=0.5, stop_after_fall=0.05),
+    )
     assert not big.certificate.ok
     assert any(e.kind == "fall" for e in big.events)
-    fall = [c for c in big.certificate.checks if c.name in ("base height", "base tilt") and not c.ok]
+    fall = [
+        c for c in big.certificate.checks if c.name in ("base height", "base tilt") and not c.ok
+    ]
     assert fall and fall[0].message.startswith("fell at t = ")
