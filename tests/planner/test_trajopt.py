@@ -165,3 +165,15 @@ def test_frame_target_accepts_pinocchio_frame_names(talos):
     spec = reach_spec(talos, (0.1, 0.0, 0.1))
     spec = dataclasses.replace(spec, targets=(dataclasses.replace(spec.targets[0], frame=talos.frame("right_hand")),))
     assert plan(spec, talos, settings=SETTINGS).ok
+
+
+def test_unreachable_com_bound_names_the_bound_and_phase(talos):
+    """A CoM box that needs the CoM 0.3 m above the ground mid-motion is infeasible: the diagnosis
+    names the bound, the phase and how far the CoM stays outside."""
+    spec = dataclasses.replace(squat_spec(talos, 0.0), com_targets=(), com_bounds=(
+        CoMBounds(name="balance"),
+        CoMBounds(name="low", upper=(None, None, 0.3), support_polygon=False, window=(1.4, 1.6))))
+    result = plan(spec, talos, settings=SETTINGS, throw=False)
+    assert not result.ok
+    m = re.match(r"CoM bound 'low' cannot hold in phase 'squat': the CoM ends ([0-9.]+) m outside", result.diagnosis)
+    assert m and float(m.group(1)) > 0.05, result.diagnosis
