@@ -26,7 +26,7 @@ _PUSH_RE = re.compile(
 )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, slots=True)
 class Push:
     """A force applied to the base during the simulation.
 

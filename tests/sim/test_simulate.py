@@ -43,6 +43,7 @@ def test_parse_push():
         (1.0, 0.0, 0.0),
     )
     assert parse_push(" 120.5N @ 0.25s ").force == 120.5
+    assert Push(80.0, 1.5) == push  # positional form, as in the CLI docs
     for bad in ("80", "80@", "@1", "eighty@1", "80@-1", "80@1@2", ""):
         with pytest.raises(PushParseError) as err:
             parse_push(bad)
