@@ -1,8 +1,8 @@
 """Solver cache: build each NLP structure once, reuse it in memory and across processes.
 
 Key: a hash of the model (:func:`planner.symbolic.model_hash`), the layout's structure
-(:meth:`planner.formulation.Layout.structure`), the solver options and the versions of CasADi
-and of this formulation. Values (targets, placements, bounds) are parameters, so every spec
+(:meth:`planner.formulation.Layout.structure`), the solver options, the CasADi version and the
+planner sources that shape the NLP (:func:`code_hash`). Values (targets, placements, bounds) are parameters, so every spec
 with the same structure shares one solver.
 
 * In memory: a dict of live ``nlpsol`` objects (``cache = "memory"``).
@@ -16,6 +16,7 @@ with the same structure shares one solver.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -24,6 +25,7 @@ import subprocess
 import tempfile
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
 
@@ -33,9 +35,21 @@ from planner.formulation import Layout
 from planner.settings import PlannerSettings
 from planner.symbolic import model_hash
 
-FORMULATION_VERSION = "1"  # bump when build_nlp changes the NLP for the same structure
-_MEMORY: dict[str, object] = {}
+FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same structure
+MEMORY_ENTRIES = 64  # solvers kept alive in a process (least recently used dropped first)
+_MEMORY: OrderedDict[str, object] = OrderedDict()
 _LOCK = threading.Lock()
+_SOURCES = ("symbolic.py", "formulation.py", "trajopt.py", "cache.py")
+
+
+@functools.cache
+def code_hash() -> str:
+    """Hash of the planner sources that shape the NLP: an edited formulation never loads an
+    entry compiled from the old one."""
+    h = hashlib.sha256()
+    for name in _SOURCES:
+        h.update((Path(__file__).with_name(name)).read_bytes())
+    return h.hexdigest()[:16]
 
 
 def solver_key(lay: Layout, settings: PlannerSettings) -> str:
@@ -44,6 +58,7 @@ def solver_key(lay: Layout, settings: PlannerSettings) -> str:
 
     h = hashlib.sha256()
     h.update(FORMULATION_VERSION.encode())
+    h.update(code_hash().encode())
     h.update(ca.__version__.encode())
     h.update(model_hash(lay.robot.model).encode())
     h.update(repr(lay.structure()).encode())
@@ -65,6 +80,8 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
     if settings.use_cache:
         with _LOCK:
             hit = _MEMORY.get(key)
+            if hit is not None:
+                _MEMORY.move_to_end(key)
         if hit is not None:
             return Solver(function=hit.function, nlp_layout=hit.nlp_layout, origin="memory")
     t0 = time.perf_counter()
@@ -89,6 +106,8 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
     if settings.use_cache:
         with _LOCK:
             _MEMORY[key] = solver
+            while len(_MEMORY) > MEMORY_ENTRIES:
+                _MEMORY.popitem(last=False)
     return solver
 
 
