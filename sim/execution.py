@@ -70,7 +70,9 @@ class Execution:
         """Peak |tau| / limit of each actuated joint over the run [-], in joint order."""
         if not len(self.tau) or not len(self.torque_limits):
             return {}
-        peaks = np.abs(self.tau).max(axis=0) / self.torque_limits
+        usable = (self.torque_limits > 0) & np.isfinite(self.torque_limits)
+        safe = np.where(usable, self.torque_limits, 1.0)
+        peaks = np.where(usable, np.abs(self.tau).max(axis=0) / safe, 0.0)
         return {name: float(p) for name, p in zip(self.joint_names, peaks, strict=True)}
 
     @property

@@ -33,6 +33,7 @@ import pinocchio as pin
 from robots.model import Robot
 from sim.exceptions import SimModelError
 
+FOREIGN_MESHES = (".dae",)  # mesh formats MuJoCo 4 cannot read; their triangles come from Pinocchio
 ROOT_JOINT = "wbmp_root"
 FLOOR = "wbmp_floor"
 SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thick
@@ -106,6 +107,28 @@ class SimModel:
         v[6:] = qvel[self.dof_index]
 
 
+MIN_INERTIA = 1e-8  # [kg m^2] smallest principal inertia MuJoCo gets
+
+
+def _repair_inertia(link: ET.Element) -> None:
+    """Clip a link's principal inertias to >= MIN_INERTIA (some URDFs ship indefinite tensors)."""
+    tensor = link.find("inertial/inertia")
+    if tensor is None:
+        return
+    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    try:
+        ixx, ixy, ixz, iyy, iyz, izz = (float(tensor.get(k, "0")) for k in keys)
+    except ValueError:
+        return
+    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    values, vectors = np.linalg.eigh(inertia)
+    if values.min() >= MIN_INERTIA:
+        return
+    fixed = vectors @ np.diag(np.maximum(values, MIN_INERTIA)) @ vectors.T
+    for k, (r, c) in zip(keys, ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)), strict=True):
+        tensor.set(k, repr(float(fixed[r, c])))
+
+
 def _rewrite_urdf(robot: Robot) -> str:
     text = Path(robot.urdf_path).read_text(encoding="utf-8")
 
@@ -128,6 +151,16 @@ def _rewrite_urdf(robot: Robot) -> str:
         ) from None
     for old in root.findall("mujoco"):
         root.remove(old)
+    for link in root.findall(
+        "link"
+    ):  # MuJoCo cannot decode these: they are rebuilt from Pinocchio's
+        for collision in link.findall("collision"):
+            mesh = collision.find("geometry/mesh")
+            if mesh is not None and Path(mesh.get("filename", "")).suffix.lower() in FOREIGN_MESHES:
+                link.remove(collision)
+        for visual in link.findall("visual"):
+            link.remove(visual)
+        _repair_inertia(link)
     children = {
         j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None
     }
@@ -144,6 +177,8 @@ def _rewrite_urdf(robot: Robot) -> str:
         fusestatic="false",
         strippath="false",
         balanceinertia="true",
+        boundmass="1e-6",  # massless moving links (Romeo's fingers) get 1 mg
+        boundinertia="1e-10",
     )
     ET.SubElement(root, "link", name="world")
     joint = ET.SubElement(root, "joint", name=ROOT_JOINT, type="floating")
@@ -175,6 +210,42 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
     return _cached(robot, float(timestep), bool(joint_friction))
 
 
+def _add_foreign_meshes(robot: Robot, spec: mujoco.MjSpec, bodies: dict, mu: float) -> None:
+    """Collision meshes MuJoCo cannot read (Collada), rebuilt from the triangles Pinocchio loaded."""
+    pmodel = robot.model
+    for i, obj in enumerate(robot.collision_model.geometryObjects):
+        if Path(obj.meshPath).suffix.lower() not in FOREIGN_MESHES:
+            continue
+        vertices = getattr(obj.geometry, "vertices", None)
+        if not callable(vertices):
+            continue
+        points = np.asarray(vertices(), dtype=float)
+        if points.ndim != 2 or len(points) < 4:
+            continue
+        frame = pmodel.frames[obj.parentFrame]
+        body = bodies.get(frame.name)
+        if body is None:  # a frame MuJoCo merged or renamed: use the joint's body
+            body = bodies.get(pmodel.names[obj.parentJoint])
+        if body is None:
+            continue
+        placement = frame.placement.actInv(obj.placement)  # geometry in the frame (= MuJoCo body)
+        mesh = spec.add_mesh()
+        mesh.name = f"wbmp_mesh_{i}"
+        mesh.uservert = points.reshape(-1).tolist()  # Pinocchio's loader already applied meshScale
+        geom = body.add_geom()
+        geom.name = f"wbmp_collision_{i}"
+        geom.type = mujoco.mjtGeom.mjGEOM_MESH
+        geom.meshname = mesh.name
+        geom.pos = placement.translation
+        quat = pin.Quaternion(placement.rotation)
+        geom.quat = [quat.w, quat.x, quat.y, quat.z]
+        geom.friction = [mu, 0.005, 0.0001]
+        geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
+        geom.group = 3
+        geom.mass = 0.0
+        geom.density = 0.0
+
+
 def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
     xml = _rewrite_urdf(robot)
     try:
@@ -197,6 +268,7 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
     floor.contype, floor.conaffinity = FLOOR_CONTYPE, FLOOR_CONAFFINITY
 
     bodies = {b.name: b for b in spec.bodies}
+    _add_foreign_meshes(robot, spec, bodies, mu)
     joints = {j.name: j for j in spec.joints}
     sole_names = {}
     for role in ("left_foot", "right_foot"):
@@ -245,8 +317,11 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         act.name = f"wbmp_motor_{name}"
         act.target = name
         act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        act.ctrlrange = [-limit, limit]
+        if 0.0 < limit < np.inf:
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [-limit, limit]
+        else:  # no usable effort limit in the URDF: the controller's output is the only bound
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         act.gear = [1.0, 0, 0, 0, 0, 0]
     try:
         model = spec.compile()

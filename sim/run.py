@@ -282,7 +282,7 @@ def simulate(
                 f"the QP failed on {len(qp_failure_times)} ticks (first at t = {qp_failure_times[0]:.3f} s)",
             )
         )
-    frac = np.abs(taus) / sm.torque_limits
+    frac = _torque_fraction(taus, sm.torque_limits)
     saturated = np.nonzero(frac.max(axis=1) > s.torque_fraction_limit)[0] if len(taus) else []
     if len(saturated):
         n0 = int(saturated[0])
@@ -351,6 +351,13 @@ def simulate(
         joint_names=tuple(robot.joint_names),
         torque_limits=sm.torque_limits.copy(),
     )
+
+
+def _torque_fraction(taus: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """|tau| / limit per sample and joint; joints without a usable limit (0 or inf) count as 0."""
+    usable = (limits > 0) & np.isfinite(limits)
+    safe = np.where(usable, limits, 1.0)
+    return np.where(usable, np.abs(taus) / safe, 0.0)
 
 
 def plan_zmp_excursion(
@@ -556,7 +563,7 @@ def _certify(
 
     # ---- peak torque as a fraction of the limit
     limits = sm.torque_limits
-    frac = np.abs(taus) / limits
+    frac = _torque_fraction(taus, limits)
     n_t, j_t = np.unravel_index(int(np.argmax(frac)), frac.shape)
     peak = float(frac[n_t, j_t])
     joint = robot.joint_names[j_t]

@@ -96,3 +96,15 @@ def test_joint_friction_switch(talos, talos_sim):
     assert m.dof_damping[dofs].max() > 0 and m.dof_frictionloss[dofs].max() > 0
     bare = build_model(talos, joint_friction=False).model
     assert bare.dof_damping.max() == 0.0 and bare.dof_frictionloss.max() == 0.0
+
+
+def test_every_builtin_robot_compiles(any_robot):
+    """Talos, G1, Romeo and iCub all become MuJoCo models (Collada meshes rebuilt, bad inertias
+    repaired) whose mass and CoM match Pinocchio's."""
+    sm = build_model(any_robot)
+    assert (sm.model.nq, sm.model.nv) == (any_robot.nq, any_robot.nv)
+    assert sm.model.body_subtreemass[1] == pytest.approx(any_robot.mass, rel=1e-5)
+    d = sm.data()
+    sm.set_state(d, any_robot.q_standing)
+    com = pin.centerOfMass(any_robot.model, any_robot.data(), any_robot.q_standing)
+    np.testing.assert_allclose(d.subtree_com[1], com, atol=1e-4)

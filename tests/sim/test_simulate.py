@@ -166,3 +166,9 @@ def test_pushes_small_recovered_large_falls(talos):
         c for c in big.certificate.checks if c.name in ("base height", "base tilt") and not c.ok
     ]
     assert fall and fall[0].message.startswith("fell at t = ")
+
+
+def test_g1_stands(g1):
+    """The same loop certifies G1 standing still (another robot through the same profile)."""
+    ex = simulate(standing_plan(g1, duration=0.5), g1, settings=SimSettings(settle_time=0.2))
+    assert ex.certificate.ok, ex.certificate.summary()
