@@ -43,6 +43,9 @@ class PlannerSettings:
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
         diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
             culprit and how far it is.
+        warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
+            ``"nominal"`` (inverse kinematics at the target times, blended: see
+            :mod:`planner.nominal`).
     """
 
     max_iterations: int = 200
@@ -59,6 +62,7 @@ class PlannerSettings:
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5
     diagnose: bool = True
+    warm_start: str = "standing"
 
     def __post_init__(self) -> None:
         from planner.exceptions import PlannerError
@@ -67,3 +71,5 @@ class PlannerSettings:
             raise PlannerError(f"settings: max_iterations must be >= 1, got {self.max_iterations}")
         if not self.tolerance > 0 or not self.constraint_tolerance > 0:
             raise PlannerError("settings: tolerance and constraint_tolerance must be > 0")
+        if self.warm_start not in ("standing", "nominal"):
+            raise PlannerError(f"settings: warm_start must be 'standing' or 'nominal', got {self.warm_start!r}")

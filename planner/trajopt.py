@@ -458,7 +458,12 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         if throw:
             raise PlanningFailed(problem, failed)
         return failed
-    dq, stats, raw = solve_layout(lay, settings, progress)
+    x0 = None
+    if settings.warm_start == "nominal":
+        from planner.nominal import nominal_motion
+
+        x0 = nominal_motion(lay)[2:lay.N].ravel()
+    dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
     result = _make_plan(lay, dq, stats, settings)
     if result.ok:
         return result
