@@ -62,7 +62,7 @@ class PlannerSettings:
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5
     diagnose: bool = True
-    warm_start: str = "standing"
+    warm_start: str = "nominal"
 
     def __post_init__(self) -> None:
         from planner.exceptions import PlannerError

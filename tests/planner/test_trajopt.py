@@ -177,3 +177,34 @@ def test_unreachable_com_bound_names_the_bound_and_phase(talos):
     assert not result.ok
     m = re.match(r"CoM bound 'low' cannot hold in phase 'squat': the CoM ends ([0-9.]+) m outside", result.diagnosis)
     assert m and float(m.group(1)) > 0.05, result.diagnosis
+
+
+def test_nominal_warm_start_saves_iterations_and_keeps_the_optimum(talos, talos_squat):
+    """Starting from the blended inverse-kinematics motion takes fewer iterations than starting
+    from the standing posture, and lands on the same optimum."""
+    spec, nominal = talos_squat
+    standing = plan(spec, talos, settings=dataclasses.replace(SETTINGS, warm_start="standing"))
+    assert nominal.stats.iterations < standing.stats.iterations
+    assert nominal.stats.objective == pytest.approx(standing.stats.objective, rel=1e-5)
+    assert np.abs(nominal.q - standing.q).max() < 1e-3
+
+
+def test_nominal_keyframe_meets_contacts_and_target(talos):
+    """The inverse kinematics keyframe holds both soles (1 mm) and puts the CoM at the squat depth."""
+    import pinocchio as pin
+
+    from planner.formulation import make_layout
+    from planner.nominal import nominal_motion
+    from planner.symbolic import chart_to_configuration
+
+    spec = squat_spec(talos, 0.15)
+    lay = make_layout(spec, talos)
+    dq = nominal_motion(lay)
+    k = int(round(1.5 / lay.dt))
+    q = chart_to_configuration(talos.model, lay.q_ref, dq[k])
+    data = talos.data()
+    pin.framesForwardKinematics(talos.model, data, q)
+    for c in spec.phases[0].contacts:
+        assert np.linalg.norm(data.oMf[talos.frame_id(c.frame)].translation - np.array(c.placement.position)) < 1e-3
+    assert pin.centerOfMass(talos.model, data, q)[2] == pytest.approx(spec.com_targets[0].position[2], abs=1e-3)
+    assert np.abs(dq[:2]).max() == 0.0 and np.array_equal(dq[-1], dq[-2])
