@@ -53,14 +53,14 @@ def test_state_round_trip_and_kinematics(talos, talos_sim, rng):
     np.testing.assert_allclose(q2, q, atol=1e-12)
     np.testing.assert_allclose(v2, v, atol=1e-12)
     data = talos.data()
-    assert talos_sim.model.body_subtreemass[1] == pytest.approx(talos.mass, rel=1e-9)
-    np.testing.assert_allclose(d.subtree_com[1], pin.centerOfMass(talos.model, data, q), atol=1e-9)
+    assert talos_sim.model.body_subtreemass[1] == pytest.approx(talos.mass, rel=1e-6)  # + 1 mg per massless link
+    np.testing.assert_allclose(d.subtree_com[1], pin.centerOfMass(talos.model, data, q), atol=1e-7)
     # MuJoCo's base-frame-mapped velocity gives Pinocchio's kinetic energy
     pin.computeAllTerms(talos.model, data, q, v)
     mujoco.mj_forward(talos_sim.model, d)
     mv = np.zeros(talos.nv)
     mujoco.mj_mulM(talos_sim.model, d, mv, d.qvel)
-    assert 0.5 * d.qvel @ mv == pytest.approx(0.5 * v @ data.M @ v, rel=1e-9)
+    assert 0.5 * d.qvel @ mv == pytest.approx(0.5 * v @ data.M @ v, rel=1e-6)
 
 
 def test_sole_boxes_sit_on_the_sole_frames(talos, talos_sim):
