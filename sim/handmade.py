@@ -47,8 +47,9 @@ def ik_plan(
     targets: tuple[FrameTarget, ...] = (),
     name: str = "handmade",
     q_start: np.ndarray | None = None,
+    phases: tuple[tuple[str, float, tuple[str, ...]], ...] | None = None,
 ) -> Plan:
-    """A double-support plan by numeric IK over a uniform grid.
+    """A plan by numeric IK over a uniform grid (double support unless ``phases`` say otherwise).
 
     Args:
         robot: The robot.
@@ -61,6 +62,9 @@ def ik_plan(
         targets: Frame targets to put in the spec.
         name: Spec name.
         q_start: Start configuration (default: the robot's standing posture).
+        phases: ``(name, duration [s], foot roles in contact)`` per phase; the durations must add
+            up to ``duration``. Default: one double-support phase. The IK always holds both soles
+            at their start placement plus ``foot_offsets``.
 
     Returns:
         A Plan with ``SolveStatus.SOLVED`` statistics.
@@ -127,12 +131,19 @@ def ik_plan(
     acc = np.zeros((n, model.nv))
     acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
     coms = np.array([pin.centerOfMass(model, data, qk) for qk in qs])
-    contacts = tuple(
-        Contact(frame=role, placement=_pose_of(foot0[role])) for role in ("left_foot", "right_foot")
+    if phases is None:
+        phases = (("stand", float(times[-1]), ("left_foot", "right_foot")),)
+    spec_phases = tuple(
+        Phase(
+            name=label,
+            duration=float(length),
+            contacts=tuple(Contact(frame=role, placement=_pose_of(foot0[role])) for role in roles),
+        )
+        for label, length, roles in phases
     )
     spec = TaskSpec(
         robot=robot.name,
-        phases=(Phase(name="stand", duration=float(times[-1]), contacts=contacts),),
+        phases=spec_phases,
         targets=targets,
         com_bounds=(CoMBounds(),),
         dt=dt,
@@ -214,6 +225,52 @@ def arm_plan(
         a=draft.a,
         com=draft.com,
         stats=draft.stats,
+    )
+
+
+def foot_lift_plan(
+    robot: Robot,
+    *,
+    side: str = "right",
+    height: float = 0.05,
+    shift: float = 0.07,
+    dt: float = 0.05,
+) -> Plan:
+    """Shift the CoM over one foot, lift the other ``height`` [m] and put it back, shift back.
+
+    Phases: 1.5 s weight shift (double support), 1.5 s lift (single support), 1.5 s shift back.
+    The CoM goes ``shift`` [m] towards the stance foot, whose centre is 0.085 m off on Talos.
+    """
+    stance, swing = ("left_foot", "right_foot") if side == "right" else ("right_foot", "left_foot")
+    sign = 1.0 if side == "right" else -1.0
+    t1, t2, t3 = 1.5, 3.0, 4.5
+
+    def com(t: float) -> np.ndarray:
+        if t < t1:
+            s_ = 0.5 * (1.0 - np.cos(np.pi * t / t1))
+        elif t < t2:
+            s_ = 1.0
+        else:
+            s_ = 0.5 * (1.0 + np.cos(np.pi * min((t - t2) / (t3 - t2), 1.0)))
+        return np.array([0.0, sign * shift * s_, 0.0])
+
+    def foot(t: float) -> np.ndarray:
+        s_ = 0.0 if not t1 <= t <= t2 else 0.5 * (1.0 - np.cos(2.0 * np.pi * (t - t1) / (t2 - t1)))
+        return np.array([0.0, 0.0, height * s_])
+
+    both = ("left_foot", "right_foot")
+    return ik_plan(
+        robot,
+        duration=t3,
+        dt=dt,
+        com_offset=com,
+        foot_offsets={swing: foot},
+        name=f"lift {swing}",
+        phases=(
+            ("shift", t1, both),
+            (f"lift {swing}", t2 - t1, (stance,)),
+            ("shift back", t3 - t2, both),
+        ),
     )
 
 

@@ -172,3 +172,22 @@ def test_g1_stands(g1):
     """The same loop certifies G1 standing still (another robot through the same profile)."""
     ex = simulate(standing_plan(g1, duration=0.5), g1, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
+
+
+def test_foot_lift_swings_and_lands(talos):
+    """Weight shift, right foot lifted 5 cm in single support and put back: passes; the swing foot
+    really leaves the floor and the stance foot then carries the whole weight."""
+    import pinocchio as pin
+
+    from sim.handmade import foot_lift_plan
+
+    ex = simulate(foot_lift_plan(talos, height=0.05), talos, settings=SimSettings(settle_time=0.2))
+    assert ex.certificate.ok, ex.certificate.summary()
+    k = int(np.searchsorted(ex.t, 2.25))  # middle of the single-support phase
+    right, left = talos.frame("right_foot"), talos.frame("left_foot")
+    np.testing.assert_allclose(ex.contact_forces[right][k], 0.0, atol=1e-9)
+    assert ex.contact_forces[left][k][2] == pytest.approx(talos.mass * GRAVITY, rel=0.05)
+    data = talos.data()
+    pin.framesForwardKinematics(talos.model, data, ex.q[k])
+    assert data.oMf[talos.frame_id("right_foot")].translation[2] > 0.04
+    assert ex.contact_forces[right][-1][2] > 0.3 * talos.mass * GRAVITY  # landed and loaded again
