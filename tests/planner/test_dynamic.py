@@ -1,0 +1,165 @@
+"""Dynamic plans (steps, turns, jumps) on Talos and G1, checked from the returned Plan with numpy.
+
+Every plan is verified independently of the solver's own report: contacts held during stance
+(Pinocchio placements vs the spec), Newton's law for the CoM from the Pinocchio CoM and
+``Plan.forces``, the Coulomb cone and the centre of pressure from the corner forces, no sole
+corner below the ground, no force without contact.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from planner.settings import PlannerSettings
+from planner.trajopt import plan
+from tasks.actions import Action
+from tasks.compose import compile_actions
+from tasks.exceptions import TaskDefinitionError
+from tasks.footsteps import standing_feet
+from tests.tolerances import CONTACT_POS_ATOL, CONTACT_ROT_ATOL
+
+SETTINGS = PlannerSettings(compile=False)  # in-memory solvers: no gcc in the test loop
+G = 9.81
+FORCE_ATOL = 1.0  # [N] (IPOPT's tolerance on weight-normalized rows, times ~900 N)
+COP_ATOL = 1e-6  # [m]
+GROUND_ATOL = 1e-6  # [m]
+
+
+def _plan(robot, *actions, dt=0.075):
+    spec = compile_actions([Action(name=n, params=p) for n, p in actions], robot, dt=dt)
+    return plan(spec, robot, settings=SETTINGS)
+
+
+def verify(p, robot) -> dict:
+    """Check a dynamic plan from its arrays; returns a few numbers for the caller's own asserts."""
+    assert p.ok, p.summary()
+    model, data = robot.model, robot.data()
+    t, dt = p.t, p.dt
+    spec = p.spec
+    corners = p.extras["corner_forces"]
+    sole = robot.profile.sole
+    frames = {robot.frame(f"{s}_foot"): s for s in ("left", "right")}
+    lowest = math.inf
+    for k, qk in enumerate(p.q):
+        pin.framesForwardKinematics(model, data, qk)
+        held = {c.frame: c for c in spec.phases[spec.phase_at(float(t[k]))].contacts}
+        for frame, side in frames.items():
+            M = data.oMf[robot.frame_id(frame)]
+            for x, y in sole.corners(side):
+                lowest = min(lowest, float(M.act(np.array([x, y, 0.0]))[2]))
+            if frame in held:  # stance: the sole stays at its placement
+                c = held[frame]
+                target = pin.SE3(pin.rpy.rpyToMatrix(*c.placement.rpy), np.array(c.placement.position))
+                assert np.linalg.norm(M.translation - target.translation) < CONTACT_POS_ATOL, (k, frame)
+                assert np.linalg.norm(pin.log3(target.rotation.T @ M.rotation)) < CONTACT_ROT_ATOL, (k, frame)
+            else:  # no contact in this phase: no force (the phase's boundary knots may still push)
+                inside = 0 < k < len(t) - 1 and spec.phase_at(float(t[k - 1])) == spec.phase_at(float(t[k + 1]))
+                if inside:
+                    np.testing.assert_allclose(p.forces[frame][k], 0.0, atol=1e-12, err_msg=f"{frame} at t = {t[k]}")
+    assert lowest >= -GROUND_ATOL, f"a sole corner is {-lowest:.2e} m below the ground"
+    # Newton: m (c'' - g) = sum f at the interior knots
+    total = sum(p.forces.values())
+    acc = (p.com[2:] - 2 * p.com[1:-1] + p.com[:-2]) / dt**2
+    resid = robot.mass * (acc - np.array([0.0, 0.0, -G])) - total[1:-1]
+    np.testing.assert_allclose(resid, 0.0, atol=FORCE_ATOL)
+    # friction cone and CoP inside the sole, from the corner forces (flat ground: normal = z)
+    mu = robot.profile.friction_coefficient
+    for frame, f in corners.items():
+        fn = f[..., 2]
+        assert fn.min() >= -FORCE_ATOL / 4
+        assert (np.linalg.norm(f[..., :2], axis=-1) - mu * fn).max() <= FORCE_ATOL
+        side = frames[frame]
+        loaded = fn.sum(axis=1) > 1.0
+        if loaded.any():
+            k_loaded = np.flatnonzero(loaded)
+            pts = np.array(sole.corners(side))
+            for k in k_loaded:
+                pin.framesForwardKinematics(model, data, p.q[k])
+                M = data.oMf[robot.frame_id(frame)]
+                cop_world = (fn[k] @ np.array([M.act(np.array([x, y, 0.0])) for x, y in pts])) / fn[k].sum()
+                local = M.actInv(cop_world)
+                assert sole.x_min - COP_ATOL <= local[0] <= sole.x_max + COP_ATOL
+                assert pts[:, 1].min() - COP_ATOL <= local[1] <= pts[:, 1].max() + COP_ATOL
+    return {"lowest": lowest, "newton": float(np.abs(resid).max())}
+
+
+def test_talos_jump_5cm(talos):
+    """Crouch, fly >= 5 cm up ballistically with zero force, land; every force checked."""
+    p = _plan(talos, ("jump", {"height": 0.05}))
+    verify(p, talos)
+    flight = [i for i, ph in enumerate(p.spec.phases) if not ph.contacts][0]
+    t0 = sum(ph.duration for ph in p.spec.phases[:flight])
+    t1 = t0 + p.spec.phases[flight].duration
+    k0, k1 = round(t0 / p.dt), round(t1 / p.dt)
+    z = p.com[:, 2]
+    rise = z[k0:k1 + 1].max() - z[k0]
+    assert rise >= 0.05 - 1e-3, f"CoM rise in flight {rise:.3f} m"
+    for frame, f in p.forces.items():
+        np.testing.assert_allclose(f[k0 + 1:k1], 0.0, atol=1e-12, err_msg=frame)
+    acc = (p.com[k0 + 2:k1] - 2 * p.com[k0 + 1:k1 - 1] + p.com[k0:k1 - 2]) / p.dt**2
+    np.testing.assert_allclose(acc, np.tile([0.0, 0.0, -G], (len(acc), 1)), atol=1e-3)  # free fall
+    assert z[: k0].min() < talos_standing_z(talos) - 0.04  # it crouched first
+    assert p.stats.iterations < 100
+
+
+def talos_standing_z(robot) -> float:
+    return float(pin.centerOfMass(robot.model, robot.data(), robot.q_standing)[2])
+
+
+def test_talos_four_steps_forward(talos):
+    """4 steps of 0.15 m: feet and CoM end 0.6 m ahead; stance soles held; forces verified."""
+    p = _plan(talos, ("step", {"direction": "forward", "length": 0.15, "count": 4}))
+    verify(p, talos)
+    start = standing_feet(talos)
+    pin.framesForwardKinematics(talos.model, talos.data(), p.q[-1])
+    data = talos.data()
+    pin.framesForwardKinematics(talos.model, data, p.q[-1])
+    for side, p0 in zip(("left", "right"), start, strict=True):
+        np.testing.assert_allclose(data.oMf[talos.frame_id(f"{side}_foot")].translation - np.array(p0.position),
+                                   [0.6, 0.0, 0.0], atol=1e-4)
+    assert p.com[-1, 0] - p.com[0, 0] == pytest.approx(0.6, abs=0.02)
+    single = sum(1 for k in range(len(p.t)) if len(p.active_contacts(k)) == 1)
+    assert single > 0
+
+
+def test_refusals_in_task_terms(talos, g1):
+    """A 2 m step and a 1 m jump are refused before planning, with the robot's numbers."""
+    with pytest.raises(TaskDefinitionError, match="step length 2 m is beyond talos's 0.30 m"):
+        _plan(talos, ("step", {"length": 2.0}))
+    with pytest.raises(TaskDefinitionError, match=r"jump height 1 m needs a take-off speed of 4.43 m/s.*g1's leg"):
+        _plan(g1, ("jump", {"height": 1.0}))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+@pytest.mark.parametrize("task", ["side", "turn"])
+def test_side_steps_and_turn(robot_name, task, request):
+    """2 steps left (feet 2 x length to the left), a 90 deg turn (feet yawed 90 deg)."""
+    robot = request.getfixturevalue(robot_name)
+    if task == "side":
+        p = _plan(robot, ("step", {"direction": "left", "length": 0.08, "count": 2}))
+    else:
+        p = _plan(robot, ("turn", {"angle": math.pi / 2}))
+    verify(p, robot)
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, p.q[-1])
+    for side, p0 in zip(("left", "right"), standing_feet(robot), strict=True):
+        M = data.oMf[robot.frame_id(f"{side}_foot")]
+        if task == "side":
+            np.testing.assert_allclose(M.translation - np.array(p0.position), [0.0, 0.16, 0.0], atol=1e-4)
+        else:
+            yaw = math.atan2(M.rotation[1, 0], M.rotation[0, 0])
+            assert yaw == pytest.approx(math.pi / 2, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_g1_jump_and_steps(g1):
+    """G1: a 5 cm jump and 4 steps forward, verified the same way."""
+    verify(_plan(g1, ("jump", {"height": 0.05})), g1)
+    p = _plan(g1, ("step", {"direction": "forward", "length": 0.15, "count": 4}))
+    verify(p, g1)
+    assert p.com[-1, 0] - p.com[0, 0] == pytest.approx(0.6, abs=0.02)
