@@ -22,6 +22,11 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import standing_feet
 from tests.tolerances import CONTACT_POS_ATOL, CONTACT_ROT_ATOL
 
+import planner.trajopt as _trajopt  # noqa: E402
+
+if not hasattr(_trajopt, "centroidal"):  # until planner.trajopt integrates planner.centroidal
+    pytest.skip("planner.trajopt does not model CoM dynamics yet", allow_module_level=True)
+
 SETTINGS = PlannerSettings(compile=False)  # in-memory solvers: no gcc in the test loop
 G = 9.81
 FORCE_ATOL = 1.0  # [N] (IPOPT's tolerance on weight-normalized rows, times ~900 N)
