@@ -275,10 +275,8 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
                 misses.sort(key=lambda m: -m[0])
                 gap, chk, item = misses[0]
                 unit = "rad" if chk.unit == "rad" else "m"
-                what = chk.name.split(" target ")[0] + (" orientation" if unit == "rad" and "orientation" not in chk.name else "")
                 text = (f"{chk.name} is {gap:.2f} {unit} beyond reach at t = {chk.time:.2f} s "
                         f"(closest {chk.violation:.2f} {unit}, tolerance {tol:g} {unit})")
-                del what
                 if len(misses) > 1:
                     text += "; also " + ", ".join(f"{m[1].name} ({m[0]:.2f} {m[1].unit})" for m in misses[1:])
                 return text

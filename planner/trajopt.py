@@ -442,7 +442,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         UnsupportedModel: the robot has joints the planner cannot model.
         PlanningFailed: the problem is infeasible or the solver failed (with ``throw``).
     """
-    from planner.diagnose import check_plan, diagnose_failure, precheck
+    from planner.diagnose import diagnose_failure, precheck
 
     settings = settings or PlannerSettings()
     if spec.dynamic:
