@@ -1165,8 +1165,9 @@ def dynamic_checks(
 
     Groups: Newton's law for the CoM (with the Pinocchio CoM of the returned configurations),
     the friction cone (the true Coulomb cone, not the pyramid) and the centre of pressure inside
-    each sole rectangle per contact frame, no force at a knot without contact, and every sole
-    corner of a swinging foot above the ground.
+    each sole rectangle per contact frame (where the sole carries more than the force tolerance:
+    the CoP of a nearly unloaded sole, e.g. at take-off, is not defined), no force at a knot
+    without contact, and every sole corner of a swinging foot above the ground.
 
     Args:
         lay: The layout.
@@ -1216,7 +1217,7 @@ def dynamic_checks(
             friction.setdefault(c.frame, []).append((float(friction_violation(fk, c.rotation, c.friction_coefficient).max()), t[k]))
             full = contact_geometry_points(lay.robot, c.frame)
             if full is not None:
-                p = center_of_pressure(c.points_in_frame, fk[None], c.rotation)
+                p = center_of_pressure(c.points_in_frame, fk[None], c.rotation, min_normal=tol_n)
                 viol = cop_violation(p, (full[:, 0].min(), full[:, 0].max()), (full[:, 1].min(), full[:, 1].max()))
                 cop.setdefault(c.frame, []).append((float(viol[0]), t[k]))
     for frame, rows in friction.items():
