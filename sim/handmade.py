@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from planner.plan import Plan, SolverStats, SolveStatus
 from robots.model import Robot
-from tasks.specs import CoMBounds, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
+from tasks.specs import CoMBounds, CoMTarget, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
 
 Offset = Callable[[float], np.ndarray]
 
@@ -45,6 +45,7 @@ def ik_plan(
     hand_offsets: dict[str, Offset] | None = None,
     foot_offsets: dict[str, Offset] | None = None,
     targets: tuple[FrameTarget, ...] = (),
+    com_targets: tuple[CoMTarget, ...] = (),
     name: str = "handmade",
     q_start: np.ndarray | None = None,
     phases: tuple[tuple[str, float, tuple[str, ...]], ...] | None = None,
@@ -60,6 +61,7 @@ def ik_plan(
         foot_offsets: Foot role -> displacement of that sole from its start [m] (the spec still
             holds the foot in contact: a deliberately inconsistent plan).
         targets: Frame targets to put in the spec.
+        com_targets: CoM targets to put in the spec.
         name: Spec name.
         q_start: Start configuration (default: the robot's standing posture).
         phases: ``(name, duration [s], foot roles in contact)`` per phase; the durations must add
@@ -145,6 +147,7 @@ def ik_plan(
         robot=robot.name,
         phases=spec_phases,
         targets=targets,
+        com_targets=com_targets,
         com_bounds=(CoMBounds(),),
         dt=dt,
         name=name,
@@ -169,13 +172,21 @@ def standing_plan(robot: Robot, *, duration: float = 2.0, dt: float = 0.05) -> P
 def squat_plan(
     robot: Robot, *, depth: float = 0.15, duration: float = 3.0, dt: float = 0.05
 ) -> Plan:
-    """Lower the CoM by ``depth`` [m] and come back up, soles fixed."""
+    """Lower the CoM by ``depth`` [m] and come back up, soles fixed; a CoMTarget asks for the bottom."""
     bump = smooth_bump(duration)
+    com_z = pin.centerOfMass(robot.model, robot.data(), robot.q_standing)[2]
+    bottom = CoMTarget(
+        name="squat bottom",
+        position=(None, None, float(com_z - depth)),
+        time=0.5 * duration,
+        tolerance=0.01,
+    )
     return ik_plan(
         robot,
         duration=duration,
         dt=dt,
         com_offset=lambda t: np.array([0.0, 0.0, -depth * bump(t)]),
+        com_targets=(bottom,),
         name="squat",
     )
 

@@ -684,4 +684,43 @@ def _certify(
                 message=msg,
             )
         )
+    # ---- CoM targets measured in the simulation
+    for target in ref.plan.spec.com_targets:
+        if target.window is not None:
+            mask = (ts >= target.window[0] - 1e-9) & (ts <= target.window[1] + 1e-9)
+        else:
+            t_at = horizon if target.time is None else target.time
+            n_at = int(np.argmin(np.abs(ts - t_at)))
+            mask = np.zeros(len(ts), dtype=bool)
+            mask[n_at] = abs(ts[n_at] - t_at) < 0.01
+        limit = target.tolerance + s.target_margin
+        name = f"CoM target {target.name!r}"
+        if not mask.any():
+            checks.append(
+                Check(
+                    name=name,
+                    value=math.inf,
+                    limit=limit,
+                    unit="m",
+                    ok=False,
+                    time=float(ts[-1]),
+                    message=f"{name} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
+                )
+            )
+            continue
+        axes = np.array([v is not None for v in target.position], dtype=float)
+        goal = np.array([0.0 if v is None else v for v in target.position])
+        err = np.where(mask, np.linalg.norm((coms - goal) * axes, axis=1), -1.0)
+        k = int(np.argmax(err))
+        checks.append(
+            Check(
+                name=name,
+                value=float(err[k]),
+                limit=limit,
+                unit="m",
+                ok=bool(err[k] <= limit),
+                time=float(ts[k]),
+                message=f"{name} missed by {err[k]:.3f} m > {limit:.3f} m at t = {ts[k]:.2f} s",
+            )
+        )
     return tuple(checks)

@@ -106,6 +106,7 @@ def test_squat_tracks_the_com(talos, squat_run):
     cert = squat_run.certificate
     assert cert.ok, cert.summary()
     assert cert.check("CoM tracking error").value < 0.02
+    assert cert.check("CoM target 'squat bottom'").value < 0.02  # measured at t = 1.25 s
     assert cert.check("left_foot slip").value < 0.005
     assert squat_run.com[:, 2].min() < squat_run.com[0, 2] - 0.12  # it really went down
 
