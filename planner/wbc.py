@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -41,8 +41,9 @@ from robots.model import Robot
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-_VEE_A = [7, 2, 3]  # flattened (R^T R_ref) entries (2,1), (0,2), (1,0)
-_VEE_B = [5, 6, 1]  # and (1,2), (2,0), (0,1): vee(R - R^T) / 2 = sin(angle) * axis
+_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+_VEE_A = np.array([7, 2, 3])  # flattened (R^T R_ref) entries (2,1), (0,2), (1,0)
+_VEE_B = np.array([5, 6, 1])  # and (1,2), (2,0), (0,1): vee(R - R^T) / 2 = sin(angle) * axis
 
 
 class ControllerError(PlannerError):
@@ -132,8 +133,7 @@ class WbcSettings:
             raise ControllerError(f"WbcSettings.dt must be > 0 s, got {self.dt!r}")
 
 
-@dataclass(frozen=True, slots=True)
-class TickInfo:
+class TickInfo(NamedTuple):
     """What the last tick did.
 
     Attributes:
@@ -169,6 +169,7 @@ class WholeBodyController:
         self.nv = nv
         self.nu = nv - 6
         self.torque_limits = robot.torque_limits * self.settings.torque_scale
+        self._neg_torque_limits = -self.torque_limits
         # force variables are scaled so that one unit is the per-corner share of the weight
         self._f_scale = robot.mass * 9.81 / 8.0  # [N]
         mu = robot.profile.friction_coefficient * self.settings.friction_scale
@@ -394,10 +395,11 @@ class WholeBodyController:
         J, drift, pos, rots = self._J, self._drift, self._pos, self._rots
         # ---- CoM rows
         J[:3] = data.Jcom
-        pos[0] = data.com[0]
-        if self.settings.com_drift:
-            pin.centerOfMass(model, data, q, v, self._zero_a)
+        if self.settings.com_drift:  # CoM position and its drift J'v in one call
+            pos[0] = pin.centerOfMass(model, data, q, v, self._zero_a)
             drift[:3] = data.acom[0]
+        else:
+            pos[0] = data.com[0]
         # ---- frame rows (world-aligned): Jacobian, drift J'v, placement
         for i, fid in enumerate(self._frame_ids):
             placement = pin.updateFramePlacement(model, data, fid)
@@ -428,7 +430,8 @@ class WholeBodyController:
         ef = self._err_frames
         ef[:, :3] = target_pos - pos[1:]
         rel = (rots.transpose(0, 2, 1) @ target_rot).reshape(-1, 9)
-        ef[:, 3:] = (rots @ (0.5 * (rel[:, _VEE_A] - rel[:, _VEE_B]))[:, :, None])[:, :, 0]
+        w = rel[:, _VEE_A] - rel[:, _VEE_B]
+        ef[:, 3:] = 0.5 * np.matmul(rots, w[:, :, None])[:, :, 0]
         a_des = self._feedforward[k] + self._kp_rows * err - self._kd_rows * (J @ v) - drift
         # ---- stance contacts: equality rows and force map
         A, b, S = self.A, self.b, self._S
@@ -472,7 +475,8 @@ class WholeBodyController:
         x, ok, iterations, status = self._solve()
         if ok:
             tau = M[6:] @ x[:nv] + h[6:] - S[6:] @ x[nv:]
-            np.clip(tau, -self.torque_limits, self.torque_limits, out=tau)
+            np.minimum(tau, self.torque_limits, out=tau)
+            np.maximum(tau, self._neg_torque_limits, out=tau)
             self._prev_tau = tau
             self._x = x
         else:
@@ -530,13 +534,6 @@ class WholeBodyController:
         qp.init(self.H, self.g, self.A, self.b, self.C, self.l, self.u)
         return qp
 
-    def _qp_ok(self) -> bool:
-        res = self._qp.results
-        return bool(
-            res.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
-            and np.all(np.isfinite(res.x))
-        )
-
     def _solve(self) -> tuple[np.ndarray, bool, int, Any]:
         s = self.settings
         if s.backend == "proxsuite":
@@ -555,15 +552,22 @@ class WholeBodyController:
                     update_preconditioner=False,
                 )
             self._qp.solve()
-            ok, iterations = self._qp_ok(), int(self._qp.results.info.iter)
+            res = self._qp.results  # one access: each one copies the whole results object
+            info = res.info
+            status = info.status
+            x = res.x
+            ok = status == _SOLVED and bool(np.isfinite(x).all())
+            iterations = int(info.iter)
             if not ok and not fresh:
                 # a warm start from a far-away point can make proxsuite declare a feasible QP
                 # infeasible: retry cold, with a fresh preconditioner, before giving up
                 self._qp = self._new_qp()
                 self._qp.solve()
-                ok = self._qp_ok()
-                iterations += int(self._qp.results.info.iter)
-            return self._qp.results.x.copy(), ok, iterations, self._qp.results.info.status
+                res = self._qp.results
+                status, x = res.info.status, res.x
+                ok = status == _SOLVED and bool(np.isfinite(x).all())
+                iterations += int(res.info.iter)
+            return x.copy(), ok, iterations, status
         import qpsolvers
 
         finite_l = self.l > -INFINITY / 2

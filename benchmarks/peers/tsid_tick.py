@@ -45,12 +45,14 @@ def main(argv: list[str] | None = None) -> int:
         [[SOLE_X, SOLE_X, -SOLE_X, -SOLE_X], [SOLE_Y, -SOLE_Y, SOLE_Y, -SOLE_Y], [0.0] * 4]
     )
     normal = np.array([0.0, 0.0, 1.0])
+    contacts = []  # TSID keeps C++ references: the Python objects must outlive the formulation
     for name in ("left_sole_link", "right_sole_link"):
         contact = tsid.Contact6d(f"contact_{name}", robot, name, corners, normal, MU, 1.0, 1000.0)
         contact.setKp(KP_CONTACT * np.ones(6))
         contact.setKd(2.0 * np.sqrt(KP_CONTACT) * np.ones(6))
         contact.setReference(robot.framePosition(data, model.getFrameId(name)))
         formulation.addRigidContact(contact, W_FORCE, 1.0, 1)
+        contacts.append(contact)
     com_task = tsid.TaskComEquality("task-com", robot)
     com_task.setKp(KP_COM * np.ones(3))
     com_task.setKd(2.0 * np.sqrt(KP_COM) * np.ones(3))
