@@ -59,7 +59,8 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
     cached = runs[1:] or runs
     rise = None
     if any(not ph.contacts for ph in spec.phases):
-        k0 = next(k for k in range(len(p.t)) if not p.active_contacts(k)) - 1
+        # the first knot of the flight phase is the take-off (the feet are still down there)
+        k0 = next(k for k in range(len(p.t)) if not p.active_contacts(k))
         k1 = max(k for k in range(len(p.t)) if not p.active_contacts(k)) + 1
         rise = float(p.com[k0:k1 + 1, 2].max() - p.com[k0, 2])
     return {
