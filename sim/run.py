@@ -178,7 +178,8 @@ def simulate(
     foot_roles = [role for role in ("left_foot", "right_foot") if role in sm.sole_geoms]
     foot_frames = [robot.frame(role) for role in foot_roles]
     forces = np.zeros((len(foot_roles), n_ticks, 3))
-    sole_geom_to_idx = {sm.sole_geoms[role]: i for i, role in enumerate(foot_roles)}
+    sole_ids = np.array([sm.sole_geoms[role] for role in foot_roles], dtype=int)
+    foot_bodies = np.array([m.geom_bodyid[g] for g in sole_ids], dtype=int)
     contact_flags = np.zeros((len(foot_roles), n_ticks), dtype=bool)
     other_contacts: list[tuple[float, str]] = []
     events: list[Event] = []
@@ -191,7 +192,6 @@ def simulate(
     fall_height = float(np.min(ref.q[:, 2])) - s.fall_height_margin
     max_tilt = float(np.max(_tilt(ref.q[:, 3:7]))) + s.max_tilt
     fallen_at: float | None = None
-    c_force = np.zeros(6)
     floor = sm.floor_geom
     report_every = max(1, n_ticks // 10)
     was_failures = 0
@@ -218,22 +218,18 @@ def simulate(
         vs[i] = v
         taus[i] = tau
         coms[i] = d.subtree_com[base_body]
-        # contacts of the current state
-        for c in range(d.ncon):
-            con = d.contact[c]
-            g1, g2 = int(con.geom[0]), int(con.geom[1])
-            other = g2 if g1 == floor else (g1 if g2 == floor else -1)
-            if other < 0:
-                continue
-            idx = sole_geom_to_idx.get(other)
-            if idx is None:
-                other_contacts.append((t, sm.geom_body_names[other]))
-                continue
-            mujoco.mj_contactForce(m, d, c, c_force)
-            frame = con.frame.reshape(3, 3)
-            f_world = frame.T @ c_force[:3]
-            forces[idx, i] += f_world if g2 == other else -f_world
-            contact_flags[idx, i] = True
+        # contacts of the current state (vectorized: a Python loop over contacts costs ~0.2 ms)
+        if d.ncon:
+            geom = d.contact.geom
+            g1, g2 = geom[:, 0], geom[:, 1]
+            other = np.where(g1 == floor, g2, np.where(g2 == floor, g1, -1))
+            for j, sole in enumerate(sole_ids):
+                contact_flags[j, i] = bool((other == sole).any())
+            stray = other[(other >= 0) & ~np.isin(other, sole_ids)]
+            for g in stray:
+                other_contacts.append((t, sm.geom_body_names[int(g)]))
+            mujoco.mj_rnePostConstraint(m, d)  # net contact force per body in cfrc_ext
+            forces[:, i] = d.cfrc_ext[foot_bodies, 3:]
         n_done = i + 1
         if fallen_at is None and (q[2] < fall_height or _tilt(q[3:7]) > max_tilt):
             fallen_at = t
