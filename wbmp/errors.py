@@ -42,4 +42,10 @@ def classify(exc: BaseException) -> ExitCode | None:
         return ExitCode.INVALID_SPEC
     if isinstance(exc, PlannerError):
         return ExitCode.INFEASIBLE
+    from sim.exceptions import PushParseError, SimError
+
+    if isinstance(exc, PushParseError):
+        return ExitCode.USAGE
+    if isinstance(exc, SimError):
+        return ExitCode.SIM_FAILED
     return None

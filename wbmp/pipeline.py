@@ -29,7 +29,8 @@ class SolveRequest:
         instruction: A sentence (English or Chinese), or None when ``spec_path`` is given.
         spec_path: A TaskSpec JSON file, or None.
         robot: Robot name or profile file; None = the spec's robot (or talos for a sentence).
-        parser: ``rules`` or ``llm``; llm_url/llm_model/llm_timeout for the LLM backend.
+        parser: ``rules`` or ``llm``.
+        llm_options: Options of the LLM backend (url, model, api_key, timeout).
         simulate: Run the controller in MuJoCo and certify the motion.
         push: ``"N@t"`` push on the base during simulation, or None.
     """
@@ -38,9 +39,7 @@ class SolveRequest:
     spec_path: str | None = None
     robot: str | None = None
     parser: str = "rules"
-    llm_url: str | None = None
-    llm_model: str | None = None
-    llm_timeout: float = 30.0
+    llm_options: dict[str, Any] = field(default_factory=dict)
     simulate: bool = True
     push: str | None = None
 
@@ -98,11 +97,7 @@ def parse_instruction(request: SolveRequest):
     """Sentence -> ActionPlan with the requested backend."""
     from language import parse
 
-    options: dict[str, Any] = {}
-    if request.parser == "llm":
-        if not request.llm_url or not request.llm_model:
-            raise CliError("--parser llm needs --llm-url URL and --llm-model NAME", ExitCode.USAGE)
-        options = {"url": request.llm_url, "model": request.llm_model, "timeout": request.llm_timeout}
+    options = request.llm_options if request.parser == "llm" else {}
     return parse(request.instruction, backend=request.parser, **options)
 
 

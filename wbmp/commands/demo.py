@@ -1,21 +1,42 @@
-"""``wbmp demo``: the main job on the default robot (what ``make demo`` runs)."""
+"""``wbmp demo``: the main job on the default robot (what ``make demo`` runs).
+
+Solves ``wave your right hand twice, then squat`` on talos end to end (parse, plan, simulate,
+certify) and writes ``demo.npz`` and the offline replay ``demo.html``.
+"""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from wbmp.errors import ExitCode
 
+DEMO_SENTENCE = "wave your right hand twice, then squat"
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="run the demo on the default robot",
-                       description="Show the default robot and what wbmp can do with it.")
+    p = sub.add_parser("demo", help="solve the demo sentence on the default robot and write demo.html",
+                       description=f"Solve {DEMO_SENTENCE!r} end to end (parse, plan, simulate, certify) and "
+                                   "write the motion file and a standalone HTML replay.")
+    p.add_argument("sentence", nargs="?", default=DEMO_SENTENCE, help=f"instruction (default: {DEMO_SENTENCE!r})")
     p.add_argument("--robot", default="talos", help="robot name or profile file (default: talos)")
+    p.add_argument("--html", default="demo.html", help="HTML replay to write (default: demo.html)")
+    p.add_argument("--out", default="demo.npz", help="motion file to write (default: demo.npz)")
+    p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from wbmp.commands import robots
+    from viz.progress import make_progress
+    from wbmp.commands.solve import print_result
+    from wbmp.pipeline import SolveRequest, solve, write_outputs
 
-    robots.run(argparse.Namespace(robot=[args.robot], json=False))
-    return ExitCode.OK
+    print(f"wbmp demo: {args.sentence!r} on {args.robot}")
+    progress = make_progress(quiet=args.quiet)
+    request = SolveRequest(instruction=args.sentence, robot=args.robot, simulate=not args.no_sim)
+    result = solve(request, progress)
+    written = write_outputs(result, out=args.out, html=args.html, progress=progress)
+    print_result(result, written, as_json=False)
+    print(f"open {Path(args.html).resolve()} in a browser to replay the motion (works offline)")
+    return int(result.exit_code) if result.exit_code != ExitCode.OK else ExitCode.OK

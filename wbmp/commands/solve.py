@@ -1,14 +1,15 @@
-"""``wbmp solve --spec FILE``: plan a TaskSpec, check it in simulation, write the motion file.
+"""``wbmp solve``: sentence (or TaskSpec JSON) -> plan -> simulation check -> files.
 
-Exit codes (DESIGN.md section 7): 0 planned (and certified), 2 bad usage, 3 invalid spec
-(unknown frame, robot, bad value), 4 infeasible or solver failure (the one-line diagnosis is
-printed), 5 planned but the simulation check failed.
+Exit codes (DESIGN.md section 7): 0 planned (and certified), 2 bad usage or an instruction that
+could not be understood, 3 invalid spec (unknown frame, robot, bad value), 4 infeasible or solver
+failure (the one-line diagnosis is printed), 5 planned but the simulation check failed.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 from wbmp.errors import CliError, ExitCode
@@ -16,50 +17,96 @@ from wbmp.errors import CliError, ExitCode
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "solve", help="plan a motion from a task spec (JSON), simulate it, write the motion file",
-        description="Plan a whole-body motion for a TaskSpec JSON file with the CasADi/IPOPT trajectory "
-                    "optimizer, check it in MuJoCo with the whole-body controller (unless --no-sim), "
-                    "print the solver statistics and the constraint report, and write the motion file.",
-        epilog="examples: wbmp solve --spec examples/specs/squat.json --out squat.npz   "
-               "wbmp solve --spec examples/specs/reach.json --robot talos --no-sim --json",
+        "solve", help="plan a motion from a sentence or a task spec, check it in simulation, write files",
+        description="Turn an English or Chinese instruction (or a TaskSpec JSON file) into a whole-body "
+                    "motion: parse it into actions, compile them into a task spec, plan with the "
+                    "CasADi/IPOPT trajectory optimizer, check the plan in MuJoCo with the whole-body "
+                    "controller (unless --no-sim), print the solver statistics, the constraint report and "
+                    "the certificate, and write the requested files.",
+        epilog='examples: wbmp solve "wave your right hand twice, then squat" --html wave.html   '
+               'wbmp solve "深蹲三次" --out squat.npz --plots plots/   '
+               "wbmp solve --spec examples/specs/reach.json --no-sim --json",
     )
-    p.add_argument("instruction", nargs="?", default=None,
-                   help="a sentence (not available yet in this command: use --spec)")
-    p.add_argument("--spec", metavar="FILE", help="TaskSpec JSON file (see docs/spec-format.md)")
-    p.add_argument("--robot", default=None, help="robot name or profile file (default: the spec's robot)")
+    p.add_argument("instruction", nargs="*", help="the instruction, e.g. \"squat twice\" (or use --spec)")
+    p.add_argument("--spec", metavar="FILE", help="TaskSpec JSON file instead of a sentence (docs/spec-format.md)")
+    p.add_argument("--robot", default=None,
+                   help="robot name or profile file (default: talos, or the spec's robot)")
     p.add_argument("--out", metavar="FILE", default=None, help="write the motion file (.npz) here")
+    p.add_argument("--html", metavar="FILE", default=None, help="write a standalone HTML replay here")
+    p.add_argument("--plots", metavar="DIR", default=None, help="write PNG plots into DIR")
+    p.add_argument("--view", action="store_true", help="open the live meshcat viewer (127.0.0.1) afterwards")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
-    p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
-    p.add_argument("--json", action="store_true", help="print the report as JSON instead of tables")
+    p.add_argument("--push", metavar="N@t", default=None,
+                   help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5")
+    p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="instruction parser (default: rules)")
+    p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
+                   help="OpenAI-compatible API base URL for --parser llm (env WBMP_LLM_URL)")
+    p.add_argument("--llm-model", default=os.environ.get("WBMP_LLM_MODEL"), help="model name (env WBMP_LLM_MODEL)")
+    p.add_argument("--llm-timeout", type=float, default=30.0, help="seconds to wait for the LLM server")
+    p.add_argument("--quiet", action="store_true", help="no progress display; print only the results")
+    p.add_argument("--json", action="store_true", help="print the report as JSON (progress as JSON lines)")
     p.set_defaults(run=run)
 
 
+def request_from_args(args: argparse.Namespace):
+    """A SolveRequest from parsed arguments (CliError on contradictory usage)."""
+    from wbmp.commands.parse import llm_options
+    from wbmp.pipeline import SolveRequest
+
+    text = " ".join(args.instruction).strip() if args.instruction else ""
+    if args.spec and text:
+        raise CliError("give either an instruction or --spec FILE, not both", ExitCode.USAGE)
+    if not args.spec and not text:
+        raise CliError('give an instruction in quotes (wbmp solve "squat twice") or --spec FILE', ExitCode.USAGE)
+    if args.push and args.no_sim:
+        raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
+    return SolveRequest(
+        instruction=text or None, spec_path=args.spec, robot=args.robot, simulate=not args.no_sim,
+        push=args.push, parser=args.parser, llm_options=llm_options(args),
+    )
+
+
 def run(args: argparse.Namespace) -> int:
-    from wbmp.pipeline import SolveRequest, solve, write_outputs
+    from viz.progress import make_progress
+    from wbmp.pipeline import solve, write_outputs
 
-    if args.instruction is not None:
-        raise CliError("sentence input not available yet, use --spec FILE", ExitCode.USAGE)
-    if not args.spec:
-        raise CliError("give a task spec: wbmp solve --spec FILE (see docs/spec-format.md)", ExitCode.USAGE)
+    request = request_from_args(args)
+    if args.push:
+        from sim import parse_push
 
-    def progress(message: str) -> None:
-        if not args.quiet:
-            print(f"wbmp: {message}", file=sys.stderr, flush=True)
-
-    request = SolveRequest(spec_path=args.spec, robot=args.robot, simulate=not args.no_sim)
+        try:
+            parse_push(args.push)
+        except ValueError as e:
+            raise CliError(f"--push: {e}", ExitCode.USAGE) from None
+    progress = make_progress(quiet=args.quiet, json_lines=args.json)
     result = solve(request, progress)
-    written = write_outputs(result, out=args.out, progress=progress)
-    if args.json:
+    written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
+    print_result(result, written, as_json=args.json)
+    if args.view:
+        from viz.live import ViewerError, serve
+
+        try:
+            serve(result.robot, result.plan, execution=result.execution)
+        except ViewerError as e:
+            raise CliError(f"live viewer: {e}", ExitCode.INTERNAL) from None
+    return int(result.exit_code)
+
+
+def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
+    """The actions, the plan summary, the certificate and the files, as text or one JSON object."""
+    if as_json:
         report = result.report()
         report["files"] = written
-        print(json.dumps(report, default=_json_default))
-    else:
-        print(result.plan.summary())
-        if result.execution is not None:
-            print(result.execution.certificate.summary())
-        for kind, path in written.items():
-            print(f"wrote {kind}: {path}")
-    return int(result.exit_code)
+        print(json.dumps(report, default=_json_default, ensure_ascii=False))
+        return
+    if result.actions is not None:
+        print(result.actions.describe())
+    print(result.plan.summary())
+    if result.execution is not None:
+        print(result.execution.certificate.summary())
+    for kind, path in written.items():
+        print(f"wrote {kind}: {path}")
+    sys.stdout.flush()
 
 
 def _json_default(obj):
