@@ -28,7 +28,7 @@ def test_example_squat_solves_and_writes_the_motion_file(tmp_path, capsys):
     code = main(["solve", "--spec", str(EXAMPLES / "squat.json"), "--no-sim", "--out", str(out)])
     captured = capsys.readouterr()
     assert code == 0, captured.err
-    assert "plan: solved" in captured.out and "wbmp: solving" in captured.err
+    assert "plan: solved" in captured.out and "solving (" in captured.err
     motion = load_motion(out)
     assert motion.plan.ok and motion.robot_name == "talos"
 
@@ -70,8 +70,14 @@ def test_bad_json_exits_3(tmp_path, capsys):
     assert "invalid JSON" in capsys.readouterr().err
 
 
-def test_sentence_and_missing_spec_are_usage_errors(capsys):
-    """A sentence is not accepted yet, and no input at all is a usage error: exit 2."""
-    assert main(["solve", "squat twice"]) == 2
-    assert "use --spec" in capsys.readouterr().err
+def test_sentence_plus_spec_and_missing_input_are_usage_errors(capsys):
+    """A sentence together with --spec, or no input at all, is a usage error: exit 2."""
+    assert main(["solve", "squat twice", "--spec", str(EXAMPLES / "squat.json")]) == 2
+    assert "not both" in capsys.readouterr().err
     assert main(["solve"]) == 2
+    assert "give an instruction" in capsys.readouterr().err
+    assert main(["solve", "fly to the moon", "--no-sim"]) == 2
+    assert 'could not understand "fly"' in capsys.readouterr().err
+    assert main(["solve", "squat", "--push", "80@1.5", "--no-sim"]) == 2
+    assert main(["solve", "squat", "--push", "eighty"]) == 2
+    assert "--push" in capsys.readouterr().err
