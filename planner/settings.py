@@ -6,6 +6,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from planner.centroidal import CentroidalSettings
+
 
 def default_cache_dir() -> str:
     """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp``."""
@@ -41,6 +43,7 @@ class PlannerSettings:
         contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
         limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
+        centroidal: Weights and options of the CoM dynamics with contact forces (dynamic specs).
         diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
             culprit and how far it is.
         warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
@@ -62,6 +65,7 @@ class PlannerSettings:
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5
     diagnose: bool = True
+    centroidal: CentroidalSettings = field(default_factory=CentroidalSettings)
     warm_start: str = "nominal"
 
     def __post_init__(self) -> None:

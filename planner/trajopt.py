@@ -15,6 +15,9 @@ The NLP (DESIGN.md section 3), for knots ``k = 0..N`` on a uniform grid:
   frame/CoM targets (hard: constraint, soft: cost), joint targets (cost);
 * cost ``w_s sum |dq_{k+1} - 2 dq_k + dq_{k-1}|^2 / dt^3 + w_p dt sum |dq_k[joints]|^2`` plus
   the soft terms.
+* when ``spec.dynamic``: contact forces at the sole corners as extra variables, CoM dynamics
+  ``m (c'' - g) = sum f``, friction pyramids, sole corners of swinging feet above the ground,
+  an angular-momentum-rate cost (:mod:`planner.centroidal`, ``docs/dynamic.md``).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from planner import centroidal
 from planner.exceptions import PlannerError, PlanningFailed
 from planner.formulation import Layout, Term, make_layout
 from planner.plan import Plan, SolverStats, SolveStatus
@@ -47,6 +51,8 @@ class NlpLayout:
         row_order: Term indices in the order their rows appear in ``g``.
         groups: Knot groups sharing one stage function: (knots, term indices per knot).
         velocity_joints: Tangent indices of the joints with a velocity limit.
+        n_x_kin, n_g_kin: Variables and rows of the kinematic part (the chart displacements
+            and their rows); a dynamic layout adds its force variables and rows after them.
     """
 
     n_x: int
@@ -54,6 +60,8 @@ class NlpLayout:
     row_order: list[int]
     groups: list[list[int]]
     velocity_joints: np.ndarray
+    n_x_kin: int = -1
+    n_g_kin: int = -1
 
 
 @dataclass(eq=False)
@@ -124,8 +132,10 @@ def make_nlp_layout(lay: Layout) -> NlpLayout:
         groups.append(knots)
     vj = velocity_joints(lay)
     n_g = sum(lay.terms[i].n_rows for i in row_order) + len(vj) * (lay.N - 2)
-    return NlpLayout(n_x=lay.robot.nv * (lay.N - 2), n_g=n_g, row_order=row_order, groups=groups,
-                     velocity_joints=vj)
+    n_x = lay.robot.nv * (lay.N - 2)
+    n_u, n_gd = centroidal.dynamic_sizes(lay) if isinstance(lay, centroidal.DynamicLayout) else (0, 0)
+    return NlpLayout(n_x=n_x + n_u, n_g=n_g + n_gd, row_order=row_order, groups=groups,
+                     velocity_joints=vj, n_x_kin=n_x, n_g_kin=n_g)
 
 
 def _selection(lay: Layout, knots: list[int]) -> ca.DM:
@@ -212,14 +222,14 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     robot = lay.robot
     nq, nv, N = robot.nq, robot.nv, lay.N
     nl = make_nlp_layout(lay)
-    x = ca.MX.sym("x", nl.n_x)
+    x = ca.MX.sym("x", nl.n_x_kin)
     X = ca.reshape(x, nv, N - 2)
     groups = stage_groups(lay)
     fns = [stage_function(lay, term_lists[0], f"stage{gi}") for gi, (_s, _k, term_lists) in enumerate(groups)]
     n_p = nq + 3 + sum(fn.size1_in(2) * len(knots) for fn, (_s, knots, _t) in zip(fns, groups, strict=True))
     p = ca.MX.sym("p", n_p)
     lam_f = ca.MX.sym("lam_f")
-    lam_g = ca.MX.sym("lam_g", nl.n_g)
+    lam_g = ca.MX.sym("lam_g", nl.n_g_kin)
     q_ref = p[0:nq]
     w_smooth, w_posture, dt = p[nq], p[nq + 1], p[nq + 2]
     c_smooth = w_smooth / dt**3
@@ -264,8 +274,8 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     g.append(ca.mtimes(D, x))
     jac.append(ca.MX(D))
     g_all, jac_all = ca.vertcat(*g), ca.vertcat(*jac)
-    if g_all.numel() != nl.n_g:
-        raise PlannerError(f"internal: {g_all.numel()} constraint rows built, {nl.n_g} expected")
+    if g_all.numel() != nl.n_g_kin:
+        raise PlannerError(f"internal: {g_all.numel()} constraint rows built, {nl.n_g_kin} expected")
     nlp = {"x": x, "p": p, "f": f, "g": g_all}
     derivatives = {
         "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
@@ -273,6 +283,8 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
         "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)],
                                 ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
     }
+    if isinstance(lay, centroidal.DynamicLayout):  # forces, CoM dynamics, sole corners
+        nlp, derivatives = centroidal.extend_nlp(lay, nlp, derivatives)
     return nlp, derivatives, nl
 
 
@@ -345,7 +357,10 @@ def parameter_values(lay: Layout, nl: NlpLayout) -> np.ndarray:
     for knots in nl.groups:
         for k in knots:
             parts += per_knot.get(k, [])
-    return np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
+    p = np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
+    if isinstance(lay, centroidal.DynamicLayout):
+        p = centroidal.extend_parameters(lay, p)
+    return p
 
 
 def bounds(lay: Layout, nl: NlpLayout) -> tuple[np.ndarray, ...]:
@@ -365,6 +380,8 @@ def bounds(lay: Layout, nl: NlpLayout) -> tuple[np.ndarray, ...]:
     vmax = np.asarray(robot.model.velocityLimit, dtype=float)[nl.velocity_joints] * lay.dt
     lbg += [-vmax] * (N - 2)
     ubg += [vmax] * (N - 2)
+    if isinstance(lay, centroidal.DynamicLayout):
+        return centroidal.extend_bounds(lay, lbx, ubx, np.concatenate(lbg), np.concatenate(ubg))
     return lbx, ubx, np.concatenate(lbg), np.concatenate(ubg)
 
 
@@ -391,7 +408,7 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
     lbx, ubx, lbg, ubg = bounds(lay, nl)
     p = parameter_values(lay, nl)
     if x0 is None:
-        x0 = np.zeros(nl.n_x)
+        x0 = centroidal.initial_guess(lay) if isinstance(lay, centroidal.DynamicLayout) else np.zeros(nl.n_x)
     if progress:
         progress(f"solving ({nl.n_x} variables, {nl.n_g} constraints)")
     t1 = time.perf_counter()
@@ -402,7 +419,7 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
     status = _STATUS.get(raw, SolveStatus.NUMERICAL_ERROR if raw else SolveStatus.NOT_RUN)
     x = np.asarray(sol["x"], dtype=float).ravel()
     dq = np.zeros((lay.N + 1, lay.robot.nv))
-    dq[2:lay.N] = x.reshape(lay.N - 2, lay.robot.nv)
+    dq[2:lay.N] = x[: lay.robot.nv * (lay.N - 2)].reshape(lay.N - 2, lay.robot.nv)
     dq[lay.N] = dq[lay.N - 1]
     stats = SolverStats(
         status=status, iterations=int(st.get("iter_count", 0)), build_time=build_time,
@@ -445,12 +462,9 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     from planner.diagnose import diagnose_failure, precheck
 
     settings = settings or PlannerSettings()
-    if spec.dynamic:
-        raise PlannerError(
-            f"spec {spec.name or '(unnamed)'!r} asks for CoM dynamics (dynamic=true), which the planner does not "
-            "model yet; set dynamic to false for a quasi-static plan"
-        )
     lay = make_layout(spec, robot)
+    if spec.dynamic:  # CoM dynamics with contact forces (planner/centroidal.py, docs/dynamic.md)
+        lay = centroidal.to_dynamic_layout(lay, settings.centroidal)
     problem = precheck(lay)
     if problem:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
@@ -463,21 +477,29 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         from planner.nominal import nominal_motion
 
         x0 = nominal_motion(lay)[2:lay.N].ravel()
+    forces = None
+    if isinstance(lay, centroidal.DynamicLayout):  # base along the feet's heading, weight on the corners
+        x0 = centroidal.initial_guess(lay)
     dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
-    result = _make_plan(lay, dq, stats, settings)
+    if isinstance(lay, centroidal.DynamicLayout):
+        forces = raw["x"][lay.n_kinematic:]
+    result = _make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:
         return result
     if progress:
         progress("the solve failed: diagnosing")
-    diagnosis = diagnose_failure(lay, result, settings, raw)
-    result = _make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks)
+    if isinstance(lay, centroidal.DynamicLayout):
+        diagnosis = centroidal.diagnose_dynamic(lay, result)
+    else:
+        diagnosis = diagnose_failure(lay, result, settings, raw)
+    result = _make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks, forces=forces)
     if throw:
         raise PlanningFailed(diagnosis, result)
     return result
 
 
 def _make_plan(lay: Layout, dq: np.ndarray, stats: SolverStats, settings: PlannerSettings, *,
-               diagnosis: str = "", checks=None) -> Plan:
+               diagnosis: str = "", checks=None, forces: np.ndarray | None = None) -> Plan:
     from planner.diagnose import check_plan, finite_differences
 
     q = configurations(lay, dq)
@@ -485,9 +507,16 @@ def _make_plan(lay: Layout, dq: np.ndarray, stats: SolverStats, settings: Planne
     com = com_trajectory(lay.robot, q)
     if checks is None:
         checks = check_plan(lay, q, v, com, settings)
+        if isinstance(lay, centroidal.DynamicLayout):
+            checks = centroidal.dynamic_plan_checks(lay, q, com, forces, checks, settings)
+    extras = {"frame_names": {fid: lay.robot.model.frames[fid].name for fid in lay.frame_ids}}
+    plan_forces = {}
+    if isinstance(lay, centroidal.DynamicLayout) and forces is not None:
+        corner = lay.pattern().corner_forces(forces)
+        plan_forces = {frame: f.sum(axis=1) for frame, f in corner.items()}
+        extras["corner_forces"] = corner
     return Plan(robot=lay.robot.name, spec=lay.spec, t=lay.t.copy(), q=q, v=v, a=a, com=com, stats=stats,
-                checks=tuple(checks), diagnosis=diagnosis,
-                extras={"frame_names": {fid: lay.robot.model.frames[fid].name for fid in lay.frame_ids}})
+                checks=tuple(checks), diagnosis=diagnosis, forces=plan_forces, extras=extras)
 
 
 def com_trajectory(robot: Robot, q: np.ndarray) -> np.ndarray:

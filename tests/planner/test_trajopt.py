@@ -118,11 +118,14 @@ def test_unknown_frame_raises_frame_not_found(talos):
         plan(spec, talos, settings=SETTINGS)
 
 
-def test_dynamic_specs_are_refused_for_now(talos):
-    """spec.dynamic=True is a PlannerError (CoM dynamics are not modelled by this planner yet)."""
+def test_dynamic_squat_has_contact_forces(talos):
+    """spec.dynamic=True adds contact forces (planner/centroidal.py): they carry the weight at rest."""
     spec = dataclasses.replace(squat_spec(talos, 0.1), dynamic=True)
-    with pytest.raises(PlannerError, match="dynamic"):
-        plan(spec, talos, settings=SETTINGS)
+    p = plan(spec, talos, settings=SETTINGS)
+    assert p.ok, p.summary()
+    total = sum(p.forces.values())  # starts and ends at rest: the mean force is the weight
+    np.testing.assert_allclose(total[1:-1].mean(axis=0), [0.0, 0.0, talos.mass * 9.81], atol=1.0)
+    assert any(c.name.endswith("friction cone") for c in p.checks)
 
 
 def test_swing_foot_clears_the_ground(talos):
