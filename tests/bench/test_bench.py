@@ -113,3 +113,23 @@ def test_scaling_plot_is_a_png(tmp_path):
     path = bench.plot_scaling(scaling, tmp_path / "s.png", title="test")
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
+
+
+def test_markdown_summary_has_one_row_per_task(smoke):
+    md = bench.markdown_summary(smoke)
+    rows = [line for line in md.splitlines() if line.startswith("| squat")]
+    assert len(rows) == 1 and rows[0].count("|") == 11
+    assert smoke["machine"]["cpu_model"] in md
+
+
+def test_from_rereads_a_result_and_rejects_other_files(smoke, tmp_path, capsys):
+    src = tmp_path / "r.json"
+    src.write_text(json.dumps(smoke))
+    md = tmp_path / "r.md"
+    assert main(["bench", "--from", str(src), "--markdown", str(md)]) == 0
+    assert "| squat |" in md.read_text()
+    assert "squat" in capsys.readouterr().out
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    assert main(["bench", "--from", str(bad)]) == 2
+    assert "not a `wbmp bench --json` result" in capsys.readouterr().err

@@ -66,7 +66,7 @@ TASK_KEYS = (
     "cold_total_s", "cold_process_s", "cache_cold", "solve_warm_s", "warm_total_s", "cache_warm",
     "iterations", "solver_status", "n_variables", "n_constraints", "max_violation", "max_violation_unit",
     "max_violation_check", "checks_ok", "tick_median_us", "tick_p99_us", "realtime_factor", "sim_wall_s",
-    "certified", "e2e_s", "e2e_mode", "e2e_exit_code",
+    "certified", "certificate_reason", "e2e_s", "e2e_mode", "e2e_exit_code",
 )
 
 
@@ -100,6 +100,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-scaling", dest="scaling", action="store_false")
     p.add_argument("--plot", metavar="PNG", default=None,
                    help="scaling plot file (default: next to --json, else bench_scaling.png)")
+    p.add_argument("--from", dest="from_json", metavar="FILE", default=None,
+                   help="do not run: re-read a result JSON (re-apply --peers, print, write --json/--markdown)")
+    p.add_argument("--markdown", metavar="FILE", default=None, help="also write a short Markdown summary table")
     p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
     p.set_defaults(run=run)
 
@@ -334,6 +337,7 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
             rec["realtime_factor"] = float(ex.realtime_factor)
             rec["sim_wall_s"] = wall
             rec["certified"] = bool(ex.certificate.ok)
+            rec["certificate_reason"] = getattr(ex.certificate, "reason", "") or ""
         except Exception as exc:  # noqa: BLE001
             rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"simulate: {_one_line(exc)}"
 
@@ -593,6 +597,10 @@ def format_table(result: dict[str, Any]) -> str:
             lines.append(f"{'':8s} ^ {r['status']}: {r['message']}"[:160])
     lines.append("(parse and spec in ms; build = NLP build incl. compilation; first/cold = build + solve; "
                  "warm = solve; RTF = simulated/wall time)")
+    if result.get("quick"):
+        origins = sorted({r["cache_first"] for r in result["tasks"].values() if r.get("cache_first")})
+        lines.append(f"(quick: 'first' is the first plan of this process from the user's solver cache: "
+                     f"{'/'.join(origins) or '-'}; run without --quick for first-ever builds)")
     sc = result.get("scaling")
     if sc:
         lines += ["", f"scaling ({sc['sentence']!r}, warm solve):"]
@@ -636,6 +644,37 @@ def format_table(result: dict[str, Any]) -> str:
         if peers.get("note"):
             lines.append(f"  note: {peers['note']}")
     return "\n".join(lines)
+
+
+def markdown_summary(result: dict[str, Any]) -> str:
+    """A short Markdown table of the run (for the README), with the machine and load."""
+    m = result["machine"]
+    ratios = result.get("ratios") or {}
+    lines = [
+        f"{result['robot']}, {m['cpu_model']}, {m['cores']} cores, load average {m['loadavg'][0]:.1f} "
+        f"(start) / {result['loadavg_end'][0]:.1f} (end), {result['date_utc'][:10]}, medians of {result['repeats']}:",
+        "",
+        "| task | first-ever [s] | cached cold [s] | warm solve [s] | iterations | tick median / p99 [µs] | "
+        "real-time factor | certified | Crocoddyl FDDP [s] | warm / Crocoddyl |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: |",
+    ]
+    for name, r in result["tasks"].items():
+        if r["status"] == NOT_IMPLEMENTED or r["status"].startswith("failed"):
+            lines.append(f"| {name} | {r['status']} | | | | | | | | |")
+            continue
+        rr = ratios.get(name, {})
+        tick = "" if r["tick_median_us"] is None else f"{r['tick_median_us']:.0f} / {_fmt(r['tick_p99_us'], digits=0)}"
+        croc = f"{rr['crocoddyl_solve_s']:.2f}" if "crocoddyl_solve_s" in rr else ""
+        ratio = f"{rr['warm_over_crocoddyl']:.2f}" if "warm_over_crocoddyl" in rr else ""
+        cert = "" if r["certified"] is None else ("yes" if r["certified"] else "no")
+        lines.append(f"| {name} | {_fmt(r['first_total_s'])} | {_fmt(r['cold_total_s'])} | {_fmt(r['solve_warm_s'])} "
+                     f"| {_fmt(r['iterations'])} | {tick} | {_fmt(r['realtime_factor'])} | {cert} | {croc} | {ratio} |")
+    tsid = (result.get("peers") or {}).get("tsid")
+    if tsid:
+        lines.append("")
+        lines.append(f"TSID {tsid.get('tsid', '?')} tick (same controller task, pin {tsid.get('pin', '?')}): "
+                     f"median {tsid['median_us']:.0f} µs, p99 {tsid['p99_us']:.0f} µs.")
+    return "\n".join(lines) + "\n"
 
 
 # --------------------------------------------------------------------------------------------
@@ -712,15 +751,31 @@ def run(args: argparse.Namespace) -> int:
     plot = args.plot
     if plot is None and args.json:
         plot = str(Path(args.json).with_suffix("")) + "_scaling.png"
-    result = run_bench(robot=args.robot, tasks=tasks, quick=args.quick, repeats=args.repeats, dt=args.dt,
-                       simulate=not args.no_sim, e2e=not args.no_e2e, first=not args.no_first,
-                       scaling=args.scaling, peers=args.peers, peers_dir=args.peers_dir, plot=plot, log=log)
+    if args.from_json:
+        try:
+            result = json.loads(Path(args.from_json).read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise CliError(f"cannot read the bench result {args.from_json}: {e}", ExitCode.USAGE) from e
+        if result.get("schema") != SCHEMA:
+            raise CliError(f"{args.from_json} is not a `wbmp bench --json` result ({SCHEMA})", ExitCode.USAGE)
+        if args.peers:
+            result["peers"] = load_peers(args.peers_dir)
+            result["ratios"] = peer_ratios(result["tasks"], result["peers"])
+    else:
+        result = run_bench(robot=args.robot, tasks=tasks, quick=args.quick, repeats=args.repeats, dt=args.dt,
+                           simulate=not args.no_sim, e2e=not args.no_e2e, first=not args.no_first,
+                           scaling=args.scaling, peers=args.peers, peers_dir=args.peers_dir, plot=plot, log=log)
     print(format_table(result))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(result, indent=2) + "\n")
         print(f"wrote {path}")
+    if args.markdown:
+        md = Path(args.markdown)
+        md.parent.mkdir(parents=True, exist_ok=True)
+        md.write_text(markdown_summary(result))
+        print(f"wrote {md}")
     return 0
 
 
