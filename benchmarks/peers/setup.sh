@@ -5,7 +5,6 @@
 #   .venv-tsid       pin 4.1.0 (the project's) + tsid 1.10.0 built from source: libtsid has no
 #                    binary wheel, and the tsid binding wheel crashes with pin 4.1, so both are
 #                    compiled here against the installed pin (long: ~40 min on 2 busy cores)
-#   .venv-peers      a link to .venv-tsid (the name benchmarks/peers/run_tsid.sh uses)
 #
 # The two cannot share one environment: crocoddyl needs pin 4.0, and TSID should tick on the
 # same pin 4.1 as wbmp's controller for a fair comparison.
@@ -62,9 +61,6 @@ setup_tsid() {
     "$V/bin/python" -m pip install --quiet --no-build-isolation --no-deps --no-binary tsid "tsid==1.10.0" \
       2>&1 | grep -v "^WARNING: Location" || true
     "$V/bin/python" -c "import tsid, pinocchio; print('tsid built against pin', pinocchio.__version__)" || return 1
-  fi
-  if [ ! -e "$ROOT/.venv-peers" ]; then
-    ln -s .venv-tsid "$ROOT/.venv-peers"
   fi
 }
 
