@@ -173,6 +173,7 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
                  contacts_at=contacts_at, frame_ids=[], terms=[], q_ref=np.array(robot.q_standing))
     contact_terms(lay)
     swing_terms(lay)
+    regularization_terms(lay)
     for bounds in spec.com_bounds:
         balance_terms(lay, bounds)
     for target in spec.targets:
@@ -232,17 +233,87 @@ def swing_terms(lay: Layout) -> None:
             ))
 
 
-def support_polygon(lay: Layout, k: int) -> np.ndarray:
-    """Corners (M, 2) of the convex hull of the active soles at knot ``k`` [m], counter-clockwise."""
+COM_CENTERING_WEIGHT = 20.0  # [1/m^2 per s]: CoM ground projection towards the support centre
+BASE_UPRIGHT_WEIGHT = 2.0  # [1/rad^2 per s]: base orientation towards upright, yaw of the feet
+
+
+def regularization_terms(lay: Layout) -> None:
+    """Soft terms that pick the natural motion among the many the constraints allow.
+
+    The posture cost acts on the joints only, so without these the floating base is free, and a
+    symmetric request (a squat) can be met more cheaply by rolling the pelvis onto one leg: the
+    CoM then sits on the edge of the support polygon, where the plan is kinematically valid but
+    the controller cannot track it (its ZMP leaves the soles). Two costs prevent that:
+
+    * the CoM ground projection is pulled towards the centroid of the support polygon;
+    * the base is pulled upright, with the mean yaw of the active soles.
+
+    Both are weighted per second of motion, so they do not depend on the knot spacing; hard
+    targets (a CoM shift for ``lean``, one-foot balance) override them.
+    """
     robot = lay.robot
-    pts = []
-    for fid, (frame, M) in lay.contacts_at[k].items():
-        side = robot.foot_side(robot.model.frames[fid].name)
-        if side is None:
-            continue  # a hand or other contact: not part of the sole polygon
-        corners = np.array([[x, y, 0.0] for x, y in robot.profile.sole.corners(side)])
-        pts.extend((corners @ M.rotation.T + M.translation)[:, :2])
-    return convex_hull(np.array(pts)) if pts else np.zeros((0, 2))
+    base = robot.frame_id("base")
+    for k in lay.variable_knots:
+        hull = support_polygon(lay, k)
+        if len(hull) >= 3:
+            centre = hull.mean(axis=0)
+            lay.terms.append(Term(
+                kind="com_pos", knot=k, structure=("com_pos", (True, True, False), "soft"),
+                params=np.array([centre[0], centre[1], 0.0, COM_CENTERING_WEIGHT * lay.dt]),
+                label="CoM centring (cost)", phase=lay.phase_name(k),
+            ))
+        yaws = [math.atan2(M.rotation[1, 0], M.rotation[0, 0]) for M in
+                (M for fid, (_, M) in lay.contacts_at[k].items() if robot.foot_side(robot.model.frames[fid].name))]
+        if yaws:
+            yaw = math.atan2(sum(math.sin(y) for y in yaws), sum(math.cos(y) for y in yaws))
+            R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ _standing_base_rotation(lay)
+            lay.terms.append(Term(
+                kind="frame_rot", knot=k, structure=("frame_rot", base, "soft"),
+                params=np.array([*R.T.ravel(), BASE_UPRIGHT_WEIGHT * lay.dt]),
+                label="base upright (cost)", phase=lay.phase_name(k),
+            ))
+
+
+def _standing_base_rotation(lay: Layout) -> np.ndarray:
+    """Base orientation at the standing posture with the feet's yaw removed (iCub's base is yawed)."""
+    data = lay.robot.data()
+    pin.framesForwardKinematics(lay.robot.model, data, lay.q_ref)
+    feet = [data.oMf[lay.robot.frame_id(f"{s}_foot")].rotation for s in ("left", "right")]
+    yaw = math.atan2(sum(R[1, 0] for R in feet), sum(R[0, 0] for R in feet))
+    return pin.rpy.rpyToMatrix(0.0, 0.0, -yaw) @ data.oMf[lay.robot.frame_id("base")].rotation
+
+
+def support_polygon(lay: Layout, k: int) -> np.ndarray:
+    """Corners (M, 2) of the support polygon at knot ``k`` [m], counter-clockwise.
+
+    Inside a phase it is the convex hull of the phase's soles. On a boundary knot, where a foot
+    lifts off or touches down, the CoM must already (or still) be over the soles of the phase
+    with fewer feet, so the smaller of the two hulls is used (a phase in flight has none).
+    """
+    spec, robot = lay.spec, lay.robot
+    tk = lay.t[k]
+    hulls = []
+    for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
+        if not start - 1e-9 <= tk <= start + phase.duration + 1e-9:
+            continue
+        pts = []
+        for c in phase.contacts:
+            side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
+            if side is None:
+                continue  # a hand or other contact: not part of the sole polygon
+            M = placement_of(c.placement)
+            corners = np.array([[x, y, 0.0] for x, y in robot.profile.sole.corners(side)])
+            pts.extend((corners @ M.rotation.T + M.translation)[:, :2])
+        if pts:
+            hulls.append(convex_hull(np.array(pts)))
+    if not hulls:
+        return np.zeros((0, 2))
+    return min(hulls, key=_polygon_area)
+
+
+def _polygon_area(hull: np.ndarray) -> float:
+    x, y = hull[:, 0], hull[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
