@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
+
 import numpy as np
 import pytest
 from hypothesis import settings
+
+# Solvers are built in memory (no gcc) unless a test asks for compilation, and nothing is
+# written to the user's solver cache: the cache tests set compile=True and their own cache_dir.
+os.environ.setdefault("WBMP_COMPILE", "0")
+os.environ.setdefault("WBMP_CACHE_DIR", tempfile.mkdtemp(prefix="wbmp-test-cache-"))
 
 settings.register_profile("ci", derandomize=True, max_examples=60, deadline=None)
 settings.load_profile("ci")
