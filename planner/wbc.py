@@ -87,7 +87,7 @@ class WbcSettings:
     force_weight: float = 1e-7
     acceleration_weight: float = 1e-6
     com_kp: float = 100.0
-    frame_kp: float = 100.0
+    frame_kp: float = 400.0
     foot_kp: float = 200.0
     base_kp: float = 100.0
     posture_kp: float = 100.0

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
+from scipy.linalg import solve_banded
+from scipy.spatial import ConvexHull, QhullError
 
 from planner.plan import Plan
 from robots.model import Robot
@@ -80,8 +82,22 @@ class PlanReference:
 
     Attributes:
         dt, n: Sample period [s] and number of samples.
+        zmp_margin: When not None, the CoM reference is made dynamically feasible: where the
+            plan's ZMP (full dynamics: CoM acceleration and the rate of angular momentum)
+            comes closer than ``zmp_margin`` [m] to the support polygon's edge, or leaves it,
+            the ZMP is projected into the polygon shrunk by the margin and the CoM path is
+            re-solved from it (see :func:`balance_com`). The plan's own CoM stays in
+            ``plan_com``.
+        zmp_scale: For kinematic plans (``spec.dynamic`` False: planned without any dynamics,
+            meant to be quasi-static), the ZMP is further kept inside the support polygon
+            scaled by this factor about its centre, so that in double support both soles keep
+            a share of the weight; a sole that carries nothing slides or yaws under the arm's
+            reaction moments. 1 turns this off.
         q, v, a: (n, nq), (n, nv), (n, nv) references.
-        com, com_velocity, com_acceleration: (n, 3).
+        com, com_velocity, com_acceleration: (n, 3), the CoM reference the controller tracks.
+        plan_com: (n, 3) the plan's CoM (equal to ``com`` when the plan's ZMP needs no change).
+        zmp: (n, 2) the plan's ZMP (full dynamics) [m]; zmp_shift: (n, 2) how far the balance
+            filter moved it [m] (zero where the plan was feasible with the margin).
         frames: Frame name -> :class:`FrameTrack` (feet, hands, target frames).
         contact_frames: Every contact frame name of the spec, in order.
         active: (n, len(contact_frames)) booleans, contact active at the sample.
@@ -89,7 +105,14 @@ class PlanReference:
     """
 
     def __init__(
-        self, plan: Plan, robot: Robot, *, dt: float = 0.001, frames: tuple[str, ...] = ()
+        self,
+        plan: Plan,
+        robot: Robot,
+        *,
+        dt: float = 0.001,
+        frames: tuple[str, ...] = (),
+        zmp_margin: float | None = 0.02,
+        zmp_scale: float = 0.35,
     ) -> None:
         model = robot.model
         self.plan = plan
@@ -174,9 +197,12 @@ class PlanReference:
         rots = np.empty((len(ids), n, 3, 3))
         vel = np.empty((len(ids), n, 6))
         acc = np.empty((len(ids), n, 6))
+        dmom = np.empty((n, 6))  # rate of centroidal momentum (linear, angular about the CoM)
         lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         for i in range(n):
-            pin.centerOfMass(model, data, q[i], v[i], a[i])  # also forward kinematics to 2nd order
+            # CoM, its derivatives and forward kinematics to 2nd order, plus the momentum rate
+            dmom[i] = pin.computeCentroidalMomentumTimeVariation(model, data, q[i], v[i], a[i])
+            pin.centerOfMass(model, data, q[i], v[i], a[i])
             com[i], dcom[i], ddcom[i] = data.com[0], data.vcom[0], data.acom[0]
             for j, fid in enumerate(ids):
                 placement = pin.updateFramePlacement(model, data, fid)
@@ -188,7 +214,7 @@ class PlanReference:
         acc[:, -1] = 0.0
         dcom[-1] = 0.0
         ddcom[-1] = 0.0
-        self.com, self.com_velocity, self.com_acceleration = com, dcom, ddcom
+        self.plan_com = com.copy()
         self.frames = {
             nm: FrameTrack(
                 frame_id=fid,
@@ -217,7 +243,137 @@ class PlanReference:
         self.active = active
         self.times = times
 
+        # ZMP of the dense reference (flat ground): c - (c_z F_xy + (-N_y, N_x)) / F_z
+        mass = float(sum(inertia.mass for inertia in model.inertias[1:]))
+        fz = mass * (ddcom[:, 2] + 9.81)
+        ang = np.stack([-dmom[:, 4], dmom[:, 3]], axis=1) / fz[:, None]
+        self.zmp = com[:, :2] - com[:, 2:3] * ddcom[:, :2] / (9.81 + ddcom[:, 2:3]) + ang
+        self.zmp_shift = np.zeros((n, 2))
+        self.com, self.com_velocity, self.com_acceleration = com, dcom, ddcom
+        if zmp_margin is not None and n >= 3:
+            scale = 1.0 if plan.spec.dynamic else float(zmp_scale)
+            polygons = support_polygons(robot, self, margin=zmp_margin, scale=scale)
+            target = self.zmp.copy()
+            for rows, verts in polygons:
+                target[rows] = project_into_polygon(self.zmp[rows], verts)
+            shift = target - self.zmp
+            if np.abs(shift).max() > 1e-6:
+                new = com.copy()
+                new[:, :2] = balance_com(com, shift, self.dt)
+                vel = np.zeros((n, 3))
+                acc = np.zeros((n, 3))
+                vel[1:-1] = (new[2:] - new[:-2]) / (2.0 * self.dt)
+                acc[1:-1] = (new[2:] - 2.0 * new[1:-1] + new[:-2]) / self.dt**2
+                vel[:, 2], acc[:, 2] = dcom[:, 2], ddcom[:, 2]
+                vel[-1] = 0.0
+                acc[-1] = 0.0
+                self.com, self.com_velocity, self.com_acceleration = new, vel, acc
+                self.zmp_shift = shift
+
     def index(self, t: float) -> int:
         """Sample index of time ``t`` [s] (clamped to the plan; the last sample after the end)."""
         k = int(round((t - float(self.plan.t[0])) / self.dt))
         return 0 if k < 0 else (self.n - 1 if k >= self.n else k)
+
+
+def support_polygons(
+    robot: Robot, ref: PlanReference, *, margin: float = 0.0, scale: float = 1.0
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Support polygons of a reference: runs of samples with the same stance contacts.
+
+    Each sole rectangle is shrunk by ``margin`` [m] on every side before the convex hull is
+    taken; the hull is then scaled by ``scale`` about its vertex centroid.
+
+    Returns:
+        ``(sample indices, counter-clockwise vertices (V, 2) [m])`` per run; runs without a
+        stance contact, or with a degenerate polygon, are left out.
+    """
+    out: list[tuple[np.ndarray, np.ndarray]] = []
+    if ref.active.shape[1] == 0:
+        return out
+    change = np.nonzero(np.any(ref.active[1:] != ref.active[:-1], axis=1))[0] + 1
+    bounds = [0, *change.tolist(), ref.n]
+    local = {}
+    for name in ref.contact_frames:
+        side = robot.foot_side(name) or "left"
+        sole = robot.profile.sole
+        m = min(margin, 0.45 * (sole.x_max - sole.x_min), 0.45 * (sole.y_max - sole.y_min))
+        corners = np.array([[x, y, 0.0] for x, y in sole.corners(side)])
+        centre = corners.mean(axis=0)
+        corners[:, :2] -= m * np.sign(corners[:, :2] - centre[:2])
+        local[name] = corners
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        mid = (lo + hi) // 2
+        pts = [
+            local[name] @ ref.frames[name].rotation[mid].T + ref.frames[name].position[mid]
+            for c, name in enumerate(ref.contact_frames)
+            if ref.active[lo, c]
+        ]
+        if not pts:
+            continue
+        pts2 = np.vstack(pts)[:, :2]
+        try:
+            hull = ConvexHull(pts2)
+        except QhullError:
+            continue
+        verts = pts2[hull.vertices]
+        centre = verts.mean(axis=0)
+        out.append((np.arange(lo, hi), centre + scale * (verts - centre)))
+    return out
+
+
+def project_into_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Nearest points of a convex polygon (counter-clockwise ``vertices`` (V, 2)) to ``points`` (N, 2)."""
+    a = vertices
+    b = np.roll(vertices, -1, axis=0)
+    edge = b - a
+    normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # outward for a counter-clockwise polygon
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    outside = ((points[:, None, :] - a[None]) * normal[None]).sum(axis=2) > 0.0  # (N, V)
+    out = points.copy()
+    bad = outside.any(axis=1)
+    if not bad.any():
+        return out
+    p = points[bad]
+    s = ((p[:, None, :] - a[None]) * edge[None]).sum(axis=2) / (edge * edge).sum(axis=1)[None]
+    s = np.clip(s, 0.0, 1.0)
+    cand = a[None] + s[:, :, None] * edge[None]  # (M, V, 2)
+    d = np.linalg.norm(cand - p[:, None, :], axis=2)
+    out[bad] = cand[np.arange(len(p)), np.argmin(d, axis=1)]
+    return out
+
+
+def balance_com(com: np.ndarray, zmp_shift: np.ndarray, dt: float) -> np.ndarray:
+    """Horizontal CoM path whose ZMP is the plan's moved by ``zmp_shift``, same first and last CoM.
+
+    The ZMP depends on the CoM through :math:`p = c - k \ddot c + o` per horizontal axis
+    (:math:`k = c_z / (g + \ddot c_z)` from the plan, ``o`` the angular-momentum part, kept from
+    the plan). Moving ``p`` by ``zmp_shift`` is the linear boundary-value problem
+    :math:`c - k \ddot c = c_{plan} - k \ddot c_{plan} + \Delta p`, solved on the sample grid
+    with central second differences (a tridiagonal, diagonally dominant system). A zero shift
+    returns the plan's CoM.
+
+    Args:
+        com: (n, 3) the plan's CoM [m].
+        zmp_shift: (n, 2) wanted change of the ZMP [m].
+        dt: Sample period [s].
+
+    Returns:
+        (n, 2) horizontal CoM [m].
+    """
+    n = len(com)
+    ddz = np.zeros(n)
+    ddz[1:-1] = (com[2:, 2] - 2.0 * com[1:-1, 2] + com[:-2, 2]) / dt**2
+    k = com[:, 2] / (9.81 + ddz) / dt**2
+    rhs = com[:, :2] + zmp_shift
+    rhs[1:-1] -= k[1:-1, None] * (com[2:, :2] - 2.0 * com[1:-1, :2] + com[:-2, :2])
+    ab = np.zeros((3, n - 2))
+    ab[0, 1:] = -k[1:-2]
+    ab[1] = 1.0 + 2.0 * k[1:-1]
+    ab[2, :-1] = -k[2:-1]
+    r = rhs[1:-1].copy()
+    r[0] += k[1] * com[0, :2]
+    r[-1] += k[-2] * com[-1, :2]
+    out = com[:, :2].copy()
+    out[1:-1] = solve_banded((1, 1), ab, r)
+    return out
