@@ -92,7 +92,8 @@ class PlanReference:
             meant to be quasi-static), the ZMP is further kept inside the support polygon
             scaled by this factor about its centre, so that in double support both soles keep
             a share of the weight; a sole that carries nothing slides or yaws under the arm's
-            reaction moments. 1 turns this off.
+            reaction moments. This applies only where the plan's CoM is itself inside the scaled
+            polygon (a lean keeps its static offset). 1 turns this off.
         q, v, a: (n, nq), (n, nv), (n, nv) references.
         com, com_velocity, com_acceleration: (n, 3), the CoM reference the controller tracks.
         plan_com: (n, 3) the plan's CoM (equal to ``com`` when the plan's ZMP needs no change).
@@ -252,10 +253,14 @@ class PlanReference:
         self.com, self.com_velocity, self.com_acceleration = com, dcom, ddcom
         if zmp_margin is not None and n >= 3:
             scale = 1.0 if plan.spec.dynamic else float(zmp_scale)
-            polygons = support_polygons(robot, self, margin=zmp_margin, scale=scale)
             target = self.zmp.copy()
-            for rows, verts in polygons:
+            for rows, verts in support_polygons(robot, self, margin=zmp_margin):
                 target[rows] = project_into_polygon(self.zmp[rows], verts)
+            if scale < 1.0:  # only where the plan's CoM itself is inside the scaled polygon
+                for rows, verts in support_polygons(robot, self, margin=zmp_margin, scale=scale):
+                    inside = np.all(project_into_polygon(com[rows, :2], verts) == com[rows, :2], axis=1)
+                    rows = rows[inside]
+                    target[rows] = project_into_polygon(self.zmp[rows], verts)
             shift = target - self.zmp
             if np.abs(shift).max() > 1e-6:
                 new = com.copy()
@@ -344,7 +349,7 @@ def project_into_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray
 
 
 def balance_com(com: np.ndarray, zmp_shift: np.ndarray, dt: float) -> np.ndarray:
-    """Horizontal CoM path whose ZMP is the plan's moved by ``zmp_shift``, same first and last CoM.
+    r"""Horizontal CoM path whose ZMP is the plan's moved by ``zmp_shift``, same first and last CoM.
 
     The ZMP depends on the CoM through :math:`p = c - k \ddot c + o` per horizontal axis
     (:math:`k = c_z / (g + \ddot c_z)` from the plan, ``o`` the angular-momentum part, kept from

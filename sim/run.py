@@ -357,7 +357,7 @@ def _torque_fraction(taus: np.ndarray, limits: np.ndarray) -> np.ndarray:
 
 
 def plan_zmp(robot: Robot, plan: Plan) -> np.ndarray:
-    """ZMP of the plan at its knots from the full rigid-body dynamics (flat ground at z = 0).
+    r"""ZMP of the plan at its knots from the full rigid-body dynamics (flat ground at z = 0).
 
     At each knot, inverse dynamics (``pin.rnea`` on the plan's own ``q``, ``v``, ``a``) gives the
     wrench the contacts must exert on the floating base; its moment about the ground point
@@ -366,7 +366,7 @@ def plan_zmp(robot: Robot, plan: Plan) -> np.ndarray:
     CoM-only formula, and uses no interpolation.
 
     Returns:
-        (T, 2) ZMP per knot [m] (NaN where the contacts would have to pull, :math:`F_z \\le 0`).
+        (T, 2) ZMP per knot [m] (NaN where the contacts would have to pull, :math:`F_z \le 0`).
     """
     model = robot.model
     data = model.createData()

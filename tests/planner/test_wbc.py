@@ -117,7 +117,7 @@ def test_bad_settings_are_refused():
 
 def test_reference_interpolates_the_knots(talos, arm):
     """The dense reference passes through every knot and its velocity is the derivative of q."""
-    ref = PlanReference(arm, talos, dt=0.001)
+    ref = PlanReference(arm, talos, dt=0.001, zmp_margin=None)  # no balance filter
     for k in range(0, len(arm.t), 7):
         i = ref.index(float(arm.t[k]))
         np.testing.assert_allclose(ref.q[i], arm.q[k], atol=1e-9)
@@ -148,3 +148,32 @@ def test_hand_task_pulls_the_hand_towards_its_reference(talos, arm):
         talos.model, data, talos.frame_id(hand), pin.LOCAL_WORLD_ALIGNED
     ).linear
     assert acc[2] > 1.0  # kp 100 * 0.05 m = 5 m/s^2 asked, shared with the other tasks
+
+
+def test_balance_filter_keeps_a_feasible_com_and_moves_an_infeasible_one(talos, arm):
+    """A zero ZMP shift returns the plan's CoM exactly; a shifted ZMP is realized by the new CoM."""
+    from planner.wbc_reference import balance_com, project_into_polygon
+
+    ref = PlanReference(arm, talos, zmp_margin=None)
+    same = balance_com(ref.plan_com, np.zeros((ref.n, 2)), ref.dt)
+    np.testing.assert_allclose(same, ref.plan_com[:, :2], atol=1e-12)
+    shift = np.zeros((ref.n, 2))
+    shift[ref.n // 3 : 2 * ref.n // 3, 1] = 0.05  # move the ZMP 5 cm left for a third of the motion
+    new = balance_com(ref.plan_com, shift, ref.dt)
+    dt, c, z = ref.dt, ref.plan_com, ref.plan_com[:, 2]
+    zmp = lambda xy: xy[1:-1] - (z[1:-1] / 9.81)[:, None] * (xy[2:] - 2 * xy[1:-1] + xy[:-2]) / dt**2  # noqa: E731
+    moved = zmp(new) - zmp(c[:, :2])
+    assert np.abs(moved - shift[1:-1]).max() < 1e-3  # [m], vertical CoM acceleration neglected here
+    assert np.allclose(new[[0, -1]], c[[0, -1], :2])
+    square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    pts = np.array([[0.5, 0.2], [2.0, 0.0], [3.0, 3.0]])
+    assert np.allclose(project_into_polygon(pts, square), [[0.5, 0.2], [1.0, 0.0], [1.0, 1.0]])
+
+
+def test_balance_filter_moves_the_com_only_where_the_zmp_moved(talos, arm):
+    """Filtered CoM: unchanged where no ZMP shift was needed around it, and within 3 cm of the plan."""
+    ref = PlanReference(arm, talos)
+    assert np.abs(ref.com - ref.plan_com).max() < 0.03  # [m]
+    assert np.array_equal(ref.com[:, 2], ref.plan_com[:, 2])
+    moved = np.abs(ref.zmp_shift).max(axis=1) > 0
+    assert moved.any() and not moved.all()

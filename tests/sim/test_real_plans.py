@@ -28,23 +28,14 @@ def test_reach_forward_passes(talos):
     assert targets and all(c.ok for c in targets)
 
 
-@pytest.mark.xfail(
-    reason="trajopt's squat moves the CoM 0.125 m sideways (the support-polygon edge less its margin) with the "
-    "base rolled 0.23 rad: one knee carries the robot and saturates at 300 N m (reported to the planner)",
-    strict=False,
-)
 def test_squat_passes(talos):
     """The default squat passes the certificate."""
     ex = simulate(_plan(talos, "squat"), talos, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
 
 
-@pytest.mark.xfail(
-    reason="trajopt's wave swings the CoM between y = 0.03 and 0.125 m at up to 2.7 m/s^2: the plan's ZMP leaves "
-    "the support polygon by 0.15 m and the robot falls (reported to the planner)",
-    strict=False,
-)
 def test_wave_passes(talos):
-    """The default wave passes the certificate."""
+    """The default wave passes: its plan's ZMP leaves the polygon (reported), the balance filter copes."""
     ex = simulate(_plan(talos, "wave"), talos, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
+    assert any(e.kind == "plan_zmp" for e in ex.events)  # the plan alone would not balance
