@@ -1,0 +1,44 @@
+"""Examples are tests: each example script runs headless and reports success."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def load_example(name: str):
+    """Import an example script as a module (they are not a package)."""
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_reach_and_squat_example(capsys):
+    """The hand-written spec example plans on talos and reaches its hand target within 1 cm."""
+    assert load_example("talos_reach_and_squat").main([]) == 0
+    out = capsys.readouterr().out
+    error = float(re.search(r"right hand error at t = 1.5 s: ([0-9.]+) m", out).group(1))
+    assert error <= 0.01
+
+
+def test_sentence_example_in_chinese(capsys):
+    """The layer-by-layer example turns a Chinese sentence into a plan with two squat bottoms."""
+    assert load_example("sentence_to_motion").main(["深蹲两次", "--no-sim"]) == 0
+    out = capsys.readouterr().out
+    assert "squat" in out and "plan: solved" in out
+    assert out.count("squat bottom") == 2
+
+
+@pytest.mark.parametrize("name", ["talos_reach_and_squat", "sentence_to_motion"])
+def test_examples_have_help(name, capsys):
+    """Every example answers --help (argparse) without doing any work."""
+    with pytest.raises(SystemExit) as exit_info:
+        load_example(name).main(["--help"])
+    assert exit_info.value.code == 0
+    assert "usage" in capsys.readouterr().out
