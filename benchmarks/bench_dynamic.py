@@ -6,10 +6,12 @@ Run from the repository root::
     .venv/bin/python benchmarks/bench_dynamic.py --robots talos --tasks steps jump
     .venv/bin/python benchmarks/bench_dynamic.py --json          # machine-readable
 
-Each task is compiled from actions (``tasks.compose.compile_actions``, default ``dt``) and
+Solvers of dynamic specs are built in memory by default (``PlannerSettings.compile_dynamic``);
+``--compile-dynamic`` compiles them with gcc into the disk cache instead. Each task is compiled
+from actions (``tasks.compose.compile_actions``, default ``dt``) and
 planned ``--repeat`` + 1 times in this process with ``planner.trajopt.plan``: the first run
-builds the solver (or loads the compiled one from the disk cache, when an earlier run made
-it), the next runs reuse it from memory ("cached"). Reported per task: the first run's
+builds the solver (or loads a compiled one from the disk cache), the next runs reuse it from
+memory ("cached"). Reported per task: the first run's
 build time and cache origin, the cached runs' median solve time (wall and CPU), iterations,
 problem size. Targets on this machine, cached: 4 steps <= 2 s, jump <= 1.5 s (build + solve
 of a cached run). Timings are wall-clock on a shared machine; the CPU time is less sensitive
@@ -83,14 +85,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", nargs="+", default=["talos", "g1"])
     parser.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS))
     parser.add_argument("--repeat", type=int, default=2, help="cached runs after the first one")
-    parser.add_argument("--no-compile", action="store_true", help="in-memory solvers (no gcc, no disk cache)")
+    parser.add_argument("--compile-dynamic", action="store_true",
+                        help="compile the dynamic solvers with gcc and keep them on disk (minutes per task the first "
+                             "time; by default they are built in memory)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     from planner.settings import PlannerSettings
     from robots import load_robot
 
-    settings = PlannerSettings(compile=not args.no_compile)
+    settings = PlannerSettings(compile_dynamic=args.compile_dynamic)
     results = {}
     for name in args.robots:
         robot = load_robot(name)
@@ -101,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"results": results, "targets_s": TARGETS,
                           "crocoddyl_fddp_quoted_s": {k: v[1] for k, v in CROCODDYL_QUOTED.items()}}, indent=2))
         return 0
-    print(f"dynamic plans ({'in-memory' if args.no_compile else 'compiled, disk cache'}); times [s], "
+    print(f"dynamic plans ({'compiled, disk cache' if args.compile_dynamic else 'in-memory solvers'}); times [s], "
           "wall clock on a shared machine (CPU time in brackets)")
     print(f"{'robot/task':<14} {'what':<26} {'knots':>5} {'vars':>6} {'iter':>4}  {'first build':>14}  "
           f"{'cached build+solve':>22}  target   ok")

@@ -44,6 +44,9 @@ class PlannerSettings:
         limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
         centroidal: Weights and options of the CoM dynamics with contact forces (dynamic specs).
+        compile_dynamic: Also compile the solvers of dynamic specs (off: their gcc -O0 code takes
+            minutes to compile and is not faster than CasADi's virtual machine; they are built
+            in memory in a few seconds and reused within the process).
         diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
             culprit and how far it is.
         warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
@@ -66,6 +69,7 @@ class PlannerSettings:
     polygon_tolerance: float = 1e-5
     diagnose: bool = True
     centroidal: CentroidalSettings = field(default_factory=CentroidalSettings)
+    compile_dynamic: bool = False
     warm_start: str = "nominal"
 
     def __post_init__(self) -> None:

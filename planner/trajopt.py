@@ -465,6 +465,10 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     lay = make_layout(spec, robot)
     if spec.dynamic:  # CoM dynamics with contact forces (planner/centroidal.py, docs/dynamic.md)
         lay = centroidal.to_dynamic_layout(lay, settings.centroidal)
+        if settings.compile and not settings.compile_dynamic:
+            import dataclasses
+
+            settings = dataclasses.replace(settings, compile=False)
     problem = precheck(lay)
     if problem:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
