@@ -50,6 +50,10 @@ def _run(peer: str, python: Path, script: str, args: list[str]) -> dict | None:
     data["loadavg_before"] = before["loadavg"]
     data["loadavg_after"] = list(after)
     data.setdefault("peer", peer)
+    if data.get(peer) in (None, "?"):  # the script could not read the version from the module
+        ver = subprocess.run([str(python), "-c", f"import importlib.metadata as m; print(m.version('{peer}'))"],
+                             capture_output=True, text=True, check=False).stdout.strip()
+        data[peer] = ver or "?"
     return data
 
 
