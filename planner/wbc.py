@@ -69,7 +69,9 @@ class WbcSettings:
         friction_scale: Fraction of the friction coefficient the controller may use [-].
         cop_margin: The corner forces act this far inside the sole rectangle, which keeps the centre
             of pressure off the sole's edges [m].
-        torque_scale: Fraction of each torque limit the controller may use [-].
+        torque_scale: Fraction of each torque limit the controller may use [-]. 0.97 by
+            default: the certificate flags torques above 98 % of the limit as saturation, and a
+            jump's push-off uses every newton-metre the QP allows (100 % with 1.0).
         com_drift: Include the CoM velocity-product term (one extra Pinocchio call, ~7 us).
         eps_abs: QP absolute tolerance. max_iter, max_iter_in: proxsuite outer / inner iteration caps
             (they bound the cost of a failing tick).
@@ -94,7 +96,7 @@ class WbcSettings:
     contact_kp: float = 10.0
     friction_scale: float = 0.9
     cop_margin: float = 0.0
-    torque_scale: float = 1.0
+    torque_scale: float = 0.97
     com_drift: bool = True
     eps_abs: float = 1e-6
     max_iter: int = 50

@@ -47,7 +47,8 @@ LAND_TIME = 0.4  # [s]
 RECOVER_TIME = 0.6  # [s]
 MIN_FLIGHT_KNOTS = 2
 TAKEOFF_MARGIN = 0.9  # plan with at most this fraction of the estimated take-off speed
-PUSH_ACCELERATION = 0.8  # [g] mean upward acceleration over the push stroke
+PUSH_ACCELERATION = 0.4  # [g] mean upward acceleration over the push stroke
+PUSH_PROFILE_TOLERANCE = 0.015  # [m] CoM heights along a uniform-acceleration push (HARD)
 MIN_STROKE = 0.04  # [m]
 CROUCH_STEP = 0.025  # [m] base-height grid of the take-off speed estimate
 CROUCH_TOLERANCE = 0.02  # [m] CoM height at the bottom of the crouch
@@ -245,6 +246,21 @@ def build(b: FragmentBuilder) -> Fragment:
     land_contacts = tuple(Contact(frame=robot.frame(f"{s}_foot"), placement=landing[s]) for s in ("left", "right"))
     end_stance = Stance(left=landing["left"], right=landing["right"])
     b.com_target("crouch", (None, None, z0 - depth), time=tau(bounds[0]), tolerance=CROUCH_TOLERANCE)
+    # Spread the push over the push phase: soft CoM heights of a uniform acceleration from the
+    # bottom of the crouch to the take-off height and speed. Without them the optimizer puts the
+    # whole push into the last knot interval (about 2 g), which the spline reference between the
+    # knots and the knee torques cannot follow.
+    z_off = z0 - takeoff.com_drop
+    stroke_done = max(depth - takeoff.com_drop, 1e-3)
+    acc = v0 * v0 / (2.0 * stroke_done)
+    t_acc = v0 / acc
+    for j in range(1, n_push + 1):
+        left = (n_push - j) * dt  # time to take-off
+        if left >= t_acc:
+            continue
+        zj = z_off - v0 * left + 0.5 * acc * left * left
+        b.com_target("take-off" if j == n_push else f"push {j}", (None, None, zj), time=tau(bounds[0] + j),
+                     tolerance=PUSH_PROFILE_TOLERANCE)
     k_apex = bounds[1] + n_flight // 2
     t_apex = (n_flight // 2) * dt
     apex = z0 - takeoff.com_drop + v0 * t_apex - 0.5 * G * t_apex**2
