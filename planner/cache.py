@@ -175,28 +175,72 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
         for name in ORACLE_FUNCTIONS:
             cg.add(builder.get_function(name))
         cg.generate(f"{tmp}{os.sep}")  # writes <tmp>/nlp.c (no chdir: other threads keep their cwd)
+        if settings.background_compile:
+            # Compile in a detached process: this plan runs on the in-memory solver now, and the
+            # next process with this structure loads the compiled one (gcc takes 5-70 s here).
+            if progress:
+                progress("compiling the solver in the background for the next run")
+            _spawn_finisher(tmp, entry, key, nl.n_x, nl.n_g, settings)
+            tmp = None  # the finisher owns the directory now
+            return solver
         if progress:
             progress(f"compiling the solver with gcc {' '.join(settings.compile_flags)} "
                      "(first time for this task structure)")
-        cmd = [gcc, "-fPIC", "-shared", *settings.compile_flags, "nlp.c", "-o", LIBRARY, "-lm"]
-        if not _run_gcc(cmd, tmp, settings.compile_timeout):
-            return solver
-        (tmp / "nlp.c").unlink()
-        meta = {
-            "key": key, "sha256": _sha(tmp / LIBRARY), "n_x": nl.n_x, "n_g": nl.n_g,
-            "casadi": ca.__version__, "flags": list(settings.compile_flags), "created": time.time(),
-        }
-        (tmp / META).write_text(json.dumps(meta))
-        shutil.rmtree(entry, ignore_errors=True)
-        try:
-            os.replace(tmp, entry)
-        except OSError:  # another process stored it first
-            pass
+        _finish_entry(tmp, entry, key, nl.n_x, nl.n_g, settings.compile_flags, settings.compile_timeout)
         return solver
     except (OSError, RuntimeError):
         return solver
     finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, timeout: float) -> bool:
+    """Compile ``tmp/nlp.c``, write the checksummed metadata and publish ``tmp`` as ``entry``."""
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        return False
+    cmd = [gcc, "-fPIC", "-shared", *flags, "nlp.c", "-o", LIBRARY, "-lm"]
+    if not _run_gcc(cmd, tmp, timeout):
+        return False
+    (tmp / "nlp.c").unlink()
+    meta = {
+        "key": key, "sha256": _sha(tmp / LIBRARY), "n_x": n_x, "n_g": n_g,
+        "casadi": ca.__version__, "flags": list(flags), "created": time.time(),
+    }
+    (tmp / META).write_text(json.dumps(meta))  # written last: an entry without it is rebuilt
+    shutil.rmtree(entry, ignore_errors=True)
+    try:
+        os.replace(tmp, entry)
+    except OSError:  # another process stored it first
+        return False
+    return True
+
+
+def _spawn_finisher(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, settings: PlannerSettings) -> None:
+    """Start ``python -m planner.cache`` detached from this process to finish an entry."""
+    import sys
+
+    args = [sys.executable, "-m", "planner.cache", str(tmp), str(entry), key, str(n_x), str(n_g),
+            str(settings.compile_timeout), *settings.compile_flags]
+    _FINISHERS[:] = [p for p in _FINISHERS if p.poll() is None]  # reap the ones that ended
+    _FINISHERS.append(subprocess.Popen(
+        args, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True, close_fds=True,
+    ))
+
+
+_FINISHERS: list[subprocess.Popen] = []  # kept so a running finisher is not garbage-collected
+
+
+def _finisher_main(argv: list[str]) -> int:
+    """Entry point of the background compilation (see :func:`_spawn_finisher`)."""
+    tmp, entry, key, n_x, n_g, timeout, *flags = argv
+    try:
+        ok = _finish_entry(Path(tmp), Path(entry), key, int(n_x), int(n_g), tuple(flags), float(timeout))
+    finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    return 0 if ok else 1
 
 
 def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
@@ -216,3 +260,9 @@ def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
         proc.wait()
         raise
     return proc.returncode == 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_finisher_main(sys.argv[1:]))

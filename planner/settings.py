@@ -15,6 +15,11 @@ def default_cache_dir() -> str:
     return env if env else str(Path.home() / ".cache" / "wbmp")
 
 
+def default_background_compile() -> bool:
+    """False when ``$WBMP_COMPILE_BACKGROUND`` is ``0``, else True."""
+    return os.environ.get("WBMP_COMPILE_BACKGROUND", "1").strip() not in ("0", "false", "no")
+
+
 def default_compile() -> bool:
     """False when ``$WBMP_COMPILE`` is ``0`` (no gcc, no disk cache), else True."""
     return os.environ.get("WBMP_COMPILE", "1").strip() not in ("0", "false", "no")
@@ -40,6 +45,9 @@ class PlannerSettings:
         compile_flags: gcc flags for generated code (``-O0``: the code is ~3 MB for Talos and
             ``-O1`` takes 4x longer to compile for little solve-time gain).
         compile_timeout: Give up compiling after this long [s] (the plan still runs in memory).
+        background_compile: Compile in a detached process and solve this plan with the in-memory
+            solver right away (default True unless ``$WBMP_COMPILE_BACKGROUND=0``); off: wait for
+            gcc and solve with the compiled code (benchmarks of the first-ever build use that).
         contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
         limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
@@ -64,6 +72,7 @@ class PlannerSettings:
     cache_dir: str = field(default_factory=default_cache_dir)
     compile_flags: tuple[str, ...] = ("-O0",)
     compile_timeout: float = 300.0
+    background_compile: bool = field(default_factory=default_background_compile)
     contact_tolerance: float = 1e-4
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5

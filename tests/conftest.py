@@ -12,6 +12,7 @@ from hypothesis import settings
 # Solvers are built in memory (no gcc) unless a test asks for compilation, and nothing is
 # written to the user's solver cache: the cache tests set compile=True and their own cache_dir.
 os.environ.setdefault("WBMP_COMPILE", "0")
+os.environ.setdefault("WBMP_COMPILE_BACKGROUND", "0")  # tests that compile wait for gcc
 os.environ.setdefault("WBMP_CACHE_DIR", tempfile.mkdtemp(prefix="wbmp-test-cache-"))
 
 settings.register_profile("ci", derandomize=True, max_examples=60, deadline=None)

@@ -1,0 +1,38 @@
+"""Background compilation: the first plan runs at once in memory; the next one loads gcc's code."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner.cache import clear_memory_cache, solver_key
+from planner.formulation import make_layout
+from planner.settings import PlannerSettings
+from planner.trajopt import plan
+from tests.planner.planning_cases import squat_spec
+
+COMPILE_WAIT = 240.0  # [s] bound on gcc -O0 of a small Talos squat on a loaded 2-core machine
+
+
+@pytest.mark.slow
+def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, talos):
+    """Plan 1 solves in memory and returns before gcc ends; a detached process then publishes
+    a checksummed entry, which plan 2 (a fresh process's view: memory cleared) loads from disk."""
+    settings = PlannerSettings(cache_dir=str(tmp_path), compile=True, background_compile=True)
+    spec = squat_spec(talos, 0.1, duration=2.0, dt=0.1)
+    clear_memory_cache()
+    first = plan(spec, talos, settings=settings)
+    assert first.stats.cache == "built" and first.ok
+    entry = Path(tmp_path) / "planner" / solver_key(make_layout(spec, talos), settings)
+    deadline = time.monotonic() + COMPILE_WAIT
+    while not (entry / "meta.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert (entry / "meta.json").exists(), "the background compilation never published its entry"
+    assert not any(p.name.startswith(".") for p in (Path(tmp_path) / "planner").iterdir()), "temporary dir left"
+    clear_memory_cache()
+    second = plan(spec, talos, settings=settings)
+    assert second.stats.cache == "disk"
+    np.testing.assert_allclose(second.q, first.q, atol=1e-6)
