@@ -27,8 +27,8 @@ from tasks.primitives.geometry import SIDE_SIGN, neck_range, require_role, stand
 OUT_FRACTION = 0.4
 HOLD_END_FRACTION = 0.6
 RAISE_HEIGHT = 0.75  # [L] hand above the shoulder frame for raise_arms
-RAISE_OUT = 0.1  # [L] hand outside the shoulder frame
-RAISE_FORWARD = 0.05  # [L] hand ahead of the shoulder frame
+RAISE_OUT = 0.0  # [L] hand outside the shoulder frame
+RAISE_FORWARD = 0.25  # [L] hand ahead of the shoulder frame: the arms go up through the front, on the stronger shoulder pitch joints
 RAISE_TOLERANCE = 0.02  # [m]
 ORIENTATION_TOLERANCE = 0.05  # [rad] bow and turn_head
 LEAN_TOLERANCE = 0.01  # [m]
