@@ -689,6 +689,10 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
     """Run the benchmark and return the result dictionary (the JSON of ``--json``)."""
     from planner.settings import default_cache_dir
 
+    # First-ever builds are timed with gcc in the loop (and cached-cold runs need the entry on
+    # disk): compile synchronously here and in the child processes, which inherit the variable.
+    os.environ["WBMP_COMPILE_BACKGROUND"] = "0"
+
     names = list(tasks) if tasks else (list(QUICK_TASKS) if quick else list(TASKS))
     unknown = [n for n in names if n not in TASKS]
     if unknown:
