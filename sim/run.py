@@ -279,7 +279,9 @@ def simulate(
             )
         )
     frac = _torque_fraction(taus, sm.torque_limits)
-    saturated = np.nonzero(frac.max(axis=1) > s.torque_fraction_limit)[0] if len(taus) else []
+    # saturated: over the certificate's limit, or at the controller's own cap (WbcSettings.torque_scale)
+    cap = min(s.torque_fraction_limit, wbc_settings.torque_scale - 1e-3)
+    saturated = np.nonzero(frac.max(axis=1) > cap)[0] if len(taus) else []
     if len(saturated):
         n0 = int(saturated[0])
         j0 = int(np.argmax(frac[n0]))

@@ -133,7 +133,7 @@ def test_feet_forced_apart_fails_on_the_foot(talos):
 
 
 def test_torque_limits_at_ten_percent_fail_on_torque(talos):
-    """With 10 % of the torque limits, the robot cannot stand: the first failure is a saturated joint."""
+    """With 10 % of the torque limits, the robot cannot stand: joints saturate, then it falls."""
     weak = with_torque_limits(talos, 0.1)
     ex = simulate(
         standing_plan(weak, duration=1.0),
@@ -141,7 +141,10 @@ def test_torque_limits_at_ten_percent_fail_on_torque(talos):
         settings=SimSettings(settle_time=0.0, stop_after_fall=0.05),
     )
     assert not ex.certificate.ok
-    assert "torque at 100% of its limit" in ex.certificate.reason
+    # the controller caps torques at 97 % (WbcSettings.torque_scale): saturated there, then it falls
+    assert ex.certificate.check("peak torque").value > 96.9
+    saturation = [e for e in ex.events if e.kind == "torque_limit"]
+    assert saturation and saturation[0].time < min(e.time for e in ex.events if e.kind == "fall")
     assert not ex.certificate.check("base height").ok or not ex.certificate.check("base tilt").ok
     assert any(e.kind == "fall" for e in ex.events)
     assert [e.kind for e in ex.events][0] == "torque_limit"
