@@ -330,7 +330,7 @@ def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, d
             k += 1
         if a == 0 or k >= n:
             continue
-        i0, i1 = a - 1, k  # last stance sample before, first after
+        i0, i1 = a, k  # the lift-off knot (first sample without contact) and the touch-down knot
         t0, t1 = times[i0], times[i1]
         T = t1 - t0
         v_off = (com[i1] - com[i0]) / T - 0.5 * g * T
@@ -343,7 +343,7 @@ def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, d
         v_land = v_off + g * T
         b0 = int(np.searchsorted(times, t0 - FLIGHT_BLEND))
         if b0 < i0:
-            seg = slice(b0, i0 + 1)
+            seg = slice(b0, i0)  # ends where the flight starts (same position and velocity)
             com[seg], dcom[seg], ddcom[seg] = _hermite(times[b0], t0, com[b0], dcom[b0], c0, v_off, times[seg])
         b1 = min(int(np.searchsorted(times, t1 + FLIGHT_BLEND)), n - 1)
         if b1 > i1:

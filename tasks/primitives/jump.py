@@ -50,6 +50,8 @@ TAKEOFF_MARGIN = 0.9  # plan with at most this fraction of the estimated take-of
 PUSH_ACCELERATION = 0.4  # [g] mean upward acceleration over the push stroke
 PUSH_PROFILE_TOLERANCE = 0.015  # [m] CoM heights along a uniform-acceleration push (HARD)
 MIN_STROKE = 0.04  # [m]
+TORQUE_MARGIN = 0.3  # plan with at most this fraction of the static torque-limited push acceleration (calibrated in MuJoCo: docs/control.md)
+HEIGHT_STEP = 0.005  # [m] grid of max_jump_height
 CROUCH_STEP = 0.025  # [m] base-height grid of the take-off speed estimate
 CROUCH_TOLERANCE = 0.02  # [m] CoM height at the bottom of the crouch
 END_TOLERANCE = 0.01  # [m] CoM at the end
@@ -68,12 +70,18 @@ class TakeoffSpeed:
         speed: Largest upward CoM speed with both soles flat and leg joints within their
             velocity limits [m/s].
         limiting_joint: The joint that reaches its velocity limit first.
+        push_acceleration: Largest upward CoM acceleration both legs can give in this posture
+            from their torque limits (static: :math:`\tau = J^\top f` for a vertical force under
+            each sole, minus gravity) [m/s^2].
+        torque_joint: The joint whose torque limit bounds ``push_acceleration``.
     """
 
     base_drop: float
     com_drop: float
     speed: float
     limiting_joint: str
+    push_acceleration: float = math.inf
+    torque_joint: str = ""
 
 
 def flight_time(height: float) -> float:
@@ -116,6 +124,23 @@ def _crouch(robot: Robot, base_drop: float, legs: list[int], q_guess: np.ndarray
     return None
 
 
+def _push_acceleration(robot: Robot, q: np.ndarray) -> tuple[float, str]:
+    """Largest upward CoM acceleration at ``q`` from the leg torque limits (static, both feet)."""
+    model, data = robot.model, robot.data()
+    pin.computeJointJacobians(model, data, q)
+    pin.framesForwardKinematics(model, data, q)
+    total, joint = 0.0, ""
+    per_foot = []
+    for s in ("left", "right"):
+        J = pin.getFrameJacobian(model, data, robot.frame_id(f"{s}_foot"), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        ratio = np.abs(J[2, 6:]) / np.maximum(robot.torque_limits, 1e-9)  # torque per newton / limit
+        i = int(np.argmax(ratio))
+        per_foot.append((1.0 / ratio[i], robot.joint_names[i]))
+    total = sum(f for f, _ in per_foot)
+    joint = min(per_foot)[1]
+    return float(total / robot.mass - G), joint
+
+
 def _straight_up_speed(robot: Robot, q: np.ndarray) -> tuple[float, str]:
     """Largest upward CoM speed at ``q`` for a vertical base motion with the soles fixed."""
     model, data = robot.model, robot.data()
@@ -155,7 +180,9 @@ def takeoff_speeds(robot: Robot) -> tuple[TakeoffSpeed, ...]:
         q = qc
         speed, joint = _straight_up_speed(robot, q)
         com_drop = z0 - float(pin.centerOfMass(robot.model, data, q)[2])
-        out.append(TakeoffSpeed(base_drop=drop, com_drop=com_drop, speed=float(speed), limiting_joint=joint))
+        acc, tjoint = _push_acceleration(robot, q)
+        out.append(TakeoffSpeed(base_drop=drop, com_drop=com_drop, speed=float(speed), limiting_joint=joint,
+                                push_acceleration=acc, torque_joint=tjoint))
     return tuple(out)
 
 
@@ -166,9 +193,59 @@ def _best(robot: Robot) -> TakeoffSpeed:
     return max(speeds, key=lambda s: s.speed)
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PushOff:
+    """The push-off the primitive plans for a take-off speed.
+
+    Attributes:
+        takeoff: The take-off posture estimate (:func:`takeoff_point`).
+        depth: CoM drop at the bottom of the crouch [m].
+        stroke: CoM rise from the bottom of the crouch to take-off [m].
+        acceleration: Uniform upward CoM acceleration over the stroke [m/s^2] (inf without stroke).
+        available: Static torque-limited acceleration at the bottom of the crouch [m/s^2].
+        torque_joint: The joint whose torque limit bounds ``available``.
+    """
+
+    takeoff: TakeoffSpeed
+    depth: float
+    stroke: float
+    acceleration: float
+    available: float
+    torque_joint: str
+
+
+def push_off(robot: Robot, speed: float) -> PushOff:
+    """Crouch depth, push stroke and the acceleration they need for a take-off ``speed`` [m/s]."""
+    takeoff = takeoff_point(robot, speed)
+    stroke = max(MIN_STROKE, speed * speed / (2.0 * PUSH_ACCELERATION * G))
+    depth = min(takeoff.com_drop + stroke, robot.profile.squat_depth_max)
+    done = depth - takeoff.com_drop
+    acc = speed * speed / (2.0 * done) if done > 1e-3 else math.inf
+    bottom = min(takeoff_speeds(robot), key=lambda s: abs(s.com_drop - depth))
+    return PushOff(takeoff=takeoff, depth=depth, stroke=done, acceleration=acc,
+                   available=bottom.push_acceleration, torque_joint=bottom.torque_joint)
+
+
+def _feasible(robot: Robot, height: float) -> bool:
+    v0 = math.sqrt(2.0 * G * height)
+    if v0 > TAKEOFF_MARGIN * _best(robot).speed:
+        return False
+    p = push_off(robot, v0)
+    return p.acceleration <= TORQUE_MARGIN * p.available
+
+
+@functools.cache
 def max_jump_height(robot: Robot) -> float:
-    """Largest flight rise the primitive plans for ``robot`` [m] (before knot rounding)."""
-    return (TAKEOFF_MARGIN * _best(robot).speed) ** 2 / (2.0 * G)
+    """Largest flight rise the primitive plans for ``robot`` [m] (before knot rounding; 5 mm grid).
+
+    Bounded by the legs' joint speeds (take-off speed) and torques (push-off acceleration).
+    """
+    best = 0.0
+    h = HEIGHT_STEP
+    while h <= 1.0 and _feasible(robot, h):
+        best = h
+        h += HEIGHT_STEP
+    return round(best, 3)
 
 
 def check(params: dict, robot: Robot) -> None:
@@ -183,6 +260,14 @@ def check(params: dict, robot: Robot) -> None:
             f"at best (from a {best.com_drop:.2f} m crouch, {best.limiting_joint} at its limit), enough for about "
             f"{best.speed ** 2 / (2 * G):.2f} m; with a safety margin, ask for at most {max_jump_height(robot):.2f} m"
         )
+    p = push_off(robot, v0)
+    if p.acceleration > TORQUE_MARGIN * p.available:
+        raise TaskDefinitionError(
+            f"jump height {h:g} m needs a take-off speed of {v0:.2f} m/s; from a {p.depth:.2f} m crouch the push "
+            f"stroke of {p.stroke:.2f} m needs {p.acceleration:.1f} m/s^2 of upward acceleration, but {robot.name}'s "
+            f"leg torques give at most about {TORQUE_MARGIN:g} x {p.available:.1f} m/s^2 there ({p.torque_joint} "
+            f"limits it); ask for at most {max_jump_height(robot):.2f} m"
+        )
     limit = robot.profile.step_length_max
     if fwd > limit + 1e-12:
         raise TaskDefinitionError(
@@ -194,7 +279,7 @@ def check(params: dict, robot: Robot) -> None:
 def limits(robot: Robot) -> dict[str, str]:
     """Robot-specific ranges of ``height`` and ``forward``."""
     return {
-        "height": f"at most {max_jump_height(robot):.2f} m on {robot.name} (take-off speed of its legs)",
+        "height": f"at most {max_jump_height(robot):.2f} m on {robot.name} (joint speeds and torques of its legs)",
         "forward": f"at most {robot.profile.step_length_max:.2f} m on {robot.name}",
     }
 
@@ -228,9 +313,8 @@ def build(b: FragmentBuilder) -> Fragment:
         n_recover = 2
     g = standing_geometry(robot)
     z0 = b.world_z(float(g.com[2]))
-    takeoff = takeoff_point(robot, v0)
-    stroke = max(MIN_STROKE, v0 * v0 / (2.0 * PUSH_ACCELERATION * G))
-    depth = min(takeoff.com_drop + stroke, robot.profile.squat_depth_max)
+    push = push_off(robot, v0)
+    takeoff, depth = push.takeoff, push.depth
     # knot boundaries, as nominal times the builder maps back onto exactly these knots
     bounds = np.cumsum([n_crouch, n_push, n_flight, n_land, n_recover])
 

@@ -124,7 +124,8 @@ def test_one_metre_jump_is_explained(name, best, request):
     assert "jump height 1 m needs a take-off speed of 4.43 m/s" in msg
     assert f"rise at about {best:.2f} m/s" in msg
     assert f"ask for at most {max_jump_height(robot):.2f} m" in msg
-    assert max_jump_height(robot) == pytest.approx((TAKEOFF_MARGIN * best) ** 2 / (2 * G), rel=0.01)
+    # joint speeds bound it from above; the leg torques (push-off acceleration) may bound it lower
+    assert max_jump_height(robot) <= (TAKEOFF_MARGIN * best) ** 2 / (2 * G) + 1e-9
     _spec(robot, ("jump", {"height": round(max_jump_height(robot) - 0.01, 2)}, False))  # just below is fine
 
 

@@ -1,0 +1,75 @@
+"""Dynamic motions in MuJoCo: a planned 5 cm jump on Talos is certified, with a real flight.
+
+Also the pieces that make it work, checked with numbers: the ballistic CoM reference of a
+flight (planner.wbc_reference) and the torque bound of the jump primitive.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.settings import PlannerSettings
+from planner.trajopt import plan
+from planner.wbc_reference import PlanReference
+from sim import simulate
+from tasks.actions import Action
+from tasks.compose import compile_actions
+from tasks.exceptions import TaskDefinitionError
+from tasks.primitives import jump
+
+G = 9.81
+
+
+@pytest.fixture(scope="module")
+def jump_plan(talos):
+    spec = compile_actions([Action(name="jump", params={"height": 0.05})], talos, dt=0.075)
+    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    assert p.ok, p.summary()
+    return p
+
+
+def _flight(reference: PlanReference) -> np.ndarray:
+    return np.nonzero(~reference.active.any(axis=1))[0]
+
+
+def test_flight_reference_is_ballistic_and_reaches_take_off_speed(jump_plan, talos):
+    """In flight the CoM reference falls at g; the take-off blend ends at the flight's speed."""
+    ref = PlanReference(jump_plan, talos, dt=0.001)
+    air = _flight(ref)
+    assert len(air) > 150  # 0.225 s of flight
+    np.testing.assert_allclose(ref.com_acceleration[air, 2], -G, atol=1e-9)
+    i0 = air[0]  # the lift-off knot
+    # velocity continuous across take-off (1 ms samples)
+    assert abs(ref.com_velocity[i0, 2] - ref.com_velocity[i0 - 1, 2]) < 0.05
+    assert ref.com_velocity[i0, 2] > 1.0  # m/s: the plan's take-off speed, not a smoothed one
+    # the flight passes through the plan's own CoM at its take-off and touch-down knots
+    for t in (ref.times[i0], ref.times[air[-1] + 1]):
+        k = int(np.argmin(np.abs(jump_plan.t - t)))
+        assert abs(jump_plan.t[k] - t) < 1e-6
+        np.testing.assert_allclose(ref.plan_com[ref.index(t)], jump_plan.com[k], atol=1e-6)
+    # no ZMP in flight (no vertical force): finite everywhere, the CoM itself there
+    assert np.isfinite(ref.zmp).all()
+    np.testing.assert_allclose(ref.zmp[air], ref.plan_com[air, :2])
+
+
+def test_jump_5cm_is_certified_with_a_real_flight(jump_plan, talos):
+    """Tracked in MuJoCo: passes every check, both soles leave the floor, apex within 5 cm."""
+    ex = simulate(jump_plan, talos)
+    cert = ex.certificate
+    assert cert.ok, cert.summary()
+    assert cert.check("peak torque").value <= 98.0
+    assert cert.check("CoM tracking error").value < 0.05
+    airborne = np.all([np.abs(f[:, 2]) < 1e-6 for f in ex.contact_forces.values()], axis=0)
+    assert airborne.sum() * ex.timestep > 0.1  # [s] of real flight
+    rise = ex.com[:, 2].max() - ex.com[np.nonzero(airborne)[0][0], 2]
+    assert rise > 0.03  # [m] CoM rise from the moment both soles left the floor
+
+
+def test_jump_height_bounded_by_leg_torques(talos):
+    """Talos: 15 cm passes the joint-speed check but its knees cannot push hard enough."""
+    assert 0.05 <= jump.max_jump_height(talos) < 0.15
+    with pytest.raises(TaskDefinitionError, match=r"jump height 0.15 m .* leg torques give at most") as info:
+        jump.check({"height": 0.15, "forward": 0.0}, talos)
+    assert f"ask for at most {jump.max_jump_height(talos):.2f} m" in str(info.value)
+    jump.check({"height": jump.max_jump_height(talos), "forward": 0.0}, talos)  # accepted
