@@ -303,7 +303,7 @@ REGISTRY: dict[str, ActionSchema] = {
                   description="yaw change, left positive (REP 103)"),
         )),
         ActionSchema(name="jump", summary="Crouch, jump up (and optionally forward), land on both feet.", body="lower", dynamic=True, params=(
-            Param(name="height", kind="float", unit="m", default=0.08, minimum=0.01, maximum=1.5,
+            Param(name="height", kind="float", unit="m", default=0.05, minimum=0.01, maximum=1.5,
                   description="rise of the centre of mass from take-off to the top of the flight"),
             Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=2.0,
                   description="forward displacement"),

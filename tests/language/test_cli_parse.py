@@ -33,7 +33,7 @@ def test_chinese_and_overlay_json(capsys):
 def test_text_output_and_several_words(capsys):
     code, out, _ = run(capsys, "Jump", "up", "high.")
     assert code == 0
-    assert out.strip() == "1. jump  height=0.15 m  (defaults: forward=0 m)"
+    assert out.strip() == "1. jump  height=0.06 m  (defaults: forward=0 m)"
 
 
 @pytest.mark.parametrize("argv, fragment", [
