@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from planner import cache
 from planner.cache import clear_memory_cache, solver_key
 from planner.formulation import make_layout
 from planner.settings import PlannerSettings
@@ -31,6 +32,8 @@ def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, tal
     while not (entry / "meta.json").exists() and time.monotonic() < deadline:
         time.sleep(0.5)
     assert (entry / "meta.json").exists(), "the background compilation never published its entry"
+    for finisher in cache._FINISHERS:  # published: the process is ending; reap it
+        assert finisher.wait(timeout=60) == 0
     assert not any(p.name.startswith(".") for p in (Path(tmp_path) / "planner").iterdir()), "temporary dir left"
     clear_memory_cache()
     second = plan(spec, talos, settings=settings)
