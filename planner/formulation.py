@@ -27,6 +27,7 @@ import pinocchio as pin
 
 from planner.exceptions import PlannerError
 from robots.model import Robot
+from robots.polygon import convex_hull
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
 
 INF = math.inf
@@ -314,27 +315,6 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
 def _polygon_area(hull: np.ndarray) -> float:
     x, y = hull[:, 0], hull[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-
-
-def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex hull of 2D points (Andrew's monotone chain)."""
-    pts = sorted(set(map(tuple, np.round(points, 12))))
-    if len(pts) <= 2:
-        return np.array(pts)
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower, upper = [], []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
 
 
 def halfplanes(hull: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -126,3 +126,18 @@ def test_user_profile_missing_roles(tmp_path, talos):
     """A profile without the required roles says which are missing."""
     with pytest.raises(ProfileError, match="missing"):
         load_robot(_user_profile(tmp_path, talos, frames={"base": "base_link"}))
+
+
+def test_convex_hull_contains_every_point_counter_clockwise(rng):
+    """The support-polygon hull is counter-clockwise and every input point lies inside it."""
+    from robots.polygon import convex_hull
+
+    for _ in range(50):
+        pts = rng.uniform(-0.3, 0.3, size=(int(rng.integers(3, 20)), 2))
+        hull = convex_hull(pts)
+        edges = np.roll(hull, -1, axis=0) - hull
+        assert np.all(edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1) > 0)
+        for a, e in zip(hull, edges, strict=True):  # inside = left of every edge
+            assert np.all(e[0] * (pts[:, 1] - a[1]) - e[1] * (pts[:, 0] - a[0]) >= -1e-12)
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [0.5, 0.0]])
+    np.testing.assert_allclose(convex_hull(square), [[0, 0], [1, 0], [1, 1], [0, 1]])

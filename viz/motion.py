@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots import Robot
+from robots.polygon import convex_hull as convex_hull_2d
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -239,28 +240,6 @@ def contact_corners_at_placement(robot: Robot, contact) -> np.ndarray:
     xy = _contact_xy(robot, contact.frame)
     local = np.column_stack([xy, np.zeros(len(xy))])
     return local @ R.T + p
-
-
-def convex_hull_2d(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex hull (H, 2) of 2D points (monotone chain)."""
-    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in np.asarray(points)[:, :2]})
-    if len(pts) <= 2:
-        return np.array(pts, dtype=float)
-
-    def cross(o, a, b) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    upper: list = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1], dtype=float)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -24,6 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.model import Robot
+from robots.polygon import convex_hull
 from tasks.exceptions import TaskDefinitionError
 from tasks.specs import Pose
 
@@ -136,28 +137,6 @@ def heading_frame(left: pin.SE3, right: pin.SE3) -> pin.SE3:
     yaw = math.atan2(sum(math.sin(y) for y in yaws), sum(math.cos(y) for y in yaws))
     mid = 0.5 * (left.translation + right.translation)
     return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.array([mid[0], mid[1], 0.5 * (left.translation[2] + right.translation[2])]))
-
-
-def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex hull (m, 2) of 2D points (Andrew's monotone chain)."""
-    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in points})
-    if len(pts) < 3:
-        return np.array(pts, dtype=float)
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    upper: list = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1], dtype=float)
 
 
 def ray_exit_distance(polygon: np.ndarray, start: np.ndarray, direction: np.ndarray, margin: float) -> float:
