@@ -27,9 +27,15 @@ def _host(request_line: str) -> str:
 
 
 def page_requests(trap: browser.RequestTrap) -> list[str]:
-    """Requests that did not come from chromium's own background services."""
+    """Requests that did not come from chromium's own background services.
+
+    A connection that sends no request line (chromium's speculative preconnect to its proxy,
+    closed unused) fetched nothing and is not counted; the positive control below shows that
+    real fetches always leave a request line in the trap.
+    """
     return [r for r in trap.requests
-            if not any(_host(r) == d or _host(r).endswith("." + d) for d in BROWSER_SERVICE_DOMAINS)]
+            if r.strip()
+            and not any(_host(r) == d or _host(r).endswith("." + d) for d in BROWSER_SERVICE_DOMAINS)]
 
 
 @pytest.fixture(scope="module")
