@@ -399,6 +399,21 @@ class CentroidalPattern:
     forces = CentroidalTerms.forces
 
 
+def _force_box(c: ContactGeometry, n_points: int, settings: CentroidalSettings):
+    """Bounds and initial guess of one contact's point forces (3 per point) [N, or weight units].
+
+    Every component lies within ``max_force``; on flat ground the normal component is also
+    bounded below by 0 (unilateral as a bound: bounds are values). The guess shares the
+    weight evenly over the ``n_points`` points active at the knot, along the normal.
+    """
+    m = c.n_points
+    lo = np.full(3 * m, -settings.max_force)
+    hi = np.full(3 * m, settings.max_force)
+    if np.allclose(c.normal, [0.0, 0.0, 1.0]):
+        lo[2::3] = 0.0
+    return lo, hi, np.tile(c.normal / max(n_points, 1), m)
+
+
 def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: float, *,
                        settings: CentroidalSettings = CentroidalSettings(),
                        gravity: np.ndarray = GRAVITY) -> CentroidalPattern:
@@ -430,13 +445,10 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
             m = c.n_points
             index[k][c.frame] = np.arange(n, n + 3 * m).reshape(m, 3)
             n += 3 * m
-            lo = np.full(3 * m, -settings.max_force)
-            hi = np.full(3 * m, settings.max_force)
-            if np.allclose(c.normal, [0.0, 0.0, 1.0]):
-                lo[2::3] = 0.0  # unilateral on flat ground also as a bound (bounds are values)
+            lo, hi, guess = _force_box(c, n_points, settings)
             lower.append(lo)
             upper.append(hi)
-            initial.append(np.tile(c.normal / max(n_points, 1), m))
+            initial.append(guess)
             pvals.append(_geometry_values(c))
             lbg.append(np.zeros(5 * m))
             ubg.append(np.full(5 * m, np.inf))
@@ -520,13 +532,10 @@ def build_centroidal(
             pvals.append(_geometry_values(c))
             index[k][c.frame] = np.arange(n, n + 3 * m).reshape(m, 3)
             n += 3 * m
-            lo = np.full(3 * m, -settings.max_force)
-            hi = np.full(3 * m, settings.max_force)
-            if np.allclose(c.normal, [0.0, 0.0, 1.0]):
-                lo[2::3] = 0.0  # unilateral on flat ground also as a bound (bounds are values)
+            lo, hi, guess = _force_box(c, n_points, settings)
             lower.append(lo)
             upper.append(hi)
-            initial.append(np.tile(c.normal / max(n_points, 1), m))
+            initial.append(guess)
             R = ca.reshape(prm[3 * m : 3 * m + 9], 3, 3)
             rows = []
             for i in range(m):

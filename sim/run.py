@@ -667,17 +667,7 @@ def _certify(
             )
         limit = target.tolerance + s.target_margin
         if not mask.any():
-            checks.append(
-                Check(
-                    name=f"target {target.name!r}",
-                    value=math.inf,
-                    limit=limit,
-                    unit="m",
-                    ok=False,
-                    time=float(ts[-1]),
-                    message=f"target {target.name!r} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
-                )
-            )
+            checks.append(_never_reached(f"target {target.name!r}", limit, ts))
             continue
         err = np.zeros(len(ts))
         if target.position is not None:
@@ -722,17 +712,7 @@ def _certify(
         limit = target.tolerance + s.target_margin
         name = f"CoM target {target.name!r}"
         if not mask.any():
-            checks.append(
-                Check(
-                    name=name,
-                    value=math.inf,
-                    limit=limit,
-                    unit="m",
-                    ok=False,
-                    time=float(ts[-1]),
-                    message=f"{name} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
-                )
-            )
+            checks.append(_never_reached(name, limit, ts))
             continue
         axes = np.array([v is not None for v in target.position], dtype=float)
         goal = np.array([0.0 if v is None else v for v in target.position])
@@ -750,3 +730,11 @@ def _certify(
             )
         )
     return tuple(checks)
+
+
+def _never_reached(name: str, limit: float, ts: np.ndarray) -> Check:
+    """The failed check of a target whose time the simulation never reached (it stopped early)."""
+    return Check(
+        name=name, value=math.inf, limit=limit, unit="m", ok=False, time=float(ts[-1]),
+        message=f"{name} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
+    )
