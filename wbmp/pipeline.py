@@ -64,8 +64,6 @@ class SolveResult:
 
     def report(self) -> dict[str, Any]:
         """The JSON report stored in the motion file and printed by ``--json``."""
-        from planner.plan import Plan  # noqa: F401 - type only
-
         s = self.plan.stats
         out: dict[str, Any] = {
             "robot": self.robot.name,
@@ -131,6 +129,11 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     from planner.trajopt import plan as plan_motion
 
     timings: dict[str, float] = {}
+    push = None
+    if request.simulate and request.push:
+        from sim import parse_push
+
+        push = parse_push(request.push)  # before any work: a typo fails at once (exit 2)
     t0 = time.perf_counter()
     robot, spec, actions = build_spec(request, progress)
     timings["spec"] = time.perf_counter() - t0
@@ -140,9 +143,8 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     timings["plan"] = time.perf_counter() - t0
     execution = None
     if request.simulate:
-        from sim import parse_push, simulate
+        from sim import simulate
 
-        push = parse_push(request.push) if request.push else None
         progress("simulating in MuJoCo with the whole-body controller")
         t0 = time.perf_counter()
         execution = simulate(plan, robot, push=push, progress=progress)

@@ -9,8 +9,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from wbmp.errors import ExitCode
-
 DEMO_SENTENCE = "wave your right hand twice, then squat"
 
 
@@ -39,4 +37,4 @@ def run(args: argparse.Namespace) -> int:
     written = write_outputs(result, out=args.out, html=args.html, progress=progress)
     print_result(result, written, as_json=False)
     print(f"open {Path(args.html).resolve()} in a browser to replay the motion (works offline)")
-    return int(result.exit_code) if result.exit_code != ExitCode.OK else ExitCode.OK
+    return int(result.exit_code)

@@ -71,13 +71,6 @@ def run(args: argparse.Namespace) -> int:
     from wbmp.pipeline import solve, write_outputs
 
     request = request_from_args(args)
-    if args.push:
-        from sim import parse_push
-
-        try:
-            parse_push(args.push)
-        except ValueError as e:
-            raise CliError(f"--push: {e}", ExitCode.USAGE) from None
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     result = solve(request, progress)
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
