@@ -254,6 +254,7 @@ def regularization_terms(lay: Layout) -> None:
     """
     robot = lay.robot
     base = robot.frame_id("base")
+    base_rotation = _standing_base_rotation(lay)  # the same at every knot
     for k in lay.variable_knots:
         hull = support_polygon(lay, k)
         if len(hull) >= 3:
@@ -267,7 +268,7 @@ def regularization_terms(lay: Layout) -> None:
                 (M for fid, (_, M) in lay.contacts_at[k].items() if robot.foot_side(robot.model.frames[fid].name))]
         if yaws:
             yaw = math.atan2(sum(math.sin(y) for y in yaws), sum(math.cos(y) for y in yaws))
-            R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ _standing_base_rotation(lay)
+            R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ base_rotation
             lay.terms.append(Term(
                 kind="frame_rot", knot=k, structure=("frame_rot", base, "soft"),
                 params=np.array([*R.T.ravel(), BASE_UPRIGHT_WEIGHT * lay.dt]),
