@@ -22,11 +22,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
+import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
@@ -36,6 +40,7 @@ from planner.wbc import WbcSettings, WholeBodyController  # noqa: E402
 from robots import load_robot  # noqa: E402
 from sim import SimSettings, build_model, simulate  # noqa: E402
 from sim.handmade import arm_plan  # noqa: E402
+from wbmp.commands.bench import machine_info  # noqa: E402
 
 TARGET_MEDIAN_US = 150.0
 TARGET_P99_US = 400.0
@@ -64,17 +69,25 @@ def make_plan(robot, kind: str, seconds: float):
     return arm_plan(robot, duration=seconds, dt=0.05)
 
 
-def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
-    """Run the controller in closed loop at 1 kHz; time every tick; keep the QPs for the backend comparison."""
+def closed_loop_ticks(robot, plan, settings: WbcSettings, *, record: bool = False) -> tuple[dict, list]:
+    """Run the controller in closed loop at 1 kHz; time every tick.
+
+    With ``record``, a shadow controller without the fast path (proxsuite on every tick) sees the
+    same state every 10th tick, outside the timed region: its QPs feed the backend comparison.
+    """
     sm = build_model(robot, timestep=0.001)
     d = sm.data()
     ctrl = WholeBodyController(robot, settings)
+    shadow = WholeBodyController(robot, replace(settings, fast_path=False)) if record else None
     ref = ctrl.reference_for(plan)
     q = np.array(plan.q[0])
     v = np.zeros(robot.nv)
     sm.set_state(d, q, v)
     ctrl.reset(q, v)
+    if shadow is not None:
+        shadow.reset(q, v)
     wall, cpu, iters, problems = [], [], [], []
+    fast_wall = []
     for i in range(ref.n):
         sm.state(d, q, v)
         t0, c0 = time.perf_counter(), time.thread_time()
@@ -82,11 +95,16 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
         wall.append(time.perf_counter() - t0)
         cpu.append(time.thread_time() - c0)
         iters.append(ctrl.last.iterations)
-        if i % 10 == 0:
+        if ctrl.last.iterations == 0:
+            fast_wall.append(wall[-1])
+        if shadow is not None and i % 10 == 0:
+            shadow.compute(i * 0.001, q, v, ref)
             problems.append(
-                tuple(x.copy() for x in (ctrl.H, ctrl.g, ctrl.A, ctrl.b, ctrl.C, ctrl.l, ctrl.u))
+                tuple(
+                    x.copy() for x in (shadow.H, shadow.g, shadow.A, shadow.b, shadow.C, shadow.l, shadow.u)
+                )
             )
-        d.ctrl[sm.actuator_index] = tau
+        d.ctrl[sm.actuator_select] = tau
         mujoco.mj_step(sm.model, d)
     # breakdown on the final state: the Pinocchio part alone
     model, data = robot.model, robot.data()
@@ -98,15 +116,14 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
         pin.computeAllTerms(model, data, q, v)
         pin.centerOfMass(model, data, q, v, zero)
         for fid in fids:
-            pin.updateFramePlacement(model, data, fid)
             pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
             pin.getFrameClassicalAcceleration(
                 model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
             )
-            pin.getFrameVelocity(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            data.oMf[fid].homogeneous
         pin_times.append(time.thread_time() - t0)
     qp_times = []
-    qp = ctrl._qp  # the persistent solver, for its update + solve cost alone
+    qp = shadow._qp if shadow is not None else None  # the persistent solver, update + solve alone
     if qp is not None:
         for prob in problems:
             t0 = time.thread_time()
@@ -115,14 +132,40 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings) -> tuple[dict, list]:
             qp_times.append(time.thread_time() - t0)
     out = {
         "ticks": len(wall),
+        "fast_path_ticks": ctrl.fast_ticks,
         "wall": _stats(wall),
         "cpu": _stats(cpu),
+        "fast_path_wall": _stats(fast_wall) if fast_wall else None,
         "qp_iterations_mean": float(np.mean(iters)),
         "pinocchio_cpu": _stats(pin_times),
         "qp_update_solve_cpu": _stats(qp_times) if qp_times else None,
         "qp_size": {"n": ctrl.n, "n_eq": ctrl.n_eq, "n_in": ctrl.n_in},
     }
     return out, problems
+
+
+def tsid_peer(ticks: int) -> dict:
+    """TSID's tick on the same task, in its own environment (``.venv-tsid``), or why it cannot run."""
+    python = ROOT / ".venv-tsid" / "bin" / "python"
+    if not python.exists():
+        return {
+            "skipped": "no .venv-tsid: run `bash benchmarks/peers/setup.sh tsid` once (TSID's wheel "
+            "crashes with pin 4.1; the setup builds its bindings from source, ~2 min)"
+        }
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "tsid.json"
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+        proc = subprocess.run(
+            [str(python), str(ROOT / "benchmarks" / "peers" / "tsid_tick.py"), "--ticks", str(ticks), "--json", str(out)],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=False,
+        )
+        if proc.returncode != 0 or not out.exists():
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
+            return {"skipped": f"TSID run failed (exit {proc.returncode}): {tail[0]}"}
+        return json.loads(out.read_text())
 
 
 def backend_comparison(problems: list) -> dict[str, dict]:
@@ -187,18 +230,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=3.0, help="motion length [s]")
     parser.add_argument("--plan", choices=("handmade", "trajopt"), default="handmade")
     parser.add_argument("--json", type=Path, help="write the numbers to this file")
+    parser.add_argument("--no-peers", action="store_true", help="do not run TSID (.venv-tsid) beside ours")
     args = parser.parse_args(argv)
 
     robot = load_robot("talos")
     plan = make_plan(robot, args.plan, args.seconds)
     load = os.getloadavg()[0]
+    machine = machine_info()
     print(
         f"Talos, {args.plan} plan of {plan.t[-1]:.1f} s; load average {load:.1f} on {os.cpu_count()} cores"
     )
-    ticks, problems = closed_loop_ticks(robot, plan, WbcSettings())
+    ticks, problems = closed_loop_ticks(robot, plan, WbcSettings(), record=True)
+    ticks_qp, _ = closed_loop_ticks(robot, plan, WbcSettings(fast_path=False))
     print(
         f"controller tick ({ticks['ticks']} ticks, QP n={ticks['qp_size']['n']} n_eq={ticks['qp_size']['n_eq']} "
-        f"n_in={ticks['qp_size']['n_in']}, {ticks['qp_iterations_mean']:.2f} iterations/tick):"
+        f"n_in={ticks['qp_size']['n_in']}; {ticks['fast_path_ticks']} ticks answered by the fast path, "
+        f"{ticks['qp_iterations_mean']:.2f} proxsuite iterations/tick):"
     )
     for kind in ("wall", "cpu"):
         s = ticks[kind]
@@ -211,13 +258,26 @@ def main(argv: list[str] | None = None) -> int:
             f"  {kind:<5} median {s['median_us']:7.1f} us  p99 {s['p99_us']:7.1f} us  ({flag} the target "
             f"{TARGET_MEDIAN_US:.0f}/{TARGET_P99_US:.0f} us)"
         )
+    s = ticks_qp["wall"]
+    print(
+        f"  same loop, proxsuite on every tick (fast_path=False): median {s['median_us']:.1f} us  "
+        f"p99 {s['p99_us']:.1f} us ({ticks_qp['qp_iterations_mean']:.2f} iterations/tick)"
+    )
     print(
         f"  of which Pinocchio numerics  median {ticks['pinocchio_cpu']['median_us']:.1f} us (CPU)"
     )
     if ticks["qp_update_solve_cpu"]:
         print(
-            f"  of which QP update + solve   median {ticks['qp_update_solve_cpu']['median_us']:.1f} us (CPU)"
+            f"  proxsuite update + solve alone (recorded QPs) median {ticks['qp_update_solve_cpu']['median_us']:.1f} us (CPU)"
         )
+    tsid = tsid_peer(ticks["ticks"]) if not args.no_peers else {"skipped": "--no-peers"}
+    if "median_us" in tsid:
+        print(
+            f"  TSID {tsid.get('tsid', '?')} (same task, own environment): median {tsid['median_us']:.1f} us  "
+            f"p99 {tsid['p99_us']:.1f} us; ours / TSID = {ticks['wall']['median_us'] / tsid['median_us']:.2f}"
+        )
+    else:
+        print(f"  TSID not run: {tsid['skipped']}")
     backends = backend_comparison(problems)
     print(f"QP backends on {len(problems)} recorded ticks (wall):")
     for name, s in backends.items():
@@ -236,7 +296,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         args.json.write_text(
             json.dumps(
-                {"load_average": load, "tick": ticks, "backends": backends, "simulation": rtf},
+                {
+                    "machine": machine,
+                    "load_average": load,
+                    "tick": ticks,
+                    "tick_proxsuite_every_tick": ticks_qp,
+                    "tsid": tsid,
+                    "backends": backends,
+                    "simulation": rtf,
+                },
                 indent=2,
             )
         )

@@ -36,14 +36,13 @@ import proxsuite
 
 from planner.exceptions import PlannerError
 from planner.plan import Plan
+from planner.wbc_kernel import FAST_SOLVED, tick_kernel
 from planner.wbc_reference import PlanReference
 from robots.model import Robot
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
-_VEE_A = np.array([7, 2, 3])  # flattened (R^T R_ref) entries (2,1), (0,2), (1,0)
-_VEE_B = np.array([5, 6, 1])  # and (1,2), (2,0), (0,1): vee(R - R^T) / 2 = sin(angle) * axis
 
 
 class ControllerError(PlannerError):
@@ -76,6 +75,9 @@ class WbcSettings:
         eps_abs: QP absolute tolerance. max_iter, max_iter_in: proxsuite outer / inner iteration caps
             (they bound the cost of a failing tick).
         dense_backend: proxsuite dense factorization: ``Automatic``, ``PrimalDualLDLT`` or ``PrimalLDLT``.
+        fast_path: First solve the QP without its inequalities (a reduced KKT system, see
+            :mod:`planner.wbc_kernel`); when that solution meets every inequality it is the QP's
+            exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
     """
 
     backend: str = "proxsuite"
@@ -102,6 +104,7 @@ class WbcSettings:
     max_iter: int = 50
     max_iter_in: int = 1500
     dense_backend: str = "Automatic"
+    fast_path: bool = True
 
     def __post_init__(self) -> None:
         for name in (
@@ -149,6 +152,9 @@ class TickInfo(NamedTuple):
     status: Any
 
 
+_FAST_TICK = TickInfo(True, 0, "solved without active inequalities")
+
+
 class WholeBodyController:
     """Inverse-dynamics QP controller (see the module docstring).
 
@@ -176,7 +182,11 @@ class WholeBodyController:
         self._f_scale = robot.mass * 9.81 / 8.0  # [N]
         mu = robot.profile.friction_coefficient * self.settings.friction_scale
         self._mu = mu
+        self._com_drift = self.settings.com_drift
         self._zero_a = np.zeros(nv)
+        # pin.difference is computed inside the compiled kernel for a free flyer + 1-dof joints
+        self._simple_joints = self.model.nq == nv + 1
+        self._tol = self.settings.eps_abs
         backend = self.settings.backend
         if backend != "proxsuite":
             import qpsolvers
@@ -194,6 +204,7 @@ class WholeBodyController:
         self._prev_tau = np.zeros(self.nu)
         self.last: TickInfo | None = None
         self.failures = 0
+        self.fast_ticks = 0  # ticks solved exactly without proxsuite (no active inequality)
 
     # ------------------------------------------------------------------ reference handling
     def reference_for(self, plan: Plan) -> PlanReference:
@@ -220,6 +231,7 @@ class WholeBodyController:
         self._prev_tau = np.zeros(self.nu)
         self._q0 = np.array(q, dtype=float)
         self.failures = 0
+        self.fast_ticks = 0
         self.last = None
 
     # ------------------------------------------------------------------ problem layout
@@ -261,6 +273,17 @@ class WholeBodyController:
         nf = len(self._frames)
         nrow = 3 + 6 * nf  # CoM rows, then 6 rows per frame (linear, angular; world-aligned)
         self._nrow = nrow
+        self._frame_rows = [
+            (fid, slice(3 + 6 * i, 9 + 6 * i), i) for i, fid in enumerate(self._frame_ids)
+        ]
+        self._hom = np.zeros((nf, 4, 4))
+        # the reference grid (PlanReference.index inlined in the tick) and its contact patterns
+        self._t0 = float(ref.plan.t[0])
+        self._inv_dt = 1.0 / ref.dt
+        self._n_ref = ref.n
+        flags, self._patterns = np.unique(ref.active, axis=0, return_inverse=True)
+        self._patterns = [int(p) for p in np.asarray(self._patterns).reshape(-1)]
+        self._pattern_flags = [tuple(bool(a) for a in row) for row in flags]
         # stacked references on the dense grid (n, ...): positions (CoM first), rotations, velocities, accelerations
         self._ref_pos = np.concatenate(
             [ref.com[:, None, :]] + [ref.frames[nm].position[:, None, :] for nm in self._frames],
@@ -286,18 +309,15 @@ class WholeBodyController:
         self._kp_task, self._sqrt_w_task = kp, np.sqrt(w)
         self._J = np.zeros((nrow, nv))
         self._drift = np.zeros(nrow)
-        self._err = np.zeros(nrow)
-        self._err_frames = self._err[3:].reshape(nf, 6)
+        self._a_des = np.zeros(nrow)
+        self._dq_post = np.zeros(nv)
         self._pos = np.zeros((1 + nf, 3))
         self._rots = np.zeros((nf, 3, 3))
         self._anchor_pos = np.zeros((nf, 3))
         self._anchor_rot = np.tile(np.eye(3), (nf, 1, 1))
-        self._active_key: bytes | None = None
+        self._active_key: int | None = None
         self._active_flags: tuple[bool, ...] | None = None
-        self._target_pos = np.zeros((nf, 3))
-        self._target_rot = np.zeros((nf, 3, 3))
         self._last_rots = np.zeros((nf, 3, 3))
-        self._T = np.zeros((nrow, nv))
         # constant matrices
         self.H = np.zeros((self.n, self.n))
         self.g = np.zeros(self.n)
@@ -330,20 +350,24 @@ class WholeBodyController:
         self._kp_post[6:] = s.posture_kp
         self._kd_post = 2.0 * np.sqrt(self._kp_post)
         self._post_feedforward = ref.a + self._kd_post * ref.v
-        self.H[np.diag_indices(self.n)] = (
-            self._reg
-        )  # the force block keeps it; the a block is rewritten
-        self._h_diag_a = self.H.reshape(-1)[: nv * (self.n + 1) : self.n + 1]
+        self.H[np.diag_indices(self.n)] = self._reg  # the force block keeps it; the a block is rewritten
+        self._force_reg = float(self._reg[-1]) if nc else 1.0
+        self._g0_arr = np.array(g0s).reshape(nc, 6, 12)
+        self._Ha = np.zeros((nv, nv))
+        self._ga = np.zeros(nv)
+        self._xbuf = np.zeros(self.n)
+        self._taubuf = np.zeros(self.nu)
+        self._fast_path = bool(s.fast_path and s.backend == "proxsuite")
         self._l_tau = self.l[16 * nc :]
         self._u_tau = self.u[16 * nc :]
-        self._G = np.zeros((6, 12))
         self._layout = tuple(self._contacts)
         self._qp = None
         self._x = np.zeros(self.n)
         self._S = np.zeros((nv, 12 * nc))
         self._stance: list[int] = []
+        self._stance_arr = np.zeros(0, dtype=np.int64)
 
-    def _set_active(self, active: tuple[bool, ...], key: bytes, ref: PlanReference) -> None:
+    def _set_active(self, active: tuple[bool, ...], key: int, ref: PlanReference) -> None:
         """Gains, weights, masks and feed-forward terms for a new set of stance contacts."""
         s = self.settings
         nc, nrow = len(self._contacts), self._nrow
@@ -361,6 +385,7 @@ class WholeBodyController:
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
         self._stance = [i for i, a in enumerate(active) if a]
+        self._stance_arr = np.array(self._stance, dtype=np.int64)
         for i, a in enumerate(active):
             if not a:
                 self._S[:, 12 * i : 12 * i + 12] = 0.0
@@ -388,95 +413,92 @@ class WholeBodyController:
             if self._q0 is None:
                 self.reset(q, v)
             self._build_layout(ref)
-        model, data, nv = self.model, self.data, self.nv
-        k = ref.index(t)
+        model, data = self.model, self.data
+        k = int((t - self._t0) * self._inv_dt + 0.5)  # PlanReference.index, inlined
+        k = 0 if k < 0 else (self._n_ref - 1 if k >= self._n_ref else k)
 
         pin.computeAllTerms(model, data, q, v)
-        M = data.M
-        h = data.nle
-        J, drift, pos, rots = self._J, self._drift, self._pos, self._rots
-        # ---- CoM rows
+        J, drift, pos, hom = self._J, self._drift, self._pos, self._hom
         J[:3] = data.Jcom
-        if self.settings.com_drift:  # CoM position and its drift J'v in one call
+        if self._com_drift:  # CoM position and its drift J'v in one call
+            # (computeAllTerms also fills data.dhg, but pin 4.1 accumulates it over calls)
             pos[0] = pin.centerOfMass(model, data, q, v, self._zero_a)
             drift[:3] = data.acom[0]
         else:
             pos[0] = data.com[0]
-        # ---- frame rows (world-aligned): Jacobian, drift J'v, placement
-        for i, fid in enumerate(self._frame_ids):
-            placement = pin.updateFramePlacement(model, data, fid)
-            J[3 + 6 * i : 9 + 6 * i] = pin.getFrameJacobian(model, data, fid, _LWA)
-            drift[3 + 6 * i : 9 + 6 * i] = pin.getFrameClassicalAcceleration(
-                model, data, fid, _LWA
-            ).vector
-            pos[1 + i] = placement.translation
-            rots[i] = placement.rotation
-        key = ref.active[k].tobytes()
-        if key != self._active_key:
-            active = tuple(bool(a) for a in ref.active[k])
+        # frames: getFrameJacobian also updates data.oMf[fid]
+        for fid, rows, i in self._frame_rows:
+            J[rows] = pin.getFrameJacobian(model, data, fid, _LWA)
+            drift[rows] = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+            hom[i] = data.oMf[fid].homogeneous
+        pattern = self._patterns[k]
+        if pattern != self._active_key:
+            active = self._pattern_flags[pattern]
             was = self._active_flags
             for i, a in enumerate(active):
                 if a and not (was is not None and was[i]):
-                    self._anchor_pos[i] = pos[1 + i]  # the sole is held where it touched down
-                    self._anchor_rot[i] = rots[i]
-            self._set_active(active, key, ref)
-        target_pos, target_rot = self._target_pos, self._target_rot
-        np.copyto(target_pos, self._ref_pos[k, 1:])
-        np.copyto(target_rot, self._ref_rot[k])
-        if self._stance:
-            np.copyto(target_pos, self._anchor_pos, where=self._frame_active[:, None])
-            np.copyto(target_rot, self._anchor_rot, where=self._frame_active[:, None, None])
-        # ---- errors: CoM, positions, orientations (small-angle, sin-axis form, world-aligned)
-        err = self._err
-        err[:3] = self._ref_pos[k, 0] - pos[0]
-        ef = self._err_frames
-        ef[:, :3] = target_pos - pos[1:]
-        rel = (rots.transpose(0, 2, 1) @ target_rot).reshape(-1, 9)
-        w = rel[:, _VEE_A] - rel[:, _VEE_B]
-        ef[:, 3:] = 0.5 * np.matmul(rots, w[:, :, None])[:, :, 0]
-        a_des = self._feedforward[k] + self._kp_rows * err - self._kd_rows * (J @ v) - drift
-        # ---- stance contacts: equality rows and force map
-        A, b, S = self.A, self.b, self._S
-        nsr = 6 * len(self._contacts)
-        A[6:, :nv] = J[3 : 3 + nsr] * self._stance_rows[:, None]
-        b[6:] = a_des[3 : 3 + nsr] * self._stance_rows
-        G = self._G
-        for i in self._stance:
-            rot = rots[i]
-            G[:3] = rot @ self._g0s[i][:3]
-            G[3:] = rot @ self._g0s[i][3:]
-            S[:, 12 * i : 12 * i + 12] = J[3 + 6 * i : 9 + 6 * i].T @ G
-        # ---- tracking tasks (rows of stance contacts have weight 0)
-        wr = self._w_rows
-        T = self._T
-        np.multiply(wr[:, None], J, out=T)
-        r = wr * a_des
-        # ---- posture + base orientation (diagonal terms)
-        a_post = (
-            self._post_feedforward[k]
-            + self._kp_post * pin.difference(model, q, ref.q[k])
-            - self._kd_post * v
+                    self._anchor_pos[i] = hom[i, :3, 3]  # the sole is held where it touched down
+                    self._anchor_rot[i] = hom[i, :3, :3]
+            self._set_active(active, pattern, ref)
+        q_ref = ref.q[k]
+        dq_post = self._dq_post
+        if not self._simple_joints:
+            dq_post[:] = pin.difference(model, q, q_ref)
+        status = tick_kernel(
+            data.M.T,  # symmetric (computeAllTerms fills it whole): the C-ordered view is faster
+            data.nle,
+            J,
+            drift,
+            v,
+            q,
+            q_ref,
+            dq_post,
+            hom,
+            self._ref_pos[k],
+            self._ref_rot[k],
+            self._feedforward[k],
+            self._anchor_pos,
+            self._anchor_rot,
+            self._frame_active,
+            self._kp_rows,
+            self._kd_rows,
+            self._w_rows,
+            self._post_feedforward[k],
+            self._kp_post,
+            self._kd_post,
+            self._diag_a,
+            self._diag_a_total,
+            self._g0_arr,
+            self._stance_arr,
+            self._force_reg,
+            self._mu,
+            self.torque_limits,
+            self._tol,
+            self._fast_path,
+            pos,
+            self._rots,
+            self._Ha,
+            self._ga,
+            self._S,
+            self._a_des,
+            self._xbuf,
+            self._taubuf,
         )
-        # ---- QP matrices
-        H, g = self.H, self.g
-        H[:nv, :nv] = T.T @ T
-        self._h_diag_a += self._diag_a_total
-        g[:nv] = -(T.T @ r) - self._diag_a * a_post
-        # dynamics rows (floating base)
-        A[:6, :nv] = M[:6]
-        A[:6, nv:] = -S[:6]
-        b[:6] = -h[:6]
-        # torque rows
-        tau_rows = self._tau_rows
-        C = self.C
-        C[tau_rows, :nv] = M[6:]
-        C[tau_rows, nv:] = -S[6:]
-        np.subtract(-self.torque_limits, h[6:], out=self._l_tau)
-        np.subtract(self.torque_limits, h[6:], out=self._u_tau)
-
+        if status == FAST_SOLVED:
+            self.fast_ticks += 1
+            tau = self._taubuf.copy()
+            self._prev_tau = tau
+            self._x = self._xbuf.copy()
+            self._last_rots = self._rots.copy()
+            self.last = _FAST_TICK
+            return tau
+        rots = self._rots
+        nv = self.nv
+        M, h = data.M, data.nle
+        self._fill_qp(M, h)
         x, ok, iterations, status = self._solve()
         if ok:
-            tau = M[6:] @ x[:nv] + h[6:] - S[6:] @ x[nv:]
+            tau = M[6:] @ x[:nv] + h[6:] - self._S[6:] @ x[nv:]
             np.minimum(tau, self.torque_limits, out=tau)
             np.maximum(tau, self._neg_torque_limits, out=tau)
             self._prev_tau = tau
@@ -488,6 +510,28 @@ class WholeBodyController:
         self._last_rots = rots.copy()
         self.last = TickInfo(ok, iterations, status)
         return tau
+
+    def _fill_qp(self, M: np.ndarray, h: np.ndarray) -> None:
+        """The full QP's matrices from the kernel's outputs (when an inequality is active)."""
+        nv = self.nv
+        S = self._S
+        self.H[:nv, :nv] = self._Ha
+        self.g[:nv] = self._ga
+        A, b = self.A, self.b
+        nsr = 6 * len(self._contacts)
+        A[6:, :nv] = self._J[3 : 3 + nsr] * self._stance_rows[:, None]
+        b[6:] = self._a_des[3 : 3 + nsr] * self._stance_rows
+        # dynamics rows (floating base)
+        A[:6, :nv] = M[:6]
+        A[:6, nv:] = -S[:6]
+        b[:6] = -h[:6]
+        # torque rows
+        tau_rows = self._tau_rows
+        C = self.C
+        C[tau_rows, :nv] = M[6:]
+        C[tau_rows, nv:] = -S[6:]
+        np.subtract(-self.torque_limits, h[6:], out=self._l_tau)
+        np.subtract(self.torque_limits, h[6:], out=self._u_tau)
 
     def acceleration(self) -> np.ndarray:
         """Joint accelerations of the last QP solution (nv,)."""

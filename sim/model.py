@@ -56,6 +56,8 @@ class SimModel:
         geom_body_names: MuJoCo body name of every geom (ngeom,).
         floor_geom: Geom id of the floor.
         torque_limits: Actuator limits in Pinocchio order (nv - 6,) [N m].
+        qpos_select, dof_select, actuator_select: The three index maps as slices where they are
+            contiguous ranges (the per-tick copies use them), else the index arrays.
     """
 
     robot: Robot
@@ -68,6 +70,13 @@ class SimModel:
     floor_geom: int
     torque_limits: np.ndarray
     xml: str = field(repr=False, default="")
+
+    def __post_init__(self) -> None:
+        # the per-tick copies use slices where the index maps are contiguous ranges (fancy
+        # indexing costs a few microseconds a call)
+        object.__setattr__(self, "qpos_select", _as_slice(self.qpos_index))
+        object.__setattr__(self, "dof_select", _as_slice(self.dof_index))
+        object.__setattr__(self, "actuator_select", _as_slice(self.actuator_index))
 
     def data(self) -> mujoco.MjData:
         """A fresh ``mujoco.MjData``."""
@@ -96,15 +105,22 @@ class SimModel:
         q[:3] = qpos[:3]
         q[3:6] = qpos[4:7]
         q[6] = qpos[3]
-        q[7:] = qpos[self.qpos_index]
-        w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
+        q[7:] = qpos[self.qpos_select]
+        w, x, y, z = qpos[3:7].tolist()  # Python floats: scalar arithmetic on numpy items is slow
         # R^T @ world linear velocity, R from the unit quaternion (w, x, y, z)
-        vx, vy, vz = qvel[0], qvel[1], qvel[2]
+        vx, vy, vz = qvel[:3].tolist()
         v[0] = (1 - 2 * (y * y + z * z)) * vx + 2 * (x * y + w * z) * vy + 2 * (x * z - w * y) * vz
         v[1] = 2 * (x * y - w * z) * vx + (1 - 2 * (x * x + z * z)) * vy + 2 * (y * z + w * x) * vz
         v[2] = 2 * (x * z + w * y) * vx + 2 * (y * z - w * x) * vy + (1 - 2 * (x * x + y * y)) * vz
         v[3:6] = qvel[3:6]
-        v[6:] = qvel[self.dof_index]
+        v[6:] = qvel[self.dof_select]
+
+
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """``index`` as a slice when it is a contiguous increasing range, else unchanged."""
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
 
 
 MIN_INERTIA = 1e-8  # [kg m^2] smallest principal inertia MuJoCo gets

@@ -14,6 +14,7 @@ import pinocchio as pin
 
 from planner.plan import Plan
 from planner.wbc import WbcSettings, WholeBodyController
+from planner.wbc_kernel import kernel_ready
 from planner.wbc_reference import PlanReference
 from robots.model import Robot
 from sim.certificate import Certificate, Check
@@ -128,6 +129,12 @@ def _tilt(quat_xyzw: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(zz, -1.0, 1.0))
 
 
+def _tilt_of(q: np.ndarray) -> float:
+    """Angle between the base z axis and the vertical [rad] of one configuration (scalar math)."""
+    x, y = q[3:5].tolist()
+    return math.acos(min(1.0, max(-1.0, 1.0 - 2.0 * (x * x + y * y))))
+
+
 def simulate(
     plan: Plan,
     robot: Robot,
@@ -159,6 +166,8 @@ def simulate(
     control_dt = s.timestep * s.control_every
     wbc_settings = replace(s.wbc, dt=control_dt)
     ctrl = WholeBodyController(robot, wbc_settings)
+    if progress is not None and not kernel_ready():
+        progress("compiling the controller's kernel (once per installation, about 15 s)")
     ref = ctrl.reference_for(plan)
 
     nq, nv = robot.nq, robot.nv
@@ -193,6 +202,10 @@ def simulate(
     max_tilt = float(np.max(_tilt(ref.q[:, 3:7]))) + s.max_tilt
     fallen_at: float | None = None
     floor = sm.floor_geom
+    n_soles = len(sole_ids)
+    geom_label = np.full(m.ngeom + 1, -1, dtype=int)  # index -1 (no floor in the pair) -> -2
+    geom_label[-1] = -2
+    geom_label[sole_ids] = np.arange(n_soles)
     report_every = max(1, n_ticks // 10)
     was_failures = 0
     qp_failure_times: list[float] = []
@@ -212,7 +225,7 @@ def simulate(
             failing_since = t if failing_since is None else failing_since
         else:
             failing_since = None
-        d.ctrl[sm.actuator_index] = tau
+        d.ctrl[sm.actuator_select] = tau
         ts[i] = t
         qs[i] = q
         vs[i] = v
@@ -223,15 +236,17 @@ def simulate(
             geom = d.contact.geom
             g1, g2 = geom[:, 0], geom[:, 1]
             other = np.where(g1 == floor, g2, np.where(g2 == floor, g1, -1))
-            for j, sole in enumerate(sole_ids):
-                contact_flags[j, i] = bool((other == sole).any())
-            stray = other[(other >= 0) & ~np.isin(other, sole_ids)]
-            for g in stray:
-                other_contacts.append((t, sm.geom_body_names[int(g)]))
+            # what touches the floor: sole j -> j, another robot geom -> -1, no floor -> -2
+            touching = set(geom_label[other].tolist())
+            for j in range(n_soles):
+                contact_flags[j, i] = j in touching
+            if -1 in touching:
+                for g in other[geom_label[other] == -1].tolist():
+                    other_contacts.append((t, sm.geom_body_names[g]))
             mujoco.mj_rnePostConstraint(m, d)  # net contact force per body in cfrc_ext
             forces[:, i] = d.cfrc_ext[foot_bodies, 3:]
         n_done = i + 1
-        if fallen_at is None and (q[2] < fall_height or _tilt(q[3:7]) > max_tilt):
+        if fallen_at is None and (q[2] < fall_height or _tilt_of(q) > max_tilt):
             fallen_at = t
             events.append(
                 Event(

@@ -24,6 +24,16 @@ W_COM, W_HAND, W_POSTURE, W_FORCE = 10.0, 1.0, 1e-3, 1e-7
 KP_COM, KP_HAND, KP_POSTURE, KP_CONTACT = 100.0, 100.0, 100.0, 10.0
 
 
+def _version() -> str:
+    """TSID's version: its module has no __version__, the installed distribution has one."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("tsid")
+    except metadata.PackageNotFoundError:
+        return getattr(tsid, "__version__", "?")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=3000)
@@ -99,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         q = pin.integrate(model, q, dt * v)
     us = 1e6 * np.array(ticks[100:])
     out = {
-        "tsid": tsid.__version__ if hasattr(tsid, "__version__") else "?",
+        "tsid": _version(),
         "pin": pin.__version__,
         "median_us": float(np.median(us)),
         "p99_us": float(np.percentile(us, 99)),

@@ -125,7 +125,7 @@ def cpu_model() -> str:
 def machine_info() -> dict[str, Any]:
     """CPU, cores, load average, library versions and thread settings of this process."""
     versions: dict[str, str] = {}
-    for mod in ("pinocchio", "casadi", "proxsuite", "mujoco", "numpy"):
+    for mod in ("pinocchio", "casadi", "proxsuite", "mujoco", "numpy", "numba"):
         try:
             versions[mod] = str(__import__(mod).__version__)
         except Exception:  # noqa: BLE001 - a missing library is just not listed

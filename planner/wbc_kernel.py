@@ -1,0 +1,373 @@
+r"""Compiled inner loop of the whole-body controller tick (numba).
+
+Everything of a tick after the Pinocchio calls happens here, in one compiled function: the task
+errors and desired accelerations, the least-squares Hessian and gradient, the contact force map
+:math:`S = J_c^\top G` and an exact solve of the QP *without its inequalities*.
+
+Why the equality-only solve is exact when it is feasible: the QP is convex, and its feasible set
+is a subset of the equality-constrained one. If the minimizer of the equality-constrained problem
+meets every inequality (friction pyramids, torque limits), it is the QP's minimizer too. On a
+standing or walking robot that is the common case: the force regularization spreads the load
+over the sole corners, far from the pyramid edges, and the torques are far from their limits.
+When an inequality is violated the caller solves the full QP with proxsuite.
+
+The equality-only problem is solved in reduced form. With the force cost :math:`\tfrac d2|f|^2`
+the stationarity in the forces gives :math:`f = S_6^\top \lambda / d` (:math:`\lambda`: the
+multiplier of the six floating-base dynamics rows), which leaves a symmetric indefinite system in
+the accelerations and the multipliers only:
+
+.. math::
+
+    \begin{bmatrix} H & M_6^\top & J_c^\top \\ M_6 & -W & 0 \\ J_c & 0 & 0 \end{bmatrix}
+    \begin{bmatrix} a \\ \lambda \\ \mu \end{bmatrix} =
+    \begin{bmatrix} -g \\ -h_6 \\ b_c \end{bmatrix}, \qquad W = S_6 S_6^\top / d,
+
+of size ``nv + 6 + 6 * n_stance`` (56 on Talos in double support, against 80 for the KKT system
+proxsuite factorizes with all the force variables). It is solved by the range-space method:
+:math:`H` is positive definite (every acceleration is regularized), so with :math:`H = L L^\top`,
+:math:`Y = L^{-1} B^\top` (:math:`B = [M_6; J_c]`) the multipliers solve the small positive
+definite system :math:`(Y^\top Y + \mathrm{diag}(W, 0))\, y = -r - Y^\top L^{-1} g`, and
+:math:`a = -L^{-\top}(L^{-1} g + Y y)`: two Cholesky factorizations (38 and 18 on Talos)
+instead of an LU of the whole system, a third of the flops.
+
+numba compiles the function on first use and caches the machine code beside this file (or in
+the user's cache directory when that is read-only), so later processes load it in well under a
+second.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+# Let LLVM reorder sums (vectorized dot products) and fuse multiply-adds; no finite-math
+# assumptions, so the NaN checks stay.
+_FAST = {"reassoc", "contract"}
+
+FAST_SOLVED = 0  # the equality-only solution meets every inequality: it is the QP's solution
+FAST_INEQUALITY = 1  # an inequality is violated: solve the full QP
+FAST_SINGULAR = 2  # the reduced system could not be solved
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _cholesky(A, n):
+    """In-place lower Cholesky factor of the leading n x n block of A; False if not positive definite."""
+    for j in range(n):
+        acc = A[j, j]
+        for k in range(j):
+            acc -= A[j, k] * A[j, k]
+        if not acc > 0.0:
+            return False
+        d = np.sqrt(acc)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= A[i, k] * A[j, k]
+            A[i, j] = acc / d
+    return True
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _forward(L, n, b):
+    """Solve L x = b in place (L lower triangular, n x n)."""
+    for i in range(n):
+        acc = b[i]
+        for k in range(i):
+            acc -= L[i, k] * b[k]
+        b[i] = acc / L[i, i]
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _backward(L, n, b):
+    """Solve L^T x = b in place (L lower triangular, n x n)."""
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for k in range(i + 1, n):
+            acc -= L[k, i] * b[k]
+        b[i] = acc / L[i, i]
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _log3_quat(q, q_ref, out):
+    """Rotation vector of R(q)^T R(q_ref), quaternions (x, y, z, w) at q[3:7] (pin.difference's angular part)."""
+    x0, y0, z0, w0 = q[3], q[4], q[5], q[6]
+    x1, y1, z1, w1 = q_ref[3], q_ref[4], q_ref[5], q_ref[6]
+    # conj(q0) * q1
+    w = w0 * w1 + x0 * x1 + y0 * y1 + z0 * z1
+    x = w0 * x1 - x0 * w1 - y0 * z1 + z0 * y1
+    y = w0 * y1 + x0 * z1 - y0 * w1 - z0 * x1
+    z = w0 * z1 - x0 * y1 + y0 * x1 - z0 * w1
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    s = np.sqrt(x * x + y * y + z * z)
+    k = 2.0 * np.arctan2(s, w) / s if s > 1e-12 else 2.0 / w
+    out[0] = k * x
+    out[1] = k * y
+    out[2] = k * z
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def tick_kernel(
+    M,
+    h,
+    J,
+    drift,
+    v,
+    q,
+    q_ref,
+    dq_post,
+    hom,
+    ref_pos,
+    ref_rot,
+    feedforward,
+    anchor_pos,
+    anchor_rot,
+    frame_active,
+    kp_rows,
+    kd_rows,
+    w_rows,
+    post_feedforward,
+    kp_post,
+    kd_post,
+    diag_a,
+    diag_a_total,
+    g0s,
+    stance,
+    force_reg,
+    mu,
+    tau_max,
+    tol,
+    try_fast,
+    pos,
+    rots,
+    Ha,
+    ga,
+    S,
+    a_des,
+    x,
+    tau,
+):
+    """One tick's assembly and (when feasible) solve; see the module docstring.
+
+    Args:
+        M, h: Mass matrix (nv, nv) and nonlinear effects (nv,).
+        J, drift: Stacked task Jacobians (nrow, nv) and drifts ``J'v`` (nrow,): CoM rows, then
+            6 world-aligned rows per frame (contact frames first).
+        v: Generalized velocity (nv,).
+        q, q_ref: Configuration and the reference one (nq,), for the posture error.
+        dq_post: Posture error ``q_ref - q`` on the manifold (nv,). If ``nq == nv + 1`` (a
+            free flyer and 1-dof joints) it is computed here and written into this array;
+            otherwise the caller computes it (``pin.difference``).
+        hom: Frame placements (nf, 4, 4), homogeneous.
+        ref_pos, ref_rot, feedforward: The reference at this tick: CoM and frame positions
+            (1 + nf, 3), frame rotations (nf, 3, 3), ``a_ref + Kd v_ref`` per row (nrow,).
+        anchor_pos, anchor_rot, frame_active: Where each stance sole is held, and which frames
+            are stance soles (nf,).
+        kp_rows, kd_rows, w_rows: Per-row gains and square-root weights (nrow,); stance rows
+            have weight 0 (they are constraints).
+        post_feedforward, kp_post, kd_post: Posture feed-forward ``a_ref + Kd v_ref`` and
+            gains (nv,).
+        diag_a, diag_a_total: Diagonal posture weights, and the same plus the acceleration
+            regularization (nv,).
+        g0s: Corner-force to sole-wrench maps in the sole frame, force scale included (nc, 6, 12).
+        stance: Indices of the stance contacts (ns,).
+        force_reg: Weight ``d`` of the force regularization (scaled forces).
+        mu: Friction coefficient of the pyramids.
+        tau_max: Torque limits (nv - 6,).
+        tol: Feasibility tolerance of the inequality check.
+        try_fast: Solve the equality-only QP (otherwise only assemble).
+        pos, rots: Outputs: frame positions written to ``pos[1:]`` (``pos[0]`` is the CoM, an
+            input) and rotations (nf, 3, 3).
+        Ha, ga, S, a_des: Outputs for the full QP: Hessian block (nv, nv), gradient (nv,),
+            force map ``J_c^T G`` (nv, 12 nc; zero columns for swing contacts), desired task
+            accelerations (nrow,).
+        x, tau: Outputs of the fast path: ``(a, f)`` (nv + 12 nc,) and torques (nv - 6,),
+            clipped to ``tau_max``.
+
+    Returns:
+        ``FAST_SOLVED``, ``FAST_INEQUALITY`` or ``FAST_SINGULAR``; always ``FAST_INEQUALITY``
+        when ``try_fast`` is false.
+    """
+    nv = M.shape[0]
+    nrow = J.shape[0]
+    nf = rots.shape[0]
+    nc = g0s.shape[0]
+    ns = stance.shape[0]
+
+    # ---- placements, task errors (CoM, positions, small-angle orientations), world-aligned
+    err = np.empty(nrow)
+    for j in range(3):
+        err[j] = ref_pos[0, j] - pos[0, j]
+    rel = np.empty((3, 3))
+    for i in range(nf):
+        for a in range(3):
+            pos[1 + i, a] = hom[i, a, 3]
+            for b in range(3):
+                rots[i, a, b] = hom[i, a, b]
+        r0 = 3 + 6 * i
+        if frame_active[i]:
+            tp = anchor_pos[i]
+            tr = anchor_rot[i]
+        else:
+            tp = ref_pos[1 + i]
+            tr = ref_rot[i]
+        for j in range(3):
+            err[r0 + j] = tp[j] - pos[1 + i, j]
+        R = rots[i]
+        for a in range(3):  # R^T R_target
+            for b in range(3):
+                acc = 0.0
+                for c in range(3):
+                    acc += R[c, a] * tr[c, b]
+                rel[a, b] = acc
+        w0 = rel[2, 1] - rel[1, 2]
+        w1 = rel[0, 2] - rel[2, 0]
+        w2 = rel[1, 0] - rel[0, 1]
+        for j in range(3):
+            err[r0 + 3 + j] = 0.5 * (R[j, 0] * w0 + R[j, 1] * w1 + R[j, 2] * w2)
+    for r in range(nrow):
+        jv = 0.0
+        for c in range(nv):
+            jv += J[r, c] * v[c]
+        a_des[r] = feedforward[r] + kp_rows[r] * err[r] - kd_rows[r] * jv - drift[r]
+
+    # ---- posture error on the manifold (free flyer + 1-dof joints)
+    if q.shape[0] == nv + 1:
+        for j in range(3):
+            dq_post[j] = 0.0  # the base position has no posture weight
+        _log3_quat(q, q_ref, dq_post[3:6])
+        for j in range(6, nv):
+            dq_post[j] = q_ref[j + 1] - q[j + 1]
+
+    # ---- least squares on the weighted task rows (stance rows have weight 0 and are skipped)
+    m = 0
+    for r in range(nrow):
+        if w_rows[r] != 0.0:
+            m += 1
+    T = np.empty((m, nv))
+    rw = np.empty(m)
+    m = 0
+    for r in range(nrow):
+        wr = w_rows[r]
+        if wr != 0.0:
+            for c in range(nv):
+                T[m, c] = wr * J[r, c]
+            rw[m] = wr * a_des[r]
+            m += 1
+    Ha[:, :] = T.T @ T
+    for c in range(nv):
+        acc = 0.0
+        for r in range(m):
+            acc += T[r, c] * rw[r]
+        Ha[c, c] += diag_a_total[c]
+        a_post = post_feedforward[c] + kp_post[c] * dq_post[c] - kd_post[c] * v[c]
+        ga[c] = -acc - diag_a[c] * a_post
+
+    # ---- contact force map S = J_c^T G (world-aligned Jacobian, G rotated from the sole frame)
+    S[:, :] = 0.0
+    G = np.empty((6, 12))
+    for si in range(ns):
+        i = stance[si]
+        R = rots[i]
+        g0 = g0s[i]
+        for blk in range(2):
+            for a in range(3):
+                for c in range(12):
+                    acc = 0.0
+                    for b in range(3):
+                        acc += R[a, b] * g0[3 * blk + b, c]
+                    G[3 * blk + a, c] = acc
+        Si = J[3 + 6 * i : 9 + 6 * i].T @ G
+        S[:, 12 * i : 12 * i + 12] = Si
+    if not try_fast:
+        return FAST_INEQUALITY
+
+    # ---- range-space solve of the equality-only QP: H a + g + B^T y = 0, B a - diag(W, 0) y = r
+    ms = 6 + 6 * ns
+    L = Ha.copy()
+    if not _cholesky(L, nv):
+        return FAST_SINGULAR
+    Y = np.empty((ms, nv))  # rows: columns of L^-1 B^T
+    rhs = np.empty(ms)
+    for r in range(6):
+        for c in range(nv):
+            Y[r, c] = M[r, c]
+        rhs[r] = h[r]  # -r for the dynamics rows (r = -h6)
+    for si in range(ns):
+        jr0 = 3 + 6 * stance[si]
+        for r in range(6):
+            for c in range(nv):
+                Y[6 + 6 * si + r, c] = J[jr0 + r, c]
+            rhs[6 + 6 * si + r] = -a_des[jr0 + r]
+    for r in range(ms):
+        _forward(L, nv, Y[r])
+    z = ga.copy()
+    _forward(L, nv, z)
+    Sch = Y @ Y.T
+    inv_d = 1.0 / force_reg
+    for si in range(ns):
+        i = stance[si]
+        S6 = np.ascontiguousarray(S[:6, 12 * i : 12 * i + 12])
+        W = (S6 @ S6.T) * inv_d
+        for r in range(6):
+            for c in range(6):
+                Sch[r, c] += W[r, c]
+    for r in range(ms):
+        acc = 0.0
+        for c in range(nv):
+            acc += Y[r, c] * z[c]
+        rhs[r] -= acc
+    if not _cholesky(Sch, ms):
+        return FAST_SINGULAR
+    _forward(Sch, ms, rhs)
+    _backward(Sch, ms, rhs)  # rhs is now y
+    for c in range(nv):
+        acc = z[c]
+        for r in range(ms):
+            acc += Y[r, c] * rhs[r]
+        z[c] = -acc
+    _backward(L, nv, z)  # z is now a
+    for c in range(nv):
+        if not np.isfinite(z[c]):
+            return FAST_SINGULAR
+
+    # ---- forces f = S6^T lambda / d, torques, and the inequality check
+    x[:] = 0.0
+    x[:nv] = z
+    feasible = True
+    for si in range(ns):
+        i = stance[si]
+        for c in range(12):
+            acc = 0.0
+            for r in range(6):
+                acc += S[r, 12 * i + c] * rhs[r]
+            x[nv + 12 * i + c] = acc * inv_d
+        for k in range(4):
+            fx = x[nv + 12 * i + 3 * k]
+            fy = x[nv + 12 * i + 3 * k + 1]
+            fz = x[nv + 12 * i + 3 * k + 2]
+            lim = mu * fz + tol
+            if abs(fx) > lim or abs(fy) > lim:
+                feasible = False
+    for j in range(nv - 6):
+        acc = h[6 + j]
+        for c in range(nv):
+            acc += M[6 + j, c] * x[c]
+        for c in range(12 * nc):
+            acc -= S[6 + j, c] * x[nv + c]
+        if abs(acc) > tau_max[j] + tol:
+            feasible = False
+        tau[j] = min(max(acc, -tau_max[j]), tau_max[j])
+    return FAST_SOLVED if feasible else FAST_INEQUALITY
+
+
+def kernel_ready() -> bool:
+    """Whether the first tick will start at once: the kernel is compiled in this process, or
+    numba's cache beside this file holds it (otherwise the first tick compiles it, ~15 s)."""
+    if tick_kernel.signatures:
+        return True
+    cache = Path(__file__).resolve().parent / "__pycache__"
+    return any(cache.glob("wbc_kernel.tick_kernel-*.nbi"))
