@@ -11,10 +11,11 @@ posture, one moving hand):
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_wbc.py [--seconds 3] [--json out.json] [--plan handmade|trajopt]
+    .venv/bin/python benchmarks/bench_wbc.py [--seconds 3] [--json out.json] [--plan handmade|trajopt] [--no-peers]
 
 The machine is shared: wall-clock numbers are noisy, so the thread CPU time is printed too.
-The TSID peer runs in its own environment: ``bash benchmarks/peers/run_tsid.sh``.
+TSID's tick on the same task runs beside ours, in its own environment (``.venv-tsid``, made by
+``bash benchmarks/peers/setup.sh tsid``); without it the output says so.
 """
 
 from __future__ import annotations
