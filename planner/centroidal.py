@@ -207,6 +207,32 @@ def friction_pyramid(force: Any, rotation: Any, mu: Any, *, inner: bool = True) 
     return ca.vertcat(fn, mu_p * fn - local[0], mu_p * fn + local[0], mu_p * fn - local[1], mu_p * fn + local[1])
 
 
+def pyramid_edges(rotation: Any, mu: Any, *, inner: bool = True) -> Any:
+    """The 4 edges of a friction pyramid in the world, as the columns of a (3, 4) matrix.
+
+    In the contact frame the edges are :math:`(\\pm\\mu', \\pm\\mu', 1)` (the corners of the square
+    :math:`|f_x|, |f_y| \\le \\mu' f_z` at unit normal force), so the non-negative combinations
+    :math:`f = E \\lambda, \\lambda \\ge 0` are exactly the pyramid of :func:`friction_pyramid`.
+    With :math:`\\mu' = \\mu/\\sqrt 2` (inner) every edge lies on the Coulomb cone.
+
+    Args:
+        rotation: Contact frame in the world (3, 3), columns t1, t2, n (numpy or CasADi).
+        mu: Friction coefficient [-] (number or CasADi).
+        inner: Use the inner pyramid (conservative).
+
+    Returns:
+        The edges (3, 4): numpy when ``rotation`` and ``mu`` are numbers, else CasADi.
+    """
+    mu_p = mu / math.sqrt(2.0) if inner else mu
+    if isinstance(rotation, (ca.SX, ca.MX)) or isinstance(mu, (ca.SX, ca.MX)):
+        local = ca.vertcat(ca.horzcat(mu_p, -mu_p, -mu_p, mu_p), ca.horzcat(mu_p, mu_p, -mu_p, -mu_p),
+                           ca.DM.ones(1, 4))
+        return ca.mtimes(_casadi(rotation), local)
+    mu_p = float(mu_p)
+    local = np.array([[mu_p, -mu_p, -mu_p, mu_p], [mu_p, mu_p, -mu_p, -mu_p], [1.0, 1.0, 1.0, 1.0]])
+    return np.asarray(rotation, dtype=float) @ local
+
+
 def angular_momentum_rate(com: Any, points: np.ndarray, forces: Sequence[Any]) -> Any:
     """Rate of angular momentum about the CoM implied by point forces, :math:`\\sum (p_i - c) \\times f_i`.
 
@@ -238,18 +264,30 @@ class CentroidalSettings:
             the corners, centres the CoP) [-].
         angular_momentum_weight: Cost on :math:`|\\dot L / (m g)|^2` [1/m^2].
         inner_pyramid: Use the inner friction pyramid (:math:`\\mu/\\sqrt 2`).
+        friction_edges: Parametrize each point force by non-negative weights on the 4 edges of
+            its friction pyramid (:func:`pyramid_edges`; friction and unilaterality become
+            variable bounds, no constraint rows). Off: 3 force components per point and 5
+            pyramid rows (:func:`friction_pyramid`).
         cop_margin: Inward margin of the sole rectangle for the CoP [m].
         max_force: Upper bound of one corner's normal force, in body weights [-].
         force_tolerance: Accepted violation of the force checks in the report, as a fraction of
             the body weight [-].
+        ipopt_options: IPOPT options of dynamic plans, ``(name, value)`` pairs. Zero initial
+            constraint multipliers (``constr_mult_init_max 0``: IPOPT's least-squares estimate
+            made the first Hessians indefinite, and each inertia correction costs a
+            factorization) and a first Hessian perturbation of 10 (instead of 1e-4, raised 100x
+            per try) cut the 4-step Talos solve from 26 to ~19 factorizations.
     """
 
     force_weight: float = 1e-2
     angular_momentum_weight: float = 1.0
     inner_pyramid: bool = True
+    friction_edges: bool = True
     cop_margin: float = 0.005
     max_force: float = 10.0
     force_tolerance: float = 1e-3
+    ipopt_options: tuple[tuple[str, float | int | str], ...] = (
+        ("constr_mult_init_max", 0.0), ("first_hessian_perturbation", 10.0))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -274,20 +312,26 @@ class ConstraintBlock:
 class CentroidalTerms:
     """Everything the NLP needs to add for CoM dynamics with contact forces.
 
-    The force variables are normalized by the body weight: ``f = weight * u``. The contact
-    geometry (corner points, orientation, friction) enters as NLP *parameters*, so that one
-    built solver serves every placement with the same contact pattern (:attr:`structure`).
+    The force variables are normalized by the body weight. With friction edges (the default,
+    :attr:`CentroidalSettings.friction_edges`) each point force is ``f = weight * E u_p`` with
+    ``E`` the (3, 4) pyramid edges and ``u_p >= 0`` its 4 weights; otherwise ``f = weight *
+    u_p`` (3 components). The contact geometry (corner points, orientation, friction) enters as
+    NLP *parameters*, so that one built solver serves every placement with the same contact
+    pattern (:attr:`structure`).
 
     Attributes:
         variables: All force variables ``u`` (column, length n).
         lower, upper, initial: Bounds and initial guess of ``variables`` (n,).
         parameters: Parameter symbols (column) of the contact geometry.
         parameter_values: Their values (same length).
-        constraints: Constraint groups (dynamics, friction).
+        constraints: Constraint groups (dynamics; friction rows without friction edges).
         cost: Scalar cost (force regularization + angular momentum rate).
         weight: Body weight :math:`m|g|` [N] (to turn ``u`` into newtons).
         contacts: Per knot, the active contacts' geometry.
-        force_index: Per knot, frame -> indices (n_points, 3) into ``variables``.
+        force_index: Per knot, frame -> indices (n_points, b) into ``variables`` (b = 4 edge
+            weights, or 3 components).
+        generators: Per knot, frame -> (3, b) matrix from one point's variables to its world
+            force in body weights (the pyramid edges, or the identity).
         frames: Every contact frame, in order of first activity.
         dynamics_knots: Knots that carry the dynamics equation.
         structure: Hashable description of the NLP graph these terms add (no numbers).
@@ -304,6 +348,7 @@ class CentroidalTerms:
     weight: float
     contacts: tuple[tuple[ContactGeometry, ...], ...]
     force_index: tuple[Mapping[str, np.ndarray], ...]
+    generators: tuple[Mapping[str, np.ndarray], ...]
     frames: tuple[str, ...]
     dynamics_knots: tuple[int, ...]
     structure: tuple
@@ -337,7 +382,7 @@ class CentroidalTerms:
             for frame, idx in index.items():
                 if frame not in out:
                     out[frame] = np.zeros((T, idx.shape[0], 3))
-                out[frame][k] = values[idx] * self.weight
+                out[frame][k] = (values[idx] @ self.generators[k][frame].T) * self.weight
         for frame in self.frames:
             out.setdefault(frame, np.zeros((T, 1, 3)))
         return out
@@ -377,7 +422,7 @@ class CentroidalPattern:
         lower, upper, initial: Bounds and initial guess of the force variables (n,).
         parameter_values: Contact geometry values.
         lbg, ubg: Bounds of the centroidal rows.
-        weight, contacts, force_index, frames, dynamics_knots, structure: As in
+        weight, contacts, force_index, generators, frames, dynamics_knots, structure: As in
             :class:`CentroidalTerms`.
     """
 
@@ -390,6 +435,7 @@ class CentroidalPattern:
     weight: float
     contacts: tuple[tuple[ContactGeometry, ...], ...]
     force_index: tuple[Mapping[str, np.ndarray], ...]
+    generators: tuple[Mapping[str, np.ndarray], ...]
     frames: tuple[str, ...]
     dynamics_knots: tuple[int, ...]
     structure: tuple
@@ -400,18 +446,38 @@ class CentroidalPattern:
 
 
 def _force_box(c: ContactGeometry, n_points: int, settings: CentroidalSettings):
-    """Bounds and initial guess of one contact's point forces (3 per point) [N, or weight units].
+    """Bounds and initial guess of one contact's point-force variables [body weights].
 
-    Every component lies within ``max_force``; on flat ground the normal component is also
-    bounded below by 0 (unilateral as a bound: bounds are values). The guess shares the
-    weight evenly over the ``n_points`` points active at the knot, along the normal.
+    Friction edges: each of the 4 edge weights per point lies in ``[0, max_force]`` (friction
+    and unilaterality as bounds); the guess puts ``1 / n_points`` of the weight on each point
+    along the normal (equal weights on its edges). Components: each lies within ``max_force``;
+    on flat ground the normal component is also bounded below by 0 (bounds are values); the
+    guess is the same force.
+
+    Returns:
+        (lower, upper, guess) over the contact's variables.
     """
     m = c.n_points
+    share = 1.0 / max(n_points, 1)
+    if settings.friction_edges:
+        return np.zeros(4 * m), np.full(4 * m, settings.max_force), np.full(4 * m, share / 4.0)
     lo = np.full(3 * m, -settings.max_force)
     hi = np.full(3 * m, settings.max_force)
     if np.allclose(c.normal, [0.0, 0.0, 1.0]):
         lo[2::3] = 0.0
-    return lo, hi, np.tile(c.normal / max(n_points, 1), m)
+    return lo, hi, np.tile(c.normal * share, m)
+
+
+def _generator(c: ContactGeometry, settings: CentroidalSettings) -> np.ndarray:
+    """(3, b) map from one point's variables to its world force (pyramid edges or identity)."""
+    if settings.friction_edges:
+        return pyramid_edges(c.rotation, c.friction_coefficient, inner=settings.inner_pyramid)
+    return np.eye(3)
+
+
+def _structure(settings: CentroidalSettings, per_knot: list) -> tuple:
+    return (settings.inner_pyramid, settings.angular_momentum_weight > 0.0,
+            "edges" if settings.friction_edges else "components", tuple(per_knot))
 
 
 def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: float, *,
@@ -432,8 +498,10 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
     weight = float(mass * np.linalg.norm(gravity))
     lower, upper, initial, pvals, lbg, ubg = [], [], [], [], [], []
     index: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
+    gens: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
     frames: list[str] = []
     structure = []
+    b = 4 if settings.friction_edges else 3
     n = 0
     for k in range(1, T - 1):
         active = contacts[k]
@@ -443,23 +511,25 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
             if c.frame not in frames:
                 frames.append(c.frame)
             m = c.n_points
-            index[k][c.frame] = np.arange(n, n + 3 * m).reshape(m, 3)
-            n += 3 * m
+            index[k][c.frame] = np.arange(n, n + b * m).reshape(m, b)
+            gens[k][c.frame] = _generator(c, settings)
+            n += b * m
             lo, hi, guess = _force_box(c, n_points, settings)
             lower.append(lo)
             upper.append(hi)
             initial.append(guess)
             pvals.append(_geometry_values(c))
-            lbg.append(np.zeros(5 * m))
-            ubg.append(np.full(5 * m, np.inf))
+            if not settings.friction_edges:
+                lbg.append(np.zeros(5 * m))
+                ubg.append(np.full(5 * m, np.inf))
         lbg.append(np.zeros(3))
         ubg.append(np.zeros(3))
     cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
     return CentroidalPattern(
         lower=cat(lower), upper=cat(upper), initial=cat(initial), parameter_values=cat(pvals),
         lbg=cat(lbg), ubg=cat(ubg), weight=weight, contacts=tuple(tuple(c) for c in contacts),
-        force_index=tuple(index), frames=tuple(frames), dynamics_knots=tuple(range(1, T - 1)),
-        structure=(settings.inner_pyramid, settings.angular_momentum_weight > 0.0, tuple(structure)),
+        force_index=tuple(index), generators=tuple(gens), frames=tuple(frames),
+        dynamics_knots=tuple(range(1, T - 1)), structure=_structure(settings, structure),
     )
 
 
@@ -510,11 +580,16 @@ def build_centroidal(
     initial: list[np.ndarray] = []
     blocks: list[ConstraintBlock] = []
     index: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
+    gens: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
     frames: list[str] = []
     structure: list[tuple] = []
     cost = 0
     n = 0
     dyn_knots = []
+    edges = settings.friction_edges
+    b = 4 if edges else 3
+    # edges: 4 |u_p|^2 equals |f|^2 for a force along the normal split evenly over the edges
+    force_weight = settings.force_weight * (4.0 if edges else 1.0)
     for k in range(1, T - 1):
         active = contacts[k]
         n_points = sum(c.n_points for c in active)
@@ -525,31 +600,37 @@ def build_centroidal(
             if c.frame not in frames:
                 frames.append(c.frame)
             m = c.n_points
-            u = symbol.sym(f"u_{c.frame}_{k}", 3 * m)
+            u = symbol.sym(f"u_{c.frame}_{k}", b * m)
             prm = symbol.sym(f"contact_{c.frame}_{k}", 3 * m + 10)
             syms.append(u)
             psyms.append(prm)
             pvals.append(_geometry_values(c))
-            index[k][c.frame] = np.arange(n, n + 3 * m).reshape(m, 3)
-            n += 3 * m
+            index[k][c.frame] = np.arange(n, n + b * m).reshape(m, b)
+            gens[k][c.frame] = _generator(c, settings)
+            n += b * m
             lo, hi, guess = _force_box(c, n_points, settings)
             lower.append(lo)
             upper.append(hi)
             initial.append(guess)
             R = ca.reshape(prm[3 * m : 3 * m + 9], 3, 3)
+            E = pyramid_edges(R, prm[3 * m + 9], inner=settings.inner_pyramid) if edges else None
             rows = []
             for i in range(m):
-                f_i = u[3 * i : 3 * i + 3]
+                if edges:
+                    f_i = ca.mtimes(E, u[4 * i : 4 * i + 4])
+                else:
+                    f_i = u[3 * i : 3 * i + 3]
+                    rows.append(friction_pyramid(f_i, R, prm[3 * m + 9], inner=settings.inner_pyramid))
                 total = total + f_i
                 points.append(prm[3 * i : 3 * i + 3])
                 forces.append(f_i)
-                rows.append(friction_pyramid(f_i, R, prm[3 * m + 9], inner=settings.inner_pyramid))
-            expr = ca.vertcat(*rows)
-            blocks.append(ConstraintBlock(
-                name=f"friction {c.frame}", knot=k, expr=expr,
-                lower=np.zeros(expr.shape[0]), upper=np.full(expr.shape[0], np.inf),
-            ))
-            cost = cost + settings.force_weight * dt * ca.sumsqr(u)
+            if rows:
+                expr = ca.vertcat(*rows)
+                blocks.append(ConstraintBlock(
+                    name=f"friction {c.frame}", knot=k, expr=expr,
+                    lower=np.zeros(expr.shape[0]), upper=np.full(expr.shape[0], np.inf),
+                ))
+            cost = cost + force_weight * dt * ca.sumsqr(u)
         acc = com_acceleration(com[k - 1], com[k], com[k + 1], dt)
         residual = (acc / g_norm - ca.DM(g_unit)) - total  # normalized Newton: (c'' - g)/|g| = sum u
         blocks.append(ConstraintBlock(name="CoM dynamics", knot=k, expr=residual, lower=np.zeros(3), upper=np.zeros(3)))
@@ -570,9 +651,10 @@ def build_centroidal(
         weight=weight,
         contacts=tuple(tuple(c) for c in contacts),
         force_index=tuple(index),
+        generators=tuple(gens),
         frames=tuple(frames),
         dynamics_knots=tuple(dyn_knots),
-        structure=(settings.inner_pyramid, settings.angular_momentum_weight > 0.0, tuple(structure)),
+        structure=_structure(settings, structure),
     )
 
 
@@ -736,30 +818,37 @@ def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
 class DynamicBlocks:
     """The dynamic part of a stage-wise NLP with its hand-assembled derivatives (MX).
 
-    The NLP's variables are ``[x_kin; u]`` (the chart displacements of the variable knots, then
-    the force variables). Rows: the centroidal rows (dynamics, friction), then the sole-corner
-    heights of swinging feet.
+    The NLP's variables are ``[x_kin; u; c]``: the chart displacements of the variable knots,
+    the force variables, then the CoM of each variable knot (3 per knot, *lifted*: tied to the
+    configuration by equality rows). Lifting the CoM keeps the CoM Jacobian (dense over the
+    joints) out of the dynamics rows and the angular-momentum cost: those couple the forces
+    with 3 CoM variables per knot instead of every joint, which makes the KKT system much
+    sparser. Rows: the centroidal rows (dynamics; friction rows without friction edges), the
+    CoM rows ``c_k - com(q_k) = 0``, then the sole-corner heights of swinging feet.
 
     Attributes:
         f: Cost added to the objective.
         g: Constraint rows (column).
         lbg, ubg: Their bounds.
-        grad_x, grad_u: Gradient of ``f`` [MX columns].
-        jac_x, jac_u: Jacobian of ``g`` w.r.t. ``x_kin`` and ``u``.
-        hess_xx, hess_xu, hess_uu: Hessian blocks of ``lam_f f + lam . g``.
+        grad_u, grad_c: Gradient of ``f`` (it does not depend on ``x_kin``) [MX columns].
+        jac_x, jac_u, jac_c: Jacobian of ``g`` w.r.t. ``x_kin``, ``u`` and ``c``.
+        hess_xx, hess_uu, hess_uc, hess_cc: Hessian blocks of ``lam_f f + lam . g`` (the
+            ``x``-``u`` and ``x``-``c`` blocks are zero).
     """
 
     f: Any
     g: Any
     lbg: np.ndarray
     ubg: np.ndarray
-    grad_x: Any
     grad_u: Any
+    grad_c: Any
     jac_x: Any
     jac_u: Any
+    jac_c: Any
     hess_xx: Any
-    hess_xu: Any
     hess_uu: Any
+    hess_uc: Any
+    hess_cc: Any
 
 
 def _kinematic_functions(lay: Any) -> tuple[ca.Function, ca.Function]:
@@ -780,21 +869,28 @@ def _kinematic_functions(lay: Any) -> tuple[ca.Function, ca.Function]:
     return first, second
 
 
-def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: Any, p: Any, dt: Any,
+def com_rows(lay: Any) -> int:
+    """Number of lifted CoM variables (and of the rows tying them to the configuration)."""
+    return 3 * (lay.N - 2)
+
+
+def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
                    lam_f: Any, lam: Any) -> DynamicBlocks:
     """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
 
-    The CoM ``c_k`` and the sole-corner heights of every variable knot come from one mapped SX
-    function (value and Jacobian), their curvature from a second one (the Hessian of
-    ``nu_k . c_k + eta_k . z_k`` with the multipliers ``nu_k`` the centroidal rows put on
-    ``c_k``); the centroidal function's own derivatives w.r.t. ``(C, u)`` are chained through
-    the CoM Jacobians. Knots 0 and 1 are at ``dq = 0`` (constant), knot N repeats N-1.
+    The centroidal function (dynamics, friction, cost) is evaluated on the lifted CoM variables
+    ``c`` (knots 0 and 1 at the standing CoM, knot N repeating N-1) with its derivatives w.r.t.
+    ``(C, u)`` from SX; the configuration enters only through the rows ``c_k - com(q_k)`` and
+    the sole-corner heights, whose values and Jacobians come from one mapped SX function and
+    whose curvature from a second one (the Hessian of ``-mu_k . com_k + eta_k . z_k`` with the
+    multipliers of those rows).
 
     Args:
         lay: The layout.
         cf: The centroidal function of the layout.
         x_kin: Chart displacements of knots 2..N-1 (MX, nv (N-2)).
         u: Force variables (MX, ``cf.terms.n_variables``).
+        c: Lifted CoM of knots 2..N-1 (MX, 3 (N-2)) [m].
         q_ref: Reference configuration (MX, nq).
         p: Contact parameters (MX, ``cf.terms.parameter_values.size``).
         dt: Knot spacing (MX scalar) [s].
@@ -809,17 +905,17 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: 
     first, second = _kinematic_functions(lay)
     X = ca.reshape(x_kin, nv, n)
     Qr = ca.repmat(q_ref, 1, n)
-    Cv, JC, Z, JZ = first.map(n)(X, Qr)
+    Ck, JC, Z, JZ = first.map(n)(X, Qr)
     c0 = first(ca.MX.zeros(nv), q_ref)[0]
+    Cv = ca.reshape(c, 3, n)
     C = ca.horzcat(c0, c0, Cv, Cv[:, n - 1])
-    # selection E: vec(C) (3(N+1)) <- vec(Cv) (3n); knot N copies knot N-1
+    # selection E: vec(C) (3(N+1)) <- c (3n); knot N copies knot N-1
     rows, cols = [], []
     for k in range(2, N + 1):
         j = min(k, N - 1) - 2
         rows += [3 * k + i for i in range(3)]
         cols += [3 * j + i for i in range(3)]
     E = ca.DM(ca.Sparsity.triplet(3 * (N + 1), 3 * n, rows, cols), 1.0)
-    M = ca.mtimes(E, ca.diagcat(*ca.horzsplit(JC, nv)))  # d vec(C) / d x_kin
     # centroidal function derivatives w.r.t. (vec C, u)
     Cs = ca.SX.sym("C", 3, N + 1)
     Us = ca.SX.sym("u", cf.terms.n_variables)
@@ -832,16 +928,15 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: 
     w = ca.vertcat(ca.vec(Cs), Us)
     lag = sig * fs + ca.dot(ls, gs)
     d1 = ca.Function("dyn_centroidal_d1", [Cs, Us, Ps, dts], [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w)])
-    d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.gradient(lag, w), ca.hessian(lag, w)[0]])
-    lam_c = lam[:n_c]
-    lam_z = lam[n_c:]
+    d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.hessian(lag, w)[0]])
+    n_m = 3 * n
+    lam_c, lam_m, lam_z = lam[:n_c], lam[n_c:n_c + n_m], lam[n_c + n_m:]
     g_c, f_c, J_w, G_w = d1(C, u, p, dt)
-    L_w, H_w = d2(C, u, p, dt, lam_f, lam_c)
+    H_w = d2(C, u, p, dt, lam_f, lam_c)
     m = 3 * (N + 1)
     J_C, J_U = J_w[:, :m], J_w[:, m:]
     G_C, G_U = G_w[:m], G_w[m:]
     H_CC, H_CU, H_UU = H_w[:m, :m], H_w[:m, m:], H_w[m:, m:]
-    nu = ca.reshape(ca.mtimes(E.T, L_w[:m]), 3, n)  # multipliers on each variable knot's CoM
     # swinging sole corners: rows picked from Z (8 x n)
     feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
     zr = [(k - 2) * 8 + feet.index(fid) * 4 + i for k, fid, i in cf.corner_rows]
@@ -850,20 +945,22 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, q_ref: 
     g_z = ca.mtimes(Sz, ca.vec(Z))
     jac_z = ca.mtimes(Sz, ca.diagcat(*ca.horzsplit(JZ, nv)))
     eta = ca.reshape(ca.mtimes(Sz.T, lam_z), 8, n) if n_z else ca.MX.zeros(8, n)
-    HK = second.map(n)(X, Qr, nu, eta)
-    hess_xx = ca.mtimes(M.T, ca.mtimes(H_CC, M)) + ca.diagcat(*ca.horzsplit(HK, nv))
+    HK = second.map(n)(X, Qr, -ca.reshape(lam_m, 3, n), eta)
+    n_u = cf.terms.n_variables
     return DynamicBlocks(
         f=f_c,
-        g=ca.vertcat(g_c, g_z),
-        lbg=np.concatenate([cf.lbg, np.zeros(n_z)]),
-        ubg=np.concatenate([cf.ubg, np.full(n_z, np.inf)]),
-        grad_x=ca.mtimes(M.T, G_C),
+        g=ca.vertcat(g_c, c - ca.vec(Ck), g_z),
+        lbg=np.concatenate([cf.lbg, np.zeros(n_m), np.zeros(n_z)]),
+        ubg=np.concatenate([cf.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
         grad_u=G_U,
-        jac_x=ca.vertcat(ca.mtimes(J_C, M), jac_z),
-        jac_u=ca.vertcat(J_U, ca.MX(n_z, cf.terms.n_variables)),
-        hess_xx=hess_xx,
-        hess_xu=ca.mtimes(M.T, H_CU),
+        grad_c=ca.mtimes(E.T, G_C),
+        jac_x=ca.vertcat(ca.MX(n_c, nv * n), -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z),
+        jac_u=ca.vertcat(J_U, ca.MX(n_m + n_z, n_u)),
+        jac_c=ca.vertcat(ca.mtimes(J_C, E), ca.MX(ca.DM.eye(n_m)), ca.MX(n_z, n_m)),
+        hess_xx=ca.diagcat(*ca.horzsplit(HK, nv)),
         hess_uu=H_UU,
+        hess_uc=ca.mtimes(H_CU.T, E),
+        hess_cc=ca.mtimes(E.T, ca.mtimes(H_CC, E)),
     )
 
 
@@ -948,13 +1045,13 @@ def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSetting
 
 
 def dynamic_sizes(lay: DynamicLayout) -> tuple[int, int]:
-    """(force variables, dynamic constraint rows) of a dynamic layout."""
+    """(force + lifted CoM variables, dynamic constraint rows) of a dynamic layout."""
     pat = lay.pattern()
-    return pat.n_variables, len(pat.lbg) + len(lay.corner_rows())
+    return pat.n_variables + com_rows(lay), len(pat.lbg) + com_rows(lay) + len(lay.corner_rows())
 
 
 def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
-    """Add the forces, CoM dynamics and sole-corner rows to a stage-wise kinematic NLP.
+    """Add the forces, lifted CoM, CoM dynamics and sole-corner rows to a stage-wise kinematic NLP.
 
     Args:
         lay: The dynamic layout.
@@ -962,30 +1059,36 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
         derivatives: Its ``grad_f``, ``jac_g``, ``hess_lag`` functions (nlpsol options).
 
     Returns:
-        The extended ``(nlp, derivatives)``: variables ``[x; u]``, parameters ``[p; contact
+        The extended ``(nlp, derivatives)``: variables ``[x; u; c]``, parameters ``[p; contact
         geometry]``, rows ``[g; dynamic rows]``.
     """
     cf = lay.centroidal()
     robot = lay.robot
     n_x, n_p, n_g = nlp["x"].numel(), nlp["p"].numel(), nlp["g"].numel()
-    n_u, n_gd = dynamic_sizes(lay)
+    n_u = cf.terms.n_variables
+    n_m = com_rows(lay)
+    _, n_gd = dynamic_sizes(lay)
     n_pd = cf.terms.parameter_values.size
-    x = ca.MX.sym("x", n_x + n_u)
+    x = ca.MX.sym("x", n_x + n_u + n_m)
     p = ca.MX.sym("p", n_p + n_pd)
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", n_g + n_gd)
-    xk, u, pk, pd = x[:n_x], x[n_x:], p[:n_p], p[n_p:]
+    xk, u, c = x[:n_x], x[n_x:n_x + n_u], x[n_x + n_u:]
+    pk, pd = p[:n_p], p[n_p:]
     nq = robot.nq
-    b = dynamic_blocks(lay, cf, xk, u, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:])
+    b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:])
     f_k, grad_k = derivatives["grad_f"](xk, pk)
     g_k, jac_k = derivatives["jac_g"](xk, pk)
     h_k = derivatives["hess_lag"](xk, pk, lam_f, lam_g[:n_g])
     f = f_k + b.f
     g = ca.vertcat(g_k, b.g)
-    grad = ca.vertcat(grad_k + b.grad_x, b.grad_u)
-    jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u)), ca.horzcat(b.jac_x, b.jac_u))
-    hess = ca.vertcat(ca.horzcat(h_k + ca.triu(b.hess_xx), b.hess_xu),
-                      ca.horzcat(ca.MX(n_u, n_x), ca.triu(b.hess_uu)))
+    grad = ca.vertcat(grad_k, b.grad_u, b.grad_c)
+    jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u + n_m)), ca.horzcat(b.jac_x, b.jac_u, b.jac_c))
+    hess = ca.blockcat([
+        [h_k + ca.triu(b.hess_xx), ca.MX(n_x, n_u), ca.MX(n_x, n_m)],
+        [ca.MX(n_u, n_x), ca.triu(b.hess_uu), b.hess_uc],
+        [ca.MX(n_m, n_x), ca.MX(n_m, n_u), ca.triu(b.hess_cc)],
+    ])
     out = {
         "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
         "jac_g": ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
@@ -997,14 +1100,15 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
 
 def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
                   ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bounds of the extended NLP from the kinematic ones (force boxes, dynamic rows)."""
+    """Bounds of the extended NLP from the kinematic ones (force boxes, free CoM, dynamic rows)."""
     pat = lay.pattern()
     n_z = len(lay.corner_rows())
+    n_m = com_rows(lay)
     return (
-        np.concatenate([lbx, pat.lower]),
-        np.concatenate([ubx, pat.upper]),
-        np.concatenate([lbg, pat.lbg, np.zeros(n_z)]),
-        np.concatenate([ubg, pat.ubg, np.full(n_z, np.inf)]),
+        np.concatenate([lbx, pat.lower, np.full(n_m, -np.inf)]),
+        np.concatenate([ubx, pat.upper, np.full(n_m, np.inf)]),
+        np.concatenate([lbg, pat.lbg, np.zeros(n_m), np.zeros(n_z)]),
+        np.concatenate([ubg, pat.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
     )
 
 
@@ -1014,9 +1118,19 @@ def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:
 
 
 def initial_guess(lay: DynamicLayout) -> np.ndarray:
-    """Initial ``[x; u]``: the heading warm start for the chart, the weight shared by the corners."""
+    """Initial ``[x; u; c]``: the heading warm start for the chart, the weight shared by the
+    corners, the CoM of the guessed configurations."""
+    from planner.symbolic import chart_to_configuration
+
     dq = heading_guess(lay)
-    return np.concatenate([dq[2:lay.N].ravel(), lay.pattern().initial])
+    model, data = lay.robot.model, lay.robot.data()
+    com = [pin.centerOfMass(model, data, chart_to_configuration(model, lay.q_ref, dq[k])) for k in range(2, lay.N)]
+    return np.concatenate([dq[2:lay.N].ravel(), lay.pattern().initial, np.ravel(com)])
+
+
+def forces_of(lay: DynamicLayout, x: np.ndarray) -> np.ndarray:
+    """The force variables ``u`` from a solution ``x = [x_kin; u; c]`` of the extended NLP."""
+    return np.asarray(x, dtype=float)[lay.n_kinematic:lay.n_kinematic + lay.pattern().n_variables]
 
 
 def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
@@ -1328,6 +1442,8 @@ __all__ = [
     "centroidal_pattern",
     "com_acceleration",
     "com_dynamics_residual",
+    "com_rows",
+    "forces_of",
     "contact_geometry",
     "contact_geometry_points",
     "contacts_per_knot",
@@ -1347,6 +1463,7 @@ __all__ = [
     "friction_pyramid",
     "friction_violation",
     "heading_guess",
+    "pyramid_edges",
     "sole_corner_heights",
     "swinging_corners",
 ]

@@ -57,6 +57,8 @@ class PlannerSettings:
             in memory in a few seconds and reused within the process).
         diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
             culprit and how far it is.
+        ipopt_extra: Further IPOPT options as ``(name, value)`` pairs, applied last (dynamic
+            specs prepend ``centroidal.ipopt_options``).
         warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
             ``"nominal"`` (inverse kinematics at the target times, blended: see
             :mod:`planner.nominal`).
@@ -80,6 +82,7 @@ class PlannerSettings:
     centroidal: CentroidalSettings = field(default_factory=CentroidalSettings)
     compile_dynamic: bool = False
     warm_start: str = "nominal"
+    ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
 
     def __post_init__(self) -> None:
         from planner.exceptions import PlannerError

@@ -343,6 +343,7 @@ def ipopt_options(settings: PlannerSettings) -> dict:
             "linear_solver": "mumps",
             "mu_strategy": "adaptive",
             "obj_scaling_factor": float(settings.objective_scaling),
+            **dict(settings.ipopt_extra),
         },
     }
 
@@ -465,10 +466,11 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     lay = make_layout(spec, robot)
     if spec.dynamic:  # CoM dynamics with contact forces (planner/centroidal.py, docs/dynamic.md)
         lay = centroidal.to_dynamic_layout(lay, settings.centroidal)
-        if settings.compile and not settings.compile_dynamic:
-            import dataclasses
+        import dataclasses
 
-            settings = dataclasses.replace(settings, compile=False)
+        settings = dataclasses.replace(
+            settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
+            compile=settings.compile and settings.compile_dynamic)
     problem = precheck(lay)
     if problem:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
@@ -477,7 +479,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             raise PlanningFailed(problem, failed)
         return failed
     x0 = None
-    if settings.warm_start == "nominal":
+    if settings.warm_start == "nominal" and not isinstance(lay, centroidal.DynamicLayout):
         from planner.nominal import nominal_motion
 
         x0 = nominal_motion(lay)[2:lay.N].ravel()
@@ -486,7 +488,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         x0 = centroidal.initial_guess(lay)
     dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
     if isinstance(lay, centroidal.DynamicLayout):
-        forces = raw["x"][lay.n_kinematic:]
+        forces = centroidal.forces_of(lay, raw["x"])
     result = _make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:
         return result

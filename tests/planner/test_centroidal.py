@@ -23,6 +23,7 @@ from planner.centroidal import (
     cop_violation,
     friction_pyramid,
     friction_violation,
+    pyramid_edges,
 )
 from planner.exceptions import PlannerError
 from tasks.specs import Contact, Phase, Pose, TaskSpec
@@ -93,6 +94,39 @@ def test_friction_pyramid_against_numpy(rng, inner):
             assert friction_violation(force, R, mu) == 0.0  # the inner pyramid is inside the cone
 
 
+@pytest.mark.parametrize("inner", [True, False])
+def test_pyramid_edges_span_exactly_the_pyramid(rng, inner):
+    """Non-negative edge weights give forces inside the pyramid; forces on its faces need zero weights.
+
+    The CasADi edges equal the numpy ones; with the inner pyramid every edge lies on the Coulomb
+    cone (tangential = mu * normal), so no combination leaves the cone.
+    """
+    f = ca.SX.sym("f", 3)
+    R_sym = ca.SX.sym("R", 3, 3)
+    mu_sym = ca.SX.sym("mu")
+    edges_fun = ca.Function("edges", [R_sym, mu_sym], [pyramid_edges(R_sym, mu_sym, inner=inner)])
+    for _ in range(30):
+        R = _rot(rng)
+        mu = float(rng.uniform(0.2, 1.2))
+        E = pyramid_edges(R, mu, inner=inner)
+        np.testing.assert_allclose(np.array(edges_fun(R, mu)), E, atol=SYMBOLIC_ATOL)
+        local = R.T @ E
+        mp = mu / math.sqrt(2) if inner else mu
+        np.testing.assert_allclose(np.abs(local[:2]), mp, atol=1e-12)  # corners of the square
+        np.testing.assert_allclose(local[2], 1.0, atol=1e-12)
+        rows = ca.Function("pyr", [f], [friction_pyramid(f, R, mu, inner=inner)])
+        for lam in rng.uniform(0.0, 100.0, size=(10, 4)):
+            assert np.array(rows(E @ lam)).min() >= -1e-9
+            if inner:
+                assert friction_violation(E @ lam, R, mu) <= 1e-9
+        # a force on a face of the pyramid (|t1.f| = mu' n.f) is reached with two edges only
+        face = R @ np.array([mp, 0.3 * mp, 1.0]) * 50.0
+        lam, *_ = np.linalg.lstsq(E, face, rcond=None)
+        lam_nonneg = np.linalg.solve(E[:, [0, 3]].T @ E[:, [0, 3]], E[:, [0, 3]].T @ face)
+        assert lam_nonneg.min() >= 0.0
+        np.testing.assert_allclose(E[:, [0, 3]] @ lam_nonneg, face, atol=1e-9)
+
+
 def test_angular_momentum_rate_against_numpy(rng):
     """sum (p_i - c) x f_i, symbolic vs numpy, and its Jacobian w.r.t. the CoM vs the analytic one."""
     c = ca.SX.sym("c", 3)
@@ -135,15 +169,20 @@ def _solve_forces(terms, com_values, com_syms):
     return solver.stats(), np.array(sol["x"]).ravel()
 
 
-def test_standing_forces_carry_the_weight_and_put_the_cop_under_the_com(talos):
-    """Static CoM over the feet: forces sum to m g, friction holds, and the net CoP is the CoM projection."""
+@pytest.mark.parametrize("edges", [True, False])
+def test_standing_forces_carry_the_weight_and_put_the_cop_under_the_com(talos, edges):
+    """Static CoM over the feet: forces sum to m g, friction holds, and the net CoP is the CoM
+    projection, with forces parametrized by pyramid edges or by their components."""
     feet = tuple(contact_geometry(c, talos) for c in _feet(talos))
     T = 5
     com_syms = [ca.SX.sym(f"c{k}", 3) for k in range(T)]
     c0 = np.array([0.03, 0.02, 0.87])
     terms = build_centroidal(com_syms, 0.1, [feet] * T, talos.mass,
-                             settings=CentroidalSettings(angular_momentum_weight=100.0, force_weight=1e-6, cop_margin=0.0))
-    assert terms.n_variables == 3 * 2 * 4 * 3  # 3 interior knots x 2 feet x 4 corners x 3D
+                             settings=CentroidalSettings(angular_momentum_weight=100.0, force_weight=1e-6, cop_margin=0.0,
+                                                         friction_edges=edges))
+    # 3 interior knots x 2 feet x 4 corners x (4 edge weights or 3 components)
+    assert terms.n_variables == 3 * 2 * 4 * (4 if edges else 3)
+    assert len(terms.g()[1]) == 3 * (3 + (0 if edges else 2 * 4 * 5))  # dynamics (+ pyramid rows)
     assert terms.dynamics_knots == (1, 2, 3)
     stats, x = _solve_forces(terms, [c0] * T, com_syms)
     assert stats["success"]
@@ -209,7 +248,7 @@ def test_spec_grid_follows_the_phases(talos):
     assert [len(s) for s in sets] == [2, 2, 2, 2, 0, 0, 0, 0, 2, 2, 2, 2, 2]
     com = [ca.SX.sym(f"c{k}", 3) for k in range(13)]
     terms = build_centroidal_for_spec(spec, talos, t, com)
-    assert terms.n_variables == (3 + 4) * 2 * 4 * 3  # knots 1-3 and 8-11 carry two soles
+    assert terms.n_variables == (3 + 4) * 2 * 4 * 4  # knots 1-3 and 8-11 carry two soles (4 edges each)
     with pytest.raises(PlannerError, match="uniform"):
         build_centroidal_for_spec(spec, talos, np.array([0.0, 0.1, 0.15, 0.6]), com[:4])
 
@@ -243,7 +282,7 @@ def test_contact_geometry_enters_as_parameters(talos):
     assert a.parameter_values.shape == b.parameter_values.shape == (2 * 2 * (12 + 10),)
     assert not np.allclose(a.parameter_values, b.parameter_values)
     g, _, _ = a.g()
-    assert ca.depends_on(g, a.parameters)  # friction rows use the rotation parameters
+    assert ca.depends_on(g, a.parameters)  # the pyramid edges use the rotation and friction parameters
     single = build_centroidal(com, 0.1, [tuple(contact_geometry(c, talos) for c in feet[:1])] * 4, talos.mass)
     assert single.structure != a.structure
 
@@ -253,7 +292,8 @@ def test_symbolic_dt_and_pyramid_with_parameters(talos, rng):
     feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.3))
     dt = ca.SX.sym("dt")
     com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
-    terms = build_centroidal(com, dt, [feet] * 3, talos.mass, settings=CentroidalSettings(inner_pyramid=False))
+    terms = build_centroidal(com, dt, [feet] * 3, talos.mass,
+                             settings=CentroidalSettings(inner_pyramid=False, friction_edges=False))
     g, _, _ = terms.g()
     fun = ca.Function("g", [terms.variables, terms.parameters, dt, *com], [g])
     u = rng.uniform(0.0, 0.2, terms.n_variables)
@@ -270,6 +310,32 @@ def test_symbolic_dt_and_pyramid_with_parameters(talos, rng):
     total = u.reshape(-1, 3).sum(axis=0)
     ref += list(acc / 9.81 - np.array([0, 0, -1.0]) - total)
     np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+def test_edge_weights_give_the_dynamics_and_the_corner_forces(talos, rng):
+    """With friction edges the rows are Newton's law only, on the forces E u; corner_forces is E u [N]."""
+    feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.3))
+    dt = ca.SX.sym("dt")
+    com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
+    terms = build_centroidal(com, dt, [feet] * 3, talos.mass)
+    g, lbg, ubg = terms.g()
+    assert g.numel() == 3 and np.all(lbg == 0.0) and np.all(ubg == 0.0)
+    np.testing.assert_array_equal(terms.lower, 0.0)
+    fun = ca.Function("g", [terms.variables, terms.parameters, dt, *com], [g])
+    u = rng.uniform(0.0, 0.2, terms.n_variables)
+    cs = [rng.normal(size=3) for _ in range(3)]
+    got = np.array(fun(u, terms.parameter_values, 0.05, *cs)).ravel()
+    total = np.zeros(3)
+    corners = terms.corner_forces(u)
+    for f in feet:
+        idx = terms.force_index[1][f.frame]
+        assert idx.shape == (4, 4)
+        E = pyramid_edges(f.rotation, f.friction_coefficient)
+        expected = u[idx] @ E.T  # (4 corners, 3) in body weights
+        np.testing.assert_allclose(corners[f.frame][1], expected * terms.weight, rtol=1e-12)
+        total += expected.sum(axis=0)
+    acc = (cs[2] - 2 * cs[1] + cs[0]) / 0.05**2
+    np.testing.assert_allclose(got, acc / 9.81 - np.array([0, 0, -1.0]) - total, atol=1e-9)
 
 
 def test_layout_contacts_hold_at_both_ends_of_a_phase(talos):
@@ -339,8 +405,8 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
     com = np.tile(pin.centerOfMass(talos.model, talos.data(), talos.q_standing), (lay.N + 1, 1))
     u = np.zeros(terms.n_variables)
     for k in terms.dynamics_knots:
-        idx = np.concatenate([i.reshape(-1, 3) for i in terms.force_index[k].values()])
-        u[idx[:, 2]] = 1.0 / len(idx)
+        idx = np.concatenate([i for i in terms.force_index[k].values()])  # (corners, 4 edges)
+        u[idx] = 1.0 / (4 * len(idx))  # each corner carries 1/len of the weight, along the normal
     g, cost = cf.function(np.array(com.T), u, terms.parameter_values, lay.dt)
     g = np.array(g).ravel()
     assert np.all(g >= cf.lbg - 1e-9) and np.all(g <= cf.ubg + 1e-9)
@@ -350,11 +416,13 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
     assert checks["CoM dynamics m(c'' - g) = sum f"].violation < 1e-6
     k = terms.dynamics_knots[0]
     frame, idx = next(iter(terms.force_index[k].items()))
+    normal = 4 * u[idx[0, 0]]  # corner 0's normal force [body weights]
+    mu_p = talos.profile.friction_coefficient / math.sqrt(2)
     u_bad = u.copy()
-    u_bad[idx[0, 0]] = u[idx[0, 2]]  # tangential force = normal force: mu = 1 > 0.7
+    u_bad[idx[0]] += normal / (4 * mu_p) * np.array([1.0, -1.0, -1.0, 1.0])  # negative weights: f_x = f_n
     bad = {c.name: c for c in dynamic_checks(lay, q, com, terms, cf.corner_rows, u_bad)}
     assert not bad[f"{frame} friction cone"].ok
-    expected = (1.0 - talos.profile.friction_coefficient) * u[idx[0, 2]] * terms.weight
+    expected = (1.0 - talos.profile.friction_coefficient) * normal * terms.weight
     assert bad[f"{frame} friction cone"].violation == pytest.approx(expected, rel=1e-9)
     assert not bad["CoM dynamics m(c'' - g) = sum f"].ok  # the extra force is unbalanced
 
@@ -375,22 +443,28 @@ def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
     nv, n = talos.nv, lay.N - 2
     x = ca.MX.sym("x", nv * n)
     u = ca.MX.sym("u", cf.terms.n_variables)
+    c = ca.MX.sym("c", 3 * n)
     q_ref = ca.MX.sym("q_ref", talos.nq)
     p = ca.MX.sym("p", cf.terms.parameter_values.size)
     dt = ca.MX.sym("dt")
     lam_f = ca.MX.sym("lam_f")
-    n_g = len(cf.lbg) + len(cf.corner_rows)
+    n_g = len(cf.lbg) + 3 * n + len(cf.corner_rows)
     lam = ca.MX.sym("lam", n_g)
-    b = dynamic_blocks(lay, cf, x, u, q_ref, p, dt, lam_f, lam)
+    b = dynamic_blocks(lay, cf, x, u, c, q_ref, p, dt, lam_f, lam)
     assert b.g.numel() == n_g == len(b.lbg)
     assert len(cf.corner_rows) == 8 * sum(1 for k in range(2, lay.N) if not lay.contacts_at[k])
-    w = ca.vertcat(x, u)
+    w = ca.vertcat(x, u, c)
     lag = lam_f * b.f + ca.dot(lam, b.g)
-    ours = ca.Function("ours", [x, u, q_ref, p, dt, lam_f, lam], [
-        ca.vertcat(b.grad_x, b.grad_u), ca.horzcat(b.jac_x, b.jac_u),
-        ca.vertcat(ca.horzcat(b.hess_xx, b.hess_xu), ca.horzcat(b.hess_xu.T, b.hess_uu))])
-    ad = ca.Function("ad", [x, u, q_ref, p, dt, lam_f, lam], [ca.gradient(b.f, w), ca.jacobian(b.g, w), ca.hessian(lag, w)[0]])
-    args = [rng.normal(size=nv * n) * 0.05, rng.uniform(0, 0.2, cf.terms.n_variables), talos.q_standing,
+    zx = ca.MX(nv * n, 1)
+    ours = ca.Function("ours", [x, u, c, q_ref, p, dt, lam_f, lam], [
+        ca.vertcat(zx, b.grad_u, b.grad_c), ca.horzcat(b.jac_x, b.jac_u, b.jac_c),
+        ca.blockcat([[b.hess_xx, ca.MX(nv * n, cf.terms.n_variables), ca.MX(nv * n, 3 * n)],
+                     [ca.MX(cf.terms.n_variables, nv * n), b.hess_uu, b.hess_uc],
+                     [ca.MX(3 * n, nv * n), b.hess_uc.T, b.hess_cc]])])
+    ad = ca.Function("ad", [x, u, c, q_ref, p, dt, lam_f, lam],
+                     [ca.gradient(b.f, w), ca.jacobian(b.g, w), ca.hessian(lag, w)[0]])
+    args = [rng.normal(size=nv * n) * 0.05, rng.uniform(0, 0.2, cf.terms.n_variables),
+            np.tile([0.0, 0.0, 0.85], n) + rng.normal(size=3 * n) * 0.02, talos.q_standing,
             cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g)]
     for a, r in zip(ours(*args), ad(*args), strict=True):
         np.testing.assert_allclose(np.array(ca.densify(a)), np.array(ca.densify(r)), atol=1e-8, rtol=1e-8)
@@ -413,4 +487,6 @@ def test_pattern_matches_the_symbolic_terms(talos):
     assert pat.structure == terms.structure and pat.frames == terms.frames
     assert pat.dynamics_knots == terms.dynamics_knots and pat.n_variables == terms.n_variables
     for a, b in zip(pat.force_index, terms.force_index, strict=True):
+        assert a.keys() == b.keys() and all(np.array_equal(a[f], b[f]) for f in a)
+    for a, b in zip(pat.generators, terms.generators, strict=True):
         assert a.keys() == b.keys() and all(np.array_equal(a[f], b[f]) for f in a)
