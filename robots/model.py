@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -175,6 +176,46 @@ def _load_builtin(name: str) -> Robot:
     return _build(builtin_profiles()[name])
 
 
+# Collada's <up_axis> -> the rotation that takes the file's coordinates to a Z-up frame
+_UP_AXIS_ROTATIONS = {
+    "Y_UP": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),  # up +Y -> +Z, in +Z -> -Y
+    "X_UP": np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]),  # up +X -> +Z, right -Y -> +X
+}
+_UP_AXIS = re.compile(rb"<up_axis>\s*([XYZ]_UP)\s*</up_axis>")
+
+
+@functools.cache
+def collada_up_axis(path: str) -> str:
+    """The ``<up_axis>`` of a Collada file (``Z_UP`` if absent, unreadable or not Collada)."""
+    if not path.lower().endswith(".dae"):
+        return "Z_UP"
+    try:
+        with open(path, "rb") as f:
+            head = f.read(65536)
+    except OSError:
+        return "Z_UP"
+    found = _UP_AXIS.search(head)
+    return found.group(1).decode() if found else "Z_UP"
+
+
+def correct_collada_up_axis(gmodel: pin.GeometryModel) -> int:
+    """Rotate the placement of every Collada mesh whose file is not Z-up; returns how many.
+
+    Pinocchio's mesh loader (coal, through assimp) keeps a Collada file's raw coordinates and
+    ignores its ``<up_axis>``; a URDF's mesh frame is Z-up. iCub's meshes are ``Y_UP``: loaded
+    as is, every part was turned 90 degrees about its link's x axis (the thigh pointed forward
+    from the hip, the head hung below the neck). Viewers and the MuJoCo model use these
+    placements, so they are corrected once, here.
+    """
+    n = 0
+    for obj in gmodel.geometryObjects:
+        rotation = _UP_AXIS_ROTATIONS.get(collada_up_axis(obj.meshPath or ""))
+        if rotation is not None:
+            obj.placement = obj.placement * pin.SE3(rotation, np.zeros(3))
+            n += 1
+    return n
+
+
 def _build(profile: RobotProfile) -> Robot:
     if profile.loader is not None:
         urdf, srdf, package_dirs = _loader_paths(profile.loader)
@@ -196,6 +237,8 @@ def _build(profile: RobotProfile) -> Robot:
             pin.loadReferenceConfigurations(model, srdf, False)
         except (ValueError, RuntimeError) as e:
             raise ProfileError(f"profile {profile.name!r}: cannot read SRDF {srdf!r}: {e}") from None
+    for gmodel in (visual, collision):
+        correct_collada_up_axis(gmodel)
     names = [f.name for f in model.frames]
     for extra in profile.extra_frames:
         if not model.existFrame(extra.parent):

@@ -141,3 +141,38 @@ def test_convex_hull_contains_every_point_counter_clockwise(rng):
             assert np.all(e[0] * (pts[:, 1] - a[1]) - e[1] * (pts[:, 0] - a[0]) >= -1e-12)
     square = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [0.5, 0.0]])
     np.testing.assert_allclose(convex_hull(square), [[0, 0], [1, 0], [1, 1], [0, 1]])
+
+
+def _mesh_centroid(robot, name: str, data, gdata) -> np.ndarray:
+    gid = robot.visual_model.getGeometryId(name)
+    vertices = np.asarray(robot.visual_model.geometryObjects[gid].geometry.vertices())
+    return gdata.oMg[gid].act(vertices.mean(axis=0))
+
+
+def test_collada_meshes_are_z_up(any_robot):
+    """Every limb mesh hangs between its joints: Y_UP Collada files (iCub) are turned upright.
+
+    Pinocchio keeps a Collada file's raw coordinates; without the up-axis correction iCub's
+    thigh pointed forward from the hip and its head hung below the neck.
+    """
+    robot = any_robot
+    data, gdata = robot.data(), pin.GeometryData(robot.visual_model)
+    pin.forwardKinematics(robot.model, data, robot.q_standing)
+    pin.updateGeometryPlacements(robot.model, data, robot.visual_model, gdata)
+    for obj in robot.visual_model.geometryObjects:
+        shape = obj.geometry
+        if not (hasattr(shape, "num_tris") and shape.num_tris > 0):
+            continue
+        # every mesh is above the floor (the sole meshes may dip a few millimetres)
+        placement = gdata.oMg[robot.visual_model.getGeometryId(obj.name)]
+        heights = np.asarray(shape.vertices()) @ placement.rotation[2] + placement.translation[2]
+        lowest = float(heights.min())
+        assert lowest > -0.02, f"{robot.name}: mesh {obj.name} reaches {lowest:.3f} m below the floor"
+    if robot.name != "icub":
+        return
+    hip = data.oMi[robot.model.getJointId("l_hip_pitch")].translation
+    knee = data.oMi[robot.model.getJointId("l_knee")].translation
+    thigh = _mesh_centroid(robot, "l_upper_leg_0", data, gdata)
+    assert knee[2] < thigh[2] < hip[2]
+    neck = data.oMi[robot.model.getJointId("neck_pitch")].translation
+    assert _mesh_centroid(robot, "head_0", data, gdata)[2] > neck[2] + 0.05
