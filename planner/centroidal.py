@@ -833,7 +833,9 @@ class DynamicBlocks:
         grad_u, grad_c: Gradient of ``f`` (it does not depend on ``x_kin``) [MX columns].
         jac_x, jac_u, jac_c: Jacobian of ``g`` w.r.t. ``x_kin``, ``u`` and ``c``.
         hess_xx, hess_uu, hess_uc, hess_cc: Hessian blocks of ``lam_f f + lam . g`` (the
-            ``x``-``u`` and ``x``-``c`` blocks are zero).
+            ``x``-``u`` and ``x``-``c`` blocks are zero; ``hess_xx`` is None when not asked for).
+        nu, eta: Multipliers (3, N-2) and (8, N-2) whose products with each variable knot's
+            CoM and sole-corner heights give the curvature in ``hess_xx``.
     """
 
     f: Any
@@ -846,6 +848,8 @@ class DynamicBlocks:
     jac_u: Any
     jac_c: Any
     hess_xx: Any
+    nu: Any
+    eta: Any
     hess_uu: Any
     hess_uc: Any
     hess_cc: Any
@@ -875,7 +879,7 @@ def com_rows(lay: Any) -> int:
 
 
 def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
-                   lam_f: Any, lam: Any) -> DynamicBlocks:
+                   lam_f: Any, lam: Any, *, kinematic_hessian: bool = True) -> DynamicBlocks:
     """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
 
     The centroidal function (dynamics, friction, cost) is evaluated on the lifted CoM variables
@@ -896,6 +900,8 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any,
         dt: Knot spacing (MX scalar) [s].
         lam_f: Objective multiplier (MX scalar).
         lam: Multipliers of this block's rows (MX, len(lbg)).
+        kinematic_hessian: Build :attr:`DynamicBlocks.hess_xx` (off: the caller adds the
+            curvature of the CoM and sole-corner rows itself, from ``nu`` and ``eta``).
 
     Returns:
         The blocks.
@@ -945,7 +951,8 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any,
     g_z = ca.mtimes(Sz, ca.vec(Z))
     jac_z = ca.mtimes(Sz, ca.diagcat(*ca.horzsplit(JZ, nv)))
     eta = ca.reshape(ca.mtimes(Sz.T, lam_z), 8, n) if n_z else ca.MX.zeros(8, n)
-    HK = second.map(n)(X, Qr, -ca.reshape(lam_m, 3, n), eta)
+    nu = -ca.reshape(lam_m, 3, n)
+    HK = second.map(n)(X, Qr, nu, eta) if kinematic_hessian else None
     n_u = cf.terms.n_variables
     return DynamicBlocks(
         f=f_c,
@@ -957,11 +964,97 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any,
         jac_x=ca.vertcat(ca.MX(n_c, nv * n), -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z),
         jac_u=ca.vertcat(J_U, ca.MX(n_m + n_z, n_u)),
         jac_c=ca.vertcat(ca.mtimes(J_C, E), ca.MX(ca.DM.eye(n_m)), ca.MX(n_z, n_m)),
-        hess_xx=ca.diagcat(*ca.horzsplit(HK, nv)),
+        hess_xx=ca.diagcat(*ca.horzsplit(HK, nv)) if kinematic_hessian else None,
+        nu=nu,
+        eta=eta,
         hess_uu=H_UU,
         hess_uc=ca.mtimes(H_CU.T, E),
         hess_cc=ca.mtimes(E.T, ca.mtimes(H_CC, E)),
     )
+
+
+def stage_hessians(lay: Any, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
+                   eta: Any) -> Any:
+    """Block-diagonal chart Hessian of a dynamic NLP's Lagrangian, one SX function per stage type.
+
+    For the knots of each stage group of :func:`planner.trajopt.stage_groups`, one mapped SX
+    function gives the Hessian of ``lam_f cost_k + lam_k . g_k + nu_k . com_k + eta_k . z_k``
+    w.r.t. ``dq_k``: the kinematic terms and the CoM and sole-corner rows of the dynamics share
+    one forward-kinematics pass, and the blocks are laid out in knot order with one ``diagcat``
+    (no sparse products with selection matrices). Parameters and multipliers are read in the
+    order :func:`planner.trajopt.build_nlp` gives them.
+
+    Args:
+        lay: The dynamic layout.
+        x_kin: Chart displacements of knots 2..N-1 (MX, nv (N-2)).
+        q_ref: Reference configuration (MX, nq).
+        p_kin: Parameters of the kinematic NLP (MX).
+        lam_f: Objective multiplier (MX scalar).
+        lam_kin: Multipliers of the kinematic rows (MX).
+        nu, eta: Multipliers on each variable knot's CoM (3, N-2) and sole-corner heights (8, N-2).
+
+    Returns:
+        The (nv (N-2), nv (N-2)) block-diagonal Hessian (MX, both triangles), without the
+        constant quadratic costs.
+    """
+    from planner.symbolic import SymbolicKinematics
+    from planner.trajopt import FRAME_KINDS, stage_groups, term_expression
+
+    robot = lay.robot
+    nq, nv, n = robot.nq, robot.nv, lay.N - 2
+    X = ca.reshape(x_kin, nv, n)
+    kin = SymbolicKinematics(robot.model)
+    blocks: dict[int, Any] = {}
+    p_offset, g_offset = nq + 3, 0
+    for gi, (_sig, knots, term_lists) in enumerate(stage_groups(lay)):
+        terms = [lay.terms[i] for i in term_lists[0]]
+        dq = ca.SX.sym("dq", nv)
+        qr = ca.SX.sym("q_ref", nq)
+        oMi = kin.joint_placements(qr, dq)
+        frame_ids = sorted({t.structure[1] for t in terms if t.kind in FRAME_KINDS})
+        com = kin.com(oMi)
+        k = {"com": com, "frames": {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, "dq": dq}
+        ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
+        sigma = ca.SX.sym("sigma")
+        rows, cost, offset = [], 0, 0
+        # soft CoM targets w |S (c - c*)|^2: Hessian 2 w (J^T S^T S J + sum_i e_i hess c_i), the
+        # second part folded into the CoM multiplier (AD of the square costs ~5x more)
+        nu_cost = ca.SX.zeros(3)
+        gauss_newton = ca.SX.zeros(nv, nv)
+        for t in terms:
+            pt = ps[offset: offset + len(t.params)]
+            offset += len(t.params)
+            if t.kind == "com_pos" and t.structure[2] not in ("eq", "box"):
+                sel = [i for i, a in enumerate(t.structure[1]) if a]
+                e = (com - pt[0:3])[sel]
+                J = ca.jacobian(com[sel], dq)
+                gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
+                nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
+                continue
+            r, cst = term_expression(t, pt, k, qr, robot)
+            cost = cost + cst
+            if r is not None:
+                rows.append(r)
+        g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
+        lam = ca.SX.sym("lam", g.numel())
+        nu_s = ca.SX.sym("nu", 3)
+        eta_s = ca.SX.sym("eta", 8)
+        nu_all = ca.SX.sym("nu_all", 3)
+        z = sole_corner_heights(kin, oMi, robot)
+        lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
+        hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
+        fn = ca.Function(f"dyn_stage_hess{gi}", [dq, qr, ps, sigma, lam, nu_s, eta_s], [hess])
+        m = len(knots)
+        cols = [kk - 2 for kk in knots]
+        n_p = ps.numel()
+        Pg = ca.reshape(p_kin[p_offset: p_offset + n_p * m], n_p, m)
+        p_offset += n_p * m
+        L = ca.reshape(lam_kin[g_offset: g_offset + g.numel() * m], g.numel(), m)
+        g_offset += g.numel() * m
+        HS = fn.map(m)(X[:, cols], ca.repmat(q_ref, 1, m), Pg, ca.repmat(lam_f, 1, m), L, nu[:, cols], eta[:, cols])
+        for kk, block in zip(knots, ca.horzsplit(HS, nv), strict=True):
+            blocks[kk] = block
+    return ca.diagcat(*[blocks[kk] for kk in range(2, lay.N)])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1076,16 +1169,23 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
     xk, u, c = x[:n_x], x[n_x:n_x + n_u], x[n_x + n_u:]
     pk, pd = p[:n_p], p[n_p:]
     nq = robot.nq
-    b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:])
+    b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:], kinematic_hessian=False)
     f_k, grad_k = derivatives["grad_f"](xk, pk)
     g_k, jac_k = derivatives["jac_g"](xk, pk)
-    h_k = derivatives["hess_lag"](xk, pk, lam_f, lam_g[:n_g])
+    # chart Hessian: the constant quadratic costs + per-knot blocks (kinematic terms and the
+    # CoM / sole-corner rows together), instead of the kinematic hess_lag plus a second pass
+    from planner.trajopt import _quadratic_operators
+
+    A, P, _ = _quadratic_operators(lay)
+    w_smooth, w_posture, dt = pk[nq], pk[nq + 1], pk[nq + 2]
+    quad = lam_f * (2 * w_smooth / dt**3 * ca.mtimes(A.T, A) + 2 * w_posture * dt * ca.mtimes(P.T, P))
+    h_k = ca.triu(quad + stage_hessians(lay, xk, pk[:nq], pk, lam_f, lam_g[:n_g], b.nu, b.eta))
     f = f_k + b.f
     g = ca.vertcat(g_k, b.g)
     grad = ca.vertcat(grad_k, b.grad_u, b.grad_c)
     jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u + n_m)), ca.horzcat(b.jac_x, b.jac_u, b.jac_c))
     hess = ca.blockcat([
-        [h_k + ca.triu(b.hess_xx), ca.MX(n_x, n_u), ca.MX(n_x, n_m)],
+        [h_k, ca.MX(n_x, n_u), ca.MX(n_x, n_m)],
         [ca.MX(n_u, n_x), ca.triu(b.hess_uu), b.hess_uc],
         [ca.MX(n_m, n_x), ca.MX(n_m, n_u), ca.triu(b.hess_cc)],
     ])
@@ -1465,5 +1565,6 @@ __all__ = [
     "heading_guess",
     "pyramid_edges",
     "sole_corner_heights",
+    "stage_hessians",
     "swinging_corners",
 ]
