@@ -5,6 +5,11 @@ Run from the repository root::
     .venv/bin/python benchmarks/bench_dynamic.py                 # talos + g1, all tasks
     .venv/bin/python benchmarks/bench_dynamic.py --robots talos --tasks steps jump
     .venv/bin/python benchmarks/bench_dynamic.py --json          # machine-readable
+    .venv/bin/python benchmarks/bench_dynamic.py --out benchmarks/results/dynamic_<date>.json
+
+BLAS threads: the script sets ``OMP_NUM_THREADS`` and ``OPENBLAS_NUM_THREADS`` to ``--threads``
+(default 1) before CasADi loads its bundled OpenBLAS, unless they are already set: with 2
+threads the cached 4-step solve used twice the CPU for the same wall time.
 
 Solvers of dynamic specs are built in memory by default (``PlannerSettings.compile_dynamic``);
 ``--compile-dynamic`` compiles them with gcc into the disk cache instead. Each task is compiled
@@ -25,9 +30,13 @@ QUOTED, not measured by this script.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
+import os
+import platform
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -57,6 +66,7 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
             "build_s": p.stats.build_time, "solve_s": p.stats.solve_time, "cache": p.stats.cache,
             "iterations": p.stats.iterations, "ok": p.ok, "status": p.stats.status.value,
+            "objective": p.stats.objective,
         })
     cached = runs[1:] or runs
     rise = None
@@ -72,10 +82,35 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
         "cached_build_s": statistics.median(r["build_s"] for r in cached),
         "cached_solve_s": statistics.median(r["solve_s"] for r in cached),
         "cached_total_s": statistics.median(r["build_s"] + r["solve_s"] for r in cached),
+        "cached_plan_wall_s": statistics.median(r["wall_s"] for r in cached),
         "cached_cpu_s": statistics.median(r["cpu_s"] for r in cached),
         "iterations": cached[-1]["iterations"],
         "flight_rise_m": rise,
         "failed_status": [r["status"] for r in runs if not r["ok"]],
+        "runs": runs,
+    }
+
+
+def machine() -> dict:
+    """CPU model, cores, load, thread settings and the commit the numbers belong to."""
+    model = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+                                check=False).stdout.strip()
+    except OSError:
+        commit = ""
+    return {
+        "cpu": model or platform.processor(), "cores": os.cpu_count(), "load_average": list(os.getloadavg()),
+        "python": platform.python_version(), "commit": commit,
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "threads": {k: os.environ.get(k, "unset") for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")},
     }
 
 
@@ -88,25 +123,37 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--compile-dynamic", action="store_true",
                         help="compile the dynamic solvers with gcc and keep them on disk (minutes per task the first "
                              "time; by default they are built in memory)")
-    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="OMP_NUM_THREADS / OPENBLAS_NUM_THREADS for CasADi's bundled OpenBLAS when not set already")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    parser.add_argument("--out", help="also write the JSON results (with machine, load and thread settings) here")
     args = parser.parse_args(argv)
+    for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):  # before CasADi loads its OpenBLAS
+        os.environ.setdefault(key, str(args.threads))
     sys.path.insert(0, str(ROOT))
     from planner.settings import PlannerSettings
     from robots import load_robot
 
     settings = PlannerSettings(compile_dynamic=args.compile_dynamic)
+    info = machine()
     results = {}
     for name in args.robots:
         robot = load_robot(name)
         for task in args.tasks:
             label, actions = TASKS[task]
             results[f"{name}/{task}"] = {"label": label, **run_task(robot, actions, repeat=args.repeat, settings=settings)}
+    info["load_average_after"] = list(os.getloadavg())
+    document = {"machine": info, "repeat": args.repeat, "results": results, "targets_s": TARGETS,
+                "crocoddyl_fddp_quoted_s": {k: v[1] for k, v in CROCODDYL_QUOTED.items()}}
+    if args.out:
+        Path(args.out).write_text(json.dumps(document, indent=2) + "\n")
     if args.json:
-        print(json.dumps({"results": results, "targets_s": TARGETS,
-                          "crocoddyl_fddp_quoted_s": {k: v[1] for k, v in CROCODDYL_QUOTED.items()}}, indent=2))
+        print(json.dumps(document, indent=2))
         return 0
     print(f"dynamic plans ({'compiled, disk cache' if args.compile_dynamic else 'in-memory solvers'}); times [s], "
-          "wall clock on a shared machine (CPU time in brackets)")
+          f"medians of {args.repeat} cached runs, wall clock (CPU time of the whole plan() call in brackets); "
+          f"threads {info['threads']}, load average {info['load_average'][0]:.2f} -> "
+          f"{info['load_average_after'][0]:.2f}")
     print(f"{'robot/task':<14} {'what':<26} {'knots':>5} {'vars':>6} {'iter':>4}  {'first build':>14}  "
           f"{'cached build+solve':>22}  target   ok")
     for key, r in results.items():

@@ -21,6 +21,9 @@ contact frame (normal :math:`n`, tangents :math:`t_1, t_2`):
 
 so the resultant of one foot's corner forces is a non-negative combination of points of the
 sole: the centre of pressure stays inside the sole rectangle without a separate constraint.
+By default each corner force is written as :math:`f = E\,\lambda`, a combination of the 4
+edges :math:`E` of its pyramid with weights :math:`\lambda \ge 0` (:func:`pyramid_edges`):
+the pyramid is then a variable bound and adds no constraint row.
 An inactive contact has no force variables at all (forces are zero in flight). The rate of
 angular momentum about the CoM that these forces imply,
 
