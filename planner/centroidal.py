@@ -61,6 +61,7 @@ from robots.model import Robot
 from tasks.specs import Contact, Pose, TaskSpec
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2], world frame (z up)
+DYNAMIC_FORMULATION = "lifted-com-2"  # part of a dynamic layout's structure (solver cache key)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1105,9 +1106,10 @@ class DynamicLayout(_layout_class()):  # type: ignore[misc]
         return swinging_corners(self)
 
     def structure(self) -> tuple:
-        """Kinematic structure + the dynamic one."""
-        return (super().structure(), "dynamic", self.pattern().structure, self.corner_rows(),
-                self.centroidal_settings)
+        """Kinematic structure + the dynamic one (with :data:`DYNAMIC_FORMULATION`: the solver
+        cache hashes the planner sources but not this file, so an edited dynamic NLP bumps it)."""
+        return (super().structure(), "dynamic", DYNAMIC_FORMULATION, self.pattern().structure,
+                self.corner_rows(), self.centroidal_settings)
 
     @property
     def n_kinematic(self) -> int:
@@ -1528,6 +1530,7 @@ def contact_geometry_points(robot: Robot, frame: str) -> np.ndarray | None:
 
 
 __all__ = [
+    "DYNAMIC_FORMULATION",
     "GRAVITY",
     "CentroidalSettings",
     "CentroidalFunction",

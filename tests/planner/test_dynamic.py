@@ -168,3 +168,14 @@ def test_g1_jump_and_steps(g1):
     p = _plan(g1, ("step", {"direction": "forward", "length": 0.15, "count": 4}))
     verify(p, g1)
     assert p.com[-1, 0] - p.com[0, 0] == pytest.approx(0.6, abs=0.02)
+
+
+def test_dynamic_plans_are_deterministic(talos):
+    """The same jump planned twice (solver reused from memory) gives bit-identical motions and forces."""
+    a = _plan(talos, ("jump", {"height": 0.05}))
+    b = _plan(talos, ("jump", {"height": 0.05}))
+    assert b.stats.cache == "memory"
+    assert a.stats.iterations == b.stats.iterations
+    np.testing.assert_array_equal(a.q, b.q)
+    for frame in a.extras["corner_forces"]:
+        np.testing.assert_array_equal(a.extras["corner_forces"][frame], b.extras["corner_forces"][frame])
