@@ -22,9 +22,10 @@ problem size. Targets on this machine, cached: 4 steps <= 2 s, jump <= 1.5 s (bu
 of a cached run). Timings are wall-clock on a shared machine; the CPU time is less sensitive
 to other load.
 
-For scale, the issue quotes Crocoddyl's FDDP (full dynamics, C++, single-threaded) on this
-machine: one 2-step Talos walking phase in ~0.3 s and a Talos jump in ~0.4 s. Those figures are
-QUOTED, not measured by this script.
+For scale, Crocoddyl's FDDP (full dynamics, C++, single-threaded) plans one 2-step Talos walking
+phase and a Talos jump in the same run, in its own environment (``.venv-crocoddyl``, made by
+``bash benchmarks/peers/setup.sh crocoddyl``; ``--no-peers`` skips it), and the figures the issue
+quotes for this machine (~0.3 s and ~0.4 s) are printed beside them.
 """
 
 from __future__ import annotations
@@ -50,6 +51,29 @@ TASKS = {
 }
 TARGETS = {"steps": 2.0, "jump": 1.5}  # [s] cached build + solve
 CROCODDYL_QUOTED = {"steps": ("one 2-step Talos walking phase", 0.3), "jump": ("Talos jump", 0.4)}  # [s], quoted
+CROCODDYL_TASKS = {"steps": "walk", "jump": "jump"}  # our task -> crocoddyl_bench.py task
+
+
+def crocoddyl_peer(tasks: list[str], repeats: int) -> dict:
+    """Crocoddyl's FDDP on the matching tasks, in its own environment, or why it cannot run."""
+    import tempfile
+
+    names = [CROCODDYL_TASKS[t] for t in tasks if t in CROCODDYL_TASKS]
+    python = ROOT / ".venv-crocoddyl" / "bin" / "python"
+    if not names:
+        return {"skipped": "no task with a Crocoddyl counterpart"}
+    if not python.exists():
+        return {"skipped": "no .venv-crocoddyl: run `bash benchmarks/peers/setup.sh crocoddyl` once"}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "crocoddyl.json"
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+        cmd = [str(python), str(ROOT / "benchmarks" / "peers" / "crocoddyl_bench.py"), "--repeats", str(repeats),
+               "--tasks", ",".join(names), "--no-legs", "--json", str(out)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+        if proc.returncode != 0 or not out.exists():
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
+            return {"skipped": f"Crocoddyl run failed (exit {proc.returncode}): {tail[0]}"}
+        return json.loads(out.read_text())
 
 
 def run_task(robot, actions, *, repeat: int, settings) -> dict:
@@ -127,6 +151,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="OMP_NUM_THREADS / OPENBLAS_NUM_THREADS for CasADi's bundled OpenBLAS when not set already")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
     parser.add_argument("--out", help="also write the JSON results (with machine, load and thread settings) here")
+    parser.add_argument("--no-peers", action="store_true", help="do not run Crocoddyl (.venv-crocoddyl) beside ours")
     args = parser.parse_args(argv)
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):  # before CasADi loads its OpenBLAS
         os.environ.setdefault(key, str(args.threads))
@@ -143,8 +168,11 @@ def main(argv: list[str] | None = None) -> int:
             label, actions = TASKS[task]
             results[f"{name}/{task}"] = {"label": label, **run_task(robot, actions, repeat=args.repeat, settings=settings)}
     info["load_average_after"] = list(os.getloadavg())
+    talos_tasks = args.tasks if "talos" in args.robots else []
+    croc = {"skipped": "--no-peers"} if args.no_peers else crocoddyl_peer(talos_tasks, max(1, args.repeat))
     document = {"machine": info, "repeat": args.repeat, "results": results, "targets_s": TARGETS,
-                "crocoddyl_fddp_quoted_s": {k: v[1] for k, v in CROCODDYL_QUOTED.items()}}
+                "crocoddyl_fddp_quoted_s": {k: v[1] for k, v in CROCODDYL_QUOTED.items()},
+                "crocoddyl_fddp_measured": croc}
     if args.out:
         Path(args.out).write_text(json.dumps(document, indent=2) + "\n")
     if args.json:
@@ -166,12 +194,17 @@ def main(argv: list[str] | None = None) -> int:
               f"{first['build_s']:8.2f} {first['cache']:<6}  {r['cached_build_s']:5.2f}+{r['cached_solve_s']:5.2f} "
               f"({r['cached_cpu_s']:5.2f} cpu)  {'' if target is None else f'<= {target:g}':<7} "
               f"{'yes' if r['ok'] else 'NO'} {verdict}{extra}")
-    print("\nFor scale (QUOTED from the issue, not measured in this run): Crocoddyl FDDP, full dynamics, C++, "
-          "single-threaded, on this machine:")
+    measured = croc.get("tasks", {}) if isinstance(croc, dict) else {}
+    print("\nFor scale: Crocoddyl FDDP (full dynamics, C++, single-threaded, on the full Talos), measured in this "
+          "run in .venv-crocoddyl" + (f" (not run: {croc['skipped']})" if "skipped" in croc else "")
+          + "; the issue's quoted figures in brackets:")
     for task, (what, seconds) in CROCODDYL_QUOTED.items():
         ours = [r["cached_total_s"] for k, r in results.items() if k == f"talos/{task}"]
         mine = f"ours (talos/{task}, cached): {ours[0]:.2f} s" if ours else "ours: not run"
-        print(f"  {what}: ~{seconds} s   |   {mine}")
+        m = measured.get(CROCODDYL_TASKS[task])
+        theirs = (f"{m['build_s']['median'] + m['solve_s']['median']:.2f} s build + solve, "
+                  f"{m.get('iterations', '?')} iterations" if m else "not measured")
+        print(f"  {what}: Crocoddyl {theirs} [quoted ~{seconds} s]   |   {mine}")
     print("  (Crocoddyl plans one walking phase with a fixed contact sequence by DDP; ours is a whole-body NLP over "
           "the whole motion, with stand phases, CoM dynamics, friction and CoP constraints.)")
     return 0
