@@ -39,7 +39,7 @@ FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same st
 MEMORY_ENTRIES = 64  # solvers kept alive in a process (least recently used dropped first)
 _MEMORY: OrderedDict[str, object] = OrderedDict()
 _LOCK = threading.Lock()
-_SOURCES = ("symbolic.py", "formulation.py", "trajopt.py", "cache.py")
+_SOURCES = ("symbolic.py", "formulation.py", "centroidal.py", "trajopt.py", "cache.py")
 
 
 @functools.cache
