@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 
@@ -68,8 +69,16 @@ def main(argv: list[str] | None = None) -> int:
         return code
 
 
+# BLAS/OpenMP threads for the console script, unless the user set them: IPOPT's MUMPS and the
+# controller's small matrices gain nothing from a second thread here (the 4-step plan used twice
+# the CPU for the same wall time). Set before numpy or CasADi load their BLAS.
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
 def run() -> None:
     """Console-script wrapper: map uncaught exceptions to exit code 1 with a hint."""
+    for name in _THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
     try:
         code = main()
     except SystemExit:
