@@ -30,7 +30,8 @@ class PlannerSettings:
     """How :func:`planner.trajopt.plan` builds and solves the NLP.
 
     Attributes:
-        max_iterations: IPOPT iteration limit.
+        max_iterations: IPOPT iteration limit (feasible plans need <= 30 here; an infeasible one
+            runs to the limit before the diagnosis).
         tolerance: IPOPT convergence tolerance (``tol``) [-].
         constraint_tolerance: IPOPT ``constr_viol_tol`` [constraint units: m, rad].
         print_level: IPOPT print level (0 = silent, 5 = per-iteration table).
@@ -64,7 +65,7 @@ class PlannerSettings:
             :mod:`planner.nominal`).
     """
 
-    max_iterations: int = 200
+    max_iterations: int = 100
     tolerance: float = 1e-6
     constraint_tolerance: float = 1e-7
     print_level: int = 0
