@@ -51,7 +51,7 @@ TASKS: dict[str, str] = {
     "balance": "stand on your left foot",
     "walk": "take two steps forward",
     "turn": "turn left 90 degrees",
-    "jump": "jump 8 cm",
+    "jump": "jump 5 cm",
 }
 QUICK_TASKS = ("squat", "reach")
 SCALING_N = (20, 40, 80, 120, 160)
