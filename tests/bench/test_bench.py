@@ -133,3 +133,14 @@ def test_from_rereads_a_result_and_rejects_other_files(smoke, tmp_path, capsys):
     bad.write_text("{}")
     assert main(["bench", "--from", str(bad)]) == 2
     assert "not a `wbmp bench --json` result" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("task", sorted(bench.TASKS))
+def test_every_task_sentence_compiles_for_the_default_robot(task, talos):
+    """Each task class's sentence parses and compiles on talos (a jump of 8 cm once did not)."""
+    from language import parse
+    from tasks.compose import compile_actions
+
+    spec = compile_actions(parse(bench.TASKS[task]).actions, talos)
+    assert sum(p.duration for p in spec.phases) > 0.0
+    assert spec.dynamic == (task in ("walk", "turn", "jump"))
