@@ -36,7 +36,7 @@ import proxsuite
 
 from planner.exceptions import PlannerError
 from planner.plan import Plan
-from planner.wbc_kernel import FAST_SOLVED, tick_kernel
+from planner.wbc_kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
 from planner.wbc_reference import PlanReference
 from robots.model import Robot
 
@@ -78,6 +78,10 @@ class WbcSettings:
         fast_path: First solve the QP without its inequalities (a reduced KKT system, see
             :mod:`planner.wbc_kernel`); when that solution meets every inequality it is the QP's
             exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
+        active_set_iterations: When that solution violates friction or torque rows, this many
+            active-set iterations on the same reduced system (violated rows held as equalities,
+            rows with wrong-signed multipliers released) before proxsuite is called; a result is
+            accepted only when the full QP's KKT conditions hold. 0 disables it.
     """
 
     backend: str = "proxsuite"
@@ -105,6 +109,7 @@ class WbcSettings:
     max_iter_in: int = 1500
     dense_backend: str = "Automatic"
     fast_path: bool = True
+    active_set_iterations: int = 6
 
     def __post_init__(self) -> None:
         for name in (
@@ -205,6 +210,7 @@ class WholeBodyController:
         self.last: TickInfo | None = None
         self.failures = 0
         self.fast_ticks = 0  # ticks solved exactly without proxsuite (no active inequality)
+        self.active_set_ticks = 0  # ticks solved without proxsuite, some inequalities active
 
     # ------------------------------------------------------------------ reference handling
     def reference_for(self, plan: Plan) -> PlanReference:
@@ -232,6 +238,7 @@ class WholeBodyController:
         self._q0 = np.array(q, dtype=float)
         self.failures = 0
         self.fast_ticks = 0
+        self.active_set_ticks = 0
         self.last = None
 
     # ------------------------------------------------------------------ problem layout
@@ -358,6 +365,8 @@ class WholeBodyController:
         self._xbuf = np.zeros(self.n)
         self._taubuf = np.zeros(self.nu)
         self._fast_path = bool(s.fast_path and s.backend == "proxsuite")
+        self._active_iters = int(s.active_set_iterations) if self._fast_path else 0
+        self._info = np.zeros(2, dtype=np.int64)
         self._l_tau = self.l[16 * nc :]
         self._u_tau = self.u[16 * nc :]
         self._layout = tuple(self._contacts)
@@ -475,6 +484,7 @@ class WholeBodyController:
             self.torque_limits,
             self._tol,
             self._fast_path,
+            self._active_iters,
             pos,
             self._rots,
             self._Ha,
@@ -483,14 +493,20 @@ class WholeBodyController:
             self._a_des,
             self._xbuf,
             self._taubuf,
+            self._info,
         )
-        if status == FAST_SOLVED:
-            self.fast_ticks += 1
+        if status == FAST_SOLVED or status == ACTIVE_SET_SOLVED:
             tau = self._taubuf.copy()
             self._prev_tau = tau
             self._x = self._xbuf.copy()
             self._last_rots = self._rots.copy()
-            self.last = _FAST_TICK
+            if status == FAST_SOLVED:
+                self.fast_ticks += 1
+                self.last = _FAST_TICK
+            else:
+                self.active_set_ticks += 1
+                its, rows = int(self._info[0]), int(self._info[1])
+                self.last = TickInfo(True, its, f"solved with {rows} inequality rows active")
             return tau
         rots = self._rots
         nv = self.nv

@@ -49,6 +49,9 @@ _FAST = {"reassoc", "contract"}
 FAST_SOLVED = 0  # the equality-only solution meets every inequality: it is the QP's solution
 FAST_INEQUALITY = 1  # an inequality is violated: solve the full QP
 FAST_SINGULAR = 2  # the reduced system could not be solved
+ACTIVE_SET_SOLVED = 3  # solved with some friction/torque rows active (KKT conditions verified)
+
+_FACETS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))  # pyramid rows (+-fx or +-fy) - mu fz <= 0
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
@@ -141,6 +144,7 @@ def tick_kernel(
     tau_max,
     tol,
     try_fast,
+    max_active_iters,
     pos,
     rots,
     Ha,
@@ -149,6 +153,7 @@ def tick_kernel(
     a_des,
     x,
     tau,
+    info,
 ):
     """One tick's assembly and (when feasible) solve; see the module docstring.
 
@@ -179,6 +184,8 @@ def tick_kernel(
         tau_max: Torque limits (nv - 6,).
         tol: Feasibility tolerance of the inequality check.
         try_fast: Solve the equality-only QP (otherwise only assemble).
+        max_active_iters: Active-set iterations allowed after an infeasible equality-only
+            solution (0: go straight to the full QP).
         pos, rots: Outputs: frame positions written to ``pos[1:]`` (``pos[0]`` is the CoM, an
             input) and rotations (nf, 3, 3).
         Ha, ga, S, a_des: Outputs for the full QP: Hessian block (nv, nv), gradient (nv,),
@@ -186,10 +193,11 @@ def tick_kernel(
             accelerations (nrow,).
         x, tau: Outputs of the fast path: ``(a, f)`` (nv + 12 nc,) and torques (nv - 6,),
             clipped to ``tau_max``.
+        info: Output (2,): active-set iterations and active inequality rows.
 
     Returns:
-        ``FAST_SOLVED``, ``FAST_INEQUALITY`` or ``FAST_SINGULAR``; always ``FAST_INEQUALITY``
-        when ``try_fast`` is false.
+        ``FAST_SOLVED``, ``ACTIVE_SET_SOLVED``, ``FAST_INEQUALITY`` or ``FAST_SINGULAR``;
+        always ``FAST_INEQUALITY`` when ``try_fast`` is false.
     """
     nv = M.shape[0]
     nrow = J.shape[0]
@@ -304,8 +312,9 @@ def tick_kernel(
             rhs[6 + 6 * si + r] = -a_des[jr0 + r]
     for r in range(ms):
         _forward(L, nv, Y[r])
-    z = ga.copy()
-    _forward(L, nv, z)
+    zg = ga.copy()
+    _forward(L, nv, zg)  # L^-1 g, kept for the active-set stage
+    z = zg.copy()
     Sch = Y @ Y.T
     inv_d = 1.0 / force_reg
     for si in range(ns):
@@ -361,7 +370,236 @@ def tick_kernel(
         if abs(acc) > tau_max[j] + tol:
             feasible = False
         tau[j] = min(max(acc, -tau_max[j]), tau_max[j])
-    return FAST_SOLVED if feasible else FAST_INEQUALITY
+    if feasible:
+        return FAST_SOLVED
+    if max_active_iters > 0 and _active_set(
+        M, h, J, a_des, stance, S, L, zg, force_reg, mu, tau_max, tol, max_active_iters, x, tau, info
+    ):
+        return ACTIVE_SET_SOLVED
+    return FAST_INEQUALITY
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _active_set(M, h, J, a_des, stance, S, L, zg, force_reg, mu, tau_max, tol, max_iters, x, tau, info):
+    """Continue the fast path with some inequality rows held as equalities; True when optimal.
+
+    Starting from the equality-only solution in ``x``, the violated rows become equalities (a
+    corner whose normal force is negative lifts off: its force is 0), the reduced system is
+    solved again (the same range-space method, with the active rows' force parts in ``W``), and
+    rows whose multipliers have the wrong sign are released. A solution is returned only when
+    every KKT condition of the full QP is checked: stationarity holds by construction, every
+    row is met (tolerance ``tol``), active rows hold with equality and their multipliers have
+    the right sign. Otherwise (cycling, singular system, ``max_iters`` reached) the caller
+    solves the full QP.
+    """
+    nv = M.shape[0]
+    nu = nv - 6
+    nc = S.shape[1] // 12
+    nfv = 12 * nc
+    ns = stance.shape[0]
+    inv_d = 1.0 / force_reg
+    off = np.zeros(4 * nc, dtype=np.bool_)  # corner lifted off: f = 0 (3 rows)
+    facet = np.zeros((4 * nc, 4), dtype=np.bool_)  # one pyramid row held at 0
+    t_up = np.zeros(nu, dtype=np.bool_)
+    t_lo = np.zeros(nu, dtype=np.bool_)
+    in_stance = np.zeros(nc, dtype=np.bool_)
+    for si in range(ns):
+        in_stance[stance[si]] = True
+    f = x[nv:].copy()
+    a = x[:nv].copy()
+    dual_ok = False
+    n_rows = 6 + 6 * ns
+    for it in range(max_iters + 1):
+        # ---- primal check of the current (a, f); add the violated rows
+        added = False
+        for i in range(nc):
+            if not in_stance[i]:
+                continue
+            for k in range(4):
+                c = 4 * i + k
+                if off[c]:
+                    continue
+                fx, fy, fz = f[12 * i + 3 * k], f[12 * i + 3 * k + 1], f[12 * i + 3 * k + 2]
+                if fz < -tol:
+                    off[c] = True
+                    facet[c, :] = False
+                    added = True
+                    continue
+                n_active = 0
+                for t in range(4):
+                    if not facet[c, t] and _FACETS[t][0] * fx + _FACETS[t][1] * fy - mu * fz > tol:
+                        facet[c, t] = True
+                        added = True
+                    if facet[c, t]:
+                        n_active += 1
+                if n_active >= 3:  # three or four rows pin the force to 0: the corner is off
+                    off[c] = True
+                    facet[c, :] = False
+        for j in range(nu):
+            tj = h[6 + j]
+            for cc in range(nv):
+                tj += M[6 + j, cc] * a[cc]
+            for cc in range(nfv):
+                tj -= S[6 + j, cc] * f[cc]
+            tau[j] = tj
+            if not t_up[j] and tj > tau_max[j] + tol:
+                t_up[j] = True
+                added = True
+            if not t_lo[j] and -tj > tau_max[j] + tol:
+                t_lo[j] = True
+                added = True
+        if it > 0 and not added and dual_ok:
+            for cc in range(nv):
+                x[cc] = a[cc]
+            for cc in range(nfv):
+                x[nv + cc] = f[cc]
+            for j in range(nu):
+                tau[j] = min(max(tau[j], -tau_max[j]), tau_max[j])
+            info[0] = it
+            info[1] = n_rows - 6 - 6 * ns
+            return True
+        if it == max_iters:
+            return False
+        # ---- rows: dynamics (6), stance contacts (6 each), then the active inequality rows
+        n_rows = 6 + 6 * ns
+        for c in range(4 * nc):
+            if off[c]:
+                n_rows += 3
+            else:
+                for t in range(4):
+                    if facet[c, t]:
+                        n_rows += 1
+        for j in range(nu):
+            if t_up[j]:
+                n_rows += 1
+            if t_lo[j]:
+                n_rows += 1
+        Ba = np.zeros((n_rows, nv))
+        Bf = np.zeros((n_rows, nfv))
+        r = np.zeros(n_rows)
+        has_a = np.zeros(n_rows, dtype=np.bool_)
+        kind = np.zeros(n_rows, dtype=np.int64)  # 0 equality, 1 facet/torque (y >= 0), 2 first row of an off corner
+        for row in range(6):
+            for cc in range(nv):
+                Ba[row, cc] = M[row, cc]
+            for cc in range(nfv):
+                Bf[row, cc] = -S[row, cc]
+            r[row] = -h[row]
+            has_a[row] = True
+        row = 6
+        for si in range(ns):
+            jr0 = 3 + 6 * stance[si]
+            for q in range(6):
+                for cc in range(nv):
+                    Ba[row, cc] = J[jr0 + q, cc]
+                r[row] = a_des[jr0 + q]
+                has_a[row] = True
+                row += 1
+        for c in range(4 * nc):
+            base = 12 * (c // 4) + 3 * (c % 4)
+            if off[c]:
+                kind[row] = 2
+                for q in range(3):
+                    Bf[row, base + q] = 1.0
+                    row += 1
+                continue
+            for t in range(4):
+                if facet[c, t]:
+                    Bf[row, base] = _FACETS[t][0]
+                    Bf[row, base + 1] = _FACETS[t][1]
+                    Bf[row, base + 2] = -mu
+                    kind[row] = 1
+                    row += 1
+        for j in range(nu):
+            for sign in (1.0, -1.0):
+                if (sign > 0 and t_up[j]) or (sign < 0 and t_lo[j]):
+                    for cc in range(nv):
+                        Ba[row, cc] = sign * M[6 + j, cc]
+                    for cc in range(nfv):
+                        Bf[row, cc] = -sign * S[6 + j, cc]
+                    r[row] = tau_max[j] - sign * h[6 + j]
+                    has_a[row] = True
+                    kind[row] = 1
+                    row += 1
+        # ---- range-space solve: (Y Y^T + Bf Bf^T / d) y = -r - Y L^-1 g
+        Y = np.zeros((n_rows, nv))
+        for q in range(n_rows):
+            if has_a[q]:
+                for cc in range(nv):
+                    Y[q, cc] = Ba[q, cc]
+                _forward(L, nv, Y[q])
+        Sch = Y @ Y.T + (Bf @ Bf.T) * inv_d
+        rhs = np.empty(n_rows)
+        for q in range(n_rows):
+            acc = -r[q]
+            for cc in range(nv):
+                acc -= Y[q, cc] * zg[cc]
+            rhs[q] = acc
+        if not _cholesky(Sch, n_rows):
+            return False
+        _forward(Sch, n_rows, rhs)
+        _backward(Sch, n_rows, rhs)  # the multipliers y
+        for cc in range(nv):
+            acc = zg[cc]
+            for q in range(n_rows):
+                acc += Y[q, cc] * rhs[q]
+            a[cc] = -acc
+        _backward(L, nv, a)
+        for cc in range(nfv):
+            acc = 0.0
+            for q in range(n_rows):
+                acc -= Bf[q, cc] * rhs[q]
+            f[cc] = acc * inv_d
+        for cc in range(nv):
+            if not np.isfinite(a[cc]):
+                return False
+        # ---- dual check: release the active row (or lifted-off corner) with the worst multiplier
+        dual_ok = True
+        worst, worst_row = tol, -1
+        for q in range(6 + 6 * ns, n_rows):
+            if kind[q] == 1:
+                bad = -rhs[q]
+            elif kind[q] == 2:  # f_corner = 0 with multiplier nu: nu in the cone of the 4 rows
+                nz = rhs[q + 2]
+                bad = max(nz, abs(rhs[q]) + abs(rhs[q + 1]) + nz / mu)
+            else:
+                continue
+            if bad > worst:
+                worst, worst_row = bad, q
+        if worst_row >= 0:
+            dual_ok = False
+            _release(worst_row, 6 + 6 * ns, off, facet, t_up, t_lo, nc, nu)
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _release(target, first, off, facet, t_up, t_lo, nc, nu):
+    """Drop the active row ``target`` (row order of :func:`_active_set`)."""
+    row = first
+    for c in range(4 * nc):
+        if off[c]:
+            if row == target:
+                off[c] = False
+                return
+            row += 3
+            continue
+        for t in range(4):
+            if facet[c, t]:
+                if row == target:
+                    facet[c, t] = False
+                    return
+                row += 1
+    for j in range(nu):
+        if t_up[j]:
+            if row == target:
+                t_up[j] = False
+                return
+            row += 1
+        if t_lo[j]:
+            if row == target:
+                t_lo[j] = False
+                return
+            row += 1
 
 
 def kernel_ready() -> bool:
