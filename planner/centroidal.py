@@ -1207,14 +1207,36 @@ def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.
                   ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Bounds of the extended NLP from the kinematic ones (force boxes, free CoM, dynamic rows)."""
     pat = lay.pattern()
-    n_z = len(lay.corner_rows())
+    rows = lay.corner_rows()
+    n_z = len(rows)
     n_m = com_rows(lay)
     return (
         np.concatenate([lbx, pat.lower, np.full(n_m, -np.inf)]),
         np.concatenate([ubx, pat.upper, np.full(n_m, np.inf)]),
-        np.concatenate([lbg, pat.lbg, np.zeros(n_m), np.zeros(n_z)]),
+        np.concatenate([lbg, pat.lbg, np.zeros(n_m), swing_corner_floor(lay, rows)]),
         np.concatenate([ubg, pat.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
     )
+
+
+SWING_CLEARANCE = 0.01  # [m] lowest sole corner of a swinging foot, away from lift-off and touch-down
+
+
+def swing_corner_floor(lay: Any, rows: Sequence[tuple[int, int, int]]) -> np.ndarray:
+    """Lower bounds of the swinging sole-corner heights [m].
+
+    0 at the first and last free knot of a swing (the sole may still or already touch there),
+    :data:`SWING_CLEARANCE` in between. With 0 everywhere, a Talos 4-step plan put the swinging
+    toe on the ground two knots (0.15 s) before its touch-down, and the simulation, tracking it
+    within millimetres, touched the floor early: an unplanned contact.
+    """
+    floor = np.zeros(len(rows))
+    n = len(lay.contacts_at)
+    for j, (k, fid, _corner) in enumerate(rows):
+        before = k - 1 >= 0 and fid in lay.contacts_at[k - 1]
+        after = k + 1 >= n or fid in lay.contacts_at[k + 1]
+        if not before and not after:
+            floor[j] = SWING_CLEARANCE
+    return floor
 
 
 def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:

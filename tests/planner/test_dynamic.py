@@ -19,6 +19,7 @@ from planner.trajopt import plan
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.exceptions import TaskDefinitionError
+from planner.centroidal import SWING_CLEARANCE
 from tasks.footsteps import standing_feet
 from tests.tolerances import CONTACT_POS_ATOL, CONTACT_ROT_ATOL
 
@@ -49,13 +50,19 @@ def verify(p, robot) -> dict:
     sole = robot.profile.sole
     frames = {robot.frame(f"{s}_foot"): s for s in ("left", "right")}
     lowest = math.inf
+    # frames in contact at each knot; a phase boundary belongs to both phases (as in the planner)
+    held_at = [{c.frame for side in (-0.5, 0.5) for c in spec.phases[spec.phase_at(max(0.0, float(tk) + side * dt))].contacts}
+               for tk in t]
     for k, qk in enumerate(p.q):
         pin.framesForwardKinematics(model, data, qk)
         held = {c.frame: c for c in spec.phases[spec.phase_at(float(t[k]))].contacts}
         for frame, side in frames.items():
             M = data.oMf[robot.frame_id(frame)]
-            for x, y in sole.corners(side):
-                lowest = min(lowest, float(M.act(np.array([x, y, 0.0]))[2]))
+            heights = [float(M.act(np.array([x, y, 0.0]))[2]) for x, y in sole.corners(side)]
+            lowest = min(lowest, *heights)
+            if all(frame not in held_at[j] for j in range(max(0, k - 1), min(len(t), k + 2))):
+                # mid-swing (not next to a contact knot): the sole clears the ground
+                assert min(heights) >= SWING_CLEARANCE - GROUND_ATOL, (frame, float(t[k]), min(heights))
             if frame in held:  # stance: the sole stays at its placement
                 c = held[frame]
                 target = pin.SE3(pin.rpy.rpyToMatrix(*c.placement.rpy), np.array(c.placement.position))
@@ -179,3 +186,4 @@ def test_dynamic_plans_are_deterministic(talos):
     np.testing.assert_array_equal(a.q, b.q)
     for frame in a.extras["corner_forces"]:
         np.testing.assert_array_equal(a.extras["corner_forces"][frame], b.extras["corner_forces"][frame])
+

@@ -73,3 +73,22 @@ def test_jump_height_bounded_by_leg_torques(talos):
         jump.check({"height": 0.15, "forward": 0.0}, talos)
     assert f"ask for at most {jump.max_jump_height(talos):.2f} m" in str(info.value)
     jump.check({"height": jump.max_jump_height(talos), "forward": 0.0}, talos)  # accepted
+
+
+@pytest.mark.slow
+def test_talos_four_steps_forward_is_certified(talos):
+    """4 steps of 0.15 m in MuJoCo: every check passes, the soles touch down when planned.
+
+    Before the swing-clearance floor (planner.centroidal.SWING_CLEARANCE) the plan put the
+    swinging toe on the ground 0.15 s before its touch-down and the simulation reported an
+    unplanned contact.
+    """
+    spec = compile_actions(
+        [Action(name="step", params={"direction": "forward", "length": 0.15, "count": 4})], talos, dt=0.075
+    )
+    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    assert p.ok, p.summary()
+    ex = simulate(p, talos)
+    assert ex.certificate.ok, ex.certificate.summary()
+    base_advance = ex.q[-1, 0] - ex.q[0, 0]
+    assert base_advance == pytest.approx(0.6, abs=0.05)  # [m] the robot really walked
