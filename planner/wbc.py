@@ -264,7 +264,7 @@ class WholeBodyController:
                 g0[:3, 3 * k : 3 * k + 3] = np.eye(3)
                 g0[3:, 3 * k : 3 * k + 3] = pin.skew(c)
             g0s.append(g0 * self._f_scale)
-        self._g0s = g0s
+        self._g0_arr = np.array(g0s).reshape(nc, 6, 12)  # the kernel's corner-force -> wrench maps
         # frames: contact frames first (stance rows), then hands and spec target frames
         hand_names = [
             self.robot.frame(r) for r in ("left_hand", "right_hand") if self.robot.has_role(r)
@@ -359,7 +359,6 @@ class WholeBodyController:
         self._post_feedforward = ref.a + self._kd_post * ref.v
         self.H[np.diag_indices(self.n)] = self._reg  # the force block keeps it; the a block is rewritten
         self._force_reg = float(self._reg[-1]) if nc else 1.0
-        self._g0_arr = np.array(g0s).reshape(nc, 6, 12)
         self._Ha = np.zeros((nv, nv))
         self._ga = np.zeros(nv)
         self._xbuf = np.zeros(self.n)
@@ -373,8 +372,7 @@ class WholeBodyController:
         self._qp = None
         self._x = np.zeros(self.n)
         self._S = np.zeros((nv, 12 * nc))
-        self._stance: list[int] = []
-        self._stance_arr = np.zeros(0, dtype=np.int64)
+        self._stance = np.zeros(0, dtype=np.int64)  # indices of the stance contacts
 
     def _set_active(self, active: tuple[bool, ...], key: int, ref: PlanReference) -> None:
         """Gains, weights, masks and feed-forward terms for a new set of stance contacts."""
@@ -393,8 +391,7 @@ class WholeBodyController:
         self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
-        self._stance = [i for i, a in enumerate(active) if a]
-        self._stance_arr = np.array(self._stance, dtype=np.int64)
+        self._stance = np.array([i for i, a in enumerate(active) if a], dtype=np.int64)
         for i, a in enumerate(active):
             if not a:
                 self._S[:, 12 * i : 12 * i + 12] = 0.0
@@ -478,7 +475,7 @@ class WholeBodyController:
             self._diag_a,
             self._diag_a_total,
             self._g0_arr,
-            self._stance_arr,
+            self._stance,
             self._force_reg,
             self._mu,
             self.torque_limits,
@@ -571,7 +568,7 @@ class WholeBodyController:
         if self._x is None:
             return out
         f = self._x[self.nv :] * self._f_scale
-        for i in self._stance:
+        for i in self._stance.tolist():
             out[self._contacts[i]] = self._last_rots[i] @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(
                 axis=0
             )

@@ -30,6 +30,14 @@ definite system :math:`(Y^\top Y + \mathrm{diag}(W, 0))\, y = -r - Y^\top L^{-1}
 :math:`a = -L^{-\top}(L^{-1} g + Y y)`: two Cholesky factorizations (38 and 18 on Talos)
 instead of an LU of the whole system, a third of the flops.
 
+When the equality-only solution violates rows, the same solve runs again with the violated
+rows held as equalities (a corner whose normal force is negative lifts off: its force is 0;
+a pyramid row or a torque limit is held at its bound), and the row whose multiplier has the
+wrong sign is released, at most ``max_active_iters`` times. A solution is returned only when
+every KKT condition of the full QP is met: stationarity holds by construction, every row holds
+(tolerance ``tol``), active rows sit at their bounds with correctly signed multipliers.
+Otherwise (cycling, dependent rows, the iteration cap) the caller solves the full QP.
+
 numba compiles the function on first use and caches the machine code beside this file (or in
 the user's cache directory when that is read-only), so later processes load it in well under a
 second.
@@ -293,288 +301,244 @@ def tick_kernel(
     if not try_fast:
         return FAST_INEQUALITY
 
-    # ---- range-space solve of the equality-only QP: H a + g + B^T y = 0, B a - diag(W, 0) y = r
-    ms = 6 + 6 * ns
+    # ---- the equality-only QP, then (if rows are violated) the active-set continuation
     L = Ha.copy()
     if not _cholesky(L, nv):
         return FAST_SINGULAR
-    Y = np.empty((ms, nv))  # rows: columns of L^-1 B^T
-    rhs = np.empty(ms)
-    for r in range(6):
-        for c in range(nv):
-            Y[r, c] = M[r, c]
-        rhs[r] = h[r]  # -r for the dynamics rows (r = -h6)
-    for si in range(ns):
-        jr0 = 3 + 6 * stance[si]
-        for r in range(6):
-            for c in range(nv):
-                Y[6 + 6 * si + r, c] = J[jr0 + r, c]
-            rhs[6 + 6 * si + r] = -a_des[jr0 + r]
-    for r in range(ms):
-        _forward(L, nv, Y[r])
     zg = ga.copy()
-    _forward(L, nv, zg)  # L^-1 g, kept for the active-set stage
-    z = zg.copy()
-    Sch = Y @ Y.T
+    _forward(L, nv, zg)  # L^-1 g
     inv_d = 1.0 / force_reg
+    in_stance = np.zeros(nc, dtype=np.bool_)
     for si in range(ns):
-        i = stance[si]
-        S6 = np.ascontiguousarray(S[:6, 12 * i : 12 * i + 12])
-        W = (S6 @ S6.T) * inv_d
-        for r in range(6):
-            for c in range(6):
-                Sch[r, c] += W[r, c]
-    for r in range(ms):
-        acc = 0.0
-        for c in range(nv):
-            acc += Y[r, c] * z[c]
-        rhs[r] -= acc
-    if not _cholesky(Sch, ms):
-        return FAST_SINGULAR
-    _forward(Sch, ms, rhs)
-    _backward(Sch, ms, rhs)  # rhs is now y
-    for c in range(nv):
-        acc = z[c]
-        for r in range(ms):
-            acc += Y[r, c] * rhs[r]
-        z[c] = -acc
-    _backward(L, nv, z)  # z is now a
-    for c in range(nv):
-        if not np.isfinite(z[c]):
-            return FAST_SINGULAR
-
-    # ---- forces f = S6^T lambda / d, torques, and the inequality check
-    x[:] = 0.0
-    x[:nv] = z
-    feasible = True
-    for si in range(ns):
-        i = stance[si]
-        for c in range(12):
-            acc = 0.0
-            for r in range(6):
-                acc += S[r, 12 * i + c] * rhs[r]
-            x[nv + 12 * i + c] = acc * inv_d
-        for k in range(4):
-            fx = x[nv + 12 * i + 3 * k]
-            fy = x[nv + 12 * i + 3 * k + 1]
-            fz = x[nv + 12 * i + 3 * k + 2]
-            lim = mu * fz + tol
-            if abs(fx) > lim or abs(fy) > lim:
-                feasible = False
-    for j in range(nv - 6):
-        acc = h[6 + j]
-        for c in range(nv):
-            acc += M[6 + j, c] * x[c]
-        for c in range(12 * nc):
-            acc -= S[6 + j, c] * x[nv + c]
-        if abs(acc) > tau_max[j] + tol:
-            feasible = False
-        tau[j] = min(max(acc, -tau_max[j]), tau_max[j])
-    if feasible:
-        return FAST_SOLVED
-    if max_active_iters > 0 and _active_set(
-        M, h, J, a_des, stance, S, L, zg, force_reg, mu, tau_max, tol, max_active_iters, x, tau, info
-    ):
-        return ACTIVE_SET_SOLVED
+        in_stance[stance[si]] = True
+    off = np.zeros(4 * nc, dtype=np.bool_)  # corner lifted off: f = 0 (3 rows)
+    facet = np.zeros((4 * nc, 4), dtype=np.bool_)  # one pyramid row held at 0
+    t_up = np.zeros(nv - 6, dtype=np.bool_)
+    t_lo = np.zeros(nv - 6, dtype=np.bool_)
+    a = np.empty(nv)
+    f = np.empty(12 * nc)
+    first = 6 + 6 * ns
+    for it in range(max_active_iters + 1):
+        Ba, Bf, r, has_a, kind = _rows(M, h, J, a_des, stance, S, mu, tau_max, off, facet, t_up, t_lo)
+        y = _solve_rows(Ba, Bf, r, has_a, L, zg, inv_d, a, f)
+        if y.shape[0] == 0:
+            return FAST_SINGULAR if it == 0 else FAST_INEQUALITY
+        worst_row = _worst_multiplier(y, kind, first, mu, tol)
+        if worst_row >= 0:  # before the additions: row numbers follow this solve's active set
+            _release(worst_row, first, off, facet, t_up, t_lo, nc, nv - 6)
+        added = _add_violations(a, f, M, h, S, in_stance, mu, tau_max, tol, off, facet, t_up, t_lo, tau)
+        if not added and worst_row < 0:
+            x[:nv] = a
+            x[nv:] = f
+            for j in range(nv - 6):
+                tau[j] = min(max(tau[j], -tau_max[j]), tau_max[j])
+            info[0] = it
+            info[1] = Ba.shape[0] - first
+            return FAST_SOLVED if it == 0 else ACTIVE_SET_SOLVED
     return FAST_INEQUALITY
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
-def _active_set(M, h, J, a_des, stance, S, L, zg, force_reg, mu, tau_max, tol, max_iters, x, tau, info):
-    """Continue the fast path with some inequality rows held as equalities; True when optimal.
+def _rows(M, h, J, a_des, stance, S, mu, tau_max, off, facet, t_up, t_lo):
+    """Equality rows of the reduced problem: floating-base dynamics (6), stance contacts (6
+    each), then the active inequality rows (lifted-off corners, pyramid rows, torque limits).
 
-    Starting from the equality-only solution in ``x``, the violated rows become equalities (a
-    corner whose normal force is negative lifts off: its force is 0), the reduced system is
-    solved again (the same range-space method, with the active rows' force parts in ``W``), and
-    rows whose multipliers have the wrong sign are released. A solution is returned only when
-    every KKT condition of the full QP is checked: stationarity holds by construction, every
-    row is met (tolerance ``tol``), active rows hold with equality and their multipliers have
-    the right sign. Otherwise (cycling, singular system, ``max_iters`` reached) the caller
-    solves the full QP.
+    Returns ``Ba`` (rows, nv) and ``Bf`` (rows, 12 nc), the rows' acceleration and force parts;
+    ``r`` the right-hand sides (``Ba a + Bf f = r``); ``has_a`` whether a row has an acceleration
+    part; ``kind``: 0 equality, 1 inequality held at its bound (multiplier >= 0), 2 first of the
+    three rows of a lifted-off corner.
     """
     nv = M.shape[0]
     nu = nv - 6
     nc = S.shape[1] // 12
     nfv = 12 * nc
     ns = stance.shape[0]
-    inv_d = 1.0 / force_reg
-    off = np.zeros(4 * nc, dtype=np.bool_)  # corner lifted off: f = 0 (3 rows)
-    facet = np.zeros((4 * nc, 4), dtype=np.bool_)  # one pyramid row held at 0
-    t_up = np.zeros(nu, dtype=np.bool_)
-    t_lo = np.zeros(nu, dtype=np.bool_)
-    in_stance = np.zeros(nc, dtype=np.bool_)
-    for si in range(ns):
-        in_stance[stance[si]] = True
-    f = x[nv:].copy()
-    a = x[:nv].copy()
-    dual_ok = False
     n_rows = 6 + 6 * ns
-    for it in range(max_iters + 1):
-        # ---- primal check of the current (a, f); add the violated rows
-        added = False
-        for i in range(nc):
-            if not in_stance[i]:
-                continue
-            for k in range(4):
-                c = 4 * i + k
-                if off[c]:
-                    continue
-                fx, fy, fz = f[12 * i + 3 * k], f[12 * i + 3 * k + 1], f[12 * i + 3 * k + 2]
-                if fz < -tol:
-                    off[c] = True
-                    facet[c, :] = False
-                    added = True
-                    continue
-                n_active = 0
-                for t in range(4):
-                    if not facet[c, t] and _FACETS[t][0] * fx + _FACETS[t][1] * fy - mu * fz > tol:
-                        facet[c, t] = True
-                        added = True
-                    if facet[c, t]:
-                        n_active += 1
-                if n_active >= 3:  # three or four rows pin the force to 0: the corner is off
-                    off[c] = True
-                    facet[c, :] = False
-        for j in range(nu):
-            tj = h[6 + j]
-            for cc in range(nv):
-                tj += M[6 + j, cc] * a[cc]
-            for cc in range(nfv):
-                tj -= S[6 + j, cc] * f[cc]
-            tau[j] = tj
-            if not t_up[j] and tj > tau_max[j] + tol:
-                t_up[j] = True
-                added = True
-            if not t_lo[j] and -tj > tau_max[j] + tol:
-                t_lo[j] = True
-                added = True
-        if it > 0 and not added and dual_ok:
-            for cc in range(nv):
-                x[cc] = a[cc]
-            for cc in range(nfv):
-                x[nv + cc] = f[cc]
-            for j in range(nu):
-                tau[j] = min(max(tau[j], -tau_max[j]), tau_max[j])
-            info[0] = it
-            info[1] = n_rows - 6 - 6 * ns
-            return True
-        if it == max_iters:
-            return False
-        # ---- rows: dynamics (6), stance contacts (6 each), then the active inequality rows
-        n_rows = 6 + 6 * ns
-        for c in range(4 * nc):
-            if off[c]:
-                n_rows += 3
-            else:
-                for t in range(4):
-                    if facet[c, t]:
-                        n_rows += 1
-        for j in range(nu):
-            if t_up[j]:
-                n_rows += 1
-            if t_lo[j]:
-                n_rows += 1
-        Ba = np.zeros((n_rows, nv))
-        Bf = np.zeros((n_rows, nfv))
-        r = np.zeros(n_rows)
-        has_a = np.zeros(n_rows, dtype=np.bool_)
-        kind = np.zeros(n_rows, dtype=np.int64)  # 0 equality, 1 facet/torque (y >= 0), 2 first row of an off corner
-        for row in range(6):
-            for cc in range(nv):
-                Ba[row, cc] = M[row, cc]
-            for cc in range(nfv):
-                Bf[row, cc] = -S[row, cc]
-            r[row] = -h[row]
-            has_a[row] = True
-        row = 6
-        for si in range(ns):
-            jr0 = 3 + 6 * stance[si]
-            for q in range(6):
-                for cc in range(nv):
-                    Ba[row, cc] = J[jr0 + q, cc]
-                r[row] = a_des[jr0 + q]
-                has_a[row] = True
-                row += 1
-        for c in range(4 * nc):
-            base = 12 * (c // 4) + 3 * (c % 4)
-            if off[c]:
-                kind[row] = 2
-                for q in range(3):
-                    Bf[row, base + q] = 1.0
-                    row += 1
-                continue
+    for c in range(4 * nc):
+        if off[c]:
+            n_rows += 3
+        else:
             for t in range(4):
                 if facet[c, t]:
-                    Bf[row, base] = _FACETS[t][0]
-                    Bf[row, base + 1] = _FACETS[t][1]
-                    Bf[row, base + 2] = -mu
-                    kind[row] = 1
-                    row += 1
-        for j in range(nu):
-            for sign in (1.0, -1.0):
-                if (sign > 0 and t_up[j]) or (sign < 0 and t_lo[j]):
-                    for cc in range(nv):
-                        Ba[row, cc] = sign * M[6 + j, cc]
-                    for cc in range(nfv):
-                        Bf[row, cc] = -sign * S[6 + j, cc]
-                    r[row] = tau_max[j] - sign * h[6 + j]
-                    has_a[row] = True
-                    kind[row] = 1
-                    row += 1
-        # ---- range-space solve: (Y Y^T + Bf Bf^T / d) y = -r - Y L^-1 g
-        Y = np.zeros((n_rows, nv))
-        for q in range(n_rows):
-            if has_a[q]:
-                for cc in range(nv):
-                    Y[q, cc] = Ba[q, cc]
-                _forward(L, nv, Y[q])
-        Sch = Y @ Y.T + (Bf @ Bf.T) * inv_d
-        rhs = np.empty(n_rows)
-        for q in range(n_rows):
-            acc = -r[q]
-            for cc in range(nv):
-                acc -= Y[q, cc] * zg[cc]
-            rhs[q] = acc
-        if not _cholesky(Sch, n_rows):
-            return False
-        _forward(Sch, n_rows, rhs)
-        _backward(Sch, n_rows, rhs)  # the multipliers y
+                    n_rows += 1
+    for j in range(nu):
+        if t_up[j]:
+            n_rows += 1
+        if t_lo[j]:
+            n_rows += 1
+    Ba = np.zeros((n_rows, nv))
+    Bf = np.zeros((n_rows, nfv))
+    r = np.zeros(n_rows)
+    has_a = np.zeros(n_rows, dtype=np.bool_)
+    kind = np.zeros(n_rows, dtype=np.int64)
+    for row in range(6):
         for cc in range(nv):
-            acc = zg[cc]
-            for q in range(n_rows):
-                acc += Y[q, cc] * rhs[q]
-            a[cc] = -acc
-        _backward(L, nv, a)
+            Ba[row, cc] = M[row, cc]
         for cc in range(nfv):
-            acc = 0.0
-            for q in range(n_rows):
-                acc -= Bf[q, cc] * rhs[q]
-            f[cc] = acc * inv_d
+            Bf[row, cc] = -S[row, cc]
+        r[row] = -h[row]
+        has_a[row] = True
+    row = 6
+    for si in range(ns):
+        jr0 = 3 + 6 * stance[si]
+        for q in range(6):
+            for cc in range(nv):
+                Ba[row, cc] = J[jr0 + q, cc]
+            r[row] = a_des[jr0 + q]
+            has_a[row] = True
+            row += 1
+    for c in range(4 * nc):
+        base = 12 * (c // 4) + 3 * (c % 4)
+        if off[c]:
+            kind[row] = 2
+            for q in range(3):
+                Bf[row, base + q] = 1.0
+                row += 1
+            continue
+        for t in range(4):
+            if facet[c, t]:
+                Bf[row, base] = _FACETS[t][0]
+                Bf[row, base + 1] = _FACETS[t][1]
+                Bf[row, base + 2] = -mu
+                kind[row] = 1
+                row += 1
+    for j in range(nu):
+        for sign in (1.0, -1.0):
+            if (sign > 0 and t_up[j]) or (sign < 0 and t_lo[j]):
+                for cc in range(nv):
+                    Ba[row, cc] = sign * M[6 + j, cc]
+                for cc in range(nfv):
+                    Bf[row, cc] = -sign * S[6 + j, cc]
+                r[row] = tau_max[j] - sign * h[6 + j]
+                has_a[row] = True
+                kind[row] = 1
+                row += 1
+    return Ba, Bf, r, has_a, kind
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _solve_rows(Ba, Bf, r, has_a, L, zg, inv_d, a, f):
+    """Range-space solve of min 1/2 a'Ha + g'a + d/2 |f|^2 s.t. Ba a + Bf f = r.
+
+    With ``H = L L^T``, ``Y = L^-1 Ba^T`` and ``zg = L^-1 g``: the multipliers solve
+    ``(Y^T Y + Bf Bf^T / d) y = -r - Y^T zg``; then ``a = -L^-T (zg + Y y)`` and
+    ``f = -Bf^T y / d``. Writes ``a`` and ``f``; returns ``y`` (empty if the rows are dependent
+    or the result is not finite).
+    """
+    n_rows, nv = Ba.shape
+    Y = np.zeros((n_rows, nv))  # rows: columns of L^-1 Ba^T
+    for q in range(n_rows):
+        if has_a[q]:
+            for cc in range(nv):
+                Y[q, cc] = Ba[q, cc]
+            _forward(L, nv, Y[q])
+    Sch = Y @ Y.T + (Bf @ Bf.T) * inv_d
+    y = np.empty(n_rows)
+    for q in range(n_rows):
+        acc = -r[q]
         for cc in range(nv):
-            if not np.isfinite(a[cc]):
-                return False
-        # ---- dual check: release the active row (or lifted-off corner) with the worst multiplier
-        dual_ok = True
-        worst, worst_row = tol, -1
-        for q in range(6 + 6 * ns, n_rows):
-            if kind[q] == 1:
-                bad = -rhs[q]
-            elif kind[q] == 2:  # f_corner = 0 with multiplier nu: nu in the cone of the 4 rows
-                nz = rhs[q + 2]
-                bad = max(nz, abs(rhs[q]) + abs(rhs[q + 1]) + nz / mu)
-            else:
+            acc -= Y[q, cc] * zg[cc]
+        y[q] = acc
+    if not _cholesky(Sch, n_rows):
+        return np.empty(0)
+    _forward(Sch, n_rows, y)
+    _backward(Sch, n_rows, y)
+    for cc in range(nv):
+        acc = zg[cc]
+        for q in range(n_rows):
+            acc += Y[q, cc] * y[q]
+        a[cc] = -acc
+    _backward(L, nv, a)
+    for cc in range(f.shape[0]):
+        acc = 0.0
+        for q in range(n_rows):
+            acc -= Bf[q, cc] * y[q]
+        f[cc] = acc * inv_d
+    for cc in range(nv):
+        if not np.isfinite(a[cc]):
+            return np.empty(0)
+    return y
+
+
+@njit(cache=True, nogil=True)
+def _worst_multiplier(y, kind, first, mu, tol):
+    """The active inequality row whose multiplier has the most wrong sign (beyond ``tol``), or -1.
+
+    A held row needs ``y >= 0``; a lifted-off corner's multiplier ``nu`` (of ``f = 0``) must lie
+    in the cone of its four pyramid rows: ``nu_z <= 0`` and ``|nu_x| + |nu_y| <= -nu_z / mu``.
+    """
+    worst, worst_row = tol, -1
+    for q in range(first, y.shape[0]):
+        if kind[q] == 1:
+            bad = -y[q]
+        elif kind[q] == 2:
+            nz = y[q + 2]
+            bad = max(nz, abs(y[q]) + abs(y[q + 1]) + nz / mu)
+        else:
+            continue
+        if bad > worst:
+            worst, worst_row = bad, q
+    return worst_row
+
+
+@njit(cache=True, nogil=True)
+def _add_violations(a, f, M, h, S, in_stance, mu, tau_max, tol, off, facet, t_up, t_lo, tau):
+    """Torques of (a, f) into ``tau``; every violated row joins the active set. True if any did.
+
+    A corner with a violated pyramid row and a negative normal force lifts off (f = 0); three
+    or more held rows of one corner pin it to 0 as well.
+    """
+    nv = M.shape[0]
+    nc = in_stance.shape[0]
+    nfv = 12 * nc
+    added = False
+    for i in range(nc):
+        if not in_stance[i]:
+            continue
+        for k in range(4):
+            c = 4 * i + k
+            if off[c]:
                 continue
-            if bad > worst:
-                worst, worst_row = bad, q
-        if worst_row >= 0:
-            dual_ok = False
-            _release(worst_row, 6 + 6 * ns, off, facet, t_up, t_lo, nc, nu)
-    return False
+            fx, fy, fz = f[12 * i + 3 * k], f[12 * i + 3 * k + 1], f[12 * i + 3 * k + 2]
+            violated = False
+            for t in range(4):
+                if not facet[c, t] and _FACETS[t][0] * fx + _FACETS[t][1] * fy - mu * fz > tol:
+                    violated = True
+            if not violated:
+                continue
+            added = True
+            if fz < 0.0:
+                off[c] = True
+                facet[c, :] = False
+                continue
+            n_active = 0
+            for t in range(4):
+                if _FACETS[t][0] * fx + _FACETS[t][1] * fy - mu * fz > tol:
+                    facet[c, t] = True
+                if facet[c, t]:
+                    n_active += 1
+            if n_active >= 3:
+                off[c] = True
+                facet[c, :] = False
+    for j in range(nv - 6):
+        tj = h[6 + j]
+        for cc in range(nv):
+            tj += M[6 + j, cc] * a[cc]
+        for cc in range(nfv):
+            tj -= S[6 + j, cc] * f[cc]
+        tau[j] = tj
+        if not t_up[j] and tj > tau_max[j] + tol:
+            t_up[j] = True
+            added = True
+        if not t_lo[j] and -tj > tau_max[j] + tol:
+            t_lo[j] = True
+            added = True
+    return added
 
 
 @njit(cache=True, nogil=True)
 def _release(target, first, off, facet, t_up, t_lo, nc, nu):
-    """Drop the active row ``target`` (row order of :func:`_active_set`)."""
+    """Drop the active row ``target`` (row order of :func:`_rows`)."""
     row = first
     for c in range(4 * nc):
         if off[c]:
