@@ -237,11 +237,12 @@ def simulate(
             g1, g2 = geom[:, 0], geom[:, 1]
             other = np.where(g1 == floor, g2, np.where(g2 == floor, g1, -1))
             # what touches the floor: sole j -> j, another robot geom -> -1, no floor -> -2
-            touching = set(geom_label[other].tolist())
+            labels = geom_label[other]
+            touching = set(labels.tolist())
             for j in range(n_soles):
                 contact_flags[j, i] = j in touching
             if -1 in touching:
-                for g in other[geom_label[other] == -1].tolist():
+                for g in other[labels == -1].tolist():
                     other_contacts.append((t, sm.geom_body_names[g]))
             mujoco.mj_rnePostConstraint(m, d)  # net contact force per body in cfrc_ext
             forces[:, i] = d.cfrc_ext[foot_bodies, 3:]
