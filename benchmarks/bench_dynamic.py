@@ -56,25 +56,13 @@ CROCODDYL_TASKS = {"steps": "walk", "jump": "jump"}  # our task -> crocoddyl_ben
 
 def crocoddyl_peer(tasks: list[str], repeats: int) -> dict:
     """Crocoddyl's FDDP on the matching tasks, in its own environment, or why it cannot run."""
-    import tempfile
-
     names = [CROCODDYL_TASKS[t] for t in tasks if t in CROCODDYL_TASKS]
-    python = ROOT / ".venv-crocoddyl" / "bin" / "python"
     if not names:
         return {"skipped": "no task with a Crocoddyl counterpart"}
-    if not python.exists():
-        return {"skipped": "no .venv-crocoddyl: run `bash benchmarks/peers/setup.sh crocoddyl` once"}
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "crocoddyl.json"
-        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-        cmd = [str(python), str(ROOT / "benchmarks" / "peers" / "crocoddyl_bench.py"), "--repeats", str(repeats),
-               "--tasks", ",".join(names), "--no-legs", "--json", str(out)]
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
-        if proc.returncode != 0 or not out.exists():
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
-            return {"skipped": f"Crocoddyl run failed (exit {proc.returncode}): {tail[0]}"}
-        return json.loads(out.read_text())
+    sys.path.insert(0, str(ROOT / "benchmarks" / "peers"))
+    from run_peers import run_peer
 
+    return run_peer("crocoddyl", ["--repeats", str(repeats), "--tasks", ",".join(names), "--no-legs"])
 
 def run_task(robot, actions, *, repeat: int, settings) -> dict:
     """Plan one task ``repeat + 1`` times; the first run builds or loads the solver."""
@@ -117,21 +105,15 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
 
 def machine() -> dict:
     """CPU model, cores, load, thread settings and the commit the numbers belong to."""
-    model = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    from wbmp.commands.bench import cpu_model
+
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                                 check=False).stdout.strip()
     except OSError:
         commit = ""
     return {
-        "cpu": model or platform.processor(), "cores": os.cpu_count(), "load_average": list(os.getloadavg()),
+        "cpu": cpu_model(), "cores": os.cpu_count(), "load_average": list(os.getloadavg()),
         "python": platform.python_version(), "commit": commit,
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "threads": {k: os.environ.get(k, "unset") for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")},

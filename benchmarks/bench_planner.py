@@ -58,16 +58,10 @@ def run_child(case: str, cache_dir: str, runs: int) -> list[dict]:
 
 
 def machine() -> dict:
-    model = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    from wbmp.commands.bench import cpu_model
+
     return {
-        "cpu": model or platform.processor(), "cores": os.cpu_count(), "load_average": os.getloadavg(),
+        "cpu": cpu_model(), "cores": os.cpu_count(), "load_average": os.getloadavg(),
         "python": platform.python_version(),
         "threads": {k: os.environ.get(k, "unset") for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")},
         "note": "IPOPT + MUMPS run single-threaded; gcc compiles in one process",

@@ -23,9 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -147,26 +145,10 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings, *, record: bool = Fals
 
 def tsid_peer(ticks: int) -> dict:
     """TSID's tick on the same task, in its own environment (``.venv-tsid``), or why it cannot run."""
-    python = ROOT / ".venv-tsid" / "bin" / "python"
-    if not python.exists():
-        return {
-            "skipped": "no .venv-tsid: run `bash benchmarks/peers/setup.sh tsid` once (TSID's wheel "
-            "crashes with pin 4.1; the setup builds its bindings from source, ~2 min)"
-        }
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "tsid.json"
-        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-        proc = subprocess.run(
-            [str(python), str(ROOT / "benchmarks" / "peers" / "tsid_tick.py"), "--ticks", str(ticks), "--json", str(out)],
-            capture_output=True,
-            text=True,
-            env=env,
-            check=False,
-        )
-        if proc.returncode != 0 or not out.exists():
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
-            return {"skipped": f"TSID run failed (exit {proc.returncode}): {tail[0]}"}
-        return json.loads(out.read_text())
+    sys.path.insert(0, str(ROOT / "benchmarks" / "peers"))
+    from run_peers import run_peer
+
+    return run_peer("tsid", ["--ticks", str(ticks)])
 
 
 def backend_comparison(problems: list) -> dict[str, dict]:

@@ -29,23 +29,39 @@ sys.path.insert(0, str(HERE))
 from common import machine_info, machine_tag  # noqa: E402
 
 
-def _run(peer: str, python: Path, script: str, args: list[str]) -> dict | None:
+PEERS = {  # peer -> (its environment's Python, its script)
+    "crocoddyl": (ROOT / ".venv-crocoddyl" / "bin" / "python", "crocoddyl_bench.py"),
+    "tsid": (ROOT / ".venv-tsid" / "bin" / "python", "tsid_tick.py"),
+}
+
+
+def run_peer(peer: str, args: list[str], *, show_output: bool = False) -> dict:
+    """Run ``peer``'s script in its own environment; its JSON results with the machine facts and
+    the load before and after, or ``{"skipped": reason}`` when it cannot run.
+
+    BLAS/OpenMP threads default to 1 (as in wbmp's own benchmarks) unless set in the environment.
+    With ``show_output`` the script prints to this terminal; otherwise its output is kept, and
+    the last line of it explains a failure.
+    """
+    python, script = PEERS[peer]
     if not python.exists():
-        print(f"{peer}: {python.parent.parent.name} missing; run `bash benchmarks/peers/setup.sh {peer}`",
-              file=sys.stderr)
-        return None
+        return {"skipped": f"{python.parent.parent.name} missing; run `bash benchmarks/peers/setup.sh {peer}`"}
     fd, tmp = tempfile.mkstemp(suffix=".json", prefix=f"wbmp-peer-{peer}-")
     os.close(fd)
     before = machine_info()
-    env = dict(os.environ, OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
-    proc = subprocess.run([str(python), str(HERE / script), *args, "--json", tmp], env=env, check=False)
-    after = os.getloadavg()
-    if proc.returncode != 0:
-        print(f"{peer}: {script} failed (exit {proc.returncode})", file=sys.stderr)
+    env = dict(os.environ)
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        env.setdefault(name, "1")
+    try:
+        proc = subprocess.run([str(python), str(HERE / script), *args, "--json", tmp], env=env,
+                              capture_output=not show_output, text=True, check=False)
+        after = os.getloadavg()
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout or "").strip().splitlines()[-1:] or ["see its output above"]
+            return {"skipped": f"{script} failed (exit {proc.returncode}): {tail[0]}"}
+        data = json.loads(Path(tmp).read_text())
+    finally:
         os.unlink(tmp)
-        return None
-    data = json.loads(Path(tmp).read_text())
-    os.unlink(tmp)
     data.setdefault("machine", before)
     data["loadavg_before"] = before["loadavg"]
     data["loadavg_after"] = list(after)
@@ -65,19 +81,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     args = parser.parse_args(argv)
 
-    jobs = {
-        "crocoddyl": (ROOT / ".venv-crocoddyl" / "bin" / "python", "crocoddyl_bench.py",
-                      ["--repeats", str(args.repeats), "-v"]),
-        "tsid": (ROOT / ".venv-tsid" / "bin" / "python", "tsid_tick.py", ["--ticks", str(args.ticks)]),
-    }
+    jobs = {"crocoddyl": ["--repeats", str(args.repeats), "-v"], "tsid": ["--ticks", str(args.ticks)]}
     ran = 0
     stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d")
-    for peer, (python, script, extra) in jobs.items():
+    for peer, extra in jobs.items():
         if args.only and peer != args.only:
             continue
-        print(f"running {peer} ({script})", file=sys.stderr)
-        data = _run(peer, python, script, extra)
-        if data is None:
+        print(f"running {peer} ({PEERS[peer][1]})", file=sys.stderr)
+        data = run_peer(peer, extra, show_output=True)
+        if "skipped" in data:
+            print(f"{peer}: {data['skipped']}", file=sys.stderr)
             continue
         ran += 1
         latest = args.out / "peers" / f"{peer}.json"
