@@ -66,7 +66,7 @@ def crocoddyl_peer(tasks: list[str], repeats: int) -> dict:
 
 def run_task(robot, actions, *, repeat: int, settings) -> dict:
     """Plan one task ``repeat + 1`` times; the first run builds or loads the solver."""
-    from planner.trajopt import plan
+    from planner import plan
     from tasks.compose import compile_actions
 
     spec = compile_actions(actions, robot)
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):  # before CasADi loads its OpenBLAS
         os.environ.setdefault(key, str(args.threads))
     sys.path.insert(0, str(ROOT))
-    from planner.settings import PlannerSettings
+    from planner import PlannerSettings
     from robots import load_robot
 
     settings = PlannerSettings(compile_dynamic=args.compile_dynamic)

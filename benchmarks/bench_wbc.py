@@ -58,7 +58,7 @@ def _stats(samples: list[float]) -> dict[str, float]:
 def make_plan(robot, kind: str, seconds: float):
     """The benchmark motion: a hand-made right-hand raise, or the trajectory optimizer's wave."""
     if kind == "trajopt":
-        from planner.trajopt import plan as trajopt_plan
+        from planner import plan as trajopt_plan
         from tasks.actions import Action
         from tasks.compose import compile_actions
 

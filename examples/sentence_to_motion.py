@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 from language import parse
-from planner.trajopt import plan
+from planner import plan
 from robots import load_robot
 from tasks.compose import compile_actions
 

@@ -10,7 +10,7 @@ import argparse
 import numpy as np
 import pinocchio as pin
 
-from planner.trajopt import plan
+from planner import plan
 from robots import load_robot
 from tasks import CoMTarget, Contact, FrameTarget, Phase, Pose, TaskSpec
 

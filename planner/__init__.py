@@ -1,14 +1,76 @@
-"""Trajectory optimization (CasADi + IPOPT) and whole-body control for TaskSpecs."""
+"""Trajectory optimization (CasADi + IPOPT) and whole-body control for TaskSpecs.
 
-from planner.exceptions import PlannerError, PlanningFailed, UnsupportedModel
-from planner.plan import ConstraintCheck, Plan, SolverStats, SolveStatus
+The public face of the planner; each name is imported on first access (``import planner`` stays
+cheap: CasADi, numba and proxsuite load only when a name that needs them is used)::
 
-__all__ = [
+    from planner import plan, PlannerSettings, Plan
+
+* :func:`plan` (:mod:`planner.trajopt.api`) turns a ``TaskSpec`` into a :class:`Plan`;
+  :class:`PlannerSettings` configures it.
+* :class:`Plan`, :class:`SolverStats`, :class:`SolveStatus`, :class:`ConstraintCheck`
+  (:mod:`planner.results`) report it.
+* :class:`WholeBodyController` and :class:`WbcSettings` (:mod:`planner.wbc`) track it.
+* :class:`PlannerError` and its subclasses are what the planner raises.
+
+Subpackages: ``planner.trajopt`` (the trajectory optimizer; ``planner.trajopt.centroidal``, its
+dynamic formulation) and ``planner.wbc`` (the whole-body controller). See docs/architecture.md.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from planner.exceptions import PlannerError, PlanningFailed, UnsupportedModel
+    from planner.results import ConstraintCheck, Plan, SolverStats, SolveStatus
+    from planner.trajopt.api import plan
+    from planner.trajopt.centroidal.settings import CentroidalSettings
+    from planner.trajopt.settings import PlannerSettings
+    from planner.wbc.controller import WholeBodyController
+    from planner.wbc.settings import ControllerError, WbcSettings
+
+_EXPORTS = {  # public name -> module that defines it
+    "CentroidalSettings": "planner.trajopt.centroidal.settings",
+    "ConstraintCheck": "planner.results",
+    "ControllerError": "planner.wbc.settings",
+    "Plan": "planner.results",
+    "PlannerError": "planner.exceptions",
+    "PlannerSettings": "planner.trajopt.settings",
+    "PlanningFailed": "planner.exceptions",
+    "SolveStatus": "planner.results",
+    "SolverStats": "planner.results",
+    "UnsupportedModel": "planner.exceptions",
+    "WbcSettings": "planner.wbc.settings",
+    "WholeBodyController": "planner.wbc.controller",
+    "plan": "planner.trajopt.api",
+}
+
+__all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
+    "CentroidalSettings",
     "ConstraintCheck",
+    "ControllerError",
     "Plan",
     "PlannerError",
+    "PlannerSettings",
     "PlanningFailed",
     "SolveStatus",
     "SolverStats",
     "UnsupportedModel",
+    "WbcSettings",
+    "WholeBodyController",
+    "plan",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later accesses skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

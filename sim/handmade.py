@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from planner.plan import Plan, SolverStats, SolveStatus
+from planner import Plan, SolverStats, SolveStatus
 from robots.model import Robot
 from tasks.specs import CoMBounds, CoMTarget, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
 

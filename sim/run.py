@@ -12,10 +12,10 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from planner.plan import Plan
+from planner import Plan
 from planner.wbc import WbcSettings, WholeBodyController
-from planner.wbc_kernel import kernel_ready
-from planner.wbc_reference import PlanReference
+from planner.wbc.kernel import kernel_ready
+from planner.wbc.reference import PlanReference
 from robots.model import Robot
 from sim.certificate import Certificate, Check
 from sim.exceptions import PushParseError, SimError

@@ -136,7 +136,7 @@ def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, t
     Args:
         path: Output file; written atomically (temporary file, then ``os.replace``).
         robot: The robot the plan is for.
-        plan: A :class:`planner.plan.Plan`.
+        plan: A :class:`planner.Plan`.
         execution: Optional simulated execution (a ``sim`` Execution or a mapping with
             ``exec_t``/``exec_q``).
         title: Page title; default the spec's description or name.

@@ -220,7 +220,7 @@ def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_b
 
     Args:
         robot: The robot.
-        plan: A :class:`planner.plan.Plan`.
+        plan: A :class:`planner.Plan`.
         execution: Optional simulated execution.
         port: Web port; default the first free port from 7000.
         open_browser: Also open the page in the default browser.

@@ -1,7 +1,7 @@
 """Numbers every view needs: resampled motions, geometry placements, CoM, ZMP, support polygons.
 
 Everything here is a pure function of explicit objects (a :class:`robots.Robot`, arrays, a
-:class:`planner.plan.Plan`, an execution-like object); nothing draws and nothing is cached
+:class:`planner.Plan`, an execution-like object); nothing draws and nothing is cached
 between calls. The viewers (:mod:`viz.scene`) and the plots (:mod:`viz.plots`) share it so
 that the HTML replay, the live viewer and the PNGs show the same numbers.
 
@@ -62,7 +62,7 @@ def _array(owner: str, name: str, value, ncols: int | None) -> np.ndarray:
 
 
 def plan_motion(robot: Robot, plan) -> Motion:
-    """The planned motion of a :class:`planner.plan.Plan` as a :class:`Motion`.
+    """The planned motion of a :class:`planner.Plan` as a :class:`Motion`.
 
     Raises:
         VizInputError: the plan's arrays do not match the robot.

@@ -363,7 +363,7 @@ def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=N
     Args:
         directory: Output folder (created if missing).
         robot: The robot.
-        plan: A :class:`planner.plan.Plan`.
+        plan: A :class:`planner.Plan`.
         execution: Optional simulated execution (``sim`` Execution or ``exec_*`` mapping).
 
     Returns:

@@ -213,7 +213,7 @@ def add_markers(vis, robot: Robot, plan, *, com: np.ndarray | None = None) -> di
     Args:
         vis: A ``meshcat.Visualizer``.
         robot: The robot.
-        plan: A :class:`planner.plan.Plan`.
+        plan: A :class:`planner.Plan`.
         com: Planned CoM path (T, 3) [m]; default ``plan.com``.
 
     Returns:

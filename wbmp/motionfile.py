@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.plan import ConstraintCheck, Plan, SolverStats, SolveStatus
+from planner import ConstraintCheck, Plan, SolverStats, SolveStatus
 from tasks.serialize import spec_from_json, spec_to_json
 from wbmp.errors import CliError, ExitCode
 

@@ -126,7 +126,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
 
 def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI)."""
-    from planner.trajopt import plan as plan_motion
+    from planner import plan as plan_motion
 
     timings: dict[str, float] = {}
     push = None

@@ -1,7 +1,7 @@
 """Solver cache: build each NLP structure once, reuse it in memory and across processes.
 
-Key: a hash of the model (:func:`planner.symbolic.model_hash`), the layout's structure
-(:meth:`planner.formulation.Layout.structure`), the solver options, the CasADi version and the
+Key: a hash of the model (:func:`planner.trajopt.symbolic.model_hash`), the layout's structure
+(:meth:`planner.trajopt.layout.Layout.structure`), the solver options, the CasADi version and the
 planner sources that shape the NLP (:func:`code_hash`). Values (targets, placements, bounds) are parameters, so every spec
 with the same structure shares one solver.
 
@@ -31,15 +31,19 @@ from pathlib import Path
 
 import casadi as ca
 
-from planner.formulation import Layout
-from planner.settings import PlannerSettings
-from planner.symbolic import model_hash
+from planner.trajopt.layout import Layout
+from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.symbolic import model_hash
 
 FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same structure
 MEMORY_ENTRIES = 64  # solvers kept alive in a process (least recently used dropped first)
 _MEMORY: OrderedDict[str, object] = OrderedDict()
 _LOCK = threading.Lock()
-_SOURCES = ("symbolic.py", "formulation.py", "centroidal.py", "trajopt.py", "cache.py")
+_SOURCES = (  # relative to planner/trajopt/: the files that determine the compiled structure
+    "symbolic.py", "layout.py", "terms.py", "transcription.py", "ipopt.py", "cache.py",
+    "centroidal/settings.py", "centroidal/physics.py", "centroidal/contacts.py", "centroidal/pattern.py",
+    "centroidal/nlp.py", "centroidal/layout.py",
+)
 
 
 @functools.cache
@@ -48,13 +52,13 @@ def code_hash() -> str:
     entry compiled from the old one."""
     h = hashlib.sha256()
     for name in _SOURCES:
-        h.update((Path(__file__).with_name(name)).read_bytes())
+        h.update((Path(__file__).parent / name).read_bytes())
     return h.hexdigest()[:16]
 
 
 def solver_key(lay: Layout, settings: PlannerSettings) -> str:
     """Hash of everything that shapes the solver (not the parameter values)."""
-    from planner.trajopt import ipopt_options
+    from planner.trajopt.ipopt import ipopt_options
 
     h = hashlib.sha256()
     h.update(FORMULATION_VERSION.encode())
@@ -74,7 +78,8 @@ def clear_memory_cache() -> None:
 
 def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None = None):
     """The solver of a layout's structure: from memory, from disk, or freshly built."""
-    from planner.trajopt import Solver, build_nlp, ipopt_options
+    from planner.trajopt.ipopt import ipopt_options
+    from planner.trajopt.transcription import Solver, build_nlp
 
     key = solver_key(lay, settings)
     if settings.use_cache:
@@ -122,7 +127,8 @@ def _sha(path: Path) -> str:
 
 
 def _load_entry(lay: Layout, entry: Path, key: str, settings: PlannerSettings, progress):
-    from planner.trajopt import Solver, ipopt_options, make_nlp_layout
+    from planner.trajopt.ipopt import ipopt_options
+    from planner.trajopt.transcription import Solver, make_nlp_layout
 
     lib, meta_path = entry / LIBRARY, entry / META
     if not entry.exists():
@@ -155,7 +161,8 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
     Returns the in-memory solver (compiled or not); a failed compilation only means that the
     next process builds again.
     """
-    from planner.trajopt import Solver, ipopt_options
+    from planner.trajopt.ipopt import ipopt_options
+    from planner.trajopt.transcription import Solver
 
     builder = ca.nlpsol("wbmp_plan", "ipopt", nlp, {**ipopt_options(settings), **derivatives})
     solver = Solver(function=builder, nlp_layout=nl, origin="built")
@@ -218,10 +225,10 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
 
 
 def _spawn_finisher(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, settings: PlannerSettings) -> None:
-    """Start ``python -m planner.cache`` detached from this process to finish an entry."""
+    """Start ``python -m planner.trajopt.cache`` detached from this process to finish an entry."""
     import sys
 
-    args = [sys.executable, "-m", "planner.cache", str(tmp), str(entry), key, str(n_x), str(n_g),
+    args = [sys.executable, "-m", "planner.trajopt.cache", str(tmp), str(entry), key, str(n_x), str(n_g),
             str(settings.compile_timeout), *settings.compile_flags]
     _FINISHERS[:] = [p for p in _FINISHERS if p.poll() is None]  # reap the ones that ended
     _FINISHERS.append(subprocess.Popen(

@@ -1,4 +1,4 @@
-"""Constraint report and failure diagnosis, with Pinocchio numerics (independent of CasADi).
+"""Constraint report and prechecks, with Pinocchio numerics (independent of CasADi).
 
 * :func:`check_plan`: every constraint group's worst violation over the horizon, its unit
   and time (stance soles, swing clearance, CoM support polygon and box, frame and CoM
@@ -6,22 +6,18 @@
 * :func:`precheck`: contradictions visible before solving (a first phase whose contacts are
   not where the robot stands, a support polygon narrower than twice the margin, a CoM box
   that misses the polygon, a target before the robot can move).
-* :func:`diagnose_failure`: after a failed solve, a sentence in task terms. Hard targets are
-  relaxed into costs and the problem is solved again: a target still missed by more than its
-  tolerance is the culprit, and the relaxed solution tells by how much.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 import pinocchio as pin
 
-from planner.formulation import Layout, halfplanes, knots_of, placement_of, support_polygon
-from planner.plan import ConstraintCheck, Plan
-from planner.settings import PlannerSettings
+from planner.results import ConstraintCheck
+from planner.trajopt.layout import Layout, halfplanes, knots_of, placement_of, support_polygon
+from planner.trajopt.settings import PlannerSettings
 from tasks.specs import Priority
 
 START_TOLERANCE = 1e-3  # [m], [rad]: first-phase contacts vs the standing soles
@@ -238,68 +234,3 @@ def precheck(lay: Layout) -> str:
 
 def _fmt(v) -> str:
     return "-inf" if v is None else f"{v:.3f}"
-
-
-RELAXED_WEIGHT = 1e4  # [1/m^2] weight of a hard target turned into a cost while diagnosing
-
-
-def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: dict) -> str:
-    """Explain a failed solve in task terms (which item, when, by how much)."""
-    from planner.formulation import make_layout
-    from planner.trajopt import _make_plan, solve_layout
-
-    spec = lay.spec
-    hard = [tg for tg in spec.targets if tg.priority is Priority.HARD]
-    hard_com = [tg for tg in spec.com_targets if tg.priority is Priority.HARD]
-    if settings.diagnose and (hard or hard_com):
-        relaxed_spec = dataclasses.replace(
-            spec,
-            targets=tuple(dataclasses.replace(tg, priority=Priority.SOFT, weight=RELAXED_WEIGHT) if tg in hard else tg
-                          for tg in spec.targets),
-            com_targets=tuple(dataclasses.replace(tg, priority=Priority.SOFT, weight=RELAXED_WEIGHT)
-                              if tg in hard_com else tg for tg in spec.com_targets),
-        )
-        relaxed_lay = make_layout(relaxed_spec, lay.robot)
-        dq, stats, _ = solve_layout(relaxed_lay, dataclasses.replace(settings, compile=False))
-        if stats.status.ok:
-            relaxed = _make_plan(relaxed_lay, dq, stats, settings)
-            misses = []
-            for chk in relaxed.checks:
-                item = _target_of(chk.name, hard, hard_com)
-                if item is None:
-                    continue
-                tol = item.tolerance if "orientation" not in chk.name else item.orientation_tolerance
-                if chk.violation > tol:
-                    misses.append((chk.violation - tol, chk, item))
-            if misses:
-                misses.sort(key=lambda m: -m[0])
-                gap, chk, item = misses[0]
-                unit = "rad" if chk.unit == "rad" else "m"
-                text = (f"{chk.name} is {gap:.2f} {unit} beyond reach at t = {chk.time:.2f} s "
-                        f"(closest {chk.violation:.2f} {unit}, tolerance {tol:g} {unit})")
-                if len(misses) > 1:
-                    text += "; also " + ", ".join(f"{m[1].name} ({m[0]:.2f} {m[1].unit})" for m in misses[1:])
-                return text
-    # no target to blame: the worst violated group at the returned point
-    bad = sorted((c for c in failed.checks if not c.ok), key=lambda c: -(c.violation / max(c.tolerance, 1e-12)))
-    status = failed.stats.status.value
-    if not bad:
-        return f"the solver stopped: {status} ({failed.stats.raw_status}) after {failed.stats.iterations} iterations"
-    c = bad[0]
-    phase = spec.phases[spec.phase_at(c.time)].name
-    if c.name.startswith("CoM bound"):
-        name = c.name.split(" support polygon")[0].split(" box")[0]
-        return (f"{name} cannot hold in phase {phase!r}: the CoM ends {c.violation:.3f} m outside at "
-                f"t = {c.time:.2f} s ({status})")
-    return (f"{c.name} violated by {c.violation:.3g} {c.unit} at t = {c.time:.2f} s in phase {phase!r} "
-            f"({status})")
-
-
-def _target_of(check_name: str, hard, hard_com):
-    for tg in hard:
-        if check_name.endswith(f"target {tg.name!r}"):
-            return tg
-    for tg in hard_com:
-        if check_name == f"CoM target {tg.name!r}":
-            return tg
-    return None

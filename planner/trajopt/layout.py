@@ -13,14 +13,18 @@ Each spec item becomes :class:`Term`\\ s at knots. A term separates
   bounds as ``lbg``/``ubg``), which change from solve to solve without a rebuild.
 
 One function per formulation piece (contacts, swing clearance, balance, frame targets, CoM
-targets, joint targets). CoM dynamics with contact forces (``spec.dynamic``) would add pieces
-with their own variables in the same way.
+targets, joint targets). CoM dynamics with contact forces (``spec.dynamic``) add pieces with
+their own variables through the formulation protocol (:mod:`planner.trajopt.formulation`):
+:class:`Layout` is the kinematic formulation, ``planner.trajopt.centroidal.layout.DynamicLayout``
+the dynamic one.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -29,6 +33,10 @@ from planner.exceptions import PlannerError
 from robots.model import Robot
 from robots.polygon import convex_hull
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
+
+if TYPE_CHECKING:
+    from planner.results import ConstraintCheck, Plan
+    from planner.trajopt.settings import PlannerSettings
 
 INF = math.inf
 MIN_INTERVALS = 4  # the rest constraints use two knots at each end
@@ -121,6 +129,54 @@ class Layout:
     def phase_name(self, k: int) -> str:
         """Name of the phase at knot ``k``."""
         return self.spec.phases[self.phase_of_knot[k]].name
+
+    # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
+    # The kinematic formulation: no variables, rows or parameters beyond the chart's; the
+    # dynamic one (planner.trajopt.centroidal.layout.DynamicLayout) overrides every method.
+
+    def extra_sizes(self) -> tuple[int, int]:
+        """(variables, constraint rows) the formulation adds after the kinematic ones."""
+        return 0, 0
+
+    def extend_nlp(self, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
+        """The NLP ``{x, p, f, g}`` and its derivative functions, extended by the formulation."""
+        return nlp, derivatives
+
+    def extend_parameters(self, p: np.ndarray) -> np.ndarray:
+        """The parameter vector, extended by the formulation."""
+        return p
+
+    def extend_bounds(self, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
+                      ubg: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(lbx, ubx, lbg, ubg), extended by the formulation."""
+        return lbx, ubx, lbg, ubg
+
+    def initial_guess(self, settings: PlannerSettings | None = None) -> np.ndarray:
+        """The solver's starting point: the nominal motion when ``settings.warm_start`` asks for it,
+        else rest (``dq = 0``)."""
+        if settings is not None and settings.warm_start == "nominal":
+            from planner.trajopt.nominal import nominal_motion
+
+            return nominal_motion(self)[2:self.N].ravel()
+        return np.zeros(self.robot.nv * (self.N - 2))
+
+    def forces_of(self, x: np.ndarray) -> np.ndarray | None:
+        """Contact-force variables of a solution ``x`` (None: the formulation has none)."""
+        return None
+
+    def plan_checks(self, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
+                    checks: list[ConstraintCheck], settings: PlannerSettings) -> list[ConstraintCheck]:
+        """The constraint report of a plan, with the formulation's own checks."""
+        return checks
+
+    def plan_forces(self, forces: np.ndarray | None) -> tuple[dict, dict]:
+        """(net force per contact frame for :attr:`Plan.forces`, extra entries for :attr:`Plan.extras`)."""
+        return {}, {}
+
+    def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
+        """A failed plan in task terms; ``relaxed`` runs the generic diagnosis (hard targets relaxed
+        into costs and solved again), which is the kinematic formulation's."""
+        return relaxed()
 
 
 def placement_of(pose) -> pin.SE3:

@@ -11,11 +11,15 @@ is used instead for that keyframe.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
 
-from planner.formulation import Layout
-from planner.symbolic import configuration_to_chart
+from planner.trajopt.symbolic import configuration_to_chart
+
+if TYPE_CHECKING:
+    from planner.trajopt.layout import Layout
 
 IK_ITERATIONS = 30
 IK_DAMPING = 1e-3

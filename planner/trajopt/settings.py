@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from planner.centroidal import CentroidalSettings
+from planner.trajopt.centroidal.settings import CentroidalSettings
 
 
 def default_cache_dir() -> str:

@@ -26,121 +26,21 @@ previous solution (DESIGN.md section 4). Any other backend name goes through ``q
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 import proxsuite
 
-from planner.exceptions import PlannerError
-from planner.plan import Plan
-from planner.wbc_kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
-from planner.wbc_reference import PlanReference
+from planner.results import Plan
+from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
+from planner.wbc.reference import PlanReference
+from planner.wbc.settings import ControllerError, WbcSettings
 from robots.model import Robot
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
-
-
-class ControllerError(PlannerError):
-    """The whole-body controller was misconfigured (unknown backend, bad reference)."""
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class WbcSettings:
-    """Weights, gains and solver options of the whole-body controller.
-
-    Gains are stiffnesses [1/s^2]; each damping is :math:`2\\sqrt{K_p}` (critical).
-
-    Attributes:
-        backend: ``"proxsuite"`` (persistent dense solver, warm-started) or a ``qpsolvers``
-            solver name (``"proxqp"``, ``"daqp"``, ``"quadprog"``, ``"osqp"``...).
-        dt: Controller period [s]; the reference is sampled on this grid.
-        com_weight, hand_weight, foot_weight, base_weight, posture_weight: Task weights [-].
-        orientation_factor: Orientation rows of frame tasks get ``weight * orientation_factor``.
-        force_weight: Regularization of corner forces [1/N^2].
-        acceleration_weight: Regularization of accelerations [-].
-        com_kp, frame_kp, foot_kp, base_kp, posture_kp: PD stiffnesses [1/s^2].
-        contact_kp: Baumgarte stiffness on stance-sole drift [1/s^2].
-        friction_scale: Fraction of the friction coefficient the controller may use [-].
-        cop_margin: The corner forces act this far inside the sole rectangle, which keeps the centre
-            of pressure off the sole's edges [m].
-        torque_scale: Fraction of each torque limit the controller may use [-]. 0.97 by
-            default: the certificate flags torques above 98 % of the limit as saturation, and a
-            jump's push-off uses every newton-metre the QP allows (100 % with 1.0).
-        com_drift: Include the CoM velocity-product term (one extra Pinocchio call, ~7 us).
-        eps_abs: QP absolute tolerance. max_iter, max_iter_in: proxsuite outer / inner iteration caps
-            (they bound the cost of a failing tick).
-        dense_backend: proxsuite dense factorization: ``Automatic``, ``PrimalDualLDLT`` or ``PrimalLDLT``.
-        fast_path: First solve the QP without its inequalities (a reduced KKT system, see
-            :mod:`planner.wbc_kernel`); when that solution meets every inequality it is the QP's
-            exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
-        active_set_iterations: When that solution violates friction or torque rows, this many
-            active-set iterations on the same reduced system (violated rows held as equalities,
-            rows with wrong-signed multipliers released) before proxsuite is called; a result is
-            accepted only when the full QP's KKT conditions hold. 0 disables it.
-    """
-
-    backend: str = "proxsuite"
-    dt: float = 0.001
-    com_weight: float = 10.0
-    hand_weight: float = 1.0
-    foot_weight: float = 10.0
-    base_weight: float = 1.0
-    posture_weight: float = 1e-3
-    orientation_factor: float = 0.1
-    force_weight: float = 1e-7
-    acceleration_weight: float = 1e-6
-    com_kp: float = 100.0
-    frame_kp: float = 400.0
-    foot_kp: float = 200.0
-    base_kp: float = 100.0
-    posture_kp: float = 100.0
-    contact_kp: float = 10.0
-    friction_scale: float = 0.9
-    cop_margin: float = 0.0
-    torque_scale: float = 0.97
-    com_drift: bool = True
-    eps_abs: float = 1e-6
-    max_iter: int = 50
-    max_iter_in: int = 1500
-    dense_backend: str = "Automatic"
-    fast_path: bool = True
-    active_set_iterations: int = 6
-
-    def __post_init__(self) -> None:
-        for name in (
-            "com_weight",
-            "hand_weight",
-            "foot_weight",
-            "base_weight",
-            "posture_weight",
-            "orientation_factor",
-            "force_weight",
-            "acceleration_weight",
-            "com_kp",
-            "frame_kp",
-            "foot_kp",
-            "base_kp",
-            "posture_kp",
-            "contact_kp",
-        ):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ControllerError(
-                    f"WbcSettings.{name} must be a finite number >= 0, got {value!r}"
-                )
-        if not (self.force_weight > 0 and self.acceleration_weight > 0):
-            raise ControllerError("WbcSettings: force_weight and acceleration_weight must be > 0")
-        if not 0 < self.friction_scale <= 1 or not 0 < self.torque_scale:
-            raise ControllerError(
-                "WbcSettings: friction_scale must be in (0, 1] and torque_scale > 0"
-            )
-        if not self.dt > 0:
-            raise ControllerError(f"WbcSettings.dt must be > 0 s, got {self.dt!r}")
 
 
 class TickInfo(NamedTuple):

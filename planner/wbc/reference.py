@@ -25,7 +25,7 @@ from scipy.interpolate import CubicSpline
 from scipy.linalg import solve_banded
 from scipy.spatial import ConvexHull, QhullError
 
-from planner.plan import Plan
+from planner.results import Plan
 from robots.model import Robot
 
 

@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from planner.cache import clear_memory_cache, get_solver, solver_key
-from planner.formulation import make_layout
-from planner.settings import PlannerSettings
-from planner.trajopt import plan
+from planner.trajopt.cache import clear_memory_cache, get_solver, solver_key
+from planner.trajopt.layout import make_layout
+from planner import PlannerSettings
+from planner import plan
 from tests.planner.planning_cases import squat_spec
 
 
@@ -73,7 +73,7 @@ def test_corrupt_library_is_rebuilt_not_trusted(cached, talos):
 
 def test_stale_entry_is_deleted(cached, talos):
     """An entry whose recorded key differs (stale) is refused and removed; the next get rebuilds."""
-    from planner.cache import _load_entry
+    from planner.trajopt.cache import _load_entry
 
     settings, spec, _ = cached
     lay = make_layout(spec, talos)

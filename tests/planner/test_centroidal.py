@@ -9,7 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner.centroidal import (
+from planner.trajopt.centroidal import (
     GRAVITY,
     CentroidalSettings,
     angular_momentum_rate,
@@ -340,8 +340,8 @@ def test_edge_weights_give_the_dynamics_and_the_corner_forces(talos, rng):
 
 def test_layout_contacts_hold_at_both_ends_of_a_phase(talos):
     """On a step spec, the lift-off and touch-down knots carry both feet; single support one."""
-    from planner.centroidal import layout_contacts
-    from planner.formulation import make_layout
+    from planner.trajopt.centroidal import layout_contacts
+    from planner.trajopt.layout import make_layout
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
@@ -362,9 +362,9 @@ def test_layout_contacts_hold_at_both_ends_of_a_phase(talos):
 
 def test_heading_guess_follows_the_feet(talos):
     """After a 90 deg turn the guessed base yaw is 90 deg; the first two knots are not moved."""
-    from planner.centroidal import heading_guess
-    from planner.formulation import make_layout
-    from planner.symbolic import chart_to_configuration
+    from planner.trajopt.centroidal import heading_guess
+    from planner.trajopt.layout import make_layout
+    from planner.trajopt.symbolic import chart_to_configuration
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
@@ -386,8 +386,8 @@ def test_heading_guess_follows_the_feet(talos):
 
 def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
     """Standing still: the weight split over the 8 corners passes every check; a sliding force fails friction."""
-    from planner.centroidal import centroidal_function, dynamic_checks
-    from planner.formulation import make_layout
+    from planner.trajopt.centroidal import centroidal_function, dynamic_checks
+    from planner.trajopt.layout import make_layout
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
@@ -429,8 +429,8 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
 
 def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
     """Hand-assembled gradient, Jacobian and Lagrangian Hessian equal CasADi AD at a random point."""
-    from planner.centroidal import centroidal_function, dynamic_blocks
-    from planner.formulation import make_layout
+    from planner.trajopt.centroidal import centroidal_function, dynamic_blocks
+    from planner.trajopt.layout import make_layout
 
     feet = _feet(talos)
     spec = TaskSpec(robot="talos", phases=(
@@ -472,7 +472,7 @@ def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
 
 def test_pattern_matches_the_symbolic_terms(talos):
     """The cheap numeric pattern has the terms' exact bounds, guess, values, rows and indices."""
-    from planner.centroidal import centroidal_pattern
+    from planner.trajopt.centroidal import centroidal_pattern
 
     feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.2))
     sets = [feet, feet, (feet[0],), (), (feet[1],), feet, feet]
@@ -498,9 +498,9 @@ def test_extended_nlp_derivatives_match_automatic_differentiation(talos, rng):
     merged with the CoM rows, soft CoM targets split into J^T J + curvature) equal CasADi AD of
     its cost and rows at a random point, on a spec with double and single support (a swinging
     foot, soft CoM centring) and a flight knot."""
-    from planner.centroidal import initial_guess, to_dynamic_layout
-    from planner.formulation import make_layout
-    from planner.trajopt import build_nlp, parameter_values
+    from planner.trajopt.centroidal import initial_guess, to_dynamic_layout
+    from planner.trajopt.layout import make_layout
+    from planner.trajopt.transcription import build_nlp, parameter_values
 
     feet = _feet(talos)
     spec = TaskSpec(robot="talos", phases=(

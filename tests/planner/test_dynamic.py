@@ -14,19 +14,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner.settings import PlannerSettings
-from planner.trajopt import plan
+from planner import PlannerSettings
+from planner import plan
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.exceptions import TaskDefinitionError
-from planner.centroidal import SWING_CLEARANCE
+from planner.trajopt.centroidal import SWING_CLEARANCE
 from tasks.footsteps import standing_feet
 from tests.tolerances import CONTACT_POS_ATOL, CONTACT_ROT_ATOL
-
-import planner.trajopt as _trajopt  # noqa: E402
-
-if not hasattr(_trajopt, "centroidal"):  # until planner.trajopt integrates planner.centroidal
-    pytest.skip("planner.trajopt does not model CoM dynamics yet", allow_module_level=True)
 
 SETTINGS = PlannerSettings(compile=False)  # in-memory solvers: no gcc in the test loop
 G = 9.81

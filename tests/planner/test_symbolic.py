@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from planner.exceptions import UnsupportedModel
-from planner.symbolic import (
+from planner.trajopt.symbolic import (
     SymbolicKinematics,
     chart_to_configuration,
     configuration_to_chart,

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from planner.exceptions import PlannerError, PlanningFailed
-from planner.settings import PlannerSettings
-from planner.trajopt import plan
+from planner import PlannerSettings
+from planner import plan
 from robots import FrameNotFound
 from tasks.specs import CoMBounds, Phase, Priority
 from tests.planner.planning_cases import assert_plan_meets_spec, reach_spec, squat_spec
@@ -196,9 +196,9 @@ def test_nominal_keyframe_meets_contacts_and_target(talos):
     """The inverse kinematics keyframe holds both soles (1 mm) and puts the CoM at the squat depth."""
     import pinocchio as pin
 
-    from planner.formulation import make_layout
-    from planner.nominal import nominal_motion
-    from planner.symbolic import chart_to_configuration
+    from planner.trajopt.layout import make_layout
+    from planner.trajopt.nominal import nominal_motion
+    from planner.trajopt.symbolic import chart_to_configuration
 
     spec = squat_spec(talos, 0.15)
     lay = make_layout(spec, talos)

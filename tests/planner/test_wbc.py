@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from planner.wbc import ControllerError, WbcSettings, WholeBodyController
-from planner.wbc_reference import PlanReference
+from planner.wbc.reference import PlanReference
 from sim.handmade import arm_plan, standing_plan
 
 DYNAMICS_ATOL = 1e-4  # [N, N m] QP tolerance 1e-6 on scaled variables, times ~100 N per unit
@@ -152,7 +152,7 @@ def test_hand_task_pulls_the_hand_towards_its_reference(talos, arm):
 
 def test_balance_filter_keeps_a_feasible_com_and_moves_an_infeasible_one(talos, arm):
     """A zero ZMP shift returns the plan's CoM exactly; a shifted ZMP is realized by the new CoM."""
-    from planner.wbc_reference import balance_com, project_into_polygon
+    from planner.wbc.reference import balance_com, project_into_polygon
 
     ref = PlanReference(arm, talos, zmp_margin=None)
     same = balance_com(ref.plan_com, np.zeros((ref.n, 2)), ref.dt)

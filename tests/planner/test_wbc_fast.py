@@ -9,7 +9,7 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from planner.wbc import WbcSettings, WholeBodyController
-from planner.wbc_kernel import _log3_quat
+from planner.wbc.kernel import _log3_quat
 from sim import build_model
 from sim.handmade import arm_plan
 

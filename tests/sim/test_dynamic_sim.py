@@ -1,7 +1,7 @@
 """Dynamic motions in MuJoCo: a planned 5 cm jump on Talos is certified, with a real flight.
 
 Also the pieces that make it work, checked with numbers: the ballistic CoM reference of a
-flight (planner.wbc_reference) and the torque bound of the jump primitive.
+flight (planner.wbc.reference) and the torque bound of the jump primitive.
 """
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planner.settings import PlannerSettings
-from planner.trajopt import plan
-from planner.wbc_reference import PlanReference
+from planner import PlannerSettings
+from planner import plan
+from planner.wbc.reference import PlanReference
 from sim import simulate
 from tasks.actions import Action
 from tasks.compose import compile_actions
@@ -79,7 +79,7 @@ def test_jump_height_bounded_by_leg_torques(talos):
 def test_talos_four_steps_forward_is_certified(talos):
     """4 steps of 0.15 m in MuJoCo: every check passes, the soles touch down when planned.
 
-    Before the swing-clearance floor (planner.centroidal.SWING_CLEARANCE) the plan put the
+    Before the swing-clearance floor (planner.trajopt.centroidal.SWING_CLEARANCE) the plan put the
     swinging toe on the ground 0.15 s before its touch-down and the simulation reported an
     unplanned contact.
     """

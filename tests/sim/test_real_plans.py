@@ -10,7 +10,7 @@ pytestmark = pytest.mark.slow
 
 
 def _plan(robot, name: str, **params):
-    from planner.trajopt import plan
+    from planner import plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
 

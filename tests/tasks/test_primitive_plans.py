@@ -22,7 +22,7 @@ from tasks.primitives import standing_geometry
 from tasks.primitives.geometry import inside_polygon_margin, sole_polygon
 from tasks.primitives.wave import wave_geometry
 
-planner_trajopt = pytest.importorskip("planner.trajopt")
+planner_trajopt = pytest.importorskip("planner")
 
 DT = 0.1  # [s] knot spacing of the plans under test
 HARD_SLACK = 1e-4  # [m, rad] solver tolerance on top of a hard target's own tolerance
@@ -31,7 +31,7 @@ HARD_SLACK = 1e-4  # [m, rad] solver tolerance on top of a hard target's own tol
 @pytest.fixture(scope="session")
 def solve():
     """``solve(robot, actions) -> (spec, plan)``, each distinct request solved once."""
-    from planner.settings import PlannerSettings
+    from planner import PlannerSettings
 
     cache: dict = {}
     settings = PlannerSettings(compile=False)
@@ -264,7 +264,7 @@ def test_wave_while_squatting_in_one_plan(g1, solve):
 def test_reach_out_of_range_is_explained_by_the_planner(talos):
     """A base-frame point 1.5 m ahead is not refused by the primitive; the planner fails and its
     diagnosis names the reach target and how far it is missed."""
-    from planner.settings import PlannerSettings
+    from planner import PlannerSettings
 
     spec = compile_actions([Action(name="reach", params={"target": (1.5, -0.3, 0.3)})], talos, dt=DT)
     plan = planner_trajopt.plan(spec, talos, settings=PlannerSettings(compile=False), throw=False)

@@ -12,7 +12,7 @@ SYNTH_DURATION = 3.0  # [s]
 
 def synthetic_plan(robot, *, duration: float = SYNTH_DURATION, dt: float = 0.05):
     """A Plan built directly: standing posture, base lowered and arms raised on a cosine."""
-    from planner.plan import Plan, SolverStats, SolveStatus
+    from planner import Plan, SolverStats, SolveStatus
     from tasks.specs import Contact, FrameTarget, Phase, Pose, TaskSpec
 
     t = np.arange(0.0, duration + 1e-9, dt)
@@ -76,8 +76,8 @@ def synth_execution(talos, synth_plan):
 
 @pytest.fixture(scope="session")
 def squat_plan(talos):
-    """A real squat planned by planner.trajopt (skips if the planner is not available)."""
-    trajopt = pytest.importorskip("planner.trajopt")
+    """A real squat planned by planner.plan (skips if the planner is not available)."""
+    trajopt = pytest.importorskip("planner")
     from tasks.actions import Action
     from tasks.compose import compile_actions
 

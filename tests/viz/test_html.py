@@ -157,7 +157,7 @@ def test_every_robot_gets_every_mesh(any_robot):
 
 def test_contact_visibility_follows_the_phases(talos):
     """A sole that lifts in the middle phase is hidden during it and shown again after."""
-    from planner.plan import Plan, SolverStats, SolveStatus
+    from planner import Plan, SolverStats, SolveStatus
     from tasks.specs import Contact, Phase, Pose, TaskSpec
     from viz._meshcat import meshcat
 

@@ -209,7 +209,7 @@ def _pct(xs, q: float) -> float:
 
 
 def _settings(cache_dir: str):
-    from planner.settings import PlannerSettings
+    from planner import PlannerSettings
 
     compile_ = os.environ.get("WBMP_BENCH_COMPILE", "1") != "0"
     return PlannerSettings(cache_dir=cache_dir, compile=compile_)
@@ -284,8 +284,8 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
 
     # plan: first-ever, warm, cached cold -----------------------------------------------------
     try:
-        from planner.cache import clear_memory_cache
-        from planner.trajopt import plan as plan_motion
+        from planner.trajopt.cache import clear_memory_cache
+        from planner import plan as plan_motion
     except Exception as exc:  # noqa: BLE001
         return fail("planner import", exc)
 
@@ -375,7 +375,7 @@ def _cold_process(sentence: str, robot_name: str, cache_dir: str, dt: float | No
 def _child_main(payload: str) -> int:
     """Entry of the cached-cold child process: plan once, print the stats as one JSON line."""
     args = json.loads(payload)
-    from planner.trajopt import plan as plan_motion
+    from planner import plan as plan_motion
     from robots import load_robot
 
     robot = load_robot(args["robot"])
@@ -427,7 +427,7 @@ def scaling_study(*, repeats: int, log: Callable[[str], None], sentence: str = T
     The horizon is changed through the knot spacing (same motion, finer grid). Each new
     structure is built once (compiled into ``cache_dir``), then solved ``repeats`` times warm.
     """
-    from planner.trajopt import plan as plan_motion
+    from planner import plan as plan_motion
     from robots import load_robot
 
     cache_dir = cache_dir or tempfile.mkdtemp(prefix="wbmp-bench-scaling-")
@@ -687,7 +687,7 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
               peers_dir: str | None = None, plot: str | None = None,
               log: Callable[[str], None] = lambda _: None) -> dict[str, Any]:
     """Run the benchmark and return the result dictionary (the JSON of ``--json``)."""
-    from planner.settings import default_cache_dir
+    from planner.trajopt.settings import default_cache_dir
 
     # First-ever builds are timed with gcc in the loop (and cached-cold runs need the entry on
     # disk): compile synchronously here and in the child processes, which inherit the variable.

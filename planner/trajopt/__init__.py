@@ -1,0 +1,18 @@
+"""The trajectory optimizer: a TaskSpec laid out on a knot grid, transcribed into a CasADi NLP,
+solved with IPOPT, checked with Pinocchio numerics.
+
+Modules, in import order (each imports only the ones above it; tests/test_layering.py checks):
+
+* ``symbolic``: CasADi kinematics from a Pinocchio model, over the tangent chart;
+* ``settings``: :class:`PlannerSettings` (``centroidal.settings``: its dynamic part);
+* ``layout``: spec -> knot grid -> per-knot terms (:class:`Layout`, the kinematic formulation);
+  ``formulation``: the protocol a formulation implements; ``nominal``: the warm start;
+* ``terms``: the CasADi expression of each term; ``transcription``: the NLP and its
+  derivatives, bounds and parameters;
+* ``ipopt``: the backend's options and statuses; ``cache``: compiled solvers in memory and on
+  disk; ``solve``: one solve of a layout;
+* ``checks``: the constraint report and prechecks; ``report``: a solution as a ``Plan``;
+  ``diagnose``: a failed plan in task terms;
+* ``centroidal``: the dynamic formulation (contact forces, CoM dynamics);
+* ``api``: :func:`plan`, the entry point (also ``planner.plan``).
+"""

@@ -1,0 +1,207 @@
+"""Numeric checks of a finished dynamic plan (numpy): friction, centre of pressure, CoM dynamics."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+
+from planner.results import ConstraintCheck
+from planner.trajopt.centroidal.contacts import contact_geometry_points
+from planner.trajopt.centroidal.pattern import CentroidalTerms
+from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
+
+if TYPE_CHECKING:
+    from planner.trajopt.centroidal.layout import DynamicLayout
+
+
+def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
+    """Support-polygon CoM bounds of a dynamic plan, where they apply: at the last knot (at rest).
+
+    Args:
+        lay: The layout.
+        com: CoM per knot (N+1, 3) [m].
+        tolerance: Accepted excursion [m].
+
+    Returns:
+        One check per support-polygon bound of the spec.
+    """
+    from planner.results import ConstraintCheck
+    from planner.trajopt.layout import halfplanes, support_polygon
+
+    out = []
+    k = lay.N
+    hull = support_polygon(lay, k)
+    for bounds in lay.spec.com_bounds:
+        if not bounds.support_polygon or len(hull) < 3:
+            continue
+        A, b = halfplanes(hull)
+        viol = max(0.0, float(np.max(A @ com[k, :2] - (b - bounds.margin))))
+        out.append(ConstraintCheck(name=f"CoM bound {bounds.name!r} support polygon at rest", violation=viol,
+                                   tolerance=tolerance, unit="m", time=float(lay.t[k])))
+    return out
+
+
+def friction_violation(forces: np.ndarray, rotation: np.ndarray, mu: float) -> np.ndarray:
+    """How far each force is outside the Coulomb cone and the unilateral half-space [N].
+
+    Args:
+        forces: (..., 3) world forces [N].
+        rotation: Contact frame in the world (3, 3).
+        mu: Friction coefficient [-].
+
+    Returns:
+        (...,) violation >= 0: ``max(0, |f_t| - mu f_n, -f_n)``.
+    """
+    local = np.asarray(forces, dtype=float) @ np.asarray(rotation)
+    fn = local[..., 2]
+    ft = np.linalg.norm(local[..., :2], axis=-1)
+    return np.maximum(0.0, np.maximum(ft - mu * fn, -fn))
+
+
+def center_of_pressure(points_in_frame: np.ndarray, forces: np.ndarray, rotation: np.ndarray, *, min_normal: float = 1e-6) -> np.ndarray:
+    """Centre of pressure of corner forces in the contact frame (x, y) [m]; NaN when unloaded.
+
+    Args:
+        points_in_frame: Corner points (n, 3) in the contact frame [m].
+        forces: (T, n, 3) world forces [N].
+        rotation: Contact frame in the world (3, 3).
+        min_normal: Total normal force below which the CoP is undefined [N].
+
+    Returns:
+        (T, 2) CoP in the contact frame.
+    """
+    fn = np.asarray(forces, dtype=float) @ np.asarray(rotation)[:, 2]  # (T, n)
+    total = fn.sum(axis=1)
+    cop = np.full((fn.shape[0], 2), np.nan)
+    ok = total > min_normal
+    cop[ok] = (fn[ok] @ points_in_frame[:, :2]) / total[ok, None]
+    return cop
+
+
+def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[float, float]) -> np.ndarray:
+    """Distance of each CoP (T, 2) outside the rectangle ``x_range`` x ``y_range`` [m] (0 inside, NaN ignored)."""
+    cop = np.asarray(cop, dtype=float)
+    dx = np.maximum(0.0, np.maximum(x_range[0] - cop[:, 0], cop[:, 0] - x_range[1]))
+    dy = np.maximum(0.0, np.maximum(y_range[0] - cop[:, 1], cop[:, 1] - y_range[1]))
+    out = np.hypot(dx, dy)
+    return np.where(np.isnan(out), 0.0, out)
+
+
+def dynamic_checks(
+    lay: Any,
+    q: np.ndarray,
+    com: np.ndarray,
+    terms: CentroidalTerms,
+    corner_rows: Sequence[tuple[int, int, int]],
+    force_values: np.ndarray,
+    *,
+    force_tolerance: float = 1e-3,
+    position_tolerance: float = 1e-5,
+) -> list[ConstraintCheck]:
+    """Report of a dynamic plan, recomputed with Pinocchio and numpy from the solution.
+
+    Groups: Newton's law for the CoM (with the Pinocchio CoM of the returned configurations),
+    the friction cone (the true Coulomb cone, not the pyramid) and the centre of pressure inside
+    each sole rectangle per contact frame (where the sole carries more than the force tolerance:
+    the CoP of a nearly unloaded sole, e.g. at take-off, is not defined), no force at a knot
+    without contact, and every sole corner of a swinging foot above the ground.
+
+    Args:
+        lay: The layout.
+        q: Configurations (N+1, nq).
+        com: CoM per knot (N+1, 3) [m].
+        terms: The centroidal terms of the NLP.
+        corner_rows: (knot, foot frame id, corner) rows of swinging sole corners.
+        force_values: Solution values of ``terms.variables``.
+        force_tolerance: Accepted force-law violation, as a fraction of the body weight [-].
+        position_tolerance: Accepted CoP excursion and corner depth [m].
+
+    Returns:
+        One :class:`~planner.plan.ConstraintCheck` per group.
+    """
+    cen = terms
+    t = np.asarray(lay.t, dtype=float)
+    dt = float(t[1] - t[0])
+    tol_n = force_tolerance * cen.weight
+    corners = cen.corner_forces(force_values)
+    checks: list[ConstraintCheck] = []
+
+    def worst(name: str, values: list[tuple[float, float]], tol: float, unit: str) -> None:
+        if not values:
+            return
+        v, tt = max(values, key=lambda x: x[0])
+        checks.append(ConstraintCheck(name=name, violation=max(0.0, float(v)), tolerance=tol, unit=unit, time=float(tt)))
+
+    newton = []
+    mass = cen.weight / float(np.linalg.norm(GRAVITY))
+    for k in cen.dynamics_knots:
+        acc = (com[k + 1] - 2 * com[k] + com[k - 1]) / dt**2
+        total = sum((corners[f][k].sum(axis=0) for f in corners), np.zeros(3))
+        newton.append((float(np.linalg.norm(com_dynamics_residual(mass, acc, total))), t[k]))
+    worst("CoM dynamics m(c'' - g) = sum f", newton, tol_n, "N")
+    friction: dict[str, list] = {}
+    cop: dict[str, list] = {}
+    idle = []
+    for k, active in enumerate(cen.contacts):
+        held = {c.frame for c in active} if k in cen.dynamics_knots else set()
+        for frame, f in corners.items():
+            if frame not in held:
+                idle.append((float(np.abs(f[k]).max()), t[k]))
+        if k not in cen.dynamics_knots:
+            continue
+        for c in active:
+            fk = corners[c.frame][k]
+            friction.setdefault(c.frame, []).append((float(friction_violation(fk, c.rotation, c.friction_coefficient).max()), t[k]))
+            full = contact_geometry_points(lay.robot, c.frame)
+            if full is not None:
+                p = center_of_pressure(c.points_in_frame, fk[None], c.rotation, min_normal=tol_n)
+                viol = cop_violation(p, (full[:, 0].min(), full[:, 0].max()), (full[:, 1].min(), full[:, 1].max()))
+                cop.setdefault(c.frame, []).append((float(viol[0]), t[k]))
+    for frame, rows in friction.items():
+        worst(f"{frame} friction cone", rows, tol_n, "N")
+    for frame, rows in cop.items():
+        worst(f"{frame} centre of pressure in the sole", rows, position_tolerance, "m")
+    worst("no contact force without contact", idle, 0.0, "N")
+    model, data = lay.robot.model, lay.robot.data()
+    depth = []
+    sole = lay.robot.profile.sole
+    by_knot: dict[int, list[tuple[int, int]]] = {}
+    for k, fid, i in corner_rows:
+        by_knot.setdefault(k, []).append((fid, i))
+    for k, rows in by_knot.items():
+        pin.framesForwardKinematics(model, data, q[k])
+        for fid, i in rows:
+            side = lay.robot.foot_side(model.frames[fid].name)
+            x, y = sole.corners(side)[i]
+            z = float((data.oMf[fid].act(np.array([x, y, 0.0])))[2])
+            depth.append((-z, t[k]))
+    worst("swing sole corners above the ground", depth, position_tolerance, "m")
+    return checks
+
+
+def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
+                        checks: Sequence[ConstraintCheck], settings: Any) -> list[ConstraintCheck]:
+    """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
+    (the last knot), plus the dynamic checks (:func:`dynamic_checks`).
+
+    Args:
+        lay: The dynamic layout.
+        q: Configurations (N+1, nq).
+        com: CoM per knot (N+1, 3) [m].
+        forces: Solution values of the force variables (None: none available).
+        checks: The kinematic report (``planner.diagnose.check_plan``).
+        settings: ``PlannerSettings`` (``polygon_tolerance`` [m]).
+
+    Returns:
+        The checks.
+    """
+    out = [c for c in checks if not (c.name.startswith("CoM bound") and c.name.endswith("support polygon"))]
+    out += rest_polygon_checks(lay, com, settings.polygon_tolerance)
+    if forces is not None:
+        out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,
+                              force_tolerance=lay.centroidal_settings.force_tolerance,
+                              position_tolerance=settings.polygon_tolerance)
+    return out

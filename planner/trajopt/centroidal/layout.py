@@ -1,0 +1,149 @@
+"""The dynamic layout: the centroidal implementation of the formulation protocol
+(:class:`planner.trajopt.formulation.Formulation`), what :func:`planner.plan` uses for a spec with
+``dynamic = True``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from planner.trajopt.centroidal.checks import dynamic_plan_checks
+from planner.trajopt.centroidal.contacts import layout_contacts
+from planner.trajopt.centroidal.diagnose import diagnose_dynamic
+from planner.trajopt.centroidal.guess import forces_of, initial_guess
+from planner.trajopt.centroidal.nlp import (
+    dynamic_sizes,
+    extend_bounds,
+    extend_nlp,
+    extend_parameters,
+)
+from planner.trajopt.centroidal.pattern import (
+    CentroidalFunction,
+    CentroidalPattern,
+    centroidal_function,
+    centroidal_pattern,
+    swinging_corners,
+)
+from planner.trajopt.centroidal.settings import CentroidalSettings
+from planner.trajopt.layout import Layout
+
+if TYPE_CHECKING:
+    from planner.results import ConstraintCheck, Plan
+    from planner.trajopt.settings import PlannerSettings
+
+DYNAMIC_FORMULATION = "lifted-com-2"  # part of a dynamic layout's structure (solver cache key)
+
+
+class DynamicLayout(Layout):
+    """A :class:`planner.trajopt.layout.Layout` with CoM dynamics and contact forces.
+
+    Built by :func:`to_dynamic_layout`. Its :meth:`structure` adds the force pattern (contacts per
+    knot, swinging sole corners), so the solver cache never confuses it with a kinematic
+    layout or with another contact pattern.
+
+    Attributes:
+        centroidal_settings: Weights and options of the dynamic terms.
+        kinematic_terms: Number of chart variables ``nv (N - 2)`` (the forces follow).
+    """
+
+    centroidal_settings: CentroidalSettings
+    _cf: CentroidalFunction | None
+    _pattern: CentroidalPattern | None
+
+    def centroidal(self) -> CentroidalFunction:
+        """The centroidal function of this layout (CasADi; built once, only to build a solver)."""
+        if self._cf is None:
+            self._cf = centroidal_function(self, settings=self.centroidal_settings)
+        return self._cf
+
+    def pattern(self) -> CentroidalPattern:
+        """The numbers of the centroidal terms (no CasADi; what a cached solver needs)."""
+        if self._pattern is None:
+            contacts = layout_contacts(self, cop_margin=self.centroidal_settings.cop_margin)
+            self._pattern = centroidal_pattern(contacts, self.robot.mass, settings=self.centroidal_settings)
+        return self._pattern
+
+    def corner_rows(self) -> tuple[tuple[int, int, int], ...]:
+        """(knot, foot frame id, corner) of the sole-corner rows (feet not in contact)."""
+        return swinging_corners(self)
+
+    def structure(self) -> tuple:
+        """Kinematic structure + the dynamic one (with :data:`DYNAMIC_FORMULATION`: the solver
+        cache hashes the planner sources but not this file, so an edited dynamic NLP bumps it)."""
+        return (super().structure(), "dynamic", DYNAMIC_FORMULATION, self.pattern().structure,
+                self.corner_rows(), self.centroidal_settings)
+
+    @property
+    def n_kinematic(self) -> int:
+        """Number of chart variables (the force variables come after them)."""
+        return self.robot.nv * (self.N - 2)
+
+    # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
+
+    def extra_sizes(self) -> tuple[int, int]:
+        """(force + lifted CoM variables, dynamic constraint rows)."""
+        return dynamic_sizes(self)
+
+    def extend_nlp(self, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
+        """Forces, CoM dynamics and sole-corner rows added to the kinematic NLP."""
+        return extend_nlp(self, nlp, derivatives)
+
+    def extend_parameters(self, p: np.ndarray) -> np.ndarray:
+        """The kinematic parameters, then the contact geometry."""
+        return extend_parameters(self, p)
+
+    def extend_bounds(self, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
+                      ubg: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Bounds of the forces, the CoM dynamics and the swinging sole corners added."""
+        return extend_bounds(self, lbx, ubx, lbg, ubg)
+
+    def initial_guess(self, settings: PlannerSettings | None = None) -> np.ndarray:
+        """Base along the feet's heading, weight on the corners (whatever ``settings.warm_start``)."""
+        return initial_guess(self)
+
+    def forces_of(self, x: np.ndarray) -> np.ndarray:
+        """The force variables of a solution."""
+        return forces_of(self, x)
+
+    def plan_checks(self, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
+                    checks: list[ConstraintCheck], settings: PlannerSettings) -> list[ConstraintCheck]:
+        """The kinematic checks with the dynamic ones (friction, CoP, CoM dynamics)."""
+        return dynamic_plan_checks(self, q, com, forces, checks, settings)
+
+    def plan_forces(self, forces: np.ndarray | None) -> tuple[dict, dict]:
+        """(net force per contact frame, ``{"corner_forces": ...}``) of the force variables."""
+        if forces is None:
+            return {}, {}
+        corner = self.pattern().corner_forces(forces)
+        return {frame: f.sum(axis=1) for frame, f in corner.items()}, {"corner_forces": corner}
+
+    def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
+        """The worst violated group of the failed plan (no relaxed solve)."""
+        return diagnose_dynamic(self, failed)
+
+
+def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSettings()) -> DynamicLayout:
+    """The dynamic version of a kinematic layout.
+
+    The support-polygon rows on the CoM are dropped except at the last variable knot (the robot
+    ends at rest there): with contact forces, balance is the centre of pressure inside the
+    soles, which the corner forces guarantee at every knot.
+
+    Args:
+        lay: The layout of a spec (``planner.formulation.make_layout``).
+        settings: Weights and options of the dynamic terms.
+
+    Returns:
+        The dynamic layout (a new object; ``lay`` is not changed).
+    """
+    import dataclasses
+
+    fields = {f.name: getattr(lay, f.name) for f in dataclasses.fields(lay)}
+    fields["terms"] = [t for t in lay.terms if t.kind != "polygon" or t.knot == lay.N - 1]
+    out = DynamicLayout(**fields)
+    out.centroidal_settings = settings
+    out._cf = None
+    out._pattern = None
+    return out

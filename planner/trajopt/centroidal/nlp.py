@@ -1,0 +1,381 @@
+"""The NLP extension: forces, lifted CoM, CoM dynamics and sole-corner rows added to the stage-wise
+kinematic NLP of :mod:`planner.trajopt.transcription` (variables, derivatives, bounds, parameters)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import casadi as ca
+import numpy as np
+
+from planner.trajopt.centroidal.pattern import CentroidalFunction
+from robots.model import Robot
+
+if TYPE_CHECKING:
+    from planner.trajopt.centroidal.layout import DynamicLayout
+
+
+def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
+    """Heights (8,) of the left then right sole corners from symbolic joint placements [m].
+
+    Args:
+        kin: A :class:`planner.symbolic.SymbolicKinematics`.
+        oMi: Its joint placements at one knot.
+        robot: The robot (foot frames, sole rectangle).
+
+    Returns:
+        CasADi column: left corners 0..3, right corners 0..3 (profile order).
+    """
+    out = []
+    for side in ("left", "right"):
+        R, p = kin.frame_placement(oMi, robot.frame_id(f"{side}_foot"))
+        for x, y in robot.profile.sole.corners(side):
+            out.append((p + ca.mtimes(R, ca.DM([x, y, 0.0])))[2])
+    return ca.vertcat(*out)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DynamicBlocks:
+    """The dynamic part of a stage-wise NLP with its hand-assembled derivatives (MX).
+
+    The NLP's variables are ``[x_kin; u; c]``: the chart displacements of the variable knots,
+    the force variables, then the CoM of each variable knot (3 per knot, *lifted*: tied to the
+    configuration by equality rows). Lifting the CoM keeps the CoM Jacobian (dense over the
+    joints) out of the dynamics rows and the angular-momentum cost: those couple the forces
+    with 3 CoM variables per knot instead of every joint, which makes the KKT system much
+    sparser. Rows: the centroidal rows (dynamics; friction rows without friction edges), the
+    CoM rows ``c_k - com(q_k) = 0``, then the sole-corner heights of swinging feet.
+
+    Attributes:
+        f: Cost added to the objective.
+        g: Constraint rows (column).
+        lbg, ubg: Their bounds.
+        grad_u, grad_c: Gradient of ``f`` (it does not depend on ``x_kin``) [MX columns].
+        jac_x, jac_u, jac_c: Jacobian of ``g`` w.r.t. ``x_kin``, ``u`` and ``c``.
+        hess_xx, hess_uu, hess_uc, hess_cc: Hessian blocks of ``lam_f f + lam . g`` (the
+            ``x``-``u`` and ``x``-``c`` blocks are zero; ``hess_xx`` is None when not asked for).
+        nu, eta: Multipliers (3, N-2) and (8, N-2) whose products with each variable knot's
+            CoM and sole-corner heights give the curvature in ``hess_xx``.
+    """
+
+    f: Any
+    g: Any
+    lbg: np.ndarray
+    ubg: np.ndarray
+    grad_u: Any
+    grad_c: Any
+    jac_x: Any
+    jac_u: Any
+    jac_c: Any
+    hess_xx: Any
+    nu: Any
+    eta: Any
+    hess_uu: Any
+    hess_uc: Any
+    hess_cc: Any
+
+
+def _kinematic_functions(lay: Any) -> tuple[ca.Function, ca.Function]:
+    """SX functions of one knot: (dq, q_ref) -> (c, Jc, z, Jz) and (dq, q_ref, nu, eta) -> hess(nu.c + eta.z)."""
+    from planner.trajopt.symbolic import SymbolicKinematics
+
+    robot = lay.robot
+    kin = SymbolicKinematics(robot.model)
+    dq = ca.SX.sym("dq", robot.nv)
+    q_ref = ca.SX.sym("q_ref", robot.nq)
+    oMi = kin.joint_placements(q_ref, dq)
+    c = kin.com(oMi)
+    z = sole_corner_heights(kin, oMi, robot)
+    nu = ca.SX.sym("nu", 3)
+    eta = ca.SX.sym("eta", 8)
+    first = ca.Function("dyn_kin", [dq, q_ref], [c, ca.jacobian(c, dq), z, ca.jacobian(z, dq)])
+    second = ca.Function("dyn_kin_hess", [dq, q_ref, nu, eta], [ca.hessian(ca.dot(nu, c) + ca.dot(eta, z), dq)[0]])
+    return first, second
+
+
+def com_rows(lay: Any) -> int:
+    """Number of lifted CoM variables (and of the rows tying them to the configuration)."""
+    return 3 * (lay.N - 2)
+
+
+def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
+                   lam_f: Any, lam: Any, *, kinematic_hessian: bool = True) -> DynamicBlocks:
+    """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
+
+    The centroidal function (dynamics, friction, cost) is evaluated on the lifted CoM variables
+    ``c`` (knots 0 and 1 at the standing CoM, knot N repeating N-1) with its derivatives w.r.t.
+    ``(C, u)`` from SX; the configuration enters only through the rows ``c_k - com(q_k)`` and
+    the sole-corner heights, whose values and Jacobians come from one mapped SX function and
+    whose curvature from a second one (the Hessian of ``-mu_k . com_k + eta_k . z_k`` with the
+    multipliers of those rows).
+
+    Args:
+        lay: The layout.
+        cf: The centroidal function of the layout.
+        x_kin: Chart displacements of knots 2..N-1 (MX, nv (N-2)).
+        u: Force variables (MX, ``cf.terms.n_variables``).
+        c: Lifted CoM of knots 2..N-1 (MX, 3 (N-2)) [m].
+        q_ref: Reference configuration (MX, nq).
+        p: Contact parameters (MX, ``cf.terms.parameter_values.size``).
+        dt: Knot spacing (MX scalar) [s].
+        lam_f: Objective multiplier (MX scalar).
+        lam: Multipliers of this block's rows (MX, len(lbg)).
+        kinematic_hessian: Build :attr:`DynamicBlocks.hess_xx` (off: the caller adds the
+            curvature of the CoM and sole-corner rows itself, from ``nu`` and ``eta``).
+
+    Returns:
+        The blocks.
+    """
+    robot, N = lay.robot, lay.N
+    nv, n = robot.nv, lay.N - 2
+    first, second = _kinematic_functions(lay)
+    X = ca.reshape(x_kin, nv, n)
+    Qr = ca.repmat(q_ref, 1, n)
+    Ck, JC, Z, JZ = first.map(n)(X, Qr)
+    c0 = first(ca.MX.zeros(nv), q_ref)[0]
+    Cv = ca.reshape(c, 3, n)
+    C = ca.horzcat(c0, c0, Cv, Cv[:, n - 1])
+    # selection E: vec(C) (3(N+1)) <- c (3n); knot N copies knot N-1
+    rows, cols = [], []
+    for k in range(2, N + 1):
+        j = min(k, N - 1) - 2
+        rows += [3 * k + i for i in range(3)]
+        cols += [3 * j + i for i in range(3)]
+    E = ca.DM(ca.Sparsity.triplet(3 * (N + 1), 3 * n, rows, cols), 1.0)
+    # centroidal function derivatives w.r.t. (vec C, u)
+    Cs = ca.SX.sym("C", 3, N + 1)
+    Us = ca.SX.sym("u", cf.terms.n_variables)
+    Ps = ca.SX.sym("p", cf.terms.parameter_values.size)
+    dts = ca.SX.sym("dt")
+    gs, fs = cf.function(Cs, Us, Ps, dts)
+    n_c = gs.numel()
+    ls = ca.SX.sym("lam", n_c)
+    sig = ca.SX.sym("sigma")
+    w = ca.vertcat(ca.vec(Cs), Us)
+    lag = sig * fs + ca.dot(ls, gs)
+    d1 = ca.Function("dyn_centroidal_d1", [Cs, Us, Ps, dts], [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w)])
+    d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.hessian(lag, w)[0]])
+    n_m = 3 * n
+    lam_c, lam_m, lam_z = lam[:n_c], lam[n_c:n_c + n_m], lam[n_c + n_m:]
+    g_c, f_c, J_w, G_w = d1(C, u, p, dt)
+    H_w = d2(C, u, p, dt, lam_f, lam_c)
+    m = 3 * (N + 1)
+    J_C, J_U = J_w[:, :m], J_w[:, m:]
+    G_C, G_U = G_w[:m], G_w[m:]
+    H_CC, H_CU, H_UU = H_w[:m, :m], H_w[:m, m:], H_w[m:, m:]
+    # swinging sole corners: rows picked from Z (8 x n)
+    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    zr = [(k - 2) * 8 + feet.index(fid) * 4 + i for k, fid, i in cf.corner_rows]
+    n_z = len(zr)
+    Sz = ca.DM(ca.Sparsity.triplet(n_z, 8 * n, list(range(n_z)), zr), 1.0)
+    g_z = ca.mtimes(Sz, ca.vec(Z))
+    jac_z = ca.mtimes(Sz, ca.diagcat(*ca.horzsplit(JZ, nv)))
+    eta = ca.reshape(ca.mtimes(Sz.T, lam_z), 8, n) if n_z else ca.MX.zeros(8, n)
+    nu = -ca.reshape(lam_m, 3, n)
+    HK = second.map(n)(X, Qr, nu, eta) if kinematic_hessian else None
+    n_u = cf.terms.n_variables
+    return DynamicBlocks(
+        f=f_c,
+        g=ca.vertcat(g_c, c - ca.vec(Ck), g_z),
+        lbg=np.concatenate([cf.lbg, np.zeros(n_m), np.zeros(n_z)]),
+        ubg=np.concatenate([cf.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
+        grad_u=G_U,
+        grad_c=ca.mtimes(E.T, G_C),
+        jac_x=ca.vertcat(ca.MX(n_c, nv * n), -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z),
+        jac_u=ca.vertcat(J_U, ca.MX(n_m + n_z, n_u)),
+        jac_c=ca.vertcat(ca.mtimes(J_C, E), ca.MX(ca.DM.eye(n_m)), ca.MX(n_z, n_m)),
+        hess_xx=ca.diagcat(*ca.horzsplit(HK, nv)) if kinematic_hessian else None,
+        nu=nu,
+        eta=eta,
+        hess_uu=H_UU,
+        hess_uc=ca.mtimes(H_CU.T, E),
+        hess_cc=ca.mtimes(E.T, ca.mtimes(H_CC, E)),
+    )
+
+
+def stage_hessians(lay: Any, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
+                   eta: Any) -> Any:
+    """Block-diagonal chart Hessian of a dynamic NLP's Lagrangian, one SX function per stage type.
+
+    For the knots of each stage group of :func:`planner.trajopt.stage_groups`, one mapped SX
+    function gives the Hessian of ``lam_f cost_k + lam_k . g_k + nu_k . com_k + eta_k . z_k``
+    w.r.t. ``dq_k``: the kinematic terms and the CoM and sole-corner rows of the dynamics share
+    one forward-kinematics pass, and the blocks are laid out in knot order with one ``diagcat``
+    (no sparse products with selection matrices). Parameters and multipliers are read in the
+    order :func:`planner.trajopt.build_nlp` gives them.
+
+    Args:
+        lay: The dynamic layout.
+        x_kin: Chart displacements of knots 2..N-1 (MX, nv (N-2)).
+        q_ref: Reference configuration (MX, nq).
+        p_kin: Parameters of the kinematic NLP (MX).
+        lam_f: Objective multiplier (MX scalar).
+        lam_kin: Multipliers of the kinematic rows (MX).
+        nu, eta: Multipliers on each variable knot's CoM (3, N-2) and sole-corner heights (8, N-2).
+
+    Returns:
+        The (nv (N-2), nv (N-2)) block-diagonal Hessian (MX, both triangles), without the
+        constant quadratic costs.
+    """
+    from planner.trajopt.symbolic import SymbolicKinematics
+    from planner.trajopt.terms import FRAME_KINDS, stage_groups, term_expression
+
+    robot = lay.robot
+    nq, nv, n = robot.nq, robot.nv, lay.N - 2
+    X = ca.reshape(x_kin, nv, n)
+    kin = SymbolicKinematics(robot.model)
+    blocks: dict[int, Any] = {}
+    p_offset, g_offset = nq + 3, 0
+    for gi, (_sig, knots, term_lists) in enumerate(stage_groups(lay)):
+        terms = [lay.terms[i] for i in term_lists[0]]
+        dq = ca.SX.sym("dq", nv)
+        qr = ca.SX.sym("q_ref", nq)
+        oMi = kin.joint_placements(qr, dq)
+        frame_ids = sorted({t.structure[1] for t in terms if t.kind in FRAME_KINDS})
+        com = kin.com(oMi)
+        k = {"com": com, "frames": {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, "dq": dq}
+        ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
+        sigma = ca.SX.sym("sigma")
+        rows, cost, offset = [], 0, 0
+        # soft CoM targets w |S (c - c*)|^2: Hessian 2 w (J^T S^T S J + sum_i e_i hess c_i), the
+        # second part folded into the CoM multiplier (AD of the square costs ~5x more)
+        nu_cost = ca.SX.zeros(3)
+        gauss_newton = ca.SX.zeros(nv, nv)
+        for t in terms:
+            pt = ps[offset: offset + len(t.params)]
+            offset += len(t.params)
+            if t.kind == "com_pos" and t.structure[2] not in ("eq", "box"):
+                sel = [i for i, a in enumerate(t.structure[1]) if a]
+                e = (com - pt[0:3])[sel]
+                J = ca.jacobian(com[sel], dq)
+                gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
+                nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
+                continue
+            r, cst = term_expression(t, pt, k, qr, robot)
+            cost = cost + cst
+            if r is not None:
+                rows.append(r)
+        g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
+        lam = ca.SX.sym("lam", g.numel())
+        nu_s = ca.SX.sym("nu", 3)
+        eta_s = ca.SX.sym("eta", 8)
+        nu_all = ca.SX.sym("nu_all", 3)
+        z = sole_corner_heights(kin, oMi, robot)
+        lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
+        hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
+        fn = ca.Function(f"dyn_stage_hess{gi}", [dq, qr, ps, sigma, lam, nu_s, eta_s], [hess])
+        m = len(knots)
+        cols = [kk - 2 for kk in knots]
+        n_p = ps.numel()
+        Pg = ca.reshape(p_kin[p_offset: p_offset + n_p * m], n_p, m)
+        p_offset += n_p * m
+        L = ca.reshape(lam_kin[g_offset: g_offset + g.numel() * m], g.numel(), m)
+        g_offset += g.numel() * m
+        HS = fn.map(m)(X[:, cols], ca.repmat(q_ref, 1, m), Pg, ca.repmat(lam_f, 1, m), L, nu[:, cols], eta[:, cols])
+        for kk, block in zip(knots, ca.horzsplit(HS, nv), strict=True):
+            blocks[kk] = block
+    return ca.diagcat(*[blocks[kk] for kk in range(2, lay.N)])
+
+
+def dynamic_sizes(lay: DynamicLayout) -> tuple[int, int]:
+    """(force + lifted CoM variables, dynamic constraint rows) of a dynamic layout."""
+    pat = lay.pattern()
+    return pat.n_variables + com_rows(lay), len(pat.lbg) + com_rows(lay) + len(lay.corner_rows())
+
+
+def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
+    """Add the forces, lifted CoM, CoM dynamics and sole-corner rows to a stage-wise kinematic NLP.
+
+    Args:
+        lay: The dynamic layout.
+        nlp: ``{x, p, f, g}`` of the kinematic NLP (MX).
+        derivatives: Its ``grad_f``, ``jac_g``, ``hess_lag`` functions (nlpsol options).
+
+    Returns:
+        The extended ``(nlp, derivatives)``: variables ``[x; u; c]``, parameters ``[p; contact
+        geometry]``, rows ``[g; dynamic rows]``.
+    """
+    cf = lay.centroidal()
+    robot = lay.robot
+    n_x, n_p, n_g = nlp["x"].numel(), nlp["p"].numel(), nlp["g"].numel()
+    n_u = cf.terms.n_variables
+    n_m = com_rows(lay)
+    _, n_gd = dynamic_sizes(lay)
+    n_pd = cf.terms.parameter_values.size
+    x = ca.MX.sym("x", n_x + n_u + n_m)
+    p = ca.MX.sym("p", n_p + n_pd)
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", n_g + n_gd)
+    xk, u, c = x[:n_x], x[n_x:n_x + n_u], x[n_x + n_u:]
+    pk, pd = p[:n_p], p[n_p:]
+    nq = robot.nq
+    b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:], kinematic_hessian=False)
+    f_k, grad_k = derivatives["grad_f"](xk, pk)
+    g_k, jac_k = derivatives["jac_g"](xk, pk)
+    # chart Hessian: the constant quadratic costs + per-knot blocks (kinematic terms and the
+    # CoM / sole-corner rows together), instead of the kinematic hess_lag plus a second pass
+    from planner.trajopt.transcription import _quadratic_operators
+
+    A, P, _ = _quadratic_operators(lay)
+    w_smooth, w_posture, dt = pk[nq], pk[nq + 1], pk[nq + 2]
+    quad = lam_f * (2 * w_smooth / dt**3 * ca.mtimes(A.T, A) + 2 * w_posture * dt * ca.mtimes(P.T, P))
+    h_k = ca.triu(quad + stage_hessians(lay, xk, pk[:nq], pk, lam_f, lam_g[:n_g], b.nu, b.eta))
+    f = f_k + b.f
+    g = ca.vertcat(g_k, b.g)
+    grad = ca.vertcat(grad_k, b.grad_u, b.grad_c)
+    jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u + n_m)), ca.horzcat(b.jac_x, b.jac_u, b.jac_c))
+    hess = ca.blockcat([
+        [h_k, ca.MX(n_x, n_u), ca.MX(n_x, n_m)],
+        [ca.MX(n_u, n_x), ca.triu(b.hess_uu), b.hess_uc],
+        [ca.MX(n_m, n_x), ca.MX(n_m, n_u), ca.triu(b.hess_cc)],
+    ])
+    out = {
+        "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
+        "jac_g": ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
+        "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess], ["x", "p", "lam_f", "lam_g"],
+                                ["triu_hess_gamma_x_x"]),
+    }
+    return {"x": x, "p": p, "f": f, "g": g}, out
+
+
+def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
+                  ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bounds of the extended NLP from the kinematic ones (force boxes, free CoM, dynamic rows)."""
+    pat = lay.pattern()
+    rows = lay.corner_rows()
+    n_z = len(rows)
+    n_m = com_rows(lay)
+    return (
+        np.concatenate([lbx, pat.lower, np.full(n_m, -np.inf)]),
+        np.concatenate([ubx, pat.upper, np.full(n_m, np.inf)]),
+        np.concatenate([lbg, pat.lbg, np.zeros(n_m), swing_corner_floor(lay, rows)]),
+        np.concatenate([ubg, pat.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
+    )
+
+
+SWING_CLEARANCE = 0.01  # [m] lowest sole corner of a swinging foot, away from lift-off and touch-down
+
+
+def swing_corner_floor(lay: Any, rows: Sequence[tuple[int, int, int]]) -> np.ndarray:
+    """Lower bounds of the swinging sole-corner heights [m].
+
+    0 at the first and last free knot of a swing (the sole may still or already touch there),
+    :data:`SWING_CLEARANCE` in between. With 0 everywhere, a Talos 4-step plan put the swinging
+    toe on the ground two knots (0.15 s) before its touch-down, and the simulation, tracking it
+    within millimetres, touched the floor early: an unplanned contact.
+    """
+    floor = np.zeros(len(rows))
+    n = len(lay.contacts_at)
+    for j, (k, fid, _corner) in enumerate(rows):
+        before = k - 1 >= 0 and fid in lay.contacts_at[k - 1]
+        after = k + 1 >= n or fid in lay.contacts_at[k + 1]
+        if not before and not after:
+            floor[j] = SWING_CLEARANCE
+    return floor
+
+
+def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:
+    """Parameter values of the extended NLP: the kinematic ones, then the contact geometry."""
+    return np.concatenate([p, lay.pattern().parameter_values])

@@ -1,0 +1,35 @@
+"""The IPOPT backend: nlpsol options (MUMPS, exact Hessian) and the map of IPOPT's return status."""
+
+from __future__ import annotations
+
+from planner.results import SolveStatus
+from planner.trajopt.settings import PlannerSettings
+
+
+def ipopt_options(settings: PlannerSettings) -> dict:
+    """nlpsol options for IPOPT + MUMPS with the exact Hessian."""
+    return {
+        "print_time": False,
+        "ipopt": {
+            "print_level": int(settings.print_level),
+            "sb": "yes",
+            "max_iter": int(settings.max_iterations),
+            "tol": float(settings.tolerance),
+            "constr_viol_tol": float(settings.constraint_tolerance),
+            "linear_solver": "mumps",
+            "mu_strategy": "adaptive",
+            "obj_scaling_factor": float(settings.objective_scaling),
+            **dict(settings.ipopt_extra),
+        },
+    }
+
+
+_STATUS = {
+    "Solve_Succeeded": SolveStatus.SOLVED,
+    "Solved_To_Acceptable_Level": SolveStatus.SOLVED_INACCURATE,
+    "Infeasible_Problem_Detected": SolveStatus.INFEASIBLE,
+    "Restoration_Failed": SolveStatus.INFEASIBLE,
+    "Maximum_Iterations_Exceeded": SolveStatus.MAX_ITERATIONS,
+    "Maximum_CpuTime_Exceeded": SolveStatus.MAX_ITERATIONS,
+    "Maximum_WallTime_Exceeded": SolveStatus.MAX_ITERATIONS,
+}

@@ -1,0 +1,48 @@
+"""One solve of a layout: fetch or build its solver (:mod:`planner.trajopt.cache`), feed it the
+layout's values, run IPOPT."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from planner.results import SolverStats, SolveStatus
+from planner.trajopt.cache import get_solver
+from planner.trajopt.ipopt import _STATUS
+from planner.trajopt.layout import Layout
+from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.transcription import bounds, parameter_values
+
+
+def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None = None,
+                 x0: np.ndarray | None = None) -> tuple[np.ndarray, SolverStats, dict]:
+    """Fetch/build the solver of a layout, solve, return (dq per knot (N+1, nv), stats, raw)."""
+    t0 = time.perf_counter()
+    solver = get_solver(lay, settings, progress)
+    build_time = time.perf_counter() - t0
+    nl = solver.nlp_layout
+    lbx, ubx, lbg, ubg = bounds(lay, nl)
+    p = parameter_values(lay, nl)
+    if x0 is None:
+        x0 = lay.initial_guess()
+    if progress:
+        progress(f"solving ({nl.n_x} variables, {nl.n_g} constraints)")
+    t1 = time.perf_counter()
+    sol = solver.function(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    solve_time = time.perf_counter() - t1
+    st = solver.function.stats()
+    raw = str(st.get("return_status", ""))
+    status = _STATUS.get(raw, SolveStatus.NUMERICAL_ERROR if raw else SolveStatus.NOT_RUN)
+    x = np.asarray(sol["x"], dtype=float).ravel()
+    dq = np.zeros((lay.N + 1, lay.robot.nv))
+    dq[2:lay.N] = x[: lay.robot.nv * (lay.N - 2)].reshape(lay.N - 2, lay.robot.nv)
+    dq[lay.N] = dq[lay.N - 1]
+    stats = SolverStats(
+        status=status, iterations=int(st.get("iter_count", 0)), build_time=build_time,
+        solve_time=solve_time, cache=solver.origin, objective=float(sol["f"]),
+        n_variables=nl.n_x, n_constraints=nl.n_g, raw_status=raw,
+    )
+    return dq, stats, {"x": x, "lam_g": np.asarray(sol["lam_g"]).ravel(), "g": np.asarray(sol["g"]).ravel(),
+                       "lbg": lbg, "ubg": ubg, "nlp_layout": nl}

@@ -1,0 +1,45 @@
+"""The whole-body controller: an inverse-dynamics QP that tracks a Plan (DESIGN.md section 4).
+
+Modules, in import order: ``settings`` (:class:`WbcSettings`, :class:`ControllerError`),
+``kernel`` (the numba tick arithmetic), ``reference`` (the plan as smooth references),
+``controller`` (:class:`WholeBodyController`). Public names load on first access.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from planner.wbc.controller import TickInfo, WholeBodyController
+    from planner.wbc.reference import PlanReference
+    from planner.wbc.settings import ControllerError, WbcSettings
+
+_EXPORTS = {  # public name -> module that defines it
+    "ControllerError": "planner.wbc.settings",
+    "PlanReference": "planner.wbc.reference",
+    "TickInfo": "planner.wbc.controller",
+    "WbcSettings": "planner.wbc.settings",
+    "WholeBodyController": "planner.wbc.controller",
+}
+
+__all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
+    "ControllerError",
+    "PlanReference",
+    "TickInfo",
+    "WbcSettings",
+    "WholeBodyController",
+]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})
