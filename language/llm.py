@@ -27,6 +27,7 @@ from typing import Any
 
 from language.exceptions import BackendError, LanguageError, LLMReplyInvalid, LLMUnavailable, UnsupportedInstruction
 from language.plan import ActionPlan
+from language.rules import rules_plan
 from language.validate import SchemaViolation, validate
 from tasks.actions import REGISTRY, actions_json_schema
 
@@ -102,11 +103,9 @@ def system_prompt() -> str:
 
 def few_shot_messages() -> list[dict[str, str]]:
     """User/assistant example pairs, produced by the rule parser."""
-    from language.parse import parse
-
     out = []
     for sentence in FEW_SHOT:
-        plan = parse(sentence).to_dict()
+        plan = rules_plan(sentence).to_dict()
         del plan["backend"]
         out.append({"role": "user", "content": sentence})
         out.append({"role": "assistant", "content": json.dumps(plan, ensure_ascii=False)})

@@ -6,7 +6,7 @@ from typing import Any
 
 from language.exceptions import BackendError
 from language.plan import ActionPlan
-from language.rules import parse_rules
+from language.rules import rules_plan
 
 BACKENDS = ("rules", "llm")
 
@@ -31,9 +31,7 @@ def parse(text: str, *, backend: str = "rules", **llm_options: Any) -> ActionPla
     if backend == "rules":
         if llm_options:
             raise BackendError(f"the rules parser takes no options, got {', '.join(sorted(llm_options))}")
-        parsed = parse_rules(text)
-        return ActionPlan(actions=tuple(p.action for p in parsed), backend="rules", text=text,
-                          given=tuple(p.given for p in parsed))
+        return rules_plan(text)
     if backend == "llm":
         from language.llm import OPTIONS, parse_llm
 

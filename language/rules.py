@@ -57,6 +57,7 @@ from language.lexicon import (
     get_lexicon,
 )
 from language.normalize import atomize, normalize
+from language.plan import ActionPlan
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
 
@@ -123,6 +124,14 @@ def parse_rules(text: str, *, lexicon: Lexicon | None = None) -> list[ParsedActi
     for group in groups:
         out.extend(group[0][1] if len(group) == 1 else _overlay(group, normalized))
     return out
+
+
+def rules_plan(text: str) -> ActionPlan:
+    """The :class:`ActionPlan` of an instruction parsed by the rules (``parse(text)`` with the
+    default backend; the LLM backend's few-shot examples use it too)."""
+    parsed = parse_rules(text)
+    return ActionPlan(actions=tuple(p.action for p in parsed), backend="rules", text=text,
+                      given=tuple(p.given for p in parsed))
 
 
 def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
@@ -473,4 +482,4 @@ def _given_params(p: ParsedAction) -> dict[str, Any]:
     return {k: v for k, v in p.action.params.items() if k in p.given}
 
 
-__all__ = ["ParsedAction", "known_actions", "parse_rules"]
+__all__ = ["ParsedAction", "known_actions", "parse_rules", "rules_plan"]
