@@ -1,10 +1,35 @@
-"""Simulation check: MuJoCo model from the robot's URDF, closed-loop WBC, certificate."""
+"""Simulation check: MuJoCo model from the robot's URDF, closed-loop WBC, certificate.
 
-from sim.certificate import Certificate, Check
-from sim.exceptions import PushParseError, SimError, SimModelError
-from sim.execution import Event, Execution
-from sim.model import SimModel, build_model
-from sim.run import Push, SimSettings, parse_push, simulate
+``from sim import simulate``; public names load on first access (MuJoCo only when needed).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from sim.certificate import Certificate, Check
+    from sim.exceptions import PushParseError, SimError, SimModelError
+    from sim.execution import Event, Execution
+    from sim.model import SimModel, build_model
+    from sim.run import Push, SimSettings, parse_push, simulate
+
+_EXPORTS = {  # public name -> module that defines it
+    "Certificate": "sim.certificate",
+    "Check": "sim.certificate",
+    "Event": "sim.execution",
+    "Execution": "sim.execution",
+    "Push": "sim.run",
+    "PushParseError": "sim.exceptions",
+    "SimError": "sim.exceptions",
+    "SimModel": "sim.model",
+    "SimModelError": "sim.exceptions",
+    "SimSettings": "sim.run",
+    "build_model": "sim.model",
+    "parse_push": "sim.run",
+    "simulate": "sim.run",
+}
 
 __all__ = [
     "Certificate",
@@ -21,3 +46,16 @@ __all__ = [
     "parse_push",
     "simulate",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -2,8 +2,14 @@
 
 ``tasks.specs`` holds the data types (:class:`TaskSpec`, :class:`Phase`, :class:`Contact`,
 :class:`FrameTarget`, :class:`CoMTarget`, :class:`CoMBounds`, :class:`JointTarget`);
-``tasks.serialize`` their exact JSON round-trip.
+``tasks.serialize`` their exact JSON round-trip; ``tasks.compose.compile_actions`` turns
+registry actions into one spec (imported on first access: it loads the primitive registry).
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 from tasks.exceptions import TaskDefinitionError, TaskError, UnknownAction
 from tasks.serialize import load_spec, spec_from_dict, spec_from_json, spec_to_dict, spec_to_json
@@ -20,7 +26,14 @@ from tasks.specs import (
     TaskSpec,
 )
 
+if TYPE_CHECKING:
+    from tasks.actions import Action
+    from tasks.compose import compile_actions
+
+_LAZY = {"Action": "tasks.actions", "compile_actions": "tasks.compose"}  # public name -> module
+
 __all__ = [
+    "Action",
     "CoMBounds",
     "CoMTarget",
     "Contact",
@@ -34,9 +47,23 @@ __all__ = [
     "TaskError",
     "TaskSpec",
     "UnknownAction",
+    "compile_actions",
     "load_spec",
     "spec_from_dict",
     "spec_from_json",
     "spec_to_dict",
     "spec_to_json",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
