@@ -16,3 +16,29 @@ Modules, in import order (each imports only the ones above it; tests/test_layeri
 * ``centroidal``: the dynamic formulation (contact forces, CoM dynamics);
 * ``api``: :func:`plan`, the entry point (also ``planner.plan``).
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from planner.trajopt.api import plan
+    from planner.trajopt.settings import PlannerSettings
+
+_EXPORTS = {"PlannerSettings": "planner.trajopt.settings", "plan": "planner.trajopt.api"}  # loaded on first access
+
+__all__ = ["PlannerSettings", "plan"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

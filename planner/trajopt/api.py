@@ -1,10 +1,10 @@
 """Whole-body trajectory optimization of a TaskSpec: CasADi NLP, solved with IPOPT.
 
 :func:`plan` is the entry point. It lays the spec out on a knot grid
-(:mod:`planner.formulation`), fetches or builds the solver for that layout's *structure*
-(:mod:`planner.cache`: in memory, or compiled C code on disk), feeds it the layout's *values*
+(:mod:`planner.trajopt.layout`), fetches or builds the solver for that layout's *structure*
+(:mod:`planner.trajopt.cache`: in memory, or compiled C code on disk), feeds it the layout's *values*
 as parameters and bounds, solves, and reports the result checked with Pinocchio numerics
-(:mod:`planner.diagnose`).
+(:mod:`planner.trajopt.checks`, :mod:`planner.trajopt.diagnose`).
 
 The NLP (DESIGN.md section 3), for knots ``k = 0..N`` on a uniform grid:
 
@@ -17,7 +17,7 @@ The NLP (DESIGN.md section 3), for knots ``k = 0..N`` on a uniform grid:
   the soft terms.
 * when ``spec.dynamic``: contact forces at the sole corners as extra variables, CoM dynamics
   ``m (c'' - g) = sum f``, friction pyramids, sole corners of swinging feet above the ground,
-  an angular-momentum-rate cost (:mod:`planner.centroidal`, ``docs/dynamic.md``).
+  an angular-momentum-rate cost (:mod:`planner.trajopt.centroidal`, ``docs/dynamic.md``).
 """
 
 from __future__ import annotations

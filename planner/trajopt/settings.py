@@ -27,7 +27,7 @@ def default_compile() -> bool:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PlannerSettings:
-    """How :func:`planner.trajopt.plan` builds and solves the NLP.
+    """How :func:`planner.plan` builds and solves the NLP.
 
     Attributes:
         max_iterations: IPOPT iteration limit (feasible plans need <= 30 here; an infeasible one
@@ -62,7 +62,7 @@ class PlannerSettings:
             specs prepend ``centroidal.ipopt_options``).
         warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
             ``"nominal"`` (inverse kinematics at the target times, blended: see
-            :mod:`planner.nominal`).
+            :mod:`planner.trajopt.nominal`).
     """
 
     max_iterations: int = 100

@@ -309,7 +309,7 @@ class WholeBodyController:
             q: Measured configuration (nq,), Pinocchio order, quaternion (x, y, z, w).
             v: Measured velocity (nv,), Pinocchio convention.
             reference: The Plan to track (its dense reference is built on first use), or a
-                :class:`~planner.wbc_reference.PlanReference`.
+                :class:`~planner.wbc.reference.PlanReference`.
 
         Returns:
             Actuated joint torques (nv - 6,) [N m], within the torque limits.

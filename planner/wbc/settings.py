@@ -39,7 +39,7 @@ class WbcSettings:
             (they bound the cost of a failing tick).
         dense_backend: proxsuite dense factorization: ``Automatic``, ``PrimalDualLDLT`` or ``PrimalLDLT``.
         fast_path: First solve the QP without its inequalities (a reduced KKT system, see
-            :mod:`planner.wbc_kernel`); when that solution meets every inequality it is the QP's
+            :mod:`planner.wbc.kernel`); when that solution meets every inequality it is the QP's
             exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
         active_set_iterations: When that solution violates friction or torque rows, this many
             active-set iterations on the same reduced system (violated rows held as equalities,

@@ -120,7 +120,7 @@ def dynamic_checks(
         position_tolerance: Accepted CoP excursion and corner depth [m].
 
     Returns:
-        One :class:`~planner.plan.ConstraintCheck` per group.
+        One :class:`~planner.results.ConstraintCheck` per group.
     """
     cen = terms
     t = np.asarray(lay.t, dtype=float)
@@ -192,7 +192,7 @@ def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forc
         q: Configurations (N+1, nq).
         com: CoM per knot (N+1, 3) [m].
         forces: Solution values of the force variables (None: none available).
-        checks: The kinematic report (``planner.diagnose.check_plan``).
+        checks: The kinematic report (``planner.trajopt.checks.check_plan``).
         settings: ``PlannerSettings`` (``polygon_tolerance`` [m]).
 
     Returns:

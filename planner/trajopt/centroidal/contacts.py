@@ -126,7 +126,7 @@ def _geometry_values(c: ContactGeometry) -> np.ndarray:
 
 
 def layout_contacts(lay: Any, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
-    """Per knot of a :class:`planner.formulation.Layout`, the contacts it holds, as geometry.
+    """Per knot of a :class:`planner.trajopt.layout.Layout`, the contacts it holds, as geometry.
 
     A contact holds at both ends of its phase (the layout's ``contacts_at``), so forces may act
     at the knot where a foot lifts off or touches down. The friction coefficient is the spec

@@ -70,8 +70,8 @@ class DynamicLayout(Layout):
         return swinging_corners(self)
 
     def structure(self) -> tuple:
-        """Kinematic structure + the dynamic one (with :data:`DYNAMIC_FORMULATION`: the solver
-        cache hashes the planner sources but not this file, so an edited dynamic NLP bumps it)."""
+        """Kinematic structure + the dynamic one (with :data:`DYNAMIC_FORMULATION`, bumped when the
+        dynamic NLP changes; the solver cache also hashes the centroidal sources)."""
         return (super().structure(), "dynamic", DYNAMIC_FORMULATION, self.pattern().structure,
                 self.corner_rows(), self.centroidal_settings)
 
@@ -132,7 +132,7 @@ def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSetting
     soles, which the corner forces guarantee at every knot.
 
     Args:
-        lay: The layout of a spec (``planner.formulation.make_layout``).
+        lay: The layout of a spec (``planner.trajopt.layout.make_layout``).
         settings: Weights and options of the dynamic terms.
 
     Returns:

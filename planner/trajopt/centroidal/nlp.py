@@ -21,7 +21,7 @@ def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
     """Heights (8,) of the left then right sole corners from symbolic joint placements [m].
 
     Args:
-        kin: A :class:`planner.symbolic.SymbolicKinematics`.
+        kin: A :class:`planner.trajopt.symbolic.SymbolicKinematics`.
         oMi: Its joint placements at one knot.
         robot: The robot (foot frames, sole rectangle).
 
@@ -204,7 +204,7 @@ def stage_hessians(lay: Any, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam
     w.r.t. ``dq_k``: the kinematic terms and the CoM and sole-corner rows of the dynamics share
     one forward-kinematics pass, and the blocks are laid out in knot order with one ``diagcat``
     (no sparse products with selection matrices). Parameters and multipliers are read in the
-    order :func:`planner.trajopt.build_nlp` gives them.
+    order :func:`planner.trajopt.transcription.build_nlp` gives them.
 
     Args:
         lay: The dynamic layout.

@@ -448,7 +448,7 @@ class CentroidalFunction:
 
 def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSettings(),
                         first_free_knot: int = 2) -> CentroidalFunction:
-    """Build :class:`CentroidalFunction` for a :class:`planner.formulation.Layout`.
+    """Build :class:`CentroidalFunction` for a :class:`planner.trajopt.layout.Layout`.
 
     Args:
         lay: The layout (grid, contacts held per knot, robot).
