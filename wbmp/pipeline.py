@@ -152,29 +152,85 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     return SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
 
 
+@dataclass(frozen=True, kw_only=True)
+class OutputPaths:
+    """The files a command will write, checked before any work (:func:`check_outputs`)."""
+
+    out: Path | None = None
+    html: Path | None = None
+    plots: Path | None = None
+
+
+def check_outputs(*, out: str | None = None, html: str | None = None, plots: str | None = None,
+                  inputs: dict[str, str | None] | None = None) -> OutputPaths:
+    """Check every output path of ``solve``/``show``/``demo`` before any work.
+
+    Refuses (:class:`CliError`, exit 2, one line naming the option, the path and why): an empty
+    path, a directory, a symbolic link, a device or other non-regular file, a read-only file, a
+    missing or unwritable folder, two outputs on one file, an output on an input file, and a
+    motion file (``--out``) that does not end in ``.npz``. ``None`` means "not asked".
+    See :mod:`viz.files` for the rules.
+    """
+    from viz.files import OutputPathError, check_distinct, check_output_dir, check_output_file
+
+    try:
+        paths = OutputPaths(
+            out=None if out is None else check_output_file(out, "--out"),
+            html=None if html is None else check_output_file(html, "--html"),
+            plots=None if plots is None else check_output_dir(plots, "--plots", _plot_files()),
+        )
+        if paths.out is not None and paths.out.suffix.lower() != ".npz":
+            raise OutputPathError(f"--out {out!r}: a motion file ends in .npz (for JSON or CSV, write the "
+                                  ".npz and run `wbmp export`)")
+        files = {k: v for k, v in (("--out", paths.out), ("--html", paths.html)) if v is not None}
+        if paths.plots is not None:
+            files.update({f"--plots ({name})": paths.plots / name for name in _plot_files()})
+        check_distinct(files, {k: Path(v) for k, v in (inputs or {}).items() if v})
+    except OutputPathError as e:
+        raise CliError(str(e), ExitCode.USAGE) from None
+    return paths
+
+
+def _plot_files() -> tuple[str, ...]:
+    from viz.plots import PLOT_FILES
+
+    return PLOT_FILES
+
+
 def write_outputs(result: SolveResult, *, out: str | None = None, html: str | None = None,
                   plots: str | None = None, progress: Progress = _silent) -> dict[str, str]:
-    """Write the requested files atomically; returns {kind: path}."""
+    """Write the requested files; returns {kind: path}.
+
+    The paths are checked again (:func:`check_outputs`), every file is made in a temporary file
+    beside its target, and all are renamed into place at the end: a failure (or Ctrl-C) while
+    making them leaves the folders as they were.
+    """
+    from viz.files import Staging
+
+    paths = check_outputs(out=out, html=html, plots=plots)
     written: dict[str, str] = {}
-    if out:
-        from wbmp.motionfile import save_motion
+    with Staging() as staging:
+        if paths.out is not None:
+            from wbmp.motionfile import save_motion
 
-        progress(f"writing {out}")
-        save_motion(out, result.plan, result.robot, execution=result.execution,
-                    actions=result.actions.to_dict()["actions"] if result.actions is not None else None,
-                    report=result.report())
-        written["motion"] = str(Path(out))
-    if html:
-        from viz import write_html
+            progress(f"writing {out}")
+            save_motion(paths.out, result.plan, result.robot, execution=result.execution,
+                        actions=result.actions.to_dict()["actions"] if result.actions is not None else None,
+                        report=result.report(), staging=staging)
+            written["motion"] = str(paths.out)
+        if paths.html is not None:
+            from viz import write_html
 
-        progress(f"writing {html}")
-        write_html(html, result.robot, result.plan, execution=result.execution,
-                   title=result.spec.description or result.spec.name)
-        written["html"] = str(Path(html))
-    if plots:
-        from viz import write_plots
+            progress(f"writing {html}")
+            write_html(paths.html, result.robot, result.plan, execution=result.execution,
+                       title=result.spec.description or result.spec.name, staging=staging)
+            written["html"] = str(paths.html)
+        if paths.plots is not None:
+            from viz import write_plots
 
-        progress(f"writing plots to {plots}")
-        paths = write_plots(plots, result.robot, result.plan, execution=result.execution)
-        written["plots"] = ", ".join(str(p) for p in paths)
+            progress(f"writing plots to {plots}")
+            files = write_plots(paths.plots, result.robot, result.plan, execution=result.execution,
+                                staging=staging)
+            written["plots"] = ", ".join(str(p) for p in files)
+        staging.commit()
     return written

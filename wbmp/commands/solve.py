@@ -31,9 +31,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--spec", metavar="FILE", help="TaskSpec JSON file instead of a sentence (docs/spec-format.md)")
     p.add_argument("--robot", default=None,
                    help="robot name or profile file (default: talos, or the spec's robot)")
-    p.add_argument("--out", metavar="FILE", default=None, help="write the motion file (.npz) here")
+    p.add_argument("--out", metavar="FILE.npz", default=None,
+                   help="write the motion file (.npz) here (an existing file is replaced; links, folders "
+                        "and devices are refused)")
     p.add_argument("--html", metavar="FILE", default=None, help="write a standalone HTML replay here")
-    p.add_argument("--plots", metavar="DIR", default=None, help="write PNG plots into DIR")
+    p.add_argument("--plots", metavar="DIR", default=None,
+                   help="write PNG plots into DIR (created if missing; its parent must exist)")
     p.add_argument("--view", action="store_true", help="open the live meshcat viewer (127.0.0.1) afterwards")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
     p.add_argument("--push", metavar="N@t", default=None,
@@ -68,9 +71,13 @@ def request_from_args(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
-    from wbmp.pipeline import solve, write_outputs
+    from wbmp.pipeline import check_outputs, solve, write_outputs
 
     request = request_from_args(args)
+    # every output path before any work: a typo must not cost a whole solve (exit 2)
+    check_outputs(out=args.out, html=args.html, plots=args.plots,
+                  inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)
+                          else None})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     result = solve(request, progress)
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
