@@ -51,8 +51,9 @@ bench-peers: $(STAMP)
 lock:
 	@d=$$(mktemp -d) && trap 'rm -rf "$$d"' EXIT && \
 	$(PYTHON) -m venv "$$d/venv" && \
-	"$$d/venv/bin/python" -m pip install --quiet --disable-pip-version-check --upgrade pip && \
-	"$$d/venv/bin/python" -m pip install --quiet --disable-pip-version-check -e '.[test]' && \
+	{ "$$d/venv/bin/python" -m pip install --quiet --disable-pip-version-check --upgrade pip && \
+	  "$$d/venv/bin/python" -m pip install --quiet --disable-pip-version-check -e '.[test]'; \
+	} > "$$d/pip.log" 2>&1 || { cat "$$d/pip.log"; echo "make lock: the install failed; $(LOCK) is unchanged"; exit 1; } && \
 	where=$$("$$d/venv/bin/python" -c 'import platform as p; print("Python", p.python_version(), p.machine(), p.system())') && \
 	{ echo "# Exact versions that \`make\` installs (pip install -c $(LOCK)), resolved by \`make lock\`"; \
 	  echo "# on $$where from pyproject.toml's lower bounds. Refresh on purpose with"; \
