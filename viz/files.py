@@ -36,8 +36,20 @@ from typing import BinaryIO
 TMP_SUFFIX = ".tmp"
 
 
-class OutputPathError(ValueError):
+class OutputError(Exception):
+    """An output could not be written; the message is one line for the user."""
+
+
+class OutputPathError(OutputError, ValueError):
     """An output path wbmp will not write; the message names the option, the path and why."""
+
+
+class OutputWriteError(OutputError):
+    """Writing or renaming an output failed (disk full, file too large, folder changed...).
+
+    Nothing was left behind: the temporary files are removed, and so are the outputs this
+    command had created.
+    """
 
 
 def _show(path: str | os.PathLike) -> str:
@@ -131,7 +143,7 @@ def check_output_file(path: str | os.PathLike, option: str) -> Path:
         raise OutputPathError(f"{option} {shown}: ends in '/', which names a folder; give a file name")
     out = Path(text)
     if out.name in ("", ".", ".."):
-        raise OutputPathError(f"{option} {shown}: names a folder; give a file name")
+        raise OutputPathError(f"{option} {shown}: names a directory; give a file name")
     st = _lstat(out, option, shown)
     if st is not None:
         _check_existing_file(out, st, option, shown)
@@ -244,7 +256,11 @@ class Staging:
         except FileNotFoundError:
             st = None
         existed = st is not None and stat.S_ISREG(st.st_mode)
-        tmp = self._create(folder, target.name)
+        try:
+            tmp = self._create(folder, target.name)
+        except OSError as e:
+            self.discard()
+            raise OutputWriteError(f"cannot write in {_show(folder)}: {_why(e)}; nothing was written") from e
         self._staged.append(_Staged(tmp=tmp, target=target, existed=existed, new_folders=tuple(reversed(missing))))
         try:
             fd = os.open(tmp, os.O_WRONLY | getattr(os, "O_CLOEXEC", 0))
@@ -259,6 +275,9 @@ class Staging:
                 write(fh)
                 fh.flush()
                 os.fsync(fh.fileno())
+        except OSError as e:
+            self.discard()
+            raise OutputWriteError(f"cannot write {_show(target)}: {_why(e)}; nothing was written") from e
         except BaseException:
             self.discard()
             raise
@@ -292,11 +311,11 @@ class Staging:
                 except FileNotFoundError:
                     pass
                 if st is not None and not stat.S_ISREG(st.st_mode):
-                    raise OutputPathError(f"{_show(item.target)} changed while wbmp was working: it is no "
-                                          "longer a regular file; nothing was written")
+                    raise OutputWriteError(f"{_show(item.target)} changed while wbmp was working: it is no "
+                                           "longer a regular file; nothing was written")
                 os.replace(item.tmp, item.target)
                 done.append(item)
-        except BaseException:
+        except BaseException as e:
             for item in done:
                 if not item.existed:
                     item.target.unlink(missing_ok=True)
@@ -307,6 +326,9 @@ class Staging:
                     folder.rmdir()
                 except OSError:
                     pass
+            if isinstance(e, OSError):
+                raise OutputWriteError(f"cannot write {_show(item.target)}: {_why(e)}; the files this "
+                                       "command created were removed") from e
             raise
         self._staged = []
         return [item.target for item in done]

@@ -6,8 +6,9 @@ every step reports progress through a small callback so the CLI can show it (or 
 
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -152,6 +153,17 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     return SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
 
 
+@contextlib.contextmanager
+def output_errors() -> Iterator[None]:
+    """Turn :class:`viz.files.OutputError` (a refused path, a failed write) into exit 2."""
+    from viz.files import OutputError
+
+    try:
+        yield
+    except OutputError as e:
+        raise CliError(str(e), ExitCode.USAGE) from None
+
+
 @dataclass(frozen=True, kw_only=True)
 class OutputPaths:
     """The files a command will write, checked before any work (:func:`check_outputs`)."""
@@ -173,7 +185,7 @@ def check_outputs(*, out: str | None = None, html: str | None = None, plots: str
     """
     from viz.files import OutputPathError, check_distinct, check_output_dir, check_output_file
 
-    try:
+    with output_errors():
         paths = OutputPaths(
             out=None if out is None else check_output_file(out, "--out"),
             html=None if html is None else check_output_file(html, "--html"),
@@ -186,8 +198,6 @@ def check_outputs(*, out: str | None = None, html: str | None = None, plots: str
         if paths.plots is not None:
             files.update({f"--plots ({name})": paths.plots / name for name in _plot_files()})
         check_distinct(files, {k: Path(v) for k, v in (inputs or {}).items() if v})
-    except OutputPathError as e:
-        raise CliError(str(e), ExitCode.USAGE) from None
     return paths
 
 
@@ -209,7 +219,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
 
     paths = check_outputs(out=out, html=html, plots=plots)
     written: dict[str, str] = {}
-    with Staging() as staging:
+    with output_errors(), Staging() as staging:
         if paths.out is not None:
             from wbmp.motionfile import save_motion
 

@@ -58,25 +58,22 @@ def output_path(motion: str, out: str | None, fmt: str | None) -> tuple[Path, st
 
 
 def run(args: argparse.Namespace) -> int:
-    from viz.files import OutputPathError, Staging, check_distinct, check_output_file
+    from viz.files import Staging, check_distinct, check_output_file
     from wbmp.motionfile import exec_csv_path, export_motion, load_motion
+    from wbmp.pipeline import output_errors
 
     path, fmt = output_path(args.motion, args.out, args.format)
     option = "--out" if args.out is not None else "the output"
-    try:
+    with output_errors():
         check_output_file(path if args.out is None else args.out, option)
         check_distinct({option: path}, {"the motion file": Path(args.motion)})
-    except OutputPathError as e:
-        raise CliError(str(e), ExitCode.USAGE) from None
     motion = load_motion(args.motion)
     if fmt == "csv" and motion.execution_arrays:
         exec_path = exec_csv_path(path)
-        try:
+        with output_errors():
             check_output_file(exec_path, f"{option} (the execution's {exec_path.name})")
             check_distinct({option: path, "the execution CSV": exec_path}, {"the motion file": Path(args.motion)})
-        except OutputPathError as e:
-            raise CliError(str(e), ExitCode.USAGE) from None
-    with Staging() as staging:
+    with output_errors(), Staging() as staging:
         written = export_motion(motion, path, fmt, staging=staging)
         staging.commit()
     for p in written:

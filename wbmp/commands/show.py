@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from viz.files import Staging
     from viz.motion import VizInputError
     from viz.progress import make_progress
-    from wbmp.pipeline import check_outputs
+    from wbmp.pipeline import check_outputs, output_errors
 
     if args.port is not None and not 1 <= args.port <= 65535:
         raise CliError(f"--port must be in 1..65535, got {args.port}", ExitCode.USAGE)
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         robot, plan, execution = load(args.motion)
     written: list[str] = []
     try:
-        with Staging() as staging:
+        with output_errors(), Staging() as staging:
             if outputs.html is not None:
                 from viz import write_html
 
