@@ -295,7 +295,7 @@ def plan_from_reply(content: str, text: str) -> ActionPlan:
     try:
         data = loads_strict(body)
     except json.JSONDecodeError as e:
-        raise _ReplyError(f"the reply is not JSON ({e.msg} at line {e.lineno} column {e.colno})") from None
+        raise _ReplyError(f"the reply is not JSON ({e.msg.removesuffix(' at')} at line {e.lineno} column {e.colno})") from None
     except _BadNumber as e:
         raise _ReplyError(f"the reply holds {e}: every number must be finite and of reasonable size") from None
     except RecursionError:

@@ -16,10 +16,13 @@ from __future__ import annotations
 import json
 import select
 import socket
+import ssl
+import subprocess
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from http.server import BaseHTTPRequestHandler, HTTPServer as _StdHTTPServer
 
 
@@ -60,7 +63,8 @@ class Response:
 class HTTPServer:
     """``http.server`` on 127.0.0.1:<ephemeral> answering every request with ``respond(request)``."""
 
-    def __init__(self, respond: Callable[[Request], Response], *, lifetime: float = 30.0) -> None:
+    def __init__(self, respond: Callable[[Request], Response], *, lifetime: float = 30.0,
+                 tls: ssl.SSLContext | None = None) -> None:
         self.requests: list[Request] = []
         owner = self
 
@@ -92,15 +96,20 @@ class HTTPServer:
 
         self._httpd = _StdHTTPServer(("127.0.0.1", 0), Handler)
         self._httpd.timeout = 0.05
+        if tls is not None:  # the TLS handshake happens in accept(), in the server's thread
+            self._httpd.socket = tls.wrap_socket(self._httpd.socket, server_side=True)
         self.port = self._httpd.server_address[1]
-        self.url = f"http://127.0.0.1:{self.port}/v1"
+        self.url = f"{'https' if tls else 'http'}://127.0.0.1:{self.port}/v1"
         self._end = time.monotonic() + lifetime
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, daemon=True)
 
     def _loop(self) -> None:
         while not self._stop.is_set() and time.monotonic() < self._end:
-            self._httpd.handle_request()  # returns after one request or 0.05 s
+            try:
+                self._httpd.handle_request()  # returns after one request or 0.05 s
+            except (OSError, ssl.SSLError):
+                pass  # a client that refused our certificate
 
     def __enter__(self) -> HTTPServer:
         self._thread.start()
@@ -224,3 +233,18 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def self_signed_certificate(folder: Path) -> tuple[Path, Path] | None:
+    """(cert, key) PEM files for 127.0.0.1 made by the openssl command, None without it."""
+    cert, key = folder / "cert.pem", folder / "key.pem"
+    try:
+        subprocess.run(
+            ["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
+             "-keyout", str(key), "-out", str(cert), "-days", "2", "-subj", "/CN=127.0.0.1",
+             "-addext", "subjectAltName=IP:127.0.0.1"],
+            check=True, capture_output=True, timeout=60,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return cert, key

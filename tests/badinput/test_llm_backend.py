@@ -11,6 +11,7 @@ from __future__ import annotations
 import gzip
 import json
 import re
+import ssl
 import time
 import unicodedata
 import zlib
@@ -30,6 +31,7 @@ from tests.badinput.llm_servers import (
     drip,
     free_port,
     plan_reply,
+    self_signed_certificate,
     send,
 )
 
@@ -448,6 +450,52 @@ def test_silent_server(capsys):
     """A server that accepts and never answers."""
     with RawServer(send(b"", hold=20)) as srv:
         refused(llm_parse(capsys, srv.url, timeout=1), "did not answer within 1 s")
+
+
+# --- https ---------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def certificate(tmp_path_factory):
+    files = self_signed_certificate(tmp_path_factory.mktemp("tls"))
+    if files is None:
+        pytest.skip("the openssl command is needed to make a test certificate")
+    server_side = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    server_side.load_cert_chain(*files)
+    return files[0], server_side
+
+
+def test_https_reply_is_read_through_the_deadline_socket(capsys, monkeypatch, certificate):
+    """A trusted https server (its certificate in SSL_CERT_FILE): the plan comes back."""
+    cert, server_side = certificate
+    monkeypatch.setenv("SSL_CERT_FILE", str(cert))
+    with HTTPServer(lambda r: Response(body=plan_reply(SQUAT)), tls=server_side) as srv:
+        outcome = llm_parse(capsys, srv.url + "?api-version=3", "--json")
+    assert outcome.code == 0, outcome.err
+    assert json.loads(outcome.out)["actions"] == SQUAT
+    assert [(r.path, r.headers["Authorization"]) for r in srv.requests] == [
+        ("/v1/chat/completions?api-version=3", f"Bearer {SECRET}")]
+
+
+def test_https_untrusted_certificate(capsys, certificate):
+    """A self-signed certificate the system does not trust: refused, nothing sent."""
+    _, server_side = certificate
+    with HTTPServer(lambda r: Response(body=plan_reply(SQUAT)), tls=server_side) as srv:
+        outcome = llm_parse(capsys, srv.url)
+    refused(outcome, "TLS failed", "certificate")
+    assert srv.requests == []
+
+
+def test_https_to_a_plain_http_server(capsys):
+    """https:// typed for a local server that speaks plain HTTP: one line, not a traceback."""
+    with HTTPServer(lambda r: Response(body=plan_reply(SQUAT))) as srv:
+        refused(llm_parse(capsys, srv.url.replace("http://", "https://")), "TLS failed")
+
+
+def test_https_handshake_that_never_comes(capsys):
+    """A server that accepts the connection and never answers the TLS hello: the deadline holds."""
+    with RawServer(send(b"", hold=20)) as srv:
+        refused(llm_parse(capsys, srv.url.replace("http://", "https://"), timeout=1), "did not answer within 1 s")
 
 
 # --- proxies and solve -----------------------------------------------------------------------
