@@ -37,6 +37,9 @@ MAX_ANGLE = 100.0  # [rad] any orientation, orientation tolerance or joint value
 MAX_WEIGHT = 1e6  # [-] any cost weight
 MAX_FRICTION = 10.0  # [-] friction coefficient
 GROUND_TOLERANCE = 0.01  # [m] a contact placement may be this far below the ground (z = 0), no more
+START_TOLERANCE = 1e-3  # [m], [rad] first-phase contacts vs the robot's standing soles
+MAX_NAME_LENGTH = 200  # characters of a name, frame or joint in a spec
+MAX_TEXT_LENGTH = 10_000  # characters of a spec's description (the sentence it came from)
 MIN_DT, MAX_DT = 0.005, 0.5  # [s] knot spacing of a spec
 
 # Spec files.
@@ -69,12 +72,15 @@ __all__ = [
     "MAX_HORIZON",
     "MAX_ITEMS",
     "MAX_KNOTS",
+    "MAX_NAME_LENGTH",
     "MAX_NESTING",
     "MAX_PHASES",
     "MAX_REPEAT",
     "MAX_SPEC_BYTES",
     "MAX_TERMS",
+    "MAX_TEXT_LENGTH",
     "MAX_WEIGHT",
     "MIN_DT",
+    "START_TOLERANCE",
     "horizon_message",
 ]

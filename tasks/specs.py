@@ -32,8 +32,10 @@ from tasks.limits import (
     MAX_HORIZON,
     MAX_ITEMS,
     MAX_KNOTS,
+    MAX_NAME_LENGTH,
     MAX_PHASES,
     MAX_TERMS,
+    MAX_TEXT_LENGTH,
     MAX_WEIGHT,
     MIN_DT,
     horizon_message,
@@ -110,9 +112,11 @@ def _nonneg(owner: str, field_name: str, value: float, *, hi: float = MAX_DISTAN
     _number(owner, field_name, value, lo=0.0, hi=hi, unit=unit)
 
 
-def _text(owner: str, field_name: str, value) -> None:
+def _text(owner: str, field_name: str, value, *, limit: int = MAX_NAME_LENGTH) -> None:
     if not isinstance(value, str):
         raise TaskDefinitionError(f"{owner}: {field_name} must be a string, got {_show(value)}")
+    if len(value) > limit:
+        raise TaskDefinitionError(f"{owner}: {field_name} has {len(value)} characters; at most {limit}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -144,6 +148,7 @@ class Contact:
     def __post_init__(self) -> None:
         if not isinstance(self.frame, str) or not self.frame:
             raise TaskDefinitionError("contact: frame must be a non-empty frame name or role")
+        _text("contact", "frame", self.frame)
         if not isinstance(self.placement, Pose):
             raise TaskDefinitionError(f"contact {self.frame}: placement must be a Pose, got {_show(self.placement)}")
         if self.friction_coefficient is not None:
@@ -221,6 +226,7 @@ class FrameTarget:
         who = f"target {self.name!r}"
         if not isinstance(self.frame, str) or not self.frame:
             raise TaskDefinitionError(f"{who}: frame must be a frame name or role")
+        _text(who, "frame", self.frame)
         if self.position is None and self.rpy is None:
             raise TaskDefinitionError(f"{who}: give a position, an rpy orientation, or both")
         if self.position is not None:
@@ -331,6 +337,7 @@ class JointTarget:
         who = f"joint target {self.name!r}"
         if not isinstance(self.joint, str) or not self.joint:
             raise TaskDefinitionError(f"{who}: joint must be a joint name, got {_show(self.joint)}")
+        _text(who, "joint", self.joint)
         _number(who, "value", self.value, lo=-MAX_ANGLE, hi=MAX_ANGLE, unit="rad")
         if self.time is not None and self.window is not None:
             raise TaskDefinitionError(f"{who}: give time or window, not both")
@@ -373,9 +380,9 @@ class TaskSpec:
     description: str = ""
 
     def __post_init__(self) -> None:
-        _text("task spec", "robot", self.robot)
-        _text("task spec", "name", self.name)
-        _text("task spec", "description", self.description)
+        _text("task spec", "robot", self.robot, limit=MAX_TEXT_LENGTH)
+        _text("task spec", "name", self.name, limit=MAX_TEXT_LENGTH)
+        _text("task spec", "description", self.description, limit=MAX_TEXT_LENGTH)
         if not self.phases:
             raise TaskDefinitionError("task spec: at least one phase is needed")
         if len(self.phases) > MAX_PHASES:
