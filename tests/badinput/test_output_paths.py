@@ -361,3 +361,34 @@ def test_existing_regular_file_is_replaced_whole(tmp_path):
         assert old_reader.read() == "old content\n"
     assert target.read_text() == "new content\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
+
+
+def test_ctrl_c_while_writing_leaves_nothing(tmp_path, motion_file):
+    """SIGINT once a temporary output file exists: exit 130 and the folder as it was (no
+    temporary file, no plot folder); if the signal comes too late, every output is complete."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-c", "from wbmp.cli import run; run()", "show", str(motion_file),
+                             "--html", str(out / "m.html"), "--plots", str(out / "plots"), "--quiet"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        while proc.poll() is None:
+            if any(p.name.endswith(".tmp") for p in out.iterdir()):
+                proc.send_signal(signal.SIGINT)
+                break
+            time.sleep(0.002)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert "Traceback" not in err
+    if proc.returncode == 130:
+        assert list(out.iterdir()) == []
+    else:
+        assert proc.returncode == 0, err
+        assert sorted(p.name for p in out.iterdir()) == ["m.html", "plots"]
+        assert not any(p.name.endswith(".tmp") for p in (out / "plots").iterdir())
