@@ -163,6 +163,7 @@ def compile_actions(
     def knots(seconds: float) -> int:
         return int(-(-round(seconds / dt, 6) // 1))  # ceil, robust to 0.6/0.075 = 7.999999
 
+    _check_horizon(groups, robot, n, dt, knots(stand_time), knots(transition_time))
     stance = Stance.standing(robot)
     phases: list[Phase] = []
     waypoints: list[JointTarget] = []
@@ -230,6 +231,22 @@ def compile_actions(
         name=name or describe_actions(actions),
         description=description,
     )
+
+
+def _check_horizon(groups: list[list[tuple[int, Action]]], robot: Robot, n: int, dt: float, stand_knots: int,
+                   transition_knots: int) -> None:
+    """Refuse a motion longer than MAX_HORIZON before compiling any action (same knot rounding)."""
+    k = 2 * stand_knots + transition_knots * (len(groups) - 1)
+    for group in groups:
+        durations = []
+        for i, a in group:
+            try:
+                durations.append(nominal_duration(a, robot))
+            except TaskDefinitionError as e:
+                raise type(e)(f"{_where(i, a, n)}{e}") from None
+        k += int(-(-round(max(durations) / dt, 6) // 1))
+    if k * dt > MAX_HORIZON + 1e-9:
+        raise TaskDefinitionError(horizon_message(k * dt, "split the instruction into several shorter ones"))
 
 
 def describe_actions(actions: Sequence[Action]) -> str:
