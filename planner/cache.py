@@ -43,7 +43,7 @@ FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same st
 MEMORY_ENTRIES = 64  # solvers kept alive in a process (least recently used dropped first)
 _MEMORY: OrderedDict[str, object] = OrderedDict()
 _LOCK = threading.Lock()
-_SOURCES = ("symbolic.py", "formulation.py", "centroidal.py", "trajopt.py", "cache.py")
+_SOURCES = ("symbolic.py", "formulation.py", "centroidal.py", "trajopt.py", "cache.py", "cache_disk.py")
 
 
 @functools.cache
@@ -141,7 +141,7 @@ def _load_entry(lay: Layout, entry: Path, key: str, settings: PlannerSettings, p
         if (meta["n_x"], meta["n_g"]) != (nl.n_x, nl.n_g):
             raise EntryDamaged(f"{META} is for {meta['n_x']} variables and {meta['n_g']} constraints, "
                                f"not {nl.n_x} and {nl.n_g}")
-        cache_disk.verify_loadable(entry, digest, LIBRARY_FUNCTIONS)
+        cache_disk.verify_loadable(entry, digest, LIBRARY_FUNCTIONS, progress)
         if progress:
             progress("loading the compiled solver from the cache")
         try:

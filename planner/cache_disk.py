@@ -37,7 +37,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 LIBRARY = "nlp.so"
@@ -245,7 +245,8 @@ def probe(lib: Path, functions: Iterable[str], timeout: float = PROBE_TIMEOUT) -
     return f"failed the test load (exit {proc.returncode})"
 
 
-def verify_loadable(entry: Path, digest: str, functions: Iterable[str]) -> None:
+def verify_loadable(entry: Path, digest: str, functions: Iterable[str],
+                    progress: Callable[[str], None] | None = None) -> None:
     """Make sure loading the entry's library cannot take this process down.
 
     Free when the ``verified`` marker names ``digest``; otherwise a :func:`probe`, remembered
@@ -256,6 +257,8 @@ def verify_loadable(entry: Path, digest: str, functions: Iterable[str]) -> None:
             return
     except (EntryDamaged, OSError):
         pass
+    if progress:
+        progress("checking the compiled solver in a separate process (once per cache entry)")
     problem = probe(entry / LIBRARY, functions)
     if problem == "unavailable":
         return  # the static checks passed; without a child process there is nothing more to learn
