@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import difflib
 import functools
+import math
 import os
 import re
 import stat
@@ -358,6 +359,12 @@ def _check_xml(where: str, key: str, path: str, *, root: str) -> None:
     joints = top.findall("joint")
     if not joints:
         raise ProfileError(f"{where}: urdf: {shown} has no <joint>; wbmp needs a humanoid with joints")
+    for link in top.findall("link"):
+        mass = link.find("inertial/mass")
+        value = mass.get("value") if mass is not None else None
+        if mass is not None and not _is_mass(value):
+            raise ProfileError(f"{where}: urdf: {shown}: link {link.get('name')!r} has mass {show(value)}; "
+                               "expected a finite number of kilograms >= 0")
     known = set(links)
     children: set[str] = set()
     for j in joints:
@@ -381,6 +388,14 @@ def _check_xml(where: str, key: str, path: str, *, root: str) -> None:
     if len(roots) != 1:
         raise ProfileError(f"{where}: urdf: {shown}: the links do not form one tree "
                            f"({len(roots)} links have no parent joint)")
+
+
+def _is_mass(text: str | None) -> bool:
+    try:
+        value = float(text or "")
+    except ValueError:
+        return False
+    return math.isfinite(value) and value >= 0.0
 
 
 @contextlib.contextmanager

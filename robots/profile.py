@@ -100,6 +100,8 @@ def show(value: Any) -> str:
 def display_path(path: str | Path) -> str:
     """A path as the user gave it, quoted when it holds characters that would break a line."""
     text = str(path)
+    if len(text) > 160:
+        text = f"{text[:70]}...{text[-70:]}"
     return text if text.isprintable() and text.strip() == text and text else repr(text)
 
 
