@@ -22,6 +22,7 @@ import math
 
 # Work: how much motion one request may ask for.
 MAX_HORIZON = 60.0  # [s] total duration of one spec (every phase together)
+MIN_HORIZON = 0.02  # [s] the planner's 4 knot intervals (rest at both ends) of at least MIN_DT
 MAX_KNOTS = 800  # knot intervals of the transcription: horizon / dt (60 s on the default 0.075 s grid)
 MAX_PHASES = 200  # phases of one spec (walking 10 m on G1 takes 105)
 MAX_CONTACTS = 8  # contacts held in one phase (two feet, two hands: 4)
@@ -81,6 +82,7 @@ __all__ = [
     "MAX_TEXT_LENGTH",
     "MAX_WEIGHT",
     "MIN_DT",
+    "MIN_HORIZON",
     "START_TOLERANCE",
     "horizon_message",
 ]

@@ -322,7 +322,10 @@ def from_plain(tp: Any, value: Any, path: str) -> Any:
         try:
             return tp(**kwargs)
         except TaskDefinitionError as e:
-            raise TaskDefinitionError(f"{path}: {e}") from None
+            message = str(e)
+            if tp is TaskSpec and message.startswith("task spec: "):
+                message = message[len("task spec: "):]  # "spec: the motion would last...", not "spec: task spec: ..."
+            raise TaskDefinitionError(f"{path}: {message}") from None
     if origin is tuple:
         args = typing.get_args(tp)
         if not isinstance(value, (list, tuple)):

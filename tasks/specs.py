@@ -38,6 +38,7 @@ from tasks.limits import (
     MAX_TEXT_LENGTH,
     MAX_WEIGHT,
     MIN_DT,
+    MIN_HORIZON,
     horizon_message,
 )
 
@@ -398,6 +399,11 @@ class TaskSpec:
         horizon = self.horizon
         if horizon > MAX_HORIZON + 1e-9:
             raise TaskDefinitionError(f"task spec: {horizon_message(horizon, 'split it into several specs')}")
+        if horizon < MIN_HORIZON - 1e-12:
+            raise TaskDefinitionError(
+                f"task spec: the motion lasts {horizon:g} s; it must last at least {MIN_HORIZON:g} s (the planner "
+                f"needs 4 knot intervals of at least {MIN_DT:g} s)"
+            )
         intervals = max(1, round(horizon / self.dt))
         if intervals > MAX_KNOTS:
             raise TaskDefinitionError(

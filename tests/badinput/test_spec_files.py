@@ -141,6 +141,7 @@ CONTENT_CASES: list[tuple[str, bytes, tuple[str, ...]]] = [
     ("duration-null", _edit(_set("phases.0.duration", None)), ("spec.phases[0].duration",)),
     ("duration-zero", _edit(_set("phases.0.duration", 0)), ("spec.phases[0]", "duration must be > 0")),
     ("duration-negative", _edit(_set("phases.0.duration", -3.0)), ("duration must be > 0",)),
+    ("duration-1e-9", _edit(_set("phases.0.duration", 1e-9)), ("spec: the motion lasts 1e-09 s", "at least 0.02 s")),
     ("duration-list", _edit(_set("phases.0.duration", [3.0])), ("spec.phases[0].duration", "a list")),
     ("phase-name-number", _edit(_set("phases.0.name", 1)), ("spec.phases[0].name", "expected a string")),
     ("phase-not-object", _edit(_set("phases.0", "squat")), ("spec.phases[0]", "expected an object")),
@@ -241,6 +242,15 @@ def _place_dangling_link(tmp: Path) -> str:
     return str(tmp / "link.json")
 
 
+def _place_socket(tmp: Path) -> str:
+    import socket
+
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    sock.bind(str(tmp / "sock.json"))
+    sock.close()  # the socket file stays; opening it fails (ENXIO)
+    return str(tmp / "sock.json")
+
+
 PLACE_CASES = [
     ("directory", _place_dir, ("is a directory",)),
     ("dev-null", lambda tmp: "/dev/null", ("/dev/null", "is empty")),
@@ -248,7 +258,8 @@ PLACE_CASES = [
     ("under-a-file", _place_file_as_folder, ("does not exist",)),
     ("dangling-symlink", _place_dangling_link, ("link.json", "does not exist")),
     ("over-8-MiB", _place_huge, ("huge.json", "8 MiB")),
-    ("dev-zero-is-empty", lambda tmp: "/dev/zero", ("/dev/zero",)),
+    ("dev-zero", lambda tmp: "/dev/zero", ("/dev/zero",)),
+    ("unix-socket", _place_socket, ("sock.json", "cannot be read")),
 ]
 
 
