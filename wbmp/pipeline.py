@@ -33,7 +33,12 @@ class SolveRequest:
         parser: ``rules`` or ``llm``.
         llm_options: Options of the LLM backend (url, model, api_key, timeout).
         simulate: Run the controller in MuJoCo and certify the motion.
-        push: ``"N@t"`` push on the base during simulation, or None.
+        push: ``"N@t"`` push on the base during simulation, or None: above 0 N, at most
+            ``sim.MAX_PUSH_FORCE``, and a time within the motion (0 <= t < horizon).
+
+    :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
+    needs no work to see: an empty ``robot``, an instruction longer than
+    ``tasks.limits.MAX_TEXT_LENGTH`` characters, a push without the simulation.
     """
 
     instruction: str | None = None
@@ -43,6 +48,18 @@ class SolveRequest:
     llm_options: dict[str, Any] = field(default_factory=dict)
     simulate: bool = True
     push: str | None = None
+
+    def check(self) -> None:
+        """Refuse contradictory or empty options before any work (:class:`CliError`, exit 2)."""
+        from tasks.limits import MAX_TEXT_LENGTH
+        from wbmp.errors import ROBOT_HINT, require_text
+
+        require_text(self.robot, "--robot", ROBOT_HINT)
+        if self.instruction is not None and len(self.instruction) > MAX_TEXT_LENGTH:
+            raise CliError(f"the instruction is {len(self.instruction):,} characters long; wbmp reads at most "
+                           f"{MAX_TEXT_LENGTH:,} (one to a few sentences)", ExitCode.USAGE)
+        if self.push is not None and not self.simulate:
+            raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
 
 
 @dataclass(kw_only=True)
@@ -130,14 +147,19 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     from planner.trajopt import plan as plan_motion
 
     timings: dict[str, float] = {}
+    request.check()
     push = None
-    if request.simulate and request.push:
+    if request.simulate and request.push is not None:
         from sim import parse_push
 
         push = parse_push(request.push)  # before any work: a typo fails at once (exit 2)
     t0 = time.perf_counter()
     robot, spec, actions = build_spec(request, progress)
     timings["spec"] = time.perf_counter() - t0
+    if push is not None:
+        from sim import check_push_time
+
+        check_push_time(push, spec.horizon)  # a push after the motion would never act (exit 2)
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
     t0 = time.perf_counter()
     plan = plan_motion(spec, robot, progress=progress)
