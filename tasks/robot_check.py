@@ -74,13 +74,18 @@ def _check_start(spec: TaskSpec, robot: Robot) -> None:
         dp = float(np.linalg.norm(oMf.translation - wanted.translation))
         dr = float(np.linalg.norm(pin.log3(wanted.rotation.T @ oMf.rotation)))
         if dp > START_TOLERANCE or dr > START_TOLERANCE:
-            at = ", ".join(f"{x:.3f}" for x in oMf.translation)
-            rpy = ", ".join(f"{x:.3f}" for x in pin.rpy.matrixToRpy(oMf.rotation))
+            at = ", ".join(_mm(x) for x in oMf.translation)
+            rpy = ", ".join(_mm(x) for x in pin.rpy.matrixToRpy(oMf.rotation))
             raise TaskDefinitionError(
                 f"spec.phases[0].contacts[{j}]: contact {contact.frame!r} of the first phase {first.name!r} is "
                 f"{dp:.3f} m / {dr:.3f} rad away from where {robot.name} stands (position [{at}] m, rpy "
                 f"[{rpy}] rad); the motion starts standing, so the first phase's contacts must be there"
             )
+
+
+def _mm(x: float) -> str:
+    text = f"{x:.3f}"
+    return "0.000" if text == "-0.000" else text
 
 
 def _close(name: str, names: list[str]) -> str:
