@@ -35,6 +35,38 @@ class Terminated(BaseException):
     """
 
 
+# The signal the CLI received (SIGINT or SIGTERM), kept after its exception was raised: a C++
+# library that polls for Ctrl-C (CasADi while IPOPT iterates) swallows the exception and carries
+# on (IPOPT reports a failure, the planner diagnoses it for seconds). check_signals() raises
+# it again at the next step boundary. Set by the CLI's handlers only.
+_received: list[int] = []
+
+
+def note_signal(signum: int) -> None:
+    """Remember that ``signum`` arrived (called by the CLI's signal handlers)."""
+    _received.append(int(signum))
+
+
+def clear_signals() -> None:
+    """Forget the signals noted (at the start of a CLI run)."""
+    _received.clear()
+
+
+def check_signals() -> None:
+    """Raise KeyboardInterrupt (SIGINT) or :class:`Terminated` (SIGTERM) if one arrived.
+
+    Called by the pipeline between steps and from its progress callback, so that an interrupt
+    a library swallowed still stops the command at once.
+    """
+    if not _received:
+        return
+    import signal
+
+    if signal.SIGTERM in _received:
+        raise Terminated()
+    raise KeyboardInterrupt()
+
+
 class CliError(Exception):
     """An error with a one-line message and an exit code."""
 

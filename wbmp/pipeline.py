@@ -143,8 +143,20 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
 
 
 def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
-    """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI)."""
+    """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI).
+
+    Ctrl-C or SIGTERM stops it at the next progress message or step, also when a library
+    swallowed the interrupt (CasADi turns it into an IPOPT failure): see
+    :func:`wbmp.errors.check_signals`.
+    """
     from planner.trajopt import plan as plan_motion
+    from wbmp.errors import check_signals
+
+    report = progress
+
+    def progress(message: str) -> None:
+        check_signals()
+        report(message)
 
     timings: dict[str, float] = {}
     request.check()
@@ -163,6 +175,7 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
     t0 = time.perf_counter()
     plan = plan_motion(spec, robot, progress=progress)
+    check_signals()
     timings["plan"] = time.perf_counter() - t0
     execution = None
     if request.simulate:
@@ -171,6 +184,7 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
         progress("simulating in MuJoCo with the whole-body controller")
         t0 = time.perf_counter()
         execution = simulate(plan, robot, push=push, progress=progress)
+        check_signals()
         timings["simulate"] = time.perf_counter() - t0
     return SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
 
