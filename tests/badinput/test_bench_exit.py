@@ -208,3 +208,10 @@ def test_from_and_json_on_one_file_is_refused(failed_run, tmp_path, capsys):
     outcome = run_cli(["bench", "--from", str(src), "--json", str(src)], capsys)
     assert_refused(outcome, 2, "same file")
     tree.assert_unchanged()
+
+
+def test_help_documents_the_exit_codes(capsys):
+    """``wbmp bench --help`` says what a failing task means for the exit code."""
+    outcome = run_cli(["bench", "--help"], capsys)
+    assert outcome.code == 0
+    assert "exit codes:" in outcome.out and "3/4/5" in outcome.out and "--max-iterations N" in outcome.out

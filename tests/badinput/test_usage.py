@@ -188,3 +188,28 @@ def test_the_error_line_of_a_huge_argument_keeps_both_ends(capsys):
     assert line.startswith("wbmp parse: error: could not understand")
     assert "characters cut" in line and line.rstrip().endswith("wave")  # "... known actions are ..., wave"
     assert len(line) <= 1100
+
+
+@pytest.mark.parametrize("argv", [
+    [b"parse", b"squat \xff\xfe twice"],
+    [b"solve", b"wave \xc3\x28", b"--no-sim"],
+    [b"robots", b"tal\xffos"],
+    [b"actions", b"\xe9quat"],
+], ids=lambda v: repr(v)[:40])
+def test_non_utf8_argv_in_a_real_process(argv, tmp_path):
+    """Bytes that are not UTF-8 reach Python as lone surrogates; the error line shows them
+    escaped and stderr stays valid UTF-8."""
+    import os
+    import subprocess
+    import sys
+
+    tree = Tree(tmp_path)
+    proc = subprocess.run([sys.executable.encode(), b"-c", b"from wbmp.cli import run; run()", *argv],
+                          cwd=tmp_path, capture_output=True, timeout=300,
+                          env=dict(os.environ, PYTHONPATH=str(REPO)))
+    err = proc.stderr.decode("utf-8")  # raises if a raw undecodable byte was echoed
+    assert proc.returncode in (2, 3), err
+    assert "Traceback" not in err
+    errors = [ln for ln in err.splitlines() if ": error:" in ln]
+    assert len(errors) == 1 and "\\udc" in errors[0], err
+    tree.assert_unchanged()

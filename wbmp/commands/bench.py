@@ -89,14 +89,20 @@ TASK_KEYS = (
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench", help="time parse, spec, NLP build, solve, controller and simulation per task class",
-        description="Benchmark every stage of the pipeline on each task class (medians over repeats), "
-                    "optionally beside Crocoddyl and TSID (--peers, after `make bench-peers`). "
+        description="Benchmark every stage of the pipeline on each task class (medians over repeats),\n"
+                    "optionally beside Crocoddyl and TSID (--peers, after `make bench-peers`).\n"
                     "Timings on a shared machine are noisy: the load average is recorded.",
-        epilog="examples: wbmp bench --quick   wbmp bench --json out.json --peers   "
-               "wbmp bench --tasks squat --repeats 1 --no-sim --no-e2e --json smoke.json   "
-               "exit codes: 0 every task that ran passed; else, for the first failing task, 3 spec, "
-               "4 plan failed, 5 simulation check failed (the report is printed and written anyway); "
-               "2 bad options",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+               "  wbmp bench --quick\n"
+               "  wbmp bench --json out.json --peers\n"
+               "  wbmp bench --tasks squat --repeats 1 --no-sim --no-e2e --json smoke.json\n"
+               "exit codes:\n"
+               "  0      every task class that ran passed (n/a (not implemented) ones do not count)\n"
+               "  3/4/5  a task class failed: the code of the first one, as `wbmp solve` gives it\n"
+               "         (3 spec, 4 plan, 5 simulation check); the report is printed and\n"
+               "         --json/--markdown are written anyway\n"
+               "  2      a bad option (checked before any work); 130/143 Ctrl-C/SIGTERM",
     )
     p.add_argument("--quick", action="store_true",
                    help=f"{', '.join(QUICK_TASKS)} only, 1 repeat, one simulation, no scaling study (< 2 min)")
