@@ -269,8 +269,9 @@ def _read_member(fh, size: int, key: str, shown: str) -> np.ndarray:
             shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
         else:
             raise ValueError(f"unsupported .npy format version {version}")
-    except ValueError as e:
-        raise _fail(shown, f"key {key!r} is not a numpy array ({e})") from None
+    except Exception as e:  # noqa: BLE001 - numpy parses the header text with Python's tokenizer
+        # (TokenError, SyntaxError, RecursionError, ... on damaged bytes): any failure is a bad member.
+        raise _fail(shown, f"key {key!r} is not a numpy array ({type(e).__name__}: {e})") from None
     if dtype.hasobject:
         raise _fail(shown, f"key {key!r} holds Python objects (a pickle); wbmp never loads pickles")
     count = 1
@@ -282,8 +283,11 @@ def _read_member(fh, size: int, key: str, shown: str) -> np.ndarray:
     data = fh.read(nbytes)
     if len(data) != nbytes:
         raise _fail(shown, f"key {key!r} is truncated ({len(data)} of {nbytes} bytes)")
-    arr = np.frombuffer(bytearray(data), dtype=dtype, count=count)
-    return arr.reshape(shape, order="F" if fortran else "C")
+    try:
+        arr = np.frombuffer(bytearray(data), dtype=dtype, count=count)
+        return arr.reshape(shape, order="F" if fortran else "C")
+    except (ValueError, TypeError) as e:
+        raise _fail(shown, f"key {key!r} is not a readable numpy array ({e})") from None
 
 
 def _numbers(arrays: dict[str, Any], key: str, shown: str, shape: tuple[int | None, ...]) -> np.ndarray:

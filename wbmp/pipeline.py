@@ -122,6 +122,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     import dataclasses
 
     from robots import load_robot
+    from tasks.robot_check import check_spec_for_robot
     from tasks.serialize import load_spec
 
     if request.spec_path is not None:
@@ -129,6 +130,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
         robot = load_robot(request.robot or spec.robot)
         if request.robot:
             spec = dataclasses.replace(spec, robot=robot.name)
+        check_spec_for_robot(spec, robot)  # unknown joints, contacts off the ground: exit 3, before planning
         return robot, spec, None
     if not request.instruction or not request.instruction.strip():
         raise CliError("give an instruction in quotes, or --spec FILE", ExitCode.USAGE)
@@ -139,6 +141,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
 
     spec = compile_actions(actions.actions, robot)
     spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction)
+    check_spec_for_robot(spec, robot)
     return robot, spec, actions
 
 

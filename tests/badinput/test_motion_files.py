@@ -129,6 +129,21 @@ def _huge_declared_shape(motion_file: Path, out: Path) -> None:
                 zf.writestr(f"{key}.npy", member.getvalue())
 
 
+def _header_text(text: bytes) -> Callable[[Path, Path], None]:
+    """M with the .npy header of ``q`` replaced by ``text`` (numpy parses it with Python's tokenizer)."""
+    def make(motion_file: Path, out: Path) -> None:
+        header = text.ljust(118) + b"\n"
+        with zipfile.ZipFile(out, "w") as zf:
+            for key, arr in _arrays(motion_file).items():
+                member = io.BytesIO()
+                np.save(member, arr)
+                if key == "q":
+                    raw = member.getvalue()
+                    member = io.BytesIO(raw[:8] + struct.pack("<H", len(header)) + header + raw[10 + len(header):])
+                zf.writestr(f"{key}.npy", member.getvalue())
+    return make
+
+
 def _no_arrays(motion_file: Path, out: Path) -> None:
     with zipfile.ZipFile(out, "w") as zf:
         zf.writestr("readme.txt", "not an array")
@@ -168,6 +183,9 @@ CASES: dict[str, tuple[Callable[[Path, Path], None], tuple[str, ...]]] = {
     "directory": (_directory, ("is a directory",)),
     "fifo": (_fifo, ("not a regular file",)),
     "no_arrays": (_no_arrays, ("holds no arrays",)),
+    "header_unterminated_string": (_header_text(b"{'descr': '<f8, 'fortran_order': False}"), ("'q'", "not a numpy array")),
+    "header_unclosed_bracket": (_header_text(b"{'descr': '<f8', 'shape': ((("), ("'q'", "not a numpy array")),
+    "header_not_a_dict": (_header_text(b"[1, 2, 3]"), ("'q'", "not a numpy array")),
     "duplicate_key": (_duplicate_key, ("'t'", "twice")),
     "object_array_pickle": (_pickle, ("report_json", "pickle")),
     "huge_declared_shape": (_huge_declared_shape, ("'q'", "declares shape")),

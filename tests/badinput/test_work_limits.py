@@ -288,23 +288,21 @@ def test_planner_spec_error_maps_to_exit_3():
 
 
 CLI_ROBOT_CASES = [
-    ("contact-frame-unknown", lambda d: d["phases"][0]["contacts"][0].update(frame="left_wing"), ("left_wing",), False),
+    ("contact-frame-unknown", lambda d: d["phases"][0]["contacts"][0].update(frame="left_wing"), ("left_wing",)),
     ("target-frame-unknown", lambda d: d.update(targets=[{"name": "t", "frame": "tail", "position": [0, 0, 1]}]),
-     ("tail",), False),
+     ("tail",)),
     ("joint-unknown", lambda d: d.update(joint_targets=[{"name": "j", "joint": "no_such_joint", "value": 0.1}]),
-     ("no_such_joint",), True),
+     ("no_such_joint",)),
     ("first-contact-below-floor", lambda d: d["phases"][0]["contacts"][0]["placement"].update(position=[0, 0.085, -5]),
-     ("below the ground",), True),
+     ("below the ground",)),
     ("first-contact-away", lambda d: d["phases"][0]["contacts"][0]["placement"].update(position=[0.3, 0.085, 0]),
-     ("where talos stands",), True),
+     ("where talos stands",)),
 ]
 
 
 @pytest.mark.parametrize(
     ("change", "words"),
-    [pytest.param(*c[1:3], marks=pytest.mark.xfail(
-        strict=True, reason="needs wbmp/pipeline.py build_spec to call tasks.robot_check.check_spec_for_robot"))
-     if c[3] else pytest.param(*c[1:3]) for c in CLI_ROBOT_CASES],
+    [c[1:3] for c in CLI_ROBOT_CASES],
     ids=[c[0] for c in CLI_ROBOT_CASES],
 )
 def test_cli_contact_and_joint_errors_exit_3(tmp_path, capsys, monkeypatch, change, words):

@@ -12,6 +12,7 @@ import json
 import os
 import sys
 
+from wbmp.commands.parse import timeout_seconds
 from wbmp.errors import CliError, ExitCode
 
 
@@ -40,12 +41,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--view", action="store_true", help="open the live meshcat viewer (127.0.0.1) afterwards")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
     p.add_argument("--push", metavar="N@t", default=None,
-                   help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5")
+                   help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5 "
+                        "(0 < N <= 5000, 0 <= t < the motion's duration)")
     p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="instruction parser (default: rules)")
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL for --parser llm (env WBMP_LLM_URL)")
     p.add_argument("--llm-model", default=os.environ.get("WBMP_LLM_MODEL"), help="model name (env WBMP_LLM_MODEL)")
-    p.add_argument("--llm-timeout", type=float, default=30.0, help="seconds to wait for the LLM server")
+    p.add_argument("--llm-timeout", type=timeout_seconds, default=30.0, metavar="SECONDS",
+                   help="limit for each whole request to the LLM server, connect to last byte "
+                        "(default: 30, at most 3600)")
     p.add_argument("--quiet", action="store_true", help="no progress display; print only the results")
     p.add_argument("--json", action="store_true", help="print the report as JSON (progress as JSON lines)")
     p.set_defaults(run=run)
