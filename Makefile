@@ -1,18 +1,24 @@
 # Two commands on a fresh machine: `make demo` and `make test`. Each creates .venv when
-# missing and installs the project into it (again whenever pyproject.toml changes).
+# missing and installs the project into it (again whenever pyproject.toml or the lock changes).
+# Installs are reproducible: every package is pinned by constraints.txt (the exact versions the
+# suite passed with); pyproject.toml keeps lower bounds. `make lock` refreshes the pins on purpose.
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+LOCK   := constraints.txt
+PIP_INSTALL = $(BIN)/python -m pip install --quiet --disable-pip-version-check -c $(LOCK)
 PYTEST_ARGS ?=
 
-.PHONY: demo test install bench bench-quick clean
+.PHONY: demo test install lock bench bench-quick clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	@echo "installing wbmp and its dependencies into $(VENV) (first time: a few minutes)"
-	@$(BIN)/python -m pip install --quiet --disable-pip-version-check --upgrade pip 2>&1 | grep -v "^WARNING: Location" || true
-	@$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]' 2>&1 | grep -v "^WARNING: Location" || true
+	@echo "installing wbmp and its dependencies into $(VENV) from $(LOCK) (first time: a few minutes)"
+	@$(PIP_INSTALL) pip > $(VENV)/pip.log 2>&1 || { cat $(VENV)/pip.log; echo "install of pip from $(LOCK) failed"; exit 1; }
+	@$(PIP_INSTALL) -e '.[test]' > $(VENV)/pip.log 2>&1 || { cat $(VENV)/pip.log; echo "install from $(LOCK) failed"; exit 1; }
+	@grep -v "^WARNING: Location" $(VENV)/pip.log || true
+	@rm -f $(VENV)/pip.log
 	@$(BIN)/python -c "import wbmp, pinocchio, casadi, proxsuite, mujoco, meshcat" || (echo "install failed"; exit 1)
 	@touch $(STAMP)
 
@@ -37,6 +43,24 @@ bench-peers: $(STAMP)
 	bash benchmarks/peers/setup.sh || echo "some peer environments are unavailable; continuing with the others"
 	$(PYTHON) benchmarks/peers/run_peers.py
 	$(BIN)/wbmp bench --quick --peers
+
+# Refresh the lock on purpose (new releases, a changed lower bound): a fresh venv outside the
+# tree resolves pyproject.toml's bounds to the newest versions, and its exact set (without pip's
+# build tools and without wbmp itself) replaces $(LOCK). Run it with Python 3.11 on x86_64 Linux
+# (the CI's kind), then `make test` reinstalls from the new lock; commit the lock once it passes.
+lock:
+	@d=$$(mktemp -d) && trap 'rm -rf "$$d"' EXIT && \
+	$(PYTHON) -m venv "$$d/venv" && \
+	{ "$$d/venv/bin/python" -m pip install --quiet --disable-pip-version-check --upgrade pip && \
+	  "$$d/venv/bin/python" -m pip install --quiet --disable-pip-version-check -e '.[test]'; \
+	} > "$$d/pip.log" 2>&1 || { cat "$$d/pip.log"; echo "make lock: the install failed; $(LOCK) is unchanged"; exit 1; } && \
+	where=$$("$$d/venv/bin/python" -c 'import platform as p; print("Python", p.python_version(), p.machine(), p.system())') && \
+	{ echo "# Exact versions that \`make\` installs (pip install -c $(LOCK)), resolved by \`make lock\`"; \
+	  echo "# on $$where from pyproject.toml's lower bounds. Refresh on purpose with"; \
+	  echo "# \`make lock\`, then \`make test\`; commit the new pins once the suite passes."; \
+	  "$$d/venv/bin/python" -m pip freeze --all --exclude-editable | grep -vE '^(setuptools|wheel)=='; \
+	} > "$$d/lock" && mv "$$d/lock" $(LOCK) && \
+	echo "$(LOCK): $$(grep -c '==' $(LOCK)) pins ($$where); now run make test"
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

@@ -13,9 +13,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from language.exceptions import LanguageError
+from language.exceptions import LanguageError, UnsupportedInstruction
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
+from tasks.limits import MAX_ACTIONS
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -24,7 +25,8 @@ class ActionPlan:
 
     Attributes:
         actions: Actions in order; an action with ``overlay=True`` runs at the same time as the
-            one before it (an upper-body action on a lower-body one).
+            one before it (an upper-body action on a lower-body one). At most
+            :data:`tasks.limits.MAX_ACTIONS` (more: :class:`UnsupportedInstruction`, exit 2).
         backend: Parser that produced it (``rules`` or ``llm``).
         text: The instruction as given.
         given: For each action, the names of the parameters the instruction stated (the other
@@ -38,6 +40,11 @@ class ActionPlan:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "actions", tuple(self.actions))
+        if len(self.actions) > MAX_ACTIONS:
+            raise UnsupportedInstruction(
+                f"the instruction asks for {len(self.actions)} actions; wbmp plans at most {MAX_ACTIONS} at a "
+                "time: split the instruction into several shorter ones"
+            )
         if not self.given:
             given = tuple(frozenset(k for k, v in a.params.items() if v is not None) for a in self.actions)
             object.__setattr__(self, "given", given)
@@ -68,6 +75,11 @@ class ActionPlan:
         """Inverse of :meth:`to_dict` (LanguageError on bad content)."""
         if not isinstance(data, Mapping) or not isinstance(data.get("actions"), Sequence) or isinstance(data.get("actions"), str):
             raise LanguageError("an action plan must be an object with an 'actions' list")
+        if len(data["actions"]) > MAX_ACTIONS:
+            raise UnsupportedInstruction(
+                f"the instruction asks for {len(data['actions'])} actions; wbmp plans at most {MAX_ACTIONS} at a "
+                "time: split the instruction into several shorter ones"
+            )
         actions, given = [], []
         for i, entry in enumerate(data["actions"]):
             try:

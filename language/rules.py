@@ -60,8 +60,9 @@ from language.normalize import atomize, normalize
 from language.plan import ActionPlan
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
+from tasks.limits import MAX_REPEAT
 
-MAX_COPIES = 10  # "jump 3 times" repeats an action without a count parameter at most this often
+MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
 
 
 @dataclass(frozen=True, slots=True)

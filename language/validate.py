@@ -12,6 +12,7 @@ for a ``oneOf`` over actions the branch whose ``const`` matches (the action name
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -54,19 +55,19 @@ def errors(instance: Any, schema: Mapping[str, Any], path: str = "") -> list[str
     if "type" in schema and not _is_type(instance, schema["type"]):
         return [f"{where}: expected {_a(schema['type'])}, got {_describe(instance)}"]
     if "const" in schema and not _equal(instance, schema["const"]):
-        out.append(f"{where}: must be {schema['const']!r}, got {instance!r}")
+        out.append(f"{where}: must be {schema['const']!r}, got {_short(instance)}")
     if "enum" in schema and not any(_equal(instance, e) for e in schema["enum"]):
-        out.append(f"{where}: must be one of {', '.join(map(repr, schema['enum']))}, got {instance!r}")
+        out.append(f"{where}: must be one of {', '.join(map(repr, schema['enum']))}, got {_short(instance)}")
     if _is_type(instance, "number"):
         if "minimum" in schema and instance < schema["minimum"]:
-            out.append(f"{where}: {instance!r} is below the minimum {schema['minimum']!r}")
+            out.append(f"{where}: {_short(instance)} is below the minimum {schema['minimum']!r}")
         if "maximum" in schema and instance > schema["maximum"]:
-            out.append(f"{where}: {instance!r} is above the maximum {schema['maximum']!r}")
+            out.append(f"{where}: {_short(instance)} is above the maximum {schema['maximum']!r}")
     if isinstance(instance, Mapping):
         props = schema.get("properties", {})
         for key in schema.get("required", ()):
             if key not in instance:
-                out.append(f"{where}: missing required key {key!r}")
+                out.append(f"{where}: missing required key {_short(key)}")
         for key, value in instance.items():
             if key in props:
                 out.extend(errors(value, props[key], f"{path}.{key}" if path else key))
@@ -74,14 +75,15 @@ def errors(instance: Any, schema: Mapping[str, Any], path: str = "") -> list[str
                 extra = schema.get("additionalProperties", True)
                 if extra is False:
                     allowed = ", ".join(props) or "none"
-                    out.append(f"{where}: unknown key {key!r} (allowed: {allowed})")
+                    out.append(f"{where}: unknown key {_short(key)} (allowed: {allowed})")
                 elif isinstance(extra, Mapping):
                     out.extend(errors(value, extra, f"{path}.{key}" if path else key))
     if isinstance(instance, list):
         if "minItems" in schema and len(instance) < schema["minItems"]:
             out.append(f"{where}: needs at least {schema['minItems']} item(s), got {len(instance)}")
         if "maxItems" in schema and len(instance) > schema["maxItems"]:
-            out.append(f"{where}: takes at most {schema['maxItems']} item(s), got {len(instance)}")
+            # Refused for its length: the items are not checked (10,000 of them would take seconds).
+            return [*out, f"{where}: takes at most {schema['maxItems']} item(s), got {len(instance)}"]
         if "items" in schema:
             for i, item in enumerate(instance):
                 out.extend(errors(item, schema["items"], f"{path}[{i}]"))
@@ -113,7 +115,7 @@ def _one_of(instance: Any, branches: list[Mapping[str, Any]], path: str) -> list
         for key, values in consts.items():
             if len(values) == len(branches):
                 got = instance.get(key, "<missing>")
-                return [f"{path + '.' if path else ''}{key}: {got!r} is not one of {', '.join(map(repr, values))}"]
+                return [f"{path + '.' if path else ''}{key}: {_short(got)} is not one of {', '.join(map(repr, values))}"]
     return [f"{where}: matches none of the {len(branches)} alternatives"]
 
 
@@ -123,9 +125,22 @@ _TYPES = {
     "string": lambda v: isinstance(v, str),
     "boolean": lambda v: isinstance(v, bool),
     "null": lambda v: v is None,
-    "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+    # JSON has no NaN or Infinity (Python's parser accepts them): a number is finite.
+    "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v),
     "integer": lambda v: (isinstance(v, int) and not isinstance(v, bool)) or (isinstance(v, float) and v.is_integer()),
 }
+
+
+def _finite(v: int | float) -> bool:
+    return isinstance(v, int) or math.isfinite(v)
+
+
+def _short(value: Any) -> str:
+    """A repr for messages, cut short (a reply may hold a huge number, string or list)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10**40:
+        return f"a number with {len(str(abs(value))) if abs(value) < 10**4000 else 'thousands of'} digits"
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
 
 
 def _is_type(value: Any, kind: str | list[str]) -> bool:
@@ -148,7 +163,9 @@ def _a(kind: str | list[str]) -> str:
 
 
 def _describe(value: Any) -> str:
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{value!r}, which JSON does not allow (a number must be finite)"
     for name in ("boolean", "null", "integer", "number", "string", "array", "object"):
         if _TYPES[name](value):
-            return f"{_a(name)} ({value!r})" if name not in ("array", "object") else _a(name)
+            return f"{_a(name)} ({_short(value)})" if name not in ("array", "object") else _a(name)
     return type(value).__name__

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from tasks.exceptions import TaskDefinitionError
+
 
 class PlannerError(Exception):
     """Base class of every planner error."""
@@ -11,6 +13,15 @@ class PlannerError(Exception):
 
 class UnsupportedModel(PlannerError):
     """The Pinocchio model has a joint type the symbolic kinematics does not support."""
+
+
+class SpecNotForRobot(PlannerError, TaskDefinitionError):
+    """The spec names something the robot does not have (a joint, a frame): an invalid spec.
+
+    It is a :class:`tasks.exceptions.TaskDefinitionError` too, so the CLI exits 3 (invalid spec),
+    not 4 (infeasible): nothing was solved. :func:`tasks.robot_check.check_spec_for_robot`
+    finds these before the planner is called; the planner raises this class when it meets one.
+    """
 
 
 class PlanningFailed(PlannerError):

@@ -2,8 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
+import difflib
 import functools
+import math
+import os
 import re
+import stat
+import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -11,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
-from robots.profile import RobotProfile, builtin_profiles
+from robots.profile import SIDE_PAIRS, RobotProfile, builtin_profiles, display_path, show
 
 STANDING_TOLERANCE = 1e-9  # [m], residual of the sole-levelling Gauss-Newton
 
@@ -151,24 +158,41 @@ def load_robot(name_or_path: str | Path | RobotProfile = DEFAULT_ROBOT) -> Robot
     """Load a robot by built-in name, profile file (TOML/JSON), or profile object.
 
     Built-in robots are cached: loading ``talos`` twice returns the same read-only object.
+    A profile is checked field by field before any model is built, then against its URDF
+    (frames, joints, posture) before the meshes are loaded.
 
     Raises:
         RobotNotFound: the name is neither a built-in robot nor an existing file.
-        ProfileError: the profile file is malformed or names missing files.
+        ProfileError: the profile file is malformed or names missing or broken files.
         FrameNotFound: a profile frame is not in the model.
     """
     if isinstance(name_or_path, RobotProfile):
         return _build(name_or_path)
-    text = str(name_or_path)
     builtins = builtin_profiles()
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise RobotNotFound(show(name_or_path), list(builtins))
+    text = os.fspath(name_or_path)
+    if not isinstance(text, str):  # a bytes path
+        raise RobotNotFound(repr(text), list(builtins))
     if text in builtins:
         return _load_builtin(text)
-    path = Path(text).expanduser()
-    if path.suffix in (".toml", ".json") or path.exists():
-        if not path.is_file():
-            raise ProfileError(f"robot profile file {text!r} does not exist")
+    if not text.strip():
+        raise RobotNotFound(text, list(builtins))
+    path = Path(text)
+    try:
+        path = path.expanduser()
+    except RuntimeError:  # ~user that does not exist: reported as a missing file below
+        pass
+    if path.suffix.lower() in (".toml", ".json") or _exists(path):
         return _build(RobotProfile.from_file(path))
     raise RobotNotFound(text, list(builtins))
+
+
+def _exists(path: Path) -> bool:
+    try:
+        return path.exists()
+    except (OSError, ValueError):  # a name too long, a NUL byte: not a file
+        return False
 
 
 @functools.cache
@@ -217,68 +241,362 @@ def correct_collada_up_axis(gmodel: pin.GeometryModel) -> int:
 
 
 def _build(profile: RobotProfile) -> Robot:
+    where = profile.where
     if profile.loader is not None:
-        urdf, srdf, package_dirs = _loader_paths(profile.loader)
+        urdf, srdf, package_dirs = _loader_paths(where, profile.loader)
     else:
-        urdf, srdf, package_dirs = profile.urdf, profile.srdf, profile.package_dirs
-        if not Path(urdf).is_file():
-            raise ProfileError(f"profile {profile.name!r}: URDF {urdf!r} does not exist")
-        if srdf and not Path(srdf).is_file():
-            raise ProfileError(f"profile {profile.name!r}: SRDF {srdf!r} does not exist")
-        package_dirs = tuple(package_dirs) or _guess_package_dirs(urdf)
-    try:
-        model, collision, visual = pin.buildModelsFromUrdf(
-            urdf, list(package_dirs), pin.JointModelFreeFlyer()
-        )
-    except (ValueError, RuntimeError) as e:
-        raise ProfileError(f"profile {profile.name!r}: cannot load URDF {urdf!r}: {e}") from None
+        urdf = _check_file(where, "urdf", profile.urdf, "a URDF file")
+        srdf = _check_file(where, "srdf", profile.srdf, "an SRDF file") if profile.srdf else None
+        for i, d in enumerate(profile.package_dirs):
+            _check_dir(where, f"package_dirs[{i}]", d)
+        package_dirs = tuple(profile.package_dirs) or _guess_package_dirs(urdf)
+        _check_xml(where, "urdf", urdf, root="robot")
+        if srdf:
+            _check_xml(where, "srdf", srdf, root="robot")
+    # The kinematic model (milliseconds) is checked against the profile before the meshes
+    # (seconds) are loaded, so a wrong frame or joint name costs nothing.
+    model = _kinematic_model(where, urdf)
     if srdf:
-        try:
-            pin.loadReferenceConfigurations(model, srdf, False)
-        except (ValueError, RuntimeError) as e:
-            raise ProfileError(f"profile {profile.name!r}: cannot read SRDF {srdf!r}: {e}") from None
-    for gmodel in (visual, collision):
-        correct_collada_up_axis(gmodel)
+        _load_srdf(where, model, srdf)
+    _check_model(where, urdf, model)
+    _add_extra_frames(where, model, profile)
     names = [f.name for f in model.frames]
-    for extra in profile.extra_frames:
-        if not model.existFrame(extra.parent):
-            raise FrameNotFound(extra.parent, profile.name, names)
-        parent = model.frames[model.getFrameId(extra.parent)]
-        placement = parent.placement * pin.SE3(np.eye(3), np.array(extra.translation))
-        model.addFrame(
-            pin.Frame(extra.name, parent.parentJoint, model.getFrameId(extra.parent), placement,
-                      pin.FrameType.OP_FRAME)
-        )
-    names = [f.name for f in model.frames]
-    for _role, frame in profile.frames:
+    for role, frame in profile.frames:
         if not model.existFrame(frame):
-            raise FrameNotFound(frame, profile.name, names)
+            raise FrameNotFound(frame, profile.name, names, where=f"{where}: frames.{role}")
     q_ref = _reference_configuration(model, profile)
-    robot = Robot(
+    _check_sides(where, model, profile, q_ref)
+    skeleton = Robot(profile=profile, model=model, visual_model=pin.GeometryModel(),
+                     collision_model=pin.GeometryModel(), urdf_path=urdf, package_dirs=(), q_standing=q_ref)
+    try:
+        q_stand = level_soles(skeleton, q_ref)
+    except RobotError as e:
+        raise ProfileError(f"{where}: frames: {e}") from None
+    _check_standing(where, model, q_stand)
+    q_stand.setflags(write=False)
+    collision, visual = _geometry(where, urdf, tuple(package_dirs))
+    return Robot(
         profile=profile,
         model=model,
         visual_model=visual,
         collision_model=collision,
         urdf_path=str(Path(urdf).resolve()),
         package_dirs=tuple(str(Path(p).resolve()) for p in package_dirs),
-        q_standing=q_ref,
+        q_standing=q_stand,
     )
-    q_stand = level_soles(robot, q_ref)
-    q_stand.setflags(write=False)
-    object.__setattr__(robot, "q_standing", q_stand)
-    return robot
 
 
-def _loader_paths(loader: str) -> tuple[str, str | None, tuple[str, ...]]:
+MAX_MODEL_FILE_BYTES = 64 << 20  # a URDF or SRDF (the largest example-robot-data URDF is ~0.3 MB)
+URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+
+def _check_file(where: str, key: str, path: str | None, what: str) -> str:
+    """``path`` is a readable regular file of a sane size; returns it."""
+    shown = display_path(path or "")
+    try:
+        st = os.stat(path or "")
+    except (FileNotFoundError, NotADirectoryError):
+        raise ProfileError(f"{where}: {key}: {shown} does not exist (expected {what}; a relative path is "
+                           "relative to the profile's folder)") from None
+    except (OSError, ValueError) as e:
+        raise ProfileError(f"{where}: {key}: cannot read {shown}: {getattr(e, 'strerror', None) or e}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ProfileError(f"{where}: {key}: {shown} is a directory, expected {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise ProfileError(f"{where}: {key}: {shown} is not a regular file, expected {what}")
+    if st.st_size > MAX_MODEL_FILE_BYTES:
+        raise ProfileError(f"{where}: {key}: {shown} is larger than {MAX_MODEL_FILE_BYTES >> 20} MB; "
+                           f"expected {what}")
+    if not os.access(path, os.R_OK):
+        raise ProfileError(f"{where}: {key}: cannot read {shown}: permission denied")
+    return str(path)
+
+
+def _check_dir(where: str, key: str, path: str) -> None:
+    shown = display_path(path)
+    try:
+        is_dir = Path(path).is_dir()
+    except (OSError, ValueError):
+        is_dir = False
+    if not is_dir:
+        raise ProfileError(f"{where}: {key}: {shown} is not a folder (expected a folder that holds the "
+                           "URDF's package:// meshes)")
+
+
+def _check_xml(where: str, key: str, path: str, *, root: str) -> None:
+    """The file is well-formed XML with a named ``<robot>`` root (and, for a URDF, a joint tree).
+
+    Catches what Pinocchio's parser would report only as "does not contain a valid URDF model"
+    (after printing the reason on stderr), with the reason in the message.
+    """
+    import xml.etree.ElementTree as ET
+
+    shown = display_path(path)
+    kind = key.upper()
+    article = "an" if kind == "SRDF" else "a"
+    try:
+        tree = ET.parse(path)
+    except ET.ParseError as e:
+        raise ProfileError(f"{where}: {key}: {shown} is not {article} {kind} file (not well-formed XML: {e})") from None
+    except (OSError, ValueError, RecursionError) as e:
+        raise ProfileError(f"{where}: {key}: cannot read {shown} as XML: {e}") from None
+    top = tree.getroot()
+    if top.tag != root:
+        raise ProfileError(f"{where}: {key}: {shown} is not {article} {kind} file: its root element is "
+                           f"<{str(top.tag)[:40]}>, expected <{root}>")
+    if key != "urdf":
+        return
+    if not top.get("name"):
+        raise ProfileError(f"{where}: urdf: {shown}: the <robot> element has no name attribute")
+    links = [el.get("name") for el in top.findall("link")]
+    if not links:
+        raise ProfileError(f"{where}: urdf: {shown} has no <link>; expected a robot model")
+    if None in links or "" in links:
+        raise ProfileError(f"{where}: urdf: {shown}: a <link> has no name")
+    if len(set(links)) != len(links):
+        dup = next(n for n in links if links.count(n) > 1)
+        raise ProfileError(f"{where}: urdf: {shown}: link {dup!r} is defined twice")
+    joints = top.findall("joint")
+    if not joints:
+        raise ProfileError(f"{where}: urdf: {shown} has no <joint>; wbmp needs a humanoid with joints")
+    for link in top.findall("link"):
+        mass = link.find("inertial/mass")
+        value = mass.get("value") if mass is not None else None
+        if mass is not None and not _is_mass(value):
+            raise ProfileError(f"{where}: urdf: {shown}: link {link.get('name')!r} has mass {show(value)}; "
+                               "expected a finite number of kilograms >= 0")
+    known = set(links)
+    children: set[str] = set()
+    for j in joints:
+        name = j.get("name")
+        if not name:
+            raise ProfileError(f"{where}: urdf: {shown}: a <joint> has no name")
+        if j.get("type") not in URDF_JOINT_TYPES:
+            raise ProfileError(f"{where}: urdf: {shown}: joint {name!r} has type {j.get('type')!r}; "
+                               f"expected one of {', '.join(URDF_JOINT_TYPES)}")
+        for end in ("parent", "child"):
+            el = j.find(end)
+            link = el.get("link") if el is not None else None
+            if link not in known:
+                raise ProfileError(f"{where}: urdf: {shown}: joint {name!r} has {end} link {link!r}, "
+                                   "which is not a <link> of the file")
+        child = j.find("child").get("link")
+        if child in children:
+            raise ProfileError(f"{where}: urdf: {shown}: link {child!r} is the child of two joints")
+        children.add(child)
+    roots = [n for n in links if n not in children]
+    if len(roots) != 1:
+        raise ProfileError(f"{where}: urdf: {shown}: the links do not form one tree "
+                           f"({len(roots)} links have no parent joint)")
+
+
+def _is_mass(text: str | None) -> bool:
+    try:
+        value = float(text or "")
+    except ValueError:
+        return False
+    return math.isfinite(value) and value >= 0.0
+
+
+@contextlib.contextmanager
+def _native_stderr(sink: list[str]):
+    """Collect what C++ code (urdfdom, Pinocchio) prints on file descriptor 2 into ``sink``.
+
+    Pinocchio's URDF parser prints its reasons there and raises a generic error; the reason
+    belongs in the one-line message instead. Falls back to doing nothing if fd 2 cannot be
+    redirected.
+    """
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    with tempfile.TemporaryFile() as tmp:
+        try:
+            os.dup2(tmp.fileno(), 2)
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            sink.append(tmp.read(1 << 16).decode("utf-8", errors="replace"))
+
+
+def _native_reason(captured: list[str]) -> str:
+    """The first meaningful line of what urdfdom printed ("Error:   No link elements ...")."""
+    for line in "".join(captured).splitlines():
+        text = line.strip()
+        if text.lower().startswith("error:"):
+            text = text[6:].strip()
+        if text and not text.startswith("at line"):
+            return text[:200]
+    return ""
+
+
+def _echo_native(captured: list[str]) -> None:
+    """Pass on what C++ code printed during a load that succeeded (warnings stay visible)."""
+    text = "".join(captured)
+    if text.strip():
+        sys.stderr.write(text)
+
+
+def _kinematic_model(where: str, urdf: str) -> pin.Model:
+    captured: list[str] = []
+    try:
+        with _native_stderr(captured):
+            model = pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer())
+    except (ValueError, RuntimeError, TypeError, IndexError) as e:
+        reason = _native_reason(captured) or str(e).splitlines()[0][:200]
+        raise ProfileError(f"{where}: urdf: Pinocchio cannot load {display_path(urdf)}: {reason}") from None
+    reason = _native_reason(captured)
+    if reason:  # urdfdom went on after an error (e.g. an unreadable <inertial>): the model is wrong
+        raise ProfileError(f"{where}: urdf: Pinocchio cannot load {display_path(urdf)}: {reason}")
+    return model
+
+
+def _load_srdf(where: str, model: pin.Model, srdf: str) -> None:
+    captured: list[str] = []
+    try:
+        with _native_stderr(captured):
+            pin.loadReferenceConfigurations(model, srdf, False)
+    except (ValueError, RuntimeError, TypeError, IndexError) as e:
+        reason = _native_reason(captured) or str(e).splitlines()[0][:200]
+        raise ProfileError(f"{where}: srdf: Pinocchio cannot read {display_path(srdf)}: {reason}") from None
+    reason = _native_reason(captured)
+    if reason:  # e.g. "Could not read joint config (leg_left_1_joint , abc)": the value was dropped
+        raise ProfileError(f"{where}: srdf: Pinocchio cannot read {display_path(srdf)}: {reason}")
+
+
+def _check_model(where: str, urdf: str, model: pin.Model) -> None:
+    """The model has joints, finite non-negative masses and consistent limits."""
+    shown = display_path(urdf)
+    if model.nv <= 6:
+        raise ProfileError(f"{where}: urdf: {shown} has no movable joint; wbmp needs a humanoid with legs")
+    for i in range(1, model.njoints):
+        inertia = model.inertias[i]
+        values = np.concatenate([[inertia.mass], inertia.lever, np.ravel(inertia.inertia)])
+        if not np.all(np.isfinite(values)) or inertia.mass < 0.0:
+            raise ProfileError(f"{where}: urdf: {shown}: the body of joint {model.names[i]!r} has mass "
+                               f"{inertia.mass:g} kg; expected finite masses >= 0 and finite inertias")
+        if not np.all(np.isfinite(model.jointPlacements[i].homogeneous)):
+            raise ProfileError(f"{where}: urdf: {shown}: joint {model.names[i]!r} has a non-finite origin")
+    if not pin.computeTotalMass(model) > 0.0:
+        raise ProfileError(f"{where}: urdf: {shown} has no mass (every <inertial> is missing or 0 kg)")
+    lo, hi = model.lowerPositionLimit, model.upperPositionLimit
+    for i in range(2, model.njoints):
+        j = model.joints[i]
+        sl = slice(j.idx_q, j.idx_q + j.nq)
+        if np.any(np.isnan(lo[sl])) or np.any(np.isnan(hi[sl])) or np.any(lo[sl] > hi[sl]):
+            raise ProfileError(f"{where}: urdf: {shown}: joint {model.names[i]!r} has lower limit "
+                               f"{lo[sl][0]:g} above its upper limit {hi[sl][0]:g}")
+        vs = slice(j.idx_v, j.idx_v + j.nv)
+        for name, limit in (("velocity", model.velocityLimit[vs]), ("effort", model.effortLimit[vs])):
+            if np.any(np.isnan(limit)) or np.any(limit < 0.0):
+                raise ProfileError(f"{where}: urdf: {shown}: joint {model.names[i]!r} has {name} limit "
+                                   f"{limit[0]:g}; expected a number >= 0")
+
+
+def _add_extra_frames(where: str, model: pin.Model, profile: RobotProfile) -> None:
+    for i, extra in enumerate(profile.extra_frames):
+        names = [f.name for f in model.frames]
+        if model.existFrame(extra.name):
+            raise ProfileError(f"{where}: extra_frames[{i}].name: the model already has a frame {extra.name!r}; "
+                               "give the extra frame a new name")
+        if not model.existFrame(extra.parent):
+            raise FrameNotFound(extra.parent, profile.name, names, where=f"{where}: extra_frames[{i}].parent")
+        parent_id = model.getFrameId(extra.parent)
+        parent = model.frames[parent_id]
+        placement = parent.placement * pin.SE3(np.eye(3), np.array(extra.translation))
+        model.addFrame(pin.Frame(extra.name, parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME))
+
+
+def _check_sides(where: str, model: pin.Model, profile: RobotProfile, q: np.ndarray) -> None:
+    """Each left frame lies to the left (+y of the left foot frame) of its right twin."""
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    ref = data.oMf[model.getFrameId(profile.frame("left_foot"))]
+    for left, right in SIDE_PAIRS:
+        if profile.frame(left) is None:
+            continue
+        y = [float(ref.actInv(data.oMf[model.getFrameId(profile.frame(r))]).translation[1]) for r in (left, right)]
+        if y[0] - y[1] >= 0.01:
+            continue
+        pair = f"{left} {profile.frame(left)!r} and {right} {profile.frame(right)!r}"
+        at = f"y = {y[0]:.3f} m and {y[1]:.3f} m across the left foot's frame at the reference posture"
+        if y[0] < y[1] - 0.01:
+            raise ProfileError(f"{where}: frames: {pair} are mirrored ({at}); are left and right swapped?")
+        raise ProfileError(f"{where}: frames: {pair} are less than 1 cm apart sideways ({at}); "
+                           "name a frame on each side of the robot")
+
+
+def _check_standing(where: str, model: pin.Model, q: np.ndarray) -> None:
+    if not np.all(np.isfinite(q)):
+        raise ProfileError(f"{where}: the standing posture is not finite; check reference_posture and "
+                           "posture_overrides")
+    lo, hi = model.lowerPositionLimit, model.upperPositionLimit
+    for i in range(2, model.njoints):
+        j = model.joints[i]
+        if j.nq != 1:
+            continue
+        v = q[j.idx_q]
+        if not lo[j.idx_q] - 1e-6 <= v <= hi[j.idx_q] + 1e-6:
+            raise ProfileError(
+                f"{where}: posture_overrides: standing with both soles flat puts joint {model.names[i]!r} at "
+                f"{v:.3f}, outside its limits [{lo[j.idx_q]:.3f}, {hi[j.idx_q]:.3f}]; adjust posture_overrides "
+                "or reference_posture"
+            )
+
+
+def _geometry(where: str, urdf: str, package_dirs: tuple[str, ...]) -> tuple[pin.GeometryModel, pin.GeometryModel]:
+    """(collision, visual) geometry of ``urdf``: copies of a cached load (meshes take seconds)."""
+    try:
+        st = os.stat(urdf)
+        collision, visual = _cached_geometry(urdf, os.path.realpath(urdf), st.st_mtime_ns, st.st_size, package_dirs)
+    except (ValueError, RuntimeError, TypeError, IndexError, OSError) as e:
+        reason = str(e).splitlines()[0][:200] if str(e) else type(e).__name__
+        raise ProfileError(f"{where}: urdf: cannot load the meshes of {display_path(urdf)}: {reason} "
+                           "(package_dirs must hold the folder of each package:// mesh)") from None
+    return collision.copy(), visual.copy()
+
+
+@functools.lru_cache(maxsize=6)
+def _cached_geometry(urdf: str, _realpath: str, _mtime_ns: int, _size: int,
+                     package_dirs: tuple[str, ...]) -> tuple[pin.GeometryModel, pin.GeometryModel]:
+    captured: list[str] = []
+    with _native_stderr(captured):
+        model = pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer())
+        collision = pin.buildGeomFromUrdf(model, urdf, pin.GeometryType.COLLISION, package_dirs=list(package_dirs))
+        visual = pin.buildGeomFromUrdf(model, urdf, pin.GeometryType.VISUAL, package_dirs=list(package_dirs))
+    _echo_native(captured)
+    for gmodel in (visual, collision):
+        correct_collada_up_axis(gmodel)
+    return collision, visual
+
+
+def _loader_paths(where: str, loader: str) -> tuple[str, str | None, tuple[str, ...]]:
+    """(urdf, srdf, package_dirs) of an example-robot-data robot, without loading it."""
     from example_robot_data import robots_loader
 
     cls = robots_loader.ROBOTS.get(loader)
     if cls is None:
-        raise RobotNotFound(loader, sorted(robots_loader.ROBOTS))
-    inst = cls()
-    srdf = inst.srdf_path if inst.srdf_filename else None
-    model_path = Path(inst.model_path).resolve()  # .../share/example-robot-data/robots
-    return str(Path(inst.df_path).resolve()), srdf, (str(model_path.parents[1]), str(model_path))
+        close = difflib.get_close_matches(loader, list(robots_loader.ROBOTS), n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+        raise ProfileError(f"{where}: loader: expected an example-robot-data robot such as 'talos', 'g1', 'icub' "
+                           f"or 'romeo', got {show(loader)}{hint}")
+    if not cls.urdf_filename or not cls.free_flyer:
+        why = "has no URDF" if not cls.urdf_filename else "is fixed to the ground"
+        raise ProfileError(f"{where}: loader: the example-robot-data robot {loader!r} {why}; wbmp plans for "
+                           "free-floating humanoids described by a URDF")
+    sub = os.path.join(cls.path, cls.urdf_subpath, cls.urdf_filename)
+    try:
+        model_path = Path(cls.model_path or robots_loader.getModelPath(sub)).resolve()
+    except OSError:
+        raise ProfileError(f"{where}: loader: the files of {loader!r} are not installed "
+                           "(reinstall example-robot-data)") from None
+    srdf = str(model_path / cls.path / cls.srdf_subpath / cls.srdf_filename) if cls.srdf_filename else None
+    # package:// URIs resolve against .../share (example-robot-data's own loader uses model_path/../..)
+    return str(model_path / sub), srdf, (str(model_path.parents[1]), str(model_path))
 
 
 def _guess_package_dirs(urdf: str) -> tuple[str, ...]:
@@ -287,22 +605,43 @@ def _guess_package_dirs(urdf: str) -> tuple[str, ...]:
 
 
 def _reference_configuration(model: pin.Model, profile: RobotProfile) -> np.ndarray:
+    where = profile.where
     refs = {e.key(): np.array(e.data()) for e in model.referenceConfigurations}
     name = profile.reference_posture
     if name == "q0":
         q = pin.neutral(model)
     elif name in refs:
         q = refs[name].copy()
+        if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
+            raise ProfileError(f"{where}: reference_posture: {name!r} from the SRDF is not a finite "
+                               f"configuration of {model.nq} values")
     else:
-        raise ProfileError(
-            f"profile {profile.name!r}: reference posture {name!r} not found; "
-            f"available: {['q0', *refs]}"
-        )
-    for joint, angle in profile.posture_overrides:
-        if not model.existJointName(joint):
-            raise ProfileError(f"profile {profile.name!r}: posture override names unknown joint {joint!r}")
-        jid = model.getJointId(joint)
-        q[model.joints[jid].idx_q] = angle
+        srdf = "" if profile.loader or profile.srdf else " (give 'srdf' to read named postures)"
+        raise ProfileError(f"{where}: reference_posture: expected 'q0' or a posture of the SRDF "
+                           f"({', '.join(repr(k) for k in ['q0', *refs])}), got {show(name)}{srdf}")
+    joints = list(model.names)[2:]
+    for joint, value in profile.posture_overrides:
+        key = f"posture_overrides.{joint}"
+        if joint in ("universe", "root_joint"):
+            raise ProfileError(f"{where}: {key}: {joint!r} is the robot's root, not a joint posture_overrides "
+                               "can set; name actuated joints")
+        if joint not in joints:
+            close = difflib.get_close_matches(joint, joints, n=3, cutoff=0.6)
+            hint = (f"did you mean {', '.join(repr(c) for c in close)}?" if close
+                    else f"its joints include {', '.join(repr(j) for j in joints[:5])}, ... ({len(joints)} in all)")
+            raise ProfileError(f"{where}: {key}: the URDF has no actuated joint {joint!r}; {hint}")
+        j = model.joints[model.getJointId(joint)]
+        if j.nq == 2 and j.nv == 1:  # continuous joint: stored as (cos, sin)
+            q[j.idx_q:j.idx_q + 2] = (np.cos(value), np.sin(value))
+            continue
+        if j.nq != 1:
+            raise ProfileError(f"{where}: {key}: joint {joint!r} has {j.nq} coordinates; posture_overrides "
+                               "sets revolute, continuous and prismatic joints only")
+        lo, hi = model.lowerPositionLimit[j.idx_q], model.upperPositionLimit[j.idx_q]
+        if not lo - 1e-9 <= value <= hi + 1e-9:
+            raise ProfileError(f"{where}: {key}: expected a value within the joint's limits "
+                               f"[{lo:.4g}, {hi:.4g}], got {value:g}")
+        q[j.idx_q] = value
     return q
 
 

@@ -13,13 +13,14 @@ if TYPE_CHECKING:
     from sim.exceptions import PushParseError, SimError, SimModelError
     from sim.execution import Event, Execution
     from sim.model import SimModel, build_model
-    from sim.run import Push, SimSettings, parse_push, simulate
+    from sim.run import MAX_PUSH_FORCE, Push, SimSettings, check_push_time, parse_push, simulate
 
 _EXPORTS = {  # public name -> module that defines it
     "Certificate": "sim.certificate",
     "Check": "sim.certificate",
     "Event": "sim.execution",
     "Execution": "sim.execution",
+    "MAX_PUSH_FORCE": "sim.run",
     "Push": "sim.run",
     "PushParseError": "sim.exceptions",
     "SimError": "sim.exceptions",
@@ -27,11 +28,13 @@ _EXPORTS = {  # public name -> module that defines it
     "SimModelError": "sim.exceptions",
     "SimSettings": "sim.run",
     "build_model": "sim.model",
+    "check_push_time": "sim.run",
     "parse_push": "sim.run",
     "simulate": "sim.run",
 }
 
 __all__ = [
+    "MAX_PUSH_FORCE",
     "Certificate",
     "Check",
     "Event",
@@ -43,6 +46,7 @@ __all__ = [
     "SimModelError",
     "SimSettings",
     "build_model",
+    "check_push_time",
     "parse_push",
     "simulate",
 ]

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tasks.exceptions import TaskDefinitionError, UnknownAction
+from tasks.limits import MAX_ACTIONS, MAX_DISTANCE, MAX_REPEAT
 
 SIDES = ("left", "right")
 ARMS = ("left", "right", "both")
@@ -52,26 +53,28 @@ class Param:
         if value is None:
             return None
         if self.kind == "float":
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise TaskDefinitionError(f"{who} must be a number [{self.unit}], got {value!r}")
+            if not _finite_number(value):
+                raise TaskDefinitionError(f"{who} must be a number [{self.unit}], got {_short(value)}")
             value = float(value)
         elif self.kind == "int":
             if isinstance(value, float) and value.is_integer():
                 value = int(value)
             if isinstance(value, bool) or not isinstance(value, int):
-                raise TaskDefinitionError(f"{who} must be a whole number, got {value!r}")
+                raise TaskDefinitionError(f"{who} must be a whole number, got {_short(value)}")
         elif self.kind == "choice":
-            if value not in self.choices:
-                raise TaskDefinitionError(f"{who} must be one of {', '.join(self.choices)}, got {value!r}")
+            if not isinstance(value, str) or value not in self.choices:
+                raise TaskDefinitionError(f"{who} must be one of {', '.join(self.choices)}, got {_short(value)}")
             return value
         elif self.kind == "vec3":
             if (not isinstance(value, (list, tuple)) or len(value) != 3
-                    or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)):
-                raise TaskDefinitionError(f"{who} must be three numbers [{self.unit}], got {value!r}")
+                    or not all(_finite_number(x) and abs(x) <= MAX_DISTANCE for x in value)):
+                raise TaskDefinitionError(
+                    f"{who} must be three numbers within {MAX_DISTANCE:g} {self.unit}, got {_short(value)}"
+                )
             return tuple(float(x) for x in value)
         elif self.kind == "bool":
             if not isinstance(value, bool):
-                raise TaskDefinitionError(f"{who} must be true or false, got {value!r}")
+                raise TaskDefinitionError(f"{who} must be true or false, got {_short(value)}")
             return value
         if self.minimum is not None and value < self.minimum:
             raise TaskDefinitionError(f"{who} {_fmt(value, self.unit)} is below the minimum {_fmt(self.minimum, self.unit)}")
@@ -103,8 +106,24 @@ class Param:
         return s
 
 
+def _finite_number(value: Any) -> bool:
+    """A bool-free int or float that is finite and converts to a float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    if isinstance(value, int):
+        return abs(value) < 10**300  # float() of a larger one overflows
+    return math.isfinite(value)
+
+
+def _short(value: Any) -> str:
+    """A repr for messages, cut short (a reply may hold a 5,000-digit number or a huge list)."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
+
+
 def _fmt(value: float, unit: str) -> str:
-    return f"{value:g} {unit}".strip() if unit not in ("", "count") else f"{value:g}"
+    text = f"{value:g}" if isinstance(value, float) or abs(value) < 10**15 else _short(value)
+    return f"{text} {unit}".strip() if unit not in ("", "count") else text
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -222,7 +241,7 @@ def _choice(name: str, choices: tuple[str, ...], default: str | None, descriptio
 
 
 def _repeat(default: int = 1) -> Param:
-    return Param(name="repeat", kind="int", unit="count", default=default, minimum=1, maximum=10,
+    return Param(name="repeat", kind="int", unit="count", default=default, minimum=1, maximum=MAX_REPEAT,
                  description="how many times")
 
 
@@ -327,7 +346,8 @@ def actions_json_schema() -> dict[str, Any]:
         "title": "wbmp action plan",
         "type": "object",
         "properties": {
-            "actions": {"type": "array", "minItems": 1, "items": {"oneOf": [s.to_json_schema() for s in REGISTRY.values()]}},
+            "actions": {"type": "array", "minItems": 1, "maxItems": MAX_ACTIONS,
+                        "items": {"oneOf": [s.to_json_schema() for s in REGISTRY.values()]}},
         },
         "required": ["actions"],
     }

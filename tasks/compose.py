@@ -27,6 +27,7 @@ from typing import Any
 from robots.model import Robot
 from tasks.actions import Action
 from tasks.exceptions import TaskDefinitionError
+from tasks.limits import MAX_ACTIONS, MAX_HORIZON, horizon_message
 from tasks.primitives import (
     DEFAULT_DT,
     Fragment,
@@ -137,15 +138,22 @@ def compile_actions(
         The TaskSpec, whose horizon is the sum of the stand, action and transition times.
 
     Raises:
-        TaskDefinitionError: no action, an overlay first, two overlaid actions driving the same
-            body part, a parameter beyond the robot's limits, or a primitive not available yet;
-            the message names the action (``action 2 (squat): ...``) when there are several.
+        TaskDefinitionError: no action or more than :data:`tasks.limits.MAX_ACTIONS`, an overlay
+            first, two overlaid actions driving the same body part, a parameter beyond the robot's
+            limits, a primitive not available yet, or a motion longer than
+            :data:`tasks.limits.MAX_HORIZON`; the message names the action (``action 2 (squat): ...``)
+            when there are several.
     """
     if not (isinstance(dt, (int, float)) and 0.005 <= dt <= DT_MAX):
         raise TaskDefinitionError(f"dt must be in [0.005, {DT_MAX:g}] s, got {dt!r}")
     for what, value in (("stand_time", stand_time), ("transition_time", transition_time)):
         if not (isinstance(value, (int, float)) and 0.0 <= value <= 10.0):
             raise TaskDefinitionError(f"{what} must be in [0, 10] s, got {value!r}")
+    if len(actions) > MAX_ACTIONS:
+        raise TaskDefinitionError(
+            f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
+            "into several shorter ones"
+        )
     actions = [_as_action(a, i) for i, a in enumerate(actions)]
     if not actions:
         raise TaskDefinitionError("no action to compile; give at least one action")
@@ -155,6 +163,7 @@ def compile_actions(
     def knots(seconds: float) -> int:
         return int(-(-round(seconds / dt, 6) // 1))  # ceil, robust to 0.6/0.075 = 7.999999
 
+    _check_horizon(groups, robot, n, dt, knots(stand_time), knots(transition_time))
     stance = Stance.standing(robot)
     phases: list[Phase] = []
     waypoints: list[JointTarget] = []
@@ -205,6 +214,9 @@ def compile_actions(
         phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
         k += knots(stand_time)
     waypoints.extend(standing_waypoint(robot, "end", knot_time(k, dt)))
+    horizon = k * dt
+    if horizon > MAX_HORIZON + 1e-9:
+        raise TaskDefinitionError(horizon_message(horizon, "split the instruction into several shorter ones"))
     margin = standing_geometry(robot).support_margin
     bounds = (CoMBounds(name="balance", support_polygon=True, margin=margin),)
     return TaskSpec(
@@ -219,6 +231,22 @@ def compile_actions(
         name=name or describe_actions(actions),
         description=description,
     )
+
+
+def _check_horizon(groups: list[list[tuple[int, Action]]], robot: Robot, n: int, dt: float, stand_knots: int,
+                   transition_knots: int) -> None:
+    """Refuse a motion longer than MAX_HORIZON before compiling any action (same knot rounding)."""
+    k = 2 * stand_knots + transition_knots * (len(groups) - 1)
+    for group in groups:
+        durations = []
+        for i, a in group:
+            try:
+                durations.append(nominal_duration(a, robot))
+            except TaskDefinitionError as e:
+                raise type(e)(f"{_where(i, a, n)}{e}") from None
+        k += int(-(-round(max(durations) / dt, 6) // 1))
+    if k * dt > MAX_HORIZON + 1e-9:
+        raise TaskDefinitionError(horizon_message(k * dt, "split the instruction into several shorter ones"))
 
 
 def describe_actions(actions: Sequence[Action]) -> str:

@@ -19,9 +19,28 @@ from __future__ import annotations
 
 import enum
 import math
+from collections import Counter
 from dataclasses import dataclass
 
 from tasks.exceptions import TaskDefinitionError
+from tasks.limits import (
+    MAX_ANGLE,
+    MAX_CONTACTS,
+    MAX_DISTANCE,
+    MAX_DT,
+    MAX_FRICTION,
+    MAX_HORIZON,
+    MAX_ITEMS,
+    MAX_KNOTS,
+    MAX_NAME_LENGTH,
+    MAX_PHASES,
+    MAX_TERMS,
+    MAX_TEXT_LENGTH,
+    MAX_WEIGHT,
+    MIN_DT,
+    MIN_HORIZON,
+    horizon_message,
+)
 
 Vec3 = tuple[float, float, float]
 OptVec3 = tuple[float | None, float | None, float | None]
@@ -37,33 +56,68 @@ class Priority(enum.Enum):
     SOFT = "soft"  # weighted least-squares cost
 
 
-def _finite(owner: str, field_name: str, values) -> None:
+def _show(value) -> str:
+    """A short repr for error messages (a 5,000-digit number or a long string stays short)."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
+
+
+def _num(value) -> str:
+    """A number for messages: ``1e+09``, ``0.3``; a huge integer stays short."""
+    return f"{value:g}" if isinstance(value, float) else _show(value)
+
+
+def _is_number(v) -> bool:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    return isinstance(v, int) or math.isfinite(v)  # an int is finite; float(10**400) would overflow
+
+
+def _number(owner: str, field_name: str, value, *, lo: float, hi: float, unit: str = "") -> None:
+    """``value`` is a finite number in [lo, hi] (TaskDefinitionError naming the field otherwise)."""
+    u = f" {unit}" if unit else ""
+    if not _is_number(value):
+        raise TaskDefinitionError(f"{owner}: {field_name} must be a finite number{u}, got {_show(value)}")
+    if not lo <= value <= hi:
+        raise TaskDefinitionError(f"{owner}: {field_name} must be in [{lo:g}, {hi:g}]{u}, got {_show(value)}")
+
+
+def _finite(owner: str, field_name: str, values, *, bound: float, unit: str) -> None:
     for v in values:
-        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
-            raise TaskDefinitionError(f"{owner}: {field_name} must hold finite numbers, got {values!r}")
+        if v is not None and not (_is_number(v) and -bound <= v <= bound):
+            raise TaskDefinitionError(
+                f"{owner}: {field_name} must hold finite numbers in [{-bound:g}, {bound:g}] {unit}, got {_show(values)}"
+            )
 
 
-def _vec3(owner: str, field_name: str, value, *, optional_items: bool = False) -> None:
+def _vec3(owner: str, field_name: str, value, *, optional_items: bool = False, bound: float = MAX_DISTANCE,
+          unit: str = "m") -> None:
     if not isinstance(value, tuple) or len(value) != 3:
-        raise TaskDefinitionError(f"{owner}: {field_name} must be a 3-tuple, got {value!r}")
+        raise TaskDefinitionError(f"{owner}: {field_name} must be a 3-tuple, got {_show(value)}")
     if not optional_items and any(v is None for v in value):
         raise TaskDefinitionError(f"{owner}: {field_name} must not contain null")
-    _finite(owner, field_name, value)
+    _finite(owner, field_name, value, bound=bound, unit=unit)
 
 
 def _window(owner: str, window: Window | None) -> None:
     if window is None:
         return
     if not isinstance(window, tuple) or len(window) != 2:
-        raise TaskDefinitionError(f"{owner}: window must be (t_start, t_end) [s], got {window!r}")
-    _finite(owner, "window", window)
+        raise TaskDefinitionError(f"{owner}: window must be (t_start, t_end) [s], got {_show(window)}")
+    _finite(owner, "window", window, bound=MAX_HORIZON, unit="s")
     if not 0.0 <= window[0] <= window[1]:
-        raise TaskDefinitionError(f"{owner}: window must satisfy 0 <= t_start <= t_end, got {window!r}")
+        raise TaskDefinitionError(f"{owner}: window must satisfy 0 <= t_start <= t_end, got {_show(window)}")
 
 
-def _nonneg(owner: str, field_name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
-        raise TaskDefinitionError(f"{owner}: {field_name} must be a finite number >= 0, got {value!r}")
+def _nonneg(owner: str, field_name: str, value: float, *, hi: float = MAX_DISTANCE, unit: str = "m") -> None:
+    _number(owner, field_name, value, lo=0.0, hi=hi, unit=unit)
+
+
+def _text(owner: str, field_name: str, value, *, limit: int = MAX_NAME_LENGTH) -> None:
+    if not isinstance(value, str):
+        raise TaskDefinitionError(f"{owner}: {field_name} must be a string, got {_show(value)}")
+    if len(value) > limit:
+        raise TaskDefinitionError(f"{owner}: {field_name} has {len(value)} characters; at most {limit}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -75,7 +129,7 @@ class Pose:
 
     def __post_init__(self) -> None:
         _vec3("pose", "position", self.position)
-        _vec3("pose", "rpy", self.rpy)
+        _vec3("pose", "rpy", self.rpy, bound=MAX_ANGLE, unit="rad")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -93,10 +147,16 @@ class Contact:
     friction_coefficient: float | None = None
 
     def __post_init__(self) -> None:
-        if not self.frame:
+        if not isinstance(self.frame, str) or not self.frame:
             raise TaskDefinitionError("contact: frame must be a non-empty frame name or role")
-        if self.friction_coefficient is not None and not self.friction_coefficient > 0.0:
-            raise TaskDefinitionError(f"contact {self.frame}: friction_coefficient must be > 0")
+        _text("contact", "frame", self.frame)
+        if not isinstance(self.placement, Pose):
+            raise TaskDefinitionError(f"contact {self.frame}: placement must be a Pose, got {_show(self.placement)}")
+        if self.friction_coefficient is not None:
+            _number(f"contact {self.frame}", "friction_coefficient", self.friction_coefficient, lo=0.0,
+                    hi=MAX_FRICTION)
+            if not self.friction_coefficient > 0.0:
+                raise TaskDefinitionError(f"contact {self.frame}: friction_coefficient must be > 0")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -117,8 +177,15 @@ class Phase:
     swing_height: float = 0.05
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration) and self.duration > 0):
-            raise TaskDefinitionError(f"phase {self.name!r}: duration must be > 0 s, got {self.duration!r}")
+        _text("phase", "name", self.name)
+        if not (_is_number(self.duration) and self.duration > 0):
+            raise TaskDefinitionError(f"phase {self.name!r}: duration must be > 0 s, got {_show(self.duration)}")
+        if self.duration > MAX_HORIZON:
+            raise TaskDefinitionError(
+                f"phase {self.name!r}: duration {_num(self.duration)} s is longer than wbmp plans at a time "
+                f"(at most {MAX_HORIZON:g} s; longer motions take minutes and gigabytes to plan): split it "
+                "into several specs"
+            )
         frames = [c.frame for c in self.contacts]
         if len(set(frames)) != len(frames):
             raise TaskDefinitionError(f"phase {self.name!r}: a frame appears in two contacts: {frames}")
@@ -156,25 +223,28 @@ class FrameTarget:
     weight: float = 100.0
 
     def __post_init__(self) -> None:
+        _text("target", "name", self.name)
         who = f"target {self.name!r}"
-        if not self.frame:
+        if not isinstance(self.frame, str) or not self.frame:
             raise TaskDefinitionError(f"{who}: frame must be a frame name or role")
+        _text(who, "frame", self.frame)
         if self.position is None and self.rpy is None:
             raise TaskDefinitionError(f"{who}: give a position, an rpy orientation, or both")
         if self.position is not None:
             _vec3(who, "position", self.position)
         if self.rpy is not None:
-            _vec3(who, "rpy", self.rpy)
-        if len(self.axes) != 3 or not any(self.axes):
+            _vec3(who, "rpy", self.rpy, bound=MAX_ANGLE, unit="rad")
+        if (not isinstance(self.axes, tuple) or len(self.axes) != 3 or not all(isinstance(a, bool) for a in self.axes)
+                or not any(self.axes)):
             raise TaskDefinitionError(f"{who}: axes must be three booleans, at least one true")
         if self.time is not None and self.window is not None:
             raise TaskDefinitionError(f"{who}: give time or window, not both")
         if self.time is not None:
-            _nonneg(who, "time", self.time)
+            _nonneg(who, "time", self.time, hi=MAX_HORIZON, unit="s")
         _window(who, self.window)
         _nonneg(who, "tolerance", self.tolerance)
-        _nonneg(who, "orientation_tolerance", self.orientation_tolerance)
-        _nonneg(who, "weight", self.weight)
+        _nonneg(who, "orientation_tolerance", self.orientation_tolerance, hi=MAX_ANGLE, unit="rad")
+        _nonneg(who, "weight", self.weight, hi=MAX_WEIGHT, unit="")
         if not isinstance(self.priority, Priority):
             raise TaskDefinitionError(f"{who}: priority must be 'hard' or 'soft'")
 
@@ -201,6 +271,7 @@ class CoMTarget:
     weight: float = 100.0
 
     def __post_init__(self) -> None:
+        _text("CoM target", "name", self.name)
         who = f"CoM target {self.name!r}"
         _vec3(who, "position", self.position, optional_items=True)
         if all(v is None for v in self.position):
@@ -208,10 +279,12 @@ class CoMTarget:
         if self.time is not None and self.window is not None:
             raise TaskDefinitionError(f"{who}: give time or window, not both")
         if self.time is not None:
-            _nonneg(who, "time", self.time)
+            _nonneg(who, "time", self.time, hi=MAX_HORIZON, unit="s")
         _window(who, self.window)
         _nonneg(who, "tolerance", self.tolerance)
-        _nonneg(who, "weight", self.weight)
+        _nonneg(who, "weight", self.weight, hi=MAX_WEIGHT, unit="")
+        if not isinstance(self.priority, Priority):
+            raise TaskDefinitionError(f"{who}: priority must be 'hard' or 'soft'")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -236,12 +309,15 @@ class CoMBounds:
     window: Window | None = None
 
     def __post_init__(self) -> None:
+        _text("CoM bounds", "name", self.name)
         who = f"CoM bounds {self.name!r}"
         _vec3(who, "lower", self.lower, optional_items=True)
         _vec3(who, "upper", self.upper, optional_items=True)
         for lo, hi in zip(self.lower, self.upper, strict=True):
             if lo is not None and hi is not None and lo > hi:
                 raise TaskDefinitionError(f"{who}: lower {self.lower} exceeds upper {self.upper}")
+        if not isinstance(self.support_polygon, bool):
+            raise TaskDefinitionError(f"{who}: support_polygon must be true or false, got {_show(self.support_polygon)}")
         _nonneg(who, "margin", self.margin)
         _window(who, self.window)
 
@@ -258,14 +334,18 @@ class JointTarget:
     weight: float = 10.0
 
     def __post_init__(self) -> None:
+        _text("joint target", "name", self.name)
         who = f"joint target {self.name!r}"
-        _finite(who, "value", (self.value,))
+        if not isinstance(self.joint, str) or not self.joint:
+            raise TaskDefinitionError(f"{who}: joint must be a joint name, got {_show(self.joint)}")
+        _text(who, "joint", self.joint)
+        _number(who, "value", self.value, lo=-MAX_ANGLE, hi=MAX_ANGLE, unit="rad")
         if self.time is not None and self.window is not None:
             raise TaskDefinitionError(f"{who}: give time or window, not both")
         if self.time is not None:
-            _nonneg(who, "time", self.time)
+            _nonneg(who, "time", self.time, hi=MAX_HORIZON, unit="s")
         _window(who, self.window)
-        _nonneg(who, "weight", self.weight)
+        _nonneg(who, "weight", self.weight, hi=MAX_WEIGHT, unit="")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -301,17 +381,52 @@ class TaskSpec:
     description: str = ""
 
     def __post_init__(self) -> None:
+        _text("task spec", "robot", self.robot, limit=MAX_TEXT_LENGTH)
+        _text("task spec", "name", self.name, limit=MAX_TEXT_LENGTH)
+        _text("task spec", "description", self.description, limit=MAX_TEXT_LENGTH)
         if not self.phases:
             raise TaskDefinitionError("task spec: at least one phase is needed")
-        if not (isinstance(self.dt, (int, float)) and 0.005 <= self.dt <= 0.5):
-            raise TaskDefinitionError(f"task spec: dt must be in [0.005, 0.5] s, got {self.dt!r}")
-        _nonneg("task spec", "posture_weight", self.posture_weight)
-        _nonneg("task spec", "smoothness_weight", self.smoothness_weight)
-        names = [t.name for t in (*self.targets, *self.com_targets, *self.com_bounds, *self.joint_targets)]
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup:
-            raise TaskDefinitionError(f"task spec: names must be unique, repeated: {dup}")
+        if len(self.phases) > MAX_PHASES:
+            raise TaskDefinitionError(
+                f"task spec: {len(self.phases)} phases; wbmp plans at most {MAX_PHASES} phases at a time: "
+                "split it into several specs"
+            )
+        _number("task spec", "dt", self.dt, lo=MIN_DT, hi=MAX_DT, unit="s")
+        if not isinstance(self.dynamic, bool):
+            raise TaskDefinitionError(f"task spec: dynamic must be true or false, got {_show(self.dynamic)}")
+        _nonneg("task spec", "posture_weight", self.posture_weight, hi=MAX_WEIGHT, unit="")
+        _nonneg("task spec", "smoothness_weight", self.smoothness_weight, hi=MAX_WEIGHT, unit="")
         horizon = self.horizon
+        if horizon > MAX_HORIZON + 1e-9:
+            raise TaskDefinitionError(f"task spec: {horizon_message(horizon, 'split it into several specs')}")
+        if horizon < MIN_HORIZON - 1e-12:
+            raise TaskDefinitionError(
+                f"task spec: the motion lasts {horizon:g} s; it must last at least {MIN_HORIZON:g} s (the planner "
+                f"needs 4 knot intervals of at least {MIN_DT:g} s)"
+            )
+        intervals = max(1, round(horizon / self.dt))
+        if intervals > MAX_KNOTS:
+            raise TaskDefinitionError(
+                f"task spec: {horizon:g} s on a dt = {self.dt:g} s grid is {intervals} knot intervals; wbmp plans "
+                f"at most {MAX_KNOTS} at a time ({MAX_KNOTS * 0.075:g} s at dt = 0.075 s): raise dt or shorten the motion"
+            )
+        for phase in self.phases:
+            if len(phase.contacts) > MAX_CONTACTS:
+                raise TaskDefinitionError(
+                    f"phase {phase.name!r}: {len(phase.contacts)} contacts; a phase holds at most {MAX_CONTACTS}"
+                )
+        items = (*self.targets, *self.com_targets, *self.com_bounds, *self.joint_targets)
+        if len(items) > MAX_ITEMS:
+            raise TaskDefinitionError(
+                f"task spec: {len(items)} targets and bounds; wbmp plans at most {MAX_ITEMS} at a time: "
+                "split it into several specs"
+            )
+        counts = Counter(t.name for t in items)
+        dup = sorted(n for n, c in counts.items() if c > 1)
+        if dup:
+            raise TaskDefinitionError(f"task spec: names must be unique, repeated: {dup[:10]}")
+        grid = horizon / intervals
+        terms = 0
         for item in (*self.targets, *self.com_targets, *self.joint_targets, *self.com_bounds):
             t = getattr(item, "time", None)
             w = item.window
@@ -321,6 +436,17 @@ class TaskSpec:
                     f"{type(item).__name__} {item.name!r}: time {latest:g} s is after the end of the "
                     f"motion ({horizon:g} s)"
                 )
+            if w is not None:
+                terms += int((w[1] - w[0]) / grid) + 1
+            elif isinstance(item, CoMBounds):
+                terms += intervals + 1
+            else:
+                terms += 1
+        if terms > MAX_TERMS:
+            raise TaskDefinitionError(
+                f"task spec: its targets and bounds apply at {terms} knots in all (a window counts each knot "
+                f"inside it); wbmp plans at most {MAX_TERMS}: use fewer or shorter windows, or split the spec"
+            )
 
     @property
     def horizon(self) -> float:

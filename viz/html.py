@@ -17,7 +17,6 @@ import base64
 import html
 import json
 import os
-import tempfile
 from importlib import resources
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from robots import Robot
 from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack
+from viz.files import Staging, atomic_write_text
 
 FPS = 30.0  # key frames per second of the replay
 
@@ -110,22 +110,8 @@ def _subtitle(robot: Robot, plan, simulated: vm.Motion | None, execution=None) -
     return " · ".join(parts)
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return out
-
-
-def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, title: str = "") -> Path:
+def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, title: str = "",
+               staging: Staging | None = None) -> Path:
     """Write a standalone HTML replay of ``plan`` (and of ``execution`` when given).
 
     The page shows the robot's meshes, the contact soles (while active), the support polygon of
@@ -134,12 +120,15 @@ def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, t
     ``file.html#t=1.5`` to start paused at 1.5 s. Nothing is fetched from the network.
 
     Args:
-        path: Output file; written atomically (temporary file, then ``os.replace``).
+        path: Output file; written atomically (temporary file, then ``os.replace``; see
+            :mod:`viz.files` for the mode of the file).
         robot: The robot the plan is for.
         plan: A :class:`planner.Plan`.
         execution: Optional simulated execution (a ``sim`` Execution or a mapping with
             ``exec_t``/``exec_q``).
         title: Page title; default the spec's description or name.
+        staging: Stage the file there (renamed into place by ``staging.commit()``, together with
+            the command's other outputs) instead of writing it now (:mod:`viz.files`).
 
     Returns:
         The path written.
@@ -147,4 +136,8 @@ def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, t
     Raises:
         VizInputError: the plan or execution arrays do not match the robot.
     """
-    return atomic_write_text(path, build_page(robot, plan, execution=execution, title=title))
+    text = build_page(robot, plan, execution=execution, title=title)
+    if staging is None:
+        return atomic_write_text(path, text)
+    data = text.encode("utf-8")
+    return staging.add(path, lambda fh: fh.write(data))

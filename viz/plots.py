@@ -15,8 +15,8 @@ each file is written atomically. :func:`write_plots` returns the paths it wrote:
 
 from __future__ import annotations
 
+import contextvars
 import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -31,6 +31,7 @@ from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
 
 from robots import Robot  # noqa: E402
 from viz import motion as vm  # noqa: E402
+from viz.files import Staging, atomic_write  # noqa: E402
 
 DPI = 100
 PLAN_COLOR = "#c1121f"
@@ -39,19 +40,23 @@ SIM_COLOR = "#2a9d8f"
 SUPPORT_FACE = "#9bd3a8"
 SUPPORT_EDGE = "#1b7a3a"
 MAX_SAMPLES = 2000  # points per line for simulated (1 kHz) signals
+PLOT_FILES = ("com_support.png", "joints.png", "torques.png", "contact_forces.png", "keyframes.png")
+"""Every file name :func:`write_plots` may write (which ones depends on the plan)."""
+
+# the Staging of the write_plots call drawing in this thread/task (None: _save writes at once)
+_STAGING: contextvars.ContextVar[Staging | None] = contextvars.ContextVar("wbmp_plot_staging", default=None)
 
 
 def _save(fig: Figure, path: Path) -> Path:
     FigureCanvasAgg(fig)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=DPI, format="png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+
+    def write(fh) -> None:
+        fig.savefig(fh, dpi=DPI, format="png")
+
+    staging = _STAGING.get()
+    if staging is not None:
+        return staging.add(path, write)
+    return atomic_write(path, write)
 
 
 def _is_dynamic(plan) -> bool:
@@ -357,7 +362,8 @@ def plot_keyframes(path: Path, robot: Robot, plan, *, count: int = 6) -> Path:
     return _save(fig, path)
 
 
-def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=None) -> list[Path]:
+def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=None,
+                staging: Staging | None = None) -> list[Path]:
     """Write the PNG plots of ``plan`` (and of ``execution`` when given) into ``directory``.
 
     Args:
@@ -365,17 +371,32 @@ def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=N
         robot: The robot.
         plan: A :class:`planner.Plan`.
         execution: Optional simulated execution (``sim`` Execution or ``exec_*`` mapping).
+        staging: Stage the files there (renamed into place by ``staging.commit()``, together
+            with the command's other outputs) instead of writing them now (:mod:`viz.files`);
+            the folder is then created at the commit.
 
     Returns:
-        The files written, in the order of the module docstring.
+        The files written (or staged), in the order of :data:`PLOT_FILES`.
 
     Raises:
         VizInputError: the plan or execution arrays do not match the robot.
     """
     out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
     vm.plan_motion(robot, plan)  # shape checks
     simulated = vm.execution_motion(robot, execution)
+    if staging is None:
+        with Staging() as own:
+            paths = write_plots(out, robot, plan, execution=execution, staging=own)
+            own.commit()
+        return paths
+    token = _STAGING.set(staging)
+    try:
+        return _draw_all(out, robot, plan, simulated)
+    finally:
+        _STAGING.reset(token)
+
+
+def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None) -> list[Path]:
     paths = [plot_com_support(out / "com_support.png", robot, plan, simulated=simulated),
              plot_joints(out / "joints.png", robot, plan)]
     if simulated is not None and simulated.tau is not None:

@@ -11,8 +11,11 @@ Keys of the ``.npz`` (``docs/formats.md`` documents them for other tools):
   input was a sentence, else ``null``), ``report_json`` (solver stats, constraint report,
   diagnosis, and the caller's entries such as the simulation ``certificate``), ``version``.
 
-Every file is written atomically: to a temporary file in the same directory, then
-``os.replace``.
+Every file is written atomically through :mod:`viz.files` (a temporary file beside the target,
+renamed at the end; a new file gets ``0o666 & ~umask``, a replaced one keeps its mode).
+:func:`load_motion` validates every key it reads (zip structure, dtypes, shapes, finite
+numbers, the JSON entries) and refuses a damaged file with a one-line :class:`MotionFileError`
+naming the file and the key; it never unpickles anything.
 """
 
 from __future__ import annotations
@@ -20,8 +23,10 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import tempfile
+import stat
+import struct
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,11 +34,16 @@ from typing import Any
 import numpy as np
 
 from planner import ConstraintCheck, Plan, SolverStats, SolveStatus
+from tasks.exceptions import TaskError
 from tasks.serialize import spec_from_json, spec_to_json
+from viz.files import Staging, atomic_write
 from wbmp.errors import CliError, ExitCode
 
 FORMAT_VERSION = 1
 EXEC_KEYS = ("exec_t", "exec_q", "exec_v", "exec_tau")
+REQUIRED_KEYS = ("t", "q", "v", "com", "robot", "spec_json", "report_json")
+MAX_MOTION_BYTES = 1 << 30  # [bytes] of arrays (uncompressed) a motion file may declare
+_NPY_MAGIC = b"\x93NUMPY"
 
 
 class MotionFileError(CliError):
@@ -144,19 +154,8 @@ def _json_default(obj):
     return str(obj)
 
 
-def _atomic_write(path: Path, write) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def save_motion(path: str | Path, plan: Plan, robot, *, execution=None, actions=None, report=None) -> Path:
+def save_motion(path: str | Path, plan: Plan, robot, *, execution=None, actions=None, report=None,
+                staging: Staging | None = None) -> Path:
     """Write the motion file atomically.
 
     Args:
@@ -167,106 +166,389 @@ def save_motion(path: str | Path, plan: Plan, robot, *, execution=None, actions=
         actions: The parsed actions (Action objects or dicts), or None.
         report: Extra report entries (timings, the simulation ``certificate``...), merged with
             the plan's ``solver``, ``checks``, ``diagnosis`` and ``ok`` entries.
+        staging: Stage the file there (renamed by ``staging.commit()`` with the command's
+            other outputs) instead of writing it now.
 
     Returns:
         The path written.
     """
     path = Path(path)
     arrays = motion_arrays(plan, robot, execution=execution, actions=actions, report=report)
-    _atomic_write(path, lambda fh: np.savez_compressed(fh, **arrays))
+    _write(path, lambda fh: np.savez_compressed(fh, **arrays), staging)
     return path
 
 
+def _write(path: Path, write, staging: Staging | None) -> Path:
+    if staging is None:
+        return atomic_write(path, write)
+    return staging.add(path, write)
+
+
 def load_motion(path: str | Path) -> MotionFile:
-    """Read a motion file written by :func:`save_motion`.
+    """Read and validate a motion file written by :func:`save_motion`.
+
+    Every key is checked before it is used: the file is a regular, non-empty zip archive of
+    ``.npy`` members (never a pickle or an object array), the required keys are present, the
+    arrays have the documented dtypes and shapes (``q`` (T, nq), ``v`` (T, nv)... with one T),
+    times increase, numbers are finite, and ``spec_json``/``report_json``/``actions_json`` hold
+    what :func:`save_motion` writes. Whether the robot exists and matches the arrays is checked by
+    :func:`check_robot` (it needs the robot model).
 
     Raises:
-        MotionFileError: the file is missing, not an npz, or lacks required keys.
+        MotionFileError: one line naming the file and the bad key (exit code 2).
     """
     path = Path(path)
-    if not path.is_file():
-        raise MotionFileError(f"motion file {str(path)!r} does not exist")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as e:
-        raise MotionFileError(f"{path}: not a motion file ({e})") from None
-    missing = [k for k in ("t", "q", "v", "com", "robot", "spec_json", "report_json") if k not in arrays]
-    if missing:
-        raise MotionFileError(f"{path}: missing key(s) {missing}")
+    shown = repr(str(path))
+    arrays = _read_npz(path, shown)
     return motion_from_arrays(arrays, source=str(path))
 
 
-def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFile:
-    """Rebuild a :class:`MotionFile` from the key -> array mapping."""
-    spec = spec_from_json(str(arrays["spec_json"]))
-    report = json.loads(str(arrays["report_json"]))
-    solver = report.get("solver", {})
-    stats = SolverStats(
-        status=SolveStatus[solver.get("status", "NOT_RUN")],
-        iterations=int(solver.get("iterations", 0)),
-        build_time=float(solver.get("build_time", 0.0)),
-        solve_time=float(solver.get("solve_time", 0.0)),
-        cache=str(solver.get("cache", "built")),
-        objective=float("nan") if solver.get("objective") is None else float(solver["objective"]),
-        n_variables=int(solver.get("n_variables", 0)),
-        n_constraints=int(solver.get("n_constraints", 0)),
-        backend=str(solver.get("backend", "ipopt")),
-        raw_status=str(solver.get("raw_status", "")),
-    )
-    checks = tuple(
-        ConstraintCheck(name=c["name"], violation=float(c["violation"]),
-                        tolerance=float("inf") if c.get("tolerance") is None else float(c["tolerance"]),
-                        unit=c["unit"], time=float(c["time"]))
-        for c in report.get("checks", [])
-    )
-    v = np.asarray(arrays["v"], dtype=float)
-    a = np.asarray(arrays["a"], dtype=float) if "a" in arrays else np.zeros_like(v)
-    forces = {k[len("force_"):]: np.asarray(arr, dtype=float) for k, arr in arrays.items() if k.startswith("force_")}
-    robot_name = str(arrays["robot"])
-    plan = Plan(robot=robot_name, spec=spec, t=np.asarray(arrays["t"], dtype=float),
-                q=np.asarray(arrays["q"], dtype=float), v=v, a=a, com=np.asarray(arrays["com"], dtype=float),
-                forces=forces, stats=stats, checks=checks, diagnosis=str(report.get("diagnosis", "")))
-    actions_text = str(arrays.get("actions_json", "null"))
-    return MotionFile(
-        plan=plan,
-        execution_arrays={k: np.asarray(arrays[k], dtype=float) for k in EXEC_KEYS if k in arrays},
-        actions=json.loads(actions_text),
-        report=report,
-        robot_name=robot_name,
-        joint_names=[str(x) for x in np.asarray(arrays.get("joint_names", []))],
-        frame_names=[str(x) for x in np.asarray(arrays.get("frame_names", []))],
-        version=int(arrays.get("version", FORMAT_VERSION)),
-    )
+def _fail(shown: str, why: str) -> MotionFileError:
+    return MotionFileError(f"motion file {shown}: {why}")
 
+
+def _read_npz(path: Path, shown: str) -> dict[str, np.ndarray]:
+    """The arrays of an ``.npz``, read member by member with every header checked first."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise MotionFileError(f"motion file {shown} does not exist (write one with `wbmp solve ... --out "
+                              f"{path}`)") from None
+    except OSError as e:
+        raise _fail(shown, f"cannot read it: {e.strerror or e}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise _fail(shown, "is a directory, not a motion file (.npz)")
+    if not stat.S_ISREG(st.st_mode):
+        raise _fail(shown, "not a regular file; give a motion file (.npz) written by `wbmp solve --out`")
+    if st.st_size == 0:
+        raise _fail(shown, "is empty (0 bytes), not a motion file")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError as e:
+        raise _fail(shown, f"cannot read it: {e.strerror or e}") from None
+    if head.startswith(_NPY_MAGIC):
+        raise _fail(shown, "is a single numpy array (.npy), not a motion file (.npz archive of named arrays)")
+    if not head.startswith(b"PK"):
+        raise _fail(shown, "not a motion file: it is not an .npz (zip) archive")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            total = sum(info.file_size for info in infos)
+            if total > MAX_MOTION_BYTES:
+                raise _fail(shown, f"declares {total / 2**20:.0f} MiB of arrays, more than the "
+                                   f"{MAX_MOTION_BYTES >> 20} MiB a motion file may hold")
+            arrays: dict[str, np.ndarray] = {}
+            for info in infos:
+                if info.is_dir() or not info.filename.endswith(".npy"):
+                    continue  # not a numpy array: not ours to read
+                key = info.filename[: -len(".npy")]
+                if key in arrays:
+                    raise _fail(shown, f"key {key!r} appears twice in the archive")
+                with zf.open(info) as member:
+                    arrays[key] = _read_member(member, info.file_size, key, shown)
+    except MotionFileError:
+        raise
+    except zipfile.BadZipFile as e:
+        raise _fail(shown, f"damaged or truncated .npz archive ({e})") from None
+    except (OSError, EOFError, ValueError, zlib.error, struct.error, NotImplementedError, RuntimeError,
+            OverflowError) as e:
+        raise _fail(shown, f"damaged .npz archive ({type(e).__name__}: {e})") from None
+    if not arrays:
+        raise _fail(shown, "the archive holds no arrays; not a motion file")
+    return arrays
+
+
+def _read_member(fh, size: int, key: str, shown: str) -> np.ndarray:
+    """One ``.npy`` member: header checked (no object dtype, declared size <= stored size), then data."""
+    try:
+        version = np.lib.format.read_magic(fh)
+        if version == (1, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+        elif version == (2, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+        else:
+            raise ValueError(f"unsupported .npy format version {version}")
+    except Exception as e:  # noqa: BLE001 - numpy parses the header text with Python's tokenizer
+        # (TokenError, SyntaxError, RecursionError, ... on damaged bytes): any failure is a bad member.
+        raise _fail(shown, f"key {key!r} is not a numpy array ({type(e).__name__}: {e})") from None
+    if dtype.hasobject:
+        raise _fail(shown, f"key {key!r} holds Python objects (a pickle); wbmp never loads pickles")
+    count = 1
+    for n in shape:
+        count *= int(n)
+    nbytes = count * dtype.itemsize
+    if nbytes > size:
+        raise _fail(shown, f"key {key!r} declares shape {tuple(shape)} ({nbytes} bytes) but holds {size} bytes")
+    data = fh.read(nbytes)
+    if len(data) != nbytes:
+        raise _fail(shown, f"key {key!r} is truncated ({len(data)} of {nbytes} bytes)")
+    try:
+        arr = np.frombuffer(bytearray(data), dtype=dtype, count=count)
+        return arr.reshape(shape, order="F" if fortran else "C")
+    except (ValueError, TypeError) as e:
+        raise _fail(shown, f"key {key!r} is not a readable numpy array ({e})") from None
+
+
+def _numbers(arrays: dict[str, Any], key: str, shown: str, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``arrays[key]`` as a finite float array of ``shape`` (None: any length)."""
+    arr = arrays[key]
+    if arr.dtype.kind not in "fiu":
+        raise _fail(shown, f"key {key!r} must hold real numbers, got dtype {arr.dtype.str!r}")
+    want = "(" + ", ".join("n" if n is None else str(n) for n in shape) + ("," if len(shape) == 1 else "") + ")"
+    if arr.ndim != len(shape) or any(n is not None and m != n for m, n in zip(arr.shape, shape, strict=True)):
+        raise _fail(shown, f"key {key!r} must have shape {want}, got {tuple(arr.shape)}")
+    out = np.asarray(arr, dtype=float)
+    bad = np.argwhere(~np.isfinite(out))
+    if len(bad):
+        where = tuple(int(i) for i in bad[0])
+        raise _fail(shown, f"key {key!r} has a non-finite value (NaN or inf) at index {where}")
+    return out
+
+
+def _times(arrays: dict[str, Any], key: str, shown: str, minimum: int) -> np.ndarray:
+    t = _numbers(arrays, key, shown, (None,))
+    if len(t) < minimum:
+        raise _fail(shown, f"key {key!r} has {len(t)} samples; a motion needs at least {minimum}")
+    if len(t) > 1 and not np.all(np.diff(t) > 0):
+        k = int(np.argmin(np.diff(t) > 0))
+        raise _fail(shown, f"key {key!r} must increase, but t[{k + 1}] = {t[k + 1]!r} <= t[{k}] = {t[k]!r}")
+    return t
+
+
+def _string(arrays: dict[str, Any], key: str, shown: str) -> str:
+    arr = arrays[key]
+    if arr.dtype.kind != "U" or arr.ndim != 0:
+        raise _fail(shown, f"key {key!r} must be one string, got dtype {arr.dtype.str!r} shape {tuple(arr.shape)}")
+    return str(arr)
+
+
+def _strings(arrays: dict[str, Any], key: str, shown: str) -> list[str]:
+    if key not in arrays:
+        return []
+    arr = arrays[key]
+    if arr.ndim != 1 or (arr.size and arr.dtype.kind != "U"):
+        raise _fail(shown, f"key {key!r} must be a list of strings, got dtype {arr.dtype.str!r} "
+                           f"shape {tuple(arr.shape)}")
+    return [str(x) for x in arr]
+
+
+def _json(arrays: dict[str, Any], key: str, shown: str) -> Any:
+    text = _string(arrays, key, shown)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise _fail(shown, f"key {key!r} is not valid JSON (line {e.lineno} column {e.colno}: {e.msg})") from None
+    except (ValueError, RecursionError) as e:
+        raise _fail(shown, f"key {key!r} is not usable JSON ({type(e).__name__}: {str(e)[:120]})") from None
+
+
+def _has_control(text: str) -> bool:
+    return any(ord(c) < 32 or 127 <= ord(c) < 160 for c in text)
+
+
+def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFile:
+    """Rebuild a :class:`MotionFile` from the key -> array mapping, validating every key.
+
+    Raises:
+        MotionFileError: a key is missing or holds the wrong dtype, shape, values or JSON.
+    """
+    shown = repr(source or "<arrays>")
+    arrays = {k: np.asarray(v) for k, v in arrays.items()}
+    missing = [k for k in REQUIRED_KEYS if k not in arrays]
+    if missing:
+        raise _fail(shown, f"missing key(s) {', '.join(map(repr, missing))}; a motion file written by "
+                           "`wbmp solve --out` has them all")
+    version = arrays.get("version", np.array(FORMAT_VERSION))
+    if version.ndim != 0 or version.dtype.kind not in "iu":
+        raise _fail(shown, f"key 'version' must be one integer, got dtype {version.dtype.str!r} "
+                           f"shape {tuple(version.shape)}")
+    if not 1 <= int(version) <= FORMAT_VERSION:
+        raise _fail(shown, f"key 'version' is {int(version)}; this wbmp reads format version {FORMAT_VERSION} "
+                           "(a newer wbmp wrote it?)")
+    robot_name = _string(arrays, "robot", shown)
+    if not robot_name.strip() or _has_control(robot_name) or len(robot_name) > 4096:
+        raise _fail(shown, f"key 'robot' must be a robot name, got {robot_name[:80]!r}")
+    t = _times(arrays, "t", shown, 2)
+    n = len(t)
+    q_cols = arrays["q"].shape[1] if arrays["q"].ndim == 2 else 7
+    v_cols = arrays["v"].shape[1] if arrays["v"].ndim == 2 else 6
+    q = _numbers(arrays, "q", shown, (n, q_cols))
+    v = _numbers(arrays, "v", shown, (n, v_cols))
+    nq, nv = q.shape[1], v.shape[1]
+    if nq < 7 or nv < 6:
+        raise _fail(shown, f"keys 'q' and 'v' have {nq} and {nv} columns; a floating-base robot has at least 7 and 6")
+    a = _numbers(arrays, "a", shown, (n, nv)) if "a" in arrays else np.zeros_like(v)
+    com = _numbers(arrays, "com", shown, (n, 3))
+    forces = {}
+    for key in sorted(k for k in arrays if k.startswith("force_")):
+        if key == "force_" or _has_control(key):
+            raise _fail(shown, f"key {key[:80]!r} does not name a contact frame")
+        forces[key[len("force_"):]] = _numbers(arrays, key, shown, (n, 3))
+    execution: dict[str, np.ndarray] = {}
+    if any(k in arrays for k in EXEC_KEYS):
+        lacking = [k for k in EXEC_KEYS[:3] if k not in arrays]
+        if lacking:
+            raise _fail(shown, f"has a simulated execution but lacks key(s) {', '.join(map(repr, lacking))}")
+        exec_t = _times(arrays, "exec_t", shown, 1)
+        m = len(exec_t)
+        execution = {"exec_t": exec_t, "exec_q": _numbers(arrays, "exec_q", shown, (m, nq)),
+                     "exec_v": _numbers(arrays, "exec_v", shown, (m, nv))}
+        if "exec_tau" in arrays:
+            execution["exec_tau"] = _numbers(arrays, "exec_tau", shown, (m, nv - 6))
+    joint_names = _strings(arrays, "joint_names", shown)
+    frame_names = _strings(arrays, "frame_names", shown)
+
+    try:
+        spec = spec_from_json(_string(arrays, "spec_json", shown))
+    except MotionFileError:
+        raise
+    except (TaskError, ValueError, TypeError, KeyError, RecursionError) as e:
+        raise _fail(shown, f"key 'spec_json' is not a valid task spec ({str(e)[:300]})") from None
+    report = _json(arrays, "report_json", shown)
+    if not isinstance(report, dict):
+        raise _fail(shown, f"key 'report_json' must be a JSON object, got {type(report).__name__}")
+    stats, checks, diagnosis = _report_parts(report, shown)
+    actions = _json(arrays, "actions_json", shown) if "actions_json" in arrays else None
+    if actions is not None and not (isinstance(actions, list) and all(isinstance(x, dict) for x in actions)):
+        raise _fail(shown, "key 'actions_json' must be null or a list of objects")
+    try:
+        plan = Plan(robot=robot_name, spec=spec, t=t, q=q, v=v, a=a, com=com, forces=forces, stats=stats,
+                    checks=checks, diagnosis=diagnosis)
+    except (ValueError, TypeError) as e:  # pragma: no cover - every field was checked above
+        raise _fail(shown, f"the arrays do not make a plan ({e})") from None
+    return MotionFile(plan=plan, execution_arrays=execution, actions=actions, report=report,
+                      robot_name=robot_name, joint_names=joint_names, frame_names=frame_names,
+                      version=int(version))
+
+
+def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[ConstraintCheck, ...], str]:
+    """Solver stats, checks and diagnosis of the report, with the bad field named."""
+    def bad(field_name: str, value: Any, want: str) -> MotionFileError:
+        return _fail(shown, f"key 'report_json': {field_name} must be {want}, got {str(value)[:80]!r}")
+
+    def number(where: dict, name: str, prefix: str, default: float, *, integer: bool = False,
+               optional: bool = False) -> float:
+        value = where.get(name, default)
+        if value is None and optional:
+            return default
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise bad(f"{prefix}{name}", value, "an integer" if integer else "a number")
+        if integer:
+            if not isinstance(value, int) and not float(value).is_integer():
+                raise bad(f"{prefix}{name}", value, "an integer")
+            return int(value)
+        return float(value)
+
+    def text(where: dict, name: str, prefix: str, default: str) -> str:
+        value = where.get(name, default)
+        if not isinstance(value, str):
+            raise bad(f"{prefix}{name}", value, "a string")
+        return value
+
+    solver = report.get("solver", {})
+    if not isinstance(solver, dict):
+        raise bad("solver", solver, "an object")
+    status = solver.get("status", "NOT_RUN")
+    if not isinstance(status, str) or status not in SolveStatus.__members__:
+        raise bad("solver.status", status, f"one of {', '.join(SolveStatus.__members__)}")
+    stats = SolverStats(
+        status=SolveStatus[status],
+        iterations=number(solver, "iterations", "solver.", 0, integer=True),
+        build_time=number(solver, "build_time", "solver.", 0.0),
+        solve_time=number(solver, "solve_time", "solver.", 0.0),
+        cache=text(solver, "cache", "solver.", "built"),
+        objective=number(solver, "objective", "solver.", float("nan"), optional=True),
+        n_variables=number(solver, "n_variables", "solver.", 0, integer=True),
+        n_constraints=number(solver, "n_constraints", "solver.", 0, integer=True),
+        backend=text(solver, "backend", "solver.", "ipopt"),
+        raw_status=text(solver, "raw_status", "solver.", ""),
+    )
+    raw_checks = report.get("checks", [])
+    if not isinstance(raw_checks, list):
+        raise bad("checks", raw_checks, "a list")
+    checks = []
+    for i, c in enumerate(raw_checks):
+        prefix = f"checks[{i}]."
+        if not isinstance(c, dict):
+            raise bad(f"checks[{i}]", c, "an object")
+        for name in ("name", "violation", "unit", "time"):
+            if name not in c:
+                raise _fail(shown, f"key 'report_json': {prefix}{name} is missing")
+        checks.append(ConstraintCheck(
+            name=text(c, "name", prefix, ""), violation=number(c, "violation", prefix, 0.0),
+            tolerance=number(c, "tolerance", prefix, float("inf"), optional=True),
+            unit=text(c, "unit", prefix, ""), time=number(c, "time", prefix, 0.0)))
+    diagnosis = report.get("diagnosis", "")
+    if diagnosis is None:
+        diagnosis = ""
+    if not isinstance(diagnosis, str):
+        raise bad("diagnosis", diagnosis, "a string")
+    return stats, tuple(checks), diagnosis
+
+
+def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
+    """Refuse a motion whose arrays do not fit ``robot`` (q and v widths, torques, contact frames).
+
+    Raises:
+        MotionFileError: one line naming the file, the key and both sizes.
+    """
+    shown = repr(str(source))
+    plan = motion.plan
+    sizes = {"q": (plan.q, robot.nq, "nq"), "v": (plan.v, robot.nv, "nv")}
+    ex = motion.execution_arrays
+    if ex:
+        sizes.update({"exec_q": (ex["exec_q"], robot.nq, "nq"), "exec_v": (ex["exec_v"], robot.nv, "nv")})
+    for key, (arr, want, what) in sizes.items():
+        if arr.shape[1] != want:
+            raise _fail(shown, f"key {key!r} has {arr.shape[1]} columns but robot {robot.name!r} has "
+                               f"{what} = {want} (a file of another robot?)")
+    from robots.exceptions import RobotError
+
+    for frame in plan.spec.contact_frames():
+        try:
+            robot.frame_id(frame)
+        except RobotError:
+            raise _fail(shown, f"key 'spec_json' names frame {frame!r}, which robot {robot.name!r} lacks") from None
 
 EXPORT_FORMATS = ("json", "csv", "npz")
 
 
-def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | None = None) -> list[Path]:
+def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | None = None, *,
+                  staging: Staging | None = None) -> list[Path]:
     """Export a motion file to JSON, CSV or npz (format from ``fmt`` or the suffix).
 
     JSON holds every key of the npz (arrays as nested lists; ``spec``, ``actions``, ``report``
     as objects). CSV holds the plan as one row per knot (``t``, ``q_*``, ``v_*``, ``com_*``)
     after ``#``-comment lines with the robot, the spec, the actions and the report as JSON;
     the execution, when present, goes to a sibling ``<name>.exec.csv`` (``t``, ``q_*``, ``v_*``,
-    ``tau_*``).
+    ``tau_*``). Every file is made in full before any is renamed into place: the CSV and its
+    ``.exec.csv`` appear together or not at all.
+
+    Args:
+        motion: A loaded motion or the path of a motion file.
+        path: Output file.
+        fmt: ``json``, ``csv`` or ``npz``; None = from ``path``'s suffix.
+        staging: Stage the files there (renamed by ``staging.commit()``) instead of writing now.
 
     Returns:
         The paths written.
 
     Raises:
-        MotionFileError: unknown format.
+        MotionFileError: unknown format, or a suffix that contradicts ``fmt``.
     """
     if not isinstance(motion, MotionFile):
         motion = load_motion(motion)
     path = Path(path)
-    fmt = (fmt or path.suffix.lstrip(".")).lower()
-    if fmt not in EXPORT_FORMATS:
-        raise MotionFileError(f"unknown export format {fmt!r}; use one of {', '.join(EXPORT_FORMATS)}")
+    fmt = export_format(path, fmt)
+    if staging is None:
+        with Staging() as own:
+            written = export_motion(motion, path, fmt, staging=own)
+            own.commit()
+        return written
     arrays = _arrays_of(motion)
     if fmt == "npz":
-        _atomic_write(path, lambda fh: np.savez_compressed(fh, **arrays))
+        staging.add(path, lambda fh: np.savez_compressed(fh, **arrays))
         return [path]
     if fmt == "json":
         doc: dict[str, Any] = {}
@@ -276,8 +558,8 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
             else:
                 val = np.asarray(val)
                 doc[k] = val.tolist() if val.ndim else val.item()
-        text = json.dumps(doc, default=_json_default)
-        _atomic_write(path, lambda fh: fh.write(text.encode("utf-8")))
+        data = json.dumps(doc, default=_json_default).encode("utf-8")
+        staging.add(path, lambda fh: fh.write(data))
         return [path]
     written = [path]
     plan = motion.plan
@@ -286,18 +568,47 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
     rows = np.hstack([plan.t[:, None], plan.q, plan.v, plan.com])
     meta = {"robot": motion.robot_name, "version": motion.version,
             "spec": json.loads(str(arrays["spec_json"])), "actions": motion.actions, "report": motion.report}
-    _atomic_write(path, lambda fh: fh.write(_csv_text(header, rows, meta).encode("utf-8")))
+    text = _csv_text(header, rows, meta).encode("utf-8")
+    staging.add(path, lambda fh: fh.write(text))
     ex = motion.execution_arrays
     if ex:
-        exec_path = path.with_name(path.stem + ".exec.csv")
+        exec_path = exec_csv_path(path)
         n_tau = ex["exec_tau"].shape[1] if "exec_tau" in ex else 0
         exec_header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]],
                        *[f"tau_{n}" for n in names[1][6:6 + n_tau]]]
         parts = [ex["exec_t"][:, None], ex["exec_q"], ex["exec_v"]] + ([ex["exec_tau"]] if n_tau else [])
-        exec_rows = np.hstack(parts)
-        _atomic_write(exec_path, lambda fh: fh.write(_csv_text(exec_header, exec_rows, {}).encode("utf-8")))
+        exec_text = _csv_text(exec_header, np.hstack(parts), {}).encode("utf-8")
+        staging.add(exec_path, lambda fh: fh.write(exec_text))
         written.append(exec_path)
     return written
+
+
+def exec_csv_path(path: str | Path) -> Path:
+    """Where a CSV export puts the simulated execution: ``<name>.exec.csv`` beside ``path``."""
+    path = Path(path)
+    return path.with_name(path.stem + ".exec.csv")
+
+
+def export_format(path: str | Path, fmt: str | None) -> str:
+    """The export format for ``path``: ``fmt`` if given (it must not contradict the suffix),
+    else the suffix (``.json``, ``.csv``, ``.npz``).
+
+    Raises:
+        MotionFileError: unknown format, a suffix naming another format, or no usable suffix.
+    """
+    suffix = Path(path).suffix.lstrip(".").lower()
+    if fmt is not None:
+        fmt = fmt.lower()
+        if fmt not in EXPORT_FORMATS:
+            raise MotionFileError(f"unknown export format {fmt!r}; use one of {', '.join(EXPORT_FORMATS)}")
+        if suffix in EXPORT_FORMATS and suffix != fmt:
+            raise MotionFileError(f"{str(path)!r} ends in .{suffix} but the format is {fmt}")
+        return fmt
+    if suffix not in EXPORT_FORMATS:
+        shown = f".{suffix}" if suffix else "no suffix"
+        raise MotionFileError(f"unknown export format for {str(path)!r} ({shown}); name it .json or .csv, "
+                              "or give the format")
+    return suffix
 
 
 def _arrays_of(motion: MotionFile) -> dict[str, Any]:

@@ -10,8 +10,10 @@ with the same structure shares one solver.
   the Lagrangian Hessian) are generated as C by CasADi, compiled by the system ``gcc`` into a
   shared library, and loaded with IPOPT through ``nlpsol(name, "ipopt", library)``
   (``cache = "disk"``). Each entry is a directory ``<cache_dir>/planner/<key>/`` with the
-  library, the index bookkeeping (``meta.json``) and a checksum of the library; an entry
-  whose checksum, key or files do not match is deleted and rebuilt, never trusted.
+  library, its manifest (``meta.json``: key, size and checksum of the library, problem sizes)
+  and a ``verified`` marker. An entry is checked before anything is loaded into this process
+  (:mod:`planner.trajopt.cache_disk`: a truncated or forged library must not crash it); a damaged one
+  is removed with one warning and rebuilt, never trusted.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ from pathlib import Path
 
 import casadi as ca
 
+from planner.trajopt import cache_disk
+from planner.trajopt.cache_disk import LIBRARY, META, EntryDamaged
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import model_hash
@@ -42,7 +46,7 @@ _LOCK = threading.Lock()
 _SOURCES = (  # relative to planner/trajopt/: the files that determine the compiled structure
     "symbolic.py", "layout.py", "terms.py", "transcription.py", "ipopt.py", "cache.py",
     "centroidal/settings.py", "centroidal/physics.py", "centroidal/contacts.py", "centroidal/pattern.py",
-    "centroidal/nlp.py", "centroidal/layout.py",
+    "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
 )
 
 
@@ -92,13 +96,15 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
     t0 = time.perf_counter()
     solver = None
     entry = Path(settings.cache_dir) / "planner" / key
-    if settings.use_cache and settings.compile:
+    disk = settings.use_cache and settings.compile
+    if disk:
+        cache_disk.sweep(entry.parent)  # stale temporary build folders (once per process)
         solver = _load_entry(lay, entry, key, settings, progress)
     if solver is None:
         if progress:
             progress("building the solver for this task structure (first time; cached afterwards)")
         nlp, derivatives, nl = build_nlp(lay)
-        if settings.use_cache and settings.compile:
+        if disk and cache_disk.usable_folder(entry.parent):
             solver = _compile_entry(entry, key, nlp, derivatives, nl, settings, progress)
             compiled = _load_entry(lay, entry, key, settings, None)
             if compiled is not None:
@@ -118,40 +124,46 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
 
 # -- disk entries -----------------------------------------------------------------------------
 
-LIBRARY = "nlp.so"
-META = "meta.json"
-
-
-def _sha(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+ORACLE_FUNCTIONS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
+LIBRARY_FUNCTIONS = ("nlp", *ORACLE_FUNCTIONS)
 
 
 def _load_entry(lay: Layout, entry: Path, key: str, settings: PlannerSettings, progress):
+    """The entry's compiled solver, or None: missing, or damaged (then removed, with a warning).
+
+    Nothing is mapped into this process before :func:`planner.trajopt.cache_disk.check_files` and
+    :func:`planner.trajopt.cache_disk.verify_loadable` passed.
+    """
     from planner.trajopt.ipopt import ipopt_options
     from planner.trajopt.transcription import Solver, make_nlp_layout
 
-    lib, meta_path = entry / LIBRARY, entry / META
-    if not entry.exists():
+    try:
+        seen = os.lstat(entry)
+    except OSError:  # missing; or the cache folder is a file or cannot be searched
         return None
     try:
-        meta = json.loads(meta_path.read_text())
-        if meta.get("key") != key or meta.get("sha256") != _sha(lib):
-            raise ValueError("key or checksum mismatch")
+        meta, digest = cache_disk.check_files(entry, key, seen)
         nl = make_nlp_layout(lay)
-        if (int(meta["n_x"]), int(meta["n_g"])) != (nl.n_x, nl.n_g):
-            raise ValueError("size mismatch")
+        if (meta["n_x"], meta["n_g"]) != (nl.n_x, nl.n_g):
+            raise EntryDamaged(f"{META} is for {meta['n_x']} variables and {meta['n_g']} constraints, "
+                               f"not {nl.n_x} and {nl.n_g}")
+        cache_disk.verify_loadable(entry, digest, LIBRARY_FUNCTIONS, progress)
         if progress:
             progress("loading the compiled solver from the cache")
-        function = ca.nlpsol("wbmp_plan", "ipopt", str(lib), ipopt_options(settings))
+        try:
+            function = ca.nlpsol("wbmp_plan", "ipopt", str(entry / LIBRARY), ipopt_options(settings))
+        except RuntimeError as e:
+            first = str(e).strip().splitlines()[0][:200] if str(e).strip() else type(e).__name__
+            raise EntryDamaged(f"{LIBRARY} did not load ({first})") from None
         if function.sparsity_in("x0").size1() != nl.n_x or function.sparsity_in("lbg").size1() != nl.n_g:
-            raise ValueError("size mismatch")
+            raise EntryDamaged(f"{LIBRARY} holds a solver of other sizes than {META} says")
         return Solver(function=function, nlp_layout=nl, origin="disk")
-    except Exception:  # noqa: BLE001 - any defect in an entry means: rebuild it
-        shutil.rmtree(entry, ignore_errors=True)
+    except EntryDamaged as e:
+        cache_disk.discard(entry, seen, str(e))
         return None
-
-
-ORACLE_FUNCTIONS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
+    except OSError as e:  # unreadable (permissions), or removed by another process meanwhile
+        cache_disk.discard(entry, seen, f"it could not be read: {e.strerror or e}")
+        return None
 
 
 def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, settings: PlannerSettings,
@@ -169,10 +181,15 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
     gcc = shutil.which("gcc")
     if gcc is None:
         return solver
+    tmp = None
     try:
         entry.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
-    except OSError:  # an unwritable cache directory: plan in memory
+        (tmp / cache_disk.BUILDER_PID).write_text(str(os.getpid()))  # for sweep(): whose folder it is
+    except OSError as e:  # an unwritable cache directory: plan in memory
+        cache_disk.warn_unusable(entry.parent, (e.strerror or str(e)).lower())
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         return solver
     try:
         if progress:
@@ -203,7 +220,8 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
 
 
 def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, timeout: float) -> bool:
-    """Compile ``tmp/nlp.c``, write the checksummed metadata and publish ``tmp`` as ``entry``."""
+    """Compile ``tmp/nlp.c``, probe-load the library in a child process, write the manifest
+    and publish ``tmp`` as ``entry`` (True when a good entry is in place afterwards)."""
     gcc = shutil.which("gcc")
     if gcc is None:
         return False
@@ -211,17 +229,20 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
     if not _run_gcc(cmd, tmp, timeout):
         return False
     (tmp / "nlp.c").unlink()
+    lib = tmp / LIBRARY
+    digest = cache_disk.file_sha256(lib)
+    problem = cache_disk.probe(lib, LIBRARY_FUNCTIONS)
+    if problem not in (None, "unavailable"):
+        return False  # never publish a library that does not load
+    if problem is None:
+        (tmp / cache_disk.VERIFIED).write_text(digest + "\n")
     meta = {
-        "key": key, "sha256": _sha(tmp / LIBRARY), "n_x": n_x, "n_g": n_g,
+        "key": key, "sha256": digest, "size": lib.stat().st_size, "n_x": n_x, "n_g": n_g,
         "casadi": ca.__version__, "flags": list(flags), "created": time.time(),
     }
     (tmp / META).write_text(json.dumps(meta))  # written last: an entry without it is rebuilt
-    shutil.rmtree(entry, ignore_errors=True)
-    try:
-        os.replace(tmp, entry)
-    except OSError:  # another process stored it first
-        return False
-    return True
+    (tmp / cache_disk.BUILDER_PID).unlink(missing_ok=True)
+    return cache_disk.publish(tmp, entry, key)
 
 
 def _spawn_finisher(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, settings: PlannerSettings) -> None:
@@ -231,10 +252,15 @@ def _spawn_finisher(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, settin
     args = [sys.executable, "-m", "planner.trajopt.cache", str(tmp), str(entry), key, str(n_x), str(n_g),
             str(settings.compile_timeout), *settings.compile_flags]
     _FINISHERS[:] = [p for p in _FINISHERS if p.poll() is None]  # reap the ones that ended
-    _FINISHERS.append(subprocess.Popen(
+    finisher = subprocess.Popen(
         args, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True, close_fds=True,
-    ))
+    )
+    _FINISHERS.append(finisher)
+    try:  # the folder is the finisher's now: sweep() must not take it while it lives
+        cache_disk.write_atomic(tmp / cache_disk.BUILDER_PID, str(finisher.pid))
+    except OSError:
+        pass
 
 
 _FINISHERS: list[subprocess.Popen] = []  # kept so a running finisher is not garbage-collected

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from planner.exceptions import PlannerError
+from planner.exceptions import PlannerError, SpecNotForRobot
 from robots.model import Robot
 from robots.polygon import convex_hull
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
@@ -490,12 +490,12 @@ def joint_target_terms(lay: Layout, target: JointTarget) -> None:
     """Joint angle targets as weighted costs."""
     model = lay.robot.model
     if not model.existJointName(target.joint):
-        raise PlannerError(
+        raise SpecNotForRobot(
             f"joint target {target.name!r}: robot {lay.robot.name!r} has no joint {target.joint!r}"
         )
     jid = model.getJointId(target.joint)
     if model.joints[jid].nv != 1:
-        raise PlannerError(f"joint target {target.name!r}: joint {target.joint!r} is not a one-dof joint")
+        raise SpecNotForRobot(f"joint target {target.name!r}: joint {target.joint!r} is not a one-dof joint")
     iv = model.joints[jid].idx_v
     ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
     for kk in ks:

@@ -41,7 +41,7 @@ class Reply:
 class ScriptedServer:
     """ThreadingHTTPServer on an ephemeral loopback port with a queue of replies."""
 
-    def __init__(self, lifetime: float = 60.0) -> None:
+    def __init__(self, lifetime: float = 600.0) -> None:
         self.replies: deque[Reply] = deque()
         self.requests: list[dict] = []
         self._lock = threading.Lock()

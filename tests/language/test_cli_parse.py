@@ -56,7 +56,7 @@ def test_llm_backend_with_key_from_environment(capsys, monkeypatch):
         monkeypatch.delenv(var, raising=False)
     monkeypatch.delenv("WBMP_LLM_API_KEY", raising=False)
     monkeypatch.setenv("OPENAI_API_KEY", "sk-from-env")
-    srv = ScriptedServer(lifetime=30).start()
+    srv = ScriptedServer(lifetime=600.0).start()  # a net for a forgotten stop, not a time limit
     try:
         srv.script(Reply.plan([{"action": "bow", "params": {"angle": 0.7}}]))
         code, out, _ = run(capsys, "bow deeply", "--json", "--parser", "llm", "--llm-url", srv.url, "--llm-model", "m")

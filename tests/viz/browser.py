@@ -13,6 +13,7 @@ import signal
 import socket
 import subprocess
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -31,10 +32,20 @@ def find_chromium() -> str | None:
 
 
 class RequestTrap:
-    """A loopback TCP server that records request lines and refuses them."""
+    """A loopback TCP server that records request lines and refuses them.
+
+    Each connection is answered in its own thread, so an idle one (chromium's speculative
+    preconnect) cannot hold up the next; :meth:`settle` waits until every connection made so
+    far has been recorded.
+    """
+
+    REQUEST_TIMEOUT = 60.0  # [s] for a connected client to send its request line (loaded machine)
 
     def __init__(self) -> None:
         self.requests: list[str] = []
+        self._lock = threading.Lock()
+        self._handlers: list[threading.Thread] = []
+        self._last_accept = time.monotonic()
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self._sock.bind(("127.0.0.1", 0))
         self._sock.listen(16)
@@ -50,21 +61,41 @@ class RequestTrap:
                 conn, _ = self._sock.accept()
             except (TimeoutError, OSError):
                 continue
-            with conn:
-                conn.settimeout(2.0)
-                try:
-                    head = conn.recv(4096).split(b"\r\n", 1)[0].decode("latin-1")
-                except OSError:
-                    head = "<no request line>"
+            handler = threading.Thread(target=self._answer, args=(conn,), daemon=True)
+            with self._lock:
+                self._last_accept = time.monotonic()
+                self._handlers.append(handler)
+            handler.start()
+
+    def _answer(self, conn: socket.socket) -> None:
+        with conn:
+            conn.settimeout(self.REQUEST_TIMEOUT)
+            try:
+                head = conn.recv(4096).split(b"\r\n", 1)[0].decode("latin-1")
+            except OSError:
+                head = "<no request line>"
+            with self._lock:
                 self.requests.append(head)
-                try:
-                    conn.sendall(b"HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\nConnection: close\r\n\r\n")
-                except OSError:
-                    pass
+            try:
+                conn.sendall(b"HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\nConnection: close\r\n\r\n")
+            except OSError:
+                pass
+
+    def settle(self, quiet: float = 1.0, limit: float = REQUEST_TIMEOUT) -> None:
+        """Wait (at most ``limit`` s) until every accepted connection is recorded and none was
+        accepted for ``quiet`` s. Call it after the browser has exited: its sockets are closed."""
+        deadline = time.monotonic() + limit
+        while time.monotonic() < deadline:
+            with self._lock:
+                busy = any(h.is_alive() for h in self._handlers)
+                idle = time.monotonic() - self._last_accept
+            if not busy and idle >= quiet:
+                return
+            time.sleep(0.05)
 
     def close(self) -> None:
         self._stop.set()
-        self._thread.join(timeout=2.0)
+        self._thread.join(timeout=10.0)
         self._sock.close()
 
 

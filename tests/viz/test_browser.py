@@ -33,6 +33,7 @@ def page_requests(trap: browser.RequestTrap) -> list[str]:
     closed unused) fetched nothing and is not counted; the positive control below shows that
     real fetches always leave a request line in the trap.
     """
+    trap.settle()
     return [r for r in trap.requests
             if r.strip()
             and not any(_host(r) == d or _host(r).endswith("." + d) for d in BROWSER_SERVICE_DOMAINS)]

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import signal
 import subprocess
 import sys
+import threading
 import time
 import types
 from pathlib import Path
@@ -79,26 +81,56 @@ def test_show_writes_html_and_plots_without_a_server(tmp_path, motion_path, talo
     assert main(["show", str(tmp_path / "missing.npz")]) == 2
 
 
+# Bounds on hangs, not on speed (each wait ends at its event): generous for a loaded 2-core
+# machine. Idle, the URL appears in ~2 s and the process exits within ~1 s of SIGINT.
+READY_TIMEOUT = 120.0  # [s] until `wbmp show` prints its URL
+EXIT_TIMEOUT = 120.0  # [s] from SIGINT to the process's exit
+HTTP_TIMEOUT = 60.0  # [s] one request to the viewer
+
+
+def _first_line_with(stream, text: str, timeout: float) -> str | None:
+    """The first line of ``stream`` containing ``text``, read in a thread so a silent process
+    cannot block the test past ``timeout``; None at timeout or end of stream."""
+    lines: queue.Queue[str | None] = queue.Queue()
+
+    def pump() -> None:
+        try:
+            for line in stream:
+                lines.put(line)
+        except (OSError, ValueError):  # the test closed the stream: it no longer listens
+            pass
+        lines.put(None)
+
+    threading.Thread(target=pump, daemon=True).start()
+    deadline = time.monotonic() + timeout
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            line = lines.get(timeout=left)
+        except queue.Empty:
+            return None
+        if line is None or text in line:
+            return line
+    return None
+
+
 @pytest.mark.slow
 def test_show_live_stops_on_ctrl_c(motion_path):
     """`wbmp show motion.npz` prints a loopback URL, serves, and on SIGINT exits 0 with the
     server's port closed."""
+    import urllib.request
+
     env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
     proc = subprocess.Popen([sys.executable, "-m", "wbmp.cli", "show", str(motion_path), "--quiet"],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 90.0
-        line = ""
-        while "http://" not in line and time.monotonic() < deadline and proc.poll() is None:
-            line = proc.stdout.readline()
-        assert "http://127.0.0.1:" in line, f"no URL printed: {line!r} {proc.stderr.read() if proc.poll() else ''}"
+        line = _first_line_with(proc.stdout, "http://", READY_TIMEOUT)
+        assert line and "http://127.0.0.1:" in line, (
+            f"no URL within {READY_TIMEOUT:.0f} s: {line!r} {proc.stderr.read() if proc.poll() is not None else ''}")
         port = int(line.split("http://127.0.0.1:")[1].split("/")[0])
-        import urllib.request
-
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/static/", timeout=10) as r:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/static/", timeout=HTTP_TIMEOUT) as r:
             assert r.status == 200
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=15) == 0
+        assert proc.wait(timeout=EXIT_TIMEOUT) == 0
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -106,4 +138,4 @@ def test_show_live_stops_on_ctrl_c(motion_path):
         proc.stdout.close()
         proc.stderr.close()
     with pytest.raises(OSError):
-        urllib.request.urlopen(f"http://127.0.0.1:{port}/static/", timeout=5)
+        urllib.request.urlopen(f"http://127.0.0.1:{port}/static/", timeout=HTTP_TIMEOUT)

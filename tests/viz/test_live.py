@@ -16,8 +16,11 @@ import pytest
 from viz.live import ServerInfo, ViewerError, serve
 from viz._meshcat import umsgpack
 
-READY_TIMEOUT = 60.0  # [s] the machine may be busy
-STOP_TIMEOUT = 10.0  # [s] bound for the viewer to stop after stop_event
+# Bounds on hangs, not on speed: each wait ends as soon as its event happens, so they can be
+# generous for a loaded 2-core machine (a fraction of a second to a few seconds when idle).
+READY_TIMEOUT = 120.0  # [s] the viewer's server is up
+STOP_TIMEOUT = 60.0  # [s] the viewer stops after stop_event
+SCENE_TIMEOUT = 120.0  # [s] the whole scene reaches a websocket client
 
 
 def listening_addresses(port: int) -> set[str]:
@@ -38,15 +41,27 @@ def listening_addresses(port: int) -> set[str]:
 LOOPBACK = {"0100007F", "00000000000000000000000001000000"}  # 127.0.0.1, ::1
 
 
-def _receive_scene(web_url: str, quiet_for: float = 3.0) -> list[dict]:
+def _receive_scene(web_url: str, n_objects: int, linger: float = 1.0) -> list[dict]:
+    """Messages a new websocket client gets: read until ``n_objects`` set_object messages and
+    the animation have arrived (the server sends its whole scene on connection), then for
+    ``linger`` more quiet seconds to catch anything extra; at most SCENE_TIMEOUT in all."""
     from tornado.websocket import websocket_connect
 
     async def run() -> list[dict]:
-        conn = await websocket_connect(web_url.replace("http://", "ws://").replace("/static/", "/"))
-        messages = []
-        while True:
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + SCENE_TIMEOUT
+        conn = await asyncio.wait_for(
+            websocket_connect(web_url.replace("http://", "ws://").replace("/static/", "/")), SCENE_TIMEOUT)
+        messages: list[dict] = []
+
+        def complete() -> bool:
+            kinds = [m["type"] for m in messages]
+            return kinds.count("set_object") >= n_objects and "set_animation" in kinds
+
+        while loop.time() < deadline:
+            wait = min(linger, deadline - loop.time()) if complete() else deadline - loop.time()
             try:
-                msg = await asyncio.wait_for(conn.read_message(), quiet_for)
+                msg = await asyncio.wait_for(conn.read_message(), max(wait, 0.0))
             except asyncio.TimeoutError:
                 break
             if msg is None:
@@ -85,11 +100,11 @@ def test_live_viewer_serves_on_loopback_and_stops(talos, synth_plan, synth_execu
         for port in (web_port, zmq_port):
             addrs = listening_addresses(port)
             assert addrs and addrs <= LOOPBACK, f"port {port} listens on {addrs}"
-        with urllib.request.urlopen(info.web_url, timeout=10) as r:
+        with urllib.request.urlopen(info.web_url, timeout=60) as r:
             assert r.status == 200 and b"MeshCat" in r.read()
-        messages = _receive_scene(info.web_url)
-        kinds = [m["type"] for m in messages]
         n_geoms = len(talos.visual_model.geometryObjects)
+        messages = _receive_scene(info.web_url, 2 * n_geoms)
+        kinds = [m["type"] for m in messages]
         assert kinds.count("set_object") >= 2 * n_geoms  # planned + simulated robots
         (anim,) = [m for m in messages if m["type"] == "set_animation"]
         assert anim["options"]["repetitions"] > 1000  # loops

@@ -1,4 +1,9 @@
-"""``wbmp actions [NAME ...] [--json] [--robot R]``: the motion primitives and their parameters."""
+"""``wbmp actions [NAME ...] [--json] [--robot R]``: the motion primitives and their parameters.
+
+Exit codes: 0 listed; 2 an empty name or ``--robot ""``, or a bad option; 3 an unknown
+primitive or robot (the message lists the known ones). Every name is checked before anything
+is printed.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +11,7 @@ import argparse
 import json
 from typing import Any
 
-from wbmp.errors import ExitCode
+from wbmp.errors import ROBOT_HINT, ExitCode, require_text
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -82,6 +87,9 @@ def _default(p: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    require_text(args.robot, "--robot", ROBOT_HINT)
+    for name in args.name:
+        require_text(name, "an action name", "give a primitive name (`wbmp actions` lists them)")
     robot = None
     if args.robot:
         from robots import load_robot

@@ -18,6 +18,17 @@ and draws them (PNG).
 
 Timings are wall-clock [s] unless the key ends in ``_us`` [µs]; see benchmarks/README.md for
 the JSON keys.
+
+Exit codes: 0 when every task class that ran passed (one marked ``n/a (not implemented)`` does
+not count); otherwise the code ``wbmp solve`` gives, for the first failing task class of the
+table: 3 its spec could not be built, 4 its plan failed (infeasible, iteration limit, solver
+error), 5 its simulation check failed or crashed (or its end-to-end ``wbmp solve`` exited with
+that code). The report is printed, and ``--json``/``--markdown`` written, in every case: a
+benchmark whose tasks fail is a failure of the planner or the simulation, not a result to
+publish. ``--from`` applies the same rule to the re-read result. Bad options (``--repeats 0``,
+``--dt nan``, ``--tasks ""``, an unknown task class, an empty ``--robot``, an output path that
+is a folder or a link...) are refused with exit 2 before any work; an unknown robot with 3.
+``--max-iterations 1`` makes every plan fail for real (IPOPT stops after one iteration).
 """
 
 from __future__ import annotations
@@ -26,6 +37,7 @@ import argparse
 import dataclasses
 import datetime as _dt
 import json
+import math
 import os
 import platform
 import shutil
@@ -38,7 +50,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from wbmp.errors import CliError, ExitCode
+from wbmp.errors import CliError, ExitCode, check_signals
 
 SCHEMA = "wbmp-bench/1"
 
@@ -59,6 +71,10 @@ SCALING_ROBOTS = ("g1", "talos", "romeo")
 #: Which peer figure each of our task classes is compared with.
 PEER_TASKS = {"squat": "squat", "reach": "reach", "walk": "walk", "jump": "jump"}
 NOT_IMPLEMENTED = "n/a (not implemented)"
+MAX_REPEATS = 50  # each repeat of a task also starts a new process (cached cold) and a `wbmp solve`
+MAX_ITERATIONS = 10_000  # --max-iterations (the planner's default is 100)
+MIN_DT, MAX_DT = 0.005, 0.5  # [s] --dt, as tasks.limits allows for a spec's knot spacing
+MAX_RESULT_BYTES = 64 * 1024 * 1024  # a --from result is ~20 kB
 #: Per-task keys of the JSON (documented in benchmarks/README.md).
 TASK_KEYS = (
     "sentence", "status", "message", "actions", "horizon_s", "knots", "parse_s", "spec_s",
@@ -73,11 +89,20 @@ TASK_KEYS = (
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench", help="time parse, spec, NLP build, solve, controller and simulation per task class",
-        description="Benchmark every stage of the pipeline on each task class (medians over repeats), "
-                    "optionally beside Crocoddyl and TSID (--peers, after `make bench-peers`). "
+        description="Benchmark every stage of the pipeline on each task class (medians over repeats),\n"
+                    "optionally beside Crocoddyl and TSID (--peers, after `make bench-peers`).\n"
                     "Timings on a shared machine are noisy: the load average is recorded.",
-        epilog="examples: wbmp bench --quick   wbmp bench --json out.json --peers   "
-               "wbmp bench --tasks squat --repeats 1 --no-sim --no-e2e --json smoke.json",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+               "  wbmp bench --quick\n"
+               "  wbmp bench --json out.json --peers\n"
+               "  wbmp bench --tasks squat --repeats 1 --no-sim --no-e2e --json smoke.json\n"
+               "exit codes:\n"
+               "  0      every task class that ran passed (n/a (not implemented) ones do not count)\n"
+               "  3/4/5  a task class failed: the code of the first one, as `wbmp solve` gives it\n"
+               "         (3 spec, 4 plan, 5 simulation check); the report is printed and\n"
+               "         --json/--markdown are written anyway\n"
+               "  2      a bad option (checked before any work); 130/143 Ctrl-C/SIGTERM",
     )
     p.add_argument("--quick", action="store_true",
                    help=f"{', '.join(QUICK_TASKS)} only, 1 repeat, one simulation, no scaling study (< 2 min)")
@@ -87,8 +112,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="add Crocoddyl/TSID figures (benchmarks/results/peers/*.json) and ratios ours/peer")
     p.add_argument("--peers-dir", default=None, help="folder of the peer results (default: benchmarks/results/peers)")
     p.add_argument("--tasks", default=None, help=f"comma-separated task classes (default: all: {','.join(TASKS)})")
-    p.add_argument("--repeats", type=int, default=None, help="repeats per timing (default 3, quick 1)")
-    p.add_argument("--dt", type=float, default=None, help="override the knot spacing of every spec [s] (smoke tests)")
+    p.add_argument("--repeats", type=int, default=None,
+                   help=f"repeats per timing, 1 to {MAX_REPEATS} (default 3, quick 1)")
+    p.add_argument("--dt", type=float, default=None,
+                   help=f"override the knot spacing of every spec [s], {MIN_DT:g} to {MAX_DT:g} (smoke tests)")
+    p.add_argument("--max-iterations", type=int, default=None, metavar="N",
+                   help=f"IPOPT iteration limit of every plan, 1 to {MAX_ITERATIONS} (default: the planner's); "
+                        "1 makes every plan fail (tests the failure path and the exit code)")
     p.add_argument("--no-compile", action="store_true",
                    help="build solvers in memory (CasADi SX) instead of compiling them with gcc (smoke tests)")
     p.add_argument("--no-sim", action="store_true", help="skip the controller/simulation stage")
@@ -208,11 +238,12 @@ def _pct(xs, q: float) -> float:
 # one task class
 
 
-def _settings(cache_dir: str):
+def _settings(cache_dir: str, max_iterations: int | None = None):
     from planner import PlannerSettings
 
     compile_ = os.environ.get("WBMP_BENCH_COMPILE", "1") != "0"
-    return PlannerSettings(cache_dir=cache_dir, compile=compile_)
+    extra = {} if max_iterations is None else {"max_iterations": max_iterations}
+    return PlannerSettings(cache_dir=cache_dir, compile=compile_, **extra)
 
 
 def _spec_for(sentence: str, robot, dt: float | None):
@@ -244,8 +275,14 @@ def _plan_record(plan) -> dict[str, Any]:
 
 
 def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: float | None, first: bool,
-               simulate: bool, e2e: bool, user_cache: str, log: Callable[[str], None]) -> dict[str, Any]:
-    """All stages of one task class; never raises (failures are recorded per stage)."""
+               simulate: bool, e2e: bool, user_cache: str, log: Callable[[str], None],
+               max_iterations: int | None = None) -> dict[str, Any]:
+    """All stages of one task class; never raises an Exception (failures are recorded per stage).
+
+    A task whose plan fails is not timed further (no cached-cold process, simulation or
+    end-to-end run). Ctrl-C and SIGTERM (BaseExceptions) go through, after removing the
+    temporary solver cache.
+    """
     rec: dict[str, Any] = dict.fromkeys(TASK_KEYS)
     rec.update(sentence=sentence, status="ok", message="")
 
@@ -291,64 +328,68 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
 
     cache_dir = tempfile.mkdtemp(prefix=f"wbmp-bench-{name}-") if first else user_cache
     try:
-        settings = _settings(cache_dir)
-        clear_memory_cache()
-        log(f"{name}: planning ({'first-ever, empty cache' if first else 'user cache'})")
-        plan, wall = _timed(lambda: plan_motion(spec, robot, settings=settings, throw=False))
-        s = plan.stats
-        rec["cache_first"] = s.cache
-        rec["nlp_build_s"] = s.build_time
-        rec["solve_first_s"] = s.solve_time
-        rec["first_total_s"] = wall
-        warm_solve, warm_total = [], []
-        for _ in range(repeats):
-            p2, wall2 = _timed(lambda: plan_motion(spec, robot, settings=settings, throw=False))
-            warm_solve.append(p2.stats.solve_time)
-            warm_total.append(wall2)
-            rec["cache_warm"] = p2.stats.cache
-        rec["solve_warm_s"], rec["warm_total_s"] = _median(warm_solve), _median(warm_total)
-        rec.update(_plan_record(plan))
-        if not plan.ok:
-            rec["status"] = "plan failed"
-            rec["message"] = " ".join((plan.diagnosis or "constraint report violated").split())[:300]
-        log(f"{name}: {s.iterations} iterations, build {s.build_time:.2f} s, solve {s.solve_time:.2f} s, "
-            f"warm {rec['solve_warm_s']:.2f} s")
-        cold = [_cold_process(sentence, robot_name, cache_dir, dt) for _ in range(repeats)]
-        cold = [c for c in cold if c is not None]
-        if cold:
-            rec["nlp_load_cold_s"] = _median([c["build_time"] for c in cold])
-            rec["solve_cold_s"] = _median([c["solve_time"] for c in cold])
-            rec["cold_total_s"] = _median([c["build_time"] + c["solve_time"] for c in cold])
-            rec["cold_process_s"] = _median([c["process_s"] for c in cold])
-            rec["cache_cold"] = cold[-1]["cache"]
-    except Exception as exc:  # noqa: BLE001
-        return fail("plan", exc)
-
-    # controller + simulation ----------------------------------------------------------------
-    if simulate and plan.ok:
         try:
-            from sim import simulate as run_sim
-
-            log(f"{name}: simulating {spec.horizon:.1f} s in MuJoCo")
-            ex, wall = _timed(lambda: run_sim(plan, robot))
-            ticks = ex.tick_times[1:] if len(ex.tick_times) > 1 else ex.tick_times
-            rec["tick_median_us"] = 1e6 * _pct(ticks, 50)
-            rec["tick_p99_us"] = 1e6 * _pct(ticks, 99)
-            rec["realtime_factor"] = float(ex.realtime_factor)
-            rec["sim_wall_s"] = wall
-            rec["certified"] = bool(ex.certificate.ok)
-            rec["certificate_reason"] = getattr(ex.certificate, "reason", "") or ""
+            settings = _settings(cache_dir, max_iterations)
+            clear_memory_cache()
+            log(f"{name}: planning ({'first-ever, empty cache' if first else 'user cache'})")
+            plan, wall = _timed(lambda: plan_motion(spec, robot, settings=settings, throw=False))
+            s = plan.stats
+            rec["cache_first"] = s.cache
+            rec["nlp_build_s"] = s.build_time
+            rec["solve_first_s"] = s.solve_time
+            rec["first_total_s"] = wall
+            warm_solve, warm_total = [], []
+            for _ in range(repeats):
+                p2, wall2 = _timed(lambda: plan_motion(spec, robot, settings=settings, throw=False))
+                warm_solve.append(p2.stats.solve_time)
+                warm_total.append(wall2)
+                rec["cache_warm"] = p2.stats.cache
+            rec["solve_warm_s"], rec["warm_total_s"] = _median(warm_solve), _median(warm_total)
+            rec.update(_plan_record(plan))
+            if not plan.ok:
+                rec["status"] = "plan failed"
+                rec["message"] = " ".join((plan.diagnosis or "constraint report violated").split())[:300]
+            log(f"{name}: {s.iterations} iterations, build {s.build_time:.2f} s, solve {s.solve_time:.2f} s, "
+                f"warm {rec['solve_warm_s']:.2f} s")
+            cold = [_cold_process(sentence, robot_name, cache_dir, dt, max_iterations)
+                    for _ in range(repeats if plan.ok else 0)]
+            cold = [c for c in cold if c is not None]
+            if cold:
+                rec["nlp_load_cold_s"] = _median([c["build_time"] for c in cold])
+                rec["solve_cold_s"] = _median([c["solve_time"] for c in cold])
+                rec["cold_total_s"] = _median([c["build_time"] + c["solve_time"] for c in cold])
+                rec["cold_process_s"] = _median([c["process_s"] for c in cold])
+                rec["cache_cold"] = cold[-1]["cache"]
         except Exception as exc:  # noqa: BLE001
-            rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"simulate: {_one_line(exc)}"
+            return fail("plan", exc)
 
-    # end to end ---------------------------------------------------------------------------------
-    if e2e and plan.ok:
-        try:
-            rec.update(_end_to_end(sentence, robot_name, cache_dir, spec, repeats, simulate))
-        except Exception as exc:  # noqa: BLE001
-            rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"e2e: {_one_line(exc)}"
-    if first:
-        shutil.rmtree(cache_dir, ignore_errors=True)
+        # controller + simulation ----------------------------------------------------------------
+        if simulate and plan.ok:
+            try:
+                from sim import simulate as run_sim
+
+                log(f"{name}: simulating {spec.horizon:.1f} s in MuJoCo")
+                ex, wall = _timed(lambda: run_sim(plan, robot))
+                ticks = ex.tick_times[1:] if len(ex.tick_times) > 1 else ex.tick_times
+                rec["tick_median_us"] = 1e6 * _pct(ticks, 50)
+                rec["tick_p99_us"] = 1e6 * _pct(ticks, 99)
+                rec["realtime_factor"] = float(ex.realtime_factor)
+                rec["sim_wall_s"] = wall
+                rec["certified"] = bool(ex.certificate.ok)
+                rec["certificate_reason"] = getattr(ex.certificate, "reason", "") or ""
+            except Exception as exc:  # noqa: BLE001
+                rec["status"] = "simulation failed"
+                rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"simulate: {_one_line(exc)}"
+
+        # end to end ---------------------------------------------------------------------------------
+        if e2e and plan.ok:
+            try:
+                rec.update(_end_to_end(sentence, robot_name, cache_dir, spec, repeats, simulate))
+            except Exception as exc:  # noqa: BLE001
+                rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"e2e: {_one_line(exc)}"
+    finally:  # also on a failed stage, Ctrl-C or SIGTERM: no temporary solver cache left behind
+        if first:
+            shutil.rmtree(cache_dir, ignore_errors=True)
     return rec
 
 
@@ -358,9 +399,11 @@ def _child_env(cache_dir: str) -> dict[str, str]:
     return env
 
 
-def _cold_process(sentence: str, robot_name: str, cache_dir: str, dt: float | None) -> dict | None:
+def _cold_process(sentence: str, robot_name: str, cache_dir: str, dt: float | None,
+                  max_iterations: int | None = None) -> dict | None:
     """Plan in a new Python process with the solver cache on disk (cached cold)."""
-    payload = json.dumps({"sentence": sentence, "robot": robot_name, "cache_dir": cache_dir, "dt": dt})
+    payload = json.dumps({"sentence": sentence, "robot": robot_name, "cache_dir": cache_dir, "dt": dt,
+                          "max_iterations": max_iterations})
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "wbmp.commands.bench", payload], capture_output=True, text=True,
                           env=_child_env(cache_dir), timeout=900, check=False)
@@ -380,7 +423,7 @@ def _child_main(payload: str) -> int:
 
     robot = load_robot(args["robot"])
     _, spec = _spec_for(args["sentence"], robot, args.get("dt"))
-    plan = plan_motion(spec, robot, settings=_settings(args["cache_dir"]), throw=False)
+    plan = plan_motion(spec, robot, settings=_settings(args["cache_dir"], args.get("max_iterations")), throw=False)
     s = plan.stats
     print(json.dumps({"build_time": s.build_time, "solve_time": s.solve_time, "cache": s.cache,
                       "iterations": s.iterations, "ok": bool(plan.ok)}))
@@ -393,25 +436,22 @@ def _end_to_end(sentence: str, robot_name: str, cache_dir: str, spec, repeats: i
     extra = ["--robot", robot_name, "--quiet"] + ([] if simulate else ["--no-sim"])
     env = _child_env(cache_dir)
     times, mode, code = [], "sentence", None
-    spec_file = None
-    for _ in range(max(1, repeats)):
-        cmd = base + [sentence] + extra if mode == "sentence" else base + ["--spec", spec_file] + extra
-        proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
-                                                   check=False))
-        if mode == "sentence" and proc.returncode == ExitCode.USAGE and "not available" in proc.stderr:
-            from tasks.serialize import spec_to_json
-
-            mode = "spec"
-            fd, spec_file = tempfile.mkstemp(suffix=".json", prefix="wbmp-bench-spec-")
-            with os.fdopen(fd, "w") as f:
-                f.write(spec_to_json(spec))
-            cmd = base + ["--spec", spec_file] + extra
+    with tempfile.TemporaryDirectory(prefix="wbmp-bench-spec-") as folder:  # removed on any exit
+        spec_file = str(Path(folder) / "spec.json")
+        for _ in range(max(1, repeats)):
+            cmd = base + [sentence] + extra if mode == "sentence" else base + ["--spec", spec_file] + extra
             proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
                                                        check=False))
-        code = proc.returncode
-        times.append(wall)
-    if spec_file:
-        os.unlink(spec_file)
+            if mode == "sentence" and proc.returncode == ExitCode.USAGE and "not available" in proc.stderr:
+                from tasks.serialize import spec_to_json
+
+                mode = "spec"
+                Path(spec_file).write_text(spec_to_json(spec))
+                cmd = base + ["--spec", spec_file] + extra
+                proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env,
+                                                           timeout=900, check=False))
+            code = proc.returncode
+            times.append(wall)
     return {"e2e_s": _median(times), "e2e_mode": mode, "e2e_exit_code": code}
 
 
@@ -421,17 +461,27 @@ def _end_to_end(sentence: str, robot_name: str, cache_dir: str, spec, repeats: i
 
 def scaling_study(*, repeats: int, log: Callable[[str], None], sentence: str = TASKS["squat"],
                   horizons: tuple[int, ...] = SCALING_N, robots: tuple[str, ...] = SCALING_ROBOTS,
-                  cache_dir: str | None = None) -> dict[str, Any]:
+                  cache_dir: str | None = None, max_iterations: int | None = None) -> dict[str, Any]:
     """Warm solve time of the squat against the horizon N (talos) and against the robot (N fixed).
 
     The horizon is changed through the knot spacing (same motion, finer grid). Each new
-    structure is built once (compiled into ``cache_dir``), then solved ``repeats`` times warm.
+    structure is built once (compiled into ``cache_dir``; default a temporary folder, removed
+    at the end whatever happens), then solved ``repeats`` times warm.
     """
+    if cache_dir is not None:
+        return _scaling_study(repeats=repeats, log=log, sentence=sentence, horizons=horizons, robots=robots,
+                              cache_dir=cache_dir, max_iterations=max_iterations)
+    with tempfile.TemporaryDirectory(prefix="wbmp-bench-scaling-", ignore_cleanup_errors=True) as tmp:
+        return _scaling_study(repeats=repeats, log=log, sentence=sentence, horizons=horizons, robots=robots,
+                              cache_dir=tmp, max_iterations=max_iterations)
+
+
+def _scaling_study(*, repeats: int, log: Callable[[str], None], sentence: str, horizons: tuple[int, ...],
+                   robots: tuple[str, ...], cache_dir: str, max_iterations: int | None) -> dict[str, Any]:
     from planner import plan as plan_motion
     from robots import load_robot
 
-    cache_dir = cache_dir or tempfile.mkdtemp(prefix="wbmp-bench-scaling-")
-    settings = _settings(cache_dir)
+    settings = _settings(cache_dir, max_iterations)
     out: dict[str, Any] = {"sentence": sentence, "horizon": [], "robots": []}
 
     def measure(robot, dt: float | None) -> dict[str, Any]:
@@ -462,7 +512,6 @@ def scaling_study(*, repeats: int, log: Callable[[str], None], sentence: str = T
             out["robots"].append(measure(load_robot(name), None))
         except Exception as exc:  # noqa: BLE001
             out["robots"].append({"robot": name, "error": _one_line(exc)})
-    shutil.rmtree(cache_dir, ignore_errors=True)
     return out
 
 
@@ -491,10 +540,13 @@ def plot_scaling(scaling: dict[str, Any], path: str | Path, title: str = "") -> 
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()
+    from viz.files import atomic_write
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    try:
+        atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=100))  # never half-written
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -681,26 +733,43 @@ def markdown_summary(result: dict[str, Any]) -> str:
 # entry
 
 
+def check_options(*, tasks: list[str] | None, quick: bool, repeats: int | None, dt: float | None,
+                  max_iterations: int | None) -> tuple[list[str], int]:
+    """(task classes, repeats) of a run, or :class:`CliError` (exit 2) naming the bad option."""
+    names = list(dict.fromkeys(tasks)) if tasks is not None else (list(QUICK_TASKS) if quick else list(TASKS))
+    if not names:
+        raise CliError(f"--tasks names no task class; choose from {', '.join(TASKS)} (comma-separated)",
+                       ExitCode.USAGE)
+    unknown = [n for n in names if n not in TASKS]
+    if unknown:
+        shown = ", ".join(repr(n) if len(n) <= 40 else f"{n[:40]!r}..." for n in unknown[:5])
+        raise CliError(f"unknown task class(es) {shown}; choose from {', '.join(TASKS)}", ExitCode.USAGE)
+    reps = repeats if repeats is not None else (1 if quick else 3)
+    if not 1 <= reps <= MAX_REPEATS:
+        raise CliError(f"--repeats must be from 1 to {MAX_REPEATS}, got {reps}", ExitCode.USAGE)
+    if dt is not None and not (math.isfinite(dt) and MIN_DT <= dt <= MAX_DT):
+        raise CliError(f"--dt must be a knot spacing from {MIN_DT:g} to {MAX_DT:g} s, got {dt:g}", ExitCode.USAGE)
+    if max_iterations is not None and not 1 <= max_iterations <= MAX_ITERATIONS:
+        raise CliError(f"--max-iterations must be from 1 to {MAX_ITERATIONS}, got {max_iterations}", ExitCode.USAGE)
+    return names, reps
+
+
 def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bool = False,
               repeats: int | None = None, dt: float | None = None, simulate: bool = True, e2e: bool = True,
               first: bool = True, scaling: bool | None = None, peers: bool = False,
-              peers_dir: str | None = None, plot: str | None = None,
+              peers_dir: str | None = None, plot: str | None = None, max_iterations: int | None = None,
               log: Callable[[str], None] = lambda _: None) -> dict[str, Any]:
-    """Run the benchmark and return the result dictionary (the JSON of ``--json``)."""
+    """Run the benchmark and return the result dictionary (the JSON of ``--json``).
+
+    Raises:
+        CliError: A bad option (exit 2), checked before any work (:func:`check_options`).
+    """
     from planner.trajopt.settings import default_cache_dir
 
+    names, reps = check_options(tasks=tasks, quick=quick, repeats=repeats, dt=dt, max_iterations=max_iterations)
     # First-ever builds are timed with gcc in the loop (and cached-cold runs need the entry on
     # disk): compile synchronously here and in the child processes, which inherit the variable.
     os.environ["WBMP_COMPILE_BACKGROUND"] = "0"
-
-    names = list(tasks) if tasks else (list(QUICK_TASKS) if quick else list(TASKS))
-    unknown = [n for n in names if n not in TASKS]
-    if unknown:
-        raise CliError(f"unknown task class(es) {', '.join(unknown)}; choose from {', '.join(TASKS)}",
-                       ExitCode.USAGE)
-    reps = repeats if repeats is not None else (1 if quick else 3)
-    if reps < 1:
-        raise CliError(f"--repeats must be >= 1, got {reps}", ExitCode.USAGE)
     if scaling is None:
         scaling = not quick
     info = machine_info()
@@ -712,6 +781,7 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
         "quick": quick,
         "repeats": reps,
         "dt_override": dt,
+        "max_iterations": max_iterations,
         "compiled_solvers": os.environ.get("WBMP_BENCH_COMPILE", "1") != "0",
         "machine": info,
         "machine_tag": machine_tag(info),
@@ -722,13 +792,15 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
         # quick: one simulation (the first task) keeps the run short
         do_sim = simulate and not (quick and sim_done)
         rec = bench_task(name, TASKS[name], robot_name=robot, repeats=reps, dt=dt, first=first and not quick,
-                         simulate=do_sim, e2e=e2e and not quick, user_cache=default_cache_dir(), log=log)
+                         simulate=do_sim, e2e=e2e and not quick, user_cache=default_cache_dir(), log=log,
+                         max_iterations=max_iterations)
+        check_signals()  # an interrupt swallowed inside a stage ends the run, not just the stage
         sim_done = sim_done or rec.get("realtime_factor") is not None
         result["tasks"][name] = rec
     result["scaling"] = None
     result["plot"] = None
     if scaling:
-        result["scaling"] = scaling_study(repeats=reps, log=log)
+        result["scaling"] = scaling_study(repeats=reps, log=log, max_iterations=max_iterations)
         png = plot
         if png is None:
             png = "bench_scaling.png"
@@ -744,43 +816,151 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
     return result
 
 
+#: Exit code of a task's status (the statuses not listed, "ok" and NOT_IMPLEMENTED, pass).
+_STATUS_CODES = {
+    "failed at parse/spec": ExitCode.INVALID_SPEC,
+    "failed at planner import": ExitCode.INTERNAL,
+    "failed at plan": ExitCode.INFEASIBLE,
+    "plan failed": ExitCode.INFEASIBLE,
+    "simulation failed": ExitCode.SIM_FAILED,
+}
+
+
+def task_exit_code(rec: dict[str, Any]) -> ExitCode:
+    """What ``wbmp solve`` would exit with for one task's record (0 = passed or not implemented)."""
+    status = rec.get("status")
+    if status in _STATUS_CODES:
+        return _STATUS_CODES[status]
+    if status not in ("ok", NOT_IMPLEMENTED):
+        return ExitCode.INTERNAL  # a status this version does not know
+    if status == "ok" and rec.get("certified") is False:
+        return ExitCode.SIM_FAILED
+    e2e = rec.get("e2e_exit_code")
+    if status == "ok" and e2e not in (None, 0):
+        return ExitCode(e2e) if e2e in ExitCode._value2member_map_ else ExitCode.INTERNAL
+    return ExitCode.OK
+
+
+def exit_code(result: dict[str, Any]) -> ExitCode:
+    """0 when every task that ran passed, else the code of the first failing task (module docstring)."""
+    for rec in result["tasks"].values():
+        code = task_exit_code(rec)
+        if code != ExitCode.OK:
+            return code
+    return ExitCode.OK
+
+
+def _read_result(path: str) -> dict[str, Any]:
+    """A ``--json`` result re-read for ``--from`` (CliError, exit 2, when it is not one)."""
+    import stat
+
+    shown = repr(path) if len(path) <= 200 else f"{path[:200]!r}..."
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))  # a FIFO must not block us
+        with os.fdopen(fd, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise CliError(f"--from {shown}: not a regular file (give a `wbmp bench --json` result)",
+                               ExitCode.USAGE)
+            data = fh.read(MAX_RESULT_BYTES + 1)
+    except OSError as e:
+        raise CliError(f"--from {shown}: cannot read it: {e.strerror or e}", ExitCode.USAGE) from None
+    if len(data) > MAX_RESULT_BYTES:
+        raise CliError(f"--from {shown}: larger than {MAX_RESULT_BYTES >> 20} MiB; a bench result is a few kB",
+                       ExitCode.USAGE)
+    try:
+        result = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as e:
+        what = "not UTF-8" if isinstance(e, UnicodeDecodeError) else "nested too deeply" if isinstance(
+            e, RecursionError) else f"not JSON ({e})"
+        raise CliError(f"--from {shown}: {what}; give a `wbmp bench --json` result", ExitCode.USAGE) from None
+    if not isinstance(result, dict) or result.get("schema") != SCHEMA:
+        raise CliError(f"{path} is not a `wbmp bench --json` result ({SCHEMA})", ExitCode.USAGE)
+    tasks = result.get("tasks")
+    if not isinstance(tasks, dict) or not all(isinstance(r, dict) and isinstance(r.get("status"), str)
+                                              for r in tasks.values()):
+        raise CliError(f"--from {shown}: its 'tasks' are not task records with a 'status'", ExitCode.USAGE)
+    return result
+
+
+def _render(result: dict[str, Any], *, markdown: bool, source: str | None) -> tuple[str, str | None]:
+    """(table, Markdown or None); a re-read result that cannot be shown is exit 2, not a traceback."""
+    try:
+        return format_table(result), (markdown_summary(result) if markdown else None)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+        if source is None:
+            raise
+        raise CliError(f"--from {source!r}: an incomplete or damaged bench result ({type(e).__name__}: "
+                       f"{str(e)[:100]})", ExitCode.USAGE) from None
+
+
 def run(args: argparse.Namespace) -> int:
+    from viz.files import Staging, check_distinct, check_output_file
+    from wbmp.errors import ROBOT_HINT, one_line, require_text
+    from wbmp.pipeline import output_errors
+
     def log(message: str) -> None:
+        check_signals()  # a Ctrl-C that CasADi swallowed (a failed solve) stops the run here
         if not args.quiet:
             print(f"wbmp bench: {message}", file=sys.stderr, flush=True)
 
-    tasks = [t.strip() for t in args.tasks.split(",") if t.strip()] if args.tasks else None
-    if args.no_compile:  # read by _settings here and in the cached-cold child processes
-        os.environ["WBMP_BENCH_COMPILE"] = "0"
+    # every option checked before any work -------------------------------------------------------
+    tasks = [t.strip() for t in args.tasks.split(",") if t.strip()] if args.tasks is not None else None
+    require_text(args.peers_dir, "--peers-dir", "give the folder of the peer results, or leave the option out")
+    if not args.from_json:
+        require_text(args.robot, "--robot", ROBOT_HINT)
+        check_options(tasks=tasks, quick=args.quick, repeats=args.repeats, dt=args.dt,
+                      max_iterations=args.max_iterations)
+    scaling = (not args.quick if args.scaling is None else args.scaling) and not args.from_json
     plot = args.plot
     if plot is None and args.json:
         plot = str(Path(args.json).with_suffix("")) + "_scaling.png"
+    elif plot is None and scaling:
+        plot = "bench_scaling.png"
+    with output_errors():
+        outputs = {opt: check_output_file(path, opt) for opt, path in
+                   (("--json", args.json), ("--markdown", args.markdown), ("--plot", plot if scaling else None))
+                   if path is not None}
+        check_distinct(outputs, {"--from": Path(args.from_json)} if args.from_json else None)
+
     if args.from_json:
-        try:
-            result = json.loads(Path(args.from_json).read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise CliError(f"cannot read the bench result {args.from_json}: {e}", ExitCode.USAGE) from e
-        if result.get("schema") != SCHEMA:
-            raise CliError(f"{args.from_json} is not a `wbmp bench --json` result ({SCHEMA})", ExitCode.USAGE)
+        result = _read_result(args.from_json)
         if args.peers:
             result["peers"] = load_peers(args.peers_dir)
             result["ratios"] = peer_ratios(result["tasks"], result["peers"])
     else:
+        from robots import load_robot
+
+        load_robot(args.robot)  # an unknown robot is exit 3 now, not eight failed tasks later
+        if args.no_compile:  # read by _settings here and in the cached-cold child processes
+            os.environ["WBMP_BENCH_COMPILE"] = "0"
         result = run_bench(robot=args.robot, tasks=tasks, quick=args.quick, repeats=args.repeats, dt=args.dt,
                            simulate=not args.no_sim, e2e=not args.no_e2e, first=not args.no_first,
-                           scaling=args.scaling, peers=args.peers, peers_dir=args.peers_dir, plot=plot, log=log)
-    print(format_table(result))
-    if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(result, indent=2) + "\n")
+                           scaling=scaling, peers=args.peers, peers_dir=args.peers_dir, plot=plot,
+                           max_iterations=args.max_iterations, log=log)
+    table, md = _render(result, markdown=bool(args.markdown), source=args.from_json)
+    print(table)
+    with output_errors(), Staging() as staging:  # both files or neither
+        if args.json:
+            text = json.dumps(result, indent=2) + "\n"
+            staging.add(outputs["--json"], lambda fh: fh.write(text.encode("utf-8")))
+        if md is not None:
+            staging.add(outputs["--markdown"], lambda fh: fh.write(md.encode("utf-8")))
+        written = staging.commit()
+    for path in written:
         print(f"wrote {path}")
-    if args.markdown:
-        md = Path(args.markdown)
-        md.parent.mkdir(parents=True, exist_ok=True)
-        md.write_text(markdown_summary(result))
-        print(f"wrote {md}")
-    return 0
+    code = exit_code(result)
+    if code != ExitCode.OK:
+        failed = [name for name, rec in result["tasks"].items() if task_exit_code(rec) != ExitCode.OK]
+        first = result["tasks"][failed[0]]
+        status = first.get("status")
+        if status == "ok":
+            status = ("simulation check failed" if first.get("certified") is False
+                      else f"`wbmp solve` exited {first.get('e2e_exit_code')}")
+        why = first.get("certificate_reason") or first.get("message") or "-"
+        print(f"wbmp bench: error: {len(failed)} of {len(result['tasks'])} task classes failed "
+              f"({', '.join(failed)}); {failed[0]}: {status}: {one_line(str(why), 300)}",
+              file=sys.stderr, flush=True)
+    return int(code)
 
 
 if __name__ == "__main__":  # the cached-cold child process

@@ -2,6 +2,10 @@
 
 Solves ``wave your right hand twice, then squat`` on talos end to end (parse, plan, simulate,
 certify) and writes ``demo.npz`` and the offline replay ``demo.html``.
+
+Exit codes are those of ``wbmp solve``: 0 certified, 2 bad usage (an empty sentence or
+``--robot``, a bad output path: checked before any work), 3 unknown robot, 4 infeasible,
+5 the simulation check failed.
 """
 
 from __future__ import annotations
@@ -28,11 +32,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
     from wbmp.commands.solve import print_result
-    from wbmp.pipeline import SolveRequest, solve, write_outputs
+    from wbmp.errors import CliError, ExitCode, one_line
+    from wbmp.pipeline import SolveRequest, check_outputs, solve, write_outputs
 
-    print(f"wbmp demo: {args.sentence!r} on {args.robot}")
-    progress = make_progress(quiet=args.quiet)
+    if not args.sentence.strip():
+        raise CliError(f"the sentence is empty: give an instruction in quotes, or none for {DEMO_SENTENCE!r}",
+                       ExitCode.USAGE)
     request = SolveRequest(instruction=args.sentence, robot=args.robot, simulate=not args.no_sim)
+    request.check()
+    check_outputs(out=args.out, html=args.html)  # before any work
+    print(f"wbmp demo: {one_line(repr(args.sentence), 200)} on {one_line(args.robot, 200)}")
+    progress = make_progress(quiet=args.quiet)
     result = solve(request, progress)
     written = write_outputs(result, out=args.out, html=args.html, progress=progress)
     print_result(result, written, as_json=False)

@@ -4,6 +4,10 @@ With ``--json`` the output is exactly ``{"actions": [{"action": NAME, "params": 
 "backend": "rules"}`` in SI units (only the parameters the sentence states; an overlaid action
 carries ``"overlay": true``). The LLM backend reads its key from ``WBMP_LLM_API_KEY`` or
 ``OPENAI_API_KEY``; ``--llm-url``/``--llm-model`` default to ``WBMP_LLM_URL``/``WBMP_LLM_MODEL``.
+``--llm-timeout`` bounds each whole request to the server (connect to last byte).
+
+:func:`llm_options` checks the URL, the timeout and the key before any work (``wbmp solve`` uses
+it too), so a bad value is a one-line usage error (exit 2) that never repeats the key.
 """
 
 from __future__ import annotations
@@ -33,20 +37,54 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL, e.g. http://127.0.0.1:11434/v1 (env WBMP_LLM_URL)")
     p.add_argument("--llm-model", default=os.environ.get("WBMP_LLM_MODEL"), help="model name (env WBMP_LLM_MODEL)")
-    p.add_argument("--llm-timeout", type=float, default=30.0, help="seconds to wait for the server (default: 30)")
+    p.add_argument("--llm-timeout", type=timeout_seconds, default=30.0, metavar="SECONDS",
+                   help="limit for each whole request to the server, connect to last byte "
+                        "(default: 30, at most 3600)")
     p.set_defaults(run=run)
 
 
+def timeout_seconds(text: str) -> float:
+    """``--llm-timeout`` value: a finite number of seconds above 0, at most 3600."""
+    from language.exceptions import BackendError
+    from language.llm import check_timeout
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, e.g. 30, got {text[:40]!r}") from None
+    try:
+        return check_timeout(value, name="the timeout")
+    except BackendError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def llm_options(args: argparse.Namespace) -> dict:
-    """Backend options for ``language.parse`` from the command line and the environment."""
+    """Backend options for ``language.parse`` from the command line and the environment.
+
+    Raises:
+        CliError: (exit 2) no URL or model, a URL that is not http(s)://host[:port]/... (or
+            holds user:password@), a timeout that is not finite, above 0 and at most 3600 s,
+            or a key an HTTP header cannot carry. No message repeats the URL or the key.
+    """
     if args.parser != "llm":
         return {}
+    from language.exceptions import BackendError
+    from language.llm import check_api_key, check_timeout, check_url
+
     if not args.llm_url:
         raise CliError("--parser llm needs --llm-url URL (or WBMP_LLM_URL)", ExitCode.USAGE)
-    if not args.llm_model:
+    if not args.llm_model or not args.llm_model.strip():
         raise CliError("--parser llm needs --llm-model NAME (or WBMP_LLM_MODEL)", ExitCode.USAGE)
-    key = next((os.environ[v] for v in KEY_VARIABLES if os.environ.get(v)), None)
-    return {"url": args.llm_url, "model": args.llm_model, "api_key": key, "timeout": args.llm_timeout}
+    # A key copied with a trailing newline or blank is the usual mistake: strip it; a key made
+    # only of blanks is no key.
+    found = next(((v, os.environ[v].strip()) for v in KEY_VARIABLES if os.environ.get(v, "").strip()), None)
+    try:
+        url = check_url(args.llm_url, name="--llm-url")
+        timeout = check_timeout(args.llm_timeout, name="--llm-timeout")
+        key = check_api_key(found[1], name=found[0]) if found else None
+    except BackendError as e:
+        raise CliError(str(e), ExitCode.USAGE) from None
+    return {"url": url, "model": args.llm_model, "api_key": key, "timeout": timeout}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,7 +93,12 @@ def run(args: argparse.Namespace) -> int:
     text = " ".join(args.text)
     plan = parse(text, backend=args.parser, **llm_options(args))
     if args.json:
-        print(json.dumps(plan.to_dict(), ensure_ascii=False))
+        try:
+            line = json.dumps(plan.to_dict(), ensure_ascii=False, allow_nan=False)
+        except ValueError:  # a NaN/inf that got past the parser: never print invalid JSON
+            raise CliError(f"the parsed plan holds a number that is not finite ({text[:80]!r}); "
+                           "give finite values", ExitCode.USAGE) from None
+        print(line)
     else:
         print(plan.describe())
     return ExitCode.OK

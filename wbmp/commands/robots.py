@@ -1,11 +1,16 @@
-"""``wbmp robots``: the robots wbmp knows, with sizes and named frames."""
+"""``wbmp robots``: the robots wbmp knows, with sizes and named frames.
+
+Exit codes: 0 listed; 2 an empty name (``wbmp robots ""``) or a bad option; 3 an unknown robot
+or a profile file that cannot be loaded (the message names it and lists the built-in robots).
+Every name is checked before anything is printed.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
 
-from wbmp.errors import ExitCode
+from wbmp.errors import ROBOT_HINT, ExitCode, require_text
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -39,6 +44,8 @@ def describe(name: str) -> dict:
 def run(args: argparse.Namespace) -> int:
     from robots import available_robots
 
+    for name in args.robot:
+        require_text(name, "a robot name", ROBOT_HINT)
     names = args.robot or available_robots()
     rows = [describe(n) for n in names]
     if args.json:

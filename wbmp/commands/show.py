@@ -31,50 +31,58 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def load(path: str):
-    """(robot, plan, execution arrays or None) of a motion file, with one-line errors."""
-    from robots import load_robot
+    """(robot, plan, execution arrays or None) of a motion file, with one-line errors.
 
-    if not Path(path).is_file():
-        raise CliError(f"motion file {path!r} does not exist (write one with `wbmp solve ... --out {path}`)",
-                       ExitCode.USAGE)
+    A damaged file is exit 2 (:func:`wbmp.motionfile.load_motion` names the key); a robot name
+    in the file that this install does not know is exit 3, as an unknown robot is for ``solve``.
+    """
+    from robots import load_robot
+    from robots.exceptions import RobotError
+    from wbmp.motionfile import check_robot, load_motion
+
+    motion = load_motion(path)
     try:
-        from wbmp.motionfile import load_motion
-    except ImportError as e:  # pragma: no cover - the motion-file module ships with wbmp
-        raise CliError(f"cannot read motion files in this build: {e}", ExitCode.INTERNAL) from None
-    try:
-        motion = load_motion(path)
-    except (OSError, ValueError, KeyError) as e:
-        raise CliError(f"{path}: not a readable wbmp motion file ({e})", ExitCode.USAGE) from None
-    robot = load_robot(motion.robot_name)
-    return robot, motion.plan, motion.execution_arrays
+        robot = load_robot(motion.robot_name)
+    except RobotError as e:
+        raise CliError(f"motion file {path!r}: key 'robot': {e}", ExitCode.INVALID_SPEC) from None
+    check_robot(motion, robot, path)
+    return robot, motion.plan, motion.execution_arrays or None
 
 
 def run(args: argparse.Namespace) -> int:
+    from viz.files import Staging
+    from viz.motion import VizInputError
     from viz.progress import make_progress
+    from wbmp.pipeline import check_outputs, output_errors
 
     if args.port is not None and not 1 <= args.port <= 65535:
         raise CliError(f"--port must be in 1..65535, got {args.port}", ExitCode.USAGE)
-    if not Path(args.motion).is_file():
-        raise CliError(f"motion file {args.motion!r} does not exist (write one with `wbmp solve ... --out "
-                       f"{args.motion}`)", ExitCode.USAGE)
+    outputs = check_outputs(html=args.html, plots=args.plots, inputs={"motion file": args.motion})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     with progress.stage("loading the motion"):
         robot, plan, execution = load(args.motion)
-    if args.html:
-        from viz import write_html
+    written: list[str] = []
+    try:
+        with output_errors(), Staging() as staging:
+            if outputs.html is not None:
+                from viz import write_html
 
-        with progress.stage(f"writing {args.html}"):
-            out = write_html(args.html, robot, plan, execution=execution,
-                             title=plan.spec.description or plan.spec.name or Path(args.motion).stem)
-        print(f"html: {out}")
-    if args.plots:
-        from viz import write_plots
+                with progress.stage(f"writing {args.html}"):
+                    out = write_html(outputs.html, robot, plan, execution=execution, staging=staging,
+                                     title=plan.spec.description or plan.spec.name or Path(args.motion).stem)
+                written.append(f"html: {out}")
+            if outputs.plots is not None:
+                from viz import write_plots
 
-        with progress.stage(f"writing plots to {args.plots}"):
-            paths = write_plots(args.plots, robot, plan, execution=execution)
-        for p in paths:
-            print(f"plot: {p}")
-    if (args.html or args.plots) and not args.view:
+                with progress.stage(f"writing plots to {args.plots}"):
+                    paths = write_plots(outputs.plots, robot, plan, execution=execution, staging=staging)
+                written += [f"plot: {p}" for p in paths]
+            staging.commit()
+    except VizInputError as e:  # load() checked the shapes; this is a last line of defence
+        raise CliError(f"motion file {args.motion!r}: {e}", ExitCode.USAGE) from None
+    for line in written:
+        print(line)
+    if (outputs.html or outputs.plots) and not args.view:
         return ExitCode.OK
     from viz.live import ViewerError, serve
 

@@ -12,6 +12,7 @@ import json
 import os
 import sys
 
+from wbmp.commands.parse import timeout_seconds
 from wbmp.errors import CliError, ExitCode
 
 
@@ -31,18 +32,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--spec", metavar="FILE", help="TaskSpec JSON file instead of a sentence (docs/spec-format.md)")
     p.add_argument("--robot", default=None,
                    help="robot name or profile file (default: talos, or the spec's robot)")
-    p.add_argument("--out", metavar="FILE", default=None, help="write the motion file (.npz) here")
+    p.add_argument("--out", metavar="FILE.npz", default=None,
+                   help="write the motion file (.npz) here (an existing file is replaced; links, folders "
+                        "and devices are refused)")
     p.add_argument("--html", metavar="FILE", default=None, help="write a standalone HTML replay here")
-    p.add_argument("--plots", metavar="DIR", default=None, help="write PNG plots into DIR")
+    p.add_argument("--plots", metavar="DIR", default=None,
+                   help="write PNG plots into DIR (created if missing; its parent must exist)")
     p.add_argument("--view", action="store_true", help="open the live meshcat viewer (127.0.0.1) afterwards")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
     p.add_argument("--push", metavar="N@t", default=None,
-                   help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5")
+                   help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5 "
+                        "(0 < N <= 5000, 0 <= t < the motion's duration)")
     p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="instruction parser (default: rules)")
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL for --parser llm (env WBMP_LLM_URL)")
     p.add_argument("--llm-model", default=os.environ.get("WBMP_LLM_MODEL"), help="model name (env WBMP_LLM_MODEL)")
-    p.add_argument("--llm-timeout", type=float, default=30.0, help="seconds to wait for the LLM server")
+    p.add_argument("--llm-timeout", type=timeout_seconds, default=30.0, metavar="SECONDS",
+                   help="limit for each whole request to the LLM server, connect to last byte "
+                        "(default: 30, at most 3600)")
     p.add_argument("--quiet", action="store_true", help="no progress display; print only the results")
     p.add_argument("--json", action="store_true", help="print the report as JSON (progress as JSON lines)")
     p.set_defaults(run=run)
@@ -68,9 +75,13 @@ def request_from_args(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
-    from wbmp.pipeline import solve, write_outputs
+    from wbmp.pipeline import check_outputs, solve, write_outputs
 
     request = request_from_args(args)
+    # every output path before any work: a typo must not cost a whole solve (exit 2)
+    check_outputs(out=args.out, html=args.html, plots=args.plots,
+                  inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)
+                          else None})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     result = solve(request, progress)
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
