@@ -50,6 +50,7 @@ TEMP_MAX_AGE = 3600.0  # [s] a temporary build folder older than this whose buil
 TEMP_ABANDONED_AGE = 86400.0  # [s] ... and older than this whatever its pid says (pids are reused)
 _TEMP_NAME = re.compile(r"^\.[0-9a-f]{24}\.")
 _ASIDE_PREFIX = ".damaged."
+_PUBLISH_TRIES = 50  # rounds a publisher retries while racing others (each round moves one thing)
 _MACH_O = (b"\xfe\xed\xfa\xce", b"\xfe\xed\xfa\xcf", b"\xce\xfa\xed\xfe", b"\xcf\xfa\xed\xfe",
            b"\xca\xfe\xba\xbe")
 
@@ -350,9 +351,13 @@ def publish(tmp: Path, entry: Path, key: str) -> bool:
     """Rename a complete build folder into place; True when a good entry is there afterwards.
 
     A healthy entry that another process published first stays (the caller drops ``tmp``);
-    anything else in the way (a file, a symlink, a damaged folder) is removed first.
+    anything else in the way (a file, a symlink, a damaged folder) is first renamed aside to a
+    name of this call's own, and only then removed: a check-then-delete on ``entry`` itself
+    could delete a healthy entry another publisher renamed into place in between. Many
+    publishers may race (each one retries while the others move things); none ever removes
+    a healthy entry.
     """
-    for _ in range(2):
+    for attempt in range(_PUBLISH_TRIES):
         try:
             os.rename(tmp, entry)
             return True
@@ -369,11 +374,29 @@ def publish(tmp: Path, entry: Path, key: str) -> bool:
             return True
         except (EntryDamaged, OSError):
             pass
+        aside = entry.parent / f"{_ASIDE_PREFIX}{entry.name}.{os.getpid()}.{threading.get_ident()}.{attempt}"
         try:
-            if _same(entry, seen):
-                remove(entry)
+            os.rename(entry, aside)
+        except FileNotFoundError:
+            continue  # someone else moved it meanwhile
         except OSError:
             return False
+        try:
+            check_files(aside, key)
+            healthy = True
+        except (EntryDamaged, OSError):
+            healthy = False
+        if healthy:  # a good entry arrived between our check and our rename: put it back
+            try:
+                os.rename(aside, entry)
+            except OSError:
+                pass  # something is in place again; the next round checks it
+            else:
+                return True
+        try:
+            remove(aside)
+        except OSError:
+            pass  # left for the sweep (it removes every moved-aside name)
     return False
 
 
