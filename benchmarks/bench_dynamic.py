@@ -105,7 +105,7 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
 
 def machine() -> dict:
     """CPU model, cores, load, thread settings and the commit the numbers belong to."""
-    from wbmp.commands.bench import cpu_model
+    from wbmp.bench.machine import cpu_model
 
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,

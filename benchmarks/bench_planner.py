@@ -58,7 +58,7 @@ def run_child(case: str, cache_dir: str, runs: int) -> list[dict]:
 
 
 def machine() -> dict:
-    from wbmp.commands.bench import cpu_model
+    from wbmp.bench.machine import cpu_model
 
     return {
         "cpu": cpu_model(), "cores": os.cpu_count(), "load_average": os.getloadavg(),

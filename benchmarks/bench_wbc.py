@@ -39,7 +39,7 @@ from planner.wbc import WbcSettings, WholeBodyController  # noqa: E402
 from robots import load_robot  # noqa: E402
 from sim import SimSettings, build_model, simulate  # noqa: E402
 from sim.handmade import arm_plan  # noqa: E402
-from wbmp.commands.bench import machine_info  # noqa: E402
+from wbmp.bench.machine import machine_info  # noqa: E402
 
 TARGET_MEDIAN_US = 150.0
 TARGET_P99_US = 400.0

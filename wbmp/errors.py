@@ -1,5 +1,5 @@
-r"""Exit codes of the CLI (DESIGN.md section 7), the mapping from exceptions to them, and the
-one-line form of an error message.
+r"""Exit codes of the CLI (DESIGN.md section 7), the table from every exception class of the layers
+to them (:data:`EXIT_TABLE`, :func:`classify`), and the one-line form of an error message.
 
 Every message the CLI prints for a refused input goes through :func:`one_line`: control
 characters (ANSI escapes, NUL, bells, newlines), bidirectional overrides and the lone surrogates
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import enum
 import unicodedata
+from typing import Literal, NamedTuple
 
 
 class ExitCode(enum.IntEnum):
@@ -110,28 +111,104 @@ def require_text(value: str | None, what: str, hint: str) -> None:
 ROBOT_HINT = "give a robot name (talos, g1, icub, romeo; `wbmp robots` lists them) or a profile file"
 
 
+#: The code of an exception that carries its own (:class:`CliError` and its subclasses: ``.code``).
+OWN = "own"
+
+
+class ExitRule(NamedTuple):
+    """One row of :data:`EXIT_TABLE`.
+
+    Attributes:
+        exception: Full name of the class, ``module.Class``, the module being where it is defined.
+        code: The exit code; :data:`OWN` for an exception that carries one; None for a class that
+            must never reach the CLI (caught inside its layer, or a bug if it escapes): the CLI
+            prints the traceback and exits 1 (``wbmp.cli.run``).
+        why: What the exception means, in the words of docs/cli.md.
+    """
+
+    exception: str
+    code: ExitCode | Literal["own"] | None
+    why: str
+
+
+_R = ExitRule
+#: Every exception class of every layer and its exit code (docs/cli.md holds the same table, and
+#: tests/wbmp/test_errors.py checks that each class defined in the packages has its row). A class
+#: decides by its own row; :func:`classify` walks the exception's classes most specific first
+#: (``type(exc).__mro__``), so an exception from outside the project that subclasses one of these
+#: gets its nearest ancestor's code.
+EXIT_TABLE: tuple[ExitRule, ...] = (
+    # the CLI itself
+    _R("wbmp.errors.CliError", OWN, "a refused input of the CLI, with the code it names"),
+    _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2)"),
+    _R("wbmp.errors.Terminated", ExitCode.TERMINATED, "SIGTERM"),
+    _R("builtins.KeyboardInterrupt", ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
+    # language: a sentence that is not understood
+    _R("language.exceptions.LanguageError", ExitCode.USAGE, "the instruction is not understood"),
+    _R("language.exceptions.EmptyInstruction", ExitCode.USAGE, "an empty instruction"),
+    _R("language.exceptions.UnknownWords", ExitCode.USAGE, "words the parser does not know"),
+    _R("language.exceptions.NoAction", ExitCode.USAGE, "no action in the instruction"),
+    _R("language.exceptions.AmbiguousInstruction", ExitCode.USAGE, "an instruction with two readings"),
+    _R("language.exceptions.UnsupportedInstruction", ExitCode.USAGE, "an action the robots cannot do"),
+    _R("language.exceptions.InvalidParameter", ExitCode.USAGE, "a parameter the sentence gives out of range"),
+    _R("language.exceptions.BackendError", ExitCode.USAGE, "the parser backend failed"),
+    _R("language.exceptions.LLMError", ExitCode.USAGE, "the LLM backend failed"),
+    _R("language.exceptions.LLMUnavailable", ExitCode.USAGE, "the LLM server cannot be reached or refused"),
+    _R("language.exceptions.LLMReplyInvalid", ExitCode.USAGE, "the LLM's reply is not an action plan"),
+    _R("language.validate.SchemaViolation", ExitCode.USAGE, "an action plan against the registry's schema"),
+    _R("language.llm._ReplyError", ExitCode.USAGE, "an invalid LLM reply (caught: it triggers the retry)"),
+    _R("language.exceptions.VocabularyError", None, "the shipped vocabulary is inconsistent: a bug"),
+    _R("language.validate.UnsupportedSchema", None, "a schema keyword the validator lacks: a bug"),
+    _R("language.llm._BadNumber", None, "caught inside language.llm"),
+    _R("language.llm._Deadline", None, "caught inside language.llm"),
+    _R("language.llm._TooLarge", None, "caught inside language.llm"),
+    _R("language.llm._BadEncoding", None, "caught inside language.llm"),
+    # robots and tasks: an invalid spec, parameter or robot
+    _R("robots.exceptions.RobotError", ExitCode.INVALID_SPEC, "a robot that cannot be loaded"),
+    _R("robots.exceptions.RobotNotFound", ExitCode.INVALID_SPEC, "an unknown robot name"),
+    _R("robots.exceptions.FrameNotFound", ExitCode.INVALID_SPEC, "a frame the robot does not have"),
+    _R("robots.exceptions.ProfileError", ExitCode.INVALID_SPEC, "a bad robot profile file"),
+    _R("tasks.exceptions.TaskError", ExitCode.INVALID_SPEC, "an invalid task spec"),
+    _R("tasks.exceptions.TaskDefinitionError", ExitCode.INVALID_SPEC, "an invalid spec or parameter"),
+    _R("tasks.exceptions.UnknownAction", ExitCode.INVALID_SPEC, "an unknown primitive name"),
+    _R("tasks.serialize._Refused", None, "caught inside tasks.serialize"),
+    # planner: infeasible, or the solver failed (with a diagnosis)
+    _R("planner.exceptions.PlannerError", ExitCode.INFEASIBLE, "the planner failed"),
+    _R("planner.exceptions.PlanningFailed", ExitCode.INFEASIBLE, "no plan: infeasible or the solver failed"),
+    _R("planner.exceptions.UnsupportedModel", ExitCode.INVALID_SPEC, "a joint type the planner cannot model"),
+    _R("planner.exceptions.SpecNotForRobot", ExitCode.INVALID_SPEC, "a joint or frame the robot does not have"),
+    _R("planner.trajopt.cache_disk.EntryDamaged", None, "caught inside the solver cache"),
+    # simulation: planned, but the closed-loop check failed or could not run
+    _R("planner.wbc.settings.ControllerError", ExitCode.SIM_FAILED,
+       "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),
+    _R("sim.exceptions.SimError", ExitCode.SIM_FAILED, "the simulation check failed or could not run"),
+    _R("sim.exceptions.SimModelError", ExitCode.SIM_FAILED, "the robot cannot be built in MuJoCo"),
+    _R("sim.exceptions.PushParseError", ExitCode.USAGE, "a bad --push"),
+    # outputs and viewers
+    _R("viz.files.OutputError", ExitCode.USAGE, "an output file refused or not written"),
+    _R("viz.files.OutputPathError", ExitCode.USAGE, "a bad output path"),
+    _R("viz.files.OutputWriteError", ExitCode.USAGE, "an output that could not be written (nothing was)"),
+    _R("viz.motion.VizInputError", None,
+       "arrays that do not match the robot: a bug (`wbmp show` names the motion file, exit 2)"),
+    _R("viz.live.ViewerError", ExitCode.INTERNAL, "the meshcat server did not start or died (one line)"),
+)
+del _R
+_RULES = {rule.exception: rule for rule in EXIT_TABLE}
+
+
+def full_name(cls: type) -> str:
+    """``module.Class`` of a class: its key in :data:`EXIT_TABLE`."""
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
 def classify(exc: BaseException) -> ExitCode | None:
-    """Exit code for a known exception type of the layers, None for an unexpected one."""
-    from planner.exceptions import PlannerError, UnsupportedModel
-    from robots.exceptions import RobotError
-    from tasks.exceptions import TaskError
+    """Exit code of an exception by :data:`EXIT_TABLE`; None for an unexpected one (a bug).
 
-    if isinstance(exc, CliError):
-        return exc.code
-    try:
-        from language.exceptions import LanguageError
-    except ImportError:  # pragma: no cover - language layer not installed
-        LanguageError = ()  # type: ignore[assignment]  # noqa: N806
-    if LanguageError and isinstance(exc, LanguageError):
-        return ExitCode.USAGE
-    if isinstance(exc, (RobotError, TaskError, UnsupportedModel)):
-        return ExitCode.INVALID_SPEC
-    if isinstance(exc, PlannerError):
-        return ExitCode.INFEASIBLE
-    from sim.exceptions import PushParseError, SimError
-
-    if isinstance(exc, PushParseError):
-        return ExitCode.USAGE
-    if isinstance(exc, SimError):
-        return ExitCode.SIM_FAILED
+    The most specific class with a row decides (the exception's own class, then its bases in
+    method resolution order); a row without a code (None) means a bug: the traceback is shown.
+    """
+    for cls in type(exc).__mro__:
+        rule = _RULES.get(full_name(cls))
+        if rule is not None:
+            return exc.code if rule.code == OWN else rule.code  # type: ignore[attr-defined]
     return None

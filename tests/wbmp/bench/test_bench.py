@@ -8,7 +8,7 @@ import os
 import pytest
 
 from wbmp.cli import main
-from wbmp.commands import bench
+from wbmp import bench
 
 TOP_KEYS = {"schema", "date_utc", "robot", "quick", "repeats", "dt_override", "compiled_solvers", "machine",
             "machine_tag", "tasks", "scaling", "plot", "peers", "ratios", "loadavg_end", "wall_s"}
