@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots import Robot
-from robots.polygon import convex_hull as convex_hull_2d
+from robots.contact import convex_hull as convex_hull_2d
 
 GRAVITY = 9.81  # [m/s^2]
 

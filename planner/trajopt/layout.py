@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from planner.exceptions import PlannerError, SpecNotForRobot
 from robots.model import Robot
-from robots.polygon import convex_hull
+from robots.contact import convex_hull
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:

@@ -24,7 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.model import Robot
-from robots.polygon import convex_hull
+from robots.contact import convex_hull
 from tasks.exceptions import TaskDefinitionError
 from tasks.specs import Pose
 
