@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from robots.contact import sole_corners_in_world
 from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
 from robots.profile import SIDE_PAIRS, RobotProfile, builtin_profiles, display_path, show
 
@@ -135,9 +136,7 @@ class Robot:
         """Sole rectangle corners (4, 3) of ``foot`` ('left'/'right') in the world at ``q`` [m]."""
         data = self.data()
         pin.framesForwardKinematics(self.model, data, q)
-        oMf = data.oMf[self.frame_id(f"{foot}_foot")]
-        corners = np.array([[x, y, 0.0] for x, y in self.profile.sole.corners(foot)])
-        return corners @ oMf.rotation.T + oMf.translation
+        return sole_corners_in_world(self.profile.sole, foot, data.oMf[self.frame_id(f"{foot}_foot")])
 
     def height(self) -> float:
         """Standing height: the highest frame origin at ``q_standing`` [m]."""

@@ -6,7 +6,8 @@ tag keeps every body (``fusestatic="false"``), and the root link hangs from a ne
 link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
 :class:`mujoco.MjSpec` we then add
 
-* a floor plane (z = 0) with the profile's friction coefficient,
+* a floor plane (z = 0) with the profile's friction coefficient, told as the contact model of
+  :mod:`robots.contact` says (elliptic cone, ``condim`` 3),
 * one thin box per sole, the profile's sole rectangle with its bottom face on the sole frame
   (the foot meshes stop colliding, so the feet touch the floor exactly where the controller's
   contact model says they do),
@@ -30,6 +31,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from robots.contact import MUJOCO_CONDIM, MUJOCO_CONE, mujoco_friction, sole_corners
 from robots.model import Robot
 from sim.exceptions import SimModelError
 
@@ -226,6 +228,22 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
     return _cached(robot, float(timestep), bool(joint_friction))
 
 
+_CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
+
+
+def set_friction_cone(spec: mujoco.MjSpec) -> None:
+    """Tell MuJoCo the contact model's cone (:data:`robots.contact.MUJOCO_CONE`: elliptic, the
+    Coulomb cone itself, so that MuJoCo accepts every force the planner and the controller do)."""
+    spec.option.cone = _CONES[MUJOCO_CONE]
+
+
+def set_contact_friction(geom: mujoco.MjsGeom, mu: float) -> None:
+    """Tell a MuJoCo geom the contact model's friction: coefficient ``mu`` [-] and ``condim`` 3
+    (:func:`robots.contact.mujoco_friction`, :data:`robots.contact.MUJOCO_CONDIM`)."""
+    geom.friction = list(mujoco_friction(mu))
+    geom.condim = MUJOCO_CONDIM
+
+
 def _add_foreign_meshes(robot: Robot, spec: mujoco.MjSpec, bodies: dict, mu: float) -> None:
     """Collision meshes MuJoCo cannot read (Collada), rebuilt from the triangles Pinocchio loaded."""
     pmodel = robot.model
@@ -255,7 +273,7 @@ def _add_foreign_meshes(robot: Robot, spec: mujoco.MjSpec, bodies: dict, mu: flo
         geom.pos = placement.translation
         quat = pin.Quaternion(placement.rotation)
         geom.quat = [quat.w, quat.x, quat.y, quat.z]
-        geom.friction = [mu, 0.005, 0.0001]
+        set_contact_friction(geom, mu)
         geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
         geom.group = 3
         geom.mass = 0.0
@@ -272,15 +290,16 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
     mu = float(robot.profile.friction_coefficient)
     spec.option.timestep = timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    set_friction_cone(spec)
 
     for geom in spec.geoms:
         geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
-        geom.friction = [mu, 0.005, 0.0001]
+        set_contact_friction(geom, mu)
     floor = spec.worldbody.add_geom()
     floor.name = FLOOR
     floor.type = mujoco.mjtGeom.mjGEOM_PLANE
     floor.size = [0.0, 0.0, 0.05]
-    floor.friction = [mu, 0.005, 0.0001]
+    set_contact_friction(floor, mu)
     floor.contype, floor.conaffinity = FLOOR_CONTYPE, FLOOR_CONAFFINITY
 
     bodies = {b.name: b for b in spec.bodies}
@@ -302,7 +321,7 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
                 for geom in child.geoms:
                     geom.contype, geom.conaffinity = 0, 0
         side = role.split("_")[0]
-        corners = np.array(robot.profile.sole.corners(side))
+        corners = sole_corners(robot.profile.sole, side)
         centre = np.array([corners[:, 0].mean(), corners[:, 1].mean(), 0.5 * SOLE_THICKNESS])
         half = [0.5 * np.ptp(corners[:, 0]), 0.5 * np.ptp(corners[:, 1]), 0.5 * SOLE_THICKNESS]
         placement = frame.placement
@@ -313,7 +332,7 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         sole.pos = placement.rotation @ centre + placement.translation
         quat = pin.Quaternion(placement.rotation)
         sole.quat = [quat.w, quat.x, quat.y, quat.z]
-        sole.friction = [mu, 0.005, 0.0001]
+        set_contact_friction(sole, mu)
         sole.contype, sole.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
         sole.mass = 0.0
         sole.density = 0.0

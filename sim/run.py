@@ -16,6 +16,7 @@ from planner import Plan
 from planner.wbc import WbcSettings, WholeBodyController
 from planner.wbc.kernel import kernel_ready
 from planner.wbc.reference import PlanReference
+from robots.contact import halfplanes, sole_corners_in_world, support_polygon
 from robots.model import Robot
 from sim.certificate import Certificate, Check
 from sim.exceptions import PushParseError, SimError
@@ -473,8 +474,6 @@ def plan_zmp_excursion(
         ``(distance [m], time [s])`` when the ZMP leaves the polygon by more than ``tolerance``,
         else None.
     """
-    from scipy.spatial import ConvexHull, QhullError
-
     model = robot.model
     data = model.createData()
     zmp = plan_zmp(robot, plan)
@@ -487,19 +486,16 @@ def plan_zmp_excursion(
         for contact in phase.contacts:
             fid = robot.frame_id(contact.frame)
             side = robot.foot_side(model.frames[fid].name) or "left"
-            corners = np.array([[x, y, 0.0] for x, y in robot.profile.sole.corners(side)])
-            pts.append(corners @ data.oMf[fid].rotation.T + data.oMf[fid].translation)
-        if not pts:
-            continue
-        pts2 = np.vstack(pts)[:, :2]
-        try:
-            hull = ConvexHull(pts2)
-        except QhullError:  # degenerate polygon (a line): skip the knot
+            pts.append(sole_corners_in_world(robot.profile.sole, side, data.oMf[fid]))
+        hull = support_polygon(pts)
+        if len(hull) < 3:  # no contact, or a degenerate polygon (a line): skip the knot
             continue
         if np.isnan(zmp[k]).any():
+            pts2 = np.vstack(pts)[:, :2]
             dist = float(np.max(np.linalg.norm(pts2 - pts2.mean(axis=0), axis=1)))
         else:
-            dist = float(np.max(hull.equations[:, :2] @ zmp[k] + hull.equations[:, 2]))
+            A, b = halfplanes(hull)
+            dist = float(np.max(A @ zmp[k] - b))
         if dist > worst:
             worst, worst_t = dist, float(plan.t[k] - plan.t[0])
     return (worst, worst_t) if worst > tolerance else None

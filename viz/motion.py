@@ -18,7 +18,8 @@ import numpy as np
 import pinocchio as pin
 
 from robots import Robot
-from robots.polygon import convex_hull as convex_hull_2d
+from robots.contact import convex_hull as convex_hull_2d
+from robots.contact import points_in_world, polygon_margin, sole_corners
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -216,7 +217,7 @@ def zmp_from_com(t: np.ndarray, com: np.ndarray) -> np.ndarray:
 def _contact_xy(robot: Robot, frame: str) -> np.ndarray:
     side = robot.foot_side(robot.profile.frame(frame) or frame)
     if side is not None:
-        return np.array(robot.profile.sole.corners(side), dtype=float)
+        return sole_corners(robot.profile.sole, side)[:, :2]
     return 0.025 * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
 
 
@@ -227,10 +228,8 @@ def contact_sole_corners(robot: Robot, q: np.ndarray, frame: str) -> np.ndarray:
     """
     data = robot.data()
     pin.framesForwardKinematics(robot.model, data, q)
-    oMf = data.oMf[robot.frame_id(frame)]
     xy = _contact_xy(robot, frame)
-    local = np.column_stack([xy, np.zeros(len(xy))])
-    return local @ oMf.rotation.T + oMf.translation
+    return points_in_world(np.column_stack([xy, np.zeros(len(xy))]), data.oMf[robot.frame_id(frame)])
 
 
 def contact_corners_at_placement(robot: Robot, contact) -> np.ndarray:
@@ -238,8 +237,7 @@ def contact_corners_at_placement(robot: Robot, contact) -> np.ndarray:
     R = pin.rpy.rpyToMatrix(*(float(a) for a in contact.placement.rpy))
     p = np.asarray(contact.placement.position, dtype=float)
     xy = _contact_xy(robot, contact.frame)
-    local = np.column_stack([xy, np.zeros(len(xy))])
-    return local @ R.T + p
+    return points_in_world(np.column_stack([xy, np.zeros(len(xy))]), pin.SE3(R, p))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -279,11 +277,4 @@ def support_phases(robot: Robot, plan) -> list[SupportPhase]:
 
 def point_in_polygon_margin(point: np.ndarray, polygon: np.ndarray) -> float:
     """Signed distance [m] of a 2D point inside a convex CCW polygon (> 0 inside)."""
-    if len(polygon) < 3:
-        return float("-inf")
-    d = np.inf
-    for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
-        edge = b - a
-        n = np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)  # inward for CCW
-        d = min(d, float(n @ (point - a)))
-    return d
+    return polygon_margin(polygon, point)

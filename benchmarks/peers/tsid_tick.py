@@ -18,7 +18,7 @@ import pinocchio as pin
 import tsid
 from example_robot_data import robots_loader
 
-MU = 0.7 * 0.9  # friction coefficient used by the wbmp controller (profile x friction_scale)
+MU = 0.7 / 2**0.5  # the wbmp controller's per-axis pyramid bound (robots/contact.py: mu / sqrt 2, mu = 0.7)
 SOLE_X, SOLE_Y = 0.10, 0.06  # wbmp's Talos sole rectangle (half sizes) [m]
 W_COM, W_HAND, W_POSTURE, W_FORCE = 10.0, 1.0, 1e-3, 1e-7
 KP_COM, KP_HAND, KP_POSTURE, KP_CONTACT = 100.0, 100.0, 100.0, 10.0

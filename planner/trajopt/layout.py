@@ -31,7 +31,8 @@ import pinocchio as pin
 
 from planner.exceptions import PlannerError, SpecNotForRobot
 from robots.model import Robot
-from robots.polygon import convex_hull
+from robots.contact import halfplanes, sole_corners_in_world
+from robots.contact import support_polygon as polygon_of_soles
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
@@ -354,16 +355,14 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
     for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
         if not start - 1e-9 <= tk <= start + phase.duration + 1e-9:
             continue
-        pts = []
+        soles = []
         for c in phase.contacts:
             side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
             if side is None:
                 continue  # a hand or other contact: not part of the sole polygon
-            M = placement_of(c.placement)
-            corners = np.array([[x, y, 0.0] for x, y in robot.profile.sole.corners(side)])
-            pts.extend((corners @ M.rotation.T + M.translation)[:, :2])
-        if pts:
-            hulls.append(convex_hull(np.array(pts)))
+            soles.append(sole_corners_in_world(robot.profile.sole, side, placement_of(c.placement)))
+        if soles:
+            hulls.append(polygon_of_soles(soles))
     if not hulls:
         return np.zeros((0, 2))
     return min(hulls, key=_polygon_area)
@@ -372,18 +371,6 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
 def _polygon_area(hull: np.ndarray) -> float:
     x, y = hull[:, 0], hull[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-
-
-def halfplanes(hull: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(A, b) with ``A x <= b`` for a counter-clockwise convex polygon; rows have unit norm."""
-    A, b = [], []
-    for i in range(len(hull)):
-        p0, p1 = hull[i], hull[(i + 1) % len(hull)]
-        e = p1 - p0
-        n = np.array([e[1], -e[0]]) / np.linalg.norm(e)  # outward normal of a CCW polygon
-        A.append(n)
-        b.append(float(n @ p0))
-    return np.array(A), np.array(b)
 
 
 POLYGON_ROWS = {1: 4, 2: 8}  # padded number of rows by number of active soles

@@ -8,8 +8,10 @@ Constraints:
 * floating-base dynamics, the first six rows of :math:`M a + h = J_c^\top f`;
 * stance contacts, :math:`J_c a + \dot J_c v = -K_p e - K_d \dot e` (6D per sole, in the sole
   frame; Baumgarte feedback pulls a drifting sole back to where it touched down);
-* friction pyramids per corner, :math:`|f_x|, |f_y| \le \mu f_z` (hence :math:`f_z \ge 0`),
-  which keeps the centre of pressure inside the sole rectangle;
+* friction pyramids per corner, the contact model of :mod:`robots.contact`:
+  :math:`|f_x|, |f_y| \le \mu' f_z` with :math:`\mu' = \mu/\sqrt 2` (the 4-edge pyramid inscribed
+  in the Coulomb cone; hence :math:`f_z \ge 0`), which keeps the centre of pressure inside the
+  sole rectangle;
 * torque limits on the actuated rows, :math:`|M a + h - J_c^\top f|_{6:} \le \tau_{max}`.
 
 Costs (weighted least squares on accelerations, PD + feed-forward from the plan): centre of
@@ -36,6 +38,7 @@ from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
 from planner.wbc.reference import PlanReference
 from planner.wbc.settings import ControllerError, WbcSettings
+from robots.contact import pyramid_coefficient, pyramid_facets, sole_corners
 from robots.model import Robot
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
@@ -85,8 +88,9 @@ class WholeBodyController:
         self._neg_torque_limits = -self.torque_limits
         # force variables are scaled so that one unit is the per-corner share of the weight
         self._f_scale = robot.mass * 9.81 / 8.0  # [N]
-        mu = robot.profile.friction_coefficient * self.settings.friction_scale
-        self._mu = mu
+        # the contact model's pyramid (robots.contact): |fx|, |fy| <= mu' fz, mu' = mu / sqrt(2)
+        self._mu_contact = robot.profile.friction_coefficient * self.settings.friction_scale
+        self._mu = float(pyramid_coefficient(self._mu_contact))  # mu', the kernel's per-axis bound
         self._com_drift = self.settings.com_drift
         self._zero_a = np.zeros(nv)
         # pin.difference is computed inside the compiled kernel for a free flyer + 1-dof joints
@@ -154,11 +158,7 @@ class WholeBodyController:
         g0s = []
         for name in self._contacts:
             side = self.robot.foot_side(name) or "left"
-            corners = np.array([[x, y, 0.0] for x, y in self.robot.profile.sole.corners(side)])
-            centre = corners.mean(axis=0)
-            half = np.abs(corners - centre).max(axis=0)
-            shrink = np.clip((half - s.cop_margin) / np.where(half > 0, half, 1.0), 0.0, 1.0)
-            corners = centre + (corners - centre) * shrink
+            corners = sole_corners(self.robot.profile.sole, side, margin=s.cop_margin)
             g0 = np.zeros((6, 12))
             for k, c in enumerate(corners):
                 g0[:3, 3 * k : 3 * k + 3] = np.eye(3)
@@ -233,8 +233,7 @@ class WholeBodyController:
         self.C = np.zeros((self.n_in, self.n))
         self.l = np.full(self.n_in, -INFINITY)
         self.u = np.zeros(self.n_in)
-        mu = self._mu
-        pyramid = np.array([[1.0, 0.0, -mu], [-1.0, 0.0, -mu], [0.0, 1.0, -mu], [0.0, -1.0, -mu]])
+        pyramid = pyramid_facets(self._mu_contact)
         for i in range(nc):
             for k in range(4):
                 r0 = 16 * i + 4 * k

@@ -59,7 +59,9 @@ FAST_INEQUALITY = 1  # an inequality is violated: solve the full QP
 FAST_SINGULAR = 2  # the reduced system could not be solved
 ACTIVE_SET_SOLVED = 3  # solved with some friction/torque rows active (KKT conditions verified)
 
-_FACETS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))  # pyramid rows (+-fx or +-fy) - mu fz <= 0
+# pyramid rows (+-fx or +-fy) - mu' fz <= 0: robots.contact.PYRAMID_FACETS as a literal numba freezes
+# at compile time (tests/robots/test_contact.py checks that the two agree)
+_FACETS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
@@ -188,7 +190,7 @@ def tick_kernel(
         g0s: Corner-force to sole-wrench maps in the sole frame, force scale included (nc, 6, 12).
         stance: Indices of the stance contacts (ns,).
         force_reg: Weight ``d`` of the force regularization (scaled forces).
-        mu: Friction coefficient of the pyramids.
+        mu: Per-axis bound mu' of the friction pyramids (robots.contact.pyramid_coefficient) [-].
         tau_max: Torque limits (nv - 6,).
         tol: Feasibility tolerance of the inequality check.
         try_fast: Solve the equality-only QP (otherwise only assemble).

@@ -23,9 +23,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 from scipy.linalg import solve_banded
-from scipy.spatial import ConvexHull, QhullError
 
 from planner.results import Plan
+from robots.contact import points_in_world, sole_corners, support_polygon
 from robots.model import Robot
 
 
@@ -373,25 +373,17 @@ def support_polygons(
         side = robot.foot_side(name) or "left"
         sole = robot.profile.sole
         m = min(margin, 0.45 * (sole.x_max - sole.x_min), 0.45 * (sole.y_max - sole.y_min))
-        corners = np.array([[x, y, 0.0] for x, y in sole.corners(side)])
-        centre = corners.mean(axis=0)
-        corners[:, :2] -= m * np.sign(corners[:, :2] - centre[:2])
-        local[name] = corners
+        local[name] = sole_corners(sole, side, margin=m)
     for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
         mid = (lo + hi) // 2
         pts = [
-            local[name] @ ref.frames[name].rotation[mid].T + ref.frames[name].position[mid]
+            points_in_world(local[name], pin.SE3(ref.frames[name].rotation[mid], ref.frames[name].position[mid]))
             for c, name in enumerate(ref.contact_frames)
             if ref.active[lo, c]
         ]
-        if not pts:
+        verts = support_polygon(pts)
+        if len(verts) < 3:  # no stance contact, or a degenerate polygon (a line)
             continue
-        pts2 = np.vstack(pts)[:, :2]
-        try:
-            hull = ConvexHull(pts2)
-        except QhullError:
-            continue
-        verts = pts2[hull.vertices]
         centre = verts.mean(axis=0)
         out.append((np.arange(lo, hi), centre + scale * (verts - centre)))
     return out

@@ -28,7 +28,10 @@ class WbcSettings:
         acceleration_weight: Regularization of accelerations [-].
         com_kp, frame_kp, foot_kp, base_kp, posture_kp: PD stiffnesses [1/s^2].
         contact_kp: Baumgarte stiffness on stance-sole drift [1/s^2].
-        friction_scale: Fraction of the friction coefficient the controller may use [-].
+        friction_scale: Fraction of the friction coefficient the controller may use [-]. 1.0 by
+            default: the controller enforces the contact model of :mod:`robots.contact` (the
+            pyramid inscribed in the Coulomb cone, ``|fx|, |fy| <= mu fz / sqrt(2)``),
+            the same pyramid the planner plans with; below 1 shrinks that pyramid.
         cop_margin: The corner forces act this far inside the sole rectangle, which keeps the centre
             of pressure off the sole's edges [m].
         torque_scale: Fraction of each torque limit the controller may use [-]. 0.97 by
@@ -63,7 +66,7 @@ class WbcSettings:
     base_kp: float = 100.0
     posture_kp: float = 100.0
     contact_kp: float = 10.0
-    friction_scale: float = 0.9
+    friction_scale: float = 1.0
     cop_margin: float = 0.0
     torque_scale: float = 0.97
     com_drift: bool = True

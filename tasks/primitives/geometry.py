@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from robots.contact import convex_hull, polygon_margin, support_polygon
 from robots.model import Robot
-from robots.polygon import convex_hull
 from tasks.exceptions import TaskDefinitionError
 from tasks.specs import Pose
 
@@ -161,14 +161,7 @@ def ray_exit_distance(polygon: np.ndarray, start: np.ndarray, direction: np.ndar
 
 def inside_polygon_margin(polygon: np.ndarray, point: np.ndarray) -> float:
     """Signed distance of a 2D point inside a CCW convex polygon (> 0 inside) [m]."""
-    n = len(polygon)
-    out = math.inf
-    for i in range(n):
-        a, b = polygon[i], polygon[(i + 1) % n]
-        edge = b - a
-        normal = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
-        out = min(out, float(normal @ a - normal @ np.asarray(point, dtype=float)))
-    return out
+    return polygon_margin(polygon, point)
 
 
 def sole_polygon(robot: Robot, q: np.ndarray, side: str) -> np.ndarray:
@@ -219,7 +212,7 @@ def standing_geometry(robot: Robot) -> StandingGeometry:
     for side in ("left", "right"):
         corners = robot.sole_corners_in_world(q, side)
         sole_centers[side] = corners.mean(axis=0)
-    polygon = convex_hull(np.vstack([robot.sole_corners_in_world(q, s)[:, :2] for s in ("left", "right")]))
+    polygon = support_polygon([robot.sole_corners_in_world(q, s) for s in ("left", "right")])
     margin = min(SUPPORT_MARGIN_MAX, SUPPORT_MARGIN_FRACTION * min(sole.x_max - sole.x_min, sole.y_max - sole.y_min))
     neck: tuple[int, ...] = ()
     if robot.has_role("head"):

@@ -130,7 +130,7 @@ def test_user_profile_missing_roles(tmp_path, talos):
 
 def test_convex_hull_contains_every_point_counter_clockwise(rng):
     """The support-polygon hull is counter-clockwise and every input point lies inside it."""
-    from robots.polygon import convex_hull
+    from robots.contact import convex_hull
 
     for _ in range(50):
         pts = rng.uniform(-0.3, 0.3, size=(int(rng.integers(3, 20)), 2))

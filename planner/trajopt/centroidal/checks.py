@@ -12,6 +12,7 @@ from planner.results import ConstraintCheck
 from planner.trajopt.centroidal.contacts import contact_geometry_points
 from planner.trajopt.centroidal.pattern import CentroidalTerms
 from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
+from robots.contact import center_of_pressure, friction_violation, sole_corners
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout
@@ -42,43 +43,6 @@ def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[Con
         out.append(ConstraintCheck(name=f"CoM bound {bounds.name!r} support polygon at rest", violation=viol,
                                    tolerance=tolerance, unit="m", time=float(lay.t[k])))
     return out
-
-
-def friction_violation(forces: np.ndarray, rotation: np.ndarray, mu: float) -> np.ndarray:
-    """How far each force is outside the Coulomb cone and the unilateral half-space [N].
-
-    Args:
-        forces: (..., 3) world forces [N].
-        rotation: Contact frame in the world (3, 3).
-        mu: Friction coefficient [-].
-
-    Returns:
-        (...,) violation >= 0: ``max(0, |f_t| - mu f_n, -f_n)``.
-    """
-    local = np.asarray(forces, dtype=float) @ np.asarray(rotation)
-    fn = local[..., 2]
-    ft = np.linalg.norm(local[..., :2], axis=-1)
-    return np.maximum(0.0, np.maximum(ft - mu * fn, -fn))
-
-
-def center_of_pressure(points_in_frame: np.ndarray, forces: np.ndarray, rotation: np.ndarray, *, min_normal: float = 1e-6) -> np.ndarray:
-    """Centre of pressure of corner forces in the contact frame (x, y) [m]; NaN when unloaded.
-
-    Args:
-        points_in_frame: Corner points (n, 3) in the contact frame [m].
-        forces: (T, n, 3) world forces [N].
-        rotation: Contact frame in the world (3, 3).
-        min_normal: Total normal force below which the CoP is undefined [N].
-
-    Returns:
-        (T, 2) CoP in the contact frame.
-    """
-    fn = np.asarray(forces, dtype=float) @ np.asarray(rotation)[:, 2]  # (T, n)
-    total = fn.sum(axis=1)
-    cop = np.full((fn.shape[0], 2), np.nan)
-    ok = total > min_normal
-    cop[ok] = (fn[ok] @ points_in_frame[:, :2]) / total[ok, None]
-    return cop
 
 
 def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[float, float]) -> np.ndarray:
@@ -168,6 +132,7 @@ def dynamic_checks(
     model, data = lay.robot.model, lay.robot.data()
     depth = []
     sole = lay.robot.profile.sole
+    corners = {side: sole_corners(sole, side) for side in ("left", "right")}
     by_knot: dict[int, list[tuple[int, int]]] = {}
     for k, fid, i in corner_rows:
         by_knot.setdefault(k, []).append((fid, i))
@@ -175,8 +140,7 @@ def dynamic_checks(
         pin.framesForwardKinematics(model, data, q[k])
         for fid, i in rows:
             side = lay.robot.foot_side(model.frames[fid].name)
-            x, y = sole.corners(side)[i]
-            z = float((data.oMf[fid].act(np.array([x, y, 0.0])))[2])
+            z = float(data.oMf[fid].act(corners[side][i])[2])
             depth.append((-z, t[k]))
     worst("swing sole corners above the ground", depth, position_tolerance, "m")
     return checks

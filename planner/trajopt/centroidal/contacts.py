@@ -10,6 +10,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import PlannerError
+from robots.contact import sole_corners
 from robots.model import Robot
 from tasks.specs import Contact, Pose, TaskSpec
 
@@ -83,12 +84,7 @@ def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0)
                 f"CoP margin {cop_margin:g} m leaves no area of {robot.name}'s "
                 f"{sole.x_max - sole.x_min:.3f} x {sole.y_max - sole.y_min:.3f} m sole"
             )
-        corners = np.array(sole.corners(side), dtype=float)
-        centre = corners.mean(axis=0)
-        shrunk = centre + (corners - centre) * (
-            1.0 - 2.0 * cop_margin / np.array([sole.x_max - sole.x_min, sole.y_max - sole.y_min])
-        )
-        local = np.column_stack([shrunk, np.zeros(4)])
+        local = sole_corners(sole, side, margin=cop_margin)
     mu = contact.friction_coefficient or robot.profile.friction_coefficient
     return ContactGeometry(
         frame=frame,
@@ -167,4 +163,4 @@ def contact_geometry_points(robot: Robot, frame: str) -> np.ndarray | None:
     side = robot.foot_side(frame)
     if side is None:
         return None
-    return np.array(robot.profile.sole.corners(side), dtype=float)
+    return sole_corners(robot.profile.sole, side)[:, :2]

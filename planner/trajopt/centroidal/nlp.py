@@ -11,6 +11,7 @@ import casadi as ca
 import numpy as np
 
 from planner.trajopt.centroidal.pattern import CentroidalFunction
+from robots.contact import sole_corners
 from robots.model import Robot
 
 if TYPE_CHECKING:
@@ -31,8 +32,8 @@ def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
     out = []
     for side in ("left", "right"):
         R, p = kin.frame_placement(oMi, robot.frame_id(f"{side}_foot"))
-        for x, y in robot.profile.sole.corners(side):
-            out.append((p + ca.mtimes(R, ca.DM([x, y, 0.0])))[2])
+        for corner in sole_corners(robot.profile.sole, side):
+            out.append((p + ca.mtimes(R, ca.DM(corner)))[2])
     return ca.vertcat(*out)
 
 

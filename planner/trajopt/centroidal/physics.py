@@ -10,6 +10,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from robots.contact import pyramid_coefficient, pyramid_edges_in_contact
+
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2], world frame (z up)
 
 
@@ -62,12 +64,12 @@ def friction_pyramid(force: Any, rotation: Any, mu: Any, *, inner: bool = True) 
         force: Force (3,) in the world [N] (CasADi or numpy).
         rotation: Contact frame in the world (3, 3), columns t1, t2, n (numpy or CasADi).
         mu: Friction coefficient [-] (number or CasADi).
-        inner: Use the inner pyramid (conservative).
+        inner: The contact model's pyramid (:mod:`robots.contact`); False: the outer one.
 
     Returns:
         The 5 rows (CasADi column).
     """
-    mu_p = mu / math.sqrt(2.0) if inner else mu
+    mu_p = pyramid_coefficient(mu) if inner else mu
     local = ca.mtimes(_casadi(rotation).T, _casadi(force))
     fn = local[2]
     return ca.vertcat(fn, mu_p * fn - local[0], mu_p * fn + local[0], mu_p * fn - local[1], mu_p * fn + local[1])
@@ -84,18 +86,19 @@ def pyramid_edges(rotation: Any, mu: Any, *, inner: bool = True) -> Any:
     Args:
         rotation: Contact frame in the world (3, 3), columns t1, t2, n (numpy or CasADi).
         mu: Friction coefficient [-] (number or CasADi).
-        inner: Use the inner pyramid (conservative).
+        inner: The contact model's pyramid (:mod:`robots.contact`); False: the outer one.
 
     Returns:
         The edges (3, 4): numpy when ``rotation`` and ``mu`` are numbers, else CasADi.
     """
-    mu_p = mu / math.sqrt(2.0) if inner else mu
+    mu_p = pyramid_coefficient(mu) if inner else mu
     if isinstance(rotation, (ca.SX, ca.MX)) or isinstance(mu, (ca.SX, ca.MX)):
         local = ca.vertcat(ca.horzcat(mu_p, -mu_p, -mu_p, mu_p), ca.horzcat(mu_p, mu_p, -mu_p, -mu_p),
                            ca.DM.ones(1, 4))
         return ca.mtimes(_casadi(rotation), local)
-    mu_p = float(mu_p)
-    local = np.array([[mu_p, -mu_p, -mu_p, mu_p], [mu_p, mu_p, -mu_p, -mu_p], [1.0, 1.0, 1.0, 1.0]])
+    local = pyramid_edges_in_contact(float(mu))
+    if not inner:  # the outer pyramid (an experiment, not the contact model): edges (+-mu, +-mu, 1)
+        local[:2] = np.sign(local[:2]) * float(mu)
     return np.asarray(rotation, dtype=float) @ local
 
 

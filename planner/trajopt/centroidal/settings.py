@@ -13,7 +13,9 @@ class CentroidalSettings:
         force_weight: Cost on the squared weight-normalized corner forces (spreads the load over
             the corners, centres the CoP) [-].
         angular_momentum_weight: Cost on :math:`|\\dot L / (m g)|^2` [1/m^2].
-        inner_pyramid: Use the inner friction pyramid (:math:`\\mu/\\sqrt 2`).
+        inner_pyramid: Use the contact model's pyramid (:mod:`robots.contact`: inscribed in the
+            Coulomb cone, :math:`\\mu/\\sqrt 2` per axis). False: the outer pyramid (:math:`\\mu`
+            per axis), an experiment outside the model that the controller does not share.
         friction_edges: Parametrize each point force by non-negative weights on the 4 edges of
             its friction pyramid (:func:`pyramid_edges`; friction and unilaterality become
             variable bounds, no constraint rows). Off: 3 force components per point and 5
