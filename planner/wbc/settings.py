@@ -75,7 +75,7 @@ class WbcSettings:
     max_iter_in: int = 1500
     dense_backend: str = "Automatic"
     fast_path: bool = True
-    active_set_iterations: int = 6
+    active_set_iterations: int = 8
 
     def __post_init__(self) -> None:
         for name in (

@@ -60,7 +60,9 @@ def test_fast_solution_meets_the_kkt_conditions_of_the_full_qp(talos, arm):
     sm = build_model(talos, timestep=0.001)
     d = sm.data()
     fast = WholeBodyController(talos)
-    full = WholeBodyController(talos, WbcSettings(fast_path=False))
+    # The reference solves to 1e-7 so that the comparison measures the fast path, not
+    # proxsuite's own stopping error (0.038 N m at 1e-6 with the inscribed friction pyramid).
+    full = WholeBodyController(talos, WbcSettings(fast_path=False, eps_abs=1e-7))
     q, v = np.array(arm.q[0]), np.zeros(talos.nv)
     sm.set_state(d, q, v)
     for ctrl in (fast, full):
@@ -86,7 +88,7 @@ def test_fast_solution_meets_the_kkt_conditions_of_the_full_qp(talos, arm):
     assert fast.fast_ticks + fast.active_set_ticks >= 0.95 * n_ticks  # 400 of 400 on an AMD EPYC
 
 
-@pytest.mark.parametrize("active_set_iterations", [6, 0])
+@pytest.mark.parametrize("active_set_iterations", [8, 0])
 def test_active_torque_limits_solved_exactly(talos, arm, active_set_iterations):
     """Torque limits below the unconstrained optimum's torques.
 
