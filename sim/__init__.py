@@ -9,7 +9,8 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from sim.certificate import Certificate, Check
+    from planner.results import Check, CheckKind
+    from sim.certificate import Certificate
     from sim.exceptions import PushParseError, SimError, SimModelError
     from sim.execution import Event, Execution
     from sim.loop import simulate
@@ -19,7 +20,8 @@ if TYPE_CHECKING:
 
 _EXPORTS = {  # public name -> module that defines it
     "Certificate": "sim.certificate",
-    "Check": "sim.certificate",
+    "Check": "planner.results",
+    "CheckKind": "planner.results",
     "Event": "sim.execution",
     "Execution": "sim.execution",
     "MAX_PUSH_FORCE": "sim.push",
@@ -39,6 +41,7 @@ __all__ = [
     "MAX_PUSH_FORCE",
     "Certificate",
     "Check",
+    "CheckKind",
     "Event",
     "Execution",
     "Push",

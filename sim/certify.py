@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from sim.certificate import Check
+from planner.results import Check, CheckKind
 from sim.recording import RunRecord, tilt, torque_fraction
 
 
@@ -99,6 +99,7 @@ def fall_checks(run: RunRecord) -> tuple[Check, Check]:
     tk = int(below[0]) if len(below) else k
     height = Check(
         name="base height",
+        kind=CheckKind.BASE_HEIGHT,
         value=float(z[tk]),
         limit=fall_height,
         unit="m",
@@ -112,6 +113,7 @@ def fall_checks(run: RunRecord) -> tuple[Check, Check]:
     tk = int(over[0]) if len(over) else int(np.argmax(angle))
     tilted = Check(
         name="base tilt",
+        kind=CheckKind.BASE_TILT,
         value=float(angle[tk]),
         limit=max_tilt,
         unit="rad",
@@ -142,10 +144,11 @@ def unplanned_contacts_check(run: RunRecord, meas: Measured) -> Check:
             bad_times.append(float(ts[j]))
             names.append(frame)
     if not bad_times:
-        return Check(name="unplanned contacts", value=0.0, limit=0.0, unit="count", ok=True, time=0.0)
+        return Check(name="unplanned contacts", kind=CheckKind.UNPLANNED_CONTACTS, value=0.0, limit=0.0, unit="count", ok=True, time=0.0)
     j = int(np.argmin(bad_times))
     return Check(
         name="unplanned contacts",
+        kind=CheckKind.UNPLANNED_CONTACTS,
         value=float(len(set(names))),
         limit=0.0,
         unit="count",
@@ -191,6 +194,8 @@ def foot_checks(run: RunRecord, meas: Measured) -> list[Check]:
         out.append(
             Check(
                 name=f"{label} placement error",
+                kind=CheckKind.FOOT_PLACEMENT,
+                subject=label,
                 value=float(gap[kg]),
                 limit=s.placement_limit,
                 unit="m",
@@ -203,6 +208,8 @@ def foot_checks(run: RunRecord, meas: Measured) -> list[Check]:
         out.append(
             Check(
                 name=f"{label} slip",
+                kind=CheckKind.FOOT_SLIP,
+                subject=label,
                 value=worst,
                 limit=s.slip_limit,
                 unit="m",
@@ -225,6 +232,7 @@ def peak_torque_check(run: RunRecord) -> Check:
     j_first = int(np.argmax(frac[first]))
     return Check(
         name="peak torque",
+        kind=CheckKind.PEAK_TORQUE,
         value=100 * peak,
         limit=100 * s.torque_fraction_limit,
         unit="%",
@@ -244,6 +252,7 @@ def qp_failures_check(run: RunRecord) -> Check:
     ratio = qp_failures / max(n_ticks, 1)
     return Check(
         name="QP failures",
+        kind=CheckKind.QP_FAILURES,
         value=100 * ratio,
         limit=100 * s.qp_failure_limit,
         unit="%",
@@ -260,6 +269,7 @@ def com_tracking_check(run: RunRecord, meas: Measured) -> Check:
     k = int(np.argmax(com_err))
     return Check(
         name="CoM tracking error",
+        kind=CheckKind.COM_TRACKING,
         value=float(com_err[k]),
         limit=s.com_error_limit,
         unit="m",
@@ -280,6 +290,8 @@ def hand_checks(run: RunRecord, meas: Measured) -> list[Check]:
         out.append(
             Check(
                 name=f"{role} tracking error",
+                kind=CheckKind.HAND_TRACKING,
+                subject=role,
                 value=float(err[k]),
                 limit=s.hand_error_limit,
                 unit="m",
@@ -312,7 +324,7 @@ def target_checks(run: RunRecord, meas: Measured) -> list[Check]:
         mask = _target_mask(ts, target.time, target.window, run.ref.duration)
         limit = target.tolerance + s.target_margin
         if not mask.any():
-            out.append(_never_reached(f"target {target.name!r}", limit, ts))
+            out.append(_never_reached(f"target {target.name!r}", CheckKind.TARGET_POSITION, target.name, limit, ts))
             continue
         err = np.zeros(len(ts))
         if target.position is not None:
@@ -337,6 +349,8 @@ def target_checks(run: RunRecord, meas: Measured) -> list[Check]:
         out.append(
             Check(
                 name=f"target {target.name!r}",
+                kind=CheckKind.TARGET_POSITION,
+                subject=target.name,
                 value=float(err_m[k]),
                 limit=limit,
                 unit="m",
@@ -357,7 +371,7 @@ def com_target_checks(run: RunRecord) -> list[Check]:
         limit = target.tolerance + s.target_margin
         name = f"CoM target {target.name!r}"
         if not mask.any():
-            out.append(_never_reached(name, limit, ts))
+            out.append(_never_reached(name, CheckKind.COM_TARGET, target.name, limit, ts))
             continue
         axes = np.array([v is not None for v in target.position], dtype=float)
         goal = np.array([0.0 if v is None else v for v in target.position])
@@ -366,6 +380,8 @@ def com_target_checks(run: RunRecord) -> list[Check]:
         out.append(
             Check(
                 name=name,
+                kind=CheckKind.COM_TARGET,
+                subject=target.name,
                 value=float(err[k]),
                 limit=limit,
                 unit="m",
@@ -377,9 +393,9 @@ def com_target_checks(run: RunRecord) -> list[Check]:
     return out
 
 
-def _never_reached(name: str, limit: float, ts: np.ndarray) -> Check:
+def _never_reached(name: str, kind: CheckKind, subject: str, limit: float, ts: np.ndarray) -> Check:
     """The failed check of a target whose time the simulation never reached (it stopped early)."""
     return Check(
-        name=name, value=math.inf, limit=limit, unit="m", ok=False, time=float(ts[-1]),
+        name=name, kind=kind, subject=subject, value=math.inf, limit=limit, unit="m", ok=False, time=float(ts[-1]),
         message=f"{name} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
     )
