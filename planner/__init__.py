@@ -7,8 +7,8 @@ cheap: CasADi, numba and proxsuite load only when a name that needs them is used
 
 * :func:`plan` (:mod:`planner.trajopt.api`) turns a ``TaskSpec`` into a :class:`Plan`;
   :class:`PlannerSettings` configures it.
-* :class:`Plan`, :class:`SolverStats`, :class:`SolveStatus`, :class:`ConstraintCheck`
-  (:mod:`planner.results`) report it.
+* :class:`Plan`, :class:`SolverStats`, :class:`SolveStatus`, :class:`Check` and :class:`CheckKind`
+  (:mod:`planner.results`) report it (``ConstraintCheck`` is :class:`Check`'s former name).
 * :class:`WholeBodyController` and :class:`WbcSettings` (:mod:`planner.wbc`) track it.
 * :class:`PlannerError` and its subclasses are what the planner raises.
 
@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from planner.exceptions import PlannerError, PlanningFailed, UnsupportedModel
-    from planner.results import ConstraintCheck, Plan, SolverStats, SolveStatus
+    from planner.results import Check, CheckKind, ConstraintCheck, Plan, SolverStats, SolveStatus
     from planner.trajopt.api import plan
     from planner.trajopt.centroidal.settings import CentroidalSettings
     from planner.trajopt.settings import PlannerSettings
@@ -32,6 +32,8 @@ if TYPE_CHECKING:
 
 _EXPORTS = {  # public name -> module that defines it
     "CentroidalSettings": "planner.trajopt.centroidal.settings",
+    "Check": "planner.results",
+    "CheckKind": "planner.results",
     "ConstraintCheck": "planner.results",
     "ControllerError": "planner.wbc.settings",
     "Plan": "planner.results",
@@ -48,6 +50,8 @@ _EXPORTS = {  # public name -> module that defines it
 
 __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
     "CentroidalSettings",
+    "Check",
+    "CheckKind",
     "ConstraintCheck",
     "ControllerError",
     "Plan",

@@ -1,8 +1,12 @@
-"""Planner results: the planned motion, solver statistics and the constraint report."""
+"""Planner results: the planned motion, solver statistics and the constraint report.
+
+:class:`Check` (with :class:`CheckKind`) is also the record of the simulation's certificate
+(``sim.certificate``): one check type for the planner's report and the certificate."""
 
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -56,28 +60,128 @@ class SolverStats:
     raw_status: str = ""
 
 
+class CheckKind(enum.Enum):
+    """What a :class:`Check` checks; code finds checks by kind (and subject), never by name.
+
+    The planner's report (a constraint group's worst violation over the horizon):
+    ``CONTACT_POSITION``, ``CONTACT_ORIENTATION``, ``SWING_CLEARANCE`` (subject: the frame),
+    ``COM_SUPPORT_POLYGON``, ``COM_SUPPORT_POLYGON_AT_REST``, ``COM_BOX`` (subject: the bound's
+    name), ``TARGET_POSITION``, ``TARGET_ORIENTATION``, ``COM_TARGET`` (subject: the target's name),
+    ``JOINT_POSITION_LIMITS``, ``JOINT_VELOCITY_LIMITS``; a dynamic plan adds ``COM_DYNAMICS``,
+    ``FRICTION_CONE``, ``CENTRE_OF_PRESSURE`` (subject: the frame), ``FORCE_WITHOUT_CONTACT`` and
+    ``SWING_SOLE_CORNERS``.
+
+    The simulation's certificate: ``BASE_HEIGHT``, ``BASE_TILT``, ``UNPLANNED_CONTACTS``,
+    ``FOOT_PLACEMENT``, ``FOOT_SLIP`` (subject: ``left_foot``/``right_foot``, or the frame),
+    ``PEAK_TORQUE``, ``QP_FAILURES``, ``COM_TRACKING``, ``HAND_TRACKING`` (subject: the hand's
+    role), and ``TARGET_POSITION`` (there its orientation must also be within its tolerance +
+    0.1 rad) and ``COM_TARGET`` as measured in the simulation.
+
+    ``RECORDED``: a check read back from a motion file, whose report stores no kind.
+    """
+
+    CONTACT_POSITION = "contact_position"
+    CONTACT_ORIENTATION = "contact_orientation"
+    SWING_CLEARANCE = "swing_clearance"
+    COM_SUPPORT_POLYGON = "com_support_polygon"
+    COM_SUPPORT_POLYGON_AT_REST = "com_support_polygon_at_rest"
+    COM_BOX = "com_box"
+    TARGET_POSITION = "target_position"
+    TARGET_ORIENTATION = "target_orientation"
+    COM_TARGET = "com_target"
+    JOINT_POSITION_LIMITS = "joint_position_limits"
+    JOINT_VELOCITY_LIMITS = "joint_velocity_limits"
+    COM_DYNAMICS = "com_dynamics"
+    FRICTION_CONE = "friction_cone"
+    CENTRE_OF_PRESSURE = "centre_of_pressure"
+    FORCE_WITHOUT_CONTACT = "force_without_contact"
+    SWING_SOLE_CORNERS = "swing_sole_corners"
+    BASE_HEIGHT = "base_height"
+    BASE_TILT = "base_tilt"
+    UNPLANNED_CONTACTS = "unplanned_contacts"
+    FOOT_PLACEMENT = "foot_placement"
+    FOOT_SLIP = "foot_slip"
+    PEAK_TORQUE = "peak_torque"
+    QP_FAILURES = "qp_failures"
+    COM_TRACKING = "com_tracking"
+    HAND_TRACKING = "hand_tracking"
+    RECORDED = "recorded"
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
-class ConstraintCheck:
-    """Worst violation of one constraint group over the horizon.
+class Check:
+    """One check with its number and verdict: a constraint group of the planner's report, or a
+    physical check of the simulation's certificate.
+
+    A planner check (:meth:`constraint`) has ``value`` = the group's worst violation (>= 0) and
+    ``limit`` = the accepted violation; ``violation`` and ``tolerance`` name them so.
 
     Attributes:
-        name: Group name ("left_foot contact position", "CoM support polygon", "right hand target").
-        violation: Worst violation, >= 0 (0 = satisfied) [unit].
-        tolerance: Accepted violation [unit].
-        unit: ``m``, ``rad``, ``rad/s``, ``N``...
-        time: Time of the worst violation [s].
+        name: What was checked, in words ("left_foot contact position", "base height",
+            "target 'wave #1'"); shown and stored, never parsed.
+        kind: What was checked, for code (:class:`CheckKind`).
+        value: The measured worst value [unit].
+        limit: The accepted bound [unit].
+        unit: ``m``, ``rad``, ``rad/s``, ``N``, ``%``, ``count``...
+        time: Time of the worst value (or of the first violation) [s].
+        ok: Verdict.
+        message: The failure in words (empty when ok, and for the planner's checks).
+        upper: True when ``value`` must stay <= ``limit``, False when it must stay >= ``limit``.
+        subject: The spec item, frame or role checked (a target's or bound's name, a frame,
+            ``left_foot``); empty when the check is about the whole robot.
+
+    ``kind`` and ``subject`` do not take part in equality: a check read back from a motion file
+    (which stores neither) equals the one that was written.
     """
 
     name: str
-    violation: float
-    tolerance: float
+    kind: CheckKind = field(compare=False)
+    value: float
+    limit: float
     unit: str
     time: float
+    ok: bool
+    message: str = ""
+    upper: bool = True
+    subject: str = field(default="", compare=False)
+
+    @classmethod
+    def constraint(cls, *, name: str, kind: CheckKind, violation: float, tolerance: float, unit: str,
+                   time: float, subject: str = "") -> Check:
+        """A constraint group's check: ok when its worst ``violation`` is within ``tolerance``."""
+        return cls(name=name, kind=kind, value=violation, limit=tolerance, unit=unit, time=time,
+                   ok=bool(violation <= tolerance), subject=subject)
 
     @property
-    def ok(self) -> bool:
-        """True when the violation is within tolerance."""
-        return bool(self.violation <= self.tolerance)
+    def violation(self) -> float:
+        """A constraint group's worst violation (``value``) [unit]."""
+        return self.value
+
+    @property
+    def tolerance(self) -> float:
+        """A constraint group's accepted violation (``limit``) [unit]."""
+        return self.limit
+
+    def to_dict(self) -> dict[str, Any]:
+        """The certificate's JSON form of the check (NaN/inf become None)."""
+        return {
+            "name": self.name,
+            "value": _json_float(self.value),
+            "limit": _json_float(self.limit),
+            "unit": self.unit,
+            "ok": bool(self.ok),
+            "time": _json_float(self.time),
+            "message": self.message,
+            "upper": self.upper,
+        }
+
+
+#: The planner report's name for :class:`Check` (kept for existing imports).
+ConstraintCheck = Check
+
+
+def _json_float(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -109,7 +213,7 @@ class Plan:
     com: np.ndarray
     forces: Mapping[str, np.ndarray] = field(default_factory=dict)
     stats: SolverStats
-    checks: tuple[ConstraintCheck, ...] = ()
+    checks: tuple[Check, ...] = ()
     diagnosis: str = ""
     extras: Mapping[str, Any] = field(default_factory=dict)
 

@@ -9,34 +9,39 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from sim.certificate import Certificate, Check
+    from planner.results import Check, CheckKind
+    from sim.certificate import Certificate
     from sim.exceptions import PushParseError, SimError, SimModelError
     from sim.execution import Event, Execution
+    from sim.loop import simulate
     from sim.model import SimModel, build_model
-    from sim.run import MAX_PUSH_FORCE, Push, SimSettings, check_push_time, parse_push, simulate
+    from sim.push import MAX_PUSH_FORCE, Push, check_push_time, parse_push
+    from sim.settings import SimSettings
 
 _EXPORTS = {  # public name -> module that defines it
     "Certificate": "sim.certificate",
-    "Check": "sim.certificate",
+    "Check": "planner.results",
+    "CheckKind": "planner.results",
     "Event": "sim.execution",
     "Execution": "sim.execution",
-    "MAX_PUSH_FORCE": "sim.run",
-    "Push": "sim.run",
+    "MAX_PUSH_FORCE": "sim.push",
+    "Push": "sim.push",
     "PushParseError": "sim.exceptions",
     "SimError": "sim.exceptions",
     "SimModel": "sim.model",
     "SimModelError": "sim.exceptions",
-    "SimSettings": "sim.run",
+    "SimSettings": "sim.settings",
     "build_model": "sim.model",
-    "check_push_time": "sim.run",
-    "parse_push": "sim.run",
-    "simulate": "sim.run",
+    "check_push_time": "sim.push",
+    "parse_push": "sim.push",
+    "simulate": "sim.loop",
 }
 
 __all__ = [
     "MAX_PUSH_FORCE",
     "Certificate",
     "Check",
+    "CheckKind",
     "Event",
     "Execution",
     "Push",

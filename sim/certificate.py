@@ -1,4 +1,7 @@
-"""The certificate of a simulated motion: every physical check with its number and verdict."""
+"""The certificate of a simulated motion: every physical check with its number and verdict.
+
+Each check is a :class:`planner.results.Check` (the record the planner's report uses too).
+"""
 
 from __future__ import annotations
 
@@ -6,47 +9,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from planner.results import Check, CheckKind
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Check:
-    """One named check of a simulated motion.
-
-    Attributes:
-        name: What was checked ("base height", "left_foot slip", "target 'wave #1'").
-        value: The measured worst value [unit].
-        limit: The accepted bound [unit].
-        unit: ``m``, ``rad``, ``%``, ``count``...
-        ok: Verdict.
-        time: Time of the worst value (or of the first violation) [s].
-        message: The failure in words (empty when ok).
-        upper: True when ``value`` must stay <= ``limit``, False when it must stay >= ``limit``.
-    """
-
-    name: str
-    value: float
-    limit: float
-    unit: str
-    ok: bool
-    time: float
-    message: str = ""
-    upper: bool = True
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict (NaN/inf become None)."""
-        return {
-            "name": self.name,
-            "value": _json_float(self.value),
-            "limit": _json_float(self.limit),
-            "unit": self.unit,
-            "ok": bool(self.ok),
-            "time": _json_float(self.time),
-            "message": self.message,
-            "upper": self.upper,
-        }
-
-
-def _json_float(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
+__all__ = ["Certificate", "Check", "CheckKind"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

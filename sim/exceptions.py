@@ -13,5 +13,5 @@ class SimModelError(SimError):
 
 class PushParseError(SimError, ValueError):
     """A push is not ``FORCE@TIME`` (e.g. ``80@1.5``), or a value is out of range: the force
-    (above 0 N, at most ``sim.run.MAX_PUSH_FORCE``), the time (within the motion) or the duration.
+    (above 0 N, at most ``sim.push.MAX_PUSH_FORCE``), the time (within the motion) or the duration.
     The CLI maps it to exit code 2 (bad usage)."""

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from planner import ConstraintCheck, Plan, SolverStats, SolveStatus
+from planner import Check, CheckKind, Plan, SolverStats, SolveStatus
 from tasks.exceptions import TaskError
 from tasks.serialize import spec_from_json, spec_to_json
 from viz.files import Staging, atomic_write
@@ -422,7 +422,7 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
                       version=int(version))
 
 
-def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[ConstraintCheck, ...], str]:
+def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[Check, ...], str]:
     """Solver stats, checks and diagnosis of the report, with the bad field named."""
     def bad(field_name: str, value: Any, want: str) -> MotionFileError:
         return _fail(shown, f"key 'report_json': {field_name} must be {want}, got {str(value)[:80]!r}")
@@ -475,8 +475,8 @@ def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[Constrai
         for name in ("name", "violation", "unit", "time"):
             if name not in c:
                 raise _fail(shown, f"key 'report_json': {prefix}{name} is missing")
-        checks.append(ConstraintCheck(
-            name=text(c, "name", prefix, ""), violation=number(c, "violation", prefix, 0.0),
+        checks.append(Check.constraint(
+            name=text(c, "name", prefix, ""), kind=CheckKind.RECORDED, violation=number(c, "violation", prefix, 0.0),
             tolerance=number(c, "tolerance", prefix, float("inf"), optional=True),
             unit=text(c, "unit", prefix, ""), time=number(c, "time", prefix, 0.0)))
     diagnosis = report.get("diagnosis", "")

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from planner.results import ConstraintCheck
+from planner.results import Check, CheckKind
 from planner.trajopt.layout import Layout, halfplanes, knots_of, placement_of, support_polygon
 from planner.trajopt.settings import PlannerSettings
 from tasks.specs import Priority
@@ -38,16 +38,18 @@ def finite_differences(model: pin.Model, q: np.ndarray, dt: float) -> tuple[np.n
     return v, a
 
 
-def _worst(name: str, values: np.ndarray, times: np.ndarray, tolerance: float, unit: str) -> ConstraintCheck:
+def _worst(name: str, kind: CheckKind, values: np.ndarray, times: np.ndarray, tolerance: float, unit: str,
+           subject: str = "") -> Check:
     if len(values) == 0:
-        return ConstraintCheck(name=name, violation=0.0, tolerance=tolerance, unit=unit, time=0.0)
+        return Check.constraint(name=name, kind=kind, violation=0.0, tolerance=tolerance, unit=unit, time=0.0,
+                                subject=subject)
     i = int(np.argmax(values))
-    return ConstraintCheck(name=name, violation=float(max(values[i], 0.0)), tolerance=tolerance, unit=unit,
-                           time=float(times[i]))
+    return Check.constraint(name=name, kind=kind, violation=float(max(values[i], 0.0)), tolerance=tolerance,
+                            unit=unit, time=float(times[i]), subject=subject)
 
 
 def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
-               settings: PlannerSettings) -> list[ConstraintCheck]:
+               settings: PlannerSettings) -> list[Check]:
     """Every constraint group's worst violation, evaluated with Pinocchio at the knots."""
     robot, spec, t = lay.robot, lay.spec, lay.t
     model, data = robot.model, robot.data()
@@ -55,7 +57,7 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     for qk in q:
         pin.framesForwardKinematics(model, data, qk)
         placements.append([data.oMf[i].copy() for i in range(model.nframes)])
-    checks: list[ConstraintCheck] = []
+    checks: list[Check] = []
     # stance soles
     names: dict[int, str] = {}
     pos_err: dict[int, list] = {}
@@ -68,19 +70,22 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
             rot_err.setdefault(fid, []).append((np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)), t[k]))
     for fid, frame in names.items():
         pe, rt = np.array(pos_err[fid]).T
-        checks.append(_worst(f"{frame} contact position", pe, rt, settings.contact_tolerance, "m"))
+        checks.append(_worst(f"{frame} contact position", CheckKind.CONTACT_POSITION, pe, rt,
+                             settings.contact_tolerance, "m", frame))
         re, rt = np.array(rot_err[fid]).T
-        checks.append(_worst(f"{frame} contact orientation", re, rt, settings.contact_tolerance, "rad"))
+        checks.append(_worst(f"{frame} contact orientation", CheckKind.CONTACT_ORIENTATION, re, rt,
+                             settings.contact_tolerance, "rad", frame))
     # swing clearance (from the layout's clearance terms)
     clear: dict[str, list] = {}
     for term in lay.terms:
         if term.kind == "clearance":
             z = placements[term.knot][term.structure[1]].translation[2]
             frame = term.label.split()[0]
-            clear.setdefault(f"{frame} clearance", []).append((term.lower[0] - z, t[term.knot]))
-    for name, rows in clear.items():
+            clear.setdefault(frame, []).append((term.lower[0] - z, t[term.knot]))
+    for frame, rows in clear.items():
         vals, times = np.array(rows).T
-        checks.append(_worst(name, vals, times, settings.polygon_tolerance, "m"))
+        checks.append(_worst(f"{frame} clearance", CheckKind.SWING_CLEARANCE, vals, times,
+                             settings.polygon_tolerance, "m", frame))
     # CoM bounds
     for bounds in spec.com_bounds:
         ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)
@@ -101,11 +106,12 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
             box.append((viol, t[k]))
         if bounds.support_polygon and poly:
             vals, times = np.array(poly).T
-            checks.append(_worst(f"CoM bound {bounds.name!r} support polygon", vals, times,
-                                 settings.polygon_tolerance, "m"))
+            checks.append(_worst(f"CoM bound {bounds.name!r} support polygon", CheckKind.COM_SUPPORT_POLYGON, vals,
+                                 times, settings.polygon_tolerance, "m", bounds.name))
         if any(x is not None for x in (*bounds.lower, *bounds.upper)) and box:
             vals, times = np.array(box).T
-            checks.append(_worst(f"CoM bound {bounds.name!r} box", vals, times, settings.polygon_tolerance, "m"))
+            checks.append(_worst(f"CoM bound {bounds.name!r} box", CheckKind.COM_BOX, vals, times,
+                                 settings.polygon_tolerance, "m", bounds.name))
     # frame targets
     for target in spec.targets:
         fid = robot.frame_id(target.frame)
@@ -114,31 +120,35 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         if target.position is not None:
             axes = np.array(target.axes)
             errs = [np.linalg.norm((placements[k][fid].translation - np.array(target.position))[axes]) for k in ks]
-            checks.append(_worst(f"{target.frame} target {target.name!r}", np.array(errs), t[ks],
-                                 target.tolerance * tol_scale + 1e-9, "m"))
+            checks.append(_worst(f"{target.frame} target {target.name!r}", CheckKind.TARGET_POSITION, np.array(errs),
+                                 t[ks], target.tolerance * tol_scale + 1e-9, "m", target.name))
         if target.rpy is not None:
             R_t = pin.rpy.rpyToMatrix(*target.rpy)
             errs = [np.linalg.norm(pin.log3(R_t.T @ placements[k][fid].rotation)) for k in ks]
-            checks.append(_worst(f"{target.frame} orientation target {target.name!r}", np.array(errs), t[ks],
-                                 target.orientation_tolerance * tol_scale + 1e-9, "rad"))
+            checks.append(_worst(f"{target.frame} orientation target {target.name!r}", CheckKind.TARGET_ORIENTATION,
+                                 np.array(errs), t[ks], target.orientation_tolerance * tol_scale + 1e-9, "rad",
+                                 target.name))
     for target in spec.com_targets:
         ks = knots_of(t, target.time, target.window, lay.N)
         axes = np.array([v is not None for v in target.position])
         goal = np.array([0.0 if v is None else v for v in target.position])
         errs = [np.linalg.norm((com[k] - goal)[axes]) for k in ks]
         tol = target.tolerance if target.priority is Priority.HARD else math.inf
-        checks.append(_worst(f"CoM target {target.name!r}", np.array(errs), t[ks], tol + 1e-9, "m"))
+        checks.append(_worst(f"CoM target {target.name!r}", CheckKind.COM_TARGET, np.array(errs), t[ks], tol + 1e-9,
+                             "m", target.name))
     # joint limits
     lower = np.asarray(model.lowerPositionLimit, dtype=float)[7:]
     upper = np.asarray(model.upperPositionLimit, dtype=float)[7:]
     lower = np.where(np.abs(lower) < 1e10, lower, -np.inf)
     upper = np.where(np.abs(upper) < 1e10, upper, np.inf)
     viol = np.maximum(lower - q[:, 7:], q[:, 7:] - upper).max(axis=1)
-    checks.append(_worst("joint position limits", viol, t, settings.limit_tolerance, "rad"))
+    checks.append(_worst("joint position limits", CheckKind.JOINT_POSITION_LIMITS, viol, t, settings.limit_tolerance,
+                         "rad"))
     vmax = np.asarray(model.velocityLimit, dtype=float)[6:]
     vmax = np.where((vmax > 0) & (vmax < 1e10), vmax, np.inf)
     vviol = (np.abs(v[:, 6:]) - vmax).max(axis=1)
-    checks.append(_worst("joint velocity limits", vviol, t, settings.limit_tolerance / lay.dt, "rad/s"))
+    checks.append(_worst("joint velocity limits", CheckKind.JOINT_VELOCITY_LIMITS, vviol, t,
+                         settings.limit_tolerance / lay.dt, "rad/s"))
     return checks
 
 

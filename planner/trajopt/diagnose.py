@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from planner.results import Plan
+from planner.results import Check, CheckKind, Plan
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from tasks.specs import Priority
@@ -37,10 +37,10 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
             relaxed = make_plan(relaxed_lay, dq, stats, settings)
             misses = []
             for chk in relaxed.checks:
-                item = _target_of(chk.name, hard, hard_com)
+                item = _target_of(chk, hard, hard_com)
                 if item is None:
                     continue
-                tol = item.tolerance if "orientation" not in chk.name else item.orientation_tolerance
+                tol = item.orientation_tolerance if chk.kind is CheckKind.TARGET_ORIENTATION else item.tolerance
                 if chk.violation > tol:
                     misses.append((chk.violation - tol, chk, item))
             if misses:
@@ -59,19 +59,23 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
         return f"the solver stopped: {status} ({failed.stats.raw_status}) after {failed.stats.iterations} iterations"
     c = bad[0]
     phase = spec.phases[spec.phase_at(c.time)].name
-    if c.name.startswith("CoM bound"):
-        name = c.name.split(" support polygon")[0].split(" box")[0]
+    if c.kind in _COM_BOUND_KINDS:
+        name = f"CoM bound {c.subject!r}"
         return (f"{name} cannot hold in phase {phase!r}: the CoM ends {c.violation:.3f} m outside at "
                 f"t = {c.time:.2f} s ({status})")
     return (f"{c.name} violated by {c.violation:.3g} {c.unit} at t = {c.time:.2f} s in phase {phase!r} "
             f"({status})")
 
 
-def _target_of(check_name: str, hard, hard_com):
-    for tg in hard:
-        if check_name.endswith(f"target {tg.name!r}"):
-            return tg
-    for tg in hard_com:
-        if check_name == f"CoM target {tg.name!r}":
-            return tg
-    return None
+_COM_BOUND_KINDS = (CheckKind.COM_SUPPORT_POLYGON, CheckKind.COM_SUPPORT_POLYGON_AT_REST, CheckKind.COM_BOX)
+
+
+def _target_of(check: Check, hard, hard_com):
+    """The hard frame or CoM target that ``check`` is about, or None."""
+    if check.kind in (CheckKind.TARGET_POSITION, CheckKind.TARGET_ORIENTATION):
+        candidates = hard
+    elif check.kind is CheckKind.COM_TARGET:
+        candidates = hard_com
+    else:
+        return None
+    return next((tg for tg in candidates if tg.name == check.subject), None)

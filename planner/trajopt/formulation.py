@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 if TYPE_CHECKING:
     import numpy as np
 
-    from planner.results import ConstraintCheck, Plan
+    from planner.results import Check, Plan
     from planner.trajopt.settings import PlannerSettings
 
 
@@ -62,7 +62,7 @@ class Formulation(Protocol):
         ...
 
     def plan_checks(self, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
-                    checks: list[ConstraintCheck], settings: PlannerSettings) -> list[ConstraintCheck]:
+                    checks: list[Check], settings: PlannerSettings) -> list[Check]:
         """The kinematic constraint report of a plan with this formulation's own checks."""
         ...
 

@@ -36,7 +36,7 @@ from robots.contact import support_polygon as polygon_of_soles
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
-    from planner.results import ConstraintCheck, Plan
+    from planner.results import Check, Plan
     from planner.trajopt.settings import PlannerSettings
 
 INF = math.inf
@@ -166,7 +166,7 @@ class Layout:
         return None
 
     def plan_checks(self, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
-                    checks: list[ConstraintCheck], settings: PlannerSettings) -> list[ConstraintCheck]:
+                    checks: list[Check], settings: PlannerSettings) -> list[Check]:
         """The constraint report of a plan, with the formulation's own checks."""
         return checks
 

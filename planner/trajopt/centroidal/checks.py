@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 
-from planner.results import ConstraintCheck
+from planner.results import Check, CheckKind
 from planner.trajopt.centroidal.contacts import contact_geometry_points
 from planner.trajopt.centroidal.pattern import CentroidalTerms
 from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout
 
 
-def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
+def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[Check]:
     """Support-polygon CoM bounds of a dynamic plan, where they apply: at the last knot (at rest).
 
     Args:
@@ -29,7 +29,6 @@ def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[Con
     Returns:
         One check per support-polygon bound of the spec.
     """
-    from planner.results import ConstraintCheck
     from planner.trajopt.layout import halfplanes, support_polygon
 
     out = []
@@ -40,8 +39,9 @@ def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[Con
             continue
         A, b = halfplanes(hull)
         viol = max(0.0, float(np.max(A @ com[k, :2] - (b - bounds.margin))))
-        out.append(ConstraintCheck(name=f"CoM bound {bounds.name!r} support polygon at rest", violation=viol,
-                                   tolerance=tolerance, unit="m", time=float(lay.t[k])))
+        out.append(Check.constraint(name=f"CoM bound {bounds.name!r} support polygon at rest",
+                                    kind=CheckKind.COM_SUPPORT_POLYGON_AT_REST, violation=viol, tolerance=tolerance,
+                                    unit="m", time=float(lay.t[k]), subject=bounds.name))
     return out
 
 
@@ -64,7 +64,7 @@ def dynamic_checks(
     *,
     force_tolerance: float = 1e-3,
     position_tolerance: float = 1e-5,
-) -> list[ConstraintCheck]:
+) -> list[Check]:
     """Report of a dynamic plan, recomputed with Pinocchio and numpy from the solution.
 
     Groups: Newton's law for the CoM (with the Pinocchio CoM of the returned configurations),
@@ -84,20 +84,22 @@ def dynamic_checks(
         position_tolerance: Accepted CoP excursion and corner depth [m].
 
     Returns:
-        One :class:`~planner.results.ConstraintCheck` per group.
+        One :class:`~planner.results.Check` per group.
     """
     cen = terms
     t = np.asarray(lay.t, dtype=float)
     dt = float(t[1] - t[0])
     tol_n = force_tolerance * cen.weight
     corners = cen.corner_forces(force_values)
-    checks: list[ConstraintCheck] = []
+    checks: list[Check] = []
 
-    def worst(name: str, values: list[tuple[float, float]], tol: float, unit: str) -> None:
+    def worst(name: str, kind: CheckKind, values: list[tuple[float, float]], tol: float, unit: str,
+              subject: str = "") -> None:
         if not values:
             return
         v, tt = max(values, key=lambda x: x[0])
-        checks.append(ConstraintCheck(name=name, violation=max(0.0, float(v)), tolerance=tol, unit=unit, time=float(tt)))
+        checks.append(Check.constraint(name=name, kind=kind, violation=max(0.0, float(v)), tolerance=tol, unit=unit,
+                                       time=float(tt), subject=subject))
 
     newton = []
     mass = cen.weight / float(np.linalg.norm(GRAVITY))
@@ -105,7 +107,7 @@ def dynamic_checks(
         acc = (com[k + 1] - 2 * com[k] + com[k - 1]) / dt**2
         total = sum((corners[f][k].sum(axis=0) for f in corners), np.zeros(3))
         newton.append((float(np.linalg.norm(com_dynamics_residual(mass, acc, total))), t[k]))
-    worst("CoM dynamics m(c'' - g) = sum f", newton, tol_n, "N")
+    worst("CoM dynamics m(c'' - g) = sum f", CheckKind.COM_DYNAMICS, newton, tol_n, "N")
     friction: dict[str, list] = {}
     cop: dict[str, list] = {}
     idle = []
@@ -125,10 +127,11 @@ def dynamic_checks(
                 viol = cop_violation(p, (full[:, 0].min(), full[:, 0].max()), (full[:, 1].min(), full[:, 1].max()))
                 cop.setdefault(c.frame, []).append((float(viol[0]), t[k]))
     for frame, rows in friction.items():
-        worst(f"{frame} friction cone", rows, tol_n, "N")
+        worst(f"{frame} friction cone", CheckKind.FRICTION_CONE, rows, tol_n, "N", frame)
     for frame, rows in cop.items():
-        worst(f"{frame} centre of pressure in the sole", rows, position_tolerance, "m")
-    worst("no contact force without contact", idle, 0.0, "N")
+        worst(f"{frame} centre of pressure in the sole", CheckKind.CENTRE_OF_PRESSURE, rows, position_tolerance, "m",
+              frame)
+    worst("no contact force without contact", CheckKind.FORCE_WITHOUT_CONTACT, idle, 0.0, "N")
     model, data = lay.robot.model, lay.robot.data()
     depth = []
     sole = lay.robot.profile.sole
@@ -142,12 +145,12 @@ def dynamic_checks(
             side = lay.robot.foot_side(model.frames[fid].name)
             z = float(data.oMf[fid].act(corners[side][i])[2])
             depth.append((-z, t[k]))
-    worst("swing sole corners above the ground", depth, position_tolerance, "m")
+    worst("swing sole corners above the ground", CheckKind.SWING_SOLE_CORNERS, depth, position_tolerance, "m")
     return checks
 
 
 def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
-                        checks: Sequence[ConstraintCheck], settings: Any) -> list[ConstraintCheck]:
+                        checks: Sequence[Check], settings: Any) -> list[Check]:
     """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
     (the last knot), plus the dynamic checks (:func:`dynamic_checks`).
 
@@ -162,7 +165,7 @@ def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forc
     Returns:
         The checks.
     """
-    out = [c for c in checks if not (c.name.startswith("CoM bound") and c.name.endswith("support polygon"))]
+    out = [c for c in checks if c.kind is not CheckKind.COM_SUPPORT_POLYGON]
     out += rest_polygon_checks(lay, com, settings.polygon_tolerance)
     if forces is not None:
         out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,

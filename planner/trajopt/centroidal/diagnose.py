@@ -4,6 +4,16 @@ from __future__ import annotations
 
 from typing import Any
 
+from planner.results import CheckKind
+
+#: What to try when a dynamic plan fails on a group of this kind.
+HINTS = {
+    CheckKind.FRICTION_CONE: "the feet would slip: ask for shorter or slower steps",
+    CheckKind.COM_DYNAMICS: "the contact forces cannot move the body as planned: ask for a slower motion",
+    CheckKind.JOINT_VELOCITY_LIMITS: "the joints would move faster than their limits: ask for a slower or smaller motion",
+    CheckKind.COM_TARGET: "the centre of mass cannot reach the target in time",
+}
+
 
 def diagnose_dynamic(lay: Any, failed: Any) -> str:
     """Explain a failed dynamic plan in task terms: the worst violated group, when, in which phase."""
@@ -16,16 +26,9 @@ def diagnose_dynamic(lay: Any, failed: Any) -> str:
     c = bad[0]
     phase = spec.phases[spec.phase_at(c.time)].name
     text = (f"{c.name} violated by {c.violation:.3g} {c.unit} at t = {c.time:.2f} s in phase {phase!r} ({status})")
-    hints = {
-        "friction": "the feet would slip: ask for shorter or slower steps",
-        "CoM dynamics": "the contact forces cannot move the body as planned: ask for a slower motion",
-        "velocity": "the joints would move faster than their limits: ask for a slower or smaller motion",
-        "CoM target": "the centre of mass cannot reach the target in time",
-    }
-    for key, hint in hints.items():
-        if key in c.name:
-            text += f"; {hint}"
-            break
+    hint = HINTS.get(c.kind)
+    if hint:
+        text += f"; {hint}"
     if len(bad) > 1:
         text += "; also " + ", ".join(f"{b.name} ({b.violation:.2g} {b.unit})" for b in bad[1:4])
     return text

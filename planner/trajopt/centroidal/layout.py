@@ -30,7 +30,7 @@ from planner.trajopt.centroidal.settings import CentroidalSettings
 from planner.trajopt.layout import Layout
 
 if TYPE_CHECKING:
-    from planner.results import ConstraintCheck, Plan
+    from planner.results import Check, Plan
     from planner.trajopt.settings import PlannerSettings
 
 DYNAMIC_FORMULATION = "lifted-com-2"  # part of a dynamic layout's structure (solver cache key)
@@ -108,7 +108,7 @@ class DynamicLayout(Layout):
         return forces_of(self, x)
 
     def plan_checks(self, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
-                    checks: list[ConstraintCheck], settings: PlannerSettings) -> list[ConstraintCheck]:
+                    checks: list[Check], settings: PlannerSettings) -> list[Check]:
         """The kinematic checks with the dynamic ones (friction, CoP, CoM dynamics)."""
         return dynamic_plan_checks(self, q, com, forces, checks, settings)
 

@@ -1,0 +1,235 @@
+"""Closed-loop simulation: the whole-body controller tracks a Plan in MuJoCo, then certifies it.
+
+:func:`simulate` builds the MuJoCo model and the controller, runs the loop (one controller tick
+every ``control_every`` physics steps, the push applied to the base, the run stopped after a fall
+or a controller that keeps failing), records every tick (:mod:`sim.recording`), and certifies the
+record (:mod:`sim.certify`), adding whether the plan itself could balance (:mod:`sim.zmp`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+
+from planner import Plan
+from planner.wbc import WholeBodyController
+from planner.wbc.kernel import kernel_ready
+from planner.wbc.reference import PlanReference
+from robots.model import Robot
+from sim.certificate import Certificate
+from sim.certify import certify
+from sim.execution import Event, Execution
+from sim.model import SimModel, build_model
+from sim.push import Push, check_push_time
+from sim.recording import BASE_BODY, Recorder, RunRecord, tilt, tilt_of, torque_fraction
+from sim.settings import SimSettings
+from sim.zmp import plan_zmp_excursion
+
+
+def simulate(
+    plan: Plan,
+    robot: Robot,
+    *,
+    push: Push | None = None,
+    settings: SimSettings | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Execution:
+    """Track ``plan`` with the whole-body controller in MuJoCo and certify the motion.
+
+    The robot starts at rest in ``plan.q[0]``; the loop runs the plan's duration plus
+    ``settings.settle_time`` (holding the last configuration), and stops early
+    ``settings.stop_after_fall`` after a fall.
+
+    Args:
+        plan: The motion to execute.
+        robot: The robot it was planned for.
+        push: An optional force on the base; it must start within the plan (``PushParseError``).
+        settings: Simulation and certificate options.
+        progress: Called with a short message ("simulated 1.2 of 3.7 s") about ten times a run.
+
+    Returns:
+        The execution, with its certificate.
+    """
+    if push is not None:
+        check_push_time(push, float(plan.t[-1]))  # before any work
+    s = settings if settings is not None else SimSettings()
+    sm = build_model(robot, timestep=s.timestep, joint_friction=s.joint_friction)
+    control_dt = s.timestep * s.control_every
+    wbc_settings = replace(s.wbc, dt=control_dt)
+    ctrl = WholeBodyController(robot, wbc_settings)
+    if progress is not None and not kernel_ready():
+        progress("compiling the controller's kernel (once per installation, about 15 s)")
+    ref = ctrl.reference_for(plan)
+    run, events, wall = _closed_loop(sm, robot, ctrl, ref, s, plan.q[0], push, progress)
+    events += _run_events(run, wbc_settings.torque_scale)
+    events.sort(key=lambda e: e.time)
+    certificate = _with_plan_zmp(Certificate.from_checks(certify(run)), events, robot, plan)
+    return Execution(
+        t=run.t,
+        q=run.q,
+        v=run.v,
+        tau=run.tau,
+        com=run.com,
+        contact_forces={frame: run.forces[i] for i, frame in enumerate(run.foot_frames)},
+        events=tuple(events),
+        certificate=certificate,
+        wall_time=wall,
+        realtime_factor=(run.t[-1] + control_dt) / wall if wall > 0 else math.inf,
+        tick_times=run.tick_times,
+        timestep=s.timestep,
+        joint_names=tuple(robot.joint_names),
+        torque_limits=sm.torque_limits.copy(),
+    )
+
+
+class _Watchdog:
+    """Falls and controller failures during the loop: their events, and when to stop.
+
+    Args:
+        s: The settings (``stop_after_fall``, ``stop_after_qp_failure``).
+        fall_height: A base below this height is a fall [m].
+        max_tilt: A base tilted more than this is a fall [rad].
+        events: The run's events, appended to.
+    """
+
+    def __init__(self, s: SimSettings, fall_height: float, max_tilt: float, events: list[Event]) -> None:
+        self.s, self.fall_height, self.max_tilt, self.events = s, fall_height, max_tilt, events
+        self.qp_failure_times: list[float] = []
+        self._failures = 0
+        self._failing_since: float | None = None
+        self._fallen_at: float | None = None
+
+    def tick(self, t: float, q: np.ndarray, failures: int) -> bool:
+        """Note tick ``t`` [s] (configuration ``q``, the controller's failure count); True to stop."""
+        if failures != self._failures:
+            self._failures = failures
+            self.qp_failure_times.append(t)
+            self._failing_since = t if self._failing_since is None else self._failing_since
+        else:
+            self._failing_since = None
+        if self._fallen_at is None and (q[2] < self.fall_height or tilt_of(q) > self.max_tilt):
+            self._fallen_at = t
+            self.events.append(
+                Event(t, "fall", f"base height {q[2]:.2f} m, tilt {math.degrees(tilt(q[3:7])):.0f} deg")
+            )
+        if self._fallen_at is not None and t - self._fallen_at >= self.s.stop_after_fall:
+            self.events.append(Event(t, "stopped", "simulation stopped after the fall"))
+            return True
+        since = self._failing_since
+        if since is not None and t - since >= self.s.stop_after_qp_failure:
+            self.events.append(
+                Event(t, "stopped", f"simulation stopped: the controller QP failed on every tick since t = {since:.3f} s")
+            )
+            return True
+        return False
+
+
+def _step(m: mujoco.MjModel, d: mujoco.MjData, steps: int, push: Push | None, push_force: np.ndarray | None) -> None:
+    """``steps`` physics steps, with the push on the base while it lasts."""
+    for _ in range(steps):
+        if push is not None:
+            tt = d.time
+            d.xfrc_applied[BASE_BODY, :3] = push_force if push.time <= tt < push.time + push.duration else 0.0
+        mujoco.mj_step(m, d)
+
+
+def _closed_loop(
+    sm: SimModel,
+    robot: Robot,
+    ctrl: WholeBodyController,
+    ref: PlanReference,
+    s: SimSettings,
+    q0: np.ndarray,
+    push: Push | None,
+    progress: Callable[[str], None] | None,
+) -> tuple[RunRecord, list[Event], float]:
+    """Run the loop from rest in ``q0``: the run's record, its events so far and the wall time [s]."""
+    m, d = sm.model, sm.data()
+    control_dt = s.timestep * s.control_every
+    q = np.array(q0, dtype=float)
+    v = np.zeros(robot.nv)
+    sm.set_state(d, q, v)
+    ctrl.reset(q, v)
+    duration = ref.duration + s.settle_time
+    n_ticks = int(round(duration / control_dt)) + 1
+    rec = Recorder(sm, robot, n_ticks)
+    events: list[Event] = []
+    push_force = push.force_in_world() if push is not None else None
+    if push is not None:
+        events.append(Event(push.time, "push", f"{push.force:g} N on the base for {push.duration:g} s"))
+    fall_height = float(np.min(ref.q[:, 2])) - s.fall_height_margin
+    max_tilt = float(np.max(tilt(ref.q[:, 3:7]))) + s.max_tilt
+    watch = _Watchdog(s, fall_height, max_tilt, events)
+    report_every = max(1, n_ticks // 10)
+    wall0 = time.perf_counter()
+    for i in range(n_ticks):
+        t = i * control_dt
+        sm.state(d, q, v)
+        tic = time.perf_counter()
+        tau = ctrl.compute(t, q, v, ref)
+        tick_time = time.perf_counter() - tic
+        d.ctrl[sm.actuator_select] = tau
+        rec.record(i, t, q, v, tau, d, tick_time)
+        if watch.tick(t, q, ctrl.failures):
+            break
+        _step(m, d, s.control_every, push, push_force)
+        if progress is not None and i % report_every == 0 and i > 0:
+            progress(f"simulated {t:.1f} of {duration:.1f} s")
+    wall = time.perf_counter() - wall0
+    if progress is not None:
+        progress(f"simulated {rec.t[rec.n - 1] if rec.n else 0.0:.1f} s in {wall:.1f} s; certifying")
+    run = rec.finish(robot=robot, ref=ref, settings=s, qp_failure_times=watch.qp_failure_times,
+                     torque_limits=sm.torque_limits, fall_height=fall_height, max_tilt=max_tilt)
+    return run, events, wall
+
+
+def _run_events(run: RunRecord, torque_scale: float) -> list[Event]:
+    """Events found in the record: QP failures, the first saturated torque, each body's first unplanned contact."""
+    events: list[Event] = []
+    failures = run.qp_failure_times
+    if failures:
+        events.append(
+            Event(failures[0], "qp_failure", f"the QP failed on {len(failures)} ticks (first at t = {failures[0]:.3f} s)")
+        )
+    frac = torque_fraction(run.tau, run.torque_limits)
+    # saturated: over the certificate's limit, or at the controller's own cap (WbcSettings.torque_scale)
+    cap = min(run.settings.torque_fraction_limit, torque_scale - 1e-3)
+    saturated = np.nonzero(frac.max(axis=1) > cap)[0] if len(run.tau) else []
+    if len(saturated):
+        n0 = int(saturated[0])
+        j0 = int(np.argmax(frac[n0]))
+        events.append(
+            Event(
+                float(run.t[n0]), "torque_limit", f"{run.robot.joint_names[j0]} at {100 * frac[n0, j0]:.0f}% of its torque limit"
+            )
+        )
+    seen_bodies: set[str] = set()
+    for t_c, body in run.other_contacts:
+        if body not in seen_bodies:
+            seen_bodies.add(body)
+            events.append(Event(t_c, "unplanned_contact", f"{body} touched the floor"))
+    return events
+
+
+def _with_plan_zmp(certificate: Certificate, events: list[Event], robot: Robot, plan: Plan) -> Certificate:
+    """When the plan's own ZMP leaves its support polygon: a ``plan_zmp`` event (into ``events``, kept
+    in time order) and, on a failed certificate, the reason says that the plan itself could not balance."""
+    zmp = plan_zmp_excursion(robot, plan)
+    if zmp is None:
+        return certificate
+    events.append(Event(zmp[1], "plan_zmp", f"the plan's ZMP leaves the support polygon by {zmp[0]:.3f} m"))
+    events.sort(key=lambda e: e.time)
+    if certificate.ok:
+        return certificate
+    return replace(
+        certificate,
+        reason=(
+            f"{certificate.reason}; the plan itself is dynamically infeasible: its ZMP leaves the support "
+            f"polygon by {zmp[0]:.3f} m at t = {zmp[1]:.2f} s"
+        ),
+    )

@@ -1,0 +1,56 @@
+"""Options of the simulation and of its certificate."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from planner.wbc import WbcSettings
+from sim.exceptions import SimError
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SimSettings:
+    """Simulation and certificate options.
+
+    Attributes:
+        timestep: MuJoCo step [s]; the controller runs every ``control_every`` steps.
+        control_every: Steps per controller tick (1 = controller at the physics rate).
+        settle_time: Simulated time after the plan's end [s].
+        joint_friction: Keep the URDF joint damping and friction in MuJoCo.
+        wbc: Controller settings (its ``dt`` is set to ``timestep * control_every``).
+        fall_height_margin: A fall is the base this far below its lowest planned height [m].
+        max_tilt: A fall is the base tilted this much more than planned [rad].
+        slip_limit: Largest horizontal sole displacement during a stance [m].
+        placement_limit: Largest horizontal distance of a stance sole from the plan's [m].
+        torque_fraction_limit: Largest |tau| / limit [-].
+        com_error_limit: Largest CoM tracking error [m].
+        hand_error_limit: Largest hand tracking error [m].
+        target_margin: Execution tolerance added to each spec target's tolerance [m].
+        qp_failure_limit: Largest fraction of controller ticks whose QP failed [-].
+        stop_after_fall: Simulated time kept after a fall before stopping [s].
+        stop_after_qp_failure: Stop when the controller QP has failed on every tick for this long [s].
+    """
+
+    timestep: float = 0.001
+    control_every: int = 1
+    settle_time: float = 0.5
+    joint_friction: bool = True
+    wbc: WbcSettings = field(default_factory=WbcSettings)
+    fall_height_margin: float = 0.25
+    max_tilt: float = 0.6
+    slip_limit: float = 0.01
+    placement_limit: float = 0.02
+    torque_fraction_limit: float = 0.98
+    com_error_limit: float = 0.05
+    hand_error_limit: float = 0.05
+    target_margin: float = 0.03
+    qp_failure_limit: float = 0.01
+    stop_after_fall: float = 0.3
+    stop_after_qp_failure: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (self.timestep > 0 and self.control_every >= 1 and self.settle_time >= 0):
+            raise SimError(
+                "SimSettings: timestep must be > 0, control_every >= 1, settle_time >= 0"
+            )
+
