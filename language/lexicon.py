@@ -351,7 +351,7 @@ def _parse_item(spec: str, where: str) -> tuple[str, Any]:
 def _check_param(schema: ActionSchema, param: str, where: str) -> None:
     try:
         schema.param(param)
-    except Exception as e:
+    except Exception as e:  # noqa: BLE001 - any schema error names the vocabulary item
         raise VocabularyError(f"vocabulary action {schema.name!r} {where}: {e}") from None
 
 

@@ -52,7 +52,13 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from language.exceptions import BackendError, LanguageError, LLMReplyInvalid, LLMUnavailable, UnsupportedInstruction
+from language.exceptions import (
+    BackendError,
+    LanguageError,
+    LLMReplyInvalid,
+    LLMUnavailable,
+    UnsupportedInstruction,
+)
 from language.plan import ActionPlan
 from language.rules import rules_plan
 from language.validate import SchemaViolation, validate

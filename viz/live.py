@@ -25,7 +25,6 @@ from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack, zmq
 
-
 START_TIMEOUT = 30.0  # [s] for the server process to print its URLs
 ZMQ_TIMEOUT_MS = 10_000  # [ms] per command round trip
 STOP_TIMEOUT = 5.0  # [s] between SIGTERM and SIGKILL

@@ -23,15 +23,15 @@ import matplotlib
 
 matplotlib.use("Agg")  # no display; harmless when already set
 
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
+import numpy as np
+import pinocchio as pin
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon as PolygonPatch
 
-from robots import Robot  # noqa: E402
-from viz import motion as vm  # noqa: E402
-from viz.files import Staging, atomic_write  # noqa: E402
+from robots import Robot
+from viz import motion as vm
+from viz.files import Staging, atomic_write
 
 DPI = 100
 PLAN_COLOR = "#c1121f"
@@ -198,7 +198,7 @@ def plot_joints(path: Path, robot: Robot, plan) -> Path:
     fig = Figure(figsize=(15, max(6.0, 0.16 * len(names) + 1.5)))
     gs = fig.add_gridspec(2, 2, width_ratios=[1.6, 1.0])
     ax_p, ax_v, ax_bar = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[:, 1])
-    for ax, series, what in ((ax_p, pos, "position"), (ax_v, vel, "velocity")):
+    for ax, series in ((ax_p, pos), (ax_v, vel)):
         ax.plot(t, series, color="#bbb", lw=0.7)
         _worst_labels(ax, t, series, names)
         for lim in (-1.0, 1.0):

@@ -29,7 +29,15 @@ import warnings
 from collections.abc import Iterator
 
 from wbmp import __version__
-from wbmp.errors import ExitCode, Terminated, check_signals, classify, clear_signals, note_signal, one_line
+from wbmp.errors import (
+    ExitCode,
+    Terminated,
+    check_signals,
+    classify,
+    clear_signals,
+    note_signal,
+    one_line,
+)
 
 COMMANDS = ("solve", "parse", "show", "export", "bench", "robots", "actions", "demo")
 
@@ -100,7 +108,7 @@ def _main(argv: list[str] | None) -> int:
         # The reader went away (`wbmp robots | head`): stop quietly, as Unix tools do.
         _stdout_to_devnull()
         return ExitCode.OK
-    except Exception as exc:  # noqa: BLE001 - the CLI boundary
+    except Exception as exc:  # the CLI boundary
         check_signals()  # a library turned the interrupt into its own error (CasADi, IPOPT)
         code = classify(exc)
         if code is None or debug:

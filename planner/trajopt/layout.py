@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from planner.exceptions import PlannerError, SpecNotForRobot
+from planner.exceptions import SpecNotForRobot
 from robots.model import Robot
 from robots.polygon import convex_hull
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
@@ -218,7 +218,7 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
     # Contacts per knot: the union of the phases touching the knot (a contact holds at both
     # ends of its phase), the later phase winning if a frame appears in both.
     contacts_at: list[dict[int, tuple[str, pin.SE3]]] = []
-    for k, tk in enumerate(t):
+    for tk in t:
         active: dict[int, tuple[str, pin.SE3]] = {}
         for i, ph in enumerate(spec.phases):
             end = starts[i] + ph.duration

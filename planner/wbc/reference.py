@@ -18,6 +18,7 @@ After the plan's end the last sample is held with zero velocity and acceleration
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 import pinocchio as pin
@@ -377,7 +378,7 @@ def support_polygons(
         centre = corners.mean(axis=0)
         corners[:, :2] -= m * np.sign(corners[:, :2] - centre[:2])
         local[name] = corners
-    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+    for lo, hi in pairwise(bounds):
         mid = (lo + hi) // 2
         pts = [
             local[name] @ ref.frames[name].rotation[mid].T + ref.frames[name].position[mid]

@@ -321,8 +321,8 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
 
     # plan: first-ever, warm, cached cold -----------------------------------------------------
     try:
-        from planner.trajopt.cache import clear_memory_cache
         from planner import plan as plan_motion
+        from planner.trajopt.cache import clear_memory_cache
     except Exception as exc:  # noqa: BLE001
         return fail("planner import", exc)
 
@@ -432,23 +432,23 @@ def _child_main(payload: str) -> int:
 
 def _end_to_end(sentence: str, robot_name: str, cache_dir: str, spec, repeats: int, simulate: bool) -> dict:
     """Wall time of ``wbmp solve`` in a new process (sentence; the spec file when sentences are not wired)."""
-    base = _wbmp_command() + ["solve"]
+    base = [*_wbmp_command(), "solve"]
     extra = ["--robot", robot_name, "--quiet"] + ([] if simulate else ["--no-sim"])
     env = _child_env(cache_dir)
     times, mode, code = [], "sentence", None
     with tempfile.TemporaryDirectory(prefix="wbmp-bench-spec-") as folder:  # removed on any exit
         spec_file = str(Path(folder) / "spec.json")
         for _ in range(max(1, repeats)):
-            cmd = base + [sentence] + extra if mode == "sentence" else base + ["--spec", spec_file] + extra
-            proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
+            cmd = [*base, sentence, *extra] if mode == "sentence" else [*base, "--spec", spec_file, *extra]
+            proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,  # noqa: B023 - _timed calls it at once
                                                        check=False))
             if mode == "sentence" and proc.returncode == ExitCode.USAGE and "not available" in proc.stderr:
                 from tasks.serialize import spec_to_json
 
                 mode = "spec"
                 Path(spec_file).write_text(spec_to_json(spec))
-                cmd = base + ["--spec", spec_file] + extra
-                proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env,
+                cmd = [*base, "--spec", spec_file, *extra]
+                proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env,  # noqa: B023 - _timed calls it at once
                                                            timeout=900, check=False))
             code = proc.returncode
             times.append(wall)
@@ -776,7 +776,7 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
     t_start = time.perf_counter()
     result: dict[str, Any] = {
         "schema": SCHEMA,
-        "date_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "date_utc": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "robot": robot,
         "quick": quick,
         "repeats": reps,

@@ -248,7 +248,9 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
                 ubg.append(np.full(5 * m, np.inf))
         lbg.append(np.zeros(3))
         ubg.append(np.zeros(3))
-    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+    def cat(xs: list) -> np.ndarray:
+        return np.concatenate(xs) if xs else np.zeros(0)
+
     return CentroidalPattern(
         lower=cat(lower), upper=cat(upper), initial=cat(initial), parameter_values=cat(pvals),
         lbg=cat(lbg), ubg=cat(ubg), weight=weight, contacts=tuple(tuple(c) for c in contacts),
@@ -362,7 +364,9 @@ def build_centroidal(
         if forces and settings.angular_momentum_weight > 0.0:
             ldot = angular_momentum_rate(com[k], points, forces)  # [m x body weights]
             cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
-    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+    def cat(xs: list) -> np.ndarray:
+        return np.concatenate(xs) if xs else np.zeros(0)
+
     return CentroidalTerms(
         variables=ca.vertcat(*syms) if syms else symbol(0, 1),
         lower=cat(lower),
