@@ -293,7 +293,7 @@ class Lexicon:
                 value, n = number
                 end = atoms[i + n - 1].end
                 items.append(Item(NUM, value, normalized[atom.start : end], atom.start, end))
-            elif n:
+            elif n and entry is not None:  # _longest gives an entry with every n > 0
                 end = atoms[i + n - 1].end
                 text = normalized[atom.start : end]
                 items.extend(Item(kind, value, text, atom.start, end) for kind, value in entry)

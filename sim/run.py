@@ -357,7 +357,7 @@ def simulate(
     frac = _torque_fraction(taus, sm.torque_limits)
     # saturated: over the certificate's limit, or at the controller's own cap (WbcSettings.torque_scale)
     cap = min(s.torque_fraction_limit, wbc_settings.torque_scale - 1e-3)
-    saturated = np.nonzero(frac.max(axis=1) > cap)[0] if len(taus) else []
+    saturated: np.ndarray | list[int] = np.nonzero(frac.max(axis=1) > cap)[0] if len(taus) else []
     if len(saturated):
         n0 = int(saturated[0])
         j0 = int(np.argmax(frac[n0]))
@@ -777,21 +777,21 @@ def _certify(
             )
         )
     # ---- CoM targets measured in the simulation
-    for target in ref.plan.spec.com_targets:
-        if target.window is not None:
-            mask = (ts >= target.window[0] - 1e-9) & (ts <= target.window[1] + 1e-9)
+    for com_target in ref.plan.spec.com_targets:
+        if com_target.window is not None:
+            mask = (ts >= com_target.window[0] - 1e-9) & (ts <= com_target.window[1] + 1e-9)
         else:
-            t_at = horizon if target.time is None else target.time
+            t_at = horizon if com_target.time is None else com_target.time
             n_at = int(np.argmin(np.abs(ts - t_at)))
             mask = np.zeros(len(ts), dtype=bool)
             mask[n_at] = abs(ts[n_at] - t_at) < 0.01
-        limit = target.tolerance + s.target_margin
-        name = f"CoM target {target.name!r}"
+        limit = com_target.tolerance + s.target_margin
+        name = f"CoM target {com_target.name!r}"
         if not mask.any():
             checks.append(_never_reached(name, limit, ts))
             continue
-        axes = np.array([v is not None for v in target.position], dtype=float)
-        goal = np.array([0.0 if v is None else v for v in target.position])
+        axes = np.array([v is not None for v in com_target.position], dtype=float)
+        goal = np.array([0.0 if v is None else v for v in com_target.position])
         err = np.where(mask, np.linalg.norm((coms - goal) * axes, axis=1), -1.0)
         k = int(np.argmax(err))
         checks.append(

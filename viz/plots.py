@@ -126,7 +126,7 @@ def plot_com_support(path: Path, robot: Robot, plan, *, simulated: vm.Motion | N
     ax_margin.plot(t, margins(t, com[:, :2]), lw=2, color=PLAN_COLOR, label="CoM (plan)")
     if zmp is not None:
         ax_margin.plot(t, margins(t, zmp), "--", lw=1.5, color=ZMP_COLOR, label="ZMP (plan)")
-    if sim_com is not None:
+    if sim_t is not None and sim_com is not None:
         ax_margin.plot(sim_t - sim_t[0], margins(sim_t - sim_t[0], sim_com[:, :2]), ":", lw=2,
                        color=SIM_COLOR, label="CoM (simulated)")
     required = [b.margin for b in plan.spec.com_bounds if b.support_polygon]
@@ -230,6 +230,7 @@ def plot_joints(path: Path, robot: Robot, plan) -> Path:
 
 def plot_torques(path: Path, robot: Robot, plan, simulated: vm.Motion) -> Path:
     """Simulated torques against the limits."""
+    assert simulated.tau is not None  # drawn only for a run that recorded its torques
     joints = _revolute_joints(robot)
     names = [j[0] for j in joints]
     iv = np.array([j[2] for j in joints], dtype=int) - 6

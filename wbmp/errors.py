@@ -118,11 +118,14 @@ def classify(exc: BaseException) -> ExitCode | None:
 
     if isinstance(exc, CliError):
         return exc.code
+    language_errors: tuple[type[Exception], ...] = ()
     try:
         from language.exceptions import LanguageError
+
+        language_errors = (LanguageError,)
     except ImportError:  # pragma: no cover - language layer not installed
-        LanguageError = ()  # type: ignore[assignment]  # noqa: N806
-    if LanguageError and isinstance(exc, LanguageError):
+        pass
+    if isinstance(exc, language_errors):
         return ExitCode.USAGE
     if isinstance(exc, (RobotError, TaskError, UnsupportedModel)):
         return ExitCode.INVALID_SPEC

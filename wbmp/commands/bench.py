@@ -161,10 +161,10 @@ def machine_info() -> dict[str, Any]:
         except Exception:  # noqa: BLE001 - a missing library is just not listed
             pass
     try:
-        affinity = len(os.sched_getaffinity(0))
+        affinity: int | None = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         affinity = os.cpu_count()
-    threads = {k: os.environ[k] for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    threads: dict[str, Any] = {k: os.environ[k] for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
                if k in os.environ}
     try:
         import threadpoolctl  # type: ignore[import-not-found]
@@ -242,7 +242,7 @@ def _settings(cache_dir: str, max_iterations: int | None = None):
     from planner import PlannerSettings
 
     compile_ = os.environ.get("WBMP_BENCH_COMPILE", "1") != "0"
-    extra = {} if max_iterations is None else {"max_iterations": max_iterations}
+    extra: dict[str, Any] = {} if max_iterations is None else {"max_iterations": max_iterations}
     return PlannerSettings(cache_dir=cache_dir, compile=compile_, **extra)
 
 
@@ -351,9 +351,9 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
                 rec["message"] = " ".join((plan.diagnosis or "constraint report violated").split())[:300]
             log(f"{name}: {s.iterations} iterations, build {s.build_time:.2f} s, solve {s.solve_time:.2f} s, "
                 f"warm {rec['solve_warm_s']:.2f} s")
-            cold = [_cold_process(sentence, robot_name, cache_dir, dt, max_iterations)
+            runs = [_cold_process(sentence, robot_name, cache_dir, dt, max_iterations)
                     for _ in range(repeats if plan.ok else 0)]
-            cold = [c for c in cold if c is not None]
+            cold = [c for c in runs if c is not None]
             if cold:
                 rec["nlp_load_cold_s"] = _median([c["build_time"] for c in cold])
                 rec["solve_cold_s"] = _median([c["solve_time"] for c in cold])
