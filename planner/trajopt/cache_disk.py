@@ -406,7 +406,7 @@ def sweep(folder: Path, *, now: float | None = None) -> list[str]:
             return []
         _SWEPT.add(key)
     now = time.time() if now is None else now
-    removed = []
+    removed: list[str] = []
     try:
         names = os.listdir(folder)
     except OSError:

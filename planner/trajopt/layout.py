@@ -235,10 +235,10 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
         balance_terms(lay, bounds)
     for target in spec.targets:
         frame_target_terms(lay, target)
-    for target in spec.com_targets:
-        com_target_terms(lay, target)
-    for target in spec.joint_targets:
-        joint_target_terms(lay, target)
+    for com_target in spec.com_targets:
+        com_target_terms(lay, com_target)
+    for joint_target in spec.joint_targets:
+        joint_target_terms(lay, joint_target)
     used = sorted({t.structure[1] for t in lay.terms if t.kind in ("contact", "clearance", "frame_pos", "frame_rot")})
     lay.frame_ids = used
     return lay

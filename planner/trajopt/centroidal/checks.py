@@ -10,7 +10,7 @@ import pinocchio as pin
 
 from planner.results import ConstraintCheck
 from planner.trajopt.centroidal.contacts import contact_geometry_points
-from planner.trajopt.centroidal.pattern import CentroidalTerms
+from planner.trajopt.centroidal.pattern import CentroidalPattern, CentroidalTerms
 from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
 
 if TYPE_CHECKING:
@@ -94,7 +94,7 @@ def dynamic_checks(
     lay: Any,
     q: np.ndarray,
     com: np.ndarray,
-    terms: CentroidalTerms,
+    terms: CentroidalTerms | CentroidalPattern,
     corner_rows: Sequence[tuple[int, int, int]],
     force_values: np.ndarray,
     *,

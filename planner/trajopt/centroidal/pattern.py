@@ -52,8 +52,47 @@ class ConstraintBlock:
     upper: np.ndarray
 
 
+class _ForceReadout:
+    """Force readout shared by :class:`CentroidalTerms` and :class:`CentroidalPattern`."""
+
+    __slots__ = ()
+    lower: np.ndarray
+    weight: float
+    force_index: tuple[Mapping[str, np.ndarray], ...]
+    generators: tuple[Mapping[str, np.ndarray], ...]
+    frames: tuple[str, ...]
+
+    @property
+    def n_variables(self) -> int:
+        """Number of force variables."""
+        return int(self.lower.shape[0])
+
+    def corner_forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
+        """Corner forces per frame from a solution ``values`` of :attr:`variables` [N].
+
+        Returns:
+            frame -> (T, n_points, 3) world forces, zero at knots where the contact is inactive
+            (and at the first and last knot, which carry no dynamics).
+        """
+        values = np.asarray(values, dtype=float).reshape(-1)
+        T = len(self.force_index)
+        out: dict[str, np.ndarray] = {}
+        for k, index in enumerate(self.force_index):
+            for frame, idx in index.items():
+                if frame not in out:
+                    out[frame] = np.zeros((T, idx.shape[0], 3))
+                out[frame][k] = (values[idx] @ self.generators[k][frame].T) * self.weight
+        for frame in self.frames:
+            out.setdefault(frame, np.zeros((T, 1, 3)))
+        return out
+
+    def forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
+        """Total force per contact frame (T, 3) in the world [N] (the sum over its corners)."""
+        return {f: c.sum(axis=1) for f, c in self.corner_forces(values).items()}
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
-class CentroidalTerms:
+class CentroidalTerms(_ForceReadout):
     """Everything the NLP needs to add for CoM dynamics with contact forces.
 
     The force variables are normalized by the body weight. With friction edges (the default,
@@ -97,11 +136,6 @@ class CentroidalTerms:
     dynamics_knots: tuple[int, ...]
     structure: tuple
 
-    @property
-    def n_variables(self) -> int:
-        """Number of force variables."""
-        return int(self.lower.shape[0])
-
     def g(self) -> tuple[Any, np.ndarray, np.ndarray]:
         """All constraint rows stacked: (expr, lower, upper)."""
         if not self.constraints:
@@ -112,32 +146,9 @@ class CentroidalTerms:
             np.concatenate([b.upper for b in self.constraints]),
         )
 
-    def corner_forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
-        """Corner forces per frame from a solution ``values`` of :attr:`variables` [N].
-
-        Returns:
-            frame -> (T, n_points, 3) world forces, zero at knots where the contact is inactive
-            (and at the first and last knot, which carry no dynamics).
-        """
-        values = np.asarray(values, dtype=float).reshape(-1)
-        T = len(self.force_index)
-        out: dict[str, np.ndarray] = {}
-        for k, index in enumerate(self.force_index):
-            for frame, idx in index.items():
-                if frame not in out:
-                    out[frame] = np.zeros((T, idx.shape[0], 3))
-                out[frame][k] = (values[idx] @ self.generators[k][frame].T) * self.weight
-        for frame in self.frames:
-            out.setdefault(frame, np.zeros((T, 1, 3)))
-        return out
-
-    def forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
-        """Total force per contact frame (T, 3) in the world [N] (the sum over its corners)."""
-        return {f: c.sum(axis=1) for f, c in self.corner_forces(values).items()}
-
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class CentroidalPattern:
+class CentroidalPattern(_ForceReadout):
     """The numbers of :func:`build_centroidal` without any CasADi expression (cheap to make).
 
     Same variable and row order as the terms; what a cached solver needs for a solve.
@@ -164,9 +175,6 @@ class CentroidalPattern:
     dynamics_knots: tuple[int, ...]
     structure: tuple
 
-    n_variables = CentroidalTerms.n_variables
-    corner_forces = CentroidalTerms.corner_forces
-    forces = CentroidalTerms.forces
 
 
 def _force_box(c: ContactGeometry, n_points: int, settings: CentroidalSettings):
@@ -267,7 +275,7 @@ def build_centroidal(
     *,
     settings: CentroidalSettings = CentroidalSettings(),
     gravity: np.ndarray = GRAVITY,
-    symbol: type = ca.SX,
+    symbol: type[ca.SX] | type[ca.MX] = ca.SX,
 ) -> CentroidalTerms:
     """Force variables, CoM dynamics, friction pyramids and the angular-momentum cost on a grid.
 
@@ -389,11 +397,11 @@ def build_centroidal(
 def build_centroidal_for_spec(
     spec: TaskSpec,
     robot: Robot,
-    t: Sequence[float],
+    t: Sequence[float] | np.ndarray,
     com: Sequence[Any],
     *,
     settings: CentroidalSettings = CentroidalSettings(),
-    symbol: type = ca.SX,
+    symbol: type[ca.SX] | type[ca.MX] = ca.SX,
 ) -> CentroidalTerms:
     """:func:`build_centroidal` for a spec on a uniform knot grid ``t``.
 

@@ -99,7 +99,7 @@ def pyramid_edges(rotation: Any, mu: Any, *, inner: bool = True) -> Any:
     return np.asarray(rotation, dtype=float) @ local
 
 
-def angular_momentum_rate(com: Any, points: np.ndarray, forces: Sequence[Any]) -> Any:
+def angular_momentum_rate(com: Any, points: np.ndarray | Sequence[Any], forces: Sequence[Any]) -> Any:
     """Rate of angular momentum about the CoM implied by point forces, :math:`\\sum (p_i - c) \\times f_i`.
 
     Args:
