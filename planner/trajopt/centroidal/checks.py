@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -15,9 +15,10 @@ from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout
+    from planner.trajopt.settings import PlannerSettings
 
 
-def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
+def rest_polygon_checks(lay: DynamicLayout, com: np.ndarray, tolerance: float) -> list[ConstraintCheck]:
     """Support-polygon CoM bounds of a dynamic plan, where they apply: at the last knot (at rest).
 
     Args:
@@ -91,7 +92,7 @@ def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[
 
 
 def dynamic_checks(
-    lay: Any,
+    lay: DynamicLayout,
     q: np.ndarray,
     com: np.ndarray,
     terms: CentroidalTerms | CentroidalPattern,
@@ -175,6 +176,7 @@ def dynamic_checks(
         pin.framesForwardKinematics(model, data, q[k])
         for fid, i in rows:
             side = lay.robot.foot_side(model.frames[fid].name)
+            assert side is not None  # corner rows belong to the soles
             x, y = sole.corners(side)[i]
             z = float((data.oMf[fid].act(np.array([x, y, 0.0])))[2])
             depth.append((-z, t[k]))
@@ -183,7 +185,7 @@ def dynamic_checks(
 
 
 def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
-                        checks: Sequence[ConstraintCheck], settings: Any) -> list[ConstraintCheck]:
+                        checks: Sequence[ConstraintCheck], settings: PlannerSettings) -> list[ConstraintCheck]:
     """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
     (the last knot), plus the dynamic checks (:func:`dynamic_checks`).
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import pinocchio as pin
@@ -12,6 +12,9 @@ import pinocchio as pin
 from planner.exceptions import PlannerError
 from robots.model import Robot
 from tasks.specs import Contact, Pose, TaskSpec, Vec3
+
+if TYPE_CHECKING:
+    from planner.trajopt.layout import Layout
 
 # ---------------------------------------------------------------------------------------------
 # Contact geometry
@@ -125,7 +128,7 @@ def _geometry_values(c: ContactGeometry) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 
-def layout_contacts(lay: Any, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
+def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
     """Per knot of a :class:`planner.trajopt.layout.Layout`, the contacts it holds, as geometry.
 
     A contact holds at both ends of its phase (the layout's ``contacts_at``), so forces may act

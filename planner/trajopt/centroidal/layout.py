@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from planner.trajopt.layout import Layout
 
 if TYPE_CHECKING:
     from planner.results import ConstraintCheck, Plan
+    from planner.trajopt.layout import Layout
     from planner.trajopt.settings import PlannerSettings
 
 DYNAMIC_FORMULATION = "lifted-com-2"  # part of a dynamic layout's structure (solver cache key)
@@ -124,7 +125,7 @@ class DynamicLayout(Layout):
         return diagnose_dynamic(self, failed)
 
 
-def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSettings()) -> DynamicLayout:
+def to_dynamic_layout(lay: Layout, settings: CentroidalSettings = CentroidalSettings()) -> DynamicLayout:
     """The dynamic version of a kinematic layout.
 
     The support-polygon rows on the CoM are dropped except at the last variable knot (the robot

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -28,6 +28,9 @@ from planner.trajopt.centroidal.physics import (
 from planner.trajopt.centroidal.settings import CentroidalSettings
 from robots.model import Robot
 from tasks.specs import TaskSpec
+
+if TYPE_CHECKING:
+    from planner.trajopt.centroidal.layout import DynamicLayout
 
 # ---------------------------------------------------------------------------------------------
 # Assembly over a knot grid
@@ -458,7 +461,7 @@ class CentroidalFunction:
         return (self.terms.structure, self.corner_rows)
 
 
-def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSettings(),
+def centroidal_function(lay: DynamicLayout, *, settings: CentroidalSettings = CentroidalSettings(),
                         first_free_knot: int = 2) -> CentroidalFunction:
     """Build :class:`CentroidalFunction` for a :class:`planner.trajopt.layout.Layout`.
 
@@ -482,7 +485,7 @@ def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSe
     return CentroidalFunction(function=fn, terms=terms, corner_rows=rows, lbg=lbg, ubg=ubg)
 
 
-def swinging_corners(lay: Any, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
+def swinging_corners(lay: DynamicLayout, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
     """(knot, foot frame id, corner) of every sole corner of a foot not in contact at a variable knot."""
     feet = [lay.robot.frame_id(f"{s}_foot") for s in ("left", "right")]
     return tuple((k, fid, i) for k in range(first_free_knot, lay.N) for fid in feet
