@@ -127,7 +127,7 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         goal = np.array([0.0 if v is None else v for v in com_target.position])
         errs = [np.linalg.norm((com[k] - goal)[axes]) for k in ks]
         tol = com_target.tolerance if com_target.priority is Priority.HARD else math.inf
-        checks.append(_worst(f"CoM com_target {com_target.name!r}", np.array(errs), t[ks], tol + 1e-9, "m"))
+        checks.append(_worst(f"CoM target {com_target.name!r}", np.array(errs), t[ks], tol + 1e-9, "m"))
     # joint limits
     lower = np.asarray(model.lowerPositionLimit, dtype=float)[7:]
     upper = np.asarray(model.upperPositionLimit, dtype=float)[7:]
