@@ -10,7 +10,7 @@ LOCK   := constraints.txt
 PIP_INSTALL = $(BIN)/python -m pip install --quiet --disable-pip-version-check -c $(LOCK)
 PYTEST_ARGS ?=
 
-.PHONY: demo test install lock bench bench-quick clean
+.PHONY: demo test lint install lock bench bench-quick clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,7 +27,13 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/wbmp demo
 
-test: $(STAMP)
+# Lint and type gate (configured in pyproject.toml): ruff over the tree, mypy over the packages
+# (its cache in .mypy_cache/). Both must be clean; `make test` runs them first.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
+
+test: $(STAMP) lint
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 bench: $(STAMP)
@@ -63,4 +69,4 @@ lock:
 	echo "$(LOCK): $$(grep -c '==' $(LOCK)) pins ($$where); now run make test"
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -115,7 +115,7 @@ def machine() -> dict:
     return {
         "cpu": cpu_model(), "cores": os.cpu_count(), "load_average": list(os.getloadavg()),
         "python": platform.python_version(), "commit": commit,
-        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "threads": {k: os.environ.get(k, "unset") for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")},
     }
 

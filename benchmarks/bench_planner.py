@@ -32,8 +32,7 @@ CASES = {"squat": ROOT / "examples" / "specs" / "squat.json", "reach": ROOT / "e
 def child(case: str, cache_dir: str, runs: int) -> None:
     """Plan ``case`` ``runs`` times in this process; print one JSON line per run."""
     t0 = time.perf_counter()
-    from planner import PlannerSettings
-    from planner import plan
+    from planner import PlannerSettings, plan
     from robots import load_robot
     from tasks.serialize import load_spec
 

@@ -119,7 +119,7 @@ def closed_loop_ticks(robot, plan, settings: WbcSettings, *, record: bool = Fals
             pin.getFrameClassicalAcceleration(
                 model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
             )
-            data.oMf[fid].homogeneous
+            data.oMf[fid].homogeneous  # noqa: B018 - timed: the property builds the matrix
         pin_times.append(time.thread_time() - t0)
     qp_times = []
     qp = shadow._qp if shadow is not None else None  # the persistent solver, update + solve alone

@@ -293,7 +293,7 @@ class Lexicon:
                 value, n = number
                 end = atoms[i + n - 1].end
                 items.append(Item(NUM, value, normalized[atom.start : end], atom.start, end))
-            elif n:
+            elif n and entry is not None:  # _longest gives an entry with every n > 0
                 end = atoms[i + n - 1].end
                 text = normalized[atom.start : end]
                 items.extend(Item(kind, value, text, atom.start, end) for kind, value in entry)
@@ -351,7 +351,7 @@ def _parse_item(spec: str, where: str) -> tuple[str, Any]:
 def _check_param(schema: ActionSchema, param: str, where: str) -> None:
     try:
         schema.param(param)
-    except Exception as e:
+    except Exception as e:  # noqa: BLE001 - any schema error names the vocabulary item
         raise VocabularyError(f"vocabulary action {schema.name!r} {where}: {e}") from None
 
 

@@ -52,7 +52,13 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from language.exceptions import BackendError, LanguageError, LLMReplyInvalid, LLMUnavailable, UnsupportedInstruction
+from language.exceptions import (
+    BackendError,
+    LanguageError,
+    LLMReplyInvalid,
+    LLMUnavailable,
+    UnsupportedInstruction,
+)
 from language.plan import ActionPlan
 from language.rules import rules_plan
 from language.validate import SchemaViolation, validate
@@ -642,6 +648,8 @@ class _DeadlineConnection:
 
     _deadline: float
     _real_sock: socket.socket | None = None
+    sock: Any  # declared by http.client.HTTPConnection: the socket, then its deadline wrapper
+    timeout: float | None
 
     def connect(self) -> None:
         left = self._deadline - time.monotonic()
@@ -649,8 +657,8 @@ class _DeadlineConnection:
             raise _Deadline("the deadline passed")
         self.timeout = left  # bounds the TCP connect (and the TLS handshake)
         super().connect()  # type: ignore[misc]
-        self._real_sock = self.sock  # type: ignore[has-type]
-        self.sock = _DeadlineSocket(self.sock, self._deadline)  # type: ignore[has-type]
+        self._real_sock = self.sock
+        self.sock = _DeadlineSocket(self.sock, self._deadline)
 
     def release(self) -> None:
         """Close the connection and its socket."""

@@ -67,6 +67,7 @@ def atomize(normalized: str) -> list[Atom]:
     atoms = []
     for m in _ATOM_RE.finditer(normalized):
         kind = m.lastgroup
+        assert kind is not None  # every alternative of _ATOM_RE is a named group
         if kind == "space":
             continue
         atoms.append(Atom(m.group(), kind, m.start(), m.end()))

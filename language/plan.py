@@ -106,7 +106,7 @@ class ActionPlan:
             def fmt(d: Mapping[str, Any]) -> str:
                 parts = []
                 for k, v in d.items():
-                    unit = schema.param(k).unit
+                    unit = schema.param(k).unit  # noqa: B023 - fmt runs within the iteration
                     if isinstance(v, float):
                         v = f"{v:.4g}"
                     parts.append(f"{k}={v}" + (f" {unit}" if unit and unit != "count" else ""))

@@ -278,7 +278,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         if i in consumed or it.kind in (TRIGGER, AGAIN, CLASSIFIER):
             continue
         nxt_i = _next_index(items, i)
-        nxt = items[nxt_i] if nxt_i is not None else None
+        nxt = items[nxt_i] if nxt_i < len(items) else None
         if it.kind == NUM:
             if nxt is not None and nxt.kind == UNIT:
                 _add_quantity(quantities, lx, it, nxt, where, normalized)
@@ -345,7 +345,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
     if direction is not None:
         direction_value, it = direction
         choices = schema.param(aw.direction).choices if aw.direction else ()
-        if direction_value in choices:
+        if aw.direction and direction_value in choices:  # choices is () without a direction
             params[aw.direction] = direction_value
         elif direction_value in aw.direction_params:
             params.update(aw.direction_params[direction_value])
@@ -367,7 +367,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
     # quantities with units: an explicit number wins over an adverb ("jump 30 cm high")
     for quantity, (value, it) in quantities.items():
         if quantity == "length":
-            param = aw.length_by_direction.get(direction_value, aw.length)
+            param = aw.length if direction_value is None else aw.length_by_direction.get(direction_value, aw.length)
         else:
             param = getattr(aw, quantity)
         if param is None:
@@ -378,7 +378,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
     sign = _one(signs, where, "turning directions")
     if sign is not None:
         value, it = sign
-        if not aw.signed_angle:
+        if not aw.signed_angle or aw.angle is None:
             raise misfit(it)
         angle = params.get(aw.angle)
         if angle is None:
@@ -413,12 +413,12 @@ def _trigger_follows(items: Sequence[Item], j: int) -> bool:
     return j < len(items) and items[j].kind == TRIGGER
 
 
-def _next_index(items: Sequence[Item], i: int) -> int | None:
-    """Index of the next item after ``i`` that is not a classifier (个, 只)."""
+def _next_index(items: Sequence[Item], i: int) -> int:
+    """Index of the next item after ``i`` that is not a classifier (个, 只); ``len(items)`` if none."""
     j = i + 1
     while j < len(items) and items[j].kind == CLASSIFIER:
         j += 1
-    return j if j < len(items) else None
+    return j
 
 
 def _add_quantity(quantities: dict, lx: Lexicon, num: Item, unit_item: Item, where: str, normalized: str) -> None:

@@ -306,7 +306,7 @@ def _check_file(where: str, key: str, path: str | None, what: str) -> str:
     if st.st_size > MAX_MODEL_FILE_BYTES:
         raise ProfileError(f"{where}: {key}: {shown} is larger than {MAX_MODEL_FILE_BYTES >> 20} MB; "
                            f"expected {what}")
-    if not os.access(path, os.R_OK):
+    if not os.access(path or "", os.R_OK):
         raise ProfileError(f"{where}: {key}: cannot read {shown}: permission denied")
     return str(path)
 
@@ -358,14 +358,14 @@ def _check_xml(where: str, key: str, path: str, *, root: str) -> None:
     joints = top.findall("joint")
     if not joints:
         raise ProfileError(f"{where}: urdf: {shown} has no <joint>; wbmp needs a humanoid with joints")
-    for link in top.findall("link"):
-        mass = link.find("inertial/mass")
+    for link_el in top.findall("link"):
+        mass = link_el.find("inertial/mass")
         value = mass.get("value") if mass is not None else None
         if mass is not None and not _is_mass(value):
-            raise ProfileError(f"{where}: urdf: {shown}: link {link.get('name')!r} has mass {show(value)}; "
+            raise ProfileError(f"{where}: urdf: {shown}: link {link_el.get('name')!r} has mass {show(value)}; "
                                "expected a finite number of kilograms >= 0")
     known = set(links)
-    children: set[str] = set()
+    children: set[str | None] = set()
     for j in joints:
         name = j.get("name")
         if not name:
@@ -379,7 +379,7 @@ def _check_xml(where: str, key: str, path: str, *, root: str) -> None:
             if link not in known:
                 raise ProfileError(f"{where}: urdf: {shown}: joint {name!r} has {end} link {link!r}, "
                                    "which is not a <link> of the file")
-        child = j.find("child").get("link")
+        child = link  # the loop's last end: the child's link, checked above
         if child in children:
             raise ProfileError(f"{where}: urdf: {shown}: link {child!r} is the child of two joints")
         children.add(child)

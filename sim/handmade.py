@@ -13,13 +13,24 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 import pinocchio as pin
 
 from planner import Plan, SolverStats, SolveStatus
 from robots.model import Robot
-from tasks.specs import CoMBounds, CoMTarget, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
+from tasks.specs import (
+    CoMBounds,
+    CoMTarget,
+    Contact,
+    FrameTarget,
+    Phase,
+    Pose,
+    Priority,
+    TaskSpec,
+    Vec3,
+)
 
 Offset = Callable[[float], np.ndarray]
 
@@ -32,7 +43,8 @@ def smooth_bump(duration: float) -> Callable[[float], float]:
 def _pose_of(placement: pin.SE3) -> Pose:
     rpy = pin.rpy.matrixToRpy(placement.rotation)
     return Pose(
-        position=tuple(float(x) for x in placement.translation), rpy=tuple(float(x) for x in rpy)
+        position=cast(Vec3, tuple(float(x) for x in placement.translation)),
+        rpy=cast(Vec3, tuple(float(x) for x in rpy)),
     )
 
 
@@ -214,7 +226,7 @@ def arm_plan(
     target = FrameTarget(
         name=f"{side} hand up",
         frame=role,
-        position=tuple(float(x) for x in top),
+        position=cast(Vec3, tuple(float(x) for x in top)),
         time=float(draft.t[mid]),
         tolerance=tolerance,
         priority=Priority.HARD,

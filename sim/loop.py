@@ -199,7 +199,7 @@ def _run_events(run: RunRecord, torque_scale: float) -> list[Event]:
     frac = torque_fraction(run.tau, run.torque_limits)
     # saturated: over the certificate's limit, or at the controller's own cap (WbcSettings.torque_scale)
     cap = min(run.settings.torque_fraction_limit, torque_scale - 1e-3)
-    saturated = np.nonzero(frac.max(axis=1) > cap)[0] if len(run.tau) else []
+    saturated = np.nonzero(frac.max(axis=1) > cap)[0] if len(run.tau) else np.zeros(0, dtype=int)
     if len(saturated):
         n0 = int(saturated[0])
         j0 = int(np.argmax(frac[n0]))

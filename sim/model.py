@@ -72,6 +72,10 @@ class SimModel:
     floor_geom: int
     torque_limits: np.ndarray
     xml: str = field(repr=False, default="")
+    # set by __post_init__: the index maps as slices where they are contiguous ranges
+    qpos_select: slice | np.ndarray = field(init=False, repr=False)
+    dof_select: slice | np.ndarray = field(init=False, repr=False)
+    actuator_select: slice | np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         # the per-tick copies use slices where the index maps are contiguous ranges (fancy
@@ -180,10 +184,10 @@ def _rewrite_urdf(robot: Robot) -> str:
             link.remove(visual)
         _repair_inertia(link)
     children = {
-        j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None
+        child.get("link") for j in root.findall("joint") if (child := j.find("child")) is not None
     }
     roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
-    if len(roots) != 1:
+    if len(roots) != 1 or roots[0] is None:
         raise SimModelError(
             f"robot {robot.name!r}: the URDF must have exactly one root link, found {roots}"
         )

@@ -230,7 +230,7 @@ class _FrozenDict(dict):
     def _refuse(self, *args, **kwargs):
         raise TypeError("action parameters are read-only; build a new Action")
 
-    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _refuse  # type: ignore[assignment]
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _refuse
 
     def __hash__(self) -> int:  # type: ignore[override]
         return hash(tuple(sorted(self.items())))

@@ -154,11 +154,11 @@ def compile_actions(
             f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
             "into several shorter ones"
         )
-    actions = [_as_action(a, i) for i, a in enumerate(actions)]
-    if not actions:
+    checked = [_as_action(a, i) for i, a in enumerate(actions)]
+    if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
-    n = len(actions)
-    groups = group_actions(actions)
+    n = len(checked)
+    groups = group_actions(checked)
 
     def knots(seconds: float) -> int:
         return int(-(-round(seconds / dt, 6) // 1))  # ceil, robust to 0.6/0.075 = 7.999999
@@ -228,7 +228,7 @@ def compile_actions(
         joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
-        name=name or describe_actions(actions),
+        name=name or describe_actions(checked),
         description=description,
     )
 

@@ -152,7 +152,7 @@ def step_width(robot: Robot, left: Pose | None = None, right: Pose | None = None
         return robot.profile.step_width
     if left is None or right is None:
         left, right = standing_feet(robot)
-    mid, yaw = _heading(left, right)
+    _, yaw = _heading(left, right)
     rel = _rz(yaw).T @ (np.asarray(left.position) - np.asarray(right.position))
     return float(abs(rel[1]))
 
@@ -246,7 +246,7 @@ def footsteps(robot: Robot, direction: str, length: float, count: int, *, left: 
             f"(e.g. {math.ceil(length / limit)} steps of at most {limit:.2f} m)"
         )
     left, right = _start(robot, left, right)
-    mid, yaw = _heading(left, right)
+    _, yaw = _heading(left, right)
     axis = _rz(yaw) @ np.array([*_AXIS[direction], 0.0])
     where = {"left": left, "right": right}
     frames = {s: robot.frame(f"{s}_foot") for s in SIDES}

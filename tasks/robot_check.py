@@ -40,16 +40,16 @@ def check_spec_for_robot(spec: TaskSpec, robot: Robot) -> None:
                 )
     for i, target in enumerate(spec.targets):
         _frame_id(robot, target.frame, f"spec.targets[{i}].frame")
-    for i, target in enumerate(spec.joint_targets):
+    for i, jt in enumerate(spec.joint_targets):
         where = f"spec.joint_targets[{i}].joint"
-        if not model.existJointName(target.joint):
+        if not model.existJointName(jt.joint):
             names = [n for n in model.names[1:] if model.joints[model.getJointId(n)].nv == 1]
             raise TaskDefinitionError(
-                f"{where}: robot {robot.name!r} has no joint {target.joint!r}{_close(target.joint, names)}"
+                f"{where}: robot {robot.name!r} has no joint {jt.joint!r}{_close(jt.joint, names)}"
             )
-        if model.joints[model.getJointId(target.joint)].nv != 1:
+        if model.joints[model.getJointId(jt.joint)].nv != 1:
             raise TaskDefinitionError(
-                f"{where}: joint {target.joint!r} of {robot.name} is not a one-dof joint; a joint target sets "
+                f"{where}: joint {jt.joint!r} of {robot.name} is not a one-dof joint; a joint target sets "
                 "one angle"
             )
     _check_start(spec, robot)

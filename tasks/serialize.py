@@ -303,7 +303,7 @@ def from_plain(tp: Any, value: Any, path: str) -> Any:
             except TaskDefinitionError as e:
                 errors.append(str(e))
         raise TaskDefinitionError(errors[0] if errors else f"{path}: bad value {_show(value)}")
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             raise TaskDefinitionError(f"{path}: expected an object for {tp.__name__}, got {_kind(value)}")
         hints = _hints(tp)

@@ -415,7 +415,8 @@ class TaskSpec:
                 raise TaskDefinitionError(
                     f"phase {phase.name!r}: {len(phase.contacts)} contacts; a phase holds at most {MAX_CONTACTS}"
                 )
-        items = (*self.targets, *self.com_targets, *self.com_bounds, *self.joint_targets)
+        items: tuple[FrameTarget | CoMTarget | CoMBounds | JointTarget, ...] = (
+            *self.targets, *self.com_targets, *self.com_bounds, *self.joint_targets)
         if len(items) > MAX_ITEMS:
             raise TaskDefinitionError(
                 f"task spec: {len(items)} targets and bounds; wbmp plans at most {MAX_ITEMS} at a time: "
@@ -427,7 +428,9 @@ class TaskSpec:
             raise TaskDefinitionError(f"task spec: names must be unique, repeated: {dup[:10]}")
         grid = horizon / intervals
         terms = 0
-        for item in (*self.targets, *self.com_targets, *self.joint_targets, *self.com_bounds):
+        in_order: tuple[FrameTarget | CoMTarget | CoMBounds | JointTarget, ...] = (
+            *self.targets, *self.com_targets, *self.joint_targets, *self.com_bounds)
+        for item in in_order:
             t = getattr(item, "time", None)
             w = item.window
             latest = max([x for x in (t, *(w or ())) if x is not None], default=0.0)

@@ -62,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     loop = tornado.ioloop.IOLoop.current()
 
     for sig in (signal.SIGTERM, signal.SIGINT):
-        loop.asyncio_loop.add_signal_handler(sig, loop.stop)
+        # tornado 6: IOLoop.current() is a BaseAsyncIOLoop, which the IOLoop annotation does not say
+        loop.asyncio_loop.add_signal_handler(sig, loop.stop)  # type: ignore[attr-defined]
 
     def watch_parent() -> None:
         # the parent holds our stdin open; EOF means it is gone (even after SIGKILL)

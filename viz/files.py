@@ -264,7 +264,7 @@ class Staging:
         self._staged.append(_Staged(tmp=tmp, target=target, existed=existed, new_folders=tuple(reversed(missing))))
         try:
             fd = os.open(tmp, os.O_WRONLY | getattr(os, "O_CLOEXEC", 0))
-            if existed:
+            if existed and st is not None:
                 os.fchmod(fd, stat.S_IMODE(st.st_mode))
                 if (st.st_uid, st.st_gid) != (os.geteuid(), os.getegid()):
                     try:

@@ -25,7 +25,6 @@ from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack, zmq
 
-
 START_TIMEOUT = 30.0  # [s] for the server process to print its URLs
 ZMQ_TIMEOUT_MS = 10_000  # [ms] per command round trip
 STOP_TIMEOUT = 5.0  # [s] between SIGTERM and SIGKILL
@@ -78,7 +77,7 @@ class LiveWindow:
             self.socket.recv()
         except zmq.Again:
             raise ViewerError("the meshcat server did not answer within "
-                              f"{self.socket.getsockopt(zmq.RCVTIMEO) / 1000:.0f} s") from None
+                              f"{int(self.socket.getsockopt(zmq.RCVTIMEO)) / 1000:.0f} s") from None
 
     def close(self) -> None:
         """Close the socket (no lingering messages)."""
@@ -100,6 +99,7 @@ def start_server(*, port: int | None = None, timeout: float = START_TIMEOUT) -> 
         cmd += ["--port", str(int(port))]
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=env, cwd=src, start_new_session=True)
+    assert proc.stdout is not None and proc.stderr is not None  # both are pipes
     urls: dict[str, str] = {}
     deadline = time.monotonic() + timeout
     buffer = b""
@@ -139,6 +139,7 @@ def start_server(*, port: int | None = None, timeout: float = START_TIMEOUT) -> 
 
 def _drain_stderr(proc: subprocess.Popen) -> str:
     """Last line of the (dead or dying) server's stderr; closes the pipe."""
+    assert proc.stderr is not None  # start_server's pipe
     try:
         proc.wait(timeout=2.0)
         lines = proc.stderr.read().decode("utf-8", "replace").strip().splitlines()
@@ -164,7 +165,8 @@ def stop_server(proc: subprocess.Popen, *, timeout: float = STOP_TIMEOUT) -> Non
     """Stop the server process: close its stdin, SIGTERM, then SIGKILL after ``timeout``."""
     if proc.poll() is None:
         try:
-            proc.stdin.close()
+            if proc.stdin is not None:
+                proc.stdin.close()
         except OSError:
             pass
         proc.terminate()

@@ -23,15 +23,15 @@ import matplotlib
 
 matplotlib.use("Agg")  # no display; harmless when already set
 
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
+import numpy as np
+import pinocchio as pin
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon as PolygonPatch
 
-from robots import Robot  # noqa: E402
-from viz import motion as vm  # noqa: E402
-from viz.files import Staging, atomic_write  # noqa: E402
+from robots import Robot
+from viz import motion as vm
+from viz.files import Staging, atomic_write
 
 DPI = 100
 PLAN_COLOR = "#c1121f"
@@ -126,7 +126,7 @@ def plot_com_support(path: Path, robot: Robot, plan, *, simulated: vm.Motion | N
     ax_margin.plot(t, margins(t, com[:, :2]), lw=2, color=PLAN_COLOR, label="CoM (plan)")
     if zmp is not None:
         ax_margin.plot(t, margins(t, zmp), "--", lw=1.5, color=ZMP_COLOR, label="ZMP (plan)")
-    if sim_com is not None:
+    if sim_t is not None and sim_com is not None:
         ax_margin.plot(sim_t - sim_t[0], margins(sim_t - sim_t[0], sim_com[:, :2]), ":", lw=2,
                        color=SIM_COLOR, label="CoM (simulated)")
     required = [b.margin for b in plan.spec.com_bounds if b.support_polygon]
@@ -198,7 +198,7 @@ def plot_joints(path: Path, robot: Robot, plan) -> Path:
     fig = Figure(figsize=(15, max(6.0, 0.16 * len(names) + 1.5)))
     gs = fig.add_gridspec(2, 2, width_ratios=[1.6, 1.0])
     ax_p, ax_v, ax_bar = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[:, 1])
-    for ax, series, what in ((ax_p, pos, "position"), (ax_v, vel, "velocity")):
+    for ax, series in ((ax_p, pos), (ax_v, vel)):
         ax.plot(t, series, color="#bbb", lw=0.7)
         _worst_labels(ax, t, series, names)
         for lim in (-1.0, 1.0):
@@ -230,6 +230,7 @@ def plot_joints(path: Path, robot: Robot, plan) -> Path:
 
 def plot_torques(path: Path, robot: Robot, plan, simulated: vm.Motion) -> Path:
     """Simulated torques against the limits."""
+    assert simulated.tau is not None  # drawn only for a run that recorded its torques
     joints = _revolute_joints(robot)
     names = [j[0] for j in joints]
     iv = np.array([j[2] for j in joints], dtype=int) - 6

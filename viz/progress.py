@@ -31,7 +31,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
-from typing import TextIO
+from typing import Any, TextIO
 
 MODES = ("bar", "quiet", "json")
 SPINNER = "|/-\\"
@@ -154,7 +154,7 @@ class Progress:
     def _emit_json(self, event: str, stage: str | None, **fields) -> None:
         if self.mode != "json":
             return
-        record = {"event": event, "stage": stage}
+        record: dict[str, Any] = {"event": event, "stage": stage}
         for k, v in fields.items():
             if v is None or v == "":
                 continue

@@ -27,9 +27,18 @@ import sys
 import threading
 import warnings
 from collections.abc import Iterator
+from typing import NoReturn
 
 from wbmp import __version__
-from wbmp.errors import ExitCode, Terminated, check_signals, classify, clear_signals, note_signal, one_line
+from wbmp.errors import (
+    ExitCode,
+    Terminated,
+    check_signals,
+    classify,
+    clear_signals,
+    note_signal,
+    one_line,
+)
 
 COMMANDS = ("solve", "parse", "show", "export", "bench", "robots", "actions", "demo")
 
@@ -41,12 +50,12 @@ class _Parser(argparse.ArgumentParser):
 
     subcommands: dict[str, argparse.ArgumentParser]
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.print_usage(sys.stderr)
         self.exit(ExitCode.USAGE, f"{self.prog}: error: {one_line(message)}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> _Parser:
     """The argument parser with every available subcommand."""
     parser = _Parser(
         prog="wbmp",
@@ -100,13 +109,13 @@ def _main(argv: list[str] | None) -> int:
         # The reader went away (`wbmp robots | head`): stop quietly, as Unix tools do.
         _stdout_to_devnull()
         return ExitCode.OK
-    except Exception as exc:  # noqa: BLE001 - the CLI boundary
+    except Exception as exc:  # the CLI boundary
         check_signals()  # a library turned the interrupt into its own error (CasADi, IPOPT)
-        code = classify(exc)
-        if code is None or debug:
+        exit_code = classify(exc)
+        if exit_code is None or debug:
             raise
         _quiet_print(f"wbmp {command}: error: {one_line(str(exc))}")
-        return code
+        return exit_code
 
 
 def _quiet_print(line: str) -> None:

@@ -112,7 +112,7 @@ ROBOT_HINT = "give a robot name (talos, g1, icub, romeo; `wbmp robots` lists the
 
 
 #: The code of an exception that carries its own (:class:`CliError` and its subclasses: ``.code``).
-OWN = "own"
+OWN: Literal["own"] = "own"
 
 
 class ExitRule(NamedTuple):
@@ -210,5 +210,7 @@ def classify(exc: BaseException) -> ExitCode | None:
     for cls in type(exc).__mro__:
         rule = _RULES.get(full_name(cls))
         if rule is not None:
-            return exc.code if rule.code == OWN else rule.code  # type: ignore[attr-defined]
+            if rule.code == "own":  # CliError and its subclasses carry their code
+                return ExitCode(exc.code)  # type: ignore[attr-defined]
+            return rule.code
     return None

@@ -454,13 +454,13 @@ def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[Check, .
         raise bad("solver.status", status, f"one of {', '.join(SolveStatus.__members__)}")
     stats = SolverStats(
         status=SolveStatus[status],
-        iterations=number(solver, "iterations", "solver.", 0, integer=True),
+        iterations=int(number(solver, "iterations", "solver.", 0, integer=True)),
         build_time=number(solver, "build_time", "solver.", 0.0),
         solve_time=number(solver, "solve_time", "solver.", 0.0),
         cache=text(solver, "cache", "solver.", "built"),
         objective=number(solver, "objective", "solver.", float("nan"), optional=True),
-        n_variables=number(solver, "n_variables", "solver.", 0, integer=True),
-        n_constraints=number(solver, "n_constraints", "solver.", 0, integer=True),
+        n_variables=int(number(solver, "n_variables", "solver.", 0, integer=True)),
+        n_constraints=int(number(solver, "n_constraints", "solver.", 0, integer=True)),
         backend=text(solver, "backend", "solver.", "ipopt"),
         raw_status=text(solver, "raw_status", "solver.", ""),
     )

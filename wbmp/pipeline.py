@@ -113,6 +113,7 @@ def parse_instruction(request: SolveRequest):
     """Sentence -> ActionPlan with the requested backend."""
     from language import parse
 
+    assert request.instruction is not None  # build_spec parses only a request with a sentence
     options = request.llm_options if request.parser == "llm" else {}
     return parse(request.instruction, backend=request.parser, **options)
 
@@ -157,9 +158,11 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
 
     report = progress
 
-    def progress(message: str) -> None:
+    def checked_progress(message: str) -> None:
         check_signals()
         report(message)
+
+    progress = checked_progress
 
     timings: dict[str, float] = {}
     request.check()

@@ -34,9 +34,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import numpy as np  # noqa: E402
-
-from common import Timer, machine_info, summarize, write_json  # noqa: E402
+import numpy as np
+from common import Timer, machine_info, summarize, write_json
 
 SQUAT_DEPTH = 0.10  # [m]
 REACH_OFFSET = np.array([0.20, 0.0, 0.0])  # [m] in the world frame

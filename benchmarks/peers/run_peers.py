@@ -28,7 +28,6 @@ sys.path.insert(0, str(HERE))
 
 from common import machine_info, machine_tag  # noqa: E402
 
-
 PEERS = {  # peer -> (its environment's Python, its script)
     "crocoddyl": (ROOT / ".venv-crocoddyl" / "bin" / "python", "crocoddyl_bench.py"),
     "tsid": (ROOT / ".venv-tsid" / "bin" / "python", "tsid_tick.py"),
@@ -83,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
 
     jobs = {"crocoddyl": ["--repeats", str(args.repeats), "-v"], "tsid": ["--ticks", str(args.ticks)]}
     ran = 0
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d")
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y-%m-%d")
     for peer, extra in jobs.items():
         if args.only and peer != args.only:
             continue

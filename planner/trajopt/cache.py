@@ -30,6 +30,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import casadi as ca
 
@@ -39,9 +40,12 @@ from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import model_hash
 
+if TYPE_CHECKING:
+    from planner.trajopt.transcription import Solver
+
 FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same structure
 MEMORY_ENTRIES = 64  # solvers kept alive in a process (least recently used dropped first)
-_MEMORY: OrderedDict[str, object] = OrderedDict()
+_MEMORY: OrderedDict[str, Solver] = OrderedDict()
 _LOCK = threading.Lock()
 _SOURCES = (  # relative to planner/trajopt/: the files that determine the compiled structure
     "symbolic.py", "layout.py", "terms.py", "transcription.py", "ipopt.py", "cache.py",

@@ -148,7 +148,7 @@ def elf_problem(path: Path, size: int) -> str | None:
             phentsize, phnum, shentsize, shnum = struct.unpack_from(end + "HHHH", head, 42)
             ph_fmt, ph_fields = end + "IIIIII", (0, 1, 4)  # p_type, p_offset, p_vaddr, p_paddr, p_filesz
         if e_type != 3:  # ET_DYN
-            return "is not a shared library (ELF type %d)" % e_type
+            return f"is not a shared library (ELF type {e_type})"
         if phnum == 0 or phentsize < struct.calcsize(ph_fmt) or phoff + phnum * phentsize > size:
             return f"is cut short: its program headers end past its {size} bytes"
         if shoff + shnum * shentsize > size:
@@ -429,7 +429,7 @@ def sweep(folder: Path, *, now: float | None = None) -> list[str]:
             return []
         _SWEPT.add(key)
     now = time.time() if now is None else now
-    removed = []
+    removed: list[str] = []
     try:
         names = os.listdir(folder)
     except OSError:

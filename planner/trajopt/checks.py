@@ -128,14 +128,14 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
             checks.append(_worst(f"{target.frame} orientation target {target.name!r}", CheckKind.TARGET_ORIENTATION,
                                  np.array(errs), t[ks], target.orientation_tolerance * tol_scale + 1e-9, "rad",
                                  target.name))
-    for target in spec.com_targets:
-        ks = knots_of(t, target.time, target.window, lay.N)
-        axes = np.array([v is not None for v in target.position])
-        goal = np.array([0.0 if v is None else v for v in target.position])
+    for com_target in spec.com_targets:
+        ks = knots_of(t, com_target.time, com_target.window, lay.N)
+        axes = np.array([v is not None for v in com_target.position])
+        goal = np.array([0.0 if v is None else v for v in com_target.position])
         errs = [np.linalg.norm((com[k] - goal)[axes]) for k in ks]
-        tol = target.tolerance if target.priority is Priority.HARD else math.inf
-        checks.append(_worst(f"CoM target {target.name!r}", CheckKind.COM_TARGET, np.array(errs), t[ks], tol + 1e-9,
-                             "m", target.name))
+        tol = com_target.tolerance if com_target.priority is Priority.HARD else math.inf
+        checks.append(_worst(f"CoM target {com_target.name!r}", CheckKind.COM_TARGET, np.array(errs), t[ks], tol + 1e-9,
+                             "m", com_target.name))
     # joint limits
     lower = np.asarray(model.lowerPositionLimit, dtype=float)[7:]
     upper = np.asarray(model.upperPositionLimit, dtype=float)[7:]
@@ -224,9 +224,9 @@ def precheck(lay: Layout) -> str:
                 return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: the support polygon is "
                         f"{width:.3f} m wide, and the margin {bounds.margin:.3f} m on each side leaves no room")
             if any(bounds.lower[i] is not None or bounds.upper[i] is not None for i in range(2)):
-                lo = [-1e3 if v is None else v for v in bounds.lower[:2]]
-                hi = [1e3 if v is None else v for v in bounds.upper[:2]]
-                if _polygon_room(A, b - bounds.margin, lo, hi) == -math.inf:
+                lo_xy = [-1e3 if v is None else v for v in bounds.lower[:2]]
+                hi_xy = [1e3 if v is None else v for v in bounds.upper[:2]]
+                if _polygon_room(A, b - bounds.margin, lo_xy, hi_xy) == -math.inf:
                     return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: its box "
                             f"x [{_fmt(bounds.lower[0])}, {_fmt(bounds.upper[0])}] m, y [{_fmt(bounds.lower[1])}, "
                             f"{_fmt(bounds.upper[1])}] m does not overlap the support polygon shrunk by "

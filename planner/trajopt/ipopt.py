@@ -7,7 +7,7 @@ from planner.trajopt.settings import PlannerSettings
 
 
 def ipopt_options(settings: PlannerSettings) -> dict:
-    """nlpsol options for IPOPT + MUMPS with the exact Hessian."""
+    """Options of CasADi's nlpsol for IPOPT + MUMPS with the exact Hessian."""
     return {
         "print_time": False,
         "ipopt": {

@@ -29,10 +29,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from planner.exceptions import PlannerError, SpecNotForRobot
-from robots.model import Robot
+from planner.exceptions import SpecNotForRobot
 from robots.contact import halfplanes, sole_corners_in_world
 from robots.contact import support_polygon as polygon_of_soles
+from robots.model import Robot
 from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
@@ -219,7 +219,7 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
     # Contacts per knot: the union of the phases touching the knot (a contact holds at both
     # ends of its phase), the later phase winning if a frame appears in both.
     contacts_at: list[dict[int, tuple[str, pin.SE3]]] = []
-    for k, tk in enumerate(t):
+    for tk in t:
         active: dict[int, tuple[str, pin.SE3]] = {}
         for i, ph in enumerate(spec.phases):
             end = starts[i] + ph.duration
@@ -236,10 +236,10 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
         balance_terms(lay, bounds)
     for target in spec.targets:
         frame_target_terms(lay, target)
-    for target in spec.com_targets:
-        com_target_terms(lay, target)
-    for target in spec.joint_targets:
-        joint_target_terms(lay, target)
+    for com_target in spec.com_targets:
+        com_target_terms(lay, com_target)
+    for joint_target in spec.joint_targets:
+        joint_target_terms(lay, joint_target)
     used = sorted({t.structure[1] for t in lay.terms if t.kind in ("contact", "clearance", "frame_pos", "frame_rot")})
     lay.frame_ids = used
     return lay

@@ -11,6 +11,7 @@ is used instead for that keyframe.
 
 from __future__ import annotations
 
+from itertools import pairwise
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -109,7 +110,7 @@ def nominal_motion(lay: Layout) -> np.ndarray:
         keys.append((k, np.zeros(nv) if q is None else configuration_to_chart(lay.robot.model, lay.q_ref, q)))
     if keys[-1][0] < N - 1:
         keys.append((N - 1, np.zeros(nv)))
-    for (k0, d0), (k1, d1) in zip(keys[:-1], keys[1:], strict=True):
+    for (k0, d0), (k1, d1) in pairwise(keys):
         for k in range(k0, k1 + 1):
             s = _smoothstep((k - k0) / max(k1 - k0, 1))
             dq[k] = (1 - s) * d0 + s * d1

@@ -104,7 +104,7 @@ def joint_infos(model: pin.Model) -> list[_JointInfo | None]:
                 f"joint {model.names[i]!r} has type {name}, which the planner does not support "
                 "(supported: free flyer root, revolute and prismatic joints about X, Y, Z or a fixed axis)"
             )
-    if len(out) < 2 or out[1].kind != "freeflyer":
+    if len(out) < 2 or out[1] is None or out[1].kind != "freeflyer":
         raise UnsupportedModel("the planner needs a model whose root joint is a free flyer")
     return out
 
@@ -152,12 +152,14 @@ class SymbolicKinematics:
         out: list[tuple] = [(ca.SX.eye(3), ca.SX.zeros(3))]
         for i in range(1, model.njoints):
             info = self.joints[i]
+            assert info is not None  # only index 0, the universe, is None
             if info.kind == "freeflyer":
                 R_ref = _quat_to_matrix(q_ref[info.idx_q + 3: info.idx_q + 7])
                 p = q_ref[info.idx_q: info.idx_q + 3] + ca.mtimes(R_ref, dq[info.idx_v: info.idx_v + 3])
                 R = ca.mtimes(R_ref, exp3(dq[info.idx_v + 3: info.idx_v + 6]))
                 jR, jp = R, p
             elif info.kind == "revolute":
+                assert info.axis is not None  # revolute and prismatic joints have an axis
                 jR = _axis_rotation(info.axis, q_ref[info.idx_q] + dq[info.idx_v])
                 jp = ca.SX.zeros(3)
             else:  # prismatic

@@ -121,6 +121,7 @@ def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
     r = 0
     for k in range(2, N + 1):
         b = col(k)
+        assert b is not None  # knots from 2 on are variables
         rows += list(range(r, r + nv - 6))
         cols += list(range(b + 6, b + nv))
         vals += [1.0] * (nv - 6)

@@ -137,7 +137,7 @@ class WholeBodyController:
         """
         self._qp = None
         self._layout = None
-        self._x = None
+        self._x: np.ndarray | None = None
         self._prev_tau = np.zeros(self.nu)
         self._q0 = np.array(q, dtype=float)
         self.failures = 0
@@ -188,8 +188,8 @@ class WholeBodyController:
         self._t0 = float(ref.plan.t[0])
         self._inv_dt = 1.0 / ref.dt
         self._n_ref = ref.n
-        flags, self._patterns = np.unique(ref.active, axis=0, return_inverse=True)
-        self._patterns = [int(p) for p in np.asarray(self._patterns).reshape(-1)]
+        flags, inverse = np.unique(ref.active, axis=0, return_inverse=True)
+        self._patterns = [int(p) for p in np.asarray(inverse).reshape(-1)]
         self._pattern_flags = [tuple(bool(a) for a in row) for row in flags]
         # stacked references on the dense grid (n, ...): positions (CoM first), rotations, velocities, accelerations
         self._ref_pos = np.concatenate(
@@ -401,8 +401,8 @@ class WholeBodyController:
                 self.last = _FAST_TICK
             else:
                 self.active_set_ticks += 1
-                its, rows = int(self._info[0]), int(self._info[1])
-                self.last = TickInfo(True, its, f"solved with {rows} inequality rows active")
+                its, n_rows = int(self._info[0]), int(self._info[1])
+                self.last = TickInfo(True, its, f"solved with {n_rows} inequality rows active")
             return tau
         rots = self._rots
         nv = self.nv
@@ -447,10 +447,12 @@ class WholeBodyController:
 
     def acceleration(self) -> np.ndarray:
         """Joint accelerations of the last QP solution (nv,)."""
+        assert self._x is not None, "no tick yet"
         return self._x[: self.nv].copy()
 
     def corner_forces(self) -> dict[str, np.ndarray]:
         """Corner forces (4, 3) of every contact frame in its sole frame, last QP solution [N]."""
+        assert self._x is not None, "no tick yet"
         f = self._x[self.nv :] * self._f_scale
         return {
             name: f[12 * i : 12 * i + 12].reshape(4, 3).copy()
@@ -463,7 +465,7 @@ class WholeBodyController:
 
     def contact_forces(self) -> dict[str, np.ndarray]:
         """Net force of each stance contact in the world from the last tick's QP (3,) [N]."""
-        out = {}
+        out: dict[str, np.ndarray] = {}
         if self._x is None:
             return out
         f = self._x[self.nv :] * self._f_scale

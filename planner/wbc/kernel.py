@@ -317,20 +317,20 @@ def tick_kernel(
     facet = np.zeros((4 * nc, 4), dtype=np.bool_)  # one pyramid row held at 0
     t_up = np.zeros(nv - 6, dtype=np.bool_)
     t_lo = np.zeros(nv - 6, dtype=np.bool_)
-    a = np.empty(nv)
+    a_out = np.empty(nv)
     f = np.empty(12 * nc)
     first = 6 + 6 * ns
     for it in range(max_active_iters + 1):
         Ba, Bf, r, has_a, kind = _rows(M, h, J, a_des, stance, S, mu, tau_max, off, facet, t_up, t_lo)
-        y = _solve_rows(Ba, Bf, r, has_a, L, zg, inv_d, a, f)
+        y = _solve_rows(Ba, Bf, r, has_a, L, zg, inv_d, a_out, f)
         if y.shape[0] == 0:
             return FAST_SINGULAR if it == 0 else FAST_INEQUALITY
         worst_row = _worst_multiplier(y, kind, first, mu, tol)
         if worst_row >= 0:  # before the additions: row numbers follow this solve's active set
             _release(worst_row, first, off, facet, t_up, t_lo, nc, nv - 6)
-        added = _add_violations(a, f, M, h, S, in_stance, mu, tau_max, tol, off, facet, t_up, t_lo, tau)
+        added = _add_violations(a_out, f, M, h, S, in_stance, mu, tau_max, tol, off, facet, t_up, t_lo, tau)
         if not added and worst_row < 0:
-            x[:nv] = a
+            x[:nv] = a_out
             x[nv:] = f
             for j in range(nv - 6):
                 tau[j] = min(max(tau[j], -tau_max[j]), tau_max[j])

@@ -17,6 +17,7 @@ After the plan's end the last sample is held with zero velocity and acceleration
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -261,26 +262,26 @@ class PlanReference:
         self.com, self.com_velocity, self.com_acceleration = com, dcom, ddcom
         if zmp_margin is not None and n >= 3:
             scale = 1.0 if plan.spec.dynamic else float(zmp_scale)
-            target = self.zmp.copy()
+            zmp_target = self.zmp.copy()
             for rows, verts in support_polygons(robot, self, margin=zmp_margin):
-                target[rows] = project_into_polygon(self.zmp[rows], verts)
+                zmp_target[rows] = project_into_polygon(self.zmp[rows], verts)
             if scale < 1.0:  # only where the plan's CoM itself is inside the scaled polygon
                 for rows, verts in support_polygons(robot, self, margin=zmp_margin, scale=scale):
                     inside = np.all(project_into_polygon(com[rows, :2], verts) == com[rows, :2], axis=1)
                     rows = rows[inside]
-                    target[rows] = project_into_polygon(self.zmp[rows], verts)
-            shift = target - self.zmp
+                    zmp_target[rows] = project_into_polygon(self.zmp[rows], verts)
+            shift = zmp_target - self.zmp
             if np.abs(shift).max() > 1e-6:
                 new = com.copy()
                 new[:, :2] = balance_com(com, shift, self.dt)
-                vel = np.zeros((n, 3))
-                acc = np.zeros((n, 3))
-                vel[1:-1] = (new[2:] - new[:-2]) / (2.0 * self.dt)
-                acc[1:-1] = (new[2:] - 2.0 * new[1:-1] + new[:-2]) / self.dt**2
-                vel[:, 2], acc[:, 2] = dcom[:, 2], ddcom[:, 2]
-                vel[-1] = 0.0
-                acc[-1] = 0.0
-                self.com, self.com_velocity, self.com_acceleration = new, vel, acc
+                new_vel = np.zeros((n, 3))
+                new_acc = np.zeros((n, 3))
+                new_vel[1:-1] = (new[2:] - new[:-2]) / (2.0 * self.dt)
+                new_acc[1:-1] = (new[2:] - 2.0 * new[1:-1] + new[:-2]) / self.dt**2
+                new_vel[:, 2], new_acc[:, 2] = dcom[:, 2], ddcom[:, 2]
+                new_vel[-1] = 0.0
+                new_acc[-1] = 0.0
+                self.com, self.com_velocity, self.com_acceleration = new, new_vel, new_acc
                 self.zmp_shift = shift
 
     def index(self, t: float) -> int:
@@ -318,7 +319,7 @@ def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, d
     touch-down absorbs the landing velocity back onto the spline.
     """
     n = len(times)
-    airborne = ~active.any(axis=1)
+    airborne = np.asarray(~active.any(axis=1), dtype=bool)
     g = np.array([0.0, 0.0, -9.81])
     k = 0
     while k < n:
@@ -374,7 +375,7 @@ def support_polygons(
         sole = robot.profile.sole
         m = min(margin, 0.45 * (sole.x_max - sole.x_min), 0.45 * (sole.y_max - sole.y_min))
         local[name] = sole_corners(sole, side, margin=m)
-    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+    for lo, hi in itertools.pairwise(bounds):
         mid = (lo + hi) // 2
         pts = [
             points_in_world(local[name], pin.SE3(ref.frames[name].rotation[mid], ref.frames[name].position[mid]))

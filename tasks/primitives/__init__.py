@@ -16,7 +16,15 @@ from robots.model import Robot
 from tasks.actions import REGISTRY, Action, get_action
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import balance, jump, locomotion, posture, reach, squat, wave
-from tasks.primitives.base import DEFAULT_DT, PARTS, Fragment, FragmentBuilder, Primitive, knot_time, to_knot
+from tasks.primitives.base import (
+    DEFAULT_DT,
+    PARTS,
+    Fragment,
+    FragmentBuilder,
+    Primitive,
+    knot_time,
+    to_knot,
+)
 from tasks.primitives.geometry import Stance, StandingGeometry, standing_geometry
 
 PRIMITIVES: dict[str, Primitive] = {

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import pinocchio as pin
@@ -23,7 +24,16 @@ from robots.model import Robot
 from tasks.actions import Action
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.geometry import Stance, StandingGeometry, _clean, standing_geometry
-from tasks.specs import CoMBounds, CoMTarget, Contact, FrameTarget, JointTarget, Phase, Priority
+from tasks.specs import (
+    CoMBounds,
+    CoMTarget,
+    Contact,
+    FrameTarget,
+    JointTarget,
+    OptVec3,
+    Phase,
+    Priority,
+)
 
 DEFAULT_DT = 0.075  # [s] knot spacing of compiled specs (the TaskSpec default)
 TIME_DIGITS = 9  # times are rounded to 1 ns so that sums of knots compare exactly
@@ -211,7 +221,7 @@ class FragmentBuilder:
                    priority: Priority = Priority.HARD, weight: float = 100.0) -> None:
         """Add a :class:`CoMTarget`; ``time``/``window`` in nominal seconds."""
         self.com_targets.append(CoMTarget(
-            name=self.name(what), position=tuple(None if v is None else float(v) for v in position),
+            name=self.name(what), position=cast(OptVec3, tuple(None if v is None else float(v) for v in position)),
             time=None if time is None else self.t(time),
             window=None if window is None else self.window(*window),
             tolerance=tolerance, priority=priority, weight=weight,

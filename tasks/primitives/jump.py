@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import pinocchio as pin
@@ -38,7 +39,7 @@ from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance, standing_geometry
-from tasks.specs import Contact, Pose, Priority
+from tasks.specs import Contact, Pose, Priority, Vec3
 
 G = 9.81  # [m/s^2]
 CROUCH_TIME = 0.6  # [s]
@@ -326,7 +327,7 @@ def build(b: FragmentBuilder) -> Fragment:
     landing = {}
     for side in ("left", "right"):
         pose = b.stance.sole(side)
-        landing[side] = Pose(position=tuple(float(x) for x in np.asarray(pose.position) + shift), rpy=pose.rpy)
+        landing[side] = Pose(position=cast(Vec3, tuple(float(x) for x in np.asarray(pose.position) + shift)), rpy=pose.rpy)
     land_contacts = tuple(Contact(frame=robot.frame(f"{s}_foot"), placement=landing[s]) for s in ("left", "right"))
     end_stance = Stance(left=landing["left"], right=landing["right"])
     b.com_target("crouch", (None, None, z0 - depth), time=tau(bounds[0]), tolerance=CROUCH_TOLERANCE)

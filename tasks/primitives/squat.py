@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
-from tasks.primitives.base import FragmentBuilder, Fragment, Primitive
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 
 DEPTH_TOLERANCE = 0.01  # [m] allowed CoM height error at the bottom and top of each squat
 PARTS = frozenset({"legs", "com"})

@@ -22,8 +22,9 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler
+from http.server import HTTPServer as _StdHTTPServer
 from pathlib import Path
-from http.server import BaseHTTPRequestHandler, HTTPServer as _StdHTTPServer
 
 
 def completion(content: str) -> bytes:

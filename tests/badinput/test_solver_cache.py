@@ -30,11 +30,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from planner.trajopt import cache_disk
+from planner import PlannerSettings
+from planner.trajopt import cache_disk, plan
 from planner.trajopt.cache import clear_memory_cache, solver_key
 from planner.trajopt.layout import make_layout
-from planner import PlannerSettings
-from planner.trajopt import plan
 from tests.badinput.conftest import REPO, run_cli, run_cli_process
 from tests.planner.planning_cases import squat_spec
 
@@ -316,7 +315,7 @@ def test_missing_or_wrong_marker_costs_one_probe_and_is_rewritten(golden, talos,
 
 # -- cases that would kill the process: run the plan in a child ---------------------------------
 
-PLAN_IN_CHILD = """
+PLAN_IN_CHILD = f"""
 import sys
 import numpy as np
 from robots import load_robot
@@ -325,10 +324,10 @@ from planner.trajopt import plan
 from tests.planner.planning_cases import squat_spec
 talos = load_robot("talos")
 settings = PlannerSettings(cache_dir=sys.argv[1], compile=True, background_compile=False)
-result = plan(squat_spec(talos, {depth}, duration={duration}, dt={dt}), talos, settings=settings)
+result = plan(squat_spec(talos, {DEPTH}, duration={DURATION}, dt={DT}), talos, settings=settings)
 np.save(sys.argv[2], result.q)
 print(result.stats.cache, result.ok)
-""".format(depth=DEPTH, duration=DURATION, dt=DT)
+"""
 
 
 def _truncate_forged(entry: Path, *, marker: bool) -> None:

@@ -214,7 +214,8 @@ def test_random_vocabulary_sentences_never_crash():
     assert parsed > 100  # the generator does reach the accepting paths
 
 
-from hypothesis import given, strategies as st  # noqa: E402
+from hypothesis import given  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 
 @given(st.text(max_size=40))

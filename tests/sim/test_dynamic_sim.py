@@ -9,8 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planner import PlannerSettings
-from planner import plan
+from planner import PlannerSettings, plan
 from planner.wbc.reference import PlanReference
 from sim import simulate
 from tasks.actions import Action

@@ -8,7 +8,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tasks.actions import Action
-from tasks.compose import STAND_TIME, TRANSITION_TIME, compile_actions, describe_actions, group_actions
+from tasks.compose import (
+    STAND_TIME,
+    TRANSITION_TIME,
+    compile_actions,
+    describe_actions,
+    group_actions,
+)
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import compile_action, nominal_duration, standing_geometry, to_knot
 from tasks.serialize import spec_from_json, spec_to_json

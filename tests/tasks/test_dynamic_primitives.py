@@ -14,7 +14,14 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import standing_feet
 from tasks.primitives import robot_limits
 from tasks.primitives.geometry import standing_geometry
-from tasks.primitives.jump import G, TAKEOFF_MARGIN, _straight_up_speed, flight_time, max_jump_height, takeoff_speeds
+from tasks.primitives.jump import (
+    TAKEOFF_MARGIN,
+    G,
+    _straight_up_speed,
+    flight_time,
+    max_jump_height,
+    takeoff_speeds,
+)
 
 
 def _spec(robot, *actions, dt=0.075):

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from viz.live import ServerInfo, ViewerError, serve
 from viz._meshcat import umsgpack
+from viz.live import ServerInfo, ViewerError, serve
 
 # Bounds on hangs, not on speed: each wait ends as soon as its event happens, so they can be
 # generous for a loaded 2-core machine (a fraction of a second to a few seconds when idle).
@@ -62,7 +62,7 @@ def _receive_scene(web_url: str, n_objects: int, linger: float = 1.0) -> list[di
             wait = min(linger, deadline - loop.time()) if complete() else deadline - loop.time()
             try:
                 msg = await asyncio.wait_for(conn.read_message(), max(wait, 0.0))
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 break
             if msg is None:
                 break

@@ -9,8 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from planner import PlannerSettings
-from planner import plan
+from planner import PlannerSettings, plan
 from tests.planner.planning_cases import squat_spec
 from wbmp.motionfile import MotionFileError, export_motion, load_motion, save_motion
 

@@ -28,11 +28,12 @@ def machine_info() -> dict[str, Any]:
             versions[mod] = str(__import__(mod).__version__)
         except Exception:  # noqa: BLE001 - a missing library is just not listed
             pass
+    affinity: int | None
     try:
         affinity = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         affinity = os.cpu_count()
-    threads = {k: os.environ[k] for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    threads: dict[str, object] = {k: os.environ[k] for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
                if k in os.environ}
     try:
         import threadpoolctl  # type: ignore[import-not-found]

@@ -135,8 +135,8 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
 
     # plan: first-ever, warm, cached cold -----------------------------------------------------
     try:
-        from planner.trajopt.cache import clear_memory_cache
         from planner import plan as plan_motion
+        from planner.trajopt.cache import clear_memory_cache
     except Exception as exc:  # noqa: BLE001
         return fail("planner import", exc)
 
@@ -167,13 +167,13 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
                 f"warm {rec['solve_warm_s']:.2f} s")
             cold = [_cold_process(sentence, robot_name, cache_dir, dt, max_iterations)
                     for _ in range(repeats if plan.ok else 0)]
-            cold = [c for c in cold if c is not None]
-            if cold:
-                rec["nlp_load_cold_s"] = _median([c["build_time"] for c in cold])
-                rec["solve_cold_s"] = _median([c["solve_time"] for c in cold])
-                rec["cold_total_s"] = _median([c["build_time"] + c["solve_time"] for c in cold])
-                rec["cold_process_s"] = _median([c["process_s"] for c in cold])
-                rec["cache_cold"] = cold[-1]["cache"]
+            done = [c for c in cold if c is not None]
+            if done:
+                rec["nlp_load_cold_s"] = _median([c["build_time"] for c in done])
+                rec["solve_cold_s"] = _median([c["solve_time"] for c in done])
+                rec["cold_total_s"] = _median([c["build_time"] + c["solve_time"] for c in done])
+                rec["cold_process_s"] = _median([c["process_s"] for c in done])
+                rec["cache_cold"] = done[-1]["cache"]
         except Exception as exc:  # noqa: BLE001
             return fail("plan", exc)
 
@@ -231,23 +231,23 @@ def _cold_process(sentence: str, robot_name: str, cache_dir: str, dt: float | No
 
 def _end_to_end(sentence: str, robot_name: str, cache_dir: str, spec, repeats: int, simulate: bool) -> dict:
     """Wall time of ``wbmp solve`` in a new process (sentence; the spec file when sentences are not wired)."""
-    base = _wbmp_command() + ["solve"]
+    base = [*_wbmp_command(), "solve"]
     extra = ["--robot", robot_name, "--quiet"] + ([] if simulate else ["--no-sim"])
     env = _child_env(cache_dir)
     times, mode, code = [], "sentence", None
     with tempfile.TemporaryDirectory(prefix="wbmp-bench-spec-") as folder:  # removed on any exit
         spec_file = str(Path(folder) / "spec.json")
         for _ in range(max(1, repeats)):
-            cmd = base + [sentence] + extra if mode == "sentence" else base + ["--spec", spec_file] + extra
-            proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
+            cmd = [*base, sentence, *extra] if mode == "sentence" else [*base, "--spec", spec_file, *extra]
+            proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,  # noqa: B023 - _timed calls it at once
                                                        check=False))
             if mode == "sentence" and proc.returncode == ExitCode.USAGE and "not available" in proc.stderr:
                 from tasks.serialize import spec_to_json
 
                 mode = "spec"
                 Path(spec_file).write_text(spec_to_json(spec))
-                cmd = base + ["--spec", spec_file] + extra
-                proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env,
+                cmd = [*base, "--spec", spec_file, *extra]
+                proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env,  # noqa: B023 - _timed calls it at once
                                                            timeout=900, check=False))
             code = proc.returncode
             times.append(wall)
@@ -336,7 +336,7 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
     t_start = time.perf_counter()
     result: dict[str, Any] = {
         "schema": SCHEMA,
-        "date_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "date_utc": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "robot": robot,
         "quick": quick,
         "repeats": reps,

@@ -42,8 +42,10 @@ def planner_settings(cache_dir: str, max_iterations: int | None = None):
     from planner import PlannerSettings
 
     compile_ = os.environ.get("WBMP_BENCH_COMPILE", "1") != "0"
-    extra = {} if max_iterations is None else {"max_iterations": max_iterations}
-    return PlannerSettings(cache_dir=cache_dir, compile=compile_, **extra)
+    settings = PlannerSettings(cache_dir=cache_dir, compile=compile_)
+    if max_iterations is not None:
+        settings = dataclasses.replace(settings, max_iterations=max_iterations)
+    return settings
 
 
 def spec_for(sentence: str, robot, dt: float | None):

@@ -36,9 +36,8 @@ def output_path(motion: str, out: str | None, fmt: str | None) -> tuple[Path, st
     suffix gives the format (``.json``, ``.csv``); ``--format`` must agree with a ``.json``/``.csv``
     suffix, is required for any other suffix, and ``.npz`` is refused (the motion file is one).
     """
-    if fmt is None and out is None:
-        fmt = "json"
     if out is None:
+        fmt = "json" if fmt is None else fmt
         return Path(motion).with_suffix(f".{fmt}"), fmt
     if not out.strip():
         raise CliError("--out: empty path", ExitCode.USAGE)

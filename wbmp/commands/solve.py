@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     request = request_from_args(args)
     # every output path before any work: a typo must not cost a whole solve (exit 2)
     check_outputs(out=args.out, html=args.html, plots=args.plots,
-                  inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)
+                  inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES
                           else None})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     result = solve(request, progress)

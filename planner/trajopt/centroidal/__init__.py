@@ -79,8 +79,8 @@ if TYPE_CHECKING:
         to_dynamic_layout,
     )
     from planner.trajopt.centroidal.nlp import (
-        DynamicBlocks,
         SWING_CLEARANCE,
+        DynamicBlocks,
         com_rows,
         dynamic_blocks,
         dynamic_sizes,
@@ -161,17 +161,17 @@ _EXPORTS = {  # public name -> module that defines it
 }
 
 __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
+    "DYNAMIC_FORMULATION",
+    "GRAVITY",
+    "SWING_CLEARANCE",
     "CentroidalFunction",
     "CentroidalPattern",
     "CentroidalSettings",
     "CentroidalTerms",
     "ConstraintBlock",
     "ContactGeometry",
-    "DYNAMIC_FORMULATION",
     "DynamicBlocks",
     "DynamicLayout",
-    "GRAVITY",
-    "SWING_CLEARANCE",
     "angular_momentum_rate",
     "build_centroidal",
     "build_centroidal_for_spec",

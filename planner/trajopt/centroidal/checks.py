@@ -3,22 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from planner.trajopt.centroidal.contacts import contact_geometry_points
-from planner.trajopt.centroidal.pattern import CentroidalTerms
+from planner.trajopt.centroidal.pattern import CentroidalPattern, CentroidalTerms
 from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
 from robots.contact import center_of_pressure, friction_violation, sole_corners
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout
+    from planner.trajopt.settings import PlannerSettings
 
 
-def rest_polygon_checks(lay: Any, com: np.ndarray, tolerance: float) -> list[Check]:
+def rest_polygon_checks(lay: DynamicLayout, com: np.ndarray, tolerance: float) -> list[Check]:
     """Support-polygon CoM bounds of a dynamic plan, where they apply: at the last knot (at rest).
 
     Args:
@@ -55,10 +56,10 @@ def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[
 
 
 def dynamic_checks(
-    lay: Any,
+    lay: DynamicLayout,
     q: np.ndarray,
     com: np.ndarray,
-    terms: CentroidalTerms,
+    terms: CentroidalTerms | CentroidalPattern,
     corner_rows: Sequence[tuple[int, int, int]],
     force_values: np.ndarray,
     *,
@@ -143,6 +144,7 @@ def dynamic_checks(
         pin.framesForwardKinematics(model, data, q[k])
         for fid, i in rows:
             side = lay.robot.foot_side(model.frames[fid].name)
+            assert side is not None  # corner rows belong to the soles
             z = float(data.oMf[fid].act(corners[side][i])[2])
             depth.append((-z, t[k]))
     worst("swing sole corners above the ground", CheckKind.SWING_SOLE_CORNERS, depth, position_tolerance, "m")
@@ -150,7 +152,7 @@ def dynamic_checks(
 
 
 def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
-                        checks: Sequence[Check], settings: Any) -> list[Check]:
+                        checks: Sequence[Check], settings: PlannerSettings) -> list[Check]:
     """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
     (the last knot), plus the dynamic checks (:func:`dynamic_checks`).
 

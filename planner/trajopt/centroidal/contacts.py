@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import pinocchio as pin
@@ -12,7 +12,10 @@ import pinocchio as pin
 from planner.exceptions import PlannerError
 from robots.contact import sole_corners
 from robots.model import Robot
-from tasks.specs import Contact, Pose, TaskSpec
+from tasks.specs import Contact, Pose, TaskSpec, Vec3
+
+if TYPE_CHECKING:
+    from planner.trajopt.layout import Layout
 
 # ---------------------------------------------------------------------------------------------
 # Contact geometry
@@ -96,7 +99,7 @@ def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0)
     )
 
 
-def contacts_per_knot(spec: TaskSpec, robot: Robot, t: Sequence[float], *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
+def contacts_per_knot(spec: TaskSpec, robot: Robot, t: Sequence[float] | np.ndarray, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
     """Active contacts of ``spec`` at each knot time (the later phase at a phase boundary).
 
     Args:
@@ -121,7 +124,7 @@ def _geometry_values(c: ContactGeometry) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 
-def layout_contacts(lay: Any, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
+def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
     """Per knot of a :class:`planner.trajopt.layout.Layout`, the contacts it holds, as geometry.
 
     A contact holds at both ends of its phase (the layout's ``contacts_at``), so forces may act
@@ -149,8 +152,8 @@ def layout_contacts(lay: Any, *, cop_margin: float = 0.0) -> tuple[tuple[Contact
         for fid, (_frame, M) in active.items():
             contact = Contact(
                 frame=robot.model.frames[fid].name,
-                placement=Pose(position=tuple(float(x) for x in M.translation),
-                               rpy=tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation))),
+                placement=Pose(position=cast(Vec3, tuple(float(x) for x in M.translation)),
+                               rpy=cast(Vec3, tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation)))),
                 friction_coefficient=mus.get(fid),
             )
             geos.append(contact_geometry(contact, robot, cop_margin=cop_margin))

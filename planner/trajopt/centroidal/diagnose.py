@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from planner.results import Plan
+    from planner.trajopt.centroidal.layout import DynamicLayout
 
 from planner.results import CheckKind
 
@@ -15,7 +19,7 @@ HINTS = {
 }
 
 
-def diagnose_dynamic(lay: Any, failed: Any) -> str:
+def diagnose_dynamic(lay: DynamicLayout, failed: Plan) -> str:
     """Explain a failed dynamic plan in task terms: the worst violated group, when, in which phase."""
     spec = lay.spec
     status = failed.stats.status.value

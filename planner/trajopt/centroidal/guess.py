@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -30,7 +30,7 @@ def forces_of(lay: DynamicLayout, x: np.ndarray) -> np.ndarray:
     return np.asarray(x, dtype=float)[lay.n_kinematic:lay.n_kinematic + lay.pattern().n_variables]
 
 
-def heading_guess(lay: Any) -> np.ndarray:
+def heading_guess(lay: DynamicLayout) -> np.ndarray:
     """Initial guess of the chart displacements (N+1, nv): the base follows the feet.
 
     At each knot the base keeps its standing pose relative to the *heading* of the placements in

@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -124,7 +124,7 @@ class DynamicLayout(Layout):
         return diagnose_dynamic(self, failed)
 
 
-def to_dynamic_layout(lay: Any, settings: CentroidalSettings = CentroidalSettings()) -> DynamicLayout:
+def to_dynamic_layout(lay: Layout, settings: CentroidalSettings = CentroidalSettings()) -> DynamicLayout:
     """The dynamic version of a kinematic layout.
 
     The support-polygon rows on the CoM are dropped except at the last variable knot (the robot

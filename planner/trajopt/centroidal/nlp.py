@@ -78,7 +78,7 @@ class DynamicBlocks:
     hess_cc: Any
 
 
-def _kinematic_functions(lay: Any) -> tuple[ca.Function, ca.Function]:
+def _kinematic_functions(lay: DynamicLayout) -> tuple[ca.Function, ca.Function]:
     """SX functions of one knot: (dq, q_ref) -> (c, Jc, z, Jz) and (dq, q_ref, nu, eta) -> hess(nu.c + eta.z)."""
     from planner.trajopt.symbolic import SymbolicKinematics
 
@@ -96,12 +96,12 @@ def _kinematic_functions(lay: Any) -> tuple[ca.Function, ca.Function]:
     return first, second
 
 
-def com_rows(lay: Any) -> int:
+def com_rows(lay: DynamicLayout) -> int:
     """Number of lifted CoM variables (and of the rows tying them to the configuration)."""
     return 3 * (lay.N - 2)
 
 
-def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
+def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
                    lam_f: Any, lam: Any, *, kinematic_hessian: bool = True) -> DynamicBlocks:
     """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
 
@@ -196,7 +196,7 @@ def dynamic_blocks(lay: Any, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any,
     )
 
 
-def stage_hessians(lay: Any, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
+def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
                    eta: Any) -> Any:
     """Block-diagonal chart Hessian of a dynamic NLP's Lagrangian, one SX function per stage type.
 
@@ -359,7 +359,7 @@ def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.
 SWING_CLEARANCE = 0.01  # [m] lowest sole corner of a swinging foot, away from lift-off and touch-down
 
 
-def swing_corner_floor(lay: Any, rows: Sequence[tuple[int, int, int]]) -> np.ndarray:
+def swing_corner_floor(lay: DynamicLayout, rows: Sequence[tuple[int, int, int]]) -> np.ndarray:
     """Lower bounds of the swinging sole-corner heights [m].
 
     0 at the first and last free knot of a swing (the sole may still or already touch there),

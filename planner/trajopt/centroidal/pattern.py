@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -28,6 +28,9 @@ from planner.trajopt.centroidal.physics import (
 from planner.trajopt.centroidal.settings import CentroidalSettings
 from robots.model import Robot
 from tasks.specs import TaskSpec
+
+if TYPE_CHECKING:
+    from planner.trajopt.centroidal.layout import DynamicLayout
 
 # ---------------------------------------------------------------------------------------------
 # Assembly over a knot grid
@@ -52,8 +55,47 @@ class ConstraintBlock:
     upper: np.ndarray
 
 
+class _ForceReadout:
+    """Force readout shared by :class:`CentroidalTerms` and :class:`CentroidalPattern`."""
+
+    __slots__ = ()
+    lower: np.ndarray
+    weight: float
+    force_index: tuple[Mapping[str, np.ndarray], ...]
+    generators: tuple[Mapping[str, np.ndarray], ...]
+    frames: tuple[str, ...]
+
+    @property
+    def n_variables(self) -> int:
+        """Number of force variables."""
+        return int(self.lower.shape[0])
+
+    def corner_forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
+        """Corner forces per frame from a solution ``values`` of :attr:`variables` [N].
+
+        Returns:
+            frame -> (T, n_points, 3) world forces, zero at knots where the contact is inactive
+            (and at the first and last knot, which carry no dynamics).
+        """
+        values = np.asarray(values, dtype=float).reshape(-1)
+        T = len(self.force_index)
+        out: dict[str, np.ndarray] = {}
+        for k, index in enumerate(self.force_index):
+            for frame, idx in index.items():
+                if frame not in out:
+                    out[frame] = np.zeros((T, idx.shape[0], 3))
+                out[frame][k] = (values[idx] @ self.generators[k][frame].T) * self.weight
+        for frame in self.frames:
+            out.setdefault(frame, np.zeros((T, 1, 3)))
+        return out
+
+    def forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
+        """Total force per contact frame (T, 3) in the world [N] (the sum over its corners)."""
+        return {f: c.sum(axis=1) for f, c in self.corner_forces(values).items()}
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
-class CentroidalTerms:
+class CentroidalTerms(_ForceReadout):
     """Everything the NLP needs to add for CoM dynamics with contact forces.
 
     The force variables are normalized by the body weight. With friction edges (the default,
@@ -97,11 +139,6 @@ class CentroidalTerms:
     dynamics_knots: tuple[int, ...]
     structure: tuple
 
-    @property
-    def n_variables(self) -> int:
-        """Number of force variables."""
-        return int(self.lower.shape[0])
-
     def g(self) -> tuple[Any, np.ndarray, np.ndarray]:
         """All constraint rows stacked: (expr, lower, upper)."""
         if not self.constraints:
@@ -112,32 +149,9 @@ class CentroidalTerms:
             np.concatenate([b.upper for b in self.constraints]),
         )
 
-    def corner_forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
-        """Corner forces per frame from a solution ``values`` of :attr:`variables` [N].
-
-        Returns:
-            frame -> (T, n_points, 3) world forces, zero at knots where the contact is inactive
-            (and at the first and last knot, which carry no dynamics).
-        """
-        values = np.asarray(values, dtype=float).reshape(-1)
-        T = len(self.force_index)
-        out: dict[str, np.ndarray] = {}
-        for k, index in enumerate(self.force_index):
-            for frame, idx in index.items():
-                if frame not in out:
-                    out[frame] = np.zeros((T, idx.shape[0], 3))
-                out[frame][k] = (values[idx] @ self.generators[k][frame].T) * self.weight
-        for frame in self.frames:
-            out.setdefault(frame, np.zeros((T, 1, 3)))
-        return out
-
-    def forces(self, values: np.ndarray) -> dict[str, np.ndarray]:
-        """Total force per contact frame (T, 3) in the world [N] (the sum over its corners)."""
-        return {f: c.sum(axis=1) for f, c in self.corner_forces(values).items()}
-
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class CentroidalPattern:
+class CentroidalPattern(_ForceReadout):
     """The numbers of :func:`build_centroidal` without any CasADi expression (cheap to make).
 
     Same variable and row order as the terms; what a cached solver needs for a solve.
@@ -164,9 +178,6 @@ class CentroidalPattern:
     dynamics_knots: tuple[int, ...]
     structure: tuple
 
-    n_variables = CentroidalTerms.n_variables
-    corner_forces = CentroidalTerms.corner_forces
-    forces = CentroidalTerms.forces
 
 
 def _force_box(c: ContactGeometry, n_points: int, settings: CentroidalSettings):
@@ -248,7 +259,9 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
                 ubg.append(np.full(5 * m, np.inf))
         lbg.append(np.zeros(3))
         ubg.append(np.zeros(3))
-    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+    def cat(xs: list) -> np.ndarray:
+        return np.concatenate(xs) if xs else np.zeros(0)
+
     return CentroidalPattern(
         lower=cat(lower), upper=cat(upper), initial=cat(initial), parameter_values=cat(pvals),
         lbg=cat(lbg), ubg=cat(ubg), weight=weight, contacts=tuple(tuple(c) for c in contacts),
@@ -265,7 +278,7 @@ def build_centroidal(
     *,
     settings: CentroidalSettings = CentroidalSettings(),
     gravity: np.ndarray = GRAVITY,
-    symbol: type = ca.SX,
+    symbol: type[ca.SX] | type[ca.MX] = ca.SX,
 ) -> CentroidalTerms:
     """Force variables, CoM dynamics, friction pyramids and the angular-momentum cost on a grid.
 
@@ -362,7 +375,9 @@ def build_centroidal(
         if forces and settings.angular_momentum_weight > 0.0:
             ldot = angular_momentum_rate(com[k], points, forces)  # [m x body weights]
             cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
-    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+    def cat(xs: list) -> np.ndarray:
+        return np.concatenate(xs) if xs else np.zeros(0)
+
     return CentroidalTerms(
         variables=ca.vertcat(*syms) if syms else symbol(0, 1),
         lower=cat(lower),
@@ -385,11 +400,11 @@ def build_centroidal(
 def build_centroidal_for_spec(
     spec: TaskSpec,
     robot: Robot,
-    t: Sequence[float],
+    t: Sequence[float] | np.ndarray,
     com: Sequence[Any],
     *,
     settings: CentroidalSettings = CentroidalSettings(),
-    symbol: type = ca.SX,
+    symbol: type[ca.SX] | type[ca.MX] = ca.SX,
 ) -> CentroidalTerms:
     """:func:`build_centroidal` for a spec on a uniform knot grid ``t``.
 
@@ -446,7 +461,7 @@ class CentroidalFunction:
         return (self.terms.structure, self.corner_rows)
 
 
-def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSettings(),
+def centroidal_function(lay: DynamicLayout, *, settings: CentroidalSettings = CentroidalSettings(),
                         first_free_knot: int = 2) -> CentroidalFunction:
     """Build :class:`CentroidalFunction` for a :class:`planner.trajopt.layout.Layout`.
 
@@ -470,7 +485,7 @@ def centroidal_function(lay: Any, *, settings: CentroidalSettings = CentroidalSe
     return CentroidalFunction(function=fn, terms=terms, corner_rows=rows, lbg=lbg, ubg=ubg)
 
 
-def swinging_corners(lay: Any, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
+def swinging_corners(lay: DynamicLayout, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
     """(knot, foot frame id, corner) of every sole corner of a foot not in contact at a variable knot."""
     feet = [lay.robot.frame_id(f"{s}_foot") for s in ("left", "right")]
     return tuple((k, fid, i) for k in range(first_free_knot, lay.N) for fid in feet

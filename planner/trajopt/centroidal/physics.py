@@ -3,7 +3,6 @@ acceleration, the dynamics residual, friction pyramids and their edges, the angu
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -102,7 +101,7 @@ def pyramid_edges(rotation: Any, mu: Any, *, inner: bool = True) -> Any:
     return np.asarray(rotation, dtype=float) @ local
 
 
-def angular_momentum_rate(com: Any, points: np.ndarray, forces: Sequence[Any]) -> Any:
+def angular_momentum_rate(com: Any, points: np.ndarray | Sequence[Any], forces: Sequence[Any]) -> Any:
     """Rate of angular momentum about the CoM implied by point forces, :math:`\\sum (p_i - c) \\times f_i`.
 
     Args:

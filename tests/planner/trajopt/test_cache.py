@@ -7,10 +7,9 @@ import json
 import numpy as np
 import pytest
 
+from planner import PlannerSettings, plan
 from planner.trajopt.cache import clear_memory_cache, get_solver, solver_key
 from planner.trajopt.layout import make_layout
-from planner import PlannerSettings
-from planner import plan
 from tests.planner.planning_cases import squat_spec
 
 

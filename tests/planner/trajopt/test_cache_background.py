@@ -8,11 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from planner import PlannerSettings, plan
 from planner.trajopt import cache
 from planner.trajopt.cache import clear_memory_cache, solver_key
 from planner.trajopt.layout import make_layout
-from planner import PlannerSettings
-from planner import plan
 from tests.planner.planning_cases import squat_spec
 
 COMPILE_WAIT = 480.0  # [s] bound on gcc -O0 of a small Talos squat (25 s idle) on a loaded 2-core machine

@@ -9,6 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from planner.exceptions import PlannerError
 from planner.trajopt.centroidal import (
     GRAVITY,
     CentroidalSettings,
@@ -25,7 +26,6 @@ from planner.trajopt.centroidal import (
     friction_violation,
     pyramid_edges,
 )
-from planner.exceptions import PlannerError
 from tasks.specs import Contact, Phase, Pose, TaskSpec
 from tests.tolerances import SYMBOLIC_ATOL
 

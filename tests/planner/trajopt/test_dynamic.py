@@ -14,12 +14,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings
-from planner import plan
+from planner import PlannerSettings, plan
+from planner.trajopt.centroidal import SWING_CLEARANCE
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.exceptions import TaskDefinitionError
-from planner.trajopt.centroidal import SWING_CLEARANCE
 from tasks.footsteps import standing_feet
 from tests.tolerances import CONTACT_POS_ATOL, CONTACT_ROT_ATOL
 

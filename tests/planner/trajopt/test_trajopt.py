@@ -8,9 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from planner.exceptions import PlannerError, PlanningFailed
-from planner import PlannerSettings
-from planner import plan
+from planner import PlannerSettings, plan
+from planner.exceptions import PlanningFailed
 from robots import FrameNotFound
 from tasks.specs import CoMBounds, Phase, Priority
 from tests.planner.planning_cases import assert_plan_meets_spec, reach_spec, squat_spec

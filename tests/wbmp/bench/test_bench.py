@@ -7,8 +7,8 @@ import os
 
 import pytest
 
-from wbmp.cli import main
 from wbmp import bench
+from wbmp.cli import main
 
 TOP_KEYS = {"schema", "date_utc", "robot", "quick", "repeats", "dt_override", "compiled_solvers", "machine",
             "machine_tag", "tasks", "scaling", "plot", "peers", "ratios", "loadavg_end", "wall_s"}
