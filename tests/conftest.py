@@ -15,7 +15,10 @@ os.environ.setdefault("WBMP_COMPILE", "0")
 os.environ.setdefault("WBMP_COMPILE_BACKGROUND", "0")  # tests that compile wait for gcc
 os.environ.setdefault("WBMP_CACHE_DIR", tempfile.mkdtemp(prefix="wbmp-test-cache-"))
 
-settings.register_profile("ci", derandomize=True, max_examples=60, deadline=None)
+# Nothing is written into the checkout: no example database (derandomized runs replay nothing
+# anyway), and hypothesis's own caches (charmap, constants) go to a temporary folder.
+os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", tempfile.mkdtemp(prefix="wbmp-test-hypothesis-"))
+settings.register_profile("ci", derandomize=True, max_examples=60, deadline=None, database=None)
 settings.load_profile("ci")
 
 ROBOT_NAMES = ("talos", "g1", "romeo", "icub")
@@ -49,3 +52,40 @@ def any_robot(request):
 def rng():
     """A seeded generator: every random draw in the suite is reproducible."""
     return np.random.default_rng(20261121)
+
+
+# -- the source tree stays as it was -----------------------------------------------------------
+
+_TOOL_CACHES = ("__pycache__", ".pytest_cache", ".mypy_cache", ".ruff_cache", ".venv", ".egg-info")
+
+
+def _checkout_entries(root: str) -> set[str] | None:
+    """Untracked and ignored paths of the checkout (git's view), less the tools' own caches."""
+    import subprocess
+
+    try:
+        out = subprocess.run(["git", "status", "--porcelain", "--ignored", "--untracked-files=all"],
+                             cwd=root, capture_output=True, text=True, timeout=60, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None  # not a git checkout (an sdist): nothing to compare
+    paths = {line[3:] for line in out.splitlines() if line[:2] in ("??", "!!")}
+    return {p for p in paths if not any(c in p for c in _TOOL_CACHES)}
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    session.config._wbmp_entries = _checkout_entries(str(session.config.rootpath))  # type: ignore[attr-defined]
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the run when a test left a file in the checkout (tests write below tmp_path only)."""
+    before = getattr(session.config, "_wbmp_entries", None)
+    if before is None or getattr(session.config.option, "collectonly", False):
+        return
+    after = _checkout_entries(str(session.config.rootpath)) or set()
+    new = sorted(after - before)
+    if new:
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is not None:
+            reporter.ensure_newline()
+            reporter.write_line(f"tests wrote into the source tree: {', '.join(new[:20])}", red=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
