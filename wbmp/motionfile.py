@@ -1,4 +1,5 @@
-"""The motion file (``.npz``, DESIGN.md section 6) and its JSON/CSV exports.
+"""The motion file (``.npz``, DESIGN.md section 6) and its exports (JSON, CSV; MCAP and tracker in
+:mod:`wbmp.export`).
 
 Keys of the ``.npz`` (``docs/formats.md`` documents them for other tools):
 
@@ -545,8 +546,9 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
         The paths written.
 
     Raises:
-        MotionFileError: unknown format, a suffix that contradicts ``fmt``, joints that these
-            formats cannot name, or a tracker export of an execution the file lacks.
+        MotionFileError: unknown format or a suffix that contradicts ``fmt``.
+        CliError: (exit 2) joints that MCAP and tracker cannot name, or a tracker export of an
+            execution the file lacks.
         ValueError: a bad ``stamp``, ``fps`` or ``source``.
     """
     if not isinstance(motion, MotionFile):

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wbmp.errors import CliError, ExitCode
+
 BASE_NQ = 7  # free flyer: x, y, z [m], qx, qy, qz, qw (Pinocchio order)
 BASE_NV = 6  # free flyer: linear [m/s] and angular [rad/s] velocity in the base frame
 
@@ -39,7 +41,7 @@ def plan_columns(motion) -> MotionColumns:
     """The plan of a motion file (joint torques None).
 
     Raises:
-        MotionFileError: the joints cannot be named one column each (see :func:`joint_names`).
+        CliError (exit 2): the joints cannot be named one column each (see :func:`joint_names`).
     """
     joint_names(motion)
     plan = motion.plan
@@ -50,7 +52,7 @@ def execution_columns(motion) -> MotionColumns | None:
     """The simulated execution of a motion file (joint accelerations None), or None if it has none.
 
     Raises:
-        MotionFileError: the joints cannot be named one column each (see :func:`joint_names`).
+        CliError (exit 2): the joints cannot be named one column each (see :func:`joint_names`).
     """
     joint_names(motion)
     ex = motion.execution_arrays
@@ -72,24 +74,27 @@ def _columns(t, q, v, a, tau) -> MotionColumns:
     )
 
 
+def refused(message: str) -> CliError:
+    """A motion file this export cannot convert (exit 2, like a damaged motion file)."""
+    return CliError(message, ExitCode.USAGE)
+
+
 def joint_names(motion) -> list[str]:
     """The actuated joints' names (URDF names, Pinocchio order), one per q and v column.
 
     Raises:
-        MotionFileError: the file names no joints or not one per column (a file written without
+        CliError (exit 2): the file names no joints or not one per column (a file written without
             a robot), or a joint has more position than velocity coordinates (a continuous or
             spherical joint, which these formats do not describe as one number).
     """
-    from wbmp.motionfile import MotionFileError
-
     nq, nv = motion.plan.q.shape[1], motion.plan.v.shape[1]
     names = list(motion.joint_names)
     if nq - BASE_NQ != nv - BASE_NV:
-        raise MotionFileError(f"motion file of {motion.robot_name!r}: nq - 7 = {nq - BASE_NQ} position but "
+        raise refused(f"motion file of {motion.robot_name!r}: nq - 7 = {nq - BASE_NQ} position but "
                               f"nv - 6 = {nv - BASE_NV} velocity columns (a continuous or spherical joint); "
                               "this export needs one position per joint: use --format json or csv")
     if len(names) != nv - BASE_NV:
-        raise MotionFileError(f"motion file of {motion.robot_name!r}: key 'joint_names' has {len(names)} names "
+        raise refused(f"motion file of {motion.robot_name!r}: key 'joint_names' has {len(names)} names "
                               f"for {nv - BASE_NV} joints; this export names every joint (write the file with "
                               "`wbmp solve --out`, which stores them), or use --format json or csv")
     return names

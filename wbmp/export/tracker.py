@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from wbmp.export.columns import MotionColumns, execution_columns, joint_names, plan_columns
+from wbmp.export.columns import MotionColumns, execution_columns, joint_names, plan_columns, refused
 
 TRACKER_FORMAT = "wbmp-tracker"
 TRACKER_VERSION = 1
@@ -116,19 +116,17 @@ def tracker_arrays(motion, fps: float = DEFAULT_FPS, source: str = "plan",
     """Every key of the tracker file of ``motion``'s plan or execution, resampled at ``fps``.
 
     Raises:
-        MotionFileError: the joints cannot be named, or ``source="execution"`` and the file
+        CliError (exit 2): the joints cannot be named, or ``source="execution"`` and the file
             holds no simulated execution.
         ValueError: a bad ``fps`` or ``source``.
     """
     from wbmp.export.rosbag import WORLD_FRAME, base_frame_of
-    from wbmp.motionfile import MotionFileError
-
     if source not in SOURCES:
         raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
     names = joint_names(motion)
     cols = plan_columns(motion) if source == "plan" else execution_columns(motion)
     if cols is None:
-        raise MotionFileError(f"motion file of {motion.robot_name!r} holds no simulated execution (it was solved "
+        raise refused(f"motion file of {motion.robot_name!r} holds no simulated execution (it was solved "
                               "with --no-sim); export the plan (--source plan) or solve again with the simulation")
     check_fps(fps, float(cols.t[-1] - cols.t[0]))
     out: dict[str, Any] = {
