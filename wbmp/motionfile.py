@@ -1,4 +1,5 @@
-"""The motion file (``.npz``, DESIGN.md section 6) and its JSON/CSV exports.
+"""The motion file (``.npz``, DESIGN.md section 6) and its exports (JSON, CSV; MCAP and tracker in
+:mod:`wbmp.export`).
 
 Keys of the ``.npz`` (``docs/formats.md`` documents them for other tools):
 
@@ -511,31 +512,44 @@ def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
         except RobotError:
             raise _fail(shown, f"key 'spec_json' names frame {frame!r}, which robot {robot.name!r} lacks") from None
 
-EXPORT_FORMATS = ("json", "csv", "npz")
+EXPORT_FORMATS = ("json", "csv", "npz", "mcap", "tracker")
+#: file suffix -> the formats a file of that suffix may hold
+SUFFIX_FORMATS = {"json": ("json",), "csv": ("csv",), "npz": ("npz", "tracker"), "mcap": ("mcap",)}
 
 
 def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | None = None, *,
-                  staging: Staging | None = None) -> list[Path]:
-    """Export a motion file to JSON, CSV or npz (format from ``fmt`` or the suffix).
+                  staging: Staging | None = None, stamp: float = 0.0, base_frame: str | None = None,
+                  fps: float | None = None, source: str = "plan") -> list[Path]:
+    """Export a motion file to JSON, CSV, npz, a ROS 2 bag (MCAP) or a tracker file (format from
+    ``fmt`` or the suffix; ``docs/export.md`` states each format's conventions).
 
     JSON holds every key of the npz (arrays as nested lists; ``spec``, ``actions``, ``report``
     as objects). CSV holds the plan as one row per knot (``t``, ``q_*``, ``v_*``, ``com_*``)
     after ``#``-comment lines with the robot, the spec, the actions and the report as JSON;
     the execution, when present, goes to a sibling ``<name>.exec.csv`` (``t``, ``q_*``, ``v_*``,
     ``tau_*``). Every file is made in full before any is renamed into place: the CSV and its
-    ``.exec.csv`` appear together or not at all.
+    ``.exec.csv`` appear together or not at all. MCAP: :func:`wbmp.export.write_bag`; tracker:
+    :func:`wbmp.export.tracker_arrays` (an ``.npz``).
 
     Args:
         motion: A loaded motion or the path of a motion file.
         path: Output file.
-        fmt: ``json``, ``csv`` or ``npz``; None = from ``path``'s suffix.
+        fmt: ``json``, ``csv``, ``npz``, ``mcap`` or ``tracker``; None = from ``path``'s suffix
+            (``.npz`` is the motion-file copy).
         staging: Stage the files there (renamed by ``staging.commit()``) instead of writing now.
+        stamp: MCAP: ROS time [s] of the motion's t = 0.
+        base_frame: MCAP and tracker: the base's frame name; None = the robot profile's.
+        fps: Tracker: sample rate [Hz]; None = :data:`wbmp.export.DEFAULT_FPS`.
+        source: Tracker: ``plan`` or ``execution``.
 
     Returns:
         The paths written.
 
     Raises:
-        MotionFileError: unknown format, or a suffix that contradicts ``fmt``.
+        MotionFileError: unknown format or a suffix that contradicts ``fmt``.
+        CliError: (exit 2) joints that MCAP and tracker cannot name, or a tracker export of an
+            execution the file lacks.
+        ValueError: a bad ``stamp``, ``fps`` or ``source``.
     """
     if not isinstance(motion, MotionFile):
         motion = load_motion(motion)
@@ -543,9 +557,23 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
     fmt = export_format(path, fmt)
     if staging is None:
         with Staging() as own:
-            written = export_motion(motion, path, fmt, staging=own)
+            written = export_motion(motion, path, fmt, staging=own, stamp=stamp, base_frame=base_frame, fps=fps,
+                                    source=source)
             own.commit()
         return written
+    if fmt == "mcap":
+        from wbmp.export import BagOptions, joint_names, write_bag
+
+        joint_names(motion)  # refused before a file is opened
+        options = BagOptions(stamp=stamp, base_frame=base_frame)
+        staging.add(path, lambda fh: write_bag(fh, motion, options))
+        return [path]
+    if fmt == "tracker":
+        from wbmp.export import DEFAULT_FPS, tracker_arrays
+
+        tracker = tracker_arrays(motion, DEFAULT_FPS if fps is None else fps, source, base_frame)
+        staging.add(path, lambda fh: np.savez_compressed(fh, **tracker))
+        return [path]
     arrays = _arrays_of(motion)
     if fmt == "npz":
         staging.add(path, lambda fh: np.savez_compressed(fh, **arrays))
@@ -563,7 +591,7 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
         return [path]
     written = [path]
     plan = motion.plan
-    names = _coordinate_names(motion, plan.q.shape[1], plan.v.shape[1])
+    names = csv_columns(motion)
     header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]], "com_x", "com_y", "com_z"]
     rows = np.hstack([plan.t[:, None], plan.q, plan.v, plan.com])
     meta = {"robot": motion.robot_name, "version": motion.version,
@@ -591,7 +619,7 @@ def exec_csv_path(path: str | Path) -> Path:
 
 def export_format(path: str | Path, fmt: str | None) -> str:
     """The export format for ``path``: ``fmt`` if given (it must not contradict the suffix),
-    else the suffix (``.json``, ``.csv``, ``.npz``).
+    else the suffix (``.json``, ``.csv``, ``.npz``, ``.mcap``).
 
     Raises:
         MotionFileError: unknown format, a suffix naming another format, or no usable suffix.
@@ -601,14 +629,14 @@ def export_format(path: str | Path, fmt: str | None) -> str:
         fmt = fmt.lower()
         if fmt not in EXPORT_FORMATS:
             raise MotionFileError(f"unknown export format {fmt!r}; use one of {', '.join(EXPORT_FORMATS)}")
-        if suffix in EXPORT_FORMATS and suffix != fmt:
+        if suffix in SUFFIX_FORMATS and fmt not in SUFFIX_FORMATS[suffix]:
             raise MotionFileError(f"{str(path)!r} ends in .{suffix} but the format is {fmt}")
         return fmt
-    if suffix not in EXPORT_FORMATS:
+    if suffix not in SUFFIX_FORMATS:
         shown = f".{suffix}" if suffix else "no suffix"
-        raise MotionFileError(f"unknown export format for {str(path)!r} ({shown}); name it .json or .csv, "
+        raise MotionFileError(f"unknown export format for {str(path)!r} ({shown}); name it .json, .csv or .mcap, "
                               "or give the format")
-    return suffix
+    return SUFFIX_FORMATS[suffix][0]
 
 
 def _arrays_of(motion: MotionFile) -> dict[str, Any]:
@@ -628,12 +656,18 @@ def _arrays_of(motion: MotionFile) -> dict[str, Any]:
     return out
 
 
-def _coordinate_names(motion: MotionFile, nq: int, nv: int) -> tuple[list[str], list[str]]:
+def csv_columns(motion: MotionFile) -> tuple[list[str], list[str]]:
+    """The names of the q and v columns of the CSV export (without the ``q_``/``v_`` prefix):
+    ``base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw, <joints>`` and
+    ``base_vx, base_vy, base_vz, base_wx, base_wy, base_wz, <joints>`` (``joint<i>`` when the file
+    names no joints or not one per velocity column)."""
+    nq, nv = motion.plan.q.shape[1], motion.plan.v.shape[1]
     joints = list(motion.joint_names)
     if len(joints) != nv - 6:
         joints = [f"joint{i}" for i in range(nv - 6)]
     q_names = ["base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw", *joints]
     v_names = ["base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz", *joints]
+    q_names += [f"q{i}" for i in range(len(q_names), nq)]  # a joint with more than one position coordinate
     return q_names[:nq], v_names[:nv]
 
 

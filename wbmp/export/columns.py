@@ -1,0 +1,100 @@
+"""The columns of a motion file that other tools read: base pose, joint positions and velocities."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wbmp.errors import CliError, ExitCode
+
+BASE_NQ = 7  # free flyer: x, y, z [m], qx, qy, qz, qw (Pinocchio order)
+BASE_NV = 6  # free flyer: linear [m/s] and angular [rad/s] velocity in the base frame
+
+
+@dataclass(frozen=True, eq=False)
+class MotionColumns:
+    """One trajectory (the plan or the execution) split into the parts other tools name.
+
+    Attributes:
+        t: Times [s], (T,).
+        position_base_in_world: Base position [m], (T, 3).
+        quaternion_base_in_world: Base orientation, (T, 4), order x, y, z, w (Pinocchio's and ROS's).
+        joint_positions: (T, n) [rad] (or [m] for a prismatic joint), joints in ``joint_names`` order.
+        joint_velocities: (T, n) [rad/s].
+        base_velocity_in_base: (T, 6): linear [m/s] then angular [rad/s], in the base frame.
+        joint_accelerations: (T, n) [rad/s^2] or None (the execution has none).
+        joint_torques: (T, n) [N m] or None (the plan has none).
+    """
+
+    t: np.ndarray
+    position_base_in_world: np.ndarray
+    quaternion_base_in_world: np.ndarray
+    joint_positions: np.ndarray
+    joint_velocities: np.ndarray
+    base_velocity_in_base: np.ndarray
+    joint_accelerations: np.ndarray | None = None
+    joint_torques: np.ndarray | None = None
+
+
+def plan_columns(motion) -> MotionColumns:
+    """The plan of a motion file (joint torques None).
+
+    Raises:
+        CliError (exit 2): the joints cannot be named one column each (see :func:`joint_names`).
+    """
+    joint_names(motion)
+    plan = motion.plan
+    return _columns(plan.t, plan.q, plan.v, plan.a, None)
+
+
+def execution_columns(motion) -> MotionColumns | None:
+    """The simulated execution of a motion file (joint accelerations None), or None if it has none.
+
+    Raises:
+        CliError (exit 2): the joints cannot be named one column each (see :func:`joint_names`).
+    """
+    joint_names(motion)
+    ex = motion.execution_arrays
+    if not ex:
+        return None
+    return _columns(ex["exec_t"], ex["exec_q"], ex["exec_v"], None, ex.get("exec_tau"))
+
+
+def _columns(t, q, v, a, tau) -> MotionColumns:
+    return MotionColumns(
+        t=np.asarray(t, dtype=float),
+        position_base_in_world=np.asarray(q[:, :3], dtype=float),
+        quaternion_base_in_world=np.asarray(q[:, 3:BASE_NQ], dtype=float),
+        joint_positions=np.asarray(q[:, BASE_NQ:], dtype=float),
+        joint_velocities=np.asarray(v[:, BASE_NV:], dtype=float),
+        base_velocity_in_base=np.asarray(v[:, :BASE_NV], dtype=float),
+        joint_accelerations=None if a is None else np.asarray(a[:, BASE_NV:], dtype=float),
+        joint_torques=None if tau is None else np.asarray(tau, dtype=float),
+    )
+
+
+def refused(message: str) -> CliError:
+    """A motion file this export cannot convert (exit 2, like a damaged motion file)."""
+    return CliError(message, ExitCode.USAGE)
+
+
+def joint_names(motion) -> list[str]:
+    """The actuated joints' names (URDF names, Pinocchio order), one per q and v column.
+
+    Raises:
+        CliError (exit 2): the file names no joints or not one per column (a file written without
+            a robot), or a joint has more position than velocity coordinates (a continuous or
+            spherical joint, which these formats do not describe as one number).
+    """
+    nq, nv = motion.plan.q.shape[1], motion.plan.v.shape[1]
+    names = list(motion.joint_names)
+    if nq - BASE_NQ != nv - BASE_NV:
+        raise refused(f"motion file of {motion.robot_name!r}: nq - 7 = {nq - BASE_NQ} position but "
+                              f"nv - 6 = {nv - BASE_NV} velocity columns (a continuous or spherical joint); "
+                              "this export needs one position per joint: use --format json or csv")
+    if len(names) != nv - BASE_NV:
+        raise refused(f"motion file of {motion.robot_name!r}: key 'joint_names' has {len(names)} names "
+                              f"for {nv - BASE_NV} joints; this export names every joint (write the file with "
+                              "`wbmp solve --out`, which stores them), or use --format json or csv")
+    return names
