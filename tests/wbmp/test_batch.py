@@ -1,0 +1,158 @@
+"""``wbmp batch``: a small real batch on the local pool and on a real local Ray instance.
+
+Items: two cheap sentences (squat, wave) planned without simulation on talos, one spec whose
+balance margin cannot hold (a task-level diagnosis, exit 4), one sentence the parser does not
+understand (exit 2).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tasks.serialize import spec_to_dict
+from tests.planner.planning_cases import squat_spec
+from wbmp.cli import main
+from wbmp.motionfile import load_motion
+
+
+@pytest.fixture(autouse=True)
+def _no_compilation(monkeypatch, tmp_path_factory):
+    """Solvers are built in memory (the disk cache has its own tests); workers inherit this."""
+    monkeypatch.setenv("WBMP_COMPILE", "0")
+
+
+def _items(folder: Path, talos) -> Path:
+    wide = spec_to_dict(squat_spec(talos, 0.1, margin=0.3))
+    lines = [
+        {"id": "squat", "instruction": "squat"},
+        {"id": "wave", "instruction": "wave your right hand"},
+        {"id": "wide", "spec": wide},
+        {"id": "moon", "instruction": "fly to the moon"},
+    ]
+    path = folder / "items.jsonl"
+    path.write_text("# a small library\n\n" + "\n".join(json.dumps(x) for x in lines) + "\n")
+    return path
+
+
+def _index(folder: Path) -> dict[str, dict]:
+    records = [json.loads(line) for line in (folder / "index.jsonl").read_text().splitlines()]
+    assert len(records) == len({r["id"] for r in records})
+    return {r["id"]: r for r in records}
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory, talos):
+    """The batch run once with the local pool (2 workers): (items file, library folder, exit, stderr)."""
+    import os
+
+    old = os.environ.get("WBMP_COMPILE")
+    os.environ["WBMP_COMPILE"] = "0"
+    try:
+        folder = tmp_path_factory.mktemp("batch")
+        items = _items(folder, talos)
+        out = folder / "lib"
+        code = main(["batch", str(items), "--out-dir", str(out), "--no-sim", "--workers", "2"])
+    finally:
+        if old is None:
+            os.environ.pop("WBMP_COMPILE", None)
+        else:
+            os.environ["WBMP_COMPILE"] = old
+    return items, out, code
+
+
+def test_index_records_each_item_with_status_code_and_message(library):
+    """One record per item: ok ones name their motion file and its sha256; failures their code and
+    the one-line message `wbmp solve` prints; the batch exits with the first failure's code (4)."""
+    _, out, code = library
+    assert code == 4  # the first failed item in file order is 'wide' (infeasible)
+    index = _index(out)
+    assert list(index) == ["squat", "wave", "wide", "moon"]
+    for name in ("squat", "wave"):
+        rec = index[name]
+        assert (rec["status"], rec["exit_code"], rec["robot"], rec["message"]) == ("ok", 0, "talos", "")
+        assert rec["motion"] == f"{name}__talos.npz"
+        assert rec["sha256"] == hashlib.sha256((out / rec["motion"]).read_bytes()).hexdigest()
+        assert rec["certificate"] is None  # --no-sim
+        assert rec["timings"]["plan"] > 0 and rec["timings"]["total"] >= rec["timings"]["plan"]
+        assert rec["skipped"] is False and rec["backend"] == "local"
+    wide, moon = index["wide"], index["moon"]
+    assert (wide["status"], wide["exit_code"], wide["motion"]) == ("failed", 4, None)
+    assert "CoM bound 'balance' cannot hold in phase 'squat'" in wide["message"]
+    assert (moon["status"], moon["exit_code"], moon["motion"]) == ("failed", 2, None)
+    assert moon["message"].startswith('could not understand "fly", "moon"')
+    assert "\n" not in wide["message"] + moon["message"]
+    assert sorted(p.name for p in out.iterdir()) == ["index.jsonl", "squat__talos.npz", "summary.md",
+                                                      "wave__talos.npz"]
+    summary = (out / "summary.md").read_text()
+    assert "| talos | 2 | 2 | 4 |" in summary and "| wide | talos | 5 | 4 |" in summary
+
+
+def test_motion_files_are_what_wbmp_solve_writes(library, tmp_path):
+    """Each motion file loads, and the squat equals `wbmp solve squat --no-sim` sample by sample."""
+    _, out, _ = library
+    squat = load_motion(out / "squat__talos.npz")
+    wave = load_motion(out / "wave__talos.npz")
+    assert squat.robot_name == wave.robot_name == "talos" and squat.plan.ok and wave.plan.ok
+    ref_path = tmp_path / "ref.npz"
+    assert main(["solve", "squat", "--no-sim", "--quiet", "--out", str(ref_path)]) == 0
+    ref = load_motion(ref_path)
+    assert squat.plan.q.shape == ref.plan.q.shape
+    np.testing.assert_allclose(squat.plan.t, ref.plan.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(squat.plan.q, ref.plan.q, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(squat.plan.v, ref.plan.v, rtol=0, atol=1e-5)
+
+
+def test_rerun_skips_done_items_and_redoes_a_damaged_file(library, tmp_path, capsys):
+    """A second run plans nothing (each skip recorded); a damaged motion file is planned again and
+    a missing one too; --force plans everything."""
+    items, out, _ = library
+    lib = tmp_path / "lib"
+    shutil.copytree(out, lib)
+    capsys.readouterr()
+    assert main(["batch", str(items), "--out-dir", str(lib), "--no-sim", "--workers", "2", "--quiet"]) == 4
+    assert "0 planned now, 4 done before" in capsys.readouterr().out
+    index = _index(lib)
+    assert all(rec["skipped"] for rec in index.values())
+    good = (lib / "wave__talos.npz").read_bytes()
+    damaged = bytearray(good)
+    damaged[len(damaged) // 2] ^= 0xFF
+    (lib / "wave__talos.npz").write_bytes(bytes(damaged))
+    (lib / "squat__talos.npz").unlink()
+    assert main(["batch", str(items), "--out-dir", str(lib), "--no-sim", "--workers", "2", "--quiet"]) == 4
+    assert "2 planned now, 2 done before" in capsys.readouterr().out
+    index = _index(lib)
+    assert {k: r["skipped"] for k, r in index.items()} == {"squat": False, "wave": False, "wide": True,
+                                                           "moon": True}
+    for name in ("squat", "wave"):
+        data = (lib / f"{name}__talos.npz").read_bytes()
+        assert index[name]["sha256"] == hashlib.sha256(data).hexdigest()
+        load_motion(lib / f"{name}__talos.npz")
+    assert not [p for p in lib.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_same_batch_on_a_local_ray_instance(library, tmp_path):
+    """--ray starts a local Ray instance (2 CPUs), gives the same records and files as the local
+    pool (motion files equal to 1e-6), and shuts it down."""
+    ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'wbmp[ray]')")
+    items, out, _ = library
+    lib = tmp_path / "lib"
+    code = main(["batch", str(items), "--out-dir", str(lib), "--no-sim", "--workers", "2", "--ray", "--quiet"])
+    if code == 1 and not (lib / "index.jsonl").exists():  # pragma: no cover - machine-dependent
+        pytest.skip("Ray could not start a local instance on this machine")
+    assert code == 4
+    assert not ray.is_initialized()
+    local, remote = _index(out), _index(lib)
+    assert list(remote) == list(local)
+    for key in local:
+        assert remote[key]["backend"] == "ray"
+        for field in ("status", "exit_code", "message", "motion"):
+            assert remote[key][field] == local[key][field], (key, field)
+    for name in ("squat", "wave"):
+        a, b = load_motion(out / f"{name}__talos.npz"), load_motion(lib / f"{name}__talos.npz")
+        np.testing.assert_allclose(a.plan.q, b.plan.q, rtol=0, atol=1e-6)

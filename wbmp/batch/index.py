@@ -1,0 +1,150 @@
+"""The motion library's index (``index.jsonl``), its resume rule, and the summary (``summary.md``).
+
+While a batch runs, each finished job appends one JSON line to ``index.jsonl`` and the file is
+flushed to disk (``fsync``) before the next: an interrupted or killed batch leaves every record
+of a finished job, and at most a torn last line, which the reader skips. At the end (also after
+Ctrl-C or SIGTERM) the index is rewritten atomically with one record per job, in the batch
+file's order (records of jobs no longer in the batch file are kept after them), and
+``summary.md`` beside it.
+
+Resume rule (:func:`is_done`): a job is skipped when the index holds a record for it with the
+same ``input_sha256`` (same item, spec file content, robot and simulation switch) whose outcome
+is a result of the input — status ``ok``, or ``failed`` with exit code 2 to 5 — and whose motion
+file, when it has one, exists with the recorded sha256. Anything else is planned again: a
+crashed item (exit 1), a missing or damaged motion file, a changed input.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+INDEX = "index.jsonl"
+SUMMARY = "summary.md"
+#: Exit codes of a failure that the input decides (it would fail again the same way).
+FINAL_CODES = (2, 3, 4, 5)
+
+
+def read_index(path: Path) -> dict[tuple[str, str], dict[str, Any]]:
+    """The last record of each (id, robot) in an index file; torn or foreign lines are skipped."""
+    records: dict[tuple[str, str], dict[str, Any]] = {}
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except FileNotFoundError:
+        return records
+    except OSError:
+        return records
+    for line in text.splitlines():
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(rec, dict) and isinstance(rec.get("id"), str) and isinstance(rec.get("robot"), str):
+            records[(rec["id"], rec["robot"])] = rec
+    return records
+
+
+def is_done(record: dict[str, Any] | None, job: Any, out_dir: Path, *, retry_failed: bool = False) -> bool:
+    """True when ``job`` need not run again (the module's resume rule)."""
+    from wbmp.batch.worker import sha256_file
+
+    if record is None or record.get("input_sha256") != job.input_sha256:
+        return False
+    status, code = record.get("status"), record.get("exit_code")
+    if status == "ok":
+        pass
+    elif status == "failed" and code in FINAL_CODES and not retry_failed:
+        pass
+    else:
+        return False
+    motion = record.get("motion")
+    if motion is None:
+        return status != "ok"
+    if motion != job.motion_name:
+        return False
+    path = out_dir / motion
+    try:
+        if not path.is_file() or path.is_symlink():
+            return False
+        return sha256_file(path) == record.get("sha256")
+    except OSError:
+        return False
+
+
+class IndexWriter:
+    """Appends records to ``index.jsonl``, each flushed to disk before :meth:`append` returns."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_CLOEXEC", 0)
+        self._fd = os.open(path, flags, 0o666)  # the umask applies, as for every output
+        with contextlib.suppress(OSError):
+            size = os.fstat(self._fd).st_size
+            if size:  # a torn last line of a killed run: start on a fresh line
+                with open(path, "rb") as fh:
+                    fh.seek(size - 1)
+                    if fh.read(1) != b"\n":
+                        os.write(self._fd, b"\n")
+
+    def append(self, record: dict[str, Any]) -> None:
+        """Write one record as a line and fsync."""
+        data = (json.dumps(record, ensure_ascii=False, sort_keys=False) + "\n").encode("utf-8")
+        view = memoryview(data)
+        while view:
+            n = os.write(self._fd, view)
+            view = view[n:]
+        os.fsync(self._fd)
+
+    def close(self) -> None:
+        """Close the file."""
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+
+def final_records(jobs: list[Any], records: dict[tuple[str, str], dict[str, Any]]) -> list[dict[str, Any]]:
+    """One record per job in batch order (jobs without a record are left out), then the others."""
+    ordered = [records[job.key] for job in jobs if job.key in records]
+    keys = {job.key for job in jobs}
+    ordered += [rec for key, rec in records.items() if key not in keys]
+    return ordered
+
+
+def index_text(records: list[dict[str, Any]]) -> str:
+    """The compacted index: one JSON line per record."""
+    return "".join(json.dumps(rec, ensure_ascii=False) + "\n" for rec in records)
+
+
+def _cell(text: Any) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def summary_text(records: list[dict[str, Any]], *, title: str, pending: int = 0) -> str:
+    """``summary.md``: counts by status and robot, then every failure with its message."""
+    by_robot: dict[str, Counter] = {}
+    for rec in records:
+        by_robot.setdefault(rec["robot"], Counter())[rec.get("status", "?")] += 1
+    total = Counter(rec.get("status", "?") for rec in records)
+    lines = [f"# Motion library: {title}", ""]
+    lines.append(f"{len(records)} records: {total.get('ok', 0)} ok, {total.get('failed', 0)} failed"
+                 + (f", {pending} not run (the batch was stopped)" if pending else "") + ".")
+    lines += ["", "| robot | ok | failed | total |", "|---|---:|---:|---:|"]
+    for robot in sorted(by_robot):
+        c = by_robot[robot]
+        lines.append(f"| {_cell(robot)} | {c.get('ok', 0)} | {c.get('failed', 0)} | {sum(c.values())} |")
+    lines.append(f"| **all** | {total.get('ok', 0)} | {total.get('failed', 0)} | {len(records)} |")
+    codes = Counter(rec.get("exit_code") for rec in records if rec.get("status") != "ok")
+    if codes:
+        lines += ["", "Failures by exit code (docs/cli.md): "
+                  + ", ".join(f"{code}: {n}" for code, n in sorted(codes.items(), key=lambda kv: str(kv[0]))) + "."]
+    failed = [rec for rec in records if rec.get("status") != "ok"]
+    if failed:
+        lines += ["", "## Failures", "", "| id | robot | line | exit | message |", "|---|---|---:|---:|---|"]
+        for rec in failed:
+            lines.append(f"| {_cell(rec['id'])} | {_cell(rec['robot'])} | {rec.get('line', '')} | "
+                         f"{rec.get('exit_code', '')} | {_cell(rec.get('message', ''))} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,131 @@
+"""One job of a batch, in a worker process: exactly what ``wbmp solve --out FILE`` does.
+
+:func:`run_job` never raises for a failed item: the exception is classified with
+:func:`wbmp.errors.classify` (the code ``wbmp solve`` would exit with) and returned in the
+record with its one-line message; an exception that has no exit code (a bug) is recorded as
+exit 1 with its type and message. Only Ctrl-C and SIGTERM propagate, after the motion file's
+temporary file was removed (the write goes through :class:`viz.files.Staging`).
+
+This module imports nothing heavy at the top: a worker process sets its thread limits in
+:func:`init_worker` before numpy, CasADi or MuJoCo load their BLAS.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import socket
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+#: BLAS/OpenMP thread variables set to 1 in every worker (as ``wbmp.cli.run`` does for one solve):
+#: the workers are the parallelism, and a second thread per worker only competes for the cores.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def worker_env() -> dict[str, str]:
+    """Environment variables every worker gets: one BLAS thread unless the user chose."""
+    return {name: os.environ.get(name, "1") for name in THREAD_VARIABLES}
+
+
+def init_worker() -> None:
+    """Set up a local-pool worker: one BLAS thread; SIGTERM unwinds (no temporary file left),
+    SIGINT too (Ctrl-C reaches the whole process group)."""
+    import signal
+
+    for name, value in worker_env().items():
+        os.environ.setdefault(name, value)
+
+    def _on_signal(signum, frame) -> None:  # noqa: ARG001 - the signal-handler signature
+        from wbmp.errors import Terminated, note_signal
+
+        note_signal(signum)
+        if signum == signal.SIGTERM:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            raise Terminated()
+        raise KeyboardInterrupt()
+
+    signal.signal(signal.SIGTERM, _on_signal)
+    signal.signal(signal.SIGINT, _on_signal)
+
+
+def _where() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def failure_record(job: Any, code: int, message: str, *, elapsed: float = 0.0) -> dict[str, Any]:
+    """The record of a job that failed outside the solver (a crashed worker, a lost task)."""
+    return {
+        "id": job.item.id, "robot": job.robot_label, "line": job.item.line, **job.item.source(),
+        "status": "failed", "exit_code": int(code), "certificate": None, "message": message,
+        "timings": {"total": round(elapsed, 4)}, "motion": None, "sha256": None,
+        "input_sha256": job.input_sha256, "worker": None,
+    }
+
+
+def run_job(job: Any, out_dir: str, simulate: bool) -> dict[str, Any]:
+    """Plan (and simulate) one job, write its motion file, return its index record."""
+    from wbmp.errors import ExitCode, check_signals, classify, clear_signals, one_line
+    from wbmp.pipeline import SolveRequest, solve, write_outputs
+
+    clear_signals()
+    t_start = time.perf_counter()
+    item = job.item
+    record: dict[str, Any] = {
+        "id": item.id, "robot": job.robot_label, "line": item.line, **item.source(),
+        "status": "failed", "exit_code": int(ExitCode.INTERNAL), "certificate": None, "message": "",
+        "timings": {}, "motion": None, "sha256": None, "input_sha256": job.input_sha256, "worker": _where(),
+    }
+    target = Path(out_dir) / job.motion_name
+    with contextlib.ExitStack() as stack:
+        spec_path = item.spec_path
+        if item.spec_object is not None:  # a spec object of a JSONL line: the solver reads a file
+            folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="wbmp-batch-spec-"))
+            spec_path = str(Path(folder) / "spec.json")
+            Path(spec_path).write_text(json.dumps(item.spec_object, ensure_ascii=False), encoding="utf-8")
+        request = SolveRequest(instruction=item.instruction, spec_path=spec_path, robot=job.robot,
+                               simulate=simulate)
+        try:
+            result = solve(request)
+            code = int(result.exit_code)
+            t0 = time.perf_counter()
+            write_outputs(result, out=str(target))
+            check_signals()
+            record["timings"] = {k: round(v, 4) for k, v in result.timings.items()}
+            record["timings"]["write"] = round(time.perf_counter() - t0, 4)
+            record["exit_code"] = code
+            record["status"] = "ok" if code == 0 else "failed"
+            if result.execution is not None:
+                cert = result.execution.certificate
+                record["certificate"] = "pass" if cert.ok else "fail"
+                if not cert.ok:
+                    record["message"] = one_line(f"simulation check failed: {cert.reason}")
+            record["motion"] = job.motion_name
+            record["sha256"] = sha256_file(target)
+        except Exception as exc:  # noqa: BLE001 - every failure of one item is recorded, the batch goes on
+            check_signals()  # an interrupt a library turned into its own error stops the batch
+            mapped = classify(exc)
+            if mapped is None:
+                record["exit_code"] = int(ExitCode.INTERNAL)
+                record["message"] = one_line(f"internal error: {type(exc).__name__}: {exc}")
+            else:
+                record["exit_code"] = int(mapped)
+                record["message"] = one_line(str(exc))
+            with contextlib.suppress(OSError):  # a motion of an earlier run is not this item's result
+                target.unlink()
+    record["timings"]["total"] = round(time.perf_counter() - t_start, 4)
+    return record
+
+
+def sha256_file(path: str | Path) -> str:
+    """sha256 of a file, read in 1 MiB blocks."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(1 << 20):
+            h.update(block)
+    return h.hexdigest()
