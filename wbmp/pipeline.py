@@ -150,7 +150,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
 
 
 def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = False,
-          cache_dir: str | Path | None = None) -> SolveResult:
+          cache_dir: str | Path | None = None, cache_read: bool = True) -> SolveResult:
     """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI).
 
     Ctrl-C or SIGTERM stops it at the next progress message or step, also when a library
@@ -165,6 +165,9 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
             result read from it has ``cached`` set and a lazily loaded ``robot``.
         cache_dir: The motion cache folder (default ``$WBMP_CACHE_DIR/motions``, else
             ``~/.cache/wbmp/motions``).
+        cache_read: With ``cache``, False solves afresh and only stores the result (``wbmp
+            solve --plots``: the contact-force plot needs the simulation's contact forces, which
+            a motion file does not keep).
     """
     from wbmp.errors import check_signals
 
@@ -176,7 +179,7 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     motions = MotionCache(cache_dir)
     t0 = time.perf_counter()
     rkey = request_key(request)
-    if rkey is not None:
+    if rkey is not None and cache_read:
         found = motions.lookup_request(rkey)
         if found is not None:
             hit = motions.load(found[0])
@@ -184,7 +187,7 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
                 check_signals()
                 progress("answering from the motion cache")
                 return _from_cache(request, hit, None, time.perf_counter() - t0)
-    return _solve(request, progress, motions=motions, rkey=rkey)
+    return _solve(request, progress, motions=motions, rkey=rkey, read=cache_read)
 
 
 class _LazyRobot:
@@ -270,7 +273,8 @@ def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
                        cache_key=hit.key)
 
 
-def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rkey: str | None = None) -> SolveResult:
+def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rkey: str | None = None,
+           read: bool = True) -> SolveResult:
     from wbmp.errors import check_signals
 
     report = progress
@@ -302,7 +306,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         files = robot_files(robot)
         digest = robot_hash(robot, files)
         key = motion_key(spec, digest, simulate=request.simulate, push=push)
-        hit = motions.load(key)
+        hit = motions.load(key) if read else None
         if hit is not None:  # the same motion from another phrasing (or request)
             if rkey is not None:
                 motions.store_request(rkey, key, files, digest)

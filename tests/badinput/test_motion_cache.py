@@ -226,3 +226,12 @@ def test_a_damaged_entry_warns_on_one_stderr_line(golden, tmp_path):
                               env={"WBMP_CACHE_DIR": str(cache), "WBMP_COMPILE": "0", "PYTHONPATH": str(REPO)})
     lines = [ln for ln in outcome.err.splitlines() if ln.strip()]
     assert outcome.code == 0 and len(lines) == 1 and lines[0].startswith("wbmp: warning: motion cache entry"), lines
+
+
+def test_plots_are_drawn_from_a_fresh_solve(golden, tmp_path, monkeypatch, capsys):
+    """--plots needs the simulated contact forces, which the cache does not keep: not read."""
+    copy_cache(golden, tmp_path, monkeypatch)
+    plots = tmp_path / "plots"
+    outcome = run_cli(["solve", SENTENCE, "--plots", plots, "--quiet"], capsys)
+    assert outcome.code == 0 and "[cached]" not in outcome.out, outcome.err
+    assert (plots / "contact_forces.png").is_file()

@@ -86,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
                   inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES
                           else None})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
-    result = solve(request, progress, cache=not args.no_cache)
+    # --plots draws the simulation's contact forces, which the motion cache does not keep: solved
+    # afresh (and stored), never read
+    result = solve(request, progress, cache=not args.no_cache, cache_read=args.plots is None)
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
     print_result(result, written, as_json=args.json)
     if args.view:
