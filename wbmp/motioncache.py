@@ -33,6 +33,7 @@ import io
 import json
 import logging
 import os
+import stat
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -100,9 +101,23 @@ def _environment() -> dict[str, Any]:
             "env": {k: os.environ.get(k, "") for k in _ENV}}
 
 
-def _sha256_file(path: str | Path) -> str:
+def _open_regular(path: str | Path, limit: int):
+    """A binary file object on a regular file of at most ``limit`` bytes; OSError otherwise
+    (opened non-blocking, so a FIFO put in a file's place cannot hang the command)."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+            raise OSError(f"{path}: not a regular file of at most {limit} bytes")
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def _sha256_file(path: str | Path, limit: int = MAX_ENTRY_BYTES) -> str:
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    with _open_regular(path, limit) as f:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
@@ -147,27 +162,52 @@ def motion_key(spec, robot_digest: str, *, simulate: bool, push: Any) -> str:
                     "push": None if push is None else repr(push), **_environment()})
 
 
+MAX_INPUT_BYTES = 16 << 20  # [bytes] a spec or profile file larger than this takes no fast path
+
+
+def _input_digest(path: str) -> str | None:
+    """sha256 of a regular input file of sane size, or None (a pipe, ``-``, a device such as
+    ``/dev/zero``, a missing or huge file: the request then takes the ordinary path, which checks
+    and refuses it; nothing is read from anything but a regular file)."""
+    try:
+        with _open_regular(path, MAX_INPUT_BYTES) as f:
+            data = f.read(MAX_INPUT_BYTES + 1)
+    except (OSError, ValueError):
+        return None
+    if len(data) > MAX_INPUT_BYTES:
+        return None
+    return hashlib.sha256(data).hexdigest()
+
+
 def request_key(request) -> str | None:
-    """The key of a request's exact inputs, or None when it cannot be repeated (an LLM parser)."""
+    """The key of a request's exact inputs, or None when it cannot be repeated (an LLM parser,
+    a spec read from a pipe or a device)."""
     if request.parser != "rules":
         return None
     spec_text = None
     if request.spec_path is not None:
-        try:
-            spec_text = _sha256_file(request.spec_path)
-        except OSError:
+        if request.spec_path == "-" or not _is_regular(request.spec_path):
+            return None
+        spec_text = _input_digest(request.spec_path)
+        if spec_text is None:
             return None
     robot = request.robot
     robot_text = None
-    if robot is not None and os.path.isfile(robot):  # noqa: PTH113 - a profile file: its content counts
-        try:
-            robot_text = _sha256_file(robot)
-        except OSError:
+    if robot is not None and _is_regular(robot):  # a profile file: its content counts
+        robot_text = _input_digest(robot)
+        if robot_text is None:
             return None
         robot = str(Path(robot).resolve())
     return _digest({"instruction": request.instruction, "spec": spec_text, "robot": robot,
                     "robot_file": robot_text, "simulate": bool(request.simulate), "push": request.push,
                     **_environment()})
+
+
+def _is_regular(path: str) -> bool:
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)  # noqa: PTH116 - False on any OSError
+    except (OSError, ValueError):
+        return False
 
 
 # -- entries ------------------------------------------------------------------------------------

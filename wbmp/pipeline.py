@@ -303,7 +303,11 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     if motions is not None:
         from wbmp.motioncache import motion_key, robot_files, robot_hash
 
-        files = robot_files(robot)
+        try:
+            files = robot_files(robot)
+        except OSError:  # a robot file that cannot be hashed: solved, not cached
+            files, motions = None, None
+    if motions is not None and files is not None:
         digest = robot_hash(robot, files)
         key = motion_key(spec, digest, simulate=request.simulate, push=push)
         hit = motions.load(key) if read else None
