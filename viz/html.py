@@ -15,18 +15,22 @@ from __future__ import annotations
 
 import base64
 import html
+import importlib.util
 import json
 import os
+import re
+import zlib
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from robots import Robot
-from viz import motion as vm
-from viz import scene
-from viz._meshcat import meshcat, umsgpack
 from viz.files import Staging, atomic_write_text
+
+if TYPE_CHECKING:
+    from robots import Robot
+
+# meshcat (and with it IPython, zmq, tornado), Pinocchio and numpy are imported by the functions
+# that need them: render_page() of a cached replay needs none of them (wbmp solve's motion cache)
 
 FPS = 30.0  # key frames per second of the replay
 
@@ -43,6 +47,8 @@ class RecordingWindow:
 
     def send_lowered(self, message: dict) -> None:
         """Record an already lowered command dictionary."""
+        from viz._meshcat import umsgpack
+
         self.commands.append(umsgpack.packb(message))
 
     def close(self) -> None:
@@ -51,7 +57,14 @@ class RecordingWindow:
 
 def meshcat_bundle() -> str:
     """Text of meshcat's bundled viewer (three.js + meshcat, ~0.85 MB)."""
-    path = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
+    spec = importlib.util.find_spec("meshcat")  # its folder, without importing it
+    if spec is None or spec.origin is None:
+        from viz._meshcat import meshcat  # raises the import guard's error
+
+        origin = meshcat.__file__
+    else:
+        origin = spec.origin
+    path = Path(origin).parent / "viewer" / "dist" / "main.min.js"
     return path.read_text(encoding="utf-8")
 
 
@@ -61,48 +74,98 @@ def _b64(data: bytes) -> str:
 
 def build_page(robot: Robot, plan, *, execution=None, title: str = "") -> str:
     """The HTML text of the replay (see the module docstring)."""
+    return render_page(page_data(robot, plan, execution=execution), robot.name, plan, execution=execution,
+                       title=title)
+
+
+def page_data(robot: Robot, plan, *, execution=None) -> str:
+    """The replay's data (scene, motions, camera) as the page embeds it: the part of the page
+    that needs the robot model; it does not depend on the title (the motion cache keeps it)."""
+    import numpy as np
+
+    from viz import motion as vm
+    from viz import scene
+    from viz._meshcat import meshcat, umsgpack
+
     planned = vm.plan_motion(robot, plan)
     simulated = vm.execution_motion(robot, execution)
 
     window = RecordingWindow()
     vis = meshcat.Visualizer(window=window)
     scene.add_ground(vis)
-    scene.add_robot(vis, robot, motion="planned")
+    scene.add_robot(vis, robot, motion="planned", compact=True)
     schedule = scene.add_markers(vis, robot, plan)
     scene.set_robot_configuration(vis, robot, planned.q[0], motion="planned")
 
-    motions: dict[str, str] = {}
+    motions: dict[str, bytes] = {}
     durations: dict[str, float] = {}
     for m in (planned, simulated):
         if m is None:
             continue
-        clips, duration = scene.motion_animations(vis, robot, m, robot_node="planned", fps=FPS)
+        clips, duration = scene.motion_animations(vis, robot, m, robot_node="planned", fps=FPS, packed=True)
         clips += scene.visibility_animations(vis, schedule, duration)
-        motions[m.label] = _b64(umsgpack.packb(scene.animation_message(clips)))
+        motions[m.label] = umsgpack.packb(scene.animation_message(clips))
         durations[m.label] = duration
 
-    data = {
-        "scene": [_b64(c) for c in window.commands],
-        "motions": motions,
+    header = {
+        "scene": [len(c) for c in window.commands],
+        "motions": {name: len(blob) for name, blob in motions.items()},
         "durations": durations,
         "camera": scene.camera_view(robot, np.asarray(plan.com, dtype=float)),
     }
-    page_title = title or plan.spec.description or plan.spec.name or f"wbmp: {robot.name}"
+    return pack_data(header, [*window.commands, *motions.values()])
+
+
+def pack_data(header: dict, blobs: list[bytes]) -> str:
+    """The page's data: raw DEFLATE of (4-byte little-endian header length, header JSON, the
+    blobs one after the other), base64-encoded. The page inflates it synchronously with its own
+    small decoder (``player.html``), so the scene is drawn before the load event ends (headless
+    screenshots, the browser test); ``DecompressionStream`` would make that asynchronous."""
+    head = json.dumps(header, separators=(",", ":")).encode("utf-8")
+    raw = b"".join([len(head).to_bytes(4, "little"), head, *blobs])
+    packer = zlib.compressobj(9, zlib.DEFLATED, -15)
+    return _b64(packer.compress(raw) + packer.flush())
+
+
+def unpack_data(text: str) -> dict:
+    """The data of a page written by :func:`write_html` (for tests and tools): ``scene`` (the
+    recorded meshcat commands, msgpack bytes), ``motions`` (name -> msgpack bytes of the
+    animation command), ``durations`` and ``camera``."""
+    m = re.search(r'<script type="application/octet-stream" id="wbmp-data">(.*?)</script>', text, re.S)
+    if m is None:
+        raise ValueError("not a wbmp HTML replay (no wbmp-data element)")
+    raw = zlib.decompress(base64.b64decode(m.group(1)), -15)
+    n = int.from_bytes(raw[:4], "little")
+    header = json.loads(raw[4:4 + n])
+    at = 4 + n
+    scene_cmds = []
+    for size in header["scene"]:
+        scene_cmds.append(raw[at:at + size])
+        at += size
+    motions = {}
+    for name, size in header["motions"].items():
+        motions[name] = raw[at:at + size]
+        at += size
+    return {"scene": scene_cmds, "motions": motions, "durations": header["durations"], "camera": header["camera"]}
+
+
+def render_page(data: str, robot_name: str, plan, *, execution=None, title: str = "") -> str:
+    """The page around :func:`page_data`'s data: title, subtitle, meshcat's viewer, the player."""
+    page_title = title or plan.spec.description or plan.spec.name or f"wbmp: {robot_name}"
     template = resources.files("viz").joinpath("player.html").read_text(encoding="utf-8")
-    payload = json.dumps(data, separators=(",", ":"))
     return (template
             .replace("{{TITLE}}", html.escape(page_title))
-            .replace("{{SUBTITLE}}", html.escape(_subtitle(robot, plan, simulated, execution)))
+            .replace("{{SUBTITLE}}", html.escape(_subtitle(robot_name, plan, execution)))
             .replace("{{MESHCAT}}", meshcat_bundle())
-            .replace("{{DATA}}", payload.replace("</", "<\\/")))
+            .replace("{{DATA}}", data))
 
 
-def _subtitle(robot: Robot, plan, simulated: vm.Motion | None, execution=None) -> str:
-    parts = [robot.name, f"{float(plan.t[-1]):.2f} s", f"{len(plan.t)} knots"]
+def _subtitle(robot_name: str, plan, execution=None) -> str:
+    parts = [robot_name, f"{float(plan.t[-1]):.2f} s", f"{len(plan.t)} knots"]
     stats = getattr(plan, "stats", None)
     if stats is not None:
         parts.append(f"solver: {stats.status.name.lower()}")
-    if simulated is not None:
+    if execution is not None:
         certificate = getattr(execution, "certificate", None)
         ok = getattr(certificate, "ok", None)
         parts.append("simulation included" if ok is None else

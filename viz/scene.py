@@ -91,6 +91,121 @@ def _triangles(geom: pin.GeometryObject) -> mg.TriangularMeshGeometry | None:
     return mg.TriangularMeshGeometry(vertices, faces)
 
 
+# -- compact meshes (the HTML replay): decimated by vertex clustering, quantized to 16 bits --
+
+COMPACT_CELLS = 96  # clustering grid cells along a mesh's longest side
+COMPACT_MAX_CELL = 0.004  # [m] largest clustering cell (a 4 mm grid on the robot's big parts)
+
+
+class _PackedMesh(mg.Geometry):
+    """An indexed triangle mesh whose positions are 16-bit integers over the mesh's bounding box
+    (0..65535; the node above scales them back); three.js computes its normals.
+
+    The integers are not marked ``normalized``: meshcat's three.js computes bounding spheres
+    from the raw values, so normalized ones were culled by mistake (Talos' torso and head).
+    """
+
+    def __init__(self, positions: np.ndarray, faces: np.ndarray) -> None:
+        super().__init__()
+        self.positions = np.ascontiguousarray(positions, dtype=np.uint16)
+        wide = int(faces.max(initial=0)) >= 1 << 16
+        self.faces = np.ascontiguousarray(faces, dtype=np.uint32 if wide else np.uint16)
+
+    def lower(self, object_data):
+        index_type, index_code = ("Uint32Array", 0x16) if self.faces.dtype == np.uint32 else ("Uint16Array", 0x14)
+        return {
+            "uuid": self.uuid, "type": "BufferGeometry",
+            "data": {
+                "attributes": {"position": {"itemSize": 3, "type": "Uint16Array", "normalized": False,
+                                            "array": umsgpack.Ext(0x14, self.positions.tobytes())}},
+                "index": {"itemSize": 1, "type": index_type, "normalized": False,
+                          "array": umsgpack.Ext(index_code, self.faces.tobytes())},
+            },
+        }
+
+
+def stl_triangles(path: str) -> np.ndarray | None:
+    """The triangles (n, 3, 3) of a binary STL file [file units], or None (ASCII or malformed)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError:
+        return None
+    if len(data) < 84:
+        return None
+    n = int.from_bytes(data[80:84], "little")
+    if n == 0 or 84 + 50 * n != len(data):
+        return None
+    record = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    return np.frombuffer(data, dtype=record, count=n, offset=84)["v"].astype(float)
+
+
+def decimate(triangles: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex clustering: weld the vertices of each ``cell``-sized grid cube into their mean.
+
+    Args:
+        triangles: (n, 3, 3) triangle corners [m].
+        cell: Grid size [m].
+
+    Returns:
+        ``(vertices (m, 3), faces (k, 3))``: triangles that collapsed (two corners in one cell)
+        and duplicates are dropped; the winding of every kept triangle is unchanged.
+    """
+    v = triangles.reshape(-1, 3)
+    lo = v.min(axis=0)
+    cells = np.floor((v - lo) / cell).astype(np.int64)
+    size = cells.max(axis=0) + 1
+    code = (cells[:, 0] * size[1] + cells[:, 1]) * size[2] + cells[:, 2]
+    _, inverse = np.unique(code, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    counts = np.bincount(inverse)
+    vertices = np.zeros((len(counts), 3))
+    np.add.at(vertices, inverse, v)
+    vertices /= counts[:, None]
+    faces = inverse.reshape(-1, 3)
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    if len(faces):  # drop repeats of a triangle with the same winding (a thin shell's two sides stay)
+        turn = np.argmin(faces, axis=1)
+        rolled = np.stack([faces[np.arange(len(faces)), (turn + k) % 3] for k in range(3)], axis=1)
+        _, first = np.unique(rolled, axis=0, return_index=True)
+        faces = faces[np.sort(first)]
+    used = np.unique(faces)
+    remap = np.full(len(vertices), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return vertices[used], remap[faces]
+
+
+def _compact_geometry(geom: pin.GeometryObject) -> tuple[mg.Geometry, np.ndarray] | None:
+    """(packed mesh, static transform) of a mesh geometry, or None when it is not a mesh."""
+    scale = np.asarray(geom.meshScale, dtype=float)
+    path = geom.meshPath or ""
+    tris = stl_triangles(path) if path.lower().endswith(".stl") else None
+    if tris is not None:
+        tris = tris * scale
+        mirrored = np.prod(np.sign(scale)) < 0
+    else:
+        loaded = _triangles(geom)
+        if loaded is None:
+            return None
+        tris = np.asarray(loaded.vertices, dtype=float)[np.asarray(loaded.faces, dtype=np.int64)]
+        mirrored = False  # _triangles already restored the winding
+    if mirrored:
+        tris = tris[:, [0, 2, 1]]
+    if not len(tris) or not np.all(np.isfinite(tris)):
+        return None
+    extent = float(np.ptp(tris.reshape(-1, 3), axis=0).max())
+    vertices, faces = decimate(tris, max(min(COMPACT_MAX_CELL, extent / COMPACT_CELLS), 1e-6))
+    if not len(faces):
+        return None
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    span = np.where(hi - lo > 1e-9, hi - lo, 1e-9)
+    positions = np.round((vertices - lo) / span * 65535.0)
+    static = np.eye(4)
+    static[:3, :3] = np.diag(span / 65535.0)
+    static[:3, 3] = lo
+    return _PackedMesh(positions, faces), static
+
+
 def _geometry_object(geom: pin.GeometryObject) -> tuple[mg.Geometry | None, np.ndarray]:
     """(meshcat geometry, static 4x4 transform of the mesh node) for a visual geometry.
 
@@ -122,7 +237,8 @@ def _geometry_object(geom: pin.GeometryObject) -> tuple[mg.Geometry | None, np.n
 
 
 def add_robot(vis, robot: Robot, *, motion: str = "planned",
-              color: tuple[float, float, float] | None = PLANNED_COLOR, opacity: float = 1.0) -> list[str]:
+              color: tuple[float, float, float] | None = PLANNED_COLOR, opacity: float = 1.0,
+              compact: bool = False) -> list[str]:
     """Load the robot's visual meshes under ``wbmp/robot/<motion>``.
 
     Args:
@@ -131,6 +247,9 @@ def add_robot(vis, robot: Robot, *, motion: str = "planned",
         motion: Sub-tree name (``planned``, ``simulated``).
         color: RGB in [0, 1] overriding the URDF colours, or None to keep them.
         opacity: Opacity in [0, 1].
+        compact: Send meshes decimated (vertex clustering, :data:`COMPACT_MAX_CELL`) and
+            quantized to 16 bits over their bounding box (the HTML replay; a Talos mesh set
+            shrinks from ~8 MB to well under 1 MB), instead of the files as they are.
 
     Returns:
         The node name of each visual geometry (in ``robot.visual_model`` order; None-free:
@@ -141,7 +260,8 @@ def add_robot(vis, robot: Robot, *, motion: str = "planned",
     for geom in robot.visual_model.geometryObjects:
         name = node_name(geom.name)
         names.append(name)
-        obj, static = _geometry_object(geom)
+        packed = _compact_geometry(geom) if compact else None
+        obj, static = packed if packed is not None else _geometry_object(geom)
         if obj is None:
             continue
         node = base[name]["mesh"]
@@ -297,7 +417,14 @@ def _finish_schedule(schedule: dict[str, list[tuple[float, bool]]]) -> dict[str,
     return out
 
 
-def _track(name: str, kind: str, times: Iterable[float], values: np.ndarray) -> dict:
+def _track(name: str, kind: str, times: Iterable[float], values: np.ndarray, *, packed: bool = False) -> dict:
+    if packed:  # float32 typed arrays (msgpack extension 0x17): 4 bytes a number instead of 9
+        return {
+            "name": "." + name,
+            "type": kind,
+            "times": umsgpack.Ext(0x17, np.asarray(list(times), dtype="<f4").tobytes()),
+            "values": umsgpack.Ext(0x17, np.asarray(values, dtype="<f4").reshape(-1).tobytes()),
+        }
     return {
         "name": "." + name,
         "type": kind,
@@ -316,7 +443,7 @@ def _clip(tracks: list[dict]) -> dict:
 
 
 def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str = "planned",
-                      fps: float = 30.0, markers: bool = True) -> tuple[list[dict], float]:
+                      fps: float = 30.0, markers: bool = True, packed: bool = False) -> tuple[list[dict], float]:
     """Animation clips (meshcat's lowered form) that replay ``motion`` on the robot.
 
     Args:
@@ -326,6 +453,7 @@ def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str =
         robot_node: Which ``wbmp/robot/<node>`` sub-tree to animate.
         fps: Key frames per second [1/s].
         markers: Also animate the CoM point and its ground projection.
+        packed: Times and values as float32 typed arrays (the HTML replay) instead of lists.
 
     Returns:
         ``(clips, duration)``: a list of ``{"path", "clip"}`` dicts and the duration [s].
@@ -344,17 +472,17 @@ def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str =
                 quat[i] = -quat[i]
         clips.append({
             "path": base[node_name(geom.name)].path.lower(),
-            "clip": _clip([_track("position", "vector3", times, pos),
-                           _track("quaternion", "quaternion", times, quat)]),
+            "clip": _clip([_track("position", "vector3", times, pos, packed=packed),
+                           _track("quaternion", "quaternion", times, quat, packed=packed)]),
         })
     if markers:
         com = vm.com_trajectory(robot, qs)
         ground = com.copy()
         ground[:, 2] = 0.0
         clips.append({"path": vis[ROOT]["com"]["point"].path.lower(),
-                      "clip": _clip([_track("position", "vector3", times, com)])})
+                      "clip": _clip([_track("position", "vector3", times, com, packed=packed)])})
         clips.append({"path": vis[ROOT]["com"]["ground"].path.lower(),
-                      "clip": _clip([_track("position", "vector3", times, ground)])})
+                      "clip": _clip([_track("position", "vector3", times, ground, packed=packed)])})
     return clips, float(times[-1])
 
 

@@ -232,6 +232,17 @@ def _read_npz(path: Path, shown: str) -> dict[str, np.ndarray]:
         raise _fail(shown, "is a single numpy array (.npy), not a motion file (.npz archive of named arrays)")
     if not head.startswith(b"PK"):
         raise _fail(shown, "not a motion file: it is not an .npz (zip) archive")
+    return _read_zip(path, shown)
+
+
+def read_npz_bytes(data: bytes, source: str) -> dict[str, np.ndarray]:
+    """The arrays of an ``.npz`` held in memory (the motion cache reads what it verified)."""
+    if not data.startswith(b"PK"):
+        raise _fail(repr(source), "not a motion file: it is not an .npz (zip) archive")
+    return _read_zip(io.BytesIO(data), repr(source))
+
+
+def _read_zip(path: Path | io.BytesIO, shown: str) -> dict[str, np.ndarray]:
     try:
         with zipfile.ZipFile(path) as zf:
             infos = zf.infolist()

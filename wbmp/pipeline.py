@@ -72,6 +72,8 @@ class SolveResult:
     actions: Any = None
     execution: Any = None
     timings: dict[str, float] = field(default_factory=dict)
+    cached: Any = None  # the wbmp.motioncache.Hit this result was read from, or None
+    cache_key: str | None = None  # its motion cache key (also set after a fresh solve that was stored)
 
     @property
     def exit_code(self) -> ExitCode:
@@ -85,6 +87,7 @@ class SolveResult:
         s = self.plan.stats
         out: dict[str, Any] = {
             "robot": self.robot.name,
+            "cached": self.cached is not None,
             "instruction": self.spec.description,
             "solver": {
                 "status": s.status.name.lower(),
@@ -146,14 +149,132 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     return robot, spec, actions
 
 
-def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
+def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = False,
+          cache_dir: str | Path | None = None, cache_read: bool = True) -> SolveResult:
     """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI).
 
     Ctrl-C or SIGTERM stops it at the next progress message or step, also when a library
     swallowed the interrupt (CasADi turns it into an IPOPT failure): see
     :func:`wbmp.errors.check_signals`.
+
+    Args:
+        request: What to do.
+        progress: Called with a message at each step.
+        cache: Answer from the motion cache when it holds this result, and store a fresh one
+            there (:mod:`wbmp.motioncache`; ``wbmp solve`` does unless ``--no-cache``). A
+            result read from it has ``cached`` set and a lazily loaded ``robot``.
+        cache_dir: The motion cache folder (default ``$WBMP_CACHE_DIR/motions``, else
+            ``~/.cache/wbmp/motions``).
+        cache_read: With ``cache``, False solves afresh and only stores the result (``wbmp
+            solve --plots``: the contact-force plot needs the simulation's contact forces, which
+            a motion file does not keep).
     """
-    from planner import plan as plan_motion
+    from wbmp.errors import check_signals
+
+    if not cache:
+        return _solve(request, progress)
+    from wbmp.motioncache import MotionCache, request_key
+
+    request.check()
+    motions = MotionCache(cache_dir)
+    t0 = time.perf_counter()
+    rkey = request_key(request)
+    if rkey is not None and cache_read:
+        found = motions.lookup_request(rkey)
+        if found is not None:
+            hit = motions.load(found[0])
+            if hit is not None:
+                check_signals()
+                progress("answering from the motion cache")
+                return _from_cache(request, hit, None, time.perf_counter() - t0)
+    return _solve(request, progress, motions=motions, rkey=rkey, read=cache_read)
+
+
+class _LazyRobot:
+    """The robot of a cached result: its name at once, the model only when something needs it."""
+
+    def __init__(self, name: str, request: SolveRequest) -> None:
+        self._name = name
+        self._request = request
+        self._robot: Any = None
+
+    @property
+    def name(self) -> str:
+        """The robot's name (no model loaded)."""
+        return self._name
+
+    def load(self) -> Any:
+        """The robot itself (loaded on first use)."""
+        if self._robot is None:
+            from robots import load_robot
+
+            self._robot = load_robot(self._request.robot or self._name)
+        return self._robot
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(self.load(), attr)
+
+
+@dataclass(eq=False, kw_only=True)
+class CachedExecution:
+    """The simulated execution read back from the motion cache (arrays and certificate)."""
+
+    t: Any
+    q: Any
+    v: Any
+    tau: Any
+    certificate: Any
+
+    @property
+    def ok(self) -> bool:
+        """The certificate passed."""
+        return bool(self.certificate.ok)
+
+
+def _certificate(record: dict[str, Any]):
+    from planner.results import Check, CheckKind
+    from sim.certificate import Certificate
+
+    def number(x: Any) -> float:
+        return float("nan") if x is None else float(x)
+
+    checks = tuple(Check(name=str(c["name"]), kind=CheckKind.RECORDED, value=number(c["value"]),
+                         limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]), ok=bool(c["ok"]),
+                         message=str(c.get("message", "")), upper=bool(c.get("upper", True)))
+                   for c in record["checks"])
+    return Certificate(ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")))
+
+
+def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
+                actions: Any = None, spec: Any = None) -> SolveResult:
+    """A SolveResult from a verified motion cache entry, with this request's sentence and actions."""
+    import dataclasses
+
+    motion = hit.motion
+    plan = motion.plan
+    if spec is None:
+        spec = plan.spec if request.instruction is None else dataclasses.replace(plan.spec,
+                                                                                 description=request.instruction)
+    if actions is None and request.instruction is not None:
+        actions = parse_instruction(request)  # milliseconds; the describe() lines and the report's actions
+    plan = dataclasses.replace(plan, spec=spec, stats=dataclasses.replace(plan.stats, cache="cached"))
+    execution = None
+    if motion.execution_arrays:
+        try:
+            certificate = _certificate(motion.report["certificate"])
+        except (KeyError, TypeError, ValueError):
+            certificate = None
+        if certificate is not None:
+            ex = motion.execution_arrays
+            execution = CachedExecution(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex.get("exec_tau"),
+                                        certificate=certificate)
+    return SolveResult(robot=robot if robot is not None else _LazyRobot(motion.robot_name, request), spec=spec,
+                       plan=plan, actions=actions, execution=execution, timings={"cache": elapsed}, cached=hit,
+                       cache_key=hit.key)
+
+
+def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rkey: str | None = None,
+           read: bool = True) -> SolveResult:
     from wbmp.errors import check_signals
 
     report = progress
@@ -178,6 +299,25 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
         from sim import check_push_time
 
         check_push_time(push, spec.horizon)  # a push after the motion would never act (exit 2)
+    key = digest = files = None
+    if motions is not None:
+        from wbmp.motioncache import motion_key, robot_files, robot_hash
+
+        try:
+            files = robot_files(robot)
+        except OSError:  # a robot file that cannot be hashed: solved, not cached
+            files, motions = None, None
+    if motions is not None and files is not None:
+        digest = robot_hash(robot, files)
+        key = motion_key(spec, digest, simulate=request.simulate, push=push)
+        hit = motions.load(key) if read else None
+        if hit is not None:  # the same motion from another phrasing (or request)
+            if rkey is not None:
+                motions.store_request(rkey, key, files, digest)
+            progress("answering from the motion cache")
+            return _from_cache(request, hit, robot, timings["spec"], actions=actions, spec=spec)
+    from planner import plan as plan_motion
+
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
     t0 = time.perf_counter()
     plan = plan_motion(spec, robot, progress=progress)
@@ -192,7 +332,39 @@ def solve(request: SolveRequest, progress: Progress = _silent) -> SolveResult:
         execution = simulate(plan, robot, push=push, progress=progress)
         check_signals()
         timings["simulate"] = time.perf_counter() - t0
-    return SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
+    result = SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
+    if motions is not None and key is not None and files is not None and digest is not None \
+            and plan.ok and (execution is None or execution.certificate.ok):
+        # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
+        motions.store(key, result_arrays(result), spec)
+        if rkey is not None:
+            motions.store_request(rkey, key, files, digest)
+        result.cache_key = key
+    return result
+
+
+def result_arrays(result: SolveResult) -> dict[str, Any]:
+    """The motion file's arrays of a result (a cached result: the stored arrays, with this
+    request's spec description, actions and report)."""
+    from wbmp.motionfile import motion_arrays
+
+    actions = result.actions.to_dict()["actions"] if result.actions is not None else None
+    if result.cached is None:
+        return motion_arrays(result.plan, result.robot, execution=result.execution, actions=actions,
+                             report=result.report())
+    import json
+
+    import numpy as np
+
+    from tasks.serialize import spec_to_json
+    from wbmp.motionfile import _json_default, plan_report
+
+    arrays = dict(result.cached.arrays)
+    full_report = {**result.cached.motion.report, **result.report(), **plan_report(result.plan)}
+    arrays["spec_json"] = np.array(spec_to_json(result.plan.spec, indent=None))
+    arrays["actions_json"] = np.array(json.dumps(actions))
+    arrays["report_json"] = np.array(json.dumps(full_report, default=_json_default))
+    return arrays
 
 
 @contextlib.contextmanager
@@ -249,8 +421,43 @@ def _plot_files() -> tuple[str, ...]:
     return PLOT_FILES
 
 
+def _savez_fast(fh: Any, arrays: dict[str, Any]) -> None:
+    """``np.savez_compressed`` at zlib level 1 (what a cached motion's ``--out`` is written with)."""
+    import zipfile
+
+    import numpy as np
+
+    with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        for key, value in arrays.items():
+            with zf.open(f"{key}.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+
+
+def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str | Path | None) -> None:
+    """The HTML replay; its data is reused from (or stored into) the motion cache when the
+    result is in it (the page's data does not depend on the title)."""
+    from viz.html import page_data, render_page
+
+    title = result.spec.description or result.spec.name
+    data = None
+    motions = None
+    if result.cache_key is not None:
+        from wbmp.motioncache import MotionCache
+
+        motions = MotionCache(cache_dir)
+        data = motions.load_page(result.cache_key)
+    if data is None:
+        data = page_data(result.robot, result.plan, execution=result.execution)
+        if motions is not None and result.cache_key is not None:
+            motions.store_page(result.cache_key, data)
+    text = render_page(data, result.robot.name, result.plan, execution=result.execution, title=title)
+    raw = text.encode("utf-8")
+    staging.add(path, lambda fh: fh.write(raw))
+
+
 def write_outputs(result: SolveResult, *, out: str | None = None, html: str | None = None,
-                  plots: str | None = None, progress: Progress = _silent) -> dict[str, str]:
+                  plots: str | None = None, progress: Progress = _silent,
+                  cache_dir: str | Path | None = None) -> dict[str, str]:
     """Write the requested files; returns {kind: path}.
 
     The paths are checked again (:func:`check_outputs`), every file is made in a temporary file
@@ -263,19 +470,18 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
     written: dict[str, str] = {}
     with output_errors(), Staging() as staging:
         if paths.out is not None:
-            from wbmp.motionfile import save_motion
+            import numpy as np
 
             progress(f"writing {out}")
-            save_motion(paths.out, result.plan, result.robot, execution=result.execution,
-                        actions=result.actions.to_dict()["actions"] if result.actions is not None else None,
-                        report=result.report(), staging=staging)
+            arrays = result_arrays(result)
+            if result.cached is None:
+                staging.add(paths.out, lambda fh: np.savez_compressed(fh, **arrays))
+            else:  # the same arrays, compressed faster (zlib level 1: ~5x quicker, a few % larger)
+                staging.add(paths.out, lambda fh: _savez_fast(fh, arrays))
             written["motion"] = str(paths.out)
         if paths.html is not None:
-            from viz import write_html
-
             progress(f"writing {html}")
-            write_html(paths.html, result.robot, result.plan, execution=result.execution,
-                       title=result.spec.description or result.spec.name, staging=staging)
+            _write_html(paths.html, result, staging, cache_dir=cache_dir)
             written["html"] = str(paths.html)
         if paths.plots is not None:
             from viz import write_plots

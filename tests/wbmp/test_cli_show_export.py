@@ -75,7 +75,9 @@ def test_show_writes_html_and_plots_without_a_server(tmp_path, motion_path, talo
     out = capsys.readouterr().out
     assert f"html: {html}" in out and "plot: " in out
     text = html.read_text()
-    assert '"simulated"' in text and "synthetic squat" in text  # the execution came along
+    from viz.html import unpack_data
+
+    assert "simulated" in unpack_data(text)["motions"] and "synthetic squat" in text  # the execution came along
     assert sorted(p.name for p in plots.iterdir()) == ["com_support.png", "joints.png", "keyframes.png",
                                                         "torques.png"]
     assert main(["show", str(tmp_path / "missing.npz")]) == 2

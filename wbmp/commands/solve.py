@@ -43,6 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--push", metavar="N@t", default=None,
                    help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5 "
                         "(0 < N <= 5000, 0 <= t < the motion's duration)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="neither read nor write the motion cache (a repeated request is answered from it "
+                        "otherwise: docs/cli.md)")
     p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="instruction parser (default: rules)")
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL for --parser llm (env WBMP_LLM_URL)")
@@ -83,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
                   inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES
                           else None})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
-    result = solve(request, progress)
+    # --plots draws the simulation's contact forces, which the motion cache does not keep: solved
+    # afresh (and stored), never read
+    result = solve(request, progress, cache=not args.no_cache, cache_read=args.plots is None)
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
     print_result(result, written, as_json=args.json)
     if args.view:
