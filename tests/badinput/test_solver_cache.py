@@ -432,14 +432,15 @@ def test_cli_solve_with_a_truncated_library_exits_0_and_repairs_the_cache(golden
     cache_dir = tmp_path / "cache"
     entry = _squat_json_entry(golden, cache_dir)
     env = {"WBMP_CACHE_DIR": str(cache_dir), "WBMP_COMPILE": "1", "WBMP_COMPILE_BACKGROUND": "0"}
-    first = run_cli_process(["solve", "--spec", SQ, "--no-sim", "--json"], env=env, cwd=tmp_path)
+    # --no-cache: this is about the solver cache (the motion cache would answer the second run).
+    first = run_cli_process(["solve", "--spec", SQ, "--no-sim", "--json", "--no-cache"], env=env, cwd=tmp_path)
     assert first.code == 0 and "Traceback" not in first.err, first.err[-2000:]
     warned = [ln for ln in first.err.splitlines() if ln.startswith("wbmp: warning:")]
     assert len(warned) == 1 and str(entry) in warned[0] and "cut short" in warned[0], first.err
     assert json.loads(first.out)["solver"]["cache"] == "built"
     meta = json.loads((entry / "meta.json").read_text())
     assert meta["size"] == (entry / "nlp.so").stat().st_size and cache_disk.elf_problem(entry / "nlp.so", meta["size"]) is None
-    second = run_cli_process(["solve", "--spec", SQ, "--no-sim", "--json"], env=env, cwd=tmp_path)
+    second = run_cli_process(["solve", "--spec", SQ, "--no-sim", "--json", "--no-cache"], env=env, cwd=tmp_path)
     assert second.code == 0 and "wbmp: warning" not in second.err
     assert json.loads(second.out)["solver"]["cache"] == "disk"
     assert not [p for p in entry.parent.iterdir() if p.name.startswith(".")], "temporary folder left"
