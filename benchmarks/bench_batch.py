@@ -28,6 +28,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from wbmp.bench.machine import cpu_model
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -39,15 +41,6 @@ def sentences(n: int) -> list[str]:
     return [accepted[i % len(accepted)] + ("" if i < len(accepted) else f" ({i // len(accepted)})")
             for i in range(n)] if n > len(accepted) else accepted[:n]
 
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "?"
 
 
 def run_batch(items: Path, out: Path, extra: list[str], env: dict[str, str]) -> dict:

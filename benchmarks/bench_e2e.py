@@ -33,18 +33,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from wbmp.bench.machine import cpu_model
+
 REPO = Path(__file__).resolve().parents[1]
 CASES = {"squat": "squat down 12 cm", "four steps": "walk forward four steps"}
 
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def run_once(argv: list[str], env: dict[str, str], cwd: Path) -> float:
