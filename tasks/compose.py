@@ -180,13 +180,7 @@ def compile_actions(
             waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
         _check_parts(group)
-        durations = []
-        for i, a in group:
-            try:
-                durations.append(nominal_duration(a, robot))
-            except TaskDefinitionError as e:
-                raise type(e)(f"{_where(i, a, n)}{e}") from None
-        length = max(durations)
+        length = _group_duration(group, robot, n)
         group_fragments = []
         for i, a in group:
             try:
@@ -233,18 +227,23 @@ def compile_actions(
     )
 
 
+def _group_duration(group: list[tuple[int, Action]], robot: Robot, n: int) -> float:
+    """Duration [s] of a group of actions played together: its longest action's nominal one."""
+    durations = []
+    for i, a in group:
+        try:
+            durations.append(nominal_duration(a, robot))
+        except TaskDefinitionError as e:
+            raise type(e)(f"{_where(i, a, n)}{e}") from None
+    return max(durations)
+
+
 def _check_horizon(groups: list[list[tuple[int, Action]]], robot: Robot, n: int, dt: float, stand_knots: int,
                    transition_knots: int) -> None:
     """Refuse a motion longer than MAX_HORIZON before compiling any action (same knot rounding)."""
     k = 2 * stand_knots + transition_knots * (len(groups) - 1)
     for group in groups:
-        durations = []
-        for i, a in group:
-            try:
-                durations.append(nominal_duration(a, robot))
-            except TaskDefinitionError as e:
-                raise type(e)(f"{_where(i, a, n)}{e}") from None
-        k += int(-(-round(max(durations) / dt, 6) // 1))
+        k += int(-(-round(_group_duration(group, robot, n) / dt, 6) // 1))
     if k * dt > MAX_HORIZON + 1e-9:
         raise TaskDefinitionError(horizon_message(k * dt, "split the instruction into several shorter ones"))
 
