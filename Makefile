@@ -42,6 +42,11 @@ bench: $(STAMP)
 bench-quick: $(STAMP)
 	$(BIN)/wbmp bench --quick
 
+# The keyframe strip of every action on talos, for docs/primitives.md and the README.
+.PHONY: pictures
+pictures: $(STAMP)
+	$(BIN)/python examples/action_pictures.py
+
 # Peers (Crocoddyl, TSID) in their own environments .venv-crocoddyl and .venv-tsid (never .venv):
 # the first run compiles TSID from source (long); results go to benchmarks/results/peers/.
 .PHONY: bench-peers

@@ -35,10 +35,34 @@ def test_sentence_example_in_chinese(capsys):
     assert out.count("squat bottom") == 2
 
 
-@pytest.mark.parametrize("name", ["talos_reach_and_squat", "sentence_to_motion"])
+@pytest.mark.parametrize("name", ["talos_reach_and_squat", "sentence_to_motion", "action_pictures"])
 def test_examples_have_help(name, capsys):
     """Every example answers --help (argparse) without doing any work."""
     with pytest.raises(SystemExit) as exit_info:
         load_example(name).main(["--help"])
     assert exit_info.value.code == 0
     assert "usage" in capsys.readouterr().out
+
+
+def test_action_pictures_draws_a_small_palette_strip(tmp_path, capsys):
+    """The picture of a squat is a palette PNG of a few tens of KiB: five side and five front figures."""
+    import numpy as np
+    from PIL import Image
+
+    assert load_example("action_pictures").main(["squat", "--out", str(tmp_path)]) == 0
+    path = tmp_path / "squat.png"
+    assert f"squat: {path}" in capsys.readouterr().out
+    with Image.open(path) as img:
+        assert img.mode == "P" and len(img.getcolors()) <= 48
+        assert 500 <= img.width <= 1000 and img.height >= 300
+        dark = int((np.asarray(img.convert("L")) < 100).sum())  # the stick figures' lines
+    assert dark > 2000
+    assert path.stat().st_size < 60 * 1024
+
+
+def test_action_pictures_refuses_an_unknown_action(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        load_example("action_pictures").main(["moonwalk", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert "unknown action(s) moonwalk" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
