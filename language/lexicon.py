@@ -238,11 +238,13 @@ class Lexicon:
                 self._add(self.phrases, word, ((NEARMISS, action),), "near_misses")
                 self.near_misses[word] = action
         self.suggestion_index: dict[str, str] = {}
-        for name, by_lang in self.action_words.items():
-            for phrases in by_lang.values():
-                for p in phrases:
-                    self.suggestion_index.setdefault(p.split(" (")[0], name)
-            self.suggestion_index.setdefault(name.replace("_", " "), name)
+        for with_body in (False, True):  # "turn" alone is turn; turn_head needs "head" with it
+            for name, by_lang in self.action_words.items():
+                for phrases in by_lang.values():
+                    for p in phrases:
+                        if p.endswith(")") == with_body:
+                            self.suggestion_index.setdefault(p.split(" (")[0], name)
+                self.suggestion_index.setdefault(name.replace("_", " "), name)
 
     def _check_registry(self) -> None:
         for name, schema in REGISTRY.items():

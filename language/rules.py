@@ -67,6 +67,7 @@ from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
 from tasks.limits import MAX_REPEAT
 
+AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
 MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
 
 
@@ -213,6 +214,7 @@ def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset(
     current: list[Item] = []
     connector: str | None = None
     leading_overlay = False
+    joined_by = ""  # the sequencing word before the current part
     dropped = {FILLER: "filler", SUBJECT: "subject", AUX: "verb form"}
     for it in items:
         if it.kind in dropped:
@@ -222,8 +224,9 @@ def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset(
             if it.kind != PUNCTUATION:
                 uses.add(it, "sequence" if it.kind == SEQ else "at the same time")
             if current:
-                _close(clauses, current, connector, optional)
+                _close(clauses, current, connector, optional, joined_by)
                 current, connector = [], None
+            joined_by = it.text if it.kind == SEQ else ""
             if it.kind == OVERLAY:
                 if not clauses:
                     leading_overlay = True  # "while squatting, wave" / "一边挥手一边蹲"
@@ -234,11 +237,11 @@ def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset(
                 connector = PUNCTUATION
             continue
         if it.kind == STOP and current:  # "walks forward and stops": "stops" is a clause of its own
-            _close(clauses, current, connector, optional)
+            _close(clauses, current, connector, optional, joined_by)
             current, connector = [], SEQ
         current.append(it)
     if current:
-        _close(clauses, current, connector, optional)
+        _close(clauses, current, connector, optional, joined_by)
         connector = None
     if clauses:
         clauses[0].connector = None
@@ -250,10 +253,12 @@ def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset(
     return clauses
 
 
-def _close(clauses: list[_Clause], items: list[Item], connector: str | None, optional: frozenset[str] = frozenset()) -> None:
+def _close(clauses: list[_Clause], items: list[Item], connector: str | None, optional: frozenset[str] = frozenset(),
+           joined_by: str = "") -> None:
     """End a clause; after a bare comma, a part without an action word continues the last clause,
-    and so does a part made only of manner words (``walks forward slowly and happily``)."""
-    manner_only = all(it.kind == ADV and it.value in optional for it in items)
+    and so does a part made only of manner words (``walks forward slowly and happily``) or of
+    adverbs after ``and`` (``bows slowly and deeply``)."""
+    manner_only = all(it.kind == ADV and (it.value in optional or joined_by in AND_WORDS) for it in items)
     if clauses and ((connector == PUNCTUATION and not any(it.kind in (TRIGGER, AGAIN, STOP) for it in items))
                     or (manner_only and connector != OVERLAY)):
         clauses[-1].items.extend(items)  # "walk forward, 2 meters" is one walk
