@@ -11,7 +11,6 @@ the phrase table that :meth:`Lexicon.segment` matches, longest phrase first, ove
 
 from __future__ import annotations
 
-import difflib
 import functools
 import json
 from collections.abc import Mapping
@@ -46,6 +45,10 @@ NUM = "num"  # value: int | float
 NEARMISS = "nearmiss"  # value: suggested action or None
 UNKNOWN = "unknown"
 PUNCTUATION = "punct"
+SUBJECT = "subject"  # "a person", "he", "这个人": who does it (caption style), not used
+AUX = "aux"  # "is", "starts to", "正在": verb forms around the action word, not used
+IN_PLACE = "in_place"  # "in place", "on the spot", "原地": changes walk/step into march
+STOP = "stop"  # "stop", "停下": ends the sequence (a bare one alone means: stand still)
 
 SLOT_KEYS = ("side", "direction", "count", "length", "angle", "duration")
 BARE_LEFT_RIGHT = ("side", "direction", "sign", None)
@@ -99,6 +102,11 @@ class ActionWords:
         adverbs: Adverb key -> parameter values; a value is a number (SI) or ``{"scale": k}`` of
             the registry default.
         absorbs: Actions whose words this one takes over in the same clause (``walk 3 steps``).
+        in_place: The action a clause with ``in place``/``原地`` becomes (``walk in place`` is
+            ``march``); it may be missing from the registry (then the clause is refused). None:
+            the action stays in place anyway and ``in place`` changes nothing.
+        split: A numeric parameter whose value beyond its registry range is split into equal
+            copies of the action (``turn 360 degrees`` is two turns of 180 degrees).
     """
 
     name: str
@@ -117,6 +125,8 @@ class ActionWords:
     duration: str | None = None
     adverbs: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     absorbs: tuple[str, ...] = ()
+    in_place: str | None = None
+    split: str | None = None
 
 
 class Lexicon:
@@ -131,6 +141,9 @@ class Lexicon:
         self.units: dict[str, Unit] = {}
         self.adverbs: set[str] = set(data["values"]["adv"])
         self.bodies: set[str] = set(data["values"]["body"])
+        #: Adverb keys that an action without a mapping for them lists as "not used" instead of
+        #: refusing (speed and mood words: "walk slowly", "wave happily").
+        self.optional_adverbs: set[str] = set(data.get("optional_adverbs", ()))
         for name, spec in data["units"].items():
             self.units[name] = Unit(name=name, quantity=spec["quantity"], factor=float(spec["factor"]))
         self._load_actions(data["actions"])
@@ -185,7 +198,7 @@ class Lexicon:
 
     def _load_words(self, data: Mapping[str, Any]) -> None:
         words = data["words"]
-        for kind in (FILLER, SEQ, OVERLAY, AGAIN, TIMES, CLASSIFIER):
+        for kind in (FILLER, SEQ, OVERLAY, AGAIN, TIMES, CLASSIFIER, SUBJECT, AUX, IN_PLACE, STOP):
             for phrases in words[kind].values():
                 for p in phrases:
                     self._add(self.phrases, p, ((kind, None),), f"words.{kind}")
@@ -219,14 +232,19 @@ class Lexicon:
             for word, action in by_word.items():
                 if action is not None and action not in REGISTRY:
                     raise VocabularyError(f"vocabulary near_misses: {word!r} suggests unknown action {action!r}")
+                old = self.phrases.get(phrase_key(word))
+                if old is not None and old[0][0] == TRIGGER:
+                    continue  # an action's own word wins: "nod" is a near miss until nod is an action
                 self._add(self.phrases, word, ((NEARMISS, action),), "near_misses")
                 self.near_misses[word] = action
         self.suggestion_index: dict[str, str] = {}
-        for name, by_lang in self.action_words.items():
-            for phrases in by_lang.values():
-                for p in phrases:
-                    self.suggestion_index.setdefault(p.split(" (")[0], name)
-            self.suggestion_index.setdefault(name.replace("_", " "), name)
+        for with_body in (False, True):  # "turn" alone is turn; turn_head needs "head" with it
+            for name, by_lang in self.action_words.items():
+                for phrases in by_lang.values():
+                    for p in phrases:
+                        if p.endswith(")") == with_body:
+                            self.suggestion_index.setdefault(p.split(" (")[0], name)
+                self.suggestion_index.setdefault(name.replace("_", " "), name)
 
     def _check_registry(self) -> None:
         for name, schema in REGISTRY.items():
@@ -253,6 +271,8 @@ class Lexicon:
             for body in aw.body:
                 if body not in self.bodies:
                     raise VocabularyError(f"vocabulary action {name!r}: unknown body word class {body!r}")
+            if aw.split is not None:
+                _check_param(schema, aw.split, "split")
             for other in aw.absorbs:
                 if other not in REGISTRY:
                     raise VocabularyError(f"vocabulary action {name!r}: absorbs unknown action {other!r}")
@@ -309,12 +329,63 @@ class Lexicon:
         return items
 
     def suggest(self, word: str) -> str | None:
-        """The known action closest to an unknown word (near-miss list, then spelling)."""
+        """The known action an unknown word plausibly stands for, or None.
+
+        First the near-miss list (``fly`` -> jump, ``坐下`` -> squat). Then, for English words of
+        at least :data:`MIN_TYPO_LENGTH` letters, a typo of an action word: at most one edit
+        (two for words of 8 letters or more), where an edit is a missing, extra or swapped
+        letter or a letter replaced by a neighbouring key (``jumpp``, ``sqaut``, ``wqve``).
+        ``boxing`` is not ``bowing`` and ``stops`` is not ``steps``: x/w and o/e are far apart
+        on a keyboard. Chinese words get no spelling suggestion (a wrong character is another
+        word, not a typo).
+        """
         if word in self.near_misses:
             return self.near_misses[word]
-        cutoff = 0.5 if any("\u3400" <= ch <= "\u9fff" for ch in word) else 0.75
-        close = difflib.get_close_matches(word, list(self.suggestion_index), n=1, cutoff=cutoff)
-        return self.suggestion_index[close[0]] if close else None
+        if not word.isascii() or not word.isalpha() or len(word) < MIN_TYPO_LENGTH:
+            return None
+        budget = 1 if len(word) < 8 else 2
+        best: tuple[int, str] | None = None
+        for known, name in self.suggestion_index.items():
+            if abs(len(known) - len(word)) > budget or not known.isascii():
+                continue
+            d = typo_distance(word, known)
+            if d <= budget and (best is None or d < best[0]):
+                best = (d, name)
+        return best[1] if best else None
+
+
+MIN_TYPO_LENGTH = 4
+_KEYBOARD_ROWS = ("1234567890", "qwertyuiop", "asdfghjkl", "zxcvbnm")
+
+
+def _keyboard_neighbours() -> dict[str, set[str]]:
+    pos = {ch: (r, c + 0.5 * r) for r, row in enumerate(_KEYBOARD_ROWS) for c, ch in enumerate(row)}
+    return {a: {b for b, (r2, c2) in pos.items() if b != a and abs(r1 - r2) <= 1 and abs(c1 - c2) <= 1.0}
+            for a, (r1, c1) in pos.items()}
+
+
+KEYBOARD_NEIGHBOURS = _keyboard_neighbours()
+
+
+def typo_distance(a: str, b: str) -> int:
+    """Edit distance counting typing slips: a missing, extra or swapped letter, or a neighbouring
+    key, costs 1; any other replaced letter costs 2 (it is a different word, not a slip)."""
+    n, m = len(a), len(b)
+    d = [[0] * (m + 1) for _ in range(n + 1)]
+    for i in range(n + 1):
+        d[i][0] = i
+    for j in range(m + 1):
+        d[0][j] = j
+    for i in range(1, n + 1):
+        for j in range(1, m + 1):
+            if a[i - 1] == b[j - 1]:
+                sub = 0
+            else:
+                sub = 1 if b[j - 1] in KEYBOARD_NEIGHBOURS.get(a[i - 1], ()) else 2
+            d[i][j] = min(d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + sub)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                d[i][j] = min(d[i][j], d[i - 2][j - 2] + 1)
+    return d[n][m]
 
 
 def _merge(old: tuple, new: tuple) -> tuple | None:

@@ -10,13 +10,58 @@ registry's (or the robot's) business when the action is compiled.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from language.exceptions import LanguageError, UnsupportedInstruction
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
 from tasks.limits import MAX_ACTIONS
+
+#: What a word of the instruction did (``WordUse.role``).
+ROLES = (
+    "action",            # names the action (detail: its name)
+    "parameter",         # sets a parameter (detail: "arm=left", "duration=4 s")
+    "count",             # a count (detail: "repeat=3", or "2 copies" for actions without a count)
+    "unit",              # the unit of the number before it (detail: "cm")
+    "body part",         # a body word that names or qualifies the action (detail: "hand")
+    "in place",          # "in place", "原地": turns walk/step into march, or confirms a motion on the spot
+    "stop",              # a final "stop", "停下": ends the sequence
+    "no effect",         # understood, changes nothing for this action ("squat down", "raise high")
+    "not used",          # accepted but not expressed: mood/style words, a speed for an action without one
+    "subject",           # "a person", "he", "这个人"
+    "verb form",         # "is", "starts to", "正在"
+    "sequence",          # "then", "and", "然后"
+    "at the same time",  # "while", "同时"
+    "again",             # "again", "再来一次"
+    "filler",            # "please", "the", "请"
+)
+
+
+@dataclass(frozen=True, slots=True)
+class WordUse:
+    """What one word or phrase of an instruction did.
+
+    Attributes:
+        text: The words as written (normalized: lower case, NFKC).
+        role: One of :data:`ROLES`.
+        detail: What exactly (``"arm=left"``, ``"mood or style: wbmp cannot show it"``).
+        action: 1-based index in :attr:`ActionPlan.actions` of the action it belongs to, if any.
+    """
+
+    text: str
+    role: str
+    detail: str = ""
+    action: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"text", "role"}`` plus ``"detail"`` and ``"action"`` when set."""
+        out: dict[str, Any] = {"text": self.text, "role": self.role}
+        if self.detail:
+            out["detail"] = self.detail
+        if self.action is not None:
+            out["action"] = self.action
+        return out
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -31,12 +76,15 @@ class ActionPlan:
         text: The instruction as given.
         given: For each action, the names of the parameters the instruction stated (the other
             entries of ``Action.params`` are registry defaults).
+        words: What each word of the instruction did, in order (rule parser only; empty for
+            the LLM backend and for a plan read back with :meth:`from_dict`). Not compared.
     """
 
     actions: tuple[Action, ...]
     backend: str
     text: str
     given: tuple[frozenset[str], ...] = ()
+    words: tuple[WordUse, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "actions", tuple(self.actions))
@@ -91,6 +139,22 @@ class ActionPlan:
         if not actions:
             raise LanguageError("an action plan needs at least one action")
         return cls(actions=tuple(actions), backend=str(data.get("backend", "rules")), text=text, given=tuple(given))
+
+    def words_dict(self) -> list[dict[str, Any]]:
+        """:attr:`words` as JSON-ready dicts (``wbmp parse --json`` prints them under ``"words"``)."""
+        return [w.to_dict() for w in self.words]
+
+    def describe_words(self) -> str:
+        """One line per word: the words, what they did, and the action they belong to."""
+        if not self.words:
+            return ""
+        width = min(max(len(w.text) for w in self.words), 24)
+        lines = []
+        for w in self.words:
+            where = f" [action {w.action}]" if w.action is not None else ""
+            detail = f": {w.detail}" if w.detail else ""
+            lines.append(f"  {w.text:<{width}}  {w.role}{detail}{where}")
+        return "\n".join(lines)
 
     def __len__(self) -> int:
         return len(self.actions)

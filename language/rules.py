@@ -20,8 +20,9 @@ used, and a word that does not fit the action is an error.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from language.exceptions import (
@@ -35,10 +36,12 @@ from language.exceptions import (
 from language.lexicon import (
     ADV,
     AGAIN,
+    AUX,
     BODY,
     CLASSIFIER,
     DIR,
     FILLER,
+    IN_PLACE,
     LR,
     NEARMISS,
     NEG,
@@ -48,6 +51,8 @@ from language.lexicon import (
     ROT,
     SEQ,
     SIDE,
+    STOP,
+    SUBJECT,
     TIMES,
     TRIGGER,
     UNIT,
@@ -57,11 +62,12 @@ from language.lexicon import (
     get_lexicon,
 )
 from language.normalize import atomize, normalize
-from language.plan import ActionPlan
+from language.plan import ActionPlan, WordUse
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
 from tasks.limits import MAX_REPEAT
 
+AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
 MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
 
 
@@ -77,6 +83,7 @@ class ParsedAction:
 class _Clause:
     connector: str | None  # SEQ, OVERLAY, PUNCTUATION (a bare comma) or None (first clause)
     items: list[Item]
+    index: int = -1  # position among the clauses (set once split)
 
     def text(self, normalized: str) -> str:
         return normalized[self.items[0].start : self.items[-1].end]
@@ -100,39 +107,89 @@ def parse_rules(text: str, *, lexicon: Lexicon | None = None) -> list[ParsedActi
     Raises:
         EmptyInstruction: Nothing but blanks, punctuation or filler.
         UnknownWords: Words in no vocabulary list (quoted, with close actions suggested).
-        UnsupportedInstruction: Negations; overlays that the registry cannot run together.
+        UnsupportedInstruction: Negations; overlays that the registry cannot run together;
+            ``walk in place`` without the ``march`` action.
         NoAction: A part of the sentence names no action.
         AmbiguousInstruction: Two actions in one clause, or conflicting words.
         InvalidParameter: A word or number that does not fit its action, or out of range.
     """
+    return parse_rules_explained(text, lexicon=lexicon)[0]
+
+
+@dataclass(slots=True)
+class _Uses:
+    """What each item did: item id -> (item, role, detail, clause index or None)."""
+
+    notes: dict[int, tuple[Item, str, str, int | None]] = field(default_factory=dict)
+
+    def add(self, it: Item, role: str, detail: str = "", clause: int | None = None) -> None:
+        self.notes[id(it)] = (it, role, detail, clause)
+
+    def words(self, items: list[Item], first_action: dict[int, int]) -> tuple[WordUse, ...]:
+        """One WordUse per phrase of the instruction, in order (items of one phrase joined)."""
+        out: list[WordUse] = []
+        by_span: dict[tuple[int, int], int] = {}
+        for it in items:
+            note = self.notes.get(id(it))
+            if note is None:
+                continue
+            _, role, detail, clause = note
+            action = first_action.get(clause) if clause is not None else None
+            use = WordUse(it.text, role, detail, None if action is None else action + 1)
+            key = (it.start, it.end)
+            if key in by_span:  # "转身" is turn + around: one line, both details
+                prev = out[by_span[key]]
+                extra = use.detail if prev.role == use.role else f"{use.role}: {use.detail}".strip(": ")
+                out[by_span[key]] = WordUse(prev.text, prev.role, "; ".join(d for d in (prev.detail, extra) if d), prev.action)
+            else:
+                by_span[key] = len(out)
+                out.append(use)
+        return tuple(out)
+
+
+def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple[list[ParsedAction], tuple[WordUse, ...]]:
+    """:func:`parse_rules`, and what each word did (for ``wbmp parse``)."""
     lx = lexicon or get_lexicon()
     normalized = normalize(text)
     items = lx.segment(atomize(normalized), normalized)
     _refuse_unknown(items, lx)
-    clauses = _split(items)
+    uses = _Uses()
+    clauses = _split(items, uses, frozenset(lx.optional_adverbs))
+    clauses = _stops(clauses, uses, normalized)
     if not clauses:
         raise EmptyInstruction(f'empty instruction "{text.strip()}": say what the robot should do, e.g. "wave your right hand twice, then squat"')
     groups: list[list[tuple[_Clause, list[ParsedAction]]]] = []
     previous: list[ParsedAction] = []
     for clause in clauses:
-        parsed = _parse_clause(clause, previous, lx, normalized)
+        parsed = _parse_clause(clause, previous, lx, normalized, uses)
+        if not parsed:  # a "stop" that ends the motion before it
+            continue
         if clause.connector == OVERLAY and groups:
             groups[-1].append((clause, parsed))
         else:
             groups.append([(clause, parsed)])
         previous = parsed
+    if not groups:
+        raise EmptyInstruction(f'empty instruction "{text.strip()}": say what the robot should do, e.g. "wave your right hand twice, then squat"')
     out: list[ParsedAction] = []
+    first_action: dict[int, int] = {}
     for group in groups:
-        out.extend(group[0][1] if len(group) == 1 else _overlay(group, normalized))
-    return out
+        if len(group) == 1:
+            first_action.setdefault(group[0][0].index, len(out))
+            out.extend(group[0][1])
+        else:
+            for clause_index, p in _overlay(group, normalized):
+                first_action.setdefault(clause_index, len(out))
+                out.append(p)
+    return out, uses.words(items, first_action)
 
 
 def rules_plan(text: str) -> ActionPlan:
     """The :class:`ActionPlan` of an instruction parsed by the rules (``parse(text)`` with the
     default backend; the LLM backend's few-shot examples use it too)."""
-    parsed = parse_rules(text)
+    parsed, words = parse_rules_explained(text)
     return ActionPlan(actions=tuple(p.action for p in parsed), backend="rules", text=text,
-                      given=tuple(p.given for p in parsed))
+                      given=tuple(p.given for p in parsed), words=words)
 
 
 def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
@@ -150,19 +207,26 @@ def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
             raise UnsupportedInstruction(f'"{it.text}": negations are not understood; say only what the robot should do')
 
 
-def _split(items: list[Item]) -> list[_Clause]:
-    """Clauses between sequencing/overlay words and punctuation; filler dropped."""
+def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset()) -> list[_Clause]:
+    """Clauses between sequencing/overlay words and punctuation; filler, subjects and verb forms
+    dropped (and noted). A ``stop`` starts a clause of its own."""
     clauses: list[_Clause] = []
     current: list[Item] = []
     connector: str | None = None
     leading_overlay = False
+    joined_by = ""  # the sequencing word before the current part
+    dropped = {FILLER: "filler", SUBJECT: "subject", AUX: "verb form"}
     for it in items:
-        if it.kind == FILLER:
+        if it.kind in dropped:
+            uses.add(it, dropped[it.kind])
             continue
         if it.kind in (SEQ, OVERLAY, PUNCTUATION):
+            if it.kind != PUNCTUATION:
+                uses.add(it, "sequence" if it.kind == SEQ else "at the same time")
             if current:
-                _close(clauses, current, connector)
+                _close(clauses, current, connector, optional, joined_by)
                 current, connector = [], None
+            joined_by = it.text if it.kind == SEQ else ""
             if it.kind == OVERLAY:
                 if not clauses:
                     leading_overlay = True  # "while squatting, wave" / "一边挥手一边蹲"
@@ -172,9 +236,12 @@ def _split(items: list[Item]) -> list[_Clause]:
             elif clauses and connector is None:
                 connector = PUNCTUATION
             continue
+        if it.kind == STOP and current:  # "walks forward and stops": "stops" is a clause of its own
+            _close(clauses, current, connector, optional, joined_by)
+            current, connector = [], SEQ
         current.append(it)
     if current:
-        _close(clauses, current, connector)
+        _close(clauses, current, connector, optional, joined_by)
         connector = None
     if clauses:
         clauses[0].connector = None
@@ -186,12 +253,58 @@ def _split(items: list[Item]) -> list[_Clause]:
     return clauses
 
 
-def _close(clauses: list[_Clause], items: list[Item], connector: str | None) -> None:
-    """End a clause; after a bare comma, a part without an action word continues the last clause."""
-    if connector == PUNCTUATION and clauses and not any(it.kind in (TRIGGER, AGAIN) for it in items):
+def _close(clauses: list[_Clause], items: list[Item], connector: str | None, optional: frozenset[str] = frozenset(),
+           joined_by: str = "") -> None:
+    """End a clause; after a bare comma, a part without an action word continues the last clause,
+    and so does a part made only of manner words (``walks forward slowly and happily``) or of
+    adverbs after ``and`` (``bows slowly and deeply``)."""
+    manner_only = all(it.kind == ADV and (it.value in optional or joined_by in AND_WORDS) for it in items)
+    if clauses and ((connector == PUNCTUATION and not any(it.kind in (TRIGGER, AGAIN, STOP) for it in items))
+                    or (manner_only and connector != OVERLAY)):
         clauses[-1].items.extend(items)  # "walk forward, 2 meters" is one walk
     else:
-        clauses.append(_Clause(connector, items))
+        clauses.append(_Clause(connector, items, len(clauses)))
+
+
+def _stops(clauses: list[_Clause], uses: _Uses, normalized: str) -> list[_Clause]:
+    """``stop`` / ``停下``: the end of the sequence, not a negation and not a step.
+
+    A clause that is only a stop is dropped (the motion before it ends there; the robot stops
+    between actions anyway) unless it is the whole instruction: then it means "stand still".
+    A stop with slots (``stop for 2 seconds``, ``停三秒``) or with ``stand``/``rest`` is a stand.
+    A stop before another action (``stop waving``, ``停止挥手``) asks to end something the plan
+    never started: refused like a negation.
+    """
+    out: list[_Clause] = []
+    stand_words = (("stand", None),)
+    for clause in clauses:
+        stops = [it for it in clause.items if it.kind == STOP]
+        if not stops:
+            out.append(clause)
+            continue
+        others = [it for it in clause.items if it.kind != STOP]
+        actions = {a for it in others if it.kind == TRIGGER for a, _ in it.value}
+        if actions and "stand" not in actions:
+            raise UnsupportedInstruction(
+                f'"{clause.text(normalized)}": "{stops[0].text}" before an action asks to end something the '
+                f"plan never started; say only what the robot should do (a final \"stop\" ends the sequence)"
+            )
+        if others or len(clauses) == 1:
+            for it in stops:
+                uses.add(it, "stop", "stand still", clause.index)
+            if actions:  # "停下来休息": the stand word names the action
+                clause.items = others
+            else:  # "stop" alone, "stop for 2 seconds": stand
+                clause.items = [Item(TRIGGER, stand_words, it.text, it.start, it.end) if it.kind == STOP else it
+                                for it in clause.items]
+            out.append(clause)
+        else:
+            last = clause is clauses[-1]
+            for it in stops:
+                uses.add(it, "stop", "end of the sequence" if last else "end of the motion before it")
+    if out:
+        out[0].connector = None
+    return out
 
 
 def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None:
@@ -222,17 +335,45 @@ def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None
     )
 
 
-def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, normalized: str) -> list[ParsedAction]:
+def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, normalized: str,
+                  uses: _Uses | None = None) -> list[ParsedAction]:
+    uses = uses if uses is not None else _Uses()
+    ci = clause.index
     name = _resolve_action(clause, lx, normalized)
     if name is None:
         if all(it.kind in (AGAIN, CLASSIFIER) for it in clause.items):
             if not previous:
                 raise NoAction(f'"{clause.text(normalized)}" repeats nothing: say the action first')
+            for it in clause.items:
+                uses.add(it, "again" if it.kind == AGAIN else "filler",
+                         f"repeats {', '.join(p.action.name for p in previous)}" if it.kind == AGAIN else "measure word", ci)
             return list(previous)
         if not previous:
             raise NoAction(f'no action in "{clause.text(normalized)}": known actions are {known_actions()}')
         name = previous[-1].action.name  # "turn left, then right"
-    params, copies, sources = _slots(name, clause, lx, normalized)
+    said = name
+    name = _in_place(name, clause, lx, normalized, uses)
+    for it in clause.items:
+        if it.kind == TRIGGER:
+            uses.add(it, "action", name if name == said else f"{name} ({said} in place)", ci)
+        elif it.kind == AGAIN:
+            uses.add(it, "again", f"{name} once more", ci)
+        elif it.kind == CLASSIFIER:
+            uses.add(it, "filler", "measure word", ci)
+
+    def note(it: Item, role: str, detail: str = "") -> None:
+        uses.add(it, role, detail, ci)
+
+    params, copies, sources = _slots(name, clause, lx, normalized, note)
+    aw = lx.actions[name]
+    if aw.split is not None and aw.split in params:
+        pieces = _split_value(name, aw.split, params, copies, sources, clause, normalized) // copies
+        if pieces > 1:
+            copies *= pieces
+            for it in clause.items:
+                n = uses.notes.get(id(it))
+                if n is not None and n[1] == "parameter" and n[2].startswith(f"{aw.split}="):
+                    uses.add(it, "parameter", f"{_fmt(name, aw.split, params[aw.split])}, {pieces} x {name}", ci)
     try:
         action = Action(name=name, params=params)
     except TaskDefinitionError as e:
@@ -244,8 +385,61 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
     return [parsed] * copies
 
 
-def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[dict[str, Any], int, dict[str, str]]:
-    """Parameters stated in a clause, how many copies of the action it asks for, and the words of each parameter."""
+def _in_place(name: str, clause: _Clause, lx: Lexicon, normalized: str, uses: _Uses) -> str:
+    """The action of a clause with ``in place`` / ``原地``: walk and step become march; others
+    (turn, jump, squat, arm motions) stay in place anyway and keep their action."""
+    marks = [it for it in clause.items if it.kind == IN_PLACE]
+    if not marks:
+        return name
+    target = lx.actions[name].in_place
+    if target is None:
+        for it in marks:
+            uses.add(it, "in place", f"{name} stays in place", clause.index)
+        return name
+    if target not in REGISTRY or target not in lx.actions:
+        raise UnsupportedInstruction(
+            f'"{clause.text(normalized)}": {name} "{marks[0].text}" means stepping on the spot (the {target} action), '
+            f'which this wbmp does not have; say "{name}" to move, or "stand" to stay where you are'
+        )
+    for it in marks:
+        uses.add(it, "in place", f"{name} in place is {target}", clause.index)
+    return target
+
+
+def _split_value(name: str, param: str, params: dict[str, Any], copies: int, sources: dict[str, str],
+                 clause: _Clause, normalized: str) -> int:
+    """A value beyond the registry range as equal copies (``turn 360 degrees``: 2 x 180)."""
+    p = REGISTRY[name].param(param)
+    value = params[param]
+    limit = p.maximum if value > 0 else (-p.minimum if p.minimum is not None else None)
+    if limit is None or limit <= 0 or abs(value) <= limit:
+        return copies
+    pieces = math.ceil(abs(value) / limit - 1e-9)
+    if pieces * copies > MAX_COPIES:
+        where = clause.text(normalized)
+        words = sources.get(param, where)
+        raise InvalidParameter(
+            f'"{words}" in "{where}": {name} {param} {abs(value) * copies:g} {p.unit} is more than {MAX_COPIES} '
+            f"{name}s of at most {limit:g} {p.unit}"
+        )
+    params[param] = value / pieces
+    return copies * pieces
+
+
+def _fmt(schema_name: str, param: str, value: Any) -> str:
+    """``param=value unit`` for word notes (``duration=4 s``, ``arm=left``)."""
+    unit = REGISTRY[schema_name].param(param).unit
+    text = f"{value:.4g}" if isinstance(value, float) else str(value)
+    return f"{param}={text}" + (f" {unit}" if unit and unit != "count" else "")
+
+
+def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
+           note: Callable[..., None] | None = None) -> tuple[dict[str, Any], int, dict[str, str]]:
+    """Parameters stated in a clause, how many copies of the action it asks for, and the words of each parameter.
+
+    ``note(item, role, detail)`` is told what each item did (for ``wbmp parse``).
+    """
+    note = note or (lambda *_: None)
     aw = lx.actions[name]
     schema = REGISTRY[name]
     items = clause.items
@@ -259,6 +453,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
     plural: Item | None = None
     allowed_bodies = set(aw.body) | _with_body(lx, name)
     consumed: set[int] = set()
+    quantity_items: dict[str, tuple[Item, Item]] = {}  # quantity -> (number item, unit item)
 
     def misfit(it: Item, extra: str = "") -> InvalidParameter:
         return InvalidParameter(f'"{it.text}" does not fit {name} in "{where}"{extra}')
@@ -275,27 +470,34 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
             raise misfit(it)
 
     for i, it in enumerate(items):
-        if i in consumed or it.kind in (TRIGGER, AGAIN, CLASSIFIER):
+        if i in consumed or it.kind in (TRIGGER, AGAIN, CLASSIFIER, IN_PLACE):
             continue
         nxt_i = _next_index(items, i)
         nxt = items[nxt_i] if nxt_i < len(items) else None
         if it.kind == NUM:
             if nxt is not None and nxt.kind == UNIT:
                 _add_quantity(quantities, lx, it, nxt, where, normalized)
+                quantity_items[lx.units[nxt.value].quantity] = (it, nxt)
+                note(nxt, "unit", nxt.value)
                 consumed.add(nxt_i)
             elif nxt is not None and nxt.kind == TIMES:
                 counts.append((it.value, it))
+                if (nxt.start, nxt.end) != (it.start, it.end):  # "twice" is one word
+                    note(nxt, "count", "times")
                 consumed.add(nxt_i)
             elif nxt is not None and _trigger_follows(items, nxt_i):
                 counts.append((it.value, it))  # "3 squats", "三步", "two big steps"
             elif nxt is not None and nxt.kind == BODY and it.value in (1, 2):
                 if it.value == 2:
                     sides.append(("both", it))  # "two hands", "两只手"
+                else:
+                    note(it, "no effect", "one (body part)")
             else:
                 raise InvalidParameter(f'"{it.text}" in "{where}" needs a unit (e.g. "{it.text} cm", "{it.text} degrees", "{it.text} seconds") or "times"')
         elif it.kind == TIMES:
             if nxt is not None and nxt.kind == NUM and nxt_i == i + 1:
                 counts.append((nxt.value, nxt))  # "x3"
+                note(it, "count", "times")
                 consumed.add(nxt_i)
             else:
                 raise InvalidParameter(f'"{it.text}" in "{where}" needs a number, e.g. "3 {it.text}"')
@@ -312,6 +514,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
             body, is_plural = it.value
             if body not in allowed_bodies:
                 raise misfit(it)
+            note(it, "body part", body)
             if is_plural:
                 plural = it
         elif it.kind == DIR:
@@ -334,11 +537,23 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         if aw.side is None:
             if value not in aw.ignore_sides:
                 raise misfit(it, ": it has no side")
+            for _, s_it in sides:
+                note(s_it, "no effect", f"{name} uses both feet anyway")
         else:
             choices = schema.param(aw.side).choices
             if value not in choices:
                 raise InvalidParameter(f'"{it.text}" in "{where}": {name} {aw.side} must be one of {", ".join(choices)}')
             params[aw.side] = value
+            for _, s_it in sides:
+                note(s_it, "parameter", _fmt(name, aw.side, value))
+    # "sideways", "sidestep", "侧移": a side step or walk, the side named by left/right
+    sideways = [(v, it) for v, it in directions if v == "sideways"]
+    if sideways:
+        directions = [(v, it) for v, it in directions if v != "sideways"]
+        if not any(v in ("left", "right") for v, _ in directions):
+            raise InvalidParameter(f'"{sideways[0][1].text}" in "{where}": say which side, e.g. "{where} to the left" or "向右"')
+        for _, it in sideways:
+            note(it, "no effect", "the side is given by left/right")
     # direction
     direction = _one(directions, where, "directions")
     direction_value = None
@@ -347,16 +562,29 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         choices = schema.param(aw.direction).choices if aw.direction else ()
         if aw.direction and direction_value in choices:  # choices is () without a direction
             params[aw.direction] = direction_value
+            detail, role = _fmt(name, aw.direction, direction_value), "parameter"
         elif direction_value in aw.direction_params:
             params.update(aw.direction_params[direction_value])
+            detail = ", ".join(_fmt(name, p, v) for p, v in aw.direction_params[direction_value].items())
+            role = "parameter"
         elif direction_value not in aw.ignore_directions:
             raise misfit(it, f": its directions are {', '.join(choices)}" if choices else "")
+        else:
+            detail, role = f"{name} goes {direction_value} anyway", "no effect"
+        for _, d_it in directions:
+            note(d_it, role, detail)
     # adverbs (absolute values, or a scale of the registry default)
     adverb_values: dict[str, tuple[float, Item]] = {}
     for it in adverbs:
         mapping = aw.adverbs.get(it.value)
         if mapping is None:
+            if it.value in lx.optional_adverbs:  # "walk slowly", "wave happily": accepted, listed
+                what = "mood or style" if it.value == "mood" else f"{it.value} ({name} has no parameter for it)"
+                note(it, "not used", what)
+                continue
             raise misfit(it)
+        if not mapping:
+            note(it, "no effect", f"{it.value}: accepted, {name} does not change")
         for p, v in mapping.items():
             value = schema.param(p).default * v["scale"] if isinstance(v, dict) else v
             if p in adverb_values and adverb_values[p][0] != value:
@@ -387,6 +615,15 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
             raise AmbiguousInstruction(f'"{it.text}" and a negative angle in "{where}": give one of them')
         params[aw.angle] = sign[0] * abs(angle)
         sources.setdefault(aw.angle, it.text)
+        for _, s_it in signs:
+            note(s_it, "parameter", f"sign of {aw.angle} ({'left' if value > 0 else 'right'})")
+    for p, (_, it) in adverb_values.items():
+        note(it, "parameter", _fmt(name, p, params[p]) if p in params and sources.get(p) == it.text
+             else f"{p} (overridden by the number)")
+    for quantity, (num_it, _) in quantity_items.items():
+        param = next((p for p, w in sources.items() if w == quantities[quantity][1].text), None)
+        if param is not None:
+            note(num_it, "parameter", _fmt(name, param, params[param]))
     # count
     copies = 1
     count = _one(counts, where, "counts")
@@ -399,10 +636,14 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str) -> tuple[di
         if aw.count is not None:
             params[aw.count] = n
             sources[aw.count] = it.text
+            detail = _fmt(name, aw.count, n)
         elif 1 <= n <= MAX_COPIES:
             copies = n
+            detail = f"{n} x {name}"
         else:
             raise InvalidParameter(f'"{it.text}" in "{where}": {name} can be repeated 1 to {MAX_COPIES} times')
+        for _, c_it in counts:
+            note(c_it, "count", detail)
     return params, copies, sources
 
 
@@ -448,7 +689,7 @@ def _with_body(lx: Lexicon, name: str) -> set[str]:
     return lx.action_bodies.get(name, set())
 
 
-def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -> list[ParsedAction]:
+def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -> list[tuple[int, ParsedAction]]:
     """Actions said to run at the same time: the one that is not upper-body first, the others overlaid.
 
     At most one action of the group may use more than the upper body (registry ``body`` is
@@ -462,6 +703,7 @@ def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -
                 f'use a count the action has (e.g. "wave twice")'
             )
     actions = [parsed[0] for _, parsed in group]
+    clause_of = {id(parsed[0]): clause.index for clause, parsed in group}
     bases = [p for p in actions if REGISTRY[p.action.name].body != "upper"]
     if len(bases) > 1:
         upper = ", ".join(n for n, s in REGISTRY.items() if s.body == "upper")
@@ -472,10 +714,10 @@ def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -
             f"only upper-body actions ({upper}) can run alongside another action"
         )
     base = bases[0] if bases else actions[0]
-    out = [base]
+    out = [(clause_of[id(base)], base)]
     for p in actions:
         if p is not base:
-            out.append(ParsedAction(Action(name=p.action.name, params=_given_params(p), overlay=True), p.given))
+            out.append((clause_of[id(p)], ParsedAction(Action(name=p.action.name, params=_given_params(p), overlay=True), p.given)))
     return out
 
 
@@ -483,4 +725,4 @@ def _given_params(p: ParsedAction) -> dict[str, Any]:
     return {k: v for k, v in p.action.params.items() if k in p.given}
 
 
-__all__ = ["ParsedAction", "known_actions", "parse_rules", "rules_plan"]
+__all__ = ["ParsedAction", "known_actions", "parse_rules", "parse_rules_explained", "rules_plan"]

@@ -167,6 +167,7 @@ def test_vocabulary_drives_the_parser():
     (lambda d: d["actions"]["squat"].update(side="depth"), "not a choice"),
     (lambda d: d["values"]["lr"]["left"]["en"].append("forward"), "'forward' already means"),
     (lambda d: d["actions"]["squat"].update(speed=1), "unknown key"),
+    (lambda d: d["actions"]["turn"].update(split="height"), "'turn' split: turn has no parameter 'height'"),
 ])
 def test_inconsistent_vocabulary_is_refused(edit, fragment):
     data = copy.deepcopy(json.loads(VOCABULARY_PATH.read_text(encoding="utf-8")))

@@ -19,21 +19,46 @@ def run(capsys, *argv):
 def test_json_output_is_exact(capsys):
     code, out, err = run(capsys, "wave your right hand twice, then squat", "--json")
     assert code == 0 and err == ""
-    assert json.loads(out) == {"actions": [{"action": "wave", "params": {"arm": "right", "repeat": 2}},
-                                           {"action": "squat", "params": {}}], "backend": "rules"}
+    got = json.loads(out)
+    assert got.pop("words") == [
+        {"text": "wave", "role": "action", "detail": "wave", "action": 1},
+        {"text": "your", "role": "filler"},
+        {"text": "right", "role": "parameter", "detail": "arm=right", "action": 1},
+        {"text": "hand", "role": "body part", "detail": "hand", "action": 1},
+        {"text": "twice", "role": "count", "detail": "repeat=2", "action": 1},
+        {"text": "then", "role": "sequence"},
+        {"text": "squat", "role": "action", "detail": "squat", "action": 2},
+    ]
+    assert got == {"actions": [{"action": "wave", "params": {"arm": "right", "repeat": 2}},
+                               {"action": "squat", "params": {}}], "backend": "rules"}
 
 
 def test_chinese_and_overlay_json(capsys):
     code, out, _ = run(capsys, "一边挥手一边深蹲", "--json")
     assert code == 0
-    assert json.loads(out)["actions"] == [{"action": "squat", "params": {}}, {"action": "wave", "params": {}, "overlay": True}]
-    assert "挥" not in out
+    got = json.loads(out)
+    assert got["actions"] == [{"action": "squat", "params": {}}, {"action": "wave", "params": {}, "overlay": True}]
+    assert [(w["text"], w["role"], w.get("action")) for w in got["words"]] == [
+        ("一边", "at the same time", None), ("挥手", "action", 2), ("一边", "at the same time", None), ("深蹲", "action", 1)]
+    assert "挥手" in out  # UTF-8, not \u escapes
 
 
 def test_text_output_and_several_words(capsys):
     code, out, _ = run(capsys, "Jump", "up", "high.")
     assert code == 0
-    assert out.strip() == "1. jump  height=0.06 m  (defaults: forward=0 m)"
+    assert out.splitlines() == ["1. jump  height=0.06 m  (defaults: forward=0 m)", "words:",
+                                "  jump up  action: jump [action 1]",
+                                "  high     parameter: height=0.06 m [action 1]"]
+
+
+def test_mood_words_are_listed_as_not_used(capsys):
+    code, out, _ = run(capsys, "the man happily walks forward, then stops", "--json")
+    assert code == 0
+    got = json.loads(out)
+    assert got["actions"] == [{"action": "walk", "params": {"direction": "forward"}}]
+    roles = {w["text"]: (w["role"], w.get("detail")) for w in got["words"]}
+    assert roles["happily"] == ("not used", "mood or style")
+    assert roles["man"] == ("subject", None) and roles["stops"] == ("stop", "end of the sequence")
 
 
 @pytest.mark.parametrize("argv, fragment", [
@@ -61,7 +86,7 @@ def test_llm_backend_with_key_from_environment(capsys, monkeypatch):
         srv.script(Reply.plan([{"action": "bow", "params": {"angle": 0.7}}]))
         code, out, _ = run(capsys, "bow deeply", "--json", "--parser", "llm", "--llm-url", srv.url, "--llm-model", "m")
         assert code == 0
-        assert json.loads(out) == {"actions": [{"action": "bow", "params": {"angle": 0.7}}], "backend": "llm"}
+        assert json.loads(out) == {"actions": [{"action": "bow", "params": {"angle": 0.7}}], "backend": "llm"}  # no "words"
         assert srv.requests[0]["headers"]["Authorization"] == "Bearer sk-from-env"
         srv.script(Reply.raw(b"{}", status=503))
         code, out, err = run(capsys, "bow", "--parser", "llm", "--llm-url", srv.url, "--llm-model", "m")

@@ -1,8 +1,11 @@
 """``wbmp parse TEXT [--json] [--parser rules|llm]``: show the actions a sentence asks for.
 
-With ``--json`` the output is exactly ``{"actions": [{"action": NAME, "params": {...}}],
-"backend": "rules"}`` in SI units (only the parameters the sentence states; an overlaid action
-carries ``"overlay": true``). The LLM backend reads its key from ``WBMP_LLM_API_KEY`` or
+With ``--json`` the output is ``{"actions": [{"action": NAME, "params": {...}}], "backend":
+"rules", "words": [...]}`` in SI units (only the parameters the sentence states; an overlaid
+action carries ``"overlay": true``). ``words`` (rule parser only) says what each word did:
+``{"text": "slowly", "role": "parameter", "detail": "duration=4 s", "action": 1}``; roles are
+``language.plan.ROLES`` (action, parameter, count, unit, not used, filler...). The text output
+lists the same after the actions. The LLM backend reads its key from ``WBMP_LLM_API_KEY`` or
 ``OPENAI_API_KEY``; ``--llm-url``/``--llm-model`` default to ``WBMP_LLM_URL``/``WBMP_LLM_MODEL``.
 ``--llm-timeout`` bounds each whole request to the server (connect to last byte).
 
@@ -93,12 +96,18 @@ def run(args: argparse.Namespace) -> int:
     text = " ".join(args.text)
     plan = parse(text, backend=args.parser, **llm_options(args))
     if args.json:
+        out = plan.to_dict()
+        if plan.words:
+            out["words"] = plan.words_dict()
         try:
-            line = json.dumps(plan.to_dict(), ensure_ascii=False, allow_nan=False)
+            line = json.dumps(out, ensure_ascii=False, allow_nan=False)
         except ValueError:  # a NaN/inf that got past the parser: never print invalid JSON
             raise CliError(f"the parsed plan holds a number that is not finite ({text[:80]!r}); "
                            "give finite values", ExitCode.USAGE) from None
         print(line)
     else:
         print(plan.describe())
+        if plan.words:
+            print("words:")
+            print(plan.describe_words())
     return ExitCode.OK
