@@ -95,6 +95,7 @@ def page_data(robot: Robot, plan, *, execution=None) -> str:
     scene.add_ground(vis)
     scene.add_robot(vis, robot, motion="planned", compact=True)
     schedule = scene.add_markers(vis, robot, plan)
+    scene.add_scene(vis, getattr(plan.spec, "scene", None))
     scene.set_robot_configuration(vis, robot, planned.q[0], motion="planned")
 
     motions: dict[str, bytes] = {}
