@@ -38,7 +38,7 @@ class SolveRequest:
             ``sim.MAX_PUSH_FORCE``, and a time within the motion (0 <= t < horizon).
 
     :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
-    needs no work to see: an empty ``robot``, an instruction longer than
+    needs no work to see: an empty ``robot`` or ``scene_path``, an instruction longer than
     ``tasks.limits.MAX_TEXT_LENGTH`` characters, a push without the simulation.
     """
 
@@ -57,6 +57,7 @@ class SolveRequest:
         from wbmp.errors import ROBOT_HINT, require_text
 
         require_text(self.robot, "--robot", ROBOT_HINT)
+        require_text(self.scene_path, "--scene", "give a scene JSON file (docs/scenes.md)")
         if self.instruction is not None and len(self.instruction) > MAX_TEXT_LENGTH:
             raise CliError(f"the instruction is {len(self.instruction):,} characters long; wbmp reads at most "
                            f"{MAX_TEXT_LENGTH:,} (one to a few sentences)", ExitCode.USAGE)

@@ -116,6 +116,10 @@ def test_bad_scene_path_is_refused(tmp_path, capsys, place, words):
     _refused(tmp_path, capsys, place(tmp_path), 3, *words)
 
 
+def test_empty_scene_argument_is_a_usage_error(tmp_path, capsys):
+    _refused(tmp_path, capsys, "", 2, "--scene is empty", "scene JSON file")
+
+
 @pytest.mark.parametrize("content", [codecs.BOM_UTF8 + TABLE_TEXT.encode(), codecs.BOM_UTF16_LE + TABLE_TEXT.encode("utf-16-le")],
                          ids=["utf-8-bom", "utf-16-bom"])
 def test_scene_with_byte_order_mark_is_read(tmp_path, content):
