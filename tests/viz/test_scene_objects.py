@@ -67,7 +67,9 @@ def test_meshcat_scene_has_a_node_per_object_at_its_pose():
 
 
 def test_html_payload_holds_the_objects_with_their_poses(tmp_path, talos, scene_plan, synth_plan):
-    data = vh.unpack_data(vh.build_page(talos, scene_plan))
+    page = vh.build_page(talos, scene_plan)
+    assert "· scene: table, bin, ball" in page  # the subtitle names the objects
+    data = vh.unpack_data(page)
     cmds = [umsgpack.unpackb(c) for c in data["scene"]]
     poses = {c["path"]: np.asarray(c["matrix"]).reshape(4, 4).T for c in cmds if c["type"] == "set_transform"}
     shapes = {c["path"] for c in cmds if c["type"] == "set_object"}
