@@ -144,3 +144,13 @@ def test_a_footstep_inside_an_object_is_refused_naming_it(tmp_path, capsys):
     scene.write_text(json.dumps({"objects": [{**BOX, "name": "crate", "position": [0.0, 0.2, 0.15]}]}), encoding="utf-8")
     _refused(tmp_path, capsys, str(scene), 4, "the left foot placement", "puts the sole inside the crate")
 
+
+
+def test_a_walk_into_a_crate_is_refused_at_the_first_footstep_inside_it(tmp_path, capsys):
+    """'walk forward 1 m' with a crate 0.35 m ahead: the first footstep whose sole reaches the crate
+    is refused before planning (exit 4), naming the crate."""
+    scene = tmp_path / "scene.json"
+    crate = {**BOX, "size": [0.3, 0.6, 0.3], "position": [0.5, 0.0, 0.15]}
+    scene.write_text(json.dumps({"objects": [crate]}), encoding="utf-8")
+    _refused(tmp_path, capsys, str(scene), 4, "foot placement", "the crate", "x 0.35..0.65",
+             argv=("walk forward 1 m",))
