@@ -332,7 +332,7 @@ REGISTRY: dict[str, ActionSchema] = {
                      body="lower", params=(
             _choice("leg", SIDES, "right", "the kicking leg"),
             _choice("direction", KICK_DIRECTIONS, "forward", "kick forward or out to the side"),
-            Param(name="height", kind="float", unit="m", default=0.15, minimum=0.02, maximum=1.0,
+            Param(name="height", kind="float", unit="m", default=0.12, minimum=0.02, maximum=1.0,
                   description="height of the kicking sole above the ground at the top of the kick"),
             Param(name="duration", kind="float", unit="s", default=1.6, minimum=0.8, maximum=6.0,
                   description="time on one foot: lift, kick, put down"),
@@ -357,7 +357,7 @@ REGISTRY: dict[str, ActionSchema] = {
             _choice("foot", SIDES, "right", "the foot to hop on"),
             Param(name="count", kind="int", unit="count", default=2, minimum=1, maximum=10,
                   description="number of hops"),
-            Param(name="height", kind="float", unit="m", default=0.03, minimum=0.01, maximum=0.3,
+            Param(name="height", kind="float", unit="m", default=0.025, minimum=0.01, maximum=0.3,
                   description="rise of the centre of mass during each flight"),
             Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=1.0,
                   description="forward displacement of each hop (0: in place)"),

@@ -263,8 +263,9 @@ def _check_jog(params: dict, robot: Robot) -> None:
 
 def _jog_segments(params: dict, robot: Robot, where: dict[str, Pose], dt: float) -> tuple[list[Segment], dict[str, Pose]]:
     _, yaw = heading_yaw(where)
-    ahead = rz(yaw) @ np.array([params["forward"] / params["count"], 0.0, 0.0])
-    n_flight = MIN_FLIGHT_KNOTS
+    axis = rz(yaw) @ np.array([1.0, 0.0, 0.0])
+    stride = params["forward"] / params["count"]
+    progress = {"left": 0.0, "right": 0.0}
     cur = dict(where)
     side = "right"
     segs = [Segment(name="shift weight", duration=SHIFT_TIME, contacts=both(robot, cur)),
@@ -272,16 +273,17 @@ def _jog_segments(params: dict, robot: Robot, where: dict[str, Pose], dt: float)
     for i in range(params["count"]):
         segs.append(Segment(name=f"stride {i + 1}: {side} foot pushes off", duration=PUSH_TIME,
                             contacts=(contact(robot, side, cur[side]),)))
-        segs.append(Segment(name=f"stride {i + 1}: flight", duration=n_flight * dt, contacts=(),
+        segs.append(Segment(name=f"stride {i + 1}: flight", duration=MIN_FLIGHT_KNOTS * dt, contacts=(),
                             swing_height=FLIGHT_CLEARANCE, rounding="ceil"))
         side = OTHER[side]
-        cur[side] = shifted(cur[side], ahead if i > 0 else 0.5 * ahead)
+        progress[side] = progress[OTHER[side]] + stride  # each landing foot one stride ahead of the other
+        cur[side] = shifted(where[side], axis * progress[side])
         if i < params["count"] - 1:
             segs.append(Segment(name=f"stride {i + 1}: land on the {side} foot", duration=STRIDE_STANCE_TIME - PUSH_TIME,
                                 contacts=(contact(robot, side, cur[side]),)))
     segs.append(Segment(name=f"land on the {side} foot", duration=CROUCH_TIME, contacts=(contact(robot, side, cur[side]),)))
     other = OTHER[side]
-    cur[other] = shifted(where[other], np.asarray(cur[side].position) - np.asarray(where[side].position))
+    cur[other] = shifted(where[other], axis * progress[side])
     segs.append(Segment(name="both feet down", duration=SHIFT_TIME, contacts=both(robot, cur)))
     return segs, cur
 

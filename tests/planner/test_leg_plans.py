@@ -1,0 +1,101 @@
+"""Leg motions planned on Talos: the plans pass their own checks and, recomputed with Pinocchio
+from ``plan.q``, do what the primitives promise (kick height and reach, lifts in place, lunge
+depth, a quarter circle walked)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from tasks.actions import Action
+from tasks.compose import compile_actions
+from tasks.primitives import standing_geometry
+
+planner = pytest.importorskip("planner")
+
+HARD_SLACK = 1e-4  # [m] solver tolerance on top of a HARD target's own tolerance
+
+
+def _plan(robot, actions):
+    from planner import PlannerSettings
+
+    spec = compile_actions(actions, robot)
+    result = planner.plan(spec, robot, settings=PlannerSettings(compile=False), throw=False)
+    assert result.ok, f"{spec.name}: {result.diagnosis}\n{result.summary()}"
+    assert all(c.ok for c in result.checks), result.summary()
+    return spec, result
+
+
+def _frame(robot, q, role):
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.frame_id(role)]
+
+
+def _knot(plan, t):
+    return int(round(t / plan.dt))
+
+
+def _phase_middles(spec, n_contacts):
+    t, out = 0.0, []
+    for p in spec.phases:
+        if len(p.contacts) == n_contacts:
+            out.append((p, t + 0.5 * p.duration))
+        t += p.duration
+    return out
+
+
+def test_kick_plan(talos):
+    """kick(right, forward, 0.15 m): at the target time the right sole is 0.15 m up and ahead
+    (within the 2 cm tolerance), while the left sole stays where it stands."""
+    spec, plan = _plan(talos, [Action(name="kick", params={"leg": "right", "height": 0.15})])
+    (target,) = spec.targets
+    q = plan.q[_knot(plan, target.time)]
+    sole = _frame(talos, q, "right_foot").translation
+    assert np.linalg.norm(sole - np.array(target.position)) <= target.tolerance + HARD_SLACK
+    assert sole[2] >= 0.15 - target.tolerance - HARD_SLACK
+    left0 = _frame(talos, talos.q_standing, "left_foot").translation
+    for q in plan.q:
+        assert np.linalg.norm(_frame(talos, q, "left_foot").translation - left0) <= 1e-4
+
+
+@pytest.mark.slow
+def test_march_plan(talos):
+    """march(3, 0.1 m): at the middle of each single support the lifted sole (Pinocchio on plan.q)
+    is at least 0.1 m up, alternating right, left, right."""
+    spec, plan = _plan(talos, [Action(name="march", params={"count": 3, "height": 0.1})])
+    lifted = []
+    for phase, t in _phase_middles(spec, 1):
+        up = "left_foot" if phase.contacts[0].frame == talos.frame("right_foot") else "right_foot"
+        z = _frame(talos, plan.q[_knot(plan, t)], up).translation[2]
+        assert z >= 0.1 - HARD_SLACK, phase.name
+        lifted.append(up)
+    assert lifted == ["right_foot", "left_foot", "right_foot"]
+
+
+@pytest.mark.slow
+def test_lunge_plan(talos):
+    """lunge(left, forward, depth 0.1 m): the CoM (Pinocchio on plan.q) is 0.1 m below standing
+    at the bottom, within its 2 cm tolerance, with the left sole 0.3 m ahead."""
+    spec, plan = _plan(talos, [Action(name="lunge", params={"leg": "left", "depth": 0.1})])
+    (bottom,) = [c for c in spec.com_targets if "lunge bottom" in c.name]
+    q = plan.q[_knot(plan, bottom.time)]
+    z = pin.centerOfMass(talos.model, talos.data(), q)[2]
+    assert z == pytest.approx(standing_geometry(talos).com[2] - 0.1, abs=bottom.tolerance + HARD_SLACK)
+    ahead = _frame(talos, q, "left_foot").translation - _frame(talos, talos.q_standing, "left_foot").translation
+    assert ahead == pytest.approx([0.3, 0.0, 0.0], abs=1e-3)
+
+
+@pytest.mark.slow
+def test_quarter_circle_plan(talos):
+    """walk_arc(0.5 m, left, pi/2): the base ends turned by a quarter turn, the point between the
+    feet moved to (0.5, 0.5) m from the start (the centre is 0.5 m to the left)."""
+    _, plan = _plan(talos, [Action(name="walk_arc", params={"angle": math.pi / 2})])
+    q0, q1 = plan.q[0], plan.q[-1]
+    yaw = pin.rpy.matrixToRpy(pin.Quaternion(q1[3:7]).matrix())[2] - pin.rpy.matrixToRpy(pin.Quaternion(q0[3:7]).matrix())[2]
+    assert yaw == pytest.approx(math.pi / 2, abs=0.05)
+    mid = [0.5 * (_frame(talos, q, "left_foot").translation + _frame(talos, q, "right_foot").translation) for q in (q0, q1)]
+    assert (mid[1] - mid[0])[:2] == pytest.approx([0.5, 0.5], abs=1e-3)
