@@ -212,7 +212,7 @@ def arc_steps(robot: Robot, where: dict[str, Pose], radius: float, side: str, an
         rot = rz(sign * phi)
         p = center + rot @ (np.asarray(start[s].position) - center)
         r0 = start[s].rpy
-        return Pose(position=clean(p), rpy=clean((r0[0], r0[1], wrap(r0[2] + sign * phi))))
+        return Pose(position=clean(p), rpy=clean((r0[0], r0[1], r0[2] + sign * phi)))  # continuous yaw: no jump at pi
 
     s = OTHER[side]  # the outer foot first
     for _ in range(n):
