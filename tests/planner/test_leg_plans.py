@@ -99,3 +99,19 @@ def test_quarter_circle_plan(talos):
     assert yaw == pytest.approx(math.pi / 2, abs=0.05)
     mid = [0.5 * (_frame(talos, q, "left_foot").translation + _frame(talos, q, "right_foot").translation) for q in (q0, q1)]
     assert (mid[1] - mid[0])[:2] == pytest.approx([0.5, 0.5], abs=1e-3)
+
+
+def test_controller_reference_unwraps_past_a_half_turn():
+    """Walking a circle turns the base past pi from its start: the controller's chart picks the
+    rotation vector of the same rotation closest to the previous knot instead of jumping from
+    +pi to -pi (and leaves vectors within a half turn untouched)."""
+    from planner.wbc.reference import _unwrap
+
+    prev = np.array([0.0, 0.01, 3.10])
+    w = pin.log3(pin.exp3(np.array([0.0, 0.01, 3.25])))  # principal log: about -3.03 about z
+    assert w[2] < 0
+    u = _unwrap(w, prev)
+    assert np.allclose(pin.exp3(u), pin.exp3(w), atol=1e-12)
+    assert u[2] == pytest.approx(3.25, abs=1e-6) and np.linalg.norm(u - prev) < 0.2
+    small = np.array([0.0, 0.0, 1.0])
+    assert _unwrap(small, np.array([0.0, 0.0, 0.9])) is small
