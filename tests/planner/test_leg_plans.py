@@ -115,3 +115,32 @@ def test_controller_reference_unwraps_past_a_half_turn():
     assert u[2] == pytest.approx(3.25, abs=1e-6) and np.linalg.norm(u - prev) < 0.2
     small = np.array([0.0, 0.0, 1.0])
     assert _unwrap(small, np.array([0.0, 0.0, 0.9])) is small
+
+
+@pytest.mark.slow
+def test_hop_plan_on_g1(g1):
+    """hop(right, 1) on G1: the plan passes its checks; during the flight no contact force acts,
+    both soles (Pinocchio on plan.q) are off the ground and the CoM follows a ballistic arc
+    (vertical acceleration -g within the finite-difference error); only the right sole pushes."""
+    spec, plan = _plan(g1, [Action(name="hop", params={"foot": "right", "count": 1})])
+    t, flight = 0.0, None
+    for p in spec.phases:
+        if not p.contacts:
+            flight = (t, t + p.duration)
+        t += p.duration
+    assert flight is not None
+    inside = [k for k, tk in enumerate(plan.t) if flight[0] + 1e-9 < tk < flight[1] - 1e-9]
+    assert inside
+    assert set(plan.forces) == {g1.frame("left_foot"), g1.frame("right_foot")}
+    for frame, f in plan.forces.items():
+        assert np.abs(f[inside]).max() <= 1e-6, frame
+        if frame == g1.frame("left_foot"):
+            pushing = [k for k, tk in enumerate(plan.t) if tk < flight[0] and np.linalg.norm(f[k]) > 1.0]
+            assert pushing and max(pushing) < flight[0] / plan.dt - 10  # the left foot is off well before take-off
+    for k in inside:
+        for side in ("left_foot", "right_foot"):
+            assert _frame(g1, plan.q[k], side).translation[2] > 0.0
+    com_z = np.array([pin.centerOfMass(g1.model, g1.data(), plan.q[k])[2] for k in range(len(plan.t))])
+    k0, k1 = int(round(flight[0] / plan.dt)), int(round(flight[1] / plan.dt))
+    acc = np.diff(com_z[k0:k1 + 1], 2) / plan.dt**2
+    assert acc == pytest.approx(-9.81, abs=0.5)
