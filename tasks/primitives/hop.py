@@ -232,8 +232,10 @@ def _limits(what: str):
     def limits(robot: Robot) -> dict[str, str]:
         p = can_push_off_one_leg(robot)
         if not p.feasible:
-            return {"count": f"{robot.name} cannot {what}: one leg gives {p.available:.1f} m/s^2 for "
-                             f"{p.needed:.1f} m/s^2 needed ({p.joint})"}
+            gives = (f"gives at most {TORQUE_MARGIN:g} x {p.available:.1f} = {TORQUE_MARGIN * p.available:.1f} m/s^2 "
+                     f"of push for the {p.needed:.1f} m/s^2" if p.available > 0
+                     else f"cannot even carry the body in the {p.depth:.2f} m crouch, let alone give the {p.needed:.1f} m/s^2")
+            return {"count": f"{robot.name} cannot {what}: one leg {gives} the shortest flight needs ({p.joint} torque limit)"}
         return {"forward": f"at most {stride_max(robot):.2f} m per {'hop' if what == 'hop' else 'stride'} on {robot.name}"}
     return limits
 
