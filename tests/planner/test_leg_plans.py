@@ -1,10 +1,9 @@
-"""Leg motions planned on Talos: the plans pass their own checks and, recomputed with Pinocchio
-from ``plan.q``, do what the primitives promise (kick height and reach, lifts in place, lunge
-depth, a quarter circle walked)."""
+"""Leg motions planned on Talos (and G1's hop): the plans pass their own checks and, recomputed
+with Pinocchio from ``plan.q``, do what the primitives promise (kick height and reach, lifts in
+place, lunge depth, a ballistic one-foot flight). The quarter circle is planned and certified in
+``tests/sim/test_leg_sims.py``."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pinocchio as pin
@@ -87,18 +86,6 @@ def test_lunge_plan(talos):
     assert z == pytest.approx(standing_geometry(talos).com[2] - 0.1, abs=bottom.tolerance + HARD_SLACK)
     ahead = _frame(talos, q, "left_foot").translation - _frame(talos, talos.q_standing, "left_foot").translation
     assert ahead == pytest.approx([0.3, 0.0, 0.0], abs=1e-3)
-
-
-@pytest.mark.slow
-def test_quarter_circle_plan(talos):
-    """walk_arc(0.5 m, left, pi/2): the base ends turned by a quarter turn, the point between the
-    feet moved to (0.5, 0.5) m from the start (the centre is 0.5 m to the left)."""
-    _, plan = _plan(talos, [Action(name="walk_arc", params={"angle": math.pi / 2})])
-    q0, q1 = plan.q[0], plan.q[-1]
-    yaw = pin.rpy.matrixToRpy(pin.Quaternion(q1[3:7]).matrix())[2] - pin.rpy.matrixToRpy(pin.Quaternion(q0[3:7]).matrix())[2]
-    assert yaw == pytest.approx(math.pi / 2, abs=0.05)
-    mid = [0.5 * (_frame(talos, q, "left_foot").translation + _frame(talos, q, "right_foot").translation) for q in (q0, q1)]
-    assert (mid[1] - mid[0])[:2] == pytest.approx([0.5, 0.5], abs=1e-3)
 
 
 def test_controller_reference_unwraps_past_a_half_turn():
