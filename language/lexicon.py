@@ -337,10 +337,13 @@ class Lexicon:
         letter or a letter replaced by a neighbouring key (``jumpp``, ``sqaut``, ``wqve``).
         ``boxing`` is not ``bowing`` and ``stops`` is not ``steps``: x/w and o/e are far apart
         on a keyboard. Chinese words get no spelling suggestion (a wrong character is another
-        word, not a typo).
+        word, not a typo). A word the lexicon reads otherwise (``stops``: the end of a sequence) is
+        never taken for a typo of an action word.
         """
         if word in self.near_misses:
             return self.near_misses[word]
+        if phrase_key(word) in self.phrases:  # a word wbmp reads ("stops" ends a sequence) is no typo
+            return None
         if not word.isascii() or not word.isalpha() or len(word) < MIN_TYPO_LENGTH:
             return None
         budget = 1 if len(word) < 8 else 2

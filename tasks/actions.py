@@ -22,6 +22,7 @@ ARMS = ("left", "right", "both")
 DIRECTIONS = ("forward", "backward", "left", "right")
 REACH_DIRECTIONS = ("forward", "up", "down", "left", "right", "backward")
 HEAD_DIRECTIONS = ("left", "right", "up", "down")
+KICK_DIRECTIONS = ("forward", "side")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -326,6 +327,66 @@ REGISTRY: dict[str, ActionSchema] = {
                   description="rise of the centre of mass from take-off to the top of the flight"),
             Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=2.0,
                   description="forward displacement"),
+        )),
+        ActionSchema(name="kick", summary="Stand on one foot and kick with the other, forward or to the side.",
+                     body="lower", params=(
+            _choice("leg", SIDES, "right", "the kicking leg"),
+            _choice("direction", KICK_DIRECTIONS, "forward", "kick forward or out to the side"),
+            Param(name="height", kind="float", unit="m", default=0.12, minimum=0.02, maximum=1.0,
+                  description="height of the kicking sole above the ground at the top of the kick"),
+            Param(name="duration", kind="float", unit="s", default=1.6, minimum=0.8, maximum=6.0,
+                  description="time on one foot: lift, kick, put down"),
+        )),
+        ActionSchema(name="march", summary="March (step) in place: lift the feet in turn and put them back.",
+                     body="lower", dynamic=True, params=(
+            Param(name="count", kind="int", unit="count", default=4, minimum=1, maximum=20,
+                  description="number of foot lifts, alternating, the right foot first"),
+            Param(name="height", kind="float", unit="m", default=0.08, minimum=0.02, maximum=0.5,
+                  description="how high each sole lifts"),
+        )),
+        ActionSchema(name="walk_arc", summary="Walk along a circle (a full circle by default) or an arc of it.",
+                     body="lower", dynamic=True, params=(
+            Param(name="radius", kind="float", unit="m", default=0.5, minimum=0.1, maximum=10.0,
+                  description="radius of the circle, from its centre to the point between the feet"),
+            _choice("side", SIDES, "left", "side of the circle's centre (left: counter-clockwise)"),
+            Param(name="angle", kind="float", unit="rad", default=2 * math.pi, minimum=0.1, maximum=2 * math.pi,
+                  description="how much of the circle to walk (the robot turns as much)"),
+        )),
+        ActionSchema(name="hop", summary="Hop on one foot, in place or forward (robots whose leg can push off alone).",
+                     body="lower", dynamic=True, params=(
+            _choice("foot", SIDES, "right", "the foot to hop on"),
+            Param(name="count", kind="int", unit="count", default=2, minimum=1, maximum=10,
+                  description="number of hops"),
+            Param(name="height", kind="float", unit="m", default=0.025, minimum=0.01, maximum=0.3,
+                  description="rise of the centre of mass during each flight"),
+            Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=1.0,
+                  description="forward displacement of each hop (0: in place)"),
+        )),
+        ActionSchema(name="lunge", summary="Step out with one leg, lower the body, come back up and step back.",
+                     body="lower", dynamic=True, params=(
+            _choice("leg", SIDES, "right", "the leg that steps out"),
+            _choice("direction", KICK_DIRECTIONS, "forward", "lunge forward or out to the side"),
+            Param(name="length", kind="float", unit="m", default=None, minimum=0.05, maximum=1.0,
+                  description="how far the foot steps out (default: the robot's longest step)"),
+            Param(name="depth", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.6,
+                  description="how far the centre of mass goes down"),
+            Param(name="duration", kind="float", unit="s", default=1.2, minimum=0.6, maximum=6.0,
+                  description="time to go down and up with the feet apart"),
+        )),
+        ActionSchema(name="stomp", summary="Lift one foot and put it down on its place, a number of times.",
+                     body="lower", dynamic=True, params=(
+            _choice("leg", SIDES, "right", "the stomping leg"),
+            Param(name="count", kind="int", unit="count", default=2, minimum=1, maximum=10,
+                  description="number of stomps"),
+            Param(name="height", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.5,
+                  description="how high the sole lifts"),
+        )),
+        ActionSchema(name="jog", summary="Jog in place or run forward: strides with a flight phase (robots whose legs can).",
+                     body="lower", dynamic=True, params=(
+            Param(name="count", kind="int", unit="count", default=6, minimum=1, maximum=20,
+                  description="number of strides (flights)"),
+            Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=5.0,
+                  description="distance covered (0: jog in place)"),
         )),
     )
 }

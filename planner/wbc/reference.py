@@ -54,6 +54,23 @@ def _exp3_and_jr(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rot, jr
 
 
+def _unwrap(w: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """The rotation vector of the same rotation as ``w`` (``w + 2 pi m n``) closest to ``previous``.
+
+    ``log3`` jumps from +pi to -pi when a base turns past a half turn from knot 0 (walking a
+    circle); the spline of the chart must not. Returns ``w`` itself when no jump is needed.
+    """
+    theta = float(np.linalg.norm(w))
+    if theta > 1e-9:
+        axis = w / theta
+    elif np.linalg.norm(previous) > 1e-9:
+        axis = previous / np.linalg.norm(previous)
+    else:
+        return w
+    m = round(float(axis @ (previous - w)) / (2.0 * np.pi))
+    return w if m == 0 else w + 2.0 * np.pi * m * axis
+
+
 @dataclass(frozen=True, eq=False)
 class FrameTrack:
     """Reference of one frame on the dense grid (world-aligned).
@@ -141,10 +158,15 @@ class PlanReference:
             rot = quat.toRotationMatrix()
             rel = rot0.T @ rot
             chart[k, :3] = knots_q[k, :3]
-            chart[k, 3:6] = pin.log3(rel)
+            w = pin.log3(rel)
+            unwrapped = _unwrap(w, chart[k - 1, 3:6]) if k else w
+            chart[k, 3:6] = unwrapped
             chart[k, 6:] = knots_q[k, 7:]
             dchart[k, :3] = rot @ knots_v[k, :3]
-            dchart[k, 3:6] = pin.Jlog3(rel) @ knots_v[k, 3:6]
+            if unwrapped is w:
+                dchart[k, 3:6] = pin.Jlog3(rel) @ knots_v[k, 3:6]
+            else:  # beyond a half turn from knot 0: d/dt of the unwrapped vector, Jr(w)^+ omega
+                dchart[k, 3:6] = np.linalg.pinv(_exp3_and_jr(unwrapped[None])[1][0], rcond=1e-6) @ knots_v[k, 3:6]
             dchart[k, 6:] = knots_v[k, 6:] if model.nq - 7 == model.nv - 6 else 0.0
         if nk >= 2:
             spline = CubicSpline(plan.t, chart, bc_type=((1, dchart[0]), (1, dchart[-1])), axis=0)

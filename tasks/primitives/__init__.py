@@ -7,7 +7,8 @@ knot grid from ``t0``. :func:`tasks.compose.compile_actions` assembles fragments
 
 One module per primitive or family: :mod:`.squat`, :mod:`.wave`, :mod:`.reach`,
 :mod:`.posture` (stand, raise_arms, bow, turn_head, lean), :mod:`.balance`, and the dynamic
-ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`.
+ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
+march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 from robots.model import Robot
 from tasks.actions import REGISTRY, Action, get_action
 from tasks.exceptions import TaskDefinitionError
-from tasks.primitives import balance, jump, locomotion, posture, reach, squat, wave
+from tasks.primitives import balance, hop, jump, legs, locomotion, posture, reach, squat, wave
 from tasks.primitives.base import (
     DEFAULT_DT,
     PARTS,
@@ -43,6 +44,13 @@ PRIMITIVES: dict[str, Primitive] = {
         locomotion.WALK,
         locomotion.TURN,
         jump.PRIMITIVE,
+        legs.KICK,
+        legs.MARCH,
+        legs.WALK_ARC,
+        hop.HOP,
+        legs.LUNGE,
+        legs.STOMP,
+        hop.JOG,
     )
 }
 
