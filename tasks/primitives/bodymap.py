@@ -1,0 +1,184 @@
+"""Where a robot's body parts are, from its collision meshes, for the arm and hand motions.
+
+Motions that bring a hand *to* the body (touch, hands on hips, cross the arms, clap, salute)
+must stop the hand short of the body: once the planner avoids self-collision with a margin of
+1 cm, a target inside that margin is infeasible. :func:`body_map` measures, once per robot at
+its standing posture and with Pinocchio/coal numerics on the URDF collision geometry:
+
+- each *part*'s axis-aligned box in the heading frame (x forward, y left, z up, origin on the
+  ground between the feet): the head (geometry of the head frame's link), the torso/chest (the
+  torso frame's link), the hips (every geometry that is neither arm nor leg-below-the-hip and
+  crosses the base frame's height), each knee (the leg joint halfway between the hip and the
+  sole, and the front of the leg geometry at that height), each toe tip (front edge of the sole);
+- each hand's extent around its frame (the geometry of the hand frame's joint and its subtree,
+  at the standing orientation).
+
+A hand target for "touch part P from direction u" puts the hand frame at ``surface + extent of
+the hand back towards the body + GAP`` along ``u``: with the hand at its standing orientation,
+``GAP`` (2 cm) is the clearance between the hand's geometry and the part's box. Boxes are
+axis-aligned, so they contain the meshes and the real clearance is at least that.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.primitives.geometry import standing_geometry
+
+GAP = 0.02  # [m] hand-to-body clearance of body-touching targets (>= the planner's 1 cm self-collision margin)
+SLAB = 0.05  # [m] half-height of the horizontal slab in which the hip and knee extents are measured
+
+
+@dataclass(frozen=True, eq=False)
+class Box:
+    """An axis-aligned box in the heading frame [m]."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @property
+    def center(self) -> np.ndarray:
+        """Centre (3,) [m]."""
+        return 0.5 * (self.lo + self.hi)
+
+
+@dataclass(frozen=True, eq=False)
+class BodyMap:
+    """Body parts of a robot standing at ``q_standing``, in the heading frame [m].
+
+    Attributes:
+        robot: Robot name.
+        head: Box of the head geometry (None if the robot has no head frame or no geometry on it).
+        torso: Box of the torso frame's geometry (None if absent).
+        hip_half_width: Side -> lateral extent of the body at the base frame's height [m] (> 0 left, < 0 right).
+        hip_height: Height of the base frame [m].
+        knee: Side -> knee joint position (3,).
+        knee_front: Side -> front (x) of that leg's geometry at knee height.
+        toe: Side -> middle of the front edge of the sole (3,).
+        hip_pivot: Mean position of the first leg joints (3,): the point the torso bends about.
+        hand_lo, hand_hi: Side -> extent of the hand geometry around the hand frame (3,), standing orientation.
+    """
+
+    robot: str
+    head: Box | None
+    torso: Box | None
+    hip_half_width: dict[str, float]
+    hip_height: float
+    knee: dict[str, np.ndarray]
+    knee_front: dict[str, float]
+    toe: dict[str, np.ndarray]
+    hip_pivot: np.ndarray
+    hand_lo: dict[str, np.ndarray]
+    hand_hi: dict[str, np.ndarray]
+
+    def hand_back(self, side: str, u: np.ndarray) -> float:
+        """How far the ``side`` hand's geometry reaches from its frame against direction ``u`` [m]."""
+        corners = _corners(self.hand_lo[side], self.hand_hi[side])
+        return float(max(0.0, -(corners @ np.asarray(u, dtype=float)).min()))
+
+    def beside(self, side: str, surface: float, u: np.ndarray) -> float:
+        """Coordinate along unit axis ``u`` of a hand frame that stops ``GAP`` short of a surface at ``surface``."""
+        return surface + self.hand_back(side, u) + GAP
+
+
+def _corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
+def to_standing(robot: Robot, point_in_heading) -> np.ndarray:
+    """A heading-frame point (3,) in the standing world frame [m]."""
+    return standing_geometry(robot).heading.act(np.asarray(point_in_heading, dtype=float))
+
+
+def to_heading(robot: Robot, point_in_standing) -> np.ndarray:
+    """A standing-world point (3,) in the heading frame [m]."""
+    return standing_geometry(robot).heading.actInv(np.asarray(point_in_standing, dtype=float))
+
+
+def _joint_chain(robot: Robot, role: str) -> list[int]:
+    joint = robot.model.frames[robot.frame_id(role)].parentJoint
+    return list(robot.model.supports[joint])
+
+
+@functools.cache
+def body_map(robot: Robot) -> BodyMap:
+    """The body parts of ``robot`` (cached per robot object)."""
+    model, data = robot.model, robot.data()
+    cm = robot.collision_model
+    gdata = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gdata, robot.q_standing)
+    heading = standing_geometry(robot).heading
+
+    boxes = []
+    for i, go in enumerate(cm.geometryObjects):
+        geom = go.geometry
+        geom.computeLocalAABB()
+        a = geom.aabb_local
+        M = gdata.oMg[i]
+        world = _corners(np.array(a.min_), np.array(a.max_)) @ M.rotation.T + M.translation
+        local = (world - heading.translation) @ heading.rotation
+        boxes.append((go, Box(local.min(axis=0), local.max(axis=0))))
+
+    trunk_role = "torso" if robot.has_role("torso") else "base"
+    trunk = set(_joint_chain(robot, trunk_role))
+    arm_joints: set[int] = set()
+    for side in ("left", "right"):
+        arm_joints |= set(_joint_chain(robot, f"{side}_hand")) - trunk
+    base_joints = set(_joint_chain(robot, "base"))
+    leg_joints = {side: [j for j in _joint_chain(robot, f"{side}_foot") if j not in base_joints] for side in ("left", "right")}
+
+    def frame_box(role: str) -> Box | None:
+        if not robot.has_role(role):
+            return None
+        fid = robot.frame_id(role)
+        own = [b for go, b in boxes if go.parentFrame == fid]
+        return _union(own) if own else None
+
+    hip_height = float(to_heading(robot, standing_geometry(robot).position("base"))[2])
+    body = [b for go, b in boxes if go.parentJoint not in arm_joints]
+    slab = [b for b in body if b.lo[2] <= hip_height + SLAB and b.hi[2] >= hip_height - SLAB]
+    hip = {"left": max(float(b.hi[1]) for b in slab), "right": min(float(b.lo[1]) for b in slab)}
+
+    knee, knee_front, toe = {}, {}, {}
+    for side in ("left", "right"):
+        chain = leg_joints[side]
+        sole = to_heading(robot, robot.sole_corners_in_world(robot.q_standing, side).mean(axis=0))
+        top = to_heading(robot, data.oMi[chain[0]].translation)
+        middle = 0.5 * (top[2] + sole[2])
+        j_knee = min(chain, key=lambda j: abs(float(to_heading(robot, data.oMi[j].translation)[2]) - middle))
+        knee[side] = to_heading(robot, data.oMi[j_knee].translation)
+        leg = [b for go, b in boxes if go.parentJoint in chain and b.lo[2] <= knee[side][2] + SLAB and b.hi[2] >= knee[side][2] - SLAB]
+        knee_front[side] = max((float(b.hi[0]) for b in leg), default=float(knee[side][0]))
+        corners = np.array([to_heading(robot, c) for c in robot.sole_corners_in_world(robot.q_standing, side)])
+        toe[side] = np.array([corners[:, 0].max(), corners[:, 1].mean(), 0.0])
+    pivot = np.mean([to_heading(robot, data.oMi[leg_joints[s][0]].translation) for s in ("left", "right")], axis=0)
+
+    hand_lo, hand_hi = {}, {}
+    for side in ("left", "right"):
+        fid = robot.frame_id(f"{side}_hand")
+        joint = model.frames[fid].parentJoint
+        subtree = set(model.subtrees[joint])
+        hand = [b for go, b in boxes if go.parentJoint in subtree]
+        frame = heading.actInv(data.oMf[fid].translation)
+        if hand:
+            u = _union(hand)
+            hand_lo[side], hand_hi[side] = u.lo - frame, u.hi - frame
+        else:
+            hand_lo[side], hand_hi[side] = np.zeros(3), np.zeros(3)
+
+    return BodyMap(robot=robot.name, head=frame_box("head"), torso=frame_box("torso"), hip_half_width=hip,
+                   hip_height=hip_height, knee=knee, knee_front=knee_front, toe=toe, hip_pivot=pivot,
+                   hand_lo=hand_lo, hand_hi=hand_hi)
+
+
+def _union(boxes: list[Box]) -> Box:
+    return Box(np.min([b.lo for b in boxes], axis=0), np.max([b.hi for b in boxes], axis=0))
+
+
+__all__ = ["GAP", "BodyMap", "Box", "body_map", "to_heading", "to_standing"]
