@@ -27,7 +27,7 @@ from robots.model import Robot
 from tasks.actions import TOUCH_PARTS
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
-from tasks.primitives.bodymap import GAP, body_map, to_heading, to_standing
+from tasks.primitives.bodymap import GAP, body_map, stop_short, to_heading, to_standing
 from tasks.primitives.geometry import standing_geometry
 
 OUT_FRACTION = 0.4  # held poses are reached at this fraction of the duration
@@ -199,7 +199,7 @@ def _other(side: str) -> str:
 def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
     """Heading-frame point the ``side`` hand goes to for touching ``part`` (``GAP`` short of it).
 
-    head: beside the head on the hand's side; shoulder: in front of the *other* shoulder, at
+    head: beside the head on the hand's side, high enough to clear the top of the torso; shoulder: in front of the *other* shoulder, at
     ``SHOULDER_INWARD`` of its distance from the midline (its inner half); chest:
     in front of the torso, ``0.25 L`` below the shoulders; hip: outside the hip on the hand's side;
     knee: in front of the knee on the hand's side; toes: above the toe tip on the hand's side, as
@@ -210,20 +210,20 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
     if part == "head":
         head = _need(m.head, robot, "head")
         surface = head.hi[1] if o > 0 else -head.lo[1]
-        return np.array([head.center[0], o * m.beside(side, surface, o * Y), head.center[2]])
+        z = head.center[2] if m.torso is None else max(head.center[2], m.beside(side, m.torso.hi[2], Z))
+        return stop_short(robot, side, [head.center[0], o * m.beside(side, surface, o * Y), z], o * Y, (side,))
     if part == "shoulder":
         other = shoulder(robot, _other(side))
         front = m.torso.hi[0] if m.torso is not None else other[0]
-        return np.array([m.beside(side, front, X), SHOULDER_INWARD * other[1], other[2]])
+        return stop_short(robot, side, [m.beside(side, front, X), SHOULDER_INWARD * other[1], other[2]], X, (side,))
     if part == "chest":
         front = m.torso.hi[0] if m.torso is not None else S[0]
-        return np.array([m.beside(side, front, X), 0.3 * S[1], S[2] - 0.25 * L])
+        return stop_short(robot, side, [m.beside(side, front, X), 0.3 * S[1], S[2] - 0.25 * L], X, (side,))
     if part == "hip":
-        surface = m.hip_half_width[side] * o
-        return np.array([m.hip_pivot[0], o * m.beside(side, surface, o * Y), m.hip_height])
+        return hip_point(robot, side, (side,))
     if part == "knee":
         k = m.knee[side]
-        return np.array([m.beside(side, m.knee_front[side], X), k[1], k[2]])
+        return stop_short(robot, side, [m.beside(side, m.knee_front[side], X), k[1], k[2]], X, (side,))
     if part == "toes":
         toe = m.toe[side]
         x = toe[0]  # straight above the toe tip
@@ -232,6 +232,14 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
     if part == "hand":
         return clap_points(robot)[side][0]
     raise TaskDefinitionError(f"touch part must be one of {', '.join(TOUCH_PARTS)}, got {part!r}")  # pragma: no cover
+
+
+def hip_point(robot: Robot, side: str, moving: tuple[str, ...]) -> np.ndarray:
+    """Hand point beside the ``side`` hip at the base frame's height (heading frame)."""
+    m = body_map(robot)
+    o = SIGN[side]
+    start = [m.hip_pivot[0], o * m.beside(side, m.hip_half_width[side] * o, o * Y), m.hip_height]
+    return stop_short(robot, side, start, o * Y, moving)
 
 
 def _lowest_reachable(robot: Robot, side: str, x: float, y: float) -> float:
@@ -306,8 +314,8 @@ TOUCH = Primitive(name="touch", nominal_duration=_duration, build=build_touch, p
 def build_hands_on_hips(b: FragmentBuilder) -> Fragment:
     """Both hands beside the hips."""
     for s in ("left", "right"):
-        _require_reach("hands_on_hips", b.robot, s, touch_point(b.robot, s, "hip"), "its hip")
-    pts = {s: touch_point(b.robot, s, "hip") for s in ("left", "right")}
+        _require_reach("hands_on_hips", b.robot, s, hip_point(b.robot, s, ("left", "right")), "its hip")
+    pts = {s: hip_point(b.robot, s, ("left", "right")) for s in ("left", "right")}
     return _hold(b, "on the hip", pts, "hands on hips", BOTH_ARMS)
 
 
@@ -327,7 +335,8 @@ def cross_points(robot: Robot) -> dict[str, np.ndarray]:
         S, L = shoulder(robot, side), arm_length(robot, side)
         other = shoulder(robot, _other(side))
         front = m.torso.hi[0] if m.torso is not None else S[0]
-        out[side] = np.array([m.beside(side, front, X), CROSS_ACROSS * other[1], S[2] - drop * L])
+        start = [m.beside(side, front, X), CROSS_ACROSS * other[1], S[2] - drop * L]
+        out[side] = stop_short(robot, side, start, X, ("left", "right"))
     return out
 
 
@@ -401,7 +410,8 @@ def salute_point(robot: Robot, side: str) -> np.ndarray:
         raise TaskDefinitionError(f"salute: {robot.name} has no collision geometry on its head frame")
     o = SIGN[side]
     y = o * 0.5 * (head.hi[1] if o > 0 else -head.lo[1])
-    return np.array([m.beside(side, head.hi[0], X), head.center[1] + y, head.center[2] + 0.25 * (head.hi[2] - head.lo[2])])
+    start = [m.beside(side, head.hi[0], X), head.center[1] + y, head.center[2] + 0.25 * (head.hi[2] - head.lo[2])]
+    return stop_short(robot, side, start, X, (side,))
 
 
 def check_salute(params: dict, robot: Robot) -> None:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 
+import coal  # type: ignore[import-untyped]
 import numpy as np
 import pinocchio as pin
 
@@ -62,6 +63,10 @@ class BodyMap:
         toe: Side -> middle of the front edge of the sole (3,).
         hip_pivot: Mean position of the first leg joints (3,): the point the torso bends about.
         hand_lo, hand_hi: Side -> extent of the hand geometry around the hand frame (3,), standing orientation.
+        boxes: Heading-frame box of every collision geometry at the standing posture.
+        placements: Standing world placement of every collision geometry.
+        hand_geometries, arm_geometries: Side -> indices of the hand's / the whole arm's geometries.
+        hand_position: Side -> standing hand frame position in the heading frame (3,).
     """
 
     robot: str
@@ -75,6 +80,11 @@ class BodyMap:
     hip_pivot: np.ndarray
     hand_lo: dict[str, np.ndarray]
     hand_hi: dict[str, np.ndarray]
+    boxes: tuple[Box, ...]
+    placements: tuple[pin.SE3, ...]
+    hand_geometries: dict[str, tuple[int, ...]]
+    arm_geometries: dict[str, tuple[int, ...]]
+    hand_position: dict[str, np.ndarray]
 
     def hand_back(self, side: str, u: np.ndarray) -> float:
         """How far the ``side`` hand's geometry reaches from its frame against direction ``u`` [m]."""
@@ -159,13 +169,17 @@ def body_map(robot: Robot) -> BodyMap:
         toe[side] = np.array([corners[:, 0].max(), corners[:, 1].mean(), 0.0])
     pivot = np.mean([to_heading(robot, data.oMi[leg_joints[s][0]].translation) for s in ("left", "right")], axis=0)
 
-    hand_lo, hand_hi = {}, {}
+    hand_lo, hand_hi, hand_geoms, arm_geoms, hand_pos = {}, {}, {}, {}, {}
     for side in ("left", "right"):
         fid = robot.frame_id(f"{side}_hand")
         joint = model.frames[fid].parentJoint
         subtree = set(model.subtrees[joint])
         hand = [b for go, b in boxes if go.parentJoint in subtree]
+        hand_geoms[side] = tuple(i for i, (go, _) in enumerate(boxes) if go.parentJoint in subtree)
+        arm = set(_joint_chain(robot, f"{side}_hand")) - trunk
+        arm_geoms[side] = tuple(i for i, (go, _) in enumerate(boxes) if go.parentJoint in arm or go.parentJoint in subtree)
         frame = heading.actInv(data.oMf[fid].translation)
+        hand_pos[side] = frame
         if hand:
             u = _union(hand)
             hand_lo[side], hand_hi[side] = u.lo - frame, u.hi - frame
@@ -174,11 +188,70 @@ def body_map(robot: Robot) -> BodyMap:
 
     return BodyMap(robot=robot.name, head=frame_box("head"), torso=frame_box("torso"), hip_half_width=hip,
                    hip_height=hip_height, knee=knee, knee_front=knee_front, toe=toe, hip_pivot=pivot,
-                   hand_lo=hand_lo, hand_hi=hand_hi)
+                   hand_lo=hand_lo, hand_hi=hand_hi, boxes=tuple(b for _, b in boxes),
+                   placements=tuple(pin.SE3(gdata.oMg[i]) for i in range(len(boxes))),
+                   hand_geometries=hand_geoms, arm_geometries=arm_geoms, hand_position=hand_pos)
+
+
+NEAR = 0.15  # [m] geometries whose boxes are farther than this from the hand's box are ignored
+MAX_APPROACH = 0.12  # [m] a hand moves at most this far towards the body when stopping short
+APPROACH_TOLERANCE = 0.002  # [m] stop when the mesh distance is this close to GAP
+
+
+def mesh_distance(robot: Robot, side: str, point, obstacles: tuple[int, ...]) -> float:
+    """Smallest distance [m] from the ``side`` hand's collision meshes, translated (standing
+    orientation) so that its frame is at heading-frame ``point``, to the standing meshes of
+    ``obstacles`` (coal); ``inf`` when none is within ``NEAR`` of the hand."""
+    m = body_map(robot)
+    shift = np.asarray(point, dtype=float) - m.hand_position[side]
+    heading = standing_geometry(robot).heading
+    shift_world = heading.rotation @ shift
+    hand = m.hand_geometries[side]
+    lo = np.min([m.boxes[i].lo for i in hand], axis=0) + shift
+    hi = np.max([m.boxes[i].hi for i in hand], axis=0) + shift
+    objs = robot.collision_model.geometryObjects
+    best = np.inf
+    for j in obstacles:
+        b = m.boxes[j]
+        if np.any(b.lo > hi + NEAR) or np.any(b.hi < lo - NEAR):
+            continue
+        tj = coal.Transform3s(m.placements[j].rotation, m.placements[j].translation)
+        for i in hand:
+            ti = coal.Transform3s(m.placements[i].rotation, m.placements[i].translation + shift_world)
+            best = min(best, coal.distance(objs[i].geometry, ti, objs[j].geometry, tj, coal.DistanceRequest(), coal.DistanceResult()))
+    return float(best)
+
+
+def obstacles_for(robot: Robot, moving: tuple[str, ...]) -> tuple[int, ...]:
+    """Every collision geometry except those of the moving arms."""
+    m = body_map(robot)
+    skip = set().union(*(m.arm_geometries[s] for s in moving))
+    return tuple(i for i in range(len(m.boxes)) if i not in skip)
+
+
+@functools.cache
+def _stop_short_cached(robot: Robot, side: str, point: tuple, u: tuple, moving: tuple[str, ...]) -> tuple:
+    p, u_ = np.array(point), np.array(u)
+    obstacles = obstacles_for(robot, moving)
+    travelled = 0.0
+    for _ in range(8):
+        d = mesh_distance(robot, side, p, obstacles)
+        step = min(d - GAP, MAX_APPROACH - travelled)
+        if not np.isfinite(d) or step <= APPROACH_TOLERANCE:
+            break
+        p, travelled = p - step * u_, travelled + step
+    return tuple(p)
+
+
+def stop_short(robot: Robot, side: str, point, u, moving: tuple[str, ...]) -> np.ndarray:
+    """``point`` moved against unit direction ``u`` until the ``side`` hand's meshes (standing
+    orientation) are ``GAP`` from the rest of the body (the ``moving`` arms excluded), measured
+    with coal; it never moves closer than that, nor more than ``MAX_APPROACH``."""
+    return np.array(_stop_short_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u), tuple(moving)))
 
 
 def _union(boxes: list[Box]) -> Box:
     return Box(np.min([b.lo for b in boxes], axis=0), np.max([b.hi for b in boxes], axis=0))
 
 
-__all__ = ["GAP", "BodyMap", "Box", "body_map", "to_heading", "to_standing"]
+__all__ = ["GAP", "BodyMap", "Box", "body_map", "mesh_distance", "obstacles_for", "stop_short", "to_heading", "to_standing"]

@@ -35,15 +35,15 @@ def _value(token: str):
         return token
 
 
-def load_corpus() -> list[Case]:
-    """All cases of the corpus file, in order."""
+def load_corpus(path: Path = CORPUS_PATH) -> list[Case]:
+    """All cases of a corpus file (default ``corpus.txt``), in order."""
     cases = []
-    for n, raw in enumerate(CORPUS_PATH.read_text(encoding="utf-8").splitlines(), start=1):
+    for n, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if not raw.strip() or raw.lstrip().startswith("#"):
             continue
         text, sep, expected = raw.rpartition(" | ")
         if not sep:
-            raise ValueError(f"corpus.txt line {n}: no ' | ' separator")
+            raise ValueError(f"{path.name} line {n}: no ' | ' separator")
         expected = expected.strip()
         if expected.startswith("!"):
             error, *quoted = expected[1:].split(" ", 1)
