@@ -27,7 +27,7 @@ from robots.model import Robot
 from tasks.actions import TOUCH_PARTS
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
-from tasks.primitives.bodymap import GAP, body_map, stop_short, to_heading, to_standing
+from tasks.primitives.bodymap import GAP, body_map, hands_meet, stop_short, to_heading, to_standing
 from tasks.primitives.geometry import standing_geometry
 
 OUT_FRACTION = 0.4  # held poses are reached at this fraction of the duration
@@ -154,7 +154,7 @@ CLAP_APART = 0.2  # [L] each hand this much farther out when apart
 
 def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Side -> (together, apart) hand points (heading frame): in front of the chest, ``0.3 L``
-    below the shoulders; together the hands' geometries are ``GAP`` apart (standing orientation)."""
+    below the shoulders; together the hands' meshes are ``GAP`` apart (standing orientation, coal)."""
     m = body_map(robot)
     S = {s: shoulder(robot, s) for s in ("left", "right")}
     L = min(arm_length(robot, s) for s in S)
@@ -162,12 +162,9 @@ def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     x = max(0.5 * (S["left"][0] + S["right"][0]) + 0.5 * L, front + max(m.hand_back(s, X) for s in S) + GAP)
     z = 0.5 * (S["left"][2] + S["right"][2]) - 0.3 * L
     mid = 0.5 * (S["left"][1] + S["right"][1])
-    out = {}
-    for side in ("left", "right"):
-        o = SIGN[side]
-        y_in = mid + o * (m.hand_back(side, o * Y) + 0.5 * GAP)
-        out[side] = (np.array([x, y_in, z]), np.array([x, y_in + o * CLAP_APART * L, z]))
-    return out
+    start = {s: np.array([x, mid + SIGN[s] * (m.hand_back(s, SIGN[s] * Y) + 0.5 * GAP), z]) for s in ("left", "right")}
+    together = dict(zip(("left", "right"), hands_meet(robot, start["left"], start["right"]), strict=True))
+    return {s: (together[s], together[s] + SIGN[s] * CLAP_APART * L * Y) for s in ("left", "right")}
 
 
 def build_clap(b: FragmentBuilder) -> Fragment:
@@ -203,7 +200,9 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
     ``SHOULDER_INWARD`` of its distance from the midline (its inner half); chest:
     in front of the torso, ``0.25 L`` below the shoulders; hip: outside the hip on the hand's side;
     knee: in front of the knee on the hand's side; toes: above the toe tip on the hand's side, as
-    low as the arm reaches bending at the hips; hand: the clap position (both hands).
+    low as the arm reaches bending at the hips (moved forward to clear the thigh, at the standing
+    posture); hand: the clap position (both hands). Each stops ``GAP`` short of the body's
+    meshes (:func:`~tasks.primitives.bodymap.stop_short`).
     """
     m = body_map(robot)
     S, L, o = shoulder(robot, side), arm_length(robot, side), SIGN[side]
@@ -228,7 +227,8 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
         toe = m.toe[side]
         x = toe[0]  # straight above the toe tip
         lowest = _lowest_reachable(robot, side, x, toe[1])
-        return np.array([x, toe[1], max(toe[2] + m.hand_back(side, Z) + GAP, lowest)])
+        start = [x, toe[1], max(toe[2] + m.hand_back(side, Z) + GAP, lowest)]
+        return stop_short(robot, side, start, X, (side,))  # in front of the thigh if it is there
     if part == "hand":
         return clap_points(robot)[side][0]
     raise TaskDefinitionError(f"touch part must be one of {', '.join(TOUCH_PARTS)}, got {part!r}")  # pragma: no cover
@@ -370,13 +370,14 @@ ARMS_OUT = Primitive(name="arms_out", nominal_duration=_duration, build=build_ar
 
 def point_direction(side: str, direction: str) -> np.ndarray:
     """Unit vector (heading frame) along which the ``side`` arm points for ``direction``:
-    straight for forward, up and its own side; down is tilted 0.5 forward (clear of the leg);
+    straight for forward and its own side; up is tilted 0.25 forward (the arm goes up through the
+    front, where the shoulder is strongest); down is tilted 0.5 forward (clear of the leg);
     across the body (the right arm pointing left) goes diagonally forward, clear of the chest."""
     o = SIGN[side]
     if direction == "forward":
         u = X
     elif direction == "up":
-        u = Z
+        u = Z + 0.25 * X
     elif direction == "down":
         u = -Z + 0.5 * X
     elif SIGN[direction] == o:

@@ -222,6 +222,43 @@ def mesh_distance(robot: Robot, side: str, point, obstacles: tuple[int, ...]) ->
     return float(best)
 
 
+def hands_distance(robot: Robot, left_point, right_point) -> float:
+    """Smallest distance [m] between the two hands' meshes (standing orientation), their frames
+    translated to heading-frame points (coal)."""
+    m = body_map(robot)
+    heading = standing_geometry(robot).heading
+    objs = robot.collision_model.geometryObjects
+    shifts = {s: heading.rotation @ (np.asarray(p, dtype=float) - m.hand_position[s])
+              for s, p in (("left", left_point), ("right", right_point))}
+    best = np.inf
+    for i in m.hand_geometries["left"]:
+        ti = coal.Transform3s(m.placements[i].rotation, m.placements[i].translation + shifts["left"])
+        for j in m.hand_geometries["right"]:
+            tj = coal.Transform3s(m.placements[j].rotation, m.placements[j].translation + shifts["right"])
+            best = min(best, coal.distance(objs[i].geometry, ti, objs[j].geometry, tj, coal.DistanceRequest(), coal.DistanceResult()))
+    return float(best)
+
+
+@functools.cache
+def _hands_meet_cached(robot: Robot, left: tuple, right: tuple) -> tuple:
+    pl, pr = np.array(left), np.array(right)
+    inward = (pr - pl) / np.linalg.norm(pr - pl)  # from the left hand towards the right one
+    for _ in range(12):
+        d = hands_distance(robot, pl, pr)
+        step = 0.5 * (d - GAP)
+        if abs(step) <= 0.5 * APPROACH_TOLERANCE:
+            break
+        pl, pr = pl + step * inward, pr - step * inward
+    return tuple(pl), tuple(pr)
+
+
+def hands_meet(robot: Robot, left_point, right_point) -> tuple[np.ndarray, np.ndarray]:
+    """The two hand points moved symmetrically along the line between them until the hands'
+    meshes (standing orientation) are ``GAP`` apart (coal)."""
+    pl, pr = _hands_meet_cached(robot, tuple(float(x) for x in left_point), tuple(float(x) for x in right_point))
+    return np.array(pl), np.array(pr)
+
+
 def obstacles_for(robot: Robot, moving: tuple[str, ...]) -> tuple[int, ...]:
     """Every collision geometry except those of the moving arms."""
     m = body_map(robot)
@@ -234,8 +271,11 @@ def _stop_short_cached(robot: Robot, side: str, point: tuple, u: tuple, moving: 
     p, u_ = np.array(point), np.array(u)
     obstacles = obstacles_for(robot, moving)
     travelled = 0.0
-    for _ in range(8):
+    for _ in range(12):
         d = mesh_distance(robot, side, p, obstacles)
+        if d < GAP:  # too close (or inside): back off along u
+            p = p + (GAP - d + 0.5 * APPROACH_TOLERANCE) * u_
+            continue
         step = min(d - GAP, MAX_APPROACH - travelled)
         if not np.isfinite(d) or step <= APPROACH_TOLERANCE:
             break
@@ -246,7 +286,8 @@ def _stop_short_cached(robot: Robot, side: str, point: tuple, u: tuple, moving: 
 def stop_short(robot: Robot, side: str, point, u, moving: tuple[str, ...]) -> np.ndarray:
     """``point`` moved against unit direction ``u`` until the ``side`` hand's meshes (standing
     orientation) are ``GAP`` from the rest of the body (the ``moving`` arms excluded), measured
-    with coal; it never moves closer than that, nor more than ``MAX_APPROACH``."""
+    with coal; it never moves closer than that, nor more than ``MAX_APPROACH``; a point closer
+    than ``GAP`` is first moved out along ``u``."""
     return np.array(_stop_short_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u), tuple(moving)))
 
 
@@ -254,4 +295,4 @@ def _union(boxes: list[Box]) -> Box:
     return Box(np.min([b.lo for b in boxes], axis=0), np.max([b.hi for b in boxes], axis=0))
 
 
-__all__ = ["GAP", "BodyMap", "Box", "body_map", "mesh_distance", "obstacles_for", "stop_short", "to_heading", "to_standing"]
+__all__ = ["GAP", "BodyMap", "Box", "body_map", "hands_distance", "hands_meet", "mesh_distance", "obstacles_for", "stop_short", "to_heading", "to_standing"]

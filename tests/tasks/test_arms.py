@@ -173,6 +173,7 @@ def test_clapping_hands_stop_a_gap_apart(robot_name):
     ("touch", {"part": "chest"}, "body"),
     ("touch", {"part": "hip"}, "body"),
     ("touch", {"part": "shoulder"}, "body"),
+    ("touch", {"part": "toes"}, "far"),
     ("hands_on_hips", {}, "body"),
     ("cross_arms", {}, "body"),
     ("salute", {}, "head"),
@@ -195,15 +196,15 @@ def test_body_touching_hands_stop_a_gap_short_of_the_body(robot_name, name, para
         to_body = _distance(robot, placements, hands[side], body if len(held) == 2 else but[side], shift)
         to_part = _distance(robot, placements, hands[side], head if what == "head" else body, shift)
         assert to_body >= GAP - 1e-6, (t.name, to_body)
-        assert to_part <= TOUCHING_GAP_MAX, (t.name, to_part)
+        assert what == "far" or to_part <= TOUCHING_GAP_MAX, (t.name, to_part)  # the toes: as far as reachable
 
 
 def test_point_directions_from_the_shoulder(g1):
-    """The hand goes 0.9 L from the shoulder frame: straight ahead, up, out to its own side;
-    down is tilted forward; across the body diagonally forward."""
+    """The hand goes 0.9 L from the shoulder frame: straight ahead, out to its own side; up and
+    down are tilted forward; across the body diagonally forward."""
     S = _frame(g1, "left_shoulder_roll_link").translation
     L = _arm_length(g1, "left")
-    expected = {"forward": (1, 0, 0), "up": (0, 0, 1), "left": (0, 1, 0), "down": (0.5, 0, -1), "right": (1, -1, 0)}
+    expected = {"forward": (1, 0, 0), "up": (0.25, 0, 1), "left": (0, 1, 0), "down": (0.5, 0, -1), "right": (1, -1, 0)}
     for direction, u in expected.items():
         (t,) = _targets(_spec(g1, "point", arm="left", direction=direction), "pointing")
         u = np.array(u, dtype=float) / np.linalg.norm(u)
@@ -235,7 +236,9 @@ def test_stretch_leans_the_torso_and_the_raised_hands(talos):
     np.testing.assert_allclose(pin.log3(R @ R0.T), [-0.3, 0, 0], atol=1e-9)
     for side in ("left", "right"):
         (a,), (b,) = _targets(up, f"{side} hand stretched"), _targets(left, f"{side} hand stretched")
-        assert b.position[1] - a.position[1] > 0.1 and b.position[2] < a.position[2]
+        assert b.position[1] - a.position[1] > 0.1, side
+    (a,), (b,) = _targets(up, "left hand stretched"), _targets(left, "left hand stretched")
+    assert b.position[2] < a.position[2]  # the hand on the leaning side comes down
     assert not _targets(up, "torso")
 
 
@@ -272,14 +275,15 @@ def test_what_the_robot_cannot_do_is_refused_in_task_terms(robot_name, name, par
 
 
 def test_toes_are_reached_as_low_as_the_bent_arm_goes(talos, g1):
-    """Touching the toes puts the hand above the toe tip, at the lowest height the arm reaches
-    bending 0.7 rad at the hips (above the knees on both robots), and says so in the limits."""
+    """Touching the toes puts the hand above the toe tip (moved forward to clear the thigh), at
+    the lowest height the arm reaches bending 0.7 rad at the hips (above the knees on both
+    robots), and says so in the limits."""
     from tasks.primitives import robot_limits
 
     for robot in (talos, g1):
         (t,) = _targets(_spec(robot, "touch", part="toes"), "at the toes")
         toe_x = robot.sole_corners_in_world(robot.q_standing, "right")[:, 0].max()
-        assert t.position[0] == pytest.approx(toe_x, abs=1e-9)
+        assert toe_x - 1e-9 <= t.position[0] <= toe_x + 0.15  # above the toe tip, or in front of the thigh
         assert 0.3 < t.position[2] < 0.9
         assert f"toes: the hand stops {t.position[2]:.2f} m above the ground" in robot_limits(robot)["touch"]["part"]
 
