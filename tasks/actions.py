@@ -327,7 +327,7 @@ REGISTRY: dict[str, ActionSchema] = {
             _choice("direction", STRETCH_DIRECTIONS, "up", "up, or the side the upper body leans to"),
             Param(name="angle", kind="float", unit="rad", default=0.15, minimum=0.05, maximum=0.5,
                   description="lean of the upper body (not used for up)"),
-            Param(name="duration", kind="float", unit="s", default=4.0, minimum=1.0, maximum=10.0,
+            Param(name="duration", kind="float", unit="s", default=5.0, minimum=1.0, maximum=10.0,
                   description="time to stretch, hold and come back"),
         )),
         ActionSchema(name="nod", summary="Nod the head (robots with a neck).", body="upper", params=(
@@ -341,7 +341,7 @@ REGISTRY: dict[str, ActionSchema] = {
             _repeat(2),
             Param(name="angle", kind="float", unit="rad", default=0.4, minimum=0.05, maximum=1.2,
                   description="how far the head turns to each side"),
-            Param(name="duration", kind="float", unit="s", default=1.6, minimum=0.5, maximum=4.0,
+            Param(name="duration", kind="float", unit="s", default=1.2, minimum=0.5, maximum=4.0,
                   description="time for one shake, left and right"),
         )),
         ActionSchema(name="reach", summary="Move a hand to a point, given in the base frame or as a direction.", body="upper", params=(

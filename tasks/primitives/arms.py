@@ -370,14 +370,15 @@ ARMS_OUT = Primitive(name="arms_out", nominal_duration=_duration, build=build_ar
 
 def point_direction(side: str, direction: str) -> np.ndarray:
     """Unit vector (heading frame) along which the ``side`` arm points for ``direction``:
-    straight for forward and its own side; up is tilted 0.25 forward (the arm goes up through the
-    front, where the shoulder is strongest); down is tilted 0.5 forward (clear of the leg);
+    straight for forward and its own side; up is tilted 0.5 forward (up and ahead: with a straight
+    arm up Talos saturates its shoulder torque and misses the target by 9 cm in MuJoCo); down is
+    tilted 0.5 forward (clear of the leg);
     across the body (the right arm pointing left) goes diagonally forward, clear of the chest."""
     o = SIGN[side]
     if direction == "forward":
         u = X
     elif direction == "up":
-        u = Z + 0.25 * X
+        u = Z + 0.5 * X
     elif direction == "down":
         u = -Z + 0.5 * X
     elif SIGN[direction] == o:
@@ -503,8 +504,8 @@ SHRUG = Primitive(name="shrug", nominal_duration=_rhythm_duration, build=build_s
 
 
 # --- stretch -------------------------------------------------------------------------------
-STRETCH_HEIGHT = 0.85  # [L] hands above the shoulders
-STRETCH_FORWARD = 0.15  # [L] and ahead of them (the arms go up through the front)
+STRETCH_HEIGHT = 0.75  # [L] hands above the shoulders (raise_arms' height: 0.85 L tipped Talos' ZMP out)
+STRETCH_FORWARD = 0.25  # [L] and ahead of them (the arms go up through the front)
 STRETCH_AXES = {"left": (X, -1.0), "right": (X, 1.0), "backward": (Y, -1.0)}
 
 

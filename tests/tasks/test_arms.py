@@ -200,11 +200,11 @@ def test_body_touching_hands_stop_a_gap_short_of_the_body(robot_name, name, para
 
 
 def test_point_directions_from_the_shoulder(g1):
-    """The hand goes 0.9 L from the shoulder frame: straight ahead, out to its own side; up and
-    down are tilted forward; across the body diagonally forward."""
+    """The hand goes 0.9 L from the shoulder frame: straight ahead, out to its own side, up and
+    down tilted forward, across the body diagonally forward."""
     S = _frame(g1, "left_shoulder_roll_link").translation
     L = _arm_length(g1, "left")
-    expected = {"forward": (1, 0, 0), "up": (0.25, 0, 1), "left": (0, 1, 0), "down": (0.5, 0, -1), "right": (1, -1, 0)}
+    expected = {"forward": (1, 0, 0), "up": (0.5, 0, 1), "left": (0, 1, 0), "down": (0.5, 0, -1), "right": (1, -1, 0)}
     for direction, u in expected.items():
         (t,) = _targets(_spec(g1, "point", arm="left", direction=direction), "pointing")
         u = np.array(u, dtype=float) / np.linalg.norm(u)
