@@ -352,6 +352,7 @@ def test_punch_plan_extends_the_fist_twice(talos, solve):
     assert peaks == 2
 
 
+@pytest.mark.slow
 def test_touch_head_plan_holds_the_hand_beside_the_head(talos, solve):
     """Over the hold window the planned left hand is within 2 cm of its target beside the head."""
     spec, plan = solve(talos, [Action(name="touch", params={"hand": "left", "part": "head"})])
