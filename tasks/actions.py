@@ -23,6 +23,9 @@ DIRECTIONS = ("forward", "backward", "left", "right")
 REACH_DIRECTIONS = ("forward", "up", "down", "left", "right", "backward")
 HEAD_DIRECTIONS = ("left", "right", "up", "down")
 KICK_DIRECTIONS = ("forward", "side")
+POINT_DIRECTIONS = ("forward", "left", "right", "up", "down")
+STRETCH_DIRECTIONS = ("up", "left", "right", "backward")
+TOUCH_PARTS = ("head", "shoulder", "chest", "hip", "knee", "hand", "toes")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -265,6 +268,82 @@ REGISTRY: dict[str, ActionSchema] = {
             _repeat(2),
             Param(name="duration", kind="float", unit="s", default=0.8, minimum=0.3, maximum=4.0,
                   description="time for one wave, out and back"),
+        )),
+        # --- arm, hand and head gestures (tasks/primitives/arms.py, head.py) ---
+        ActionSchema(name="punch", summary="Punch straight ahead from a guard position, then lower the arm.", body="upper", params=(
+            _choice("arm", SIDES, "right", "which arm punches"),
+            _repeat(1),
+            Param(name="duration", kind="float", unit="s", default=1.0, minimum=0.5, maximum=4.0,
+                  description="time for one punch, out and back to the guard"),
+        )),
+        ActionSchema(name="clap", summary="Clap the hands in front of the chest.", body="upper", params=(
+            _repeat(3),
+            Param(name="duration", kind="float", unit="s", default=0.8, minimum=0.4, maximum=4.0,
+                  description="time for one clap, together and apart"),
+        )),
+        ActionSchema(name="touch", summary="Touch a body part with a hand (stopping 2 cm short of it).", body="upper", params=(
+            _choice("hand", SIDES, "right", "which hand touches"),
+            _choice("part", TOUCH_PARTS, "head", "what it touches (shoulder: the other one; hand: the other hand)"),
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=10.0,
+                  description="time to touch, hold and come back"),
+        )),
+        ActionSchema(name="hands_on_hips", summary="Put both hands on the hips, hold, and let them down.", body="upper", params=(
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
+                  description="time to put them, hold and come back"),
+        )),
+        ActionSchema(name="cross_arms", summary="Cross the arms in front of the chest, hold, and let them down.", body="upper", params=(
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
+                  description="time to cross, hold and come back"),
+        )),
+        ActionSchema(name="arms_out", summary="Hold the arms straight out to the sides at shoulder height.", body="upper", params=(
+            _choice("arm", ARMS, "both", "which arm"),
+            Param(name="duration", kind="float", unit="s", default=2.5, minimum=1.0, maximum=30.0,
+                  description="time to raise, hold and lower"),
+        )),
+        ActionSchema(name="point", summary="Point with a straight arm in a direction.", body="upper", params=(
+            _choice("arm", SIDES, "right", "which arm points"),
+            _choice("direction", POINT_DIRECTIONS, "forward", "where to point"),
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
+                  description="time to point, hold and lower"),
+        )),
+        ActionSchema(name="salute", summary="Raise a hand to the forehead in a salute.", body="upper", params=(
+            _choice("arm", SIDES, "right", "which hand salutes"),
+            Param(name="duration", kind="float", unit="s", default=2.5, minimum=1.0, maximum=30.0,
+                  description="time to salute, hold and lower"),
+        )),
+        ActionSchema(name="arm_circles", summary="Hold the arms out to the sides and circle the hands.", body="upper", params=(
+            _choice("arm", ARMS, "both", "which arm"),
+            _repeat(2),
+            Param(name="radius", kind="float", unit="m", default=0.08, minimum=0.02, maximum=0.3,
+                  description="radius of the circle the hand draws"),
+            Param(name="duration", kind="float", unit="s", default=1.6, minimum=0.8, maximum=8.0,
+                  description="time for one circle"),
+        )),
+        ActionSchema(name="shrug", summary="Shrug: open both forearms, palms up, and lift them.", body="upper", params=(
+            _repeat(1),
+            Param(name="duration", kind="float", unit="s", default=1.2, minimum=0.6, maximum=4.0,
+                  description="time for one shrug, up and down"),
+        )),
+        ActionSchema(name="stretch", summary="Stretch both arms overhead, optionally leaning the upper body.", body="whole", params=(
+            _choice("direction", STRETCH_DIRECTIONS, "up", "up, or the side the upper body leans to"),
+            Param(name="angle", kind="float", unit="rad", default=0.15, minimum=0.05, maximum=0.5,
+                  description="lean of the upper body (not used for up)"),
+            Param(name="duration", kind="float", unit="s", default=5.0, minimum=1.0, maximum=10.0,
+                  description="time to stretch, hold and come back"),
+        )),
+        ActionSchema(name="nod", summary="Nod the head (robots with a neck).", body="upper", params=(
+            _repeat(2),
+            Param(name="angle", kind="float", unit="rad", default=0.3, minimum=0.05, maximum=0.8,
+                  description="how far the head tips down"),
+            Param(name="duration", kind="float", unit="s", default=0.8, minimum=0.4, maximum=4.0,
+                  description="time for one nod, down and up"),
+        )),
+        ActionSchema(name="shake_head", summary="Shake the head from side to side (robots with a neck).", body="upper", params=(
+            _repeat(2),
+            Param(name="angle", kind="float", unit="rad", default=0.4, minimum=0.05, maximum=1.2,
+                  description="how far the head turns to each side"),
+            Param(name="duration", kind="float", unit="s", default=1.2, minimum=0.5, maximum=4.0,
+                  description="time for one shake, left and right"),
         )),
         ActionSchema(name="reach", summary="Move a hand to a point, given in the base frame or as a direction.", body="upper", params=(
             _choice("hand", SIDES, "right", "which hand reaches"),

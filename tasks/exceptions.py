@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+SUGGESTION_BAND = 0.2  # an unknown action name is offered the registry names this close to its best match
+
 
 class TaskError(Exception):
     """Base class of every error about a task specification or an action."""
@@ -20,6 +22,9 @@ class UnknownAction(TaskDefinitionError):
         self.name = name
         self.available = available
         close = difflib.get_close_matches(name, available, n=3, cutoff=0.5)
+        if close:  # only the names about as close as the best one ("sqat": squat, not salute or step)
+            best = difflib.SequenceMatcher(None, name, close[0]).ratio()
+            close = [c for c in close if difflib.SequenceMatcher(None, name, c).ratio() >= best - SUGGESTION_BAND]
         hint = f"; did you mean {', '.join(close)}?" if close else f"; known actions: {', '.join(available)}"
         super().__init__(f"unknown action {name!r}{hint}")
 

@@ -6,7 +6,9 @@ world-frame targets from the robot's standing posture, and places phases and tar
 knot grid from ``t0``. :func:`tasks.compose.compile_actions` assembles fragments into one spec.
 
 One module per primitive or family: :mod:`.squat`, :mod:`.wave`, :mod:`.reach`,
-:mod:`.posture` (stand, raise_arms, bow, turn_head, lean), :mod:`.balance`, and the dynamic
+:mod:`.posture` (stand, raise_arms, bow, turn_head, lean), :mod:`.balance`, :mod:`.arms` (punch,
+clap, touch, hands_on_hips, cross_arms, arms_out, point, salute, arm_circles, shrug, stretch;
+body parts from :mod:`.bodymap`), :mod:`.head` (nod, shake_head), and the dynamic
 ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
 march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`.
 """
@@ -16,7 +18,19 @@ from __future__ import annotations
 from robots.model import Robot
 from tasks.actions import REGISTRY, Action, get_action
 from tasks.exceptions import TaskDefinitionError
-from tasks.primitives import balance, hop, jump, legs, locomotion, posture, reach, squat, wave
+from tasks.primitives import (
+    arms,
+    balance,
+    head,
+    hop,
+    jump,
+    legs,
+    locomotion,
+    posture,
+    reach,
+    squat,
+    wave,
+)
 from tasks.primitives.base import (
     DEFAULT_DT,
     PARTS,
@@ -34,6 +48,8 @@ PRIMITIVES: dict[str, Primitive] = {
         posture.STAND,
         squat.PRIMITIVE,
         wave.PRIMITIVE,
+        *arms.PRIMITIVES,
+        *head.PRIMITIVES,
         reach.PRIMITIVE,
         posture.RAISE_ARMS,
         posture.BOW,

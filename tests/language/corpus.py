@@ -40,7 +40,7 @@ def _value(token: str):
 
 
 def load_corpus(path: Path = CORPUS_PATH) -> list[Case]:
-    """All cases of a corpus file, in order."""
+    """All cases of a corpus file (default ``corpus.txt``), in order."""
     cases = []
     for n, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if not raw.strip() or raw.lstrip().startswith("#"):

@@ -194,7 +194,7 @@ def test_typo_distance_counts_slips_not_other_words():
 
 def test_unknown_word_message_suggests_only_plausible_actions():
     with pytest.raises(UnknownWords) as info:
-        parse("a person is boxing")
+        parse("a person is juggling")
     assert info.value.suggestions == () and "did you mean" not in str(info.value)
     with pytest.raises(UnknownWords) as info:
         parse("jumpp twice")

@@ -44,4 +44,4 @@ def test_unknown_action_is_a_one_line_error(capsys):
     """A misspelled name exits 3 with a suggestion, no traceback."""
     assert main(["actions", "sqat"]) == 3
     err = capsys.readouterr().err
-    assert err.strip() == "wbmp actions: error: unknown action 'sqat'; did you mean squat, step?"
+    assert err.strip() == "wbmp actions: error: unknown action 'sqat'; did you mean squat?"

@@ -1,0 +1,570 @@
+"""Arm and hand gestures: ``punch``, ``clap``, ``touch``, ``hands_on_hips``, ``cross_arms``,
+``arms_out``, ``point``, ``salute``, ``arm_circles``, ``shrug``, ``stretch``.
+
+Every target is a HARD hand position target computed in the *heading frame* (x forward, y left,
+z up, origin on the ground between the feet) from the robot's standing posture: ``S`` is the
+shoulder frame of the moving arm, ``L`` the arm's length (shoulder to hand), ``o`` = +1 for the
+left arm and -1 for the right one (its outward y direction). Held poses are reached at
+``OUT_FRACTION`` of the duration, held until ``HOLD_END_FRACTION`` and left for the rest
+position (a soft target at the end), like the posture primitives.
+
+Motions that bring a hand to the body stop it ``bodymap.GAP`` (2 cm) short of the body part's
+collision box (see :mod:`tasks.primitives.bodymap`), so they stay feasible once the planner keeps
+a 1 cm self-collision margin. A point the arm cannot reach is refused with the distance and the
+reach (``REACH_FRACTION * L``); the knee and the toes may be reached by bending at the hips
+(up to ``BEND_MAX``), and the toes only "as far as reachable": the hand goes as low above the
+toe tip as the bent reach allows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.actions import TOUCH_PARTS
+from tasks.exceptions import TaskDefinitionError
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
+from tasks.primitives.bodymap import GAP, body_map, hands_meet, stop_short, to_heading, to_standing
+from tasks.primitives.geometry import standing_geometry
+
+OUT_FRACTION = 0.4  # held poses are reached at this fraction of the duration
+HOLD_END_FRACTION = 0.6  # and left at this one
+REACH_FRACTION = 0.92  # [L] farthest hand target from the shoulder (the arm nearly straight)
+BEND_MAX = 0.7  # [rad] forward bend at the hips allowed to reach the knee and the toes
+POSE_TOLERANCE = 0.02  # [m] held hand poses and rhythmic targets
+GUARD_TOLERANCE = 0.03  # [m] punch guard / clap apart / shrug low positions
+RAISE_TIME = 0.8  # [s] from rest to the first pose of a rhythmic gesture
+LOWER_TIME = 0.8  # [s] from the last pose back to rest
+TORSO_TOLERANCE = 0.05  # [rad] stretch lean
+
+SIGN = {"left": 1.0, "right": -1.0}
+X, Y, Z = np.eye(3)
+
+
+# --- geometry helpers ---------------------------------------------------------------------
+def shoulder(robot: Robot, side: str) -> np.ndarray:
+    """Shoulder frame of ``side`` in the heading frame (3,) [m] (the hand if there is no shoulder frame)."""
+    g = standing_geometry(robot)
+    role = f"{side}_shoulder" if f"{side}_shoulder" in g.placements else f"{side}_hand"
+    return to_heading(robot, g.position(role))
+
+
+def arm_length(robot: Robot, side: str) -> float:
+    """Shoulder-to-hand chain length of ``side`` [m]."""
+    return standing_geometry(robot).arm_length[side]
+
+
+def reach(robot: Robot, side: str) -> float:
+    """Farthest hand target from the shoulder [m]."""
+    return REACH_FRACTION * arm_length(robot, side)
+
+
+def _bent_shoulder(robot: Robot, side: str, angle: float) -> np.ndarray:
+    """The shoulder after bending forward by ``angle`` about the hips (heading frame)."""
+    pivot = body_map(robot).hip_pivot
+    return pivot + pin.exp3(angle * Y) @ (shoulder(robot, side) - pivot)
+
+
+def reach_gap(robot: Robot, side: str, point: np.ndarray, *, bend: bool = False) -> float:
+    """How far ``point`` (heading frame) is beyond the ``side`` hand's reach (<= 0: reachable) [m].
+
+    With ``bend``, the shoulder may first bend forward about the hips by up to ``BEND_MAX``.
+    """
+    angles = np.linspace(0.0, BEND_MAX, 15) if bend else (0.0,)
+    return min(float(np.linalg.norm(point - _bent_shoulder(robot, side, a))) for a in angles) - reach(robot, side)
+
+
+def _require_reach(action: str, robot: Robot, side: str, point: np.ndarray, what: str, *, bend: bool = False) -> None:
+    gap = reach_gap(robot, side, point, bend=bend)
+    if gap > 1e-9:
+        how = f" even bending {BEND_MAX:g} rad at the hips" if bend else ""
+        raise TaskDefinitionError(
+            f"{action}: {robot.name}'s {side} hand cannot reach {what}{how}: it is {gap:.2f} m beyond the arm's "
+            f"reach of {reach(robot, side):.2f} m from the shoulder"
+        )
+
+
+def _put(b: FragmentBuilder, what: str, side: str, point: np.ndarray, *, time: float | None = None,
+         window: tuple[float, float] | None = None, tolerance: float = POSE_TOLERANCE) -> None:
+    """HARD position target of the ``side`` hand at a heading-frame point."""
+    b.frame_target(what, f"{side}_hand", position=b.world(to_standing(b.robot, point)), time=time, window=window,
+                   tolerance=tolerance)
+
+
+def _hold(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], phase: str, parts: frozenset[str]) -> Fragment:
+    """Hands to ``points``, held from OUT_FRACTION to HOLD_END_FRACTION of the duration, back to rest."""
+    T = b.params["duration"]
+    for side, p in points.items():
+        _put(b, f"{side} hand {what}", side, p, window=(OUT_FRACTION * T, HOLD_END_FRACTION * T))
+    rest_targets(b, [f"{s}_hand" for s in points], tau=T)
+    b.phase(phase, T)
+    return b.finish(parts)
+
+
+def _arm_parts(sides) -> frozenset[str]:
+    return frozenset(f"{s}_arm" for s in sides)
+
+
+def _duration(params: dict, robot: Robot) -> float:
+    return params["duration"]
+
+
+def _rhythm_duration(params: dict, robot: Robot) -> float:
+    return RAISE_TIME + params["repeat"] * params["duration"] + LOWER_TIME
+
+
+BOTH_ARMS = _arm_parts(("left", "right"))
+
+
+# --- punch ---------------------------------------------------------------------------------
+def punch_points(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """(guard, hit) hand points of a punch (heading frame): the guard ``0.3 L`` ahead of and
+    ``0.35 L`` below the shoulder, the hit ``0.85 L`` ahead at shoulder height, both ``0.1 L``
+    towards the midline."""
+    S, L, o = shoulder(robot, side), arm_length(robot, side), SIGN[side]
+    guard = S + 0.3 * L * X - 0.1 * o * L * Y - 0.35 * L * Z
+    hit = S + 0.85 * L * X - 0.1 * o * L * Y - 0.05 * L * Z
+    return guard, hit
+
+
+def build_punch(b: FragmentBuilder) -> Fragment:
+    """Up to the guard, ``repeat`` times out to the hit and back to the guard, down to rest."""
+    side, n, d = b.params["arm"], b.params["repeat"], b.params["duration"]
+    guard, hit = punch_points(b.robot, side)
+    _put(b, f"{side} fist on guard", side, guard, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
+    for k in range(n):
+        _put(b, f"{side} punch #{k + 1}", side, hit, time=RAISE_TIME + (k + 0.5) * d)
+        _put(b, f"{side} fist back on guard #{k + 1}", side, guard, time=RAISE_TIME + (k + 1) * d,
+             tolerance=GUARD_TOLERANCE)
+    rest_targets(b, [f"{side}_hand"], tau=_rhythm_duration(b.params, b.robot))
+    b.phase("punch", _rhythm_duration(b.params, b.robot))
+    return b.finish(_arm_parts((side,)))
+
+
+PUNCH = Primitive(name="punch", nominal_duration=_rhythm_duration, build=build_punch,
+                  parts=lambda p: _arm_parts((p["arm"],)))
+
+
+# --- clap ----------------------------------------------------------------------------------
+CLAP_APART = 0.2  # [L] each hand this much farther out when apart
+
+
+def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Side -> (together, apart) hand points (heading frame): in front of the chest, ``0.3 L``
+    below the shoulders; together the hands' meshes are ``GAP`` apart (standing orientation, coal)."""
+    m = body_map(robot)
+    S = {s: shoulder(robot, s) for s in ("left", "right")}
+    L = min(arm_length(robot, s) for s in S)
+    front = m.torso.hi[0] if m.torso is not None else 0.5 * (S["left"][0] + S["right"][0])
+    x = max(0.5 * (S["left"][0] + S["right"][0]) + 0.5 * L, front + max(m.hand_back(s, X) for s in S) + GAP)
+    z = 0.5 * (S["left"][2] + S["right"][2]) - 0.3 * L
+    mid = 0.5 * (S["left"][1] + S["right"][1])
+    start = {s: np.array([x, mid + SIGN[s] * (m.hand_back(s, SIGN[s] * Y) + 0.5 * GAP), z]) for s in ("left", "right")}
+    together = dict(zip(("left", "right"), hands_meet(robot, start["left"], start["right"]), strict=True))
+    return {s: (together[s], together[s] + SIGN[s] * CLAP_APART * L * Y) for s in ("left", "right")}
+
+
+def build_clap(b: FragmentBuilder) -> Fragment:
+    """Hands apart in front of the chest, ``repeat`` times together and apart, down to rest."""
+    n, d = b.params["repeat"], b.params["duration"]
+    pts = clap_points(b.robot)
+    for side, (together, apart) in pts.items():
+        _put(b, f"{side} hand ready to clap", side, apart, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
+        for k in range(n):
+            _put(b, f"{side} hand clap #{k + 1}", side, together, time=RAISE_TIME + (k + 0.5) * d)
+            _put(b, f"{side} hand apart #{k + 1}", side, apart, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
+    rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
+    b.phase("clap", _rhythm_duration(b.params, b.robot))
+    return b.finish(BOTH_ARMS)
+
+
+CLAP = Primitive(name="clap", nominal_duration=_rhythm_duration, build=build_clap, parts=lambda p: BOTH_ARMS)
+
+
+# --- touch ---------------------------------------------------------------------------------
+BENDING_PARTS = ("knee", "toes")
+SHOULDER_INWARD = 0.6  # the other shoulder is touched at this fraction of its distance from the midline
+
+
+def _other(side: str) -> str:
+    return "right" if side == "left" else "left"
+
+
+def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
+    """Heading-frame point the ``side`` hand goes to for touching ``part`` (``GAP`` short of it).
+
+    head: beside the head on the hand's side, high enough to clear the top of the torso; shoulder: in front of the *other* shoulder, at
+    ``SHOULDER_INWARD`` of its distance from the midline (its inner half); chest:
+    in front of the torso, ``0.25 L`` below the shoulders; hip: outside the hip on the hand's side;
+    knee: in front of the knee on the hand's side; toes: above the toe tip on the hand's side, as
+    low as the arm reaches bending at the hips (moved forward to clear the thigh, at the standing
+    posture); hand: the clap position (both hands). Each stops ``GAP`` short of the body's
+    meshes (:func:`~tasks.primitives.bodymap.stop_short`).
+    """
+    m = body_map(robot)
+    S, L, o = shoulder(robot, side), arm_length(robot, side), SIGN[side]
+    if part == "head":
+        head = _need(m.head, robot, "head")
+        surface = head.hi[1] if o > 0 else -head.lo[1]
+        z = head.center[2] if m.torso is None else max(head.center[2], m.beside(side, m.torso.hi[2], Z))
+        return stop_short(robot, side, [head.center[0], o * m.beside(side, surface, o * Y), z], o * Y, (side,))
+    if part == "shoulder":
+        other = shoulder(robot, _other(side))
+        front = m.torso.hi[0] if m.torso is not None else other[0]
+        return stop_short(robot, side, [m.beside(side, front, X), SHOULDER_INWARD * other[1], other[2]], X, (side,))
+    if part == "chest":
+        front = m.torso.hi[0] if m.torso is not None else S[0]
+        return stop_short(robot, side, [m.beside(side, front, X), 0.3 * S[1], S[2] - 0.25 * L], X, (side,))
+    if part == "hip":
+        return hip_point(robot, side, (side,))
+    if part == "knee":
+        k = m.knee[side]
+        return stop_short(robot, side, [m.beside(side, m.knee_front[side], X), k[1], k[2]], X, (side,))
+    if part == "toes":
+        toe = m.toe[side]
+        x = toe[0]  # straight above the toe tip
+        lowest = _lowest_reachable(robot, side, x, toe[1])
+        start = [x, toe[1], max(toe[2] + m.hand_back(side, Z) + GAP, lowest)]
+        return stop_short(robot, side, start, X, (side,))  # in front of the thigh if it is there
+    if part == "hand":
+        return clap_points(robot)[side][0]
+    raise TaskDefinitionError(f"touch part must be one of {', '.join(TOUCH_PARTS)}, got {part!r}")  # pragma: no cover
+
+
+def hip_point(robot: Robot, side: str, moving: tuple[str, ...]) -> np.ndarray:
+    """Hand point beside the ``side`` hip at the base frame's height (heading frame)."""
+    m = body_map(robot)
+    o = SIGN[side]
+    start = [m.hip_pivot[0], o * m.beside(side, m.hip_half_width[side] * o, o * Y), m.hip_height]
+    return stop_short(robot, side, start, o * Y, moving)
+
+
+def _lowest_reachable(robot: Robot, side: str, x: float, y: float) -> float:
+    """Lowest z on the vertical line (x, y) the hand reaches bending up to BEND_MAX [m]."""
+    R = reach(robot, side)
+    best = math.inf
+    for a in np.linspace(0.0, BEND_MAX, 15):
+        s = _bent_shoulder(robot, side, a)
+        h = math.hypot(x - s[0], y - s[1])
+        if h <= R:
+            best = min(best, s[2] - math.sqrt(R * R - h * h))
+    return best
+
+
+def _need(box, robot: Robot, what: str):
+    if box is None:
+        raise TaskDefinitionError(f"touch: {robot.name} has no collision geometry on its {what} frame to touch")
+    return box
+
+
+def check_touch(params: dict, robot: Robot) -> None:
+    """The part must be within the hand's reach (bending at the hips for the knee and toes)."""
+    side, part = params["hand"], params["part"]
+    point = touch_point(robot, side, part)
+    if part == "toes" and not math.isfinite(point[2]):
+        raise TaskDefinitionError(f"touch: {robot.name}'s {side} hand cannot reach down above its toes")
+    sides = ("left", "right") if part == "hand" else (side,)
+    for s in sides:
+        p = touch_point(robot, s, part)
+        what = "the other hand" if part == "hand" else f"its {'other ' if part == 'shoulder' else ''}{part}"
+        _require_reach("touch", robot, s, p, what, bend=part in BENDING_PARTS)
+
+
+def limits_touch(robot: Robot) -> dict[str, str]:
+    """Parts out of reach, and how low the toes are reached."""
+    notes = []
+    for part in TOUCH_PARTS:
+        try:
+            check_touch({"hand": "right", "part": part}, robot)
+        except TaskDefinitionError:
+            notes.append(f"{part} out of reach")
+    try:
+        z = touch_point(robot, "right", "toes")[2]
+        notes.append(f"toes: the hand stops {z:.2f} m above the ground")
+    except TaskDefinitionError:
+        pass
+    return {"part": "; ".join(notes) + f" on {robot.name}"} if notes else {}
+
+
+def touch_parts(params: dict) -> frozenset[str]:
+    """The touching arm (both for the other hand; torso, legs and CoM when bending)."""
+    parts = BOTH_ARMS if params["part"] == "hand" else _arm_parts((params["hand"],))
+    if params["part"] in BENDING_PARTS:
+        parts |= {"torso", "legs", "com"}
+    return parts
+
+
+def build_touch(b: FragmentBuilder) -> Fragment:
+    """Hand(s) to the touch point, held, back to rest."""
+    check_touch(b.params, b.robot)
+    side, part = b.params["hand"], b.params["part"]
+    sides = ("left", "right") if part == "hand" else (side,)
+    what = "at the other hand" if part == "hand" else f"at the {part}"
+    return _hold(b, what, {s: touch_point(b.robot, s, part) for s in sides}, f"touch {part}", touch_parts(b.params))
+
+
+TOUCH = Primitive(name="touch", nominal_duration=_duration, build=build_touch, parts=touch_parts,
+                  check=check_touch, limits=limits_touch)
+
+
+# --- hands_on_hips, cross_arms, arms_out, salute ---------------------------------------------
+def build_hands_on_hips(b: FragmentBuilder) -> Fragment:
+    """Both hands beside the hips."""
+    for s in ("left", "right"):
+        _require_reach("hands_on_hips", b.robot, s, hip_point(b.robot, s, ("left", "right")), "its hip")
+    pts = {s: hip_point(b.robot, s, ("left", "right")) for s in ("left", "right")}
+    return _hold(b, "on the hip", pts, "hands on hips", BOTH_ARMS)
+
+
+HANDS_ON_HIPS = Primitive(name="hands_on_hips", nominal_duration=_duration, build=build_hands_on_hips,
+                          parts=lambda p: BOTH_ARMS)
+
+CROSS_DROP = 0.15  # [L] the left hand lies this much lower than the right one
+CROSS_ACROSS = 0.5  # each hand at this fraction of the other shoulder's distance from the midline
+
+
+def cross_points(robot: Robot) -> dict[str, np.ndarray]:
+    """Side -> hand point with the arms crossed: each hand in front of the *other* upper arm,
+    ``GAP`` in front of the torso, the right forearm ``CROSS_DROP * L`` above the left one."""
+    m = body_map(robot)
+    out = {}
+    for side, drop in (("right", 0.3), ("left", 0.3 + CROSS_DROP)):  # [L] below the shoulder
+        S, L = shoulder(robot, side), arm_length(robot, side)
+        other = shoulder(robot, _other(side))
+        front = m.torso.hi[0] if m.torso is not None else S[0]
+        start = [m.beside(side, front, X), CROSS_ACROSS * other[1], S[2] - drop * L]
+        out[side] = stop_short(robot, side, start, X, ("left", "right"))
+    return out
+
+
+def build_cross_arms(b: FragmentBuilder) -> Fragment:
+    """Both hands in front of the opposite upper arms."""
+    pts = cross_points(b.robot)
+    for s, p in pts.items():
+        _require_reach("cross_arms", b.robot, s, p, "the other arm")
+    return _hold(b, "across", pts, "cross arms", BOTH_ARMS)
+
+
+CROSS_ARMS = Primitive(name="cross_arms", nominal_duration=_duration, build=build_cross_arms, parts=lambda p: BOTH_ARMS)
+
+OUT_REACH = 0.9  # [L] arms out and pointing: hand this far from the shoulder
+
+
+def arms_out_point(robot: Robot, side: str) -> np.ndarray:
+    """Hand point of an arm held out to its side at shoulder height (heading frame)."""
+    return shoulder(robot, side) + SIGN[side] * OUT_REACH * arm_length(robot, side) * Y
+
+
+def build_arms_out(b: FragmentBuilder) -> Fragment:
+    """Arm(s) straight out to the side."""
+    sides = arms_of(b.params["arm"])
+    return _hold(b, "out to the side", {s: arms_out_point(b.robot, s) for s in sides}, "arms out", _arm_parts(sides))
+
+
+ARMS_OUT = Primitive(name="arms_out", nominal_duration=_duration, build=build_arms_out,
+                     parts=lambda p: _arm_parts(arms_of(p["arm"])))
+
+
+def point_direction(side: str, direction: str) -> np.ndarray:
+    """Unit vector (heading frame) along which the ``side`` arm points for ``direction``:
+    straight for forward and its own side; up is tilted 0.5 forward (up and ahead: with a straight
+    arm up Talos saturates its shoulder torque and misses the target by 9 cm in MuJoCo); down is
+    tilted 0.5 forward (clear of the leg);
+    across the body (the right arm pointing left) goes diagonally forward, clear of the chest."""
+    o = SIGN[side]
+    if direction == "forward":
+        u = X
+    elif direction == "up":
+        u = Z + 0.5 * X
+    elif direction == "down":
+        u = -Z + 0.5 * X
+    elif SIGN[direction] == o:
+        u = o * Y
+    else:
+        u = X - o * Y
+    return u / np.linalg.norm(u)
+
+
+def point_point(robot: Robot, side: str, direction: str) -> np.ndarray:
+    """Hand point (heading frame) of the ``side`` arm pointing towards ``direction``."""
+    return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * point_direction(side, direction)
+
+
+def build_point(b: FragmentBuilder) -> Fragment:
+    """The arm straight along the pointing direction."""
+    side, direction = b.params["arm"], b.params["direction"]
+    return _hold(b, f"pointing {direction}", {side: point_point(b.robot, side, direction)}, f"point {direction}",
+                 _arm_parts((side,)))
+
+
+POINT = Primitive(name="point", nominal_duration=_duration, build=build_point, parts=lambda p: _arm_parts((p["arm"],)))
+
+
+def salute_point(robot: Robot, side: str) -> np.ndarray:
+    """Hand point of a salute (heading frame): ``GAP`` in front of the forehead on the hand's side,
+    a quarter of the head's height above its centre."""
+    m = body_map(robot)
+    head = m.head
+    if head is None:
+        raise TaskDefinitionError(f"salute: {robot.name} has no collision geometry on its head frame")
+    o = SIGN[side]
+    y = o * 0.5 * (head.hi[1] if o > 0 else -head.lo[1])
+    start = [m.beside(side, head.hi[0], X), head.center[1] + y, head.center[2] + 0.25 * (head.hi[2] - head.lo[2])]
+    return stop_short(robot, side, start, X, (side,))
+
+
+def check_salute(params: dict, robot: Robot) -> None:
+    """The forehead must be within the arm's reach."""
+    _require_reach("salute", robot, params["arm"], salute_point(robot, params["arm"]), "its forehead")
+
+
+def build_salute(b: FragmentBuilder) -> Fragment:
+    """The hand at the forehead, held."""
+    check_salute(b.params, b.robot)
+    side = b.params["arm"]
+    return _hold(b, "at the forehead", {side: salute_point(b.robot, side)}, "salute", _arm_parts((side,)))
+
+
+SALUTE = Primitive(name="salute", nominal_duration=_duration, build=build_salute,
+                   parts=lambda p: _arm_parts((p["arm"],)), check=check_salute)
+
+
+# --- arm_circles ---------------------------------------------------------------------------
+CIRCLE_POINTS = 8  # targets per circle
+CIRCLE_OUT = 0.75  # [L] circle centre out from the shoulder
+
+
+def circle_points(robot: Robot, side: str, radius: float, n: int = CIRCLE_POINTS) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(centre, points) of one arm circle (heading frame): the centre is ``CIRCLE_OUT * L`` out to
+    the side at shoulder height, the circle lies in the plane across the arm (x-z), starting at
+    the top and going forward first."""
+    c = shoulder(robot, side) + SIGN[side] * CIRCLE_OUT * arm_length(robot, side) * Y
+    return c, [c + radius * (math.sin(2 * math.pi * k / n) * X + math.cos(2 * math.pi * k / n) * Z) for k in range(n)]
+
+
+def check_arm_circles(params: dict, robot: Robot) -> None:
+    """The circle must stay within reach."""
+    for side in arms_of(params["arm"]):
+        _, pts = circle_points(robot, side, params["radius"])
+        worst = max(pts, key=lambda p: reach_gap(robot, side, p))
+        _require_reach("arm_circles", robot, side, worst, f"a circle of radius {params['radius']:g} m")
+
+
+def build_arm_circles(b: FragmentBuilder) -> Fragment:
+    """Arm(s) out, ``repeat`` circles of ``CIRCLE_POINTS`` targets each, back to rest."""
+    check_arm_circles(b.params, b.robot)
+    n, d = b.params["repeat"], b.params["duration"]
+    sides = arms_of(b.params["arm"])
+    for side in sides:
+        _, pts = circle_points(b.robot, side, b.params["radius"])
+        for c in range(n):
+            for k, p in enumerate(pts):
+                _put(b, f"{side} hand circle #{c + 1} point {k + 1}", side, p,
+                     time=RAISE_TIME + (c + k / CIRCLE_POINTS) * d)
+        _put(b, f"{side} hand circle end", side, pts[0], time=RAISE_TIME + n * d)
+    rest_targets(b, [f"{s}_hand" for s in sides], tau=_rhythm_duration(b.params, b.robot))
+    b.phase("arm circles", _rhythm_duration(b.params, b.robot))
+    return b.finish(_arm_parts(sides))
+
+
+ARM_CIRCLES = Primitive(name="arm_circles", nominal_duration=_rhythm_duration, build=build_arm_circles,
+                        parts=lambda p: _arm_parts(arms_of(p["arm"])), check=check_arm_circles)
+
+
+# --- shrug ---------------------------------------------------------------------------------
+SHRUG_LIFT = 0.12  # [L] how far the hands go up at each shrug
+
+
+def shrug_points(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) hand points of the shrug gesture (heading frame): forearms open forward and
+    out, hands ``0.6 L`` below the shoulder, lifted by ``SHRUG_LIFT * L``."""
+    S, L, o = shoulder(robot, side), arm_length(robot, side), SIGN[side]
+    low = S + 0.35 * L * X + 0.3 * o * L * Y - 0.6 * L * Z
+    return low, low + SHRUG_LIFT * L * Z
+
+
+def build_shrug(b: FragmentBuilder) -> Fragment:
+    """Both hands open, ``repeat`` lifts, back to rest."""
+    n, d = b.params["repeat"], b.params["duration"]
+    for side in ("left", "right"):
+        low, high = shrug_points(b.robot, side)
+        _put(b, f"{side} hand open", side, low, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
+        for k in range(n):
+            _put(b, f"{side} hand shrug #{k + 1}", side, high, time=RAISE_TIME + (k + 0.5) * d)
+            _put(b, f"{side} hand down #{k + 1}", side, low, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
+    rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
+    b.phase("shrug", _rhythm_duration(b.params, b.robot))
+    return b.finish(BOTH_ARMS)
+
+
+SHRUG = Primitive(name="shrug", nominal_duration=_rhythm_duration, build=build_shrug, parts=lambda p: BOTH_ARMS)
+
+
+# --- stretch -------------------------------------------------------------------------------
+STRETCH_HEIGHT = 0.75  # [L] hands above the shoulders (raise_arms' height: 0.85 L tipped Talos' ZMP out)
+STRETCH_FORWARD = 0.25  # [L] and ahead of them (the arms go up through the front)
+STRETCH_AXES = {"left": (X, -1.0), "right": (X, 1.0), "backward": (Y, -1.0)}
+
+
+def stretch_rotation(direction: str, angle: float) -> np.ndarray:
+    """Heading-frame rotation (3, 3) of the upper body leaning towards ``direction`` (identity for up)."""
+    if direction == "up":
+        return np.eye(3)
+    axis, sign = STRETCH_AXES[direction]
+    return pin.exp3(sign * angle * axis)
+
+
+def stretch_points(robot: Robot, direction: str, angle: float) -> dict[str, np.ndarray]:
+    """Side -> raised hand point (heading frame), turned with the upper body about the hips."""
+    R = stretch_rotation(direction, angle)
+    pivot = body_map(robot).hip_pivot
+    out = {}
+    for side in ("left", "right"):
+        S, L = shoulder(robot, side), arm_length(robot, side)
+        up = S + STRETCH_HEIGHT * L * Z + STRETCH_FORWARD * L * X
+        out[side] = pivot + R @ (up - pivot)
+    return out
+
+
+def stretch_parts(params: dict) -> frozenset[str]:
+    """Both arms; the torso, legs and CoM too when leaning."""
+    return BOTH_ARMS | ({"torso", "legs", "com"} if params["direction"] != "up" else set())
+
+
+def build_stretch(b: FragmentBuilder) -> Fragment:
+    """Both hands overhead; leaning: the torso turned by ``angle``, held, upright again."""
+    direction, angle, T = b.params["direction"], b.params["angle"], b.params["duration"]
+    if direction != "up":
+        if not b.robot.has_role("torso"):
+            raise TaskDefinitionError(f"stretch: {b.robot.name} has no torso frame to lean")
+        g = b.geometry
+        R = g.heading.rotation @ stretch_rotation(direction, angle) @ g.heading.rotation.T
+        b.frame_target(f"torso leaning {direction}", "torso", rpy=b.world_rotation(R @ g.rotation("torso")),
+                       window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), orientation_tolerance=TORSO_TOLERANCE)
+        b.frame_target("torso upright again", "torso", rpy=b.world_rotation(g.rotation("torso")), time=T,
+                       orientation_tolerance=TORSO_TOLERANCE)
+    return _hold(b, "stretched up", stretch_points(b.robot, direction, angle), f"stretch {direction}", stretch_parts(b.params))
+
+
+STRETCH = Primitive(name="stretch", nominal_duration=_duration, build=build_stretch, parts=stretch_parts)
+
+PRIMITIVES = (PUNCH, CLAP, TOUCH, HANDS_ON_HIPS, CROSS_ARMS, ARMS_OUT, POINT, SALUTE, ARM_CIRCLES, SHRUG, STRETCH)
+
+__all__ = [
+    "PRIMITIVES",
+    "arms_out_point",
+    "circle_points",
+    "clap_points",
+    "cross_points",
+    "point_point",
+    "punch_points",
+    "reach_gap",
+    "salute_point",
+    "shoulder",
+    "shrug_points",
+    "stretch_points",
+    "touch_point",
+]

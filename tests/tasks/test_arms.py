@@ -1,0 +1,382 @@
+"""Arm, hand and head gestures (tasks/primitives/arms.py, head.py): where their targets are,
+relative to the body frames (Pinocchio numerics at the standing posture), how far the
+body-touching ones stop from the body (coal distances on the URDF collision meshes), what
+they refuse, and a few plans on Talos checked against their targets."""
+
+from __future__ import annotations
+
+import json
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from tasks.actions import REGISTRY, Action
+from tasks.compose import compile_actions
+from tasks.exceptions import TaskDefinitionError
+from tasks.primitives import PRIMITIVES, compile_action
+from tasks.primitives.bodymap import GAP
+from tasks.serialize import spec_from_json, spec_to_json
+
+GESTURES = ("punch", "clap", "touch", "hands_on_hips", "cross_arms", "arms_out", "point", "salute",
+            "arm_circles", "shrug", "stretch", "nod", "shake_head")
+HEAD_GESTURES = ("nod", "shake_head")
+TOUCHING_GAP_MAX = GAP + 0.03  # [m] a "touching" hand stops within this of the touched part
+GEOMETRY_ATOL = 1e-9  # [m] targets recomputed from Pinocchio placements
+DT = 0.1  # [s] knot spacing of the plans under test
+HARD_SLACK = 1e-4  # [m] solver tolerance on top of a hard target's own tolerance
+ZERO = np.zeros(3)  # [m] no shift
+
+
+def _spec(robot, name, **params):
+    return compile_actions([Action(name=name, params=params)], robot)
+
+
+def _targets(spec, contains):
+    return [t for t in spec.targets if contains in t.name]
+
+
+def _frame(robot, name, q=None):
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, robot.q_standing if q is None else q)
+    return data.oMf[robot.frame_id(name)]
+
+
+def _arm_length(robot, side):
+    """Shoulder-joint-to-hand-frame chain length from Pinocchio, computed here independently."""
+    model, data = robot.model, robot.data()
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    hand = robot.frame_id(f"{side}_hand")
+    shoulder_joint = model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint
+    chain = list(model.supports[model.frames[hand].parentJoint])
+    pts = [data.oMi[j].translation for j in chain[chain.index(shoulder_joint):]] + [data.oMf[hand].translation]
+    return float(sum(np.linalg.norm(b - a) for a, b in zip(pts, pts[1:], strict=False)))
+
+
+# --- collision-mesh distances (coal), independent of the primitives' boxes -----------------------
+def _geometry_sets(robot):
+    """Hand geometries per side, head geometries, the body (everything not on an arm) and, per
+    side, everything but that arm."""
+    model, cm = robot.model, robot.collision_model
+    torso_chain = set(model.supports[model.frames[robot.frame_id("torso")].parentJoint])
+    arms, hands = {}, {}
+    for side in ("left", "right"):
+        hand_joint = model.frames[robot.frame_id(f"{side}_hand")].parentJoint
+        arms[side] = set(model.supports[hand_joint]) - torso_chain | set(model.subtrees[hand_joint])
+        hands[side] = [i for i, g in enumerate(cm.geometryObjects) if g.parentJoint in model.subtrees[hand_joint]]
+    head = [i for i, g in enumerate(cm.geometryObjects) if g.parentFrame == robot.frame_id("head")]
+    body = [i for i, g in enumerate(cm.geometryObjects) if g.parentJoint not in arms["left"] | arms["right"]]
+    but = {s: [i for i, g in enumerate(cm.geometryObjects) if g.parentJoint not in arms[s]] for s in arms}
+    return hands, head, body, but
+
+
+def _placements(robot, q):
+    gdata = pin.GeometryData(robot.collision_model)
+    pin.updateGeometryPlacements(robot.model, robot.data(), robot.collision_model, gdata, q)
+    return [pin.SE3(m) for m in gdata.oMg]
+
+
+def _distance(robot, placements, set_a, set_b, shift_a=ZERO, shift_b=ZERO):
+    """Smallest mesh distance between two geometry sets, each translated by a shift [m]."""
+    objs = robot.collision_model.geometryObjects
+    best = np.inf
+    for i in set_a:
+        for j in set_b:
+            if i == j:
+                continue
+            ta = coal.Transform3s(placements[i].rotation, placements[i].translation + shift_a)
+            tb = coal.Transform3s(placements[j].rotation, placements[j].translation + shift_b)
+            res = coal.DistanceResult()
+            best = min(best, coal.distance(objs[i].geometry, ta, objs[j].geometry, tb, coal.DistanceRequest(), res))
+    return best
+
+
+def _hand_shift(robot, side, target):
+    """Translation that brings the standing hand frame to a target position."""
+    return np.asarray(target.position) - _frame(robot, robot.frame(f"{side}_hand")).translation
+
+
+# --- every robot ---------------------------------------------------------------------------------
+def test_the_gestures_are_registered_with_primitives():
+    """Each gesture has a registry entry, a primitive and upper-body or whole-body parts."""
+    for name in GESTURES:
+        assert name in REGISTRY and name in PRIMITIVES
+        for p in REGISTRY[name].params:
+            p.validate(name, p.default)  # every default inside its own range
+
+
+@pytest.mark.parametrize("name", GESTURES)
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_each_gesture_compiles_or_is_refused_on_talos_and_g1(name, robot_name):
+    """With default parameters every gesture compiles and round-trips through JSON; head gestures
+    on G1 are refused because it has no neck."""
+    from robots import load_robot
+
+    robot = load_robot(robot_name)
+    if name in HEAD_GESTURES and robot_name == "g1":
+        verb = "nod" if name == "nod" else "shake"
+        with pytest.raises(TaskDefinitionError, match=f"g1 has no neck joint to {verb} its head"):
+            _spec(robot, name)
+        return
+    spec = _spec(robot, name)
+    assert spec_from_json(spec_to_json(spec)) == spec
+    assert spec.targets
+
+
+@pytest.mark.parametrize("name", [n for n in GESTURES if n not in HEAD_GESTURES and n not in ("touch", "stretch")])
+def test_arm_gestures_overlay_a_squat(g1, name):
+    """Arm-only gestures declare arm parts, so they run on top of a leg motion."""
+    spec = compile_actions([Action(name="squat"), Action(name=name, overlay=True)], g1)
+    assert any("squat bottom" in t.name for t in spec.com_targets)
+
+
+# --- where the hands go ------------------------------------------------------------------------
+def test_punch_hits_ahead_of_the_shoulder(talos):
+    """Guard 0.3 L ahead and 0.35 L below the shoulder frame, hit 0.85 L ahead, both 0.1 L inwards;
+    ``repeat`` hits alternate with guards."""
+    spec = _spec(talos, "punch", arm="right", repeat=3)
+    S = _frame(talos, "arm_right_2_link").translation
+    L = _arm_length(talos, "right")
+    hits, guards = _targets(spec, "punch #"), _targets(spec, "guard")
+    assert len(hits) == 3 and len(guards) == 4
+    for t in hits:
+        np.testing.assert_allclose(np.array(t.position) - S, [0.85 * L, 0.1 * L, -0.05 * L], atol=GEOMETRY_ATOL)
+    for t in guards:
+        np.testing.assert_allclose(np.array(t.position) - S, [0.3 * L, 0.1 * L, -0.35 * L], atol=GEOMETRY_ATOL)
+    times = sorted(t.time for t in hits + guards)
+    assert [("punch #" in t.name) for t in sorted(hits + guards, key=lambda t: t.time)] == [False, True, False, True, False, True, False]
+    assert len(set(times)) == len(times)
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_clapping_hands_stop_a_gap_apart(robot_name):
+    """Together, the two hands (moved to their targets at the standing orientation) are at least
+    GAP apart on the meshes and less than TOUCHING_GAP_MAX; apart they are 0.4 L farther apart."""
+    from robots import load_robot
+
+    robot = load_robot(robot_name)
+    spec = _spec(robot, "clap", repeat=1)
+    hands, _, _, _ = _geometry_sets(robot)
+    placements = _placements(robot, robot.q_standing)
+    (tl,), (tr,) = _targets(spec, "left hand clap #1"), _targets(spec, "right hand clap #1")
+    d = _distance(robot, placements, hands["left"], hands["right"], _hand_shift(robot, "left", tl), _hand_shift(robot, "right", tr))
+    assert GAP - 1e-6 <= d <= TOUCHING_GAP_MAX, d
+    (al,), (ar,) = _targets(spec, "left hand apart #1"), _targets(spec, "right hand apart #1")
+    L = min(_arm_length(robot, s) for s in ("left", "right"))
+    assert np.isclose(al.position[1] - ar.position[1] - (tl.position[1] - tr.position[1]), 0.4 * L, atol=1e-9)
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+@pytest.mark.parametrize(("name", "params", "what"), [
+    ("touch", {"part": "head", "hand": "left"}, "head"),
+    ("touch", {"part": "chest"}, "body"),
+    ("touch", {"part": "hip"}, "body"),
+    ("touch", {"part": "shoulder"}, "body"),
+    ("touch", {"part": "toes"}, "far"),
+    ("hands_on_hips", {}, "body"),
+    ("cross_arms", {}, "body"),
+    ("salute", {}, "head"),
+])
+def test_body_touching_hands_stop_a_gap_short_of_the_body(robot_name, name, params, what):
+    """Each held hand target, with the hand at its standing orientation, is at least GAP (2 cm,
+    above the planner's 1 cm self-collision margin) from the meshes of the body and of the other
+    arm when it stays down, and close to the touched part (less than TOUCHING_GAP_MAX from it)."""
+    from robots import load_robot
+
+    robot = load_robot(robot_name)
+    spec = _spec(robot, name, **params)
+    hands, head, body, but = _geometry_sets(robot)
+    placements = _placements(robot, robot.q_standing)
+    held = [t for t in spec.targets if t.window is not None and t.frame in (robot.frame("left_hand"), robot.frame("right_hand"))]
+    assert held
+    for t in held:
+        side = "left" if t.frame == robot.frame("left_hand") else "right"
+        shift = _hand_shift(robot, side, t)
+        to_body = _distance(robot, placements, hands[side], body if len(held) == 2 else but[side], shift)
+        to_part = _distance(robot, placements, hands[side], head if what == "head" else body, shift)
+        assert to_body >= GAP - 1e-6, (t.name, to_body)
+        assert what == "far" or to_part <= TOUCHING_GAP_MAX, (t.name, to_part)  # the toes: as far as reachable
+
+
+def test_point_directions_from_the_shoulder(g1):
+    """The hand goes 0.9 L from the shoulder frame: straight ahead, out to its own side, up and
+    down tilted forward, across the body diagonally forward."""
+    S = _frame(g1, "left_shoulder_roll_link").translation
+    L = _arm_length(g1, "left")
+    expected = {"forward": (1, 0, 0), "up": (0.5, 0, 1), "left": (0, 1, 0), "down": (0.5, 0, -1), "right": (1, -1, 0)}
+    for direction, u in expected.items():
+        (t,) = _targets(_spec(g1, "point", arm="left", direction=direction), "pointing")
+        u = np.array(u, dtype=float) / np.linalg.norm(u)
+        np.testing.assert_allclose(np.array(t.position) - S, 0.9 * L * u, atol=GEOMETRY_ATOL, err_msg=direction)
+
+
+def test_arms_out_and_circles_at_shoulder_height(talos):
+    """Arms out: 0.9 L out at shoulder height; circles: CIRCLE_POINTS targets per circle on a
+    circle of the given radius around 0.75 L out."""
+    S = _frame(talos, "arm_left_2_link").translation
+    L = _arm_length(talos, "left")
+    (t,) = _targets(_spec(talos, "arms_out", arm="left"), "out to the side")
+    np.testing.assert_allclose(np.array(t.position) - S, [0, 0.9 * L, 0], atol=GEOMETRY_ATOL)
+    spec = _spec(talos, "arm_circles", arm="left", repeat=2, radius=0.1)
+    pts = np.array([t.position for t in _targets(spec, "left hand circle #")])
+    assert len(pts) == 16
+    centre = S + np.array([0, 0.75 * L, 0])
+    np.testing.assert_allclose(np.linalg.norm(pts - centre, axis=1), 0.1, atol=GEOMETRY_ATOL)
+
+
+def test_stretch_leans_the_torso_and_the_raised_hands(talos):
+    """Stretching to the left turns the torso frame about the heading x axis by the angle and
+    moves both raised hands to the left."""
+    up = _spec(talos, "stretch")
+    left = _spec(talos, "stretch", direction="left", angle=0.3)
+    (torso,) = _targets(left, "torso leaning left")
+    R0 = _frame(talos, "torso_2_link").rotation
+    R = pin.rpy.rpyToMatrix(*torso.rpy)
+    np.testing.assert_allclose(pin.log3(R @ R0.T), [-0.3, 0, 0], atol=1e-9)
+    for side in ("left", "right"):
+        (a,), (b,) = _targets(up, f"{side} hand stretched"), _targets(left, f"{side} hand stretched")
+        assert b.position[1] - a.position[1] > 0.1, side
+    (a,), (b,) = _targets(up, "left hand stretched"), _targets(left, "left hand stretched")
+    assert b.position[2] < a.position[2]  # the hand on the leaning side comes down
+    assert not _targets(up, "torso")
+
+
+def test_nod_and_shake_turn_the_head(talos):
+    """A nod pitches the head frame down by the angle ``repeat`` times; a shake yaws it left and right."""
+    R0 = _frame(talos, "head_2_link").rotation
+    spec = _spec(talos, "nod", repeat=3, angle=0.4)
+    downs = _targets(spec, "head down")
+    assert len(downs) == 3
+    for t in downs:
+        np.testing.assert_allclose(pin.log3(pin.rpy.rpyToMatrix(*t.rpy) @ R0.T), [0, 0.4, 0], atol=1e-9)
+    spec = _spec(talos, "shake_head", repeat=1, angle=0.5)
+    (left,), (right,) = _targets(spec, "head left"), _targets(spec, "head right")
+    np.testing.assert_allclose(pin.log3(pin.rpy.rpyToMatrix(*left.rpy) @ R0.T), [0, 0, 0.5], atol=1e-9)
+    np.testing.assert_allclose(pin.log3(pin.rpy.rpyToMatrix(*right.rpy) @ R0.T), [0, 0, -0.5], atol=1e-9)
+    assert left.time < right.time
+
+
+# --- refusals ------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("robot_name", "name", "params", "message"), [
+    ("talos", "touch", {"part": "knee"}, r"talos's right hand cannot reach its knee even bending 0.7 rad at the hips: "
+                                         r"it is 0.\d\d m beyond the arm's reach of 0.58 m"),
+    ("g1", "touch", {"part": "knee", "hand": "left"}, r"g1's left hand cannot reach its knee .* reach of 0.38 m"),
+    ("talos", "nod", {"angle": 0.8}, r"nod angle 0.8 rad is beyond talos's neck range of 0.79 rad down"),
+    ("g1", "shake_head", {}, r"g1 has no neck joint to shake its head"),
+    ("g1", "arm_circles", {"radius": 0.3}, r"g1's left hand cannot reach a circle of radius 0.3 m"),
+])
+def test_what_the_robot_cannot_do_is_refused_in_task_terms(robot_name, name, params, message):
+    """Out-of-reach parts name the reach; head gestures name the neck."""
+    from robots import load_robot
+
+    with pytest.raises(TaskDefinitionError, match=message):
+        _spec(load_robot(robot_name), name, **params)
+
+
+def test_toes_are_reached_as_low_as_the_bent_arm_goes(talos, g1):
+    """Touching the toes puts the hand above the toe tip (moved forward to clear the thigh), at
+    the lowest height the arm reaches bending 0.7 rad at the hips (above the knees on both
+    robots), and says so in the limits."""
+    from tasks.primitives import robot_limits
+
+    for robot in (talos, g1):
+        (t,) = _targets(_spec(robot, "touch", part="toes"), "at the toes")
+        toe_x = robot.sole_corners_in_world(robot.q_standing, "right")[:, 0].max()
+        assert toe_x - 1e-9 <= t.position[0] <= toe_x + 0.15  # above the toe tip, or in front of the thigh
+        assert 0.3 < t.position[2] < 0.9
+        assert f"toes: the hand stops {t.position[2]:.2f} m above the ground" in robot_limits(robot)["touch"]["part"]
+
+
+def test_gesture_parameters_keep_their_units_and_ranges():
+    """Counts, durations [s], radius [m] and angles [rad] are validated by the registry."""
+    with pytest.raises(TaskDefinitionError, match="clap repeat 0 is below the minimum 1"):
+        Action(name="clap", params={"repeat": 0})
+    with pytest.raises(TaskDefinitionError, match="arm_circles radius 0.5 m is above the maximum 0.3 m"):
+        Action(name="arm_circles", params={"radius": 0.5})
+    with pytest.raises(TaskDefinitionError, match="touch part must be one of head, shoulder, chest, hip, knee, hand, toes"):
+        Action(name="touch", params={"part": "nose"})
+    with pytest.raises(TaskDefinitionError, match="point direction must be one of forward, left, right, up, down"):
+        Action(name="point", params={"direction": "backward"})
+
+
+def test_rhythmic_gestures_last_raise_repeats_and_lower(talos):
+    """punch, clap, shrug, arm_circles: 0.8 s up, ``repeat`` x duration, 0.8 s down."""
+    for name, params in (("punch", {"repeat": 3, "duration": 1.0}), ("clap", {"repeat": 4, "duration": 0.5}),
+                         ("shrug", {"repeat": 2, "duration": 1.0}), ("arm_circles", {"repeat": 1, "duration": 2.0})):
+        frag = compile_action(Action(name=name, params=params), talos)
+        assert frag.duration == pytest.approx(1.6 + params["repeat"] * params["duration"], abs=0.075), name
+
+
+# --- plans on Talos ------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def solve():
+    """``solve(robot, actions) -> (spec, plan)``, each distinct request solved once."""
+    planner = pytest.importorskip("planner")
+    cache: dict = {}
+    settings = planner.PlannerSettings(compile=False)
+
+    def _solve(robot, actions):
+        key = (robot.name, json.dumps([a.to_dict() for a in actions], sort_keys=True))
+        if key not in cache:
+            spec = compile_actions(actions, robot, dt=DT)
+            cache[key] = (spec, planner.plan(spec, robot, settings=settings, throw=False))
+        spec, plan = cache[key]
+        assert plan.ok, f"{robot.name} {spec.name}: {plan.diagnosis}"
+        return spec, plan
+
+    return _solve
+
+
+def _hand_at(robot, plan, role, t):
+    k = int(round(t / plan.dt))
+    return _frame(robot, robot.frame(role), plan.q[k]).translation
+
+
+def test_punch_plan_extends_the_fist_twice(talos, solve):
+    """The planned right hand is at each hit and guard target (within its tolerance), and its
+    forward distance from the shoulder peaks twice above 0.8 L."""
+    spec, plan = solve(talos, [Action(name="punch", params={"arm": "right", "repeat": 2})])
+    for t in _targets(spec, "punch #") + _targets(spec, "guard"):
+        err = np.linalg.norm(_hand_at(talos, plan, "right_hand", t.time) - np.array(t.position))
+        assert err <= t.tolerance + HARD_SLACK, (t.name, err)
+    S = _frame(talos, "arm_right_2_link").translation
+    L = _arm_length(talos, "right")
+    ahead = np.array([_frame(talos, "gripper_right_base_link", q).translation[0] - S[0] for q in plan.q])
+    peaks, armed = 0, True
+    for v in ahead:
+        if armed and v > 0.8 * L:
+            peaks, armed = peaks + 1, False
+        elif v < 0.5 * L:
+            armed = True
+    assert peaks == 2
+
+
+@pytest.mark.slow
+def test_touch_head_plan_holds_the_hand_beside_the_head(talos, solve):
+    """Over the hold window the planned left hand is within 2 cm of its target beside the head."""
+    spec, plan = solve(talos, [Action(name="touch", params={"hand": "left", "part": "head"})])
+    (t,) = _targets(spec, "at the head")
+    for time in np.arange(t.window[0], t.window[1] + 1e-9, plan.dt):
+        err = np.linalg.norm(_hand_at(talos, plan, "left_hand", time) - np.array(t.position))
+        assert err <= t.tolerance + HARD_SLACK, (time, err)
+
+
+@pytest.mark.slow
+def test_clap_plan_brings_the_hands_together(talos, solve):
+    """At every clap the planned hand frames are at their targets; between claps they part."""
+    spec, plan = solve(talos, [Action(name="clap", params={"repeat": 2})])
+    for side in ("left", "right"):
+        for t in _targets(spec, f"{side} hand clap #") + _targets(spec, f"{side} hand apart #"):
+            err = np.linalg.norm(_hand_at(talos, plan, f"{side}_hand", t.time) - np.array(t.position))
+            assert err <= t.tolerance + HARD_SLACK, (t.name, err)
+
+
+@pytest.mark.slow
+def test_clap_passes_the_simulation_certificate(talos, solve):
+    """Two claps on Talos, executed in MuJoCo, pass the certificate with every target met."""
+    from sim import SimSettings, simulate
+
+    _, plan = solve(talos, [Action(name="clap", params={"repeat": 2})])
+    ex = simulate(plan, talos, settings=SimSettings(settle_time=0.2))
+    assert ex.certificate.ok, ex.certificate.summary()
