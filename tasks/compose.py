@@ -38,6 +38,7 @@ from tasks.primitives import (
     nominal_duration,
     standing_geometry,
 )
+from tasks.primitives.base import fit_defaults
 from tasks.specs import CoMBounds, Contact, JointTarget, Phase, TaskSpec
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
@@ -154,7 +155,7 @@ def compile_actions(
             f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
             "into several shorter ones"
         )
-    checked = [_as_action(a, i) for i, a in enumerate(actions)]
+    checked = fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot)
     if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
     n = len(checked)
@@ -227,6 +228,16 @@ def compile_actions(
     )
 
 
+def fit_actions(actions: Sequence[Action], robot: Robot) -> list[Action]:
+    """The actions with every size they do not state chosen within ``robot``'s limits.
+
+    A default (``Action.defaulted``) beyond the robot's limit becomes the limit, rounded down to
+    1 cm or 0.01 rad (:func:`tasks.primitives.base.fit_defaults`); stated values are kept, so one
+    beyond the limit is still refused by :func:`compile_actions`, naming the limit.
+    """
+    return [fit_defaults(get_primitive(a.name), a, robot) for a in actions]
+
+
 def _group_duration(group: list[tuple[int, Action]], robot: Robot, n: int) -> float:
     """Duration [s] of a group of actions played together: its longest action's nominal one."""
     durations = []
@@ -261,4 +272,4 @@ def describe_actions(actions: Sequence[Action]) -> str:
     return out
 
 
-__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "group_actions"]
+__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "fit_actions", "group_actions"]
