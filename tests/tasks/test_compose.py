@@ -253,3 +253,36 @@ def test_actions_after_a_turn_follow_the_new_heading(talos):
     assert np.allclose(np.subtract(point.position, rest.position), [0.0, 0.2, 0.0], atol=1e-9)
     last = spec.phases[-1]
     assert all(abs(c.placement.rpy[2] - math.pi / 2) < 1e-6 for c in last.contacts)
+
+
+@pytest.mark.parametrize("sentence", ["walk two steps forward, then wave the right hand",
+                                      "wave the right hand, then walk two steps forward",
+                                      "walk two steps forward, then squat"])
+def test_a_sequence_with_a_walk_is_dynamic_as_a_whole(talos, sentence):
+    """One dynamic motion makes the whole spec dynamic: the planner adds contact forces and the
+    CoM dynamics at every knot, the upper-body and squat parts included."""
+    from language import parse
+
+    spec = compile_actions(parse(sentence).actions, talos)
+    assert spec.dynamic
+
+
+def test_arms_only_groups_hold_the_com_where_the_robot_stands(talos):
+    """The wave after two 0.15 m steps keeps the CoM within STILL_COM of the point the walk
+    brings it back to; a squat (which owns the CoM) and the walk get no such bound."""
+    from language import parse
+    from tasks.compose import STILL_COM
+
+    spec = compile_actions(parse("walk two steps forward, then wave the right hand, then squat").actions, talos)
+    still = [b for b in spec.com_bounds if b.name.endswith("CoM still")]
+    assert [b.name for b in still] == ["2 wave: CoM still"]
+    (b,) = still
+    (home,) = [t for t in spec.com_targets if t.name == "1 step: CoM back over the feet"]
+    centre = 0.5 * (np.array(b.lower[:2]) + np.array(b.upper[:2]))
+    np.testing.assert_allclose(centre, home.position[:2], atol=1e-9)
+    np.testing.assert_allclose(np.array(b.upper[:2]) - np.array(b.lower[:2]), 2 * STILL_COM)
+    assert b.lower[2] is None and not b.support_polygon
+    starts = spec.phase_start_times()
+    (i,) = [j for j, p in enumerate(spec.phases) if p.name == "2 wave: wave"]
+    assert b.window == pytest.approx((starts[i], starts[i] + spec.phases[i].duration))
+    assert centre[0] == pytest.approx(standing_geometry(talos).com[0] + 0.30, abs=0.02)  # two 0.15 m steps
