@@ -17,6 +17,13 @@ The spec starts and ends with ``stand_time`` of standing still on both feet, and
 separated by ``transition_time`` of double support: every action starts from and returns to
 the standing posture (squats end at the standing CoM height, hands are brought back to rest),
 so the transitions go through the standing posture. All times are on the knot grid of ``dt``.
+
+Balance across the parts: the spec is ``dynamic`` when any action is (step, walk, turn, jump), so
+the planner's CoM dynamics and contact forces cover the whole sequence, the parts before and
+after the walk included; and a group whose actions leave the CoM alone (arms, head) holds it
+within :data:`STILL_COM` of its standing point over the current feet (a fast wave otherwise
+sways the body, and the plan's full-dynamics ZMP leaves the soles). Sizes an action does not
+state are fitted to the robot first (:func:`fit_actions`).
 """
 
 from __future__ import annotations
