@@ -21,8 +21,8 @@ so the transitions go through the standing posture. All times are on the knot gr
 Balance across the parts: the spec is ``dynamic`` when any action is (step, walk, turn, jump), so
 the planner's CoM dynamics and contact forces cover the whole sequence, the parts before and
 after the walk included; and a group whose actions leave the CoM alone (arms, head) holds it
-within :data:`STILL_COM` of its standing point over the current feet (a fast wave otherwise
-sways the body, and the plan's full-dynamics ZMP leaves the soles). Sizes an action does not
+at its standing point over the current feet, a cost of weight :data:`STILL_WEIGHT` (a fast wave
+otherwise sways the body, and the plan's full-dynamics ZMP leaves the soles). Sizes an action does not
 state are fitted to the robot first (:func:`fit_actions`).
 """
 
@@ -46,12 +46,13 @@ from tasks.primitives import (
     standing_geometry,
 )
 from tasks.primitives.base import fit_defaults
-from tasks.specs import CoMBounds, Contact, JointTarget, Phase, TaskSpec
+from tasks.specs import CoMBounds, CoMTarget, Contact, JointTarget, Phase, Priority, TaskSpec
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
 DT_MAX = 0.1  # [s] coarser grids cannot resolve a wave
-STILL_COM = 0.005  # [m] horizontal CoM band around its standing point while only arms or head move
+STILL_WEIGHT = 1e4  # cost weight of the CoM's standing point while only arms or head move [1/m^2]
+STILL_TOLERANCE = 0.01  # [m] reported distance of that soft target (not a constraint)
 WAYPOINT_WEIGHT = 100.0  # cost weight of each joint's standing angle at a transition [1/rad^2]
 
 PART_WORDS = {"legs": "the legs", "com": "the centre of mass", "torso": "the torso", "head": "the head",
@@ -182,7 +183,7 @@ def compile_actions(
         k += knots(stand_time)
         waypoints.extend(standing_waypoint(robot, "start", knot_time(k, dt)))
     fragments: list[Fragment] = []
-    extra_bounds: list[CoMBounds] = []
+    still_targets: list[CoMTarget] = []
     for gi, group in enumerate(groups):
         if gi > 0 and knots(transition_time):
             n_tr = knots(transition_time)
@@ -214,7 +215,7 @@ def compile_actions(
         k += round(owner.duration / dt)
         stance = owner.end_stance
         fragments.extend(group_fragments)
-        extra_bounds.extend(still)
+        still_targets.extend(still)
     if knots(stand_time):
         waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
         phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
@@ -229,8 +230,8 @@ def compile_actions(
         robot=robot.name,
         phases=tuple(phases),
         targets=tuple(t for f in fragments for t in f.targets),
-        com_targets=tuple(t for f in fragments for t in f.com_targets),
-        com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds) + tuple(extra_bounds),
+        com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
+        com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
         joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
@@ -239,22 +240,22 @@ def compile_actions(
     )
 
 
-def _still_com(fragments: list[Fragment], robot: Robot, stance: Stance, t0: float, t1: float) -> list[CoMBounds]:
-    """A group whose actions leave the CoM alone keeps it where it is when standing (±:data:`STILL_COM`).
+def _still_com(fragments: list[Fragment], robot: Robot, stance: Stance, t0: float, t1: float) -> list[CoMTarget]:
+    """A group whose actions leave the CoM alone keeps it where it is when standing (a SOFT
+    :class:`CoMTarget` of weight :data:`STILL_WEIGHT` on its ground projection over the window).
 
     Without it the planner sways the whole body to spread a fast arm motion over more joints: on
     talos a wave swung the CoM ±2.5 cm sideways at the wave's 1.25 Hz, and its full-dynamics ZMP
     (``c - z c''/g`` alone is ±0.14 m) left the soles by 0.16 m (kinematic) or 0.10 m (with the
     centroidal dynamics, after a walk); the controller could not always follow (left sole slipped
-    2.4 cm). Held still, the ZMP stays within 8 cm of the centre.
+    2.4 cm). A cost, not a bound: raising both arms after a walk with a hard ±5 mm (or ±1 cm) box
+    made IPOPT stop at its iteration limit.
     """
     if any("com" in f.parts for f in fragments):
         return []  # squat, lean, bow, balance, steps, jump: the action moves the CoM itself
     home = stance.transform_from_standing(robot).act(standing_geometry(robot).com)
-    label = " + ".join(f.label for f in fragments)
-    return [CoMBounds(name=f"{label}: CoM still", lower=(float(home[0]) - STILL_COM, float(home[1]) - STILL_COM, None),
-                      upper=(float(home[0]) + STILL_COM, float(home[1]) + STILL_COM, None), support_polygon=False,
-                      window=(t0, t1))]
+    return [CoMTarget(name=f"{fragments[0].label}: CoM still", position=(float(home[0]), float(home[1]), None), window=(t0, t1),
+                      priority=Priority.SOFT, weight=STILL_WEIGHT, tolerance=STILL_TOLERANCE)]
 
 
 def fit_actions(actions: Sequence[Action], robot: Robot) -> list[Action]:

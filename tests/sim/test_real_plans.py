@@ -36,7 +36,7 @@ def test_squat_passes(talos):
 
 def test_wave_passes(talos):
     """The default wave passes, and its plan balances by itself: with the CoM held still while the
-    hand waves (tasks.compose.STILL_COM) its full-dynamics ZMP stays in the polygon (it left it
+    hand waves (tasks.compose.STILL_WEIGHT) its full-dynamics ZMP stays in the polygon (it left it
     by 0.16 m when the body swayed with the hand)."""
     ex = simulate(_plan(talos, "wave"), talos, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
