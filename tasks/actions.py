@@ -193,15 +193,26 @@ class Action:
 
     ``overlay=True`` means the action runs at the same time as the previous one (``wave while
     squatting`` is ``[squat, wave(overlay=True)]``); otherwise actions run one after another.
+
+    ``defaulted`` names the parameters the caller did not state (filled from the registry
+    default; computed here, not compared): the primitives fit those to the robot (a default
+    beyond the robot's limit becomes the limit, :func:`tasks.primitives.base.fit_defaults`),
+    while a stated value beyond it is refused.
     """
 
     name: str
     params: Mapping[str, Any] = field(default_factory=dict)
     overlay: bool = False
+    defaulted: frozenset[str] = field(default=frozenset(), compare=False)
 
     def __post_init__(self) -> None:
         schema = get_action(self.name)
-        object.__setattr__(self, "params", _FrozenDict(schema.resolve(self.params)))
+        stated = {k for k, v in self.params.items() if v is not None}
+        resolved = schema.resolve(self.params)
+        object.__setattr__(self, "params", _FrozenDict(resolved))
+        kept = {k for k in self.defaulted if k in resolved}  # a fitted default stays a default
+        filled = {k for k, v in resolved.items() if k not in stated and v is not None}
+        object.__setattr__(self, "defaulted", frozenset(filled | kept))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"action": name, "params": {...}}`` (+ ``"overlay": true`` when set)."""

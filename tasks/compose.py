@@ -17,6 +17,13 @@ The spec starts and ends with ``stand_time`` of standing still on both feet, and
 separated by ``transition_time`` of double support: every action starts from and returns to
 the standing posture (squats end at the standing CoM height, hands are brought back to rest),
 so the transitions go through the standing posture. All times are on the knot grid of ``dt``.
+
+Balance across the parts: the spec is ``dynamic`` when any action is (step, walk, turn, jump), so
+the planner's CoM dynamics and contact forces cover the whole sequence, the parts before and
+after the walk included; and a group whose actions leave the CoM alone (arms, head) holds it
+at its standing point over the current feet, a cost of weight :data:`STILL_WEIGHT` (a fast wave
+otherwise sways the body, and the plan's full-dynamics ZMP leaves the soles). Sizes an action does not
+state are fitted to the robot first (:func:`fit_actions`).
 """
 
 from __future__ import annotations
@@ -38,11 +45,14 @@ from tasks.primitives import (
     nominal_duration,
     standing_geometry,
 )
-from tasks.specs import CoMBounds, Contact, JointTarget, Phase, TaskSpec
+from tasks.primitives.base import fit_defaults
+from tasks.specs import CoMBounds, CoMTarget, Contact, JointTarget, Phase, Priority, TaskSpec
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
 DT_MAX = 0.1  # [s] coarser grids cannot resolve a wave
+STILL_WEIGHT = 1e4  # cost weight of the CoM's standing point while only arms or head move [1/m^2]
+STILL_TOLERANCE = 0.01  # [m] reported distance of that soft target (not a constraint)
 WAYPOINT_WEIGHT = 100.0  # cost weight of each joint's standing angle at a transition [1/rad^2]
 
 PART_WORDS = {"legs": "the legs", "com": "the centre of mass", "torso": "the torso", "head": "the head",
@@ -154,7 +164,7 @@ def compile_actions(
             f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
             "into several shorter ones"
         )
-    checked = [_as_action(a, i) for i, a in enumerate(actions)]
+    checked = fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot)
     if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
     n = len(checked)
@@ -173,6 +183,7 @@ def compile_actions(
         k += knots(stand_time)
         waypoints.extend(standing_waypoint(robot, "start", knot_time(k, dt)))
     fragments: list[Fragment] = []
+    still_targets: list[CoMTarget] = []
     for gi, group in enumerate(groups):
         if gi > 0 and knots(transition_time):
             n_tr = knots(transition_time)
@@ -199,10 +210,12 @@ def compile_actions(
                 f"{others} cannot run while {owner.action.name} moves the feet (its targets are fixed "
                 f"where the robot stands); run them one after the other (\"then\")"
             )
+        still = _still_com(group_fragments, robot, stance, knot_time(k, dt), knot_time(k + round(owner.duration / dt), dt))
         phases.extend(owner.phases)
         k += round(owner.duration / dt)
         stance = owner.end_stance
         fragments.extend(group_fragments)
+        still_targets.extend(still)
     if knots(stand_time):
         waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
         phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
@@ -217,7 +230,7 @@ def compile_actions(
         robot=robot.name,
         phases=tuple(phases),
         targets=tuple(t for f in fragments for t in f.targets),
-        com_targets=tuple(t for f in fragments for t in f.com_targets),
+        com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
         joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
         dt=dt,
@@ -225,6 +238,34 @@ def compile_actions(
         name=name or describe_actions(checked),
         description=description,
     )
+
+
+def _still_com(fragments: list[Fragment], robot: Robot, stance: Stance, t0: float, t1: float) -> list[CoMTarget]:
+    """A group whose actions leave the CoM alone keeps it where it is when standing (a SOFT
+    :class:`CoMTarget` of weight :data:`STILL_WEIGHT` on its ground projection over the window).
+
+    Without it the planner sways the whole body to spread a fast arm motion over more joints: on
+    talos a wave swung the CoM ±2.5 cm sideways at the wave's 1.25 Hz, and its full-dynamics ZMP
+    (``c - z c''/g`` alone is ±0.14 m) left the soles by 0.16 m (kinematic) or 0.10 m (with the
+    centroidal dynamics, after a walk); the controller could not always follow (left sole slipped
+    2.4 cm). A cost, not a bound: raising both arms after a walk with a hard ±5 mm (or ±1 cm) box
+    made IPOPT stop at its iteration limit.
+    """
+    if any("com" in f.parts for f in fragments):
+        return []  # squat, lean, bow, balance, steps, jump: the action moves the CoM itself
+    home = stance.transform_from_standing(robot).act(standing_geometry(robot).com)
+    return [CoMTarget(name=f"{fragments[0].label}: CoM still", position=(float(home[0]), float(home[1]), None), window=(t0, t1),
+                      priority=Priority.SOFT, weight=STILL_WEIGHT, tolerance=STILL_TOLERANCE)]
+
+
+def fit_actions(actions: Sequence[Action], robot: Robot) -> list[Action]:
+    """The actions with every size they do not state chosen within ``robot``'s limits.
+
+    A default (``Action.defaulted``) beyond the robot's limit becomes the limit, rounded down to
+    1 cm or 0.01 rad (:func:`tasks.primitives.base.fit_defaults`); stated values are kept, so one
+    beyond the limit is still refused by :func:`compile_actions`, naming the limit.
+    """
+    return [fit_defaults(get_primitive(a.name), a, robot) for a in actions]
 
 
 def _group_duration(group: list[tuple[int, Action]], robot: Robot, n: int) -> float:
@@ -261,4 +302,4 @@ def describe_actions(actions: Sequence[Action]) -> str:
     return out
 
 
-__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "group_actions"]
+__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "fit_actions", "group_actions"]

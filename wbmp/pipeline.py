@@ -156,8 +156,10 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     progress("parsing the instruction")
     actions = parse_instruction(request)
     robot = load_robot(request.robot or "talos")
-    from tasks.compose import compile_actions
+    from tasks.compose import compile_actions, fit_actions
 
+    # unstated sizes chosen within the robot's limits, so that the printed defaults are the ones used
+    actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
     spec = compile_actions(actions.actions, robot)
     spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction, scene=scene)
     check_spec_for_robot(spec, robot)

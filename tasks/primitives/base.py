@@ -107,6 +107,9 @@ class Primitive:
         check: ``(params, robot) -> None``: robot-specific range checks (TaskDefinitionError).
         limits: ``(robot) -> {param: description}`` robot-specific limits for ``wbmp actions``.
         available: False for primitives registered before their implementation lands.
+        size_limits: ``(params, robot) -> {param: largest value}`` for the sizes (lengths,
+            depths, heights, angles) the robot bounds, given the other parameters (a step's
+            length depends on its direction); :func:`fit_defaults` keeps unstated sizes within them.
     """
 
     name: str
@@ -117,6 +120,7 @@ class Primitive:
     limits: Callable[[Robot], dict[str, str]] = lambda robot: {}
     available: bool = True
     dynamic: bool = False
+    size_limits: Callable[[dict, Robot], dict[str, float]] = lambda params, robot: {}
 
 
 class FragmentBuilder:
@@ -253,6 +257,43 @@ class FragmentBuilder:
         )
 
 
+FIT_GRID = {"m": 0.01, "rad": 0.01}  # a fitted default is the limit rounded down to this grid
+
+
+def fit_defaults(primitive: Primitive, action: Action, robot: Robot) -> Action:
+    """``action`` with every size it did not state chosen within ``robot``'s limits.
+
+    A parameter in ``action.defaulted`` whose registry default is beyond the robot's limit
+    (:attr:`Primitive.size_limits`, given the other parameters) becomes that limit, rounded down
+    to :data:`FIT_GRID` (1 cm, 0.01 rad): "take two steps to the left" on g1 steps 0.10 m, its
+    longest side step, where the registry says 0.15 m. A limit below the parameter's minimum is
+    left alone (the primitive's check then says why the robot cannot do the action), and a stated
+    value is never changed (beyond the limit, the check refuses it and names the limit).
+    """
+    from tasks.actions import get_action
+
+    if not action.defaulted:
+        return action
+    params = dict(action.params)
+    limits = primitive.size_limits(params, robot)
+    changed = False
+    for name, limit in limits.items():
+        value = params.get(name)
+        if name not in action.defaulted or not isinstance(value, float) or abs(value) <= limit + 1e-12:
+            continue
+        schema = get_action(action.name).param(name)
+        grid = FIT_GRID.get(schema.unit, 0.01)
+        fitted = math.floor(limit / grid + 1e-9) * grid
+        fitted = round(fitted, 9)
+        if schema.minimum is not None and fitted < max(schema.minimum, 0.0) - 1e-12:
+            continue
+        params[name] = math.copysign(fitted, value)
+        changed = True
+    if not changed:
+        return action
+    return Action(name=action.name, params=params, overlay=action.overlay, defaulted=action.defaulted)
+
+
 def rest_targets(b: FragmentBuilder, roles: Iterable[str], *, tau: float) -> None:
     """Soft targets that bring frames back to their standing positions at nominal time ``tau``."""
     for role in roles:
@@ -273,6 +314,7 @@ __all__ = [
     "FragmentBuilder",
     "Primitive",
     "arms_of",
+    "fit_defaults",
     "knot_time",
     "rest_targets",
     "to_knot",

@@ -47,6 +47,7 @@ PUSH_TIME = 0.3  # [s]
 LAND_TIME = 0.4  # [s]
 RECOVER_TIME = 0.6  # [s]
 MIN_FLIGHT_KNOTS = 2
+MIN_HEIGHT = 0.01  # [m] the smallest jump the registry accepts
 TAKEOFF_MARGIN = 0.9  # plan with at most this fraction of the estimated take-off speed
 PUSH_ACCELERATION = 0.4  # [g] mean upward acceleration over the push stroke
 PUSH_PROFILE_TOLERANCE = 0.015  # [m] CoM heights along a uniform-acceleration push (HARD)
@@ -254,6 +255,12 @@ def check(params: dict, robot: Robot) -> None:
     h, fwd = params["height"], params["forward"]
     v0 = math.sqrt(2.0 * G * h)
     best = _best(robot)
+    if max_jump_height(robot) < MIN_HEIGHT:
+        raise TaskDefinitionError(
+            f"{robot.name} cannot jump: its leg joint speeds and torques let its centre of mass rise at about "
+            f"{best.speed:.2f} m/s at best (from a {best.com_drop:.2f} m crouch, {best.limiting_joint} at its "
+            f"limit), not enough for a {MIN_HEIGHT:g} m jump with a safety margin"
+        )
     if v0 > TAKEOFF_MARGIN * best.speed:
         raise TaskDefinitionError(
             f"jump height {h:g} m needs a take-off speed of {v0:.2f} m/s (sqrt(2 g h), a {flight_time(h):.2f} s "
@@ -363,5 +370,10 @@ def build(b: FragmentBuilder) -> Fragment:
     return b.finish(PARTS, dynamic=True)
 
 
+def size_limits(params: dict, robot: Robot) -> dict[str, float]:
+    """The highest jump the legs allow and the longest step (for ``forward``)."""
+    return {"height": max_jump_height(robot), "forward": robot.profile.step_length_max}
+
+
 PRIMITIVE = Primitive(name="jump", nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,
-                      check=check, limits=limits, dynamic=True)
+                      check=check, limits=limits, dynamic=True, size_limits=size_limits)

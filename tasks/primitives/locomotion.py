@@ -13,7 +13,14 @@ from __future__ import annotations
 import math
 
 from robots.model import Robot
-from tasks.footsteps import ContactSequence, footsteps, lateral_step_max, turn, walk
+from tasks.footsteps import (
+    ContactSequence,
+    footsteps,
+    lateral_step_max,
+    step_length_limit,
+    turn,
+    walk,
+)
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance, standing_geometry
 
@@ -65,8 +72,13 @@ def _primitive(name: str) -> Primitive:
         b.end_stance = end
         return b.finish(PARTS, dynamic=True)
 
+    def size_limits(params: dict, robot: Robot) -> dict[str, float]:
+        if name == "step":
+            return {"length": step_length_limit(robot, params["direction"])}
+        return {}  # a walk takes the fewest steps within the limit; a turn any number of swings
+
     return Primitive(name=name, nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,
-                     check=check, limits=limits, dynamic=True)
+                     check=check, limits=limits, dynamic=True, size_limits=size_limits)
 
 
 STEP = _primitive("step")

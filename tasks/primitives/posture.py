@@ -156,8 +156,16 @@ def build_turn_head(b: FragmentBuilder) -> Fragment:
     return b.finish(frozenset({"head"}))
 
 
+def size_limits_turn_head(params: dict, robot: Robot) -> dict[str, float]:
+    """The neck's range towards ``direction`` (none without a neck: the check says so)."""
+    if not robot.has_role("head") or not standing_geometry(robot).neck_joints:
+        return {}
+    return {"angle": neck_range(robot, head_turn_axis(robot, params["direction"]))}
+
+
 TURN_HEAD = Primitive(name="turn_head", nominal_duration=_duration, build=build_turn_head,
-                      parts=lambda p: frozenset({"head"}), check=check_turn_head, limits=limits_turn_head)
+                      parts=lambda p: frozenset({"head"}), check=check_turn_head, limits=limits_turn_head,
+                      size_limits=size_limits_turn_head)
 
 
 # --- lean -------------------------------------------------------------------------------
@@ -199,4 +207,5 @@ def build_lean(b: FragmentBuilder) -> Fragment:
 
 
 LEAN = Primitive(name="lean", nominal_duration=_duration, build=build_lean,
-                 parts=lambda p: frozenset({"com", "legs"}), check=check_lean, limits=limits_lean)
+                 parts=lambda p: frozenset({"com", "legs"}), check=check_lean, limits=limits_lean,
+                 size_limits=lambda p, robot: {"amount": lean_limit(robot, p["direction"])})

@@ -49,4 +49,5 @@ def build(b: FragmentBuilder) -> Fragment:
 
 
 PRIMITIVE = Primitive(name="squat", nominal_duration=nominal_duration, build=build,
-                      parts=lambda params: PARTS, check=check, limits=limits)
+                      parts=lambda params: PARTS, check=check, limits=limits,
+                      size_limits=lambda params, robot: {"depth": robot.profile.squat_depth_max})

@@ -35,7 +35,9 @@ def test_squat_passes(talos):
 
 
 def test_wave_passes(talos):
-    """The default wave passes: its plan's ZMP leaves the polygon (reported), the balance filter copes."""
+    """The default wave passes, and its plan balances by itself: with the CoM held still while the
+    hand waves (tasks.compose.STILL_WEIGHT) its full-dynamics ZMP stays in the polygon (it left it
+    by 0.16 m when the body swayed with the hand)."""
     ex = simulate(_plan(talos, "wave"), talos, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
-    assert any(e.kind == "plan_zmp" for e in ex.events)  # the plan alone would not balance
+    assert not any(e.kind == "plan_zmp" for e in ex.events)

@@ -63,7 +63,7 @@ def test_sequence_starts_and_ends_standing_with_transitions(talos):
         lo, hi = (wave_start, squat_start - TRANSITION_TIME) if item.name.startswith("1 wave") else (squat_start, spec.horizon - STAND_TIME)
         assert all(lo - 1e-9 <= t <= hi + 1e-9 for t in _times(item)), item.name
     # both actions end at the standing posture: squat top at its end, hand back at rest at the wave's end
-    assert max(c.time for c in spec.com_targets) == pytest.approx(spec.horizon - STAND_TIME)
+    assert max(c.time for c in spec.com_targets if c.time is not None) == pytest.approx(spec.horizon - STAND_TIME)
     assert spec.name == "wave, then squat"
     # standing waypoints: end of the first stand, middle of the transition, start and end of the last stand
     times = _waypoint_times(spec)
@@ -253,3 +253,35 @@ def test_actions_after_a_turn_follow_the_new_heading(talos):
     assert np.allclose(np.subtract(point.position, rest.position), [0.0, 0.2, 0.0], atol=1e-9)
     last = spec.phases[-1]
     assert all(abs(c.placement.rpy[2] - math.pi / 2) < 1e-6 for c in last.contacts)
+
+
+@pytest.mark.parametrize("sentence", ["walk two steps forward, then wave the right hand",
+                                      "wave the right hand, then walk two steps forward",
+                                      "walk two steps forward, then squat"])
+def test_a_sequence_with_a_walk_is_dynamic_as_a_whole(talos, sentence):
+    """One dynamic motion makes the whole spec dynamic: the planner adds contact forces and the
+    CoM dynamics at every knot, the upper-body and squat parts included."""
+    from language import parse
+
+    spec = compile_actions(parse(sentence).actions, talos)
+    assert spec.dynamic
+
+
+def test_arms_only_groups_hold_the_com_where_the_robot_stands(talos):
+    """The wave after two 0.15 m steps asks (soft) for the CoM at the point the walk brings it back
+    to, over the wave's window; a squat (which owns the CoM) and the walk get no such target."""
+    from language import parse
+    from tasks.compose import STILL_WEIGHT
+    from tasks.specs import Priority
+
+    spec = compile_actions(parse("walk two steps forward, then wave the right hand, then squat").actions, talos)
+    still = [t for t in spec.com_targets if t.name.endswith("CoM still")]
+    assert [t.name for t in still] == ["2 wave: CoM still"]
+    (t,) = still
+    (home,) = [c for c in spec.com_targets if c.name == "1 step: CoM back over the feet"]
+    assert t.position[:2] == pytest.approx(home.position[:2], abs=1e-9) and t.position[2] is None
+    assert t.priority is Priority.SOFT and t.weight == STILL_WEIGHT
+    starts = spec.phase_start_times()
+    (i,) = [j for j, p in enumerate(spec.phases) if p.name == "2 wave: wave"]
+    assert t.window == pytest.approx((starts[i], starts[i] + spec.phases[i].duration))
+    assert t.position[0] == pytest.approx(standing_geometry(talos).com[0] + 0.30, abs=0.02)  # two 0.15 m steps

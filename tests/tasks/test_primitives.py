@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tasks.actions import REGISTRY, Action
-from tasks.compose import compile_actions
+from tasks.compose import compile_actions, fit_actions
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import PRIMITIVES, compile_action, standing_geometry, to_knot
 from tasks.primitives import nominal_duration as nominal_duration_of
@@ -260,4 +260,5 @@ def test_any_registry_parameters_compile_or_are_refused_clearly(action, robot_na
     for t in spec.targets:
         if t.position is not None:
             assert np.linalg.norm(np.array(t.position) - standing_geometry(robot).com) < 3.0
-    assert spec.horizon >= nominal_duration_of(action, robot)
+    (fitted,) = fit_actions([action], robot)  # unstated sizes within the robot's limits
+    assert spec.horizon >= nominal_duration_of(fitted, robot)
