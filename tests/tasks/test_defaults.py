@@ -38,6 +38,10 @@ VARIANTS: dict[str, list[dict]] = {
 CANNOT = {
     ("g1", "turn_head"): "no neck joint",
     ("romeo", "jump"): "cannot jump",
+    ("g1", "nod"): "no neck joint",
+    ("g1", "shake_head"): "no neck joint",
+    **{(r, "hop"): "cannot hop on one foot" for r in ("talos", "romeo", "icub")},
+    **{(r, "jog"): "cannot jog or run" for r in ("talos", "romeo", "icub")},
 }
 
 
