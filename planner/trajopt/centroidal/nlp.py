@@ -209,10 +209,12 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
     HK = second.map(n)(X, Qr, nu, eta) if kinematic_hessian else None
     n_u = cf.terms.n_variables
     jac_cx = ca.MX(n_c, nv * n)
-    if lay.centroidal_settings.whole_body_momentum:  # Euler: the rows -Ldot_k get + dh/dt of the body
-        from planner.trajopt.centroidal.pattern import momentum_row_index
+    from planner.trajopt.centroidal.pattern import momentum_row_index
 
-        idx = momentum_row_index(cf.terms.constraints)
+    idx = momentum_row_index(cf.terms.constraints)
+    if len(idx):  # Euler for the whole body: the rows -Ldot_k get + dh/dt of the body
+        if pm is None:
+            raise ValueError("dynamic_blocks: whole-body momentum rows need their linearization parameters pm")
         S = ca.DM(ca.Sparsity.triplet(n_c, len(idx), [int(i) for i in idx], list(range(len(idx)))), 1.0)
         rates, jac_rates = momentum_rates(lay, x_kin, pm, dt)
         g_c = g_c + ca.mtimes(S, rates)
