@@ -80,7 +80,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
     dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
     round_ = 0
-    while stats.status.ok and lay.relinearize(dq, round_):  # e.g. the whole-body momentum rows
+    while stats.status.ok and lay.relinearize(dq, raw["x"], round_):  # e.g. the whole-body momentum rows
         round_ += 1
         if progress:
             progress(f"re-linearized about the solution: solve {round_ + 1}")

@@ -174,9 +174,9 @@ class Layout:
         """(net force per contact frame for :attr:`Plan.forces`, extra entries for :attr:`Plan.extras`)."""
         return {}, {}
 
-    def relinearize(self, dq: np.ndarray, round_: int) -> bool:
-        """Re-linearize rows about a solution ``dq`` (N+1, nv) before solve ``round_ + 1``; True: solve again
-        (warm-started from the solution). The kinematic formulation is exact: never."""
+    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
+        """Re-linearize rows about a solution (``dq`` (N+1, nv), all variables ``x``) before solve
+        ``round_ + 1``; True: solve again (warm-started from it). The kinematic formulation is exact: never."""
         return False
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:

@@ -52,6 +52,7 @@ class DynamicLayout(Layout):
     _cf: CentroidalFunction | None
     _pattern: CentroidalPattern | None
     _momentum_point: np.ndarray | None
+    momentum_residual: float = float("nan")  # Euler's law at the last solution checked / (m g) [m]
 
     def momentum_point(self) -> np.ndarray:
         """Chart displacements (N+1, nv) the whole-body momentum rows are linearized about: the
@@ -133,11 +134,17 @@ class DynamicLayout(Layout):
         corner = self.pattern().corner_forces(forces)
         return {frame: f.sum(axis=1) for frame, f in corner.items()}, {"corner_forces": corner}
 
-    def relinearize(self, dq: np.ndarray, round_: int) -> bool:
-        """Linearize the whole-body momentum rows about the solution ``dq`` again, for
-        ``CentroidalSettings.momentum_iterations`` rounds."""
+    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
+        """Linearize the whole-body momentum rows about the solution ``dq`` again, when Euler's law
+        with the exact :math:`A_g` is off by more than ``CentroidalSettings.momentum_tolerance``,
+        for at most ``momentum_iterations`` rounds."""
         s = self.centroidal_settings
         if not s.whole_body_momentum or round_ >= s.momentum_iterations:
+            return False
+        from planner.trajopt.centroidal.momentum import euler_residual
+
+        self.momentum_residual = euler_residual(self, dq, self.forces_of(x))
+        if self.momentum_residual <= s.momentum_tolerance:
             return False
         self.set_momentum_point(dq)
         return True

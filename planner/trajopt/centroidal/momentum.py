@@ -101,3 +101,33 @@ def momentum_parameters(lay: DynamicLayout, dq: np.ndarray) -> np.ndarray:
         b = A @ v - P @ dq[j] - Q @ dq[j + 1]
         out += [b / weight, (P / weight).ravel(order="F"), (Q / weight).ravel(order="F")]
     return np.concatenate(out)
+
+
+def euler_residual(lay: DynamicLayout, dq: np.ndarray, forces: np.ndarray) -> float:
+    """Largest violation of the whole body's Euler law at a solution, divided by the body weight [m].
+
+    The exact rows of :mod:`this module <planner.trajopt.centroidal.momentum>` (Pinocchio's
+    :math:`A_g` at each interval's midpoint, not the linearization) against the moment of the
+    solution's corner forces about the configuration's CoM, at the dynamics knots.
+
+    Args:
+        lay: The dynamic layout.
+        dq: Chart displacements of the solution (N+1, nv).
+        forces: Its force variables.
+    """
+    from planner.trajopt.symbolic import chart_to_configuration
+
+    robot = lay.robot
+    model, data = robot.model, robot.data()
+    q = np.array([chart_to_configuration(model, lay.q_ref, d) for d in dq])
+    h = interval_momentum(robot, q, float(lay.dt))
+    pat = lay.pattern()
+    corners = pat.corner_forces(forces)
+    worst = 0.0
+    for k in pat.dynamics_knots:
+        c = pin.centerOfMass(model, data, q[k])
+        moment = np.zeros(3)
+        for contact in pat.contacts[k]:
+            moment += np.cross(contact.points_in_world - c, corners[contact.frame][k]).sum(axis=0)
+        worst = max(worst, float(np.linalg.norm((h[k] - h[k - 1]) / lay.dt - moment)))
+    return worst / pat.weight

@@ -25,8 +25,10 @@ class CentroidalSettings:
             of the contact forces about the CoM, as constraint rows linearized about an iterate
             (:mod:`planner.trajopt.centroidal.momentum`). Off: only the moment of the forces is
             penalized (``angular_momentum_weight``), the older centroidal-only model.
-        momentum_iterations: Re-linearizations of those rows: after each solve the rows are
-            linearized again at the solution and the NLP is solved again from it [-].
+        momentum_iterations: Re-linearizations of those rows at most: after a solve whose
+            Euler residual with the exact :math:`A_g` exceeds ``momentum_tolerance``, the rows
+            are linearized again at the solution and the NLP is solved again from it [-].
+        momentum_tolerance: That residual divided by the body weight (a CoP shift) [m].
         zmp_tolerance: Accepted distance of the plan's full-dynamics ZMP (recomputed with
             Pinocchio's RNEA on the planned motion) outside the support polygon of the contacts
             it holds [m].
@@ -47,6 +49,7 @@ class CentroidalSettings:
     friction_edges: bool = True
     whole_body_momentum: bool = True
     momentum_iterations: int = 1
+    momentum_tolerance: float = 0.003
     zmp_tolerance: float = 0.01
     cop_margin: float = 0.005
     max_force: float = 10.0
