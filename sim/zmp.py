@@ -36,7 +36,7 @@ def plan_zmp_excursion(
 
     The ZMP is :func:`plan_zmp` at the plan's knots (full dynamics); the support polygon is the
     convex hull (:func:`robots.contact.support_polygon`) of the sole corners of the contacts of
-    the spec's phase at the knot, placed by the knot's configuration
+    the spec's phases at the knot (both phases at a boundary), placed by the knot's configuration
     (:func:`planner.trajopt.centroidal.zmp.support_excursion`). A knot whose contacts would have
     to pull counts as outside by the distance from the polygon's centre to its farthest corner.
 
@@ -45,7 +45,12 @@ def plan_zmp_excursion(
         else None.
     """
     spec = plan.spec
-    frames = [[robot.frame_id(c.frame) for c in spec.phases[spec.phase_at(float(t))].contacts] for t in plan.t]
+    half = 0.5 * plan.dt
+    # a contact holds at both ends of its phase (as the planner plans it): at a phase boundary the
+    # polygon is that of both phases' contacts (at lift-off the leaving sole still pushes)
+    frames = [sorted({robot.frame_id(c.frame) for s in (-half, half)
+                      for c in spec.phases[spec.phase_at(max(0.0, float(t) + s))].contacts})
+              for t in plan.t]
     dist = support_excursion(robot, plan.q, plan_zmp(robot, plan), frames)
     dist = np.where(np.isnan(dist), 0.0, dist)
     k = int(np.argmax(dist))
