@@ -533,3 +533,47 @@ def test_extended_nlp_derivatives_match_automatic_differentiation(talos, rng):
     ours = np.array(ca.densify(der["hess_lag"](xv, pv, 0.8, lv)))
     np.testing.assert_allclose(ours, np.array(ca.densify(hess_ad)), atol=1e-7, rtol=1e-7)
     assert np.abs(ours).max() > 1.0  # not a vacuous comparison
+
+
+def test_momentum_linearization_matches_pinocchio(talos, rng):
+    """The linearized whole-body momentum rows: exact at the iterate (Pinocchio's A_g v of each
+    interval), and their chart Jacobians match finite differences of A_g(q_mid) v(dq) with A_g frozen."""
+    from planner.trajopt.centroidal import to_dynamic_layout
+    from planner.trajopt.centroidal.momentum import interval_momentum, momentum_parameters
+    from planner.trajopt.layout import make_layout
+    from planner.trajopt.symbolic import chart_to_configuration
+
+    feet = _feet(talos)
+    spec = TaskSpec(robot="talos", phases=(Phase(name="a", duration=0.3, contacts=feet),), dt=0.1, dynamic=True)
+    lay = to_dynamic_layout(make_layout(spec, talos))
+    nv, N, dt = talos.nv, lay.N, lay.dt
+    dq = rng.normal(size=(N + 1, nv)) * 0.1
+    dq[:, 3:6] += [0.0, 0.0, 1.2]  # a yawed base: the chart's rotation derivative matters
+    prm = momentum_parameters(lay, dq).reshape(N, 3 + 6 * nv)
+    weight = talos.mass * 9.81
+    q = np.array([chart_to_configuration(talos.model, lay.q_ref, d) for d in dq])
+    exact = interval_momentum(talos, q, dt) / weight
+
+    def lin(j, d0, d1):
+        P = prm[j, 3:3 + 3 * nv].reshape(3, nv, order="F")
+        Q = prm[j, 3 + 3 * nv:].reshape(3, nv, order="F")
+        return prm[j, :3] + P @ d0 + Q @ d1
+
+    j = 1
+    np.testing.assert_allclose([lin(i, dq[i], dq[i + 1]) for i in range(N)], exact, atol=1e-10)
+    data = talos.data()
+    A = pin.computeCentroidalMap(talos.model, data, pin.integrate(
+        talos.model, q[j], 0.5 * pin.difference(talos.model, q[j], q[j + 1])))[3:] / weight
+
+    def frozen(d0, d1):
+        qa = chart_to_configuration(talos.model, lay.q_ref, d0)
+        qb = chart_to_configuration(talos.model, lay.q_ref, d1)
+        return A @ pin.difference(talos.model, qa, qb) / dt
+
+    eps = 1e-6
+    for _ in range(3):
+        delta = rng.normal(size=(2, nv))
+        fd = (frozen(dq[j] + eps * delta[0], dq[j + 1] + eps * delta[1])
+              - frozen(dq[j] - eps * delta[0], dq[j + 1] - eps * delta[1])) / (2 * eps)
+        lin_d = lin(j, delta[0], delta[1]) - prm[j, :3]
+        np.testing.assert_allclose(lin_d, fd, rtol=1e-5, atol=1e-8)
