@@ -1,4 +1,4 @@
-"""Dynamic plans (steps, side steps, turn, jump) on Talos and G1: build, solve, iterations.
+"""Dynamic plans (steps, side steps, turn, jump) on Talos and G1: build, solve, iterations, before/after.
 
 Run from the repository root::
 
@@ -21,6 +21,13 @@ build time and cache origin, the cached runs' median solve time (wall and CPU), 
 problem size. Targets on this machine, cached: 4 steps <= 2 s, jump <= 1.5 s (build + solve
 of a cached run). Timings are wall-clock on a shared machine; the CPU time is less sensitive
 to other load.
+
+Before / after (``--formulations``, default both): "centroidal" is the formulation before the
+whole-body momentum rows (``CentroidalSettings(whole_body_momentum=False)``: the moment of the
+contact forces only penalized), "whole-body" the default (Euler's law with Pinocchio's centroidal
+momentum matrix, re-linearized once when needed). Each row also gives the plan's full-dynamics
+ZMP excursion out of its support polygon (RNEA, the ``FULL_DYNAMICS_ZMP`` check) and whether
+every check of the plan passed.
 
 For scale, Crocoddyl's FDDP (full dynamics, C++, single-threaded) plans one 2-step Talos walking
 phase and a Talos jump in the same run, in its own environment (``.venv-crocoddyl``, made by
@@ -64,6 +71,9 @@ def crocoddyl_peer(tasks: list[str], repeats: int) -> dict:
 
     return run_peer("crocoddyl", ["--repeats", str(repeats), "--tasks", ",".join(names), "--no-legs"])
 
+FORMULATIONS = {"centroidal": False, "whole-body": True}  # name -> CentroidalSettings.whole_body_momentum
+
+
 def run_task(robot, actions, *, repeat: int, settings) -> dict:
     """Plan one task ``repeat + 1`` times; the first run builds or loads the solver."""
     from planner import plan
@@ -81,6 +91,9 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
             "objective": p.stats.objective,
         })
     cached = runs[1:] or runs
+    from planner.results import CheckKind
+
+    zmp = [c.violation for c in p.checks if c.kind is CheckKind.FULL_DYNAMICS_ZMP]
     rise = None
     if any(not ph.contacts for ph in spec.phases):
         # the first knot of the flight phase is the take-off (the feet are still down there)
@@ -98,6 +111,7 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
         "cached_cpu_s": statistics.median(r["cpu_s"] for r in cached),
         "iterations": cached[-1]["iterations"],
         "flight_rise_m": rise,
+        "zmp_excursion_m": zmp[0] if zmp else None,
         "failed_status": [r["status"] for r in runs if not r["ok"]],
         "runs": runs,
     }
@@ -126,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", nargs="+", default=["talos", "g1"])
     parser.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS))
     parser.add_argument("--repeat", type=int, default=2, help="cached runs after the first one")
+    parser.add_argument("--formulations", nargs="+", default=list(FORMULATIONS), choices=list(FORMULATIONS),
+                        help="centroidal (before the whole-body momentum rows) and/or whole-body (after)")
     parser.add_argument("--compile-dynamic", action="store_true",
                         help="compile the dynamic solvers with gcc and keep them on disk (minutes per task the first "
                              "time; by default they are built in memory)")
@@ -139,16 +155,21 @@ def main(argv: list[str] | None = None) -> int:
         os.environ.setdefault(key, str(args.threads))
     sys.path.insert(0, str(ROOT))
     from planner import PlannerSettings
+    from planner.trajopt.centroidal import CentroidalSettings
     from robots import load_robot
 
-    settings = PlannerSettings(compile_dynamic=args.compile_dynamic)
     info = machine()
     results = {}
     for name in args.robots:
         robot = load_robot(name)
         for task in args.tasks:
             label, actions = TASKS[task]
-            results[f"{name}/{task}"] = {"label": label, **run_task(robot, actions, repeat=args.repeat, settings=settings)}
+            for form in args.formulations:
+                settings = PlannerSettings(compile_dynamic=args.compile_dynamic,
+                                           centroidal=CentroidalSettings(whole_body_momentum=FORMULATIONS[form]))
+                key = f"{name}/{task}" + ("" if form == "whole-body" else f" ({form})")
+                results[key] = {"label": label, "formulation": form,
+                                **run_task(robot, actions, repeat=args.repeat, settings=settings)}
     info["load_average_after"] = list(os.getloadavg())
     talos_tasks = args.tasks if "talos" in args.robots else []
     croc = {"skipped": "--no-peers"} if args.no_peers else crocoddyl_peer(talos_tasks, max(1, args.repeat))
@@ -164,18 +185,19 @@ def main(argv: list[str] | None = None) -> int:
           f"medians of {args.repeat} cached runs, wall clock (CPU time of the whole plan() call in brackets); "
           f"threads {info['threads']}, load average {info['load_average'][0]:.2f} -> "
           f"{info['load_average_after'][0]:.2f}")
-    print(f"{'robot/task':<14} {'what':<26} {'knots':>5} {'vars':>6} {'iter':>4}  {'first build':>14}  "
-          f"{'cached build+solve':>22}  target   ok")
+    print(f"{'robot/task (formulation)':<27} {'what':<26} {'knots':>5} {'vars':>6} {'iter':>4}  {'first build':>14}  "
+          f"{'cached build+solve':>22}  target   ok  ZMP out")
     for key, r in results.items():
         first = r["first"]
-        task = key.split("/")[1]
+        task = key.split("/")[1].split(" ")[0]
         target = TARGETS.get(task)
         verdict = "" if target is None else ("met" if r["cached_total_s"] <= target else "MISSED")
         extra = f"  rise {r['flight_rise_m']:.3f} m" if r["flight_rise_m"] is not None else ""
-        print(f"{key:<14} {r['label']:<26} {r['knots']:>5} {r['variables']:>6} {r['iterations']:>4}  "
+        zmp = "" if r["zmp_excursion_m"] is None else f" {r['zmp_excursion_m']:.3f} m"
+        print(f"{key:<27} {r['label']:<26} {r['knots']:>5} {r['variables']:>6} {r['iterations']:>4}  "
               f"{first['build_s']:8.2f} {first['cache']:<6}  {r['cached_build_s']:5.2f}+{r['cached_solve_s']:5.2f} "
               f"({r['cached_cpu_s']:5.2f} cpu)  {'' if target is None else f'<= {target:g}':<7} "
-              f"{'yes' if r['ok'] else 'NO'} {verdict}{extra}")
+              f"{'yes' if r['ok'] else 'NO'} {verdict}{zmp}{extra}")
     measured = croc.get("tasks", {}) if isinstance(croc, dict) else {}
     print("\nFor scale: Crocoddyl FDDP (full dynamics, C++, single-threaded, on the full Talos), measured in this "
           "run in .venv-crocoddyl" + (f" (not run: {croc['skipped']})" if "skipped" in croc else "")

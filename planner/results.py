@@ -68,8 +68,10 @@ class CheckKind(enum.Enum):
     ``COM_SUPPORT_POLYGON``, ``COM_SUPPORT_POLYGON_AT_REST``, ``COM_BOX`` (subject: the bound's
     name), ``TARGET_POSITION``, ``TARGET_ORIENTATION``, ``COM_TARGET`` (subject: the target's name),
     ``JOINT_POSITION_LIMITS``, ``JOINT_VELOCITY_LIMITS``; a dynamic plan adds ``COM_DYNAMICS``,
-    ``FRICTION_CONE``, ``CENTRE_OF_PRESSURE`` (subject: the frame), ``FORCE_WITHOUT_CONTACT`` and
-    ``SWING_SOLE_CORNERS``.
+    ``FRICTION_CONE``, ``CENTRE_OF_PRESSURE`` (subject: the frame), ``FORCE_WITHOUT_CONTACT``,
+    ``SWING_SOLE_CORNERS``, and the plan's own full dynamics recomputed with RNEA:
+    ``FULL_DYNAMICS_ZMP`` (its ZMP in the support polygon) and ``FULL_DYNAMICS_WRENCH`` (the
+    planned contact moment against the one the motion needs).
 
     The simulation's certificate: ``BASE_HEIGHT``, ``BASE_TILT``, ``UNPLANNED_CONTACTS``,
     ``FOOT_PLACEMENT``, ``FOOT_SLIP`` (subject: ``left_foot``/``right_foot``, or the frame),
@@ -96,6 +98,8 @@ class CheckKind(enum.Enum):
     CENTRE_OF_PRESSURE = "centre_of_pressure"
     FORCE_WITHOUT_CONTACT = "force_without_contact"
     SWING_SOLE_CORNERS = "swing_sole_corners"
+    FULL_DYNAMICS_ZMP = "full_dynamics_zmp"
+    FULL_DYNAMICS_WRENCH = "full_dynamics_wrench"
     BASE_HEIGHT = "base_height"
     BASE_TILT = "base_tilt"
     UNPLANNED_CONTACTS = "unplanned_contacts"

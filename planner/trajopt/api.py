@@ -22,6 +22,7 @@ The NLP (DESIGN.md section 3), for knots ``k = 0..N`` on a uniform grid:
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -66,8 +67,6 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     lay = make_layout(spec, robot)
     if spec.dynamic:  # CoM dynamics with contact forces (planner/trajopt/centroidal/, docs/dynamic.md)
         lay = to_dynamic_layout(lay, settings.centroidal)
-        import dataclasses
-
         settings = dataclasses.replace(
             settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
             compile=settings.compile and settings.compile_dynamic)
@@ -80,6 +79,15 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
     dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
+    round_ = 0
+    while stats.status.ok and lay.relinearize(dq, raw["x"], round_):  # e.g. the whole-body momentum rows
+        round_ += 1
+        if progress:
+            progress(f"re-linearized about the solution: solve {round_ + 1}")
+        dq, again, raw = solve_layout(lay, settings, progress, x0=raw["x"])
+        stats = dataclasses.replace(again, iterations=stats.iterations + again.iterations,
+                                    build_time=stats.build_time + again.build_time, cache=stats.cache,
+                                    solve_time=stats.solve_time + again.solve_time)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:

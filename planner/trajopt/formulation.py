@@ -70,6 +70,10 @@ class Formulation(Protocol):
         """(net force per contact frame, extra :attr:`Plan.extras` entries) of the force variables."""
         ...
 
+    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
+        """Re-linearize about a solution before solve ``round_ + 1``; True: solve again from it."""
+        ...
+
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """A failed plan in task terms; ``relaxed()`` gives the generic relaxed-solve diagnosis."""
         ...

@@ -174,6 +174,11 @@ class Layout:
         """(net force per contact frame for :attr:`Plan.forces`, extra entries for :attr:`Plan.extras`)."""
         return {}, {}
 
+    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
+        """Re-linearize rows about a solution (``dq`` (N+1, nv), all variables ``x``) before solve
+        ``round_ + 1``; True: solve again (warm-started from it). The kinematic formulation is exact: never."""
+        return False
+
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """A failed plan in task terms; ``relaxed`` runs the generic diagnosis (hard targets relaxed
         into costs and solved again), which is the kinematic formulation's."""

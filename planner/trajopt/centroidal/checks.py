@@ -154,7 +154,9 @@ def dynamic_checks(
 def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
                         checks: Sequence[Check], settings: PlannerSettings) -> list[Check]:
     """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
-    (the last knot), plus the dynamic checks (:func:`dynamic_checks`).
+    (the last knot), plus the dynamic checks (:func:`dynamic_checks`) and the plan's full
+    dynamics recomputed with RNEA (:func:`planner.trajopt.centroidal.zmp.zmp_checks`: ZMP in
+    the support polygon, contact moment; ``CentroidalSettings.zmp_tolerance``).
 
     Args:
         lay: The dynamic layout.
@@ -173,4 +175,8 @@ def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forc
         out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,
                               force_tolerance=lay.centroidal_settings.force_tolerance,
                               position_tolerance=settings.polygon_tolerance)
+    from planner.trajopt.centroidal.zmp import zmp_checks
+
+    corner = lay.pattern().corner_forces(forces) if forces is not None else None
+    out += zmp_checks(lay, q, corner, lay.centroidal_settings.zmp_tolerance)
     return out

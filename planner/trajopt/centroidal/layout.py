@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from planner.results import Check, Plan
     from planner.trajopt.settings import PlannerSettings
 
-DYNAMIC_FORMULATION = "lifted-com-2"  # part of a dynamic layout's structure (solver cache key)
+DYNAMIC_FORMULATION = "lifted-com-3-momentum"  # part of a dynamic layout's structure (solver cache key)
 
 
 class DynamicLayout(Layout):
@@ -51,6 +51,21 @@ class DynamicLayout(Layout):
     centroidal_settings: CentroidalSettings
     _cf: CentroidalFunction | None
     _pattern: CentroidalPattern | None
+    _momentum_point: np.ndarray | None
+    momentum_residual: float = float("nan")  # Euler's law at the last solution checked / (m g) [m]
+
+    def momentum_point(self) -> np.ndarray:
+        """Chart displacements (N+1, nv) the whole-body momentum rows are linearized about: the
+        last solution given to :meth:`set_momentum_point`, else the initial guess's."""
+        if self._momentum_point is None:
+            from planner.trajopt.centroidal.guess import heading_guess
+
+            self._momentum_point = heading_guess(self)
+        return self._momentum_point
+
+    def set_momentum_point(self, dq: np.ndarray) -> None:
+        """Linearize the whole-body momentum rows about ``dq`` (N+1, nv) from the next solve on."""
+        self._momentum_point = np.array(dq, dtype=float)
 
     def centroidal(self) -> CentroidalFunction:
         """The centroidal function of this layout (CasADi; built once, only to build a solver)."""
@@ -119,6 +134,21 @@ class DynamicLayout(Layout):
         corner = self.pattern().corner_forces(forces)
         return {frame: f.sum(axis=1) for frame, f in corner.items()}, {"corner_forces": corner}
 
+    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
+        """Linearize the whole-body momentum rows about the solution ``dq`` again, when Euler's law
+        with the exact :math:`A_g` is off by more than ``CentroidalSettings.momentum_tolerance``,
+        for at most ``momentum_iterations`` rounds."""
+        s = self.centroidal_settings
+        if not s.whole_body_momentum or round_ >= s.momentum_iterations:
+            return False
+        from planner.trajopt.centroidal.momentum import euler_residual
+
+        self.momentum_residual = euler_residual(self, dq, self.forces_of(x))
+        if self.momentum_residual <= s.momentum_tolerance:
+            return False
+        self.set_momentum_point(dq)
+        return True
+
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """The worst violated group of the failed plan (no relaxed solve)."""
         return diagnose_dynamic(self, failed)
@@ -146,4 +176,5 @@ def to_dynamic_layout(lay: Layout, settings: CentroidalSettings = CentroidalSett
     out.centroidal_settings = settings
     out._cf = None
     out._pattern = None
+    out._momentum_point = None
     return out

@@ -101,8 +101,36 @@ def com_rows(lay: DynamicLayout) -> int:
     return 3 * (lay.N - 2)
 
 
+def momentum_rates(lay: DynamicLayout, x_kin: Any, pm: Any, dt: Any) -> tuple[Any, Any]:
+    """Whole-body angular-momentum rates of the dynamics knots 1..N-1 and their Jacobian w.r.t. ``x_kin``.
+
+    ``h_{j+1/2} = b_j + P_j dq_j + Q_j dq_{j+1}`` (:func:`planner.trajopt.centroidal.momentum.momentum_parameters`,
+    ``dq_0 = dq_1 = 0``, ``dq_N = dq_{N-1}``), rate ``(h_{k+1/2} - h_{k-1/2}) / dt``; linear in
+    ``x_kin`` (no Hessian).
+
+    Returns:
+        (rates (MX column, 3 (N-1), knot order), Jacobian (3 (N-1), nv (N-2))).
+    """
+    nv, N, n = lay.robot.nv, lay.N, lay.N - 2
+    xs = ca.MX.sym("x", nv * n)
+    ps = ca.MX.sym("pm", pm.numel())
+    ds = ca.MX.sym("dt")
+    b, P, Q = ca.SX.sym("b", 3), ca.SX.sym("P", 3, nv), ca.SX.sym("Q", 3, nv)
+    d0, d1 = ca.SX.sym("d0", nv), ca.SX.sym("d1", nv)
+    hfun = ca.Function("interval_momentum", [b, ca.vec(P), ca.vec(Q), d0, d1],
+                       [b + ca.mtimes(P, d0) + ca.mtimes(Q, d1)])
+    X = ca.reshape(xs, nv, n)
+    D = ca.horzcat(ca.MX.zeros(nv, 2), X, X[:, n - 1])
+    PM = ca.reshape(ps, 3 + 6 * nv, N)
+    H = hfun.map(N)(PM[:3, :], PM[3:3 + 3 * nv, :], PM[3 + 3 * nv:, :], D[:, :N], D[:, 1:])
+    rates = ca.vec((H[:, 1:] - H[:, :N - 1]) / ds)
+    fn = ca.Function("momentum_rates", [xs, ps, ds], [rates, ca.jacobian(rates, xs)])
+    out = fn(x_kin, pm, dt)
+    return out[0], out[1]
+
+
 def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
-                   lam_f: Any, lam: Any, *, kinematic_hessian: bool = True) -> DynamicBlocks:
+                   lam_f: Any, lam: Any, *, kinematic_hessian: bool = True, pm: Any = None) -> DynamicBlocks:
     """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
 
     The centroidal function (dynamics, friction, cost) is evaluated on the lifted CoM variables
@@ -125,6 +153,9 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
         lam: Multipliers of this block's rows (MX, len(lbg)).
         kinematic_hessian: Build :attr:`DynamicBlocks.hess_xx` (off: the caller adds the
             curvature of the CoM and sole-corner rows itself, from ``nu`` and ``eta``).
+        pm: Linearization parameters of the whole-body angular momentum (MX,
+            :func:`planner.trajopt.centroidal.momentum.momentum_sizes`; with
+            ``CentroidalSettings.whole_body_momentum``).
 
     Returns:
         The blocks.
@@ -177,6 +208,17 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
     nu = -ca.reshape(lam_m, 3, n)
     HK = second.map(n)(X, Qr, nu, eta) if kinematic_hessian else None
     n_u = cf.terms.n_variables
+    jac_cx = ca.MX(n_c, nv * n)
+    from planner.trajopt.centroidal.pattern import momentum_row_index
+
+    idx = momentum_row_index(cf.terms.constraints)
+    if len(idx):  # Euler for the whole body: the rows -Ldot_k get + dh/dt of the body
+        if pm is None:
+            raise ValueError("dynamic_blocks: whole-body momentum rows need their linearization parameters pm")
+        S = ca.DM(ca.Sparsity.triplet(n_c, len(idx), [int(i) for i in idx], list(range(len(idx)))), 1.0)
+        rates, jac_rates = momentum_rates(lay, x_kin, pm, dt)
+        g_c = g_c + ca.mtimes(S, rates)
+        jac_cx = ca.mtimes(S, jac_rates)
     return DynamicBlocks(
         f=f_c,
         g=ca.vertcat(g_c, c - ca.vec(Ck), g_z),
@@ -184,7 +226,7 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
         ubg=np.concatenate([cf.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
         grad_u=G_U,
         grad_c=ca.mtimes(E.T, G_C),
-        jac_x=ca.vertcat(ca.MX(n_c, nv * n), -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z),
+        jac_x=ca.vertcat(jac_cx, -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z),
         jac_u=ca.vertcat(J_U, ca.MX(n_m + n_z, n_u)),
         jac_c=ca.vertcat(ca.mtimes(J_C, E), ca.MX(ca.DM.eye(n_m)), ca.MX(n_z, n_m)),
         hess_xx=ca.diagcat(*ca.horzsplit(HK, nv)) if kinematic_hessian else None,
@@ -305,14 +347,16 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
     n_m = com_rows(lay)
     _, n_gd = dynamic_sizes(lay)
     n_pd = cf.terms.parameter_values.size
+    n_pm = momentum_parameter_count(lay)
     x = ca.MX.sym("x", n_x + n_u + n_m)
-    p = ca.MX.sym("p", n_p + n_pd)
+    p = ca.MX.sym("p", n_p + n_pd + n_pm)
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", n_g + n_gd)
     xk, u, c = x[:n_x], x[n_x:n_x + n_u], x[n_x + n_u:]
-    pk, pd = p[:n_p], p[n_p:]
+    pk, pd, pm = p[:n_p], p[n_p:n_p + n_pd], p[n_p + n_pd:]
     nq = robot.nq
-    b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:], kinematic_hessian=False)
+    b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:], kinematic_hessian=False,
+                       pm=pm)
     f_k, grad_k = derivatives["grad_f"](xk, pk)
     g_k, jac_k = derivatives["jac_g"](xk, pk)
     # chart Hessian: the constant quadratic costs + per-knot blocks (kinematic terms and the
@@ -377,6 +421,19 @@ def swing_corner_floor(lay: DynamicLayout, rows: Sequence[tuple[int, int, int]])
     return floor
 
 
+def momentum_parameter_count(lay: DynamicLayout) -> int:
+    """Number of whole-body momentum linearization parameters (0 when the setting is off)."""
+    from planner.trajopt.centroidal.momentum import momentum_sizes
+
+    return momentum_sizes(lay.robot.nv, lay.N) if lay.centroidal_settings.whole_body_momentum else 0
+
+
 def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:
-    """Parameter values of the extended NLP: the kinematic ones, then the contact geometry."""
-    return np.concatenate([p, lay.pattern().parameter_values])
+    """Parameter values of the extended NLP: the kinematic ones, the contact geometry, then the
+    whole-body momentum linearized at :meth:`DynamicLayout.momentum_point`."""
+    parts = [p, lay.pattern().parameter_values]
+    if lay.centroidal_settings.whole_body_momentum:
+        from planner.trajopt.centroidal.momentum import momentum_parameters
+
+        parts.append(momentum_parameters(lay, lay.momentum_point()))
+    return np.concatenate(parts)

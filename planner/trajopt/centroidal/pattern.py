@@ -212,7 +212,19 @@ def _generator(c: ContactGeometry, settings: CentroidalSettings) -> np.ndarray:
 
 def _structure(settings: CentroidalSettings, per_knot: list) -> tuple:
     return (settings.inner_pyramid, settings.angular_momentum_weight > 0.0,
-            "edges" if settings.friction_edges else "components", tuple(per_knot))
+            "edges" if settings.friction_edges else "components",
+            "whole-body momentum" if settings.whole_body_momentum else "centroidal", tuple(per_knot))
+
+
+def momentum_row_index(blocks: Sequence[ConstraintBlock]) -> np.ndarray:
+    """Row indices (3 per dynamics knot, knot order) of the "angular momentum" blocks among ``blocks``."""
+    out, offset = [], 0
+    for b in blocks:
+        n = int(b.expr.shape[0])
+        if b.name == "angular momentum":
+            out += list(range(offset, offset + n))
+        offset += n
+    return np.asarray(out, dtype=int)
 
 
 def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: float, *,
@@ -259,6 +271,9 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
                 ubg.append(np.full(5 * m, np.inf))
         lbg.append(np.zeros(3))
         ubg.append(np.zeros(3))
+        if settings.whole_body_momentum:  # the angular-momentum rows (planner.trajopt.centroidal.momentum)
+            lbg.append(np.zeros(3))
+            ubg.append(np.zeros(3))
     def cat(xs: list) -> np.ndarray:
         return np.concatenate(xs) if xs else np.zeros(0)
 
@@ -372,8 +387,13 @@ def build_centroidal(
         residual = (acc / g_norm - ca.DM(g_unit)) - total  # normalized Newton: (c'' - g)/|g| = sum u
         blocks.append(ConstraintBlock(name="CoM dynamics", knot=k, expr=residual, lower=np.zeros(3), upper=np.zeros(3)))
         dyn_knots.append(k)
+        ldot = angular_momentum_rate(com[k], points, forces) if forces else ca.DM.zeros(3)  # [m x body weights]
+        if settings.whole_body_momentum:
+            # -Ldot_k here; the NLP adds the whole body's momentum rate (h_{k+1/2} - h_{k-1/2}) / dt
+            # to these rows (planner.trajopt.centroidal.momentum): zero when Euler's law holds
+            blocks.append(ConstraintBlock(name="angular momentum", knot=k, expr=-ldot, lower=np.zeros(3),
+                                          upper=np.zeros(3)))
         if forces and settings.angular_momentum_weight > 0.0:
-            ldot = angular_momentum_rate(com[k], points, forces)  # [m x body weights]
             cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
     def cat(xs: list) -> np.ndarray:
         return np.concatenate(xs) if xs else np.zeros(0)

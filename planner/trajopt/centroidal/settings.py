@@ -20,6 +20,18 @@ class CentroidalSettings:
             its friction pyramid (:func:`pyramid_edges`; friction and unilaterality become
             variable bounds, no constraint rows). Off: 3 force components per point and 5
             pyramid rows (:func:`friction_pyramid`).
+        whole_body_momentum: Euler's law for the whole body: the rate of the centroidal angular
+            momentum :math:`A_g(q) v` (Pinocchio's centroidal momentum matrix) equals the moment
+            of the contact forces about the CoM, as constraint rows linearized about an iterate
+            (:mod:`planner.trajopt.centroidal.momentum`). Off: only the moment of the forces is
+            penalized (``angular_momentum_weight``), the older centroidal-only model.
+        momentum_iterations: Re-linearizations of those rows at most: after a solve whose
+            Euler residual with the exact :math:`A_g` exceeds ``momentum_tolerance``, the rows
+            are linearized again at the solution and the NLP is solved again from it [-].
+        momentum_tolerance: That residual divided by the body weight (a CoP shift) [m].
+        zmp_tolerance: Accepted distance of the plan's full-dynamics ZMP (recomputed with
+            Pinocchio's RNEA on the planned motion) outside the support polygon of the contacts
+            it holds [m].
         cop_margin: Inward margin of the sole rectangle for the CoP [m].
         max_force: Upper bound of one corner's normal force, in body weights [-].
         force_tolerance: Accepted violation of the force checks in the report, as a fraction of
@@ -35,6 +47,10 @@ class CentroidalSettings:
     angular_momentum_weight: float = 1.0
     inner_pyramid: bool = True
     friction_edges: bool = True
+    whole_body_momentum: bool = True
+    momentum_iterations: int = 1
+    momentum_tolerance: float = 0.003
+    zmp_tolerance: float = 0.01
     cop_margin: float = 0.005
     max_force: float = 10.0
     force_tolerance: float = 1e-3

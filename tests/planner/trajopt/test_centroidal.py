@@ -178,7 +178,7 @@ def test_standing_forces_carry_the_weight_and_put_the_cop_under_the_com(talos, e
     com_syms = [ca.SX.sym(f"c{k}", 3) for k in range(T)]
     c0 = np.array([0.03, 0.02, 0.87])
     terms = build_centroidal(com_syms, 0.1, [feet] * T, talos.mass,
-                             settings=CentroidalSettings(angular_momentum_weight=100.0, force_weight=1e-6, cop_margin=0.0,
+                             settings=CentroidalSettings(whole_body_momentum=False, angular_momentum_weight=100.0, force_weight=1e-6, cop_margin=0.0,
                                                          friction_edges=edges))
     # 3 interior knots x 2 feet x 4 corners x (4 edge weights or 3 components)
     assert terms.n_variables == 3 * 2 * 4 * (4 if edges else 3)
@@ -206,7 +206,7 @@ def test_com_outside_the_support_needs_angular_momentum(talos):
     feet = tuple(contact_geometry(c, talos) for c in _feet(talos))
     T = 3
     com_syms = [ca.SX.sym(f"c{k}", 3) for k in range(T)]
-    terms = build_centroidal(com_syms, 0.1, [feet] * T, talos.mass, settings=CentroidalSettings(force_weight=0.0))
+    terms = build_centroidal(com_syms, 0.1, [feet] * T, talos.mass, settings=CentroidalSettings(whole_body_momentum=False, force_weight=0.0))
     stats, x = _solve_forces(terms, [np.array([0.4, 0.0, 0.87])] * T, com_syms)
     assert stats["success"]
     corners = terms.corner_forces(x)
@@ -293,7 +293,7 @@ def test_symbolic_dt_and_pyramid_with_parameters(talos, rng):
     dt = ca.SX.sym("dt")
     com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
     terms = build_centroidal(com, dt, [feet] * 3, talos.mass,
-                             settings=CentroidalSettings(inner_pyramid=False, friction_edges=False))
+                             settings=CentroidalSettings(whole_body_momentum=False, inner_pyramid=False, friction_edges=False))
     g, _, _ = terms.g()
     fun = ca.Function("g", [terms.variables, terms.parameters, dt, *com], [g])
     u = rng.uniform(0.0, 0.2, terms.n_variables)
@@ -317,7 +317,7 @@ def test_edge_weights_give_the_dynamics_and_the_corner_forces(talos, rng):
     feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.3))
     dt = ca.SX.sym("dt")
     com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
-    terms = build_centroidal(com, dt, [feet] * 3, talos.mass)
+    terms = build_centroidal(com, dt, [feet] * 3, talos.mass, settings=CentroidalSettings(whole_body_momentum=False))
     g, lbg, ubg = terms.g()
     assert g.numel() == 3 and np.all(lbg == 0.0) and np.all(ubg == 0.0)
     np.testing.assert_array_equal(terms.lower, 0.0)
@@ -393,7 +393,7 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
 
     spec = compile_actions([Action(name="step", params={"direction": "forward", "length": 0.1, "count": 1})], talos, dt=0.1)
     lay = make_layout(spec, talos)
-    cf = centroidal_function(lay, settings=CentroidalSettings(cop_margin=0.0))
+    cf = centroidal_function(lay, settings=CentroidalSettings(whole_body_momentum=False, cop_margin=0.0))
     terms = cf.terms
     assert cf.function.n_in() == 4 and terms.n_variables > 0
     # every swing knot has the 4 corners of the lifted foot
@@ -429,7 +429,8 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
 
 def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
     """Hand-assembled gradient, Jacobian and Lagrangian Hessian equal CasADi AD at a random point."""
-    from planner.trajopt.centroidal import centroidal_function, dynamic_blocks
+    from planner.trajopt.centroidal import centroidal_function, dynamic_blocks, to_dynamic_layout
+    from planner.trajopt.centroidal.momentum import momentum_parameters, momentum_sizes
     from planner.trajopt.layout import make_layout
 
     feet = _feet(talos)
@@ -438,9 +439,10 @@ def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
         Phase(name="flight", duration=0.2),
         Phase(name="land", duration=0.2, contacts=feet),
     ), dt=0.1, dynamic=True)
-    lay = make_layout(spec, talos)
+    lay = to_dynamic_layout(make_layout(spec, talos))
     cf = centroidal_function(lay)
     nv, n = talos.nv, lay.N - 2
+    pm = ca.MX.sym("pm", momentum_sizes(nv, lay.N))  # whole-body momentum rows (linear in x)
     x = ca.MX.sym("x", nv * n)
     u = ca.MX.sym("u", cf.terms.n_variables)
     c = ca.MX.sym("c", 3 * n)
@@ -450,22 +452,23 @@ def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
     lam_f = ca.MX.sym("lam_f")
     n_g = len(cf.lbg) + 3 * n + len(cf.corner_rows)
     lam = ca.MX.sym("lam", n_g)
-    b = dynamic_blocks(lay, cf, x, u, c, q_ref, p, dt, lam_f, lam)
+    b = dynamic_blocks(lay, cf, x, u, c, q_ref, p, dt, lam_f, lam, pm=pm)
     assert b.g.numel() == n_g == len(b.lbg)
     assert len(cf.corner_rows) == 8 * sum(1 for k in range(2, lay.N) if not lay.contacts_at[k])
     w = ca.vertcat(x, u, c)
     lag = lam_f * b.f + ca.dot(lam, b.g)
     zx = ca.MX(nv * n, 1)
-    ours = ca.Function("ours", [x, u, c, q_ref, p, dt, lam_f, lam], [
+    ours = ca.Function("ours", [x, u, c, q_ref, p, dt, lam_f, lam, pm], [
         ca.vertcat(zx, b.grad_u, b.grad_c), ca.horzcat(b.jac_x, b.jac_u, b.jac_c),
         ca.blockcat([[b.hess_xx, ca.MX(nv * n, cf.terms.n_variables), ca.MX(nv * n, 3 * n)],
                      [ca.MX(cf.terms.n_variables, nv * n), b.hess_uu, b.hess_uc],
                      [ca.MX(3 * n, nv * n), b.hess_uc.T, b.hess_cc]])])
-    ad = ca.Function("ad", [x, u, c, q_ref, p, dt, lam_f, lam],
+    ad = ca.Function("ad", [x, u, c, q_ref, p, dt, lam_f, lam, pm],
                      [ca.gradient(b.f, w), ca.jacobian(b.g, w), ca.hessian(lag, w)[0]])
     args = [rng.normal(size=nv * n) * 0.05, rng.uniform(0, 0.2, cf.terms.n_variables),
             np.tile([0.0, 0.0, 0.85], n) + rng.normal(size=3 * n) * 0.02, talos.q_standing,
-            cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g)]
+            cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g),
+            momentum_parameters(lay, rng.normal(size=(lay.N + 1, nv)) * 0.05)]
     for a, r in zip(ours(*args), ad(*args), strict=True):
         np.testing.assert_allclose(np.array(ca.densify(a)), np.array(ca.densify(r)), atol=1e-8, rtol=1e-8)
 
@@ -530,3 +533,47 @@ def test_extended_nlp_derivatives_match_automatic_differentiation(talos, rng):
     ours = np.array(ca.densify(der["hess_lag"](xv, pv, 0.8, lv)))
     np.testing.assert_allclose(ours, np.array(ca.densify(hess_ad)), atol=1e-7, rtol=1e-7)
     assert np.abs(ours).max() > 1.0  # not a vacuous comparison
+
+
+def test_momentum_linearization_matches_pinocchio(talos, rng):
+    """The linearized whole-body momentum rows: exact at the iterate (Pinocchio's A_g v of each
+    interval), and their chart Jacobians match finite differences of A_g(q_mid) v(dq) with A_g frozen."""
+    from planner.trajopt.centroidal import to_dynamic_layout
+    from planner.trajopt.centroidal.momentum import interval_momentum, momentum_parameters
+    from planner.trajopt.layout import make_layout
+    from planner.trajopt.symbolic import chart_to_configuration
+
+    feet = _feet(talos)
+    spec = TaskSpec(robot="talos", phases=(Phase(name="a", duration=0.3, contacts=feet),), dt=0.1, dynamic=True)
+    lay = to_dynamic_layout(make_layout(spec, talos))
+    nv, N, dt = talos.nv, lay.N, lay.dt
+    dq = rng.normal(size=(N + 1, nv)) * 0.1
+    dq[:, 3:6] += [0.0, 0.0, 1.2]  # a yawed base: the chart's rotation derivative matters
+    prm = momentum_parameters(lay, dq).reshape(N, 3 + 6 * nv)
+    weight = talos.mass * 9.81
+    q = np.array([chart_to_configuration(talos.model, lay.q_ref, d) for d in dq])
+    exact = interval_momentum(talos, q, dt) / weight
+
+    def lin(j, d0, d1):
+        P = prm[j, 3:3 + 3 * nv].reshape(3, nv, order="F")
+        Q = prm[j, 3 + 3 * nv:].reshape(3, nv, order="F")
+        return prm[j, :3] + P @ d0 + Q @ d1
+
+    j = 1
+    np.testing.assert_allclose([lin(i, dq[i], dq[i + 1]) for i in range(N)], exact, atol=1e-10)
+    data = talos.data()
+    A = pin.computeCentroidalMap(talos.model, data, pin.integrate(
+        talos.model, q[j], 0.5 * pin.difference(talos.model, q[j], q[j + 1])))[3:] / weight
+
+    def frozen(d0, d1):
+        qa = chart_to_configuration(talos.model, lay.q_ref, d0)
+        qb = chart_to_configuration(talos.model, lay.q_ref, d1)
+        return A @ pin.difference(talos.model, qa, qb) / dt
+
+    eps = 1e-6
+    for _ in range(3):
+        delta = rng.normal(size=(2, nv))
+        fd = (frozen(dq[j] + eps * delta[0], dq[j + 1] + eps * delta[1])
+              - frozen(dq[j] - eps * delta[0], dq[j + 1] - eps * delta[1])) / (2 * eps)
+        lin_d = lin(j, delta[0], delta[1]) - prm[j, :3]
+        np.testing.assert_allclose(lin_d, fd, rtol=1e-5, atol=1e-8)
