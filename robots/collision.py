@@ -149,7 +149,8 @@ def geometry_points(geom) -> np.ndarray | None:
         return np.vstack([_circle_points(geom.radius, geom.halfLength), _circle_points(geom.radius, -geom.halfLength)])
     if kind == "Capsule":
         cap = _sphere_points(geom.radius)
-        return np.vstack([cap + [0, 0, geom.halfLength], cap - [0, 0, geom.halfLength]])
+        shift = np.array([0.0, 0.0, geom.halfLength])
+        return np.vstack([cap + shift, cap - shift])
     if kind == "Sphere":
         return _sphere_points(geom.radius)
     if kind == "Ellipsoid":
@@ -172,8 +173,7 @@ def link_points(robot: Robot) -> dict[str, tuple[int, np.ndarray]]:
             continue
         link = model.frames[obj.parentFrame].name if obj.parentFrame < len(model.frames) else obj.name
         world = pts @ obj.placement.rotation.T + obj.placement.translation
-        joint, chunks = out.setdefault(link, (int(obj.parentJoint), []))
-        chunks.append(world)
+        out.setdefault(link, (int(obj.parentJoint), []))[1].append(world)
     return {k: (j, np.vstack(c)) for k, (j, c) in out.items()}
 
 
@@ -290,7 +290,7 @@ def pair_distances(cm: CollisionModel, model: pin.Model, q: np.ndarray,
 
 
 def mesh_distances(robot: Robot, q: np.ndarray, pairs: list[tuple[str, str]]) -> dict[tuple[str, str], float]:
-    """coal distance between the URDF collision geometries of each link pair at ``q`` [m]
+    """Distance (coal) between the URDF collision geometries of each link pair at ``q`` [m]
     (negative or 0: touching or interpenetrating)."""
     gmodel = robot.collision_model.copy()
     model = robot.model
@@ -476,10 +476,10 @@ def _write_atomic(path: Path, text: str) -> None:
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as f:
                 f.write(text)
-            os.replace(tmp, path)
+            Path(tmp).replace(path)
         except OSError:
             with contextlib.suppress(OSError):
-                os.unlink(tmp)
+                Path(tmp).unlink()
 
 
 _MEMORY: dict[tuple[int, str], CollisionModel] = {}
