@@ -48,7 +48,7 @@ if TYPE_CHECKING:
 
 FIT_VERSION = 5  # bump when the fitting or the pair selection changes: the cache is keyed by it
 REST_MARGIN = 0.01  # [m] pairs whose meshes are closer than this in the standing posture are skipped ...
-REST_SPHERE_MARGIN = 0.03  # [m] ... and pairs whose (conservative) sphere sets are closer than this
+REST_SPHERE_MARGIN = 0.01  # [m] ... and pairs whose (conservative) sphere sets are closer than this
 CYLINDER_SAMPLES = 48  # points around a cylinder/capsule circle (the radius is inflated to cover the chords)
 SPHERE_SPACING = 0.75  # sphere-set spacing along a capsule axis, as a fraction of its radius ...
 MIN_SPHERE_SPACING = 0.03  # [m] ... but at least this (thin links get a few slightly larger spheres)

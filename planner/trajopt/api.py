@@ -32,6 +32,7 @@ from planner.trajopt.centroidal.layout import to_dynamic_layout
 from planner.trajopt.checks import precheck
 from planner.trajopt.collision import (
     collision_diagnosis,
+    collision_rows_of,
     missing_rows,
     select,
     set_collision_terms,
@@ -87,6 +88,8 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             raise PlanningFailed(problem, failed)
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
+    if settings.self_collision:
+        add_screened_collision_terms(lay, settings, x0)
     dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
@@ -105,22 +108,41 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     return result
 
 
+def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> None:
+    """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
+    ``settings.collision_screening`` (planner/trajopt/collision.py)."""
+    robot = lay.robot
+    sets = sphere_sets(robot)
+    n_kin = robot.nv * (lay.N - 2)
+    dq0 = np.zeros((lay.N + 1, robot.nv))
+    dq0[2:lay.N] = x0[:n_kin].reshape(lay.N - 2, robot.nv)
+    dq0[lay.N] = dq0[lay.N - 1]
+    rows = select(lay, sets, sphere_pair_distances(robot, sets, configurations(lay, dq0)), settings.collision_screening)
+    set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
+
+
+def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | None = None) -> Layout:
+    """The layout :func:`plan` solves first (kinematic or dynamic, with the screened collision rows):
+    what keys its solver in the cache."""
+    settings = settings or PlannerSettings()
+    lay = make_layout(spec, robot)
+    if spec.dynamic:
+        lay = to_dynamic_layout(lay, settings.centroidal)
+    if settings.self_collision:
+        add_screened_collision_terms(lay, settings, lay.initial_guess(settings))
+    return lay
+
+
 def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
                            x0: np.ndarray) -> tuple[np.ndarray, SolverStats, dict]:
-    """Solve with self-collision rows (planner/trajopt/collision.py): rows for the pairs the initial
-    guess brings within the screening distance; then every pair is checked on the solution and a
-    pair within the margin without rows is added and the NLP solved again from that solution."""
+    """Solve, then check every link pair on the solution: a pair within the collision margin without
+    rows gets them and the NLP is solved again from that solution (planner/trajopt/collision.py)."""
     if not settings.self_collision:
         return solve_layout(lay, settings, progress, x0=x0)
     robot = lay.robot
     sets = sphere_sets(robot)
     margin, screening = settings.collision_margin, settings.collision_screening
-    n_kin = robot.nv * (lay.N - 2)
-    dq0 = np.zeros((lay.N + 1, robot.nv))
-    dq0[2:lay.N] = x0[:n_kin].reshape(lay.N - 2, robot.nv)
-    dq0[lay.N] = dq0[lay.N - 1]
-    rows = select(lay, sets, sphere_pair_distances(robot, sets, configurations(lay, dq0)), screening)
-    set_collision_terms(lay, sets, rows, sorted(rows.spheres), margin)
+    rows = collision_rows_of(lay, sets)
     for round_ in range(settings.collision_rounds + 1):
         dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
         if not stats.status.ok or round_ == settings.collision_rounds:

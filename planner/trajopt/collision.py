@@ -160,6 +160,20 @@ class Rows:
         return changed
 
 
+def collision_rows_of(lay: Layout, sets: SphereSets) -> Rows:
+    """The :class:`Rows` of the ``collision`` terms already in a layout."""
+    index = {name: i for i, name in enumerate(sets.pair_names)}
+    rows = Rows()
+    for t in lay.terms:
+        if t.kind != "collision" or t.item not in index:
+            continue
+        pi = index[t.item]
+        nb = t.structure[4]
+        rows.spheres.setdefault(pi, set()).update(i * nb + j for i, j in t.structure[5])
+        rows.knots.setdefault(pi, set()).add(t.knot)
+    return rows
+
+
 def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: float,
            only: np.ndarray | None = None) -> Rows:
     """Rows for the link pairs closer than ``threshold`` at some variable knot (``distances``:
