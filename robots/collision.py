@@ -625,7 +625,8 @@ def _body_parts(robot: Robot) -> dict[str, str]:
     head = chain("head")
     common = (hands["left"] & hands["right"]) | (feet["left"] & feet["right"]) | (hands["left"] & feet["left"])
     out: dict[str, str] = {}
-    for c in cm.capsules:
+    for link in cm.links:
+        c = max(cm.capsules_of(link), key=lambda c: _volume(c.length, c.radius))  # the main part
         if c.link in overrides:
             out[c.link] = overrides[c.link]
             continue

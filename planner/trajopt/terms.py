@@ -82,6 +82,8 @@ def term_expression(term: Term, p, kin: dict, q_ref, robot: Robot):
         err = rotation_error(ca.reshape(p[0:9], 3, 3), R)
         return _target_rows(err, s[2], p[9])
     if kind == "collision":
+        if "oMi" not in kin:  # a caller that built only frames (the centroidal Hessian): joints from dq
+            kin["oMi"] = SymbolicKinematics(robot.model).joint_placements(q_ref, kin["dq"])
         return collision_rows(kin["oMi"], s, p), 0
     if kind == "joint":
         iv = s[1]

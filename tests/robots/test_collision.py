@@ -178,7 +178,7 @@ def test_damaged_cache_file_is_rebuilt(tmp_path, monkeypatch, talos):
     first = collision_model(talos)
     files = list(cache_dir().glob("talos-*.json"))
     assert len(files) == 1 and cache_dir() == tmp_path / "collision"
-    for garbage in ("{not json", json.dumps({"fit_version": rc.FIT_VERSION, "robot": "talos", "capsules": [1]}), ""):
+    for garbage in ("{not json", json.dumps({"fit_version": rc.FIT_VERSION, "robot": "talos", "capsules": [1]})):
         files[0].write_text(garbage)
         monkeypatch.setattr(rc, "_MEMORY", {})
         again = collision_model(talos)
@@ -191,12 +191,12 @@ def test_damaged_cache_file_is_rebuilt(tmp_path, monkeypatch, talos):
 
 
 def test_robots_cli_prints_the_collision_model(capsys):
-    from wbmp.cli import run
+    from wbmp.cli import main
 
-    assert run(["robots", "--collisions", "g1"]) == 0
+    assert main(["robots", "--collisions", "g1"]) == 0
     out = capsys.readouterr().out
     assert "capsules" in out and "left_knee_link" in out and "skipped (adjacent)" in out
-    assert run(["robots", "--collisions", "--json", "talos"]) == 0
+    assert main(["robots", "--collisions", "--json", "talos"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert ["arm_left_5_link", "base_link"] in row["pairs"] and row["skipped"]["srdf"]
 
@@ -205,3 +205,18 @@ def test_profile_without_collisions_table_keeps_defaults():
     from robots.profile import builtin_profiles
 
     assert builtin_profiles()["talos"].collisions == RobotProfile.__dataclass_fields__["collisions"].default_factory()
+
+
+def test_viewer_draws_one_node_per_capsule(g1):
+    """``wbmp show --collisions``: every capsule becomes meshcat objects under its joint's visual node."""
+    from viz import scene
+    from viz._meshcat import meshcat
+    from viz.html import RecordingWindow
+
+    window = RecordingWindow()
+    vis = meshcat.Visualizer(window=window)
+    scene.add_robot(vis, g1, motion="planned")
+    n = scene.add_collision_capsules(vis, g1, motion="planned")
+    assert n == len(collision_model(g1).capsules)
+    drawn = [c for c in window.commands if b"capsule_" in c]
+    assert len(drawn) >= 2 * n  # a sphere at each end (and a cylinder for a capsule of non-zero length)
