@@ -140,26 +140,33 @@ def test_talos_cross_body_reaches_plan_without_penetration(talos, sentence, movi
 
 @pytest.mark.slow
 def test_hand_target_inside_the_torso_is_refused_naming_the_pair(talos, tmp_path):
-    """A spec whose right-hand target is inside the torso: exit 4 through the CLI, naming the links."""
+    """A spec whose right-hand target is the middle of the chest (the torso capsule's centre), the
+    CoM held within 2 cm of where it stands: exit 4 through the CLI, naming the hand and the torso."""
+    import dataclasses
+
+    from robots.collision import collision_model
     from tasks.serialize import spec_to_json
+    from tasks.specs import CoMBounds
 
     spec = _reach_spec(talos, "reach left with your right hand 30 cm")
     data = talos.data()
-    pin.framesForwardKinematics(talos.model, data, talos.q_standing)
-    inside = data.oMf[talos.frame_id("torso")].translation + np.array([0.0, 0.0, 0.1])
-    import dataclasses
-
+    pin.forwardKinematics(talos.model, data, talos.q_standing)
+    chest = collision_model(talos).capsules_of(talos.frame("torso"))[0]
+    inside = data.oMi[chest.joint].act(chest.placement.translation)
+    com = pin.centerOfMass(talos.model, talos.data(), talos.q_standing)
+    held = CoMBounds(name="held", lower=tuple(float(c - 0.02) for c in com), upper=tuple(float(c + 0.02) for c in com))
     targets = tuple(dataclasses.replace(t, position=tuple(float(x) for x in inside)) if t.priority.name == "HARD"
                     else t for t in spec.targets)
+    spec = dataclasses.replace(spec, targets=targets, com_bounds=(*spec.com_bounds, held))
     path = tmp_path / "inside.json"
-    path.write_text(spec_to_json(dataclasses.replace(spec, targets=targets)))
+    path.write_text(spec_to_json(spec))
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     out = subprocess.run([sys.executable, "-c", "import sys; from wbmp.cli import run; sys.exit(run())",
                           "solve", "--spec", str(path), "--no-sim"],
                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=900)
     assert out.returncode == 4, out.stderr
-    assert "right hand would pass through the torso" in out.stderr or "right hand would" in out.stderr
-    assert "reach less far" in out.stderr
+    assert "right hand would pass through the torso" in out.stderr, out.stderr
+    assert "torso_2_link" in out.stderr and "reach less far" in out.stderr
 
 
 @pytest.mark.slow
