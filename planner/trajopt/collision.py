@@ -322,8 +322,8 @@ def _advice(lay: Layout, side_hint: str) -> str:
 def collision_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
     """When the plan with collision rows failed: solve without them; if that motion brings a pair
     within the margin, the collision is the cause, said in task terms (empty string otherwise)."""
-    from planner.trajopt.report import configurations
     from planner.trajopt.solve import solve_layout
+    from planner.trajopt.symbolic import chart_to_configuration
 
     if not any(t.kind == "collision" for t in lay.terms):
         return ""
@@ -333,7 +333,7 @@ def collision_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
     if not stats.status.ok:
         return ""
     robot = lay.robot
-    q = configurations(free, dq)
+    q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
     d, time, (a, b) = closest(robot, sphere_sets(robot), q, lay.t)
     if d >= settings.collision_margin:
         return ""
