@@ -183,8 +183,9 @@ def stop_server(proc: subprocess.Popen, *, timeout: float = STOP_TIMEOUT) -> Non
             pass
 
 
-def load_scene(vis, robot: Robot, plan, *, execution=None) -> tuple[float, list[float]]:
-    """Draw the plan (and the simulated robot, translucent blue) and start the looping animation.
+def load_scene(vis, robot: Robot, plan, *, execution=None, collisions: bool = False) -> tuple[float, list[float]]:
+    """Draw the plan (and the simulated robot, translucent blue; with ``collisions``, the collision
+    capsules, translucent orange) and start the looping animation.
 
     Returns:
         The motion duration [s] and the camera's orbit target (camera frame) for the page URL.
@@ -193,6 +194,8 @@ def load_scene(vis, robot: Robot, plan, *, execution=None) -> tuple[float, list[
     simulated = vm.execution_motion(robot, execution)
     scene.add_ground(vis)
     scene.add_robot(vis, robot, motion="planned")
+    if collisions:
+        scene.add_collision_capsules(vis, robot, motion="planned")
     if simulated is not None:
         scene.add_robot(vis, robot, motion="simulated", color=scene.SIMULATED_COLOR, opacity=0.45)
     schedule = scene.add_markers(vis, robot, plan)
@@ -214,7 +217,7 @@ def load_scene(vis, robot: Robot, plan, *, execution=None) -> tuple[float, list[
 
 def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_browser: bool = False,
           stop_event: threading.Event | None = None, stream: TextIO | None = None,
-          on_ready: Callable[[ServerInfo], None] | None = None) -> None:
+          on_ready: Callable[[ServerInfo], None] | None = None, collisions: bool = False) -> None:
     """Show ``plan`` in a live meshcat viewer on 127.0.0.1 until Ctrl-C or ``stop_event``.
 
     The motion loops in the browser (the animation is stored by the server, so a page opened
@@ -228,6 +231,7 @@ def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_b
         port: Web port; default the first free port from 7000.
         open_browser: Also open the page in the default browser.
         stop_event: Set it (from another thread) to stop the viewer.
+        collisions: Also draw the robot's collision capsules (translucent orange).
         stream: Where the URL line is printed; default ``sys.stdout``.
         on_ready: Called with the :class:`ServerInfo` once the scene is loaded.
 
@@ -242,7 +246,7 @@ def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_b
     try:
         window = LiveWindow(info.zmq_url)
         vis = meshcat.Visualizer(window=window)
-        duration, target = load_scene(vis, robot, plan, execution=execution)
+        duration, target = load_scene(vis, robot, plan, execution=execution, collisions=collisions)
         url = info.web_url + "#target=" + ",".join(f"{x:.3f}" for x in target)
         print(f"meshcat viewer: {url}  ({duration:.2f} s motion, looping; Ctrl-C to stop)",
               file=out, flush=True)

@@ -272,6 +272,38 @@ def add_robot(vis, robot: Robot, *, motion: str = "planned",
     return names
 
 
+COLLISION_COLOR = 0xFF8C1A  # the collision capsules, translucent orange
+
+
+def add_collision_capsules(vis, robot: Robot, *, motion: str = "planned", opacity: float = 0.35) -> int:
+    """Draw the robot's collision capsules (robots/collision.py) under the visual geometry of their
+    joint, so they follow the animation; returns how many were drawn."""
+    from robots.collision import collision_model
+
+    base = vis[ROOT]["robot"][motion]
+    by_joint: dict[int, pin.GeometryObject] = {}
+    for geom in robot.visual_model.geometryObjects:
+        by_joint.setdefault(int(geom.parentJoint), geom)
+    material = mg.MeshLambertMaterial(color=COLLISION_COLOR, opacity=opacity, transparent=True)
+    z_to_y = pin.SE3(pin.utils.rotate("x", np.pi / 2), np.zeros(3))  # meshcat's cylinder axis is y
+    n = 0
+    for i, capsule in enumerate(collision_model(robot).capsules):
+        geom = by_joint.get(capsule.joint)
+        if geom is None:
+            continue
+        node = base[node_name(geom.name)][f"capsule_{i}"]
+        in_geom = geom.placement.inverse() * capsule.placement
+        if capsule.length > 0:
+            node["body"].set_object(mg.Cylinder(capsule.length, capsule.radius), material)
+            node["body"].set_transform((in_geom * z_to_y).homogeneous)
+        for end, sign in (("top", 0.5), ("bottom", -0.5)):
+            M = in_geom * pin.SE3(np.eye(3), np.array([0.0, 0.0, sign * capsule.length]))
+            node[end].set_object(mg.Sphere(capsule.radius), material)
+            node[end].set_transform(M.homogeneous)
+        n += 1
+    return n
+
+
 def set_robot_configuration(vis, robot: Robot, q: np.ndarray, *, motion: str = "planned") -> None:
     """Place the robot's geometries at configuration ``q`` (no animation)."""
     base = vis[ROOT]["robot"][motion]

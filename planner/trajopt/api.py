@@ -31,9 +31,18 @@ from planner.exceptions import PlanningFailed
 from planner.results import Plan, SolverStats, SolveStatus
 from planner.trajopt.centroidal.layout import to_dynamic_layout
 from planner.trajopt.checks import precheck
+from planner.trajopt.collision import (
+    collision_diagnosis,
+    collision_rows_of,
+    missing_rows,
+    select,
+    set_collision_terms,
+    sphere_pair_distances,
+    sphere_sets,
+)
 from planner.trajopt.diagnose import diagnose_failure
-from planner.trajopt.layout import make_layout
-from planner.trajopt.report import make_plan
+from planner.trajopt.layout import Layout, make_layout
+from planner.trajopt.report import configurations, make_plan
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.solve import solve_layout
 from robots.model import Robot
@@ -78,24 +87,83 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             raise PlanningFailed(problem, failed)
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
-    dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
-    round_ = 0
-    while stats.status.ok and lay.relinearize(dq, raw["x"], round_):  # e.g. the whole-body momentum rows
-        round_ += 1
-        if progress:
-            progress(f"re-linearized about the solution: solve {round_ + 1}")
-        dq, again, raw = solve_layout(lay, settings, progress, x0=raw["x"])
-        stats = dataclasses.replace(again, iterations=stats.iterations + again.iterations,
-                                    build_time=stats.build_time + again.build_time, cache=stats.cache,
-                                    solve_time=stats.solve_time + again.solve_time)
+    if settings.self_collision:
+        add_screened_collision_terms(lay, settings, x0)
+    dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:
         return result
     if progress:
         progress("the solve failed: diagnosing")
-    diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
+    diagnosis = ""
+    if settings.self_collision and settings.diagnose:
+        diagnosis = collision_diagnosis(lay, settings)
+    if not diagnosis:
+        diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
     result = make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks, forces=forces)
     if throw:
         raise PlanningFailed(diagnosis, result)
     return result
+
+
+def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> None:
+    """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
+    ``settings.collision_screening`` (planner/trajopt/collision.py)."""
+    robot = lay.robot
+    sets = sphere_sets(robot)
+    n_kin = robot.nv * (lay.N - 2)
+    dq0 = np.zeros((lay.N + 1, robot.nv))
+    dq0[2:lay.N] = x0[:n_kin].reshape(lay.N - 2, robot.nv)
+    dq0[lay.N] = dq0[lay.N - 1]
+    rows = select(lay, sets, sphere_pair_distances(robot, sets, configurations(lay, dq0)), settings.collision_screening)
+    set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
+
+
+def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | None = None) -> Layout:
+    """The layout :func:`plan` solves first (kinematic or dynamic, with the screened collision rows):
+    what keys its solver in the cache."""
+    settings = settings or PlannerSettings()
+    lay = make_layout(spec, robot)
+    if spec.dynamic:
+        lay = to_dynamic_layout(lay, settings.centroidal)
+    if settings.self_collision:
+        add_screened_collision_terms(lay, settings, lay.initial_guess(settings))
+    return lay
+
+
+def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
+                           x0: np.ndarray) -> tuple[np.ndarray, SolverStats, dict]:
+    """Solve, then again from the solution while the solution asks for it: a link pair within the
+    collision margin without rows gets them (at most ``settings.collision_rounds`` times,
+    planner/trajopt/collision.py), and a layout whose linearized rows are off at the solution
+    re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
+    The stats add up the iterations and times of every solve."""
+    sets = sphere_sets(lay.robot) if settings.self_collision else None
+    rows = collision_rows_of(lay, sets) if sets is not None else None
+    total: SolverStats | None = None
+    collision_round = relinearized = 0
+    while True:
+        dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
+        total = stats if total is None else dataclasses.replace(
+            stats, iterations=total.iterations + stats.iterations, build_time=total.build_time + stats.build_time,
+            cache=total.cache, solve_time=total.solve_time + stats.solve_time)
+        if not stats.status.ok:
+            return dq, total, raw
+        reason = ""
+        if sets is not None and rows is not None and collision_round < settings.collision_rounds:
+            more = missing_rows(lay, sets, rows, sphere_pair_distances(lay.robot, sets, configurations(lay, dq)),
+                                settings.collision_margin, settings.collision_screening)
+            changed = rows.merge(more)
+            if changed:
+                set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+                collision_round += 1
+                reason = f"{len(changed)} more link pair(s) came within the collision margin"
+        if not reason and lay.relinearize(dq, raw["x"], relinearized):
+            relinearized += 1
+            reason = "re-linearized about the solution"
+        if not reason:
+            return dq, total, raw
+        if progress:
+            progress(f"{reason}: solving again")
+        x0 = raw["x"]

@@ -25,6 +25,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--port", type=int, default=None,
                    help="web port of the live viewer (default: first free port from 7000)")
     p.add_argument("--open", action="store_true", help="open the live viewer in the default browser")
+    p.add_argument("--collisions", action="store_true",
+                   help="live viewer: also draw the robot's collision capsules (docs/collisions.md)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.add_argument("--json", action="store_true", help="progress as JSON lines on stderr")
     p.set_defaults(run=run)
@@ -87,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     from viz.live import ViewerError, serve
 
     try:
-        serve(robot, plan, execution=execution, port=args.port, open_browser=args.open)
+        serve(robot, plan, execution=execution, port=args.port, open_browser=args.open, collisions=args.collisions)
     except ViewerError as e:
         raise CliError(f"live viewer: {e}", ExitCode.INTERNAL) from None
     return ExitCode.OK

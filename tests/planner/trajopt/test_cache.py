@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from planner import PlannerSettings, plan
+from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, get_solver, solver_key
 from planner.trajopt.layout import make_layout
 from tests.planner.planning_cases import squat_spec
@@ -26,7 +27,7 @@ def cached(tmp_path_factory, talos):
 def _entry(settings, talos, spec):
     from pathlib import Path
 
-    return Path(settings.cache_dir) / "planner" / solver_key(make_layout(spec, talos), settings)
+    return Path(settings.cache_dir) / "planner" / solver_key(planned_layout(spec, talos, settings), settings)
 
 
 def test_first_plan_builds_and_stores_a_compiled_entry(cached, talos):

@@ -10,8 +10,8 @@ import pytest
 
 from planner import PlannerSettings, plan
 from planner.trajopt import cache
+from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, solver_key
-from planner.trajopt.layout import make_layout
 from tests.planner.planning_cases import squat_spec
 
 COMPILE_WAIT = 480.0  # [s] bound on gcc -O0 of a small Talos squat (25 s idle) on a loaded 2-core machine
@@ -26,7 +26,7 @@ def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, tal
     clear_memory_cache()
     first = plan(spec, talos, settings=settings)
     assert first.stats.cache == "built" and first.ok
-    entry = Path(tmp_path) / "planner" / solver_key(make_layout(spec, talos), settings)
+    entry = Path(tmp_path) / "planner" / solver_key(planned_layout(spec, talos, settings), settings)
     deadline = time.monotonic() + COMPILE_WAIT
     while not (entry / "meta.json").exists() and time.monotonic() < deadline:
         time.sleep(0.5)

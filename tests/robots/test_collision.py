@@ -1,0 +1,222 @@
+"""The collision model (robots/collision.py) against the URDF collision meshes, with coal."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from robots import load_robot
+from robots.collision import (
+    REST_MARGIN,
+    body_part,
+    cache_dir,
+    capsule_distance,
+    collision_model,
+    geometry_points,
+    mesh_distances,
+    sphere_distance,
+    srdf_disabled_pairs,
+    srdf_path,
+)
+from robots.exceptions import ProfileError
+from robots.profile import RobotProfile, read_profile_file
+
+ENCLOSURE_TOLERANCE = 1e-9  # [m] a vertex may lie this far outside its capsule (rounding)
+DISTANCE_TOLERANCE = 1e-6  # [m] coal's distance accuracy on meshes
+
+
+@pytest.fixture(scope="module")
+def talos():
+    return load_robot("talos")
+
+
+@pytest.fixture(scope="module")
+def g1():
+    return load_robot("g1")
+
+
+def _point_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ab = b - a
+    denom = float(ab @ ab)
+    t = np.zeros(len(points)) if denom == 0 else np.clip((points - a) @ ab / denom, 0.0, 1.0)
+    return np.linalg.norm(points - (a + np.outer(t, ab)), axis=1)
+
+
+@pytest.mark.parametrize("name", ["talos", "g1"])
+def test_capsules_enclose_every_vertex_of_the_urdf_collision_geometry(name):
+    robot = load_robot(name)
+    cm = collision_model(robot)
+    worst, n = -np.inf, 0
+    for obj in robot.collision_model.geometryObjects:
+        pts = geometry_points(obj.geometry)
+        assert pts is not None, obj.name
+        link = robot.model.frames[obj.parentFrame].name
+        in_joint = pts @ obj.placement.rotation.T + obj.placement.translation
+        caps = cm.capsules_of(link)
+        assert caps and all(c.joint == obj.parentJoint for c in caps)
+        outside = np.min([_point_segment(in_joint, *c.endpoints()) - c.radius for c in caps], axis=0)
+        worst = max(worst, float(outside.max()))
+        n += len(pts)
+    assert n > 1000 and worst <= ENCLOSURE_TOLERANCE
+    # and the fit is not absurdly loose: the total capsule volume is within a few times the links' hull volume
+    assert len(cm.links) == len({robot.model.frames[o.parentFrame].name for o in robot.collision_model.geometryObjects})
+
+
+def _random_postures(robot, n, seed):
+    rng = np.random.default_rng(seed)
+    lo = np.clip(robot.model.lowerPositionLimit, -4, 4)
+    hi = np.clip(robot.model.upperPositionLimit, -4, 4)
+    out = []
+    for _ in range(n):
+        q = robot.q_standing.copy()
+        q[7:] = rng.uniform(lo[7:], hi[7:])
+        out.append(q)
+    return out
+
+
+def test_capsule_and_sphere_distances_never_exceed_the_mesh_distances(talos):
+    """The sound property: capsules enclose the meshes and spheres cover the capsules, so at any
+    posture sphere-set distance <= capsule distance <= coal mesh distance, for every pair of links
+    on different joints (checked or not: the property holds for any pair)."""
+    import itertools
+
+    cm = collision_model(talos)
+    pairs = [(a, b) for a, b in itertools.combinations(sorted(cm.links), 2)
+             if cm.capsules_of(a)[0].joint != cm.capsules_of(b)[0].joint]
+    checked = close = 0
+    for q in _random_postures(talos, 3, seed=3):
+        mesh = mesh_distances(talos, q, pairs)
+        data = talos.model.createData()
+        pin.forwardKinematics(talos.model, data, q)
+        for a, b in pairs:
+            d_caps = min(capsule_distance(c1, c2, data) for c1 in cm.capsules_of(a) for c2 in cm.capsules_of(b))
+            d_sph = min(sphere_distance(c1, c2, data) for c1 in cm.capsules_of(a) for c2 in cm.capsules_of(b))
+            if mesh[(a, b)] > 0:  # coal reports 0 (not a depth) for intersecting meshes
+                assert d_caps <= mesh[(a, b)] + DISTANCE_TOLERANCE, (a, b)
+            # spheres cover the capsules: apart, closer; overlapping capsules, overlapping spheres
+            assert d_sph <= max(d_caps, 0.0) + 1e-12, (a, b)
+            checked += 1
+            close += mesh[(a, b)] < 0.05
+    assert checked > 3000 and close > 50  # many pairs come close: the property is exercised where it matters
+
+
+def test_pairs_skip_srdf_adjacent_and_touching_at_rest(talos):
+    cm = collision_model(talos)
+    srdf = srdf_disabled_pairs(srdf_path(talos))
+    assert len(srdf) > 100
+    reasons = set(cm.skipped.values())
+    assert reasons == {"srdf", "adjacent", "touching at rest"}
+    for pair, why in cm.skipped.items():
+        if why == "srdf":
+            assert pair in srdf
+    assert not set(cm.pairs) & srdf
+    assert cm.skipped[("arm_left_4_link", "arm_left_5_link")] in ("adjacent", "srdf")
+    assert ("arm_left_5_link", "base_link") in cm.pairs  # the forearm/pelvis pair of issue 15
+    rest = mesh_distances(talos, talos.q_standing, list(cm.pairs))
+    assert min(rest.values()) >= REST_MARGIN
+    assert all(p == tuple(sorted(p)) for p in cm.pairs) and list(cm.pairs) == sorted(cm.pairs)
+
+
+def test_body_parts_name_links_from_the_kinematic_chains(talos, g1):
+    assert body_part(talos, "arm_left_5_link") == "left forearm"
+    assert body_part(talos, "base_link") == "pelvis"
+    assert body_part(talos, "leg_right_3_link") == "right thigh"
+    assert body_part(talos, "gripper_right_base_link") == "right hand"
+    assert body_part(talos, "torso_2_link") == "torso"
+    assert body_part(g1, "left_knee_link") == "left shin"
+    assert body_part(g1, "right_elbow_link") == "right forearm"
+
+
+def _talos_profile(tmp_path, collisions):
+    from robots.profile import PROFILE_DIR
+
+    data = read_profile_file(PROFILE_DIR / "talos.toml")
+    data["name"] = "mytalos"
+    data["collisions"] = collisions
+    path = tmp_path / "mytalos.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_profile_adds_removes_and_names_pairs(tmp_path, talos):
+    path = _talos_profile(tmp_path, {"add": [["arm_left_4_link", "torso_2_link"]],
+                                     "remove": [["base_link", "arm_left_5_link"]],
+                                     "body_parts": {"arm_left_5_link": "left lower arm"}})
+    robot = load_robot(path)
+    cm = collision_model(robot)
+    assert ("arm_left_4_link", "torso_2_link") in cm.pairs
+    assert cm.skipped[("arm_left_5_link", "base_link")] == "profile"
+    assert body_part(robot, "arm_left_5_link") == "left lower arm"
+
+
+@pytest.mark.parametrize(("collisions", "message"), [
+    ({"ad": []}, "collisions: unknown key 'ad' (did you mean 'add'?)"),
+    ({"add": [["a"]]}, "collisions.add[0]: expected a pair of link names"),
+    ({"remove": "x"}, "collisions.remove: expected a list of link pairs"),
+    ({"add": [["base_link", "base_link"]]}, "collisions.add[0]: a link cannot collide with itself"),
+    ({"add": [["base_link", "nolink"]]}, "collisions.add[0]: the robot has no link 'nolink'"),
+    ({"add": [["a", "b"]], "remove": [["b", "a"]]}, "is both added and removed"),
+    ({"body_parts": {"base_link": 3}}, "collisions.body_parts.base_link: expected a human name"),
+])
+def test_bad_collision_tables_are_named(tmp_path, collisions, message):
+    path = _talos_profile(tmp_path, collisions)
+    with pytest.raises(ProfileError) as e:
+        collision_model(load_robot(path))
+    assert message in str(e.value)
+    assert "mytalos.json" in str(e.value)
+
+
+def test_damaged_cache_file_is_rebuilt(tmp_path, monkeypatch, talos):
+    import robots.collision as rc
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(rc, "_MEMORY", {})
+    first = collision_model(talos)
+    files = list(cache_dir().glob("talos-*.json"))
+    assert len(files) == 1 and cache_dir() == tmp_path / "collision"
+    for garbage in ("{not json", json.dumps({"fit_version": rc.FIT_VERSION, "robot": "talos", "capsules": [1]})):
+        files[0].write_text(garbage)
+        monkeypatch.setattr(rc, "_MEMORY", {})
+        again = collision_model(talos)
+        assert again.pairs == first.pairs and len(again.capsules) == len(first.capsules)
+        assert json.loads(files[0].read_text())["robot"] == "talos"  # rewritten whole
+    monkeypatch.setattr(rc, "_MEMORY", {})
+    loaded = collision_model(talos)  # from the file: the same capsules
+    assert [dataclasses.astuple(c)[1:2] + (c.length, c.radius) for c in loaded.capsules] == \
+        [dataclasses.astuple(c)[1:2] + (c.length, c.radius) for c in first.capsules]
+
+
+def test_robots_cli_prints_the_collision_model(capsys):
+    from wbmp.cli import main
+
+    assert main(["robots", "--collisions", "g1"]) == 0
+    out = capsys.readouterr().out
+    assert "capsules" in out and "left_knee_link" in out and "skipped (adjacent)" in out
+    assert main(["robots", "--collisions", "--json", "talos"]) == 0
+    row = json.loads(capsys.readouterr().out)[0]
+    assert ["arm_left_5_link", "base_link"] in row["pairs"] and row["skipped"]["srdf"]
+
+
+def test_profile_without_collisions_table_keeps_defaults():
+    from robots.profile import builtin_profiles
+
+    assert builtin_profiles()["talos"].collisions == RobotProfile.__dataclass_fields__["collisions"].default_factory()
+
+
+def test_viewer_draws_one_node_per_capsule(g1):
+    """``wbmp show --collisions``: every capsule becomes meshcat objects under its joint's visual node."""
+    from viz import scene
+    from viz._meshcat import meshcat
+    from viz.html import RecordingWindow
+
+    window = RecordingWindow()
+    vis = meshcat.Visualizer(window=window)
+    scene.add_robot(vis, g1, motion="planned")
+    n = scene.add_collision_capsules(vis, g1, motion="planned")
+    assert n == len(collision_model(g1).capsules)
+    drawn = [c for c in window.commands if b"capsule_" in c]
+    assert len(drawn) >= 2 * n  # a sphere at each end (and a cylinder for a capsule of non-zero length)
