@@ -68,6 +68,8 @@ NUMBERS: dict[str, tuple[float, float, bool, str, str]] = {
     "squat_depth_max": (0.0, 1.0, False, "a length in metres", ""),
 }
 SOLE_KEYS = ("x_min", "x_max", "y_min", "y_max")
+COLLISION_KEYS = ("add", "remove", "body_parts")
+MAX_COLLISION_ENTRIES = 1024  # pairs in add/remove, names in body_parts
 EXTRA_FRAME_KEYS = ("name", "parent", "translation")
 
 Vec3 = tuple[float, float, float]
@@ -326,6 +328,54 @@ class SoleRectangle:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class CollisionTable:
+    """The profile's ``[collisions]`` table: link pairs to add to or remove from the self-collision
+    checks, and human names of links for messages (``robots.collision``, ``docs/collisions.md``)."""
+
+    add: tuple[tuple[str, str], ...] = ()
+    remove: tuple[tuple[str, str], ...] = ()
+    body_parts: tuple[tuple[str, str], ...] = ()
+
+
+def _collisions(where: str, value: Any) -> CollisionTable:
+    table = _table(where, "collisions", value,
+                   "a table [collisions] with add = [[link, link], ...], remove = [[link, link], ...] "
+                   "and body_parts = {link = \"name\"}")
+    unknown = [k for k in table if k not in COLLISION_KEYS]
+    if unknown:
+        raise ProfileError(f"{where}: collisions: unknown key {unknown[0]!r}{_suggest(unknown[0], COLLISION_KEYS)}; "
+                           f"the keys are {', '.join(COLLISION_KEYS)}")
+    lists: dict[str, tuple[tuple[str, str], ...]] = {}
+    for key in ("add", "remove"):
+        entries = table.get(key, [])
+        if not isinstance(entries, list) or len(entries) > MAX_COLLISION_ENTRIES:
+            raise _fail(where, f"collisions.{key}",
+                        f"a list of link pairs [[link, link], ...] (at most {MAX_COLLISION_ENTRIES})", entries)
+        pairs = []
+        for i, pair in enumerate(entries):
+            k = f"collisions.{key}[{i}]"
+            if not isinstance(pair, list) or len(pair) != 2:
+                raise _fail(where, k, "a pair of link names [link, link]", pair)
+            a = _text(where, k, pair[0], "a link name")
+            b = _text(where, k, pair[1], "a link name")
+            if a == b:
+                raise ProfileError(f"{where}: {k}: a link cannot collide with itself ({a!r}); name two links")
+            pairs.append((a, b))
+        lists[key] = tuple(pairs)
+    both = {tuple(sorted(p)) for p in lists["add"]} & {tuple(sorted(p)) for p in lists["remove"]}
+    if both:
+        a, b = sorted(both)[0]
+        raise ProfileError(f"{where}: collisions: the pair [{a!r}, {b!r}] is both added and removed; keep one")
+    names = table.get("body_parts", {})
+    if not isinstance(names, dict) or len(names) > MAX_COLLISION_ENTRIES:
+        raise _fail(where, "collisions.body_parts", 'a table of link = "human name" (left forearm)', names)
+    parts = tuple((_text(where, "collisions.body_parts", link, "link names as keys"),
+                   _text(where, f"collisions.body_parts.{link}", text, "a human name such as 'left forearm'"))
+                  for link, text in names.items())
+    return CollisionTable(add=lists["add"], remove=lists["remove"], body_parts=parts)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class ExtraFrame:
     """A frame that wbmp adds to the model: ``parent`` frame + a fixed translation [m]."""
 
@@ -356,6 +406,7 @@ class RobotProfile:
         step_duration: Single-support duration of one step [s].
         double_support_duration: Double-support duration between steps [s].
         squat_depth_max: Deepest CoM lowering the squat primitive allows [m].
+        collisions: Self-collision pairs to add or remove, and body-part names (``[collisions]``).
         source: The file the profile was read from ("" when built in code).
     """
 
@@ -376,6 +427,7 @@ class RobotProfile:
     step_duration: float = 0.8
     double_support_duration: float = 0.2
     squat_depth_max: float = 0.3
+    collisions: CollisionTable = field(default_factory=CollisionTable)
     source: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
@@ -466,6 +518,8 @@ class RobotProfile:
                 kwargs[key] = _sole(where, value)
             elif key == "posture_overrides":
                 kwargs[key] = _overrides(where, value)
+            elif key == "collisions":
+                kwargs[key] = _collisions(where, value)
             else:
                 kwargs[key] = check_number(where, key, value)
         return cls(**kwargs)

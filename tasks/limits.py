@@ -37,6 +37,8 @@ MAX_DISTANCE = 100.0  # [m] any position, bound, tolerance, margin or height in 
 MAX_ANGLE = 100.0  # [rad] any orientation, orientation tolerance or joint value (~16 turns)
 MAX_WEIGHT = 1e6  # [-] any cost weight
 MAX_FRICTION = 10.0  # [-] friction coefficient
+MAX_MASS = 1000.0  # [kg] a movable scene object
+MAX_OBJECTS = 200  # objects of one scene
 GROUND_TOLERANCE = 0.01  # [m] a contact placement may be this far below the ground (z = 0), no more
 START_TOLERANCE = 1e-3  # [m], [rad] first-phase contacts vs the robot's standing soles
 MAX_NAME_LENGTH = 200  # characters of a name, frame or joint in a spec
@@ -73,8 +75,10 @@ __all__ = [
     "MAX_HORIZON",
     "MAX_ITEMS",
     "MAX_KNOTS",
+    "MAX_MASS",
     "MAX_NAME_LENGTH",
     "MAX_NESTING",
+    "MAX_OBJECTS",
     "MAX_PHASES",
     "MAX_REPEAT",
     "MAX_SPEC_BYTES",

@@ -13,14 +13,85 @@ world frame (z up, ground at z = 0, SI units):
 object never moves (mass ignored); a movable one is a free body with ``mass`` [kg] and
 ``friction`` [-]. The planner keeps the robot at least its margin away from every object except
 in planned contacts; the simulation adds the objects as MuJoCo geoms (movable ones as free bodies).
+
+Scene files are JSON (``docs/scenes.md``, schema ``docs/scene.schema.json``), read by
+:func:`load_scene` with the same hardening as task spec files (:mod:`tasks.serialize`); every
+error names the field by its path (``objects[2].size: a box needs 3 positive lengths [m], got
+[0.5, -1, 0.8]``). :func:`signed_distance` and :func:`check_spec_in_scene` are the geometry the
+tasks layer needs: a hand target or a footstep inside an object is refused before planning.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
+from tasks.exceptions import SceneConflict, TaskDefinitionError
+from tasks.limits import (
+    GROUND_TOLERANCE,
+    MAX_ANGLE,
+    MAX_DISTANCE,
+    MAX_FRICTION,
+    MAX_MASS,
+    MAX_NAME_LENGTH,
+    MAX_OBJECTS,
+    MAX_TEXT_LENGTH,
+)
+
+if TYPE_CHECKING:
+    from tasks.specs import TaskSpec
+
+SCENE_VERSION = 1
 SHAPES = ("box", "cylinder", "sphere", "mesh")
 SIZE_LENGTHS = {"box": 3, "cylinder": 2, "sphere": 1, "mesh": 3}
+#: What ``size`` holds, per shape, for messages and docs.
+SIZE_MEANING = {
+    "box": "3 positive lengths [m] (sx, sy, sz)",
+    "cylinder": "2 positive lengths [m] (radius, length)",
+    "sphere": "1 positive radius [m]",
+    "mesh": "3 positive scale factors (sx, sy, sz)",
+}
+#: The planner's clearance from every object [m]: a hand target or a footstep closer than this
+#: to an object (or inside it) is refused before planning.
+SCENE_MARGIN = 0.01
+
+
+def _field_error(field: str, message: str) -> TaskDefinitionError:
+    """A TaskDefinitionError about ``field``: :func:`tasks.jsonio.from_plain` names its path."""
+    err = TaskDefinitionError(f"{field}: {message}")
+    err.field = field  # type: ignore[attr-defined]
+    err.reason = message  # type: ignore[attr-defined]
+    return err
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, tuple) and len(value) <= 6 and all(isinstance(v, (int, float)) for v in value):
+        return "[" + ", ".join(f"{v:g}" if isinstance(v, float) else repr(v) for v in value) + "]"
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
+
+
+def _finite(v: Any) -> bool:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    return isinstance(v, int) or math.isfinite(v)
+
+
+def _name(field: str, value: Any) -> None:
+    if not isinstance(value, str) or not value.strip():
+        raise _field_error(field, f"must be a non-empty name, got {_show(value)}")
+    if len(value) > MAX_NAME_LENGTH:
+        raise _field_error(field, f"has {len(value)} characters; at most {MAX_NAME_LENGTH}")
+    if value != value.strip():
+        raise _field_error(field, f"{value!r} starts or ends with a space: write {value.strip()!r}")
+
+
+def _triple(field: str, value: Any, *, bound: float, unit: str) -> None:
+    if not isinstance(value, tuple) or len(value) != 3 or not all(_finite(v) and -bound <= v <= bound for v in value):
+        raise _field_error(field, f"must be 3 finite numbers in [{-bound:g}, {bound:g}] {unit}, got {_show(value)}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -29,16 +100,16 @@ class SceneObject:
 
     Attributes:
         name: Unique name (``table``), what sentences and messages call it.
-        shape: One of :data:`SHAPES`.
-        size: Shape dimensions [m], see the module docstring.
+        shape: One of ``box``, ``cylinder``, ``sphere``, ``mesh``.
+        size: Shape dimensions: box (sx, sy, sz) [m], cylinder (radius, length) [m], sphere (radius,) [m], mesh scale (sx, sy, sz) [-].
         position: Centre of the shape in the world frame [m].
         rpy: Orientation, roll-pitch-yaw [rad].
         colour: RGBA in [0, 1].
         aliases: Other names a sentence may use (``desk``, 桌子).
-        movable: A free body (True) or fixed to the world (False).
-        mass: [kg], movable objects only.
+        movable: A free body (true) or fixed to the world (false).
+        mass: [kg], movable objects only (> 0 for them).
         friction: Coulomb friction coefficient [-].
-        mesh: Mesh file path (shape ``mesh`` only).
+        mesh: Mesh file path (shape ``mesh`` only; in a scene file, relative to the file).
     """
 
     name: str
@@ -53,6 +124,48 @@ class SceneObject:
     friction: float = 0.8
     mesh: str | None = None
 
+    def __post_init__(self) -> None:
+        _name("name", self.name)
+        if self.shape not in SHAPES:
+            raise _field_error("shape", f"must be one of {', '.join(SHAPES)}, got {_show(self.shape)}")
+        n = SIZE_LENGTHS[self.shape]
+        if (not isinstance(self.size, tuple) or len(self.size) != n
+                or not all(_finite(v) and 0 < v <= MAX_DISTANCE for v in self.size)):
+            raise _field_error("size", f"a {self.shape} needs {SIZE_MEANING[self.shape]}, each at most "
+                                       f"{MAX_DISTANCE:g}, got {_show(self.size)}")
+        _triple("position", self.position, bound=MAX_DISTANCE, unit="m")
+        _triple("rpy", self.rpy, bound=MAX_ANGLE, unit="rad")
+        if (not isinstance(self.colour, tuple) or len(self.colour) != 4
+                or not all(_finite(v) and 0 <= v <= 1 for v in self.colour)):
+            raise _field_error("colour", f"must be 4 numbers (red, green, blue, opacity) in [0, 1], "
+                                         f"got {_show(self.colour)}")
+        if not isinstance(self.aliases, tuple):
+            raise _field_error("aliases", f"must be a list of names, got {_show(self.aliases)}")
+        for i, alias in enumerate(self.aliases):
+            _name(f"aliases[{i}]", alias)
+            if alias == self.name or alias in self.aliases[:i]:
+                raise _field_error(f"aliases[{i}]", f"{alias!r} is already a name of this object")
+        if not isinstance(self.movable, bool):
+            raise _field_error("movable", f"must be true or false, got {_show(self.movable)}")
+        if not (_finite(self.mass) and 0 <= self.mass <= MAX_MASS):
+            raise _field_error("mass", f"must be a number in [0, {MAX_MASS:g}] kg, got {_show(self.mass)}")
+        if self.movable and not self.mass > 0:
+            raise _field_error("mass", "a movable object needs a mass > 0 kg (or set movable to false)")
+        if not (_finite(self.friction) and 0 < self.friction <= MAX_FRICTION):
+            raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {_show(self.friction)}")
+        if self.shape == "mesh":
+            if not isinstance(self.mesh, str) or not self.mesh.strip():
+                raise _field_error("mesh", "a mesh object needs the mesh file's path (STL, OBJ or DAE)")
+            if len(self.mesh) > MAX_TEXT_LENGTH or "\x00" in self.mesh:
+                raise _field_error("mesh", f"is not a usable file path: {_show(self.mesh)}")
+        elif self.mesh is not None:
+            raise _field_error("mesh", f"only a mesh object has a mesh file; this one is a {self.shape}")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The name and the aliases."""
+        return (self.name, *self.aliases)
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Scene:
@@ -60,7 +173,7 @@ class Scene:
 
     Attributes:
         name: A label for reports.
-        objects: The objects, names unique.
+        objects: The objects; their names and aliases are unique across the scene.
         floor_friction: Coulomb friction coefficient of the floor [-].
     """
 
@@ -68,9 +181,287 @@ class Scene:
     objects: tuple[SceneObject, ...] = ()
     floor_friction: float = 0.8
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or len(self.name) > MAX_TEXT_LENGTH:
+            raise _field_error("name", f"must be a string of at most {MAX_TEXT_LENGTH} characters")
+        if not isinstance(self.objects, tuple) or not all(isinstance(o, SceneObject) for o in self.objects):
+            raise _field_error("objects", "must be a list of objects")
+        if len(self.objects) > MAX_OBJECTS:
+            raise _field_error("objects", f"{len(self.objects)} objects; a scene holds at most {MAX_OBJECTS}")
+        owner: dict[str, int] = {}
+        for i, obj in enumerate(self.objects):
+            for k, word in enumerate(obj.names):
+                if word in owner:
+                    field = f"objects[{i}].name" if k == 0 else f"objects[{i}].aliases[{k - 1}]"
+                    raise _field_error(field, f"{word!r} already names objects[{owner[word]}] "
+                                              f"({self.objects[owner[word]].name!r}); names and aliases "
+                                              "are unique in a scene")
+                owner[word] = i
+        if not (_finite(self.floor_friction) and 0 < self.floor_friction <= MAX_FRICTION):
+            raise _field_error("floor_friction", f"must be in (0, {MAX_FRICTION:g}], got {_show(self.floor_friction)}")
+
     def get(self, name: str) -> SceneObject:
-        """The object called ``name`` (KeyError otherwise)."""
+        """The object called ``name`` or with that alias (KeyError otherwise)."""
         for obj in self.objects:
-            if obj.name == name:
+            if name in obj.names:
                 return obj
         raise KeyError(name)
+
+
+# --------------------------------------------------------------------------------------------------
+# Geometry
+# --------------------------------------------------------------------------------------------------
+
+
+def rotation(rpy: Iterable[float]) -> tuple[tuple[float, float, float], ...]:
+    """``R = Rz(y) Ry(p) Rx(r)`` as three rows."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+            (-sp, cp * sr, cp * cr))
+
+
+def to_local(obj: SceneObject, point: Iterable[float]) -> tuple[float, float, float]:
+    """A world point in the object's frame (``R^T (p - position)``) [m]."""
+    d = [a - b for a, b in zip(point, obj.position, strict=True)]
+    R = rotation(obj.rpy)
+    return (R[0][0] * d[0] + R[1][0] * d[1] + R[2][0] * d[2],
+            R[0][1] * d[0] + R[1][1] * d[1] + R[2][1] * d[2],
+            R[0][2] * d[0] + R[1][2] * d[1] + R[2][2] * d[2])
+
+
+def signed_distance(obj: SceneObject, point: Iterable[float]) -> float | None:
+    """Distance from a world point to the object's surface [m], negative inside.
+
+    Exact for boxes, cylinders and spheres; None for meshes (their geometry is not read here).
+    """
+    x, y, z = to_local(obj, point)
+    if obj.shape == "sphere":
+        return math.sqrt(x * x + y * y + z * z) - obj.size[0]
+    if obj.shape == "box":
+        q = [abs(c) - s / 2 for c, s in zip((x, y, z), obj.size, strict=True)]
+        outside = math.sqrt(sum(max(c, 0.0) ** 2 for c in q))
+        return outside + min(max(q), 0.0)
+    if obj.shape == "cylinder":
+        radius, length = obj.size
+        qr, qz = math.hypot(x, y) - radius, abs(z) - length / 2
+        return math.hypot(max(qr, 0.0), max(qz, 0.0)) + min(max(qr, qz), 0.0)
+    return None
+
+
+def extent(obj: SceneObject) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """World axis-aligned bounding box (lower, upper corners) of a box, cylinder or sphere [m]."""
+    if obj.shape == "sphere":
+        r = obj.size[0]
+        half = (r, r, r)
+    else:
+        local = obj.size if obj.shape == "box" else (2 * obj.size[0], 2 * obj.size[0], obj.size[1])
+        if obj.shape == "mesh":
+            local = (0.0, 0.0, 0.0)
+        R = rotation(obj.rpy)
+        half = tuple(sum(abs(R[i][j]) * local[j] / 2 for j in range(3)) for i in range(3))  # type: ignore[assignment]
+    lo = tuple(c - h for c, h in zip(obj.position, half, strict=True))
+    hi = tuple(c + h for c, h in zip(obj.position, half, strict=True))
+    return lo, hi  # type: ignore[return-value]
+
+
+def on_top(obj: SceneObject, point: Iterable[float], *, tolerance: float = GROUND_TOLERANCE) -> bool:
+    """The point lies on the upward top face of an upright box or cylinder (a support surface)."""
+    if obj.shape not in ("box", "cylinder") or rotation(obj.rpy)[2][2] < math.cos(math.radians(5)):
+        return False
+    x, y, z = to_local(obj, point)
+    top = obj.size[2] / 2 if obj.shape == "box" else obj.size[1] / 2
+    if abs(z - top) > tolerance:
+        return False
+    if obj.shape == "box":
+        return abs(x) <= obj.size[0] / 2 and abs(y) <= obj.size[1] / 2
+    return math.hypot(x, y) <= obj.size[0]
+
+
+def closest_object(scene: Scene, point: Iterable[float]) -> tuple[SceneObject, float] | None:
+    """The object nearest to a world point and its signed distance [m] (None: no box/cylinder/sphere)."""
+    p = tuple(point)
+    best: tuple[SceneObject, float] | None = None
+    for obj in scene.objects:
+        d = signed_distance(obj, p)
+        if d is not None and (best is None or d < best[1]):
+            best = (obj, d)
+    return best
+
+
+def _where(obj: SceneObject) -> str:
+    if obj.shape == "sphere":
+        c = ", ".join(f"{v:.3g}" for v in obj.position)
+        return f"the {obj.name} is a sphere of radius {obj.size[0]:.3g} m at ({c})"
+    lo, hi = extent(obj)
+    span = ", ".join(f"{a} {lo[i]:.3g}..{hi[i]:.3g}" for i, a in enumerate("xyz"))
+    return f"the {obj.name} occupies {span} m"
+
+
+def _point(p: Iterable[float]) -> str:
+    return "(" + ", ".join(f"{v:.3g}" for v in p) + ")"
+
+
+def _frame_words(frame: str) -> str:
+    return frame.replace("_", " ")
+
+
+def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
+                        contact_points: Mapping[str, Any] | None = None) -> None:
+    """Refuse a spec whose hand targets or footsteps lie inside a scene object (or within ``margin``).
+
+    A frame target's position (every axis counted) closer than ``margin`` to an object, or a
+    contact whose placement (and, when ``contact_points`` gives them for its frame, the points
+    ``(k, 3)`` in the contact frame, e.g. the sole corners) comes closer than ``margin`` to an
+    object, raises :class:`~tasks.exceptions.SceneConflict` naming the object. A contact lying on
+    the top face of an upright box or cylinder is a support, not a conflict. Meshes are not
+    checked here (the planner keeps the robot clear of them).
+
+    Raises:
+        SceneConflict: message in task terms, ``the right hand target (0.45, -0.2, 0.8) is inside
+            the table: ...``; exit code 4 (infeasible).
+    """
+    scene = spec.scene
+    if scene is None or not scene.objects:
+        return
+    for target in spec.targets:
+        if target.position is None or not all(target.axes):
+            continue
+        hit = closest_object(scene, target.position)
+        if hit is not None and hit[1] < margin:
+            obj, d = hit
+            where = "inside" if d < 0 else f"{d * 100:.1f} cm from"
+            raise SceneConflict(
+                f"the {_frame_words(target.frame)} target {_point(target.position)} of {target.name!r} is {where} "
+                f"the {obj.name} ({_where(obj)}; the robot keeps {margin:g} m away from objects): move the "
+                f"target out of the {obj.name}, or the {obj.name} in the scene", obj.name)
+    seen: set[tuple[str, tuple[float, ...], tuple[float, ...]]] = set()
+    for phase in spec.phases:
+        for contact in phase.contacts:
+            key = (contact.frame, contact.placement.position, contact.placement.rpy)
+            if key in seen:
+                continue
+            seen.add(key)
+            R = rotation(contact.placement.rpy)
+            local: list[tuple[float, ...]] = [(0.0, 0.0, 0.0)]
+            if contact_points is not None and contact.frame in contact_points:
+                local += [tuple(float(c) for c in p) for p in contact_points[contact.frame]]
+            for lp in local:
+                p = tuple(contact.placement.position[i] + sum(R[i][j] * lp[j] for j in range(3)) for i in range(3))
+                for obj in scene.objects:
+                    dist = signed_distance(obj, p)
+                    if dist is None or dist >= margin or on_top(obj, p):
+                        continue
+                    where = "inside" if dist < 0 else f"{dist * 100:.1f} cm from"
+                    raise SceneConflict(
+                        f"the {_frame_words(contact.frame)} placement {_point(contact.placement.position)} in phase "
+                        f"{phase.name!r} puts the sole {where} the {obj.name} ({_where(obj)}; the robot keeps "
+                        f"{margin:g} m away from objects): step elsewhere, or move the {obj.name} in the scene",
+                        obj.name)
+
+
+# --------------------------------------------------------------------------------------------------
+# Files
+# --------------------------------------------------------------------------------------------------
+
+
+def scene_to_dict(scene: Scene) -> dict[str, Any]:
+    """The JSON-compatible dictionary form of a scene file (with ``version``)."""
+    from tasks.jsonio import to_plain
+
+    return {"version": SCENE_VERSION, **to_plain(scene)}
+
+
+def _strip_root(message: str) -> str:
+    """``scene.objects[2].size: ...`` -> ``objects[2].size: ...`` (a scene file's own paths)."""
+    if message.startswith("scene."):
+        return message[len("scene."):]
+    return message
+
+
+def scene_from_dict(data: Any, *, base: str | Path | None = None) -> Scene:
+    """Build a scene from its dictionary form (a scene file's content).
+
+    Args:
+        data: The parsed JSON.
+        base: Folder that relative mesh paths are relative to (the scene file's); None keeps them.
+
+    Raises:
+        TaskDefinitionError: naming the field by its path (``objects[2].size: ...``).
+    """
+    import dataclasses
+
+    from tasks.jsonio import _kind, _show, from_plain
+
+    if not isinstance(data, dict):
+        raise TaskDefinitionError(f"scene: expected a JSON object ({{...}}) at the top level, got {_kind(data)}")
+    data = dict(data)
+    version = data.pop("version", SCENE_VERSION)
+    if isinstance(version, bool) or version != SCENE_VERSION:
+        raise TaskDefinitionError(f"version: {_show(version)} is not supported (expected {SCENE_VERSION})")
+    try:
+        scene = from_plain(Scene, data, "scene")
+    except TaskDefinitionError as e:
+        raise TaskDefinitionError(_strip_root(str(e))) from None
+    if base is not None:
+        objects = tuple(
+            dataclasses.replace(o, mesh=str((Path(base) / o.mesh).resolve())) if o.mesh is not None else o
+            for o in scene.objects
+        )
+        scene = dataclasses.replace(scene, objects=objects)
+    return scene
+
+
+def scene_from_json(text: str, *, base: str | Path | None = None) -> Scene:
+    """Parse a scene file's text (same JSON hardening as :func:`tasks.serialize.spec_from_json`)."""
+    from tasks.jsonio import parse_json
+
+    return scene_from_dict(parse_json(text, what="scene"), base=base)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a scene JSON file (``docs/scenes.md``).
+
+    Mesh paths are resolved relative to the file's folder, and each mesh file must exist.
+
+    Raises:
+        TaskDefinitionError: the file is missing, a directory, unreadable, empty, too large, not
+            UTF-8 (or UTF-16/32 with a byte-order mark), not JSON, or not a valid scene; the
+            message starts with the file name and names the field (``objects[2].size``).
+    """
+    from tasks.jsonio import decode_spec_bytes, read_spec_bytes
+
+    raw = read_spec_bytes(path, what="scene")
+    where = "standard input" if str(path) == "-" else str(path)
+    base = Path.cwd() if str(path) == "-" else Path(path).resolve().parent
+    try:
+        scene = scene_from_json(decode_spec_bytes(raw), base=base)
+        for i, obj in enumerate(scene.objects):
+            if obj.mesh is not None and not Path(obj.mesh).is_file():
+                raise TaskDefinitionError(f"objects[{i}].mesh: the mesh file {obj.mesh!r} does not exist "
+                                          "(a mesh path is relative to the scene file)")
+        return scene
+    except TaskDefinitionError as e:
+        raise TaskDefinitionError(f"{where}: {e}") from None
+
+
+__all__ = [
+    "SCENE_MARGIN",
+    "SCENE_VERSION",
+    "SHAPES",
+    "SIZE_LENGTHS",
+    "Scene",
+    "SceneObject",
+    "check_spec_in_scene",
+    "closest_object",
+    "extent",
+    "load_scene",
+    "on_top",
+    "rotation",
+    "scene_from_dict",
+    "scene_from_json",
+    "scene_to_dict",
+    "signed_distance",
+    "to_local",
+]

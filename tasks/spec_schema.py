@@ -18,7 +18,6 @@ import types
 import typing
 from typing import Any
 
-from tasks import specs
 from tasks.specs import SPEC_VERSION, TaskSpec
 
 SCHEMA_ID = "https://wbmp.invalid/task-spec.schema.json"  # a name, not a location
@@ -55,7 +54,7 @@ def type_schema(tp: Any, defs: dict[str, Any]) -> dict[str, Any]:
         name = tp.__name__
         if name not in defs:
             defs[name] = {}  # placeholder against recursion
-            hints = typing.get_type_hints(tp, vars(specs))
+            hints = typing.get_type_hints(tp)  # in the class's own module (specs, scene)
             docs = _attribute_docs(tp)
             props, required = {}, []
             for f in dataclasses.fields(tp):
@@ -86,7 +85,7 @@ def type_schema(tp: Any, defs: dict[str, Any]) -> dict[str, Any]:
 
 
 def _plain(value: Any) -> Any:
-    from tasks.serialize import to_plain
+    from tasks.jsonio import to_plain
 
     return to_plain(value)
 

@@ -41,6 +41,7 @@ from tasks.limits import (
     MIN_HORIZON,
     horizon_message,
 )
+from tasks.scene import Scene
 
 Vec3 = tuple[float, float, float]
 OptVec3 = tuple[float | None, float | None, float | None]
@@ -365,6 +366,7 @@ class TaskSpec:
         smoothness_weight: Cost weight on accelerations [-].
         name: A label for reports.
         description: Free text (the sentence it came from).
+        scene: The world around the robot (a floor plus named objects; docs/scenes.md); null = the floor only.
     """
 
     robot: str = "talos"
@@ -379,9 +381,12 @@ class TaskSpec:
     smoothness_weight: float = 1e-3
     name: str = ""
     description: str = ""
+    scene: Scene | None = None
 
     def __post_init__(self) -> None:
         _text("task spec", "robot", self.robot, limit=MAX_TEXT_LENGTH)
+        if self.scene is not None and not isinstance(self.scene, Scene):
+            raise TaskDefinitionError(f"task spec: scene must be a Scene or None, got {_show(self.scene)}")
         _text("task spec", "name", self.name, limit=MAX_TEXT_LENGTH)
         _text("task spec", "description", self.description, limit=MAX_TEXT_LENGTH)
         if not self.phases:
