@@ -2,14 +2,13 @@
 planner's collision model: the reference the certificate's self-collision line confirms against.
 
 MuJoCo collides meshes as their convex hulls, which are larger than the meshes; coal
-(``hpp-fcl``) works on the triangles themselves. Coal gives the distance between two meshes that
+(``hpp-fcl``, through Pinocchio's geometry functions) works on the triangles themselves. Coal gives the distance between two meshes that
 do not touch, and whether they intersect, but no penetration depth between two non-convex
 meshes: the depth comes from MuJoCo's contacts, the confirmation from coal.
 """
 
 from __future__ import annotations
 
-import coal
 import numpy as np
 import pinocchio as pin
 
@@ -25,7 +24,11 @@ class MeshDistance:
 
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
-        self._gmodel = robot.collision_model
+        self._gmodel = robot.collision_model.copy()
+        n = len(self._gmodel.geometryObjects)
+        for i in range(n):  # every pair, also of geometries on the same joint
+            for j in range(i + 1, n):
+                self._gmodel.addCollisionPair(pin.CollisionPair(i, j))
         self._gdata = self._gmodel.createData()
         self._data = robot.model.createData()
         self._by_link: dict[str, list[int]] = {}
@@ -48,14 +51,11 @@ class MeshDistance:
         when they intersect; inf when a link has no collision geometry."""
         self._place(q)
         best = np.inf
-        objs, placements = self._gmodel.geometryObjects, self._gdata.oMg
         for i in self._by_link.get(a, ()):
             for j in self._by_link.get(b, ()):
-                creq, cres = coal.CollisionRequest(), coal.CollisionResult()
-                if coal.collide(objs[i].geometry, placements[i], objs[j].geometry, placements[j], creq, cres):
+                k = self._gmodel.findCollisionPair(pin.CollisionPair(min(i, j), max(i, j)))
+                if pin.computeCollision(self._gmodel, self._gdata, k):
                     return 0.0
-                dres = coal.DistanceResult()
-                dist = coal.distance(objs[i].geometry, placements[i], objs[j].geometry, placements[j],
-                                     coal.DistanceRequest(), dres)
+                dist = pin.computeDistance(self._gmodel, self._gdata, k).min_distance
                 best = min(best, max(float(dist), 0.0))
         return best

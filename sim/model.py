@@ -46,7 +46,8 @@ FLOOR = "wbmp_floor"
 SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thick
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # robot geoms collide with the floor (and objects) only
 FLOOR_CONTYPE, FLOOR_CONAFFINITY = 1, 2
-OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 3  # objects collide with the robot, the floor and each other
+OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 7  # objects collide with the robot, the feet, the floor, each other
+FOOT_CONTYPE, FOOT_CONAFFINITY = 4, 0  # foot meshes (replaced by sole boxes on the floor) touch objects only
 OBJECT_PREFIX = "wbmp_object_"
 #: Geom roles in :attr:`SimModel.geom_role`.
 FLOOR_ROLE, ROBOT_ROLE, OBJECT_ROLE = 0, 1, 2
@@ -269,7 +270,7 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
             cannot be built (an unreadable mesh).
     """
     pairs = None if collision_pairs is None else tuple(tuple(sorted(p)) for p in collision_pairs)
-    return _cached(robot, float(timestep), bool(joint_friction), scene, pairs)  # type: ignore[arg-type]
+    return _cached(robot, float(timestep), bool(joint_friction), scene, pairs)
 
 
 def model_pairs(robot: Robot) -> tuple[tuple[str, str], ...]:
@@ -372,12 +373,12 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
                 f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo"
             )
         body = joints[joint_name].parent
-        for geom in body.geoms:  # the foot mesh: the sole box replaces it
-            geom.contype, geom.conaffinity = 0, 0
+        for geom in body.geoms:  # the foot mesh: the sole box replaces it on the floor
+            geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
         for child in bodies.values():  # fixed children (sole links) of the ankle body
             if child.parent is not None and child.parent.name == body.name and not child.joints:
                 for geom in child.geoms:
-                    geom.contype, geom.conaffinity = 0, 0
+                    geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
         side = role.split("_")[0]
         corners = sole_corners(robot.profile.sole, side)
         centre = np.array([corners[:, 0].mean(), corners[:, 1].mean(), 0.5 * SOLE_THICKNESS])
