@@ -520,6 +520,9 @@ def _shape(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, obj: SceneObject) -> None:
     elif obj.shape == "mesh":
         if obj.mesh is None or not Path(obj.mesh).is_file():
             raise SimModelError(f"scene object {obj.name!r}: mesh file {obj.mesh!r} not found")
+        if Path(obj.mesh).suffix.lower() in FOREIGN_MESHES:
+            raise SimModelError(f"scene object {obj.name!r}: MuJoCo cannot read {obj.mesh!r}; "
+                                "convert the mesh to STL or OBJ")
         mesh = spec.add_mesh()
         mesh.name = f"{OBJECT_PREFIX}{obj.name}_mesh"
         mesh.file = str(Path(obj.mesh).resolve())
