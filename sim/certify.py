@@ -490,10 +490,11 @@ def scene_collision_check(run: RunRecord) -> Check:
     with objects are never planned yet: any fails). MuJoCo contacts at every tick, distances
     from the samples."""
     ts = run.t
-    if not run.object_names:
+    horizon = run.settings.scene_distance_horizon
+    if not run.object_names:  # reported at the horizon: a finite number survives the JSON report
         return Check(
-            name="scene collision: no objects", kind=CheckKind.SCENE_COLLISION, value=math.inf, limit=0.0,
-            unit="mm", ok=True, time=0.0, upper=False,
+            name="scene collision: no objects", kind=CheckKind.SCENE_COLLISION, value=_mm(horizon), limit=0.0,
+            unit="mm", ok=True, time=0.0, upper=False, message="the scene has no objects",
         )
     if run.scene_contacts:
         tick, link, obj, _ = run.scene_contacts[0]
@@ -507,7 +508,6 @@ def scene_collision_check(run: RunRecord) -> Check:
             f"({_mm(-min(deepest, 0.0)):.0f} mm deep; no contact with an object is planned)",
         )
     if not run.scene_samples:
-        horizon = run.settings.scene_distance_horizon
         return Check(
             name="scene collision", kind=CheckKind.SCENE_COLLISION, value=_mm(horizon), limit=0.0,
             unit="mm", ok=True, time=0.0, upper=False,
