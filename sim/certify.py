@@ -463,9 +463,8 @@ def self_collision_check(run: RunRecord) -> Check:
     horizon = s.self_distance_horizon
     if not found and not collided:
         return Check(
-            name="self-collision", kind=CheckKind.SELF_COLLISION, value=_mm(horizon), limit=-_mm(limit),
-            unit="mm", ok=True, time=0.0, upper=False,
-            message=f"no two links of the collision model came within {_mm(horizon):.0f} mm",
+            name=f"self-collision: no pair within {_mm(horizon):.0f} mm", kind=CheckKind.SELF_COLLISION,
+            value=_mm(horizon), limit=-_mm(limit), unit="mm", ok=True, time=0.0, upper=False,
         )
     message = ""
     if collided:  # the pair that collided first
@@ -494,7 +493,7 @@ def scene_collision_check(run: RunRecord) -> Check:
     if not run.object_names:  # reported at the horizon: a finite number survives the JSON report
         return Check(
             name="scene collision: no objects", kind=CheckKind.SCENE_COLLISION, value=_mm(horizon), limit=0.0,
-            unit="mm", ok=True, time=0.0, upper=False, message="the scene has no objects",
+            unit="mm", ok=True, time=0.0, upper=False,
         )
     if run.scene_contacts:
         tick, link, obj, _ = run.scene_contacts[0]
@@ -509,9 +508,8 @@ def scene_collision_check(run: RunRecord) -> Check:
         )
     if not run.scene_samples:
         return Check(
-            name="scene collision", kind=CheckKind.SCENE_COLLISION, value=_mm(horizon), limit=0.0,
-            unit="mm", ok=True, time=0.0, upper=False,
-            message=f"no object within {horizon:g} m of the robot",
+            name=f"scene collision: no object within {horizon:g} m", kind=CheckKind.SCENE_COLLISION,
+            value=_mm(horizon), limit=0.0, unit="mm", ok=True, time=0.0, upper=False,
         )
     tick, link, obj, dist = min(run.scene_samples, key=lambda x: x[3])
     subject = f"{body_part(run.robot, link)} / {obj!r}"
