@@ -69,7 +69,7 @@ class CheckKind(enum.Enum):
     name), ``TARGET_POSITION``, ``TARGET_ORIENTATION``, ``COM_TARGET`` (subject: the target's name),
     ``JOINT_POSITION_LIMITS``, ``JOINT_VELOCITY_LIMITS``; a dynamic plan adds ``COM_DYNAMICS``,
     ``FRICTION_CONE``, ``CENTRE_OF_PRESSURE`` (subject: the frame), ``FORCE_WITHOUT_CONTACT`` and
-    ``SWING_SOLE_CORNERS``.
+    ``SWING_SOLE_CORNERS``; ``SELF_COLLISION`` (subject: the closest link pair, ``a/b``).
 
     The simulation's certificate: ``BASE_HEIGHT``, ``BASE_TILT``, ``UNPLANNED_CONTACTS``,
     ``FOOT_PLACEMENT``, ``FOOT_SLIP`` (subject: ``left_foot``/``right_foot``, or the frame),
@@ -97,6 +97,7 @@ class CheckKind(enum.Enum):
     CENTRE_OF_PRESSURE = "centre_of_pressure"
     FORCE_WITHOUT_CONTACT = "force_without_contact"
     SWING_SOLE_CORNERS = "swing_sole_corners"
+    SELF_COLLISION = "self_collision"
     BASE_HEIGHT = "base_height"
     BASE_TILT = "base_tilt"
     UNPLANNED_CONTACTS = "unplanned_contacts"

@@ -1,7 +1,8 @@
 """The robot's collision model: one capsule per link, fitted to the URDF collision geometry.
 
 Each link's collision geometry (meshes and primitives of ``robot.collision_model``) is gathered
-in its parent joint's frame and enclosed by a capsule: the axis is the principal direction of
+in its parent joint's frame and enclosed by a capsule (or two, cut across a principal axis, when
+that saves a quarter of the volume: :func:`fit_link`): the axis is the principal direction of
 the vertices, the axis line passes through the centre of the smallest circle (approximately)
 enclosing their projection on the perpendicular plane, the radius is the largest distance of a
 vertex to that line, and the segment is the shortest one whose capsule still holds every vertex.
@@ -13,9 +14,10 @@ The pairs to check are every pair of links minus
 * ``"srdf"``: the SRDF's ``<disable_collisions>`` pairs (example-robot-data ships an SRDF for
   talos, romeo and icub);
 * ``"adjacent"``: links on the same joint, or on a joint and its parent joint;
-* ``"touching at rest"``: pairs whose meshes (coal distances) or capsules are closer than
-  :data:`REST_MARGIN` in the standing posture (a motion starts there, so such a pair cannot be
-  kept apart);
+* ``"touching at rest"``: pairs whose meshes (coal distances) are closer than :data:`REST_MARGIN`,
+  or whose capsules' sphere sets are closer than :data:`REST_SPHERE_MARGIN`, in the standing
+  posture (a motion starts there: such a pair could not be kept a margin apart, or, the capsules
+  being larger than the meshes, not moved at all);
 * ``"profile"``: the profile's ``[collisions] remove`` list;
 
 plus the profile's ``[collisions] add`` list. The fit is cached on disk (JSON, keyed by the URDF,
@@ -44,11 +46,14 @@ import pinocchio as pin
 if TYPE_CHECKING:
     from robots.model import Robot
 
-FIT_VERSION = 1  # bump when the fitting or the pair selection changes: the cache is keyed by it
-REST_MARGIN = 0.01  # [m] pairs closer than this in the standing posture are skipped
+FIT_VERSION = 5  # bump when the fitting or the pair selection changes: the cache is keyed by it
+REST_MARGIN = 0.01  # [m] pairs whose meshes are closer than this in the standing posture are skipped ...
+REST_SPHERE_MARGIN = 0.03  # [m] ... and pairs whose (conservative) sphere sets are closer than this
 CYLINDER_SAMPLES = 48  # points around a cylinder/capsule circle (the radius is inflated to cover the chords)
-SPHERE_SPACING = 0.75  # sphere-set spacing along a capsule axis, as a fraction of its radius
+SPHERE_SPACING = 0.75  # sphere-set spacing along a capsule axis, as a fraction of its radius ...
+MIN_SPHERE_SPACING = 0.03  # [m] ... but at least this (thin links get a few slightly larger spheres)
 
+SPLIT_GAIN = 0.75  # a link gets two capsules when their volume is below this fraction of one capsule's
 SKIP_REASONS = ("srdf", "adjacent", "touching at rest", "profile")
 
 
@@ -80,12 +85,13 @@ class Capsule:
         """A sphere set covering the capsule: centres (n, 3) in the joint frame and their radius [m].
 
         The centres are evenly spaced on the axis segment, ends included, at most
-        ``SPHERE_SPACING * radius`` apart; the common radius ``sqrt(r^2 + (s/2)^2)`` covers the
+        ``max(SPHERE_SPACING * radius, MIN_SPHERE_SPACING)`` apart; the common radius ``sqrt(r^2 + (s/2)^2)`` covers the
         cylinder between two centres, so the union of the spheres contains the capsule and sticks
         out of it by at most ``sqrt(r^2 + (s/2)^2) - r`` (7 % of the radius).
         """
         a, b = self.endpoints()
-        n = max(1, int(math.ceil(self.length / (SPHERE_SPACING * self.radius)))) + 1 if self.length > 0 else 1
+        spacing = max(SPHERE_SPACING * self.radius, MIN_SPHERE_SPACING)
+        n = max(1, int(math.ceil(self.length / spacing))) + 1 if self.length > 1e-9 else 1
         if n == 1:
             return self.placement.translation.reshape(1, 3).copy(), self.radius
         s = self.length / (n - 1)
@@ -99,7 +105,8 @@ class CollisionModel:
 
     Attributes:
         robot: Profile name.
-        capsules: One capsule per link with collision geometry, in the collision model's order.
+        capsules: One capsule (two for links whose shape one capsule fits badly) per link with
+            collision geometry, in the collision model's order.
         pairs: Link pairs to keep apart (each pair sorted, the list sorted).
         skipped: Pair -> why it is not checked (``"srdf"``, ``"adjacent"``, ``"touching at rest"``,
             ``"profile"``).
@@ -110,12 +117,14 @@ class CollisionModel:
     pairs: tuple[tuple[str, str], ...]
     skipped: dict[tuple[str, str], str] = field(default_factory=dict)
 
-    def capsule(self, link: str) -> Capsule:
-        """The capsule of ``link`` (KeyError if it has none)."""
-        for c in self.capsules:
-            if c.link == link:
-                return c
-        raise KeyError(link)
+    def capsules_of(self, link: str) -> tuple[Capsule, ...]:
+        """The capsules of ``link`` (one or two; empty if it has no collision geometry)."""
+        return tuple(c for c in self.capsules if c.link == link)
+
+    @property
+    def links(self) -> tuple[str, ...]:
+        """Links with capsules, in the collision model's order."""
+        return tuple(dict.fromkeys(c.link for c in self.capsules))
 
 
 # -- geometry gathering ------------------------------------------------------------------------
@@ -180,8 +189,14 @@ def link_points(robot: Robot) -> dict[str, tuple[int, np.ndarray]]:
 # -- fitting -----------------------------------------------------------------------------------
 
 
-def _enclosing_circle(p: np.ndarray, iterations: int = 200) -> np.ndarray:
-    """Centre of an approximately smallest circle enclosing 2-D points (Badoiu-Clarkson)."""
+def _enclosing_circle(p: np.ndarray, iterations: int = 40) -> np.ndarray:
+    """Centre of an approximately smallest circle enclosing 2-D points (Badoiu-Clarkson on the
+    points' convex hull)."""
+    if len(p) > 8:
+        from scipy.spatial import ConvexHull, QhullError
+
+        with contextlib.suppress(QhullError, ValueError):
+            p = p[ConvexHull(p).vertices]
     c = 0.5 * (p.min(axis=0) + p.max(axis=0))
     for i in range(1, iterations + 1):
         far = p[np.argmax(np.sum((p - c) ** 2, axis=1))]
@@ -200,6 +215,61 @@ def _segment_for(t: np.ndarray, d: np.ndarray, r: float) -> tuple[float, float]:
     return lo, hi
 
 
+def _volume(length: float, radius: float) -> float:
+    return math.pi * radius * radius * length + 4.0 / 3.0 * math.pi * radius**3
+
+
+def fit_link(points: np.ndarray) -> list[tuple[pin.SE3, float, float]]:
+    """One or two capsules enclosing ``points``: two when cutting the points' convex hull across a
+    principal axis (at 30, 50 or 70 % of its extent) saves more than ``1 - SPLIT_GAIN`` of the
+    volume (an L-shaped thigh with its hip motor, a hand with its fingers)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    points = np.asarray(points, dtype=float)
+    try:
+        hull = ConvexHull(points)
+    except (QhullError, ValueError):
+        return [fit_capsule(points)]
+    vertices = points[hull.vertices]
+    edges = np.unique(np.sort(np.vstack([hull.simplices[:, [0, 1]], hull.simplices[:, [1, 2]],
+                                         hull.simplices[:, [0, 2]]]), axis=1), axis=0)
+    one = fit_capsule(vertices)
+    best = ([one], _volume(one[1], one[2]))
+    mean = vertices.mean(axis=0)
+    _, _, vt = np.linalg.svd(vertices - mean, full_matrices=False)
+    for axis in vt[:2]:
+        t_all = (points - mean) @ axis
+        lo, hi = float(t_all.min()), float(t_all.max())
+        for f in (0.3, 0.5, 0.7):
+            cut = lo + f * (hi - lo)
+            ta, tb = t_all[edges[:, 0]], t_all[edges[:, 1]]
+            crossing = (ta - cut) * (tb - cut) < 0
+            w = ((cut - ta[crossing]) / (tb[crossing] - ta[crossing]))[:, None]
+            section = points[edges[crossing, 0]] * (1 - w) + points[edges[crossing, 1]] * w
+            t_v = (vertices - mean) @ axis
+            parts = [np.vstack([vertices[t_v <= cut], section]), np.vstack([vertices[t_v >= cut], section])]
+            if min(len(p) for p in parts) < 4:
+                continue
+            fits = [fit_capsule(p) for p in parts]
+            volume = sum(_volume(c[1], c[2]) for c in fits)
+            if volume < best[1] * (SPLIT_GAIN if len(best[0]) == 1 else 1.0):
+                best = (fits, volume)
+    return best[0]
+
+
+def _hull_vertices(points: np.ndarray) -> np.ndarray:
+    """The vertices of the convex hull of ``points`` (all of them when the hull is degenerate): a
+    capsule is convex, so it holds the points iff it holds these."""
+    if len(points) < 16:
+        return points
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return points[ConvexHull(points).vertices]
+    except (QhullError, ValueError):
+        return points
+
+
 def fit_capsule(points: np.ndarray) -> tuple[pin.SE3, float, float]:
     """(placement, length, radius) of a small capsule enclosing ``points`` (n, 3) [m].
 
@@ -207,7 +277,7 @@ def fit_capsule(points: np.ndarray) -> tuple[pin.SE3, float, float]:
     circle of their projection; radius: chosen among a few values >= the largest radial distance
     to minimize the capsule's volume; segment: the shortest one holding every point.
     """
-    pts = np.asarray(points, dtype=float)
+    pts = _hull_vertices(np.asarray(points, dtype=float))
     mean = pts.mean(axis=0)
     _, _, vt = np.linalg.svd(pts - mean, full_matrices=False)
     best = None
@@ -280,13 +350,21 @@ def capsule_distance(c1: Capsule, c2: Capsule, data: pin.Data) -> float:
     return segment_distance(p1, q1, p2, q2) - c1.radius - c2.radius
 
 
+def sphere_distance(c1: Capsule, c2: Capsule, data: pin.Data) -> float:
+    """Distance between the sphere sets of two capsules (negative: overlap) [m]."""
+    (s1, r1), (s2, r2) = c1.spheres(), c2.spheres()
+    w1 = s1 @ data.oMi[c1.joint].rotation.T + data.oMi[c1.joint].translation
+    w2 = s2 @ data.oMi[c2.joint].rotation.T + data.oMi[c2.joint].translation
+    return float(np.min(np.linalg.norm(w1[:, None, :] - w2[None, :, :], axis=2))) - r1 - r2
+
+
 def pair_distances(cm: CollisionModel, model: pin.Model, q: np.ndarray,
                    pairs: tuple[tuple[str, str], ...] | None = None) -> dict[tuple[str, str], float]:
     """Capsule distance of every checked pair (or of ``pairs``) at configuration ``q`` [m]."""
     data = model.createData()
     pin.forwardKinematics(model, data, q)
-    caps = {c.link: c for c in cm.capsules}
-    return {p: capsule_distance(caps[p[0]], caps[p[1]], data) for p in (cm.pairs if pairs is None else pairs)}
+    return {p: min(capsule_distance(c1, c2, data) for c1 in cm.capsules_of(p[0]) for c2 in cm.capsules_of(p[1]))
+            for p in (cm.pairs if pairs is None else pairs)}
 
 
 def mesh_distances(robot: Robot, q: np.ndarray, pairs: list[tuple[str, str]]) -> dict[tuple[str, str], float]:
@@ -372,10 +450,12 @@ def _build(robot: Robot) -> CollisionModel:
     model = robot.model
     capsules = []
     for link, (joint, pts) in link_points(robot).items():
-        placement, length, radius = fit_capsule(pts)
-        capsules.append(Capsule(link=link, joint=joint, placement=placement, length=length, radius=radius))
-    caps = {c.link: c for c in capsules}
-    links = [c.link for c in capsules]
+        for placement, length, radius in fit_link(pts):
+            capsules.append(Capsule(link=link, joint=joint, placement=placement, length=length, radius=radius))
+    caps: dict[str, list[Capsule]] = {}
+    for c in capsules:
+        caps.setdefault(c.link, []).append(c)
+    links = list(caps)
     table = robot.profile.collisions
     _check_table(robot, links)
     srdf = srdf_disabled_pairs(srdf_path(robot))
@@ -391,7 +471,7 @@ def _build(robot: Robot) -> CollisionModel:
             skipped[pair] = "profile"
         elif pair in srdf:
             skipped[pair] = "srdf"
-        elif _adjacent(model, caps[a].joint, caps[b].joint):
+        elif _adjacent(model, caps[a][0].joint, caps[b][0].joint):
             skipped[pair] = "adjacent"
         else:
             candidates.append(pair)
@@ -400,8 +480,8 @@ def _build(robot: Robot) -> CollisionModel:
     pin.forwardKinematics(model, data, robot.q_standing)
     pairs = set(added)
     for pair in candidates:
-        d_caps = capsule_distance(caps[pair[0]], caps[pair[1]], data)
-        if rest_mesh.get(pair, math.inf) < REST_MARGIN or d_caps < REST_MARGIN:
+        d_caps = min(sphere_distance(c1, c2, data) for c1 in caps[pair[0]] for c2 in caps[pair[1]])
+        if rest_mesh.get(pair, math.inf) < REST_MARGIN or d_caps < REST_SPHERE_MARGIN:
             skipped[pair] = "touching at rest"
         else:
             pairs.add(pair)
@@ -423,7 +503,7 @@ def cache_key(robot: Robot) -> str:
     """Hash of what the model depends on: URDF and SRDF content, the profile's collision table, the
     standing posture and :data:`FIT_VERSION`."""
     h = hashlib.sha256()
-    h.update(f"fit-v{FIT_VERSION}|{REST_MARGIN}|{robot.name}".encode())
+    h.update(f"fit-v{FIT_VERSION}|{REST_MARGIN}|{REST_SPHERE_MARGIN}|{robot.name}".encode())
     for path in (robot.urdf_path, srdf_path(robot)):
         if path:
             try:

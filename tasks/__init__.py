@@ -2,6 +2,7 @@
 
 ``tasks.specs`` holds the data types (:class:`TaskSpec`, :class:`Phase`, :class:`Contact`,
 :class:`FrameTarget`, :class:`CoMTarget`, :class:`CoMBounds`, :class:`JointTarget`);
+``tasks.scene`` the world around the robot (:class:`Scene`, :class:`SceneObject`, scene files);
 ``tasks.serialize`` their exact JSON round-trip; ``tasks.compose.compile_actions`` turns
 registry actions into one spec (imported on first access: it loads the primitive registry).
 """
@@ -11,7 +12,8 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from tasks.exceptions import TaskDefinitionError, TaskError, UnknownAction
+from tasks.exceptions import SceneConflict, TaskDefinitionError, TaskError, UnknownAction
+from tasks.scene import Scene, SceneObject, load_scene
 from tasks.serialize import load_spec, spec_from_dict, spec_from_json, spec_to_dict, spec_to_json
 from tasks.specs import (
     CoMBounds,
@@ -43,11 +45,15 @@ __all__ = [
     "Phase",
     "Pose",
     "Priority",
+    "Scene",
+    "SceneConflict",
+    "SceneObject",
     "TaskDefinitionError",
     "TaskError",
     "TaskSpec",
     "UnknownAction",
     "compile_actions",
+    "load_scene",
     "load_spec",
     "spec_from_dict",
     "spec_from_json",

@@ -17,6 +17,7 @@ from robots.exceptions import FrameNotFound
 from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.limits import GROUND_TOLERANCE, START_TOLERANCE
+from tasks.scene import SCENE_MARGIN, check_spec_in_scene
 from tasks.specs import TaskSpec
 
 
@@ -53,6 +54,32 @@ def check_spec_for_robot(spec: TaskSpec, robot: Robot) -> None:
                 "one angle"
             )
     _check_start(spec, robot)
+
+
+def check_spec_in_scene_for_robot(spec: TaskSpec, robot: Robot, *, margin: float = SCENE_MARGIN) -> None:
+    """Refuse hand targets and footsteps inside the spec's scene objects, soles included.
+
+    :func:`tasks.scene.check_spec_in_scene` with the robot's sole corners for every contact on
+    a foot frame: a sole that overlaps an object (within ``margin``) is refused as well as one
+    whose frame origin is inside it.
+
+    Raises:
+        SceneConflict: naming the object (exit 4, infeasible in that scene).
+    """
+    if spec.scene is None or not spec.scene.objects:
+        return
+    from robots.contact import sole_corners
+
+    roles = {robot.frame_id(f"{side}_{part}"): (side, part) for side in ("left", "right") for part in ("foot", "hand")}
+    points, labels = {}, {}
+    for frame in {*spec.contact_frames(), *(t.frame for t in spec.targets)}:
+        side_part = roles.get(robot.frame_id(frame))
+        if side_part is None:
+            continue
+        labels[frame] = f"{side_part[0]} {side_part[1]}"
+        if side_part[1] == "foot":
+            points[frame] = sole_corners(robot.profile.sole, side_part[0])
+    check_spec_in_scene(spec, margin=margin, contact_points=points, labels=labels)
 
 
 def _frame_id(robot: Robot, frame: str, where: str) -> int:
@@ -95,4 +122,4 @@ def _close(name: str, names: list[str]) -> str:
     return f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
 
 
-__all__ = ["check_spec_for_robot"]
+__all__ = ["check_spec_for_robot", "check_spec_in_scene_for_robot"]

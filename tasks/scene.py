@@ -307,33 +307,52 @@ def _frame_words(frame: str) -> str:
     return frame.replace("_", " ")
 
 
+def _relation(d: float) -> str:
+    if d < -1e-9:
+        return "inside"
+    if d <= 1e-9:
+        return "against"
+    return f"{d * 100:.1f} cm from"
+
+
 def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
-                        contact_points: Mapping[str, Any] | None = None) -> None:
+                        contact_points: Mapping[str, Any] | None = None,
+                        labels: Mapping[str, str] | None = None) -> None:
     """Refuse a spec whose hand targets or footsteps lie inside a scene object (or within ``margin``).
 
     A frame target's position (every axis counted) closer than ``margin`` to an object, or a
     contact whose placement (and, when ``contact_points`` gives them for its frame, the points
-    ``(k, 3)`` in the contact frame, e.g. the sole corners) comes closer than ``margin`` to an
-    object, raises :class:`~tasks.exceptions.SceneConflict` naming the object. A contact lying on
-    the top face of an upright box or cylinder is a support, not a conflict. Meshes are not
-    checked here (the planner keeps the robot clear of them).
+    ``(k, 3)`` in the contact frame, e.g. the sole corners), lifted by ``2 * margin`` along the
+    contact normal (the foot above its sole), comes closer than ``margin`` to an object, raises :class:`~tasks.exceptions.SceneConflict` naming the object. A contact whose
+    points all lie on the top face of an upright box or cylinder stands on it: a support, not a
+    conflict. Meshes are not checked here (the planner keeps the robot clear of them).
+
+    Args:
+        spec: The spec, with its scene.
+        margin: The planner's clearance [m].
+        contact_points: Per contact frame, points in the contact frame [m] (the sole corners).
+        labels: Per frame, the words messages use (``right hand``); default: the frame name.
 
     Raises:
-        SceneConflict: message in task terms, ``the right hand target (0.45, -0.2, 0.8) is inside
-            the table: ...``; exit code 4 (infeasible).
+        SceneConflict: message in task terms, ``the right hand target (0.45, -0.2, 0.8) of 'reach' is
+            inside the table (...)``; exit code 4 (infeasible).
     """
     scene = spec.scene
     if scene is None or not scene.objects:
         return
+    words = dict(labels or {})
+
+    def label(frame: str) -> str:
+        return words.get(frame, _frame_words(frame))
+
     for target in spec.targets:
         if target.position is None or not all(target.axes):
             continue
         hit = closest_object(scene, target.position)
         if hit is not None and hit[1] < margin:
             obj, d = hit
-            where = "inside" if d < 0 else f"{d * 100:.1f} cm from"
             raise SceneConflict(
-                f"the {_frame_words(target.frame)} target {_point(target.position)} of {target.name!r} is {where} "
+                f"the {label(target.frame)} target {_point(target.position)} of {target.name!r} is {_relation(d)} "
                 f"the {obj.name} ({_where(obj)}; the robot keeps {margin:g} m away from objects): move the "
                 f"target out of the {obj.name}, or the {obj.name} in the scene", obj.name)
     seen: set[tuple[str, tuple[float, ...], tuple[float, ...]]] = set()
@@ -347,18 +366,23 @@ def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
             local: list[tuple[float, ...]] = [(0.0, 0.0, 0.0)]
             if contact_points is not None and contact.frame in contact_points:
                 local += [tuple(float(c) for c in p) for p in contact_points[contact.frame]]
-            for lp in local:
-                p = tuple(contact.placement.position[i] + sum(R[i][j] * lp[j] for j in range(3)) for i in range(3))
-                for obj in scene.objects:
-                    dist = signed_distance(obj, p)
-                    if dist is None or dist >= margin or on_top(obj, p):
-                        continue
-                    where = "inside" if dist < 0 else f"{dist * 100:.1f} cm from"
-                    raise SceneConflict(
-                        f"the {_frame_words(contact.frame)} placement {_point(contact.placement.position)} in phase "
-                        f"{phase.name!r} puts the sole {where} the {obj.name} ({_where(obj)}; the robot keeps "
-                        f"{margin:g} m away from objects): step elsewhere, or move the {obj.name} in the scene",
-                        obj.name)
+            points = [tuple(contact.placement.position[i] + sum(R[i][j] * lp[j] for j in range(3)) for i in range(3))
+                      for lp in local]
+            # the foot is above its sole: test the sole points lifted by twice the margin along the
+            # contact normal (a sole under an object's bottom face is inside it, not "against" it)
+            lifted = [tuple(p[i] + 2 * margin * R[i][2] for i in range(3)) for p in points]
+            for obj in scene.objects:
+                dists = [signed_distance(obj, p) for p in lifted]
+                if any(d is None for d in dists):
+                    continue
+                d = min(x for x in dists if x is not None)
+                if d >= margin or all(on_top(obj, p) for p in points):
+                    continue
+                raise SceneConflict(
+                    f"the {label(contact.frame)} placement {_point(contact.placement.position)} in phase "
+                    f"{phase.name!r} puts the sole {_relation(d)} the {obj.name} ({_where(obj)}; the robot keeps "
+                    f"{margin:g} m away from objects): step elsewhere, or move the {obj.name} in the scene",
+                    obj.name)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -1,7 +1,8 @@
 """JSON schema of the TaskSpec file format, generated from the spec dataclasses.
 
 ``python -m tasks.spec_schema > docs/task-spec.schema.json`` regenerates the published schema
-(a test checks that the file is up to date). The schema mirrors :mod:`tasks.serialize`: one
+(a test checks that the file is up to date); ``python -m tasks.spec_schema --scene >
+docs/scene.schema.json`` the scene file's. The schema mirrors :mod:`tasks.serialize`: one
 object per dataclass with exactly its fields (``additionalProperties: false``), tuples as
 fixed-length arrays, ``X | None`` as ``anyOf [X, null]``, enums as their values, and the field
 descriptions taken from the dataclass docstrings. Value checks that JSON schema cannot express
@@ -18,9 +19,11 @@ import types
 import typing
 from typing import Any
 
+from tasks.scene import SCENE_VERSION, Scene
 from tasks.specs import SPEC_VERSION, TaskSpec
 
 SCHEMA_ID = "https://wbmp.invalid/task-spec.schema.json"  # a name, not a location
+SCENE_SCHEMA_ID = "https://wbmp.invalid/scene.schema.json"
 
 
 def _attribute_docs(cls: type) -> dict[str, str]:
@@ -107,10 +110,31 @@ def task_spec_schema() -> dict[str, Any]:
     }
 
 
-def schema_json() -> str:
-    """The schema as the text of ``docs/task-spec.schema.json``."""
-    return json.dumps(task_spec_schema(), indent=2, ensure_ascii=False) + "\n"
+def scene_schema() -> dict[str, Any]:
+    """The JSON schema (draft 2020-12) of a scene file (docs/scenes.md)."""
+    defs: dict[str, Any] = {}
+    type_schema(Scene, defs)
+    root = dict(defs.pop("Scene"))
+    root["properties"] = {
+        "version": {"const": SCENE_VERSION, "description": "File format version."}, **root["properties"]
+    }
+    obj = defs["SceneObject"]
+    obj["properties"]["shape"] = {**obj["properties"]["shape"], "enum": ["box", "cylinder", "sphere", "mesh"]}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": SCENE_SCHEMA_ID,
+        "title": "wbmp scene",
+        **root,
+        "$defs": dict(sorted(defs.items())),
+    }
+
+
+def schema_json(*, scene: bool = False) -> str:
+    """The schema as the text of ``docs/task-spec.schema.json`` (``scene``: ``docs/scene.schema.json``)."""
+    return json.dumps(scene_schema() if scene else task_spec_schema(), indent=2, ensure_ascii=False) + "\n"
 
 
 if __name__ == "__main__":
-    print(schema_json(), end="")
+    import sys
+
+    print(schema_json(scene="--scene" in sys.argv[1:]), end="")

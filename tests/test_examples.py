@@ -42,3 +42,25 @@ def test_examples_have_help(name, capsys):
         load_example(name).main(["--help"])
     assert exit_info.value.code == 0
     assert "usage" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["table", "box_on_floor", "narrow_passage"])
+def test_example_scenes_load(name):
+    """Each example scene file loads, and its objects stand on the floor (none below z = 0)."""
+    from tasks.scene import extent, load_scene
+
+    scene = load_scene(EXAMPLES / "scenes" / f"{name}.json")
+    assert scene.objects
+    for obj in scene.objects:
+        lower, _ = extent(obj)
+        assert lower[2] == pytest.approx(0.0, abs=1e-9), obj.name
+
+
+def test_narrow_passage_leaves_room_for_a_walk():
+    """The two walls leave more than Talos's width (1.1 m apart, arms at y = +-0.44 m) along x."""
+    from tasks.scene import extent, load_scene
+
+    scene = load_scene(EXAMPLES / "scenes" / "narrow_passage.json")
+    left, right = extent(scene.get("left wall")), extent(scene.get("right wall"))
+    assert left[0][1] - right[1][1] == pytest.approx(1.1)
+    assert left[0][0] > 0.1 and left[1][0] > 2.0  # from in front of the feet to 2 m ahead

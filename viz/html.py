@@ -95,6 +95,7 @@ def page_data(robot: Robot, plan, *, execution=None) -> str:
     scene.add_ground(vis)
     scene.add_robot(vis, robot, motion="planned", compact=True)
     schedule = scene.add_markers(vis, robot, plan)
+    scene.add_scene(vis, getattr(plan.spec, "scene", None))
     scene.set_robot_configuration(vis, robot, planned.q[0], motion="planned")
 
     motions: dict[str, bytes] = {}
@@ -165,6 +166,11 @@ def _subtitle(robot_name: str, plan, execution=None) -> str:
     stats = getattr(plan, "stats", None)
     if stats is not None:
         parts.append(f"solver: {stats.status.name.lower()}")
+    scene = getattr(getattr(plan, "spec", None), "scene", None)
+    if scene is not None and scene.objects:
+        names = [o.name for o in scene.objects]
+        shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+        parts.append(f"scene: {shown}")
     if execution is not None:
         certificate = getattr(execution, "certificate", None)
         ok = getattr(certificate, "ok", None)

@@ -196,6 +196,7 @@ def load_scene(vis, robot: Robot, plan, *, execution=None) -> tuple[float, list[
     if simulated is not None:
         scene.add_robot(vis, robot, motion="simulated", color=scene.SIMULATED_COLOR, opacity=0.45)
     schedule = scene.add_markers(vis, robot, plan)
+    scene.add_scene(vis, getattr(plan.spec, "scene", None))
     scene.set_robot_configuration(vis, robot, planned.q[0], motion="planned")
     clips, duration = scene.motion_animations(vis, robot, planned, robot_node="planned", fps=FPS)
     if simulated is not None:

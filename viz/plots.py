@@ -84,6 +84,7 @@ def plot_com_support(path: Path, robot: Robot, plan, *, simulated: vm.Motion | N
                                           edgecolor=SUPPORT_EDGE, lw=1.0))
         for corners in ph.soles.values():
             ax_top.add_patch(PolygonPatch(corners[:, :2], closed=True, fill=False, edgecolor="#555", lw=0.8))
+    _draw_scene_top(ax_top, getattr(plan.spec, "scene", None))
     ax_top.plot(com[:, 0], com[:, 1], color=PLAN_COLOR, lw=2, label="CoM (plan)")
     ax_top.plot(com[0, 0], com[0, 1], "o", color=PLAN_COLOR, ms=5)
     if zmp is not None:
@@ -144,6 +145,26 @@ def plot_com_support(path: Path, robot: Robot, plan, *, simulated: vm.Motion | N
     fig.suptitle(_title(robot, plan), fontsize=11)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _draw_scene_top(ax, scene_data) -> None:
+    """Each scene object's footprint (seen from above) in its colour, with its name (``gid`` =
+    ``scene/<name>``, so a test can find the patch)."""
+    if scene_data is None:
+        return
+    from viz.scene import footprint
+
+    for obj in scene_data.objects:
+        outline = footprint(obj)
+        if outline is None or len(outline) < 3:
+            continue
+        r, g, b, _ = (float(c) for c in obj.colour)
+        patch = PolygonPatch(outline, closed=True, facecolor=(r, g, b), alpha=0.45, edgecolor=(r * 0.6, g * 0.6, b * 0.6),
+                             lw=1.0, hatch="//")
+        patch.set_gid(f"scene/{obj.name}")
+        ax.add_patch(patch)
+        centre = outline.mean(axis=0)
+        ax.text(float(centre[0]), float(centre[1]), obj.name, ha="center", va="center", fontsize=7, color="#333")
 
 
 def _title(robot: Robot, plan) -> str:

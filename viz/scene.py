@@ -15,6 +15,8 @@ Scene tree (under meshcat's ``/meshcat`` root)::
     wbmp/com/path                         planned CoM path (line)
     wbmp/com/point, wbmp/com/ground       CoM and its ground projection (animated)
     wbmp/paths/<frame>                    planned path of each frame that has a target
+    wbmp/scene/<object>                   a scene object at its pose (the spec's scene)
+    wbmp/scene/<object>/shape             its shape (a cylinder turned upright; a mesh scaled)
 
 Why ``<geometry>`` and ``<geometry>/mesh`` are separate nodes: animation tracks carry a
 position and a quaternion, and a mirrored mesh (negative scale) has no rotation quaternion, so
@@ -298,6 +300,105 @@ def add_ground(vis, *, half_size: float = 2.0, spacing: float = 0.25) -> None:
         segs += [[x, -half_size, 0.0005], [x, half_size, 0.0005], [-half_size, x, 0.0005], [half_size, x, 0.0005]]
     pts = np.asarray(segs, dtype=np.float32).T
     floor["grid"].set_object(mg.LineSegments(mg.PointsGeometry(pts), mg.LineBasicMaterial(color=0xA4A9B2)))
+
+
+def object_transform(obj) -> np.ndarray:
+    """The 4x4 world placement of a scene object (``tasks.scene.SceneObject``): rpy + position."""
+    T = np.eye(4)
+    T[:3, :3] = pin.rpy.rpyToMatrix(*(float(a) for a in obj.rpy))
+    T[:3, 3] = [float(c) for c in obj.position]
+    return T
+
+
+_UPRIGHT = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]])  # meshcat y axis -> z
+
+
+def _object_geometry(obj) -> tuple[mg.Geometry | None, np.ndarray]:
+    """(meshcat geometry, static transform of the shape node) of a scene object."""
+    size = [float(v) for v in obj.size]
+    if obj.shape == "box":
+        return mg.Box(size), np.eye(4)
+    if obj.shape == "sphere":
+        return mg.Sphere(size[0]), np.eye(4)
+    if obj.shape == "cylinder":
+        return mg.Cylinder(size[1], radius=size[0]), _UPRIGHT  # meshcat's cylinders run along y
+    path = str(obj.mesh or "")
+    suffix = path.rsplit(".", 1)[-1].lower()
+    loaders = {"stl": mg.StlMeshGeometry, "obj": mg.ObjMeshGeometry, "dae": mg.DaeMeshGeometry}
+    try:
+        geometry = loaders[suffix].from_file(path) if suffix in loaders else None
+    except OSError:
+        geometry = None
+    return geometry, np.diag([*size, 1.0])
+
+
+def add_scene(vis, scene) -> list[str]:
+    """Draw every object of a scene (``tasks.scene.Scene``; None draws nothing) in its colour.
+
+    Returns:
+        The node paths drawn (``wbmp/scene/<name>``); a mesh whose file cannot be read is left out.
+    """
+    drawn: list[str] = []
+    if scene is None:
+        return drawn
+    for obj in scene.objects:
+        geometry, shape_T = _object_geometry(obj)
+        if geometry is None:
+            continue
+        r, g, b, a = (float(c) for c in obj.colour)
+        material = mg.MeshLambertMaterial(color=_rgb_int((r, g, b)), opacity=a, transparent=a < 1.0)
+        node = vis[ROOT]["scene"][node_name(obj.name)]
+        node.set_transform(object_transform(obj))
+        node["shape"].set_object(geometry, material)
+        node["shape"].set_transform(shape_T)
+        drawn.append(f"{ROOT}/scene/{node_name(obj.name)}")
+    return drawn
+
+
+def footprint(obj, *, segments: int = 48) -> np.ndarray | None:
+    """The outline (k, 2) of a scene object seen from above (convex hull of its ground projection)
+    [m]; None for a mesh (its extent is not read)."""
+    size = [float(v) for v in obj.size]
+    if obj.shape == "mesh":
+        return None
+    T = object_transform(obj)
+    if obj.shape == "box":
+        hx, hy, hz = (v / 2 for v in size)
+        local = np.array([[sx * hx, sy * hy, sz * hz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    else:
+        a = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+        r = size[0]
+        if obj.shape == "sphere":
+            centre = T[:2, 3]
+            return np.column_stack([centre[0] + r * np.cos(a), centre[1] + r * np.sin(a)])
+        ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
+        half = size[1] / 2
+        local = np.vstack([np.column_stack([ring, np.full(segments, -half)]),
+                           np.column_stack([ring, np.full(segments, half)])])
+    world = local @ T[:3, :3].T + T[:3, 3]
+    return _hull(world[:, :2])
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull of 2-D points, counter-clockwise (monotone chain)."""
+    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in points})
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def cross(o, a, b) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[tuple[float, float]] = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list[tuple[float, float]] = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
 
 
 def _translation(p: Sequence[float]) -> np.ndarray:

@@ -12,11 +12,13 @@ else ``~/.cache/wbmp``, beside the solver cache's ``planner/``):
   meshes). A repeat is answered from it without loading the robot.
 
 The motion key (:func:`motion_key`) is a sha256 of everything that determines the numbers: the
-compiled TaskSpec's JSON without its description (two phrasings of one spec share an entry),
+compiled TaskSpec's JSON without its description (two phrasings of one spec share an entry; its
+scene included, with the sha256 of the scene's mesh files),
 the robot (profile, and the sha256 of its URDF and mesh files), the simulate flag and the push,
 the solver's environment switches (``WBMP_COMPILE``), the versions of wbmp and of the numeric
 libraries, and a hash of the sources of ``language/ tasks/ robots/ planner/ sim/`` and of the
-pipeline (:func:`source_hash`). The request key adds the request's own text.
+pipeline (:func:`source_hash`). The request key adds the request's own text (and the content
+of its ``--scene`` file; a scene with meshes takes the ordinary path).
 
 Nothing is trusted blindly: an entry is used only when the sha256 of its file matches its
 manifest and :func:`wbmp.motionfile.motion_from_arrays` accepts every key, and when the spec it
@@ -156,10 +158,28 @@ def spec_identity(spec) -> str:
     return spec_to_json(dataclasses.replace(spec, description=""), indent=None)
 
 
+def scene_files(spec) -> dict[str, str | None]:
+    """sha256 of each mesh file of the spec's scene (None: unreadable); the scene's own numbers
+    are in the spec's JSON."""
+    scene = getattr(spec, "scene", None)
+    if scene is None:
+        return {}
+    out: dict[str, str | None] = {}
+    for obj in scene.objects:
+        if obj.mesh is not None:
+            try:
+                out[obj.mesh] = _sha256_file(obj.mesh)
+            except (OSError, ValueError):
+                out[obj.mesh] = None
+    return out
+
+
 def motion_key(spec, robot_digest: str, *, simulate: bool, push: Any) -> str:
     """The key of a motion: a sha256 of everything that determines it (module docstring)."""
+    meshes = scene_files(spec)
     return _digest({"spec": spec_identity(spec), "robot": robot_digest, "simulate": bool(simulate),
-                    "push": None if push is None else repr(push), **_environment()})
+                    "push": None if push is None else repr(push), **({"scene_meshes": meshes} if meshes else {}),
+                    **_environment()})
 
 
 MAX_INPUT_BYTES = 16 << 20  # [bytes] a spec or profile file larger than this takes no fast path
@@ -191,6 +211,20 @@ def request_key(request) -> str | None:
         spec_text = _input_digest(request.spec_path)
         if spec_text is None:
             return None
+    scene_text = None
+    scene_path = getattr(request, "scene_path", None)
+    if scene_path is not None:
+        if scene_path == "-" or not _is_regular(scene_path):
+            return None
+        scene_text = _input_digest(scene_path)
+        if scene_text is None:
+            return None
+        try:
+            with _open_regular(scene_path, MAX_INPUT_BYTES) as f:
+                if b'"mesh"' in f.read(MAX_INPUT_BYTES):
+                    return None  # the mesh files it names count too: the ordinary path hashes them (motion_key)
+        except (OSError, ValueError):
+            return None
     robot = request.robot
     robot_text = None
     if robot is not None and _is_regular(robot):  # a profile file: its content counts
@@ -198,7 +232,8 @@ def request_key(request) -> str | None:
         if robot_text is None:
             return None
         robot = str(Path(robot).resolve())
-    return _digest({"instruction": request.instruction, "spec": spec_text, "robot": robot,
+    extra = {"scene": scene_text} if scene_text is not None else {}
+    return _digest({"instruction": request.instruction, "spec": spec_text, **extra, "robot": robot,
                     "robot_file": robot_text, "simulate": bool(request.simulate), "push": request.push,
                     **_environment()})
 

@@ -29,6 +29,7 @@ class SolveRequest:
     Attributes:
         instruction: A sentence (English or Chinese), or None when ``spec_path`` is given.
         spec_path: A TaskSpec JSON file, or None.
+        scene_path: A scene JSON file (docs/scenes.md), or None; it replaces the spec's own scene.
         robot: Robot name or profile file; None = the spec's robot (or talos for a sentence).
         parser: ``rules`` or ``llm``.
         llm_options: Options of the LLM backend (url, model, api_key, timeout).
@@ -37,12 +38,13 @@ class SolveRequest:
             ``sim.MAX_PUSH_FORCE``, and a time within the motion (0 <= t < horizon).
 
     :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
-    needs no work to see: an empty ``robot``, an instruction longer than
+    needs no work to see: an empty ``robot`` or ``scene_path``, an instruction longer than
     ``tasks.limits.MAX_TEXT_LENGTH`` characters, a push without the simulation.
     """
 
     instruction: str | None = None
     spec_path: str | None = None
+    scene_path: str | None = None
     robot: str | None = None
     parser: str = "rules"
     llm_options: dict[str, Any] = field(default_factory=dict)
@@ -55,6 +57,7 @@ class SolveRequest:
         from wbmp.errors import ROBOT_HINT, require_text
 
         require_text(self.robot, "--robot", ROBOT_HINT)
+        require_text(self.scene_path, "--scene", "give a scene JSON file (docs/scenes.md)")
         if self.instruction is not None and len(self.instruction) > MAX_TEXT_LENGTH:
             raise CliError(f"the instruction is {len(self.instruction):,} characters long; wbmp reads at most "
                            f"{MAX_TEXT_LENGTH:,} (one to a few sentences)", ExitCode.USAGE)
@@ -122,19 +125,31 @@ def parse_instruction(request: SolveRequest):
 
 
 def build_spec(request: SolveRequest, progress: Progress = _silent):
-    """(robot, spec, actions) for a sentence or a spec file."""
+    """(robot, spec, actions) for a sentence or a spec file (with the scene file, when given).
+
+    The scene is loaded first (a bad scene file: exit 3 before anything else); a hand target or
+    a footstep inside one of its objects is refused before planning (exit 4, naming the object).
+    """
     import dataclasses
 
     from robots import load_robot
-    from tasks.robot_check import check_spec_for_robot
+    from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
     from tasks.serialize import load_spec
 
+    scene = None
+    if request.scene_path is not None:
+        from tasks.scene import load_scene
+
+        scene = load_scene(request.scene_path)
     if request.spec_path is not None:
         spec = load_spec(request.spec_path)
         robot = load_robot(request.robot or spec.robot)
         if request.robot:
             spec = dataclasses.replace(spec, robot=robot.name)
+        if scene is not None:
+            spec = dataclasses.replace(spec, scene=scene)
         check_spec_for_robot(spec, robot)  # unknown joints, contacts off the ground: exit 3, before planning
+        check_spec_in_scene_for_robot(spec, robot)  # a target inside an object: exit 4, before planning
         return robot, spec, None
     if not request.instruction or not request.instruction.strip():
         raise CliError("give an instruction in quotes, or --spec FILE", ExitCode.USAGE)
@@ -144,8 +159,9 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     from tasks.compose import compile_actions
 
     spec = compile_actions(actions.actions, robot)
-    spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction)
+    spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction, scene=scene)
     check_spec_for_robot(spec, robot)
+    check_spec_in_scene_for_robot(spec, robot)
     return robot, spec, actions
 
 

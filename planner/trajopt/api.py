@@ -30,9 +30,17 @@ from planner.exceptions import PlanningFailed
 from planner.results import Plan, SolverStats, SolveStatus
 from planner.trajopt.centroidal.layout import to_dynamic_layout
 from planner.trajopt.checks import precheck
+from planner.trajopt.collision import (
+    collision_diagnosis,
+    missing_rows,
+    select,
+    set_collision_terms,
+    sphere_pair_distances,
+    sphere_sets,
+)
 from planner.trajopt.diagnose import diagnose_failure
-from planner.trajopt.layout import make_layout
-from planner.trajopt.report import make_plan
+from planner.trajopt.layout import Layout, make_layout
+from planner.trajopt.report import configurations, make_plan
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.solve import solve_layout
 from robots.model import Robot
@@ -79,15 +87,51 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             raise PlanningFailed(problem, failed)
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
-    dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
+    dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:
         return result
     if progress:
         progress("the solve failed: diagnosing")
-    diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
+    diagnosis = ""
+    if settings.self_collision and settings.diagnose:
+        diagnosis = collision_diagnosis(lay, settings)
+    if not diagnosis:
+        diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
     result = make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks, forces=forces)
     if throw:
         raise PlanningFailed(diagnosis, result)
     return result
+
+
+def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
+                           x0: np.ndarray) -> tuple[np.ndarray, SolverStats, dict]:
+    """Solve with self-collision rows (planner/trajopt/collision.py): rows for the pairs the initial
+    guess brings within the screening distance; then every pair is checked on the solution and a
+    pair within the margin without rows is added and the NLP solved again from that solution."""
+    if not settings.self_collision:
+        return solve_layout(lay, settings, progress, x0=x0)
+    robot = lay.robot
+    sets = sphere_sets(robot)
+    margin, screening = settings.collision_margin, settings.collision_screening
+    n_kin = robot.nv * (lay.N - 2)
+    dq0 = np.zeros((lay.N + 1, robot.nv))
+    dq0[2:lay.N] = x0[:n_kin].reshape(lay.N - 2, robot.nv)
+    dq0[lay.N] = dq0[lay.N - 1]
+    rows = select(lay, sets, sphere_pair_distances(robot, sets, configurations(lay, dq0)), screening)
+    set_collision_terms(lay, sets, rows, sorted(rows.spheres), margin)
+    for round_ in range(settings.collision_rounds + 1):
+        dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
+        if not stats.status.ok or round_ == settings.collision_rounds:
+            return dq, stats, raw
+        more = missing_rows(lay, sets, rows, sphere_pair_distances(robot, sets, configurations(lay, dq)),
+                            margin, screening)
+        changed = rows.merge(more)
+        if not changed:
+            return dq, stats, raw
+        if progress:
+            progress(f"{len(changed)} more link pair(s) came within the collision margin: solving again")
+        set_collision_terms(lay, sets, rows, changed, margin)
+        x0 = raw["x"]
+    return dq, stats, raw

@@ -149,6 +149,10 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     vviol = (np.abs(v[:, 6:]) - vmax).max(axis=1)
     checks.append(_worst("joint velocity limits", CheckKind.JOINT_VELOCITY_LIMITS, vviol, t,
                          settings.limit_tolerance / lay.dt, "rad/s"))
+    if settings.self_collision:
+        from planner.trajopt.collision import self_collision_check
+
+        checks.append(self_collision_check(lay, q, settings))
     return checks
 
 

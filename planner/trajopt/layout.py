@@ -48,7 +48,7 @@ class Term:
     """One constraint or cost at one knot.
 
     Attributes:
-        kind: ``contact``, ``clearance``, ``polygon``, ``com_box``, ``frame_pos``, ``frame_rot``,
+        kind: ``contact``, ``clearance``, ``polygon``, ``com_box``, ``frame_pos``, ``frame_rot``, ``collision``,
             ``com_pos``, ``joint``.
         knot: Knot index (0..N).
         structure: Hashable description of the expression (no numeric values).

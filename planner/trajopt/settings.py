@@ -60,6 +60,11 @@ class PlannerSettings:
             culprit and how far it is.
         ipopt_extra: Further IPOPT options as ``(name, value)`` pairs, applied last (dynamic
             specs prepend ``centroidal.ipopt_options``).
+        self_collision: Keep the links of the robot's collision model apart (``docs/collisions.md``).
+        collision_margin: Smallest distance between two links' sphere sets [m].
+        collision_screening: Pairs closer than this on the initial guess get distance rows [m].
+        collision_rounds: Re-solves allowed when the solution brings an unscreened pair within
+            the margin (each adds its rows and starts from the previous solution).
         warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
             ``"nominal"`` (inverse kinematics at the target times, blended: see
             :mod:`planner.trajopt.nominal`).
@@ -83,6 +88,10 @@ class PlannerSettings:
     centroidal: CentroidalSettings = field(default_factory=CentroidalSettings)
     compile_dynamic: bool = False
     warm_start: str = "nominal"
+    self_collision: bool = True
+    collision_margin: float = 0.01
+    collision_screening: float = 0.03
+    collision_rounds: int = 3
     ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
 
     def __post_init__(self) -> None:
@@ -92,5 +101,10 @@ class PlannerSettings:
             raise PlannerError(f"settings: max_iterations must be >= 1, got {self.max_iterations}")
         if not self.tolerance > 0 or not self.constraint_tolerance > 0:
             raise PlannerError("settings: tolerance and constraint_tolerance must be > 0")
+        if not 0.0 <= self.collision_margin <= 0.5 or not self.collision_screening >= self.collision_margin:
+            raise PlannerError("settings: expected 0 <= collision_margin <= 0.5 m and collision_screening >= "
+                               f"collision_margin, got {self.collision_margin:g} and {self.collision_screening:g}")
+        if self.collision_rounds < 0:
+            raise PlannerError(f"settings: collision_rounds must be >= 0, got {self.collision_rounds}")
         if self.warm_start not in ("standing", "nominal"):
             raise PlannerError(f"settings: warm_start must be 'standing' or 'nominal', got {self.warm_start!r}")

@@ -34,7 +34,8 @@ def stage_function(lay: Layout, term_ids: list[int], name: str) -> ca.Function:
     terms = [lay.terms[i] for i in term_ids]
     frame_ids = sorted({t.structure[1] for t in terms if t.kind in FRAME_KINDS})
     oMi = kin.joint_placements(q_ref, dq)
-    k = {"com": kin.com(oMi), "frames": {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, "dq": dq}
+    k = {"com": kin.com(oMi), "frames": {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, "dq": dq,
+         "oMi": oMi}
     n_p = sum(len(t.params) for t in terms)
     p = ca.SX.sym("p", n_p)
     rows, cost, offset = [], 0, 0
@@ -80,11 +81,27 @@ def term_expression(term: Term, p, kin: dict, q_ref, robot: Robot):
         _, R = kin["frames"][s[1]]
         err = rotation_error(ca.reshape(p[0:9], 3, 3), R)
         return _target_rows(err, s[2], p[9])
+    if kind == "collision":
+        return collision_rows(kin["oMi"], s, p), 0
     if kind == "joint":
         iv = s[1]
         value = q_ref[iv + 1] + kin["dq"][iv]  # one-dof joints: idx_q = idx_v + 1
         return None, p[1] * (value - p[0]) ** 2
     raise PlannerError(f"internal: unknown term kind {kind!r}")
+
+
+def collision_rows(oMi: list, structure: tuple, p):
+    """Squared distances between spheres of two links (``collision`` term): ``p`` holds the centres
+    in the joints' frames, column-major (3, n_a) then (3, n_b); a row ``|c_i - c_j|^2`` per sphere
+    pair ``(i, j)`` of the structure's list."""
+    _, ja, jb, na, nb, chosen = structure
+    worlds = []
+    for j, n, off in ((ja, na, 0), (jb, nb, 3 * na)):
+        R, pos = oMi[j]
+        local = ca.reshape(p[off: off + 3 * n], 3, n)
+        worlds.append(ca.repmat(pos, 1, n) + ca.mtimes(R, local))
+    wa, wb = worlds
+    return ca.vertcat(*[ca.sumsqr(wa[:, i] - wb[:, j]) for i, j in chosen])
 
 
 def _target_rows(err, mode: str, weight):

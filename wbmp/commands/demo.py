@@ -22,6 +22,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "write the motion file and a standalone HTML replay.")
     p.add_argument("sentence", nargs="?", default=DEMO_SENTENCE, help=f"instruction (default: {DEMO_SENTENCE!r})")
     p.add_argument("--robot", default="talos", help="robot name or profile file (default: talos)")
+    p.add_argument("--scene", metavar="FILE", default=None,
+                   help="scene JSON file: objects around the robot (docs/scenes.md)")
     p.add_argument("--html", default="demo.html", help="HTML replay to write (default: demo.html)")
     p.add_argument("--out", default="demo.npz", help="motion file to write (default: demo.npz)")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
@@ -38,9 +40,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.sentence.strip():
         raise CliError(f"the sentence is empty: give an instruction in quotes, or none for {DEMO_SENTENCE!r}",
                        ExitCode.USAGE)
-    request = SolveRequest(instruction=args.sentence, robot=args.robot, simulate=not args.no_sim)
+    request = SolveRequest(instruction=args.sentence, scene_path=args.scene, robot=args.robot,
+                           simulate=not args.no_sim)
     request.check()
-    check_outputs(out=args.out, html=args.html)  # before any work
+    check_outputs(out=args.out, html=args.html, inputs={"--scene": args.scene})  # before any work
     print(f"wbmp demo: {one_line(repr(args.sentence), 200)} on {one_line(args.robot, 200)}")
     progress = make_progress(quiet=args.quiet)
     result = solve(request, progress)

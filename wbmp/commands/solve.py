@@ -26,10 +26,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "the certificate, and write the requested files.",
         epilog='examples: wbmp solve "wave your right hand twice, then squat" --html wave.html   '
                'wbmp solve "深蹲三次" --out squat.npz --plots plots/   '
-               "wbmp solve --spec examples/specs/reach.json --no-sim --json",
+               "wbmp solve --spec examples/specs/reach.json --no-sim --json   "
+               'wbmp solve "reach forward 30 cm" --scene examples/scenes/table.json',
     )
     p.add_argument("instruction", nargs="*", help="the instruction, e.g. \"squat twice\" (or use --spec)")
     p.add_argument("--spec", metavar="FILE", help="TaskSpec JSON file instead of a sentence (docs/spec-format.md)")
+    p.add_argument("--scene", metavar="FILE", default=None,
+                   help="scene JSON file: a floor plus named objects the motion must keep clear of "
+                        "(docs/scenes.md; replaces a spec's own scene)")
     p.add_argument("--robot", default=None,
                    help="robot name or profile file (default: talos, or the spec's robot)")
     p.add_argument("--out", metavar="FILE.npz", default=None,
@@ -71,7 +75,7 @@ def request_from_args(args: argparse.Namespace):
     if args.push and args.no_sim:
         raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
     return SolveRequest(
-        instruction=text or None, spec_path=args.spec, robot=args.robot, simulate=not args.no_sim,
+        instruction=text or None, spec_path=args.spec, scene_path=args.scene, robot=args.robot, simulate=not args.no_sim,
         push=args.push, parser=args.parser, llm_options=llm_options(args),
     )
 
@@ -83,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
     request = request_from_args(args)
     # every output path before any work: a typo must not cost a whole solve (exit 2)
     check_outputs(out=args.out, html=args.html, plots=args.plots,
-                  inputs={"--spec": args.spec, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES
+                  inputs={"--spec": args.spec, "--scene": args.scene, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES
                           else None})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     # --plots draws the simulation's contact forces, which the motion cache does not keep: solved

@@ -1,0 +1,331 @@
+"""Self-collision avoidance: smooth sphere-set distance rows, screened on the initial guess.
+
+Each capsule of the robot's collision model (:mod:`robots.collision`) is covered by a set of
+equal spheres on its axis (:meth:`robots.collision.Capsule.spheres`; the union contains the
+capsule, which contains the link's meshes). A checked link pair at a knot becomes the rows
+
+    ``|c_i - c_j|^2 >= (R_a + R_b + margin)^2``   for every sphere i of a and j of b,
+
+smooth in ``dq`` (no min over segments): a ``collision`` :class:`~planner.trajopt.layout.Term`
+whose structure is ``("collision", joint_a, joint_b, n_a, n_b)`` (so it keys the solver cache)
+and whose parameters are the sphere centres in the joints' frames.
+
+Screening keeps the NLP small: the sphere-set distance of every pair is evaluated (numpy) at
+every knot of the initial guess, and rows are added only for pairs closer than
+``settings.collision_screening`` somewhere, over the knots where they are (widened by
+:data:`KNOT_PADDING` on each side). After a solve every pair is checked on the solution; a pair
+closer than the margin without rows gets them and the NLP is solved again from that solution
+(at most ``settings.collision_rounds`` times). See ``docs/collisions.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from planner.results import Check, CheckKind
+from planner.trajopt.layout import Layout, Term
+from planner.trajopt.settings import PlannerSettings
+from robots.collision import CollisionModel, body_part, collision_model
+from robots.model import Robot
+
+KNOT_PADDING = 3  # knots added on each side of a screened pair's close knots
+CHECK_TOLERANCE = 1e-4  # [m] a pair this much inside the margin without rows triggers another round
+
+
+@dataclass(frozen=True, eq=False)
+class SphereSets:
+    """The sphere sets of a robot's links and checked pairs, flattened for vectorised distances.
+
+    Attributes:
+        model: The collision model.
+        links: Link names (one sphere set per link: the spheres of its capsules).
+        joints: Joint id per link.
+        centres: Sphere centres per link, in its joint frame (n_i, 3) [m].
+        radii: Sphere radii per link (n_i,) [m].
+        pairs: Checked pairs as link indices (P, 2).
+        sa, sb: Flattened sphere indices of every sphere pair of every checked pair.
+        starts: Start of each pair's block in ``sa``/``sb`` (for ``np.minimum.reduceat``).
+        sphere_owner: Link index of every flattened sphere.
+        sphere_local: Every sphere's centre in its joint frame (S, 3) [m].
+        sphere_radius: Every sphere's radius (S,) [m].
+    """
+
+    model: CollisionModel
+    links: tuple[str, ...]
+    joints: np.ndarray
+    centres: tuple[np.ndarray, ...]
+    radii: tuple[np.ndarray, ...]
+    pairs: np.ndarray
+    sa: np.ndarray
+    sb: np.ndarray
+    starts: np.ndarray
+    sphere_owner: np.ndarray
+    sphere_local: np.ndarray
+    sphere_radius: np.ndarray
+
+    @property
+    def pair_names(self) -> list[tuple[str, str]]:
+        """Link names of each checked pair."""
+        return [(self.links[a], self.links[b]) for a, b in self.pairs]
+
+
+_SETS: dict[int, tuple[Robot, SphereSets]] = {}
+
+
+def sphere_sets(robot: Robot) -> SphereSets:
+    """The sphere sets of ``robot`` (cached per robot object)."""
+    hit = _SETS.get(id(robot))
+    if hit is not None and hit[0] is robot:
+        return hit[1]
+    cm = collision_model(robot)
+    links = cm.links
+    index = {name: i for i, name in enumerate(links)}
+    centres, radii, joints = [], [], []
+    for link in links:
+        cs, rs = [], []
+        for c in cm.capsules_of(link):
+            pts, r = c.spheres()
+            cs.append(pts)
+            rs.append(np.full(len(pts), r))
+        centres.append(np.vstack(cs))
+        radii.append(np.concatenate(rs))
+        joints.append(cm.capsules_of(link)[0].joint)
+    offsets = np.cumsum([0] + [len(c) for c in centres])
+    pairs = np.array([(index[a], index[b]) for a, b in cm.pairs], dtype=int).reshape(-1, 2)
+    sa, sb, starts = [], [], []
+    n = 0
+    for a, b in pairs:
+        ia = np.arange(offsets[a], offsets[a + 1])
+        ib = np.arange(offsets[b], offsets[b + 1])
+        starts.append(n)
+        n += len(ia) * len(ib)
+        sa.append(np.repeat(ia, len(ib)))
+        sb.append(np.tile(ib, len(ia)))
+    sets = SphereSets(
+        model=cm, links=links, joints=np.array(joints, dtype=int), centres=tuple(centres), radii=tuple(radii),
+        pairs=pairs, sa=np.concatenate(sa) if sa else np.zeros(0, int), sb=np.concatenate(sb) if sb else np.zeros(0, int),
+        starts=np.array(starts, dtype=int), sphere_owner=np.concatenate([np.full(len(c), i) for i, c in enumerate(centres)]),
+        sphere_local=np.vstack(centres), sphere_radius=np.concatenate(radii))
+    _SETS[id(robot)] = (robot, sets)
+    return sets
+
+
+def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
+    """Distance of every sphere pair of every checked link pair at every configuration: (T, S) [m]
+    (negative: the spheres overlap); pair ``p``'s block starts at ``sets.starts[p]``."""
+    model, data = robot.model, robot.data()
+    out = np.full((len(q), len(sets.sa)), np.inf)
+    if len(sets.sa) == 0:
+        return out
+    rsum = sets.sphere_radius[sets.sa] + sets.sphere_radius[sets.sb]
+    o = sets.sphere_owner
+    for k, qk in enumerate(q):
+        pin.forwardKinematics(model, data, qk)
+        R = np.array([data.oMi[int(j)].rotation for j in sets.joints])
+        p = np.array([data.oMi[int(j)].translation for j in sets.joints])
+        world = np.einsum("nij,nj->ni", R[o], sets.sphere_local) + p[o]
+        out[k] = np.linalg.norm(world[sets.sa] - world[sets.sb], axis=1) - rsum
+    return out
+
+
+def pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
+    """Sphere-set distance of every checked link pair at every configuration: (T, P) [m]."""
+    if len(sets.pairs) == 0:
+        return np.full((len(q), 0), np.inf)
+    return np.minimum.reduceat(sphere_pair_distances(robot, sets, q), sets.starts, axis=1)
+
+
+@dataclass
+class Rows:
+    """The collision rows of a layout, per checked link pair: the sphere pairs (indices into the
+    pair's block) and the knots that carry rows."""
+
+    spheres: dict[int, set[int]] = field(default_factory=dict)
+    knots: dict[int, set[int]] = field(default_factory=dict)
+
+    def merge(self, other: Rows) -> list[int]:
+        """Add ``other``'s rows; returns the pairs whose rows changed."""
+        changed = []
+        for pi in other.spheres:
+            s0, k0 = self.spheres.get(pi, set()), self.knots.get(pi, set())
+            s1, k1 = s0 | other.spheres[pi], k0 | other.knots[pi]
+            if (s1, k1) != (s0, k0):
+                self.spheres[pi], self.knots[pi] = s1, k1
+                changed.append(pi)
+        return changed
+
+
+def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: float,
+           only: np.ndarray | None = None) -> Rows:
+    """Rows for the link pairs closer than ``threshold`` at some variable knot (``distances``:
+    (T, S) per sphere pair): per link pair, the closest sphere pair at each such knot (and every
+    sphere pair marked in ``only``), on those knots widened by :data:`KNOT_PADDING`. ``only``
+    (T, S) bool, when given, restricts the link pairs to those with a marked entry."""
+    rows = Rows()
+    if len(sets.starts) == 0:
+        return rows
+    d = distances.copy()
+    d[:2] = np.inf
+    d[lay.N:] = np.inf
+    pair_min = np.minimum.reduceat(d, sets.starts, axis=1)
+    close_pairs = (pair_min < threshold).any(axis=0)
+    if only is not None:
+        only = only.copy()
+        only[:2] = False
+        only[lay.N:] = False
+        close_pairs &= np.add.reduceat(only.any(axis=0), sets.starts) > 0
+    ends = np.append(sets.starts[1:], len(sets.sa))
+    for pi in np.flatnonzero(close_pairs):
+        a, b = sets.starts[pi], ends[pi]
+        block = d[:, a:b]
+        ks = np.flatnonzero(block.min(axis=1) < threshold)
+        spheres = {int(np.argmin(block[k])) for k in ks}
+        if only is not None:
+            spheres |= {int(i) for i in np.flatnonzero(only[:, a:b].any(axis=0))}
+        knots: set[int] = set()
+        for k in ks:
+            knots.update(range(max(2, int(k) - KNOT_PADDING), min(lay.N - 1, int(k) + KNOT_PADDING) + 1))
+        rows.spheres[int(pi)] = spheres
+        rows.knots[int(pi)] = knots
+    return rows
+
+
+def set_collision_terms(lay: Layout, sets: SphereSets, rows: Rows, pairs: list[int], margin: float) -> None:
+    """(Re)write the ``collision`` terms of link ``pairs`` from ``rows``: one term per pair and knot,
+    a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``."""
+    robot = lay.robot
+    names = {pi: sets.pair_names[pi] for pi in pairs}
+    lay.terms = [t for t in lay.terms if not (t.kind == "collision" and t.item in names.values())]
+    for pi in pairs:
+        a, b = (int(x) for x in sets.pairs[pi])
+        ca_, cb_ = sets.centres[a], sets.centres[b]
+        nb = len(cb_)
+        chosen = tuple((i // nb, i % nb) for i in sorted(rows.spheres[pi]))
+        bound = np.array([(sets.radii[a][i] + sets.radii[b][j] + margin) ** 2 for i, j in chosen])
+        label = f"self-collision {body_part(robot, names[pi][0])} / {body_part(robot, names[pi][1])}"
+        for k in sorted(rows.knots[pi]):
+            lay.terms.append(Term(
+                kind="collision", knot=k,
+                structure=("collision", int(sets.joints[a]), int(sets.joints[b]), len(ca_), nb, chosen),
+                params=np.concatenate([ca_.ravel(), cb_.ravel()]),  # (3, n) column-major: x, y, z per sphere
+                lower=bound, upper=np.full(len(chosen), math.inf),
+                label=label, item=names[pi], phase=lay.phase_name(k),
+            ))
+
+
+def missing_rows(lay: Layout, sets: SphereSets, rows: Rows, distances: np.ndarray, margin: float,
+                 screening: float) -> Rows:
+    """Rows to add after a solve: for each sphere pair closer than the margin (less
+    :data:`CHECK_TOLERANCE`) at a knot where it has no row, that pair's sphere pairs closer than
+    the screening distance, on padded knots."""
+    has = np.zeros(distances.shape, dtype=bool)
+    for pi, sp in rows.spheres.items():
+        ks = sorted(rows.knots[pi])
+        for i in sp:
+            has[ks, sets.starts[pi] + i] = True
+    violated = (distances < margin - CHECK_TOLERANCE) & ~has
+    if not violated[2:lay.N].any():
+        return Rows()
+    return select(lay, sets, distances, screening, only=violated)
+
+
+def strip_collision_terms(lay: Layout) -> Layout:
+    """A copy of ``lay`` without its collision terms (the same class: kinematic or dynamic)."""
+    import copy
+
+    out = copy.copy(lay)
+    out.terms = [t for t in lay.terms if t.kind != "collision"]
+    return out
+
+
+# -- report ------------------------------------------------------------------------------------
+
+
+def closest(robot: Robot, sets: SphereSets, q: np.ndarray, t: np.ndarray) -> tuple[float, float, tuple[str, str]]:
+    """(distance [m], time [s], link pair) of the closest checked pair over a motion."""
+    if len(sets.pairs) == 0:
+        return math.inf, 0.0, ("", "")
+    d = pair_distances(robot, sets, q)
+    k, pi = np.unravel_index(int(np.argmin(d)), d.shape)
+    return float(d[k, pi]), float(t[k]), sets.pair_names[int(pi)]
+
+
+def self_collision_check(lay: Layout, q: np.ndarray, settings: PlannerSettings) -> Check:
+    """The plan's ``self-collision`` check: the closest pair of the collision model and its distance;
+    it fails when the sphere sets interpenetrate by more than ``CHECK_TOLERANCE``."""
+    robot = lay.robot
+    sets = sphere_sets(robot)
+    d, time, (a, b) = closest(robot, sets, q, lay.t)
+    if not math.isfinite(d):
+        return Check.constraint(name="self-collision (no pair to check)", kind=CheckKind.SELF_COLLISION,
+                                violation=0.0, tolerance=CHECK_TOLERANCE, unit="m", time=0.0)
+    name = (f"self-collision (closest: {body_part(robot, a)} / {body_part(robot, b)}, {a} / {b}, "
+            f"{d * 1000:.0f} mm)")
+    return Check.constraint(name=name, kind=CheckKind.SELF_COLLISION, violation=max(0.0, -d),
+                            tolerance=CHECK_TOLERANCE, unit="m", time=time, subject=f"{a}/{b}")
+
+
+# -- diagnosis ---------------------------------------------------------------------------------
+
+
+_DIRECTIONS = (("forward", "back"), ("left", "right"), ("up", "down"))
+
+
+def _advice(lay: Layout, side_hint: str) -> str:
+    """"reach less far right, or with the right hand": from the hard hand targets of the spec."""
+    robot, spec = lay.robot, lay.spec
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, lay.q_ref)
+    base = data.oMf[robot.frame_id("base")]
+    hands = {robot.profile.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
+    best = None
+    for target in spec.targets:
+        if target.position is None:
+            continue
+        frame = robot.profile.frame(target.frame) or target.frame
+        side = hands.get(frame)
+        start = data.oMf[robot.frame_id(target.frame)].translation
+        move = base.rotation.T @ (np.array(target.position) - start)
+        axis = int(np.argmax(np.abs(move)))
+        word = _DIRECTIONS[axis][0 if move[axis] > 0 else 1]
+        score = (side == side_hint, float(np.linalg.norm(move)))
+        if best is None or score > best[0]:
+            best = (score, word, side, target.name)
+    if best is None:
+        return "move less far, or change the posture"
+    _, word, side, name = best
+    if side is None:
+        return f"move {name!r} less far {word}"
+    other = "right" if side == "left" else "left"
+    return f"reach less far {word}, or with the {other} hand"
+
+
+def collision_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
+    """When the plan with collision rows failed: solve without them; if that motion brings a pair
+    within the margin, the collision is the cause, said in task terms (empty string otherwise)."""
+    from planner.trajopt.report import configurations
+    from planner.trajopt.solve import solve_layout
+
+    if not any(t.kind == "collision" for t in lay.terms):
+        return ""
+    free = strip_collision_terms(lay)
+    x0 = free.initial_guess(settings)
+    dq, stats, _ = solve_layout(free, dataclasses.replace(settings, compile=False), x0=x0)
+    if not stats.status.ok:
+        return ""
+    robot = lay.robot
+    q = configurations(free, dq)
+    d, time, (a, b) = closest(robot, sphere_sets(robot), q, lay.t)
+    if d >= settings.collision_margin:
+        return ""
+    pa, pb = body_part(robot, a), body_part(robot, b)
+    if pb.startswith(("left", "right")) and not pa.startswith(("left", "right")):
+        pa, pb = pb, pa  # the moving limb first
+    side = pa.split()[0] if pa.startswith(("left", "right")) else ""
+    what = "pass through" if d < 0 else f"come within {max(d, 0.0) * 1000:.0f} mm of"
+    return f"{pa} would {what} the {pb} at t = {time:.1f} s ({a} / {b}): {_advice(lay, side)}"
