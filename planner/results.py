@@ -78,7 +78,9 @@ class CheckKind(enum.Enum):
     ``FOOT_PLACEMENT``, ``FOOT_SLIP`` (subject: ``left_foot``/``right_foot``, or the frame),
     ``PEAK_TORQUE``, ``QP_FAILURES``, ``COM_TRACKING``, ``HAND_TRACKING`` (subject: the hand's
     role), and ``TARGET_POSITION`` (there its orientation must also be within its tolerance +
-    0.1 rad) and ``COM_TARGET`` as measured in the simulation.
+    0.1 rad) and ``COM_TARGET`` as measured in the simulation, ``SELF_COLLISION`` (shared with the
+    planner's report) and ``SCENE_COLLISION`` (subject there: the closest pair in words, "left
+    forearm / pelvis").
 
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
     """
@@ -111,6 +113,7 @@ class CheckKind(enum.Enum):
     QP_FAILURES = "qp_failures"
     COM_TRACKING = "com_tracking"
     HAND_TRACKING = "hand_tracking"
+    SCENE_COLLISION = "scene_collision"
     RECORDED = "recorded"
 
 

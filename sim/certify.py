@@ -2,7 +2,8 @@
 
 :func:`certify` runs them in a fixed order: fall (base height, tilt), unplanned contacts, per
 stance foot (placement, slip), peak torque, controller QP failures, CoM and hand tracking, then
-the spec's frame and CoM targets as measured in the simulation.
+the spec's frame and CoM targets as measured in the simulation, self-collision and scene collision
+(docs/simulation-collisions.md).
 """
 
 from __future__ import annotations
@@ -14,7 +15,12 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
+from robots.collision import body_part
+from sim.collisions import MeshDistance
 from sim.recording import RunRecord, tilt, torque_fraction
+
+#: Ticks of a pair whose MuJoCo contact is deeper than the limit that coal checks on the meshes.
+CONFIRM_TICKS = 5
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -55,6 +61,8 @@ def certify(run: RunRecord) -> tuple[Check, ...]:
         *hand_checks(run, meas),
         *target_checks(run, meas),
         *com_target_checks(run),
+        self_collision_check(run),
+        scene_collision_check(run),
     )
 
 
@@ -398,4 +406,114 @@ def _never_reached(name: str, kind: CheckKind, subject: str, limit: float, ts: n
     return Check(
         name=name, kind=kind, subject=subject, value=math.inf, limit=limit, unit="m", ok=False, time=float(ts[-1]),
         message=f"{name} was never reached: the simulation stopped at t = {ts[-1]:.2f} s",
+    )
+
+
+def _mm(x: float) -> float:
+    return 1000.0 * x
+
+
+def self_collision_check(run: RunRecord) -> Check:
+    """The closest approach of two links of the collision model, or the collision of two.
+
+    MuJoCo's contacts between the links' convex hulls are seen at every tick. A pair collides
+    when, at a tick where its contact is deeper than ``self_penetration_limit`` or pushes harder
+    than ``self_contact_force_limit``, coal confirms that the URDF meshes themselves intersect
+    (the deepest / hardest :data:`CONFIRM_TICKS` such ticks are checked); otherwise the pair
+    counts at its depth, or at its coal mesh distance when the hulls went deeper than the limit
+    but the meshes did not touch. Distances come from the samples (``collision_sample_period``).
+    """
+    s, ts, pairs = run.settings, run.t, run.collision_pairs
+    limit, force_limit = s.self_penetration_limit, s.self_contact_force_limit
+    mesh: MeshDistance | None = None
+    # (distance [m], tick, pair index) of every pair's closest approach
+    found: list[tuple[float, int, int]] = []
+    # (first offending tick, deepest distance [m], largest force [N], pair index) of colliding pairs
+    collided: list[tuple[int, float, float, int]] = []
+    contacts = run.self_contacts
+    for k in np.unique(contacts[:, 1]).astype(int).tolist() if len(contacts) else []:
+        rows = contacts[contacts[:, 1] == k]
+        bad = rows[(rows[:, 2] < -limit) | (rows[:, 3] > force_limit)]
+        if not len(bad):
+            deepest = rows[np.argmin(rows[:, 2])]
+            found.append((float(deepest[2]), int(deepest[0]), k))
+            continue
+        mesh = mesh or MeshDistance(run.robot)
+        # the worst ticks first: deepest over the limit, else the largest force
+        worst = bad[np.lexsort((-bad[:, 3], bad[:, 2]))]
+        apart = []
+        for n in list(dict.fromkeys(worst[:, 0].astype(int).tolist()))[:CONFIRM_TICKS]:
+            gap = mesh.between(run.q[n], *pairs[k])
+            if gap == 0.0:
+                collided.append((int(bad[:, 0].min()), float(rows[:, 2].min()), float(rows[:, 3].max()), k))
+                break
+            apart.append((gap, n))
+        else:  # the hulls pressed together, the meshes did not touch: the pair counts at its mesh distance
+            gap, n = min(apart)
+            found.append((gap, n, k))
+    for tick, k, dist in run.self_samples.tolist() if len(run.self_samples) else []:
+        if k >= 0 and dist >= 0:
+            found.append((dist, int(tick), int(k)))
+    if run.rest_overlap:  # pairs MuJoCo does not collide: coal at the sample ticks
+        mesh = mesh or MeshDistance(run.robot)
+        index = {p: k for k, p in enumerate(pairs)}
+        for tick in run.self_samples[:, 0].astype(int).tolist() if len(run.self_samples) else []:
+            for pair in run.rest_overlap:
+                found.append((mesh.between(run.q[tick], *pair), tick, index[pair]))
+    horizon = s.self_distance_horizon
+    if not found and not collided:
+        return Check(
+            name=f"self-collision: no pair within {_mm(horizon):.0f} mm", kind=CheckKind.SELF_COLLISION,
+            value=_mm(horizon), limit=-_mm(limit), unit="mm", ok=True, time=0.0, upper=False,
+        )
+    message = ""
+    if collided:  # the pair that collided first
+        tick, dist, force, k = min(collided)
+        a, b = (body_part(run.robot, link) for link in pairs[k])
+        message = (f"{a} hit the {b} at t = {ts[tick]:.2f} s ({_mm(max(-dist, 0.0)):.1f} mm deep, "
+                   f"{force:.0f} N; {pairs[k][0]} / {pairs[k][1]}): the robot collides with itself")
+    else:
+        dist, tick, k = min(found)
+        a, b = (body_part(run.robot, link) for link in pairs[k])
+    subject = f"{a} / {b}"
+    return Check(
+        name=f"self-collision: {subject}" + (f", {force:.0f} N" if collided else ""),
+        kind=CheckKind.SELF_COLLISION, subject=subject,
+        value=_mm(dist), limit=-_mm(limit), unit="mm", ok=not collided, time=float(ts[tick]), upper=False,
+        message=message,
+    )
+
+
+def scene_collision_check(run: RunRecord) -> Check:
+    """The robot's closest approach to a scene object, or its first contact with one (contacts
+    with objects are never planned yet: any fails). MuJoCo contacts at every tick, distances
+    from the samples."""
+    ts = run.t
+    horizon = run.settings.scene_distance_horizon
+    if not run.object_names:  # reported at the horizon: a finite number survives the JSON report
+        return Check(
+            name="scene collision: no objects", kind=CheckKind.SCENE_COLLISION, value=_mm(horizon), limit=0.0,
+            unit="mm", ok=True, time=0.0, upper=False,
+        )
+    if run.scene_contacts:
+        tick, link, obj, _ = run.scene_contacts[0]
+        deepest = min(c[3] for c in run.scene_contacts if c[2] == obj and c[1] == link)
+        part = body_part(run.robot, link)
+        subject = f"{part} / {obj!r}"
+        return Check(
+            name=f"scene collision: {subject}", kind=CheckKind.SCENE_COLLISION, subject=subject,
+            value=_mm(min(deepest, 0.0)), limit=0.0, unit="mm", ok=False, time=float(ts[tick]), upper=False,
+            message=f"{part} ({link}) touched {obj!r} at t = {ts[tick]:.2f} s "
+            f"({_mm(-min(deepest, 0.0)):.0f} mm deep; no contact with an object is planned)",
+        )
+    if not run.scene_samples:
+        return Check(
+            name=f"scene collision: no object within {horizon:g} m", kind=CheckKind.SCENE_COLLISION,
+            value=_mm(horizon), limit=0.0, unit="mm", ok=True, time=0.0, upper=False,
+        )
+    tick, link, obj, dist = min(run.scene_samples, key=lambda x: x[3])
+    subject = f"{body_part(run.robot, link)} / {obj!r}"
+    return Check(
+        name=f"scene collision: {subject}", kind=CheckKind.SCENE_COLLISION, subject=subject,
+        value=_mm(dist), limit=0.0, unit="mm", ok=True, time=float(ts[tick]), upper=False,
     )

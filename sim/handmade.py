@@ -203,6 +203,39 @@ def squat_plan(
     )
 
 
+def joint_plan(
+    robot: Robot,
+    joints: dict[str, float],
+    *,
+    duration: float = 3.0,
+    dt: float = 0.05,
+    name: str = "joints",
+) -> Plan:
+    """Move the named joints from the standing posture to ``joints`` [rad] and back (a smooth
+    bump), holding every other joint and the base: a plan that ignores balance and collisions
+    (for tests that need a motion the planner would refuse, such as a forearm through the pelvis).
+    """
+    model = robot.model
+    goal = np.array(robot.q_standing, dtype=float)
+    for joint, value in joints.items():
+        if not model.existJointName(joint):
+            raise KeyError(f"robot {robot.name!r} has no joint {joint!r}")
+        goal[model.joints[model.getJointId(joint)].idx_q] = value
+    goal = np.clip(goal, model.lowerPositionLimit, model.upperPositionLimit)
+    bump = smooth_bump(duration)
+    draft = ik_plan(robot, duration=duration, dt=dt, name=name)  # standing: its spec and timing
+    qs = np.array([pin.interpolate(model, robot.q_standing, goal, bump(t)) for t in draft.t])
+    n = len(qs)
+    vs = np.zeros((n, model.nv))
+    for k in range(1, n - 1):
+        vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
+    acc = np.zeros((n, model.nv))
+    acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
+    data = robot.data()
+    coms = np.array([pin.centerOfMass(model, data, q) for q in qs])
+    return dataclasses.replace(draft, q=qs, v=vs, a=acc, com=coms)
+
+
 def arm_plan(
     robot: Robot,
     *,

@@ -58,7 +58,7 @@ def simulate(
     if push is not None:
         check_push_time(push, float(plan.t[-1]))  # before any work
     s = settings if settings is not None else SimSettings()
-    sm = build_model(robot, timestep=s.timestep, joint_friction=s.joint_friction)
+    sm = build_model(robot, timestep=s.timestep, joint_friction=s.joint_friction, scene=plan.spec.scene)
     control_dt = s.timestep * s.control_every
     wbc_settings = replace(s.wbc, dt=control_dt)
     ctrl = WholeBodyController(robot, wbc_settings)
@@ -157,7 +157,7 @@ def _closed_loop(
     ctrl.reset(q, v)
     duration = ref.duration + s.settle_time
     n_ticks = int(round(duration / control_dt)) + 1
-    rec = Recorder(sm, robot, n_ticks)
+    rec = Recorder(sm, robot, n_ticks, s)
     events: list[Event] = []
     push_force = push.force_in_world() if push is not None else None
     if push is not None:
@@ -213,6 +213,11 @@ def _run_events(run: RunRecord, torque_scale: float) -> list[Event]:
         if body not in seen_bodies:
             seen_bodies.add(body)
             events.append(Event(t_c, "unplanned_contact", f"{body} touched the floor"))
+    seen_objects: set[tuple[str, str]] = set()
+    for tick, link, obj, _ in run.scene_contacts:
+        if (link, obj) not in seen_objects:
+            seen_objects.add((link, obj))
+            events.append(Event(float(run.t[tick]), "unplanned_contact", f"{link} touched {obj!r}"))
     return events
 
 

@@ -11,10 +11,14 @@ link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
 * one thin box per sole, the profile's sole rectangle with its bottom face on the sole frame
   (the foot meshes stop colliding, so the feet touch the floor exactly where the controller's
   contact model says they do),
-* a torque actuator per actuated joint, saturating at the URDF effort limit.
+* a torque actuator per actuated joint, saturating at the URDF effort limit,
+* self-collision: one explicit MuJoCo ``<pair>`` per pair of collision geoms of two links that
+  the planner's collision model (:func:`robots.collision.collision_model`) says must not
+  collide, and no other robot-robot contact (docs/simulation-collisions.md),
+* the scene's objects (:class:`tasks.scene.Scene`): static ones as geoms of the world body,
+  movable ones as free bodies with their mass and friction.
 
-Robot geometries collide with the floor only (no self-collision). Joints are matched to
-Pinocchio by name, so either joint order works. Conventions: MuJoCo's free joint stores the
+Joints are matched to Pinocchio by name, so either joint order works. Conventions: MuJoCo's free joint stores the
 quaternion ``(w, x, y, z)`` and the base linear velocity in the world frame; Pinocchio stores
 ``(x, y, z, w)`` and the linear velocity in the base frame. :class:`SimModel` converts.
 """
@@ -34,13 +38,19 @@ import pinocchio as pin
 from robots.contact import MUJOCO_CONDIM, MUJOCO_CONE, mujoco_friction, sole_corners
 from robots.model import Robot
 from sim.exceptions import SimModelError
+from tasks.scene import Scene, SceneObject
 
 FOREIGN_MESHES = (".dae",)  # mesh formats MuJoCo 4 cannot read; their triangles come from Pinocchio
 ROOT_JOINT = "wbmp_root"
 FLOOR = "wbmp_floor"
 SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thick
-ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # robot geoms collide with the floor only
+ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # robot geoms collide with the floor (and objects) only
 FLOOR_CONTYPE, FLOOR_CONAFFINITY = 1, 2
+OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 7  # objects collide with the robot, the feet, the floor, each other
+FOOT_CONTYPE, FOOT_CONAFFINITY = 4, 0  # foot meshes (replaced by sole boxes on the floor) touch objects only
+OBJECT_PREFIX = "wbmp_object_"
+#: Geom roles in :attr:`SimModel.geom_role`.
+FLOOR_ROLE, ROBOT_ROLE, OBJECT_ROLE = 0, 1, 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +68,16 @@ class SimModel:
         geom_body_names: MuJoCo body name of every geom (ngeom,).
         floor_geom: Geom id of the floor.
         torque_limits: Actuator limits in Pinocchio order (nv - 6,) [N m].
+        collision_pairs: The link pairs (sorted names, sorted list) that must not collide, each
+            with at least one MuJoCo pair: the collision model's pairs.
+        pair_index: For each MuJoCo pair (npair,), its index in ``collision_pairs``.
+        rest_overlap: Link pair -> how deep [m] (> 0) the convex hulls of its geoms overlap in the
+            robot's standing configuration; these pairs have no MuJoCo pair (their hulls would
+            push the links apart at rest).
+        geom_role: ``FLOOR_ROLE``, ``ROBOT_ROLE`` or ``OBJECT_ROLE`` of every geom (ngeom,).
+        geom_object: Scene object index of every geom, -1 for the floor and the robot (ngeom,).
+        object_names: The scene's object names, in the scene's order.
+        scene: The scene the model was built with (None: floor only).
         qpos_select, dof_select, actuator_select: The three index maps as slices where they are
             contiguous ranges (the per-tick copies use them), else the index arrays.
     """
@@ -71,6 +91,13 @@ class SimModel:
     geom_body_names: tuple[str, ...]
     floor_geom: int
     torque_limits: np.ndarray
+    collision_pairs: tuple[tuple[str, str], ...] = ()
+    pair_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    rest_overlap: dict[tuple[str, str], float] = field(default_factory=dict)
+    geom_role: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    geom_object: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    object_names: tuple[str, ...] = ()
+    scene: Scene | None = None
     xml: str = field(repr=False, default="")
     # set by __post_init__: the index maps as slices where they are contiguous ranges
     qpos_select: slice | np.ndarray = field(init=False, repr=False)
@@ -89,13 +116,18 @@ class SimModel:
         return mujoco.MjData(self.model)
 
     def set_state(self, data: mujoco.MjData, q: np.ndarray, v: np.ndarray | None = None) -> None:
-        """Write a Pinocchio state (q (nq,), v (nv,)) into MuJoCo data, then run mj_forward."""
-        qpos = np.empty(self.model.nq)
+        """Write a Pinocchio state (q (nq,), v (nv,)) into MuJoCo data, then run mj_forward.
+
+        The scene's movable objects keep their state in ``data``.
+        """
+        qpos = np.array(data.qpos)
         qpos[:3] = q[:3]
         qpos[3] = q[6]
         qpos[4:7] = q[3:6]
         qpos[self.qpos_index] = q[7:]
-        qvel = np.zeros(self.model.nv)
+        qvel = np.array(data.qvel)
+        qvel[:6] = 0.0
+        qvel[self.dof_index] = 0.0
         if v is not None:
             rot = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
             qvel[:3] = rot @ v[:3]
@@ -210,11 +242,14 @@ def _rewrite_urdf(robot: Robot) -> str:
 
 
 @functools.cache
-def _cached(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
-    return _build(robot, timestep, joint_friction)
+def _cached(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | None,
+            pairs: tuple[tuple[str, str], ...] | None) -> SimModel:
+    return _build(robot, timestep, joint_friction, scene, pairs)
 
 
-def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool = True) -> SimModel:
+def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool = True,
+                scene: Scene | None = None,
+                collision_pairs: tuple[tuple[str, str], ...] | None = None) -> SimModel:
     """Build (once per robot and options) the MuJoCo model of ``robot``.
 
     Args:
@@ -222,14 +257,27 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
         timestep: MuJoCo integration step [s].
         joint_friction: Keep the URDF's joint ``damping`` and ``friction`` (MuJoCo frictionloss);
             False simulates frictionless joints.
+        scene: Objects around the robot (None: the floor only).
+        collision_pairs: The link pairs that must not collide (sorted names); None takes the
+            robot's collision model's (:func:`robots.collision.collision_model`).
 
     Returns:
         The compiled model with its index maps.
 
     Raises:
-        SimModelError: The URDF cannot be converted (missing meshes, several roots, unmatched joints).
+        SimModelError: The URDF cannot be converted (missing meshes, several roots, unmatched
+            joints), a collision pair names a link without collision geometry, or a scene object
+            cannot be built (an unreadable mesh).
     """
-    return _cached(robot, float(timestep), bool(joint_friction))
+    pairs = None if collision_pairs is None else tuple(tuple(sorted(p)) for p in collision_pairs)
+    return _cached(robot, float(timestep), bool(joint_friction), scene, pairs)
+
+
+def model_pairs(robot: Robot) -> tuple[tuple[str, str], ...]:
+    """The link pairs of the robot's collision model that must not collide (sorted names)."""
+    from robots.collision import collision_model
+
+    return tuple(tuple(sorted(p)) for p in collision_model(robot).pairs)  # type: ignore[misc]
 
 
 _CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
@@ -284,7 +332,10 @@ def _add_foreign_meshes(robot: Robot, spec: mujoco.MjSpec, bodies: dict, mu: flo
         geom.density = 0.0
 
 
-def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
+def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | None,
+           pairs: tuple[tuple[str, str], ...] | None) -> SimModel:
+    if pairs is None:
+        pairs = model_pairs(robot)
     xml = _rewrite_urdf(robot)
     try:
         spec = mujoco.MjSpec.from_string(xml)
@@ -292,11 +343,15 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         raise SimModelError(f"robot {robot.name!r}: MuJoCo cannot load the URDF: {e}") from None
     pmodel = robot.model
     mu = float(robot.profile.friction_coefficient)
+    # keep the foot meshes that stop touching the floor (contype 0): self-collision pairs use them
+    spec.compiler.discardvisual = False
     spec.option.timestep = timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     set_friction_cone(spec)
 
-    for geom in spec.geoms:
+    for i, geom in enumerate(spec.geoms):
+        if not geom.name:  # explicit collision pairs refer to geoms by name
+            geom.name = f"wbmp_geom_{i}"
         geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
         set_contact_friction(geom, mu)
     floor = spec.worldbody.add_geom()
@@ -318,12 +373,12 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
                 f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo"
             )
         body = joints[joint_name].parent
-        for geom in body.geoms:  # the foot mesh: the sole box replaces it
-            geom.contype, geom.conaffinity = 0, 0
+        for geom in body.geoms:  # the foot mesh: the sole box replaces it on the floor
+            geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
         for child in bodies.values():  # fixed children (sole links) of the ankle body
             if child.parent is not None and child.parent.name == body.name and not child.joints:
                 for geom in child.geoms:
-                    geom.contype, geom.conaffinity = 0, 0
+                    geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
         side = role.split("_")[0]
         corners = sole_corners(robot.profile.sole, side)
         centre = np.array([corners[:, 0].mean(), corners[:, 1].mean(), 0.5 * SOLE_THICKNESS])
@@ -342,6 +397,7 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         sole.density = 0.0
         sole_names[role] = sole.name
 
+    _add_scene(spec, scene)
     actuated = list(pmodel.names)[2:]
     limits = np.array(pmodel.effortLimit, dtype=float)[6:]
     for name, limit in zip(actuated, limits, strict=True):
@@ -391,6 +447,14 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         for role, n in sole_names.items()
     }
     body_names = tuple(model.body(int(model.geom_bodyid[g])).name for g in range(model.ngeom))
+    object_names = tuple(o.name for o in scene.objects) if scene is not None else ()
+    geom_role = np.full(model.ngeom, ROBOT_ROLE, dtype=int)
+    geom_object = np.full(model.ngeom, -1, dtype=int)
+    geom_role[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)] = FLOOR_ROLE
+    for k, name in enumerate(object_names):
+        g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, OBJECT_PREFIX + name)
+        geom_role[g], geom_object[g] = OBJECT_ROLE, k
+    model, pair_index, rest_overlap = _add_self_collision(robot, spec, model, pairs, geom_role, sole_geoms)
     return SimModel(
         robot=robot,
         model=model,
@@ -401,5 +465,155 @@ def _build(robot: Robot, timestep: float, joint_friction: bool) -> SimModel:
         geom_body_names=body_names,
         floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR),
         torque_limits=limits,
+        collision_pairs=pairs,
+        pair_index=pair_index,
+        rest_overlap=rest_overlap,
+        geom_role=geom_role,
+        geom_object=geom_object,
+        object_names=object_names,
+        scene=scene,
         xml=xml,
     )
+
+
+def _add_scene(spec: mujoco.MjSpec, scene: Scene | None) -> None:
+    """The scene's objects: static ones as world geoms, movable ones as free bodies."""
+    if scene is None:
+        return
+    for obj in scene.objects:
+        if obj.movable:
+            body = spec.worldbody.add_body()
+            body.name = OBJECT_PREFIX + obj.name
+            body.pos = list(obj.position)
+            body.quat = _quat_wxyz(obj.rpy)
+            body.add_freejoint()
+            geom = body.add_geom()
+            geom.mass = float(obj.mass)  # MuJoCo spreads it over the shape: the shape's inertia
+        else:
+            geom = spec.worldbody.add_geom()
+            geom.pos = list(obj.position)
+            geom.quat = _quat_wxyz(obj.rpy)
+        geom.name = OBJECT_PREFIX + obj.name
+        _shape(spec, geom, obj)
+        geom.rgba = list(obj.colour)
+        set_contact_friction(geom, float(obj.friction))
+        geom.contype, geom.conaffinity = OBJECT_CONTYPE, OBJECT_CONAFFINITY
+
+
+def _quat_wxyz(rpy: tuple[float, float, float]) -> list[float]:
+    quat = pin.Quaternion(pin.rpy.rpyToMatrix(*rpy))
+    return [quat.w, quat.x, quat.y, quat.z]
+
+
+def _shape(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, obj: SceneObject) -> None:
+    """Give ``geom`` the object's shape (MuJoCo sizes are half extents)."""
+    size = [float(x) for x in obj.size]
+    if obj.shape == "box":
+        geom.type = mujoco.mjtGeom.mjGEOM_BOX
+        geom.size = [0.5 * x for x in size]
+    elif obj.shape == "cylinder":
+        geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+        geom.size = [size[0], 0.5 * size[1], 0.0]
+    elif obj.shape == "sphere":
+        geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
+        geom.size = [size[0], 0.0, 0.0]
+    elif obj.shape == "mesh":
+        if obj.mesh is None or not Path(obj.mesh).is_file():
+            raise SimModelError(f"scene object {obj.name!r}: mesh file {obj.mesh!r} not found")
+        if Path(obj.mesh).suffix.lower() in FOREIGN_MESHES:
+            raise SimModelError(f"scene object {obj.name!r}: MuJoCo cannot read {obj.mesh!r}; "
+                                "convert the mesh to STL or OBJ")
+        mesh = spec.add_mesh()
+        mesh.name = f"{OBJECT_PREFIX}{obj.name}_mesh"
+        mesh.file = str(Path(obj.mesh).resolve())
+        mesh.scale = size
+        geom.type = mujoco.mjtGeom.mjGEOM_MESH
+        geom.meshname = mesh.name
+    else:
+        raise SimModelError(f"scene object {obj.name!r}: unknown shape {obj.shape!r}")
+
+
+def _add_self_collision(
+    robot: Robot, spec: mujoco.MjSpec, model: mujoco.MjModel, pairs: tuple[tuple[str, str], ...],
+    geom_role: np.ndarray, sole_geoms: dict[str, int],
+) -> tuple[mujoco.MjModel, np.ndarray, dict[tuple[str, str], float]]:
+    """One explicit pair per two collision geoms of each link pair, then recompile.
+
+    MuJoCo collides meshes as their convex hulls, which are larger than the meshes: a pair whose
+    hulls already overlap in the standing configuration would push the links apart at rest, so
+    it gets no MuJoCo pair (MuJoCo's negative pair margins do not work for meshes: the reported
+    distance shifts with the margin); ``rest_overlap`` lists such pairs, and the certificate
+    still measures them (coal on the URDF meshes).
+    """
+    if not pairs:
+        return model, np.zeros(0, dtype=int), {}
+    skip = set(sole_geoms.values())
+    link_geoms: dict[str, list[int]] = {}
+    for g in range(model.ngeom):
+        if geom_role[g] == ROBOT_ROLE and g not in skip:
+            link_geoms.setdefault(model.body(int(model.geom_bodyid[g])).name, []).append(g)
+    missing = sorted({link for pair in pairs for link in pair if link not in link_geoms})
+    if missing:
+        raise SimModelError(
+            f"robot {robot.name!r}: the collision model names links without collision geometry in "
+            f"MuJoCo: {missing}"
+        )
+    added: list[tuple[mujoco.MjsPair, int]] = []
+    for k, (a, b) in enumerate(pairs):
+        for ga in link_geoms[a]:
+            for gb in link_geoms[b]:
+                pair = spec.add_pair()
+                pair.geomname1 = model.geom(ga).name
+                pair.geomname2 = model.geom(gb).name
+                pair.margin = 0.0
+                pair.condim = MUJOCO_CONDIM
+                pair.friction = [float(x) for x in model.geom_friction[ga]] + [0.0, 0.0]
+                added.append((pair, k))
+    compiled = _compile(robot, spec)
+    rest = _rest_contacts(robot, compiled, _pair_index(model, compiled, pairs))
+    rest_overlap = {pairs[k]: -dist for k, dist in rest.items()}
+    if rest_overlap:  # hulls overlapping at rest: no MuJoCo pair (see the docstring)
+        for pair, k in added:
+            if pairs[k] in rest_overlap:
+                spec.delete(pair)
+        compiled = _compile(robot, spec)
+    return compiled, _pair_index(model, compiled, pairs), rest_overlap
+
+
+def _pair_index(model: mujoco.MjModel, compiled: mujoco.MjModel, pairs: tuple[tuple[str, str], ...]) -> np.ndarray:
+    """For each compiled MuJoCo pair, the index of its link pair in ``pairs`` (MuJoCo orders the
+    compiled pairs its own way: map them back through their geoms' bodies)."""
+    index = {pair: k for k, pair in enumerate(pairs)}
+    return np.array([
+        index[tuple(sorted((model.body(int(model.geom_bodyid[compiled.pair_geom1[p]])).name,
+                            model.body(int(model.geom_bodyid[compiled.pair_geom2[p]])).name)))]
+        for p in range(compiled.npair)
+    ], dtype=int)
+
+
+def _compile(robot: Robot, spec: mujoco.MjSpec) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except ValueError as e:
+        raise SimModelError(f"robot {robot.name!r}: MuJoCo cannot compile the collision pairs: {e}") from None
+
+
+def _rest_contacts(robot: Robot, model: mujoco.MjModel, pair_index: np.ndarray) -> dict[int, float]:
+    """Deepest MuJoCo contact distance [m] (< 0) of each link pair (by index) touching in the
+    robot's standing configuration."""
+    data = mujoco.MjData(model)
+    q = robot.q_standing
+    qpos = np.array(model.qpos0)
+    qpos[:3], qpos[3], qpos[4:7] = q[:3], q[6], q[3:6]
+    for name, value in zip(list(robot.model.names)[2:], q[7:], strict=True):
+        qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)]] = value
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)
+    pair_of = {(int(model.pair_geom1[p]), int(model.pair_geom2[p])): int(pair_index[p]) for p in range(model.npair)}
+    deepest: dict[int, float] = {}
+    for c in range(data.ncon):
+        g1, g2 = (int(x) for x in data.contact.geom[c])
+        k = pair_of.get((g1, g2), pair_of.get((g2, g1)))
+        if k is not None and data.contact.dist[c] < 0:
+            deepest[k] = min(deepest.get(k, 0.0), float(data.contact.dist[c]))
+    return deepest

@@ -3,19 +3,24 @@
 :class:`Recorder` fills preallocated arrays one tick at a time (state, torques, CoM, which soles
 and which other bodies touch the floor, the net floor force on each sole); :meth:`Recorder.finish`
 turns them into a :class:`RunRecord`, the certificate's only input.
+
+Collisions: at every tick the MuJoCo contacts between two links of the collision model (their
+depth, < 0) and between the robot and a scene object; every ``collision_sample_period`` the
+closest link pair and the closest robot-object distance (``mujoco.mj_geomDistance`` on the same
+geoms, within ``self_distance_horizon`` / ``scene_distance_horizon``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
 from planner.wbc.reference import PlanReference
 from robots.model import Robot
-from sim.model import SimModel
+from sim.model import OBJECT_ROLE, ROBOT_ROLE, SimModel
 from sim.settings import SimSettings
 
 #: MuJoCo body of the floating base (body 0 is the world).
@@ -64,6 +69,17 @@ class RunRecord:
         torque_limits: Actuated joint torque limits (nv - 6,) [N m].
         fall_height: A base below this height is a fall [m].
         max_tilt: A base tilted more than this is a fall [rad].
+        collision_pairs: The collision model's link pairs (the indices below refer to them).
+        rest_overlap: Pairs MuJoCo does not collide (their hulls overlap at rest), see
+            :class:`sim.model.SimModel`.
+        self_contacts: MuJoCo contacts between the two links of a pair: tick, pair index,
+            distance [m] (< 0: penetration depth) and normal force [N], (K, 4).
+        self_samples: Every ``collision_sample_period``: tick, closest pair index (-1: none within
+            the horizon) and its distance [m] (inf: none), (S, 3).
+        object_names: The scene's objects.
+        scene_contacts: ``(tick, link, object, distance [m])`` of every robot-object contact.
+        scene_samples: Every ``collision_sample_period``: ``(tick, link, object, distance [m])`` of
+            the closest robot-object pair within the horizon (none when there is no object).
     """
 
     robot: Robot
@@ -83,6 +99,13 @@ class RunRecord:
     torque_limits: np.ndarray
     fall_height: float
     max_tilt: float
+    collision_pairs: tuple[tuple[str, str], ...] = ()
+    rest_overlap: dict[tuple[str, str], float] | None = None
+    self_contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    self_samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    object_names: tuple[str, ...] = ()
+    scene_contacts: tuple[tuple[int, str, str, float], ...] = ()
+    scene_samples: tuple[tuple[int, str, str, float], ...] = ()
 
     @property
     def n_ticks(self) -> int:
@@ -99,8 +122,9 @@ class Recorder:
         n_ticks: Largest number of ticks.
     """
 
-    def __init__(self, sm: SimModel, robot: Robot, n_ticks: int) -> None:
+    def __init__(self, sm: SimModel, robot: Robot, n_ticks: int, settings: SimSettings | None = None) -> None:
         m = sm.model
+        s = settings if settings is not None else SimSettings()
         self.t = np.empty(n_ticks)
         self.q = np.empty((n_ticks, robot.nq))
         self.v = np.empty((n_ticks, robot.nv))
@@ -122,6 +146,14 @@ class Recorder:
         self._geom_label = np.full(m.ngeom + 1, -1, dtype=int)  # index -1 (no floor in the pair) -> -2
         self._geom_label[-1] = -2
         self._geom_label[sole_ids] = np.arange(self._n_soles)
+        if len(sm.geom_role):  # an object on the floor is not the robot touching it
+            self._geom_label[:-1][sm.geom_role == OBJECT_ROLE] = -2
+        self._collisions = _CollisionRecorder(sm, s)
+
+    @property
+    def collisions(self) -> _CollisionRecorder:
+        """The self- and scene-collision part of the record."""
+        return self._collisions
 
     def record(self, i: int, t: float, q: np.ndarray, v: np.ndarray, tau: np.ndarray, d: mujoco.MjData,
                tick_time: float) -> None:
@@ -134,6 +166,8 @@ class Recorder:
         self.com[i] = d.subtree_com[BASE_BODY]
         if d.ncon:
             self._record_contacts(i, t, d)
+            self._collisions.contacts(i, d)
+        self._collisions.sample(i, t, d)
         self.n = i + 1
 
     def _record_contacts(self, i: int, t: float, d: mujoco.MjData) -> None:
@@ -163,5 +197,105 @@ class Recorder:
             tick_times=self.tick_times[sl], foot_frames=self.foot_frames, forces=self.forces[:, sl],
             contact_flags=self.contact_flags[:, sl], other_contacts=tuple(self.other_contacts),
             qp_failure_times=tuple(qp_failure_times), torque_limits=torque_limits,
-            fall_height=fall_height, max_tilt=max_tilt,
+            fall_height=fall_height, max_tilt=max_tilt, **self._collisions.finish(),
         )
+
+
+class _CollisionRecorder:
+    """The collision part of a run's record (see the module docstring)."""
+
+    def __init__(self, sm: SimModel, s: SimSettings) -> None:
+        m = sm.model
+        self._m = m
+        self._s = s
+        self._sm = sm
+        ngeom = m.ngeom
+        role = sm.geom_role if len(sm.geom_role) else np.full(ngeom, ROBOT_ROLE)
+        self._pair_of = np.full((ngeom + 1, ngeom + 1), -1, dtype=int)  # index -1: none
+        g1, g2 = np.asarray(m.pair_geom1, dtype=int), np.asarray(m.pair_geom2, dtype=int)
+        self._pair_of[g1, g2] = sm.pair_index
+        self._pair_of[g2, g1] = sm.pair_index
+        self._is_object = np.zeros(ngeom + 1, dtype=bool)
+        self._is_object[:-1] = role == OBJECT_ROLE
+        self._is_robot = np.zeros(ngeom + 1, dtype=bool)
+        self._is_robot[:-1] = role == ROBOT_ROLE
+        self._g1, self._g2 = g1, g2
+        self._pair_links = sm.pair_index
+        self._robot_geoms = np.nonzero(role == ROBOT_ROLE)[0]
+        self._object_geoms = np.nonzero(role == OBJECT_ROLE)[0]
+        self._rbound = np.asarray(m.geom_rbound, dtype=float)
+        self._fromto = np.zeros(6)
+        self._wrench = np.zeros(6)
+        self._next_sample = 0.0
+        self._self_contacts: list[np.ndarray] = []
+        self._self_samples: list[tuple[int, int, float]] = []
+        self._scene_contacts: list[tuple[int, str, str, float]] = []
+        self._scene_samples: list[tuple[int, str, str, float]] = []
+
+    def contacts(self, i: int, d: mujoco.MjData) -> None:
+        """Tick ``i``'s contacts between two links of a pair, and between the robot and an object."""
+        geom = d.contact.geom
+        a, b = geom[:, 0], geom[:, 1]
+        k = self._pair_of[a, b]
+        hit = k >= 0
+        if hit.any():
+            rows = np.nonzero(hit)[0]
+            force = np.empty(len(rows))
+            for j, c in enumerate(rows.tolist()):
+                mujoco.mj_contactForce(self._m, d, c, self._wrench)
+                force[j] = self._wrench[0]
+            self._self_contacts.append(np.column_stack([np.full(len(rows), i), k[hit], d.contact.dist[hit], force]))
+        touch = (self._is_object[a] & self._is_robot[b]) | (self._is_robot[a] & self._is_object[b])
+        if touch.any():
+            names = self._sm.geom_body_names
+            for c in np.nonzero(touch)[0].tolist():
+                ga, gb = int(a[c]), int(b[c])
+                robot_g, obj_g = (ga, gb) if self._is_robot[ga] else (gb, ga)
+                obj = self._sm.object_names[int(self._sm.geom_object[obj_g])]
+                self._scene_contacts.append((i, names[robot_g], obj, float(d.contact.dist[c])))
+
+    def sample(self, i: int, t: float, d: mujoco.MjData) -> None:
+        """Every ``collision_sample_period``: the closest pair and the closest robot-object distance."""
+        if t < self._next_sample - 1e-9:
+            return
+        self._next_sample = t + self._s.collision_sample_period
+        m, xpos = self._m, d.geom_xpos
+        if len(self._g1):
+            horizon = self._s.self_distance_horizon
+            # bounding spheres first: only pairs that may be within the horizon cost a distance
+            lower = (np.linalg.norm(xpos[self._g1] - xpos[self._g2], axis=1)
+                     - self._rbound[self._g1] - self._rbound[self._g2])
+            best, best_k = np.inf, -1
+            for p in np.nonzero(lower < horizon)[0].tolist():
+                dist = mujoco.mj_geomDistance(m, d, int(self._g1[p]), int(self._g2[p]), horizon, self._fromto)
+                if dist < best and dist < horizon:
+                    best, best_k = float(dist), int(self._pair_links[p])
+            self._self_samples.append((i, best_k, best))
+        if len(self._object_geoms):
+            horizon = self._s.scene_distance_horizon
+            rg, og = self._robot_geoms, self._object_geoms
+            lower = (np.linalg.norm(xpos[rg][:, None] - xpos[og][None], axis=2)
+                     - self._rbound[rg][:, None] - self._rbound[og][None])
+            best, best_pair = np.inf, (-1, -1)
+            for flat in np.argsort(lower, axis=None).tolist():
+                r, o = divmod(flat, len(og))
+                if lower[r, o] >= min(best, horizon):
+                    break
+                dist = mujoco.mj_geomDistance(m, d, int(rg[r]), int(og[o]), horizon, self._fromto)
+                if dist < best and dist < horizon:
+                    best, best_pair = float(dist), (int(rg[r]), int(og[o]))
+            if best_pair[0] >= 0:
+                obj = self._sm.object_names[int(self._sm.geom_object[best_pair[1]])]
+                self._scene_samples.append((i, self._sm.geom_body_names[best_pair[0]], obj, best))
+
+    def finish(self) -> dict:
+        """The collision fields of :class:`RunRecord`."""
+        return {
+            "collision_pairs": self._sm.collision_pairs,
+            "rest_overlap": dict(self._sm.rest_overlap),
+            "self_contacts": np.concatenate(self._self_contacts) if self._self_contacts else np.zeros((0, 4)),
+            "self_samples": np.array(self._self_samples, dtype=float).reshape(-1, 3),
+            "object_names": self._sm.object_names,
+            "scene_contacts": tuple(self._scene_contacts),
+            "scene_samples": tuple(self._scene_samples),
+        }

@@ -29,6 +29,16 @@ class SimSettings:
         qp_failure_limit: Largest fraction of controller ticks whose QP failed [-].
         stop_after_fall: Simulated time kept after a fall before stopping [s].
         stop_after_qp_failure: Stop when the controller QP has failed on every tick for this long [s].
+        self_penetration_limit: Deepest accepted penetration of two links of the collision model
+            into each other [m] (MuJoCo's contact depth, confirmed on the URDF meshes by coal).
+        self_contact_force_limit: Largest accepted normal force between two links of the
+            collision model [N] (MuJoCo resists penetration: a plan through the body shows as
+            links pressed together, confirmed on the URDF meshes by coal).
+        collision_sample_period: How often the closest distances (self and scene) are measured
+            for the certificate [s]; penetrations are seen at every controller tick.
+        self_distance_horizon: Self distances beyond this are not measured [m] (the line then
+            reports "> horizon").
+        scene_distance_horizon: Robot-object distances beyond this are not measured [m].
     """
 
     timestep: float = 0.001
@@ -47,10 +57,23 @@ class SimSettings:
     qp_failure_limit: float = 0.01
     stop_after_fall: float = 0.3
     stop_after_qp_failure: float = 0.5
+    self_penetration_limit: float = 0.005
+    self_contact_force_limit: float = 10.0
+    collision_sample_period: float = 0.02
+    self_distance_horizon: float = 0.1
+    scene_distance_horizon: float = 5.0
 
     def __post_init__(self) -> None:
         if not (self.timestep > 0 and self.control_every >= 1 and self.settle_time >= 0):
             raise SimError(
                 "SimSettings: timestep must be > 0, control_every >= 1, settle_time >= 0"
+            )
+        if not (self.self_penetration_limit >= 0 and self.self_contact_force_limit >= 0
+                and self.collision_sample_period > 0
+                and self.self_distance_horizon > 0 and self.scene_distance_horizon > 0):
+            raise SimError(
+                "SimSettings: self_penetration_limit and self_contact_force_limit must be >= 0 and "
+                "collision_sample_period, "
+                "self_distance_horizon, scene_distance_horizon > 0"
             )
 
