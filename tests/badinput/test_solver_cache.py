@@ -32,8 +32,8 @@ from hypothesis import strategies as st
 
 from planner import PlannerSettings
 from planner.trajopt import cache_disk, plan
+from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, solver_key
-from planner.trajopt.layout import make_layout
 from tests.badinput.conftest import REPO, run_cli, run_cli_process
 from tests.planner.planning_cases import squat_spec
 
@@ -77,7 +77,7 @@ def golden(tmp_path_factory, talos) -> Golden:
     clear_memory_cache()
     first = plan(spec, talos, settings=settings)
     assert first.ok and first.stats.cache == "built"
-    key = solver_key(make_layout(spec, talos), settings)
+    key = solver_key(planned_layout(spec, talos, settings), settings)
     entry = cache_dir / "planner" / key
     assert {p.name for p in entry.iterdir()} == {"nlp.so", "meta.json", "verified"}
     assert (entry / "verified").read_text().strip() == hashlib.sha256((entry / "nlp.so").read_bytes()).hexdigest()
@@ -412,7 +412,7 @@ def _squat_json_entry(golden: Golden, cache_dir: Path) -> Path:
     spec = load_spec(SQ)
     robot = load_robot(spec.robot)
     settings = PlannerSettings(cache_dir=str(cache_dir), compile=True)
-    lay = make_layout(spec, robot)
+    lay = planned_layout(spec, robot, settings)
     from planner.trajopt.transcription import make_nlp_layout
 
     nl = make_nlp_layout(lay)
