@@ -4,8 +4,9 @@ resolved to one :class:`~tasks.scene.SceneObject` of a scene.
 A reference is ``[determiner] [modifiers] noun [relation landmark]`` in English, or
 ``[那个/这个] [landmark relation 的] [modifiers] noun`` in Chinese:
 
-- the *noun* is an object's name or alias, or the last word of one (``box`` names ``red box``
-  and ``small_box``; 盒子 names 红色盒子); names compare case-blind, ``_`` and ``-`` read as spaces;
+- the *noun* is an object's name or alias, or words of one (``box`` names ``red box``,
+  ``small_box`` and ``box a``; 盒子 names 红色盒子); names compare case-blind, ``_`` and ``-`` read
+  as spaces;
 - a *colour* word (English or Chinese, :data:`COLOURS`) keeps the objects whose colour is nearest
   (RGB distance) to that colour among the named colours;
 - a *size* word (``big``, ``small``, 大, 小) takes the largest or smallest (volume) of the candidates;
@@ -131,9 +132,10 @@ def object_names(obj: SceneObject) -> tuple[str, ...]:
 
 
 def names_object(obj: SceneObject, noun: str) -> bool:
-    """``noun`` is the object's name or alias, or the last word (the Chinese ending) of one."""
+    """``noun`` is the object's name or alias, or words of one (``box`` for ``red box`` and
+    ``box a``), or the ending of a Chinese one (盒子 for 红色盒子)."""
     for name in object_names(obj):
-        if name == noun or name.endswith(" " + noun) or (_is_cjk(noun[0]) and name.endswith(noun)):
+        if name == noun or f" {noun} " in f" {name} " or (_is_cjk(noun[0]) and name.endswith(noun)):
             return True
     return False
 
