@@ -259,6 +259,23 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
         else:
             part.append(it)
     flush()
+    return _borrow_references(out, lx)
+
+
+def _borrow_references(items: list[Item], lx: Lexicon) -> list[Item]:
+    """``walk over and point at the cup``: words that only mean going to an object (``walk over``,
+    ``approach``, 走过去) without a reference of their own take the next reference of the sentence
+    (an ``object`` item of no words, placed after the action word)."""
+    out = list(items)
+    for k, it in enumerate(items):
+        if it.kind != TRIGGER or not all(lx.actions[a].object is not None for a, _ in it.value):
+            continue
+        end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
+        if any(x.kind == REF for x in items[k + 1:end]) or any(x.kind == REF for x in items[:k] if x.end == it.start):
+            continue
+        ref = next((x for x in items[end:] if x.kind == REF), None)
+        if ref is not None:
+            out.insert(out.index(it) + 1, Item(REF, ref.value, "", it.end, it.end))
     return out
 
 
@@ -607,7 +624,8 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
             if aw.object is None:  # pragma: no cover - _resolve_action picks an action with an object
                 raise misfit(it)
             params[aw.object] = it.value
-            note(it, "object", f"{aw.object}={it.value}")
+            if it.text:  # a borrowed reference has no words of its own
+                note(it, "object", f"{aw.object}={it.value}")
         else:  # pragma: no cover - every item kind is handled above
             raise misfit(it)
 
