@@ -108,7 +108,7 @@ class Param:
         elif self.kind == "vec3":
             s = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
         elif self.kind == "object":
-            s = {"type": "string", "minLength": 1, "maxLength": MAX_REFERENCE_LENGTH}
+            s = {"type": "string"}  # non-empty, at most MAX_REFERENCE_LENGTH: checked by validate()
         else:
             s = {"type": "boolean"}
         if self.minimum is not None:

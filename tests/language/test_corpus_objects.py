@@ -39,3 +39,13 @@ def test_the_reference_is_one_word_use_with_the_object_role():
         ("那个杯子", "object=那个杯子", 2),
     ]
     assert plan.to_dict()["actions"][1]["params"] == {"object": "那个杯子", "arm": "left"}
+
+
+def test_object_actions_fit_the_backends_schema():
+    """The reply schema every backend is checked against (the LLM's too) accepts the object actions."""
+    from language.validate import validate
+    from tasks.actions import actions_json_schema
+
+    plan = parse("walk over to the red box, then point at 桌子上的杯子 with your left hand").to_dict()
+    validate({"actions": plan["actions"]}, actions_json_schema())
+    assert [a["action"] for a in plan["actions"]] == ["walk_to", "point_at"]
