@@ -42,7 +42,7 @@ from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_
 from tasks.scene import SceneObject, extent, signed_distance
 from tasks.specs import Phase
 
-WALK_MARGIN = 0.05  # [m] clearance between the body's front and the object it stops at
+WALK_MARGIN = 0.1  # [m] clearance between the body's front and the object it stops at (room for the arms)
 WALK_MIN = 0.05  # [m] a shorter walk is not taken (already there)
 TURN_MIN = 0.05  # [rad] a smaller turn is not taken (already facing it)
 WALK_MAX = 10.0  # [m] the registry's longest walk
