@@ -24,13 +24,19 @@ after the walk included; and a group whose actions leave the CoM alone (arms, he
 at its standing point over the current feet, a cost of weight :data:`STILL_WEIGHT` (a fast wave
 otherwise sways the body, and the plan's full-dynamics ZMP leaves the soles). Sizes an action does not
 state are fitted to the robot first (:func:`fit_actions`).
+
+Objects: an action's ``object`` reference ("the red box") is resolved against the ``scene``
+(:func:`ground_actions`, :mod:`tasks.grounding`) before anything is compiled, and each group's
+grounded objects learn where the robot stands when the group starts (a ``walk_to`` after a walk
+starts from where that walk ended). The horizon check before compiling takes such an action from
+the standing stance; the spec's real horizon is checked again at the end.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 from robots.model import Robot
 from tasks.actions import Action, get_action
@@ -272,8 +278,7 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
             except GroundingError as e:
                 where = _where(i, a, len(actions))
                 raise GroundingError(f"{where}{e}", e.reference, e.candidates) from None
-            assert scene is not None  # ground() raises without one
-            params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=scene)
+            params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=cast(Scene, scene))  # ground() raised without one
         out.append(Action(name=a.name, params=params, overlay=a.overlay, defaulted=a.defaulted))
     return out
 
