@@ -49,6 +49,7 @@ SUBJECT = "subject"  # "a person", "he", "这个人": who does it (caption style
 AUX = "aux"  # "is", "starts to", "正在": verb forms around the action word, not used
 IN_PLACE = "in_place"  # "in place", "on the spot", "原地": changes walk/step into march
 STOP = "stop"  # "stop", "停下": ends the sequence (a bare one alone means: stand still)
+REF = "object"  # a reference to a scene object ("the red box"); value: its words (made by the rule parser)
 
 SLOT_KEYS = ("side", "direction", "count", "length", "angle", "duration")
 BARE_LEFT_RIGHT = ("side", "direction", "sign", None)
@@ -107,6 +108,11 @@ class ActionWords:
             the action stays in place anyway and ``in place`` changes nothing.
         split: A numeric parameter whose value beyond its registry range is split into equal
             copies of the action (``turn 360 degrees`` is two turns of 180 degrees).
+        object: Parameter taking a reference to a scene object (``the table``); an action with
+            one is named by a clause that holds a reference.
+        object_of: Actions whose words, with a reference to an object, name this one (``go`` is
+            walk; ``go to the table`` is walk_to); this action's own words without a reference
+            name the first of them (``walk to the left`` is walk).
     """
 
     name: str
@@ -127,6 +133,8 @@ class ActionWords:
     absorbs: tuple[str, ...] = ()
     in_place: str | None = None
     split: str | None = None
+    object: str | None = None
+    object_of: tuple[str, ...] = ()
 
 
 class Lexicon:
@@ -191,10 +199,18 @@ class Lexicon:
                 words["zh" if any("\u3400" <= ch <= "\u9fff" for ch in phrase) else "en"].append(phrase)
             self.action_words[name] = words
             kwargs = {k: v for k, v in spec.items() if k not in ("words", "with_body", "phrases")}
-            for key in ("body", "ignore_directions", "ignore_sides", "absorbs"):
+            for key in ("body", "ignore_directions", "ignore_sides", "absorbs", "object_of"):
                 if key in kwargs:
                     kwargs[key] = tuple(kwargs[key])
             self.actions[name] = ActionWords(name=name, **kwargs)
+        #: plain action -> its form with an object (walk -> walk_to), and back
+        self.object_forms: dict[str, str] = {}
+        self.plain_forms: dict[str, str] = {}
+        for name, aw in self.actions.items():
+            for plain in aw.object_of:
+                self.object_forms.setdefault(plain, name)
+            if aw.object_of:
+                self.plain_forms[name] = aw.object_of[0]
 
     def _load_words(self, data: Mapping[str, Any]) -> None:
         words = data["words"]
@@ -273,6 +289,13 @@ class Lexicon:
                     raise VocabularyError(f"vocabulary action {name!r}: unknown body word class {body!r}")
             if aw.split is not None:
                 _check_param(schema, aw.split, "split")
+            if aw.object is not None:
+                _check_param(schema, aw.object, "object")
+                if schema.param(aw.object).kind != "object":
+                    raise VocabularyError(f"vocabulary action {name!r}: object parameter {aw.object!r} is not an object reference")
+            for plain in aw.object_of:
+                if plain not in REGISTRY:
+                    raise VocabularyError(f"vocabulary action {name!r}: object_of names unknown action {plain!r}")
             for other in aw.absorbs:
                 if other not in REGISTRY:
                     raise VocabularyError(f"vocabulary action {name!r}: absorbs unknown action {other!r}")

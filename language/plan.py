@@ -22,6 +22,7 @@ from tasks.limits import MAX_ACTIONS
 ROLES = (
     "action",            # names the action (detail: its name)
     "parameter",         # sets a parameter (detail: "arm=left", "duration=4 s")
+    "object",            # a reference to a scene object (detail: "object=the red box")
     "count",             # a count (detail: "repeat=3", or "2 copies" for actions without a count)
     "unit",              # the unit of the number before it (detail: "cm")
     "body part",         # a body word that names or qualifies the action (detail: "hand")

@@ -48,6 +48,7 @@ from language.lexicon import (
     NUM,
     OVERLAY,
     PUNCTUATION,
+    REF,
     ROT,
     SEQ,
     SIDE,
@@ -65,6 +66,7 @@ from language.normalize import atomize, normalize
 from language.plan import ActionPlan, WordUse
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
+from tasks.grounding import strip_reference
 from tasks.limits import MAX_REPEAT
 
 AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
@@ -151,7 +153,7 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
     """:func:`parse_rules`, and what each word did (for ``wbmp parse``)."""
     lx = lexicon or get_lexicon()
     normalized = normalize(text)
-    items = lx.segment(atomize(normalized), normalized)
+    items = _references(lx.segment(atomize(normalized), normalized), lx, normalized)
     _refuse_unknown(items, lx)
     uses = _Uses()
     clauses = _split(items, uses, frozenset(lx.optional_adverbs))
@@ -190,6 +192,91 @@ def rules_plan(text: str) -> ActionPlan:
     parsed, words = parse_rules_explained(text)
     return ActionPlan(actions=tuple(p.action for p in parsed), backend="rules", text=text,
                       given=tuple(p.given for p in parsed), words=words)
+
+
+REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the words of a reference can be
+SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")
+DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
+
+
+def _takes_object(trigger: Item, lx: Lexicon) -> bool:
+    return any(lx.actions[a].object is not None or a in lx.object_forms for a, _ in trigger.value)
+
+
+def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
+    """Items with each reference to a scene object (``the red box on the table``, 桌子上的杯子)
+    merged into one ``object`` item.
+
+    In a part of the sentence (between sequencing words and punctuation) whose action word can
+    take an object (walk, look, point...), the words right after it, or else right before it,
+    that hold at least one word the vocabulary does not know (the object's name: the scene
+    decides, not the parser) are the reference, up to a word that is a slot of its own (a number,
+    a hand, a speed). Elsewhere unknown words stay unknown (and are refused).
+    """
+    out: list[Item] = []
+    part: list[Item] = []
+
+    def reference_run(run: list[Item]) -> list[Item]:
+        taken: list[Item] = []
+        named = False  # a word the vocabulary does not know, or an action word after "the" ("the box")
+        skip = 0
+        while skip < len(run) and run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS:
+            skip += 1  # "walk slowly to the table": the adverb is a slot of its own
+        run = run[skip:]
+        for k, it in enumerate(run):
+            nxt = run[k + 1] if k + 1 < len(run) else None
+            noun = it.kind == TRIGGER and any(t.kind == FILLER and t.text in DETERMINERS for t in taken) \
+                and not _takes_object(it, lx)
+            if noun:
+                named = True
+            elif it.kind not in REF_KINDS or (it.kind == LR and nxt is not None and nxt.kind == BODY) \
+                    or (it.kind == ADV and it.value not in SIZE_ADVERBS):
+                break
+            named = named or it.kind in (UNKNOWN, NEARMISS)
+            taken.append(it)
+        while taken and taken[-1].kind in (FILLER, CLASSIFIER):
+            taken.pop()
+        return taken if named else []
+
+    def flush() -> None:
+        t = next((k for k, it in enumerate(part) if it.kind == TRIGGER and _takes_object(it, lx)), None)
+        if t is not None:
+            run = reference_run(part[t + 1:])
+            if not run:
+                run = list(reversed(reference_run(list(reversed(part[:t])))))
+            if run:
+                text = normalized[run[0].start:run[-1].end]
+                ref = Item(REF, strip_reference(text), text, run[0].start, run[-1].end)
+                first = part.index(run[0])
+                part[first:first + len(run)] = [ref]
+        out.extend(part)
+        part.clear()
+
+    for it in items:
+        if it.kind in (SEQ, OVERLAY, PUNCTUATION):
+            flush()
+            out.append(it)
+        else:
+            part.append(it)
+    flush()
+    return _borrow_references(out, lx)
+
+
+def _borrow_references(items: list[Item], lx: Lexicon) -> list[Item]:
+    """``walk over and point at the cup``: words that only mean going to an object (``walk over``,
+    ``approach``, 走过去) without a reference of their own take the next reference of the sentence
+    (an ``object`` item of no words, placed after the action word)."""
+    out = list(items)
+    for k, it in enumerate(items):
+        if it.kind != TRIGGER or not all(lx.actions[a].object is not None for a, _ in it.value):
+            continue
+        end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
+        if any(x.kind == REF for x in items[k + 1:end]) or any(x.kind == REF for x in items[:k] if x.end == it.start):
+            continue
+        ref = next((x for x in items[end:] if x.kind == REF), None)
+        if ref is not None:
+            out.insert(out.index(it) + 1, Item(REF, ref.value, "", it.end, it.end))
+    return out
 
 
 def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
@@ -327,6 +414,15 @@ def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None
     absorbed = {other for n in names for other in lx.actions[n].absorbs}
     if names - absorbed:
         names -= absorbed
+    ref = next((it for it in clause.items if it.kind == REF), None)
+    if ref is not None:  # "go to the table": walk with an object is walk_to
+        with_object = {lx.object_forms.get(n, n) for n in names}
+        names = {n for n in with_object if lx.actions[n].object is not None}
+        if not names:
+            raise InvalidParameter(f'"{ref.text}" in "{clause.text(normalized)}": {", ".join(sorted(with_object))} '
+                                   "takes no object")
+    else:  # "walk to the left": walk_to's words without an object are a walk
+        names = {lx.plain_forms.get(n, n) for n in names}
     if len(names) == 1:
         return next(iter(names))
     raise AmbiguousInstruction(
@@ -454,6 +550,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
     allowed_bodies = set(aw.body) | _with_body(lx, name)
     consumed: set[int] = set()
     quantity_items: dict[str, tuple[Item, Item]] = {}  # quantity -> (number item, unit item)
+    params: dict[str, Any] = {}
 
     def misfit(it: Item, extra: str = "") -> InvalidParameter:
         return InvalidParameter(f'"{it.text}" does not fit {name} in "{where}"{extra}')
@@ -523,10 +620,15 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
             signs.append((it.value, it))
         elif it.kind == ADV:
             adverbs.append(it)
+        elif it.kind == REF:
+            if aw.object is None:  # pragma: no cover - _resolve_action picks an action with an object
+                raise misfit(it)
+            params[aw.object] = it.value
+            if it.text:  # a borrowed reference has no words of its own
+                note(it, "object", f"{aw.object}={it.value}")
         else:  # pragma: no cover - every item kind is handled above
             raise misfit(it)
 
-    params: dict[str, Any] = {}
     sources: dict[str, str] = {}  # parameter -> the words that set it (for error messages)
     # side: "left hand", "双手", or a plural body word ("raise your hands")
     if not sides and plural is not None and aw.side is not None:

@@ -26,6 +26,7 @@ KICK_DIRECTIONS = ("forward", "side")
 POINT_DIRECTIONS = ("forward", "left", "right", "up", "down")
 STRETCH_DIRECTIONS = ("up", "left", "right", "backward")
 TOUCH_PARTS = ("head", "shoulder", "chest", "hip", "knee", "hand", "toes")
+MAX_REFERENCE_LENGTH = 200  # characters of an object reference (tasks.grounding)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -34,7 +35,9 @@ class Param:
 
     Attributes:
         name: Parameter name (``depth``).
-        kind: ``float``, ``int``, ``choice``, ``vec3`` or ``bool``.
+        kind: ``float``, ``int``, ``choice``, ``vec3``, ``bool`` or ``object`` (a reference to a
+            scene object as said, ``the red box``; :func:`tasks.compose.compile_actions` resolves
+            it against the spec's scene, :mod:`tasks.grounding`).
         unit: SI unit (``m``, ``s``, ``rad``) or ``""``/``count``.
         default: Value used when the user does not give one (None = optional, no value).
         minimum, maximum: Inclusive range for ``float``/``int`` (robot limits may be tighter).
@@ -80,6 +83,14 @@ class Param:
             if not isinstance(value, bool):
                 raise TaskDefinitionError(f"{who} must be true or false, got {_short(value)}")
             return value
+        elif self.kind == "object":
+            text = getattr(value, "reference", value)  # a grounded reference keeps its words
+            if not isinstance(text, str) or not text.strip() or len(text) > MAX_REFERENCE_LENGTH:
+                raise TaskDefinitionError(
+                    f"{who} must name an object of the scene in at most {MAX_REFERENCE_LENGTH} characters "
+                    f"(\"the red box\"), got {_short(value)}"
+                )
+            return value if text is not value else text.strip()
         if self.minimum is not None and value < self.minimum:
             raise TaskDefinitionError(f"{who} {_fmt(value, self.unit)} is below the minimum {_fmt(self.minimum, self.unit)}")
         if self.maximum is not None and value > self.maximum:
@@ -96,6 +107,8 @@ class Param:
             s = {"type": "string", "enum": list(self.choices)}
         elif self.kind == "vec3":
             s = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
+        elif self.kind == "object":
+            s = {"type": "string"}  # non-empty, at most MAX_REFERENCE_LENGTH: checked by validate()
         else:
             s = {"type": "boolean"}
         if self.minimum is not None:
@@ -216,7 +229,7 @@ class Action:
 
     def to_dict(self) -> dict[str, Any]:
         """``{"action": name, "params": {...}}`` (+ ``"overlay": true`` when set)."""
-        params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.params.items() if v is not None}
+        params = {k: _plain(v) for k, v in self.params.items() if v is not None}
         out: dict[str, Any] = {"action": self.name, "params": params}
         if self.overlay:
             out["overlay"] = True
@@ -239,6 +252,13 @@ class Action:
         return cls(name=str(data["action"]), params=dict(params), overlay=overlay)
 
 
+def _plain(value: Any) -> Any:
+    """A parameter's JSON form: a list for a vector, the words for a grounded reference."""
+    if isinstance(value, tuple):
+        return list(value)
+    return getattr(value, "reference", value)
+
+
 class _FrozenDict(dict):
     """A dict that refuses mutation and hashes by content (keeps Action frozen in spirit)."""
 
@@ -258,6 +278,10 @@ def _choice(name: str, choices: tuple[str, ...], default: str | None, descriptio
 def _repeat(default: int = 1) -> Param:
     return Param(name="repeat", kind="int", unit="count", default=default, minimum=1, maximum=MAX_REPEAT,
                  description="how many times")
+
+
+def _object(description: str) -> Param:
+    return Param(name="object", kind="object", description=f"{description}, as said (\"the red box\", 桌子上的杯子)")
 
 
 REGISTRY: dict[str, ActionSchema] = {
@@ -477,6 +501,23 @@ REGISTRY: dict[str, ActionSchema] = {
                   description="number of strides (flights)"),
             Param(name="forward", kind="float", unit="m", default=0.0, minimum=0.0, maximum=5.0,
                   description="distance covered (0: jog in place)"),
+        )),
+        # --- actions on scene objects, without a grasp (tasks/primitives/objects.py) ---
+        ActionSchema(name="walk_to", summary="Walk to an object of the scene and stop facing it, within arm's reach.",
+                     body="lower", dynamic=True, params=(
+            _object("the object to walk to"),
+        )),
+        ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
+                     body="upper", params=(
+            _object("the object to look at"),
+            Param(name="duration", kind="float", unit="s", default=2.5, minimum=1.0, maximum=30.0,
+                  description="time to look, hold and look forward again"),
+        )),
+        ActionSchema(name="point_at", summary="Point at an object of the scene with a straight arm.", body="upper", params=(
+            _object("the object to point at"),
+            _choice("arm", SIDES, None, "which arm points (default: the one on the object's side)"),
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
+                  description="time to point, hold and lower"),
         )),
     )
 }

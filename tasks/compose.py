@@ -24,16 +24,24 @@ after the walk included; and a group whose actions leave the CoM alone (arms, he
 at its standing point over the current feet, a cost of weight :data:`STILL_WEIGHT` (a fast wave
 otherwise sways the body, and the plan's full-dynamics ZMP leaves the soles). Sizes an action does not
 state are fitted to the robot first (:func:`fit_actions`).
+
+Objects: an action's ``object`` reference ("the red box") is resolved against the ``scene``
+(:func:`ground_actions`, :mod:`tasks.grounding`) before anything is compiled, and each group's
+grounded objects learn where the robot stands when the group starts (a ``walk_to`` after a walk
+starts from where that walk ended). The horizon check before compiling takes such an action from
+the standing stance; the spec's real horizon is checked again at the end.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 from robots.model import Robot
-from tasks.actions import Action
+from tasks.actions import Action, get_action
 from tasks.exceptions import TaskDefinitionError
+from tasks.grounding import Grounded, GroundingError, ground, strip_reference
 from tasks.limits import MAX_ACTIONS, MAX_HORIZON, horizon_message
 from tasks.primitives import (
     DEFAULT_DT,
@@ -46,6 +54,7 @@ from tasks.primitives import (
     standing_geometry,
 )
 from tasks.primitives.base import fit_defaults
+from tasks.scene import Scene
 from tasks.specs import CoMBounds, CoMTarget, Contact, JointTarget, Phase, Priority, TaskSpec
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
@@ -131,6 +140,7 @@ def compile_actions(
     transition_time: float = TRANSITION_TIME,
     name: str = "",
     description: str = "",
+    scene: Scene | None = None,
 ) -> TaskSpec:
     """Compile a sequence of actions (with overlays) into one TaskSpec for ``robot``.
 
@@ -143,6 +153,8 @@ def compile_actions(
         transition_time: Standing between consecutive groups [s] (rounded up to knots; 0 = none).
         name: Spec name (default: the action names joined by ``", then "``).
         description: Free text (e.g. the sentence the actions came from).
+        scene: The objects around the robot: an action's ``object`` reference (``walk to the
+            table``) is resolved against it (:func:`ground_actions`), and the spec carries it.
 
     Returns:
         The TaskSpec, whose horizon is the sum of the stand, action and transition times.
@@ -153,6 +165,7 @@ def compile_actions(
             limits, a primitive not available yet, or a motion longer than
             :data:`tasks.limits.MAX_HORIZON`; the message names the action (``action 2 (squat): ...``)
             when there are several.
+        GroundingError: an object reference without a scene, or that names no object or several.
     """
     if not (isinstance(dt, (int, float)) and 0.005 <= dt <= DT_MAX):
         raise TaskDefinitionError(f"dt must be in [0.005, {DT_MAX:g}] s, got {dt!r}")
@@ -164,7 +177,7 @@ def compile_actions(
             f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
             "into several shorter ones"
         )
-    checked = fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot)
+    checked = ground_actions(fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot), scene)
     if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
     n = len(checked)
@@ -190,6 +203,7 @@ def compile_actions(
             phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
             waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
+        group = [(i, _standing_at(a, stance)) for i, a in group]
         _check_parts(group)
         length = _group_duration(group, robot, n)
         group_fragments = []
@@ -237,7 +251,49 @@ def compile_actions(
         dynamic=any(f.dynamic for f in fragments),
         name=name or describe_actions(checked),
         description=description,
+        scene=scene,
     )
+
+
+def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Action]:
+    """The actions with every ``object`` reference resolved against ``scene``
+    (:class:`tasks.grounding.Grounded`; an action without one is kept as it is).
+
+    Raises:
+        GroundingError: a reference and no scene, or one that names no object or several; the
+            message names the action when there are several (``action 2 (point_at): ...``).
+    """
+    out = []
+    for i, a in enumerate(actions):
+        refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
+        if not refs:
+            out.append(a)
+            continue
+        params = dict(a.params)
+        for key, ref in refs.items():
+            if isinstance(ref, Grounded):
+                continue
+            try:
+                obj = ground(ref, scene, action=a.name)
+            except GroundingError as e:
+                where = _where(i, a, len(actions))
+                raise GroundingError(f"{where}{e}", e.reference, e.candidates) from None
+            params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=cast(Scene, scene))  # ground() raised without one
+        out.append(Action(name=a.name, params=params, overlay=a.overlay, defaulted=a.defaulted))
+    return out
+
+
+def _standing_at(action: Action, stance: Stance) -> Action:
+    """``action`` with its grounded objects told where the robot stands when it starts."""
+    params = dict(action.params)
+    changed = False
+    for key, value in params.items():
+        if isinstance(value, Grounded) and value.start != stance:
+            params[key] = dataclasses.replace(value, start=stance)
+            changed = True
+    if not changed:
+        return action
+    return Action(name=action.name, params=params, overlay=action.overlay, defaulted=action.defaulted)
 
 
 def _still_com(fragments: list[Fragment], robot: Robot, stance: Stance, t0: float, t1: float) -> list[CoMTarget]:
@@ -302,4 +358,5 @@ def describe_actions(actions: Sequence[Action]) -> str:
     return out
 
 
-__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "fit_actions", "group_actions"]
+__all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "fit_actions", "ground_actions",
+           "group_actions"]

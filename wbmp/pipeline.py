@@ -124,6 +124,15 @@ def parse_instruction(request: SolveRequest):
     return parse(request.instruction, backend=request.parser, **options)
 
 
+def _require_scene(actions) -> None:
+    """A sentence that names an object needs ``--scene`` (a usage error, exit 2)."""
+    for a in actions:
+        ref = a.params.get("object")
+        if ref is not None:
+            raise CliError(f'{a.name} "{ref}" refers to an object, but there is no scene: give one with --scene FILE '
+                           "(docs/scenes.md), e.g. --scene examples/scenes/kitchen.json", ExitCode.USAGE)
+
+
 def build_spec(request: SolveRequest, progress: Progress = _silent):
     """(robot, spec, actions) for a sentence or a spec file (with the scene file, when given).
 
@@ -160,7 +169,9 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
 
     # unstated sizes chosen within the robot's limits, so that the printed defaults are the ones used
     actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
-    spec = compile_actions(actions.actions, robot)
+    if scene is None:
+        _require_scene(actions.actions)
+    spec = compile_actions(actions.actions, robot, scene=scene)
     spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction, scene=scene)
     check_spec_for_robot(spec, robot)
     check_spec_in_scene_for_robot(spec, robot)

@@ -10,7 +10,8 @@ One module per primitive or family: :mod:`.squat`, :mod:`.wave`, :mod:`.reach`,
 clap, touch, hands_on_hips, cross_arms, arms_out, point, salute, arm_circles, shrug, stretch;
 body parts from :mod:`.bodymap`), :mod:`.head` (nod, shake_head), and the dynamic
 ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
-march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`.
+march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`; the actions
+on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from tasks.primitives import (
     jump,
     legs,
     locomotion,
+    objects,
     posture,
     reach,
     squat,
@@ -67,6 +69,7 @@ PRIMITIVES: dict[str, Primitive] = {
         legs.LUNGE,
         legs.STOMP,
         hop.JOG,
+        *objects.PRIMITIVES,
     )
 }
 

@@ -56,9 +56,10 @@ def load_corpus(path: Path = CORPUS_PATH) -> list[Case]:
             continue
         actions = []
         for part in expected.split(" ; "):
-            name, *pairs = part.split()
+            name, _, rest = part.strip().partition(" ")
             overlay = name.startswith("+")
-            params = {k: _value(v) for k, v in (p.split("=", 1) for p in pairs)}
+            # key=value, or key="a value with spaces" (an object reference)
+            params = {k: (q if q else _value(v)) for k, v, q in re.findall(r'(\w+)=("([^"]*)"|\S+)', rest)}
             entry = {"action": name.lstrip("+"), "params": params}
             if overlay:
                 entry["overlay"] = True

@@ -64,13 +64,17 @@ def test_every_registry_action_has_english_and_chinese_words():
 
 @pytest.mark.parametrize("name", sorted(REGISTRY))
 def test_every_action_parses_from_its_own_words(name):
-    """Each action's first plain English and Chinese word parses to that action."""
+    """Each action's first plain English and Chinese word parses to that action (with an object
+    after it for the actions that take one: ``walk to`` alone is a walk)."""
     lx = get_lexicon()
     for lang in ("en", "zh"):
         plain = [w for w in lx.action_words[name][lang] if "(" not in w]
         if not plain:
             continue
-        assert parse_rules(plain[0])[0].action.name == name, (name, plain[0])
+        text = plain[0]
+        if lx.actions[name].object is not None:
+            text += " the cup" if lang == "en" else "杯子"
+        assert parse_rules(text)[0].action.name == name, (name, text)
 
 
 def test_deeper_and_higher_than_plain():

@@ -18,7 +18,9 @@ from tasks.primitives.wave import wave_geometry
 from tasks.serialize import spec_from_json, spec_to_json
 from tasks.specs import Priority
 
-AVAILABLE = sorted(n for n, p in PRIMITIVES.items() if p.available and not p.dynamic)
+# the actions on scene objects need a scene: tests/tasks/test_objects.py compiles them
+AVAILABLE = sorted(n for n, p in PRIMITIVES.items()
+                   if p.available and not p.dynamic and all(q.kind != "object" for q in REGISTRY[n].params))
 PLACEHOLDERS = sorted(n for n, p in PRIMITIVES.items() if not p.available)
 DEFAULT_PARAMS = {"reach": {"direction": "forward"}}
 

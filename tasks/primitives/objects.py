@@ -1,0 +1,364 @@
+"""Actions on scene objects that need no grasp: ``walk_to(object)``, ``look_at(object, duration)``,
+``point_at(object, arm, duration)``.
+
+The ``object`` parameter arrives grounded (:class:`tasks.grounding.Grounded`: the object, its scene
+and where the robot stands when the action starts), resolved by
+:func:`tasks.compose.compile_actions` from the words of the sentence.
+
+- ``walk_to``: turn in place to face the object's centre, then walk straight towards it and stop
+  when the front of the body (its collision geometry at the height of the object, measured by
+  :func:`tasks.primitives.bodymap.body_map`) is :data:`WALK_MARGIN` from the first object in the
+  way, the target itself or another one (a cup on a table: the table's edge). From there the
+  object's nearest point must be within a hand's reach (``REACH_FRACTION`` of the arm from the
+  shoulder, bending up to ``BEND_MAX`` at the hips: :func:`tasks.primitives.arms.reach_gap`);
+  otherwise the walk is refused, naming the object in the way (wbmp walks in straight lines only)
+  or the distance that remains. The footsteps are :mod:`tasks.footsteps`' turn and walk.
+- ``look_at``: the head frame turned by the yaw and the pitch that point its forward axis at the
+  object's centre (HARD orientation target, :data:`LOOK_TOLERANCE`), held, then forward again;
+  robots without a neck (g1) and angles beyond the neck's range are refused.
+- ``point_at``: the arm straight from its shoulder towards the object's centre, the hand
+  ``OUT_REACH`` of the arm out (less when an object is closer: the hand stays
+  :data:`POINT_CLEARANCE` clear of every object), held, then back to rest; by default the arm on
+  the object's side.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.exceptions import TaskDefinitionError
+from tasks.footsteps import ContactSequence, turn, walk
+from tasks.grounding import Grounded, ground
+from tasks.primitives.arms import OUT_REACH, POSE_TOLERANCE, arm_length, reach_gap, shoulder
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
+from tasks.primitives.bodymap import body_map, to_standing
+from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
+from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_axis
+from tasks.scene import SceneObject, extent, signed_distance
+from tasks.specs import Phase
+
+WALK_MARGIN = 0.1  # [m] clearance between the body's front and the object it stops at (room for the arms)
+WALK_MIN = 0.05  # [m] a shorter walk is not taken (already there)
+TURN_MIN = 0.05  # [rad] a smaller turn is not taken (already facing it)
+WALK_MAX = 10.0  # [m] the registry's longest walk
+STAND_TIME = 1.0  # [s] walk_to when the robot is already there
+END_TOLERANCE = 0.02  # [m] CoM over the final feet
+LOOK_TOLERANCE = 0.05  # [rad] head orientation
+POINT_CLEARANCE = 0.1  # [m] pointing hand to any object
+POINT_MIN = 0.5  # [L] a hand closer than this fraction of the arm to the shoulder is no pointing
+BEHIND = math.radians(100)  # an object farther than this from the heading cannot be pointed or looked at
+
+LEG_PARTS = frozenset({"legs", "com"})
+
+
+def grounded(params: dict, action: str) -> Grounded:
+    """The action's grounded object (GroundingError when it was not resolved against a scene)."""
+    value = params.get("object")
+    if isinstance(value, Grounded):
+        return value
+    if value is None:
+        raise TaskDefinitionError(f'{action} needs an object: say which, e.g. "{action.replace("_", " ")} the table"')
+    ground(value, None, action=action)  # raises: no scene
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _start(g: Grounded, robot: Robot) -> Stance:
+    return g.start if isinstance(g.start, Stance) else Stance.standing(robot)
+
+
+def _yaw(stance: Stance) -> float:
+    R = stance.heading().rotation
+    return math.atan2(R[1, 0], R[0, 0])
+
+
+def _wrap(a: float) -> float:
+    return math.atan2(math.sin(a), math.cos(a))
+
+
+# --- walk_to ------------------------------------------------------------------------------
+def body_front(robot: Robot, z_range: tuple[float, float]) -> tuple[float, float]:
+    """(front, half width) of the standing body [m], heading frame: the farthest forward point of
+    the collision geometry between heights ``z_range``, and the largest lateral extent."""
+    boxes = body_map(robot).boxes
+    level = [b for b in boxes if b.lo[2] <= z_range[1] and b.hi[2] >= z_range[0]]
+    front = max(float(b.hi[0]) for b in (level or boxes))
+    half = max(max(abs(float(b.lo[1])), abs(float(b.hi[1]))) for b in boxes)
+    return front, half
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WalkPlan:
+    """Where ``walk_to`` goes: a turn, a straight walk, the object it stops at.
+
+    Attributes:
+        angle: Turn in place first [rad] (left positive; 0: none).
+        distance: Then walk forward [m] (0: none).
+        stop: The object whose margin ends the walk (the target or one in the way).
+        reach_gap: Shoulder to the target's surface at the end, minus the arm's reach [m] (<= 0).
+    """
+
+    angle: float
+    distance: float
+    stop: SceneObject
+    reach_gap: float
+
+
+def reach_gaps(robot: Robot, obj: SceneObject, mid: np.ndarray, yaw: float) -> dict[str, float]:
+    """Per arm, how far the object's point nearest to the shoulder is beyond the hand's reach
+    (bending up to ``BEND_MAX`` at the hips, :func:`tasks.primitives.arms.reach_gap`) for the robot
+    standing at ``mid`` (x, y) facing ``yaw`` [m]; <= 0: within reach."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    lo, hi = extent(obj)
+    out = {}
+    for side in ("left", "right"):
+        p = shoulder(robot, side)
+        world = np.array([mid[0] + c * p[0] - s * p[1], mid[1] + s * p[0] + c * p[1], p[2]])
+        near = np.clip(world, lo, hi) - np.array([mid[0], mid[1], 0.0])
+        local = np.array([c * near[0] + s * near[1], -s * near[0] + c * near[1], near[2]])
+        out[side] = reach_gap(robot, side, local, bend=True)
+    return out
+
+
+def _surface_gap(obj: SceneObject, point: np.ndarray) -> float:
+    d = signed_distance(obj, point)
+    return float(np.linalg.norm(point - np.asarray(obj.position))) if d is None else d
+
+
+def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
+    """The turn and the straight walk that bring the robot facing ``g.obj`` within reach.
+
+    Raises:
+        TaskDefinitionError: the robot stands inside the object's footprint, the object is farther
+            than :data:`WALK_MAX`, or it is out of reach from where the walk has to stop (an object
+            in the way, named, or the object itself too low, high or deep).
+    """
+    target = g.obj
+    start = _start(g, robot)
+    H = start.heading()
+    p0 = np.asarray(H.translation[:2], dtype=float)
+    yaw0 = _yaw(start)
+    to = np.asarray(target.position[:2], dtype=float) - p0
+    if float(np.linalg.norm(to)) < 1e-6:
+        raise TaskDefinitionError(f"walk_to: the robot stands on the {target.name}'s centre; nowhere to walk")
+    u = to / np.linalg.norm(to)
+    n = np.array([-u[1], u[0]])
+    yaw = math.atan2(u[1], u[0])
+    stop_at, stop_obj = math.inf, target
+    for obj in g.scene.objects:
+        lo, hi = extent(obj)
+        corners = np.array([(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]) - p0
+        along, across = corners @ u, corners @ n
+        front, half = body_front(robot, (lo[2], hi[2]))
+        if float(along.min()) <= 0.0 or float(across.max()) < -(half + WALK_MARGIN) or float(across.min()) > half + WALK_MARGIN:
+            continue  # beside, behind or off the path
+        s = float(along.min()) - WALK_MARGIN - front
+        if s < stop_at:
+            stop_at, stop_obj = s, obj
+    distance = max(0.0, stop_at if math.isfinite(stop_at) else 0.0)
+    if distance > WALK_MAX:
+        raise TaskDefinitionError(f"walk_to: the {target.name} is {distance:.1f} m away; walk_to walks at most {WALK_MAX:g} m")
+    mid = p0 + distance * u
+    best = min(reach_gaps(robot, target, mid, yaw).values())
+    if best > 1e-9:
+        if stop_obj is not target:
+            raise TaskDefinitionError(
+                f"walk_to: the {stop_obj.name} is in the way to the {target.name} (wbmp walks in a straight line): "
+                f"stopping {WALK_MARGIN:g} m before it leaves the {target.name} {best:.2f} m beyond the arm's reach; "
+                f"move the {stop_obj.name} or the {target.name} in the scene")
+        raise TaskDefinitionError(
+            f"walk_to: the {target.name} is out of reach from any stance {WALK_MARGIN:g} m away from it: its nearest "
+            f"point is {best:.2f} m beyond the arm's reach (too low, too high or too deep)")
+    angle = _wrap(yaw - yaw0)
+    return WalkPlan(angle=angle if abs(angle) >= TURN_MIN else 0.0, distance=distance if distance >= WALK_MIN else 0.0,
+                    stop=stop_obj, reach_gap=best)
+
+
+def _walk_sequences(robot: Robot, g: Grounded) -> list[ContactSequence]:
+    plan = walk_plan(robot, g)
+    start = _start(g, robot)
+    left, right = start.left, start.right
+    out = []
+    if plan.angle:
+        seq = turn(robot, plan.angle, left=left, right=right)
+        out.append(seq)
+        left, right = seq.left, seq.right
+    if plan.distance:
+        out.append(walk(robot, plan.distance, "forward", left=left, right=right))
+    return out
+
+
+def _walk_duration(params: dict, robot: Robot) -> float:
+    seqs = _walk_sequences(robot, grounded(params, "walk_to"))
+    return sum(s.duration for s in seqs) if seqs else STAND_TIME
+
+
+def _walk_check(params: dict, robot: Robot) -> None:
+    _walk_sequences(robot, grounded(params, "walk_to"))
+
+
+def build_walk_to(b: FragmentBuilder) -> Fragment:
+    """Turn, walk, CoM back over the final feet (like ``walk``)."""
+    g = grounded(b.params, "walk_to")
+    seqs = _walk_sequences(b.robot, g)
+    if not seqs:
+        b.phase(f"already at the {g.obj.name}", STAND_TIME)
+        return b.finish(LEG_PARTS)
+    phases: list[Phase] = [p for s in seqs for p in s.phases]
+    k = 0
+    for phase in phases[:-1]:
+        n = phase.duration / b.dt
+        k += max(1, math.floor(n + 1e-9) if len(phase.contacts) == 2 else round(n))
+        b.phase(phase.name, k * b.dt / b.scale, phase.contacts, swing_height=phase.swing_height)
+    total = sum(s.duration for s in seqs)
+    b.phase(phases[-1].name, total, phases[-1].contacts, swing_height=phases[-1].swing_height)
+    end = Stance(left=seqs[-1].left, right=seqs[-1].right)
+    home = end.transform_from_standing(b.robot).act(standing_geometry(b.robot).com)
+    b.com_target(f"CoM over the feet at the {g.obj.name}", (float(home[0]), float(home[1]), None), time=total,
+                 tolerance=END_TOLERANCE)
+    b.end_stance = end
+    return b.finish(LEG_PARTS, dynamic=True)
+
+
+# --- look_at ------------------------------------------------------------------------------
+def look_rotation(robot: Robot, stance: Stance, obj: SceneObject) -> tuple[np.ndarray, float, float]:
+    """(world orientation (3, 3) of the head frame looking at the object's centre, yaw left of the
+    heading [rad], pitch down [rad]) from ``stance``."""
+    geo = standing_geometry(robot)
+    T = stance.transform_from_standing(robot)
+    head = T.act(geo.position("head"))
+    d = np.asarray(obj.position, dtype=float) - head
+    yaw_s = _yaw(stance)
+    psi = math.atan2(d[1], d[0])
+    phi = math.atan2(-d[2], math.hypot(d[0], d[1]))
+    Q = pin.rpy.rpyToMatrix(0.0, 0.0, psi) @ pin.rpy.rpyToMatrix(0.0, phi, 0.0) @ pin.rpy.rpyToMatrix(0.0, 0.0, -yaw_s)
+    return Q @ T.rotation @ geo.rotation("head"), _wrap(psi - yaw_s), phi
+
+
+def _look_check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "look_at")
+    require_role(robot, "head", "look_at")
+    if not standing_geometry(robot).neck_joints:
+        raise TaskDefinitionError(f"{robot.name} has no neck joint to look at the {g.obj.name}")
+    _, yaw, pitch = look_rotation(robot, _start(g, robot), g.obj)
+    for angle, words in ((yaw, ("left", "right")), (pitch, ("down", "up"))):
+        direction = words[0] if angle >= 0 else words[1]
+        r = neck_range(robot, head_turn_axis(robot, direction))
+        if abs(angle) > r + 1e-9:
+            raise TaskDefinitionError(
+                f"look_at: the {g.obj.name} is {abs(angle):.2f} rad {direction} of where the head looks, beyond "
+                f"{robot.name}'s neck range of {r:.2f} rad {direction}: walk to it or turn towards it first")
+
+
+def build_look_at(b: FragmentBuilder) -> Fragment:
+    """Head towards the object, held, then forward again."""
+    g = grounded(b.params, "look_at")
+    _look_check(b.params, b.robot)
+    T = b.params["duration"]
+    R, _, _ = look_rotation(b.robot, b.stance, g.obj)
+    b.frame_target(f"head looking at the {g.obj.name}", "head", rpy=tuple(float(x) for x in pin.rpy.matrixToRpy(R)),
+                   window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), orientation_tolerance=LOOK_TOLERANCE)
+    b.frame_target("head forward again", "head", rpy=b.world_rotation(b.geometry.rotation("head")), time=T,
+                   orientation_tolerance=LOOK_TOLERANCE)
+    b.phase(f"look at the {g.obj.name}", T)
+    return b.finish(frozenset({"head"}))
+
+
+# --- point_at -----------------------------------------------------------------------------
+def pointing_arm(params: dict, robot: Robot) -> str:
+    """The arm that points: the stated one, else the one on the object's side."""
+    if params.get("arm"):
+        return str(params["arm"])
+    g = grounded(params, "point_at")
+    local = _start(g, robot).heading().actInv(np.asarray(g.obj.position, dtype=float))
+    return "left" if local[1] >= 0 else "right"
+
+
+def point_target(robot: Robot, stance: Stance, obj: SceneObject, side: str,
+                 objects: tuple[SceneObject, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """(shoulder, hand target) in the world [m]: the hand on the line from the shoulder to the
+    object's centre, ``OUT_REACH`` of the arm out or less, :data:`POINT_CLEARANCE` clear of ``objects``."""
+    T = stance.transform_from_standing(robot)
+    sh = np.asarray(T.act(to_standing(robot, shoulder(robot, side))), dtype=float)
+    d = np.asarray(obj.position, dtype=float) - sh
+    u = d / np.linalg.norm(d)
+    forward = T.rotation @ standing_geometry(robot).heading.rotation[:, 0]
+    if math.acos(max(-1.0, min(1.0, float(u @ forward)))) > BEHIND:
+        raise TaskDefinitionError(f"point_at: the {obj.name} is behind the robot; turn or walk towards it first")
+    L = arm_length(robot, side)
+    s = OUT_REACH * L
+    while s >= POINT_MIN * L:
+        hand = sh + s * u
+        if all(_surface_gap(o, hand) >= POINT_CLEARANCE for o in objects):
+            return sh, hand
+        s -= 0.01
+    raise TaskDefinitionError(
+        f"point_at: the {obj.name} is too close to point at with the {side} arm (the hand would come within "
+        f"{POINT_CLEARANCE:g} m of an object); step back first")
+
+
+def _point_check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "point_at")
+    side = pointing_arm(params, robot)
+    point_target(robot, _start(g, robot), g.obj, side, g.scene.objects)
+
+
+def build_point_at(b: FragmentBuilder) -> Fragment:
+    """The arm straight towards the object, held, back to rest."""
+    g = grounded(b.params, "point_at")
+    side = pointing_arm(b.params, b.robot)
+    _, hand = point_target(b.robot, b.stance, g.obj, side, g.scene.objects)
+    T = b.params["duration"]
+    b.frame_target(f"{side} hand pointing at the {g.obj.name}", f"{side}_hand", position=tuple(float(x) for x in hand),
+                   window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=POSE_TOLERANCE)
+    rest_targets(b, [f"{side}_hand"], tau=T)
+    b.phase(f"point at the {g.obj.name}", T)
+    return b.finish(frozenset({f"{side}_arm"}))
+
+
+def _point_parts(params: dict) -> frozenset[str]:
+    arm = params.get("arm")
+    if arm:
+        return frozenset({f"{arm}_arm"})
+    g = params.get("object")
+    if isinstance(g, Grounded) and g.start is not None:
+        local = g.start.heading().actInv(np.asarray(g.obj.position, dtype=float))
+        return frozenset({"left_arm" if local[1] >= 0 else "right_arm"})
+    return frozenset({"left_arm", "right_arm"})  # not known yet: claim both
+
+
+def _hold_duration(params: dict, robot: Robot) -> float:
+    return float(params["duration"])
+
+
+WALK_TO = Primitive(name="walk_to", nominal_duration=_walk_duration, build=build_walk_to, parts=lambda p: LEG_PARTS,
+                    check=_walk_check, dynamic=True)
+LOOK_AT = Primitive(name="look_at", nominal_duration=_hold_duration, build=build_look_at,
+                    parts=lambda p: frozenset({"head"}), check=_look_check,
+                    limits=lambda robot: ({} if robot.has_role("head") and standing_geometry(robot).neck_joints
+                                          else {"object": f"not available: {robot.name} has no neck joint"}))
+POINT_AT = Primitive(name="point_at", nominal_duration=_hold_duration, build=build_point_at, parts=_point_parts,
+                     check=_point_check)
+
+PRIMITIVES = (WALK_TO, LOOK_AT, POINT_AT)
+
+__all__ = [
+    "LOOK_AT",
+    "LOOK_TOLERANCE",
+    "POINT_AT",
+    "POINT_CLEARANCE",
+    "PRIMITIVES",
+    "WALK_MARGIN",
+    "WALK_TO",
+    "WalkPlan",
+    "body_front",
+    "grounded",
+    "look_rotation",
+    "point_target",
+    "pointing_arm",
+    "walk_plan",
+]
