@@ -80,7 +80,7 @@ def test_defaults_compile_or_are_refused_in_task_terms(name, robot_name):
     spec = _spec(robot, name)
     assert spec_from_json(spec_to_json(spec)) == spec
     _on_grid(spec)
-    assert spec.dynamic == (name != "kick")
+    assert spec.dynamic
 
 
 def test_one_leg_push_is_half_of_two(talos, g1):
