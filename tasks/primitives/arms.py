@@ -404,6 +404,15 @@ def fold_point(robot: Robot, side: str) -> np.ndarray:
     return shoulder(robot, side) + arm_length(robot, side) * (f * X + SIGN[side] * o * Y + u * Z)
 
 
+def fold_waypoints(b: FragmentBuilder, sides) -> None:
+    """Each ``side`` hand at :func:`fold_point` at ``FOLD_FRACTION`` of the duration (raising) and at
+    ``1 - FOLD_FRACTION`` (lowering), HARD within ``GUARD_TOLERANCE``."""
+    T = b.params["duration"]
+    for side in sides:
+        for what, tau in (("on the way up", FOLD_FRACTION * T), ("on the way down", (1.0 - FOLD_FRACTION) * T)):
+            _put(b, f"{side} hand folded {what}", side, fold_point(b.robot, side), time=tau, tolerance=GUARD_TOLERANCE)
+
+
 def build_point(b: FragmentBuilder) -> Fragment:
     """The arm straight along the pointing direction. Pointing up, the arm is raised (and lowered)
     through :func:`fold_point`, the elbow bent: the upper arm then passes the horizontal with the
@@ -411,9 +420,7 @@ def build_point(b: FragmentBuilder) -> Fragment:
     joint (``arm_right_2_joint``, 22 N m) just to hold it against gravity."""
     side, direction = b.params["arm"], b.params["direction"]
     if direction == "up":
-        T = b.params["duration"]
-        for what, tau in (("on the way up", FOLD_FRACTION * T), ("on the way down", (1.0 - FOLD_FRACTION) * T)):
-            _put(b, f"{side} hand folded {what}", side, fold_point(b.robot, side), time=tau, tolerance=GUARD_TOLERANCE)
+        fold_waypoints(b, (side,))
     return _hold(b, f"pointing {direction}", {side: point_point(b.robot, side, direction)}, f"point {direction}",
                  _arm_parts((side,)))
 
@@ -564,6 +571,7 @@ def build_stretch(b: FragmentBuilder) -> Fragment:
                        window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), orientation_tolerance=TORSO_TOLERANCE)
         b.frame_target("torso upright again", "torso", rpy=b.world_rotation(g.rotation("torso")), time=T,
                        orientation_tolerance=TORSO_TOLERANCE)
+    fold_waypoints(b, ("left", "right"))  # both arms past the horizontal with the elbows bent, as point up
     return _hold(b, "stretched up", stretch_points(b.robot, direction, angle), f"stretch {direction}", stretch_parts(b.params))
 
 
