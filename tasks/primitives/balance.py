@@ -1,8 +1,10 @@
 """``balance(foot, duration [s])``: stand on one foot, then put the other one down again.
 
-Three phases: shift the weight onto the stance foot (both feet down, ``SHIFT_TIME``; a HARD
-CoM target over the stance sole's centre at its end), stand on one foot (``duration``; only
-the stance sole in contact, so the spec's support-polygon bound keeps the CoM over that sole;
+Three phases: shift the weight onto the stance foot (both feet down, ``SHIFT_TIME``), stand on
+one foot (``duration``; only the stance sole in contact; a HARD CoM target holds the CoM over
+the stance sole's centre through the whole phase: in a dynamic plan the support-polygon bound
+applies only at rest, and without the hold the CoM already left the sole by 2 cm towards the
+other foot before it touched down;
 the free foot ``CLEARANCE`` above the ground over the middle ``LIFTED_FRACTION`` of the phase,
 HARD, tolerance ``CLEARANCE_TOLERANCE``), and shift back (both feet down, ``SHIFT_TIME``; the CoM
 back over its standing point). Dynamic (contact forces and the centroidal dynamics): planned
@@ -36,7 +38,8 @@ def build(b: FragmentBuilder) -> Fragment:
     D = b.params["duration"]
     g = b.geometry
     sole = b.world(g.sole_centers[stance])
-    b.com_target(f"CoM over the {stance} sole", (sole[0], sole[1], None), time=SHIFT_TIME, tolerance=COM_TOLERANCE)
+    b.com_target(f"CoM over the {stance} sole", (sole[0], sole[1], None), window=(SHIFT_TIME, SHIFT_TIME + D),
+                 tolerance=COM_TOLERANCE)
     lift0 = SHIFT_TIME + 0.5 * (1.0 - LIFTED_FRACTION) * D
     lift1 = SHIFT_TIME + 0.5 * (1.0 + LIFTED_FRACTION) * D
     free_sole = b.world(g.position(f"{free}_foot"))

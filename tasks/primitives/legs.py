@@ -1,7 +1,7 @@
 """Leg motions without a flight: ``kick``, ``march``, ``stomp``, ``lunge``, ``walk_arc``.
 
 - ``kick(leg, direction, height [m], duration [s])``: shift the weight onto the other foot
-  (``SHIFT_TIME``, both feet down, HARD CoM target over the stance sole's centre), stand on it
+  (``SHIFT_TIME``, both feet down), stand on it with the CoM held over the stance sole's centre (HARD)
   for ``duration`` while the kicking sole reaches ``height`` above the ground and
   ``KICK_REACH_FRACTION`` (forward) or ``KICK_SIDE_FRACTION`` (side, outwards) of the leg length
   away from its standing place at the middle of that phase (HARD, ``KICK_TOLERANCE``), then put it
@@ -105,7 +105,8 @@ def _build_kick(b: FragmentBuilder) -> Fragment:
     D = b.params["duration"]
     g = b.geometry
     sole = b.world(g.sole_centers[stance])
-    b.com_target(f"CoM over the {stance} sole", (sole[0], sole[1], None), time=SHIFT_TIME, tolerance=COM_TOLERANCE)
+    b.com_target(f"CoM over the {stance} sole", (sole[0], sole[1], None), window=(SHIFT_TIME, SHIFT_TIME + D),
+                 tolerance=COM_TOLERANCE)
     top = g.position(f"{leg}_foot") + _kick_offset(b.robot, leg, b.params["direction"], b.params["height"])
     b.frame_target(f"{leg} foot kicks {b.params['direction']}", f"{leg}_foot", position=b.world(top),
                    time=SHIFT_TIME + 0.5 * D, tolerance=KICK_TOLERANCE)
