@@ -18,6 +18,7 @@ import numpy as np
 
 from planner import Plan
 from planner.wbc import WholeBodyController
+from planner.wbc.friction import JointFriction
 from planner.wbc.kernel import kernel_ready
 from planner.wbc.reference import PlanReference
 from robots.model import Robot
@@ -165,6 +166,8 @@ def _closed_loop(
     fall_height = float(np.min(ref.q[:, 2])) - s.fall_height_margin
     max_tilt = float(np.max(tilt(ref.q[:, 3:7]))) + s.max_tilt
     watch = _Watchdog(s, fall_height, max_tilt, events)
+    friction = JointFriction(robot, ctrl.settings.friction_compensation)
+    limits = np.asarray(ctrl.torque_limits, dtype=float)
     report_every = max(1, n_ticks // 10)
     wall0 = time.perf_counter()
     for i in range(n_ticks):
@@ -172,6 +175,9 @@ def _closed_loop(
         sm.state(d, q, v)
         tic = time.perf_counter()
         tau = ctrl.compute(t, q, v, ref)
+        if friction.active:  # the URDF's joint friction, which the QP's rigid-body model lacks
+            k = ref.index(t)
+            tau = friction.add(tau, q, v, ref.q[k], ref.v[k], limits)
         tick_time = time.perf_counter() - tic
         d.ctrl[sm.actuator_select] = tau
         rec.record(i, t, q, v, tau, d, tick_time)

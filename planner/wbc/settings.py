@@ -41,6 +41,11 @@ class WbcSettings:
         eps_abs: QP absolute tolerance. max_iter, max_iter_in: proxsuite outer / inner iteration caps
             (they bound the cost of a failing tick).
         dense_backend: proxsuite dense factorization: ``Automatic``, ``PrimalDualLDLT`` or ``PrimalLDLT``.
+        friction_compensation: Fraction of the URDF's joint damping and Coulomb friction added as a
+            feed-forward torque (:mod:`planner.wbc.friction`) [-]; 0 disables. 0.8 by default: a
+            light link (Talos's head, 0.0045 kg m^2 of yaw inertia against 1 N m of friction)
+            otherwise never breaks its static friction, and the 20 % left unknown to the
+            controller is still tested by the certificate.
         fast_path: First solve the QP without its inequalities (a reduced KKT system, see
             :mod:`planner.wbc.kernel`); when that solution meets every inequality it is the QP's
             exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
@@ -74,6 +79,7 @@ class WbcSettings:
     max_iter: int = 50
     max_iter_in: int = 1500
     dense_backend: str = "Automatic"
+    friction_compensation: float = 0.8
     fast_path: bool = True
     active_set_iterations: int = 8
 
@@ -93,6 +99,7 @@ class WbcSettings:
             "base_kp",
             "posture_kp",
             "contact_kp",
+            "friction_compensation",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):

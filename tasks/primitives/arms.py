@@ -393,9 +393,34 @@ def point_point(robot: Robot, side: str, direction: str) -> np.ndarray:
     return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * point_direction(side, direction)
 
 
+FOLD_POINT = (0.2, 0.15, 0.4)  # [L] ahead, outwards, above the shoulder: the hand on the way up (elbow bent)
+FOLD_FRACTION = 0.2  # of the duration: the folded arm on the way up, and (1 - it) on the way down
+
+
+def fold_point(robot: Robot, side: str) -> np.ndarray:
+    """Hand point (heading frame) of the ``side`` arm raised with its elbow bent, on the way to
+    pointing up: ``FOLD_POINT`` (ahead, outwards, above) in units of the arm's length from the shoulder."""
+    f, o, u = FOLD_POINT
+    return shoulder(robot, side) + arm_length(robot, side) * (f * X + SIGN[side] * o * Y + u * Z)
+
+
+def fold_waypoints(b: FragmentBuilder, sides) -> None:
+    """Each ``side`` hand at :func:`fold_point` at ``FOLD_FRACTION`` of the duration (raising) and at
+    ``1 - FOLD_FRACTION`` (lowering), HARD within ``GUARD_TOLERANCE``."""
+    T = b.params["duration"]
+    for side in sides:
+        for what, tau in (("on the way up", FOLD_FRACTION * T), ("on the way down", (1.0 - FOLD_FRACTION) * T)):
+            _put(b, f"{side} hand folded {what}", side, fold_point(b.robot, side), time=tau, tolerance=GUARD_TOLERANCE)
+
+
 def build_point(b: FragmentBuilder) -> Fragment:
-    """The arm straight along the pointing direction."""
+    """The arm straight along the pointing direction. Pointing up, the arm is raised (and lowered)
+    through :func:`fold_point`, the elbow bent: the upper arm then passes the horizontal with the
+    forearm folded. A straight arm passing it needs 1.03 x the torque limit of Talos's shoulder
+    joint (``arm_right_2_joint``, 22 N m) just to hold it against gravity."""
     side, direction = b.params["arm"], b.params["direction"]
+    if direction == "up":
+        fold_waypoints(b, (side,))
     return _hold(b, f"pointing {direction}", {side: point_point(b.robot, side, direction)}, f"point {direction}",
                  _arm_parts((side,)))
 
@@ -546,6 +571,7 @@ def build_stretch(b: FragmentBuilder) -> Fragment:
                        window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), orientation_tolerance=TORSO_TOLERANCE)
         b.frame_target("torso upright again", "torso", rpy=b.world_rotation(g.rotation("torso")), time=T,
                        orientation_tolerance=TORSO_TOLERANCE)
+    fold_waypoints(b, ("left", "right"))  # both arms past the horizontal with the elbows bent, as point up
     return _hold(b, "stretched up", stretch_points(b.robot, direction, angle), f"stretch {direction}", stretch_parts(b.params))
 
 

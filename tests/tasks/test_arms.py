@@ -211,6 +211,35 @@ def test_point_directions_from_the_shoulder(g1):
         np.testing.assert_allclose(np.array(t.position) - S, 0.9 * L * u, atol=GEOMETRY_ATOL, err_msg=direction)
 
 
+def test_raised_arms_pass_the_horizontal_folded(talos):
+    """Pointing up and stretching bring each raised hand to (0.2 ahead, 0.15 outwards, 0.4 up) L
+    from its shoulder frame at 20 % and 80 % of the duration (the elbow bent, the hand 0.47 L
+    from the shoulder), within 3 cm. Why: held straight out ahead, Talos's arm needs more than
+    its shoulder joint's torque limit against gravity (Pinocchio)."""
+    for name, params, sides in (("point", {"arm": "right", "direction": "up"}, ("right",)),
+                                ("stretch", {}, ("left", "right"))):
+        spec = _spec(talos, name, **params)
+        T = 3.0 if name == "point" else 5.0
+        for side in sides:
+            o = 1.0 if side == "left" else -1.0
+            S = _frame(talos, talos.frame(f"{side}_shoulder")).translation
+            L = _arm_length(talos, side)
+            folded = _targets(spec, f"{side} hand folded")
+            assert len(folded) == 2
+            start = spec.phase_start_times()[1]
+            assert [t.time - start for t in folded] == pytest.approx([0.2 * T, 0.8 * T], abs=spec.dt + 1e-9)  # within a knot
+            for t in folded:
+                np.testing.assert_allclose(np.array(t.position) - S, L * np.array([0.2, 0.15 * o, 0.4]), atol=GEOMETRY_ATOL)
+                assert t.tolerance == 0.03
+    model, data = talos.model, talos.data()
+    q = talos.q_standing.copy()
+    for joint, angle in (("arm_right_1_joint", 1.57), ("arm_right_2_joint", -1.57), ("arm_right_4_joint", 0.0)):
+        q[model.joints[model.getJointId(joint)].idx_q] = angle
+    assert _frame(talos, talos.frame("right_hand"), q).translation[0] - S[0] > 0.9 * L  # straight out ahead
+    v = model.joints[model.getJointId("arm_right_2_joint")].idx_v
+    assert abs(pin.computeGeneralizedGravity(model, data, q)[v]) > model.effortLimit[v]
+
+
 def test_arms_out_and_circles_at_shoulder_height(talos):
     """Arms out: 0.9 L out at shoulder height; circles: CIRCLE_POINTS targets per circle on a
     circle of the given radius around 0.75 L out."""

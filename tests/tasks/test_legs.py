@@ -80,7 +80,7 @@ def test_defaults_compile_or_are_refused_in_task_terms(name, robot_name):
     spec = _spec(robot, name)
     assert spec_from_json(spec_to_json(spec)) == spec
     _on_grid(spec)
-    assert spec.dynamic == (name != "kick")
+    assert spec.dynamic
 
 
 def test_one_leg_push_is_half_of_two(talos, g1):
@@ -99,7 +99,7 @@ def test_one_leg_push_is_half_of_two(talos, g1):
 @pytest.mark.parametrize(("direction", "axis"), [("forward", 0), ("side", 1)])
 def test_kick_target(talos, direction, axis):
     """The kicking sole is asked (HARD) to be `height` above the ground and ahead/outwards at the
-    middle of a phase where only the other sole is down."""
+    middle of a phase where only the other sole is down, the CoM held over that sole."""
     spec = _spec(talos, "kick", leg="left", direction=direction, height=0.2)
     (t,) = spec.targets
     start = np.array(standing_feet(talos)[0].position)
@@ -112,6 +112,8 @@ def test_kick_target(talos, direction, axis):
     assert len(one) == 1 and one[0].contacts[0].frame == talos.frame("right_foot")
     t0 = sum(p.duration for p in spec.phases[:spec.phases.index(one[0])])
     assert t0 < t.time < t0 + one[0].duration
+    (over,) = [c for c in spec.com_targets if "over the right sole" in c.name]  # held while on one foot
+    assert over.window == pytest.approx((t0, t0 + one[0].duration))
 
 
 def test_leg_length_against_pinocchio(talos, g1):
