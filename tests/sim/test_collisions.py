@@ -162,7 +162,10 @@ def test_squat_passes_with_both_collision_lines(talos, squat_run):
     n = int(np.argmin(np.abs(ex.t - check.time)))
     links = {body_part(talos, a): a for pair in collision_model(talos).pairs for a in pair}
     a, b = check.subject.split(" / ")
-    if a in links and b in links and links[a] != links[b]:
+    # the feet are left out of the comparison: MuJoCo's foot pair is the ankle meshes (the sole
+    # boxes are never paired), coal's the whole foot (a known gap, docs/simulation-collisions.md)
+    feet = {"left foot", "right foot"}
+    if a in links and b in links and links[a] != links[b] and {a, b} != feet:
         mesh = MeshDistance(talos).between(ex.q[n], links[a], links[b])
         assert check.value / 1000 <= mesh + 1e-3
     summary = ex.summary()
