@@ -44,6 +44,11 @@ class WbcSettings:
         fast_path: First solve the QP without its inequalities (a reduced KKT system, see
             :mod:`planner.wbc.kernel`); when that solution meets every inequality it is the QP's
             exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
+        momentum_weight: Weight of the centroidal angular-momentum task [-]: its rows are
+            :math:`A_g(q)/m` (angular rows of Pinocchio's centroidal momentum matrix divided by
+            the robot's mass, so that they are of the CoM rows' size), with the desired rate
+            :math:`\\dot h_{ref} + K (h_{ref} - h) - \\dot A_g v`. 0 turns the task off.
+        momentum_kp: Gain :math:`K` of that task on the momentum error [1/s].
         active_set_iterations: When that solution violates friction or torque rows, this many
             active-set iterations on the same reduced system (violated rows held as equalities,
             rows with wrong-signed multipliers released) before proxsuite is called; a result is
@@ -76,6 +81,8 @@ class WbcSettings:
     dense_backend: str = "Automatic"
     fast_path: bool = True
     active_set_iterations: int = 8
+    momentum_weight: float = 100.0
+    momentum_kp: float = 10.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -93,6 +100,8 @@ class WbcSettings:
             "base_kp",
             "posture_kp",
             "contact_kp",
+            "momentum_weight",
+            "momentum_kp",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
