@@ -38,12 +38,20 @@ def test_flight_reference_is_ballistic_and_reaches_take_off_speed(jump_plan, tal
     air = _flight(ref)
     assert len(air) > 150  # 0.225 s of flight
     np.testing.assert_allclose(ref.com_acceleration[air, 2], -G, atol=1e-9)
-    i0 = air[0]  # the lift-off knot
+    i0 = air[0]  # the real take-off: half a knot interval after the last stance knot
+    dt = float(jump_plan.t[1] - jump_plan.t[0])
+    k_off = int(np.argmin(np.abs(jump_plan.t - (ref.times[i0] - dt / 2))))  # the last stance knot
+    assert abs(jump_plan.t[k_off] + dt / 2 - ref.times[i0]) < 1e-3
+    spec = jump_plan.spec
+    assert not spec.phases[spec.phase_at(jump_plan.t[k_off] + 1e-6)].contacts  # the flight phase has begun
     # velocity continuous across take-off (1 ms samples)
     assert abs(ref.com_velocity[i0, 2] - ref.com_velocity[i0 - 1, 2]) < 0.05
-    assert ref.com_velocity[i0, 2] > 1.0  # m/s: the plan's take-off speed, not a smoothed one
-    # the flight passes through the plan's own CoM at its take-off and touch-down knots
-    for t in (ref.times[i0], ref.times[air[-1] + 1]):
+    # the speed the plan's discrete flight has half a knot after its last stance knot
+    v_half = (jump_plan.com[k_off + 1, 2] - jump_plan.com[k_off, 2]) / dt
+    assert ref.com_velocity[i0, 2] == pytest.approx(v_half, abs=1e-3)
+    assert ref.com_velocity[i0, 2] > 0.8  # m/s
+    # the flight is the parabola through the plan's own CoM at its flight and touch-down knots
+    for t in (jump_plan.t[k_off + 1], ref.times[air[-1] + 1]):
         k = int(np.argmin(np.abs(jump_plan.t - t)))
         assert abs(jump_plan.t[k] - t) < 1e-6
         np.testing.assert_allclose(ref.plan_com[ref.index(t)], jump_plan.com[k], atol=1e-6)
