@@ -15,8 +15,9 @@ Constraints:
 * torque limits on the actuated rows, :math:`|M a + h - J_c^\top f|_{6:} \le \tau_{max}`.
 
 Costs (weighted least squares on accelerations, PD + feed-forward from the plan): centre of
-mass, base orientation, hands and every frame a spec target names, swing feet, joint posture,
-plus small regularizations of :math:`a` and :math:`f`. A contact frame that is not in stance
+mass, centroidal angular momentum (the angular rows of Pinocchio's :math:`A_g`, tracking the
+reference's :math:`h = A_g v`), base orientation, hands and every frame a spec target names,
+swing feet, joint posture, plus small regularizations of :math:`a` and :math:`f`. A contact frame that is not in stance
 has its force columns removed from the dynamics (the regularization then sets its forces to 0).
 
 Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
