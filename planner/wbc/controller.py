@@ -15,8 +15,9 @@ Constraints:
 * torque limits on the actuated rows, :math:`|M a + h - J_c^\top f|_{6:} \le \tau_{max}`.
 
 Costs (weighted least squares on accelerations, PD + feed-forward from the plan): centre of
-mass, base orientation, hands and every frame a spec target names, swing feet, joint posture,
-plus small regularizations of :math:`a` and :math:`f`. A contact frame that is not in stance
+mass, centroidal angular momentum (the angular rows of Pinocchio's :math:`A_g`, tracking the
+reference's :math:`h = A_g v`), base orientation, hands and every frame a spec target names,
+swing feet, joint posture, plus small regularizations of :math:`a` and :math:`f`. A contact frame that is not in stance
 has its force columns removed from the dynamics (the regularization then sets its forces to 0).
 
 Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
@@ -81,6 +82,10 @@ class WholeBodyController:
         self.settings = settings if settings is not None else WbcSettings()
         self.model = robot.model
         self.data = robot.model.createData()
+        # the centroidal map and its time variation get their own Data: on a Data that
+        # computeAllTerms has filled, pin 4.1's computeCentroidalMapTimeVariation returns a
+        # wrong dA_g (it accumulates, like data.dhg; the test checks against finite differences)
+        self._data_mom = robot.model.createData()
         nv = self.model.nv
         self.nv = nv
         self.nu = nv - 6
@@ -178,8 +183,13 @@ class WholeBodyController:
         self._frames = [*self._contacts, *others]
         self._frame_ids = [model.getFrameId(nm) for nm in self._frames]
         nf = len(self._frames)
-        nrow = 3 + 6 * nf  # CoM rows, then 6 rows per frame (linear, angular; world-aligned)
+        # CoM rows, then 6 rows per frame (linear, angular; world-aligned), then the centroidal
+        # angular momentum (3 rows, A_g / m) when its task is on
+        n_mom = 3 if s.momentum_weight > 0 else 0
+        nrow = 3 + 6 * nf + n_mom
         self._nrow = nrow
+        self._mom_rows = slice(3 + 6 * nf, nrow) if n_mom else None
+        self._inv_mass = 1.0 / self.robot.mass
         self._frame_rows = [
             (fid, slice(3 + 6 * i, 9 + 6 * i), i) for i, fid in enumerate(self._frame_ids)
         ]
@@ -197,11 +207,15 @@ class WholeBodyController:
             axis=1,
         )
         self._ref_rot = np.stack([ref.frames[nm].rotation for nm in self._frames], axis=1)
+        # the momentum rows' "velocity" is h / m and their "acceleration" dh/dt / m
+        mom_vel = [ref.angular_momentum * self._inv_mass] if n_mom else []
+        mom_acc = [ref.angular_momentum_rate * self._inv_mass] if n_mom else []
         self._ref_vel = np.concatenate(
-            [ref.com_velocity] + [ref.frames[nm].velocity for nm in self._frames], axis=1
+            [ref.com_velocity] + [ref.frames[nm].velocity for nm in self._frames] + mom_vel, axis=1
         )
         self._ref_acc = np.concatenate(
-            [ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames], axis=1
+            [ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames] + mom_acc,
+            axis=1,
         )
         # per-row gains and weights of the tracking tasks
         kp = np.empty(nrow)
@@ -213,6 +227,8 @@ class WholeBodyController:
             kp[rows] = s.foot_kp if is_contact else s.frame_kp
             wt = s.foot_weight if is_contact else s.hand_weight
             w[rows] = [wt] * 3 + [wt * s.orientation_factor] * 3
+        if n_mom:  # no position error: kp 0, the momentum gain is the row's damping (_set_active)
+            kp[3 + 6 * nf :], w[3 + 6 * nf :] = 0.0, s.momentum_weight
         self._kp_task, self._sqrt_w_task = kp, np.sqrt(w)
         self._J = np.zeros((nrow, nv))
         self._drift = np.zeros(nrow)
@@ -284,6 +300,8 @@ class WholeBodyController:
         kp = np.where(on, s.contact_kp, self._kp_task)
         self._kp_rows = kp
         self._kd_rows = 2.0 * np.sqrt(kp)
+        if self._mom_rows is not None:
+            self._kd_rows[self._mom_rows] = s.momentum_kp
         mask = (~on).astype(float)  # stance rows track the anchor at rest
         self._feedforward = (self._ref_acc + self._kd_rows * self._ref_vel) * mask
         self._w_rows = np.where(on, 0.0, self._sqrt_w_task)
@@ -322,8 +340,14 @@ class WholeBodyController:
         k = int((t - self._t0) * self._inv_dt + 0.5)  # PlanReference.index, inlined
         k = 0 if k < 0 else (self._n_ref - 1 if k >= self._n_ref else k)
 
-        pin.computeAllTerms(model, data, q, v)
         J, drift, pos, hom = self._J, self._drift, self._pos, self._hom
+        mom = self._mom_rows
+        if mom is not None:  # angular rows of A_g and dA_g v
+            dmom = self._data_mom
+            dag = pin.computeCentroidalMapTimeVariation(model, dmom, q, v)
+            J[mom] = dmom.Ag[3:] * self._inv_mass
+            drift[mom] = (dag[3:] @ v) * self._inv_mass
+        pin.computeAllTerms(model, data, q, v)
         J[:3] = data.Jcom
         if self._com_drift:  # CoM position and its drift J'v in one call
             # (computeAllTerms also fills data.dhg, but pin 4.1 accumulates it over calls)
@@ -444,6 +468,19 @@ class WholeBodyController:
         C[tau_rows, nv:] = -S[6:]
         np.subtract(-self.torque_limits, h[6:], out=self._l_tau)
         np.subtract(self.torque_limits, h[6:], out=self._u_tau)
+
+    def angular_momentum_task(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        r"""The last tick's angular-momentum rows, all times the robot's mass.
+
+        Returns:
+            ``A`` (3, nv): the angular rows of the centroidal momentum matrix :math:`A_g(q)`;
+            ``drift`` (3,): :math:`\dot A_g v`; ``desired`` (3,): the rate of centroidal angular
+            momentum the task asks for, :math:`\dot h_{ref} + K (h_{ref} - h)` [N m].
+        """
+        if self._mom_rows is None:
+            raise ControllerError("the angular-momentum task is off (WbcSettings.momentum_weight = 0)")
+        rows, m = self._mom_rows, self.robot.mass
+        return self._J[rows] * m, self._drift[rows] * m, (self._a_des[rows] + self._drift[rows]) * m
 
     def acceleration(self) -> np.ndarray:
         """Joint accelerations of the last QP solution (nv,)."""

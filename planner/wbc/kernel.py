@@ -170,7 +170,8 @@ def tick_kernel(
     Args:
         M, h: Mass matrix (nv, nv) and nonlinear effects (nv,).
         J, drift: Stacked task Jacobians (nrow, nv) and drifts ``J'v`` (nrow,): CoM rows, then
-            6 world-aligned rows per frame (contact frames first).
+            6 world-aligned rows per frame (contact frames first), then any rows without a
+            position error (the centroidal angular momentum: their ``kp`` is 0).
         v: Generalized velocity (nv,).
         q, q_ref: Configuration and the reference one (nq,), for the posture error.
         dq_post: Posture error ``q_ref - q`` on the manifold (nv,). If ``nq == nv + 1`` (a
@@ -216,7 +217,7 @@ def tick_kernel(
     ns = stance.shape[0]
 
     # ---- placements, task errors (CoM, positions, small-angle orientations), world-aligned
-    err = np.empty(nrow)
+    err = np.zeros(nrow)  # rows after the frames' (the angular momentum) have no position error
     for j in range(3):
         err[j] = ref_pos[0, j] - pos[0, j]
     rel = np.empty((3, 3))

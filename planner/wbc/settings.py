@@ -49,6 +49,11 @@ class WbcSettings:
         fast_path: First solve the QP without its inequalities (a reduced KKT system, see
             :mod:`planner.wbc.kernel`); when that solution meets every inequality it is the QP's
             exact solution and proxsuite is not called. Only with the ``proxsuite`` backend.
+        momentum_weight: Weight of the centroidal angular-momentum task [-]: its rows are
+            :math:`A_g(q)/m` (angular rows of Pinocchio's centroidal momentum matrix divided by
+            the robot's mass, so that they are of the CoM rows' size), with the desired rate
+            :math:`\\dot h_{ref} + K (h_{ref} - h) - \\dot A_g v`. 0 turns the task off.
+        momentum_kp: Gain :math:`K` of that task on the momentum error [1/s].
         active_set_iterations: When that solution violates friction or torque rows, this many
             active-set iterations on the same reduced system (violated rows held as equalities,
             rows with wrong-signed multipliers released) before proxsuite is called; a result is
@@ -82,6 +87,8 @@ class WbcSettings:
     friction_compensation: float = 0.8
     fast_path: bool = True
     active_set_iterations: int = 8
+    momentum_weight: float = 100.0
+    momentum_kp: float = 10.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -100,6 +107,8 @@ class WbcSettings:
             "posture_kp",
             "contact_kp",
             "friction_compensation",
+            "momentum_weight",
+            "momentum_kp",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):

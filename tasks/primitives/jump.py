@@ -39,7 +39,7 @@ from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance, standing_geometry
-from tasks.specs import Contact, Pose, Priority, Vec3
+from tasks.specs import Contact, JointTarget, Pose, Priority, Vec3
 
 G = 9.81  # [m/s^2]
 CROUCH_TIME = 0.6  # [s]
@@ -59,6 +59,7 @@ CROUCH_TOLERANCE = 0.02  # [m] CoM height at the bottom of the crouch
 END_TOLERANCE = 0.01  # [m] CoM at the end
 APEX_WEIGHT = 10.0  # soft apex target (shapes the take-off height)
 FLIGHT_CLEARANCE_MAX = 0.02  # [m] sole height at mid-flight
+TORSO_HOLD_WEIGHT = 10.0  # joint-target weight holding each torso joint at its standing angle
 PARTS = frozenset({"legs", "com"})
 
 
@@ -97,6 +98,17 @@ def _leg_joints(robot: Robot) -> list[int]:
         joint = robot.model.frames[robot.frame_id(f"{side}_foot")].parentJoint
         out += [j for j in robot.model.supports[joint] if j > 1]
     return out
+
+
+def torso_joints(robot: Robot) -> list[str]:
+    """Names of the 1-dof joints between the base and both hands (g1's waist, talos's torso)."""
+    model = robot.model
+    if not (robot.has_role("left_hand") and robot.has_role("right_hand")):
+        return []
+    chains = [set(model.supports[model.frames[robot.frame_id(r)].parentJoint]) for r in ("left_hand", "right_hand")]
+    legs = set(_leg_joints(robot))
+    common = sorted(j for j in chains[0] & chains[1] if j > 1 and j not in legs and model.joints[j].nv == 1)
+    return [model.names[j] for j in common]
 
 
 def _crouch(robot: Robot, base_drop: float, legs: list[int], q_guess: np.ndarray) -> np.ndarray | None:
@@ -361,6 +373,17 @@ def build(b: FragmentBuilder) -> Fragment:
     home = end_stance.transform_from_standing(robot).act(g.com)
     b.com_target("landed and standing", (float(home[0]), float(home[1]), float(home[2])), time=tau(bounds[4]),
                  tolerance=END_TOLERANCE)
+    # Hold the torso at its standing angles from the crouch to the end of the recovery. The
+    # posture cost alone (a sum of squares over every joint) spreads the crouch over the legs
+    # *and* the torso: on g1 the plan folded the waist (yaw 0.95, roll -0.5, pitch 0.5 rad) and
+    # unfolded it during the push to raise the CoM, which needed 93 % of the waist's torque and
+    # gave the body a pitch/roll angular momentum that the controller could not reproduce.
+    q_stand = robot.q_standing
+    for name in torso_joints(robot):
+        jid = robot.model.getJointId(name)
+        b.joint_targets.append(JointTarget(
+            name=b.name(f"torso {name}"), joint=name, value=float(q_stand[robot.model.joints[jid].idx_q]),
+            window=b.window(0.0, tau(bounds[4])), weight=TORSO_HOLD_WEIGHT))
     b.phase("crouch", tau(bounds[0]))
     b.phase("push off", tau(bounds[1]))
     b.phase("flight", tau(bounds[2]), (), swing_height=min(FLIGHT_CLEARANCE_MAX, rise / 3.0))

@@ -46,7 +46,9 @@ def _assert_kkt(full: WholeBodyController, x: np.ndarray) -> None:
     lo = np.concatenate([np.full(n_eq, -np.inf), np.zeros(G.shape[1] - n_eq)])
     grad = full.H @ x + full.g
     fit = lsq_linear(G, -grad, bounds=(lo, np.full(G.shape[1], np.inf)), tol=1e-12)
-    assert np.abs(grad + G @ fit.x).max() < KKT_ATOL * max(1.0, np.abs(grad).max())
+    # rounding in H x + g is relative to its terms (the angular-momentum rows weigh 100)
+    scale = max(1.0, np.abs(full.H @ x).max(), np.abs(full.g).max())
+    assert np.abs(grad + G @ fit.x).max() < KKT_ATOL * scale
 
 
 def test_fast_solution_meets_the_kkt_conditions_of_the_full_qp(talos, arm):
@@ -73,9 +75,11 @@ def test_fast_solution_meets_the_kkt_conditions_of_the_full_qp(talos, arm):
         tau = fast.compute(0.001 * i, q, v, arm)
         tau_full = full.compute(0.001 * i, q, v, arm)
         assert full.last.ok
-        worst_tau = max(worst_tau, float(np.abs(tau - tau_full).max()))
+        compiled = str(fast.last.status).startswith("solved")  # else proxsuite answered both
+        if compiled:
+            worst_tau = max(worst_tau, float(np.abs(tau - tau_full).max()))
         kind = "fast" if fast.last.iterations == 0 else "active set"
-        if str(fast.last.status).startswith("solved") and i % 10 == 0:
+        if compiled and i % 10 == 0:
             _assert_kkt(full, fast._x)
             checked[kind] += 1
         d.ctrl[sm.actuator_select] = tau
