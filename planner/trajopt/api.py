@@ -162,8 +162,8 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
                            x0: np.ndarray) -> tuple[np.ndarray, SolverStats, dict]:
     """Solve, then again from the solution while the solution asks for it: a link pair, or a robot
     sphere and a scene object, within the collision margin without rows gets them (at most
-    ``settings.collision_rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a layout whose linearized rows are off at the solution
-    re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
+    ``settings.collision_rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
+    layout whose linearized rows are off at the solution re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
     The stats add up the iterations and times of every solve."""
     sets = sphere_sets(lay.robot) if settings.self_collision else None
     rows = collision_rows_of(lay, sets) if sets is not None else None
