@@ -16,8 +16,10 @@ gradient of order ``1 / a`` inside the object too (a guess through the table is 
 are conservative: ``N >= 3^(1/P)`` implies ``max_i |u_i| / a_i >= 1``, i.e. the centre is outside
 the box inflated by ``rho`` on each axis, which contains every point within ``rho`` of the box; the
 level set bulges beyond that inflated box by at most ``(3^(1/P) - 1) a_i`` at the middle of a face
-(P = 32: 3.5 %, 1.3 cm above a 0.62 m table for a 6 cm hand sphere) and by ``rho (sqrt(3) - 1)`` at
-a corner. ``docs/collisions.md`` has the table of it.
+(P = 32: 3.5 %) and by ``rho (sqrt(3) - 1)`` at a corner. So that the bulge stays below a few mm,
+boxes (and cylinders along their axis) longer than ``2 MAX_HALF`` are split into equal pieces, each
+with its own rows (a 2 m wall's end face would bulge 3.7 cm, a piece's 8 mm). ``docs/collisions.md``
+has the table of it.
 
 Numeric values (object pose, inflated extents, sphere centres in their joint frames) are term
 parameters; the structure ``("scene", shape, joints of the spheres)`` keys the solver cache, so two
@@ -51,6 +53,7 @@ from robots.model import Robot
 from tasks.scene import Scene, SceneObject, on_top
 
 P_NORM = 32  # even exponent of the box and cylinder rows
+MAX_HALF = 0.15  # [m] longer boxes and cylinders are split into pieces of at most this half extent
 BOUND = {"box": 3.0 ** (1.0 / P_NORM), "cylinder": 2.0 ** (1.0 / P_NORM), "sphere": 1.0}
 CONTACT_PADDING = 2  # knots around an active contact on an object where its link may touch it
 
@@ -66,6 +69,7 @@ class Obstacle:
         rotation: Orientation in the world (3, 3).
         half: Half extents [m]: box (hx, hy, hz), cylinder (R, R, L/2), sphere (R, R, R).
         from_mesh: True when the box bounds a mesh.
+        key: Unique key of the piece (``table#3``) when a long object is split (:data:`MAX_HALF`).
     """
 
     name: str
@@ -74,6 +78,7 @@ class Obstacle:
     rotation: np.ndarray
     half: np.ndarray
     from_mesh: bool = False
+    key: str = ""
 
     def inflated(self, rho: np.ndarray) -> np.ndarray:
         """Per-axis inflated extents ``a`` (n, 3) for sphere radii + clearance ``rho`` (n,) [m]."""
@@ -96,27 +101,44 @@ def _mesh_box(obj: SceneObject) -> tuple[np.ndarray, np.ndarray]:
 _OBSTACLES: dict[int, tuple[Scene, list[Obstacle]]] = {}
 
 
+def _pieces(ob: Obstacle) -> list[Obstacle]:
+    """A box split into equal boxes, a cylinder into equal cylinders along its axis, so that no half
+    extent exceeds :data:`MAX_HALF` (the rows' bulge scales with it); their union is the object."""
+    if ob.shape == "sphere":
+        return [dataclasses.replace(ob, key=ob.name)]
+    axes = (0, 1, 2) if ob.shape == "box" else (2,)
+    counts = [int(math.ceil(ob.half[i] / MAX_HALF - 1e-9)) if i in axes else 1 for i in range(3)]
+    half = ob.half / np.array(counts)
+    out: list[Obstacle] = []
+    for idx in np.ndindex(*counts):
+        offset = np.array([(2 * idx[i] + 1 - counts[i]) * half[i] for i in range(3)])
+        key = ob.name if len(out) == 0 and np.prod(counts) == 1 else f"{ob.name}#{len(out)}"
+        out.append(dataclasses.replace(ob, position=ob.position + ob.rotation @ offset, half=half.copy(), key=key))
+    return out
+
+
 def obstacles(scene: Scene | None) -> list[Obstacle]:
-    """The scene's objects as :class:`Obstacle` (cached per scene object)."""
+    """The scene's objects as :class:`Obstacle` pieces (cached per scene object)."""
     if scene is None or not scene.objects:
         return []
     hit = _OBSTACLES.get(id(scene))
     if hit is not None and hit[0] is scene:
         return hit[1]
-    out = []
+    whole = []
     for obj in scene.objects:
         R = pin.rpy.rpyToMatrix(*obj.rpy)
         p = np.array(obj.position, dtype=float)
         if obj.shape == "box":
-            out.append(Obstacle(obj.name, "box", p, R, 0.5 * np.array(obj.size, dtype=float)))
+            whole.append(Obstacle(obj.name, "box", p, R, 0.5 * np.array(obj.size, dtype=float)))
         elif obj.shape == "cylinder":
             radius, length = obj.size
-            out.append(Obstacle(obj.name, "cylinder", p, R, np.array([radius, radius, 0.5 * length])))
+            whole.append(Obstacle(obj.name, "cylinder", p, R, np.array([radius, radius, 0.5 * length])))
         elif obj.shape == "sphere":
-            out.append(Obstacle(obj.name, "sphere", p, R, np.full(3, float(obj.size[0]))))
+            whole.append(Obstacle(obj.name, "sphere", p, R, np.full(3, float(obj.size[0]))))
         else:
             offset, half = _mesh_box(obj)
-            out.append(Obstacle(obj.name, "box", p + R @ offset, R, half, from_mesh=True))
+            whole.append(Obstacle(obj.name, "box", p + R @ offset, R, half, from_mesh=True))
+    out = [piece for ob in whole for piece in _pieces(ob)]
     _OBSTACLES[id(scene)] = (scene, out)
     return out
 
@@ -236,7 +258,7 @@ def scene_rows_of(lay: Layout) -> SceneRows:
     rows = SceneRows()
     if not obs:
         return rows
-    index = {ob.name: i for i, ob in enumerate(obs)}
+    index = {ob.key: i for i, ob in enumerate(obs)}
     sets = sphere_sets(lay.robot)
     sphere_joint = sets.joints[sets.sphere_owner]
     for t in lay.terms:
@@ -273,8 +295,8 @@ def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: Sc
                     margin: float) -> None:
     """(Re)write the ``scene`` terms of ``objects`` from ``rows``: one term per object and knot, a
     row per sphere (not in a planned contact with the object there) ``N >= BOUND[shape]``."""
-    names = {obs[oi].name for oi in objects}
-    lay.terms = [t for t in lay.terms if not (t.kind == "scene" and t.item in names)]
+    keys = {obs[oi].key for oi in objects}
+    lay.terms = [t for t in lay.terms if not (t.kind == "scene" and t.item in keys)]
     excluded = contact_exclusions(lay, sets, obs)
     for oi in objects:
         ob = obs[oi]
@@ -290,7 +312,7 @@ def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: Sc
                 structure=("scene", ob.shape, tuple(int(sets.joints[sets.sphere_owner[s]]) for s in chosen)),
                 params=np.concatenate([ob.position, ob.rotation.T.ravel(), per_sphere]),  # R column-major
                 lower=np.full(len(chosen), BOUND[ob.shape]), upper=np.full(len(chosen), math.inf),
-                label=f"scene collision {ob.name}", item=ob.name, phase=lay.phase_name(k),
+                label=f"scene collision {ob.name}", item=ob.key, phase=lay.phase_name(k),
             ))
 
 
@@ -403,13 +425,13 @@ def scene_collision_check(lay: Layout, q: np.ndarray) -> Check:
 
 def _advice(lay: Layout, name: str) -> str:
     """What to change: the hard target nearest to the object, or the object."""
-    obs = {o.name: o for o in obstacles(lay.spec.scene)}
-    ob = obs[name]
+    pieces = [o for o in obstacles(lay.spec.scene) if o.name == name]
     best = None
     for target in lay.spec.targets:
         if target.position is None:
             continue
-        d = float(exact_distance(ob, in_object_frame(ob, np.array(target.position, dtype=float))))
+        point = np.array(target.position, dtype=float)
+        d = min(float(exact_distance(ob, in_object_frame(ob, point))) for ob in pieces)
         if best is None or d < best[0]:
             best = (d, target)
     if best is None:
