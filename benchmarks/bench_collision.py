@@ -1,15 +1,20 @@
-"""What self-collision avoidance costs: solve time with and without the collision rows, on every
-task of ``wbmp bench`` (wbmp/bench/tasks.py), Talos by default.
+"""What collision avoidance costs: solve time with and without the self-collision rows, on every
+task of ``wbmp bench`` (wbmp/bench/tasks.py), Talos by default; then with scene objects.
 
 Run: ``.venv/bin/python benchmarks/bench_collision.py [--robot talos] [--repeat 3] [--tasks squat,reach]
-[--json out.json]``
+[--scenes far,table] [--scene-tasks reach] [--json out.json]``
 
 For each task the spec is planned warm (solver already in memory: the first plan of each variant
 builds it and is not timed) ``--repeat`` times with ``self_collision`` off and on. The report gives
 the median IPOPT solve time and the median ``plan()`` time (screening, re-solves and the report
 included) of each variant, their ratio, the collision rows the plan carried and the re-solve
-rounds. Target (issue 15): at most 20 % more where no pair comes within the margin. This is a
-report, not a test: timings depend on the machine and on its load.
+rounds. Target (issue 15): at most 20 % more where no pair comes within the margin.
+
+Scenes (``--scenes``): each ``--scene-tasks`` task is planned warm without a scene, then with
+``far`` (examples/scenes/table.json's table moved 5 m away: screening only, no row, the same
+solver; target: no extra cost) and ``table`` (examples/scenes/table.json as it is); the report gives
+the median plan time, its ratio to the scene-free plan, and the scene rows. This is a report, not a
+test: timings depend on the machine and on its load.
 """
 
 from __future__ import annotations
@@ -55,6 +60,49 @@ def measure(task: str, sentence: str, robot, repeat: int, cache_dir: str) -> dic
     return row
 
 
+def _scene(kind: str):
+    import dataclasses
+
+    from tasks.scene import load_scene
+
+    table = load_scene(ROOT / "examples" / "scenes" / "table.json")
+    if kind == "table":
+        return table
+    if kind == "far":
+        obj = table.objects[0]
+        return dataclasses.replace(table, objects=(dataclasses.replace(obj, position=(5.0, 0.0, obj.position[2])),))
+    raise SystemExit(f"bench_collision.py: error: unknown scene {kind!r}; the scenes are far, table")
+
+
+def measure_scenes(task: str, sentence: str, robot, scenes: list[str], repeat: int, cache_dir: str) -> dict:
+    """Median plan time of one task without a scene and with each of ``scenes`` (warm solvers)."""
+    import dataclasses
+
+    from planner import PlannerSettings, plan
+    from wbmp.bench.tasks import spec_for
+
+    _, spec = spec_for(sentence, robot, None)
+    settings = PlannerSettings(cache_dir=cache_dir, compile=False)
+    row: dict = {"task": task, "sentence": sentence}
+    for kind in ["none", *scenes]:
+        variant = spec if kind == "none" else dataclasses.replace(spec, scene=_scene(kind))
+        result = plan(variant, robot, settings=settings, throw=False)  # builds the solver(s): not timed
+        totals = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            result = plan(variant, robot, settings=settings, throw=False)
+            totals.append(time.perf_counter() - t0)
+        row[f"plan_{kind}_s"] = statistics.median(totals)
+        row[f"ok_{kind}"] = bool(result.ok)
+        row[f"n_constraints_{kind}"] = result.stats.n_constraints
+        check = next((c for c in result.checks if c.kind.value == "scene_collision"), None)
+        row[f"closest_{kind}"] = check.name if check else ""
+    for kind in scenes:
+        row[f"ratio_{kind}"] = row[f"plan_{kind}_s"] / max(row["plan_none_s"], 1e-9)
+        row[f"rows_{kind}"] = row[f"n_constraints_{kind}"] - row["n_constraints_none"]
+    return row
+
+
 def main(argv: list[str] | None = None) -> int:
     from robots import load_robot
     from wbmp.bench.tasks import TASKS
@@ -63,6 +111,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot", default="talos")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--tasks", default=",".join(TASKS), help="comma-separated task classes of wbmp bench")
+    ap.add_argument("--scenes", default="far,table", help="scenes to plan with: far, table (empty: none)")
+    ap.add_argument("--scene-tasks", default="reach", help="comma-separated tasks planned with the scenes")
     ap.add_argument("--json", metavar="FILE")
     args = ap.parse_args(argv)
     robot = load_robot(args.robot)
@@ -84,8 +134,25 @@ def main(argv: list[str] | None = None) -> int:
     if ratios:
         print(f"median plan-time ratio where no collision row was needed: {statistics.median(ratios):.2f} "
               "(target <= 1.20)")
+    scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
+    scene_tasks = [t.strip() for t in args.scene_tasks.split(",") if t.strip()]
+    scene_rows = []
+    if scenes:
+        unknown = [t for t in scene_tasks if t not in TASKS]
+        if unknown:
+            ap.error(f"unknown task {unknown[0]!r}; the tasks are {', '.join(TASKS)}")
+        with tempfile.TemporaryDirectory(prefix="wbmp-bench-scene-") as cache_dir:
+            print(f"\n{'task':8s} {'scene':6s} {'plan':>8s} {'ratio':>6s} {'rows':>6s}  closest")
+            for task in scene_tasks:
+                row = measure_scenes(task, TASKS[task], robot, scenes, args.repeat, cache_dir)
+                scene_rows.append(row)
+                print(f"{task:8s} {'none':6s} {row['plan_none_s']:8.3f} {1.0:6.2f} {0:6d}", flush=True)
+                for kind in scenes:
+                    print(f"{task:8s} {kind:6s} {row[f'plan_{kind}_s']:8.3f} {row[f'ratio_{kind}']:6.2f} "
+                          f"{row[f'rows_{kind}']:6d}  {row[f'closest_{kind}']}", flush=True)
     if args.json:
-        Path(args.json).write_text(json.dumps({"robot": args.robot, "repeat": args.repeat, "tasks": rows}, indent=2))
+        Path(args.json).write_text(json.dumps({"robot": args.robot, "repeat": args.repeat, "tasks": rows,
+                                               "scenes": scene_rows}, indent=2))
     return 0
 
 

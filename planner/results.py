@@ -72,7 +72,8 @@ class CheckKind(enum.Enum):
     ``SWING_SOLE_CORNERS``, and the plan's own full dynamics recomputed with RNEA:
     ``FULL_DYNAMICS_ZMP`` (its ZMP in the support polygon) and ``FULL_DYNAMICS_WRENCH`` (the
     planned contact moment against the one the motion needs); every plan adds ``SELF_COLLISION``
-    (subject: the closest link pair, ``a/b``).
+    (subject: the closest link pair, ``a/b``), and a plan with a scene ``SCENE_COLLISION`` (subject:
+    the closest link and object, ``link/object``).
 
     The simulation's certificate: ``BASE_HEIGHT``, ``BASE_TILT``, ``UNPLANNED_CONTACTS``,
     ``FOOT_PLACEMENT``, ``FOOT_SLIP`` (subject: ``left_foot``/``right_foot``, or the frame),

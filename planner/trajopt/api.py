@@ -43,6 +43,12 @@ from planner.trajopt.collision import (
 from planner.trajopt.diagnose import diagnose_failure
 from planner.trajopt.layout import Layout, make_layout
 from planner.trajopt.report import configurations, make_plan
+from planner.trajopt.scene_collision import (
+    add_screened_scene_terms,
+    missing_scene_rows,
+    scene_diagnosis,
+    scene_rows_of,
+)
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.solve import solve_layout
 from robots.model import Robot
@@ -87,8 +93,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             raise PlanningFailed(problem, failed)
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
-    if settings.self_collision:
-        add_screened_collision_terms(lay, settings, x0)
+    add_screened_terms(lay, settings, x0)
     dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
@@ -97,7 +102,9 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     if progress:
         progress("the solve failed: diagnosing")
     diagnosis = ""
-    if settings.self_collision and settings.diagnose:
+    if settings.scene_collision and settings.diagnose:
+        diagnosis = scene_diagnosis(lay, settings)
+    if not diagnosis and settings.self_collision and settings.diagnose:
         diagnosis = collision_diagnosis(lay, settings)
     if not diagnosis:
         diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
@@ -107,16 +114,36 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     return result
 
 
-def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> None:
-    """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
-    ``settings.collision_screening`` (planner/trajopt/collision.py)."""
+def _guess_configurations(lay: Layout, x0: np.ndarray) -> np.ndarray:
+    """Configurations (N+1, nq) of an initial guess ``x0`` (its chart part)."""
     robot = lay.robot
-    sets = sphere_sets(robot)
     n_kin = robot.nv * (lay.N - 2)
     dq0 = np.zeros((lay.N + 1, robot.nv))
     dq0[2:lay.N] = x0[:n_kin].reshape(lay.N - 2, robot.nv)
     dq0[lay.N] = dq0[lay.N - 1]
-    rows = select(lay, sets, sphere_pair_distances(robot, sets, configurations(lay, dq0)), settings.collision_screening)
+    return configurations(lay, dq0)
+
+
+def add_screened_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> None:
+    """Add the self-collision and scene rows that the initial guess ``x0`` asks for (with the
+    settings that switch them on)."""
+    if not (settings.self_collision or settings.scene_collision):
+        return
+    q0 = _guess_configurations(lay, x0)
+    if settings.self_collision:
+        add_screened_collision_terms(lay, settings, x0, q0)
+    if settings.scene_collision:
+        add_screened_scene_terms(lay, settings, q0)
+
+
+def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray,
+                                 q0: np.ndarray | None = None) -> None:
+    """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
+    ``settings.collision_screening`` (planner/trajopt/collision.py)."""
+    robot = lay.robot
+    sets = sphere_sets(robot)
+    q0 = _guess_configurations(lay, x0) if q0 is None else q0
+    rows = select(lay, sets, sphere_pair_distances(robot, sets, q0), settings.collision_screening)
     set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
 
 
@@ -127,20 +154,20 @@ def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | Non
     lay = make_layout(spec, robot)
     if spec.dynamic:
         lay = to_dynamic_layout(lay, settings.centroidal)
-    if settings.self_collision:
-        add_screened_collision_terms(lay, settings, lay.initial_guess(settings))
+    add_screened_terms(lay, settings, lay.initial_guess(settings))
     return lay
 
 
 def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
                            x0: np.ndarray) -> tuple[np.ndarray, SolverStats, dict]:
-    """Solve, then again from the solution while the solution asks for it: a link pair within the
-    collision margin without rows gets them (at most ``settings.collision_rounds`` times,
-    planner/trajopt/collision.py), and a layout whose linearized rows are off at the solution
-    re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
+    """Solve, then again from the solution while the solution asks for it: a link pair, or a robot
+    sphere and a scene object, within the collision margin without rows gets them (at most
+    ``settings.collision_rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
+    layout whose linearized rows are off at the solution re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
     The stats add up the iterations and times of every solve."""
     sets = sphere_sets(lay.robot) if settings.self_collision else None
     rows = collision_rows_of(lay, sets) if sets is not None else None
+    scene_rows = scene_rows_of(lay) if settings.scene_collision else None
     total: SolverStats | None = None
     collision_round = relinearized = 0
     while True:
@@ -151,14 +178,20 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
         if not stats.status.ok:
             return dq, total, raw
         reason = ""
-        if sets is not None and rows is not None and collision_round < settings.collision_rounds:
-            more = missing_rows(lay, sets, rows, sphere_pair_distances(lay.robot, sets, configurations(lay, dq)),
-                                settings.collision_margin, settings.collision_screening)
-            changed = rows.merge(more)
-            if changed:
-                set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+        if collision_round < settings.collision_rounds and (sets is not None or scene_rows is not None):
+            q = configurations(lay, dq)
+            changed = []
+            if sets is not None and rows is not None:
+                more = missing_rows(lay, sets, rows, sphere_pair_distances(lay.robot, sets, q),
+                                    settings.collision_margin, settings.collision_screening)
+                changed = rows.merge(more)
+                if changed:
+                    set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+            objects = missing_scene_rows(lay, scene_rows, q, settings) if scene_rows is not None else []
+            if changed or objects:
                 collision_round += 1
-                reason = f"{len(changed)} more link pair(s) came within the collision margin"
+                reason = (f"{len(changed)} more link pair(s) and {len(objects)} object(s) came within the "
+                          "collision margin")
         if not reason and lay.relinearize(dq, raw["x"], relinearized):
             relinearized += 1
             reason = "re-linearized about the solution"

@@ -153,6 +153,10 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         from planner.trajopt.collision import self_collision_check
 
         checks.append(self_collision_check(lay, q, settings))
+    if spec.scene is not None and spec.scene.objects:
+        from planner.trajopt.scene_collision import scene_collision_check
+
+        checks.append(scene_collision_check(lay, q))
     return checks
 
 

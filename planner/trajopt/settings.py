@@ -61,7 +61,10 @@ class PlannerSettings:
         ipopt_extra: Further IPOPT options as ``(name, value)`` pairs, applied last (dynamic
             specs prepend ``centroidal.ipopt_options``).
         self_collision: Keep the links of the robot's collision model apart (``docs/collisions.md``).
-        collision_margin: Smallest distance between two links' sphere sets [m].
+        scene_collision: Keep the robot's sphere sets ``collision_margin`` away from the objects of the
+            spec's scene, except in planned contacts (``docs/collisions.md``).
+        collision_margin: Smallest distance between two links' sphere sets, and between a link's
+            sphere set and a scene object [m].
         collision_screening: Pairs closer than this on the initial guess get distance rows [m].
         collision_rounds: Re-solves allowed when the solution brings an unscreened pair within
             the margin (each adds its rows and starts from the previous solution).
@@ -89,6 +92,7 @@ class PlannerSettings:
     compile_dynamic: bool = False
     warm_start: str = "nominal"
     self_collision: bool = True
+    scene_collision: bool = True
     collision_margin: float = 0.01
     collision_screening: float = 0.03
     collision_rounds: int = 3

@@ -85,6 +85,12 @@ def term_expression(term: Term, p, kin: dict, q_ref, robot: Robot):
         if "oMi" not in kin:  # a caller that built only frames (the centroidal Hessian): joints from dq
             kin["oMi"] = SymbolicKinematics(robot.model).joint_placements(q_ref, kin["dq"])
         return collision_rows(kin["oMi"], s, p), 0
+    if kind == "scene":  # a robot sphere against a scene object (planner/trajopt/scene_collision.py)
+        from planner.trajopt.scene_collision import scene_rows
+
+        if "oMi" not in kin:
+            kin["oMi"] = SymbolicKinematics(robot.model).joint_placements(q_ref, kin["dq"])
+        return scene_rows(kin["oMi"], s, p), 0
     if kind == "joint":
         iv = s[1]
         value = q_ref[iv + 1] + kin["dq"][iv]  # one-dof joints: idx_q = idx_v + 1

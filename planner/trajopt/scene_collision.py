@@ -1,0 +1,461 @@
+"""Scene collision avoidance: every robot sphere kept a margin away from every scene object.
+
+The robot is the sphere sets of its collision model (:func:`planner.trajopt.collision.sphere_sets`,
+which contain the URDF meshes). An object of the spec's scene (:mod:`tasks.scene`) is a box, a
+cylinder or a sphere; a mesh object is replaced by the box that bounds its vertices. For a robot
+sphere of centre ``c`` and radius ``r`` and an object at ``(p_o, R_o)``, with ``u = R_o^T (c - p_o)``
+its centre in the object frame and ``rho = r + margin``, a ``scene`` row is
+
+* box, half extents ``h``: ``N = (sum_i (u_i / a_i)^P)^(1/P) >= 3^(1/P)``, ``a = h + rho``;
+* cylinder, radius ``R``, half length ``L``: ``N = (((u_x^2 + u_y^2) / a_r^2)^(P/2) + (u_z / a_z)^P)^(1/P)
+  >= 2^(1/P)``, ``a_r = R + rho``, ``a_z = L + rho``;
+* sphere, radius ``R``: ``N = |u| / (R + rho) >= 1`` (exact).
+
+``P`` (:data:`P_NORM`, even) makes the rows smooth everywhere but at the object's centre, with a
+gradient of order ``1 / a`` inside the object too (a guess through the table is pushed out). They
+are conservative: ``N >= 3^(1/P)`` implies ``max_i |u_i| / a_i >= 1``, i.e. the centre is outside
+the box inflated by ``rho`` on each axis, which contains every point within ``rho`` of the box; the
+level set bulges beyond that inflated box by at most ``(3^(1/P) - 1) a_i`` at the middle of a face
+(P = 32: 3.5 %) and by ``rho (sqrt(3) - 1)`` at a corner. So that the bulge stays below a few mm,
+boxes (and cylinders along their axis) longer than ``2 MAX_HALF`` are split into equal pieces, each
+with its own rows (a 2 m wall's end face would bulge 3.7 cm, a piece's 8 mm). ``docs/collisions.md``
+has the table of it.
+
+Numeric values (object pose, inflated extents, sphere centres in their joint frames) are term
+parameters; the structure ``("scene", shape, joints of the spheres)`` keys the solver cache, so two
+scenes whose objects are close to the same links share a solver. Screening as for self-collision:
+rows only for (sphere, object) pairs within ``settings.collision_screening`` on the initial guess
+(the same function, inflated by the screening distance), on those knots widened by
+:data:`~planner.trajopt.collision.KNOT_PADDING`; after a solve, pairs the solution brings within
+the margin get rows and the NLP is solved again.
+
+Planned contacts are not collisions: a contact whose placement lies on the top face of an object
+(a foot standing on a box) excludes the spheres of the links on its frame's joint from that object
+while it is active (and :data:`CONTACT_PADDING` knots around). The floor is not an object.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from planner.exceptions import PlannerError
+from planner.results import Check, CheckKind
+from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
+from planner.trajopt.layout import Layout, Term
+from planner.trajopt.settings import PlannerSettings
+from robots.collision import body_part
+from robots.model import Robot
+from tasks.scene import Scene, SceneObject, on_top
+
+P_NORM = 32  # even exponent of the box and cylinder rows
+MAX_HALF = 0.15  # [m] longer boxes and cylinders are split into pieces of at most this half extent
+BOUND = {"box": 3.0 ** (1.0 / P_NORM), "cylinder": 2.0 ** (1.0 / P_NORM), "sphere": 1.0}
+CONTACT_PADDING = 2  # knots around an active contact on an object where its link may touch it
+
+
+@dataclass(frozen=True, eq=False)
+class Obstacle:
+    """A scene object as the planner sees it.
+
+    Attributes:
+        name: The object's name.
+        shape: ``box``, ``cylinder`` or ``sphere`` (a mesh object becomes its bounding ``box``).
+        position: Centre in the world [m] (3,).
+        rotation: Orientation in the world (3, 3).
+        half: Half extents [m]: box (hx, hy, hz), cylinder (R, R, L/2), sphere (R, R, R).
+        from_mesh: True when the box bounds a mesh.
+        key: Unique key of the piece (``table#3``) when a long object is split (:data:`MAX_HALF`).
+    """
+
+    name: str
+    shape: str
+    position: np.ndarray
+    rotation: np.ndarray
+    half: np.ndarray
+    from_mesh: bool = False
+    key: str = ""
+
+    def inflated(self, rho: np.ndarray) -> np.ndarray:
+        """Per-axis inflated extents ``a`` (n, 3) for sphere radii + clearance ``rho`` (n,) [m]."""
+        return self.half[None, :] + np.asarray(rho, dtype=float)[:, None]
+
+
+def _mesh_box(obj: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+    """(centre offset in the object frame, half extents) of a mesh object's scaled vertices [m]."""
+    import coal  # type: ignore[import-untyped]
+
+    try:
+        mesh = coal.MeshLoader().load(str(obj.mesh), np.array(obj.size, dtype=float))
+        mesh.computeLocalAABB()
+    except Exception as e:  # coal raises bare exceptions for unreadable files
+        raise PlannerError(f"scene object {obj.name!r}: cannot read its mesh {obj.mesh!r}: {e}") from e
+    lo, hi = np.array(mesh.aabb_local.min_), np.array(mesh.aabb_local.max_)
+    return 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-4)
+
+
+_OBSTACLES: dict[int, tuple[Scene, list[Obstacle]]] = {}
+
+
+def _pieces(ob: Obstacle) -> list[Obstacle]:
+    """A box split into equal boxes, a cylinder into equal cylinders along its axis, so that no half
+    extent exceeds :data:`MAX_HALF` (the rows' bulge scales with it); their union is the object."""
+    if ob.shape == "sphere":
+        return [dataclasses.replace(ob, key=ob.name)]
+    axes = (0, 1, 2) if ob.shape == "box" else (2,)
+    counts = [int(math.ceil(ob.half[i] / MAX_HALF - 1e-9)) if i in axes else 1 for i in range(3)]
+    half = ob.half / np.array(counts)
+    out: list[Obstacle] = []
+    for idx in np.ndindex(*counts):
+        offset = np.array([(2 * idx[i] + 1 - counts[i]) * half[i] for i in range(3)])
+        key = ob.name if len(out) == 0 and np.prod(counts) == 1 else f"{ob.name}#{len(out)}"
+        out.append(dataclasses.replace(ob, position=ob.position + ob.rotation @ offset, half=half.copy(), key=key))
+    return out
+
+
+def obstacles(scene: Scene | None) -> list[Obstacle]:
+    """The scene's objects as :class:`Obstacle` pieces (cached per scene object)."""
+    if scene is None or not scene.objects:
+        return []
+    hit = _OBSTACLES.get(id(scene))
+    if hit is not None and hit[0] is scene:
+        return hit[1]
+    whole = []
+    for obj in scene.objects:
+        R = pin.rpy.rpyToMatrix(*obj.rpy)
+        p = np.array(obj.position, dtype=float)
+        if obj.shape == "box":
+            whole.append(Obstacle(obj.name, "box", p, R, 0.5 * np.array(obj.size, dtype=float)))
+        elif obj.shape == "cylinder":
+            radius, length = obj.size
+            whole.append(Obstacle(obj.name, "cylinder", p, R, np.array([radius, radius, 0.5 * length])))
+        elif obj.shape == "sphere":
+            whole.append(Obstacle(obj.name, "sphere", p, R, np.full(3, float(obj.size[0]))))
+        else:
+            offset, half = _mesh_box(obj)
+            whole.append(Obstacle(obj.name, "box", p + R @ offset, R, half, from_mesh=True))
+    out = [piece for ob in whole for piece in _pieces(ob)]
+    _OBSTACLES[id(scene)] = (scene, out)
+    return out
+
+
+# -- numerics ----------------------------------------------------------------------------------
+
+
+def row_value(shape: str, u: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """The row function ``N`` (numpy) of points ``u`` (..., 3) in the object frame, inflated extents
+    ``a`` (..., 3): compare with ``BOUND[shape]``."""
+    s = u / a
+    if shape == "sphere":
+        return np.linalg.norm(s, axis=-1)
+    if shape == "cylinder":
+        radial2 = s[..., 0] ** 2 + s[..., 1] ** 2
+        scale = np.maximum(np.sqrt(radial2), np.abs(s[..., 2]))
+        scale = np.where(scale > 0, scale, 1.0)
+        total = (radial2 / scale**2) ** (P_NORM // 2) + (s[..., 2] / scale) ** P_NORM
+        return scale * total ** (1.0 / P_NORM)
+    scale = np.abs(s).max(axis=-1)
+    scale = np.where(scale > 0, scale, 1.0)
+    return scale * (((s / scale[..., None]) ** P_NORM).sum(axis=-1)) ** (1.0 / P_NORM)
+
+
+def exact_distance(ob: Obstacle, u: np.ndarray) -> np.ndarray:
+    """Signed distance of points ``u`` (..., 3), in the object frame, to the object [m] (negative inside)."""
+    if ob.shape == "sphere":
+        return np.linalg.norm(u, axis=-1) - ob.half[0]
+    if ob.shape == "cylinder":
+        qr = np.hypot(u[..., 0], u[..., 1]) - ob.half[0]
+        qz = np.abs(u[..., 2]) - ob.half[2]
+        return np.hypot(np.maximum(qr, 0), np.maximum(qz, 0)) + np.minimum(np.maximum(qr, qz), 0)
+    q = np.abs(u) - ob.half
+    return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(axis=-1), 0)
+
+
+def sphere_centres(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
+    """World centres of every sphere at every configuration: (T, S, 3) [m]."""
+    model, data = robot.model, robot.data()
+    out = np.zeros((len(q), len(sets.sphere_radius), 3))
+    o = sets.sphere_owner
+    for k, qk in enumerate(q):
+        pin.forwardKinematics(model, data, qk)
+        R = np.array([data.oMi[int(j)].rotation for j in sets.joints])
+        p = np.array([data.oMi[int(j)].translation for j in sets.joints])
+        out[k] = np.einsum("nij,nj->ni", R[o], sets.sphere_local) + p[o]
+    return out
+
+
+def in_object_frame(ob: Obstacle, world: np.ndarray) -> np.ndarray:
+    """World points (..., 3) in the object's frame."""
+    return (world - ob.position) @ ob.rotation
+
+
+def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np.ndarray:
+    """(N+1, S, O) bool: sphere ``s`` may touch object ``o`` at knot ``k`` (a planned contact on it)."""
+    out = np.zeros((lay.N + 1, len(sets.sphere_radius), len(obs)), dtype=bool)
+    scene = lay.spec.scene
+    if scene is None:
+        return out
+    model = lay.robot.model
+    sphere_joint = sets.joints[sets.sphere_owner]
+    objects = {o.name: o for o in scene.objects}
+    for k, active in enumerate(lay.contacts_at):
+        for fid, (_frame, M) in active.items():
+            joint = model.frames[fid].parentJoint
+            for oi, ob in enumerate(obs):
+                if on_top(objects[ob.name], M.translation):
+                    lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
+                    out[lo:hi + 1, sphere_joint == joint, oi] = True
+    return out
+
+
+def values(lay: Layout, sets: SphereSets, obs: list[Obstacle], q: np.ndarray, clearance: float) -> np.ndarray:
+    """Row values ``N / BOUND`` (T, S, O) of every sphere and object, inflated by the sphere radius +
+    ``clearance``: below 1, the pair is within ``clearance`` (conservatively); excluded pairs are inf."""
+    world = sphere_centres(lay.robot, sets, q)
+    out = np.full((len(q), world.shape[1], len(obs)), np.inf)
+    rho = sets.sphere_radius + clearance
+    for oi, ob in enumerate(obs):
+        out[:, :, oi] = row_value(ob.shape, in_object_frame(ob, world), ob.inflated(rho)[None]) / BOUND[ob.shape]
+    out[contact_exclusions(lay, sets, obs)[: len(q)]] = np.inf
+    return out
+
+
+# -- rows --------------------------------------------------------------------------------------
+
+
+@dataclass
+class SceneRows:
+    """Per object index: the spheres with rows and the knots that carry them."""
+
+    spheres: dict[int, set[int]] = field(default_factory=dict)
+    knots: dict[int, set[int]] = field(default_factory=dict)
+
+    def merge(self, other: SceneRows) -> list[int]:
+        """Add ``other``'s rows; returns the objects whose rows changed."""
+        changed = []
+        for oi in other.spheres:
+            s0, k0 = self.spheres.get(oi, set()), self.knots.get(oi, set())
+            s1, k1 = s0 | other.spheres[oi], k0 | other.knots[oi]
+            if (s1, k1) != (s0, k0):
+                self.spheres[oi], self.knots[oi] = s1, k1
+                changed.append(oi)
+        return changed
+
+    @property
+    def empty(self) -> bool:
+        """No rows."""
+        return not self.spheres
+
+
+def scene_rows_of(lay: Layout) -> SceneRows:
+    """The :class:`SceneRows` of the ``scene`` terms already in a layout (spheres found by joint and
+    centre, which the terms' structure and parameters hold)."""
+    obs = obstacles(lay.spec.scene)
+    rows = SceneRows()
+    if not obs:
+        return rows
+    index = {ob.key: i for i, ob in enumerate(obs)}
+    sets = sphere_sets(lay.robot)
+    sphere_joint = sets.joints[sets.sphere_owner]
+    for t in lay.terms:
+        if t.kind != "scene":
+            continue
+        oi = index[str(t.item)]
+        joints = t.structure[2]
+        local = t.params[12:].reshape(len(joints), 6)[:, :3]
+        spheres = rows.spheres.setdefault(oi, set())
+        for j, c in zip(joints, local, strict=True):
+            match = np.flatnonzero((sphere_joint == j) & np.all(np.abs(sets.sphere_local - c) < 1e-12, axis=1))
+            spheres.update(int(m) for m in match)
+        rows.knots.setdefault(oi, set()).add(t.knot)
+    return rows
+
+
+def select(lay: Layout, close: np.ndarray) -> SceneRows:
+    """Rows for the (sphere, object) pairs marked in ``close`` (T, S, O) at a variable knot: per
+    object, the union of its marked spheres, on their knots widened by ``KNOT_PADDING``."""
+    rows = SceneRows()
+    mark = close.copy()
+    mark[:2] = False
+    mark[lay.N:] = False
+    for oi in np.flatnonzero(mark.any(axis=(0, 1))):
+        spheres = {int(s) for s in np.flatnonzero(mark[:, :, oi].any(axis=0))}
+        knots: set[int] = set()
+        for k in np.flatnonzero(mark[:, :, oi].any(axis=1)):
+            knots.update(range(max(2, int(k) - KNOT_PADDING), min(lay.N - 1, int(k) + KNOT_PADDING) + 1))
+        rows.spheres[int(oi)], rows.knots[int(oi)] = spheres, knots
+    return rows
+
+
+def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: SceneRows, objects: list[int],
+                    margin: float) -> None:
+    """(Re)write the ``scene`` terms of ``objects`` from ``rows``: one term per object and knot, a
+    row per sphere (not in a planned contact with the object there) ``N >= BOUND[shape]``."""
+    keys = {obs[oi].key for oi in objects}
+    lay.terms = [t for t in lay.terms if not (t.kind == "scene" and t.item in keys)]
+    excluded = contact_exclusions(lay, sets, obs)
+    for oi in objects:
+        ob = obs[oi]
+        chosen_all = sorted(rows.spheres[oi])
+        for k in sorted(rows.knots[oi]):
+            chosen = [s for s in chosen_all if not excluded[k, s, oi]]
+            if not chosen:
+                continue
+            a = ob.inflated(sets.sphere_radius[chosen] + margin)
+            per_sphere = np.hstack([sets.sphere_local[chosen], a]).ravel()  # (c_local, a) per sphere
+            lay.terms.append(Term(
+                kind="scene", knot=k,
+                structure=("scene", ob.shape, tuple(int(sets.joints[sets.sphere_owner[s]]) for s in chosen)),
+                params=np.concatenate([ob.position, ob.rotation.T.ravel(), per_sphere]),  # R column-major
+                lower=np.full(len(chosen), BOUND[ob.shape]), upper=np.full(len(chosen), math.inf),
+                label=f"scene collision {ob.name}", item=ob.key, phase=lay.phase_name(k),
+            ))
+
+
+def scene_rows(oMi: list, structure: tuple, p):
+    """CasADi rows ``N`` of a ``scene`` term (see the module docstring); ``p`` = object position (3),
+    rotation column-major (9), then per sphere its centre in its joint frame (3) and ``a`` (3)."""
+    import casadi as ca
+
+    _, shape, joints = structure
+    pos_o = p[0:3]
+    R_o = ca.reshape(p[3:12], 3, 3)
+    out = []
+    for i, j in enumerate(joints):
+        off = 12 + 6 * i
+        R, pos = oMi[j]
+        c = pos + ca.mtimes(R, p[off: off + 3])
+        s = ca.mtimes(R_o.T, c - pos_o) / p[off + 3: off + 6]
+        if shape == "sphere":
+            out.append(ca.norm_2(s))
+        elif shape == "cylinder":
+            out.append(((s[0] ** 2 + s[1] ** 2) ** (P_NORM // 2) + s[2] ** P_NORM) ** (1.0 / P_NORM))
+        else:
+            out.append((s[0] ** P_NORM + s[1] ** P_NORM + s[2] ** P_NORM) ** (1.0 / P_NORM))
+    return ca.vertcat(*out)
+
+
+def add_screened_scene_terms(lay: Layout, settings: PlannerSettings, q0: np.ndarray) -> SceneRows:
+    """Add the rows of the (sphere, object) pairs that the initial guess ``q0`` (N+1, nq) brings
+    within ``settings.collision_screening``; returns them (empty without a scene)."""
+    obs = obstacles(lay.spec.scene)
+    if not obs:
+        return SceneRows()
+    sets = sphere_sets(lay.robot)
+    rows = select(lay, values(lay, sets, obs, q0, settings.collision_screening) < 1.0)
+    set_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision_margin)
+    return rows
+
+
+def missing_scene_rows(lay: Layout, rows: SceneRows, q: np.ndarray, settings: PlannerSettings) -> list[int]:
+    """After a solve: pairs within the margin (less ``CHECK_TOLERANCE``) at a knot without their row
+    get rows (pairs within the screening distance of those objects, there); returns the objects whose
+    rows changed (their terms rewritten)."""
+    obs = obstacles(lay.spec.scene)
+    if not obs:
+        return []
+    sets = sphere_sets(lay.robot)
+    violated = values(lay, sets, obs, q, settings.collision_margin - CHECK_TOLERANCE) < 1.0
+    for oi, spheres in rows.spheres.items():
+        ks = sorted(rows.knots[oi])
+        for s in spheres:
+            violated[ks, s, oi] = False
+    violated[:2] = False
+    violated[lay.N:] = False
+    if not violated.any():
+        return []
+    near = values(lay, sets, obs, q, settings.collision_screening) < 1.0
+    bad_knots = np.asarray(violated.any(axis=1))  # (T, O)
+    bad_spheres = np.asarray(violated.any(axis=0))  # (S, O)
+    near &= bad_knots[:, None, :] | bad_spheres[None, :, :]
+    changed = rows.merge(select(lay, near | violated))
+    if changed:
+        set_scene_terms(lay, sets, obs, rows, changed, settings.collision_margin)
+    return changed
+
+
+def strip_scene_terms(lay: Layout) -> Layout:
+    """A copy of ``lay`` without its scene terms (the same class: kinematic or dynamic)."""
+    import copy
+
+    out = copy.copy(lay)
+    out.terms = [t for t in lay.terms if t.kind != "scene"]
+    return out
+
+
+# -- report ------------------------------------------------------------------------------------
+
+
+def closest(lay: Layout, q: np.ndarray) -> tuple[float, float, str, str]:
+    """(exact sphere-set distance [m], time [s], link, object) of the closest robot sphere and
+    object over a motion, planned contacts left out; distance inf without objects."""
+    obs = obstacles(lay.spec.scene)
+    if not obs:
+        return math.inf, 0.0, "", ""
+    sets = sphere_sets(lay.robot)
+    world = sphere_centres(lay.robot, sets, q)
+    d = np.full((len(q), world.shape[1], len(obs)), np.inf)
+    for oi, ob in enumerate(obs):
+        d[:, :, oi] = exact_distance(ob, in_object_frame(ob, world)) - sets.sphere_radius
+    d[contact_exclusions(lay, sets, obs)[: len(q)]] = np.inf
+    k, s, o = (int(i) for i in np.unravel_index(int(np.argmin(d)), d.shape))
+    return float(d[k, s, o]), float(lay.t[k]), sets.links[int(sets.sphere_owner[s])], obs[o].name
+
+
+def scene_collision_check(lay: Layout, q: np.ndarray) -> Check:
+    """The plan's ``scene collision`` check: the closest body part and object and their distance (the
+    robot's sphere sets, which contain its meshes, against the exact shapes); it fails when they
+    interpenetrate by more than ``CHECK_TOLERANCE``."""
+    d, time, link, name = closest(lay, q)
+    if not math.isfinite(d):
+        return Check.constraint(name="scene collision (no object to check)", kind=CheckKind.SCENE_COLLISION,
+                                violation=0.0, tolerance=CHECK_TOLERANCE, unit="m", time=0.0)
+    part = body_part(lay.robot, link)
+    return Check.constraint(
+        name=f"scene collision (closest: {part} / {name}, {link}, {d * 1000:.0f} mm)", kind=CheckKind.SCENE_COLLISION,
+        violation=max(0.0, -d), tolerance=CHECK_TOLERANCE, unit="m", time=time, subject=f"{link}/{name}")
+
+
+# -- diagnosis ---------------------------------------------------------------------------------
+
+
+def _advice(lay: Layout, name: str) -> str:
+    """What to change: the hard target nearest to the object, or the object."""
+    pieces = [o for o in obstacles(lay.spec.scene) if o.name == name]
+    best = None
+    for target in lay.spec.targets:
+        if target.position is None:
+            continue
+        point = np.array(target.position, dtype=float)
+        d = min(float(exact_distance(ob, in_object_frame(ob, point))) for ob in pieces)
+        if best is None or d < best[0]:
+            best = (d, target)
+    if best is None:
+        return f"move the {name} in the scene"
+    target = best[1]
+    return f"move target {target.name!r} farther from the {name}, or the {name} in the scene"
+
+
+def scene_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
+    """When the plan with scene rows failed: solve without them; if that motion brings the robot within
+    the margin of an object, the object is the cause, said in task terms (empty string otherwise)."""
+    from planner.trajopt.solve import solve_layout
+    from planner.trajopt.symbolic import chart_to_configuration
+
+    if not any(t.kind == "scene" for t in lay.terms):
+        return ""
+    free = strip_scene_terms(lay)
+    dq, stats, _ = solve_layout(free, dataclasses.replace(settings, compile=False), x0=free.initial_guess(settings))
+    if not stats.status.ok:
+        return ""
+    q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
+    d, time, link, name = closest(lay, q)
+    if d >= settings.collision_margin:
+        return ""
+    what = "pass through" if d < 0 else f"come within {max(d, 0.0) * 1000:.0f} mm of"
+    return (f"the {body_part(lay.robot, link)} would {what} the {name} at t = {time:.1f} s ({link}): "
+            f"{_advice(lay, name)}")
