@@ -36,6 +36,11 @@ lint: $(STAMP)
 test: $(STAMP) lint
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
+# The suite plus the tests marked long (minutes each).
+.PHONY: test-long
+test-long: $(STAMP) lint
+	WBMP_LONG_TESTS=1 $(BIN)/python -m pytest $(PYTEST_ARGS)
+
 bench: $(STAMP)
 	$(BIN)/wbmp bench
 

@@ -89,3 +89,14 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
             reporter.ensure_newline()
             reporter.write_line(f"tests wrote into the source tree: {', '.join(new[:20])}", red=True)
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``long`` (minutes each) run only with WBMP_LONG_TESTS=1 (``make test-long``):
+    the suite must stay under 10 minutes on 2 cores."""
+    if os.environ.get("WBMP_LONG_TESTS") == "1":
+        return
+    skip = pytest.mark.skip(reason="minutes long: run with WBMP_LONG_TESTS=1 (make test-long)")
+    for item in items:
+        if "long" in item.keywords:
+            item.add_marker(skip)

@@ -215,7 +215,7 @@ def test_reach_into_the_table_is_refused_naming_the_table(talos, tmp_path):
     assert "right hand would pass through the table" in out.stderr, out.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.long  # 4-6 minutes: rows on every knot of the walk (docs/collisions.md)
 def test_walk_through_the_narrow_passage_keeps_clear_of_the_walls(talos):
     """A walk forward between the two walls plans (dynamic), every URDF collision geometry at least the
     margin from both walls once the robot moves (coal), and the plan's check names a wall."""
