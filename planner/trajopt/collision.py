@@ -290,24 +290,38 @@ def self_collision_check(lay: Layout, q: np.ndarray, settings: PlannerSettings) 
 _DIRECTIONS = (("forward", "back"), ("left", "right"), ("up", "down"))
 
 
-def _advice(lay: Layout, side_hint: str) -> str:
-    """"reach less far right, or with the right hand": from the hard hand targets of the spec."""
+def _target_time(target, horizon: float) -> float:
+    if target.window is not None:
+        return 0.5 * (target.window[0] + target.window[1])
+    return horizon if target.time is None else target.time
+
+
+def _advice(lay: Layout, side_hint: str, time: float, obstacle: str) -> str:
+    """What to change, from the spec's hard position targets: the target nearest in time to the
+    collision, preferring the colliding limb's hand. A reach with one hand gets "reach less far
+    right, or with the left hand" (the direction it moves in most); when both hands have targets
+    (a clap, crossed arms) switching hands means nothing: "move the left hand's target
+    'left hand clap #1' away from the torso"."""
     robot, spec = lay.robot, lay.spec
     data = robot.data()
     pin.framesForwardKinematics(robot.model, data, lay.q_ref)
     base = data.oMf[robot.frame_id("base")]
     hands = {robot.profile.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
+    horizon = float(lay.t[-1])
     best = None
+    sides_with_targets = set()
     for target in spec.targets:
-        if target.position is None:
+        if target.position is None or target.priority.name != "HARD":
             continue
         frame = robot.profile.frame(target.frame) or target.frame
         side = hands.get(frame)
+        if side is not None:
+            sides_with_targets.add(side)
         start = data.oMf[robot.frame_id(target.frame)].translation
         move = base.rotation.T @ (np.array(target.position) - start)
         axis = int(np.argmax(np.abs(move)))
         word = _DIRECTIONS[axis][0 if move[axis] > 0 else 1]
-        score = (side == side_hint, float(np.linalg.norm(move)))
+        score = (side == side_hint, -abs(_target_time(target, horizon) - time), float(np.linalg.norm(move)))
         if best is None or score > best[0]:
             best = (score, word, side, target.name)
     if best is None:
@@ -315,6 +329,8 @@ def _advice(lay: Layout, side_hint: str) -> str:
     _, word, side, name = best
     if side is None:
         return f"move {name!r} less far {word}"
+    if len(sides_with_targets) > 1:
+        return f"move the {side} hand's target {name!r} away from the {obstacle}"
     other = "right" if side == "left" else "left"
     return f"reach less far {word}, or with the {other} hand"
 
@@ -342,4 +358,4 @@ def collision_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
         pa, pb = pb, pa  # the moving limb first
     side = pa.split()[0] if pa.startswith(("left", "right")) else ""
     what = "pass through" if d < 0 else f"come within {max(d, 0.0) * 1000:.0f} mm of"
-    return f"{pa} would {what} the {pb} at t = {time:.1f} s ({a} / {b}): {_advice(lay, side)}"
+    return f"{pa} would {what} the {pb} at t = {time:.1f} s ({a} / {b}): {_advice(lay, side, time, pb)}"

@@ -27,7 +27,15 @@ from robots.model import Robot
 from tasks.actions import TOUCH_PARTS
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
-from tasks.primitives.bodymap import GAP, body_map, hands_meet, stop_short, to_heading, to_standing
+from tasks.primitives.bodymap import (
+    GAP,
+    body_map,
+    clear_targets,
+    hands_meet,
+    stop_short,
+    to_heading,
+    to_standing,
+)
 from tasks.primitives.geometry import standing_geometry
 
 OUT_FRACTION = 0.4  # held poses are reached at this fraction of the duration
@@ -154,7 +162,10 @@ CLAP_APART = 0.2  # [L] each hand this much farther out when apart
 
 def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Side -> (together, apart) hand points (heading frame): in front of the chest, ``0.3 L``
-    below the shoulders; together the hands' meshes are ``GAP`` apart (standing orientation, coal)."""
+    below the shoulders. Together, the arms posed there clear the body by
+    ``bodymap.CLEARANCE`` in the planner's sphere model (the hands go forward until the forearms
+    do), and the two arms' sphere sets are ``CLEARANCE`` apart (the hands a few cm apart: the
+    planner checks the gripper pairs, so a clap is a near miss, not a contact)."""
     m = body_map(robot)
     S = {s: shoulder(robot, s) for s in ("left", "right")}
     L = min(arm_length(robot, s) for s in S)
@@ -162,8 +173,12 @@ def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     x = max(0.5 * (S["left"][0] + S["right"][0]) + 0.5 * L, front + max(m.hand_back(s, X) for s in S) + GAP)
     z = 0.5 * (S["left"][2] + S["right"][2]) - 0.3 * L
     mid = 0.5 * (S["left"][1] + S["right"][1])
-    start = {s: np.array([x, mid + SIGN[s] * (m.hand_back(s, SIGN[s] * Y) + 0.5 * GAP), z]) for s in ("left", "right")}
-    together = dict(zip(("left", "right"), hands_meet(robot, start["left"], start["right"]), strict=True))
+    together = {s: np.array([x, mid + SIGN[s] * (m.hand_back(s, SIGN[s] * Y) + 0.5 * GAP), z]) for s in ("left", "right")}
+    for _ in range(2):  # forward until the forearms clear the chest, then together; once more
+        together = clear_targets(robot, together, {"left": X, "right": X}, other_arm=False)
+        x = max(p[0] for p in together.values())  # the hands side by side
+        together = {s: np.array([x, p[1], p[2]]) for s, p in together.items()}
+        together = dict(zip(("left", "right"), hands_meet(robot, together["left"], together["right"]), strict=True))
     return {s: (together[s], together[s] + SIGN[s] * CLAP_APART * L * Y) for s in ("left", "right")}
 
 
@@ -222,13 +237,13 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
         return hip_point(robot, side, (side,))
     if part == "knee":
         k = m.knee[side]
-        return stop_short(robot, side, [m.beside(side, m.knee_front[side], X), k[1], k[2]], X, (side,))
+        return stop_short(robot, side, [m.beside(side, m.knee_front[side], X), k[1], k[2]], X, (side,), clear=False)
     if part == "toes":
         toe = m.toe[side]
         x = toe[0]  # straight above the toe tip
         lowest = _lowest_reachable(robot, side, x, toe[1])
         start = [x, toe[1], max(toe[2] + m.hand_back(side, Z) + GAP, lowest)]
-        return stop_short(robot, side, start, X, (side,))  # in front of the thigh if it is there
+        return stop_short(robot, side, start, X, (side,), clear=False)  # in front of the thigh if it is there
     if part == "hand":
         return clap_points(robot)[side][0]
     raise TaskDefinitionError(f"touch part must be one of {', '.join(TOUCH_PARTS)}, got {part!r}")  # pragma: no cover
@@ -311,11 +326,18 @@ TOUCH = Primitive(name="touch", nominal_duration=_duration, build=build_touch, p
 
 
 # --- hands_on_hips, cross_arms, arms_out, salute ---------------------------------------------
+def hips_points(robot: Robot) -> dict[str, np.ndarray]:
+    """Side -> hand point beside that hip with both arms moving, cleared together in the
+    planner's sphere model (:func:`~tasks.primitives.bodymap.clear_targets`, outwards)."""
+    pts = {s: hip_point(robot, s, ("left", "right")) for s in ("left", "right")}
+    return clear_targets(robot, pts, {s: SIGN[s] * Y for s in pts})
+
+
 def build_hands_on_hips(b: FragmentBuilder) -> Fragment:
     """Both hands beside the hips."""
-    for s in ("left", "right"):
-        _require_reach("hands_on_hips", b.robot, s, hip_point(b.robot, s, ("left", "right")), "its hip")
-    pts = {s: hip_point(b.robot, s, ("left", "right")) for s in ("left", "right")}
+    pts = hips_points(b.robot)
+    for s, p in pts.items():
+        _require_reach("hands_on_hips", b.robot, s, p, "its hip")
     return _hold(b, "on the hip", pts, "hands on hips", BOTH_ARMS)
 
 
@@ -327,17 +349,36 @@ CROSS_ACROSS = 0.5  # each hand at this fraction of the other shoulder's distanc
 
 
 def cross_points(robot: Robot) -> dict[str, np.ndarray]:
-    """Side -> hand point with the arms crossed: each hand in front of the *other* upper arm,
-    ``GAP`` in front of the torso, the right forearm ``CROSS_DROP * L`` above the left one."""
+    """Side -> hand point with the arms crossed: each hand in front of the *other* upper arm
+    (``CROSS_ACROSS`` of its shoulder's distance from the midline), ``GAP`` in front of the torso,
+    the right hand ``0.3 L`` below the shoulders and the left one ``CROSS_DROP * L`` lower; then moved forward until both arms, posed together, clear the body by
+    ``bodymap.CLEARANCE`` in the planner's sphere model, but no farther than the arm reaches (on
+    Talos the torso's sphere set, 27 cm in radius, cannot be cleared with the arms crossed: the
+    planner then says which pair is in the way)."""
     m = body_map(robot)
     out = {}
-    for side, drop in (("right", 0.3), ("left", 0.3 + CROSS_DROP)):  # [L] below the shoulder
-        S, L = shoulder(robot, side), arm_length(robot, side)
+    L = min(arm_length(robot, s) for s in ("left", "right"))
+    stack = CROSS_DROP * L
+    for side, drop in (("right", 0.3 * L), ("left", 0.3 * L + stack)):  # [m] below the shoulder
+        S = shoulder(robot, side)
         other = shoulder(robot, _other(side))
         front = m.torso.hi[0] if m.torso is not None else S[0]
-        start = [m.beside(side, front, X), CROSS_ACROSS * other[1], S[2] - drop * L]
-        out[side] = stop_short(robot, side, start, X, ("left", "right"))
-    return out
+        start = [m.beside(side, front, X), CROSS_ACROSS * other[1], S[2] - drop]
+        out[side] = stop_short(robot, side, start, X, ("left", "right"), clear=False)
+    cleared = clear_targets(robot, out, {"left": X, "right": X}, other_arm=False)  # both arms posed, clear of the body
+    return {s: _within_reach(robot, s, out[s], cleared[s]) for s in out}
+
+
+def _within_reach(robot: Robot, side: str, near: np.ndarray, far: np.ndarray) -> np.ndarray:
+    """``far`` if the ``side`` hand reaches it, else the farthest reachable point on the segment
+    from ``near`` (bisection; ``near`` itself if that is out of reach too)."""
+    if reach_gap(robot, side, far) <= 0.0:
+        return far
+    lo, hi = 0.0, 1.0
+    for _ in range(20):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if reach_gap(robot, side, near + mid * (far - near)) <= 0.0 else (lo, mid)
+    return near + lo * (far - near)
 
 
 def build_cross_arms(b: FragmentBuilder) -> Fragment:
@@ -585,6 +626,7 @@ __all__ = [
     "circle_points",
     "clap_points",
     "cross_points",
+    "hips_points",
     "point_point",
     "punch_points",
     "reach_gap",

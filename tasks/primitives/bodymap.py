@@ -22,12 +22,14 @@ axis-aligned, so they contain the meshes and the real clearance is at least that
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import coal  # type: ignore[import-untyped]
 import numpy as np
 import pinocchio as pin
 
+from robots.collision import collision_model
 from robots.model import Robot
 from tasks.primitives.geometry import standing_geometry
 
@@ -243,9 +245,9 @@ def hands_distance(robot: Robot, left_point, right_point) -> float:
 def _hands_meet_cached(robot: Robot, left: tuple, right: tuple) -> tuple:
     pl, pr = np.array(left), np.array(right)
     inward = (pr - pl) / np.linalg.norm(pr - pl)  # from the left hand towards the right one
-    for _ in range(12):
-        d = hands_distance(robot, pl, pr)
-        step = 0.5 * (d - GAP)
+    for _ in range(CLEAR_ROUNDS):
+        d, _ = hands_clearance(robot, arm_configuration(robot, {"left": pl, "right": pr}))
+        step = 0.5 * (min(d, 1.0) - CLEARANCE)
         if abs(step) <= 0.5 * APPROACH_TOLERANCE:
             break
         pl, pr = pl + step * inward, pr - step * inward
@@ -253,8 +255,9 @@ def _hands_meet_cached(robot: Robot, left: tuple, right: tuple) -> tuple:
 
 
 def hands_meet(robot: Robot, left_point, right_point) -> tuple[np.ndarray, np.ndarray]:
-    """The two hand points moved symmetrically along the line between them until the hands'
-    meshes (standing orientation) are ``GAP`` apart (coal)."""
+    """The two hand points moved symmetrically along the line between them until, with the arms
+    posed there (:func:`arm_configuration`), the two arms' sphere sets (the planner's model of
+    the checked pairs between them) are ``CLEARANCE`` apart; their meshes are then farther."""
     pl, pr = _hands_meet_cached(robot, tuple(float(x) for x in left_point), tuple(float(x) for x in right_point))
     return np.array(pl), np.array(pr)
 
@@ -267,7 +270,7 @@ def obstacles_for(robot: Robot, moving: tuple[str, ...]) -> tuple[int, ...]:
 
 
 @functools.cache
-def _stop_short_cached(robot: Robot, side: str, point: tuple, u: tuple, moving: tuple[str, ...]) -> tuple:
+def _stop_short_cached(robot: Robot, side: str, point: tuple, u: tuple, moving: tuple[str, ...], clear: bool) -> tuple:
     p, u_ = np.array(point), np.array(u)
     obstacles = obstacles_for(robot, moving)
     travelled = 0.0
@@ -280,15 +283,225 @@ def _stop_short_cached(robot: Robot, side: str, point: tuple, u: tuple, moving: 
         if not np.isfinite(d) or step <= APPROACH_TOLERANCE:
             break
         p, travelled = p - step * u_, travelled + step
-    return tuple(p)
+    return tuple(clear_targets(robot, {side: p}, {side: u_})[side]) if clear else tuple(p)
 
 
-def stop_short(robot: Robot, side: str, point, u, moving: tuple[str, ...]) -> np.ndarray:
+def stop_short(robot: Robot, side: str, point, u, moving: tuple[str, ...], *, clear: bool = True) -> np.ndarray:
     """``point`` moved against unit direction ``u`` until the ``side`` hand's meshes (standing
     orientation) are ``GAP`` from the rest of the body (the ``moving`` arms excluded), measured
     with coal; it never moves closer than that, nor more than ``MAX_APPROACH``; a point closer
-    than ``GAP`` is first moved out along ``u``."""
-    return np.array(_stop_short_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u), tuple(moving)))
+    than ``GAP`` is first moved out along ``u``. Then, the planner's sphere model being larger
+    than the meshes, moved back out along ``u`` until the arm posed there clears the body by
+    ``CLEARANCE`` in that model (:func:`clear_targets`; the other arm standing), unless ``clear``
+    is False (a target reached by bending the body, which an arm alone cannot model)."""
+    return np.array(_stop_short_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u),
+                                       tuple(moving), clear))
+
+
+# -- the planner's sphere model ------------------------------------------------------------------
+#
+# The planner keeps the *sphere sets* of every checked link pair ``PLANNER_MARGIN`` apart
+# (robots.collision: spheres cover capsules that enclose the meshes, so they stick out of them,
+# by 10 cm in front of Talos's chest). A hand target placed by the meshes alone can therefore be
+# unreachable without a collision row failing, for the hand or for the forearm behind it. The
+# functions below pose the arms at the targets (position inverse kinematics of the arm joints,
+# Pinocchio) and measure the sphere-set distances of the checked pairs that involve a moving arm.
+
+PLANNER_MARGIN = 0.01  # [m] the planner's self-collision margin (PlannerSettings.collision_margin; a test keeps them equal)
+SPHERE_GAP = 0.01  # [m] room left beyond the margin between sphere sets at a target (the plan's posture differs from ours)
+CLEARANCE = PLANNER_MARGIN + SPHERE_GAP  # [m] sphere-set distance at a body-touching target
+ARM_IK_ITERATIONS = 150
+ARM_IK_DAMPING = 1e-2
+ARM_IK_POSTURE = 1e-4  # pull towards the standing arm posture (picks the elbow of a redundant arm)
+ARM_IK_STEP = 0.3  # [rad] largest joint step of an iteration
+CLEAR_ROUNDS = 15  # at most this many moves out when clearing a target
+CLEAR_STEP_MIN = 0.002  # [m] a move out is at least this long
+
+
+@dataclass(frozen=True, eq=False)
+class Spheres:
+    """The collision model's sphere sets, flattened: one row per sphere.
+
+    Attributes:
+        joint: Joint id per sphere.
+        local: Centre in the joint frame (S, 3) [m].
+        radius: Radius (S,) [m].
+        link: Link index per sphere (into ``links``).
+        links: Link names.
+        pairs: Checked link pairs (as link indices).
+    """
+
+    joint: np.ndarray
+    local: np.ndarray
+    radius: np.ndarray
+    link: np.ndarray
+    links: tuple[str, ...]
+    pairs: tuple[tuple[int, int], ...]
+
+
+@functools.cache
+def spheres(robot: Robot) -> Spheres:
+    """The sphere sets of the planner's collision model of ``robot`` (cached per robot object)."""
+    cm = collision_model(robot)
+    links = cm.links
+    index = {name: i for i, name in enumerate(links)}
+    joint, local, radius, link = [], [], [], []
+    for c in cm.capsules:
+        pts, r = c.spheres()
+        joint += [c.joint] * len(pts)
+        local.append(pts)
+        radius += [r] * len(pts)
+        link += [index[c.link]] * len(pts)
+    return Spheres(joint=np.array(joint, dtype=int), local=np.vstack(local), radius=np.array(radius),
+                   link=np.array(link, dtype=int), links=links,
+                   pairs=tuple((index[a], index[b]) for a, b in cm.pairs))
+
+
+def arm_joints(robot: Robot, side: str) -> tuple[int, ...]:
+    """Joint ids of the ``side`` arm, from the first joint off the trunk to the hand's joint."""
+    trunk = set(_joint_chain(robot, "torso" if robot.has_role("torso") else "base"))
+    return tuple(j for j in _joint_chain(robot, f"{side}_hand") if j not in trunk and j > 0)
+
+
+def forearm_radius(robot: Robot, side: str) -> float:
+    """Largest sphere radius [m] on the lower half of the ``side`` arm (its joints from the elbow on)."""
+    s = spheres(robot)
+    chain = arm_joints(robot, side)
+    lower = set(chain[len(chain) // 2:])
+    radii = [float(r) for r, j in zip(s.radius, s.joint, strict=True) if int(j) in lower]
+    return max(radii, default=0.0)
+
+
+def _arm_links(robot: Robot, side: str) -> set[int]:
+    """Link indices (into :attr:`Spheres.links`) that move with the ``side`` arm."""
+    s = spheres(robot)
+    hand_joint = robot.model.frames[robot.frame_id(f"{side}_hand")].parentJoint
+    moving = set(arm_joints(robot, side)) | set(robot.model.subtrees[hand_joint])
+    return {int(li) for li, j in zip(s.link, s.joint, strict=True) if int(j) in moving}
+
+
+def arm_configuration(robot: Robot, points: dict[str, np.ndarray]) -> np.ndarray:
+    """The standing configuration with each ``side`` arm's joints moved so that its hand frame
+    reaches heading-frame ``points[side]``.
+
+    Position inverse kinematics of the arm joints (damped least squares within the joint
+    limits, pulled towards the standing arm posture) from the standing arm and from
+    ``ARM_IK_SEEDS`` fixed pseudo-random arm postures; of the postures that reach the point (within
+    ``ARM_IK_TOLERANCE``), the one that clears the body by ``CLEARANCE`` in the sphere model (other arm
+    standing), else the closest to standing; a point out of reach is approached as closely as
+    the arm goes."""
+    q = robot.q_standing.copy()
+    for side, p in points.items():
+        arm = _arm_ik(robot, side, tuple(float(x) for x in p))
+        q[_arm_q(robot, side)] = arm
+    return q
+
+
+def reach_error(robot: Robot, q: np.ndarray, side: str, point) -> float:
+    """Distance [m] from the ``side`` hand frame at ``q`` to heading-frame ``point``."""
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return float(np.linalg.norm(to_heading(robot, data.oMf[robot.frame_id(f"{side}_hand")].translation) - point))
+
+
+ARM_IK_SEEDS = 8  # pseudo-random starting arm postures besides the standing one
+ARM_IK_TOLERANCE = 0.005  # [m] a posture within this of the point reaches it
+
+
+def _arm_q(robot: Robot, side: str) -> list[int]:
+    return [robot.model.joints[j].idx_q for j in arm_joints(robot, side)]
+
+
+@functools.cache
+def _arm_ik(robot: Robot, side: str, point: tuple) -> np.ndarray:
+    model, data = robot.model, robot.data()
+    iq = _arm_q(robot, side)
+    iv = [model.joints[j].idx_v for j in arm_joints(robot, side)]
+    fid = robot.frame_id(f"{side}_hand")
+    goal = to_standing(robot, np.array(point))
+    lo = np.maximum(model.lowerPositionLimit[iq], -math.pi)
+    hi = np.minimum(model.upperPositionLimit[iq], math.pi)
+    stand = robot.q_standing[iq]
+    rng = np.random.default_rng(0)
+    seeds = [stand] + [lo + rng.random(len(iq)) * (hi - lo) for _ in range(ARM_IK_SEEDS)]
+    found = []
+    for seed in seeds:
+        q = robot.q_standing.copy()
+        q[iq] = seed
+        for _ in range(ARM_IK_ITERATIONS):
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3, iv]
+            e = data.oMf[fid].translation - goal
+            H = J.T @ J + (ARM_IK_DAMPING + ARM_IK_POSTURE) * np.eye(len(iv))
+            dq = -np.linalg.solve(H, J.T @ e + ARM_IK_POSTURE * (q[iq] - stand))
+            dq *= min(1.0, ARM_IK_STEP / max(float(np.abs(dq).max()), 1e-12))
+            q[iq] = np.clip(q[iq] + dq, lo, hi)
+            if float(np.abs(dq).max()) < 1e-6:
+                break
+        pin.framesForwardKinematics(model, data, q)
+        err = float(np.linalg.norm(data.oMf[fid].translation - goal))
+        clear = sphere_clearance(robot, q, side, other_arm=False)[0] if err < ARM_IK_TOLERANCE else -math.inf
+        found.append(((err >= ARM_IK_TOLERANCE, clear < CLEARANCE, err if err >= ARM_IK_TOLERANCE else 0.0,
+                       float(np.linalg.norm(q[iq] - stand))), q[iq].copy()))
+    return min(found, key=lambda f: f[0])[1]
+
+
+def _closest_pair(robot: Robot, q: np.ndarray, pairs: list[tuple[int, int]]) -> tuple[float, tuple[str, str]]:
+    """Smallest sphere-set distance [m] at ``q`` over link ``pairs`` (indices), and that pair's names."""
+    s = spheres(robot)
+    if not pairs:
+        return math.inf, ("", "")
+    data = robot.data()
+    pin.forwardKinematics(robot.model, data, q)
+    world = np.array([data.oMi[int(j)].act(p) for j, p in zip(s.joint, s.local, strict=True)])
+    best, which = math.inf, ("", "")
+    for a, b in pairs:
+        ia, ib = np.flatnonzero(s.link == a), np.flatnonzero(s.link == b)
+        d = np.linalg.norm(world[ia][:, None] - world[ib][None], axis=2) - s.radius[ia][:, None] - s.radius[ib][None]
+        if d.min() < best:
+            best, which = float(d.min()), (s.links[a], s.links[b])
+    return best, which
+
+
+def sphere_clearance(robot: Robot, q: np.ndarray, side: str, *, other_arm: bool = True) -> tuple[float, tuple[str, str]]:
+    """Smallest sphere-set distance [m] at ``q`` over the checked pairs that involve a link of
+    the ``side`` arm, and that pair (link names); pairs with the other arm's links are left out
+    with ``other_arm=False``."""
+    mine = _arm_links(robot, side)
+    theirs = _arm_links(robot, "right" if side == "left" else "left")
+    pairs = [(a, b) for a, b in spheres(robot).pairs if (a in mine) != (b in mine)
+             and (other_arm or not ({a, b} & theirs))]
+    return _closest_pair(robot, q, pairs)
+
+
+def hands_clearance(robot: Robot, q: np.ndarray) -> tuple[float, tuple[str, str]]:
+    """Smallest sphere-set distance [m] at ``q`` over the checked pairs between the two arms."""
+    left, right = _arm_links(robot, "left"), _arm_links(robot, "right")
+    pairs = [(a, b) for a, b in spheres(robot).pairs if (a in left and b in right) or (a in right and b in left)]
+    return _closest_pair(robot, q, pairs)
+
+
+def clear_targets(robot: Robot, points: dict[str, np.ndarray], directions: dict[str, np.ndarray], *,
+                  other_arm: bool = True) -> dict[str, np.ndarray]:
+    """Each hand point moved out along its unit direction until, with the arms posed at the points
+    (:func:`arm_configuration`), every checked pair involving that arm is ``CLEARANCE`` apart in
+    the planner's sphere model (pairs between the two arms left out with ``other_arm=False``).
+
+    A point already clear is not moved; a point that stays blocked after ``CLEAR_ROUNDS`` moves is
+    returned as it is (the planner will explain)."""
+    pts = {s: np.asarray(p, dtype=float).copy() for s, p in points.items()}
+    for _ in range(CLEAR_ROUNDS):
+        q = arm_configuration(robot, pts)
+        moved = False
+        for s in pts:
+            d, _ = sphere_clearance(robot, q, s, other_arm=other_arm)
+            if d < CLEARANCE - 0.5 * APPROACH_TOLERANCE:
+                pts[s] = pts[s] + max(CLEARANCE - d, CLEAR_STEP_MIN) * np.asarray(directions[s], dtype=float)
+                moved = True
+        if not moved:
+            break
+    return pts
 
 
 def _union(boxes: list[Box]) -> Box:
