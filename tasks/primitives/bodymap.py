@@ -245,13 +245,23 @@ def hands_distance(robot: Robot, left_point, right_point) -> float:
 def _hands_meet_cached(robot: Robot, left: tuple, right: tuple) -> tuple:
     pl, pr = np.array(left), np.array(right)
     inward = (pr - pl) / np.linalg.norm(pr - pl)  # from the left hand towards the right one
+    l0, r0 = pl.copy(), pr.copy()
     for _ in range(CLEAR_ROUNDS):
         d, _ = hands_clearance(robot, arm_configuration(robot, {"left": pl, "right": pr}))
         step = 0.5 * (min(d, 1.0) - CLEARANCE)
         if abs(step) <= 0.5 * APPROACH_TOLERANCE:
-            break
+            return tuple(pl), tuple(pr)
         pl, pr = pl + step * inward, pr - step * inward
-    return tuple(pl), tuple(pr)
+        if np.linalg.norm(pl - l0) > MAX_CLEAR:
+            break
+    # the arm model does not settle (a posture the arm-only inverse kinematics misses): meshes only
+    for _ in range(12):
+        d = hands_distance(robot, l0, r0)
+        step = 0.5 * (d - GAP)
+        if abs(step) <= 0.5 * APPROACH_TOLERANCE:
+            break
+        l0, r0 = l0 + step * inward, r0 - step * inward
+    return tuple(l0), tuple(r0)
 
 
 def hands_meet(robot: Robot, left_point, right_point) -> tuple[np.ndarray, np.ndarray]:
@@ -316,6 +326,7 @@ ARM_IK_POSTURE = 1e-4  # pull towards the standing arm posture (picks the elbow 
 ARM_IK_STEP = 0.3  # [rad] largest joint step of an iteration
 CLEAR_ROUNDS = 15  # at most this many moves out when clearing a target
 CLEAR_STEP_MIN = 0.002  # [m] a move out is at least this long
+MAX_CLEAR = 0.15  # [m] a target moved farther than this to clear is left where the meshes put it
 
 
 @dataclass(frozen=True, eq=False)
@@ -488,9 +499,11 @@ def clear_targets(robot: Robot, points: dict[str, np.ndarray], directions: dict[
     (:func:`arm_configuration`), every checked pair involving that arm is ``CLEARANCE`` apart in
     the planner's sphere model (pairs between the two arms left out with ``other_arm=False``).
 
-    A point already clear is not moved; a point that stays blocked after ``CLEAR_ROUNDS`` moves is
-    returned as it is (the planner will explain)."""
-    pts = {s: np.asarray(p, dtype=float).copy() for s, p in points.items()}
+    A point already clear is not moved; a point that would move farther than ``MAX_CLEAR`` (the
+    arm-only posture is then a poor model of the planner's, e.g. G1's short arms) is returned
+    unmoved (the planner will explain if it is blocked)."""
+    start = {s: np.asarray(p, dtype=float).copy() for s, p in points.items()}
+    pts = {s: p.copy() for s, p in start.items()}
     for _ in range(CLEAR_ROUNDS):
         q = arm_configuration(robot, pts)
         moved = False
@@ -501,7 +514,8 @@ def clear_targets(robot: Robot, points: dict[str, np.ndarray], directions: dict[
                 moved = True
         if not moved:
             break
-    return pts
+    # more than MAX_CLEAR away: the arm-only posture is not the planner's; keep the mesh-based point
+    return {s: p if np.linalg.norm(p - start[s]) <= MAX_CLEAR else start[s] for s, p in pts.items()}
 
 
 def _union(boxes: list[Box]) -> Box:

@@ -16,13 +16,16 @@ from tasks.actions import REGISTRY, Action
 from tasks.compose import compile_actions
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import PRIMITIVES, compile_action
-from tasks.primitives.bodymap import GAP
+from tasks.primitives.bodymap import GAP, MAX_CLEAR
 from tasks.serialize import spec_from_json, spec_to_json
 
 GESTURES = ("punch", "clap", "touch", "hands_on_hips", "cross_arms", "arms_out", "point", "salute",
             "arm_circles", "shrug", "stretch", "nod", "shake_head")
 HEAD_GESTURES = ("nod", "shake_head")
-TOUCHING_GAP_MAX = GAP + 0.03  # [m] a "touching" hand stops within this of the touched part
+# [m] a "touching" hand stops within this of the touched part (standing hand orientation): the
+# targets are cleared in the planner's sphere model, which sticks out of Talos's chest by ~10 cm,
+# moving them by at most MAX_CLEAR (measured: up to 0.21 m, Talos touch chest)
+TOUCHING_GAP_MAX = GAP + MAX_CLEAR + 0.06
 GEOMETRY_ATOL = 1e-9  # [m] targets recomputed from Pinocchio placements
 DT = 0.1  # [s] knot spacing of the plans under test
 HARD_SLACK = 1e-4  # [m] solver tolerance on top of a hard target's own tolerance
@@ -409,3 +412,64 @@ def test_clap_passes_the_simulation_certificate(talos, solve):
     _, plan = solve(talos, [Action(name="clap", params={"repeat": 2})])
     ex = simulate(plan, talos, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
+
+
+# --- plans with the self-collision rows on, checked on the URDF meshes ------------------------------
+def _checked_pair_distances(robot, q):
+    """Smallest coal distance (URDF collision meshes, Pinocchio GeometryModel + computeDistances)
+    of every link pair the planner checks, at configuration ``q`` [m]."""
+    from robots.collision import collision_model
+
+    gmodel = robot.collision_model.copy()
+    by_link: dict = {}
+    for i, obj in enumerate(gmodel.geometryObjects):
+        by_link.setdefault(robot.model.frames[obj.parentFrame].name, []).append(i)
+    index = []
+    for a, b in collision_model(robot).pairs:
+        for ia in by_link.get(a, []):
+            for ib in by_link.get(b, []):
+                gmodel.addCollisionPair(pin.CollisionPair(ia, ib))
+                index.append((a, b))
+    gdata = gmodel.createData()
+    pin.computeDistances(robot.model, robot.data(), gmodel, gdata, q)
+    return min(((float(gdata.distanceResults[k].min_distance), pair) for k, pair in enumerate(index)))
+
+
+def _knot_times(t, plan):
+    if t.window is not None:
+        return np.arange(t.window[0], t.window[1] + 1e-9, plan.dt)
+    return [plan.t[-1] if t.time is None else t.time]
+
+
+@pytest.mark.long  # minutes: three plans with many collision rounds, each checked with coal at every knot
+@pytest.mark.parametrize(("name", "params"), [
+    ("clap", {"repeat": 1}),
+    ("touch", {"part": "head", "hand": "right"}),
+    ("hands_on_hips", {}),
+])
+def test_body_touching_gestures_plan_clear_of_the_meshes(talos, solve, name, params):
+    """Planned on Talos with the self-collision rows on (the defaults), every hard hand target is
+    met within its tolerance, and at every knot no pair the planner checks interpenetrates on the
+    URDF meshes (coal), the closest staying at least the planner's 1 cm margin apart."""
+    from planner import PlannerSettings
+
+    spec, plan = solve(talos, [Action(name=name, params=params)])
+    assert PlannerSettings().self_collision
+    hands = {talos.frame("left_hand"): "left_hand", talos.frame("right_hand"): "right_hand"}
+    hard = [t for t in spec.targets if t.priority.name == "HARD" and t.position is not None and t.frame in hands]
+    assert hard
+    for t in hard:
+        for time in _knot_times(t, plan):
+            err = np.linalg.norm(_hand_at(talos, plan, hands[t.frame], time) - np.array(t.position))
+            assert err <= t.tolerance + HARD_SLACK, (t.name, time, err)
+    closest = min(_checked_pair_distances(talos, q) for q in plan.q)
+    assert closest[0] >= 0.01 - HARD_SLACK, closest
+
+
+def test_sphere_clearance_uses_the_planners_margin():
+    """The task layer's copy of the planner's self-collision margin matches PlannerSettings."""
+    from planner import PlannerSettings
+    from tasks.primitives.bodymap import CLEARANCE, PLANNER_MARGIN
+
+    assert PLANNER_MARGIN == PlannerSettings().collision_margin
+    assert CLEARANCE > PLANNER_MARGIN
