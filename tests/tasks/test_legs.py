@@ -35,7 +35,8 @@ def _on_grid(spec):
         t += p.duration
         to_knot(round(t, 9), spec.dt)
     for item in (*spec.targets, *spec.com_targets):
-        to_knot(item.time, spec.dt)
+        for t in (item.time,) if item.time is not None else item.window:  # a target holds at a time or over a window
+            to_knot(t, spec.dt)
 
 
 def _sole(robot, spec, phase, side):
