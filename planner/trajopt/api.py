@@ -103,9 +103,9 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         progress("the solve failed: diagnosing")
     diagnosis = ""
     if settings.scene_collision and settings.diagnose:
-        diagnosis = scene_diagnosis(lay, settings)
+        diagnosis = scene_diagnosis(lay, settings, solve_layout)
     if not diagnosis and settings.self_collision and settings.diagnose:
-        diagnosis = collision_diagnosis(lay, settings)
+        diagnosis = collision_diagnosis(lay, settings, solve_layout)
     if not diagnosis:
         diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
     result = make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks, forces=forces)

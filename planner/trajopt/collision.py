@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -335,10 +336,11 @@ def _advice(lay: Layout, side_hint: str, time: float, obstacle: str) -> str:
     return f"reach less far {word}, or with the {other} hand"
 
 
-def collision_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
+def collision_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Callable) -> str:
     """When the plan with collision rows failed: solve without them; if that motion brings a pair
-    within the margin, the collision is the cause, said in task terms (empty string otherwise)."""
-    from planner.trajopt.solve import solve_layout
+    within the margin, the collision is the cause, said in task terms (empty string otherwise).
+    ``solve_layout`` is :func:`planner.trajopt.solve.solve_layout` (passed in: the solver imports the
+    term modules, so they do not import it back)."""
     from planner.trajopt.symbolic import chart_to_configuration
 
     if not any(t.kind == "collision" for t in lay.terms):

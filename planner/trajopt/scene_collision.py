@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -440,10 +441,11 @@ def _advice(lay: Layout, name: str) -> str:
     return f"move target {target.name!r} farther from the {name}, or the {name} in the scene"
 
 
-def scene_diagnosis(lay: Layout, settings: PlannerSettings) -> str:
+def scene_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Callable) -> str:
     """When the plan with scene rows failed: solve without them; if that motion brings the robot within
-    the margin of an object, the object is the cause, said in task terms (empty string otherwise)."""
-    from planner.trajopt.solve import solve_layout
+    the margin of an object, the object is the cause, said in task terms (empty string otherwise).
+    ``solve_layout`` is :func:`planner.trajopt.solve.solve_layout` (passed in: the solver imports the
+    term modules, so they do not import it back)."""
     from planner.trajopt.symbolic import chart_to_configuration
 
     if not any(t.kind == "scene" for t in lay.terms):
