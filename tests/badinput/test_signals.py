@@ -113,7 +113,18 @@ def test_signal_while_solving_leaves_nothing(sig, code, last, work):
     assert "Traceback" not in err and ": error:" not in err
     assert "diagnosing" not in err and "writing" not in err
     tree.assert_unchanged()
-    assert _leftovers(work / "tmpdir") == [] and _leftovers(work / "cache") == []
+    assert _leftovers(work / "tmpdir") == [] and _solver_leftovers(work / "cache") == []
+
+
+def _solver_leftovers(cache: Path) -> list[str]:
+    """What the interrupted solve left in the cache. The collision model, fitted and published before
+    the solve started, is a complete entry: it must be whole JSON, and is not counted."""
+    import json
+
+    for path in (cache / "collision").glob("*.json"):
+        json.loads(path.read_text(encoding="utf-8"))
+    return [p for p in _leftovers(cache) if (p != "collision" and not p.startswith("collision/"))
+            or (p.startswith("collision/") and not p.endswith(".json"))]
 
 
 @pytest.mark.slow

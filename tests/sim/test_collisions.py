@@ -138,11 +138,11 @@ def test_hand_through_hip_fails_on_self_collision(talos, hand_run):
     check = _check(ex, CheckKind.SELF_COLLISION)
     assert not check.ok and not ex.certificate.ok
     hand, hip = body_part(talos, "gripper_left_base_link"), body_part(talos, "leg_left_3_link")
-    assert check.subject == f"{hand} / {hip}" == "left hand / left hip"
+    assert check.subject == f"{hand} / {hip}" == "left hand / left thigh"
     assert "/ leg_left_3_link" in check.message and "gripper_left_" in check.message
     assert ex.certificate.reason.startswith(f"{hand} hit the {hip} at t = ")
     assert 0.5 < check.time < 1.5  # on the way in (the top is at 1.5 s)
-    assert "self-collision: left hand / left hip" in ex.summary()
+    assert "self-collision: left hand / left thigh" in ex.summary()
 
 
 @pytest.fixture(scope="module")
