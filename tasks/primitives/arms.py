@@ -138,15 +138,23 @@ def punch_points(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray]:
     return guard, hit
 
 
+def _repeat(b: FragmentBuilder, side: str, n: int, d: float, start: tuple[str, np.ndarray], peak: tuple[str, np.ndarray],
+            back: str) -> None:
+    """The ``side`` hand at ``start`` when raised, then ``n`` times out to ``peak`` (at the middle of
+    each ``d``-second beat) and back to the start point (at its end): punch, clap, shrug."""
+    (start_name, home), (peak_name, point) = start, peak
+    _put(b, start_name, side, home, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
+    for k in range(n):
+        _put(b, f"{peak_name} #{k + 1}", side, point, time=RAISE_TIME + (k + 0.5) * d)
+        _put(b, f"{back} #{k + 1}", side, home, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
+
+
 def build_punch(b: FragmentBuilder) -> Fragment:
     """Up to the guard, ``repeat`` times out to the hit and back to the guard, down to rest."""
     side, n, d = b.params["arm"], b.params["repeat"], b.params["duration"]
     guard, hit = punch_points(b.robot, side)
-    _put(b, f"{side} fist on guard", side, guard, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
-    for k in range(n):
-        _put(b, f"{side} punch #{k + 1}", side, hit, time=RAISE_TIME + (k + 0.5) * d)
-        _put(b, f"{side} fist back on guard #{k + 1}", side, guard, time=RAISE_TIME + (k + 1) * d,
-             tolerance=GUARD_TOLERANCE)
+    _repeat(b, side, n, d, (f"{side} fist on guard", guard), (f"{side} punch", hit),
+            f"{side} fist back on guard")
     rest_targets(b, [f"{side}_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("punch", _rhythm_duration(b.params, b.robot))
     return b.finish(_arm_parts((side,)))
@@ -187,10 +195,8 @@ def build_clap(b: FragmentBuilder) -> Fragment:
     n, d = b.params["repeat"], b.params["duration"]
     pts = clap_points(b.robot)
     for side, (together, apart) in pts.items():
-        _put(b, f"{side} hand ready to clap", side, apart, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
-        for k in range(n):
-            _put(b, f"{side} hand clap #{k + 1}", side, together, time=RAISE_TIME + (k + 0.5) * d)
-            _put(b, f"{side} hand apart #{k + 1}", side, apart, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
+        _repeat(b, side, n, d, (f"{side} hand ready to clap", apart), (f"{side} hand clap", together),
+                f"{side} hand apart")
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("clap", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
@@ -557,10 +563,7 @@ def build_shrug(b: FragmentBuilder) -> Fragment:
     n, d = b.params["repeat"], b.params["duration"]
     for side in ("left", "right"):
         low, high = shrug_points(b.robot, side)
-        _put(b, f"{side} hand open", side, low, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
-        for k in range(n):
-            _put(b, f"{side} hand shrug #{k + 1}", side, high, time=RAISE_TIME + (k + 0.5) * d)
-            _put(b, f"{side} hand down #{k + 1}", side, low, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
+        _repeat(b, side, n, d, (f"{side} hand open", low), (f"{side} hand shrug", high), f"{side} hand down")
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("shrug", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
