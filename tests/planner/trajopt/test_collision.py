@@ -20,6 +20,7 @@ from planner.trajopt.layout import make_layout
 from planner.trajopt.symbolic import chart_to_configuration
 from planner.trajopt.terms import stage_function
 from robots.collision import collision_model, mesh_distances
+from tests.planner.trajopt.fd import stage_rows_jacobian
 
 ROOT = Path(__file__).resolve().parents[3]
 FD_STEP = 1e-6
@@ -95,12 +96,7 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
         assert g.shape == (len(expected),) and len(expected) > 10
         np.testing.assert_allclose(g, expected, atol=1e-12)
         J = np.asarray(jac(dq))
-        fd = np.zeros_like(J)
-        for i in range(talos.nv):
-            e = np.zeros(talos.nv)
-            e[i] = FD_STEP
-            fd[:, i] = (np.asarray(fn(dq + e, talos.q_standing, p)[0]).ravel()
-                        - np.asarray(fn(dq - e, talos.q_standing, p)[0]).ravel()) / (2 * FD_STEP)
+        fd = stage_rows_jacobian(fn, dq, talos.q_standing, p, FD_STEP)
         assert np.abs(J - fd).max() <= FD_TOLERANCE * max(1.0, np.abs(J).max())
 
 

@@ -32,6 +32,7 @@ from planner.trajopt.scene_collision import (
 from planner.trajopt.symbolic import chart_to_configuration
 from planner.trajopt.terms import stage_function
 from tasks.scene import Scene, SceneObject, load_scene, signed_distance
+from tests.planner.trajopt.fd import stage_rows_jacobian
 
 ROOT = Path(__file__).resolve().parents[3]
 TABLE = ROOT / "examples" / "scenes" / "table.json"
@@ -125,12 +126,7 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
                 expected.append(_reference_row(ob.shape, u, ob.half + sets.sphere_radius[s] + MARGIN))
         np.testing.assert_allclose(g, expected, rtol=1e-10, atol=1e-12)
         J = np.asarray(jac(dq))
-        fd = np.zeros_like(J)
-        for i in range(talos.nv):
-            e = np.zeros(talos.nv)
-            e[i] = FD_STEP
-            fd[:, i] = (np.asarray(fn(dq + e, talos.q_standing, p)[0]).ravel()
-                        - np.asarray(fn(dq - e, talos.q_standing, p)[0]).ravel()) / (2 * FD_STEP)
+        fd = stage_rows_jacobian(fn, dq, talos.q_standing, p, FD_STEP)
         assert np.abs(J).max() > 1.0  # the rows do depend on the arm
         assert np.abs(J - fd).max() <= FD_TOLERANCE * np.abs(J).max()
 
