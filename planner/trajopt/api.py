@@ -78,13 +78,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         UnsupportedModel: the robot has joints the planner cannot model.
         PlanningFailed: the problem is infeasible or the solver failed (with ``throw``).
     """
-    settings = settings or PlannerSettings()
-    lay = make_layout(spec, robot)
-    if spec.dynamic:  # CoM dynamics with contact forces (planner/trajopt/centroidal/, docs/dynamic.md)
-        lay = to_dynamic_layout(lay, settings.centroidal)
-        settings = dataclasses.replace(
-            settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
-            compile=settings.compile and settings.compile_dynamic)
+    lay, settings = _formulation(spec, robot, settings or PlannerSettings())
     problem = precheck(lay)
     if problem:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
@@ -150,12 +144,21 @@ def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.
 def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | None = None) -> Layout:
     """The layout :func:`plan` solves first (kinematic or dynamic, with the screened collision rows):
     what keys its solver in the cache."""
-    settings = settings or PlannerSettings()
+    lay, settings = _formulation(spec, robot, settings or PlannerSettings())
+    add_screened_terms(lay, settings, lay.initial_guess(settings))
+    return lay
+
+
+def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tuple[Layout, PlannerSettings]:
+    """The layout of ``spec`` (kinematic, or dynamic: CoM dynamics with contact forces,
+    planner/trajopt/centroidal/, docs/dynamic.md) and the settings its solves use."""
     lay = make_layout(spec, robot)
     if spec.dynamic:
         lay = to_dynamic_layout(lay, settings.centroidal)
-    add_screened_terms(lay, settings, lay.initial_guess(settings))
-    return lay
+        settings = dataclasses.replace(
+            settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
+            compile=settings.compile and settings.compile_dynamic)
+    return lay, settings
 
 
 def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
