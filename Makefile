@@ -9,6 +9,11 @@ STAMP  := $(VENV)/.installed
 LOCK   := constraints.txt
 PIP_INSTALL = $(BIN)/python -m pip install --quiet --disable-pip-version-check -c $(LOCK)
 PYTEST_ARGS ?=
+# The suite runs on every core (at most 4: each worker loads the robots and builds its solvers),
+# tests handed out by pytest-xdist with work stealing so the long ones do not queue behind each
+# other. PYTEST_WORKERS=0 runs it in one process.
+PYTEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); [ "$$n" -gt 4 ] && n=4; echo $$n)
+PYTEST_XDIST = $(if $(filter 0,$(PYTEST_WORKERS)),,-n $(PYTEST_WORKERS) --dist worksteal)
 
 .PHONY: demo test lint install lock bench bench-quick clean
 
@@ -34,12 +39,12 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 test: $(STAMP) lint
-	$(BIN)/python -m pytest $(PYTEST_ARGS)
+	$(BIN)/python -m pytest $(PYTEST_XDIST) $(PYTEST_ARGS)
 
 # The suite plus the tests marked long (minutes each).
 .PHONY: test-long
 test-long: $(STAMP) lint
-	WBMP_LONG_TESTS=1 $(BIN)/python -m pytest $(PYTEST_ARGS)
+	WBMP_LONG_TESTS=1 $(BIN)/python -m pytest $(PYTEST_XDIST) $(PYTEST_ARGS)
 
 bench: $(STAMP)
 	$(BIN)/wbmp bench
