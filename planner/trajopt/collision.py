@@ -178,9 +178,12 @@ def collision_rows_of(lay: Layout, sets: SphereSets) -> Rows:
 def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: float,
            only: np.ndarray | None = None) -> Rows:
     """Rows for the link pairs closer than ``threshold`` at some variable knot (``distances``:
-    (T, S) per sphere pair): per link pair, the closest sphere pair at each such knot (and every
-    sphere pair marked in ``only``), on those knots widened by :data:`KNOT_PADDING`. ``only``
-    (T, S) bool, when given, restricts the link pairs to those with a marked entry."""
+    (T, S) per sphere pair): per link pair, every sphere pair closer than ``threshold`` at such a
+    knot (and every sphere pair marked in ``only``), on those knots widened by
+    :data:`KNOT_PADDING`. ``only`` (T, S) bool, when given, restricts the link pairs to those with
+    a marked entry. All close sphere pairs, not only the closest: a solve that pushes one sphere
+    pair apart slides the limb onto its neighbour, and each such round builds a solver and solves
+    again (docs/collisions.md)."""
     rows = Rows()
     if len(sets.starts) == 0:
         return rows
@@ -199,7 +202,7 @@ def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: floa
         a, b = sets.starts[pi], ends[pi]
         block = d[:, a:b]
         ks = np.flatnonzero(block.min(axis=1) < threshold)
-        spheres = {int(np.argmin(block[k])) for k in ks}
+        spheres = {int(i) for i in np.flatnonzero((block[ks] < threshold).any(axis=0))}
         if only is not None:
             spheres |= {int(i) for i in np.flatnonzero(only[:, a:b].any(axis=0))}
         knots: set[int] = set()
