@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from planner.trajopt.transcription import Solver
 
 FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same structure
-MEMORY_ENTRIES = 64  # solvers kept alive in a process (least recently used dropped first)
+MEMORY_ENTRIES = 24  # solvers kept alive in a process (least recently used dropped first)
 _MEMORY: OrderedDict[str, Solver] = OrderedDict()
 _LOCK = threading.Lock()
 _SOURCES = (  # relative to planner/trajopt/: the files that determine the compiled structure

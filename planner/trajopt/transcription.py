@@ -4,6 +4,8 @@ stage-wise assembly of its derivatives (:func:`build_nlp`). A formulation (the l
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -11,6 +13,7 @@ import numpy as np
 
 from planner.exceptions import PlannerError
 from planner.trajopt.layout import Layout
+from planner.trajopt.symbolic import model_hash
 from planner.trajopt.terms import stage_function, stage_groups
 
 LIMIT_CLAMP = 1e10  # limits beyond this magnitude are treated as absent
@@ -143,6 +146,55 @@ def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
     return A, P, D
 
 
+@dataclass(eq=False)
+class Stage:
+    """The SX functions of one knot structure: ``(dq, q_ref, p) ->`` rows and cost, their Jacobian,
+    the cost's gradient and the Lagrangian's Hessian ``(dq, q_ref, p, sigma, lam)``."""
+
+    fn: ca.Function
+    jac: ca.Function
+    grad: ca.Function
+    hess: ca.Function
+    rows: int
+    cost_is_zero: bool
+
+
+STAGE_CACHE_SIZE = 256
+_STAGES: OrderedDict[tuple, Stage] = OrderedDict()
+
+
+def stage(lay: Layout, term_ids: list[int]) -> Stage:
+    """The :class:`Stage` of the terms ``term_ids`` at one knot, from a per-process cache keyed by
+    the robot model and the terms' structure: a collision round, the re-solve of a wider screening,
+    or another plan of the same robot rebuilds only the knot structures it has not seen (the
+    symbolic Hessians are most of a solver's build time). The functions are named after the key,
+    so generated C never holds two different functions of one name."""
+    terms = [lay.terms[i] for i in term_ids]
+    key = (model_hash(lay.robot.model), tuple((t.kind, t.structure, len(t.params), t.n_rows) for t in terms))
+    hit = _STAGES.get(key)
+    if hit is not None:
+        _STAGES.move_to_end(key)
+        return hit
+    name = "stage_" + hashlib.sha256(repr(key).encode()).hexdigest()[:16]
+    fn = stage_function(lay, term_ids, name)
+    nv, nq = lay.robot.nv, lay.robot.nq
+    dq, qr, ps = ca.SX.sym("dq", nv), ca.SX.sym("q_ref", nq), ca.SX.sym("p", fn.size1_in(2))
+    sigma = ca.SX.sym("sigma")
+    gk, ck = fn(dq, qr, ps)
+    lam = ca.SX.sym("lam", gk.numel())
+    out = Stage(
+        fn=fn,
+        jac=ca.Function("jac_" + name, [dq, qr, ps], [ca.jacobian(gk, dq)]),
+        grad=ca.Function("grad_" + name, [dq, qr, ps], [ca.gradient(ck, dq)]),
+        hess=ca.Function("hess_" + name, [dq, qr, ps, sigma, lam], [ca.hessian(sigma * ck + ca.dot(lam, gk), dq)[0]]),
+        rows=int(gk.numel()), cost_is_zero=bool(ck.is_zero()),
+    )
+    _STAGES[key] = out
+    while len(_STAGES) > STAGE_CACHE_SIZE:
+        _STAGES.popitem(last=False)
+    return out
+
+
 def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     """The CasADi NLP of a layout's structure (values come as parameters) and its derivatives.
 
@@ -161,8 +213,8 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     x = ca.MX.sym("x", nl.n_x_kin)
     X = ca.reshape(x, nv, N - 2)
     groups = stage_groups(lay)
-    fns = [stage_function(lay, term_lists[0], f"stage{gi}") for gi, (_s, _k, term_lists) in enumerate(groups)]
-    n_p = nq + 3 + sum(fn.size1_in(2) * len(knots) for fn, (_s, knots, _t) in zip(fns, groups, strict=True))
+    stages = [stage(lay, term_lists[0]) for _s, _k, term_lists in groups]
+    n_p = nq + 3 + sum(st.fn.size1_in(2) * len(knots) for st, (_s, knots, _t) in zip(stages, groups, strict=True))
     p = ca.MX.sym("p", n_p)
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", nl.n_g_kin)
@@ -177,30 +229,23 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     hess = lam_f * (2 * c_smooth * AtA + 2 * c_posture * PtP)
     g, jac = [], []
     p_offset, g_offset = nq + 3, 0
-    for fn, (_sig, knots, _terms) in zip(fns, groups, strict=True):
+    for st, (_sig, knots, _terms) in zip(stages, groups, strict=True):
         n = len(knots)
-        dq, qr, ps = ca.SX.sym("dq", nv), ca.SX.sym("q_ref", nq), ca.SX.sym("p", fn.size1_in(2))
-        sigma = ca.SX.sym("sigma")
-        gk, ck = fn(dq, qr, ps)
-        lam = ca.SX.sym("lam", gk.numel())
-        jac_fn = ca.Function("jac_" + fn.name(), [dq, qr, ps], [ca.jacobian(gk, dq)])
-        grad_fn = ca.Function("grad_" + fn.name(), [dq, qr, ps], [ca.gradient(ck, dq)])
-        hess_fn = ca.Function("hess_" + fn.name(), [dq, qr, ps, sigma, lam],
-                              [ca.hessian(sigma * ck + ca.dot(lam, gk), dq)[0]])
+        n_ps = st.fn.size1_in(2)
         Xg = X[:, [k - 2 for k in knots]]
         Qr = ca.repmat(q_ref, 1, n)
-        Pg = ca.reshape(p[p_offset: p_offset + fn.size1_in(2) * n], fn.size1_in(2), n)
-        p_offset += fn.size1_in(2) * n
-        G, C = fn.map(n)(Xg, Qr, Pg)
-        JG = jac_fn.map(n)(Xg, Qr, Pg)
-        GC = grad_fn.map(n)(Xg, Qr, Pg)
-        rows = gk.numel()
+        Pg = ca.reshape(p[p_offset: p_offset + n_ps * n], n_ps, n)
+        p_offset += n_ps * n
+        G, C = st.fn.map(n)(Xg, Qr, Pg)
+        JG = st.jac.map(n)(Xg, Qr, Pg)
+        GC = st.grad.map(n)(Xg, Qr, Pg)
+        rows = st.rows
         L = ca.reshape(lam_g[g_offset: g_offset + rows * n], rows, n)
         g_offset += rows * n
-        HS = hess_fn.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
+        HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
         S = _selection(lay, knots)
         f = f + ca.sum2(C)
-        if ck.is_zero():
+        if st.cost_is_zero:
             GC = ca.MX.zeros(nv, n)
         grad = grad + ca.mtimes(S.T, ca.vec(GC))
         hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
