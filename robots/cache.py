@@ -10,7 +10,7 @@ model never reads the visual one (:class:`robots.model.Robot` loads its visual m
 The key is a sha256 of everything the geometry is made from: the kind, the URDF's content and real path,
 the package folders that resolve its ``package://`` URIs, this module's and
 :mod:`robots.model`'s sources (the Collada up-axis correction is applied before storing), the
-versions of wbmp, Pinocchio and coal, and :data:`FORMAT`. The meshes a URDF names are only known
+versions of wbmp, Pinocchio and coal (which holds the serialization code), and :data:`FORMAT`. The meshes a URDF names are only known
 once it is loaded, so the manifest lists every mesh file with its sha256, and a hit requires each
 to hash the same today: an edited mesh misses and is rebuilt. The manifest also holds the size
 and sha256 of the binary file, checked before Pinocchio reads them; a damaged entry (bad
@@ -65,12 +65,14 @@ def _environment() -> tuple[tuple[str, str], ...]:
     out = [("format", str(FORMAT))]
     for name in _SOURCES:
         out.append((name, hashlib.sha256((here / name).read_bytes()).hexdigest()))
-    for dist in ("wbmp", "pin", "coal", "cmeel-boost"):
-        try:
-            out.append((dist, metadata.version(dist)))
-        except metadata.PackageNotFoundError:
-            out.append((dist, ""))
-    out.append(("pinocchio", pin.__version__))
+    try:
+        out.append(("wbmp", metadata.version("wbmp")))
+    except metadata.PackageNotFoundError:
+        out.append(("wbmp", ""))
+    import coal  # type: ignore[import-untyped]
+
+    # the libraries' own version strings (metadata.version costs ~20 ms a call)
+    out += [("pinocchio", pin.__version__), ("coal", str(getattr(coal, "__version__", "")))]
     return tuple(out)
 
 
