@@ -167,7 +167,7 @@ def cached_geometry(urdf: str, package_dirs: tuple[str, ...], kind: str,
         try:
             return _read(entry)
         except _Damaged as e:
-            _log.warning("robot cache: entry %s is damaged (%s); rebuilding it", entry, e)
+            _log.warning("wbmp: warning: robot cache entry %s is damaged (%s); removed it, the robot is loaded from its files", entry, e)
         except _Stale as e:
             _log.info("robot cache: entry %s is out of date (%s); rebuilding it", entry, e)
         shutil.rmtree(entry, ignore_errors=True)

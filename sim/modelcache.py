@@ -163,7 +163,7 @@ def cached_model(key: str | None, build: Callable[[], tuple[mujoco.MjModel, dict
             except (KeyError, TypeError, ValueError, IndexError) as e:
                 raise _Damaged(f"{_META} does not fit the model ({type(e).__name__}: {e})") from None
         except _Damaged as e:
-            _log.warning("MuJoCo model cache: entry %s is damaged (%s); rebuilding it", entry, e)
+            _log.warning("wbmp: warning: MuJoCo model cache entry %s is damaged (%s); removed it, the model is built again", entry, e)
             shutil.rmtree(entry, ignore_errors=True)
     model, fields = build()
     result = check(model, fields)
