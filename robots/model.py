@@ -571,6 +571,15 @@ class _Lazy:
             self._load = None
         return self._value
 
+    def __reduce__(self):  # a pickled robot carries its visual model, not the loader (a closure)
+        return (_loaded, (self.get(),))
+
+
+def _loaded(value: pin.GeometryModel) -> _Lazy:
+    lazy = _Lazy(pin.GeometryModel)
+    lazy._value = value
+    return lazy
+
 
 def _geometry(where: str, urdf: str, package_dirs: tuple[str, ...], kind: str) -> pin.GeometryModel:
     """The ``kind`` (collision, visual) geometry of ``urdf``: a copy of a cached load (meshes
