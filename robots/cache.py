@@ -143,9 +143,8 @@ def _write(root: Path, key: str, gmodel: pin.GeometryModel) -> None:
                     "sha256": _sha256(tmp / _BINARY), "meshes": {p: _sha256(p) for p in mesh_files(gmodel)}}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1), encoding="utf-8")
         entry = root / key
-        if entry.exists():
-            shutil.rmtree(entry, ignore_errors=True)
-        tmp.replace(entry)
+        if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
+            tmp.replace(entry)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

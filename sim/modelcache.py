@@ -138,9 +138,8 @@ def _write(root: Path, key: str, model: mujoco.MjModel, fields: dict[str, Any]) 
                 "sha256": _sha256(tmp / _BINARY), "fields": fields}
         (tmp / _META).write_text(json.dumps(meta), encoding="utf-8")
         entry = root / key
-        if entry.exists():
-            shutil.rmtree(entry, ignore_errors=True)
-        tmp.replace(entry)
+        if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
+            tmp.replace(entry)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
