@@ -11,6 +11,7 @@ import re
 import stat
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,21 +32,29 @@ class Robot:
     Attributes:
         profile: The profile it was loaded from.
         model: Pinocchio model with a free-flyer root joint (``nq = nv + 1``).
-        visual_model: Visual geometry (meshes), for viewers.
         collision_model: Collision geometry.
         urdf_path: URDF file the model was built from.
         package_dirs: Directories that resolve ``package://`` mesh URIs.
         q_standing: Standing configuration (nq,): soles flat on z = 0, feet centred on x = y = 0.
+
+    The visual geometry (:attr:`visual_model`) is loaded on first use: planning and simulating
+    never need it, and Talos' visual meshes are the slowest part of loading the robot.
     """
 
     profile: RobotProfile
     model: pin.Model
-    visual_model: pin.GeometryModel
     collision_model: pin.GeometryModel
     urdf_path: str
     package_dirs: tuple[str, ...]
     q_standing: np.ndarray
+    _visual: _Lazy = field(default_factory=lambda: _Lazy(pin.GeometryModel), repr=False)
     _frame_ids: dict[str, int] = field(default_factory=dict, repr=False)
+
+    @property
+    def visual_model(self) -> pin.GeometryModel:
+        """Visual geometry (meshes), for viewers; loaded on first use (ProfileError when its
+        meshes cannot be loaded)."""
+        return self._visual.get()
 
     @property
     def name(self) -> str:
@@ -265,23 +274,24 @@ def _build(profile: RobotProfile) -> Robot:
             raise FrameNotFound(frame, profile.name, names, where=f"{where}: frames.{role}")
     q_ref = _reference_configuration(model, profile)
     _check_sides(where, model, profile, q_ref)
-    skeleton = Robot(profile=profile, model=model, visual_model=pin.GeometryModel(),
-                     collision_model=pin.GeometryModel(), urdf_path=urdf, package_dirs=(), q_standing=q_ref)
+    skeleton = Robot(profile=profile, model=model, collision_model=pin.GeometryModel(), urdf_path=urdf,
+                     package_dirs=(), q_standing=q_ref)
     try:
         q_stand = level_soles(skeleton, q_ref)
     except RobotError as e:
         raise ProfileError(f"{where}: frames: {e}") from None
     _check_standing(where, model, q_stand)
     q_stand.setflags(write=False)
-    collision, visual = _geometry(where, urdf, tuple(package_dirs))
+    dirs = tuple(package_dirs)
+    collision = _geometry(where, urdf, dirs, "collision")
     return Robot(
         profile=profile,
         model=model,
-        visual_model=visual,
         collision_model=collision,
         urdf_path=str(Path(urdf).resolve()),
         package_dirs=tuple(str(Path(p).resolve()) for p in package_dirs),
         q_standing=q_stand,
+        _visual=_Lazy(lambda: _geometry(where, urdf, dirs, "visual")),
     )
 
 
@@ -547,30 +557,60 @@ def _check_standing(where: str, model: pin.Model, q: np.ndarray) -> None:
             )
 
 
-def _geometry(where: str, urdf: str, package_dirs: tuple[str, ...]) -> tuple[pin.GeometryModel, pin.GeometryModel]:
-    """(collision, visual) geometry of ``urdf``: copies of a cached load (meshes take seconds)."""
+class _Lazy:
+    """A value made on first use (by ``load``), then kept."""
+
+    def __init__(self, load: Callable[[], pin.GeometryModel]) -> None:
+        self._load: Callable[[], pin.GeometryModel] | None = load
+        self._value: pin.GeometryModel | None = None
+
+    def get(self) -> pin.GeometryModel:
+        if self._value is None:
+            assert self._load is not None
+            self._value = self._load()
+            self._load = None
+        return self._value
+
+    def __reduce__(self):  # a pickled robot carries its visual model, not the loader (a closure)
+        return (_loaded, (self.get(),))
+
+
+def _loaded(value: pin.GeometryModel) -> _Lazy:
+    lazy = _Lazy(pin.GeometryModel)
+    lazy._value = value
+    return lazy
+
+
+def _geometry(where: str, urdf: str, package_dirs: tuple[str, ...], kind: str) -> pin.GeometryModel:
+    """The ``kind`` (collision, visual) geometry of ``urdf``: a copy of a cached load (meshes
+    take seconds; cached in memory, and on disk by :mod:`robots.cache`)."""
     try:
         st = os.stat(urdf)
-        collision, visual = _cached_geometry(urdf, os.path.realpath(urdf), st.st_mtime_ns, st.st_size, package_dirs)
+        gmodel = _cached_geometry(urdf, os.path.realpath(urdf), st.st_mtime_ns, st.st_size, package_dirs, kind)
     except (ValueError, RuntimeError, TypeError, IndexError, OSError) as e:
         reason = str(e).splitlines()[0][:200] if str(e) else type(e).__name__
         raise ProfileError(f"{where}: urdf: cannot load the meshes of {display_path(urdf)}: {reason} "
                            "(package_dirs must hold the folder of each package:// mesh)") from None
-    return collision.copy(), visual.copy()
+    return gmodel.copy()
 
 
-@functools.lru_cache(maxsize=6)
+@functools.lru_cache(maxsize=12)
 def _cached_geometry(urdf: str, _realpath: str, _mtime_ns: int, _size: int,
-                     package_dirs: tuple[str, ...]) -> tuple[pin.GeometryModel, pin.GeometryModel]:
+                     package_dirs: tuple[str, ...], kind: str) -> pin.GeometryModel:
+    from robots.cache import cached_geometry
+
+    return cached_geometry(urdf, package_dirs, kind, lambda: _load_geometry(urdf, package_dirs, kind))
+
+
+def _load_geometry(urdf: str, package_dirs: tuple[str, ...], kind: str) -> pin.GeometryModel:
     captured: list[str] = []
+    gtype = pin.GeometryType.COLLISION if kind == "collision" else pin.GeometryType.VISUAL
     with _native_stderr(captured):
         model = pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer())
-        collision = pin.buildGeomFromUrdf(model, urdf, pin.GeometryType.COLLISION, package_dirs=list(package_dirs))
-        visual = pin.buildGeomFromUrdf(model, urdf, pin.GeometryType.VISUAL, package_dirs=list(package_dirs))
+        gmodel = pin.buildGeomFromUrdf(model, urdf, gtype, package_dirs=list(package_dirs))
     _echo_native(captured)
-    for gmodel in (visual, collision):
-        correct_collada_up_axis(gmodel)
-    return collision, visual
+    correct_collada_up_axis(gmodel)
+    return gmodel
 
 
 def _loader_paths(where: str, loader: str) -> tuple[str, str | None, tuple[str, ...]]:

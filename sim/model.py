@@ -244,7 +244,63 @@ def _rewrite_urdf(robot: Robot) -> str:
 @functools.cache
 def _cached(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | None,
             pairs: tuple[tuple[str, str], ...] | None) -> SimModel:
-    return _build(robot, timestep, joint_friction, scene, pairs)
+    """In memory per process, and on disk across processes (:mod:`sim.modelcache`)."""
+    from sim.modelcache import cached_model, model_key
+
+    if pairs is None:
+        pairs = model_pairs(robot)
+    xml = _rewrite_urdf(robot)
+    try:
+        key: str | None = model_key(robot, xml, timestep=timestep, joint_friction=joint_friction, scene=scene,
+                                    pairs=pairs)
+    except OSError:  # a mesh that cannot be read: _build reports it
+        key = None
+    return cached_model(key, lambda: _build(robot, timestep, joint_friction, scene, pairs, xml),
+                        lambda model, fields: _sim_model(robot, model, fields, scene, pairs, xml))
+
+
+def _sim_model(robot: Robot, model: mujoco.MjModel, fields: dict, scene: Scene | None,
+               pairs: tuple[tuple[str, str], ...], xml: str) -> SimModel:
+    """The SimModel of a compiled model and its index maps (``fields``, JSON types: what
+    :func:`_build` made, or a cache entry held). Raises ValueError, KeyError, TypeError or
+    IndexError when the maps do not fit the model."""
+    n_act = robot.model.nv - 6
+    ints = {name: np.asarray(fields[name], dtype=int) for name in
+            ("qpos_index", "dof_index", "actuator_index", "pair_index", "geom_role", "geom_object")}
+    for name, size, bound in (("qpos_index", n_act, model.nq), ("dof_index", n_act, model.nv),
+                              ("actuator_index", n_act, model.nu), ("pair_index", model.npair, max(len(pairs), 1)),
+                              ("geom_role", model.ngeom, 3), ("geom_object", model.ngeom, model.ngeom)):
+        array = ints[name]
+        if array.shape != (size,) or (size and not (array.min() >= -1 and array.max() < bound)):
+            raise ValueError(f"{name} does not fit the model")
+    sole_geoms = {str(k): int(v) for k, v in dict(fields["sole_geoms"]).items()}
+    body_names = tuple(str(n) for n in fields["geom_body_names"])
+    floor_geom = int(fields["floor_geom"])
+    if len(body_names) != model.ngeom or not 0 <= floor_geom < model.ngeom \
+            or any(not 0 <= g < model.ngeom for g in sole_geoms.values()):
+        raise ValueError("geom ids do not fit the model")
+    torque_limits = np.asarray(fields["torque_limits"], dtype=float)
+    if torque_limits.shape != (n_act,):
+        raise ValueError("torque_limits does not fit the robot")
+    return SimModel(
+        robot=robot,
+        model=model,
+        qpos_index=ints["qpos_index"],
+        dof_index=ints["dof_index"],
+        actuator_index=ints["actuator_index"],
+        sole_geoms=sole_geoms,
+        geom_body_names=body_names,
+        floor_geom=floor_geom,
+        torque_limits=torque_limits,
+        collision_pairs=pairs,
+        pair_index=ints["pair_index"],
+        rest_overlap={(str(a), str(b)): float(d) for a, b, d in fields["rest_overlap"]},
+        geom_role=ints["geom_role"],
+        geom_object=ints["geom_object"],
+        object_names=tuple(o.name for o in scene.objects) if scene is not None else (),
+        scene=scene,
+        xml=xml,
+    )
 
 
 def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool = True,
@@ -333,10 +389,8 @@ def _add_foreign_meshes(robot: Robot, spec: mujoco.MjSpec, bodies: dict, mu: flo
 
 
 def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | None,
-           pairs: tuple[tuple[str, str], ...] | None) -> SimModel:
-    if pairs is None:
-        pairs = model_pairs(robot)
-    xml = _rewrite_urdf(robot)
+           pairs: tuple[tuple[str, str], ...], xml: str) -> tuple[mujoco.MjModel, dict]:
+    """The compiled model and its index maps in JSON types (see :func:`_sim_model`)."""
     try:
         spec = mujoco.MjSpec.from_string(xml)
     except ValueError as e:
@@ -455,25 +509,20 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
         g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, OBJECT_PREFIX + name)
         geom_role[g], geom_object[g] = OBJECT_ROLE, k
     model, pair_index, rest_overlap = _add_self_collision(robot, spec, model, pairs, geom_role, sole_geoms)
-    return SimModel(
-        robot=robot,
-        model=model,
-        qpos_index=np.array(qpos_index, dtype=int),
-        dof_index=np.array(dof_index, dtype=int),
-        actuator_index=np.array(actuator_index, dtype=int),
-        sole_geoms=sole_geoms,
-        geom_body_names=body_names,
-        floor_geom=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR),
-        torque_limits=limits,
-        collision_pairs=pairs,
-        pair_index=pair_index,
-        rest_overlap=rest_overlap,
-        geom_role=geom_role,
-        geom_object=geom_object,
-        object_names=object_names,
-        scene=scene,
-        xml=xml,
-    )
+    fields = {
+        "qpos_index": [int(i) for i in qpos_index],
+        "dof_index": [int(i) for i in dof_index],
+        "actuator_index": [int(i) for i in actuator_index],
+        "sole_geoms": {k: int(v) for k, v in sole_geoms.items()},
+        "geom_body_names": list(body_names),
+        "floor_geom": int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)),
+        "torque_limits": [float(x) for x in limits],
+        "pair_index": [int(i) for i in pair_index],
+        "rest_overlap": [[a, b, float(d)] for (a, b), d in rest_overlap.items()],
+        "geom_role": [int(i) for i in geom_role],
+        "geom_object": [int(i) for i in geom_object],
+    }
+    return model, fields
 
 
 def _add_scene(spec: mujoco.MjSpec, scene: Scene | None) -> None:

@@ -36,7 +36,7 @@ import json
 import logging
 import os
 import stat
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -255,6 +255,7 @@ class Hit:
     arrays: dict[str, Any]
     motion: Any  # wbmp.motionfile.MotionFile
     path: Path
+    data: bytes = field(default=b"", repr=False)  # the verified bytes of the .npz
 
 
 class MotionCache:
@@ -331,7 +332,7 @@ class MotionCache:
             self._discard([npz, manifest, self._page(key), Path(f"{self._page(key)}.json")],
                           f"motion cache entry {npz} is damaged ({str(e)[:200]})")
             return None
-        return Hit(key=key, arrays=arrays, motion=motion, path=npz)
+        return Hit(key=key, arrays=arrays, motion=motion, path=npz, data=data)
 
     def load_page(self, key: str) -> str | None:
         """The stored HTML replay data of ``key`` (verified), or None."""

@@ -7,6 +7,8 @@ every step reports progress through a small callback so the CLI can show it (or 
 from __future__ import annotations
 
 import contextlib
+import io
+import struct
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -372,6 +374,9 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     return result
 
 
+_REQUEST_KEYS = ("spec_json", "actions_json", "report_json")  # what result_arrays() rewrites for a cached result
+
+
 def result_arrays(result: SolveResult) -> dict[str, Any]:
     """The motion file's arrays of a result (a cached result: the stored arrays, with this
     request's spec description, actions and report)."""
@@ -462,6 +467,69 @@ def _savez_fast(fh: Any, arrays: dict[str, Any]) -> None:
                 np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
 
 
+_LOCAL = struct.Struct("<IHHHHHIIIHH")  # a zip local file header (30 bytes)
+_CENTRAL = struct.Struct("<IHHHHHHIIIHHHHHII")  # a central directory record (46 bytes)
+_END = struct.Struct("<IHHHHIIH")  # the end of central directory record (22 bytes)
+
+
+def _npz_replacing(source: bytes, replaced: dict[str, Any]) -> bytes | None:
+    """The ``.npz`` ``source`` with the arrays ``replaced`` (key -> array) written anew and every
+    other member copied byte for byte (its compressed data is not touched: a cached motion's
+    ``--out`` costs a copy, not a recompression). None when ``source`` is not a plain zip this
+    can copy (zip64, encrypted, streamed members): the caller writes the file the slow way."""
+    import zipfile
+    import zlib
+
+    import numpy as np
+
+    try:
+        infos = zipfile.ZipFile(io.BytesIO(source)).infolist()
+    except (zipfile.BadZipFile, ValueError, OSError):
+        return None
+    names = {f"{key}.npy" for key in replaced}
+    out = io.BytesIO()
+    central = []
+
+    def member(name: str, method: int, crc: int, csize: int, usize: int, dostime: int, dosdate: int,
+               payload: bytes) -> None:
+        raw = name.encode("ascii")
+        central.append(_CENTRAL.pack(0x02014B50, 20, 20, 0, method, dostime, dosdate, crc, csize, usize,
+                                     len(raw), 0, 0, 0, 0, 0, out.tell()) + raw)
+        out.write(_LOCAL.pack(0x04034B50, 20, 0, method, dostime, dosdate, crc, csize, usize, len(raw), 0) + raw)
+        out.write(payload)
+
+    for info in infos:
+        if info.filename in names:
+            continue
+        if (info.flag_bits & 0x09 or info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)
+                or not info.filename.isascii() or max(info.compress_size, info.file_size, info.header_offset) >= 1 << 31):
+            return None
+        head = source[info.header_offset:info.header_offset + _LOCAL.size]
+        if len(head) != _LOCAL.size or head[:4] != b"PK\x03\x04":
+            return None
+        fields = _LOCAL.unpack(head)
+        start = info.header_offset + _LOCAL.size + fields[9] + fields[10]
+        payload = source[start:start + info.compress_size]
+        if len(payload) != info.compress_size:
+            return None
+        y, mo, d, h, mi, sec = info.date_time
+        member(info.filename, info.compress_type, info.CRC, info.compress_size, info.file_size,
+               (h << 11) | (mi << 5) | (sec // 2), ((y - 1980) << 9) | (mo << 5) | d, payload)
+    for key, value in replaced.items():
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
+        data = buf.getvalue()
+        packer = zlib.compressobj(6, zlib.DEFLATED, -15)
+        payload = packer.compress(data) + packer.flush()
+        member(f"{key}.npy", zipfile.ZIP_DEFLATED, zlib.crc32(data), len(payload), len(data), 0, (1 << 5) | 1,
+               payload)
+    start = out.tell()
+    for record in central:
+        out.write(record)
+    out.write(_END.pack(0x06054B50, 0, 0, len(central), len(central), out.tell() - start, start, 0))
+    return out.getvalue()
+
+
 def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str | Path | None) -> None:
     """The HTML replay; its data is reused from (or stored into) the motion cache when the
     result is in it (the page's data does not depend on the title)."""
@@ -503,7 +571,13 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
 
             progress(f"writing {out}")
             arrays = result_arrays(result)
-            if result.cached is None:
+            copied = None
+            if result.cached is not None and result.cached.data:  # the stored file, with this request's JSON
+                copied = _npz_replacing(result.cached.data, {k: arrays[k] for k in _REQUEST_KEYS})
+            if copied is not None:
+                data = copied
+                staging.add(paths.out, lambda fh: fh.write(data))
+            elif result.cached is None:
                 staging.add(paths.out, lambda fh: np.savez_compressed(fh, **arrays))
             else:  # the same arrays, compressed faster (zlib level 1: ~5x quicker, a few % larger)
                 staging.add(paths.out, lambda fh: _savez_fast(fh, arrays))

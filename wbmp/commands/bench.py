@@ -31,7 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                "  2      a bad option (checked before any work); 130/143 Ctrl-C/SIGTERM",
     )
     p.add_argument("--quick", action="store_true",
-                   help=f"{', '.join(QUICK_TASKS)} only, 1 repeat, one simulation, no scaling study (< 2 min)")
+                   help=f"every task class ({', '.join(QUICK_TASKS)}), 1 repeat, the user's solver cache, one "
+                        "simulation, no first-ever builds, end-to-end runs or scaling study (< 2 min with the "
+                        "solvers cached)")
     p.add_argument("--robot", default="talos", help="robot name (default: talos)")
     p.add_argument("--json", metavar="FILE", default=None, help="also write the results as JSON here")
     p.add_argument("--peers", action="store_true",

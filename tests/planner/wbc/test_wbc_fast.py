@@ -140,3 +140,28 @@ def test_posture_error_on_the_manifold_matches_pin_difference(talos, rng):
             _log3_quat(q0, q1, out)
             np.testing.assert_allclose(out, pin.difference(model, q0, q1)[3:6], atol=1e-8)
             np.testing.assert_allclose(out, angle * axis, atol=1e-6)
+
+
+def test_clamped_cubic_spline_and_tridiagonal_solve_match_scipy():
+    """The controller's own spline and tridiagonal solver (no scipy.interpolate/linalg import on
+    the solve path) give scipy's clamped CubicSpline and solve_banded to round-off."""
+    from scipy.interpolate import CubicSpline
+    from scipy.linalg import solve_banded
+
+    from planner.wbc.reference import clamped_cubic_spline, solve_tridiagonal
+
+    rng = np.random.default_rng(3)
+    for n in (2, 3, 9, 41):
+        t = np.cumsum(rng.uniform(0.02, 0.2, n))
+        y, d0, d1 = rng.normal(size=(n, 4)), rng.normal(size=4), rng.normal(size=4)
+        times = np.concatenate([np.linspace(t[0], t[-1], 301), t])
+        ours = clamped_cubic_spline(t, y, d0, d1, times)
+        spline = CubicSpline(t, y, bc_type=((1, d0), (1, d1)), axis=0)
+        for order in range(3):
+            scale = max(1.0, float(np.abs(spline(times, order)).max()))
+            assert np.abs(ours[order] - spline(times, order)).max() < 1e-9 * scale, (n, order)
+    for n in (1, 2, 7, 500):
+        ab = rng.uniform(-1.0, 1.0, (3, n))
+        ab[1] = 2.5 + rng.uniform(0.0, 1.0, n)  # strictly diagonally dominant
+        rhs = rng.normal(size=(n, 2))
+        assert np.abs(solve_tridiagonal(ab, rhs) - solve_banded((1, 1), ab, rhs)).max() < 1e-12

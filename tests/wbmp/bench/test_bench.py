@@ -144,3 +144,14 @@ def test_every_task_sentence_compiles_for_the_default_robot(task, talos):
     spec = compile_actions(parse(bench.TASKS[task]).actions, talos)
     assert sum(p.duration for p in spec.phases) > 0.0
     assert spec.dynamic == (task in ("balance", "walk", "turn", "jump"))
+
+
+def test_quick_covers_every_task_class_with_one_repeat():
+    """``--quick`` runs all eight task classes (squat, wave, reach, bow, balance, walk, turn,
+    jump), one repeat each, unless --tasks narrows it."""
+    from wbmp.bench.options import check_options
+
+    names, reps = check_options(tasks=None, quick=True, repeats=None, dt=None, max_iterations=None)
+    assert names == ["squat", "wave", "reach", "bow", "balance", "walk", "turn", "jump"] == list(bench.TASKS)
+    assert reps == 1
+    assert check_options(tasks=["walk"], quick=True, repeats=None, dt=None, max_iterations=None) == (["walk"], 1)

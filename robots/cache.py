@@ -1,0 +1,178 @@
+"""The robot's geometry models (collision, visual) cached on disk across processes.
+
+Loading a URDF's meshes (assimp parsing, coal bounding-volume trees) takes seconds for Talos'
+visual meshes; reading a geometry model back from Pinocchio's binary serialization is several
+times quicker. Each kind is its own entry, a folder ``<cache dir>/robots/<key>/`` (the cache
+dir is ``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp``; ``WBMP_ROBOT_CACHE=0`` turns the cache off)
+holding ``geometry.bin`` and ``manifest.json``, so a command that needs only the collision
+model never reads the visual one (:class:`robots.model.Robot` loads its visual model on first use).
+
+The key is a sha256 of everything the geometry is made from: the kind, the URDF's content and real path,
+the package folders that resolve its ``package://`` URIs, this module's and
+:mod:`robots.model`'s sources (the Collada up-axis correction is applied before storing), the
+versions of wbmp, Pinocchio and coal (which holds the serialization code), and :data:`FORMAT`. The meshes a URDF names are only known
+once it is loaded, so the manifest lists every mesh file with its sha256, and a hit requires each
+to hash the same today: an edited mesh misses and is rebuilt. The manifest also holds the size
+and sha256 of the binary file, checked before Pinocchio reads them; a damaged entry (bad
+manifest, wrong hash, a file Pinocchio cannot read) is removed with one warning (logger
+``robots.cache``) and rebuilt. Entries are written to a temporary folder and renamed into place;
+a cache folder that cannot be written only costs the speed-up.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import logging
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from importlib import metadata
+from pathlib import Path
+
+import pinocchio as pin
+
+_log = logging.getLogger("robots.cache")
+
+FORMAT = 1  # bump when an entry's layout changes
+_BINARY = "geometry.bin"
+KINDS = ("collision", "visual")
+_SOURCES = ("cache.py", "model.py")
+MAX_MANIFEST_BYTES = 1 << 20
+
+
+def cache_root() -> Path | None:
+    """``$WBMP_CACHE_DIR/robots`` (else ``~/.cache/wbmp/robots``); None when turned off."""
+    if os.environ.get("WBMP_ROBOT_CACHE", "1").strip().lower() in ("0", "false", "no", "off"):
+        return None
+    env = os.environ.get("WBMP_CACHE_DIR")
+    return Path(env if env else Path.home() / ".cache" / "wbmp") / "robots"
+
+
+def _sha256(path: str | Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+@functools.cache
+def _environment() -> tuple[tuple[str, str], ...]:
+    here = Path(__file__).resolve().parent
+    out = [("format", str(FORMAT))]
+    for name in _SOURCES:
+        out.append((name, hashlib.sha256((here / name).read_bytes()).hexdigest()))
+    try:
+        out.append(("wbmp", metadata.version("wbmp")))
+    except metadata.PackageNotFoundError:
+        out.append(("wbmp", ""))
+    import coal  # type: ignore[import-untyped]
+
+    # the libraries' own version strings (metadata.version costs ~20 ms a call)
+    out += [("pinocchio", pin.__version__), ("coal", str(getattr(coal, "__version__", "")))]
+    return tuple(out)
+
+
+def geometry_key(urdf: str, package_dirs: tuple[str, ...], kind: str) -> str:
+    """The entry key of a URDF's geometry of one kind (module docstring)."""
+    blob = json.dumps({"kind": kind, "urdf": _sha256(urdf), "path": os.path.realpath(urdf),
+                       "package_dirs": [os.path.realpath(p) for p in package_dirs],
+                       "environment": _environment()}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def mesh_files(gmodel: pin.GeometryModel) -> list[str]:
+    """The mesh files of a geometry model (primitives such as boxes have none)."""
+    paths = {g.meshPath for g in gmodel.geometryObjects}
+    return sorted(p for p in paths if p and os.path.isfile(p))  # noqa: PTH113
+
+
+class _Damaged(Exception):
+    """An entry that cannot be trusted (the reason is the message)."""
+
+
+class _Stale(Exception):
+    """An intact entry made from files that changed since (a mesh edited)."""
+
+
+def _read(entry: Path) -> pin.GeometryModel:
+    try:
+        with open(entry / "manifest.json", "rb") as f:
+            raw = f.read(MAX_MANIFEST_BYTES + 1)
+    except FileNotFoundError:
+        raise _Stale("no manifest (an interrupted write)") from None
+    if len(raw) > MAX_MANIFEST_BYTES:
+        raise _Damaged("manifest.json is too large")
+    try:
+        manifest = json.loads(raw)
+        size, digest = int(manifest["size"]), str(manifest["sha256"])
+        meshes = {str(p): str(h) for p, h in manifest["meshes"].items()}
+        if manifest["key"] != entry.name or manifest["format"] != FORMAT:
+            raise _Damaged("manifest.json names another entry")
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        raise _Damaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
+    for mesh, mesh_digest in meshes.items():
+        try:
+            if _sha256(mesh) != mesh_digest:
+                raise _Stale(f"{mesh} changed")
+        except OSError:
+            raise _Stale(f"{mesh} is gone") from None
+    path = entry / _BINARY
+    try:
+        if path.stat().st_size != size or _sha256(path) != digest:
+            raise _Damaged(f"{_BINARY} does not match its manifest (size or sha256)")
+    except OSError as e:
+        raise _Damaged(f"{_BINARY}: {e.strerror or e}") from None
+    gmodel = pin.GeometryModel()
+    try:
+        gmodel.loadFromBinary(str(path))
+    except (RuntimeError, ValueError, OSError) as e:
+        raise _Damaged(f"Pinocchio cannot read {_BINARY}: {e}") from None
+    return gmodel
+
+
+def _write(root: Path, key: str, gmodel: pin.GeometryModel) -> None:
+    root.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{key[:16]}-", dir=root))
+    try:
+        gmodel.saveToBinary(str(tmp / _BINARY))
+        manifest = {"key": key, "format": FORMAT, "size": (tmp / _BINARY).stat().st_size,
+                    "sha256": _sha256(tmp / _BINARY), "meshes": {p: _sha256(p) for p in mesh_files(gmodel)}}
+        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1), encoding="utf-8")
+        entry = root / key
+        if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
+            tmp.replace(entry)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def cached_geometry(urdf: str, package_dirs: tuple[str, ...], kind: str,
+                    build: Callable[[], pin.GeometryModel]) -> pin.GeometryModel:
+    """The ``kind`` geometry model of ``urdf``: read from the disk cache when an intact,
+    current entry holds it, else ``build()`` (and stored). Errors of ``build`` propagate."""
+    root = cache_root()
+    if root is None:
+        return build()
+    try:
+        key = geometry_key(urdf, package_dirs, kind)
+    except OSError:
+        return build()
+    entry = root / key
+    if entry.is_dir():
+        try:
+            return _read(entry)
+        except _Damaged as e:
+            _log.warning("wbmp: warning: robot cache entry %s is damaged (%s); removed it, the robot is loaded from its files", entry, e)
+        except _Stale as e:
+            _log.info("robot cache: entry %s is out of date (%s); rebuilding it", entry, e)
+        shutil.rmtree(entry, ignore_errors=True)
+    gmodel = build()
+    try:
+        _write(root, key, gmodel)
+    except (OSError, RuntimeError) as e:
+        _log.info("robot cache: cannot store %s (%s)", entry, e)
+    return gmodel
