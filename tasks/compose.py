@@ -55,7 +55,7 @@ from tasks.primitives import (
 )
 from tasks.primitives.base import fit_defaults
 from tasks.scene import Scene
-from tasks.specs import CoMBounds, CoMTarget, Contact, JointTarget, Phase, Priority, TaskSpec
+from tasks.specs import CoMBounds, CoMTarget, Contact, FrameTarget, Grasp, JointTarget, Phase, Priority, TaskSpec
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
@@ -243,7 +243,7 @@ def compile_actions(
     return TaskSpec(
         robot=robot.name,
         phases=tuple(phases),
-        targets=tuple(t for f in fragments for t in f.targets),
+        targets=_held_targets(fragments, k * dt),
         com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
         joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
@@ -252,7 +252,38 @@ def compile_actions(
         name=name or describe_actions(checked),
         description=description,
         scene=scene,
+        grasps=_grasps(fragments, k * dt),
     )
+
+
+def _held_targets(fragments: list[Fragment], horizon: float) -> tuple[FrameTarget, ...]:
+    """The fragments' targets; a held one (``Fragment.holds``: a hand holding an object up) keeps
+    its window open until the next action that drives one of the fragment's parts or moves the feet,
+    or the end of the motion."""
+    out = []
+    for f in fragments:
+        later = [g.t0 for g in fragments if g.t0 >= f.t_end - 1e-9 and g is not f
+                 and (g.changes_contacts or g.parts & (f.parts - {"torso"}))]
+        until = min(later, default=horizon)
+        for t in f.targets:
+            if t.name in f.holds and t.window is not None and until > t.window[1]:
+                t = dataclasses.replace(t, window=(t.window[0], round(until, 9)))
+            out.append(t)
+    return tuple(out)
+
+
+def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
+    """The fragments' grasps; a release (``put_down``: a grasp of the held object with ``end``
+    set and ``start`` at its own start) closes the grasp that holds the object."""
+    out: list[Grasp] = []
+    for f in fragments:
+        for g in f.grasps:
+            held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
+            if held is not None and g.start >= out[held].start and g.lift == 0.0 and g.end is not None:
+                out[held] = dataclasses.replace(out[held], end=g.end, place=g.place)
+                continue
+            out.append(g)
+    return tuple(g for g in out if g.end is None or g.end <= horizon + 1e-9)
 
 
 def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Action]:
