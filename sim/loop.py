@@ -89,6 +89,7 @@ def simulate(
         timestep=s.timestep,
         joint_names=tuple(robot.joint_names),
         torque_limits=sm.torque_limits.copy(),
+        objects={name: rig.pos[: rig.n, i].copy() for i, name in enumerate(rig.names)},
     )
 
 

@@ -55,7 +55,17 @@ from tasks.primitives import (
 )
 from tasks.primitives.base import fit_defaults
 from tasks.scene import Scene
-from tasks.specs import CoMBounds, CoMTarget, Contact, FrameTarget, Grasp, JointTarget, Phase, Priority, TaskSpec
+from tasks.specs import (
+    CoMBounds,
+    CoMTarget,
+    Contact,
+    FrameTarget,
+    Grasp,
+    JointTarget,
+    Phase,
+    Priority,
+    TaskSpec,
+)
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions

@@ -4,7 +4,7 @@ The ``object`` parameter arrives grounded (:class:`tasks.grounding.Grounded`), l
 :mod:`tasks.primitives.objects`. ``pick_up`` writes four phases, both feet down:
 
 1. *approach*: the hand to a pre-grasp pose :data:`PRE_BACK` behind and :data:`PRE_UP` above the
-   grasp pose (seen from the robot);
+   grasp pose (seen from the robot), then to the grasp pose;
 2. *grasp*: the hand at the grasp pose, held :data:`CLOSE_TIME`; the object's grasp point (its
    centre, raised to :data:`GRASP_DEPTH` below its top for a tall object) sits at the hand's grasp
    offset (:func:`grasp_offset`: between the fingertips), the hand in its standing orientation;
@@ -137,7 +137,7 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
     put(f"{side} hand at the {name}", "grasp", window=(t_in, t_close))
     put(f"{side} hand lifts the {name}", "lift", window=(t_lift, DURATION))
     b.holds.append(b.name(f"{side} hand lifts the {name}"))  # held until the arm or the feet move again
-    b.phase(f"approach the {name}", t_pre)
+    b.phase(f"approach the {name}", t_in)
     b.phase(f"grasp the {name}", t_close)
     b.phase(f"lift the {name}", t_lift)
     b.phase(f"hold the {name}", DURATION)
