@@ -250,19 +250,20 @@ def compile_actions(
         raise TaskDefinitionError(horizon_message(horizon, "split the instruction into several shorter ones"))
     margin = standing_geometry(robot).support_margin
     bounds = (CoMBounds(name="balance", support_polygon=True, margin=margin),)
+    grasps = _grasps(fragments, k * dt)
     return TaskSpec(
         robot=robot.name,
         phases=tuple(phases),
         targets=_held_targets(fragments, k * dt),
         com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
-        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
+        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + _not_holding(waypoints, grasps, robot, k * dt),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
         name=name or describe_actions(checked),
         description=description,
         scene=scene,
-        grasps=_grasps(fragments, k * dt),
+        grasps=grasps,
     )
 
 
@@ -280,6 +281,20 @@ def _held_targets(fragments: list[Fragment], horizon: float) -> tuple[FrameTarge
                 t = dataclasses.replace(t, window=(t.window[0], round(until, 9)))
             out.append(t)
     return tuple(out)
+
+
+def _not_holding(waypoints: list[JointTarget], grasps: tuple[Grasp, ...], robot: Robot,
+                 horizon: float) -> tuple[JointTarget, ...]:
+    """The standing waypoints without those of the joints (torso and arm) that carry a held object
+    at their time: standing angles there would drag the whole body under the held hand."""
+    model = robot.model
+    held: list[tuple[float, float, set[str]]] = []
+    for g in grasps:
+        joint = model.frames[robot.frame_id(g.frame)].parentJoint
+        names = {model.names[j] for j in model.supports[joint] if j > 1}
+        held.append((g.start, horizon if g.end is None else g.end, names))
+    return tuple(w for w in waypoints
+                 if not any(s - 1e-9 <= (w.time or 0.0) <= e + 1e-9 and w.joint in names for s, e, names in held))
 
 
 def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
