@@ -198,6 +198,7 @@ REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the wo
 SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")
 DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
 PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
+IMPLICIT_OBJECT = ("put_down",)  # actions whose object, unsaid, is the one named before ("then put it down", 放下)
 
 
 def _takes_object(trigger: Item, lx: Lexicon) -> bool:
@@ -277,9 +278,11 @@ def _goes_then_acts(prev: Item, it: Item, lx: Lexicon) -> bool:
 
 
 def _pronouns(items: list[Item]) -> list[Item]:
-    """A pronoun reference (``pick it up``, 把它放下) names the reference before it in the sentence."""
-    out, last = [], None
-    for it in items:
+    """A pronoun reference (``pick it up``, 把它放下) names the reference before it in the sentence,
+    and so does an action of :data:`IMPLICIT_OBJECT` said without one (``then put it down``, 放下)."""
+    out: list[Item] = []
+    last = None
+    for k, it in enumerate(items):
         if it.kind == REF and it.value in PRONOUNS:
             if last is None:
                 raise InvalidParameter(f'"{it.text}": no object was named before it; say which object (e.g. "the cup")')
@@ -287,6 +290,10 @@ def _pronouns(items: list[Item]) -> list[Item]:
         if it.kind == REF:
             last = it
         out.append(it)
+        if it.kind == TRIGGER and last is not None and all(a in IMPLICIT_OBJECT for a, _ in it.value):
+            end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
+            if not any(x.kind == REF for x in items[k + 1:end]):
+                out.append(Item(REF, last.value, "", it.end, it.end))
     return out
 
 

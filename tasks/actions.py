@@ -527,6 +527,11 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="height", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
                   description="how high the object is lifted"),
         )),
+        ActionSchema(name="put_down", summary="Put a held object back down where it was picked up, and let go of it.",
+                     body="upper", params=(
+            _object("the held object to put down"),
+            _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
+        )),
     )
 }
 

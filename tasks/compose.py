@@ -298,17 +298,22 @@ def _not_holding(waypoints: list[JointTarget], grasps: tuple[Grasp, ...], robot:
 
 
 def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
-    """The fragments' grasps; a release (``put_down``: a grasp of the held object with ``end``
-    set and ``start`` at its own start) closes the grasp that holds the object."""
+    """The fragments' grasps; a release (``put_down``: a grasp with a ``place``) closes the grasp
+    that holds its object (TaskDefinitionError when none does, or another hand holds it)."""
     out: list[Grasp] = []
     for f in fragments:
         for g in f.grasps:
-            held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
-            if held is not None and g.start >= out[held].start and g.lift == 0.0 and g.end is not None:
-                out[held] = dataclasses.replace(out[held], end=g.end, place=g.place)
+            if g.place is None:
+                out.append(g)
                 continue
-            out.append(g)
-    return tuple(g for g in out if g.end is None or g.end <= horizon + 1e-9)
+            held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
+            if held is None:
+                raise TaskDefinitionError(f"{f.action.name}: no hand holds the {g.object}; pick it up first "
+                                          f'("pick up the {g.object}, then put it down")')
+            if out[held].frame != g.frame:
+                raise TaskDefinitionError(f"{f.action.name}: the {g.object} is in the other hand")
+            out[held] = dataclasses.replace(out[held], end=g.end, place=g.place)
+    return tuple(out)
 
 
 def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Action]:

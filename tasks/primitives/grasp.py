@@ -1,4 +1,4 @@
-"""Actions that hold a scene object: ``pick_up(object, arm, height)``.
+"""Actions that hold a scene object: ``pick_up(object, arm, height)``, ``put_down(object, arm)``.
 
 The ``object`` parameter arrives grounded (:class:`tasks.grounding.Grounded`), like the actions of
 :mod:`tasks.primitives.objects`. ``pick_up`` writes four phases, both feet down:
@@ -15,6 +15,10 @@ The spec gets a :class:`tasks.specs.Grasp` from the start of the *grasp* phase t
 motion: the planner exempts the hand from the object's scene-collision rows and loads the arm with
 the object's weight; the simulation attaches the object to the hand once it is held within the
 grasp's tolerance (docs/objects.md).
+
+``put_down`` lowers the held object back onto where it was picked up (the grasp pose), holds it
+there :data:`RELEASE_TIME`, lets go (the grasp's ``end``, its ``place`` the object's position in the
+scene), retreats to the pre-grasp pose and brings the arm back to rest.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import Grounded
 from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
-from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
 from tasks.primitives.bodymap import body_map, to_heading
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.primitives.objects import grounded
@@ -165,6 +169,58 @@ def _parts(params: dict) -> frozenset[str]:
 PICK_UP = Primitive(name="pick_up", nominal_duration=lambda params, robot: DURATION, build=build_pick_up,
                     parts=_parts, check=_check)
 
-PRIMITIVES = (PICK_UP,)
+# --- put_down ---------------------------------------------------------------------------
+LOWER_TIME = 1.5  # [s] nominal: held pose -> the grasp pose over where the object was
+RELEASE_TIME = 0.5  # [s] held there; the hand lets go at its end
+RETREAT_TIME = 1.0  # [s] up and back to the pre-grasp pose
+REST_TIME = 1.0  # [s] then back to rest
+PUT_DURATION = LOWER_TIME + RELEASE_TIME + RETREAT_TIME + REST_TIME
 
-__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "build_pick_up", "grasp_offset", "grasp_point", "holding_arm"]
+
+def _put_check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "put_down")
+    if not g.obj.movable:
+        raise TaskDefinitionError(f"put_down: the {g.obj.name} is fixed in the scene; nothing holds it")
+
+
+def build_put_down(b: FragmentBuilder) -> Fragment:
+    """Lower the held object back onto where it was picked up, let go, retreat, arm back to rest.
+
+    The release is a :class:`~tasks.specs.Grasp` with ``end`` and ``place`` set; composing closes
+    the grasp that holds the object with it (:func:`tasks.compose.compile_actions` refuses a
+    put_down of an object no hand holds).
+    """
+    g = grounded(b.params, "put_down")
+    _put_check(b.params, b.robot)
+    side = holding_arm(b.params, b.robot) if b.params.get("arm") else _held_side(b, g)
+    poses = _poses(b.robot, b.stance, g, side, 0.0)
+    rpy = b.world_rotation(b.geometry.rotation(f"{side}_hand"))
+    name, role = g.obj.name, f"{side}_hand"
+    t_low = LOWER_TIME
+    t_rel = t_low + RELEASE_TIME
+    t_back = t_rel + RETREAT_TIME
+    b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in poses["grasp"]), rpy=rpy,
+                   window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+    b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in poses["pre"]), rpy=rpy,
+                   time=t_back, tolerance=POSE_TOLERANCE)
+    rest_targets(b, [role], tau=PUT_DURATION)
+    b.phase(f"lower the {name}", t_low)
+    b.phase(f"let go of the {name}", t_rel)
+    b.phase(f"retreat from the {name}", PUT_DURATION)
+    b.grasps.append(Grasp(
+        name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role), offset=(0.0, 0.0, 0.0),
+        start=b.t0, end=b.t(t_rel), place=tuple(float(x) for x in g.obj.position), tolerance=GRASP_TOLERANCE))
+    return b.finish(frozenset({f"{side}_arm", "torso"}))
+
+
+def _held_side(b: FragmentBuilder, g: Grounded) -> str:
+    return holding_arm({"object": g}, b.robot)
+
+
+PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION, build=build_put_down,
+                     parts=_parts, check=_put_check)
+
+PRIMITIVES = (PICK_UP, PUT_DOWN)
+
+__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "grasp_offset",
+           "grasp_point", "holding_arm"]
