@@ -23,6 +23,8 @@ scene), retreats to the pre-grasp pose and brings the arm back to rest.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pinocchio as pin
 
@@ -107,9 +109,10 @@ def _check(params: dict, robot: Robot) -> None:
         raise TaskDefinitionError(f"pick_up: the {obj.name} is fixed in the scene (movable: false); it cannot be picked up")
     if not robot.has_role("left_hand") or not robot.has_role("right_hand"):
         raise TaskDefinitionError(f"pick_up: {robot.name} has no hand frames")
+    if not isinstance(g.start, Stance):
+        return  # where the robot will stand is not known yet (an action before it may walk)
     side = holding_arm(params, robot)
-    start = g.start if isinstance(g.start, Stance) else Stance.standing(robot)
-    T = start.transform_from_standing(robot)
+    T = g.start.transform_from_standing(robot)
     point = to_heading(robot, T.actInv(grasp_point(robot, side, obj)))
     gap = reach_gap(robot, side, point, bend=True)
     if gap > 1e-9:
@@ -122,6 +125,10 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
     """Approach, grasp, lift by ``height``, hold (see the module docstring)."""
     g = grounded(b.params, "pick_up")
     _check(b.params, b.robot)
+    if not isinstance(g.start, Stance):
+        g = dataclasses.replace(g, start=b.stance)
+        b.params["object"] = g
+        _check(b.params, b.robot)
     side = holding_arm(b.params, b.robot)
     height = float(b.params["height"])
     poses = _poses(b.robot, b.stance, g, side, height)

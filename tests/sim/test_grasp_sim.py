@@ -72,7 +72,7 @@ def test_a_cup_too_heavy_for_the_arm_is_refused_at_planning(tmp_path, capsys):
     heavy = dataclasses.replace(NEAR, objects=(TABLE, dataclasses.replace(CUP, mass=40.0), BOX))
     path = tmp_path / "heavy.json"
     path.write_text(json.dumps(scene_to_dict(heavy)))
-    assert main(["solve", SENTENCE, "--scene", str(path), "--no-sim", "--quiet"]) == 4
+    assert main(["solve", "pick up the cup", "--scene", str(path), "--no-sim", "--quiet"]) == 4
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("wbmp solve: error: the cup (40 kg) is too heavy to hold"), err
     assert " N m at arm_right_" in err[0] or " N m at torso_" in err[0], err
