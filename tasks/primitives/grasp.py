@@ -216,7 +216,8 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     b.phase(f"retreat from the {name}", PUT_DURATION)
     b.grasps.append(Grasp(
         name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role), offset=(0.0, 0.0, 0.0),
-        start=b.t0, end=b.t(t_rel), place=tuple(float(x) for x in g.obj.position), tolerance=GRASP_TOLERANCE))
+        start=b.t0, end=b.t(t_rel), place=(float(g.obj.position[0]), float(g.obj.position[1]), float(g.obj.position[2])),
+        tolerance=GRASP_TOLERANCE))
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
 
