@@ -78,7 +78,7 @@ def test_a_cup_too_heavy_for_the_arm_is_refused_at_planning(tmp_path, capsys):
     assert " N m at arm_right_" in err[0] or " N m at torso_" in err[0], err
 
 
-@pytest.mark.slow
+@pytest.mark.long  # minutes: a 13.7 s dynamic plan (184 knots, 12k variables) and its simulation
 def test_seed_sentence_walk_over_and_pick_up_the_cup(talos):
     """走过去拿起那个杯子 in the kitchen: walk to the cup, pick it up; the cup's MuJoCo body rises by the
     default 0.1 m (within tolerance) and the certificate passes."""
