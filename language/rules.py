@@ -197,6 +197,8 @@ def rules_plan(text: str) -> ActionPlan:
 REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the words of a reference can be
 SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")
 DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
+PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
+IMPLICIT_OBJECT = ("put_down",)  # actions whose object, unsaid, is the one named before ("then put it down", 放下)
 
 
 def _takes_object(trigger: Item, lx: Lexicon) -> bool:
@@ -224,6 +226,8 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             skip += 1  # "walk slowly to the table": the adverb is a slot of its own
         run = run[skip:]
         for k, it in enumerate(run):
+            if it.text in PRONOUNS and not taken:
+                return [it]  # "pick it up": the pronoun alone
             nxt = run[k + 1] if k + 1 < len(run) else None
             noun = it.kind == TRIGGER and any(t.kind == FILLER and t.text in DETERMINERS for t in taken) \
                 and not _takes_object(it, lx)
@@ -257,9 +261,40 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             flush()
             out.append(it)
         else:
+            if part and _goes_then_acts(part[-1], it, lx):  # 走过去拿起杯子: two actions, one after the other
+                flush()
+                out.append(Item(SEQ, None, "", it.start, it.start))
             part.append(it)
     flush()
-    return _borrow_references(out, lx)
+    return _pronouns(_borrow_references(out, lx))
+
+
+def _goes_then_acts(prev: Item, it: Item, lx: Lexicon) -> bool:
+    """``prev`` only means going to an object (走过去, walk over) and ``it`` is another action word
+    that takes one, right after it (走过去拿起那个杯子): a sequence without a sequencing word."""
+    return (prev.kind == TRIGGER and it.kind == TRIGGER and prev.end == it.start
+            and all(lx.actions[a].object is not None for a, _ in prev.value)
+            and _takes_object(it, lx) and not any(a in {b for b, _ in prev.value} for a, _ in it.value))
+
+
+def _pronouns(items: list[Item]) -> list[Item]:
+    """A pronoun reference (``pick it up``, 把它放下) names the reference before it in the sentence,
+    and so does an action of :data:`IMPLICIT_OBJECT` said without one (``then put it down``, 放下)."""
+    out: list[Item] = []
+    last = None
+    for k, it in enumerate(items):
+        if it.kind == REF and it.value in PRONOUNS:
+            if last is None:
+                raise InvalidParameter(f'"{it.text}": no object was named before it; say which object (e.g. "the cup")')
+            it = Item(REF, last.value, it.text, it.start, it.end)
+        if it.kind == REF:
+            last = it
+        out.append(it)
+        if it.kind == TRIGGER and last is not None and all(a in IMPLICIT_OBJECT for a, _ in it.value):
+            end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
+            if not any(x.kind == REF for x in items[k + 1:end]):
+                out.append(Item(REF, last.value, "", it.end, it.end))
+    return out
 
 
 def _borrow_references(items: list[Item], lx: Lexicon) -> list[Item]:
@@ -308,7 +343,7 @@ def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset(
             uses.add(it, dropped[it.kind])
             continue
         if it.kind in (SEQ, OVERLAY, PUNCTUATION):
-            if it.kind != PUNCTUATION:
+            if it.kind != PUNCTUATION and it.text:  # an implied sequence (走过去拿起) has no words
                 uses.add(it, "sequence" if it.kind == SEQ else "at the same time")
             if current:
                 _close(clauses, current, connector, optional, joined_by)

@@ -81,7 +81,9 @@ class CheckKind(enum.Enum):
     role), and ``TARGET_POSITION`` (there its orientation must also be within its tolerance +
     0.1 rad) and ``COM_TARGET`` as measured in the simulation, ``SELF_COLLISION`` (shared with the
     planner's report) and ``SCENE_COLLISION`` (subject there: the closest pair in words, "left
-    forearm / pelvis").
+    forearm / pelvis"). A plan with grasps adds ``PAYLOAD_TORQUE`` (subject: the grasp), its
+    certificate ``OBJECT_GRASP``, ``OBJECT_LIFT``, ``OBJECT_PLACE`` (subject: the object),
+    ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds).
 
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
     """
@@ -115,6 +117,12 @@ class CheckKind(enum.Enum):
     COM_TRACKING = "com_tracking"
     HAND_TRACKING = "hand_tracking"
     SCENE_COLLISION = "scene_collision"
+    PAYLOAD_TORQUE = "payload_torque"
+    OBJECT_GRASP = "object_grasp"
+    OBJECT_LIFT = "object_lift"
+    OBJECT_PLACE = "object_place"
+    OBJECT_MOVED = "object_moved"
+    OBJECT_TIPPED = "object_tipped"
     RECORDED = "recorded"
 
 

@@ -49,6 +49,7 @@ class Execution:
         timestep: MuJoCo timestep [s].
         joint_names: Actuated joint names, the column order of ``tau``.
         torque_limits: Their torque limits (nv - 6,) [N m].
+        objects: Movable scene object -> its centre's position over the run (T', 3) [m] (MuJoCo).
     """
 
     t: np.ndarray
@@ -65,6 +66,7 @@ class Execution:
     timestep: float = 0.001
     joint_names: tuple[str, ...] = ()
     torque_limits: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    objects: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def peak_torque_fractions(self) -> dict[str, float]:
         """Peak |tau| / limit of each actuated joint over the run [-], in joint order."""

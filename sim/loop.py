@@ -25,6 +25,7 @@ from robots.model import Robot
 from sim.certificate import Certificate
 from sim.certify import certify
 from sim.execution import Event, Execution
+from sim.grasp import WELD, GraspRig
 from sim.model import SimModel, build_model
 from sim.push import Push, check_push_time
 from sim.recording import BASE_BODY, Recorder, RunRecord, tilt, tilt_of, torque_fraction
@@ -66,10 +67,13 @@ def simulate(
     if progress is not None and not kernel_ready():
         progress("compiling the controller's kernel (once per installation, about 15 s)")
     ref = ctrl.reference_for(plan)
-    run, events, wall = _closed_loop(sm, robot, ctrl, ref, s, plan.q[0], push, progress)
+    run, events, wall, rig = _closed_loop(sm, robot, ctrl, ref, s, plan.q[0], push, progress, plan)
     events += _run_events(run, wbc_settings.torque_scale)
+    events += [Event(h.engaged_at, "grasp", f"the {h.side} hand holds the {h.grasp.object} ({WELD})")
+               for h in rig.held if h.engaged_at is not None]
     events.sort(key=lambda e: e.time)
-    certificate = _with_plan_zmp(Certificate.from_checks(certify(run)), events, robot, plan)
+    checks = certify(run) + tuple(rig.checks())
+    certificate = _with_plan_zmp(Certificate.from_checks(checks), events, robot, plan)
     return Execution(
         t=run.t,
         q=run.q,
@@ -85,6 +89,7 @@ def simulate(
         timestep=s.timestep,
         joint_names=tuple(robot.joint_names),
         torque_limits=sm.torque_limits.copy(),
+        objects={name: rig.pos[: rig.n, i].copy() for i, name in enumerate(rig.names)},
     )
 
 
@@ -148,17 +153,21 @@ def _closed_loop(
     q0: np.ndarray,
     push: Push | None,
     progress: Callable[[str], None] | None,
-) -> tuple[RunRecord, list[Event], float]:
-    """Run the loop from rest in ``q0``: the run's record, its events so far and the wall time [s]."""
-    m, d = sm.model, sm.data()
+    plan: Plan,
+) -> tuple[RunRecord, list[Event], float, GraspRig]:
+    """Run the loop from rest in ``q0``: the run's record, its events so far, the wall time [s] and
+    the grasps (:mod:`sim.grasp`: the welds engaged and the objects' record)."""
     control_dt = s.timestep * s.control_every
+    n_ticks = int(round((ref.duration + s.settle_time) / control_dt)) + 1
+    rig = GraspRig(sm, robot, plan.spec, n_ticks)
+    m, d = rig.model, rig.data()
     q = np.array(q0, dtype=float)
     v = np.zeros(robot.nv)
     sm.set_state(d, q, v)
     ctrl.reset(q, v)
     duration = ref.duration + s.settle_time
     n_ticks = int(round(duration / control_dt)) + 1
-    rec = Recorder(sm, robot, n_ticks, s)
+    rec = Recorder(sm, robot, n_ticks, s, exempt=rig.exempt)
     events: list[Event] = []
     push_force = push.force_in_world() if push is not None else None
     if push is not None:
@@ -181,6 +190,7 @@ def _closed_loop(
         tick_time = time.perf_counter() - tic
         d.ctrl[sm.actuator_select] = tau
         rec.record(i, t, q, v, tau, d, tick_time)
+        rig.tick(t, d)
         if watch.tick(t, q, ctrl.failures):
             break
         _step(m, d, s.control_every, push, push_force)
@@ -191,7 +201,7 @@ def _closed_loop(
         progress(f"simulated {rec.t[rec.n - 1] if rec.n else 0.0:.1f} s in {wall:.1f} s; certifying")
     run = rec.finish(robot=robot, ref=ref, settings=s, qp_failure_times=watch.qp_failure_times,
                      torque_limits=sm.torque_limits, fall_height=fall_height, max_tilt=max_tilt)
-    return run, events, wall
+    return run, events, wall, rig
 
 
 def _run_events(run: RunRecord, torque_scale: float) -> list[Event]:

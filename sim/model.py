@@ -16,7 +16,8 @@ link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
   the planner's collision model (:func:`robots.collision.collision_model`) says must not
   collide, and no other robot-robot contact (docs/simulation-collisions.md),
 * the scene's objects (:class:`tasks.scene.Scene`): static ones as geoms of the world body,
-  movable ones as free bodies with their mass and friction.
+  movable ones as free bodies with their mass and friction, each with an inactive weld to each
+  hand (:func:`grasp_weld_name`; :mod:`sim.grasp` engages it when the hand holds the object).
 
 Joints are matched to Pinocchio by name, so either joint order works. Conventions: MuJoCo's free joint stores the
 quaternion ``(w, x, y, z)`` and the base linear velocity in the world frame; Pinocchio stores
@@ -49,6 +50,7 @@ FLOOR_CONTYPE, FLOOR_CONAFFINITY = 1, 2
 OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 7  # objects collide with the robot, the feet, the floor, each other
 FOOT_CONTYPE, FOOT_CONAFFINITY = 4, 0  # foot meshes (replaced by sole boxes on the floor) touch objects only
 OBJECT_PREFIX = "wbmp_object_"
+GRASP_PREFIX = "wbmp_grasp_"
 #: Geom roles in :attr:`SimModel.geom_role`.
 FLOOR_ROLE, ROBOT_ROLE, OBJECT_ROLE = 0, 1, 2
 
@@ -452,6 +454,7 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
         sole_names[role] = sole.name
 
     _add_scene(spec, scene)
+    _add_grasp_welds(robot, spec, scene)
     actuated = list(pmodel.names)[2:]
     limits = np.array(pmodel.effortLimit, dtype=float)[6:]
     for name, limit in zip(actuated, limits, strict=True):
@@ -547,6 +550,35 @@ def _add_scene(spec: mujoco.MjSpec, scene: Scene | None) -> None:
         geom.rgba = list(obj.colour)
         set_contact_friction(geom, float(obj.friction))
         geom.contype, geom.conaffinity = OBJECT_CONTYPE, OBJECT_CONAFFINITY
+
+
+def grasp_weld_name(side: str, obj: str) -> str:
+    """The MuJoCo equality that attaches scene object ``obj`` to the ``side`` hand (sim.grasp)."""
+    return f"{GRASP_PREFIX}{side}_{obj}"
+
+
+def _add_grasp_welds(robot: Robot, spec: mujoco.MjSpec, scene: Scene | None) -> None:
+    """An inactive weld between each hand's body and each movable object (:mod:`sim.grasp` engages
+    one when the hand holds the object: the named simplification of a closing gripper)."""
+    if scene is None:
+        return
+    bodies = {b.name for b in spec.bodies}
+    for side in ("left", "right"):
+        if not robot.has_role(f"{side}_hand"):
+            continue
+        hand = robot.model.frames[robot.frame_id(f"{side}_hand")]
+        link = hand.name if hand.name in bodies else robot.model.frames[hand.parentFrame].name
+        if link not in bodies:
+            continue
+        for obj in scene.objects:
+            if obj.movable:
+                eq = spec.add_equality()
+                eq.name = grasp_weld_name(side, obj.name)
+                eq.type = mujoco.mjtEq.mjEQ_WELD
+                eq.objtype = mujoco.mjtObj.mjOBJ_BODY
+                eq.name1 = link
+                eq.name2 = OBJECT_PREFIX + obj.name
+                eq.active = False
 
 
 def _quat_wxyz(rpy: tuple[float, float, float]) -> list[float]:

@@ -122,7 +122,8 @@ class Recorder:
         n_ticks: Largest number of ticks.
     """
 
-    def __init__(self, sm: SimModel, robot: Robot, n_ticks: int, settings: SimSettings | None = None) -> None:
+    def __init__(self, sm: SimModel, robot: Robot, n_ticks: int, settings: SimSettings | None = None, *,
+                 exempt: set[tuple[int, int]] | None = None) -> None:
         m = sm.model
         s = settings if settings is not None else SimSettings()
         self.t = np.empty(n_ticks)
@@ -148,7 +149,7 @@ class Recorder:
         self._geom_label[sole_ids] = np.arange(self._n_soles)
         if len(sm.geom_role):  # an object on the floor is not the robot touching it
             self._geom_label[:-1][sm.geom_role == OBJECT_ROLE] = -2
-        self._collisions = _CollisionRecorder(sm, s)
+        self._collisions = _CollisionRecorder(sm, s, exempt or set())
 
     @property
     def collisions(self) -> _CollisionRecorder:
@@ -204,7 +205,7 @@ class Recorder:
 class _CollisionRecorder:
     """The collision part of a run's record (see the module docstring)."""
 
-    def __init__(self, sm: SimModel, s: SimSettings) -> None:
+    def __init__(self, sm: SimModel, s: SimSettings, exempt: set[tuple[int, int]]) -> None:
         m = sm.model
         self._m = m
         self._s = s
@@ -223,6 +224,9 @@ class _CollisionRecorder:
         self._pair_links = sm.pair_index
         self._robot_geoms = np.nonzero(role == ROBOT_ROLE)[0]
         self._object_geoms = np.nonzero(role == OBJECT_ROLE)[0]
+        # planned contacts (a hand and the object it grasps, sim.grasp) are no collisions
+        self._exempt = np.array([[(int(r), int(o)) in exempt for o in self._object_geoms] for r in self._robot_geoms],
+                                dtype=bool).reshape(len(self._robot_geoms), len(self._object_geoms))
         self._rbound = np.asarray(m.geom_rbound, dtype=float)
         self._fromto = np.zeros(6)
         self._wrench = np.zeros(6)
@@ -276,6 +280,7 @@ class _CollisionRecorder:
             rg, og = self._robot_geoms, self._object_geoms
             lower = (np.linalg.norm(xpos[rg][:, None] - xpos[og][None], axis=2)
                      - self._rbound[rg][:, None] - self._rbound[og][None])
+            lower[self._exempt] = np.inf
             best, best_pair = np.inf, (-1, -1)
             for flat in np.argsort(lower, axis=None).tolist():
                 r, o = divmod(flat, len(og))

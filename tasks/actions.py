@@ -519,6 +519,19 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
                   description="time to point, hold and lower"),
         )),
+        # --- actions that hold an object (tasks/primitives/grasp.py) ---
+        ActionSchema(name="pick_up", summary="Pick up a movable object of the scene with one hand, lift it and hold it.",
+                     body="upper", params=(
+            _object("the object to pick up"),
+            _choice("arm", SIDES, None, "which hand picks it up (default: the one on the object's side)"),
+            Param(name="height", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
+                  description="how high the object is lifted"),
+        )),
+        ActionSchema(name="put_down", summary="Put a held object back down where it was picked up, and let go of it.",
+                     body="upper", params=(
+            _object("the held object to put down"),
+            _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
+        )),
     )
 }
 

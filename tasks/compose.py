@@ -55,7 +55,17 @@ from tasks.primitives import (
 )
 from tasks.primitives.base import fit_defaults
 from tasks.scene import Scene
-from tasks.specs import CoMBounds, CoMTarget, Contact, JointTarget, Phase, Priority, TaskSpec
+from tasks.specs import (
+    CoMBounds,
+    CoMTarget,
+    Contact,
+    FrameTarget,
+    Grasp,
+    JointTarget,
+    Phase,
+    Priority,
+    TaskSpec,
+)
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
@@ -240,19 +250,70 @@ def compile_actions(
         raise TaskDefinitionError(horizon_message(horizon, "split the instruction into several shorter ones"))
     margin = standing_geometry(robot).support_margin
     bounds = (CoMBounds(name="balance", support_polygon=True, margin=margin),)
+    grasps = _grasps(fragments, k * dt)
     return TaskSpec(
         robot=robot.name,
         phases=tuple(phases),
-        targets=tuple(t for f in fragments for t in f.targets),
+        targets=_held_targets(fragments, k * dt),
         com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
-        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + tuple(waypoints),
+        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + _not_holding(waypoints, grasps, robot, k * dt),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
         name=name or describe_actions(checked),
         description=description,
         scene=scene,
+        grasps=grasps,
     )
+
+
+def _held_targets(fragments: list[Fragment], horizon: float) -> tuple[FrameTarget, ...]:
+    """The fragments' targets; a held one (``Fragment.holds``: a hand holding an object up) keeps
+    its window open until the next action that drives one of the fragment's parts or moves the feet,
+    or the end of the motion."""
+    out = []
+    for f in fragments:
+        later = [g.t0 for g in fragments if g.t0 >= f.t_end - 1e-9 and g is not f
+                 and (g.changes_contacts or g.parts & (f.parts - {"torso"}))]
+        until = min(later, default=horizon)
+        for t in f.targets:
+            if t.name in f.holds and t.window is not None and until > t.window[1]:
+                t = dataclasses.replace(t, window=(t.window[0], round(until, 9)))
+            out.append(t)
+    return tuple(out)
+
+
+def _not_holding(waypoints: list[JointTarget], grasps: tuple[Grasp, ...], robot: Robot,
+                 horizon: float) -> tuple[JointTarget, ...]:
+    """The standing waypoints without those of the joints (torso and arm) that carry a held object
+    at their time: standing angles there would drag the whole body under the held hand."""
+    model = robot.model
+    held: list[tuple[float, float, set[str]]] = []
+    for g in grasps:
+        joint = model.frames[robot.frame_id(g.frame)].parentJoint
+        names = {model.names[j] for j in model.supports[joint] if j > 1}
+        held.append((g.start, horizon if g.end is None else g.end, names))
+    return tuple(w for w in waypoints
+                 if not any(s - 1e-9 <= (w.time or 0.0) <= e + 1e-9 and w.joint in names for s, e, names in held))
+
+
+def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
+    """The fragments' grasps; a release (``put_down``: a grasp with a ``place``) closes the grasp
+    that holds its object (TaskDefinitionError when none does, or another hand holds it)."""
+    out: list[Grasp] = []
+    for f in fragments:
+        for g in f.grasps:
+            if g.place is None:
+                out.append(g)
+                continue
+            held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
+            if held is None:
+                raise TaskDefinitionError(f"{f.action.name}: no hand holds the {g.object}; pick it up first "
+                                          f'("pick up the {g.object}, then put it down")')
+            if out[held].frame != g.frame:
+                raise TaskDefinitionError(f"{f.action.name}: the {g.object} is in the other hand")
+            out[held] = dataclasses.replace(out[held], end=g.end, place=g.place)
+    return tuple(out)
 
 
 def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Action]:

@@ -24,7 +24,7 @@ from tasks.specs import TaskSpec
 def check_spec_for_robot(spec: TaskSpec, robot: Robot) -> None:
     """Raise :class:`TaskDefinitionError` when ``spec`` cannot apply to ``robot``.
 
-    Checks, in order: contact and target frames exist on the robot; joint targets name a
+    Checks, in order: contact, target and grasp frames exist on the robot; joint targets name a
     one-dof joint of it; contacts are not below the ground (z >= -``GROUND_TOLERANCE``); the
     first phase's contacts match the standing soles within ``START_TOLERANCE`` (1 mm / 1 mrad).
     """
@@ -41,6 +41,8 @@ def check_spec_for_robot(spec: TaskSpec, robot: Robot) -> None:
                 )
     for i, target in enumerate(spec.targets):
         _frame_id(robot, target.frame, f"spec.targets[{i}].frame")
+    for i, grasp in enumerate(spec.grasps):
+        _frame_id(robot, grasp.frame, f"spec.grasps[{i}].frame")
     for i, jt in enumerate(spec.joint_targets):
         where = f"spec.joint_targets[{i}].joint"
         if not model.existJointName(jt.joint):

@@ -350,6 +350,63 @@ class JointTarget:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class Grasp:
+    """A hand holding a scene object: from ``start`` the object moves with the hand, until ``end``.
+
+    The object's centre sits at ``offset`` in the hand frame while it is held (docs/objects.md):
+    the planner exempts the pair (the hand's links, the object) from its scene-collision rows, the
+    payload check loads the arm with the object's weight there, and the simulation attaches the
+    object to the hand once the hand holds it within ``tolerance`` (a weld: the named
+    simplification of a gripper that closes).
+
+    Attributes:
+        name: Unique label ("1 pick_up: grasp the cup").
+        object: The scene object's name.
+        frame: The holding frame (a hand: ``gripper_right_base_link``).
+        offset: The object's centre in the hand frame while held [m].
+        start: When the hand closes on the object [s].
+        end: When the hand lets it go [s]; None = held to the end of the motion.
+        lift: How high the object is asked to rise above where it stood [m] (0: not asked).
+        hold: (t_start, t_end) [s] over which the object is held lifted by ``lift``; None = none.
+        place: Where the object's centre is put when it is let go [m]; None = not put down.
+        tolerance: The hand holds the object when its centre is within this of ``offset`` [m].
+    """
+
+    name: str
+    object: str
+    frame: str
+    offset: Vec3
+    start: float
+    end: float | None = None
+    lift: float = 0.0
+    hold: Window | None = None
+    place: Vec3 | None = None
+    tolerance: float = 0.03
+
+    def __post_init__(self) -> None:
+        _text("grasp", "name", self.name)
+        who = f"grasp {self.name!r}"
+        for key in ("object", "frame"):
+            value = getattr(self, key)
+            if not isinstance(value, str) or not value:
+                raise TaskDefinitionError(f"{who}: {key} must be a non-empty name, got {_show(value)}")
+            _text(who, key, value)
+        _vec3(who, "offset", self.offset)
+        _nonneg(who, "start", self.start, hi=MAX_HORIZON, unit="s")
+        if self.end is not None:
+            _nonneg(who, "end", self.end, hi=MAX_HORIZON, unit="s")
+            if self.end <= self.start:
+                raise TaskDefinitionError(f"{who}: end {_num(self.end)} s must be after start {_num(self.start)} s")
+        _nonneg(who, "lift", self.lift)
+        _window(who, self.hold)
+        if self.place is not None:
+            _vec3(who, "place", self.place)
+        _nonneg(who, "tolerance", self.tolerance)
+        if not self.tolerance > 0.0:
+            raise TaskDefinitionError(f"{who}: tolerance must be > 0 m")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class TaskSpec:
     """A whole-body motion request, independent of any solver.
 
@@ -367,6 +424,7 @@ class TaskSpec:
         name: A label for reports.
         description: Free text (the sentence it came from).
         scene: The world around the robot (a floor plus named objects; docs/scenes.md); null = the floor only.
+        grasps: Objects of the scene held by a hand over a time window (docs/objects.md).
     """
 
     robot: str = "talos"
@@ -382,6 +440,7 @@ class TaskSpec:
     name: str = ""
     description: str = ""
     scene: Scene | None = None
+    grasps: tuple[Grasp, ...] = ()
 
     def __post_init__(self) -> None:
         _text("task spec", "robot", self.robot, limit=MAX_TEXT_LENGTH)
@@ -431,6 +490,7 @@ class TaskSpec:
         dup = sorted(n for n, c in counts.items() if c > 1)
         if dup:
             raise TaskDefinitionError(f"task spec: names must be unique, repeated: {dup[:10]}")
+        self._check_grasps(horizon)
         grid = horizon / intervals
         terms = 0
         in_order: tuple[FrameTarget | CoMTarget | CoMBounds | JointTarget, ...] = (
@@ -455,6 +515,30 @@ class TaskSpec:
                 f"task spec: its targets and bounds apply at {terms} knots in all (a window counts each knot "
                 f"inside it); wbmp plans at most {MAX_TERMS}: use fewer or shorter windows, or split the spec"
             )
+
+    def _check_grasps(self, horizon: float) -> None:
+        """Each grasp names an object of the scene, within the horizon; a hand holds one at a time."""
+        if not self.grasps:
+            return
+        names = {o.name: o for o in self.scene.objects} if self.scene is not None else {}
+        for g in self.grasps:
+            if not isinstance(g, Grasp):
+                raise TaskDefinitionError(f"task spec: grasps must hold Grasp items, got {_show(g)}")
+            if g.object not in names:
+                known = ", ".join(sorted(names)) or "none (the spec has no scene)"
+                raise TaskDefinitionError(f"grasp {g.name!r}: no object {g.object!r} in the scene; its objects: {known}")
+            if not names[g.object].movable:
+                raise TaskDefinitionError(f"grasp {g.name!r}: the {g.object} is fixed to the world (movable: false); "
+                                          "only a movable object can be picked up")
+            latest = max(x for x in (g.start, g.end, *(g.hold or ())) if x is not None)
+            if latest > horizon + 1e-9:
+                raise TaskDefinitionError(f"grasp {g.name!r}: time {latest:g} s is after the end of the motion ({horizon:g} s)")
+        spans = sorted(((g.start, horizon if g.end is None else g.end, g) for g in self.grasps), key=lambda x: x[:2])
+        for i, (_s0, e0, g0) in enumerate(spans):
+            for s1, _e1, g1 in spans[i + 1:]:
+                if s1 < e0 - 1e-9 and (g1.frame == g0.frame or g1.object == g0.object):
+                    raise TaskDefinitionError(f"grasps {g0.name!r} and {g1.name!r} overlap in time on the same hand "
+                                              "or object; let go first")
 
     @property
     def horizon(self) -> float:

@@ -40,7 +40,7 @@ SIM_COLOR = "#2a9d8f"
 SUPPORT_FACE = "#9bd3a8"
 SUPPORT_EDGE = "#1b7a3a"
 MAX_SAMPLES = 2000  # points per line for simulated (1 kHz) signals
-PLOT_FILES = ("com_support.png", "joints.png", "torques.png", "contact_forces.png", "keyframes.png")
+PLOT_FILES = ("com_support.png", "joints.png", "torques.png", "contact_forces.png", "keyframes.png", "objects.png")
 """Every file name :func:`write_plots` may write (which ones depends on the plan)."""
 
 # the Staging of the write_plots call drawing in this thread/task (None: _save writes at once)
@@ -413,12 +413,46 @@ def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=N
         return paths
     token = _STAGING.set(staging)
     try:
-        return _draw_all(out, robot, plan, simulated)
+        return _draw_all(out, robot, plan, simulated, getattr(execution, "objects", None))
     finally:
         _STAGING.reset(token)
 
 
-def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None) -> list[Path]:
+def plot_objects(path: Path, robot: Robot, plan, t: np.ndarray, objects) -> Path | None:
+    """The simulated height of each object a grasp of the plan holds, against the asked lift over
+    its hold window (docs/objects.md); None when the plan holds none that was simulated.
+
+    Args:
+        t: Simulated times (T',) [s].
+        objects: Object name -> centre position (T', 3) [m] (``Execution.objects``).
+    """
+    grasps = [g for g in getattr(plan.spec, "grasps", ()) if g.object in objects]
+    if not grasps:
+        return None
+    fig = Figure(figsize=(10, 4.5))
+    ax = fig.subplots()
+    for g in grasps:
+        z = np.asarray(objects[g.object], dtype=float)[:, 2]
+        tt = np.asarray(t, dtype=float)[: len(z)]
+        line = ax.plot(tt, z, lw=1.5, label=f"{g.object} (simulated)")[0]
+        if g.hold is not None and g.lift > 0:
+            ax.hlines(z[0] + g.lift, g.hold[0], g.hold[1], colors=line.get_color(), linestyles="--",
+                      label=f"{g.object}: asked lift {g.lift:g} m")
+            ax.axvspan(g.hold[0], g.hold[1], color=line.get_color(), alpha=0.08)
+        ax.axvline(g.start, color=line.get_color(), lw=0.8, ls=":")
+        if g.end is not None:
+            ax.axvline(g.end, color=line.get_color(), lw=0.8, ls=":")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("object centre height [m]")
+    ax.set_title("held objects: height (dotted: grasp and release; shaded: hold window)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.suptitle(_title(robot, plan), fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None, objects=None) -> list[Path]:
     paths = [plot_com_support(out / "com_support.png", robot, plan, simulated=simulated),
              plot_joints(out / "joints.png", robot, plan)]
     if simulated is not None and simulated.tau is not None:
@@ -427,4 +461,8 @@ def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None) -> lis
     if forces is not None:
         paths.append(forces)
     paths.append(plot_keyframes(out / "keyframes.png", robot, plan))
+    if simulated is not None and objects:
+        drawn = plot_objects(out / "objects.png", robot, plan, simulated.t, objects)
+        if drawn is not None:
+            paths.append(drawn)
     return paths

@@ -42,6 +42,7 @@ from planner.trajopt.collision import (
 )
 from planner.trajopt.diagnose import diagnose_failure
 from planner.trajopt.layout import Layout, make_layout
+from planner.trajopt.payload import payload_checks
 from planner.trajopt.report import configurations, make_plan
 from planner.trajopt.scene_collision import (
     add_screened_scene_terms,
@@ -91,6 +92,15 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
+    payload = payload_checks(robot, spec, result.t, result.q)
+    if payload:
+        result = dataclasses.replace(result, checks=result.checks + tuple(payload))
+        heavy = next((c for c in payload if not c.ok), None)
+        if heavy is not None:  # the object is the cause: no other diagnosis
+            result = dataclasses.replace(result, diagnosis=heavy.message)
+            if throw:
+                raise PlanningFailed(heavy.message, result)
+            return result
     if result.ok:
         return result
     if progress:

@@ -31,7 +31,10 @@ the margin get rows and the NLP is solved again.
 
 Planned contacts are not collisions: a contact whose placement lies on the top face of an object
 (a foot standing on a box) excludes the spheres of the links on its frame's joint from that object
-while it is active (and :data:`CONTACT_PADDING` knots around). The floor is not an object.
+while it is active (and :data:`CONTACT_PADDING` knots around). A grasp (:class:`tasks.specs.Grasp`)
+excludes the spheres of the hand (the links of its frame's joint and below) from the grasped object
+over the whole motion, and every sphere while the object is held (it moves with the hand; its rows
+would keep the robot away from where it stood). The floor is not an object.
 """
 
 from __future__ import annotations
@@ -210,6 +213,15 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
                 if on_top(objects[ob.name], M.translation):
                     lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
                     out[lo:hi + 1, sphere_joint == joint, oi] = True
+    for grasp in lay.spec.grasps:
+        hand = np.isin(sphere_joint, list(model.subtrees[model.frames[model.getFrameId(grasp.frame)].parentJoint]))
+        held = np.asarray(lay.t) >= grasp.start - 1e-9
+        if grasp.end is not None:
+            held &= np.asarray(lay.t) <= grasp.end + 1e-9
+        for oi, ob in enumerate(obs):
+            if ob.name == grasp.object:
+                out[:, hand, oi] = True  # the hand goes to the object: a planned contact
+                out[held, :, oi] = True  # held: the object moves with the hand, away from where it stood
     return out
 
 

@@ -11,7 +11,7 @@ clap, touch, hands_on_hips, cross_arms, arms_out, point, salute, arm_circles, sh
 body parts from :mod:`.bodymap`), :mod:`.head` (nod, shake_head), and the dynamic
 ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
 march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`; the actions
-on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at).
+on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at); holding one :mod:`.grasp` (pick_up).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import (
     arms,
     balance,
+    grasp,
     head,
     hop,
     jump,
@@ -70,6 +71,7 @@ PRIMITIVES: dict[str, Primitive] = {
         legs.STOMP,
         hop.JOG,
         *objects.PRIMITIVES,
+        *grasp.PRIMITIVES,
     )
 }
 

@@ -29,6 +29,7 @@ from tasks.specs import (
     CoMTarget,
     Contact,
     FrameTarget,
+    Grasp,
     JointTarget,
     OptVec3,
     Phase,
@@ -69,6 +70,9 @@ class Fragment:
         changes_contacts: True when the phases differ from standing on both feet.
         dynamic: Needs the planner's CoM dynamics (steps, jumps).
         end_stance: Where the feet are at the end.
+        grasps: Objects a hand takes (or lets go of) in this action.
+        holds: Names of targets that stay held after the action, until the next action that
+            drives one of its parts or moves the feet (or the end of the motion): a held object.
     """
 
     action: Action
@@ -83,6 +87,8 @@ class Fragment:
     changes_contacts: bool = False
     dynamic: bool = False
     end_stance: Stance
+    grasps: tuple[Grasp, ...] = ()
+    holds: tuple[str, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -154,6 +160,8 @@ class FragmentBuilder:
         self.com_targets: list[CoMTarget] = []
         self.com_bounds: list[CoMBounds] = []
         self.joint_targets: list[JointTarget] = []
+        self.grasps: list[Grasp] = []
+        self.holds: list[str] = []
         self.end_stance = stance
 
     # --- time ---------------------------------------------------------------------------
@@ -254,6 +262,7 @@ class FragmentBuilder:
             targets=tuple(self.targets), com_targets=tuple(self.com_targets),
             com_bounds=tuple(self.com_bounds), joint_targets=tuple(self.joint_targets),
             parts=frozenset(parts), changes_contacts=changes, dynamic=dynamic, end_stance=self.end_stance,
+            grasps=tuple(self.grasps), holds=tuple(self.holds),
         )
 
 

@@ -13,7 +13,7 @@ from tests.language.corpus import check, load_corpus
 
 CASES = load_corpus(Path(__file__).with_name("corpus_objects.txt"))
 CJK = re.compile(r"[\u3400-\u9fff]")
-OBJECT_ACTIONS = {"walk_to", "look_at", "point_at"}
+OBJECT_ACTIONS = {"walk_to", "look_at", "point_at", "pick_up", "put_down"}
 
 
 def test_corpus_covers_every_object_action_in_both_languages():

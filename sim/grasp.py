@@ -1,0 +1,228 @@
+"""Grasps in the simulation: the hand attaches the object once it holds it, and the checks of it.
+
+The talos model's fingers are fixed links (its gripper joint moves no finger in the URDF), so a
+gripper cannot close on the object. The named simplification (docs/objects.md), for each
+:class:`tasks.specs.Grasp` of the spec:
+
+* the grasping hand's links (its body and everything below it) do not collide with the grasped
+  object, and do not touch the floor (they still touch every other object and every link of a
+  self-collision pair);
+* from the grasp's ``start`` on, at the first tick where the object's centre is within the grasp's
+  ``tolerance`` of where the hand holds it (``offset`` in the hand frame), the hand's inactive weld
+  to the object (:func:`sim.model.grasp_weld_name`) engages, at the relative pose the two have then
+  (no jump); at ``end`` it lets go. The object keeps its mass: its weight loads the arm through the
+  weld, and the controller, which does not model it, has to carry it.
+
+Every tick records the movable objects' positions and tilts; :meth:`GraspRig.checks` turns them
+into the certificate's lines: the grasp engaged, the object lifted by the asked height and held,
+placed within tolerance, no other object moved by more than :data:`MOVED_LIMIT`, none tipped over.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from planner.results import Check, CheckKind
+from robots.model import Robot
+from sim.model import OBJECT_PREFIX, OBJECT_ROLE, ROBOT_ROLE, SimModel, grasp_weld_name
+from tasks.specs import Grasp, TaskSpec
+
+WELD = "weld, a simplified gripper"  # how the certificate names the simplification
+LIFT_TOLERANCE = 0.02  # [m] the object may hang this much lower than asked while held
+PLACE_TOLERANCE = 0.03  # [m] a placed object's centre within this of where it was put
+MOVED_LIMIT = 0.01  # [m] an object no hand holds moves at most this much
+TIPPED_LIMIT = 0.35  # [rad] an object tilted more than this (20 deg) is knocked over
+HAND_BITS = {"left": 16, "right": 32}  # contype bits of each hand's geoms while it grasps
+
+
+@dataclass
+class _Held:
+    grasp: Grasp
+    side: str
+    eq: int
+    hand_body: int
+    obj_index: int
+    engaged_at: float | None = None
+    released_at: float | None = None
+    closest: float = math.inf  # [m] best distance of the object's centre to its held place
+
+
+def _descendants(m: mujoco.MjModel, body: int) -> set[int]:
+    out = {body}
+    for b in range(body + 1, m.nbody):
+        if int(m.body_parentid[b]) in out:
+            out.add(b)
+    return out
+
+
+class GraspRig:
+    """The spec's grasps on a copy of the MuJoCo model (its welds and contact bits) and the record
+    of the movable objects over the run.
+
+    Args:
+        sm: The MuJoCo model (not modified).
+        robot: The robot.
+        spec: The planned spec (its scene and grasps).
+        n_ticks: The most ticks the run records.
+    """
+
+    def __init__(self, sm: SimModel, robot: Robot, spec: TaskSpec, n_ticks: int) -> None:
+        self.sm = sm
+        self.model = copy.deepcopy(sm.model) if spec.grasps else sm.model
+        m = self.model
+        self.names = [o.name for o in spec.scene.objects if o.movable] if spec.scene is not None else []
+        self.bodies = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, OBJECT_PREFIX + n) for n in self.names],
+                               dtype=int)
+        self.held: list[_Held] = []
+        self.exempt: set[tuple[int, int]] = set()  # (robot geom, object geom) pairs that may touch
+        frames = {robot.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
+        for g in spec.grasps:
+            side = frames.get(g.frame)
+            eq = -1 if side is None else mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, grasp_weld_name(side, g.object))
+            if side is None or eq < 0:
+                continue  # no weld for this frame: the grasp's check fails (never engaged)
+            self.held.append(_Held(grasp=g, side=side, eq=eq, hand_body=int(m.eq_obj1id[eq]),
+                                   obj_index=self.names.index(g.object)))
+        self._bits(sm)
+        self.pos = np.zeros((n_ticks, len(self.names), 3))
+        self.tilt = np.zeros((n_ticks, len(self.names)))
+        self.t = np.zeros(n_ticks)
+        self.n = 0
+
+    def _bits(self, sm: SimModel) -> None:
+        """The grasping hands' geoms collide with no object they grasp (and no longer with the floor)."""
+        m = self.model
+        if not self.held:
+            return
+        role = sm.geom_role
+        geom_body = np.asarray(m.geom_bodyid, dtype=int)
+        for side in {h.side for h in self.held}:
+            bit = HAND_BITS[side]
+            hand = _descendants(m, next(h.hand_body for h in self.held if h.side == side))
+            hand_geoms = [g for g in range(m.ngeom) if role[g] == ROBOT_ROLE and int(geom_body[g]) in hand]
+            grasped = {h.grasp.object for h in self.held if h.side == side}
+            for g in hand_geoms:
+                m.geom_contype[g], m.geom_conaffinity[g] = bit, 0
+            for g in np.flatnonzero(role == OBJECT_ROLE).tolist():
+                name = sm.object_names[int(sm.geom_object[g])]
+                if name in grasped:
+                    self.exempt.update((hg, g) for hg in hand_geoms)
+                else:
+                    m.geom_conaffinity[g] |= bit
+
+    def data(self) -> mujoco.MjData:
+        """A fresh ``mujoco.MjData`` of the rig's model."""
+        return mujoco.MjData(self.model)
+
+    def tick(self, t: float, d: mujoco.MjData) -> None:
+        """Engage or release the welds at time ``t`` [s], then record the objects."""
+        for h in self.held:
+            g = h.grasp
+            if h.engaged_at is None and h.released_at is None:
+                R = d.xmat[h.hand_body].reshape(3, 3)
+                at = R @ np.asarray(g.offset) + d.xpos[h.hand_body]
+                dist = float(np.linalg.norm(d.xpos[self.bodies[h.obj_index]] - at))
+                if t >= g.start - 0.25:
+                    h.closest = min(h.closest, dist)
+                if t >= g.start - 1e-9 and dist <= g.tolerance and (g.end is None or t < g.end):
+                    self._engage(h, d)
+                    h.engaged_at = t
+            elif h.released_at is None and g.end is not None and t >= g.end - 1e-9:
+                d.eq_active[h.eq] = 0
+                h.released_at = t
+        i = self.n
+        if i < len(self.t):
+            self.t[i] = t
+            self.pos[i] = d.xpos[self.bodies]
+            zz = d.xmat[self.bodies][:, 8]
+            self.tilt[i] = np.arccos(np.clip(zz, -1.0, 1.0))
+            self.n = i + 1
+
+    def _engage(self, h: _Held, d: mujoco.MjData) -> None:
+        m = self.model
+        a, b = h.hand_body, int(self.bodies[h.obj_index])
+        R1 = d.xmat[a].reshape(3, 3)
+        inv, rel = np.zeros(4), np.zeros(4)
+        mujoco.mju_negQuat(inv, d.xquat[a])
+        mujoco.mju_mulQuat(rel, inv, d.xquat[b])
+        m.eq_data[h.eq, 0:3] = 0.0  # anchor: the object's centre
+        m.eq_data[h.eq, 3:6] = R1.T @ (d.xpos[b] - d.xpos[a])  # the object in the hand frame, as it is now
+        m.eq_data[h.eq, 6:10] = rel
+        d.eq_active[h.eq] = 1
+
+    # -- the certificate's lines ----------------------------------------------------------------
+    def checks(self) -> list[Check]:
+        """The grasp lines of the certificate (none without grasps and movable objects)."""
+        n = self.n
+        if n == 0 or not self.names:
+            return []
+        t, pos, tilt = self.t[:n], self.pos[:n], self.tilt[:n]
+        out: list[Check] = []
+        for h in self.held:
+            out.extend(self._grasp_checks(h, t, pos))
+        held = {h.obj_index for h in self.held}
+        others = [i for i in range(len(self.names)) if i not in held]
+        if others:
+            moved = np.linalg.norm(pos[:, others] - pos[0, others], axis=2)
+            k, j = np.unravel_index(int(np.argmax(moved)), moved.shape)
+            worst, name = float(moved[k, j]), self.names[others[j]]
+            ok = worst <= MOVED_LIMIT
+            out.append(Check(
+                name=f"objects not held: none moved (most: {name})", kind=CheckKind.OBJECT_MOVED, subject=name,
+                value=worst, limit=MOVED_LIMIT, unit="m", ok=ok, time=float(t[k]),
+                message="" if ok else f"the {name} moved {worst * 100:.1f} cm (at most {MOVED_LIMIT * 100:g} cm)"))
+        tipped = tilt.copy()
+        for h in self.held:  # a held object turns with the hand; once let go it must stand
+            if h.released_at is None:
+                tipped[:, h.obj_index] = 0.0
+            else:
+                tipped[t < h.released_at + 0.5, h.obj_index] = 0.0
+        k, j = np.unravel_index(int(np.argmax(tipped)), tipped.shape)
+        worst, name = float(tipped[k, j]), self.names[j]
+        ok = worst <= TIPPED_LIMIT
+        out.append(Check(
+            name="objects: none knocked over", kind=CheckKind.OBJECT_TIPPED, subject=name, value=worst,
+            limit=TIPPED_LIMIT, unit="rad", ok=ok, time=float(t[k]),
+            message="" if ok else f"the {name} was knocked over (tilted {math.degrees(worst):.0f} deg at t = {t[k]:.2f} s)"))
+        return out
+
+    def _grasp_checks(self, h: _Held, t: np.ndarray, pos: np.ndarray) -> list[Check]:
+        g, name = h.grasp, h.grasp.object
+        out = []
+        ok = h.engaged_at is not None
+        out.append(Check(
+            name=f"grasp: {h.side} hand holds the {name} ({WELD})", kind=CheckKind.OBJECT_GRASP, subject=name,
+            value=h.closest if math.isfinite(h.closest) else 1.0, limit=g.tolerance, unit="m", ok=ok,
+            time=g.start if h.engaged_at is None else h.engaged_at,
+            message="" if ok else (f"the {h.side} hand never held the {name}: its grasp point came within "
+                                   f"{h.closest * 100:.1f} cm of it (the grasp needs {g.tolerance * 100:g} cm)")))
+        z0 = float(pos[0, h.obj_index, 2])
+        if g.lift > 0.0 and g.hold is not None:
+            mask = (t >= g.hold[0] - 1e-9) & (t <= g.hold[1] + 1e-9)
+            if mask.any():
+                rise = pos[mask, h.obj_index, 2] - z0
+                k = int(np.argmin(rise))
+                worst = float(rise[k])
+                limit = g.lift - LIFT_TOLERANCE
+                ok = worst >= limit
+                out.append(Check(
+                    name=f"{name} lifted by {g.lift:g} m and held", kind=CheckKind.OBJECT_LIFT, subject=name,
+                    value=worst, limit=limit, unit="m", ok=ok, time=float(t[mask][k]), upper=False,
+                    message="" if ok else (f"the {name} rose only {worst * 100:.1f} cm while held (asked "
+                                           f"{g.lift * 100:g} cm, tolerance {LIFT_TOLERANCE * 100:g} cm)")))
+        if g.place is not None:
+            err = float(np.linalg.norm(pos[-1, h.obj_index] - np.asarray(g.place)))
+            ok = err <= PLACE_TOLERANCE
+            out.append(Check(
+                name=f"{name} placed", kind=CheckKind.OBJECT_PLACE, subject=name, value=err, limit=PLACE_TOLERANCE,
+                unit="m", ok=ok, time=float(t[-1]),
+                message="" if ok else f"the {name} ended {err * 100:.1f} cm from where it was to be put"))
+        return out
+
+
+__all__ = ["LIFT_TOLERANCE", "MOVED_LIMIT", "PLACE_TOLERANCE", "TIPPED_LIMIT", "WELD", "GraspRig"]

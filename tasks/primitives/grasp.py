@@ -1,0 +1,234 @@
+"""Actions that hold a scene object: ``pick_up(object, arm, height)``, ``put_down(object, arm)``.
+
+The ``object`` parameter arrives grounded (:class:`tasks.grounding.Grounded`), like the actions of
+:mod:`tasks.primitives.objects`. ``pick_up`` writes four phases, both feet down:
+
+1. *approach*: the hand to a pre-grasp pose :data:`PRE_BACK` behind and :data:`PRE_UP` above the
+   grasp pose (seen from the robot), then to the grasp pose;
+2. *grasp*: the hand at the grasp pose, held :data:`CLOSE_TIME`; the object's grasp point (its
+   centre, raised to :data:`GRASP_DEPTH` below its top for a tall object) sits at the hand's grasp
+   offset (:func:`grasp_offset`: between the fingertips), the hand in its standing orientation;
+3. *lift*: the hand raised by ``height``;
+4. *hold*: the hand held there.
+
+The spec gets a :class:`tasks.specs.Grasp` from the start of the *grasp* phase to the end of the
+motion: the planner exempts the hand from the object's scene-collision rows and loads the arm with
+the object's weight; the simulation attaches the object to the hand once it is held within the
+grasp's tolerance (docs/objects.md).
+
+``put_down`` lowers the held object back onto where it was picked up (the grasp pose), holds it
+there :data:`RELEASE_TIME`, lets go (the grasp's ``end``, its ``place`` the object's position in the
+scene), retreats to the pre-grasp pose and brings the arm back to rest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.exceptions import TaskDefinitionError
+from tasks.grounding import Grounded
+from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
+from tasks.primitives.bodymap import body_map, to_heading
+from tasks.primitives.geometry import Stance, standing_geometry
+from tasks.primitives.objects import grounded
+from tasks.scene import SceneObject, extent
+from tasks.specs import Grasp
+
+PRE_BACK = 0.06  # [m] the pre-grasp pose is this far back towards the robot
+PRE_UP = 0.08  # [m] and this far up
+GRASP_DEPTH = 0.04  # [m] a tall object is held this far below its top (not below its centre)
+GRASP_CLEARANCE = 0.03  # [m] the hand's geometry above the object's bottom (what it stands on)
+GRASP_TOLERANCE = 0.03  # [m] the hand holds the object when its grasp point is this close (simulation)
+GRASP_TARGET_TOLERANCE = 0.004  # [m] planned hand position at the grasp, lifted and put down
+APPROACH_TIME = 1.5  # [s] nominal: rest -> pre-grasp
+REACH_IN_TIME = 1.0  # [s] pre-grasp -> grasp
+CLOSE_TIME = 0.5  # [s] held at the grasp (the hand closes)
+LIFT_TIME = 1.0  # [s] grasp -> lifted
+HOLD_TIME = 1.0  # [s] lifted, held
+DURATION = APPROACH_TIME + REACH_IN_TIME + CLOSE_TIME + LIFT_TIME + HOLD_TIME
+
+
+def grasp_offset(robot: Robot, side: str) -> np.ndarray:
+    """Where a held object's grasp point sits in the ``side`` hand frame (3,) [m]: the mean of the
+    fingertip frames that move with the hand (talos: between its three fingertips), else the hand
+    frame's origin."""
+    model = robot.model
+    hand = robot.frame_id(f"{side}_hand")
+    joint = model.frames[hand].parentJoint
+    tips = [f.name for f in model.frames if "fingertip" in f.name and f.parentJoint == joint]
+    if not tips:
+        return np.zeros(3)
+    data = robot.data()
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    M = data.oMf[hand]
+    points = [M.actInv(data.oMf[model.getFrameId(n)].translation) for n in tips]
+    return np.mean(points, axis=0)
+
+
+def grasp_point(robot: Robot, side: str, obj: SceneObject) -> np.ndarray:
+    """The object's point the ``side`` hand holds (world) [m]: its centre, raised to ``GRASP_DEPTH``
+    below its top, and high enough that the hand's geometry (in its standing orientation) stays
+    :data:`GRASP_CLEARANCE` above the object's bottom (the table it stands on), but not above its top."""
+    lo, hi = extent(obj)
+    c = np.asarray(obj.position, dtype=float).copy()
+    below = float(standing_geometry(robot).rotation(f"{side}_hand") @ grasp_offset(robot, side) @ [0.0, 0.0, 1.0]) \
+        - float(body_map(robot).hand_lo[side][2])  # hand geometry below the grasp point [m]
+    c[2] = min(float(hi[2]), max(c[2], float(hi[2]) - GRASP_DEPTH, float(lo[2]) + below + GRASP_CLEARANCE))
+    return c
+
+
+def holding_arm(params: dict, robot: Robot) -> str:
+    """The arm that picks: the stated one, else the one on the object's side."""
+    if params.get("arm"):
+        return str(params["arm"])
+    g = grounded(params, "pick_up")
+    start = g.start if isinstance(g.start, Stance) else Stance.standing(robot)
+    local = start.heading().actInv(np.asarray(g.obj.position, dtype=float))
+    return "left" if local[1] >= 0 else "right"
+
+
+def _poses(robot: Robot, stance: Stance, g: Grounded, side: str, height: float) -> dict[str, np.ndarray]:
+    """World positions [m] of the hand frame: ``pre``, ``grasp``, ``lift``; its orientation ``R``."""
+    T = stance.transform_from_standing(robot)
+    R = T.rotation @ standing_geometry(robot).rotation(f"{side}_hand")
+    hand = grasp_point(robot, side, g.obj) - R @ grasp_offset(robot, side)
+    forward = T.rotation @ standing_geometry(robot).heading.rotation[:, 0]
+    up = np.array([0.0, 0.0, 1.0])
+    return {"pre": hand - PRE_BACK * forward + PRE_UP * up, "grasp": hand, "lift": hand + height * up, "R": R}
+
+
+def _check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "pick_up")
+    obj = g.obj
+    if not obj.movable:
+        raise TaskDefinitionError(f"pick_up: the {obj.name} is fixed in the scene (movable: false); it cannot be picked up")
+    if not robot.has_role("left_hand") or not robot.has_role("right_hand"):
+        raise TaskDefinitionError(f"pick_up: {robot.name} has no hand frames")
+    if not isinstance(g.start, Stance):
+        return  # where the robot will stand is not known yet (an action before it may walk)
+    side = holding_arm(params, robot)
+    T = g.start.transform_from_standing(robot)
+    point = to_heading(robot, T.actInv(grasp_point(robot, side, obj)))
+    gap = reach_gap(robot, side, point, bend=True)
+    if gap > 1e-9:
+        raise TaskDefinitionError(
+            f"pick_up: the {obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot stands: "
+            f'walk to it first ("walk to the {obj.name} and pick it up")')
+
+
+def build_pick_up(b: FragmentBuilder) -> Fragment:
+    """Approach, grasp, lift by ``height``, hold (see the module docstring)."""
+    g = grounded(b.params, "pick_up")
+    _check(b.params, b.robot)
+    if not isinstance(g.start, Stance):
+        g = dataclasses.replace(g, start=b.stance)
+        b.params["object"] = g
+        _check(b.params, b.robot)
+    side = holding_arm(b.params, b.robot)
+    height = float(b.params["height"])
+    poses = _poses(b.robot, b.stance, g, side, height)
+    rpy = b.world_rotation(b.geometry.rotation(f"{side}_hand"))
+    name = g.obj.name
+    t_pre = APPROACH_TIME
+    t_in = t_pre + REACH_IN_TIME
+    t_close = t_in + CLOSE_TIME
+    t_lift = t_close + LIFT_TIME
+    role = f"{side}_hand"
+
+    def put(what: str, key: str, **when) -> None:
+        b.frame_target(what, role, position=tuple(float(x) for x in poses[key]), rpy=rpy,
+                       tolerance=GRASP_TARGET_TOLERANCE if key != "pre" else POSE_TOLERANCE, **when)
+
+    put(f"{side} hand above the {name}", "pre", time=t_pre)
+    put(f"{side} hand at the {name}", "grasp", window=(t_in, t_close))
+    put(f"{side} hand lifts the {name}", "lift", window=(t_lift, DURATION))
+    b.holds.append(b.name(f"{side} hand lifts the {name}"))  # held until the arm or the feet move again
+    b.phase(f"approach the {name}", t_in)
+    b.phase(f"grasp the {name}", t_close)
+    b.phase(f"lift the {name}", t_lift)
+    b.phase(f"hold the {name}", DURATION)
+    offset = grasp_offset(b.robot, side)
+    center = np.asarray(g.obj.position, dtype=float) - grasp_point(b.robot, side, g.obj)  # grasp point -> centre (world)
+    offset_centre = offset + poses["R"].T @ center
+    b.grasps.append(Grasp(
+        name=b.name(f"{side} hand holds the {name}"), object=name, frame=b.robot.frame(role),
+        offset=(float(offset_centre[0]), float(offset_centre[1]), float(offset_centre[2])),
+        start=b.t(t_in), lift=height, hold=b.window(t_lift, DURATION), tolerance=GRASP_TOLERANCE))
+    return b.finish(frozenset({f"{side}_arm", "torso"}))
+
+
+def _parts(params: dict) -> frozenset[str]:
+    arm = params.get("arm")
+    if arm:
+        return frozenset({f"{arm}_arm", "torso"})
+    g = params.get("object")
+    if isinstance(g, Grounded) and isinstance(g.start, Stance):
+        local = g.start.heading().actInv(np.asarray(g.obj.position, dtype=float))
+        return frozenset({"left_arm" if local[1] >= 0 else "right_arm", "torso"})
+    return frozenset({"left_arm", "right_arm", "torso"})
+
+
+PICK_UP = Primitive(name="pick_up", nominal_duration=lambda params, robot: DURATION, build=build_pick_up,
+                    parts=_parts, check=_check)
+
+# --- put_down ---------------------------------------------------------------------------
+LOWER_TIME = 1.5  # [s] nominal: held pose -> the grasp pose over where the object was
+RELEASE_TIME = 0.5  # [s] held there; the hand lets go at its end
+RETREAT_TIME = 1.0  # [s] up and back to the pre-grasp pose
+REST_TIME = 1.0  # [s] then back to rest
+PUT_DURATION = LOWER_TIME + RELEASE_TIME + RETREAT_TIME + REST_TIME
+
+
+def _put_check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "put_down")
+    if not g.obj.movable:
+        raise TaskDefinitionError(f"put_down: the {g.obj.name} is fixed in the scene; nothing holds it")
+
+
+def build_put_down(b: FragmentBuilder) -> Fragment:
+    """Lower the held object back onto where it was picked up, let go, retreat, arm back to rest.
+
+    The release is a :class:`~tasks.specs.Grasp` with ``end`` and ``place`` set; composing closes
+    the grasp that holds the object with it (:func:`tasks.compose.compile_actions` refuses a
+    put_down of an object no hand holds).
+    """
+    g = grounded(b.params, "put_down")
+    _put_check(b.params, b.robot)
+    side = holding_arm(b.params, b.robot) if b.params.get("arm") else _held_side(b, g)
+    poses = _poses(b.robot, b.stance, g, side, 0.0)
+    rpy = b.world_rotation(b.geometry.rotation(f"{side}_hand"))
+    name, role = g.obj.name, f"{side}_hand"
+    t_low = LOWER_TIME
+    t_rel = t_low + RELEASE_TIME
+    t_back = t_rel + RETREAT_TIME
+    b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in poses["grasp"]), rpy=rpy,
+                   window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+    b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in poses["pre"]), rpy=rpy,
+                   time=t_back, tolerance=POSE_TOLERANCE)
+    rest_targets(b, [role], tau=PUT_DURATION)
+    b.phase(f"lower the {name}", t_low)
+    b.phase(f"let go of the {name}", t_rel)
+    b.phase(f"retreat from the {name}", PUT_DURATION)
+    b.grasps.append(Grasp(
+        name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role), offset=(0.0, 0.0, 0.0),
+        start=b.t0, end=b.t(t_rel), place=(float(g.obj.position[0]), float(g.obj.position[1]), float(g.obj.position[2])),
+        tolerance=GRASP_TOLERANCE))
+    return b.finish(frozenset({f"{side}_arm", "torso"}))
+
+
+def _held_side(b: FragmentBuilder, g: Grounded) -> str:
+    return holding_arm({"object": g}, b.robot)
+
+
+PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION, build=build_put_down,
+                     parts=_parts, check=_put_check)
+
+PRIMITIVES = (PICK_UP, PUT_DOWN)
+
+__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "grasp_offset",
+           "grasp_point", "holding_arm"]

@@ -1,0 +1,126 @@
+"""pick_up (tasks/primitives/grasp.py) compiled in a scene where the cup is within reach, checked with
+Pinocchio numbers computed here: the hand targets put the object's grasp point between the talos
+fingertips, the grasp and its hold window are in the spec (and round-trip), and the language says
+"pick up the cup", 拿起那个杯子, "walk to the cup and pick it up" and 走过去拿起那个杯子."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from language import parse
+from robots import load_robot
+from tasks.actions import Action
+from tasks.compose import compile_actions
+from tasks.exceptions import TaskDefinitionError
+from tasks.primitives.grasp import GRASP_CLEARANCE, grasp_point
+from tasks.scene import Scene, SceneObject
+from tasks.serialize import spec_from_json, spec_to_json
+from tasks.specs import Grasp
+
+CUP = SceneObject(name="cup", shape="cylinder", size=(0.04, 0.1), position=(0.52, -0.2, 0.77), aliases=("杯子",),
+                  movable=True, mass=0.25, colour=(0.85, 0.1, 0.1, 1.0))
+TABLE = SceneObject(name="table", shape="box", size=(0.6, 1.0, 0.72), position=(0.75, 0.0, 0.36), aliases=("桌子",))
+NEAR = Scene(name="a cup within reach", objects=(TABLE, CUP))
+
+
+@pytest.fixture(scope="module")
+def talos():
+    return load_robot("talos")
+
+
+@pytest.fixture(scope="module")
+def spec(talos):
+    return compile_actions([Action(name="pick_up", params={"object": "the cup", "height": 0.12})], talos, scene=NEAR)
+
+
+def test_pick_up_writes_approach_grasp_lift_hold_and_the_grasp(spec, talos):
+    """Four phases named after the cup, one Grasp of the right hand (the cup is on the right) from the
+    grasp phase on, lifting 0.12 m, held to the end of the motion; the spec round-trips through JSON."""
+    names = [p.name.split(": ")[-1] for p in spec.phases]
+    assert names[1:5] == ["approach the cup", "grasp the cup", "lift the cup", "hold the cup"]
+    (g,) = spec.grasps
+    assert (g.object, g.frame, g.lift, g.end) == ("cup", talos.frame("right_hand"), 0.12, None)
+    starts = dict(zip(names, spec.phase_start_times(), strict=False))
+    assert g.start == pytest.approx(starts["grasp the cup"], abs=0.2)
+    assert spec_from_json(spec_to_json(spec)) == spec
+
+
+def test_the_held_cup_sits_between_the_fingertips(spec, talos):
+    """At the grasp target, with the hand in its target orientation, the cup's grasp point is the mean
+    of the talos fingertip frames (Pinocchio, standing posture), and the grasp's offset carries the
+    cup's centre there; the lift target is the grasp target raised by the height."""
+    model, data = talos.model, talos.data()
+    pin.framesForwardKinematics(model, data, talos.q_standing)
+    hand = data.oMf[talos.frame_id("right_hand")]
+    tips = [data.oMf[f].translation for f, fr in enumerate(model.frames) if fr.name.startswith("gripper_right_fingertip")]
+    tips_in_hand = hand.actInv(np.mean(tips, axis=0))
+    at = next(t for t in spec.targets if t.name.endswith("right hand at the cup"))
+    lift = next(t for t in spec.targets if t.name.endswith("right hand lifts the cup"))
+    R = pin.rpy.rpyToMatrix(*at.rpy)
+    point = np.asarray(at.position) + R @ tips_in_hand
+    np.testing.assert_allclose(point, grasp_point(talos, "right", CUP), atol=1e-9)
+    (g,) = spec.grasps
+    np.testing.assert_allclose(np.asarray(at.position) + R @ np.asarray(g.offset), CUP.position, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(lift.position) - np.asarray(at.position), [0, 0, 0.12], atol=1e-9)
+    # the fingers stay above the table: the grasp point is raised from the cup's centre
+    assert point[2] > CUP.position[2] and point[2] <= CUP.position[2] + 0.05 + 1e-9
+    assert GRASP_CLEARANCE > 0
+
+
+def test_held_target_lasts_to_the_end_of_the_motion(spec):
+    """The lift target is held until the end of the motion (nothing moves the arm after it)."""
+    lift = next(t for t in spec.targets if t.name.endswith("right hand lifts the cup"))
+    assert lift.window is not None and lift.window[1] == pytest.approx(spec.horizon)
+
+
+def test_pick_up_refusals(talos):
+    """A fixed object and one out of reach are refused in task terms."""
+    with pytest.raises(TaskDefinitionError, match="fixed in the scene"):
+        compile_actions([Action(name="pick_up", params={"object": "the table"})], talos, scene=NEAR)
+    far = Scene(objects=(TABLE, SceneObject(name="cup", shape="cylinder", size=(0.04, 0.1), position=(1.0, 0.0, 0.77),
+                                            movable=True, mass=0.25)))
+    with pytest.raises(TaskDefinitionError, match=r"beyond the right hand's reach.*walk to it first"):
+        compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "right"})], talos, scene=far)
+
+
+def test_grasp_spec_validation():
+    """A grasp names a movable object of the scene and does not overlap another on the same hand."""
+    from tasks.specs import Phase, TaskSpec
+
+    g = Grasp(name="g", object="cup", frame="gripper_right_base_link", offset=(0.0, 0.0, -0.1), start=0.5)
+    TaskSpec(phases=(Phase(name="p", duration=2.0),), scene=NEAR, grasps=(g,))
+    with pytest.raises(TaskDefinitionError, match="no object 'mug'"):
+        TaskSpec(phases=(Phase(name="p", duration=2.0),), scene=NEAR,
+                 grasps=(Grasp(name="g", object="mug", frame="f", offset=(0.0, 0.0, 0.0), start=0.5),))
+    with pytest.raises(TaskDefinitionError, match="fixed to the world"):
+        TaskSpec(phases=(Phase(name="p", duration=2.0),), scene=NEAR,
+                 grasps=(Grasp(name="g", object="table", frame="f", offset=(0.0, 0.0, 0.0), start=0.5),))
+    with pytest.raises(TaskDefinitionError, match="overlap"):
+        TaskSpec(phases=(Phase(name="p", duration=2.0),), scene=NEAR,
+                 grasps=(g, Grasp(name="h", object="cup", frame="f", offset=(0.0, 0.0, 0.0), start=1.0)))
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("pick up the cup", [("pick_up", "the cup")]),
+    ("拿起那个杯子", [("pick_up", "那个杯子")]),
+    ("捡起杯子", [("pick_up", "杯子")]),
+    ("walk to the cup and pick it up", [("walk_to", "the cup"), ("pick_up", "the cup")]),
+    ("walk over and pick up the cup", [("walk_to", "the cup"), ("pick_up", "the cup")]),
+    ("走过去拿起那个杯子", [("walk_to", "那个杯子"), ("pick_up", "那个杯子")]),
+])
+def test_pick_up_sentences(text, expected):
+    """The seed sentence and its twins parse to walk_to + pick_up with the same reference."""
+    plan = parse(text)
+    assert [(a.name, a.params["object"]) for a in plan.actions] == expected
+
+
+def test_pick_up_height_and_hand_from_the_sentence():
+    """A height and a hand are slots of pick_up; "it" with no object before it is refused."""
+    (a,) = parse("pick up the cup 20 cm with your left hand").actions
+    assert (a.params["height"], a.params["arm"]) == (pytest.approx(0.2), "left")
+    from language.exceptions import InvalidParameter
+
+    with pytest.raises(InvalidParameter, match='"it": no object was named before it'):
+        parse("pick it up")
