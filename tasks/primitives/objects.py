@@ -24,6 +24,7 @@ and where the robot stands when the action starts), resolved by
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -39,12 +40,14 @@ from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_tar
 from tasks.primitives.bodymap import body_map, to_standing
 from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
 from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_axis
+from tasks.primitives.route import clearance_radius, plan_route, segment_clear
 from tasks.scene import SceneObject, extent, signed_distance
 from tasks.specs import Phase
 
 WALK_MARGIN = 0.1  # [m] clearance between the body's front and the object it stops at (room for the arms)
 WALK_MIN = 0.05  # [m] a shorter walk is not taken (already there)
 TURN_MIN = 0.05  # [rad] a smaller turn is not taken (already facing it)
+ROUTE_SLACK = 0.03  # [m] a route ends where the target is this much within reach (the legs round off small turns)
 WALK_MAX = 10.0  # [m] the registry's longest walk
 STAND_TIME = 1.0  # [s] walk_to when the robot is already there
 END_TOLERANCE = 0.02  # [m] CoM over the final feet
@@ -92,20 +95,45 @@ def body_front(robot: Robot, z_range: tuple[float, float]) -> tuple[float, float
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class WalkPlan:
-    """Where ``walk_to`` goes: a turn, a straight walk, the object it stops at.
+class Leg:
+    """One leg of a walk: turn in place, then walk straight forward.
 
     Attributes:
-        angle: Turn in place first [rad] (left positive; 0: none).
+        angle: Turn first [rad] (left positive; 0: none).
         distance: Then walk forward [m] (0: none).
-        stop: The object whose margin ends the walk (the target or one in the way).
-        reach_gap: Shoulder to the target's surface at the end, minus the arm's reach [m] (<= 0).
     """
 
     angle: float
     distance: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WalkPlan:
+    """Where ``walk_to`` goes: legs (turn, straight walk) along a route, the object it stops at.
+
+    Attributes:
+        legs: The legs in order; the last one is the approach: facing the target's centre, forward
+            until the body's front is :data:`WALK_MARGIN` from the first object ahead.
+        stop: The object whose margin ends the walk (the target or one in the way).
+        reach_gap: Shoulder to the target's surface at the end, minus the arm's reach [m] (<= 0).
+        waypoints: (x, y) of the point between the feet where each leg starts, then where the walk
+            ends [m] (the route around the objects in the way; two points for a straight walk).
+    """
+
+    legs: tuple[Leg, ...]
     stop: SceneObject
     reach_gap: float
+    waypoints: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def angle(self) -> float:
+        """The first turn [rad]."""
+        return self.legs[0].angle
+
+    @property
+    def distance(self) -> float:
+        """The distance walked [m]."""
+        return sum(leg.distance for leg in self.legs)
 
 
 def reach_gaps(robot: Robot, obj: SceneObject, mid: np.ndarray, yaw: float) -> dict[str, float]:
@@ -129,19 +157,21 @@ def _surface_gap(obj: SceneObject, point: np.ndarray) -> float:
     return float(np.linalg.norm(point - np.asarray(obj.position))) if d is None else d
 
 
-def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
-    """The turn and the straight walk that bring the robot facing ``g.obj`` within reach.
+@dataclass(frozen=True, slots=True)
+class _Straight:
+    """The straight approach from a point: the walk (or why not), the object it stops at."""
 
-    Raises:
-        TaskDefinitionError: the robot stands inside the object's footprint, the object is farther
-            than :data:`WALK_MAX`, or it is out of reach from where the walk has to stop (an object
-            in the way, named, or the object itself too low, high or deep).
-    """
-    target = g.obj
-    start = _start(g, robot)
-    H = start.heading()
-    p0 = np.asarray(H.translation[:2], dtype=float)
-    yaw0 = _yaw(start)
+    yaw: float  # facing the target's centre [rad]
+    distance: float  # [m]
+    stop: SceneObject
+    gap: float  # reach gap at the end [m]
+    error: str  # "" when the approach ends within reach
+
+
+def _straight(robot: Robot, target: SceneObject, objects: tuple[SceneObject, ...], p0: np.ndarray,
+              slack: float = 0.0) -> _Straight:
+    """Face the target's centre from ``p0`` (x, y) and walk until the body's front is the margin
+    from the first object ahead (the target or another); within reach means a gap <= -``slack``."""
     to = np.asarray(target.position[:2], dtype=float) - p0
     if float(np.linalg.norm(to)) < 1e-6:
         raise TaskDefinitionError(f"walk_to: the robot stands on the {target.name}'s centre; nowhere to walk")
@@ -149,33 +179,92 @@ def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
     n = np.array([-u[1], u[0]])
     yaw = math.atan2(u[1], u[0])
     stop_at, stop_obj = math.inf, target
-    for obj in g.scene.objects:
+    for obj in objects:
         lo, hi = extent(obj)
         corners = np.array([(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]) - p0
         along, across = corners @ u, corners @ n
         front, half = body_front(robot, (lo[2], hi[2]))
-        if float(along.min()) <= 0.0 or float(across.max()) < -(half + WALK_MARGIN) or float(across.min()) > half + WALK_MARGIN:
-            continue  # beside, behind or off the path
+        if float(along.max()) <= 0.0 or float(across.max()) < -(half + WALK_MARGIN) or float(across.min()) > half + WALK_MARGIN:
+            continue  # behind or beside the path (one reaching into the path from behind blocks it)
         s = float(along.min()) - WALK_MARGIN - front
         if s < stop_at:
             stop_at, stop_obj = s, obj
     distance = max(0.0, stop_at if math.isfinite(stop_at) else 0.0)
-    if distance > WALK_MAX:
-        raise TaskDefinitionError(f"walk_to: the {target.name} is {distance:.1f} m away; walk_to walks at most {WALK_MAX:g} m")
-    mid = p0 + distance * u
-    best = min(reach_gaps(robot, target, mid, yaw).values())
-    if best > 1e-9:
+    best = min(reach_gaps(robot, target, p0 + distance * u, yaw).values())
+    error = ""
+    if best > 1e-9 - slack:
         if stop_obj is not target:
-            raise TaskDefinitionError(
-                f"walk_to: the {stop_obj.name} is in the way to the {target.name} (wbmp walks in a straight line): "
-                f"stopping {WALK_MARGIN:g} m before it leaves the {target.name} {best:.2f} m beyond the arm's reach; "
-                f"move the {stop_obj.name} or the {target.name} in the scene")
-        raise TaskDefinitionError(
-            f"walk_to: the {target.name} is out of reach from any stance {WALK_MARGIN:g} m away from it: its nearest "
-            f"point is {best:.2f} m beyond the arm's reach (too low, too high or too deep)")
-    angle = _wrap(yaw - yaw0)
-    return WalkPlan(angle=angle if abs(angle) >= TURN_MIN else 0.0, distance=distance if distance >= WALK_MIN else 0.0,
-                    stop=stop_obj, reach_gap=best)
+            error = (f"walk_to: the {stop_obj.name} is in the way to the {target.name}: stopping {WALK_MARGIN:g} m "
+                     f"before it leaves the {target.name} {best:.2f} m beyond the arm's reach")
+        else:
+            error = (f"walk_to: the {target.name} is out of reach from any stance {WALK_MARGIN:g} m away from it: its "
+                     f"nearest point is {best:.2f} m beyond the arm's reach (too low, too high or too deep)")
+    elif distance > WALK_MAX:
+        error = f"walk_to: the {target.name} is {distance:.1f} m away; walk_to walks at most {WALK_MAX:g} m"
+    return _Straight(yaw=yaw, distance=distance, stop=stop_obj, gap=best, error=error)
+
+
+def _leg(angle: float, distance: float) -> Leg:
+    return Leg(angle=angle if abs(angle) >= TURN_MIN else 0.0, distance=distance if distance >= WALK_MIN else 0.0)
+
+
+def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
+    """The legs that bring the robot facing ``g.obj`` within reach (see :func:`_walk_plan`; the
+    route is searched once per robot, object, scene and start)."""
+    return _walk_plan(robot, g)
+
+
+@functools.lru_cache(maxsize=64)
+def _walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
+    """The legs that bring the robot facing ``g.obj`` within reach: one straight walk when nothing
+    is in the way, else a route around the objects (:func:`tasks.primitives.route.plan_route`)
+    followed by the straight approach.
+
+    Raises:
+        TaskDefinitionError: the robot stands on the object's centre, the object is farther than
+            :data:`WALK_MAX` in a straight line, or out of reach from where a walk towards it stops.
+        SceneConflict: the object is enclosed by others (named), or no place around it is within reach.
+    """
+    target = g.obj
+    start = _start(g, robot)
+    p0 = np.asarray(start.heading().translation[:2], dtype=float)
+    yaw0 = _yaw(start)
+    straight = _straight(robot, target, g.scene.objects, p0)
+    if not straight.error or straight.stop is target:
+        if straight.error:
+            raise TaskDefinitionError(straight.error)
+        end = p0 + straight.distance * np.array([math.cos(straight.yaw), math.sin(straight.yaw)])
+        return WalkPlan(legs=(_leg(_wrap(straight.yaw - yaw0), straight.distance),), stop=straight.stop,
+                        reach_gap=straight.gap, waypoints=((float(p0[0]), float(p0[1])), (float(end[0]), float(end[1]))))
+    # something is in the way: route around it to a place from which the straight approach works
+    objects = g.scene.objects
+    radii = [clearance_radius(robot, o) for o in objects]
+    route = plan_route(p0, target, objects, radii,
+                       lambda xy: _straight(robot, target, objects, xy, ROUTE_SLACK).error)
+    legs: list[Leg] = []
+    p, yaw = p0.copy(), yaw0
+    points = [tuple(p0)]
+    for w in route.waypoints[1:]:
+        d = np.asarray(w) - p
+        dist = float(np.linalg.norm(d))
+        if dist < WALK_MIN:
+            continue
+        leg = _leg(_wrap(math.atan2(d[1], d[0]) - yaw), dist)
+        ahead = p + leg.distance * np.array([math.cos(yaw + leg.angle), math.sin(yaw + leg.angle)])
+        if leg.angle == 0.0 and not segment_clear(p, ahead, objects, radii):
+            leg = Leg(angle=_wrap(math.atan2(d[1], d[0]) - yaw), distance=leg.distance)  # the small turn matters here
+        yaw += leg.angle
+        p = p + leg.distance * np.array([math.cos(yaw), math.sin(yaw)])
+        legs.append(leg)
+        points.append(tuple(p))
+    last = _straight(robot, target, objects, p)
+    if last.error:  # pragma: no cover - the route ends where the approach was accepted
+        raise TaskDefinitionError(last.error)
+    legs.append(_leg(_wrap(last.yaw - yaw), last.distance))
+    yaw += legs[-1].angle
+    points.append(tuple(p + legs[-1].distance * np.array([math.cos(yaw), math.sin(yaw)])))
+    return WalkPlan(legs=tuple(legs), stop=last.stop, reach_gap=last.gap,
+                    waypoints=tuple((float(x), float(y)) for x, y in points))
 
 
 def _walk_sequences(robot: Robot, g: Grounded) -> list[ContactSequence]:
@@ -183,12 +272,16 @@ def _walk_sequences(robot: Robot, g: Grounded) -> list[ContactSequence]:
     start = _start(g, robot)
     left, right = start.left, start.right
     out = []
-    if plan.angle:
-        seq = turn(robot, plan.angle, left=left, right=right)
-        out.append(seq)
-        left, right = seq.left, seq.right
-    if plan.distance:
-        out.append(walk(robot, plan.distance, "forward", left=left, right=right))
+    for i, leg in enumerate(plan.legs):
+        label = f"leg {i + 1}: " if len(plan.legs) > 1 else ""
+        if leg.angle:
+            seq = turn(robot, leg.angle, left=left, right=right, label=label)
+            out.append(seq)
+            left, right = seq.left, seq.right
+        if leg.distance:
+            seq = walk(robot, leg.distance, "forward", left=left, right=right, label=label)
+            out.append(seq)
+            left, right = seq.left, seq.right
     return out
 
 
