@@ -31,7 +31,9 @@ the margin get rows and the NLP is solved again.
 
 Planned contacts are not collisions: a contact whose placement lies on the top face of an object
 (a foot standing on a box) excludes the spheres of the links on its frame's joint from that object
-while it is active (and :data:`CONTACT_PADDING` knots around). The floor is not an object.
+while it is active (and :data:`CONTACT_PADDING` knots around); a frame target that touches an object
+(``FrameTarget.touch``) excludes the spheres of its frame's joint and the joints below it from that
+object over the target's knots (and as many around). The floor is not an object.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ import pinocchio as pin
 from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
-from planner.trajopt.layout import Layout, Term
+from planner.trajopt.layout import Layout, Term, knots_of
 from planner.trajopt.settings import PlannerSettings
 from robots.collision import body_part
 from robots.model import Robot
@@ -210,6 +212,16 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
                 if on_top(objects[ob.name], M.translation):
                     lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
                     out[lo:hi + 1, sphere_joint == joint, oi] = True
+    for target in lay.spec.targets:  # a hand touching an object (touch_object)
+        if target.touch is None:
+            continue
+        joint = model.frames[lay.robot.frame_id(target.frame)].parentJoint
+        subtree = np.isin(sphere_joint, list(model.subtrees[joint]))
+        ks = knots_of(lay.t, target.time, target.window, lay.N)
+        lo, hi = max(0, min(ks) - CONTACT_PADDING), min(lay.N, max(ks) + CONTACT_PADDING)
+        for oi, ob in enumerate(obs):
+            if ob.name == target.touch:
+                out[lo:hi + 1, subtree, oi] = True
     return out
 
 

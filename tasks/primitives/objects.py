@@ -1,18 +1,21 @@
 """Actions on scene objects that need no grasp: ``walk_to(object)``, ``look_at(object, duration)``,
-``point_at(object, arm, duration)``.
+``point_at(object, arm, duration)``, ``touch_object(object, hand, duration)``.
 
 The ``object`` parameter arrives grounded (:class:`tasks.grounding.Grounded`: the object, its scene
 and where the robot stands when the action starts), resolved by
 :func:`tasks.compose.compile_actions` from the words of the sentence.
 
-- ``walk_to``: turn in place to face the object's centre, then walk straight towards it and stop
+- ``walk_to``: when an object is in the straight line, first walk a route around it
+  (:mod:`tasks.primitives.route`: straight legs, a turn in place before each, the body kept
+  ``ROUTE_MARGIN`` from every object) to the nearest place from which the straight approach below
+  ends within reach; an enclosed object is refused naming what encloses it (exit 4). The approach:
+  turn in place to face the object's centre, then walk straight towards it and stop
   when the front of the body (its collision geometry at the height of the object, measured by
   :func:`tasks.primitives.bodymap.body_map`) is :data:`WALK_MARGIN` from the first object in the
   way, the target itself or another one (a cup on a table: the table's edge). From there the
   object's nearest point must be within a hand's reach (``REACH_FRACTION`` of the arm from the
   shoulder, bending up to ``BEND_MAX`` at the hips: :func:`tasks.primitives.arms.reach_gap`);
-  otherwise the walk is refused, naming the object in the way (wbmp walks in straight lines only)
-  or the distance that remains. The footsteps are :mod:`tasks.footsteps`' turn and walk.
+  otherwise the walk is refused with the distance that remains. The footsteps are :mod:`tasks.footsteps`' turn and walk.
 - ``look_at``: the head frame turned by the yaw and the pitch that point its forward axis at the
   object's centre (HARD orientation target, :data:`LOOK_TOLERANCE`), held, then forward again;
   robots without a neck (g1) and angles beyond the neck's range are refused.
@@ -20,6 +23,11 @@ and where the robot stands when the action starts), resolved by
   ``OUT_REACH`` of the arm out (less when an object is closer: the hand stays
   :data:`POINT_CLEARANCE` clear of every object), held, then back to rest; by default the arm on
   the object's side.
+- ``touch_object``: the hand out to the object's surface point nearest to the shoulder (within reach
+  bending at the hips, else refused: walk to it first), its frame back from that point by the
+  hand's extent in front of it less :data:`TOUCH_DEPTH`, held, then back to rest. The target names
+  the object (``FrameTarget.touch``): a planned contact, which the planner's scene rows, the
+  pre-check and the certificate's scene-collision line leave out for that hand and object.
 """
 
 from __future__ import annotations
@@ -41,7 +49,7 @@ from tasks.primitives.bodymap import body_map, to_standing
 from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
 from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_axis
 from tasks.primitives.route import clearance_radius, plan_route, segment_clear
-from tasks.scene import SceneObject, extent, signed_distance
+from tasks.scene import SceneObject, extent, rotation, signed_distance
 from tasks.specs import Phase
 
 WALK_MARGIN = 0.1  # [m] clearance between the body's front and the object it stops at (room for the arms)
@@ -54,6 +62,7 @@ END_TOLERANCE = 0.02  # [m] CoM over the final feet
 LOOK_TOLERANCE = 0.05  # [rad] head orientation
 POINT_CLEARANCE = 0.1  # [m] pointing hand to any object
 POINT_MIN = 0.5  # [L] a hand closer than this fraction of the arm to the shoulder is no pointing
+TOUCH_DEPTH = 0.01  # [m] the hand's box this far into the touched surface (the box bounds the hand: it touches)
 BEHIND = math.radians(100)  # an object farther than this from the heading cannot be pointed or looked at
 
 LEG_PARTS = frozenset({"legs", "com"})
@@ -146,7 +155,8 @@ def reach_gaps(robot: Robot, obj: SceneObject, mid: np.ndarray, yaw: float) -> d
     for side in ("left", "right"):
         p = shoulder(robot, side)
         world = np.array([mid[0] + c * p[0] - s * p[1], mid[1] + s * p[0] + c * p[1], p[2]])
-        near = np.clip(world, lo, hi) - np.array([mid[0], mid[1], 0.0])
+        surface = np.clip(world, lo, hi) if obj.shape == "mesh" else nearest_surface_point(obj, world)
+        near = surface - np.array([mid[0], mid[1], 0.0])
         local = np.array([c * near[0] + s * near[1], -s * near[0] + c * near[1], near[2]])
         out[side] = reach_gap(robot, side, local, bend=True)
     return out
@@ -168,6 +178,25 @@ class _Straight:
     error: str  # "" when the approach ends within reach
 
 
+def _clip_strip(polygon: np.ndarray, w: float) -> np.ndarray:
+    """The part of a convex polygon (k, 2) of (along, across) points with ``|across| <= w`` (its vertices)."""
+    for sign in (1.0, -1.0):
+        out = []
+        k = len(polygon)
+        for i in range(k):
+            a, b = polygon[i], polygon[(i + 1) % k]
+            ina, inb = sign * a[1] <= w, sign * b[1] <= w
+            if ina:
+                out.append(a)
+            if ina != inb:
+                t = (sign * w - a[1]) / (b[1] - a[1])
+                out.append(a + t * (b - a))
+        polygon = np.array(out).reshape(-1, 2)
+        if len(polygon) == 0:
+            break
+    return polygon
+
+
 def _straight(robot: Robot, target: SceneObject, objects: tuple[SceneObject, ...], p0: np.ndarray,
               slack: float = 0.0) -> _Straight:
     """Face the target's centre from ``p0`` (x, y) and walk until the body's front is the margin
@@ -181,12 +210,12 @@ def _straight(robot: Robot, target: SceneObject, objects: tuple[SceneObject, ...
     stop_at, stop_obj = math.inf, target
     for obj in objects:
         lo, hi = extent(obj)
-        corners = np.array([(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]) - p0
-        along, across = corners @ u, corners @ n
         front, half = body_front(robot, (lo[2], hi[2]))
-        if float(along.max()) <= 0.0 or float(across.max()) < -(half + WALK_MARGIN) or float(across.min()) > half + WALK_MARGIN:
-            continue  # behind or beside the path (one reaching into the path from behind blocks it)
-        s = float(along.min()) - WALK_MARGIN - front
+        corners = np.array([(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]) - p0
+        inside = _clip_strip(np.stack([corners @ u, corners @ n], axis=1), half + WALK_MARGIN)
+        if len(inside) == 0 or float(inside[:, 0].max()) <= 0.0:
+            continue  # beside or behind the path
+        s = float(inside[:, 0].min()) - WALK_MARGIN - front
         if s < stop_at:
             stop_at, stop_obj = s, obj
     distance = max(0.0, stop_at if math.isfinite(stop_at) else 0.0)
@@ -428,6 +457,87 @@ def _hold_duration(params: dict, robot: Robot) -> float:
     return float(params["duration"])
 
 
+# --- touch_object -------------------------------------------------------------------------
+def nearest_surface_point(obj: SceneObject, point: np.ndarray) -> np.ndarray:
+    """The point of ``obj``'s surface nearest to a world point outside it (3,) [m] (box, cylinder, sphere)."""
+    R = np.array(rotation(obj.rpy))
+    c = np.asarray(obj.position, dtype=float)
+    local = R.T @ (np.asarray(point, dtype=float) - c)
+    if obj.shape == "sphere":
+        return c + obj.size[0] * (point - c) / max(float(np.linalg.norm(point - c)), 1e-12)
+    if obj.shape == "box":
+        half = np.asarray(obj.size) / 2
+        q = np.clip(local, -half, half)
+    elif obj.shape == "cylinder":
+        radius, length = obj.size
+        rxy = math.hypot(local[0], local[1])
+        scale = min(1.0, radius / rxy) if rxy > 0 else 1.0
+        q = np.array([local[0] * scale, local[1] * scale, float(np.clip(local[2], -length / 2, length / 2))])
+    else:
+        raise TaskDefinitionError(f"touch_object: the {obj.name} is a mesh; wbmp touches boxes, cylinders and spheres")
+    return c + R @ q
+
+
+def touching_hand(params: dict, robot: Robot, stance: Stance | None = None) -> str:
+    """The hand that touches: the stated one, else the one nearer to the object (the smaller reach gap)."""
+    if params.get("hand"):
+        return str(params["hand"])
+    g = grounded(params, "touch_object")
+    st = stance if stance is not None else _start(g, robot)
+    gaps = reach_gaps(robot, g.obj, np.asarray(st.heading().translation[:2], dtype=float), _yaw(st))
+    return min(("left", "right"), key=lambda side: gaps[side])
+
+
+def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """(point touched on the object's surface, hand frame target) in the world [m]: the surface point
+    nearest to the shoulder, the hand frame back from it along the shoulder-to-point line by the
+    hand's extent in front of its frame less :data:`TOUCH_DEPTH` (the hand's box just into the surface).
+
+    Raises:
+        TaskDefinitionError: the point is beyond the hand's reach even bending at the hips (walk to
+            the object first), or the object is a mesh.
+    """
+    T = stance.transform_from_standing(robot)
+    H = stance.heading()
+    sh = np.asarray(T.act(to_standing(robot, shoulder(robot, side))), dtype=float)
+    surface = nearest_surface_point(obj, sh)
+    gap = reach_gap(robot, side, np.asarray(H.actInv(surface), dtype=float), bend=True)
+    if gap > 1e-9:
+        raise TaskDefinitionError(
+            f"touch_object: the {obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
+            f'stands: walk to it first ("walk to the {obj.name} and touch it")')
+    u = (surface - sh) / np.linalg.norm(surface - sh)
+    front = body_map(robot).hand_back(side, -(H.rotation.T @ u))
+    return surface, surface - (front - TOUCH_DEPTH) * u
+
+
+def _touch_check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "touch_object")
+    if g.start is None:
+        return  # where the robot stands is not known yet (after a walk): checked when it is
+    touch_target(robot, g.start, g.obj, touching_hand(params, robot, g.start))
+
+
+def build_touch_object(b: FragmentBuilder) -> Fragment:
+    """The hand out to the object's surface, held there (a planned contact), back to rest."""
+    g = grounded(b.params, "touch_object")
+    side = touching_hand(b.params, b.robot, b.stance)
+    _, hand = touch_target(b.robot, b.stance, g.obj, side)
+    T = b.params["duration"]
+    b.frame_target(f"{side} hand touching the {g.obj.name}", f"{side}_hand", position=tuple(float(x) for x in hand),
+                   window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=POSE_TOLERANCE, touch=g.obj.name)
+    rest_targets(b, [f"{side}_hand"], tau=T)
+    b.phase(f"touch the {g.obj.name}", T)
+    return b.finish(frozenset({f"{side}_arm"}))
+
+
+def _touch_parts(params: dict) -> frozenset[str]:
+    hand = params.get("hand")
+    if hand:
+        return frozenset({f"{hand}_arm"})
+    return frozenset({"left_arm", "right_arm"})  # the hand is chosen where the robot stands: claim both
+
+
 WALK_TO = Primitive(name="walk_to", nominal_duration=_walk_duration, build=build_walk_to, parts=lambda p: LEG_PARTS,
                     check=_walk_check, dynamic=True)
 LOOK_AT = Primitive(name="look_at", nominal_duration=_hold_duration, build=build_look_at,
@@ -437,7 +547,10 @@ LOOK_AT = Primitive(name="look_at", nominal_duration=_hold_duration, build=build
 POINT_AT = Primitive(name="point_at", nominal_duration=_hold_duration, build=build_point_at, parts=_point_parts,
                      check=_point_check)
 
-PRIMITIVES = (WALK_TO, LOOK_AT, POINT_AT)
+TOUCH_OBJECT = Primitive(name="touch_object", nominal_duration=_hold_duration, build=build_touch_object,
+                         parts=_touch_parts, check=_touch_check)
+
+PRIMITIVES = (WALK_TO, LOOK_AT, POINT_AT, TOUCH_OBJECT)
 
 __all__ = [
     "LOOK_AT",
@@ -445,13 +558,18 @@ __all__ = [
     "POINT_AT",
     "POINT_CLEARANCE",
     "PRIMITIVES",
+    "TOUCH_DEPTH",
+    "TOUCH_OBJECT",
     "WALK_MARGIN",
     "WALK_TO",
     "WalkPlan",
     "body_front",
     "grounded",
     "look_rotation",
+    "nearest_surface_point",
     "point_target",
     "pointing_arm",
+    "touch_target",
+    "touching_hand",
     "walk_plan",
 ]
