@@ -45,7 +45,7 @@ from tasks.footsteps import ContactSequence, turn, walk
 from tasks.grounding import Grounded, ground
 from tasks.primitives.arms import OUT_REACH, POSE_TOLERANCE, arm_length, reach_gap, shoulder
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
-from tasks.primitives.bodymap import body_map, to_standing
+from tasks.primitives.bodymap import body_map, to_heading, to_standing
 from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
 from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_axis
 from tasks.primitives.route import clearance_radius, plan_route, segment_clear
@@ -62,7 +62,8 @@ END_TOLERANCE = 0.02  # [m] CoM over the final feet
 LOOK_TOLERANCE = 0.05  # [rad] head orientation
 POINT_CLEARANCE = 0.1  # [m] pointing hand to any object
 POINT_MIN = 0.5  # [L] a hand closer than this fraction of the arm to the shoulder is no pointing
-TOUCH_DEPTH = 0.01  # [m] the hand's box this far into the touched surface (the box bounds the hand: it touches)
+TOUCH_DEPTH = 0.02  # [m] the hand's meshes (standing orientation) this far into the touched surface
+TOUCH_TOLERANCE = 0.005  # [m] hand frame to its touch target
 BEHIND = math.radians(100)  # an object farther than this from the heading cannot be pointed or looked at
 
 LEG_PARTS = frozenset({"legs", "com"})
@@ -507,8 +508,37 @@ def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> t
             f"touch_object: the {obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
             f'stands: walk to it first ("walk to the {obj.name} and touch it")')
     u = (surface - sh) / np.linalg.norm(surface - sh)
-    front = body_map(robot).hand_back(side, -(H.rotation.T @ u))
+    front = hand_front(robot, side, H.rotation.T @ u)
     return surface, surface - (front - TOUCH_DEPTH) * u
+
+
+@functools.cache
+def _hand_vertices(robot: Robot, side: str) -> np.ndarray:
+    """Vertices (n, 3) of the ``side`` hand's collision meshes at the standing posture, heading
+    frame, relative to the hand frame [m] (the corners of the box of a primitive shape)."""
+    bm = body_map(robot)
+    cm = robot.collision_model
+    points = []
+    for i in bm.hand_geometries[side]:
+        geometry = cm.geometryObjects[i].geometry
+        M = bm.placements[i]
+        if hasattr(geometry, "vertices") and geometry.num_vertices:
+            local = np.asarray(geometry.vertices(), dtype=float)
+            points.append(np.array([to_heading(robot, M.act(v)) for v in local[:: max(1, len(local) // 400)]]))
+        else:
+            points.append(np.array([to_heading(robot, M.act(c)) for c in _box_corners(bm, i)]))
+    return np.concatenate(points) - bm.hand_position[side]
+
+
+def _box_corners(bm, i: int) -> np.ndarray:  # pragma: no cover - the robots' hands are meshes
+    b = bm.boxes[i]
+    return np.array([(x, y, z) for x in (b.lo[0], b.hi[0]) for y in (b.lo[1], b.hi[1]) for z in (b.lo[2], b.hi[2])])
+
+
+def hand_front(robot: Robot, side: str, u: np.ndarray) -> float:
+    """How far the ``side`` hand's collision meshes reach from its frame along ``u`` (heading frame,
+    standing orientation) [m]."""
+    return float(max(0.0, float((_hand_vertices(robot, side) @ np.asarray(u, dtype=float)).max())))
 
 
 def _touch_check(params: dict, robot: Robot) -> None:
@@ -525,7 +555,7 @@ def build_touch_object(b: FragmentBuilder) -> Fragment:
     _, hand = touch_target(b.robot, b.stance, g.obj, side)
     T = b.params["duration"]
     b.frame_target(f"{side} hand touching the {g.obj.name}", f"{side}_hand", position=tuple(float(x) for x in hand),
-                   window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=POSE_TOLERANCE, touch=g.obj.name)
+                   window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=TOUCH_TOLERANCE, touch=g.obj.name)
     rest_targets(b, [f"{side}_hand"], tau=T)
     b.phase(f"touch the {g.obj.name}", T)
     return b.finish(frozenset({f"{side}_arm"}))
