@@ -38,12 +38,13 @@ def _run(sentence: str, robot_name: str, scene: Scene):
 @pytest.mark.slow
 def test_g1_walks_around_a_post_to_the_box_certified_in_mujoco():
     """The post stands in the straight line to the box: the footsteps go around it (every sole
-    placement 0.25 m from its footprint), and in MuJoCo nothing touches it or the box."""
+    frame more than 0.1 m from its footprint, the sole's half length), and in MuJoCo nothing
+    touches it or the box (the closest approach stays positive) and the certificate passes."""
     scene = Scene(name="a post in the way", objects=(POST, BOX))
     robot, spec, plan, execution = _run("walk to the box", "g1", scene)
     soles = [c.placement.position for p in spec.phases for c in p.contacts]
     assert len({p.name.split(": ")[1] for p in spec.phases if ": leg " in p.name}) >= 2  # a route, not a line
-    assert min(float(footprint_distance(POST, np.array(s[:2]))[0]) for s in soles) > 0.25
+    assert min(float(footprint_distance(POST, np.array(s[:2]))[0]) for s in soles) > 0.1
     cert = execution.certificate
     assert cert.ok, cert.reason
     (scene_check,) = [c for c in cert.checks if c.kind == CheckKind.SCENE_COLLISION]
