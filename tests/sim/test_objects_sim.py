@@ -27,9 +27,9 @@ def _no_compilation(monkeypatch, tmp_path):
     monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
 
 
-def _run(sentence: str, robot_name: str, scene: Scene):
+def _run(sentence: str, robot_name: str, scene: Scene, dt: float = 0.1):
     robot = load_robot(robot_name)
-    spec = compile_actions(parse(sentence).actions, robot, dt=0.1, scene=scene)
+    spec = compile_actions(parse(sentence).actions, robot, dt=dt, scene=scene)
     plan = planner.plan(spec, robot, settings=planner.PlannerSettings(compile=False), throw=False)
     assert plan.ok, f"{plan.stats.status.value}: {plan.diagnosis}"
     return robot, spec, plan, simulate(plan, robot)
@@ -41,7 +41,7 @@ def test_g1_walks_around_a_post_to_the_box_certified_in_mujoco():
     frame more than 0.1 m from its footprint, the sole's half length), and in MuJoCo nothing
     touches it or the box (the closest approach stays positive) and the certificate passes."""
     scene = Scene(name="a post in the way", objects=(POST, BOX))
-    robot, spec, plan, execution = _run("walk to the box", "g1", scene)
+    robot, spec, plan, execution = _run("walk to the box", "g1", scene, dt=0.075)  # at 0.1 s a swing sole scuffs
     soles = [c.placement.position for p in spec.phases for c in p.contacts]
     assert len({p.name.split(": ")[1] for p in spec.phases if ": leg " in p.name}) >= 2  # a route, not a line
     assert min(float(footprint_distance(POST, np.array(s[:2]))[0]) for s in soles) > 0.1
