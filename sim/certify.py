@@ -9,7 +9,7 @@ the spec's frame and CoM targets as measured in the simulation, self-collision a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -484,11 +484,39 @@ def self_collision_check(run: RunRecord) -> Check:
     )
 
 
+TOUCH_PADDING = 0.3  # [s] around a planned touch's time or window, its hand may touch its object
+
+
+def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
+    """Whether a robot-object contact is planned: a frame target of the spec touches ``obj``
+    (``FrameTarget.touch``) around that time (:data:`TOUCH_PADDING`), and ``link`` is the target
+    frame's link or one below it."""
+    model = run.robot.model
+    t = float(run.t[tick])
+    for target in run.ref.plan.spec.targets:
+        if target.touch != obj:
+            continue
+        start, end = target.window if target.window is not None else (target.time, target.time)
+        if start is None or end is None or not start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
+            continue
+        joint = model.frames[run.robot.frame_id(target.frame)].parentJoint
+        if model.existFrame(link) and model.frames[model.getFrameId(link)].parentJoint in model.subtrees[joint]:
+            return True
+    return False
+
+
 def scene_collision_check(run: RunRecord) -> Check:
-    """The robot's closest approach to a scene object, or its first contact with one (contacts
-    with objects are never planned yet: any fails). MuJoCo contacts at every tick, distances
-    from the samples."""
+    """The robot's closest approach to a scene object, or its first contact with one that is not
+    planned (a hand touching the object of a ``touch`` target in its window, :func:`planned_touch`,
+    is planned; any other fails). MuJoCo contacts at every tick, distances from the samples."""
     ts = run.t
+    touches = [c for c in run.scene_contacts if planned_touch(run, c[0], c[1], c[2])]
+    touched = ""
+    if touches:
+        tick, link, obj, _ = touches[0]
+        touched = f"; planned touch: {body_part(run.robot, link)} / {obj!r} at t = {ts[tick]:.2f} s"
+        run = replace(run, scene_contacts=tuple(c for c in run.scene_contacts if c not in touches),
+                      scene_samples=tuple(x for x in run.scene_samples if not planned_touch(run, *x[:3])))
     horizon = run.settings.scene_distance_horizon
     if not run.object_names:  # reported at the horizon: a finite number survives the JSON report
         return Check(
@@ -501,19 +529,19 @@ def scene_collision_check(run: RunRecord) -> Check:
         part = body_part(run.robot, link)
         subject = f"{part} / {obj!r}"
         return Check(
-            name=f"scene collision: {subject}", kind=CheckKind.SCENE_COLLISION, subject=subject,
+            name=f"scene collision: {subject}{touched}", kind=CheckKind.SCENE_COLLISION, subject=subject,
             value=_mm(min(deepest, 0.0)), limit=0.0, unit="mm", ok=False, time=float(ts[tick]), upper=False,
             message=f"{part} ({link}) touched {obj!r} at t = {ts[tick]:.2f} s "
             f"({_mm(-min(deepest, 0.0)):.0f} mm deep; no contact with an object is planned)",
         )
     if not run.scene_samples:
         return Check(
-            name=f"scene collision: no object within {horizon:g} m", kind=CheckKind.SCENE_COLLISION,
+            name=f"scene collision: no object within {horizon:g} m{touched}", kind=CheckKind.SCENE_COLLISION,
             value=_mm(horizon), limit=0.0, unit="mm", ok=True, time=0.0, upper=False,
         )
     tick, link, obj, dist = min(run.scene_samples, key=lambda x: x[3])
     subject = f"{body_part(run.robot, link)} / {obj!r}"
     return Check(
-        name=f"scene collision: {subject}", kind=CheckKind.SCENE_COLLISION, subject=subject,
+        name=f"scene collision: {subject}{touched}", kind=CheckKind.SCENE_COLLISION, subject=subject,
         value=_mm(dist), limit=0.0, unit="mm", ok=True, time=float(ts[tick]), upper=False,
     )

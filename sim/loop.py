@@ -23,7 +23,7 @@ from planner.wbc.kernel import kernel_ready
 from planner.wbc.reference import PlanReference
 from robots.model import Robot
 from sim.certificate import Certificate
-from sim.certify import certify
+from sim.certify import certify, planned_touch
 from sim.execution import Event, Execution
 from sim.grasp import WELD, GraspRig
 from sim.model import SimModel, build_model
@@ -231,7 +231,7 @@ def _run_events(run: RunRecord, torque_scale: float) -> list[Event]:
             events.append(Event(t_c, "unplanned_contact", f"{body} touched the floor"))
     seen_objects: set[tuple[str, str]] = set()
     for tick, link, obj, _ in run.scene_contacts:
-        if (link, obj) not in seen_objects:
+        if (link, obj) not in seen_objects and not planned_touch(run, tick, link, obj):
             seen_objects.add((link, obj))
             events.append(Event(float(run.t[tick]), "unplanned_contact", f"{link} touched {obj!r}"))
     return events

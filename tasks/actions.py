@@ -341,6 +341,13 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
                   description="time to point, hold and lower"),
         )),
+        ActionSchema(name="touch_object", summary="Touch an object of the scene with one hand (a planned contact).",
+                     body="upper", params=(
+            _object("the object to touch"),
+            _choice("hand", SIDES, None, "which hand touches (default: the one on the object's side)"),
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
+                  description="time to reach out, touch, hold and come back"),
+        )),
         ActionSchema(name="salute", summary="Raise a hand to the forehead in a salute.", body="upper", params=(
             _choice("arm", SIDES, "right", "which hand salutes"),
             Param(name="duration", kind="float", unit="s", default=2.5, minimum=1.0, maximum=30.0,
@@ -531,6 +538,13 @@ REGISTRY: dict[str, ActionSchema] = {
                      body="upper", params=(
             _object("the held object to put down"),
             _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
+        )),
+        ActionSchema(name="touch_object", summary="Touch an object of the scene with one hand (a planned contact).",
+                     body="upper", params=(
+            _object("the object to touch"),
+            _choice("hand", SIDES, None, "which hand touches (default: the one on the object's side)"),
+            Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
+                  description="time to reach out, touch, hold and come back"),
         )),
     )
 }

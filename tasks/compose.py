@@ -54,7 +54,7 @@ from tasks.primitives import (
     standing_geometry,
 )
 from tasks.primitives.base import fit_defaults
-from tasks.scene import Scene
+from tasks.scene import Scene, SceneObject
 from tasks.specs import (
     CoMBounds,
     CoMTarget,
@@ -316,15 +316,20 @@ def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
     return tuple(out)
 
 
+PRONOUNS = frozenset({"it", "this", "that", "this one", "that one", "它", "这个", "那个"})  # the object said before
+
+
 def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Action]:
     """The actions with every ``object`` reference resolved against ``scene``
-    (:class:`tasks.grounding.Grounded`; an action without one is kept as it is).
+    (:class:`tasks.grounding.Grounded`; an action without one is kept as it is). A pronoun
+    (:data:`PRONOUNS`: "walk to the box and touch **it**") names the object said before it.
 
     Raises:
         GroundingError: a reference and no scene, or one that names no object or several; the
             message names the action when there are several (``action 2 (point_at): ...``).
     """
     out = []
+    last: SceneObject | None = None  # the object said before: what "it" names
     for i, a in enumerate(actions):
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
@@ -333,9 +338,17 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
         params = dict(a.params)
         for key, ref in refs.items():
             if isinstance(ref, Grounded):
+                last = ref.obj
                 continue
             try:
-                obj = ground(ref, scene, action=a.name)
+                if isinstance(ref, str) and strip_reference(ref).lower() in PRONOUNS and scene is not None:
+                    if last is None:
+                        raise GroundingError(f'"{strip_reference(ref)}" names the object said before, but none was: '
+                                             'name it ("touch the box")', strip_reference(ref))
+                    obj = last
+                else:
+                    obj = ground(ref, scene, action=a.name)
+                last = obj
             except GroundingError as e:
                 where = _where(i, a, len(actions))
                 raise GroundingError(f"{where}{e}", e.reference, e.candidates) from None

@@ -30,7 +30,8 @@ class UnknownAction(TaskDefinitionError):
 
 
 class SceneConflict(TaskError):
-    """A hand target or a footstep lies inside a scene object: infeasible in that scene (exit 4).
+    """A hand target or a footstep lies inside a scene object, or ``walk_to`` finds no way to an
+    object (enclosed, or out of reach from every place around it): infeasible in that scene (exit 4).
 
     Attributes:
         object_name: The object's name.

@@ -320,7 +320,8 @@ def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
                         labels: Mapping[str, str] | None = None) -> None:
     """Refuse a spec whose hand targets or footsteps lie inside a scene object (or within ``margin``).
 
-    A frame target's position (every axis counted) closer than ``margin`` to an object, or a
+    A frame target's position (every axis counted) closer than ``margin`` to an object (but the one
+    it touches, ``touch``), or a
     contact whose placement (and, when ``contact_points`` gives them for its frame, the points
     ``(k, 3)`` in the contact frame, e.g. the sole corners), lifted by ``2 * margin`` along the
     contact normal (the foot above its sole), comes closer than ``margin`` to an object, raises :class:`~tasks.exceptions.SceneConflict` naming the object. A contact whose
@@ -348,7 +349,8 @@ def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
     for target in spec.targets:
         if target.position is None or not all(target.axes):
             continue
-        hit = closest_object(scene, target.position)
+        others = scene if target.touch is None else Scene(objects=tuple(o for o in scene.objects if o.name != target.touch))
+        hit = closest_object(others, target.position)
         if hit is not None and hit[1] < margin:
             obj, d = hit
             raise SceneConflict(

@@ -209,6 +209,9 @@ class FrameTarget:
         orientation_tolerance: Allowed orientation error [rad].
         priority: HARD (constraint) or SOFT (cost).
         weight: Cost weight for SOFT targets [1/m^2].
+        touch: Name of the scene object the frame touches there (a planned contact: the scene
+            collision checks leave that frame's link and its children out with that object over
+            the target's time or window); None: no contact.
     """
 
     name: str
@@ -222,6 +225,7 @@ class FrameTarget:
     orientation_tolerance: float = 0.05
     priority: Priority = Priority.HARD
     weight: float = 100.0
+    touch: str | None = None
 
     def __post_init__(self) -> None:
         _text("target", "name", self.name)
@@ -248,6 +252,10 @@ class FrameTarget:
         _nonneg(who, "weight", self.weight, hi=MAX_WEIGHT, unit="")
         if not isinstance(self.priority, Priority):
             raise TaskDefinitionError(f"{who}: priority must be 'hard' or 'soft'")
+        if self.touch is not None:
+            _text(who, "touch", self.touch)
+            if self.position is None:
+                raise TaskDefinitionError(f"{who}: a touch needs a position (the point on the object)")
 
 
 HandTarget = FrameTarget  # the name the design documents use for hand targets
@@ -486,6 +494,10 @@ class TaskSpec:
                 f"task spec: {len(items)} targets and bounds; wbmp plans at most {MAX_ITEMS} at a time: "
                 "split it into several specs"
             )
+        for ft in self.targets:
+            if ft.touch is not None and (self.scene is None or ft.touch not in {o.name for o in self.scene.objects}):
+                raise TaskDefinitionError(f"target {ft.name!r}: touch names {ft.touch!r}, which is no object of the "
+                                          "spec's scene (give the scene, or name one of its objects)")
         counts = Counter(t.name for t in items)
         dup = sorted(n for n, c in counts.items() if c > 1)
         if dup:

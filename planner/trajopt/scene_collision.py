@@ -31,7 +31,9 @@ the margin get rows and the NLP is solved again.
 
 Planned contacts are not collisions: a contact whose placement lies on the top face of an object
 (a foot standing on a box) excludes the spheres of the links on its frame's joint from that object
-while it is active (and :data:`CONTACT_PADDING` knots around). A grasp (:class:`tasks.specs.Grasp`)
+while it is active (and :data:`CONTACT_PADDING` knots around); a frame target that touches an object
+(``FrameTarget.touch``) excludes the spheres of its frame's joint and the joints below it from that
+object over the target's knots (and as many around). A grasp (:class:`tasks.specs.Grasp`)
 excludes the spheres of the hand (the links of its frame's joint and below) from the grasped object
 over the whole motion, and every sphere while the object is held (it moves with the hand; its rows
 would keep the robot away from where it stood). The floor is not an object.
@@ -50,7 +52,7 @@ import pinocchio as pin
 from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
-from planner.trajopt.layout import Layout, Term
+from planner.trajopt.layout import Layout, Term, knots_of
 from planner.trajopt.settings import PlannerSettings
 from robots.collision import body_part
 from robots.model import Robot
@@ -222,6 +224,16 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
             if ob.name == grasp.object:
                 out[:, hand, oi] = True  # the hand goes to the object: a planned contact
                 out[held, :, oi] = True  # held: the object moves with the hand, away from where it stood
+    for target in lay.spec.targets:  # a hand touching an object (touch_object)
+        if target.touch is None:
+            continue
+        joint = model.frames[lay.robot.frame_id(target.frame)].parentJoint
+        subtree = np.isin(sphere_joint, list(model.subtrees[joint]))
+        ks = knots_of(lay.t, target.time, target.window, lay.N)
+        lo, hi = max(0, min(ks) - CONTACT_PADDING), min(lay.N, max(ks) + CONTACT_PADDING)
+        for oi, ob in enumerate(obs):
+            if ob.name == target.touch:
+                out[lo:hi + 1, subtree, oi] = True
     return out
 
 

@@ -1,18 +1,21 @@
 """Actions on scene objects that need no grasp: ``walk_to(object)``, ``look_at(object, duration)``,
-``point_at(object, arm, duration)``.
+``point_at(object, arm, duration)``, ``touch_object(object, hand, duration)``.
 
 The ``object`` parameter arrives grounded (:class:`tasks.grounding.Grounded`: the object, its scene
 and where the robot stands when the action starts), resolved by
 :func:`tasks.compose.compile_actions` from the words of the sentence.
 
-- ``walk_to``: turn in place to face the object's centre, then walk straight towards it and stop
+- ``walk_to``: when an object is in the straight line, first walk a route around it
+  (:mod:`tasks.primitives.route`: straight legs, a turn in place before each, the body kept
+  ``ROUTE_MARGIN`` from every object) to the nearest place from which the straight approach below
+  ends within reach; an enclosed object is refused naming what encloses it (exit 4). The approach:
+  turn in place to face the object's centre, then walk straight towards it and stop
   when the front of the body (its collision geometry at the height of the object, measured by
   :func:`tasks.primitives.bodymap.body_map`) is :data:`WALK_MARGIN` from the first object in the
   way, the target itself or another one (a cup on a table: the table's edge). From there the
   object's nearest point must be within a hand's reach (``REACH_FRACTION`` of the arm from the
   shoulder, bending up to ``BEND_MAX`` at the hips: :func:`tasks.primitives.arms.reach_gap`);
-  otherwise the walk is refused, naming the object in the way (wbmp walks in straight lines only)
-  or the distance that remains. The footsteps are :mod:`tasks.footsteps`' turn and walk.
+  otherwise the walk is refused with the distance that remains. The footsteps are :mod:`tasks.footsteps`' turn and walk.
 - ``look_at``: the head frame turned by the yaw and the pitch that point its forward axis at the
   object's centre (HARD orientation target, :data:`LOOK_TOLERANCE`), held, then forward again;
   robots without a neck (g1) and angles beyond the neck's range are refused.
@@ -20,10 +23,16 @@ and where the robot stands when the action starts), resolved by
   ``OUT_REACH`` of the arm out (less when an object is closer: the hand stays
   :data:`POINT_CLEARANCE` clear of every object), held, then back to rest; by default the arm on
   the object's side.
+- ``touch_object``: the hand out to the object's surface point nearest to the shoulder (within reach
+  bending at the hips, else refused: walk to it first), its frame back from that point by the
+  hand's extent in front of it less :data:`TOUCH_DEPTH`, held, then back to rest. The target names
+  the object (``FrameTarget.touch``): a planned contact, which the planner's scene rows, the
+  pre-check and the certificate's scene-collision line leave out for that hand and object.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -36,21 +45,25 @@ from tasks.footsteps import ContactSequence, turn, walk
 from tasks.grounding import Grounded, ground
 from tasks.primitives.arms import OUT_REACH, POSE_TOLERANCE, arm_length, reach_gap, shoulder
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
-from tasks.primitives.bodymap import body_map, to_standing
+from tasks.primitives.bodymap import body_map, to_heading, to_standing
 from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
 from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_axis
-from tasks.scene import SceneObject, extent, signed_distance
+from tasks.primitives.route import clearance_radius, plan_route, segment_clear
+from tasks.scene import SceneObject, extent, rotation, signed_distance
 from tasks.specs import Phase
 
 WALK_MARGIN = 0.1  # [m] clearance between the body's front and the object it stops at (room for the arms)
 WALK_MIN = 0.05  # [m] a shorter walk is not taken (already there)
 TURN_MIN = 0.05  # [rad] a smaller turn is not taken (already facing it)
+ROUTE_SLACK = 0.03  # [m] a route ends where the target is this much within reach (the legs round off small turns)
 WALK_MAX = 10.0  # [m] the registry's longest walk
 STAND_TIME = 1.0  # [s] walk_to when the robot is already there
 END_TOLERANCE = 0.02  # [m] CoM over the final feet
 LOOK_TOLERANCE = 0.05  # [rad] head orientation
 POINT_CLEARANCE = 0.1  # [m] pointing hand to any object
 POINT_MIN = 0.5  # [L] a hand closer than this fraction of the arm to the shoulder is no pointing
+TOUCH_DEPTH = 0.02  # [m] the hand's meshes (standing orientation) this far into the touched surface
+TOUCH_TOLERANCE = 0.005  # [m] hand frame to its touch target
 BEHIND = math.radians(100)  # an object farther than this from the heading cannot be pointed or looked at
 
 LEG_PARTS = frozenset({"legs", "com"})
@@ -92,20 +105,45 @@ def body_front(robot: Robot, z_range: tuple[float, float]) -> tuple[float, float
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class WalkPlan:
-    """Where ``walk_to`` goes: a turn, a straight walk, the object it stops at.
+class Leg:
+    """One leg of a walk: turn in place, then walk straight forward.
 
     Attributes:
-        angle: Turn in place first [rad] (left positive; 0: none).
+        angle: Turn first [rad] (left positive; 0: none).
         distance: Then walk forward [m] (0: none).
-        stop: The object whose margin ends the walk (the target or one in the way).
-        reach_gap: Shoulder to the target's surface at the end, minus the arm's reach [m] (<= 0).
     """
 
     angle: float
     distance: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WalkPlan:
+    """Where ``walk_to`` goes: legs (turn, straight walk) along a route, the object it stops at.
+
+    Attributes:
+        legs: The legs in order; the last one is the approach: facing the target's centre, forward
+            until the body's front is :data:`WALK_MARGIN` from the first object ahead.
+        stop: The object whose margin ends the walk (the target or one in the way).
+        reach_gap: Shoulder to the target's surface at the end, minus the arm's reach [m] (<= 0).
+        waypoints: (x, y) of the point between the feet where each leg starts, then where the walk
+            ends [m] (the route around the objects in the way; two points for a straight walk).
+    """
+
+    legs: tuple[Leg, ...]
     stop: SceneObject
     reach_gap: float
+    waypoints: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def angle(self) -> float:
+        """The first turn [rad]."""
+        return self.legs[0].angle
+
+    @property
+    def distance(self) -> float:
+        """The distance walked [m]."""
+        return sum(leg.distance for leg in self.legs)
 
 
 def reach_gaps(robot: Robot, obj: SceneObject, mid: np.ndarray, yaw: float) -> dict[str, float]:
@@ -118,7 +156,8 @@ def reach_gaps(robot: Robot, obj: SceneObject, mid: np.ndarray, yaw: float) -> d
     for side in ("left", "right"):
         p = shoulder(robot, side)
         world = np.array([mid[0] + c * p[0] - s * p[1], mid[1] + s * p[0] + c * p[1], p[2]])
-        near = np.clip(world, lo, hi) - np.array([mid[0], mid[1], 0.0])
+        surface = np.clip(world, lo, hi) if obj.shape == "mesh" else nearest_surface_point(obj, world)
+        near = surface - np.array([mid[0], mid[1], 0.0])
         local = np.array([c * near[0] + s * near[1], -s * near[0] + c * near[1], near[2]])
         out[side] = reach_gap(robot, side, local, bend=True)
     return out
@@ -129,19 +168,40 @@ def _surface_gap(obj: SceneObject, point: np.ndarray) -> float:
     return float(np.linalg.norm(point - np.asarray(obj.position))) if d is None else d
 
 
-def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
-    """The turn and the straight walk that bring the robot facing ``g.obj`` within reach.
+@dataclass(frozen=True, slots=True)
+class _Straight:
+    """The straight approach from a point: the walk (or why not), the object it stops at."""
 
-    Raises:
-        TaskDefinitionError: the robot stands inside the object's footprint, the object is farther
-            than :data:`WALK_MAX`, or it is out of reach from where the walk has to stop (an object
-            in the way, named, or the object itself too low, high or deep).
-    """
-    target = g.obj
-    start = _start(g, robot)
-    H = start.heading()
-    p0 = np.asarray(H.translation[:2], dtype=float)
-    yaw0 = _yaw(start)
+    yaw: float  # facing the target's centre [rad]
+    distance: float  # [m]
+    stop: SceneObject
+    gap: float  # reach gap at the end [m]
+    error: str  # "" when the approach ends within reach
+
+
+def _clip_strip(polygon: np.ndarray, w: float) -> np.ndarray:
+    """The part of a convex polygon (k, 2) of (along, across) points with ``|across| <= w`` (its vertices)."""
+    for sign in (1.0, -1.0):
+        out = []
+        k = len(polygon)
+        for i in range(k):
+            a, b = polygon[i], polygon[(i + 1) % k]
+            ina, inb = sign * a[1] <= w, sign * b[1] <= w
+            if ina:
+                out.append(a)
+            if ina != inb:
+                t = (sign * w - a[1]) / (b[1] - a[1])
+                out.append(a + t * (b - a))
+        polygon = np.array(out).reshape(-1, 2)
+        if len(polygon) == 0:
+            break
+    return polygon
+
+
+def _straight(robot: Robot, target: SceneObject, objects: tuple[SceneObject, ...], p0: np.ndarray,
+              slack: float = 0.0) -> _Straight:
+    """Face the target's centre from ``p0`` (x, y) and walk until the body's front is the margin
+    from the first object ahead (the target or another); within reach means a gap <= -``slack``."""
     to = np.asarray(target.position[:2], dtype=float) - p0
     if float(np.linalg.norm(to)) < 1e-6:
         raise TaskDefinitionError(f"walk_to: the robot stands on the {target.name}'s centre; nowhere to walk")
@@ -149,33 +209,92 @@ def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
     n = np.array([-u[1], u[0]])
     yaw = math.atan2(u[1], u[0])
     stop_at, stop_obj = math.inf, target
-    for obj in g.scene.objects:
+    for obj in objects:
         lo, hi = extent(obj)
-        corners = np.array([(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]) - p0
-        along, across = corners @ u, corners @ n
         front, half = body_front(robot, (lo[2], hi[2]))
-        if float(along.min()) <= 0.0 or float(across.max()) < -(half + WALK_MARGIN) or float(across.min()) > half + WALK_MARGIN:
-            continue  # beside, behind or off the path
-        s = float(along.min()) - WALK_MARGIN - front
+        corners = np.array([(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]) - p0
+        inside = _clip_strip(np.stack([corners @ u, corners @ n], axis=1), half + WALK_MARGIN)
+        if len(inside) == 0 or float(inside[:, 0].max()) <= 0.0:
+            continue  # beside or behind the path
+        s = float(inside[:, 0].min()) - WALK_MARGIN - front
         if s < stop_at:
             stop_at, stop_obj = s, obj
     distance = max(0.0, stop_at if math.isfinite(stop_at) else 0.0)
-    if distance > WALK_MAX:
-        raise TaskDefinitionError(f"walk_to: the {target.name} is {distance:.1f} m away; walk_to walks at most {WALK_MAX:g} m")
-    mid = p0 + distance * u
-    best = min(reach_gaps(robot, target, mid, yaw).values())
-    if best > 1e-9:
+    best = min(reach_gaps(robot, target, p0 + distance * u, yaw).values())
+    error = ""
+    if best > 1e-9 - slack:
         if stop_obj is not target:
-            raise TaskDefinitionError(
-                f"walk_to: the {stop_obj.name} is in the way to the {target.name} (wbmp walks in a straight line): "
-                f"stopping {WALK_MARGIN:g} m before it leaves the {target.name} {best:.2f} m beyond the arm's reach; "
-                f"move the {stop_obj.name} or the {target.name} in the scene")
-        raise TaskDefinitionError(
-            f"walk_to: the {target.name} is out of reach from any stance {WALK_MARGIN:g} m away from it: its nearest "
-            f"point is {best:.2f} m beyond the arm's reach (too low, too high or too deep)")
-    angle = _wrap(yaw - yaw0)
-    return WalkPlan(angle=angle if abs(angle) >= TURN_MIN else 0.0, distance=distance if distance >= WALK_MIN else 0.0,
-                    stop=stop_obj, reach_gap=best)
+            error = (f"walk_to: the {stop_obj.name} is in the way to the {target.name}: stopping {WALK_MARGIN:g} m "
+                     f"before it leaves the {target.name} {best:.2f} m beyond the arm's reach")
+        else:
+            error = (f"walk_to: the {target.name} is out of reach from any stance {WALK_MARGIN:g} m away from it: its "
+                     f"nearest point is {best:.2f} m beyond the arm's reach (too low, too high or too deep)")
+    elif distance > WALK_MAX:
+        error = f"walk_to: the {target.name} is {distance:.1f} m away; walk_to walks at most {WALK_MAX:g} m"
+    return _Straight(yaw=yaw, distance=distance, stop=stop_obj, gap=best, error=error)
+
+
+def _leg(angle: float, distance: float) -> Leg:
+    return Leg(angle=angle if abs(angle) >= TURN_MIN else 0.0, distance=distance if distance >= WALK_MIN else 0.0)
+
+
+def walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
+    """The legs that bring the robot facing ``g.obj`` within reach (see :func:`_walk_plan`; the
+    route is searched once per robot, object, scene and start)."""
+    return _walk_plan(robot, g)
+
+
+@functools.lru_cache(maxsize=64)
+def _walk_plan(robot: Robot, g: Grounded) -> WalkPlan:
+    """The legs that bring the robot facing ``g.obj`` within reach: one straight walk when nothing
+    is in the way, else a route around the objects (:func:`tasks.primitives.route.plan_route`)
+    followed by the straight approach.
+
+    Raises:
+        TaskDefinitionError: the robot stands on the object's centre, the object is farther than
+            :data:`WALK_MAX` in a straight line, or out of reach from where a walk towards it stops.
+        SceneConflict: the object is enclosed by others (named), or no place around it is within reach.
+    """
+    target = g.obj
+    start = _start(g, robot)
+    p0 = np.asarray(start.heading().translation[:2], dtype=float)
+    yaw0 = _yaw(start)
+    straight = _straight(robot, target, g.scene.objects, p0)
+    if not straight.error or straight.stop is target:
+        if straight.error:
+            raise TaskDefinitionError(straight.error)
+        end = p0 + straight.distance * np.array([math.cos(straight.yaw), math.sin(straight.yaw)])
+        return WalkPlan(legs=(_leg(_wrap(straight.yaw - yaw0), straight.distance),), stop=straight.stop,
+                        reach_gap=straight.gap, waypoints=((float(p0[0]), float(p0[1])), (float(end[0]), float(end[1]))))
+    # something is in the way: route around it to a place from which the straight approach works
+    objects = g.scene.objects
+    radii = [clearance_radius(robot, o) for o in objects]
+    route = plan_route(p0, target, objects, radii,
+                       lambda xy: _straight(robot, target, objects, xy, ROUTE_SLACK).error)
+    legs: list[Leg] = []
+    p, yaw = p0.copy(), yaw0
+    points = [tuple(p0)]
+    for w in route.waypoints[1:]:
+        d = np.asarray(w) - p
+        dist = float(np.linalg.norm(d))
+        if dist < WALK_MIN:
+            continue
+        leg = _leg(_wrap(math.atan2(d[1], d[0]) - yaw), dist)
+        ahead = p + leg.distance * np.array([math.cos(yaw + leg.angle), math.sin(yaw + leg.angle)])
+        if leg.angle == 0.0 and not segment_clear(p, ahead, objects, radii):
+            leg = Leg(angle=_wrap(math.atan2(d[1], d[0]) - yaw), distance=leg.distance)  # the small turn matters here
+        yaw += leg.angle
+        p = p + leg.distance * np.array([math.cos(yaw), math.sin(yaw)])
+        legs.append(leg)
+        points.append(tuple(p))
+    last = _straight(robot, target, objects, p)
+    if last.error:  # pragma: no cover - the route ends where the approach was accepted
+        raise TaskDefinitionError(last.error)
+    legs.append(_leg(_wrap(last.yaw - yaw), last.distance))
+    yaw += legs[-1].angle
+    points.append(tuple(p + legs[-1].distance * np.array([math.cos(yaw), math.sin(yaw)])))
+    return WalkPlan(legs=tuple(legs), stop=last.stop, reach_gap=last.gap,
+                    waypoints=tuple((float(x), float(y)) for x, y in points))
 
 
 def _walk_sequences(robot: Robot, g: Grounded) -> list[ContactSequence]:
@@ -183,12 +302,16 @@ def _walk_sequences(robot: Robot, g: Grounded) -> list[ContactSequence]:
     start = _start(g, robot)
     left, right = start.left, start.right
     out = []
-    if plan.angle:
-        seq = turn(robot, plan.angle, left=left, right=right)
-        out.append(seq)
-        left, right = seq.left, seq.right
-    if plan.distance:
-        out.append(walk(robot, plan.distance, "forward", left=left, right=right))
+    for i, leg in enumerate(plan.legs):
+        label = f"leg {i + 1}: " if len(plan.legs) > 1 else ""
+        if leg.angle:
+            seq = turn(robot, leg.angle, left=left, right=right, label=label)
+            out.append(seq)
+            left, right = seq.left, seq.right
+        if leg.distance:
+            seq = walk(robot, leg.distance, "forward", left=left, right=right, label=label)
+            out.append(seq)
+            left, right = seq.left, seq.right
     return out
 
 
@@ -335,6 +458,116 @@ def _hold_duration(params: dict, robot: Robot) -> float:
     return float(params["duration"])
 
 
+# --- touch_object -------------------------------------------------------------------------
+def nearest_surface_point(obj: SceneObject, point: np.ndarray) -> np.ndarray:
+    """The point of ``obj``'s surface nearest to a world point outside it (3,) [m] (box, cylinder, sphere)."""
+    R = np.array(rotation(obj.rpy))
+    c = np.asarray(obj.position, dtype=float)
+    local = R.T @ (np.asarray(point, dtype=float) - c)
+    if obj.shape == "sphere":
+        return c + obj.size[0] * (point - c) / max(float(np.linalg.norm(point - c)), 1e-12)
+    if obj.shape == "box":
+        half = np.asarray(obj.size) / 2
+        q = np.clip(local, -half, half)
+    elif obj.shape == "cylinder":
+        radius, length = obj.size
+        rxy = math.hypot(local[0], local[1])
+        scale = min(1.0, radius / rxy) if rxy > 0 else 1.0
+        q = np.array([local[0] * scale, local[1] * scale, float(np.clip(local[2], -length / 2, length / 2))])
+    else:
+        raise TaskDefinitionError(f"touch_object: the {obj.name} is a mesh; wbmp touches boxes, cylinders and spheres")
+    return c + R @ q
+
+
+def touching_hand(params: dict, robot: Robot, stance: Stance | None = None) -> str:
+    """The hand that touches: the stated one, else the one nearer to the object (the smaller reach gap)."""
+    if params.get("hand"):
+        return str(params["hand"])
+    g = grounded(params, "touch_object")
+    st = stance if stance is not None else _start(g, robot)
+    gaps = reach_gaps(robot, g.obj, np.asarray(st.heading().translation[:2], dtype=float), _yaw(st))
+    return min(("left", "right"), key=lambda side: gaps[side])
+
+
+def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """(point touched on the object's surface, hand frame target) in the world [m]: the surface point
+    nearest to the shoulder, the hand frame back from it along the shoulder-to-point line by the
+    hand's extent in front of its frame less :data:`TOUCH_DEPTH` (the hand's box just into the surface).
+
+    Raises:
+        TaskDefinitionError: the point is beyond the hand's reach even bending at the hips (walk to
+            the object first), or the object is a mesh.
+    """
+    T = stance.transform_from_standing(robot)
+    H = stance.heading()
+    sh = np.asarray(T.act(to_standing(robot, shoulder(robot, side))), dtype=float)
+    surface = nearest_surface_point(obj, sh)
+    gap = reach_gap(robot, side, np.asarray(H.actInv(surface), dtype=float), bend=True)
+    if gap > 1e-9:
+        raise TaskDefinitionError(
+            f"touch_object: the {obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
+            f'stands: walk to it first ("walk to the {obj.name} and touch it")')
+    u = (surface - sh) / np.linalg.norm(surface - sh)
+    front = hand_front(robot, side, H.rotation.T @ u)
+    return surface, surface - (front - TOUCH_DEPTH) * u
+
+
+@functools.cache
+def _hand_vertices(robot: Robot, side: str) -> np.ndarray:
+    """Vertices (n, 3) of the ``side`` hand's collision meshes at the standing posture, heading
+    frame, relative to the hand frame [m] (the corners of the box of a primitive shape)."""
+    bm = body_map(robot)
+    cm = robot.collision_model
+    points = []
+    for i in bm.hand_geometries[side]:
+        geometry = cm.geometryObjects[i].geometry
+        M = bm.placements[i]
+        if hasattr(geometry, "vertices") and geometry.num_vertices:
+            local = np.asarray(geometry.vertices(), dtype=float)
+            points.append(np.array([to_heading(robot, M.act(v)) for v in local[:: max(1, len(local) // 400)]]))
+        else:
+            points.append(np.array([to_heading(robot, M.act(c)) for c in _box_corners(bm, i)]))
+    return np.concatenate(points) - bm.hand_position[side]
+
+
+def _box_corners(bm, i: int) -> np.ndarray:  # pragma: no cover - the robots' hands are meshes
+    b = bm.boxes[i]
+    return np.array([(x, y, z) for x in (b.lo[0], b.hi[0]) for y in (b.lo[1], b.hi[1]) for z in (b.lo[2], b.hi[2])])
+
+
+def hand_front(robot: Robot, side: str, u: np.ndarray) -> float:
+    """How far the ``side`` hand's collision meshes reach from its frame along ``u`` (heading frame,
+    standing orientation) [m]."""
+    return float(max(0.0, float((_hand_vertices(robot, side) @ np.asarray(u, dtype=float)).max())))
+
+
+def _touch_check(params: dict, robot: Robot) -> None:
+    g = grounded(params, "touch_object")
+    if g.start is None:
+        return  # where the robot stands is not known yet (after a walk): checked when it is
+    touch_target(robot, g.start, g.obj, touching_hand(params, robot, g.start))
+
+
+def build_touch_object(b: FragmentBuilder) -> Fragment:
+    """The hand out to the object's surface, held there (a planned contact), back to rest."""
+    g = grounded(b.params, "touch_object")
+    side = touching_hand(b.params, b.robot, b.stance)
+    _, hand = touch_target(b.robot, b.stance, g.obj, side)
+    T = b.params["duration"]
+    b.frame_target(f"{side} hand touching the {g.obj.name}", f"{side}_hand", position=tuple(float(x) for x in hand),
+                   window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=TOUCH_TOLERANCE, touch=g.obj.name)
+    rest_targets(b, [f"{side}_hand"], tau=T)
+    b.phase(f"touch the {g.obj.name}", T)
+    return b.finish(frozenset({f"{side}_arm"}))
+
+
+def _touch_parts(params: dict) -> frozenset[str]:
+    hand = params.get("hand")
+    if hand:
+        return frozenset({f"{hand}_arm"})
+    return frozenset({"left_arm", "right_arm"})  # the hand is chosen where the robot stands: claim both
+
+
 WALK_TO = Primitive(name="walk_to", nominal_duration=_walk_duration, build=build_walk_to, parts=lambda p: LEG_PARTS,
                     check=_walk_check, dynamic=True)
 LOOK_AT = Primitive(name="look_at", nominal_duration=_hold_duration, build=build_look_at,
@@ -344,7 +577,10 @@ LOOK_AT = Primitive(name="look_at", nominal_duration=_hold_duration, build=build
 POINT_AT = Primitive(name="point_at", nominal_duration=_hold_duration, build=build_point_at, parts=_point_parts,
                      check=_point_check)
 
-PRIMITIVES = (WALK_TO, LOOK_AT, POINT_AT)
+TOUCH_OBJECT = Primitive(name="touch_object", nominal_duration=_hold_duration, build=build_touch_object,
+                         parts=_touch_parts, check=_touch_check)
+
+PRIMITIVES = (WALK_TO, LOOK_AT, POINT_AT, TOUCH_OBJECT)
 
 __all__ = [
     "LOOK_AT",
@@ -352,13 +588,18 @@ __all__ = [
     "POINT_AT",
     "POINT_CLEARANCE",
     "PRIMITIVES",
+    "TOUCH_DEPTH",
+    "TOUCH_OBJECT",
     "WALK_MARGIN",
     "WALK_TO",
     "WalkPlan",
     "body_front",
     "grounded",
     "look_rotation",
+    "nearest_surface_point",
     "point_target",
     "pointing_arm",
+    "touch_target",
+    "touching_hand",
     "walk_plan",
 ]

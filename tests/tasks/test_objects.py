@@ -132,11 +132,6 @@ def test_walk_to_the_cup_stops_at_the_table_edge(kitchen, talos):
     assert WALK_MARGIN - 1e-6 <= d <= WALK_MARGIN + 0.15, d
 
 
-def test_walk_to_refuses_an_object_behind_another(kitchen, talos):
-    with pytest.raises(TaskDefinitionError, match="walk_to: the table is in the way to the door"):
-        compile_actions([Action(name="walk_to", params={"object": "the door"})], talos, scene=kitchen)
-
-
 def test_look_at_points_the_head_at_the_object(kitchen, talos):
     """The head target's forward axis (the standing head's axis along the heading, Pinocchio) points
     from the head (Pinocchio) at the cup's centre."""

@@ -16,6 +16,7 @@ from wbmp.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
 KITCHEN = REPO / "examples" / "scenes" / "kitchen.json"
+WAREHOUSE = REPO / "examples" / "scenes" / "warehouse.json"
 
 
 @pytest.fixture(autouse=True)
@@ -43,7 +44,8 @@ def test_parse_shows_the_reference(capsys):
      'wbmp solve: error: "the box" could be red box (red, at x 1.70, y -0.35, z 0.80 m) or blue box'),
     (["wave, then point at the box left of the table", "--scene", str(KITCHEN)], 3,
      'wbmp solve: error: action 2 (point_at): no box is left of the table'),
-    (["walk to the door", "--scene", str(KITCHEN)], 3, "wbmp solve: error: walk_to: the table is in the way to the door"),
+    (["走到绿色箱子", "--scene", str(WAREHOUSE)], 4,
+     "wbmp solve: error: walk_to: the green box is enclosed by the tall crate, the wide crate, the back wall and the side wall"),
     (["看着那个杯子", "--scene", str(KITCHEN), "--robot", "g1"], 3, "wbmp solve: error: g1 has no neck joint to look at the cup"),
 ])
 def test_object_errors_are_one_line_with_their_exit_code(capsys, argv, code, message):
