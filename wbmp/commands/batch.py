@@ -66,6 +66,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="run on Ray: without ADDRESS a local instance is started and stopped; with one "
                         "(e.g. ray://head:10001 or auto) the cluster must have wbmp installed")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
+    p.add_argument("--no-cache", action="store_true",
+                   help="neither read nor write the motion cache (by default an item planned before, in any "
+                        "folder, is answered from $WBMP_CACHE_DIR/motions, as `wbmp solve` does)")
     p.add_argument("--force", action="store_true", help="plan every item again, even those done before")
     p.add_argument("--retry-failed", action="store_true",
                    help="plan again the items that failed before (by default a failure the input decides, "
@@ -84,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
                        "for a local instance", ExitCode.USAGE)
     plan = prepare(file=args.file, out_dir=args.out_dir, robots=args.robots,
                    workers=args.workers or default_workers(), simulate=not args.no_sim, force=args.force,
-                   retry_failed=args.retry_failed, ray=args.ray is not None, ray_address=args.ray or None)
+                   retry_failed=args.retry_failed, ray=args.ray is not None, ray_address=args.ray or None,
+                   cache=not args.no_cache)
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     outcome = run_batch(plan, progress)
     c = outcome.counts
