@@ -156,3 +156,27 @@ def test_same_batch_on_a_local_ray_instance(library, tmp_path):
     for name in ("squat", "wave"):
         a, b = load_motion(out / f"{name}__talos.npz"), load_motion(lib / f"{name}__talos.npz")
         np.testing.assert_allclose(a.plan.q, b.plan.q, rtol=0, atol=1e-6)
+
+
+def test_a_library_built_again_elsewhere_is_answered_from_the_motion_cache(library, tmp_path):
+    """The library's items planned again into a new folder come from the motion cache (no plan
+    step; the same arrays and sha256-verified files); with --no-cache the item is planned."""
+    _, out, _ = library
+    items = tmp_path / "again.jsonl"
+    items.write_text('{"id": "squat", "instruction": "squat"}\n{"id": "wave", "instruction": "wave your right hand"}\n')
+    lib = tmp_path / "lib"
+    assert main(["batch", str(items), "--out-dir", str(lib), "--no-sim", "--workers", "1", "--quiet"]) == 0
+    index = _index(lib)
+    for name in ("squat", "wave"):
+        rec = index[name]
+        assert rec["cached"] is True and "plan" not in rec["timings"] and "cache" in rec["timings"]
+        assert rec["sha256"] == hashlib.sha256((lib / rec["motion"]).read_bytes()).hexdigest()
+        a, b = load_motion(out / rec["motion"]), load_motion(lib / rec["motion"])
+        np.testing.assert_array_equal(a.plan.q, b.plan.q)
+    assert _index(out)["squat"]["cached"] is False  # the first build planned
+    fresh = tmp_path / "fresh"
+    items.write_text('{"id": "squat", "instruction": "squat"}\n')
+    assert main(["batch", str(items), "--out-dir", str(fresh), "--no-sim", "--workers", "1", "--quiet",
+                 "--no-cache"]) == 0
+    rec = _index(fresh)["squat"]
+    assert rec["cached"] is False and rec["timings"]["plan"] > 0

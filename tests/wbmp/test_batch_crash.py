@@ -107,3 +107,26 @@ def test_the_death_hook_arms_the_commit_and_is_removed_after(monkeypatch):
     with worker._death_hook("boom"):
         assert Staging.commit is not original
     assert Staging.commit is original
+
+
+@pytest.mark.parametrize(("how", "returncode"), [("exit", 70), ("kill", -9), ("segv", -11)])
+def test_the_hook_kills_a_real_process_with_the_temporary_file_written(how, returncode, tmp_path):
+    """In a child process the armed hook ends the process at the commit, the temporary motion file
+    written and left behind (what a batch's sweep must remove): SIGKILL, SIGSEGV or exit 70."""
+    import os
+    import subprocess
+    import sys
+
+    from wbmp.batch.run import sweep_temporary
+
+    code = ("import sys; from pathlib import Path; from viz.files import Staging; from wbmp.batch import worker\n"
+            "with worker._death_hook('boom'), Staging() as s:\n"
+            "    s.add(Path(sys.argv[1]) / 'boom__talos.npz', lambda fh: fh.write(b'x' * 4096))\n"
+            "    s.commit()\n")
+    env = {**os.environ, worker.DEATH_VARIABLE: f"{how}:boom", "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    proc = subprocess.run([sys.executable, "-c", code, str(tmp_path)], env=env, capture_output=True, timeout=120)
+    assert proc.returncode == returncode, proc.stderr
+    left = [p for p in tmp_path.iterdir()]
+    assert len(left) == 1 and left[0].name.startswith(".boom__talos.npz.") and left[0].stat().st_size == 4096
+    assert sweep_temporary(tmp_path) == [left[0].name]
+    assert not list(tmp_path.iterdir())
