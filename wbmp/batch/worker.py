@@ -143,8 +143,8 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
             folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="wbmp-batch-spec-"))
             spec_path = str(Path(folder) / "spec.json")
             Path(spec_path).write_text(json.dumps(item.spec_object, ensure_ascii=False), encoding="utf-8")
-        request = SolveRequest(instruction=item.instruction, spec_path=spec_path, robot=job.robot,
-                               simulate=simulate)
+        request = SolveRequest(instruction=item.instruction, spec_path=spec_path, scene_path=item.scene_path,
+                               robot=job.robot, simulate=simulate)
         try:
             result = solve(request, cache=cache)
             code = int(result.exit_code)
