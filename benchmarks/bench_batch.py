@@ -98,6 +98,31 @@ def _index_stats(folder: Path) -> dict:
             "sum_item_total_s": round(sum(r.get("timings", {}).get("total", 0.0) for r in recs), 1)}
 
 
+def progress_of(work_dir: Path) -> dict:
+    """Figures of runs so far (also of a run still going, or stopped): records, exit codes, and
+    items/min from the first to the last record's finish time (a lower bound of the run's rate,
+    since the first record comes one item after the start)."""
+    from datetime import datetime
+
+    out = {}
+    for name in RUNS:
+        path = work_dir / name / "index.jsonl"
+        if not path.exists():
+            continue
+        recs = []
+        for line in path.read_text(encoding="utf-8").splitlines():
+            try:
+                recs.append(json.loads(line))
+            except ValueError:
+                continue
+        stats = _index_stats(work_dir / name)
+        times = sorted(datetime.fromisoformat(r["finished"]) for r in recs if r.get("finished"))
+        span = (times[-1] - times[0]).total_seconds() if len(times) > 1 else 0.0
+        stats["items_per_min_between_first_and_last"] = round(60.0 * (len(times) - 1) / span, 2) if span else None
+        out[name] = stats
+    return out
+
+
 def run_batch(items: Path, out: Path, extra: list[str], env: dict[str, str]) -> dict:
     cmd = [sys.executable, "-c", "from wbmp.cli import run; run()", "batch", str(items), "--out-dir", str(out),
            "--quiet", "--json", *extra]
@@ -151,7 +176,12 @@ def main() -> int:
     parser.add_argument("--no-ray", action="store_true", help="skip the Ray run")
     parser.add_argument("--work-dir", default=None, help="keep the batch folders here (default: a temporary folder)")
     parser.add_argument("--out", default=None, help="write the results JSON here (default: benchmarks/results/...)")
+    parser.add_argument("--progress", metavar="WORK_DIR", default=None,
+                        help="print the figures so far of a benchmark run with --work-dir WORK_DIR, and exit")
     args = parser.parse_args()
+    if args.progress:
+        print(json.dumps(progress_of(Path(args.progress)), indent=2))
+        return 0
     runs_wanted = [r.strip() for r in args.runs.split(",") if r.strip() and not (args.no_ray and r.strip() == "ray_2")]
     unknown = [r for r in runs_wanted if r not in RUNS]
     if unknown:
