@@ -156,3 +156,59 @@ def test_same_batch_on_a_local_ray_instance(library, tmp_path):
     for name in ("squat", "wave"):
         a, b = load_motion(out / f"{name}__talos.npz"), load_motion(lib / f"{name}__talos.npz")
         np.testing.assert_allclose(a.plan.q, b.plan.q, rtol=0, atol=1e-6)
+
+
+def test_a_library_built_again_elsewhere_is_answered_from_the_motion_cache(library, tmp_path):
+    """The library's items planned again into a new folder come from the motion cache (no plan
+    step; the same arrays and sha256-verified files); with --no-cache the item is planned."""
+    _, out, _ = library
+    items = tmp_path / "again.jsonl"
+    items.write_text('{"id": "squat", "instruction": "squat"}\n{"id": "wave", "instruction": "wave your right hand"}\n')
+    lib = tmp_path / "lib"
+    assert main(["batch", str(items), "--out-dir", str(lib), "--no-sim", "--workers", "1", "--quiet"]) == 0
+    index = _index(lib)
+    for name in ("squat", "wave"):
+        rec = index[name]
+        assert rec["cached"] is True and "plan" not in rec["timings"] and "cache" in rec["timings"]
+        assert rec["sha256"] == hashlib.sha256((lib / rec["motion"]).read_bytes()).hexdigest()
+        a, b = load_motion(out / rec["motion"]), load_motion(lib / rec["motion"])
+        np.testing.assert_array_equal(a.plan.q, b.plan.q)
+    assert _index(out)["squat"]["cached"] is False  # the first build planned
+    fresh = tmp_path / "fresh"
+    items.write_text('{"id": "squat", "instruction": "squat"}\n')
+    assert main(["batch", str(items), "--out-dir", str(fresh), "--no-sim", "--workers", "1", "--quiet",
+                 "--no-cache"]) == 0
+    rec = _index(fresh)["squat"]
+    assert rec["cached"] is False and rec["timings"]["plan"] > 0
+
+
+def test_a_jsonl_line_names_its_scene(tmp_path, capsys):
+    """``"scene"`` of a JSONL line goes to the solver as ``wbmp solve --scene`` does: a crate under
+    the robot's feet makes the squat infeasible in task terms (exit 4; the same squat without the
+    scene is planned elsewhere in this module). The scene is in the record, the id and the input
+    hash; a missing scene file is refused before any work (exit 2)."""
+    from wbmp.batch.items import expand, read_items
+
+    crate = {"version": 1, "name": "a crate under the robot",
+             "objects": [{"name": "crate", "shape": "box", "size": [0.6, 0.6, 0.3], "position": [0.0, 0.0, 0.15]}]}
+    (tmp_path / "under.json").write_text(json.dumps(crate))
+    items = tmp_path / "items.jsonl"
+    items.write_text('{"instruction": "squat", "scene": "under.json"}\n{"instruction": "squat"}\n')
+    read = read_items(str(items))
+    assert [i.scene_path for i in read] == [str(tmp_path / "under.json"), None]
+    assert read[0].id != read[1].id
+    before = expand(read, None, simulate=False, file=str(items))[0].input_sha256
+    crate["objects"][0]["position"] = [0.0, 0.0, 0.16]
+    (tmp_path / "under.json").write_text(json.dumps(crate))
+    assert expand(read_items(str(items)), None, simulate=False, file=str(items))[0].input_sha256 != before
+    items.write_text('{"id": "crate", "instruction": "squat", "scene": "under.json"}\n')
+    out = tmp_path / "lib"
+    assert main(["batch", str(items), "--out-dir", str(out), "--no-sim", "--workers", "1", "--quiet"]) == 4
+    rec = _index(out)["crate"]
+    assert (rec["scene"], rec["exit_code"], rec["motion"]) == ("under.json", 4, None)
+    assert "inside the crate" in rec["message"]
+    items.write_text('{"instruction": "squat", "scene": "nowhere.json"}\n')
+    capsys.readouterr()
+    assert main(["batch", str(items), "--out-dir", str(tmp_path / "lib2"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{items}:1: scene file 'nowhere.json' not found" in err and "Traceback" not in err

@@ -26,7 +26,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
-from wbmp.batch.worker import failure_record, init_worker, run_job, worker_env
+from wbmp.batch.worker import DEATH_VARIABLE, failure_record, init_worker, run_job, worker_env
 
 OnRecord = Callable[[dict[str, Any]], None]
 
@@ -36,7 +36,7 @@ WORKER_DIED = ("the worker process died while planning this item (killed by a si
 STOP_GRACE = 10.0
 
 
-def run_job_local(job: Any, out_dir: str, simulate: bool) -> dict[str, Any]:
+def run_job_local(job: Any, out_dir: str, simulate: bool, cache: bool) -> dict[str, Any]:
     """:func:`run_job` in a local-pool worker: on SIGTERM the job unwinds (its temporary file is
     removed), then the worker exits at once (no traceback from the pool's loop)."""
     from wbmp.errors import Terminated
@@ -44,7 +44,7 @@ def run_job_local(job: Any, out_dir: str, simulate: bool) -> dict[str, Any]:
     global _BUSY
     _BUSY = True
     try:
-        return run_job(job, out_dir, simulate)
+        return run_job(job, out_dir, simulate, cache)
     except (Terminated, KeyboardInterrupt):
         os._exit(143)
     finally:
@@ -88,10 +88,11 @@ class LocalPool(Backend):
 
     name = "local"
 
-    def __init__(self, workers: int, out_dir: Path, simulate: bool) -> None:
+    def __init__(self, workers: int, out_dir: Path, simulate: bool, cache: bool = True) -> None:
         self.workers = workers
         self.out_dir = str(out_dir)
         self.simulate = simulate
+        self.cache = cache
 
     def _pool(self, workers: int) -> ProcessPoolExecutor:
         import multiprocessing
@@ -108,7 +109,7 @@ class LocalPool(Backend):
             while pending or in_flight:
                 while pending and len(in_flight) < self.workers:
                     job = pending.pop()
-                    in_flight[pool.submit(run_job_local, job, self.out_dir, self.simulate)] = (job, time.perf_counter())
+                    in_flight[pool.submit(run_job_local, job, self.out_dir, self.simulate, self.cache)] = (job, time.perf_counter())
                 done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
                 broken = False
                 for fut in done:
@@ -134,7 +135,7 @@ class LocalPool(Backend):
             t0 = time.perf_counter()
             single = self._pool(1)
             try:
-                on_record(single.submit(run_job_local, job, self.out_dir, self.simulate).result())
+                on_record(single.submit(run_job_local, job, self.out_dir, self.simulate, self.cache).result())
             except BrokenProcessPool:
                 on_record(failure_record(job, 1, WORKER_DIED, elapsed=time.perf_counter() - t0))
             finally:
@@ -171,11 +172,12 @@ class RayPool(Backend):
 
     name = "ray"
 
-    def __init__(self, workers: int, out_dir: Path, simulate: bool, address: str | None) -> None:
+    def __init__(self, workers: int, out_dir: Path, simulate: bool, address: str | None, cache: bool = True) -> None:
         self.workers = workers
         self.out_dir = str(out_dir)
         self.simulate = simulate
         self.address = address
+        self.cache = cache
 
     def run(self, jobs: list[Any], on_record: OnRecord) -> None:  # noqa: D102 - see Backend.run
         import ray
@@ -185,7 +187,7 @@ class RayPool(Backend):
                                    "logging_level": "ERROR", "configure_logging": True}
         if self.address is None:
             env["PYTHONPATH"] = local_pythonpath()
-            for name in ("WBMP_CACHE_DIR", "WBMP_COMPILE", "WBMP_COMPILE_BACKGROUND"):
+            for name in ("WBMP_CACHE_DIR", "WBMP_COMPILE", "WBMP_COMPILE_BACKGROUND", DEATH_VARIABLE):
                 if name in os.environ:
                     env[name] = os.environ[name]
             options["num_cpus"] = self.workers
@@ -200,7 +202,7 @@ class RayPool(Backend):
                 while pending or in_flight:
                     while pending and len(in_flight) < self.workers:
                         job = pending.pop()
-                        in_flight[task.remote(job, self.out_dir, self.simulate)] = (job, time.perf_counter())
+                        in_flight[task.remote(job, self.out_dir, self.simulate, self.cache)] = (job, time.perf_counter())
                     done, _ = ray.wait(list(in_flight), num_returns=1, timeout=1.0)
                     for ref in done:
                         job, start = in_flight.pop(ref)

@@ -7,7 +7,7 @@ its first line that is neither blank nor a ``#`` comment:
   ``.json`` (a relative path is taken from the batch file's folder);
 * JSONL (the first such line starts with ``{``): each line is one JSON object with
   ``instruction`` (a sentence) or ``spec`` (a path, or the spec object itself), and optionally
-  ``robot`` and ``id``.
+  ``robot``, ``scene`` (a scene file, as ``wbmp solve --scene``) and ``id``.
 
 Everything here is checked before any work, and a refused file is one :class:`CliError` line
 that names the file, the line number and how to fix it (exit 2; an unknown robot is exit 3,
@@ -26,7 +26,7 @@ from typing import Any
 from wbmp.errors import CliError, ExitCode, one_line
 
 #: Keys a JSONL line may hold.
-JSONL_KEYS = ("instruction", "spec", "robot", "id")
+JSONL_KEYS = ("instruction", "spec", "robot", "scene", "id")
 #: An ``id`` of a JSONL line: it names the motion file, so it is a safe file-name part.
 ID_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,79}$")
 #: Longest batch file read [bytes] (a library of 100,000 sentences is ~5 MB).
@@ -47,6 +47,8 @@ class Item:
         spec_text: The spec as written in the file (path as written, or the object as JSON).
         spec_object: The spec object of a JSONL line, or None.
         robot: The robot the line names, or None.
+        scene_path: The scene file (resolved) the line names, or None.
+        scene_text: The scene file as written in the line, or None.
     """
 
     id: str
@@ -56,14 +58,17 @@ class Item:
     spec_text: str | None = None
     spec_object: dict[str, Any] | None = None
     robot: str | None = None
+    scene_path: str | None = None
+    scene_text: str | None = None
 
     def source(self) -> dict[str, Any]:
-        """What the index records of the input: ``instruction`` or ``spec``."""
+        """What the index records of the input: ``instruction`` or ``spec``, and ``scene``."""
+        scene = {} if self.scene_text is None else {"scene": self.scene_text}
         if self.instruction is not None:
-            return {"instruction": self.instruction}
+            return {"instruction": self.instruction, **scene}
         if self.spec_object is not None:
-            return {"spec": self.spec_object}
-        return {"spec": self.spec_text}
+            return {"spec": self.spec_object, **scene}
+        return {"spec": self.spec_text, **scene}
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -156,7 +161,7 @@ def read_items(path: str) -> list[Item]:
         item = _json_item(path, n, text, base) if jsonl else _plain_item(path, n, text, base)
         if item.id in seen:
             first_line, first = seen[item.id]
-            if first.source() == item.source() and first.robot == item.robot:
+            if first.source() == item.source() and first.robot == item.robot:  # source() holds the scene
                 continue  # the same item twice: planned once
             raise _refuse(path, n, f"id {item.id!r} is used by line {first_line} too; give each item its own id")
         seen[item.id] = (n, item)
@@ -174,16 +179,17 @@ def _plain_item(path: str, n: int, text: str, base: Path) -> Item:
     return Item(id=_auto_id(text, "instruction", text), line=n, instruction=text)
 
 
-def _auto_id(label: str, kind: str, text: str, robot: str | None = None) -> str:
-    return f"{_slug(label)}-{_digest(kind, text, robot or '')[:10]}"
+def _auto_id(label: str, kind: str, text: str, robot: str | None = None, scene: str | None = None) -> str:
+    parts = (kind, text, robot or "") if scene is None else (kind, text, robot or "", "scene", scene)
+    return f"{_slug(label)}-{_digest(*parts)[:10]}"
 
 
-def _spec_file(path: str, n: int, text: str, base: Path) -> str:
+def _spec_file(path: str, n: int, text: str, base: Path, what: str = "spec") -> str:
     p = Path(text)
     if not p.is_absolute():
         p = base / p
     if not p.is_file():
-        raise _refuse(path, n, f"spec file {text!r} not found (relative paths are taken from the batch "
+        raise _refuse(path, n, f"{what} file {text!r} not found (relative paths are taken from the batch "
                                f"file's folder, {str(base)!r})")
     return str(p)
 
@@ -207,6 +213,10 @@ def _json_item(path: str, n: int, text: str, base: Path) -> Item:
     robot = doc.get("robot")
     if robot is not None and (not isinstance(robot, str) or not robot.strip()):
         raise _refuse(path, n, '"robot" must be a non-empty robot name')
+    scene = doc.get("scene")
+    if scene is not None and (not isinstance(scene, str) or not scene.strip()):
+        raise _refuse(path, n, '"scene" must be a scene JSON file path (docs/scenes.md)')
+    scene_path = _spec_file(path, n, scene, base, "scene") if scene is not None else None
     given_id = doc.get("id")
     if given_id is not None:
         if not isinstance(given_id, str) or not ID_PATTERN.match(given_id) or SEPARATOR in given_id:
@@ -216,18 +226,18 @@ def _json_item(path: str, n: int, text: str, base: Path) -> Item:
         sentence = doc["instruction"]
         if not isinstance(sentence, str) or not sentence.strip():
             raise _refuse(path, n, '"instruction" must be a non-empty sentence')
-        return Item(id=given_id or _auto_id(sentence, "instruction", sentence, robot), line=n,
-                    instruction=sentence.strip(), robot=robot)
+        return Item(id=given_id or _auto_id(sentence, "instruction", sentence, robot, scene), line=n,
+                    instruction=sentence.strip(), robot=robot, scene_path=scene_path, scene_text=scene)
     spec = doc["spec"]
     if isinstance(spec, str) and spec.strip():
         spec_path = _spec_file(path, n, spec, base)
-        return Item(id=given_id or _auto_id(Path(spec).stem, "spec", spec, robot), line=n, spec_path=spec_path,
-                    spec_text=spec, robot=robot)
+        return Item(id=given_id or _auto_id(Path(spec).stem, "spec", spec, robot, scene), line=n,
+                    spec_path=spec_path, spec_text=spec, robot=robot, scene_path=scene_path, scene_text=scene)
     if isinstance(spec, dict):
         canonical = json.dumps(spec, sort_keys=True, ensure_ascii=False)
         label = str(spec.get("name") or "spec")
-        return Item(id=given_id or _auto_id(label, "spec-object", canonical, robot), line=n, spec_object=spec,
-                    spec_text=canonical, robot=robot)
+        return Item(id=given_id or _auto_id(label, "spec-object", canonical, robot, scene), line=n,
+                    spec_object=spec, spec_text=canonical, robot=robot, scene_path=scene_path, scene_text=scene)
     raise _refuse(path, n, '"spec" must be a spec file path or a spec object')
 
 
@@ -272,13 +282,21 @@ def expand(items: list[Item], robots: list[str] | None, *, simulate: bool, file:
         else:
             chosen = [spec_robot(item) if item.instruction is None else "talos"]
         for robot in chosen:
-            content = ""
-            if item.spec_path is not None:
-                try:
-                    content = hashlib.sha256(Path(item.spec_path).read_bytes()).hexdigest()
-                except OSError:
-                    content = "unreadable"
-            digest = _digest(json.dumps(item.source(), sort_keys=True, ensure_ascii=False), content, robot,
-                             "sim" if simulate else "no-sim")
+            content = _file_hash(item.spec_path)
+            parts = [json.dumps(item.source(), sort_keys=True, ensure_ascii=False), content, robot,
+                     "sim" if simulate else "no-sim"]
+            if item.scene_path is not None:  # (no scene: the hash of earlier versions, their records stay done)
+                parts.append(_file_hash(item.scene_path))
+            digest = _digest(*parts)
             jobs.append(Job(item=item, robot=robot, robot_label=robot_label(robot), input_sha256=digest))
     return jobs
+
+
+def _file_hash(path: str | None) -> str:
+    """sha256 of a spec or scene file's bytes ("" without a file, "unreadable" when it cannot be read)."""
+    if path is None:
+        return ""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return "unreadable"

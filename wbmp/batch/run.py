@@ -52,6 +52,7 @@ class BatchPlan:
     retry_failed: bool = False
     ray: bool = False
     ray_address: str | None = None
+    cache: bool = True
 
 
 @dataclass(kw_only=True)
@@ -98,7 +99,8 @@ def parse_robots(text: str | None) -> list[str] | None:
 
 
 def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simulate: bool, force: bool = False,
-            retry_failed: bool = False, ray: bool = False, ray_address: str | None = None) -> BatchPlan:
+            retry_failed: bool = False, ray: bool = False, ray_address: str | None = None,
+            cache: bool = True) -> BatchPlan:
     """Every check before any work (:class:`CliError`, one line, exit 2 or 3)."""
     from viz.files import check_distinct, check_output_dir
     from wbmp.pipeline import output_errors
@@ -117,7 +119,7 @@ def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simula
         folder = check_output_dir(out_dir, "--out-dir", [INDEX, SUMMARY, *(j.motion_name for j in jobs)])
         check_distinct({"--out-dir (index.jsonl)": folder / INDEX}, {"FILE": Path(file)})
     return BatchPlan(file=file, out_dir=folder, jobs=jobs, n_items=len(items), workers=workers, simulate=simulate,
-                     force=force, retry_failed=retry_failed, ray=ray, ray_address=ray_address)
+                     force=force, retry_failed=retry_failed, ray=ray, ray_address=ray_address, cache=cache)
 
 
 @contextlib.contextmanager
@@ -171,8 +173,8 @@ def run_batch(plan: BatchPlan, progress: Any) -> BatchOutcome:
                 todo.append(job)
         state = {"done": 0, "ok": 0, "failed": 0}
         total = len(todo)
-        backend = (RayPool(plan.workers, folder, plan.simulate, plan.ray_address) if plan.ray
-                   else LocalPool(plan.workers, folder, plan.simulate))
+        backend = (RayPool(plan.workers, folder, plan.simulate, plan.ray_address, cache=plan.cache) if plan.ray
+                   else LocalPool(plan.workers, folder, plan.simulate, cache=plan.cache))
         writer = IndexWriter(index_path)
 
         def on_record(record: dict[str, Any]) -> None:

@@ -6,6 +6,18 @@ record with its one-line message; an exception that has no exit code (a bug) is 
 exit 1 with its type and message. Only Ctrl-C and SIGTERM propagate, after the motion file's
 temporary file was removed (the write goes through :class:`viz.files.Staging`).
 
+With ``cache`` (the default of ``wbmp batch``; off with ``--no-cache``) a job is answered from
+the motion cache (:mod:`wbmp.motioncache`, ``$WBMP_CACHE_DIR/motions``) when it holds this
+request, and a fresh result is stored there, exactly as ``wbmp solve`` does: a library built
+again (another folder, or after ``--force``) costs a read and a write per item.
+
+Test-only hook: :data:`DEATH_VARIABLE` (``WBMP_TEST_WORKER_DEATH=HOW:ID``, HOW one of ``exit``,
+``kill``, ``segv``) makes the worker that plans the item with id ID die when it commits that
+item's motion file — after the temporary file was written, before it is renamed into place —
+by ``os._exit(70)``, SIGKILL, or a real segmentation fault. It exists to test the worker-death
+path with real processes; nothing in a batch file or on the command line can trigger it, and it
+is not a user setting.
+
 This module imports nothing heavy at the top: a worker process sets its thread limits in
 :func:`init_worker` before numpy, CasADi or MuJoCo load their BLAS.
 """
@@ -24,6 +36,9 @@ from typing import Any
 #: BLAS/OpenMP thread variables set to 1 in every worker (as ``wbmp.cli.run`` does for one solve):
 #: the workers are the parallelism, and a second thread per worker only competes for the cores.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+#: Test-only: ``HOW:ID`` kills the worker planning item ID at its motion file's commit (module docstring).
+DEATH_VARIABLE = "WBMP_TEST_WORKER_DEATH"
+_DEATHS = ("exit", "kill", "segv")
 
 
 def worker_env() -> dict[str, str]:
@@ -61,13 +76,54 @@ def failure_record(job: Any, code: int, message: str, *, elapsed: float = 0.0) -
     return {
         "id": job.item.id, "robot": job.robot_label, "line": job.item.line, **job.item.source(),
         "status": "failed", "exit_code": int(code), "certificate": None, "message": message,
-        "timings": {"total": round(elapsed, 4)}, "motion": None, "sha256": None,
+        "timings": {"total": round(elapsed, 4)}, "cached": False, "motion": None, "sha256": None,
         "input_sha256": job.input_sha256, "worker": None,
     }
 
 
-def run_job(job: Any, out_dir: str, simulate: bool) -> dict[str, Any]:
-    """Plan (and simulate) one job, write its motion file, return its index record."""
+def _die(how: str) -> None:
+    """End this process the hard way (test-only, :data:`DEATH_VARIABLE`)."""
+    import signal
+    import sys
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    if how == "kill":
+        os.kill(os.getpid(), signal.SIGKILL)
+    elif how == "segv":
+        import ctypes
+
+        ctypes.string_at(0)  # a read of address 0: SIGSEGV in native code
+    os._exit(70)
+
+
+@contextlib.contextmanager
+def _death_hook(item_id: str) -> Any:
+    """Test-only (:data:`DEATH_VARIABLE`): while active, committing this item's motion file kills
+    the process after the temporary file was written."""
+    value = os.environ.get(DEATH_VARIABLE, "")
+    how, _, target = value.partition(":")
+    if how not in _DEATHS or target != item_id:
+        yield
+        return
+    from viz.files import Staging
+
+    original = Staging.commit
+
+    def commit(self: Any, *args: Any, **kwargs: Any) -> Any:
+        _die(how)
+        return original(self, *args, **kwargs)  # pragma: no cover - _die does not return
+
+    Staging.commit = commit  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        Staging.commit = original  # type: ignore[method-assign]
+
+
+def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[str, Any]:
+    """Plan (and simulate) one job, write its motion file, return its index record; with
+    ``cache``, answered from (and stored into) the motion cache as ``wbmp solve`` does."""
     from wbmp.errors import ExitCode, check_signals, classify, clear_signals, one_line
     from wbmp.pipeline import SolveRequest, solve, write_outputs
 
@@ -77,7 +133,8 @@ def run_job(job: Any, out_dir: str, simulate: bool) -> dict[str, Any]:
     record: dict[str, Any] = {
         "id": item.id, "robot": job.robot_label, "line": item.line, **item.source(),
         "status": "failed", "exit_code": int(ExitCode.INTERNAL), "certificate": None, "message": "",
-        "timings": {}, "motion": None, "sha256": None, "input_sha256": job.input_sha256, "worker": _where(),
+        "timings": {}, "cached": False, "motion": None, "sha256": None, "input_sha256": job.input_sha256,
+        "worker": _where(),
     }
     target = Path(out_dir) / job.motion_name
     with contextlib.ExitStack() as stack:
@@ -86,17 +143,19 @@ def run_job(job: Any, out_dir: str, simulate: bool) -> dict[str, Any]:
             folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="wbmp-batch-spec-"))
             spec_path = str(Path(folder) / "spec.json")
             Path(spec_path).write_text(json.dumps(item.spec_object, ensure_ascii=False), encoding="utf-8")
-        request = SolveRequest(instruction=item.instruction, spec_path=spec_path, robot=job.robot,
-                               simulate=simulate)
+        request = SolveRequest(instruction=item.instruction, spec_path=spec_path, scene_path=item.scene_path,
+                               robot=job.robot, simulate=simulate)
         try:
-            result = solve(request)
+            result = solve(request, cache=cache)
             code = int(result.exit_code)
             t0 = time.perf_counter()
-            write_outputs(result, out=str(target))
+            with _death_hook(item.id):
+                write_outputs(result, out=str(target))
             check_signals()
             record["timings"] = {k: round(v, 4) for k, v in result.timings.items()}
             record["timings"]["write"] = round(time.perf_counter() - t0, 4)
             record["exit_code"] = code
+            record["cached"] = result.cached is not None
             record["status"] = "ok" if code == 0 else "failed"
             if result.execution is not None:
                 cert = result.execution.certificate

@@ -45,13 +45,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "exit code, certificate, timings, the failure message, the file and its sha256) and "
                     "summary.md. Rerunning the same command skips what is done (verified by hash). "
                     "FILE: one sentence per line, or a spec file path (*.json), or JSONL lines "
-                    '{"instruction": ..., "robot": ..., "id": ...} / {"spec": path-or-object, ...}; '
+                    '{"instruction": ..., "robot": ..., "scene": ..., "id": ...} / {"spec": path-or-object, ...}; '
                     "blank lines and # comments are skipped. See docs/batch.md.",
         epilog="exit codes: 0 every item succeeded; 1 an item crashed (recorded); else the code of the first "
                "failed item in FILE's order, as `wbmp solve` gives it (2 not understood, 3 invalid spec, "
                "4 infeasible, 5 simulation check failed); bad input is one line before any work (2, or 3 "
-               "for an unknown robot).   examples: wbmp batch sentences.txt --out-dir library --robots talos,g1   "
-               "wbmp batch items.jsonl --out-dir lib --no-sim --workers 2   wbmp batch big.txt --out-dir lib --ray",
+               "for an unknown robot).  examples: wbmp batch sentences.txt --out-dir library --robots talos,g1  |  "
+               "wbmp batch items.jsonl --out-dir lib --no-sim --workers 2  |  wbmp batch big.txt --out-dir lib --ray",
     )
     p.add_argument("file", metavar="FILE", help="the items: sentences, spec files or JSONL, one per line")
     p.add_argument("--out-dir", required=True, metavar="DIR",
@@ -66,7 +66,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="run on Ray: without ADDRESS a local instance is started and stopped; with one "
                         "(e.g. ray://head:10001 or auto) the cluster must have wbmp installed")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
-    p.add_argument("--force", action="store_true", help="plan every item again, even those done before")
+    p.add_argument("--no-cache", action="store_true",
+                   help="neither read nor write the motion cache (by default an item planned before, in any "
+                        "folder, is answered from $WBMP_CACHE_DIR/motions, as `wbmp solve` does)")
+    p.add_argument("--force", action="store_true",
+                   help="run every item again, even those done before (from the motion cache when it holds "
+                        "the item; with --no-cache, planned afresh)")
     p.add_argument("--retry-failed", action="store_true",
                    help="plan again the items that failed before (by default a failure the input decides, "
                         "exit 2 to 5, is kept; a crash is always retried)")
@@ -84,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
                        "for a local instance", ExitCode.USAGE)
     plan = prepare(file=args.file, out_dir=args.out_dir, robots=args.robots,
                    workers=args.workers or default_workers(), simulate=not args.no_sim, force=args.force,
-                   retry_failed=args.retry_failed, ray=args.ray is not None, ray_address=args.ray or None)
+                   retry_failed=args.retry_failed, ray=args.ray is not None, ray_address=args.ray or None,
+                   cache=not args.no_cache)
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     outcome = run_batch(plan, progress)
     c = outcome.counts
