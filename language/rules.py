@@ -197,6 +197,7 @@ def rules_plan(text: str) -> ActionPlan:
 REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the words of a reference can be
 SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")
 DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
+POSSESSIVES = frozenset({"your", "my", "his", "her", "their", "你的", "我的", "他的", "她的"})
 PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
 IMPLICIT_OBJECT = ("put_down",)  # actions whose object, unsaid, is the one named before ("then put it down", 放下)
 
@@ -240,6 +241,8 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             taken.append(it)
         while taken and taken[-1].kind in (FILLER, CLASSIFIER):
             taken.pop()
+        if taken and taken[0].text in POSSESSIVES:
+            return []  # "touch your nose": a part of the body, not an object of the scene
         return taken if named else []
 
     def flush() -> None:

@@ -24,6 +24,7 @@ from tasks import (
     spec_to_dict,
     spec_to_json,
 )
+from tasks.specs import MAX_KNOTS
 
 coord = st.floats(-2.0, 2.0, allow_nan=False, allow_infinity=False)
 vec3 = st.tuples(coord, coord, coord)
@@ -62,7 +63,7 @@ def specs(draw):
         com_targets=(CoMTarget(name=uniq[1], position=(None, None, draw(coord))),),
         com_bounds=(CoMBounds(name=uniq[2], lower=lo, upper=hi, margin=draw(st.floats(0.0, 0.05))),),
         joint_targets=(JointTarget(name=uniq[3], joint="head_1_joint", value=draw(coord)),),
-        dt=draw(st.floats(0.01, 0.2)),
+        dt=draw(st.floats(max(0.01, 1.01 * horizon / MAX_KNOTS), 0.2)),  # within the knot limit
         dynamic=draw(st.booleans()),
         description=draw(st.text(max_size=20)),
     )
