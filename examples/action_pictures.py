@@ -4,7 +4,7 @@ Each action is planned (no simulation) from one plain sentence and drawn as side
 stick figures at five instants (:func:`viz.plots.plot_keyframes`), then stored as a small
 palette PNG. ``docs/primitives.md`` and the README's action table show these pictures::
 
-    python examples/action_pictures.py                  # every action, talos, into docs/img/actions
+    python examples/action_pictures.py                  # every action, talos, into docs/images/actions
     python examples/action_pictures.py kick punch --robot g1 --out /tmp/pictures
 
 An action that the robot cannot do is reported and skipped; the exit code is 1 when any failed.
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("actions", nargs="*", help="actions to draw (default: every registered action)")
     parser.add_argument("--robot", default="talos", help="robot name or profile (default: talos)")
-    parser.add_argument("--out", default=str(ROOT / "docs" / "img" / "actions"), help="output folder")
+    parser.add_argument("--out", default=str(ROOT / "docs" / "images" / "actions"), help="output folder")
     args = parser.parse_args(argv)
     names = args.actions or list(REGISTRY)
     unknown = [a for a in names if a not in REGISTRY]

@@ -12,6 +12,7 @@ the phrase table that :meth:`Lexicon.segment` matches, longest phrase first, ove
 from __future__ import annotations
 
 import functools
+import itertools
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -50,6 +51,10 @@ AUX = "aux"  # "is", "starts to", "正在": verb forms around the action word, n
 IN_PLACE = "in_place"  # "in place", "on the spot", "原地": changes walk/step into march
 STOP = "stop"  # "stop", "停下": ends the sequence (a bare one alone means: stand still)
 REF = "object"  # a reference to a scene object ("the red box"); value: its words (made by the rule parser)
+
+#: Possessive words that stand for each other inside a vocabulary phrase (see
+#: :meth:`Lexicon._add_possessive_variants`).
+POSSESSIVES = ("your", "his", "her", "their", "my")
 
 SLOT_KEYS = ("side", "direction", "count", "length", "angle", "duration")
 BARE_LEFT_RIGHT = ("side", "direction", "sign", None)
@@ -99,6 +104,8 @@ class ActionWords:
         count: Parameter taking ``N times`` (None: the action is repeated N times instead).
         length: Parameter taking a length [m]; ``length_by_direction`` overrides it per direction.
         angle: Parameter taking an angle [rad]; ``signed_angle``: left/counter-clockwise positive.
+        rotation_side: ``counter-clockwise``/``clockwise`` set the side parameter to left/right
+            (``walk in a counterclockwise circle``).
         duration: Parameter taking a duration [s].
         adverbs: Adverb key -> parameter values; a value is a number (SI) or ``{"scale": k}`` of
             the registry default.
@@ -128,6 +135,7 @@ class ActionWords:
     length_by_direction: Mapping[str, str] = field(default_factory=dict)
     angle: str | None = None
     signed_angle: bool = False
+    rotation_side: bool = False
     duration: str | None = None
     adverbs: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     absorbs: tuple[str, ...] = ()
@@ -156,6 +164,7 @@ class Lexicon:
             self.units[name] = Unit(name=name, quantity=spec["quantity"], factor=float(spec["factor"]))
         self._load_actions(data["actions"])
         self._load_words(data)
+        self._add_possessive_variants()
         self.max_len = max(len(k) for k in (*self.phrases, *self.after_number))
         self._check_registry()
 
@@ -261,6 +270,22 @@ class Lexicon:
                         if p.endswith(")") == with_body:
                             self.suggestion_index.setdefault(p.split(" (")[0], name)
                 self.suggestion_index.setdefault(name.replace("_", " "), name)
+
+    def _add_possessive_variants(self) -> None:
+        """Every multi-word phrase with a possessive also with the others: the vocabulary writes
+        ``touch your head`` once, and ``touches their head``, ``hands on his hips`` read the same.
+
+        A variant that is already a phrase keeps its own meaning (nothing is merged).
+        """
+        for key, entry in list(self.phrases.items()):
+            slots = [i for i, w in enumerate(key) if w in POSSESSIVES]
+            if not slots or len(key) < 2:
+                continue
+            for words in itertools.product(POSSESSIVES, repeat=len(slots)):
+                variant = list(key)
+                for i, w in zip(slots, words, strict=True):
+                    variant[i] = w
+                self.phrases.setdefault(tuple(variant), entry)
 
     def _check_registry(self) -> None:
         for name, schema in REGISTRY.items():

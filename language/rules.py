@@ -655,7 +655,10 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
         elif it.kind == DIR:
             directions.append((it.value, it))
         elif it.kind == ROT:
-            signs.append((it.value, it))
+            if aw.rotation_side and aw.side is not None:
+                sides.append(("left" if it.value > 0 else "right", it))  # "a counterclockwise circle" turns left
+            else:
+                signs.append((it.value, it))
         elif it.kind == ADV:
             adverbs.append(it)
         elif it.kind == REF:

@@ -2,7 +2,8 @@
 
 Each link's collision geometry (meshes and primitives of ``robot.collision_model``) is gathered
 in its parent joint's frame and enclosed by a capsule (or two, cut across a principal axis, when
-that saves a quarter of the volume: :func:`fit_link`): the axis is the principal direction of
+that saves a quarter of the volume, or, for a wide link, makes the capsules much thinner:
+:func:`fit_link`): the axis is the principal direction of
 the vertices, the axis line passes through the centre of the smallest circle (approximately)
 enclosing their projection on the perpendicular plane, the radius is the largest distance of a
 vertex to that line, and the segment is the shortest one whose capsule still holds every vertex.
@@ -46,7 +47,7 @@ import pinocchio as pin
 if TYPE_CHECKING:
     from robots.model import Robot
 
-FIT_VERSION = 5  # bump when the fitting or the pair selection changes: the cache is keyed by it
+FIT_VERSION = 6  # bump when the fitting or the pair selection changes: the cache is keyed by it
 REST_MARGIN = 0.01  # [m] pairs whose meshes are closer than this in the standing posture are skipped ...
 REST_SPHERE_MARGIN = 0.01  # [m] ... and pairs whose (conservative) sphere sets are closer than this
 CYLINDER_SAMPLES = 48  # points around a cylinder/capsule circle (the radius is inflated to cover the chords)
@@ -54,6 +55,8 @@ SPHERE_SPACING = 0.75  # sphere-set spacing along a capsule axis, as a fraction 
 MIN_SPHERE_SPACING = 0.03  # [m] ... but at least this (thin links get a few slightly larger spheres)
 
 SPLIT_GAIN = 0.75  # a link gets two capsules when their volume is below this fraction of one capsule's
+RADIUS_GAIN = 0.7  # ... or, for a link whose one capsule is WIDE_RADIUS or wider, when the wider of
+WIDE_RADIUS = 0.15  # [m] ... the two is below RADIUS_GAIN of its radius (Talos's torso: 0.27 -> 0.18 m)
 SKIP_REASONS = ("srdf", "adjacent", "touching at rest", "profile")
 
 
@@ -222,7 +225,10 @@ def _volume(length: float, radius: float) -> float:
 def fit_link(points: np.ndarray) -> list[tuple[pin.SE3, float, float]]:
     """One or two capsules enclosing ``points``: two when cutting the points' convex hull across a
     principal axis (at 30, 50 or 70 % of its extent) saves more than ``1 - SPLIT_GAIN`` of the
-    volume (an L-shaped thigh with its hip motor, a hand with its fingers)."""
+    volume (an L-shaped thigh with its hip motor, a hand with its fingers), or, for a link whose
+    one capsule is at least ``WIDE_RADIUS`` wide, when the wider of the two capsules of some cut
+    (any principal axis) is below ``RADIUS_GAIN`` of its radius: a boxy link (Talos's torso, one
+    capsule of 0.27 m standing 15 cm in front of the chest mesh) gets two of 0.17-0.18 m."""
     from scipy.spatial import ConvexHull, QhullError
 
     points = np.asarray(points, dtype=float)
@@ -235,9 +241,10 @@ def fit_link(points: np.ndarray) -> list[tuple[pin.SE3, float, float]]:
                                          hull.simplices[:, [0, 2]]]), axis=1), axis=0)
     one = fit_capsule(vertices)
     best = ([one], _volume(one[1], one[2]))
+    narrowest: tuple[list, float] = ([one], one[2] * RADIUS_GAIN)  # (capsules, largest radius)
     mean = vertices.mean(axis=0)
     _, _, vt = np.linalg.svd(vertices - mean, full_matrices=False)
-    for axis in vt[:2]:
+    for k, axis in enumerate(vt):
         t_all = (points - mean) @ axis
         lo, hi = float(t_all.min()), float(t_all.max())
         for f in (0.3, 0.5, 0.7):
@@ -252,8 +259,13 @@ def fit_link(points: np.ndarray) -> list[tuple[pin.SE3, float, float]]:
                 continue
             fits = [fit_capsule(p) for p in parts]
             volume = sum(_volume(c[1], c[2]) for c in fits)
-            if volume < best[1] * (SPLIT_GAIN if len(best[0]) == 1 else 1.0):
+            if k < 2 and volume < best[1] * (SPLIT_GAIN if len(best[0]) == 1 else 1.0):
                 best = (fits, volume)
+            widest = max(c[2] for c in fits)
+            if widest < narrowest[1]:
+                narrowest = (fits, widest)
+    if len(best[0]) == 1 and len(narrowest[0]) == 2 and one[2] >= WIDE_RADIUS:
+        return narrowest[0]  # a boxy link (Talos's torso): two capsules, each much thinner
     return best[0]
 
 

@@ -88,3 +88,12 @@ def test_narrow_passage_leaves_room_for_a_walk():
     left, right = extent(scene.get("left wall")), extent(scene.get("right wall"))
     assert left[0][1] - right[1][1] == pytest.approx(1.1)
     assert left[0][0] > 0.1 and left[1][0] > 2.0  # from in front of the feet to 2 m ahead
+
+
+def test_docs_pictures_exist_and_stay_small():
+    """Every keyframe strip docs/primitives.md shows exists, each under 100 KB and all under 3 MB."""
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    shown = re.findall(r"\]\((images/actions/[\w-]+\.png)\)", (docs / "primitives.md").read_text(encoding="utf-8"))
+    assert len(shown) >= 10
+    assert max((docs / p).stat().st_size for p in shown) < 100_000
+    assert sum(f.stat().st_size for f in (docs / "images").rglob("*.png")) < 3_000_000

@@ -220,3 +220,40 @@ def test_viewer_draws_one_node_per_capsule(g1):
     assert n == len(collision_model(g1).capsules)
     drawn = [c for c in window.commands if b"capsule_" in c]
     assert len(drawn) >= 2 * n  # a sphere at each end (and a cylinder for a capsule of non-zero length)
+
+
+def test_wide_boxy_link_gets_two_thinner_capsules_close_to_its_mesh(talos):
+    """Talos's torso (a 0.31 x 0.45 x 0.46 m box) gets two capsules: in front of the chest, where
+    crossed arms and claps go, its sphere set stands at most 6 cm out of the mesh (coal distance of
+    probe points minus their sphere-set distance; one 0.27 m capsule stood 15-16 cm out), and never
+    inside it (the set still encloses the mesh)."""
+    import coal
+
+    cm = collision_model(talos)
+    caps = cm.capsules_of("torso_2_link")
+    assert len(caps) == 2 and max(c.radius for c in caps) < 0.2
+    data = talos.model.createData()
+    pin.forwardKinematics(talos.model, data, talos.q_standing)
+    J = data.oMi[caps[0].joint]
+    objs = [o for o in talos.collision_model.geometryObjects if talos.model.frames[o.parentFrame].name == "torso_2_link"]
+    probe = coal.Sphere(1e-4)
+
+    def mesh(p):
+        out = np.inf
+        for o in objs:
+            M = J * o.placement
+            out = min(out, coal.distance(o.geometry, coal.Transform3s(M.rotation, M.translation), probe,
+                                         coal.Transform3s(np.eye(3), p), coal.DistanceRequest(), coal.DistanceResult()))
+        return out
+
+    def spheres(p):
+        out = np.inf
+        for c in caps:
+            centres, r = c.spheres()
+            out = min(out, float(np.min(np.linalg.norm(centres @ J.rotation.T + J.translation - p, axis=1)) - r))
+        return out
+
+    for dz in (0.0, 0.1, 0.2, 0.3):  # chest height and above, 0.45 m in front of the torso joint
+        p = J.translation + J.rotation @ np.array([0.45, 0.0, dz])
+        inflation = mesh(p) - spheres(p)
+        assert 0.0 <= inflation <= 0.06, (dz, inflation)
