@@ -117,14 +117,23 @@ def test_signal_while_solving_leaves_nothing(sig, code, last, work):
 
 
 def _solver_leftovers(cache: Path) -> list[str]:
-    """What the interrupted solve left in the cache. The collision model, fitted and published before
-    the solve started, is a complete entry: it must be whole JSON, and is not counted."""
+    """What the interrupted solve left in the cache. The entries published before the solve started
+    are complete and not counted: the collision model (whole JSON), the robot's geometry
+    (``robots/<key>/``: ``manifest.json`` and ``geometry.bin``) and the MuJoCo model
+    (``mujoco/<key>/``: ``meta.json`` and ``model.mjb``); each manifest must be whole JSON."""
     import json
 
     for path in (cache / "collision").glob("*.json"):
         json.loads(path.read_text(encoding="utf-8"))
-    return [p for p in _leftovers(cache) if (p != "collision" and not p.startswith("collision/"))
-            or (p.startswith("collision/") and not p.endswith(".json"))]
+    complete = {"robots": ("geometry.bin", "manifest.json"), "mujoco": ("model.mjb", "meta.json")}
+    allowed = {"collision"} | set(complete)
+    for kind, (binary, manifest) in complete.items():
+        for entry in (cache / kind).glob("*"):
+            if (entry / binary).is_file() and (entry / manifest).is_file():
+                json.loads((entry / manifest).read_text(encoding="utf-8"))
+                allowed |= {f"{kind}/{entry.name}", f"{kind}/{entry.name}/{binary}", f"{kind}/{entry.name}/{manifest}"}
+    return [p for p in _leftovers(cache) if p not in allowed
+            and not (p.startswith("collision/") and p.endswith(".json") and p.count("/") == 1)]
 
 
 @pytest.mark.slow
