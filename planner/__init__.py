@@ -19,7 +19,14 @@ dynamic formulation) and ``planner.wbc`` (the whole-body controller). See docs/a
 from __future__ import annotations
 
 import importlib
+import os
 from typing import TYPE_CHECKING, Any
+
+# One BLAS thread unless the user says otherwise (before CasADi loads IPOPT's OpenBLAS): the NLPs are
+# too small to gain from a second thread, and when the other core is busy (another solve, a test
+# worker, a compile) OpenBLAS's threads wait for each other. Talos reaching into a table, refused:
+# 108 s of wall time for 37 s of CPU with the default threads, 21 s with one (docs/performance.md).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 if TYPE_CHECKING:
     from planner.exceptions import PlannerError, PlanningFailed, UnsupportedModel

@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 import tempfile
 
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads OpenBLAS: see planner/__init__.py
+
 import numpy as np
 import pytest
 from hypothesis import settings

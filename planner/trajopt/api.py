@@ -106,12 +106,18 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     if progress:
         progress("the solve failed: diagnosing")
     diagnosis = ""
-    if settings.scene_collision and settings.diagnose:
+    asked = settings.diagnose and not spec.dynamic and (settings.scene_collision or settings.self_collision)
+    if asked:
+        # A target out of reach is the cause whatever the collision rows say, and the relaxed solve
+        # that finds it converges: asked first, it spares the collision-free re-solve, which runs to
+        # the iteration limit when the target is out of reach anyway.
+        diagnosis = diagnose_failure(lay, result, settings, raw, targets_only=True)
+    if not diagnosis and settings.scene_collision and settings.diagnose:
         diagnosis = scene_diagnosis(lay, settings, solve_layout)
     if not diagnosis and settings.self_collision and settings.diagnose:
         diagnosis = collision_diagnosis(lay, settings, solve_layout)
     if not diagnosis:
-        diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw))
+        diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw, relax=not asked))
     result = make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks, forces=forces)
     if throw:
         raise PlanningFailed(diagnosis, result)

@@ -14,8 +14,12 @@ from tasks.specs import Priority
 RELAXED_WEIGHT = 1e4  # [1/m^2] weight of a hard target turned into a cost while diagnosing
 
 
-def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: dict) -> str:
-    """Explain a failed solve in task terms (which item, when, by how much)."""
+def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: dict,
+                     targets_only: bool = False, relax: bool = True) -> str:
+    """Explain a failed solve in task terms (which item, when, by how much): a hard target the
+    relaxed problem (targets as heavy costs, no collision or scene rows) cannot reach, else the
+    worst violated group of ``failed`` (with ``targets_only``: else an empty string; without
+    ``relax``, the relaxed solve is skipped: it was asked before)."""
     from planner.trajopt.layout import make_layout
     from planner.trajopt.report import make_plan
     from planner.trajopt.solve import solve_layout
@@ -23,7 +27,7 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
     spec = lay.spec
     hard = [tg for tg in spec.targets if tg.priority is Priority.HARD]
     hard_com = [tg for tg in spec.com_targets if tg.priority is Priority.HARD]
-    if settings.diagnose and (hard or hard_com):
+    if relax and settings.diagnose and (hard or hard_com):
         relaxed_spec = dataclasses.replace(
             spec,
             targets=tuple(dataclasses.replace(tg, priority=Priority.SOFT, weight=RELAXED_WEIGHT) if tg in hard else tg
@@ -52,6 +56,8 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
                 if len(misses) > 1:
                     text += "; also " + ", ".join(f"{m[1].name} ({m[0]:.2f} {m[1].unit})" for m in misses[1:])
                 return text
+    if targets_only:
+        return ""
     # no target to blame: the worst violated group at the returned point
     bad = sorted((c for c in failed.checks if not c.ok), key=lambda c: -(c.violation / max(c.tolerance, 1e-12)))
     status = failed.stats.status.value
