@@ -27,6 +27,7 @@ from __future__ import annotations
 import errno
 import os
 import secrets
+import signal
 import stat
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -63,16 +64,24 @@ def _why(err: OSError) -> str:
 def _probe_folder(folder: Path) -> str | None:
     """None if a file can be created in ``folder``, else the reason (also right for root)."""
     probe = folder / f".wbmp-probe-{secrets.token_hex(4)}{TMP_SUFFIX}"
+    # Ctrl-C or SIGTERM wait until the probe is gone (they arrive when the mask is restored): an
+    # interrupt between creating and removing it would leave it in the user's folder.
+    signals = {signal.SIGINT, signal.SIGTERM}
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, signals) if hasattr(signal, "pthread_sigmask") else None
     try:
-        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
-    except OSError as e:
-        return _why(e)
-    os.close(fd)
-    try:
-        os.unlink(probe)
-    except OSError as e:  # pragma: no cover - created a moment ago in the same folder
-        return _why(e)
-    return None
+        try:
+            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
+        except OSError as e:
+            return _why(e)
+        os.close(fd)
+        try:
+            os.unlink(probe)
+        except OSError as e:  # pragma: no cover - created a moment ago in the same folder
+            return _why(e)
+        return None
+    finally:
+        if held is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 def _check_parent(path: Path, option: str, shown: str) -> None:

@@ -30,8 +30,9 @@ class PlannerSettings:
     """How :func:`planner.plan` builds and solves the NLP.
 
     Attributes:
-        max_iterations: IPOPT iteration limit (feasible plans need <= 30 here; an infeasible one
-            runs to the limit before the diagnosis).
+        max_iterations: IPOPT iteration limit (feasible plans without collision rows need <= 30
+            here, a re-solve with new collision or scene rows up to ~110; an infeasible one runs to
+            the limit before the diagnosis).
         tolerance: IPOPT convergence tolerance (``tol``) [-].
         constraint_tolerance: IPOPT ``constr_viol_tol`` [constraint units: m, rad].
         print_level: IPOPT print level (0 = silent, 5 = per-iteration table).
@@ -73,7 +74,7 @@ class PlannerSettings:
             :mod:`planner.trajopt.nominal`).
     """
 
-    max_iterations: int = 100
+    max_iterations: int = 150
     tolerance: float = 1e-6
     constraint_tolerance: float = 1e-7
     print_level: int = 0
