@@ -534,10 +534,12 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="height", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
                   description="how high the object is lifted"),
         )),
-        ActionSchema(name="put_down", summary="Put a held object back down where it was picked up, and let go of it.",
+        ActionSchema(name="put_down", summary="Put a held object down (where it was picked up, or on another object) and let go of it.",
                      body="upper", params=(
             _object("the held object to put down"),
             _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
+            Param(name="on", kind="object", default=None,
+                  description="where to put it: on top of this object (default: back where it was)"),
         )),
         ActionSchema(name="touch_object", summary="Touch an object of the scene with one hand (a planned contact).",
                      body="upper", params=(

@@ -213,7 +213,7 @@ def compile_actions(
             phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
             waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
-        group = [(i, _standing_at(a, stance)) for i, a in group]
+        group = [(i, _holding_hand(_standing_at(a, stance), fragments, robot)) for i, a in group]
         _check_parts(group)
         length = _group_duration(group, robot, n)
         group_fragments = []
@@ -330,6 +330,7 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
     """
     out = []
     last: SceneObject | None = None  # the object said before: what "it" names
+    held: SceneObject | None = None  # the object picked up last: what a put_down's "it" names
     for i, a in enumerate(actions):
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
@@ -345,16 +346,33 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
                     if last is None:
                         raise GroundingError(f'"{strip_reference(ref)}" names the object said before, but none was: '
                                              'name it ("touch the box")', strip_reference(ref))
-                    obj = last
+                    obj = held if key == "object" and a.name == "put_down" and held is not None else last
                 else:
                     obj = ground(ref, scene, action=a.name)
-                last = obj
+                if obj is not held or a.name != "put_down":
+                    last = obj
+                if a.name == "pick_up" and key == "object":
+                    held = obj
             except GroundingError as e:
                 where = _where(i, a, len(actions))
                 raise GroundingError(f"{where}{e}", e.reference, e.candidates) from None
             params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=cast(Scene, scene))  # ground() raised without one
         out.append(Action(name=a.name, params=params, overlay=a.overlay, defaulted=a.defaulted))
     return out
+
+
+def _holding_hand(action: Action, fragments: list[Fragment], robot: Robot) -> Action:
+    """A put_down without a hand takes the hand that holds its object (after a walk the object's
+    side of the body is no guide)."""
+    g = action.params.get("object")
+    if action.name != "put_down" or action.params.get("arm") or not isinstance(g, Grounded):
+        return action
+    frames = {robot.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
+    held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
+    if not held or held[-1].place is not None or held[-1].frame not in frames:
+        return action
+    return Action(name=action.name, params={**action.params, "arm": frames[held[-1].frame]}, overlay=action.overlay,
+                  defaulted=action.defaulted)
 
 
 def _standing_at(action: Action, stance: Stance) -> Action:

@@ -33,7 +33,7 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import Grounded
 from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
-from tasks.primitives.bodymap import body_map, to_heading
+from tasks.primitives.bodymap import body_map, to_heading, to_standing
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.primitives.objects import grounded
 from tasks.scene import SceneObject, extent
@@ -184,10 +184,69 @@ REST_TIME = 1.0  # [s] then back to rest
 PUT_DURATION = LOWER_TIME + RELEASE_TIME + RETREAT_TIME + REST_TIME
 
 
+PLACE_MARGIN = 0.02  # [m] a placed object's footprint stays this far inside the destination's top face
+ABOVE_TIME = 1.0  # [s] nominal: held pose -> above the place (a destination), then down in the rest of LOWER_TIME
+REACH_AHEAD = 0.45  # [m] the hand's comfortable reach ahead of the body (heading frame): where a spot is chosen
+
+
+def destination(params: dict) -> Grounded | None:
+    """The grounded object a put_down puts its object on (None: back where it was)."""
+    value = params.get("on")
+    if value is None or isinstance(value, Grounded):
+        return value
+    from tasks.grounding import ground
+
+    ground(value, None, action="put_down")  # raises: no scene
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def place_point(robot: Robot, stance: Stance, obj: SceneObject, on: SceneObject, side: str) -> np.ndarray:
+    """Where the object's centre goes on ``on``'s top face (world) [m]: where it stood when that is
+    on this face, else the point of the face (its footprint :data:`PLACE_MARGIN` inside the edges)
+    nearest to a spot :data:`REACH_AHEAD` ahead of the robot on the ``side`` hand's side; its bottom on
+    the face. Faces are taken axis-aligned (the destination's bounding box)."""
+    lo, hi = extent(obj)
+    olo, ohi = extent(on)
+    half = 0.5 * (np.asarray(hi) - np.asarray(lo))
+    below = float(obj.position[2] - lo[2])  # centre above the object's bottom [m]
+    if on.shape not in ("box", "cylinder"):
+        raise TaskDefinitionError(f"put_down: the {on.name} has no flat top to put the {obj.name} on")
+    if on.name == obj.name:
+        raise TaskDefinitionError(f"put_down: the {obj.name} cannot be put on itself")
+    x0, x1 = olo[0] + half[0] + PLACE_MARGIN, ohi[0] - half[0] - PLACE_MARGIN
+    y0, y1 = olo[1] + half[1] + PLACE_MARGIN, ohi[1] - half[1] - PLACE_MARGIN
+    if x0 > x1 or y0 > y1:
+        raise TaskDefinitionError(f"put_down: the {on.name}'s top is too small for the {obj.name}")
+    top = float(ohi[2])
+    at = np.asarray(obj.position, dtype=float)
+    if x0 <= at[0] <= x1 and y0 <= at[1] <= y1 and abs(at[2] - below - top) <= 0.03:
+        return np.array([at[0], at[1], top + below])  # it stood there: back to its place
+    lateral = float(body_map(robot).hand_position[side][1])
+    ahead = stance.transform_from_standing(robot).act(to_standing(robot, [REACH_AHEAD, lateral, 0.0]))
+    return np.array([min(max(ahead[0], x0), x1), min(max(ahead[1], y0), y1), top + below])
+
+
+def _moved(obj: SceneObject, position: np.ndarray) -> SceneObject:
+    """The object with its centre at ``position`` [m]."""
+    return dataclasses.replace(obj, position=(float(position[0]), float(position[1]), float(position[2])))
+
+
 def _put_check(params: dict, robot: Robot) -> None:
     g = grounded(params, "put_down")
     if not g.obj.movable:
         raise TaskDefinitionError(f"put_down: the {g.obj.name} is fixed in the scene; nothing holds it")
+    on = destination(params)
+    if on is None or not isinstance(g.start, Stance) or not params.get("arm"):
+        return
+    side = str(params["arm"])
+    moved = _moved(g.obj, place_point(robot, g.start, g.obj, on.obj, side))
+    T = g.start.transform_from_standing(robot)
+    point = to_heading(robot, T.actInv(grasp_point(robot, side, moved)))
+    gap = reach_gap(robot, side, point, bend=True)
+    if gap > 1e-9:
+        raise TaskDefinitionError(
+            f"put_down: the top of the {on.obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
+            f'stands: walk to the {on.obj.name} first ("walk to the {on.obj.name} and put the {g.obj.name} on it")')
 
 
 def build_put_down(b: FragmentBuilder) -> Fragment:
@@ -198,16 +257,28 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     put_down of an object no hand holds).
     """
     g = grounded(b.params, "put_down")
-    _put_check(b.params, b.robot)
+    if not isinstance(g.start, Stance):
+        g = dataclasses.replace(g, start=b.stance)
+        b.params["object"] = g
     side = holding_arm(b.params, b.robot) if b.params.get("arm") else _held_side(b, g)
+    b.params["arm"] = side
+    _put_check(b.params, b.robot)
+    on = destination(b.params)
+    place = np.asarray(g.obj.position, dtype=float) if on is None else place_point(b.robot, b.stance, g.obj, on.obj, side)
+    g = dataclasses.replace(g, obj=_moved(g.obj, place))
     poses = _poses(b.robot, b.stance, g, side, 0.0)
     rpy = b.world_rotation(b.geometry.rotation(f"{side}_hand"))
     name, role = g.obj.name, f"{side}_hand"
     t_low = LOWER_TIME
     t_rel = t_low + RELEASE_TIME
     t_back = t_rel + RETREAT_TIME
-    b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in poses["grasp"]), rpy=rpy,
-                   window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+    if on is not None:  # from above: the held object comes down onto the destination, not through its edge
+        b.frame_target(f"{side} hand holds the {name} above the {on.obj.name}", role,
+                       position=tuple(float(x) for x in poses["grasp"] + PRE_UP * np.array([0.0, 0.0, 1.0])), rpy=rpy,
+                       time=ABOVE_TIME, tolerance=POSE_TOLERANCE)
+    where = f" on the {on.obj.name}" if on is not None else ""
+    b.frame_target(f"{side} hand puts the {name} down{where}", role, position=tuple(float(x) for x in poses["grasp"]),
+                   rpy=rpy, window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
     b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in poses["pre"]), rpy=rpy,
                    time=t_back, tolerance=POSE_TOLERANCE)
     rest_targets(b, [role], tau=PUT_DURATION)
@@ -216,7 +287,7 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     b.phase(f"retreat from the {name}", PUT_DURATION)
     b.grasps.append(Grasp(
         name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role), offset=(0.0, 0.0, 0.0),
-        start=b.t0, end=b.t(t_rel), place=(float(g.obj.position[0]), float(g.obj.position[1]), float(g.obj.position[2])),
+        start=b.t0, end=b.t(t_rel), place=(float(place[0]), float(place[1]), float(place[2])),
         tolerance=GRASP_TOLERANCE))
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
@@ -230,5 +301,5 @@ PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT
 
 PRIMITIVES = (PICK_UP, PUT_DOWN)
 
-__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "grasp_offset",
-           "grasp_point", "holding_arm"]
+__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "destination",
+           "grasp_offset", "grasp_point", "holding_arm", "place_point"]

@@ -124,3 +124,33 @@ def test_pick_up_height_and_hand_from_the_sentence():
 
     with pytest.raises(InvalidParameter, match='"it": no object was named before it'):
         parse("pick it up")
+
+
+BOOK = SceneObject(name="book", shape="box", size=(0.2, 0.2, 0.04), position=(0.58, -0.4, 0.74),
+                   colour=(0.1, 0.6, 0.2, 1.0))
+SHELF = SceneObject(name="shelf", shape="box", size=(0.4, 1.0, 1.0), position=(0.3, 1.6, 0.5), aliases=("架子",))
+
+
+def test_put_the_cup_on_another_object(talos):
+    """"pick up the cup, then put it on the book": the release's place is on the book's top face (the
+    cup's bottom on it, its footprint inside the face), the put-down target carries the cup's centre
+    (the grasp's offset in the hand frame) there and comes from 8 cm above; "put the cup on the shelf"
+    out of reach is refused in task terms; 把杯子放到架子上 names the same action."""
+    scene = Scene(name="cup and book", objects=(TABLE, CUP, BOOK))
+    spec = compile_actions(list(parse("pick up the cup, then put it on the book").actions), talos, scene=scene)
+    (g,) = spec.grasps
+    place = np.asarray(g.place)
+    assert place[2] == pytest.approx(BOOK.position[2] + 0.02 + 0.05)  # book top + half the cup
+    for i in (0, 1):
+        assert abs(place[i] - BOOK.position[i]) <= BOOK.size[i] / 2 - CUP.size[0] + 1e-9
+    down = next(t for t in spec.targets if t.name.endswith("puts the cup down on the book"))
+    above = next(t for t in spec.targets if t.name.endswith("above the book"))
+    R = pin.rpy.rpyToMatrix(*down.rpy)
+    np.testing.assert_allclose(np.asarray(down.position) + R @ np.asarray(g.offset), place, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(above.position) - np.asarray(down.position), [0, 0, 0.08], atol=1e-9)
+    assert above.time < down.window[0] <= g.end == down.window[1]
+    far = Scene(name="cup and shelf", objects=(TABLE, CUP, SHELF))
+    with pytest.raises(TaskDefinitionError, match=r"beyond the right hand's reach .* walk to the shelf first"):
+        compile_actions(list(parse("pick up the cup, then put it on the shelf").actions), talos, scene=far)
+    (a,) = parse("把杯子放到架子上").actions
+    assert (a.name, a.params["object"], a.params["on"]) == ("put_down", "杯子", "架子")
