@@ -38,6 +38,7 @@ from language.lexicon import (
     AGAIN,
     AUX,
     BODY,
+    CARRIED,
     CLASSIFIER,
     DEST,
     DIR,
@@ -282,6 +283,18 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
                 out.extend(part)
                 part.clear()
                 return
+        if t is not None and any(lx.actions[a].with_object is not None for a, _ in part[t].value):
+            after = part[t + 1:]
+            for p in reversed(range(len(after))):
+                if after[p].text == "with":  # walk to the table with the cup
+                    carried = reference_run(after[p + 1:])
+                    obj = reference_run(after[:p])
+                    if carried and obj:
+                        merge(carried, CARRIED)
+                        merge(obj)
+                        out.extend(part)
+                        part.clear()
+                        return
         if t is not None:
             run = reference_run(part[t + 1:])
             if not run:
@@ -356,14 +369,16 @@ def _pronouns(items: list[Item]) -> list[Item]:
             verb = it
             if any(a in HOLDING for a, _ in it.value) and out and out[-1].kind == REF and out[-1].end <= it.start:
                 held = out[-1]  # 把杯子拿起来: the object before the action word
-        if it.kind in (REF, DEST) and it.value in PRONOUNS:
-            from_hand = it.kind == REF and held is not None and (placing() or _places_next(items, k))
+        if it.kind in (REF, DEST, CARRIED) and it.value in PRONOUNS:
+            from_hand = held is not None and (it.kind == CARRIED or (it.kind == REF and (placing() or _places_next(items, k))))
             known = held if from_hand else last
             if known is None:
                 raise InvalidParameter(f'"{it.text}": no object was named before it; say which object (e.g. "the cup")')
             out.append(Item(it.kind, known.value, it.text, it.start, it.end))
             if not from_hand:  # "put it on it": the second "it" is the object named before, not the held one
                 last = out[-1]
+            if it.kind == REF and verb is not None and any(a in HOLDING for a, _ in verb.value):
+                held = out[-1]  # "walk to the cup and pick it up"
             continue
         if it.kind in (REF, DEST):
             last = it
@@ -759,6 +774,11 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
                 raise misfit(it)
             params[aw.destination] = it.value
             note(it, "destination", f"{aw.destination}={it.value}")
+        elif it.kind == CARRIED:
+            if aw.with_object is None:
+                raise misfit(it)
+            params[aw.with_object] = it.value
+            note(it, "carried object", f"{aw.with_object}={it.value}")
         else:  # pragma: no cover - every item kind is handled above
             raise misfit(it)
 

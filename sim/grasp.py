@@ -50,6 +50,8 @@ class _Held:
     engaged_at: float | None = None
     released_at: float | None = None
     closest: float = math.inf  # [m] best distance of the object's centre to its held place
+    drift: float = 0.0  # [m] farthest the object's centre got from its held place while held
+    last: float = math.inf  # [m] its distance at the last tick
 
 
 def _descendants(m: mujoco.MjModel, body: int) -> set[int]:
@@ -135,6 +137,11 @@ class GraspRig:
             elif h.released_at is None and g.end is not None and t >= g.end - 1e-9:
                 d.eq_active[h.eq] = 0
                 h.released_at = t
+            elif h.released_at is None:
+                R = d.xmat[h.hand_body].reshape(3, 3)
+                h.last = float(np.linalg.norm(d.xpos[self.bodies[h.obj_index]] - R @ np.asarray(g.offset)
+                                              - d.xpos[h.hand_body]))
+                h.drift = max(h.drift, h.last)
         i = self.n
         if i < len(self.t):
             self.t[i] = t
@@ -215,6 +222,17 @@ class GraspRig:
                     value=worst, limit=limit, unit="m", ok=ok, time=float(t[mask][k]), upper=False,
                     message="" if ok else (f"the {name} rose only {worst * 100:.1f} cm while held (asked "
                                            f"{g.lift * 100:g} cm, tolerance {LIFT_TOLERANCE * 100:g} cm)")))
+        if g.end is None and h.engaged_at is not None:  # held to the end: still in the hand, still up
+            up = float(pos[-1, h.obj_index, 2] - z0)
+            limit = g.lift - LIFT_TOLERANCE
+            ok = h.drift <= g.tolerance and up >= limit
+            out.append(Check(
+                name=f"{name} still held at the end ({WELD})", kind=CheckKind.OBJECT_HELD, subject=name,
+                value=h.drift, limit=g.tolerance, unit="m", ok=ok, time=float(t[-1]),
+                message="" if ok else (f"the {name} left the {h.side} hand ({h.drift * 100:.1f} cm from its held place)"
+                                       if h.drift > g.tolerance else
+                                       f"the {name} ended only {up * 100:.1f} cm above where it stood (asked "
+                                       f"{g.lift * 100:g} cm, tolerance {LIFT_TOLERANCE * 100:g} cm)")))
         if g.place is not None:
             err = float(np.linalg.norm(pos[-1, h.obj_index] - np.asarray(g.place)))
             ok = err <= PLACE_TOLERANCE

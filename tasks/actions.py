@@ -513,6 +513,8 @@ REGISTRY: dict[str, ActionSchema] = {
         ActionSchema(name="walk_to", summary="Walk to an object of the scene and stop facing it, within arm's reach.",
                      body="lower", dynamic=True, params=(
             _object("the object to walk to"),
+            Param(name="carrying", kind="object", default=None,
+                  description="an object a hand holds and carries along (\"with the cup\"); it must be held already"),
         )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(

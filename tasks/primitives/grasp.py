@@ -186,6 +186,8 @@ PUT_DURATION = LOWER_TIME + RELEASE_TIME + RETREAT_TIME + REST_TIME
 
 PLACE_MARGIN = 0.02  # [m] a placed object's footprint stays this far inside the destination's top face
 ABOVE_TIME = 1.0  # [s] nominal: held pose -> above the place (a destination), then down in the rest of LOWER_TIME
+PLACE_GRID = 7  # points per side of the destination's face tried when the spot is beyond comfortable reach
+PLACE_REACH_MARGIN = 0.03  # [m] a place this far within the hand's reach is comfortable
 REACH_AHEAD = 0.45  # [m] the hand's comfortable reach ahead of the body (heading frame): where a spot is chosen
 
 
@@ -203,8 +205,9 @@ def destination(params: dict) -> Grounded | None:
 def place_point(robot: Robot, stance: Stance, obj: SceneObject, on: SceneObject, side: str) -> np.ndarray:
     """Where the object's centre goes on ``on``'s top face (world) [m]: where it stood when that is
     on this face, else the point of the face (its footprint :data:`PLACE_MARGIN` inside the edges)
-    nearest to a spot :data:`REACH_AHEAD` ahead of the robot on the ``side`` hand's side; its bottom on
-    the face. Faces are taken axis-aligned (the destination's bounding box)."""
+    nearest to a spot :data:`REACH_AHEAD` ahead of the robot on the ``side`` hand's side, among those
+    :data:`PLACE_REACH_MARGIN` within the hand's reach (if none is, the one nearest to reach); its
+    bottom on the face. Faces are taken axis-aligned (the destination's bounding box)."""
     lo, hi = extent(obj)
     olo, ohi = extent(on)
     half = 0.5 * (np.asarray(hi) - np.asarray(lo))
@@ -222,8 +225,20 @@ def place_point(robot: Robot, stance: Stance, obj: SceneObject, on: SceneObject,
     if x0 <= at[0] <= x1 and y0 <= at[1] <= y1 and abs(at[2] - below - top) <= 0.03:
         return np.array([at[0], at[1], top + below])  # it stood there: back to its place
     lateral = float(body_map(robot).hand_position[side][1])
-    ahead = stance.transform_from_standing(robot).act(to_standing(robot, [REACH_AHEAD, lateral, 0.0]))
-    return np.array([min(max(ahead[0], x0), x1), min(max(ahead[1], y0), y1), top + below])
+    T = stance.transform_from_standing(robot)
+    ahead = T.act(to_standing(robot, [REACH_AHEAD, lateral, 0.0]))
+    spot = np.array([min(max(ahead[0], x0), x1), min(max(ahead[1], y0), y1), top + below])
+    best: tuple[float, float, np.ndarray] | None = None
+    for x in np.linspace(x0, x1, PLACE_GRID):  # the spot, or the face's point nearest to it within comfortable reach
+        for y in np.linspace(y0, y1, PLACE_GRID):
+            for p in (spot, np.array([x, y, top + below])):
+                gap = reach_gap(robot, side, to_heading(robot, T.actInv(grasp_point(robot, side, _moved(obj, p)))),
+                                bend=True)
+                key = (max(gap + PLACE_REACH_MARGIN, 0.0), float(np.linalg.norm(p[:2] - spot[:2])))
+                if best is None or key < best[:2]:
+                    best = (*key, p)
+    assert best is not None
+    return best[2]
 
 
 def _moved(obj: SceneObject, position: np.ndarray) -> SceneObject:
@@ -299,7 +314,78 @@ def _held_side(b: FragmentBuilder, g: Grounded) -> str:
 PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION, build=build_put_down,
                      parts=_parts, check=_put_check)
 
+# --- carrying -------------------------------------------------------------------------
+CARRY_WEIGHT = 1000.0  # cost weight of each carrying joint's angle while the feet move [1/rad^2]
+IK_ITERATIONS = 100
+IK_SEEDS = 8  # random starting postures besides the standing one (seeded: the same posture every time)
+IK_DAMPING = 1e-4  # damped least squares [m^2]
+IK_TURN_WEIGHT = 0.3  # [m/rad] the hand's orientation error counts this much against its position error
+IK_TORSO_COST = 10.0  # a torso joint's angle away from standing counts this many times an arm joint's
+IK_TOLERANCE = 2e-3  # [m] weighted pose error of a carry posture
+
+
+def carrying_joints(robot: Robot, side: str) -> tuple[list[int], list[int]]:
+    """Pinocchio joint indices (torso, arm) from the base to the ``side`` hand: the torso joints carry
+    both hands, the arm joints only this one."""
+    model = robot.model
+    other = "right" if side == "left" else "left"
+    mine = [j for j in model.supports[model.frames[robot.frame_id(f"{side}_hand")].parentJoint] if j > 1]
+    both = set(model.supports[model.frames[robot.frame_id(f"{other}_hand")].parentJoint])
+    one_dof = [j for j in mine if model.joints[j].nv == 1]
+    return [j for j in one_dof if j in both], [j for j in one_dof if j not in both]
+
+
+def carry_posture(robot: Robot, side: str, hand_in_standing: pin.SE3) -> dict[str, float]:
+    """Joint angles [rad] of the torso and the ``side`` arm that hold the ``side`` hand frame at
+    ``hand_in_standing`` (standing world frame), with the base and legs at their standing posture:
+    what a carried object's joints keep while the feet move, so the hand moves with the body.
+
+    Damped least squares (orientation weighted :data:`IK_TURN_WEIGHT`) within the joint limits, from
+    the standing posture and :data:`IK_SEEDS` seeded random postures; of the solutions within
+    :data:`IK_TOLERANCE`, the one nearest the standing posture (torso joints counted
+    :data:`IK_TORSO_COST` times).
+
+    Raises:
+        TaskDefinitionError: no solution holds the hand there.
+    """
+    model, data = robot.model, robot.data()
+    fid = robot.frame_id(f"{side}_hand")
+    torso, arm = carrying_joints(robot, side)
+    joints = torso + arm
+    cols = [model.joints[j].idx_v for j in joints]
+    rows = [model.joints[j].idx_q for j in joints]
+    lo, hi = model.lowerPositionLimit[rows], model.upperPositionLimit[rows]
+    W = np.array([1.0, 1.0, 1.0, IK_TURN_WEIGHT, IK_TURN_WEIGHT, IK_TURN_WEIGHT])  # [m/rad]
+    cost = np.array([IK_TORSO_COST if j in torso else 1.0 for j in joints])
+    rng = np.random.default_rng(0)
+    seeds = [robot.q_standing[rows]] + [rng.uniform(lo, hi) for _ in range(IK_SEEDS)]
+    best: tuple[float, np.ndarray] | None = None
+    worst = np.inf
+    for seed in seeds:
+        q = robot.q_standing.copy()
+        q[rows] = seed
+        for _ in range(IK_ITERATIONS):
+            pin.framesForwardKinematics(model, data, q)
+            err = W * pin.log6(data.oMf[fid].actInv(hand_in_standing)).vector
+            if np.linalg.norm(err) < 0.1 * IK_TOLERANCE:
+                break
+            J = W[:, None] * pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)[:, cols]
+            q[rows] = np.clip(q[rows] + J.T @ np.linalg.solve(J @ J.T + IK_DAMPING * np.eye(6), err), lo, hi)
+        pin.framesForwardKinematics(model, data, q)
+        miss = float(np.linalg.norm(W * pin.log6(data.oMf[fid].actInv(hand_in_standing)).vector))
+        worst = min(worst, miss)
+        if miss <= IK_TOLERANCE:
+            away = float(np.sum(cost * (q[rows] - robot.q_standing[rows]) ** 2))
+            if best is None or away < best[0]:
+                best = (away, q[rows].copy())
+    if best is None:
+        raise TaskDefinitionError(
+            f"the {side} arm cannot carry its object where it lifted it with the legs standing "
+            f"({worst * 100:.1f} cm off); lift it less high")
+    return {model.names[j]: float(v) for j, v in zip(joints, best[1], strict=True)}
+
+
 PRIMITIVES = (PICK_UP, PUT_DOWN)
 
-__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "destination",
-           "grasp_offset", "grasp_point", "holding_arm", "place_point"]
+__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "carry_posture",
+           "carrying_joints", "destination", "grasp_offset", "grasp_point", "holding_arm", "place_point"]

@@ -5,6 +5,8 @@ fingertips, the grasp and its hold window are in the spec (and round-trip), and 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -154,3 +156,38 @@ def test_put_the_cup_on_another_object(talos):
         compile_actions(list(parse("pick up the cup, then put it on the shelf").actions), talos, scene=far)
     (a,) = parse("把杯子放到架子上").actions
     assert (a.name, a.params["object"], a.params["on"]) == ("put_down", "杯子", "架子")
+
+
+def test_a_held_cup_is_carried_while_the_feet_move(talos):
+    """"pick up the cup, then walk backward two steps": the lift target holds until the steps start;
+    from then to the end the torso and right-arm joints keep angles (costs) that, on the standing
+    posture (Pinocchio), put the hand where it lifted the cup relative to the feet, within 2 mm and
+    0.01 rad; carrying an object no hand holds is refused; the kitchen's "walk to the cup, pick it
+    up, walk to the shelf and put it on it" compiles, the cup placed on the shelf's top."""
+    spec = compile_actions(list(parse("pick up the cup, then walk backward two steps").actions), talos, scene=NEAR)
+    step = next(p for p in spec.phases if p.name.startswith("2 step"))
+    t_step = spec.phase_start_times()[spec.phases.index(step)]
+    lift = next(t for t in spec.targets if t.name.endswith("right hand lifts the cup"))
+    assert lift.window[1] == pytest.approx(t_step)
+    carry = [t for t in spec.joint_targets if "carry the cup" in t.name]
+    assert len(carry) == 9 and all(t.window == pytest.approx((t_step, spec.horizon)) for t in carry)
+    model, data = talos.model, talos.data()
+    q = talos.q_standing.copy()
+    for t in carry:
+        q[model.joints[model.getJointId(t.joint)].idx_q] = t.value
+    assert {model.names[model.getJointId(t.joint)][:5] for t in carry} == {"torso", "arm_r"}
+    pin.framesForwardKinematics(model, data, q)
+    err = pin.log6(data.oMf[talos.frame_id("right_hand")].actInv(
+        pin.SE3(pin.rpy.rpyToMatrix(*lift.rpy), np.asarray(lift.position)))).vector  # pick-up stance = standing
+    assert np.linalg.norm(err[:3]) < 2e-3 and np.linalg.norm(err[3:]) < 0.01
+    with pytest.raises(TaskDefinitionError, match="no hand holds the cup to carry; pick it up first"):
+        compile_actions(list(parse("walk to the table with the cup").actions), talos, scene=NEAR)
+    from tasks.scene import load_scene
+
+    kitchen = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "kitchen.json")
+    spec = compile_actions(list(parse("walk to the cup, pick it up, walk to the shelf and put it on it").actions), talos,
+                           scene=kitchen)
+    (g,) = spec.grasps
+    shelf = kitchen.get("shelf")
+    assert g.place[2] == pytest.approx(shelf.position[2] + shelf.size[2] / 2 + 0.05)
+    assert any("3 walk_to: carry the cup" in t.name for t in spec.joint_targets)
