@@ -532,7 +532,8 @@ REGISTRY: dict[str, ActionSchema] = {
         ActionSchema(name="pick_up", summary="Pick up a movable object of the scene with one hand, lift it and hold it.",
                      body="upper", params=(
             _object("the object to pick up"),
-            _choice("arm", SIDES, None, "which hand picks it up (default: the one on the object's side)"),
+            _choice("arm", ARMS, None, "which hand picks it up, or both (a box pressed between them) (default: the one "
+                    "on the object's side)"),
             Param(name="height", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
                   description="how high the object is lifted"),
         )),

@@ -316,8 +316,11 @@ def _carrying(fragments: list[Fragment], grasps: tuple[Grasp, ...], robot: Robot
     for f in fragments:
         for fg in f.grasps:
             g = next((h for h in grasps if h.name == fg.name), None)
-            held = [t for t in f.targets if t.name in f.holds and t.position is not None and t.rpy is not None]
-            if g is None or not held or g.frame not in sides:
+            if g is None:
+                continue
+            held = [t for t in f.targets if t.name in f.holds and t.position is not None and t.rpy is not None
+                    and t.frame == g.frame]
+            if not held or g.frame not in sides:
                 continue
             end = horizon if g.end is None else g.end
             movers = [m for m in fragments if m.changes_contacts and m.t0 >= f.t_end - 1e-9 and m.t0 < end - 1e-9]
@@ -333,9 +336,12 @@ def _carrying(fragments: list[Fragment], grasps: tuple[Grasp, ...], robot: Robot
             for m in movers:
                 later = [n.t0 for n in fragments if n.t0 >= m.t_end - 1e-9 and n.parts & arm]
                 until = min([*later, end])
-                out.extend(JointTarget(name=f"{m.label}: carry the {g.object}: {joint}", joint=joint, value=value,
-                                       window=(m.t0, round(until, 9)), weight=CARRY_WEIGHT)
-                           for joint, value in angles.items())
+                named = {t.name for t in out}
+                for joint, value in angles.items():
+                    target = JointTarget(name=f"{m.label}: carry the {g.object}: {joint}", joint=joint, value=value,
+                                         window=(m.t0, round(until, 9)), weight=CARRY_WEIGHT)
+                    if target.name not in named:  # both hands: the torso's angles come from the first
+                        out.append(target)
     return tuple(out)
 
 

@@ -109,8 +109,20 @@ def _check(params: dict, robot: Robot) -> None:
         raise TaskDefinitionError(f"pick_up: the {obj.name} is fixed in the scene (movable: false); it cannot be picked up")
     if not robot.has_role("left_hand") or not robot.has_role("right_hand"):
         raise TaskDefinitionError(f"pick_up: {robot.name} has no hand frames")
+    if params.get("arm") == "both" and obj.shape != "box":
+        raise TaskDefinitionError(f"pick_up: the {obj.name} is a {obj.shape}; both hands pick up a box (pressing its sides)")
     if not isinstance(g.start, Stance):
         return  # where the robot will stand is not known yet (an action before it may walk)
+    if params.get("arm") == "both":
+        poses = _both_poses(robot, g.start, obj, 0.0)
+        for side in ("left", "right"):
+            point = to_heading(robot, g.start.transform_from_standing(robot).actInv(poses[side]["grasp"]))
+            gap = reach_gap(robot, side, point, bend=True)
+            if gap > 1e-9:
+                raise TaskDefinitionError(
+                    f"pick_up: the {obj.name}'s {side} side is {gap:.2f} m beyond the {side} hand's reach from where the "
+                    f'robot stands: walk to it first ("walk to the {obj.name} and pick it up with both hands")')
+        return
     side = holding_arm(params, robot)
     T = g.start.transform_from_standing(robot)
     point = to_heading(robot, T.actInv(grasp_point(robot, side, obj)))
@@ -129,6 +141,8 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
         g = dataclasses.replace(g, start=b.stance)
         b.params["object"] = g
         _check(b.params, b.robot)
+    if b.params.get("arm") == "both":
+        return _build_both(b, g)
     side = holding_arm(b.params, b.robot)
     height = float(b.params["height"])
     poses = _poses(b.robot, b.stance, g, side, height)
@@ -164,6 +178,8 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
 
 def _parts(params: dict) -> frozenset[str]:
     arm = params.get("arm")
+    if arm == "both":
+        return frozenset({"left_arm", "right_arm", "torso"})
     if arm:
         return frozenset({f"{arm}_arm", "torso"})
     g = params.get("object")
@@ -171,6 +187,73 @@ def _parts(params: dict) -> frozenset[str]:
         local = g.start.heading().actInv(np.asarray(g.obj.position, dtype=float))
         return frozenset({"left_arm" if local[1] >= 0 else "right_arm", "torso"})
     return frozenset({"left_arm", "right_arm", "torso"})
+
+
+# --- both hands: a box pressed between the palms --------------------------------------------
+SQUEEZE = 0.01  # [m] each hand's geometry planned this far inside the box's side face (the press)
+PRE_SIDE = 0.08  # [m] the pre-grasp poses are this far out from the sides
+BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
+
+
+def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -> dict[str, dict[str, np.ndarray]]:
+    """World positions [m] of each hand frame (``pre``, ``grasp``, ``lift``) and its orientation ``R``
+    pressing the box's left and right sides (seen from the robot): each hand's geometry (standing
+    orientation) :data:`SQUEEZE` inside its face, centred on the box front to back, as low as keeps
+    it :data:`GRASP_CLEARANCE` above the box's bottom, centred on the box's height if higher."""
+    T = stance.transform_from_standing(robot)
+    H = T * standing_geometry(robot).heading  # the heading frame where the robot stands
+    c = H.actInv(np.asarray(obj.position, dtype=float))  # the box's centre in that frame
+    R_box = H.rotation.T @ np.asarray(pin.rpy.rpyToMatrix(*obj.rpy))
+    half = np.abs(R_box) @ (np.asarray(obj.size, dtype=float) / 2)  # half extents along the heading axes
+    bm = body_map(robot)
+    out = {}
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        lo, hi = bm.hand_lo[side], bm.hand_hi[side]
+        inner = lo[1] if sign > 0 else hi[1]  # the hand's side towards the box
+        y = c[1] + sign * (half[1] - SQUEEZE) - inner
+        x = c[0] - 0.5 * (lo[0] + hi[0])
+        z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
+        grasp = np.array([x, y, z])
+        R = T.rotation @ standing_geometry(robot).rotation(f"{side}_hand")
+        pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP])
+        out[side] = {"pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(grasp) + np.array([0.0, 0.0, height]),
+                     "R": R}
+    return out
+
+
+def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
+    """Both hands press the box's sides, lift it by ``height`` and hold it: two :class:`Grasp` of the
+    same object over the same window (the payload is shared; the simulation welds it to both hands)."""
+    height = float(b.params["height"])
+    poses = _both_poses(b.robot, b.stance, g.obj, height)
+    name = g.obj.name
+    t_pre = APPROACH_TIME
+    t_in = t_pre + REACH_IN_TIME
+    t_close = t_in + CLOSE_TIME
+    t_lift = t_close + LIFT_TIME
+    for side in ("left", "right"):
+        role = f"{side}_hand"
+        rpy = b.world_rotation(b.geometry.rotation(role))
+        p = poses[side]
+
+        def put(what: str, key: str, role: str = role, rpy: tuple = rpy, p: dict = p, **when) -> None:
+            b.frame_target(what, role, position=tuple(float(x) for x in p[key]), rpy=rpy,
+                           tolerance=GRASP_TARGET_TOLERANCE if key != "pre" else POSE_TOLERANCE, **when)
+
+        put(f"{side} hand beside the {name}", "pre", time=t_pre)
+        put(f"{side} hand presses the {name}", "grasp", window=(t_in, t_close))
+        put(f"{side} hand lifts the {name}", "lift", window=(t_lift, DURATION))
+        b.holds.append(b.name(f"{side} hand lifts the {name}"))
+        offset = p["R"].T @ (np.asarray(g.obj.position, dtype=float) - p["grasp"])
+        b.grasps.append(Grasp(
+            name=b.name(f"{side} hand holds the {name}"), object=name, frame=b.robot.frame(role),
+            offset=(float(offset[0]), float(offset[1]), float(offset[2])),
+            start=b.t(t_in), lift=height, hold=b.window(t_lift, DURATION), tolerance=BOTH_TOLERANCE))
+    b.phase(f"approach the {name}", t_in)
+    b.phase(f"press the {name}", t_close)
+    b.phase(f"lift the {name}", t_lift)
+    b.phase(f"hold the {name}", DURATION)
+    return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
 PICK_UP = Primitive(name="pick_up", nominal_duration=lambda params, robot: DURATION, build=build_pick_up,
