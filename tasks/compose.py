@@ -420,6 +420,9 @@ def _holding_hand(action: Action, fragments: list[Fragment], robot: Robot) -> Ac
     held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
     if not held or held[-1].place is not None or held[-1].frame not in frames:
         return action
+    if len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None:
+        raise TaskDefinitionError(f"put_down: the {g.obj.name} is held with both hands; putting it down with both hands "
+                                  "is not supported yet")
     return Action(name=action.name, params={**action.params, "arm": frames[held[-1].frame]}, overlay=action.overlay,
                   defaulted=action.defaulted)
 

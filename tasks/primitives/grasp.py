@@ -192,7 +192,48 @@ def _parts(params: dict) -> frozenset[str]:
 # --- both hands: a box pressed between the palms --------------------------------------------
 SQUEEZE = 0.01  # [m] each hand's geometry planned this far inside the box's side face (the press)
 PRE_SIDE = 0.08  # [m] the pre-grasp poses are this far out from the sides
+BOTH_TURN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # about the heading y axis, -90 deg:
+# a hand that hangs down in its standing orientation points forward, the arms reach out under the box's weight
 BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
+
+
+def hand_points(robot: Robot, side: str) -> np.ndarray:
+    """Vertices (n, 3) [m] of the collision meshes of the ``side`` hand (its frame's joint and the joints
+    below) at the standing posture, relative to the hand frame, in heading axes (a primitive shape:
+    the corners of its box)."""
+    model, data = robot.model, robot.data()
+    cm = robot.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, robot.q_standing)
+    fid = robot.frame_id(f"{side}_hand")
+    below = set(model.subtrees[model.frames[fid].parentJoint])
+    Hs = standing_geometry(robot).heading.rotation
+    origin = data.oMf[fid].translation
+    points = []
+    for i, go in enumerate(cm.geometryObjects):
+        if go.parentJoint not in below:
+            continue
+        geometry = go.geometry
+        if hasattr(geometry, "vertices") and int(getattr(geometry, "num_vertices", False)):
+            local = np.asarray(geometry.vertices(), dtype=float)
+        elif hasattr(geometry, "halfSide"):
+            h = np.asarray(geometry.halfSide, dtype=float)
+            local = np.array([[a * h[0], b_ * h[1], c_ * h[2]] for a in (-1, 1) for b_ in (-1, 1) for c_ in (-1, 1)])
+        else:
+            continue
+        M = gd.oMg[i]
+        points.append((local @ M.rotation.T + M.translation - origin) @ Hs)
+    if not points:
+        return np.zeros((1, 3))
+    return np.concatenate(points)
+
+
+def both_rotation(robot: Robot, side: str) -> np.ndarray:
+    """The ``side`` hand's orientation holding a box with both hands (standing world frame): its
+    standing orientation turned by :data:`BOTH_TURN` about the hand frame (heading axes)."""
+    Hs = standing_geometry(robot).heading.rotation
+    return Hs @ BOTH_TURN @ Hs.T @ standing_geometry(robot).rotation(f"{side}_hand")
 
 
 def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -> dict[str, dict[str, np.ndarray]]:
@@ -205,16 +246,16 @@ def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -
     c = H.actInv(np.asarray(obj.position, dtype=float))  # the box's centre in that frame
     R_box = H.rotation.T @ np.asarray(pin.rpy.rpyToMatrix(*obj.rpy))
     half = np.abs(R_box) @ (np.asarray(obj.size, dtype=float) / 2)  # half extents along the heading axes
-    bm = body_map(robot)
     out = {}
     for side, sign in (("left", 1.0), ("right", -1.0)):
-        lo, hi = bm.hand_lo[side], bm.hand_hi[side]
+        turned = hand_points(robot, side) @ BOTH_TURN.T  # the hand's collision meshes, turned (heading axes)
+        lo, hi = turned.min(axis=0), turned.max(axis=0)
         inner = lo[1] if sign > 0 else hi[1]  # the hand's side towards the box
         y = c[1] + sign * (half[1] - SQUEEZE) - inner
         x = c[0] - 0.5 * (lo[0] + hi[0])
         z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
         grasp = np.array([x, y, z])
-        R = T.rotation @ standing_geometry(robot).rotation(f"{side}_hand")
+        R = T.rotation @ both_rotation(robot, side)
         pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP])
         out[side] = {"pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(grasp) + np.array([0.0, 0.0, height]),
                      "R": R}
@@ -233,7 +274,7 @@ def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
     t_lift = t_close + LIFT_TIME
     for side in ("left", "right"):
         role = f"{side}_hand"
-        rpy = b.world_rotation(b.geometry.rotation(role))
+        rpy = b.world_rotation(both_rotation(b.robot, side))
         p = poses[side]
 
         def put(what: str, key: str, role: str = role, rpy: tuple = rpy, p: dict = p, **when) -> None:

@@ -191,3 +191,48 @@ def test_a_held_cup_is_carried_while_the_feet_move(talos):
     shelf = kitchen.get("shelf")
     assert g.place[2] == pytest.approx(shelf.position[2] + shelf.size[2] / 2 + 0.05)
     assert any("3 walk_to: carry the cup" in t.name for t in spec.joint_targets)
+
+
+COUNTER = SceneObject(name="counter", shape="box", size=(0.6, 1.0, 0.85), position=(0.67, 0.0, 0.425))
+BIG_BOX = SceneObject(name="red box", shape="box", size=(0.2, 0.2, 0.15), position=(0.47, 0.0, 0.925), movable=True,
+                      mass=0.5, aliases=("红色盒子",), colour=(0.8, 0.12, 0.1, 1.0))
+
+
+def test_both_hands_press_the_box_sides(talos):
+    """用双手拿起红色盒子 / "pick up the red box with both hands": two grasps of the box over the same
+    window, one per hand; at each press target the hand's collision meshes (coal, placed where the
+    target puts the hand frame) go 0.5-1.5 cm into the box (the planned squeeze) and stay clear of
+    the counter under it; a cup cannot be held that way."""
+    import coal
+
+    for text in ("用双手拿起红色盒子", "pick up the red box with both hands"):
+        (a,) = parse(text).actions
+        assert (a.name, a.params["arm"]) == ("pick_up", "both")
+    scene = Scene(name="a box on a counter", objects=(COUNTER, BIG_BOX))
+    spec = compile_actions(list(parse("pick up the red box with both hands").actions), talos, scene=scene)
+    left, right = spec.grasps
+    assert {left.frame, right.frame} == {talos.frame("left_hand"), talos.frame("right_hand")}
+    assert (left.start, left.end, left.hold) == (right.start, right.end, right.hold)
+    model, data = talos.model, talos.data()
+    cm = talos.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, talos.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, talos.q_standing)
+
+    def distance(geometry, M, obj):
+        return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
+                             coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
+                             coal.DistanceResult())
+
+    for side in ("left", "right"):
+        t = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
+        fid = talos.frame_id(f"{side}_hand")
+        below = set(model.subtrees[model.frames[fid].parentJoint])
+        target = pin.SE3(pin.rpy.rpyToMatrix(*t.rpy), np.asarray(t.position))
+        placed = [(go.geometry, target * data.oMf[fid].actInv(gd.oMg[i]))
+                  for i, go in enumerate(cm.geometryObjects) if go.parentJoint in below]
+        into_box = min(distance(g, M, BIG_BOX) for g, M in placed)
+        assert -0.015 <= into_box <= -0.005, (side, into_box)
+        assert min(distance(g, M, COUNTER) for g, M in placed) > 0.02
+    with pytest.raises(TaskDefinitionError, match="both hands pick up a box"):
+        compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "both"})], talos, scene=NEAR)
