@@ -192,6 +192,7 @@ def _parts(params: dict) -> frozenset[str]:
 # --- both hands: a box pressed between the palms --------------------------------------------
 SQUEEZE = 0.01  # [m] each hand's geometry planned this far inside the box's side face (the press)
 PRE_SIDE = 0.08  # [m] the pre-grasp poses are this far out from the sides
+PRE_UP_BOTH = 0.15  # [m] and this far up (the hands come from below the surface's height, beside the body)
 BOTH_TURN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # about the heading y axis, -90 deg:
 # a hand that hangs down in its standing orientation points forward, the arms reach out under the box's weight
 BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
@@ -256,7 +257,7 @@ def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -
         z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
         grasp = np.array([x, y, z])
         R = T.rotation @ both_rotation(robot, side)
-        pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP])
+        pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP_BOTH])
         out[side] = {"pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(grasp) + np.array([0.0, 0.0, height]),
                      "R": R}
     return out
