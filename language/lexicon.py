@@ -51,6 +51,8 @@ AUX = "aux"  # "is", "starts to", "正在": verb forms around the action word, n
 IN_PLACE = "in_place"  # "in place", "on the spot", "原地": changes walk/step into march
 STOP = "stop"  # "stop", "停下": ends the sequence (a bare one alone means: stand still)
 REF = "object"  # a reference to a scene object ("the red box"); value: its words (made by the rule parser)
+DEST = "destination"  # a reference to where an object goes ("on the shelf"); value: its words (rule parser)
+CARRIED = "carried"  # a reference to an object carried along ("with the cup"); value: its words (rule parser)
 
 #: Possessive words that stand for each other inside a vocabulary phrase (see
 #: :meth:`Lexicon._add_possessive_variants`).
@@ -120,6 +122,10 @@ class ActionWords:
         object_of: Actions whose words, with a reference to an object, name this one (``go`` is
             walk; ``go to the table`` is walk_to); this action's own words without a reference
             name the first of them (``walk to the left`` is walk).
+        destination: Parameter taking a second reference, where the object goes (``put the cup
+            on the shelf``, 把杯子放到架子上: ``on``).
+        with_object: Parameter taking a second reference after ``with``, an object the robot
+            carries (``walk to the table with the cup``: ``carrying``).
     """
 
     name: str
@@ -143,6 +149,8 @@ class ActionWords:
     split: str | None = None
     object: str | None = None
     object_of: tuple[str, ...] = ()
+    destination: str | None = None
+    with_object: str | None = None
 
 
 class Lexicon:
@@ -318,6 +326,16 @@ class Lexicon:
                 _check_param(schema, aw.object, "object")
                 if schema.param(aw.object).kind != "object":
                     raise VocabularyError(f"vocabulary action {name!r}: object parameter {aw.object!r} is not an object reference")
+            if aw.destination is not None:
+                _check_param(schema, aw.destination, "destination")
+                if schema.param(aw.destination).kind != "object" or aw.object is None:
+                    raise VocabularyError(f"vocabulary action {name!r}: destination parameter {aw.destination!r} is not "
+                                          "an object reference (or the action has no object)")
+            if aw.with_object is not None:
+                _check_param(schema, aw.with_object, "with_object")
+                if schema.param(aw.with_object).kind != "object" or aw.object is None:
+                    raise VocabularyError(f"vocabulary action {name!r}: with_object parameter {aw.with_object!r} is "
+                                          "not an object reference (or the action has no object)")
             for plain in aw.object_of:
                 if plain not in REGISTRY:
                     raise VocabularyError(f"vocabulary action {name!r}: object_of names unknown action {plain!r}")

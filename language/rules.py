@@ -38,7 +38,9 @@ from language.lexicon import (
     AGAIN,
     AUX,
     BODY,
+    CARRIED,
     CLASSIFIER,
+    DEST,
     DIR,
     FILLER,
     IN_PLACE,
@@ -200,6 +202,10 @@ DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is
 POSSESSIVES = frozenset({"your", "my", "his", "her", "their", "你的", "我的", "他的", "她的"})
 PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
 IMPLICIT_OBJECT = ("put_down",)  # actions whose object, unsaid, is the one named before ("then put it down", 放下)
+PLACE_WORDS = ("on", "onto", "upon", "in", "into", "inside")  # "put the cup on the shelf": where the destination starts
+PLACE_TRIGGER_ENDINGS = ("到", "在", "进")  # 放到, 放在: the reference after the action word is where it goes
+PLACE_TRAILING = ("上面", "上边", "里面", "上", "里")  # 放到架子上: the shelf
+HOLDING = ("pick_up",)  # actions whose object a hand then holds: what a put_down's "it" names
 
 
 def _takes_object(trigger: Item, lx: Lexicon) -> bool:
@@ -239,14 +245,56 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
                 break
             named = named or it.kind in (UNKNOWN, NEARMISS)
             taken.append(it)
-        while taken and taken[-1].kind in (FILLER, CLASSIFIER):
-            taken.pop()
+        while taken and taken[-1].kind in (FILLER, CLASSIFIER, DIR):
+            taken.pop()  # "put the cup down": the direction is a word of its own
         if taken and taken[0].text in POSSESSIVES:
             return []  # "touch your nose": a part of the body, not an object of the scene
         return taken if named else []
 
+    def merge(run: list[Item], kind: str = REF) -> None:
+        text = normalized[run[0].start:run[-1].end]
+        if kind == DEST:
+            text = _destination_text(text)
+        ref = Item(kind, strip_reference(text), text, run[0].start, run[-1].end)
+        first = part.index(run[0])
+        part[first:first + len(run)] = [ref]
+
     def flush() -> None:
         t = next((k for k, it in enumerate(part) if it.kind == TRIGGER and _takes_object(it, lx)), None)
+        if t is not None and _places(part[t], lx):
+            after = part[t + 1:]
+            dest: list[Item] = []
+            obj: list[Item] = []
+            if part[t].text.endswith(PLACE_TRIGGER_ENDINGS):  # 把杯子放到架子上
+                dest = _trim_destination(reference_run(after))
+            else:  # put the cup on the shelf
+                for p in reversed(range(len(after))):
+                    if after[p].text in PLACE_WORDS:
+                        dest = _trim_destination(reference_run(after[p + 1:]))
+                        if dest:
+                            obj = reference_run(after[:p])
+                            break
+            if dest:
+                if not obj:
+                    obj = list(reversed(reference_run(list(reversed(part[:t])))))
+                merge(dest, DEST)
+                if obj:
+                    merge(obj)
+                out.extend(part)
+                part.clear()
+                return
+        if t is not None and any(lx.actions[a].with_object is not None for a, _ in part[t].value):
+            after = part[t + 1:]
+            for p in reversed(range(len(after))):
+                if after[p].text == "with":  # walk to the table with the cup
+                    carried = reference_run(after[p + 1:])
+                    obj = reference_run(after[:p])
+                    if carried and obj:
+                        merge(carried, CARRIED)
+                        merge(obj)
+                        out.extend(part)
+                        part.clear()
+                        return
         if t is not None:
             run = reference_run(part[t + 1:])
             if not run:
@@ -272,6 +320,29 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
     return _pronouns(_borrow_references(out, lx))
 
 
+def _places(trigger: Item, lx: Lexicon) -> bool:
+    """The action word can say where its object goes (put_down: ``put the cup on the shelf``)."""
+    return any(lx.actions[a].destination is not None for a, _ in trigger.value)
+
+
+def _trim_destination(run: list[Item]) -> list[Item]:
+    """A destination without a trailing direction word (放到架子上: 上 is a word of its own)."""
+    while len(run) > 1 and run[-1].kind == DIR:
+        run = run[:-1]
+    return run
+
+
+def _destination_text(text: str) -> str:
+    """Where an object goes, without ``top of`` and a trailing 上 (``on top of the shelf``, 架子上面)."""
+    out = text.strip()
+    if out.startswith("top of "):
+        out = out[len("top of "):]
+    for word in PLACE_TRAILING:
+        if out.endswith(word) and out[: -len(word)].strip() and "的" not in out[-len(word) - 1:]:
+            return out[: -len(word)].strip()
+    return out
+
+
 def _goes_then_acts(prev: Item, it: Item, lx: Lexicon) -> bool:
     """``prev`` only means going to an object (走过去, walk over) and ``it`` is another action word
     that takes one, right after it (走过去拿起那个杯子): a sequence without a sequencing word."""
@@ -284,20 +355,51 @@ def _pronouns(items: list[Item]) -> list[Item]:
     """A pronoun reference (``pick it up``, 把它放下) names the reference before it in the sentence,
     and so does an action of :data:`IMPLICIT_OBJECT` said without one (``then put it down``, 放下)."""
     out: list[Item] = []
-    last = None
+    last = None  # the object named last
+    held = None  # the object picked up last: what a put_down's "it" names ("walk to the shelf and put it on it")
+    verb: Item | None = None  # the action word of this part of the sentence
+
+    def placing() -> bool:
+        return verb is not None and any(a in IMPLICIT_OBJECT for a, _ in verb.value)
+
     for k, it in enumerate(items):
-        if it.kind == REF and it.value in PRONOUNS:
-            if last is None:
+        if it.kind in (SEQ, OVERLAY, PUNCTUATION):
+            verb = None
+        elif it.kind == TRIGGER:
+            verb = it
+            if any(a in HOLDING for a, _ in it.value) and out and out[-1].kind == REF and out[-1].end <= it.start:
+                held = out[-1]  # 把杯子拿起来: the object before the action word
+        if it.kind in (REF, DEST, CARRIED) and it.value in PRONOUNS:
+            from_hand = held is not None and (it.kind == CARRIED or (it.kind == REF and (placing() or _places_next(items, k))))
+            known = held if from_hand else last
+            if known is None:
                 raise InvalidParameter(f'"{it.text}": no object was named before it; say which object (e.g. "the cup")')
-            it = Item(REF, last.value, it.text, it.start, it.end)
-        if it.kind == REF:
+            out.append(Item(it.kind, known.value, it.text, it.start, it.end))
+            if not from_hand:  # "put it on it": the second "it" is the object named before, not the held one
+                last = out[-1]
+            if it.kind == REF and verb is not None and any(a in HOLDING for a, _ in verb.value):
+                held = out[-1]  # "walk to the cup and pick it up"
+            continue
+        if it.kind in (REF, DEST):
             last = it
+            if it.kind == REF and verb is not None and any(a in HOLDING for a, _ in verb.value):
+                held = it
         out.append(it)
         if it.kind == TRIGGER and last is not None and all(a in IMPLICIT_OBJECT for a, _ in it.value):
             end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
-            if not any(x.kind == REF for x in items[k + 1:end]):
-                out.append(Item(REF, last.value, "", it.end, it.end))
+            if not any(x.kind == REF for x in items[k + 1:end]) and not (out[-2:-1] and out[-2].kind == REF):
+                out.append(Item(REF, (held or last).value, "", it.end, it.end))
     return out
+
+
+def _places_next(items: list[Item], k: int) -> bool:
+    """The reference ``items[k]`` is the object of a put_down said after it (把它放到架子上)."""
+    for x in items[k + 1:]:
+        if x.kind in (SEQ, OVERLAY, PUNCTUATION):
+            return False
+        if x.kind == TRIGGER:
+            return any(a in IMPLICIT_OBJECT for a, _ in x.value)
+    return False
 
 
 def _borrow_references(items: list[Item], lx: Lexicon) -> list[Item]:
@@ -667,6 +769,16 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
             params[aw.object] = it.value
             if it.text:  # a borrowed reference has no words of its own
                 note(it, "object", f"{aw.object}={it.value}")
+        elif it.kind == DEST:
+            if aw.destination is None:
+                raise misfit(it)
+            params[aw.destination] = it.value
+            note(it, "destination", f"{aw.destination}={it.value}")
+        elif it.kind == CARRIED:
+            if aw.with_object is None:
+                raise misfit(it)
+            params[aw.with_object] = it.value
+            note(it, "carried object", f"{aw.with_object}={it.value}")
         else:  # pragma: no cover - every item kind is handled above
             raise misfit(it)
 

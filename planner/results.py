@@ -82,7 +82,8 @@ class CheckKind(enum.Enum):
     0.1 rad) and ``COM_TARGET`` as measured in the simulation, ``SELF_COLLISION`` (shared with the
     planner's report) and ``SCENE_COLLISION`` (subject there: the closest pair in words, "left
     forearm / pelvis"). A plan with grasps adds ``PAYLOAD_TORQUE`` (subject: the grasp), its
-    certificate ``OBJECT_GRASP``, ``OBJECT_LIFT``, ``OBJECT_PLACE`` (subject: the object),
+    certificate ``OBJECT_GRASP``, ``OBJECT_LIFT``, ``OBJECT_HELD`` (held to the end: still in the
+    hand), ``OBJECT_PLACE`` (subject: the object),
     ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds).
 
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
@@ -120,6 +121,7 @@ class CheckKind(enum.Enum):
     PAYLOAD_TORQUE = "payload_torque"
     OBJECT_GRASP = "object_grasp"
     OBJECT_LIFT = "object_lift"
+    OBJECT_HELD = "object_held"
     OBJECT_PLACE = "object_place"
     OBJECT_MOVED = "object_moved"
     OBJECT_TIPPED = "object_tipped"

@@ -33,6 +33,7 @@ from sim.model import OBJECT_PREFIX, OBJECT_ROLE, ROBOT_ROLE, SimModel, grasp_we
 from tasks.specs import Grasp, TaskSpec
 
 WELD = "weld, a simplified gripper"  # how the certificate names the simplification
+WELD_BOTH = "welds to both hands, a simplified two-handed squeeze"  # a box held between both hands
 LIFT_TOLERANCE = 0.02  # [m] the object may hang this much lower than asked while held
 PLACE_TOLERANCE = 0.03  # [m] a placed object's centre within this of where it was put
 MOVED_LIMIT = 0.01  # [m] an object no hand holds moves at most this much
@@ -50,6 +51,8 @@ class _Held:
     engaged_at: float | None = None
     released_at: float | None = None
     closest: float = math.inf  # [m] best distance of the object's centre to its held place
+    drift: float = 0.0  # [m] farthest the object's centre got from its held place while held
+    last: float = math.inf  # [m] its distance at the last tick
 
 
 def _descendants(m: mujoco.MjModel, body: int) -> set[int]:
@@ -135,6 +138,11 @@ class GraspRig:
             elif h.released_at is None and g.end is not None and t >= g.end - 1e-9:
                 d.eq_active[h.eq] = 0
                 h.released_at = t
+            elif h.released_at is None:
+                R = d.xmat[h.hand_body].reshape(3, 3)
+                h.last = float(np.linalg.norm(d.xpos[self.bodies[h.obj_index]] - R @ np.asarray(g.offset)
+                                              - d.xpos[h.hand_body]))
+                h.drift = max(h.drift, h.last)
         i = self.n
         if i < len(self.t):
             self.t[i] = t
@@ -163,8 +171,13 @@ class GraspRig:
             return []
         t, pos, tilt = self.t[:n], self.pos[:n], self.tilt[:n]
         out: list[Check] = []
+        seen: set[tuple[str, float]] = set()
         for h in self.held:
-            out.extend(self._grasp_checks(h, t, pos))
+            pair = sum(1 for o in self.held if o.grasp.object == h.grasp.object and abs(o.grasp.start - h.grasp.start) < 1e-9
+                       and o.grasp.end == h.grasp.end) > 1
+            key = (h.grasp.object, round(h.grasp.start, 9))
+            out.extend(self._grasp_checks(h, t, pos, two_hands=pair, first=key not in seen))
+            seen.add(key)
         held = {h.obj_index for h in self.held}
         others = [i for i in range(len(self.names)) if i not in held]
         if others:
@@ -191,16 +204,20 @@ class GraspRig:
             message="" if ok else f"the {name} was knocked over (tilted {math.degrees(worst):.0f} deg at t = {t[k]:.2f} s)"))
         return out
 
-    def _grasp_checks(self, h: _Held, t: np.ndarray, pos: np.ndarray) -> list[Check]:
+    def _grasp_checks(self, h: _Held, t: np.ndarray, pos: np.ndarray, *, two_hands: bool = False,
+                      first: bool = True) -> list[Check]:
         g, name = h.grasp, h.grasp.object
         out = []
         ok = h.engaged_at is not None
+        how = WELD_BOTH if two_hands else WELD
         out.append(Check(
-            name=f"grasp: {h.side} hand holds the {name} ({WELD})", kind=CheckKind.OBJECT_GRASP, subject=name,
+            name=f"grasp: {h.side} hand holds the {name} ({how})", kind=CheckKind.OBJECT_GRASP, subject=name,
             value=h.closest if math.isfinite(h.closest) else 1.0, limit=g.tolerance, unit="m", ok=ok,
             time=g.start if h.engaged_at is None else h.engaged_at,
             message="" if ok else (f"the {h.side} hand never held the {name}: its grasp point came within "
                                    f"{h.closest * 100:.1f} cm of it (the grasp needs {g.tolerance * 100:g} cm)")))
+        if not first:
+            return out  # the object's own lines: once for the two hands
         z0 = float(pos[0, h.obj_index, 2])
         if g.lift > 0.0 and g.hold is not None:
             mask = (t >= g.hold[0] - 1e-9) & (t <= g.hold[1] + 1e-9)
@@ -215,6 +232,17 @@ class GraspRig:
                     value=worst, limit=limit, unit="m", ok=ok, time=float(t[mask][k]), upper=False,
                     message="" if ok else (f"the {name} rose only {worst * 100:.1f} cm while held (asked "
                                            f"{g.lift * 100:g} cm, tolerance {LIFT_TOLERANCE * 100:g} cm)")))
+        if g.end is None and h.engaged_at is not None:  # held to the end: still in the hand, still up
+            up = float(pos[-1, h.obj_index, 2] - z0)
+            limit = g.lift - LIFT_TOLERANCE
+            ok = h.drift <= g.tolerance and up >= limit
+            out.append(Check(
+                name=f"{name} still held at the end ({how})", kind=CheckKind.OBJECT_HELD, subject=name,
+                value=h.drift, limit=g.tolerance, unit="m", ok=ok, time=float(t[-1]),
+                message="" if ok else (f"the {name} left the {h.side} hand ({h.drift * 100:.1f} cm from its held place)"
+                                       if h.drift > g.tolerance else
+                                       f"the {name} ended only {up * 100:.1f} cm above where it stood (asked "
+                                       f"{g.lift * 100:g} cm, tolerance {LIFT_TOLERANCE * 100:g} cm)")))
         if g.place is not None:
             err = float(np.linalg.norm(pos[-1, h.obj_index] - np.asarray(g.place)))
             ok = err <= PLACE_TOLERANCE
@@ -225,4 +253,4 @@ class GraspRig:
         return out
 
 
-__all__ = ["LIFT_TOLERANCE", "MOVED_LIMIT", "PLACE_TOLERANCE", "TIPPED_LIMIT", "WELD", "GraspRig"]
+__all__ = ["LIFT_TOLERANCE", "MOVED_LIMIT", "PLACE_TOLERANCE", "TIPPED_LIMIT", "WELD", "WELD_BOTH", "GraspRig"]

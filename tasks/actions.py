@@ -513,6 +513,8 @@ REGISTRY: dict[str, ActionSchema] = {
         ActionSchema(name="walk_to", summary="Walk to an object of the scene and stop facing it, within arm's reach.",
                      body="lower", dynamic=True, params=(
             _object("the object to walk to"),
+            Param(name="carrying", kind="object", default=None,
+                  description="an object a hand holds and carries along (\"with the cup\"); it must be held already"),
         )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(
@@ -530,14 +532,17 @@ REGISTRY: dict[str, ActionSchema] = {
         ActionSchema(name="pick_up", summary="Pick up a movable object of the scene with one hand, lift it and hold it.",
                      body="upper", params=(
             _object("the object to pick up"),
-            _choice("arm", SIDES, None, "which hand picks it up (default: the one on the object's side)"),
+            _choice("arm", ARMS, None, "which hand picks it up, or both (a box pressed between them) (default: the one "
+                    "on the object's side)"),
             Param(name="height", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
                   description="how high the object is lifted"),
         )),
-        ActionSchema(name="put_down", summary="Put a held object back down where it was picked up, and let go of it.",
+        ActionSchema(name="put_down", summary="Put a held object down (where it was picked up, or on another object) and let go of it.",
                      body="upper", params=(
             _object("the held object to put down"),
             _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
+            Param(name="on", kind="object", default=None,
+                  description="where to put it: on top of this object (default: back where it was)"),
         )),
         ActionSchema(name="touch_object", summary="Touch an object of the scene with one hand (a planned contact).",
                      body="upper", params=(

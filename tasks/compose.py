@@ -38,6 +38,9 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any, cast
 
+import numpy as np
+import pinocchio as pin
+
 from robots.model import Robot
 from tasks.actions import Action, get_action
 from tasks.exceptions import TaskDefinitionError
@@ -54,6 +57,7 @@ from tasks.primitives import (
     standing_geometry,
 )
 from tasks.primitives.base import fit_defaults
+from tasks.primitives.grasp import CARRY_WEIGHT, carry_posture
 from tasks.scene import Scene, SceneObject
 from tasks.specs import (
     CoMBounds,
@@ -213,7 +217,9 @@ def compile_actions(
             phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
             waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
-        group = [(i, _standing_at(a, stance)) for i, a in group]
+        group = [(i, _holding_hand(_standing_at(a, stance), fragments, robot)) for i, a in group]
+        for i, a in group:
+            _check_carried(a, fragments, _where(i, a, n))
         _check_parts(group)
         length = _group_duration(group, robot, n)
         group_fragments = []
@@ -257,7 +263,8 @@ def compile_actions(
         targets=_held_targets(fragments, k * dt),
         com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
-        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + _not_holding(waypoints, grasps, robot, k * dt),
+        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + _not_holding(waypoints, grasps, robot, k * dt)
+        + _carrying(fragments, grasps, robot, k * dt),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
         name=name or describe_actions(checked),
@@ -297,6 +304,47 @@ def _not_holding(waypoints: list[JointTarget], grasps: tuple[Grasp, ...], robot:
                  if not any(s - 1e-9 <= (w.time or 0.0) <= e + 1e-9 and w.joint in names for s, e, names in held))
 
 
+def _carrying(fragments: list[Fragment], grasps: tuple[Grasp, ...], robot: Robot,
+              horizon: float) -> tuple[JointTarget, ...]:
+    """A held object is carried while the feet move: from the start of each action that moves the
+    feet while a hand holds it, until the next action that drives that arm (or the release, or the
+    end), the torso and arm joints that carry it keep the angles that hold the hand where it lifted
+    the object relative to the body (:func:`tasks.primitives.grasp.carry_posture`, costs of weight
+    ``CARRY_WEIGHT``): the hand, and the object, move with the body."""
+    out: list[JointTarget] = []
+    sides = {robot.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
+    for f in fragments:
+        for fg in f.grasps:
+            g = next((h for h in grasps if h.name == fg.name), None)
+            if g is None:
+                continue
+            held = [t for t in f.targets if t.name in f.holds and t.position is not None and t.rpy is not None
+                    and t.frame == g.frame]
+            if not held or g.frame not in sides:
+                continue
+            end = horizon if g.end is None else g.end
+            movers = [m for m in fragments if m.changes_contacts and m.t0 >= f.t_end - 1e-9 and m.t0 < end - 1e-9]
+            if not movers:
+                continue
+            t = held[0]
+            hand = pin.SE3(pin.rpy.rpyToMatrix(*cast(tuple, t.rpy)), np.asarray(t.position, dtype=float))
+            try:
+                angles = carry_posture(robot, sides[g.frame], f.end_stance.transform_from_standing(robot).inverse() * hand)
+            except TaskDefinitionError as e:
+                raise TaskDefinitionError(f"{f.action.name}: {e}") from None
+            arm = f.parts - {"torso"}
+            for m in movers:
+                later = [n.t0 for n in fragments if n.t0 >= m.t_end - 1e-9 and n.parts & arm]
+                until = min([*later, end])
+                named = {t.name for t in out}
+                for joint, value in angles.items():
+                    target = JointTarget(name=f"{m.label}: carry the {g.object}: {joint}", joint=joint, value=value,
+                                         window=(m.t0, round(until, 9)), weight=CARRY_WEIGHT)
+                    if target.name not in named:  # both hands: the torso's angles come from the first
+                        out.append(target)
+    return tuple(out)
+
+
 def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
     """The fragments' grasps; a release (``put_down``: a grasp with a ``place``) closes the grasp
     that holds its object (TaskDefinitionError when none does, or another hand holds it)."""
@@ -330,6 +378,7 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
     """
     out = []
     last: SceneObject | None = None  # the object said before: what "it" names
+    held: SceneObject | None = None  # the object picked up last: what a put_down's "it" names
     for i, a in enumerate(actions):
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
@@ -345,16 +394,48 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
                     if last is None:
                         raise GroundingError(f'"{strip_reference(ref)}" names the object said before, but none was: '
                                              'name it ("touch the box")', strip_reference(ref))
-                    obj = last
+                    from_hand = (key == "object" and a.name == "put_down") or key == "carrying"
+                    obj = held if from_hand and held is not None else last
                 else:
                     obj = ground(ref, scene, action=a.name)
-                last = obj
+                if obj is not held or a.name != "put_down":
+                    last = obj
+                if a.name == "pick_up" and key == "object":
+                    held = obj
             except GroundingError as e:
                 where = _where(i, a, len(actions))
                 raise GroundingError(f"{where}{e}", e.reference, e.candidates) from None
             params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=cast(Scene, scene))  # ground() raised without one
         out.append(Action(name=a.name, params=params, overlay=a.overlay, defaulted=a.defaulted))
     return out
+
+
+def _holding_hand(action: Action, fragments: list[Fragment], robot: Robot) -> Action:
+    """A put_down without a hand takes the hand that holds its object (after a walk the object's
+    side of the body is no guide)."""
+    g = action.params.get("object")
+    if action.name != "put_down" or action.params.get("arm") or not isinstance(g, Grounded):
+        return action
+    frames = {robot.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
+    held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
+    if not held or held[-1].place is not None or held[-1].frame not in frames:
+        return action
+    if len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None:
+        raise TaskDefinitionError(f"put_down: the {g.obj.name} is held with both hands; putting it down with both hands "
+                                  "is not supported yet")
+    return Action(name=action.name, params={**action.params, "arm": frames[held[-1].frame]}, overlay=action.overlay,
+                  defaulted=action.defaulted)
+
+
+def _check_carried(action: Action, fragments: list[Fragment], where: str) -> None:
+    """An object said to be carried ("walk to the table with the cup") must be in a hand already."""
+    g = action.params.get("carrying")
+    if not isinstance(g, Grounded):
+        return
+    held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
+    if not held or held[-1].place is not None:
+        raise TaskDefinitionError(f'{where}no hand holds the {g.obj.name} to carry; pick it up first ("pick up the '
+                                  f'{g.obj.name}, then {action.name.replace("_", " ")} {action.params["object"]} with it")')
 
 
 def _standing_at(action: Action, stance: Stance) -> Action:

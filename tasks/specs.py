@@ -529,7 +529,8 @@ class TaskSpec:
             )
 
     def _check_grasps(self, horizon: float) -> None:
-        """Each grasp names an object of the scene, within the horizon; a hand holds one at a time."""
+        """Each grasp names an object of the scene, within the horizon; a hand holds one at a time, and an
+        object is held by one hand at a time, or by two together (same start and end: a box between them)."""
         if not self.grasps:
             return
         names = {o.name: o for o in self.scene.objects} if self.scene is not None else {}
@@ -548,7 +549,9 @@ class TaskSpec:
         spans = sorted(((g.start, horizon if g.end is None else g.end, g) for g in self.grasps), key=lambda x: x[:2])
         for i, (_s0, e0, g0) in enumerate(spans):
             for s1, _e1, g1 in spans[i + 1:]:
-                if s1 < e0 - 1e-9 and (g1.frame == g0.frame or g1.object == g0.object):
+                two_hands = g1.object == g0.object and g1.frame != g0.frame and abs(s1 - g0.start) < 1e-9 \
+                    and g1.end == g0.end  # both hands hold it together
+                if s1 < e0 - 1e-9 and (g1.frame == g0.frame or g1.object == g0.object) and not two_hands:
                     raise TaskDefinitionError(f"grasps {g0.name!r} and {g1.name!r} overlap in time on the same hand "
                                               "or object; let go first")
 

@@ -1,7 +1,8 @@
 """The payload of a grasp: the object's weight on the arm that holds it, checked on the plan.
 
 While a :class:`tasks.specs.Grasp` holds an object of mass ``m``, the arm carries its weight at the
-object's centre ``p`` (the grasp's ``offset`` in the hand frame). At every such knot the static
+object's centre ``p`` (the grasp's ``offset`` in the hand frame); two hands holding it together (two
+grasps with the same start and end) carry half each. At every such knot the static
 torque of each joint that supports the hand (torso and arm joints, from the base to the hand) is
 
     tau = g(q) + J_p(q)^T (0, 0, m g)
@@ -66,10 +67,12 @@ def payload_checks(robot: Robot, spec: TaskSpec, t: np.ndarray, q: np.ndarray) -
     out = []
     for g in spec.grasps:
         joints = supporting_joints(robot, g.frame)
+        hands = sum(1 for h in spec.grasps if h.object == g.object and abs(h.start - g.start) < 1e-9 and h.end == g.end)
+        share = masses[g.object] / hands  # a box held by both hands: each arm carries half its weight
         held = (t >= g.start - 1e-9) & (t <= (t[-1] if g.end is None else g.end) + 1e-9)
         worst = (-1.0, 0.0, 0, 0.0, 0.0)  # fraction, time, joint, torque, without the object
         for k in np.flatnonzero(held):
-            tau = payload_torques(robot, q[k], g.frame, np.asarray(g.offset), masses[g.object])[joints]
+            tau = payload_torques(robot, q[k], g.frame, np.asarray(g.offset), share)[joints]
             frac = np.abs(tau) / limits[joints]
             j = int(np.argmax(frac))
             if frac[j] > worst[0]:

@@ -33,7 +33,7 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import Grounded
 from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
-from tasks.primitives.bodymap import body_map, to_heading
+from tasks.primitives.bodymap import body_map, to_heading, to_standing
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.primitives.objects import grounded
 from tasks.scene import SceneObject, extent
@@ -109,8 +109,20 @@ def _check(params: dict, robot: Robot) -> None:
         raise TaskDefinitionError(f"pick_up: the {obj.name} is fixed in the scene (movable: false); it cannot be picked up")
     if not robot.has_role("left_hand") or not robot.has_role("right_hand"):
         raise TaskDefinitionError(f"pick_up: {robot.name} has no hand frames")
+    if params.get("arm") == "both" and obj.shape != "box":
+        raise TaskDefinitionError(f"pick_up: the {obj.name} is a {obj.shape}; both hands pick up a box (pressing its sides)")
     if not isinstance(g.start, Stance):
         return  # where the robot will stand is not known yet (an action before it may walk)
+    if params.get("arm") == "both":
+        poses = _both_poses(robot, g.start, obj, 0.0)
+        for side in ("left", "right"):
+            point = to_heading(robot, g.start.transform_from_standing(robot).actInv(poses[side]["grasp"]))
+            gap = reach_gap(robot, side, point, bend=True)
+            if gap > 1e-9:
+                raise TaskDefinitionError(
+                    f"pick_up: the {obj.name}'s {side} side is {gap:.2f} m beyond the {side} hand's reach from where the "
+                    f'robot stands: walk to it first ("walk to the {obj.name} and pick it up with both hands")')
+        return
     side = holding_arm(params, robot)
     T = g.start.transform_from_standing(robot)
     point = to_heading(robot, T.actInv(grasp_point(robot, side, obj)))
@@ -129,6 +141,8 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
         g = dataclasses.replace(g, start=b.stance)
         b.params["object"] = g
         _check(b.params, b.robot)
+    if b.params.get("arm") == "both":
+        return _build_both(b, g)
     side = holding_arm(b.params, b.robot)
     height = float(b.params["height"])
     poses = _poses(b.robot, b.stance, g, side, height)
@@ -164,6 +178,8 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
 
 def _parts(params: dict) -> frozenset[str]:
     arm = params.get("arm")
+    if arm == "both":
+        return frozenset({"left_arm", "right_arm", "torso"})
     if arm:
         return frozenset({f"{arm}_arm", "torso"})
     g = params.get("object")
@@ -171,6 +187,115 @@ def _parts(params: dict) -> frozenset[str]:
         local = g.start.heading().actInv(np.asarray(g.obj.position, dtype=float))
         return frozenset({"left_arm" if local[1] >= 0 else "right_arm", "torso"})
     return frozenset({"left_arm", "right_arm", "torso"})
+
+
+# --- both hands: a box pressed between the palms --------------------------------------------
+SQUEEZE = 0.01  # [m] each hand's geometry planned this far inside the box's side face (the press)
+PRE_SIDE = 0.08  # [m] the pre-grasp poses are this far out from the sides
+PRE_UP_BOTH = 0.15  # [m] and this far up (the hands come from below the surface's height, beside the body)
+BOTH_TURN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # about the heading y axis, -90 deg:
+# a hand that hangs down in its standing orientation points forward, the arms reach out under the box's weight
+BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
+
+
+def hand_points(robot: Robot, side: str) -> np.ndarray:
+    """Vertices (n, 3) [m] of the collision meshes of the ``side`` hand (its frame's joint and the joints
+    below) at the standing posture, relative to the hand frame, in heading axes (a primitive shape:
+    the corners of its box)."""
+    model, data = robot.model, robot.data()
+    cm = robot.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, robot.q_standing)
+    fid = robot.frame_id(f"{side}_hand")
+    below = set(model.subtrees[model.frames[fid].parentJoint])
+    Hs = standing_geometry(robot).heading.rotation
+    origin = data.oMf[fid].translation
+    points = []
+    for i, go in enumerate(cm.geometryObjects):
+        if go.parentJoint not in below:
+            continue
+        geometry = go.geometry
+        if hasattr(geometry, "vertices") and int(getattr(geometry, "num_vertices", False)):
+            local = np.asarray(geometry.vertices(), dtype=float)
+        elif hasattr(geometry, "halfSide"):
+            h = np.asarray(geometry.halfSide, dtype=float)
+            local = np.array([[a * h[0], b_ * h[1], c_ * h[2]] for a in (-1, 1) for b_ in (-1, 1) for c_ in (-1, 1)])
+        else:
+            continue
+        M = gd.oMg[i]
+        points.append((local @ M.rotation.T + M.translation - origin) @ Hs)
+    if not points:
+        return np.zeros((1, 3))
+    return np.concatenate(points)
+
+
+def both_rotation(robot: Robot, side: str) -> np.ndarray:
+    """The ``side`` hand's orientation holding a box with both hands (standing world frame): its
+    standing orientation turned by :data:`BOTH_TURN` about the hand frame (heading axes)."""
+    Hs = standing_geometry(robot).heading.rotation
+    return Hs @ BOTH_TURN @ Hs.T @ standing_geometry(robot).rotation(f"{side}_hand")
+
+
+def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -> dict[str, dict[str, np.ndarray]]:
+    """World positions [m] of each hand frame (``pre``, ``grasp``, ``lift``) and its orientation ``R``
+    pressing the box's left and right sides (seen from the robot): each hand's geometry (standing
+    orientation) :data:`SQUEEZE` inside its face, centred on the box front to back, as low as keeps
+    it :data:`GRASP_CLEARANCE` above the box's bottom, centred on the box's height if higher."""
+    T = stance.transform_from_standing(robot)
+    H = T * standing_geometry(robot).heading  # the heading frame where the robot stands
+    c = H.actInv(np.asarray(obj.position, dtype=float))  # the box's centre in that frame
+    R_box = H.rotation.T @ np.asarray(pin.rpy.rpyToMatrix(*obj.rpy))
+    half = np.abs(R_box) @ (np.asarray(obj.size, dtype=float) / 2)  # half extents along the heading axes
+    out = {}
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        turned = hand_points(robot, side) @ BOTH_TURN.T  # the hand's collision meshes, turned (heading axes)
+        lo, hi = turned.min(axis=0), turned.max(axis=0)
+        inner = lo[1] if sign > 0 else hi[1]  # the hand's side towards the box
+        y = c[1] + sign * (half[1] - SQUEEZE) - inner
+        x = c[0] - 0.5 * (lo[0] + hi[0])
+        z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
+        grasp = np.array([x, y, z])
+        R = T.rotation @ both_rotation(robot, side)
+        pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP_BOTH])
+        out[side] = {"pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(grasp) + np.array([0.0, 0.0, height]),
+                     "R": R}
+    return out
+
+
+def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
+    """Both hands press the box's sides, lift it by ``height`` and hold it: two :class:`Grasp` of the
+    same object over the same window (the payload is shared; the simulation welds it to both hands)."""
+    height = float(b.params["height"])
+    poses = _both_poses(b.robot, b.stance, g.obj, height)
+    name = g.obj.name
+    t_pre = APPROACH_TIME
+    t_in = t_pre + REACH_IN_TIME
+    t_close = t_in + CLOSE_TIME
+    t_lift = t_close + LIFT_TIME
+    for side in ("left", "right"):
+        role = f"{side}_hand"
+        rpy = b.world_rotation(both_rotation(b.robot, side))
+        p = poses[side]
+
+        def put(what: str, key: str, role: str = role, rpy: tuple = rpy, p: dict = p, **when) -> None:
+            b.frame_target(what, role, position=tuple(float(x) for x in p[key]), rpy=rpy,
+                           tolerance=GRASP_TARGET_TOLERANCE if key != "pre" else POSE_TOLERANCE, **when)
+
+        put(f"{side} hand beside the {name}", "pre", time=t_pre)
+        put(f"{side} hand presses the {name}", "grasp", window=(t_in, t_close))
+        put(f"{side} hand lifts the {name}", "lift", window=(t_lift, DURATION))
+        b.holds.append(b.name(f"{side} hand lifts the {name}"))
+        offset = p["R"].T @ (np.asarray(g.obj.position, dtype=float) - p["grasp"])
+        b.grasps.append(Grasp(
+            name=b.name(f"{side} hand holds the {name}"), object=name, frame=b.robot.frame(role),
+            offset=(float(offset[0]), float(offset[1]), float(offset[2])),
+            start=b.t(t_in), lift=height, hold=b.window(t_lift, DURATION), tolerance=BOTH_TOLERANCE))
+    b.phase(f"approach the {name}", t_in)
+    b.phase(f"press the {name}", t_close)
+    b.phase(f"lift the {name}", t_lift)
+    b.phase(f"hold the {name}", DURATION)
+    return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
 PICK_UP = Primitive(name="pick_up", nominal_duration=lambda params, robot: DURATION, build=build_pick_up,
@@ -184,10 +309,84 @@ REST_TIME = 1.0  # [s] then back to rest
 PUT_DURATION = LOWER_TIME + RELEASE_TIME + RETREAT_TIME + REST_TIME
 
 
+PLACE_MARGIN = 0.02  # [m] a placed object's footprint stays this far inside the destination's top face
+ABOVE_TIME = 1.0  # [s] nominal: held pose -> above the place (a destination), then down in the rest of LOWER_TIME
+PLACE_GRID = 7  # points per side of the destination's face tried when the spot is beyond comfortable reach
+PLACE_REACH_MARGIN = 0.03  # [m] a place this far within the hand's reach is comfortable
+REACH_AHEAD = 0.45  # [m] the hand's comfortable reach ahead of the body (heading frame): where a spot is chosen
+
+
+def destination(params: dict) -> Grounded | None:
+    """The grounded object a put_down puts its object on (None: back where it was)."""
+    value = params.get("on")
+    if value is None or isinstance(value, Grounded):
+        return value
+    from tasks.grounding import ground
+
+    ground(value, None, action="put_down")  # raises: no scene
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def place_point(robot: Robot, stance: Stance, obj: SceneObject, on: SceneObject, side: str) -> np.ndarray:
+    """Where the object's centre goes on ``on``'s top face (world) [m]: where it stood when that is
+    on this face, else the point of the face (its footprint :data:`PLACE_MARGIN` inside the edges)
+    nearest to a spot :data:`REACH_AHEAD` ahead of the robot on the ``side`` hand's side, among those
+    :data:`PLACE_REACH_MARGIN` within the hand's reach (if none is, the one nearest to reach); its
+    bottom on the face. Faces are taken axis-aligned (the destination's bounding box)."""
+    lo, hi = extent(obj)
+    olo, ohi = extent(on)
+    half = 0.5 * (np.asarray(hi) - np.asarray(lo))
+    below = float(obj.position[2] - lo[2])  # centre above the object's bottom [m]
+    if on.shape not in ("box", "cylinder"):
+        raise TaskDefinitionError(f"put_down: the {on.name} has no flat top to put the {obj.name} on")
+    if on.name == obj.name:
+        raise TaskDefinitionError(f"put_down: the {obj.name} cannot be put on itself")
+    x0, x1 = olo[0] + half[0] + PLACE_MARGIN, ohi[0] - half[0] - PLACE_MARGIN
+    y0, y1 = olo[1] + half[1] + PLACE_MARGIN, ohi[1] - half[1] - PLACE_MARGIN
+    if x0 > x1 or y0 > y1:
+        raise TaskDefinitionError(f"put_down: the {on.name}'s top is too small for the {obj.name}")
+    top = float(ohi[2])
+    at = np.asarray(obj.position, dtype=float)
+    if x0 <= at[0] <= x1 and y0 <= at[1] <= y1 and abs(at[2] - below - top) <= 0.03:
+        return np.array([at[0], at[1], top + below])  # it stood there: back to its place
+    lateral = float(body_map(robot).hand_position[side][1])
+    T = stance.transform_from_standing(robot)
+    ahead = T.act(to_standing(robot, [REACH_AHEAD, lateral, 0.0]))
+    spot = np.array([min(max(ahead[0], x0), x1), min(max(ahead[1], y0), y1), top + below])
+    best: tuple[float, float, np.ndarray] | None = None
+    for x in np.linspace(x0, x1, PLACE_GRID):  # the spot, or the face's point nearest to it within comfortable reach
+        for y in np.linspace(y0, y1, PLACE_GRID):
+            for p in (spot, np.array([x, y, top + below])):
+                gap = reach_gap(robot, side, to_heading(robot, T.actInv(grasp_point(robot, side, _moved(obj, p)))),
+                                bend=True)
+                key = (max(gap + PLACE_REACH_MARGIN, 0.0), float(np.linalg.norm(p[:2] - spot[:2])))
+                if best is None or key < best[:2]:
+                    best = (*key, p)
+    assert best is not None
+    return best[2]
+
+
+def _moved(obj: SceneObject, position: np.ndarray) -> SceneObject:
+    """The object with its centre at ``position`` [m]."""
+    return dataclasses.replace(obj, position=(float(position[0]), float(position[1]), float(position[2])))
+
+
 def _put_check(params: dict, robot: Robot) -> None:
     g = grounded(params, "put_down")
     if not g.obj.movable:
         raise TaskDefinitionError(f"put_down: the {g.obj.name} is fixed in the scene; nothing holds it")
+    on = destination(params)
+    if on is None or not isinstance(g.start, Stance) or not params.get("arm"):
+        return
+    side = str(params["arm"])
+    moved = _moved(g.obj, place_point(robot, g.start, g.obj, on.obj, side))
+    T = g.start.transform_from_standing(robot)
+    point = to_heading(robot, T.actInv(grasp_point(robot, side, moved)))
+    gap = reach_gap(robot, side, point, bend=True)
+    if gap > 1e-9:
+        raise TaskDefinitionError(
+            f"put_down: the top of the {on.obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
+            f'stands: walk to the {on.obj.name} first ("walk to the {on.obj.name} and put the {g.obj.name} on it")')
 
 
 def build_put_down(b: FragmentBuilder) -> Fragment:
@@ -198,16 +397,28 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     put_down of an object no hand holds).
     """
     g = grounded(b.params, "put_down")
-    _put_check(b.params, b.robot)
+    if not isinstance(g.start, Stance):
+        g = dataclasses.replace(g, start=b.stance)
+        b.params["object"] = g
     side = holding_arm(b.params, b.robot) if b.params.get("arm") else _held_side(b, g)
+    b.params["arm"] = side
+    _put_check(b.params, b.robot)
+    on = destination(b.params)
+    place = np.asarray(g.obj.position, dtype=float) if on is None else place_point(b.robot, b.stance, g.obj, on.obj, side)
+    g = dataclasses.replace(g, obj=_moved(g.obj, place))
     poses = _poses(b.robot, b.stance, g, side, 0.0)
     rpy = b.world_rotation(b.geometry.rotation(f"{side}_hand"))
     name, role = g.obj.name, f"{side}_hand"
     t_low = LOWER_TIME
     t_rel = t_low + RELEASE_TIME
     t_back = t_rel + RETREAT_TIME
-    b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in poses["grasp"]), rpy=rpy,
-                   window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+    if on is not None:  # from above: the held object comes down onto the destination, not through its edge
+        b.frame_target(f"{side} hand holds the {name} above the {on.obj.name}", role,
+                       position=tuple(float(x) for x in poses["grasp"] + PRE_UP * np.array([0.0, 0.0, 1.0])), rpy=rpy,
+                       time=ABOVE_TIME, tolerance=POSE_TOLERANCE)
+    where = f" on the {on.obj.name}" if on is not None else ""
+    b.frame_target(f"{side} hand puts the {name} down{where}", role, position=tuple(float(x) for x in poses["grasp"]),
+                   rpy=rpy, window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
     b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in poses["pre"]), rpy=rpy,
                    time=t_back, tolerance=POSE_TOLERANCE)
     rest_targets(b, [role], tau=PUT_DURATION)
@@ -216,7 +427,7 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     b.phase(f"retreat from the {name}", PUT_DURATION)
     b.grasps.append(Grasp(
         name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role), offset=(0.0, 0.0, 0.0),
-        start=b.t0, end=b.t(t_rel), place=(float(g.obj.position[0]), float(g.obj.position[1]), float(g.obj.position[2])),
+        start=b.t0, end=b.t(t_rel), place=(float(place[0]), float(place[1]), float(place[2])),
         tolerance=GRASP_TOLERANCE))
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
@@ -228,7 +439,78 @@ def _held_side(b: FragmentBuilder, g: Grounded) -> str:
 PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION, build=build_put_down,
                      parts=_parts, check=_put_check)
 
+# --- carrying -------------------------------------------------------------------------
+CARRY_WEIGHT = 1000.0  # cost weight of each carrying joint's angle while the feet move [1/rad^2]
+IK_ITERATIONS = 100
+IK_SEEDS = 8  # random starting postures besides the standing one (seeded: the same posture every time)
+IK_DAMPING = 1e-4  # damped least squares [m^2]
+IK_TURN_WEIGHT = 0.3  # [m/rad] the hand's orientation error counts this much against its position error
+IK_TORSO_COST = 10.0  # a torso joint's angle away from standing counts this many times an arm joint's
+IK_TOLERANCE = 2e-3  # [m] weighted pose error of a carry posture
+
+
+def carrying_joints(robot: Robot, side: str) -> tuple[list[int], list[int]]:
+    """Pinocchio joint indices (torso, arm) from the base to the ``side`` hand: the torso joints carry
+    both hands, the arm joints only this one."""
+    model = robot.model
+    other = "right" if side == "left" else "left"
+    mine = [j for j in model.supports[model.frames[robot.frame_id(f"{side}_hand")].parentJoint] if j > 1]
+    both = set(model.supports[model.frames[robot.frame_id(f"{other}_hand")].parentJoint])
+    one_dof = [j for j in mine if model.joints[j].nv == 1]
+    return [j for j in one_dof if j in both], [j for j in one_dof if j not in both]
+
+
+def carry_posture(robot: Robot, side: str, hand_in_standing: pin.SE3) -> dict[str, float]:
+    """Joint angles [rad] of the torso and the ``side`` arm that hold the ``side`` hand frame at
+    ``hand_in_standing`` (standing world frame), with the base and legs at their standing posture:
+    what a carried object's joints keep while the feet move, so the hand moves with the body.
+
+    Damped least squares (orientation weighted :data:`IK_TURN_WEIGHT`) within the joint limits, from
+    the standing posture and :data:`IK_SEEDS` seeded random postures; of the solutions within
+    :data:`IK_TOLERANCE`, the one nearest the standing posture (torso joints counted
+    :data:`IK_TORSO_COST` times).
+
+    Raises:
+        TaskDefinitionError: no solution holds the hand there.
+    """
+    model, data = robot.model, robot.data()
+    fid = robot.frame_id(f"{side}_hand")
+    torso, arm = carrying_joints(robot, side)
+    joints = torso + arm
+    cols = [model.joints[j].idx_v for j in joints]
+    rows = [model.joints[j].idx_q for j in joints]
+    lo, hi = model.lowerPositionLimit[rows], model.upperPositionLimit[rows]
+    W = np.array([1.0, 1.0, 1.0, IK_TURN_WEIGHT, IK_TURN_WEIGHT, IK_TURN_WEIGHT])  # [m/rad]
+    cost = np.array([IK_TORSO_COST if j in torso else 1.0 for j in joints])
+    rng = np.random.default_rng(0)
+    seeds = [robot.q_standing[rows]] + [rng.uniform(lo, hi) for _ in range(IK_SEEDS)]
+    best: tuple[float, np.ndarray] | None = None
+    worst = np.inf
+    for seed in seeds:
+        q = robot.q_standing.copy()
+        q[rows] = seed
+        for _ in range(IK_ITERATIONS):
+            pin.framesForwardKinematics(model, data, q)
+            err = W * pin.log6(data.oMf[fid].actInv(hand_in_standing)).vector
+            if np.linalg.norm(err) < 0.1 * IK_TOLERANCE:
+                break
+            J = W[:, None] * pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)[:, cols]
+            q[rows] = np.clip(q[rows] + J.T @ np.linalg.solve(J @ J.T + IK_DAMPING * np.eye(6), err), lo, hi)
+        pin.framesForwardKinematics(model, data, q)
+        miss = float(np.linalg.norm(W * pin.log6(data.oMf[fid].actInv(hand_in_standing)).vector))
+        worst = min(worst, miss)
+        if miss <= IK_TOLERANCE:
+            away = float(np.sum(cost * (q[rows] - robot.q_standing[rows]) ** 2))
+            if best is None or away < best[0]:
+                best = (away, q[rows].copy())
+    if best is None:
+        raise TaskDefinitionError(
+            f"the {side} arm cannot carry its object where it lifted it with the legs standing "
+            f"({worst * 100:.1f} cm off); lift it less high")
+    return {model.names[j]: float(v) for j, v in zip(joints, best[1], strict=True)}
+
+
 PRIMITIVES = (PICK_UP, PUT_DOWN)
 
-__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "grasp_offset",
-           "grasp_point", "holding_arm"]
+__all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "carry_posture",
+           "carrying_joints", "destination", "grasp_offset", "grasp_point", "holding_arm", "place_point"]

@@ -5,6 +5,8 @@ fingertips, the grasp and its hold window are in the spec (and round-trip), and 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -124,3 +126,113 @@ def test_pick_up_height_and_hand_from_the_sentence():
 
     with pytest.raises(InvalidParameter, match='"it": no object was named before it'):
         parse("pick it up")
+
+
+BOOK = SceneObject(name="book", shape="box", size=(0.2, 0.2, 0.04), position=(0.58, -0.4, 0.74),
+                   colour=(0.1, 0.6, 0.2, 1.0))
+SHELF = SceneObject(name="shelf", shape="box", size=(0.4, 1.0, 1.0), position=(0.3, 1.6, 0.5), aliases=("架子",))
+
+
+def test_put_the_cup_on_another_object(talos):
+    """"pick up the cup, then put it on the book": the release's place is on the book's top face (the
+    cup's bottom on it, its footprint inside the face), the put-down target carries the cup's centre
+    (the grasp's offset in the hand frame) there and comes from 8 cm above; "put the cup on the shelf"
+    out of reach is refused in task terms; 把杯子放到架子上 names the same action."""
+    scene = Scene(name="cup and book", objects=(TABLE, CUP, BOOK))
+    spec = compile_actions(list(parse("pick up the cup, then put it on the book").actions), talos, scene=scene)
+    (g,) = spec.grasps
+    place = np.asarray(g.place)
+    assert place[2] == pytest.approx(BOOK.position[2] + 0.02 + 0.05)  # book top + half the cup
+    for i in (0, 1):
+        assert abs(place[i] - BOOK.position[i]) <= BOOK.size[i] / 2 - CUP.size[0] + 1e-9
+    down = next(t for t in spec.targets if t.name.endswith("puts the cup down on the book"))
+    above = next(t for t in spec.targets if t.name.endswith("above the book"))
+    R = pin.rpy.rpyToMatrix(*down.rpy)
+    np.testing.assert_allclose(np.asarray(down.position) + R @ np.asarray(g.offset), place, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(above.position) - np.asarray(down.position), [0, 0, 0.08], atol=1e-9)
+    assert above.time < down.window[0] <= g.end == down.window[1]
+    far = Scene(name="cup and shelf", objects=(TABLE, CUP, SHELF))
+    with pytest.raises(TaskDefinitionError, match=r"beyond the right hand's reach .* walk to the shelf first"):
+        compile_actions(list(parse("pick up the cup, then put it on the shelf").actions), talos, scene=far)
+    (a,) = parse("把杯子放到架子上").actions
+    assert (a.name, a.params["object"], a.params["on"]) == ("put_down", "杯子", "架子")
+
+
+def test_a_held_cup_is_carried_while_the_feet_move(talos):
+    """"pick up the cup, then walk backward two steps": the lift target holds until the steps start;
+    from then to the end the torso and right-arm joints keep angles (costs) that, on the standing
+    posture (Pinocchio), put the hand where it lifted the cup relative to the feet, within 2 mm and
+    0.01 rad; carrying an object no hand holds is refused; the kitchen's "walk to the cup, pick it
+    up, walk to the shelf and put it on it" compiles, the cup placed on the shelf's top."""
+    spec = compile_actions(list(parse("pick up the cup, then walk backward two steps").actions), talos, scene=NEAR)
+    step = next(p for p in spec.phases if p.name.startswith("2 step"))
+    t_step = spec.phase_start_times()[spec.phases.index(step)]
+    lift = next(t for t in spec.targets if t.name.endswith("right hand lifts the cup"))
+    assert lift.window[1] == pytest.approx(t_step)
+    carry = [t for t in spec.joint_targets if "carry the cup" in t.name]
+    assert len(carry) == 9 and all(t.window == pytest.approx((t_step, spec.horizon)) for t in carry)
+    model, data = talos.model, talos.data()
+    q = talos.q_standing.copy()
+    for t in carry:
+        q[model.joints[model.getJointId(t.joint)].idx_q] = t.value
+    assert {model.names[model.getJointId(t.joint)][:5] for t in carry} == {"torso", "arm_r"}
+    pin.framesForwardKinematics(model, data, q)
+    err = pin.log6(data.oMf[talos.frame_id("right_hand")].actInv(
+        pin.SE3(pin.rpy.rpyToMatrix(*lift.rpy), np.asarray(lift.position)))).vector  # pick-up stance = standing
+    assert np.linalg.norm(err[:3]) < 2e-3 and np.linalg.norm(err[3:]) < 0.01
+    with pytest.raises(TaskDefinitionError, match="no hand holds the cup to carry; pick it up first"):
+        compile_actions(list(parse("walk to the table with the cup").actions), talos, scene=NEAR)
+    from tasks.scene import load_scene
+
+    kitchen = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "kitchen.json")
+    spec = compile_actions(list(parse("walk to the cup, pick it up, walk to the shelf and put it on it").actions), talos,
+                           scene=kitchen)
+    (g,) = spec.grasps
+    shelf = kitchen.get("shelf")
+    assert g.place[2] == pytest.approx(shelf.position[2] + shelf.size[2] / 2 + 0.05)
+    assert any("3 walk_to: carry the cup" in t.name for t in spec.joint_targets)
+
+
+COUNTER = SceneObject(name="counter", shape="box", size=(0.6, 1.0, 0.85), position=(0.72, 0.0, 0.425))  # the box 5 cm over its edge
+BIG_BOX = SceneObject(name="red box", shape="box", size=(0.2, 0.2, 0.15), position=(0.47, 0.0, 0.925), movable=True,
+                      mass=0.5, aliases=("红色盒子",), colour=(0.8, 0.12, 0.1, 1.0))
+
+
+def test_both_hands_press_the_box_sides(talos):
+    """用双手拿起红色盒子 / "pick up the red box with both hands": two grasps of the box over the same
+    window, one per hand; at each press target the hand's collision meshes (coal, placed where the
+    target puts the hand frame) go 0.5-1.5 cm into the box (the planned squeeze) and stay clear of
+    the counter under it; a cup cannot be held that way."""
+    import coal
+
+    for text in ("用双手拿起红色盒子", "pick up the red box with both hands"):
+        (a,) = parse(text).actions
+        assert (a.name, a.params["arm"]) == ("pick_up", "both")
+    scene = Scene(name="a box on a counter", objects=(COUNTER, BIG_BOX))
+    spec = compile_actions(list(parse("pick up the red box with both hands").actions), talos, scene=scene)
+    left, right = spec.grasps
+    assert {left.frame, right.frame} == {talos.frame("left_hand"), talos.frame("right_hand")}
+    assert (left.start, left.end, left.hold) == (right.start, right.end, right.hold)
+    model, data = talos.model, talos.data()
+    cm = talos.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, talos.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, talos.q_standing)
+
+    def distance(geometry, M, obj):
+        return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
+                             coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
+                             coal.DistanceResult())
+
+    for side in ("left", "right"):
+        t = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
+        fid = talos.frame_id(f"{side}_hand")
+        below = set(model.subtrees[model.frames[fid].parentJoint])
+        target = pin.SE3(pin.rpy.rpyToMatrix(*t.rpy), np.asarray(t.position))
+        placed = [(go.geometry, target * data.oMf[fid].actInv(gd.oMg[i]))
+                  for i, go in enumerate(cm.geometryObjects) if go.parentJoint in below]
+        into_box = min(distance(g, M, BIG_BOX) for g, M in placed)
+        assert -0.015 <= into_box <= -0.005, (side, into_box)
+        assert min(distance(g, M, COUNTER) for g, M in placed) > 0.02
+    with pytest.raises(TaskDefinitionError, match="both hands pick up a box"):
+        compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "both"})], talos, scene=NEAR)
