@@ -525,12 +525,13 @@ def _hand_vertices(robot: Robot, side: str) -> np.ndarray:
         if hasattr(geometry, "vertices") and geometry.num_vertices:
             local = np.asarray(geometry.vertices(), dtype=float)
             points.append(np.array([to_heading(robot, M.act(v)) for v in local[:: max(1, len(local) // 400)]]))
-        else:
-            points.append(np.array([to_heading(robot, M.act(c)) for c in _box_corners(bm, i)]))
+        else:  # a primitive shape (talos's wrist cylinders): its box's corners, already in the heading frame
+            points.append(_box_corners(bm, i))
     return np.concatenate(points) - bm.hand_position[side]
 
 
-def _box_corners(bm, i: int) -> np.ndarray:  # pragma: no cover - the robots' hands are meshes
+def _box_corners(bm, i: int) -> np.ndarray:
+    """The 8 corners of geometry ``i``'s box in the body map (heading frame, standing posture)."""
     b = bm.boxes[i]
     return np.array([(x, y, z) for x in (b.lo[0], b.hi[0]) for y in (b.lo[1], b.hi[1]) for z in (b.lo[2], b.hi[2])])
 
