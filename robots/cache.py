@@ -43,15 +43,23 @@ _SOURCES = ("cache.py", "model.py")
 MAX_MANIFEST_BYTES = 1 << 20
 
 
-def cache_root() -> Path | None:
-    """``$WBMP_CACHE_DIR/robots`` (else ``~/.cache/wbmp/robots``); None when turned off."""
-    if os.environ.get("WBMP_ROBOT_CACHE", "1").strip().lower() in ("0", "false", "no", "off"):
+def cache_folder(name: str, switch: str | None = None) -> Path | None:
+    """``$WBMP_CACHE_DIR/<name>`` (else ``~/.cache/wbmp/<name>``); None when the environment
+    variable ``switch`` turns that cache off (0, false, no, off). The disk caches of robots/, sim/
+    and the collision model share it."""
+    if switch is not None and os.environ.get(switch, "1").strip().lower() in ("0", "false", "no", "off"):
         return None
     env = os.environ.get("WBMP_CACHE_DIR")
-    return Path(env if env else Path.home() / ".cache" / "wbmp") / "robots"
+    return Path(env if env else Path.home() / ".cache" / "wbmp") / name
 
 
-def _sha256(path: str | Path) -> str:
+def cache_root() -> Path | None:
+    """``$WBMP_CACHE_DIR/robots`` (else ``~/.cache/wbmp/robots``); None when turned off."""
+    return cache_folder("robots", "WBMP_ROBOT_CACHE")
+
+
+def file_sha256(path: str | Path) -> str:
+    """sha256 of a file, read in 4 MiB blocks."""
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 22), b""):
@@ -78,7 +86,7 @@ def _environment() -> tuple[tuple[str, str], ...]:
 
 def geometry_key(urdf: str, package_dirs: tuple[str, ...], kind: str) -> str:
     """The entry key of a URDF's geometry of one kind (module docstring)."""
-    blob = json.dumps({"kind": kind, "urdf": _sha256(urdf), "path": os.path.realpath(urdf),
+    blob = json.dumps({"kind": kind, "urdf": file_sha256(urdf), "path": os.path.realpath(urdf),
                        "package_dirs": [os.path.realpath(p) for p in package_dirs],
                        "environment": _environment()}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
@@ -116,13 +124,13 @@ def _read(entry: Path) -> pin.GeometryModel:
         raise _Damaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
     for mesh, mesh_digest in meshes.items():
         try:
-            if _sha256(mesh) != mesh_digest:
+            if file_sha256(mesh) != mesh_digest:
                 raise _Stale(f"{mesh} changed")
         except OSError:
             raise _Stale(f"{mesh} is gone") from None
     path = entry / _BINARY
     try:
-        if path.stat().st_size != size or _sha256(path) != digest:
+        if path.stat().st_size != size or file_sha256(path) != digest:
             raise _Damaged(f"{_BINARY} does not match its manifest (size or sha256)")
     except OSError as e:
         raise _Damaged(f"{_BINARY}: {e.strerror or e}") from None
@@ -140,7 +148,7 @@ def _write(root: Path, key: str, gmodel: pin.GeometryModel) -> None:
     try:
         gmodel.saveToBinary(str(tmp / _BINARY))
         manifest = {"key": key, "format": FORMAT, "size": (tmp / _BINARY).stat().st_size,
-                    "sha256": _sha256(tmp / _BINARY), "meshes": {p: _sha256(p) for p in mesh_files(gmodel)}}
+                    "sha256": file_sha256(tmp / _BINARY), "meshes": {p: file_sha256(p) for p in mesh_files(gmodel)}}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1), encoding="utf-8")
         entry = root / key
         if not entry.exists():  # else another process stored the same key meanwhile: keep its entry

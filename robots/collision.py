@@ -506,9 +506,11 @@ def _build(robot: Robot) -> CollisionModel:
 
 def cache_dir() -> Path:
     """``$WBMP_CACHE_DIR/collision`` (else ``~/.cache/wbmp/collision``): the root the solver cache uses."""
-    env = os.environ.get("WBMP_CACHE_DIR")
-    root = Path(env) if env else Path.home() / ".cache" / "wbmp"
-    return root / "collision"
+    from robots.cache import cache_folder
+
+    folder = cache_folder("collision")
+    assert folder is not None  # no switch: never off
+    return folder
 
 
 def cache_key(robot: Robot) -> str:

@@ -38,6 +38,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from robots.cache import cache_folder, file_sha256
+
 _log = logging.getLogger("sim.modelcache")
 
 FORMAT = 1  # bump when an entry's layout changes
@@ -49,18 +51,7 @@ _MESH_FILE = re.compile(r'filename="([^"]+)"')
 
 def cache_root() -> Path | None:
     """``$WBMP_CACHE_DIR/mujoco`` (else ``~/.cache/wbmp/mujoco``); None when turned off."""
-    if os.environ.get("WBMP_MUJOCO_CACHE", "1").strip().lower() in ("0", "false", "no", "off"):
-        return None
-    env = os.environ.get("WBMP_CACHE_DIR")
-    return Path(env if env else Path.home() / ".cache" / "wbmp") / "mujoco"
-
-
-def _sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 22), b""):
-            h.update(block)
-    return h.hexdigest()
+    return cache_folder("mujoco", "WBMP_MUJOCO_CACHE")
 
 
 @functools.cache
@@ -84,7 +75,7 @@ def model_key(robot: Any, xml: str, *, timestep: float, joint_friction: bool, sc
     files.update(g.meshPath for g in robot.collision_model.geometryObjects)
     if scene is not None:
         files.update(o.mesh for o in scene.objects if o.mesh)
-    meshes = {p: _sha256(p) for p in sorted(f for f in files if f and os.path.isfile(f))}  # noqa: PTH113
+    meshes = {p: file_sha256(p) for p in sorted(f for f in files if f and os.path.isfile(f))}  # noqa: PTH113
     blob = json.dumps({
         "xml": hashlib.sha256(xml.encode()).hexdigest(), "meshes": meshes,
         "profile": repr(robot.profile), "q_standing": np.asarray(robot.q_standing, dtype=float).tobytes().hex(),
@@ -135,7 +126,7 @@ def _write(root: Path, key: str, model: mujoco.MjModel, fields: dict[str, Any]) 
     try:
         mujoco.mj_saveModel(model, str(tmp / _BINARY), None)
         meta = {"key": key, "format": FORMAT, "size": (tmp / _BINARY).stat().st_size,
-                "sha256": _sha256(tmp / _BINARY), "fields": fields}
+                "sha256": file_sha256(tmp / _BINARY), "fields": fields}
         (tmp / _META).write_text(json.dumps(meta), encoding="utf-8")
         entry = root / key
         if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
