@@ -13,12 +13,11 @@ import json
 import os
 import stat
 import types
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
+from tests.badinput.conftest import umask
 from wbmp.cli import main
 from wbmp.motionfile import save_motion
 
@@ -27,15 +26,6 @@ UMASKS = (0o022, 0o077)
 
 def _mode(path: Path) -> int:
     return stat.S_IMODE(path.lstat().st_mode)
-
-
-@contextmanager
-def umask(mask: int) -> Iterator[None]:
-    old = os.umask(mask)
-    try:
-        yield
-    finally:
-        os.umask(old)
 
 
 @pytest.fixture(autouse=True)
