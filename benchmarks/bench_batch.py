@@ -77,15 +77,12 @@ def sentences(n: int) -> list[tuple[str, str]]:
 
 def _index_stats(folder: Path) -> dict:
     """Exit codes and median per-item times [s] from a run's index.jsonl."""
+    from wbmp.batch.index import read_index
+
     path = folder / "index.jsonl"
     if not path.exists():
         return {}
-    recs = []
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            recs.append(json.loads(line))
-        except ValueError:
-            continue
+    recs = list(read_index(path).values())
     codes: dict[str, int] = {}
     for r in recs:
         codes[str(r.get("exit_code"))] = codes.get(str(r.get("exit_code")), 0) + 1
@@ -106,15 +103,12 @@ def progress_of(work_dir: Path) -> dict:
 
     out = {}
     for name in RUNS:
+        from wbmp.batch.index import read_index
+
         path = work_dir / name / "index.jsonl"
         if not path.exists():
             continue
-        recs = []
-        for line in path.read_text(encoding="utf-8").splitlines():
-            try:
-                recs.append(json.loads(line))
-            except ValueError:
-                continue
+        recs = list(read_index(path).values())
         stats = _index_stats(work_dir / name)
         times = sorted(datetime.fromisoformat(r["finished"]) for r in recs if r.get("finished"))
         span = (times[-1] - times[0]).total_seconds() if len(times) > 1 else 0.0
