@@ -43,14 +43,18 @@ _SOURCES = ("cache.py", "model.py")
 MAX_MANIFEST_BYTES = 1 << 20
 
 
+def cache_base() -> Path:
+    """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp``: the folder of every wbmp disk cache."""
+    env = os.environ.get("WBMP_CACHE_DIR")
+    return Path(env) if env else Path.home() / ".cache" / "wbmp"
+
+
 def cache_folder(name: str, switch: str | None = None) -> Path | None:
-    """``$WBMP_CACHE_DIR/<name>`` (else ``~/.cache/wbmp/<name>``); None when the environment
-    variable ``switch`` turns that cache off (0, false, no, off). The disk caches of robots/, sim/
-    and the collision model share it."""
+    """``<cache_base()>/<name>``; None when the environment variable ``switch`` turns that cache
+    off (0, false, no, off). The solver, robot, MuJoCo, collision and motion caches share the base."""
     if switch is not None and os.environ.get(switch, "1").strip().lower() in ("0", "false", "no", "off"):
         return None
-    env = os.environ.get("WBMP_CACHE_DIR")
-    return Path(env if env else Path.home() / ".cache" / "wbmp") / name
+    return cache_base() / name
 
 
 def cache_root() -> Path | None:

@@ -57,8 +57,9 @@ _ENV = ("WBMP_COMPILE",)
 
 def cache_root() -> Path:
     """``$WBMP_CACHE_DIR/motions``, else ``~/.cache/wbmp/motions``."""
-    env = os.environ.get("WBMP_CACHE_DIR")
-    return Path(env if env else Path.home() / ".cache" / "wbmp") / "motions"
+    from robots.cache import cache_base
+
+    return cache_base() / "motions"
 
 
 def _tree_hash(h: hashlib._Hash, folder: Path) -> None:

@@ -23,7 +23,6 @@ gone.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -39,6 +38,8 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
+
+from robots.cache import file_sha256
 
 LIBRARY = "nlp.so"
 META = "meta.json"
@@ -85,15 +86,6 @@ def _read_small(path: Path, limit: int) -> bytes:
         raise EntryDamaged(f"{path.name} has {st.st_size} bytes (at most {limit} expected)")
     with open(path, "rb") as f:
         return f.read(limit + 1)
-
-
-def file_sha256(path: Path) -> str:
-    """sha256 of a file, read in 1 MiB blocks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(1 << 20):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _is_int(value, low: int = 0) -> bool:

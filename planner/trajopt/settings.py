@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from planner.trajopt.centroidal.settings import CentroidalSettings
+from robots.cache import cache_base
 
 
 def default_cache_dir() -> str:
-    """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp``."""
-    env = os.environ.get("WBMP_CACHE_DIR")
-    return env if env else str(Path.home() / ".cache" / "wbmp")
+    """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp`` (:func:`robots.cache.cache_base`)."""
+    return str(cache_base())
 
 
 def default_background_compile() -> bool:

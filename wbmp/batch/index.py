@@ -50,7 +50,7 @@ def read_index(path: Path) -> dict[tuple[str, str], dict[str, Any]]:
 
 def is_done(record: dict[str, Any] | None, job: Any, out_dir: Path, *, retry_failed: bool = False) -> bool:
     """True when ``job`` need not run again (the module's resume rule)."""
-    from wbmp.batch.worker import sha256_file
+    from robots.cache import file_sha256
 
     if record is None or record.get("input_sha256") != job.input_sha256:
         return False
@@ -70,7 +70,7 @@ def is_done(record: dict[str, Any] | None, job: Any, out_dir: Path, *, retry_fai
     try:
         if not path.is_file() or path.is_symlink():
             return False
-        return sha256_file(path) == record.get("sha256")
+        return file_sha256(path) == record.get("sha256")
     except OSError:
         return False
 

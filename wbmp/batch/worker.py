@@ -33,6 +33,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from robots.cache import file_sha256
+
 #: BLAS/OpenMP thread variables set to 1 in every worker (as ``wbmp.cli.run`` does for one solve):
 #: the workers are the parallelism, and a second thread per worker only competes for the cores.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -163,7 +165,7 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
                 if not cert.ok:
                     record["message"] = one_line(f"simulation check failed: {cert.reason}")
             record["motion"] = job.motion_name
-            record["sha256"] = sha256_file(target)
+            record["sha256"] = file_sha256(target)
         except Exception as exc:  # noqa: BLE001 - every failure of one item is recorded, the batch goes on
             check_signals()  # an interrupt a library turned into its own error stops the batch
             mapped = classify(exc)
@@ -179,12 +181,3 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
     return record
 
 
-def sha256_file(path: str | Path) -> str:
-    """sha256 of a file, read in 1 MiB blocks."""
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(1 << 20):
-            h.update(block)
-    return h.hexdigest()
