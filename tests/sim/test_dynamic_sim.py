@@ -103,16 +103,22 @@ def test_talos_four_steps_forward_is_certified(talos):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("action", [
-    Action(name="step", params={"direction": "forward", "length": 0.15, "count": 4}),
-    Action(name="turn", params={"angle": np.pi / 2}),
-], ids=["four_steps_forward", "turn_90_deg"])
-def test_g1_walk_and_turn_are_certified(g1, action):
-    """G1 with whole-body angular momentum in the plan: certified in MuJoCo.
+@pytest.mark.parametrize(("action", "advance"), [
+    (Action(name="step", params={"direction": "forward", "length": 0.15, "count": 4}), (0.6, 0.0)),
+    (Action(name="turn", params={"angle": np.pi / 2}), (0.0, 0.0)),
+    (Action(name="walk", params={"direction": "backward", "distance": 0.4}), (-0.4, 0.0)),
+    (Action(name="walk", params={"direction": "left", "distance": 0.2}), (0.0, 0.2)),
+], ids=["four_steps_forward", "turn_90_deg", "walk_backward", "walk_left"])
+def test_g1_walk_and_turn_are_certified(g1, action, advance):
+    """G1 with whole-body angular momentum in the plan: certified in MuJoCo, and the simulated
+    base ends where the steps take it (``advance``, x forward and y left [m]).
 
     With the centroidal-only model the plan's full-dynamics ZMP left the soles by 15-17 cm and the
     CoM left its plan by 6.6-6.9 cm (limit 5 cm); now the plan's own ZMP stays in its support
-    polygon and the simulation follows it.
+    polygon and the simulation follows it. With that model `walk backward` fell at 3.6 s and `walk
+    to the left` left the CoM 7.6 cm from its plan (docs/primitives.md); the planner now refuses
+    those plans itself (two 0.20 m steps backward, G1's longest, and two 0.10 m side steps: contact
+    moment 0.18-0.19 m from the full dynamics'). Both track within 1 cm now.
     """
     spec = compile_actions([action], g1, dt=0.075)
     p = plan(spec, g1, settings=PlannerSettings(compile=False))
@@ -121,6 +127,8 @@ def test_g1_walk_and_turn_are_certified(g1, action):
     assert ex.certificate.ok, ex.certificate.summary()
     assert ex.certificate.check("CoM tracking error").value < 0.04  # [m] it was 0.068 m
     assert not any(e.kind == "plan_zmp" for e in ex.events)
+    moved = ex.q[-1, :2] - ex.q[0, :2]
+    np.testing.assert_allclose(moved, advance, atol=0.05)  # [m] the robot really walked
 
 
 @pytest.mark.slow
