@@ -42,10 +42,12 @@ def _held_positions(talos, execution, grasp) -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_pick_up_and_put_down_the_cup_in_mujoco(talos):
+def test_pick_up_and_put_down_the_cup_in_mujoco(talos, tmp_path):
     """The cup's MuJoCo body rises by the asked 0.1 m (within the certificate's tolerance) over the hold
     window and stays within 2 cm of the hand's grasp offset (Pinocchio) while held; it ends within
-    3 cm of where it stood, upright; the red box beside it does not move; the certificate passes."""
+    3 cm of where it stood, upright; the red box beside it does not move; the certificate passes.
+    The motion file holds the cup's simulated track (it rises by the certificate's lifted amount) and
+    its planned track (within 2 cm of the simulated one over the hold window)."""
     spec = compile_actions(list(parse(SENTENCE).actions), talos, scene=NEAR)
     (g,) = spec.grasps
     motion = plan(spec, talos)
@@ -60,6 +62,24 @@ def test_pick_up_and_put_down_the_cup_in_mujoco(talos):
     assert gap.max() < 0.02, gap.max()
     assert np.linalg.norm(cup[-1] - np.asarray(CUP.position)) <= PLACE_TOLERANCE
     assert np.abs(run.objects["red box"] - np.asarray(BOX.position)).max() <= MOVED_LIMIT
+    _check_motion_file(tmp_path, talos, motion, run, g)
+
+
+def _check_motion_file(tmp_path, talos, motion, run, g) -> None:
+    """The motion file's object arrays against the simulation's record and the certificate."""
+    from wbmp.motionfile import save_motion
+
+    with np.load(save_motion(tmp_path / "m.npz", motion, talos, execution=run)) as z:
+        names, planned, executed = list(z["object_names"]), z["object_pose"], z["exec_object_pose"]
+    i = names.index("cup")
+    assert np.array_equal(executed[:, i, :3], run.objects["cup"])
+    lifted = next(c for c in run.certificate.checks if c.name.startswith("cup lifted"))
+    hold = (run.t >= g.hold[0] - 1e-9) & (run.t <= g.hold[1] + 1e-9)
+    assert (executed[hold, i, 2] - executed[0, i, 2]).min() == pytest.approx(lifted.value, abs=1e-12)
+    plan_at = np.column_stack([np.interp(run.t[hold], motion.t, planned[:, i, c]) for c in range(3)])
+    assert np.linalg.norm(executed[hold, i, :3] - plan_at, axis=1).max() < 0.02  # lowering it: 3.0 cm apart
+    plan_hold = (motion.t >= g.hold[0] - 1e-9) & (motion.t <= g.hold[1] + 1e-9)
+    assert (planned[plan_hold, i, 2] - CUP.position[2]).min() > g.lift - 0.01
 
 
 BOOK = SceneObject(name="book", shape="box", size=(0.2, 0.2, 0.04), position=(0.58, -0.4, 0.74), movable=True,
@@ -102,6 +122,24 @@ def test_carry_the_cup_while_walking_in_mujoco(talos):
     assert gap.max() < 0.02, gap.max()
     assert CUP.position[0] - cup[-1, 0] > 0.2
     assert (cup[walking, 2] - CUP.position[2]).min() > 0.02  # carried, not dropped (the body walks lower: 6 cm)
+
+
+@pytest.mark.slow
+def test_put_the_cup_down_on_a_spot_plans(talos):
+    """"pick up the cup, then put it down 20 cm to the left" plans on talos: every planned check
+    holds, and the planned cup (carried by the hand's grasp offset, Pinocchio on the plan's q) is let
+    go within 1.5 cm of the place 0.2 m to the robot's left (+y) of where it stood, on the table."""
+    from viz.motion import planned_object_poses
+
+    spec = compile_actions(list(parse("pick up the cup, then put it down 20 cm to the left").actions), talos,
+                           scene=NEAR)
+    (g,) = spec.grasps
+    motion = plan(spec, talos)
+    assert motion.ok, motion.summary()
+    cup = planned_object_poses(talos, spec, motion.t, motion.q)["cup"]
+    k = int(np.searchsorted(motion.t, g.end - 1e-9))
+    assert np.linalg.norm(cup[k, :3] - (np.asarray(CUP.position) + [0.0, 0.2, 0.0])) < 0.015  # measured 5.7 mm
+    assert np.allclose(cup[-1], cup[k])
 
 
 @pytest.mark.slow
