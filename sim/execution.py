@@ -50,6 +50,8 @@ class Execution:
         joint_names: Actuated joint names, the column order of ``tau``.
         torque_limits: Their torque limits (nv - 6,) [N m].
         objects: Movable scene object -> its centre's position over the run (T', 3) [m] (MuJoCo).
+        object_orientations: Movable scene object -> its orientation over the run (T', 4), a unit
+            quaternion (x, y, z, w) as the free flyer's in ``q`` (MuJoCo).
     """
 
     t: np.ndarray
@@ -67,6 +69,7 @@ class Execution:
     joint_names: tuple[str, ...] = ()
     torque_limits: np.ndarray = field(default_factory=lambda: np.zeros(0))
     objects: Mapping[str, np.ndarray] = field(default_factory=dict)
+    object_orientations: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def peak_torque_fractions(self) -> dict[str, float]:
         """Peak |tau| / limit of each actuated joint over the run [-], in joint order."""

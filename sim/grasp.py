@@ -13,7 +13,8 @@ gripper cannot close on the object. The named simplification (docs/objects.md), 
   (no jump); at ``end`` it lets go. The object keeps its mass: its weight loads the arm through the
   weld, and the controller, which does not model it, has to carry it.
 
-Every tick records the movable objects' positions and tilts; :meth:`GraspRig.checks` turns them
+Every tick records the movable objects' positions, orientations and tilts (the execution's
+object poses: the replay and the motion file show them); :meth:`GraspRig.checks` turns them
 into the certificate's lines: the grasp engaged, the object lifted by the asked height and held,
 placed within tolerance, no other object moved by more than :data:`MOVED_LIMIT`, none tipped over.
 """
@@ -93,6 +94,7 @@ class GraspRig:
                                    obj_index=self.names.index(g.object)))
         self._bits(sm)
         self.pos = np.zeros((n_ticks, len(self.names), 3))
+        self.quat = np.zeros((n_ticks, len(self.names), 4))  # (x, y, z, w), as the robot's base in q
         self.tilt = np.zeros((n_ticks, len(self.names)))
         self.t = np.zeros(n_ticks)
         self.n = 0
@@ -147,6 +149,7 @@ class GraspRig:
         if i < len(self.t):
             self.t[i] = t
             self.pos[i] = d.xpos[self.bodies]
+            self.quat[i] = d.xquat[self.bodies][:, [1, 2, 3, 0]]  # MuJoCo's (w, x, y, z) -> (x, y, z, w)
             zz = d.xmat[self.bodies][:, 8]
             self.tilt[i] = np.arccos(np.clip(zz, -1.0, 1.0))
             self.n = i + 1

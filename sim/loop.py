@@ -90,6 +90,7 @@ def simulate(
         joint_names=tuple(robot.joint_names),
         torque_limits=sm.torque_limits.copy(),
         objects={name: rig.pos[: rig.n, i].copy() for i, name in enumerate(rig.names)},
+        object_orientations={name: rig.quat[: rig.n, i].copy() for i, name in enumerate(rig.names)},
     )
 
 

@@ -543,6 +543,10 @@ REGISTRY: dict[str, ActionSchema] = {
             _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
             Param(name="on", kind="object", default=None,
                   description="where to put it: on top of this object (default: back where it was)"),
+            _choice("direction", DIRECTIONS, None, "put it this way (seen from the robot) from where it was, or from "
+                    "its place on `on`; backward without a distance: back where it was (\"put it back\")"),
+            Param(name="distance", kind="float", unit="m", default=None, minimum=0.02, maximum=1.0,
+                  description="how far that way (default 0.2 m with a direction)"),
         )),
         ActionSchema(name="touch_object", summary="Touch an object of the scene with one hand (a planned contact).",
                      body="upper", params=(

@@ -201,11 +201,15 @@ def load_scene(vis, robot: Robot, plan, *, execution=None, collisions: bool = Fa
     schedule = scene.add_markers(vis, robot, plan)
     scene.add_scene(vis, getattr(plan.spec, "scene", None))
     scene.set_robot_configuration(vis, robot, planned.q[0], motion="planned")
-    clips, duration = scene.motion_animations(vis, robot, planned, robot_node="planned", fps=FPS)
+    # one node per object: it follows the simulation when there is one (where the objects went),
+    # else the plan (docs/objects.md, "In the replay and the motion file")
+    sim_objects = simulated is not None and bool(simulated.objects)
+    clips, duration = scene.motion_animations(vis, robot, planned, robot_node="planned", fps=FPS,
+                                              objects=not sim_objects)
     if simulated is not None:
         scene.set_robot_configuration(vis, robot, simulated.q[0], motion="simulated")
         sim_clips, sim_duration = scene.motion_animations(vis, robot, simulated, robot_node="simulated",
-                                                          fps=FPS, markers=False)
+                                                          fps=FPS, markers=False, objects=sim_objects)
         clips += sim_clips
         duration = max(duration, sim_duration)
     clips += scene.visibility_animations(vis, schedule, duration)

@@ -39,6 +39,8 @@ class Motion:
         v: Velocities (T, nv) or None.
         tau: Actuated joint torques (T, nv - 6) [N m] or None.
         forces: Contact force per frame name, (T, 3) in the world [N]; may be empty.
+        objects: Movable scene object -> its pose on ``t`` (T, 7): centre position [m] then a unit
+            quaternion (x, y, z, w); planned (:func:`planned_object_poses`) or simulated; may be empty.
     """
 
     label: str
@@ -47,6 +49,7 @@ class Motion:
     v: np.ndarray | None = None
     tau: np.ndarray | None = None
     forces: Mapping[str, np.ndarray] = field(default_factory=dict)
+    objects: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -74,7 +77,73 @@ def plan_motion(robot: Robot, plan) -> Motion:
         raise VizInputError(f"plan: t has {len(t)} knots but q has {len(q)} rows")
     v = _array("plan", "v", plan.v, robot.nv) if plan.v is not None and len(plan.v) else None
     forces = {k: np.asarray(f, dtype=float) for k, f in (plan.forces or {}).items()}
-    return Motion(label="planned", t=t, q=q, v=v, forces=forces)
+    objects = planned_object_poses(robot, getattr(plan, "spec", None), t, q)
+    return Motion(label="planned", t=t, q=q, v=v, forces=forces, objects=objects)
+
+
+def _rest_pose(obj) -> np.ndarray:
+    """A scene object's pose (7,) where the scene puts it: position, quaternion (x, y, z, w)."""
+    R = pin.rpy.rpyToMatrix(*(float(a) for a in obj.rpy))
+    return np.concatenate([np.asarray(obj.position, dtype=float), pin.Quaternion(R).normalized().coeffs()])
+
+
+def planned_object_poses(robot: Robot, spec, t: np.ndarray, qs: np.ndarray) -> dict[str, np.ndarray]:
+    """Where the plan puts each movable object of ``spec``'s scene at each knot (times ``t`` (T,)
+    [s], configurations ``qs`` (T, nq)) (T, 7): position [m] and quaternion (x, y, z, w).
+
+    An object stands where the scene puts it until a grasp of it (:class:`tasks.specs.Grasp`)
+    starts; from that knot it moves with the holding frame, its centre at the grasp's ``offset`` in
+    that frame and its orientation turned with the frame from the knot where the grasp starts; from
+    the grasp's ``end`` (the release) it stays where the hand left it. A second grasp of the same
+    object over the same window (both hands) follows the first. Objects that no grasp names stay put.
+
+    Returns:
+        Object name -> poses (T, 7); empty without a scene or movable objects.
+    """
+    scene = getattr(spec, "scene", None)
+    if scene is None:
+        return {}
+    qs = np.asarray(qs, dtype=float)
+    times = np.asarray(t, dtype=float).reshape(-1)
+    if len(times) != len(qs):
+        raise VizInputError(f"plan: t has {len(times)} knots but q has {len(qs)} rows")
+    grasps = sorted(getattr(spec, "grasps", ()), key=lambda g: g.start)
+    out: dict[str, np.ndarray] = {}
+    model, data = robot.model, robot.data()
+    for obj in scene.objects:
+        if not obj.movable:
+            continue
+        pose = np.tile(_rest_pose(obj), (len(qs), 1))
+        mine = [g for g in grasps if g.object == obj.name]
+        seen: set[tuple[float, float | None]] = set()
+        for g in mine:
+            if (g.start, g.end) in seen:
+                continue  # the other hand of a two-handed hold
+            seen.add((g.start, g.end))
+            k0 = _knot(times, g.start)
+            k1 = len(qs) if g.end is None else _knot(times, g.end)
+            if k0 >= len(qs):
+                continue
+            fid = model.getFrameId(g.frame)
+            if fid >= len(model.frames):
+                continue  # a frame this robot lacks: the object stays where it stands
+            pin.framesForwardKinematics(model, data, qs[k0])
+            rest = pose[k0]
+            R_obj_in_hand = data.oMf[fid].rotation.T @ pin.Quaternion(rest[6], *rest[3:6]).toRotationMatrix()
+            offset = np.asarray(g.offset, dtype=float)
+            for k in range(k0, min(k1 + 1, len(qs))):
+                pin.framesForwardKinematics(model, data, qs[k])
+                M = data.oMf[fid]
+                pose[k, :3] = M.act(offset)
+                pose[k, 3:] = pin.Quaternion(M.rotation @ R_obj_in_hand).normalized().coeffs()
+            pose[min(k1 + 1, len(qs)):] = pose[min(k1, len(qs) - 1)]
+        out[obj.name] = pose
+    return out
+
+
+def _knot(times: np.ndarray, t: float) -> int:
+    """The first knot at or after time ``t`` [s] (``len(times)`` when there is none)."""
+    return int(np.searchsorted(times, t - 1e-9))
 
 
 def _first_attr(obj, names: tuple[str, ...]):
@@ -120,7 +189,58 @@ def execution_motion(robot: Robot, execution) -> Motion | None:
         v=_array("execution", "v", v, robot.nv) if v is not None and len(v) else None,
         tau=_array("execution", "tau", tau, robot.nv - 6) if tau is not None and len(tau) else None,
         forces={k: np.asarray(f, dtype=float) for k, f in dict(forces or {}).items()},
+        objects=executed_object_poses(execution, len(t)),
     )
+
+
+def executed_object_poses(execution, n: int) -> dict[str, np.ndarray]:
+    """The simulated poses (n, 7) of the movable objects of an execution: a ``sim`` Execution's
+    ``objects`` (positions) and ``object_orientations`` (quaternions x, y, z, w; identity when
+    absent), or a motion file's ``exec_object_pose`` (n, k, 7) with ``object_names`` (k,).
+
+    Raises:
+        VizInputError: the arrays do not have ``n`` rows.
+    """
+    out: dict[str, np.ndarray] = {}
+    stacked = _first_attr(execution, ("exec_object_pose",))
+    if stacked is not None:
+        listed = _first_attr(execution, ("object_names",))
+        names = [] if listed is None else [str(x) for x in np.asarray(listed).reshape(-1)]
+        arr = np.asarray(stacked, dtype=float)
+        if arr.ndim != 3 or arr.shape[0] != n or arr.shape[2] != 7 or arr.shape[1] != len(names):
+            raise VizInputError(f"execution: exec_object_pose must be ({n}, {len(names)}, 7), got {arr.shape}")
+        return {name: arr[:, i] for i, name in enumerate(names)}
+    positions = _first_attr(execution, ("objects",))
+    turns = _first_attr(execution, ("object_orientations",))
+    positions = {} if not isinstance(positions, Mapping) else positions
+    turns = {} if not isinstance(turns, Mapping) else turns
+    for name, p in dict(positions).items():
+        p = np.asarray(p, dtype=float)
+        quat = np.asarray(turns[name], dtype=float) if name in turns else np.tile([0.0, 0.0, 0.0, 1.0], (len(p), 1))
+        if p.shape != (n, 3) or quat.shape != (n, 4):
+            raise VizInputError(f"execution: the {name}'s poses must have {n} rows, got {p.shape} and {quat.shape}")
+        out[str(name)] = np.hstack([p, quat])
+    return out
+
+
+def resample_poses(t: np.ndarray, poses: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Poses (T, 7) given at times ``t`` (T,) [s] sampled at ``times`` (F,) [s] (clamped to the ends):
+    positions linear, quaternions spherical (shortest arc) between the two neighbours."""
+    t = np.asarray(t, dtype=float)
+    poses = np.asarray(poses, dtype=float)
+    out = np.empty((len(times), 7))
+    if len(t) == 1:
+        out[:] = poses[0]
+        return out
+    idx = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
+    for i, (k, s) in enumerate(zip(idx, times, strict=True)):
+        h = t[k + 1] - t[k]
+        a = float(np.clip((s - t[k]) / h, 0.0, 1.0)) if h > 0 else 0.0
+        out[i, :3] = (1.0 - a) * poses[k, :3] + a * poses[k + 1, :3]
+        q0 = pin.Quaternion(poses[k, 6], *poses[k, 3:6]).normalized()
+        q1 = pin.Quaternion(poses[k + 1, 6], *poses[k + 1, 3:6]).normalized()
+        out[i, 3:] = q0.slerp(a, q1).coeffs()
+    return out
 
 
 def resample(robot: Robot, motion: Motion, fps: float) -> tuple[np.ndarray, np.ndarray]:

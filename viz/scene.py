@@ -15,7 +15,8 @@ Scene tree (under meshcat's ``/meshcat`` root)::
     wbmp/com/path                         planned CoM path (line)
     wbmp/com/point, wbmp/com/ground       CoM and its ground projection (animated)
     wbmp/paths/<frame>                    planned path of each frame that has a target
-    wbmp/scene/<object>                   a scene object at its pose (the spec's scene)
+    wbmp/scene/<object>                   a scene object at its pose (the spec's scene); a movable
+                                          one animated along the motion's object poses
     wbmp/scene/<object>/shape             its shape (a cylinder turned upright; a mesh scaled)
 
 Why ``<geometry>`` and ``<geometry>/mesh`` are separate nodes: animation tracks carry a
@@ -576,7 +577,8 @@ def _clip(tracks: list[dict]) -> dict:
 
 
 def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str = "planned",
-                      fps: float = 30.0, markers: bool = True, packed: bool = False) -> tuple[list[dict], float]:
+                      fps: float = 30.0, markers: bool = True, packed: bool = False,
+                      objects: bool = True) -> tuple[list[dict], float]:
     """Animation clips (meshcat's lowered form) that replay ``motion`` on the robot.
 
     Args:
@@ -587,6 +589,8 @@ def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str =
         fps: Key frames per second [1/s].
         markers: Also animate the CoM point and its ground projection.
         packed: Times and values as float32 typed arrays (the HTML replay) instead of lists.
+        objects: Also move the movable scene objects (``wbmp/scene/<object>``) along the motion's
+            object poses (``motion.objects``: planned or simulated, see :func:`object_animations`).
 
     Returns:
         ``(clips, duration)``: a list of ``{"path", "clip"}`` dicts and the duration [s].
@@ -616,7 +620,26 @@ def motion_animations(vis, robot: Robot, motion: vm.Motion, *, robot_node: str =
                       "clip": _clip([_track("position", "vector3", times, com, packed=packed)])})
         clips.append({"path": vis[ROOT]["com"]["ground"].path.lower(),
                       "clip": _clip([_track("position", "vector3", times, ground, packed=packed)])})
+    if objects:
+        clips += object_animations(vis, motion, times, packed=packed)
     return clips, float(times[-1])
+
+
+def object_animations(vis, motion: vm.Motion, times: np.ndarray, *, packed: bool = False) -> list[dict]:
+    """Clips that move each object of ``motion.objects`` (its node ``wbmp/scene/<object>``, drawn by
+    :func:`add_scene`) through its poses, sampled at ``times`` [s] from the motion's start."""
+    clips = []
+    t = np.asarray(motion.t, dtype=float) - float(motion.t[0])
+    for name, poses in motion.objects.items():
+        sampled = vm.resample_poses(t, poses, np.asarray(times, dtype=float))
+        quat = sampled[:, 3:].copy()
+        for i in range(1, len(quat)):  # consecutive quaternions in one hemisphere
+            if quat[i] @ quat[i - 1] < 0:
+                quat[i] = -quat[i]
+        clips.append({"path": vis[ROOT]["scene"][node_name(name)].path.lower(),
+                      "clip": _clip([_track("position", "vector3", times, sampled[:, :3], packed=packed),
+                                     _track("quaternion", "quaternion", times, quat, packed=packed)])})
+    return clips
 
 
 def visibility_animations(vis, schedule: dict[str, list[tuple[float, bool]]], duration: float) -> list[dict]:

@@ -8,6 +8,9 @@ Keys of the ``.npz`` (``docs/formats.md`` documents them for other tools):
   (actuated joints, Pinocchio order), ``frame_names`` (the contact frames of the spec);
 * execution, when simulated: ``exec_t`` (T',) [s], ``exec_q`` (T', nq), ``exec_v`` (T', nv),
   ``exec_tau`` (T', nv - 6) [N m];
+* movable scene objects, when the spec's scene has any: ``object_names`` (k,), ``object_pose``
+  (T, k, 7) where the plan puts them, and, when simulated, ``exec_object_pose`` (T', k, 7) where
+  the simulation moved them; a pose is the centre [m] then a quaternion (x, y, z, w);
 * ``spec_json`` (the TaskSpec, which round-trips), ``actions_json`` (the parsed actions when the
   input was a sentence, else ``null``), ``report_json`` (solver stats, constraint report,
   diagnosis, and the caller's entries such as the simulation ``certificate``), ``version``.
@@ -60,7 +63,8 @@ class MotionFile:
 
     Attributes:
         plan: The plan rebuilt from the arrays, the spec and the report.
-        execution_arrays: ``exec_t``, ``exec_q``, ``exec_v``, ``exec_tau`` when simulated (else empty).
+        execution_arrays: ``exec_t``, ``exec_q``, ``exec_v``, ``exec_tau`` when simulated (else empty);
+            ``exec_object_pose`` (T', k, 7) and ``object_names`` too when the scene has movable objects.
         actions: The parsed actions (list of dicts) or None.
         report: The whole report dict (``solver``, ``checks``, ``diagnosis``, ``ok``, and the
             caller's entries such as ``certificate``).
@@ -68,6 +72,8 @@ class MotionFile:
         joint_names: Actuated joint names.
         frame_names: Contact frame names.
         version: File format version.
+        objects: Movable scene object -> its planned pose at each knot (T, 7) (``object_pose``;
+            empty in files written before it existed).
     """
 
     plan: Plan
@@ -78,6 +84,7 @@ class MotionFile:
     joint_names: list[str] = field(default_factory=list)
     frame_names: list[str] = field(default_factory=list)
     version: int = FORMAT_VERSION
+    objects: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def plan_report(plan: Plan) -> dict[str, Any]:
@@ -136,6 +143,28 @@ def motion_arrays(plan: Plan, robot, *, execution=None, actions=None, report=Non
     if execution is not None:
         for key, attr in zip(EXEC_KEYS, ("t", "q", "v", "tau"), strict=True):
             out[key] = np.asarray(getattr(execution, attr), dtype=float)
+    out.update(object_arrays(plan, robot, execution))
+    return out
+
+
+def object_arrays(plan: Plan, robot, execution=None) -> dict[str, np.ndarray]:
+    """``object_names``, ``object_pose`` (planned: :func:`viz.motion.planned_object_poses`; needs the
+    robot) and ``exec_object_pose`` (the simulation's, when ``execution`` has them) of the movable
+    objects of the plan's scene; empty when it has none."""
+    from viz import motion as vm
+
+    scene = plan.spec.scene
+    names = [o.name for o in scene.objects if o.movable] if scene is not None else []
+    if not names:
+        return {}
+    out: dict[str, np.ndarray] = {"object_names": np.array(names, dtype=str)}
+    if robot is not None:
+        planned = vm.planned_object_poses(robot, plan.spec, plan.t, plan.q)
+        out["object_pose"] = np.stack([planned[n] for n in names], axis=1)
+    if execution is not None:
+        executed = vm.executed_object_poses(execution, len(execution.t))
+        if set(executed) == set(names):
+            out["exec_object_pose"] = np.stack([executed[n] for n in names], axis=1)
     return out
 
 
@@ -410,6 +439,7 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
             execution["exec_tau"] = _numbers(arrays, "exec_tau", shown, (m, nv - 6))
     joint_names = _strings(arrays, "joint_names", shown)
     frame_names = _strings(arrays, "frame_names", shown)
+    objects = _object_keys(arrays, shown, n, execution)
 
     try:
         spec = spec_from_json(_string(arrays, "spec_json", shown))
@@ -431,7 +461,29 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
         raise _fail(shown, f"the arrays do not make a plan ({e})") from None
     return MotionFile(plan=plan, execution_arrays=execution, actions=actions, report=report,
                       robot_name=robot_name, joint_names=joint_names, frame_names=frame_names,
-                      version=int(version))
+                      version=int(version), objects=objects)
+
+
+def _object_keys(arrays: dict[str, Any], shown: str, n: int, execution: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The planned object poses by name (``object_names``, ``object_pose``); ``exec_object_pose`` is
+    checked and added to ``execution`` (with ``object_names``). Files without them load as before."""
+    names = _strings(arrays, "object_names", shown)
+    if len(set(names)) != len(names) or any(not x or _has_control(x) for x in names):
+        raise _fail(shown, "key 'object_names' must hold distinct object names")
+    keys = [k for k in ("object_pose", "exec_object_pose") if k in arrays]
+    if keys and "object_names" not in arrays:
+        raise _fail(shown, f"key {keys[0]!r} needs the key 'object_names' (the objects it is about)")
+    objects: dict[str, np.ndarray] = {}
+    if "object_pose" in arrays:
+        pose = _numbers(arrays, "object_pose", shown, (n, len(names), 7))
+        objects = {name: pose[:, i] for i, name in enumerate(names)}
+    if "exec_object_pose" in arrays:
+        if not execution:
+            raise _fail(shown, "key 'exec_object_pose' needs a simulated execution (key 'exec_t')")
+        execution["exec_object_pose"] = _numbers(arrays, "exec_object_pose", shown,
+                                                 (len(execution["exec_t"]), len(names), 7))
+        execution["object_names"] = np.array(names, dtype=str)
+    return objects
 
 
 def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[Check, ...], str]:
@@ -603,8 +655,9 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
     written = [path]
     plan = motion.plan
     names = csv_columns(motion)
-    header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]], "com_x", "com_y", "com_z"]
-    rows = np.hstack([plan.t[:, None], plan.q, plan.v, plan.com])
+    header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]], "com_x", "com_y", "com_z",
+              *_object_columns(list(motion.objects))]
+    rows = np.hstack([plan.t[:, None], plan.q, plan.v, plan.com, *motion.objects.values()])
     meta = {"robot": motion.robot_name, "version": motion.version,
             "spec": json.loads(str(arrays["spec_json"])), "actions": motion.actions, "report": motion.report}
     text = _csv_text(header, rows, meta).encode("utf-8")
@@ -616,10 +669,18 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
         exec_header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]],
                        *[f"tau_{n}" for n in names[1][6:6 + n_tau]]]
         parts = [ex["exec_t"][:, None], ex["exec_q"], ex["exec_v"]] + ([ex["exec_tau"]] if n_tau else [])
+        if "exec_object_pose" in ex:
+            exec_header += _object_columns([str(x) for x in ex["object_names"]])
+            parts += list(np.transpose(ex["exec_object_pose"], (1, 0, 2)))
         exec_text = _csv_text(exec_header, np.hstack(parts), {}).encode("utf-8")
         staging.add(exec_path, lambda fh: fh.write(exec_text))
         written.append(exec_path)
     return written
+
+
+def _object_columns(names: list[str]) -> list[str]:
+    """CSV columns of the objects' poses: ``object_<name>_x .. _qw`` (the name as in ``object_names``)."""
+    return [f"object_{n}_{c}" for n in names for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
 
 
 def exec_csv_path(path: str | Path) -> Path:
@@ -664,6 +725,10 @@ def _arrays_of(motion: MotionFile) -> dict[str, Any]:
     for name, arr in plan.forces.items():
         out[f"force_{name}"] = arr
     out.update(motion.execution_arrays)
+    if motion.objects:
+        names = list(motion.objects)
+        out["object_names"] = np.array(names, dtype=str)
+        out["object_pose"] = np.stack([motion.objects[k] for k in names], axis=1)
     return out
 
 

@@ -255,6 +255,8 @@ class CachedExecution:
     v: Any
     tau: Any
     certificate: Any
+    exec_object_pose: Any = None  # (T', k, 7) the movable objects' simulated poses, when the file has them
+    object_names: Any = None
 
     @property
     def ok(self) -> bool:
@@ -298,7 +300,8 @@ def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
         if certificate is not None:
             ex = motion.execution_arrays
             execution = CachedExecution(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex.get("exec_tau"),
-                                        certificate=certificate)
+                                        certificate=certificate, exec_object_pose=ex.get("exec_object_pose"),
+                                        object_names=ex.get("object_names"))
     return SolveResult(robot=robot if robot is not None else _LazyRobot(motion.robot_name, request), spec=spec,
                        plan=plan, actions=actions, execution=execution, timings={"cache": elapsed}, cached=hit,
                        cache_key=hit.key)

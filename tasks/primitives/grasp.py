@@ -366,6 +366,98 @@ def place_point(robot: Robot, stance: Stance, obj: SceneObject, on: SceneObject,
     return best[2]
 
 
+SHIFT_DEFAULT = 0.2  # [m] "put it down to the left": a direction said without a distance
+SUPPORT_GAP = 0.03  # [m] a surface within this of the object's bottom carries it
+
+
+def shift(params: dict, stance: Stance) -> np.ndarray | None:
+    """The put_down's shift (3,) in the world [m] from its ``direction`` and ``distance`` (the
+    robot's heading where it stands), or None: no direction, or ``backward`` without a distance
+    ("put the cup back": where it was)."""
+    direction = params.get("direction")
+    distance = params.get("distance")
+    if direction is None or (direction == "backward" and distance is None):
+        return None
+    d = SHIFT_DEFAULT if distance is None else float(distance)
+    local = {"forward": (1.0, 0.0), "backward": (-1.0, 0.0), "left": (0.0, 1.0), "right": (0.0, -1.0)}[str(direction)]
+    return stance.heading().rotation @ np.array([local[0], local[1], 0.0]) * d
+
+
+def _spot_words(params: dict, obj: SceneObject, on: SceneObject | None) -> str:
+    """The spot in words: "0.20 m to the left of where the cup stood"."""
+    direction = str(params.get("direction"))
+    d = SHIFT_DEFAULT if params.get("distance") is None else float(params["distance"])
+    how = {"forward": "further from the robot than", "backward": "closer to the robot than", "left": "to the left of",
+           "right": "to the right of"}[direction]
+    return f"{d:.2f} m {how} " + (f"its place on the {on.name}" if on is not None else f"where the {obj.name} stood")
+
+
+def _supports(scene, obj: SceneObject, on: SceneObject | None, bottom: float) -> list[SceneObject | None]:
+    """The surfaces that may carry ``obj`` with its bottom at ``bottom`` [m]: ``on`` when given, else
+    every other box or cylinder whose top is within :data:`SUPPORT_GAP` of it (None: the floor)."""
+    if on is not None:
+        return [on]
+    if bottom <= SUPPORT_GAP:
+        return [None]
+    return [o for o in (scene.objects if scene is not None else ()) if o.name != obj.name
+            and o.shape in ("box", "cylinder") and abs(float(extent(o)[1][2]) - bottom) <= SUPPORT_GAP]
+
+
+def shifted_place(params: dict, stance: Stance, g: Grounded, on: SceneObject | None, place: np.ndarray) -> np.ndarray:
+    """``place`` moved by the put_down's :func:`shift`: the object's footprint must lie on the top face
+    of the surface under it (``on``, or the one it stood on; the floor for an object on the floor),
+    and no other object may stand there.
+
+    Raises:
+        TaskDefinitionError: off the surface (with how far its edge is) or the spot taken.
+    """
+    move = shift(params, stance)
+    if move is None:
+        return place
+    obj = g.obj
+    lo, hi = (np.asarray(v, dtype=float) for v in extent(obj))
+    half = 0.5 * (hi - lo)
+    below = float(obj.position[2] - lo[2])
+    at = place + move
+    bottom = float(place[2]) - below
+    spot = _spot_words(params, obj, on)
+    surfaces = _supports(g.scene, obj, on, bottom)
+    if not surfaces:
+        raise TaskDefinitionError(f"put_down: nothing carries the {obj.name} {spot}")
+    fits = [s for s in surfaces if s is None or _inside(at, half, s)]
+    if not fits:
+        s = surfaces[0]
+        assert s is not None
+        slo, shi = (np.asarray(v, dtype=float) for v in extent(s))
+        unit = move / np.linalg.norm(move)
+        room = min(((shi[i] - half[i] - place[i]) / unit[i] if unit[i] > 0 else (slo[i] + half[i] - place[i]) / unit[i])
+                   for i in (0, 1) if abs(unit[i]) > 1e-9)
+        raise TaskDefinitionError(
+            f"put_down: {spot}, the {obj.name} would be off the top of the {s.name}: it can move at most "
+            f"{max(room, 0.0):.2f} m that way; say a shorter distance")
+    for other in (g.scene.objects if g.scene is not None else ()):
+        if other.name == obj.name or other in fits:
+            continue
+        olo, ohi = extent(other)
+        if all(at[i] - half[i] < ohi[i] and at[i] + half[i] > olo[i] for i in range(3)):
+            raise TaskDefinitionError(f"put_down: the {other.name} stands {spot}; choose another spot")
+    return at
+
+
+def _inside(at: np.ndarray, half: np.ndarray, surface: SceneObject) -> bool:
+    slo, shi = extent(surface)
+    return all(slo[i] <= at[i] - half[i] and at[i] + half[i] <= shi[i] for i in (0, 1))
+
+
+def put_place(params: dict, robot: Robot, stance: Stance, side: str) -> np.ndarray:
+    """Where a put_down puts its object's centre (world) [m]: where it stood, or on ``on``'s top
+    (:func:`place_point`), moved by the ``direction`` and ``distance`` (:func:`shifted_place`)."""
+    g = grounded(params, "put_down")
+    on = destination(params)
+    place = np.asarray(g.obj.position, dtype=float) if on is None else place_point(robot, stance, g.obj, on.obj, side)
+    return shifted_place(params, stance, g, None if on is None else on.obj, place)
+
+
 def _moved(obj: SceneObject, position: np.ndarray) -> SceneObject:
     """The object with its centre at ``position`` [m]."""
     return dataclasses.replace(obj, position=(float(position[0]), float(position[1]), float(position[2])))
@@ -375,18 +467,29 @@ def _put_check(params: dict, robot: Robot) -> None:
     g = grounded(params, "put_down")
     if not g.obj.movable:
         raise TaskDefinitionError(f"put_down: the {g.obj.name} is fixed in the scene; nothing holds it")
+    if params.get("distance") is not None and params.get("direction") is None:
+        raise TaskDefinitionError(f"put_down: {float(params['distance']):.2f} m which way? say a direction "
+                                  f'("put the {g.obj.name} down 20 cm to the left")')
     on = destination(params)
-    if on is None or not isinstance(g.start, Stance) or not params.get("arm"):
+    moving = shift(params, g.start) is not None if isinstance(g.start, Stance) else False
+    if (on is None and not moving) or not isinstance(g.start, Stance) or not params.get("arm"):
         return
     side = str(params["arm"])
-    moved = _moved(g.obj, place_point(robot, g.start, g.obj, on.obj, side))
+    moved = _moved(g.obj, put_place(params, robot, g.start, side))
     T = g.start.transform_from_standing(robot)
     point = to_heading(robot, T.actInv(grasp_point(robot, side, moved)))
     gap = reach_gap(robot, side, point, bend=True)
-    if gap > 1e-9:
+    if gap <= 1e-9:
+        return
+    if moving:
+        where = _spot_words(params, g.obj, None if on is None else on.obj)
         raise TaskDefinitionError(
-            f"put_down: the top of the {on.obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
-            f'stands: walk to the {on.obj.name} first ("walk to the {on.obj.name} and put the {g.obj.name} on it")')
+            f"put_down: {where} is {gap:.2f} m beyond the {side} hand's reach from where the robot stands: "
+            "say a shorter distance or walk closer first")
+    assert on is not None
+    raise TaskDefinitionError(
+        f"put_down: the top of the {on.obj.name} is {gap:.2f} m beyond the {side} hand's reach from where the robot "
+        f'stands: walk to the {on.obj.name} first ("walk to the {on.obj.name} and put the {g.obj.name} on it")')
 
 
 def build_put_down(b: FragmentBuilder) -> Fragment:
@@ -404,7 +507,7 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     b.params["arm"] = side
     _put_check(b.params, b.robot)
     on = destination(b.params)
-    place = np.asarray(g.obj.position, dtype=float) if on is None else place_point(b.robot, b.stance, g.obj, on.obj, side)
+    place = put_place(b.params, b.robot, b.stance, side)
     g = dataclasses.replace(g, obj=_moved(g.obj, place))
     poses = _poses(b.robot, b.stance, g, side, 0.0)
     rpy = b.world_rotation(b.geometry.rotation(f"{side}_hand"))
@@ -417,6 +520,9 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
                        position=tuple(float(x) for x in poses["grasp"] + PRE_UP * np.array([0.0, 0.0, 1.0])), rpy=rpy,
                        time=ABOVE_TIME, tolerance=POSE_TOLERANCE)
     where = f" on the {on.obj.name}" if on is not None else ""
+    move = shift(b.params, b.stance)
+    if move is not None:
+        where += f" {np.linalg.norm(move):.2f} m {b.params['direction']}"
     b.frame_target(f"{side} hand puts the {name} down{where}", role, position=tuple(float(x) for x in poses["grasp"]),
                    rpy=rpy, window=(t_low, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
     b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in poses["pre"]), rpy=rpy,
@@ -513,4 +619,5 @@ def carry_posture(robot: Robot, side: str, hand_in_standing: pin.SE3) -> dict[st
 PRIMITIVES = (PICK_UP, PUT_DOWN)
 
 __all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "carry_posture",
-           "carrying_joints", "destination", "grasp_offset", "grasp_point", "holding_arm", "place_point"]
+           "carrying_joints", "destination", "grasp_offset", "grasp_point", "holding_arm", "place_point", "put_place",
+           "shift", "shifted_place"]

@@ -1,7 +1,7 @@
 """Picking up and putting down a cup on talos, planned and simulated in MuJoCo (sim/grasp.py): the
 cup's own body position (MuJoCo) rises by the asked height while the hand holds it, sits where
-Pinocchio puts the hand's grasp offset on the simulated configurations, is put back within
-tolerance; a cup too heavy for the arm is refused at planning (exit 4); and the seed sentence
+Pinocchio puts the hand's grasp offset on the simulated configurations, is put down on its spot
+(20 cm to the left) within tolerance, and the motion file holds its tracks; a cup too heavy for the arm is refused at planning (exit 4); and the seed sentence
 走过去拿起那个杯子 runs end to end in the kitchen."""
 
 from __future__ import annotations
@@ -27,7 +27,9 @@ TABLE = SceneObject(name="table", shape="box", size=(0.6, 1.0, 0.72), position=(
 BOX = SceneObject(name="red box", shape="box", size=(0.15, 0.15, 0.15), position=(0.8, 0.25, 0.795), movable=True,
                   mass=0.5, colour=(0.8, 0.12, 0.1, 1.0))
 NEAR = Scene(name="a cup within reach", objects=(TABLE, CUP, BOX))
-SENTENCE = "pick up the cup, then put it down"
+SENTENCE = "pick up the cup, then put it down 20 cm to the left"  # put_down on a spot (the plain "put it
+# down" is the same motion to where the cup stood: tests/tasks/test_grasp.py compiles both)
+SPOT = np.asarray(CUP.position) + [0.0, 0.2, 0.0]  # [m] 20 cm to the robot's left (+y)
 
 
 def _held_positions(talos, execution, grasp) -> np.ndarray:
@@ -42,10 +44,13 @@ def _held_positions(talos, execution, grasp) -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_pick_up_and_put_down_the_cup_in_mujoco(talos):
-    """The cup's MuJoCo body rises by the asked 0.1 m (within the certificate's tolerance) over the hold
-    window and stays within 2 cm of the hand's grasp offset (Pinocchio) while held; it ends within
-    3 cm of where it stood, upright; the red box beside it does not move; the certificate passes."""
+def test_pick_up_and_put_down_the_cup_in_mujoco(talos, tmp_path):
+    """"pick up the cup, then put it down 20 cm to the left": the cup's MuJoCo body rises by the asked
+    0.1 m (within the certificate's tolerance) over the hold window and stays within 2 cm of the hand's
+    grasp offset (Pinocchio) while held; it ends within 3 cm of its spot 0.2 m to the left of where it
+    stood, upright; the red box beside it does not move; the certificate passes.
+    The motion file holds the cup's simulated track (it rises by the certificate's lifted amount) and
+    its planned track (within 2 cm of the simulated one over the hold window)."""
     spec = compile_actions(list(parse(SENTENCE).actions), talos, scene=NEAR)
     (g,) = spec.grasps
     motion = plan(spec, talos)
@@ -58,8 +63,27 @@ def test_pick_up_and_put_down_the_cup_in_mujoco(talos):
     held = (t >= g.hold[0]) & (t <= g.end - 0.1)
     gap = np.linalg.norm(cup[held] - _held_positions(talos, run, g)[held], axis=1)
     assert gap.max() < 0.02, gap.max()
-    assert np.linalg.norm(cup[-1] - np.asarray(CUP.position)) <= PLACE_TOLERANCE
+    assert np.allclose(g.place, SPOT)
+    assert np.linalg.norm(cup[-1] - SPOT) <= PLACE_TOLERANCE
     assert np.abs(run.objects["red box"] - np.asarray(BOX.position)).max() <= MOVED_LIMIT
+    _check_motion_file(tmp_path, talos, motion, run, g)
+
+
+def _check_motion_file(tmp_path, talos, motion, run, g) -> None:
+    """The motion file's object arrays against the simulation's record and the certificate."""
+    from wbmp.motionfile import save_motion
+
+    with np.load(save_motion(tmp_path / "m.npz", motion, talos, execution=run)) as z:
+        names, planned, executed = list(z["object_names"]), z["object_pose"], z["exec_object_pose"]
+    i = names.index("cup")
+    assert np.array_equal(executed[:, i, :3], run.objects["cup"])
+    lifted = next(c for c in run.certificate.checks if c.name.startswith("cup lifted"))
+    hold = (run.t >= g.hold[0] - 1e-9) & (run.t <= g.hold[1] + 1e-9)
+    assert (executed[hold, i, 2] - executed[0, i, 2]).min() == pytest.approx(lifted.value, abs=1e-12)
+    plan_at = np.column_stack([np.interp(run.t[hold], motion.t, planned[:, i, c]) for c in range(3)])
+    assert np.linalg.norm(executed[hold, i, :3] - plan_at, axis=1).max() < 0.02  # lowering it: 3.0 cm apart
+    plan_hold = (motion.t >= g.hold[0] - 1e-9) & (motion.t <= g.hold[1] + 1e-9)
+    assert (planned[plan_hold, i, 2] - CUP.position[2]).min() > g.lift - 0.01
 
 
 BOOK = SceneObject(name="book", shape="box", size=(0.2, 0.2, 0.04), position=(0.58, -0.4, 0.74), movable=True,

@@ -5,6 +5,7 @@ fingertips, the grasp and its hold window are in the spec (and round-trip), and 
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -236,3 +237,51 @@ def test_both_hands_press_the_box_sides(talos):
         assert min(distance(g, M, COUNTER) for g, M in placed) > 0.02
     with pytest.raises(TaskDefinitionError, match="both hands pick up a box"):
         compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "both"})], talos, scene=NEAR)
+
+
+@pytest.mark.parametrize(("text", "direction", "distance"), [
+    ("pick up the cup, then put it down 20 cm to the left", "left", 0.2),
+    ("pick up the cup, then put it 10 cm forward", "forward", 0.1),
+    ("pick up the cup, then put it down to the right", "right", None),
+    ("拿起杯子，然后把它放到左边20厘米", "left", 0.2),
+])
+def test_put_down_on_a_spot_parses(text, direction, distance):
+    """A direction (seen from the robot) and a distance are put_down's slots."""
+    a = parse(text).actions[-1]
+    assert (a.name, a.params.get("direction"), a.params.get("distance")) == ("put_down", direction,
+                                                                             pytest.approx(distance) if distance else None)
+
+
+def test_put_down_on_a_spot(talos):
+    """"put it down 20 cm to the left": the place is where the cup stood moved 0.2 m along the robot's
+    left (heading frame; world +y here), on the table; the put-down target carries the cup's centre (the
+    grasp offset in the hand frame) there. "put it back" and "put it on the table" (the surface it
+    stood on) put it where it stood. A spot off the table is refused with the room there is that way
+    (the table's edge: 0.5 m from the table's centre line, less the cup's radius), one beyond reach
+    with the distance."""
+    scene = Scene(name="cup and table", objects=(TABLE, CUP))
+
+    def compiled(text):
+        return compile_actions(list(parse(text).actions), talos, scene=scene)
+
+    spec = compiled("pick up the cup, then put it down 20 cm to the left")
+    (g,) = spec.grasps
+    np.testing.assert_allclose(g.place, np.asarray(CUP.position) + [0.0, 0.2, 0.0], atol=1e-12)
+    down = next(t for t in spec.targets if "puts the cup down" in t.name)
+    R = pin.rpy.rpyToMatrix(*down.rpy)
+    np.testing.assert_allclose(np.asarray(down.position) + R @ np.asarray(g.offset), g.place, atol=1e-9)
+    for text in ("pick up the cup, then put it back", "pick up the cup, then put the cup back on the table",
+                 "pick up the cup, then put it on the table"):
+        (g,) = compiled(text).grasps
+        np.testing.assert_allclose(g.place, CUP.position, atol=1e-12, err_msg=text)
+    room = (TABLE.position[1] - TABLE.size[1] / 2) - (CUP.position[1] - CUP.size[0])  # to the right edge: negative
+    with pytest.raises(TaskDefinitionError, match=rf"0.40 m to the right of where the cup stood, the cup would be off "
+                                                  rf"the top of the table: it can move at most {-room:.2f} m that way"):
+        compiled("pick up the cup, then put it down 40 cm to the right")
+    with pytest.raises(TaskDefinitionError, match=r"0.60 m to the left of where the cup stood is 0.\d\d m beyond the "
+                                                  r"right hand's reach from where the robot stands"):
+        compiled("pick up the cup, then put it down 60 cm to the left")
+    with pytest.raises(TaskDefinitionError, match="the book stands 0.20 m further from the robot than where the cup stood"):
+        book = dataclasses.replace(BOOK, position=(0.72, -0.2, 0.74))
+        compile_actions(list(parse("pick up the cup, then put it 20 cm forward").actions), talos,
+                        scene=Scene(name="cup and book", objects=(TABLE, CUP, book)))

@@ -83,3 +83,58 @@ def squat_plan(talos):
 
     spec = compile_actions([Action(name="squat")], talos)
     return trajopt.plan(spec, talos)
+
+
+PICK_START = 1.0  # [s] the synthetic grasp starts here
+CUP_OFFSET = (0.0, 0.0, -0.12)  # [m] the cup's centre in the hand frame while held
+SIM_DROP = 0.03  # [m] the synthetic execution's cup hangs this much below the planned one
+
+
+def synthetic_pick_up(robot, plan):
+    """The synthetic plan with a scene (a fixed table, a movable cup where the right hand is at
+    PICK_START, a movable box nobody holds) and a grasp of the cup by the right hand from PICK_START on."""
+    import dataclasses
+
+    from tasks.scene import Scene, SceneObject
+    from tasks.specs import Grasp
+
+    k0 = int(np.searchsorted(plan.t, PICK_START - 1e-9))
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, plan.q[k0])
+    hand = robot.frame("right_hand")
+    at = data.oMf[robot.frame_id("right_hand")].act(np.asarray(CUP_OFFSET))
+    cup = SceneObject(name="cup", shape="cylinder", size=(0.08, 0.2), position=tuple(float(x) for x in at),
+                      movable=True, mass=0.25, colour=(0.85, 0.1, 0.1, 1.0))
+    box = SceneObject(name="box", shape="box", size=(0.2, 0.2, 0.2), position=(0.6, 0.6, 0.1), movable=True, mass=1.0)
+    table = SceneObject(name="table", shape="box", size=(0.3, 0.3, 0.3), position=(0.9, -0.9, 0.15))
+    grasp = Grasp(name="right hand holds the cup", object="cup", frame=hand, offset=CUP_OFFSET, start=float(plan.t[k0]))
+    spec = dataclasses.replace(plan.spec, scene=Scene(name="a cup", objects=(table, cup, box)), grasps=(grasp,))
+    return dataclasses.replace(plan, spec=spec)
+
+
+def synthetic_pick_up_execution(robot, plan) -> dict:
+    """exec_* arrays of the pick-up plan, as a ``sim`` Execution has them: ``objects`` (the planned
+    poses resampled, the cup SIM_DROP lower) and ``object_orientations``."""
+    from viz import motion as vm
+
+    ex = synthetic_execution(robot, plan)
+    planned = vm.planned_object_poses(robot, plan.spec, plan.t, plan.q)
+    objects, turns = {}, {}
+    for name, poses in planned.items():
+        sampled = vm.resample_poses(plan.t, poses, ex["exec_t"])
+        if name == "cup":
+            sampled[:, 2] -= SIM_DROP
+        objects[name], turns[name] = sampled[:, :3], sampled[:, 3:]
+    return {**ex, "objects": objects, "object_orientations": turns}
+
+
+@pytest.fixture(scope="session")
+def pick_plan(talos, synth_plan):
+    """The synthetic plan holding a cup in the right hand from PICK_START (no solver)."""
+    return synthetic_pick_up(talos, synth_plan)
+
+
+@pytest.fixture(scope="session")
+def pick_execution(talos, pick_plan):
+    """A fake execution of the pick-up plan with the objects' simulated poses."""
+    return synthetic_pick_up_execution(talos, pick_plan)

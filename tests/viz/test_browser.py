@@ -84,3 +84,20 @@ def test_squat_replay_shows_the_robot_moving_without_network(tmp_path, trap, squ
     assert robot >= 0.01, f"robot covers only {100 * robot:.2f} % of the frame"
     assert moved >= 0.005, f"t=0 and t={t_bottom:.2f} s differ on only {100 * moved:.3f} % of the pixels"
     assert page_requests(trap) == []
+
+
+def test_held_object_moves_in_the_replay(tmp_path, trap, talos, pick_plan):
+    """With the robot, markers and controls hidden, nothing but the held cup moves (its planned
+    track): the replay at its start and at its end differ (they would be identical if the cup stood
+    still), and the page fetches nothing."""
+    from viz import write_html
+
+    trap.requests.clear()
+    url = write_html(tmp_path / "held.html", talos, pick_plan).as_uri()
+    profile = tmp_path / "profile"
+    end = float(pick_plan.t[-1])
+    start, last = (browser.screenshot(CHROMIUM, f"{url}#t={t:.3f}&hide=robot,markers,gui", tmp_path / f"{k}.png",
+                                      profile, trap.port) for k, t in enumerate((0.0, end)))
+    moved = browser.changed_fraction(start, last)
+    assert moved >= 5e-4, f"the cup changed only {100 * moved:.3f} % of the pixels"
+    assert page_requests(trap) == []

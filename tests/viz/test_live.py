@@ -129,3 +129,48 @@ def test_busy_port_is_a_clear_error(talos, synth_plan):
         with pytest.raises(ViewerError, match="exited before it was ready"):
             serve(talos, synth_plan, port=port, stream=io.StringIO())
         assert time.monotonic() - t0 < READY_TIMEOUT
+
+
+def test_live_viewer_moves_the_held_object_as_simulated(talos, pick_plan, pick_execution):
+    """With a simulation, meshcat's server (real, on loopback) gives a new client one animation clip
+    for the cup's node, following the simulated poses (3 cm below the planned ones here): its key
+    frame at 2.5 s holds the execution's cup pose at that time; the box no hand holds has its clip at
+    its place."""
+    import numpy as np
+
+    from tests.viz.test_scene_objects import object_clip_at
+
+    stop = threading.Event()
+    ready: list[ServerInfo] = []
+    errors: list[BaseException] = []
+
+    def target() -> None:
+        try:
+            serve(talos, pick_plan, execution=pick_execution, stop_event=stop, stream=io.StringIO(),
+                  on_ready=ready.append)
+        except BaseException as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    thread = threading.Thread(target=target, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + READY_TIMEOUT
+    while not ready and thread.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    try:
+        assert ready, f"viewer not ready: {errors}"
+        n_geoms = len(talos.visual_model.geometryObjects)
+        messages = _receive_scene(ready[0].web_url, 2 * n_geoms)
+        (anim,) = [m for m in messages if m["type"] == "set_animation"]
+        paths = [a["path"] for a in anim["animations"]]
+        assert paths.count("/meshcat/wbmp/scene/cup") == 1  # one node: the simulated poses, not the planned too
+        pose, at = object_clip_at(anim, "cup", 2.5)
+        t, cup = pick_execution["exec_t"], pick_execution["objects"]["cup"]
+        assert np.abs(pose[:3] - [np.interp(at, t, cup[:, i]) for i in range(3)]).max() < 1e-9
+        box, _ = object_clip_at(anim, "box", 2.5)
+        assert np.allclose(box[:3], pick_plan.spec.scene.get("box").position)
+        shapes = {m["path"] for m in messages if m["type"] == "set_object"}
+        assert "/meshcat/wbmp/scene/cup/shape" in shapes
+    finally:
+        stop.set()
+        thread.join(STOP_TIMEOUT)
+    assert not thread.is_alive() and errors == []

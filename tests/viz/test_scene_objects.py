@@ -133,3 +133,83 @@ def test_example_scenes_draw(talos):
         window = vh.RecordingWindow()
         scene = load_scene(path)
         assert len(vs.add_scene(meshcat.Visualizer(window=window), scene)) == len(scene.objects), path.name
+
+
+# -- objects that move: the planned track, the replay's and the viewer's tracks ------------------
+
+def _track_values(track) -> np.ndarray:
+    """A track's numbers (a float32 typed array in the HTML replay, a list in the live viewer)."""
+    if isinstance(track, umsgpack.Ext):
+        assert track.type == 0x17
+        return np.frombuffer(track.data, dtype="<f4").astype(float)
+    return np.asarray(track, dtype=float)
+
+
+def object_clip_at(animation: dict, name: str, t: float) -> np.ndarray:
+    """The pose (7,) that an animation command's clip of object ``name`` holds at its key frame
+    nearest ``t`` [s], and that key frame's time (position, quaternion x, y, z, w)."""
+    (clip,) = [a["clip"] for a in animation["animations"] if a["path"] == f"/meshcat/wbmp/scene/{vs.node_name(name)}"]
+    tracks = {tr["name"]: tr for tr in clip["tracks"]}
+    times = _track_values(tracks[".position"]["times"])
+    k = int(np.argmin(np.abs(times - t)))
+    p = _track_values(tracks[".position"]["values"]).reshape(-1, 3)[k]
+    quat = _track_values(tracks[".quaternion"]["values"]).reshape(-1, 4)[k]
+    return np.concatenate([p, quat]), float(times[k])
+
+
+def _pose_at(t: np.ndarray, positions: np.ndarray, at: float) -> np.ndarray:
+    return np.array([np.interp(at, t, positions[:, i]) for i in range(3)])
+
+
+def test_planned_object_track_moves_with_the_hand(talos, pick_plan):
+    """Before the grasp the cup stands where the scene puts it; from the grasp's start on, its pose
+    seen from the hand frame (Pinocchio on the plan's q) stays what it was at the start: its centre at
+    the grasp's offset, its orientation fixed; it travels more than 10 cm; the box no hand holds stays
+    put and the fixed table has no track."""
+    from viz import motion as vm
+
+    poses = vm.planned_object_poses(talos, pick_plan.spec, pick_plan.t, pick_plan.q)
+    assert set(poses) == {"cup", "box"}
+    (g,) = pick_plan.spec.grasps
+    cup_obj = pick_plan.spec.scene.get("cup")
+    cup = poses["cup"]
+    held = pick_plan.t >= g.start - 1e-9
+    assert np.allclose(cup[~held, :3], cup_obj.position) and np.allclose(cup[~held, 3:], [0, 0, 0, 1])
+    data = talos.data()
+    fid = talos.model.getFrameId(g.frame)
+    turns = []
+    for k in np.flatnonzero(held):
+        pin.framesForwardKinematics(talos.model, data, pick_plan.q[k])
+        M = data.oMf[fid]
+        assert np.linalg.norm(M.actInv(cup[k, :3]) - np.asarray(g.offset)) < 1e-9
+        turns.append(M.rotation.T @ pin.Quaternion(cup[k, 6], *cup[k, 3:6]).toRotationMatrix())
+    assert max(np.abs(R - turns[0]).max() for R in turns) < 1e-9
+    assert np.linalg.norm(cup[0, :3] - cup[np.flatnonzero(held)[0], :3]) < 1e-9  # no jump at the grasp
+    assert np.linalg.norm(cup[:, :3] - cup[0, :3], axis=1).max() > 0.1
+    assert np.allclose(poses["box"], poses["box"][0])
+
+
+def test_html_replay_moves_the_held_object(talos, pick_plan, pick_execution):
+    """The replay's planned motion moves the cup's node through the planned poses and its simulated
+    motion through the execution's (3 cm lower here): the clip's key frame at 2.5 s holds the pose
+    at that time (within float32 rounding); the box's clip stays where the box stands; the fixed
+    table has no clip."""
+    from tests.viz.conftest import SIM_DROP
+    from viz import motion as vm
+
+    data = vh.unpack_data(vh.build_page(talos, pick_plan, execution=pick_execution))
+    planned = vm.planned_object_poses(talos, pick_plan.spec, pick_plan.t, pick_plan.q)
+    expected = {"planned": (pick_plan.t, planned["cup"][:, :3]),
+                "simulated": (pick_execution["exec_t"], pick_execution["objects"]["cup"])}
+    shown = {}
+    for label, (t, positions) in expected.items():
+        animation = umsgpack.unpackb(data["motions"][label])
+        paths = {a["path"] for a in animation["animations"]}
+        assert "/meshcat/wbmp/scene/table" not in paths
+        pose, at = object_clip_at(animation, "cup", 2.5)
+        assert np.abs(pose[:3] - _pose_at(t, positions, at)).max() < 1e-4, label
+        assert abs(np.linalg.norm(pose[3:]) - 1.0) < 1e-5
+        box, _ = object_clip_at(animation, "box", 2.5)
+        assert np.allclose(box[:3], pick_plan.spec.scene.get("box").position, atol=1e-6)
+        shown[label] = pose
+    assert shown["planned"][2] - shown["simulated"][2] == pytest.approx(SIM_DROP, abs=1e-4)

@@ -84,3 +84,68 @@ def test_bad_files_and_formats_are_refused(tmp_path, talos, squat_plan):
     m = load_motion(save_motion(tmp_path / "m.npz", squat_plan, talos))
     with pytest.raises(MotionFileError, match="unknown export format"):
         export_motion(m, tmp_path / "m.xlsx")
+
+
+@pytest.fixture(scope="module")
+def pick(talos):
+    """A synthetic plan holding a cup (tests/viz/conftest.py) and an execution with the objects' poses."""
+    from tests.viz.conftest import synthetic_pick_up, synthetic_pick_up_execution, synthetic_plan
+
+    plan_ = synthetic_pick_up(talos, synthetic_plan(talos))
+    ex = synthetic_pick_up_execution(talos, plan_)
+    exe = SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"], objects=ex["objects"],
+                          object_orientations=ex["object_orientations"])
+    return plan_, exe
+
+
+def test_object_poses_in_the_motion_file(tmp_path, talos, pick):
+    """The movable objects' planned poses (object_pose, one row per knot) and simulated poses
+    (exec_object_pose, one row per sample) are written under object_names, read back by load_motion,
+    and carried by the JSON and CSV exports; a file written before them (no such keys) still loads."""
+    from viz import motion as vm
+
+    plan_, exe = pick
+    path = save_motion(tmp_path / "m.npz", plan_, talos, execution=exe)
+    with np.load(path) as z:
+        arrays = dict(z)
+    assert list(arrays["object_names"]) == ["cup", "box"]
+    planned = vm.planned_object_poses(talos, plan_.spec, plan_.t, plan_.q)
+    assert arrays["object_pose"].shape == (len(plan_.t), 2, 7)
+    assert np.array_equal(arrays["object_pose"][:, 0], planned["cup"])
+    assert np.array_equal(arrays["exec_object_pose"][:, 0, :3], exe.objects["cup"])
+    assert np.array_equal(arrays["exec_object_pose"][:, 1, 3:], exe.object_orientations["box"])
+    m = load_motion(path)
+    assert np.array_equal(m.objects["cup"], planned["cup"])
+    assert np.array_equal(m.execution_arrays["exec_object_pose"], arrays["exec_object_pose"])
+    doc = json.loads((export_motion(m, tmp_path / "m.json")[0]).read_text())
+    assert doc["object_names"] == ["cup", "box"] and np.allclose(doc["exec_object_pose"], arrays["exec_object_pose"])
+    csv_path, exec_path = export_motion(m, tmp_path / "m.csv")
+    rows = list(csv.reader(line for line in csv_path.read_text().splitlines() if not line.startswith("#")))
+    col = rows[0].index("object_cup_z")
+    assert np.allclose([float(r[col]) for r in rows[1:]], planned["cup"][:, 2], rtol=0, atol=0)
+    rows = list(csv.reader(exec_path.read_text().splitlines()))
+    col = rows[0].index("object_box_qw")
+    assert np.array_equal([float(r[col]) for r in rows[1:]], exe.object_orientations["box"][:, 3])
+    old = {k: v for k, v in arrays.items() if "object" not in k}
+    np.savez(tmp_path / "old.npz", **old)
+    m_old = load_motion(tmp_path / "old.npz")
+    assert m_old.objects == {} and "exec_object_pose" not in m_old.execution_arrays
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (lambda a: a.pop("object_names"), "key 'object_pose' needs the key 'object_names'"),
+    (lambda a: a.update(object_pose=a["object_pose"][:, :1]), "key 'object_pose' must have shape"),
+    (lambda a: a.update(exec_object_pose=a["exec_object_pose"][:-1]), "key 'exec_object_pose' must have shape"),
+    (lambda a: a.update(object_names=np.array(["cup", "cup"])), "key 'object_names' must hold distinct"),
+    (lambda a: [a.pop(k) for k in ("exec_t", "exec_q", "exec_v", "exec_tau")], "needs a simulated execution"),
+])
+def test_bad_object_keys_are_refused(tmp_path, talos, pick, change, message):
+    """A damaged object key is one MotionFileError naming it."""
+    plan_, exe = pick
+    path = save_motion(tmp_path / "m.npz", plan_, talos, execution=exe)
+    with np.load(path) as z:
+        arrays = dict(z)
+    change(arrays)
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(MotionFileError, match=message):
+        load_motion(tmp_path / "bad.npz")
