@@ -167,6 +167,7 @@ def test_metadata_holds_the_certificate(bag):
     assert json.loads(meta["certificate"]) == {"ok": True, "max_tracking_error": 0.0123}
     assert (meta["world_frame"], meta["base_frame"], float(meta["stamp"])) == ("world", "base_link", EPOCH)
     assert json.loads(meta["document"])["robot"] == "talos"
+    assert "object_frames" not in meta  # a motion without scene objects: the record as before objects
 
 
 def test_a_plan_without_simulation_has_no_execution_topics(tmp_path, talos, synth_plan, capsys):

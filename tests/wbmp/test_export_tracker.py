@@ -129,3 +129,10 @@ def test_default_output_name(motion_path, tmp_path, capsys):
     assert f"tracker: {tmp_path / 'walk.tracker.npz'}" in capsys.readouterr().out
     with np.load(tmp_path / "walk.tracker.npz") as f:
         assert not any(f[k].dtype.hasobject for k in f.files)  # plain arrays: np.load without pickles
+        # a motion without scene objects: the keys of the tracker format before objects, no object_*
+        assert sorted(f.files) == sorted(["format", "version", "fps", "robot", "source", "joint_names",
+                                          "root_rot_order", "world_frame", "up_axis", "root_frame",
+                                          "interpolation", "knot_t", "t", "root_pos", "root_rot", "root_lin_vel",
+                                          "root_ang_vel", "joint_pos", "joint_vel"])
+        assert str(f["interpolation"]) == "linear: root_pos, joint_pos, velocities; slerp (shorter arc): root_rot"
+        assert int(f["version"]) == 1

@@ -6,10 +6,16 @@ they are); the formats here convert: ROS 2 messages with stamps and frames
 (:mod:`wbmp.export.tracker`). ``docs/export.md`` states every convention.
 """
 
-from wbmp.export.columns import MotionColumns, execution_columns, joint_names, plan_columns
+from wbmp.export.columns import (
+    MotionColumns,
+    execution_columns,
+    joint_names,
+    object_frame_ids,
+    plan_columns,
+)
 from wbmp.export.rosbag import BagOptions, write_bag
 from wbmp.export.tracker import DEFAULT_FPS, TRACKER_FORMAT, resample, tracker_arrays
 
 __all__ = ["DEFAULT_FPS", "TRACKER_FORMAT", "BagOptions", "MotionColumns", "execution_columns",
-           "joint_names", "plan_columns", "resample",
+           "joint_names", "object_frame_ids", "plan_columns", "resample",
            "tracker_arrays", "write_bag"]

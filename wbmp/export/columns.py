@@ -1,7 +1,10 @@
-"""The columns of a motion file that other tools read: base pose, joint positions and velocities."""
+"""The columns of a motion file that other tools read: base pose, joint positions and velocities,
+and the movable scene objects' poses."""
 
 from __future__ import annotations
 
+import unicodedata
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,6 +13,7 @@ from wbmp.errors import CliError, ExitCode
 
 BASE_NQ = 7  # free flyer: x, y, z [m], qx, qy, qz, qw (Pinocchio order)
 BASE_NV = 6  # free flyer: linear [m/s] and angular [rad/s] velocity in the base frame
+OBJECT_FRAME_PREFIX = "object_"  # keeps an object's frame apart from the robot's URDF links
 
 
 @dataclass(frozen=True, eq=False)
@@ -25,6 +29,10 @@ class MotionColumns:
         base_velocity_in_base: (T, 6): linear [m/s] then angular [rad/s], in the base frame.
         joint_accelerations: (T, n) [rad/s^2] or None (the execution has none).
         joint_torques: (T, n) [N m] or None (the plan has none).
+        object_names: The movable scene objects this trajectory has poses of (the file's
+            ``object_names`` order), or () when it has none.
+        object_pose: (T, k, 7) their poses in the world: centre x, y, z [m], quaternion x, y, z, w;
+            None when ``object_names`` is empty.
     """
 
     t: np.ndarray
@@ -35,6 +43,8 @@ class MotionColumns:
     base_velocity_in_base: np.ndarray
     joint_accelerations: np.ndarray | None = None
     joint_torques: np.ndarray | None = None
+    object_names: tuple[str, ...] = ()
+    object_pose: np.ndarray | None = None
 
 
 def plan_columns(motion) -> MotionColumns:
@@ -45,7 +55,9 @@ def plan_columns(motion) -> MotionColumns:
     """
     joint_names(motion)
     plan = motion.plan
-    return _columns(plan.t, plan.q, plan.v, plan.a, None)
+    names = tuple(motion.objects)
+    pose = np.stack([motion.objects[n] for n in names], axis=1) if names else None
+    return _columns(plan.t, plan.q, plan.v, plan.a, None, names, pose)
 
 
 def execution_columns(motion) -> MotionColumns | None:
@@ -58,10 +70,13 @@ def execution_columns(motion) -> MotionColumns | None:
     ex = motion.execution_arrays
     if not ex:
         return None
-    return _columns(ex["exec_t"], ex["exec_q"], ex["exec_v"], None, ex.get("exec_tau"))
+    pose = ex.get("exec_object_pose")
+    names = tuple(str(n) for n in ex.get("object_names", ())) if pose is not None else ()
+    return _columns(ex["exec_t"], ex["exec_q"], ex["exec_v"], None, ex.get("exec_tau"), names,
+                    pose if names else None)
 
 
-def _columns(t, q, v, a, tau) -> MotionColumns:
+def _columns(t, q, v, a, tau, object_names=(), object_pose=None) -> MotionColumns:
     return MotionColumns(
         t=np.asarray(t, dtype=float),
         position_base_in_world=np.asarray(q[:, :3], dtype=float),
@@ -71,7 +86,54 @@ def _columns(t, q, v, a, tau) -> MotionColumns:
         base_velocity_in_base=np.asarray(v[:, :BASE_NV], dtype=float),
         joint_accelerations=None if a is None else np.asarray(a[:, BASE_NV:], dtype=float),
         joint_torques=None if tau is None else np.asarray(tau, dtype=float),
+        object_names=tuple(object_names),
+        object_pose=None if object_pose is None else np.asarray(object_pose, dtype=float),
     )
+
+
+def object_names(motion) -> list[str]:
+    """The movable objects a motion file has poses of, in its ``object_names`` order (planned or
+    simulated poses; [] for a file without objects)."""
+    names = list(motion.objects)
+    if not names and "exec_object_pose" in motion.execution_arrays:
+        names = [str(n) for n in motion.execution_arrays.get("object_names", ())]
+    return names
+
+
+def object_frame_ids(names: Iterable[str], taken: Iterable[str] = ()) -> dict[str, str]:
+    """Object name -> its frame id: ``object_`` + the name made a ROS name, unique.
+
+    The name is NFKD-normalized with its combining marks dropped (``Café`` -> ``Cafe``) and lower
+    cased; each character outside ``a-z``, ``0-9`` that is still non-ASCII becomes ``u`` and its code
+    point in 4+ lower-case hex digits between underscores (``杯`` -> ``_u676f_``); every other run of
+    characters outside ``a-z0-9`` (spaces, ``-``, ``.``...) becomes one ``_``; leading and trailing
+    ``_`` are dropped. So ``Red cup`` -> ``object_red_cup``, ``杯子`` -> ``object_u676f_u5b50``.
+    Names that give the same id (``Cup``, ``cup``), or an id in ``taken`` (the world and base
+    frames), get ``_2``, ``_3``... in ``names`` order (the first keeps the plain id).
+    """
+    used = set(taken)
+    out: dict[str, str] = {}
+    for name in names:
+        lowered = unicodedata.normalize("NFKD", unicodedata.normalize("NFKD", name).lower())
+        chars = []
+        for ch in lowered:  # one code point each
+            if unicodedata.combining(ch):
+                continue
+            if ("a" <= ch <= "z") or ("0" <= ch <= "9"):
+                chars.append(ch)
+            elif ord(ch) < 128:
+                chars.append("_")
+            else:
+                chars.append(f"_u{ord(ch):04x}_")
+        slug = "_".join(part for part in "".join(chars).split("_") if part)
+        base = OBJECT_FRAME_PREFIX + slug if slug else OBJECT_FRAME_PREFIX.rstrip("_")
+        frame, n = base, 1
+        while frame in used:
+            n += 1
+            frame = f"{base}_{n}"
+        used.add(frame)
+        out[name] = frame
+    return out
 
 
 def refused(message: str) -> CliError:

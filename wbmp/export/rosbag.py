@@ -5,9 +5,12 @@ What the bag holds (``docs/export.md`` is the reference):
 * ``/wbmp/plan/joint_trajectory`` (``trajectory_msgs/msg/JointTrajectory``, one message): the
   planned joint positions, velocities and accelerations at every knot;
 * ``/joint_states`` (``sensor_msgs/msg/JointState``): one message per knot of the plan;
-* ``/tf`` (``tf2_msgs/msg/TFMessage``): the planned base pose per knot, ``world`` -> base frame;
+* ``/tf`` (``tf2_msgs/msg/TFMessage``): the planned base pose per knot, ``world`` -> base frame,
+  then, in the same message, each movable scene object's planned pose, ``world`` -> its frame
+  (:func:`wbmp.export.columns.object_frame_ids`: ``object_<name as a ROS name>``);
 * when the file holds a simulated execution: ``/wbmp/execution/joint_trajectory`` (positions,
-  velocities, torques as ``effort``), ``/wbmp/execution/joint_states`` and ``/wbmp/execution/tf``;
+  velocities, torques as ``effort``), ``/wbmp/execution/joint_states`` and ``/wbmp/execution/tf``
+  (the simulated base and, when simulated, objects);
 * ``/wbmp/report`` (``std_msgs/msg/String``, one message): the robot, spec, actions and report
   (with the simulation certificate) as JSON, also stored as MCAP metadata ``wbmp``.
 
@@ -23,7 +26,14 @@ from typing import IO, Any
 
 import numpy as np
 
-from wbmp.export.columns import MotionColumns, execution_columns, joint_names, plan_columns
+from wbmp.export.columns import (
+    MotionColumns,
+    execution_columns,
+    joint_names,
+    object_frame_ids,
+    object_names,
+    plan_columns,
+)
 from wbmp.export.msgdefs import schema_text
 
 PLAN_TRAJECTORY_TOPIC = "/wbmp/plan/joint_trajectory"
@@ -99,12 +109,23 @@ def _joint_state(cols: MotionColumns, names: list[str], k: int, ns: int) -> dict
             "effort": [] if cols.joint_torques is None else cols.joint_torques[k].tolist()}
 
 
-def _tf(cols: MotionColumns, k: int, ns: int, world: str, base: str) -> dict[str, Any]:
-    x, y, z = cols.position_base_in_world[k].tolist()
-    qx, qy, qz, qw = cols.quaternion_base_in_world[k].tolist()
-    return {"transforms": [{"header": _header(ns, world), "child_frame_id": base,
-                            "transform": {"translation": {"x": x, "y": y, "z": z},
-                                          "rotation": {"x": qx, "y": qy, "z": qz, "w": qw}}}]}
+def _transform(ns: int, parent: str, child: str, pose: list[float]) -> dict[str, Any]:
+    """A ``TransformStamped`` of ``pose`` = x, y, z [m], qx, qy, qz, qw (the child in the parent)."""
+    x, y, z, qx, qy, qz, qw = pose
+    return {"header": _header(ns, parent), "child_frame_id": child,
+            "transform": {"translation": {"x": x, "y": y, "z": z},
+                          "rotation": {"x": qx, "y": qy, "z": qz, "w": qw}}}
+
+
+def _tf(cols: MotionColumns, k: int, ns: int, world: str, base: str,
+        object_frames: dict[str, str]) -> dict[str, Any]:
+    """The base's transform, then each object's (``cols.object_names`` order) at sample ``k``."""
+    transforms = [_transform(ns, world, base, cols.position_base_in_world[k].tolist()
+                             + cols.quaternion_base_in_world[k].tolist())]
+    if cols.object_pose is not None:
+        for i, name in enumerate(cols.object_names):
+            transforms.append(_transform(ns, world, object_frames[name], cols.object_pose[k, i].tolist()))
+    return {"transforms": transforms}
 
 
 def bag_document(motion) -> dict[str, Any]:
@@ -147,6 +168,10 @@ def write_bag(fh: IO[bytes], motion, options: BagOptions | None = None) -> None:
         "stamp": repr(float(options.stamp)), "world_frame": world, "base_frame": base,
         "joint_names": json.dumps(names),
     }
+    objects = object_names(motion)
+    object_frames = object_frame_ids(objects, taken=(world, base))
+    if objects:
+        metadata["object_frames"] = json.dumps(object_frames)
 
     # (log time, order of writing, topic, type, message): written sorted by log time
     messages: list[tuple[int, int, str, str, dict[str, Any]]] = []
@@ -165,7 +190,7 @@ def write_bag(fh: IO[bytes], motion, options: BagOptions | None = None) -> None:
             add(int(ns[k]), PLAN_JOINT_STATES_TOPIC if plan else EXEC_JOINT_STATES_TOPIC,
                 "sensor_msgs/msg/JointState", _joint_state(cols, names, k, int(ns[k])))
             add(int(ns[k]), PLAN_TF_TOPIC if plan else EXEC_TF_TOPIC, "tf2_msgs/msg/TFMessage",
-                _tf(cols, k, int(ns[k]), world, base))
+                _tf(cols, k, int(ns[k]), world, base, object_frames))
 
     writer = Writer(fh)
     schemas = {}

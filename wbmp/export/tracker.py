@@ -5,6 +5,8 @@ Keys (``docs/export.md`` is the reference): ``fps``, ``t`` (N,) [s], ``root_pos`
 ``root_rot`` (N, 4) in the order of ``root_rot_order`` (``"xyzw"``), ``root_lin_vel`` and
 ``root_ang_vel`` (N, 3) in the world frame, ``joint_pos``/``joint_vel`` (N, n) with
 ``joint_names`` (n,) in the same order, and the provenance (``robot``, ``source``, ``knot_t``...).
+When the source has movable scene objects' poses: ``object_names`` (k,), ``object_pos`` (N, k, 3)
+[m] and ``object_rot`` (N, k, 4) (order ``root_rot_order``), in the world frame.
 
 Interpolation between two knots of the motion file at fraction ``u``: positions, joint angles
 and velocities linearly, the root quaternion by slerp along the shorter arc. Samples are at
@@ -26,6 +28,7 @@ MAX_FPS = 1000.0  # [Hz]
 ROOT_ROT_ORDER = "xyzw"
 SOURCES = ("plan", "execution")
 INTERPOLATION = "linear: root_pos, joint_pos, velocities; slerp (shorter arc): root_rot"
+OBJECTS_INTERPOLATION = "linear: root_pos, joint_pos, velocities, object_pos; slerp (shorter arc): root_rot, object_rot"
 _SLACK = 1e-9  # [-] of a sample period: a sample this close past the last knot still counts
 
 
@@ -76,18 +79,18 @@ def quaternion_to_matrix(quat_xyzw: np.ndarray) -> np.ndarray:
 
 def resample(cols: MotionColumns, fps: float) -> dict[str, np.ndarray]:
     """The columns at ``fps`` [Hz]: ``t``, ``root_pos``, ``root_rot`` (xyzw, consecutive samples on
-    one hemisphere), ``root_lin_vel``, ``root_ang_vel`` (world frame), ``joint_pos``, ``joint_vel``."""
+    one hemisphere), ``root_lin_vel``, ``root_ang_vel`` (world frame), ``joint_pos``, ``joint_vel``,
+    and when ``cols`` has objects ``object_pos`` (N, k, 3) and ``object_rot`` (N, k, 4) (xyzw, each
+    object's samples on one hemisphere), interpolated as the root is."""
     t = cols.t
     s = sample_times(t, fps)
     k, u = _segments(t, s)
-    rot = slerp(cols.quaternion_base_in_world[k], cols.quaternion_base_in_world[k + 1], u)
-    flips = np.concatenate([[False], np.sum(rot[1:] * rot[:-1], axis=1) < 0.0])
-    rot = np.where((np.cumsum(flips) % 2 == 1)[:, None], -rot, rot)  # no sign jump between samples
+    rot = _slerp_track(cols.quaternion_base_in_world, k, u)
     rotation_base_to_world = quaternion_to_matrix(cols.quaternion_base_in_world)
     v = cols.base_velocity_in_base
     lin_world = np.einsum("nij,nj->ni", rotation_base_to_world, v[:, :3])
     ang_world = np.einsum("nij,nj->ni", rotation_base_to_world, v[:, 3:])
-    return {
+    out = {
         "t": s,
         "root_pos": _lerp(cols.position_base_in_world, k, u),
         "root_rot": rot,
@@ -96,6 +99,19 @@ def resample(cols: MotionColumns, fps: float) -> dict[str, np.ndarray]:
         "joint_pos": _lerp(cols.joint_positions, k, u),
         "joint_vel": _lerp(cols.joint_velocities, k, u),
     }
+    if cols.object_pose is not None:
+        pose = cols.object_pose
+        out["object_pos"] = np.stack([_lerp(pose[:, i, :3], k, u) for i in range(pose.shape[1])], axis=1)
+        out["object_rot"] = np.stack([_slerp_track(pose[:, i, 3:], k, u) for i in range(pose.shape[1])], axis=1)
+    return out
+
+
+def _slerp_track(quat: np.ndarray, k: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Quaternions (T, 4) slerped at segments ``k``, fractions ``u``; consecutive samples kept on
+    one hemisphere (no sign jump between samples)."""
+    rot = slerp(quat[k], quat[k + 1], u)
+    flips = np.concatenate([[False], np.sum(rot[1:] * rot[:-1], axis=1) < 0.0])
+    return np.where((np.cumsum(flips) % 2 == 1)[:, None], -rot, rot)
 
 
 def check_fps(fps: float, duration: float | None = None) -> None:
@@ -135,7 +151,10 @@ def tracker_arrays(motion, fps: float = DEFAULT_FPS, source: str = "plan",
         "joint_names": np.array(names, dtype=str), "root_rot_order": np.array(ROOT_ROT_ORDER),
         "world_frame": np.array(WORLD_FRAME), "up_axis": np.array("z"),
         "root_frame": np.array(base_frame or base_frame_of(motion.robot_name)),
-        "interpolation": np.array(INTERPOLATION), "knot_t": cols.t,
+        "interpolation": np.array(INTERPOLATION if cols.object_pose is None else OBJECTS_INTERPOLATION),
+        "knot_t": cols.t,
     }
     out.update(resample(cols, fps))
+    if cols.object_pose is not None:
+        out["object_names"] = np.array(cols.object_names, dtype=str)
     return out
