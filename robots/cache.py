@@ -88,6 +88,13 @@ def _environment() -> tuple[tuple[str, str], ...]:
     return tuple(out)
 
 
+def environment() -> tuple[tuple[str, str], ...]:
+    """What every entry's key holds besides its files: :data:`FORMAT`, the sources of this module
+    and :mod:`robots.model` (the Collada up-axis correction), the versions of wbmp, Pinocchio and
+    coal (the HTML replay's mesh cache, :mod:`viz.meshcache`, keys on it too)."""
+    return _environment()
+
+
 def geometry_key(urdf: str, package_dirs: tuple[str, ...], kind: str) -> str:
     """The entry key of a URDF's geometry of one kind (module docstring)."""
     blob = json.dumps({"kind": kind, "urdf": file_sha256(urdf), "path": os.path.realpath(urdf),

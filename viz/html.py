@@ -29,8 +29,9 @@ from viz.files import Staging, atomic_write_text
 if TYPE_CHECKING:
     from robots import Robot
 
-# meshcat (and with it IPython, zmq, tornado), Pinocchio and numpy are imported by the functions
-# that need them: render_page() of a cached replay needs none of them (wbmp solve's motion cache)
+# meshcat's drawing modules (viz._meshcat; never its server, IPython, zmq or tornado), Pinocchio
+# and numpy are imported by the functions that need them: render_page() of a cached replay needs
+# none of them (wbmp solve's motion cache)
 
 FPS = 30.0  # key frames per second of the replay
 
@@ -53,6 +54,55 @@ class RecordingWindow:
 
     def close(self) -> None:
         """Nothing to close (meshcat's API)."""
+
+
+class RecordingVisualizer:
+    """The drawing half of ``meshcat.Visualizer`` (paths, objects, transforms, properties,
+    animations) sending meshcat's own command objects to a :class:`RecordingWindow`: the same
+    commands, without importing meshcat's server (IPython, tornado, PIL: ~0.3 s)."""
+
+    __slots__ = ("path", "window")
+
+    def __init__(self, window: RecordingWindow, path=None) -> None:
+        from viz._meshcat import Path
+
+        self.window = window
+        self.path = Path(("meshcat",)) if path is None else path
+
+    def __getitem__(self, path: str) -> RecordingVisualizer:
+        return RecordingVisualizer(self.window, self.path.append(path))
+
+    def set_object(self, geometry, material=None) -> None:
+        """Record a ``set_object`` (a geometry and its material, or an object)."""
+        from viz._meshcat import commands
+
+        self.window.send(commands.SetObject(geometry, material, self.path))
+
+    def set_transform(self, matrix=None) -> None:
+        """Record a ``set_transform`` (4x4; default the identity)."""
+        import numpy as np
+
+        from viz._meshcat import commands
+
+        self.window.send(commands.SetTransform(np.eye(4) if matrix is None else matrix, self.path))
+
+    def set_property(self, key: str, value) -> None:
+        """Record a ``set_property``."""
+        from viz._meshcat import commands
+
+        self.window.send(commands.SetProperty(key, value, self.path))
+
+    def set_animation(self, animation, play: bool = True, repetitions: int = 1) -> None:
+        """Record a ``set_animation`` (a ``meshcat.animation.Animation``)."""
+        from viz._meshcat import commands
+
+        self.window.send(commands.SetAnimation(animation, play=play, repetitions=repetitions))
+
+    def delete(self) -> None:
+        """Record a ``delete`` of this path."""
+        from viz._meshcat import commands
+
+        self.window.send(commands.Delete(self.path))
 
 
 def meshcat_bundle() -> str:
@@ -85,15 +135,18 @@ def page_data(robot: Robot, plan, *, execution=None) -> str:
 
     from viz import motion as vm
     from viz import scene
-    from viz._meshcat import meshcat, umsgpack
+    from viz._meshcat import umsgpack
+    from viz.meshcache import compact_meshes, replay_robot
 
+    # on a mesh cache hit, a stand-in whose visual model holds no mesh (none is loaded)
+    robot = replay_robot(robot)
     planned = vm.plan_motion(robot, plan)
     simulated = vm.execution_motion(robot, execution)
 
     window = RecordingWindow()
-    vis = meshcat.Visualizer(window=window)
+    vis = RecordingVisualizer(window)
     scene.add_ground(vis)
-    scene.add_robot(vis, robot, motion="planned", compact=True)
+    scene.add_robot(vis, robot, motion="planned", compact=True, prepared=compact_meshes(robot))
     schedule = scene.add_markers(vis, robot, plan)
     scene.add_scene(vis, getattr(plan.spec, "scene", None))
     scene.set_robot_configuration(vis, robot, planned.q[0], motion="planned")

@@ -241,7 +241,7 @@ def _geometry_object(geom: pin.GeometryObject) -> tuple[mg.Geometry | None, np.n
 
 def add_robot(vis, robot: Robot, *, motion: str = "planned",
               color: tuple[float, float, float] | None = PLANNED_COLOR, opacity: float = 1.0,
-              compact: bool = False) -> list[str]:
+              compact: bool = False, prepared: Sequence[tuple[mg.Geometry, np.ndarray] | None] | None = None) -> list[str]:
     """Load the robot's visual meshes under ``wbmp/robot/<motion>``.
 
     Args:
@@ -253,6 +253,9 @@ def add_robot(vis, robot: Robot, *, motion: str = "planned",
         compact: Send meshes decimated (vertex clustering, :data:`COMPACT_MAX_CELL`) and
             quantized to 16 bits over their bounding box (the HTML replay; a Talos mesh set
             shrinks from ~8 MB to well under 1 MB), instead of the files as they are.
+        prepared: With ``compact``, the packed meshes already made (one per geometry, None
+            where it is not packed: :func:`viz.meshcache.compact_meshes`, cached on disk);
+            default: made here.
 
     Returns:
         The node name of each visual geometry (in ``robot.visual_model`` order; None-free:
@@ -260,10 +263,15 @@ def add_robot(vis, robot: Robot, *, motion: str = "planned",
     """
     base = vis[ROOT]["robot"][motion]
     names = []
-    for geom in robot.visual_model.geometryObjects:
+    for i, geom in enumerate(robot.visual_model.geometryObjects):
         name = node_name(geom.name)
         names.append(name)
-        packed = _compact_geometry(geom) if compact else None
+        if not compact:
+            packed = None
+        elif prepared is not None:
+            packed = prepared[i]
+        else:
+            packed = _compact_geometry(geom)
         obj, static = packed if packed is not None else _geometry_object(geom)
         if obj is None:
             continue

@@ -562,7 +562,8 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
 
     The paths are checked again (:func:`check_outputs`), every file is made in a temporary file
     beside its target, and all are renamed into place at the end: a failure (or Ctrl-C) while
-    making them leaves the folders as they were.
+    making them leaves the folders as they were. The time each file took is added to
+    ``result.timings`` (``npz``, ``html``: the ``--json`` report shows them).
     """
     from viz.files import Staging
 
@@ -572,6 +573,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
         if paths.out is not None:
             import numpy as np
 
+            t0 = time.perf_counter()
             progress(f"writing {out}")
             arrays = result_arrays(result)
             copied = None
@@ -585,10 +587,13 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
             else:  # the same arrays, compressed faster (zlib level 1: ~5x quicker, a few % larger)
                 staging.add(paths.out, lambda fh: _savez_fast(fh, arrays))
             written["motion"] = str(paths.out)
+            result.timings["npz"] = time.perf_counter() - t0
         if paths.html is not None:
+            t0 = time.perf_counter()
             progress(f"writing {html}")
             _write_html(paths.html, result, staging, cache_dir=cache_dir)
             written["html"] = str(paths.html)
+            result.timings["html"] = time.perf_counter() - t0
         if paths.plots is not None:
             from viz import write_plots
 
