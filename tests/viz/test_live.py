@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import io
 import os
 import socket
@@ -68,6 +69,11 @@ def _receive_scene(web_url: str, n_objects: int, linger: float = 1.0) -> list[di
                 break
             messages.append(umsgpack.unpackb(msg))
         conn.close()
+        # close() only sends the close frame: wait for the server's reply, which closes the socket
+        # (left open, it is collected later as an unclosed socket during whatever test runs then)
+        with contextlib.suppress(TimeoutError):
+            while await asyncio.wait_for(conn.read_message(), SCENE_TIMEOUT) is not None:
+                pass
         return messages
 
     return asyncio.run(run())
