@@ -26,11 +26,29 @@ knots would break the per-knot Hessian blocks of the stage-wise NLP), so :math:`
 
 with :math:`A_{g,\omega}` frozen at the iterate's midpoint and the exact Jacobians of the
 finite-difference velocity w.r.t. the chart (``pin.dDifference`` and the chart's own
-derivative), and :math:`b_j` chosen so that the linearization is exact at the iterate.
-:func:`planner.trajopt.api.plan` re-linearizes at each solution and re-solves (warm start from
-it) :attr:`CentroidalSettings.momentum_iterations` times; the rows are exact at a fixed point of
-that loop, and the error that is left is :math:`(A_g(q) - A_g(\bar q))\,v`, which the plan's
-report measures (the full-dynamics ZMP, :mod:`planner.trajopt.centroidal.zmp`).
+derivative), and :math:`b_j` chosen so that the linearization is exact at the iterate
+(:func:`interval_linearization`). The rates are then affine in the chart variables,
+:math:`r + J x`, with dense 3 x nv blocks of :math:`J` between each dynamics knot and the
+knots before, at and after it: the NLP's parameters are :math:`r` and the nonzeros of
+:math:`J` (:func:`momentum_parameters`, :func:`momentum_jacobian_pattern`), so the rows are
+one sparse product and their Jacobian is the parameters themselves. (Before, the parameters
+were :math:`b, P, Q` and CasADi differentiated the interval momenta at every evaluation: 5 ms
+more per evaluation of the rows and of their Jacobian on the Talos 4 steps, ~10 % of an
+iteration.)
+
+:func:`planner.trajopt.api.plan` re-linearizes at a solution whose Euler residual with the
+exact :math:`A_g` (:func:`euler_residual`) exceeds :attr:`CentroidalSettings.momentum_tolerance`
+and re-solves, at most :attr:`CentroidalSettings.momentum_iterations` times; the rows are exact
+at a fixed point of that loop, and the error that is left is :math:`(A_g(q) - A_g(\bar q))\,v`,
+which the plan's report measures (the full-dynamics ZMP, :mod:`planner.trajopt.centroidal.zmp`).
+The re-solve starts from the solution *and its multipliers* (IPOPT's ``warm_start_init_point``,
+set in :attr:`CentroidalSettings.ipopt_options`): 7 iterations instead of 12-18, the same
+optimum. The tolerance is the CoP margin (5 mm): the residual is a CoP shift, and the planned
+CoP keeps that far inside the soles. Where the time went (2026-11-24, Talos 4 steps, ~20
+iterations, CPU): IPOPT's MUMPS factorizations ~40 ms per iteration (the dense momentum blocks
+add ~30 k Jacobian nonzeros), the Lagrangian Hessian ~22 ms, the linearization in Python
+(:func:`momentum_parameters`, a loop over knots with Pinocchio calls) 5 ms per solve: not
+worth vectorizing.
 
 Values are divided by the body weight :math:`m|g|` like the force variables (units m s).
 """
