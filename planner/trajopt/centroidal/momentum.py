@@ -45,8 +45,8 @@ The re-solve starts from the solution *and its multipliers* (IPOPT's ``warm_star
 set in :attr:`CentroidalSettings.ipopt_options`): 7 iterations instead of 12-18, the same
 optimum. The tolerance is the CoP margin (5 mm): the residual is a CoP shift, and the planned
 CoP keeps that far inside the soles. Where the time went (2026-11-24, Talos 4 steps, ~20
-iterations, CPU): IPOPT's MUMPS factorizations ~40 ms per iteration (the dense momentum blocks
-add ~30 k Jacobian nonzeros), the Lagrangian Hessian ~22 ms, the linearization in Python
+iterations, CPU): IPOPT's linear solves (MUMPS) ~58 ms per iteration (~38 ms without these
+rows: their dense blocks add ~30 k Jacobian nonzeros and their fill), the Lagrangian Hessian ~22 ms, the linearization in Python
 (:func:`momentum_parameters`, a loop over knots with Pinocchio calls) 5 ms per solve: not
 worth vectorizing.
 
