@@ -189,8 +189,9 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
     scene_rows = scene_rows_of(lay) if settings.scene_collision else None
     total: SolverStats | None = None
     collision_round = relinearized = 0
+    lam0 = None
     while True:
-        dq, stats, raw = solve_layout(lay, settings, progress, x0=x0)
+        dq, stats, raw = solve_layout(lay, settings, progress, x0=x0, lam0=lam0)
         total = stats if total is None else dataclasses.replace(
             stats, iterations=total.iterations + stats.iterations, build_time=total.build_time + stats.build_time,
             cache=total.cache, solve_time=total.solve_time + stats.solve_time)
@@ -211,9 +212,11 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
                 collision_round += 1
                 reason = (f"{len(changed)} more link pair(s) and {len(objects)} object(s) came within the "
                           "collision margin")
+        lam0 = None
         if not reason and lay.relinearize(dq, raw["x"], relinearized):
             relinearized += 1
             reason = "re-linearized about the solution"
+            lam0 = (raw["lam_x"], raw["lam_g"])  # same structure: the multipliers warm-start it too
         if not reason:
             return dq, total, raw
         if progress:

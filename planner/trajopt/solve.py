@@ -17,8 +17,12 @@ from planner.trajopt.transcription import bounds, parameter_values
 
 
 def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None = None,
-                 x0: np.ndarray | None = None) -> tuple[np.ndarray, SolverStats, dict]:
-    """Fetch/build the solver of a layout, solve, return (dq per knot (N+1, nv), stats, raw)."""
+                 x0: np.ndarray | None = None,
+                 lam0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, SolverStats, dict]:
+    """Fetch/build the solver of a layout, solve, return (dq per knot (N+1, nv), stats, raw).
+
+    ``lam0``: initial multipliers ``(lam_x, lam_g)`` of the same structure's previous solve (IPOPT
+    uses them with its ``warm_start_init_point`` option, which dynamic plans set)."""
     t0 = time.perf_counter()
     solver = get_solver(lay, settings, progress)
     build_time = time.perf_counter() - t0
@@ -30,7 +34,8 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
     if progress:
         progress(f"solving ({nl.n_x} variables, {nl.n_g} constraints)")
     t1 = time.perf_counter()
-    sol = solver.function(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    warm = {} if lam0 is None else {"lam_x0": lam0[0], "lam_g0": lam0[1]}
+    sol = solver.function(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg, **warm)
     solve_time = time.perf_counter() - t1
     st = solver.function.stats()
     raw = str(st.get("return_status", ""))
@@ -44,5 +49,5 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
         solve_time=solve_time, cache=solver.origin, objective=float(sol["f"]),
         n_variables=nl.n_x, n_constraints=nl.n_g, raw_status=raw,
     )
-    return dq, stats, {"x": x, "lam_g": np.asarray(sol["lam_g"]).ravel(), "g": np.asarray(sol["g"]).ravel(),
+    return dq, stats, {"x": x, "lam_x": np.asarray(sol["lam_x"]).ravel(), "lam_g": np.asarray(sol["lam_g"]).ravel(), "g": np.asarray(sol["g"]).ravel(),
                        "lbg": lbg, "ubg": ubg, "nlp_layout": nl}

@@ -26,11 +26,29 @@ knots would break the per-knot Hessian blocks of the stage-wise NLP), so :math:`
 
 with :math:`A_{g,\omega}` frozen at the iterate's midpoint and the exact Jacobians of the
 finite-difference velocity w.r.t. the chart (``pin.dDifference`` and the chart's own
-derivative), and :math:`b_j` chosen so that the linearization is exact at the iterate.
-:func:`planner.trajopt.api.plan` re-linearizes at each solution and re-solves (warm start from
-it) :attr:`CentroidalSettings.momentum_iterations` times; the rows are exact at a fixed point of
-that loop, and the error that is left is :math:`(A_g(q) - A_g(\bar q))\,v`, which the plan's
-report measures (the full-dynamics ZMP, :mod:`planner.trajopt.centroidal.zmp`).
+derivative), and :math:`b_j` chosen so that the linearization is exact at the iterate
+(:func:`interval_linearization`). The rates are then affine in the chart variables,
+:math:`r + J x`, with dense 3 x nv blocks of :math:`J` between each dynamics knot and the
+knots before, at and after it: the NLP's parameters are :math:`r` and the nonzeros of
+:math:`J` (:func:`momentum_parameters`, :func:`momentum_jacobian_pattern`), so the rows are
+one sparse product and their Jacobian is the parameters themselves. (Before, the parameters
+were :math:`b, P, Q` and CasADi differentiated the interval momenta at every evaluation: 5 ms
+more per evaluation of the rows and of their Jacobian on the Talos 4 steps, ~10 % of an
+iteration.)
+
+:func:`planner.trajopt.api.plan` re-linearizes at a solution whose Euler residual with the
+exact :math:`A_g` (:func:`euler_residual`) exceeds :attr:`CentroidalSettings.momentum_tolerance`
+and re-solves, at most :attr:`CentroidalSettings.momentum_iterations` times; the rows are exact
+at a fixed point of that loop, and the error that is left is :math:`(A_g(q) - A_g(\bar q))\,v`,
+which the plan's report measures (the full-dynamics ZMP, :mod:`planner.trajopt.centroidal.zmp`).
+The re-solve starts from the solution *and its multipliers* (IPOPT's ``warm_start_init_point``,
+set in :attr:`CentroidalSettings.ipopt_options`): 7 iterations instead of 12-18, the same
+optimum. The tolerance is the CoP margin (5 mm): the residual is a CoP shift, and the planned
+CoP keeps that far inside the soles. Where the time went (2026-11-24, Talos 4 steps, ~20
+iterations, CPU): IPOPT's linear solves (MUMPS) ~58 ms per iteration (~38 ms without these
+rows: their dense blocks add ~30 k Jacobian nonzeros and their fill), the Lagrangian Hessian ~22 ms, the linearization in Python
+(:func:`momentum_parameters`, a loop over knots with Pinocchio calls) 5 ms per solve: not
+worth vectorizing.
 
 Values are divided by the body weight :math:`m|g|` like the force variables (units m s).
 """
@@ -47,8 +65,61 @@ if TYPE_CHECKING:
 
 
 def momentum_sizes(nv: int, N: int) -> int:
-    """Number of linearization parameters: per interval ``j = 0..N-1``: ``b`` (3), ``P``, ``Q`` (3 x nv)."""
-    return N * (3 + 6 * nv)
+    """Number of parameters of the momentum rows: the rates' constant part (3 per dynamics knot
+    ``k = 1..N-1``), then the nonzeros of their Jacobian (:func:`momentum_jacobian_pattern`)."""
+    return 3 * (N - 1) + len(momentum_jacobian_pattern(nv, N)[0])
+
+
+def _rate_blocks(N: int) -> list[tuple[int, int]]:
+    """(dynamics knot ``k``, variable knot index ``i = knot - 2``) of the Jacobian's 3 x nv blocks:
+    the knots ``k - 1``, ``k``, ``k + 1`` that are variables (knot N is knot N-1), column-major."""
+    out = {(k, min(j, N - 1) - 2) for k in range(1, N) for j in (k - 1, k, k + 1) if min(j, N - 1) >= 2}
+    return sorted(out, key=lambda b: (b[1], b[0]))
+
+
+def momentum_jacobian_pattern(nv: int, N: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, columns) of the nonzeros of the momentum rates' Jacobian w.r.t. the chart variables
+    (3 (N-1) x nv (N-2)), in CasADi's column-major order: dense 3 x nv blocks between the
+    dynamics knot ``k`` and the variable knots ``k-1..k+1``."""
+    blocks = _rate_blocks(N)
+    by_col: dict[int, list[int]] = {}
+    for k, i in blocks:
+        by_col.setdefault(i, []).append(k)
+    rows, cols = [], []
+    for i in sorted(by_col):
+        ks = sorted(by_col[i])
+        for c in range(nv):
+            for k in ks:
+                rows += [3 * (k - 1) + r for r in range(3)]
+                cols += [nv * i + c] * 3
+    return np.array(rows, dtype=int), np.array(cols, dtype=int)
+
+
+def interval_linearization(lay: DynamicLayout, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The interval momenta linearized about chart displacements ``dq`` (N+1, nv).
+
+    Returns:
+        ``(b, P, Q)`` of shapes (N, 3), (N, 3, nv), (N, 3, nv), divided by the body weight, such
+        that ``b_j + P_j dq_j + Q_j dq_{j+1}`` is :math:`h_{j+1/2} / (m|g|)` to first order in
+        ``dq`` (with :math:`A_g` frozen at the iterate's midpoint), exact at the iterate.
+    """
+    from planner.trajopt.symbolic import chart_to_configuration
+
+    robot = lay.robot
+    model, data = robot.model, robot.data()
+    nv, N, dt = robot.nv, lay.N, float(lay.dt)
+    weight = robot.mass * 9.81
+    q = [chart_to_configuration(model, lay.q_ref, dq[k]) for k in range(N + 1)]
+    T = [_chart_tangent(lay.q_ref, dq[k], nv) for k in range(N + 1)]
+    b, P, Q = np.zeros((N, 3)), np.zeros((N, 3, nv)), np.zeros((N, 3, nv))
+    for j in range(N):
+        v = pin.difference(model, q[j], q[j + 1]) / dt
+        qm = pin.integrate(model, q[j], 0.5 * dt * v)
+        A = pin.computeCentroidalMap(model, data, qm)[3:] / weight
+        P[j] = A @ pin.dDifference(model, q[j], q[j + 1], pin.ArgumentPosition.ARG0) @ T[j] / dt
+        Q[j] = A @ pin.dDifference(model, q[j], q[j + 1], pin.ArgumentPosition.ARG1) @ T[j + 1] / dt
+        b[j] = A @ v - P[j] @ dq[j] - Q[j] @ dq[j + 1]
+    return b, P, Q
 
 
 def _chart_tangent(q_ref: np.ndarray, dq: np.ndarray, nv: int) -> np.ndarray:
@@ -74,33 +145,35 @@ def interval_momentum(robot, q: np.ndarray, dt: float) -> np.ndarray:
 
 
 def momentum_parameters(lay: DynamicLayout, dq: np.ndarray) -> np.ndarray:
-    """Linearization parameters of the angular-momentum rows about chart displacements ``dq`` (N+1, nv).
+    """Parameters of the angular-momentum rows linearized about chart displacements ``dq`` (N+1, nv).
+
+    The rate of dynamics knot ``k`` is ``(h_{k+1/2} - h_{k-1/2}) / dt``, with the interval momenta
+    of :func:`interval_linearization` and ``dq_0 = dq_1 = 0``, ``dq_N = dq_{N-1}``: affine in the
+    chart variables, ``r + J x``.
 
     Returns:
-        Per interval ``j = 0..N-1``: ``b_j`` (3), then ``P_j`` and ``Q_j`` (3 x nv, column-major,
-        CasADi's order), all divided by the body weight, so that ``b + P dq_j + Q dq_{j+1}`` is
-        :math:`h_{j+1/2} / (m|g|)` to first order in ``dq`` (with :math:`A_g` frozen).
+        ``r`` (3 per dynamics knot ``k = 1..N-1``), then the nonzeros of ``J`` in the order of
+        :func:`momentum_jacobian_pattern`, all divided by the body weight.
     """
-    from planner.trajopt.symbolic import chart_to_configuration
-
-    robot = lay.robot
-    model, data = robot.model, robot.data()
-    nv, N, dt = robot.nv, lay.N, float(lay.dt)
-    weight = robot.mass * 9.81
-    q = [chart_to_configuration(model, lay.q_ref, dq[k]) for k in range(N + 1)]
-    T = [_chart_tangent(lay.q_ref, dq[k], nv) for k in range(N + 1)]
-    out = []
-    for j in range(N):
-        v = pin.difference(model, q[j], q[j + 1]) / dt
-        qm = pin.integrate(model, q[j], 0.5 * dt * v)
-        A = pin.computeCentroidalMap(model, data, qm)[3:]
-        J0 = pin.dDifference(model, q[j], q[j + 1], pin.ArgumentPosition.ARG0) @ T[j]
-        J1 = pin.dDifference(model, q[j], q[j + 1], pin.ArgumentPosition.ARG1) @ T[j + 1]
-        P = A @ J0 / dt
-        Q = A @ J1 / dt
-        b = A @ v - P @ dq[j] - Q @ dq[j + 1]
-        out += [b / weight, (P / weight).ravel(order="F"), (Q / weight).ravel(order="F")]
-    return np.concatenate(out)
+    N, dt = lay.N, float(lay.dt)
+    b, P, Q = interval_linearization(lay, dq)
+    # the blocks of knot k's rate: -P_{k-1} on dq_{k-1}, P_k - Q_{k-1} on dq_k, Q_k on dq_{k+1}
+    block: dict[tuple[int, int], np.ndarray] = {}
+    rate = (b[1:] - b[:-1]) / dt
+    for k in range(1, N):
+        for j, B in ((k - 1, -P[k - 1]), (k, P[k] - Q[k - 1]), (k + 1, Q[k])):
+            j = min(j, N - 1)
+            if j >= 2:
+                block[k, j - 2] = block.get((k, j - 2), 0.0) + B / dt
+    values = []
+    by_col: dict[int, list[int]] = {}
+    for k, i in _rate_blocks(N):
+        by_col.setdefault(i, []).append(k)
+    for i in sorted(by_col):
+        ks = sorted(by_col[i])
+        # column-major: for each joint column, the 3 rows of each dynamics knot in order
+        values.append(np.stack([block[k, i] for k in ks], axis=0).transpose(2, 0, 1).ravel())
+    return np.concatenate([rate.ravel(), *values])
 
 
 def euler_residual(lay: DynamicLayout, dq: np.ndarray, forces: np.ndarray) -> float:

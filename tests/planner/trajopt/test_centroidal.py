@@ -537,9 +537,15 @@ def test_extended_nlp_derivatives_match_automatic_differentiation(talos, rng):
 
 def test_momentum_linearization_matches_pinocchio(talos, rng):
     """The linearized whole-body momentum rows: exact at the iterate (Pinocchio's A_g v of each
-    interval), and their chart Jacobians match finite differences of A_g(q_mid) v(dq) with A_g frozen."""
+    interval), and their chart Jacobians match finite differences of A_g(q_mid) v(dq) with A_g frozen;
+    the NLP's rates (parameters r + J x) are the differences of those interval momenta."""
     from planner.trajopt.centroidal import to_dynamic_layout
-    from planner.trajopt.centroidal.momentum import interval_momentum, momentum_parameters
+    from planner.trajopt.centroidal.momentum import (
+        interval_linearization,
+        interval_momentum,
+        momentum_parameters,
+    )
+    from planner.trajopt.centroidal.nlp import momentum_rates
     from planner.trajopt.layout import make_layout
     from planner.trajopt.symbolic import chart_to_configuration
 
@@ -549,15 +555,13 @@ def test_momentum_linearization_matches_pinocchio(talos, rng):
     nv, N, dt = talos.nv, lay.N, lay.dt
     dq = rng.normal(size=(N + 1, nv)) * 0.1
     dq[:, 3:6] += [0.0, 0.0, 1.2]  # a yawed base: the chart's rotation derivative matters
-    prm = momentum_parameters(lay, dq).reshape(N, 3 + 6 * nv)
+    b, P, Q = interval_linearization(lay, dq)
     weight = talos.mass * 9.81
     q = np.array([chart_to_configuration(talos.model, lay.q_ref, d) for d in dq])
     exact = interval_momentum(talos, q, dt) / weight
 
     def lin(j, d0, d1):
-        P = prm[j, 3:3 + 3 * nv].reshape(3, nv, order="F")
-        Q = prm[j, 3 + 3 * nv:].reshape(3, nv, order="F")
-        return prm[j, :3] + P @ d0 + Q @ d1
+        return b[j] + P[j] @ d0 + Q[j] @ d1
 
     j = 1
     np.testing.assert_allclose([lin(i, dq[i], dq[i + 1]) for i in range(N)], exact, atol=1e-10)
@@ -575,5 +579,17 @@ def test_momentum_linearization_matches_pinocchio(talos, rng):
         delta = rng.normal(size=(2, nv))
         fd = (frozen(dq[j] + eps * delta[0], dq[j + 1] + eps * delta[1])
               - frozen(dq[j] - eps * delta[0], dq[j + 1] - eps * delta[1])) / (2 * eps)
-        lin_d = lin(j, delta[0], delta[1]) - prm[j, :3]
+        lin_d = lin(j, delta[0], delta[1]) - b[j]
         np.testing.assert_allclose(lin_d, fd, rtol=1e-5, atol=1e-8)
+    # the rows of the NLP at other chart variables x (knots 2..N-1; dq_0 = dq_1 = 0, dq_N = dq_{N-1})
+    x = rng.normal(size=(N - 2, nv)) * 0.1
+    d = np.vstack([np.zeros((2, nv)), x, x[-1:]])
+    h = np.array([lin(i, d[i], d[i + 1]) for i in range(N)])
+    xs = ca.MX.sym("x", nv * (N - 2))
+    rates, jac = momentum_rates(lay, xs, ca.MX(momentum_parameters(lay, dq)))
+    fn = ca.Function("rates", [xs], [rates, jac])
+    ours, at_zero = fn(x.ravel()), fn(np.zeros(nv * (N - 2)))
+    np.testing.assert_allclose(np.array(ours[0]).ravel(), ((h[1:] - h[:-1]) / dt).ravel(), atol=1e-10)
+    assert np.abs(np.array(ours[0])).max() > 1e-3  # not a vacuous comparison
+    np.testing.assert_allclose(np.array(ca.densify(ours[1])) @ x.ravel(),  # affine: J is the Jacobian
+                               np.array(ours[0] - at_zero[0]).ravel(), atol=1e-10)
