@@ -11,11 +11,12 @@ take it. Two phases, both feet down:
 
 The hand-over point comes from the arm (heading frame where the robot stands, ``r`` the hand's
 reach from the shoulder, :func:`tasks.primitives.arms.reach`): the object's centre
-:data:`OFFER_AHEAD` ``r`` ahead of the shoulder, :data:`OFFER_DOWN` ``r`` below it (chest height),
-laterally :data:`OFFER_INWARD` of the shoulder's offset from the midline (towards the person in
-front). talos: 0.38 m ahead of the feet, 1.17 m high, 0.15 m to the side. The hand keeps its
-standing orientation (the object upright), the object's centre at its held place (the pick-up's
-grasp offset).
+:data:`OFFER_AHEAD` ``r`` ahead of the shoulder, :data:`OFFER_DOWN` ``r`` below it (lower chest
+height), straight ahead of the shoulder (:data:`OFFER_INWARD`). talos: 0.38 m ahead of the feet,
+1.05 m high, 0.29 m to the side. The hand keeps its standing orientation (the object upright), the
+object's centre at its held place (the pick-up's grasp offset). Higher, or nearer the midline, the
+talos wrist (fingers down) does not get there: "0.35 r below, half the shoulder's offset" (1.17 m,
+0.15 m to the side) was refused by the planner, the hand 0.20 m short of its target.
 
 Refused before planning, in task terms: the held object would come within
 :data:`OFFER_CLEARANCE` of another object there (a table or shelf in front: step back first), the
@@ -53,8 +54,8 @@ from tasks.scene import SceneObject, extent
 from tasks.specs import Grasp
 
 OFFER_AHEAD = 0.7  # [reach] the object's centre this far ahead of the shoulder (heading frame)
-OFFER_DOWN = 0.35  # [reach] and this far below it: chest height
-OFFER_INWARD = 0.5  # laterally this fraction of the shoulder's offset from the midline
+OFFER_DOWN = 0.55  # [reach] and this far below it: lower chest height (talos: the fingers-down wrist limits it)
+OFFER_INWARD = 1.0  # laterally this fraction of the shoulder's offset from the midline (straight ahead of it)
 OFFER_CLEARANCE = 0.02  # [m] the held object's box from every other object's box at the hand-over point
 OFFER_TARGET_TOLERANCE = GRASP_TARGET_TOLERANCE  # [m] planned hand position while held out
 BRING_TIME = 1.5  # [s] nominal: held pose -> hand-over pose

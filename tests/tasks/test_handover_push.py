@@ -50,16 +50,17 @@ def test_sentences(text, expected):
 
 
 def _shoulder(talos, side: str) -> np.ndarray:
-    """The arm's first joint (the shoulder) at the standing posture, world [m] (Pinocchio)."""
+    """The shoulder (the arm's second joint, where its first three axes meet) at the standing posture, world [m]
+    (Pinocchio)."""
     model, data = talos.model, talos.data()
     pin.forwardKinematics(model, data, talos.q_standing)
-    return data.oMi[model.getJointId(f"arm_{side}_1_joint")].translation.copy()
+    return data.oMi[model.getJointId(f"arm_{side}_2_joint")].translation.copy()
 
 
 def test_hand_me_the_cup_picks_it_up_then_holds_it_out_in_front(talos):
     """"hand me the cup" = pick_up, then hand_over (the left hand: the cup is on the left); one Grasp
-    with the hand-over point: 0.35-0.45 m ahead of the feet, between the shoulders laterally, below
-    the shoulder and above the hip (chest height), within the arm's length of the Pinocchio shoulder;
+    with the hand-over point: 0.35-0.45 m ahead of the feet, straight ahead of the shoulder, below
+    it and above the hip (lower chest height), within the arm's length of the Pinocchio shoulder;
     the hand-over target puts the grasp's offset (the cup's centre in the hand frame) at that point;
     the pick-up's hold target ends where the hand-over starts; the spec round-trips through JSON."""
     spec = compile_actions(list(parse("hand me the cup").actions), talos, scene=SCENE)
@@ -72,7 +73,7 @@ def test_hand_me_the_cup_picks_it_up_then_holds_it_out_in_front(talos):
     pin.forwardKinematics(model, data, talos.q_standing)
     hip = data.oMi[model.getJointId("leg_left_1_joint")].translation
     assert 0.35 <= p[0] <= 0.45, p
-    assert 0.0 < p[1] < sh[1], p
+    assert abs(p[1] - sh[1]) < 0.05, (p, sh)  # straight ahead of the shoulder
     assert hip[2] < p[2] < sh[2] - 0.1, p
     wrist = data.oMi[model.getJointId("arm_left_7_joint")].translation
     assert np.linalg.norm(p - sh) < np.linalg.norm(wrist - sh) + 0.2  # the forearm plus the hand's length
@@ -102,7 +103,9 @@ def test_hand_over_refusals(talos):
     with pytest.raises(TaskDefinitionError, match="other hand"):
         compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "left"}),
                          Action(name="hand_over", params={"object": "it", "arm": "right"})], talos, scene=SCENE)
-    shelf = SceneObject(name="shelf", shape="box", size=(0.3, 1.0, 0.05), position=(0.4, 0.0, 1.25))
+    offer = compile_actions(list(parse("hand me the cup").actions), talos, scene=SCENE).grasps[0].offer
+    above = offer[2] + CUP.size[1] / 2 + 0.01 + 0.025  # a 5 cm board 1 cm over the held cup's top
+    shelf = SceneObject(name="shelf", shape="box", size=(0.3, 1.0, 0.05), position=(offer[0], 0.0, above))
     with pytest.raises(TaskDefinitionError, match=r"from the shelf .*step back"):
         compile_actions(list(parse("hand me the cup").actions), talos,
                         scene=Scene(name="low shelf", objects=(*SCENE.objects, shelf)))
