@@ -557,8 +557,8 @@ REGISTRY: dict[str, ActionSchema] = {
             _object("the object to hand over"),
             _choice("arm", SIDES, None, "which hand holds it (default: the one that picked it up)"),
         )),
-        ActionSchema(name="push", summary="Push a movable object along the floor or a table, forward by a distance, "
-                     "with one hand on its near face (planned; not certified in the simulation yet).",
+        ActionSchema(name="push", summary="Push a movable box or cylinder forward by a distance on what it stands on, "
+                     "with one hand on its near face (it slides with its friction).",
                      body="upper", params=(
             _object("the object to push"),
             Param(name="distance", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,

@@ -1,6 +1,7 @@
 """hand_over planned and simulated on talos in the kitchen (examples/scenes/kitchen.json, seen from
-where the robot stands at the table), and push planned: the planned hand (Pinocchio on the planned
-configurations) at its targets, the simulated cup (its MuJoCo body) at the hand-over point."""
+where the robot stands at the table), and push planned and simulated: the planned hand (Pinocchio on
+the planned configurations) at its targets, the simulated cup (its MuJoCo body) at the hand-over
+point, the pushed box (its MuJoCo body) moved by the asked distance."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import pytest
 from language import parse
 from planner import plan
 from sim import simulate
-from sim.grasp import OFFER_TOLERANCE
+from sim.grasp import OFFER_TOLERANCE, PUSH_TOLERANCE
 from tasks.compose import compile_actions
 from tasks.scene import Scene, SceneObject, load_scene
 
@@ -47,7 +48,7 @@ def test_pick_up_the_cup_and_hand_it_to_me_in_the_kitchen(talos):
     """"pick up the cup and hand it to me": the planned hand frame (Pinocchio) stays within its 4 mm
     tolerance of the hand-over target over the hold-out window; in MuJoCo the cup's body stays within
     the certificate's 3 cm of the hand-over point over that window (0.35-0.45 m ahead, more than
-    0.3 m above where the cup stood on the table), within 2 cm of where the simulated hand holds it
+    0.25 m above where the cup stood on the table), within 2 cm of where the simulated hand holds it
     (Pinocchio on the simulated configurations), and the certificate passes."""
     scene = _kitchen_at_the_table()
     spec = compile_actions(list(parse("pick up the cup and hand it to me").actions), talos, scene=scene)
@@ -62,7 +63,7 @@ def test_pick_up_the_cup_and_hand_it_to_me_in_the_kitchen(talos):
     assert run.certificate.ok, run.certificate.summary()
     offer = np.asarray(g.offer)
     cup_start = next(o.position for o in scene.objects if o.name == "cup")
-    assert 0.35 <= offer[0] <= 0.45 and offer[2] - cup_start[2] > 0.3, offer
+    assert 0.35 <= offer[0] <= 0.45 and offer[2] - cup_start[2] > 0.25, offer
     cup, t = run.objects["cup"], run.t
     window = (t >= w0) & (t <= w1)
     assert np.linalg.norm(cup[window] - offer, axis=1).max() <= OFFER_TOLERANCE
@@ -75,11 +76,13 @@ BOX = SceneObject(name="red box", shape="box", size=(0.15, 0.15, 0.15), position
                   mass=0.5, friction=0.8)
 
 
-@pytest.mark.long  # ~35 s of CPU (a 8.5 s plan); the suite's budget holds the hand-over run only
-def test_push_the_red_box_plan(talos):
-    """"push the red box 10 cm" plans: the right hand frame (Pinocchio on the planned configurations)
-    is within each moving-contact target's tolerance at its knot, so the hand moves 10 cm forward on
-    the box's face; the plan's checks pass."""
+@pytest.mark.long  # ~45 s of CPU (a 9.7 s plan and its run); the suite's budget holds the hand-over run only
+def test_push_the_red_box_10_cm_in_mujoco(talos):
+    """"push the red box 10 cm": the right hand frame (Pinocchio on the planned configurations) is within
+    each moving-contact target's tolerance at its knot, 10 cm forward on the box's face in all; in
+    MuJoCo (no weld: the box slides with its friction) the box's body ends within the certificate's
+    2 cm of 10 cm ahead of where it stood along the heading (+x), less than 2 cm across, still on the
+    table (its height within 5 mm), and the certificate passes."""
     spec = compile_actions(list(parse("push the red box 10 cm").actions), talos,
                            scene=Scene(name="a box on a table", objects=(TABLE, BOX)))
     motion = plan(spec, talos)
@@ -91,3 +94,7 @@ def test_push_the_red_box_plan(talos):
     pushed = [ft for ft in on if "pushes" in ft.name]
     i, j = on.index(pushed[0]) - 1, on.index(pushed[-1])
     assert hand[j, 0] - hand[i, 0] == pytest.approx(0.1, abs=0.011)
+    run = simulate(motion, talos)
+    assert run.certificate.ok, run.certificate.summary()
+    moved = run.objects["red box"][-1] - np.asarray(BOX.position)
+    assert abs(moved[0] - 0.1) <= PUSH_TOLERANCE and abs(moved[1]) <= PUSH_TOLERANCE and abs(moved[2]) < 0.005, moved
