@@ -201,7 +201,8 @@ SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the 
 DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
 POSSESSIVES = frozenset({"your", "my", "his", "her", "their", "你的", "我的", "他的", "她的"})
 PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
-IMPLICIT_OBJECT = ("put_down",)  # actions whose object, unsaid, is the one named before ("then put it down", 放下)
+IMPLICIT_OBJECT = ("put_down", "hand_over")  # actions whose object, unsaid, is the one named before ("then put it
+# down", 放下, "hand it to me")
 PLACE_WORDS = ("on", "onto", "upon", "in", "into", "inside")  # "put the cup on the shelf": where the destination starts
 PLACE_TRIGGER_ENDINGS = ("到", "在", "进")  # 放到, 放在: the reference after the action word is where it goes
 PLACE_TRAILING = ("上面", "上边", "里面", "上", "里")  # 放到架子上: the shelf

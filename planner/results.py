@@ -83,7 +83,8 @@ class CheckKind(enum.Enum):
     planner's report) and ``SCENE_COLLISION`` (subject there: the closest pair in words, "left
     forearm / pelvis"). A plan with grasps adds ``PAYLOAD_TORQUE`` (subject: the grasp), its
     certificate ``OBJECT_GRASP``, ``OBJECT_LIFT``, ``OBJECT_HELD`` (held to the end: still in the
-    hand), ``OBJECT_PLACE`` (subject: the object),
+    hand), ``OBJECT_PLACE``, ``OBJECT_OFFER`` (held out for a hand-over),
+    ``OBJECT_PUSH`` (moved by a push; subject: the object),
     ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds).
 
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
@@ -123,6 +124,8 @@ class CheckKind(enum.Enum):
     OBJECT_LIFT = "object_lift"
     OBJECT_HELD = "object_held"
     OBJECT_PLACE = "object_place"
+    OBJECT_OFFER = "object_offer"
+    OBJECT_PUSH = "object_push"
     OBJECT_MOVED = "object_moved"
     OBJECT_TIPPED = "object_tipped"
     RECORDED = "recorded"

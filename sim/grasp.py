@@ -16,7 +16,8 @@ gripper cannot close on the object. The named simplification (docs/objects.md), 
 Every tick records the movable objects' positions, orientations and tilts (the execution's
 object poses: the replay and the motion file show them); :meth:`GraspRig.checks` turns them
 into the certificate's lines: the grasp engaged, the object lifted by the asked height and held,
-placed within tolerance, no other object moved by more than :data:`MOVED_LIMIT`, none tipped over.
+placed within tolerance, held out at a hand-over point, a pushed one moved by the asked distance
+(:class:`tasks.specs.Push`), no other object moved by more than :data:`MOVED_LIMIT`, none tipped over.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import mujoco
 import numpy as np
@@ -31,12 +33,14 @@ import numpy as np
 from planner.results import Check, CheckKind
 from robots.model import Robot
 from sim.model import OBJECT_PREFIX, OBJECT_ROLE, ROBOT_ROLE, SimModel, grasp_weld_name
-from tasks.specs import Grasp, TaskSpec
+from tasks.specs import Grasp, Push, TaskSpec
 
 WELD = "weld, a simplified gripper"  # how the certificate names the simplification
 WELD_BOTH = "welds to both hands, a simplified two-handed squeeze"  # a box held between both hands
 LIFT_TOLERANCE = 0.02  # [m] the object may hang this much lower than asked while held
 PLACE_TOLERANCE = 0.03  # [m] a placed object's centre within this of where it was put
+PUSH_TOLERANCE = 0.02  # [m] a pushed object ends within this of the asked distance along the push, and across it
+OFFER_TOLERANCE = 0.03  # [m] a handed-over object's centre within this of the hand-over point while held out
 MOVED_LIMIT = 0.01  # [m] an object no hand holds moves at most this much
 TIPPED_LIMIT = 0.35  # [rad] an object tilted more than this (20 deg) is knocked over
 HAND_BITS = {"left": 16, "right": 32}  # contype bits of each hand's geoms while it grasps
@@ -92,6 +96,7 @@ class GraspRig:
                 continue  # no weld for this frame: the grasp's check fails (never engaged)
             self.held.append(_Held(grasp=g, side=side, eq=eq, hand_body=int(m.eq_obj1id[eq]),
                                    obj_index=self.names.index(g.object)))
+        self.pushes = [p for p in spec.pushes if p.object in self.names]
         self._bits(sm)
         self.pos = np.zeros((n_ticks, len(self.names), 3))
         self.quat = np.zeros((n_ticks, len(self.names), 4))  # (x, y, z, w), as the robot's base in q
@@ -181,7 +186,9 @@ class GraspRig:
             key = (h.grasp.object, round(h.grasp.start, 9))
             out.extend(self._grasp_checks(h, t, pos, two_hands=pair, first=key not in seen))
             seen.add(key)
-        held = {h.obj_index for h in self.held}
+        for p in self.pushes:
+            out.append(self._push_check(p, t, pos))
+        held = {h.obj_index for h in self.held} | {self.names.index(p.object) for p in self.pushes}
         others = [i for i in range(len(self.names)) if i not in held]
         if others:
             moved = np.linalg.norm(pos[:, others] - pos[0, others], axis=2)
@@ -246,6 +253,8 @@ class GraspRig:
                                        if h.drift > g.tolerance else
                                        f"the {name} ended only {up * 100:.1f} cm above where it stood (asked "
                                        f"{g.lift * 100:g} cm, tolerance {LIFT_TOLERANCE * 100:g} cm)")))
+        if g.offer is not None and g.offer_window is not None:
+            out.append(self._offer_check(h, t, pos))
         if g.place is not None:
             err = float(np.linalg.norm(pos[-1, h.obj_index] - np.asarray(g.place)))
             ok = err <= PLACE_TOLERANCE
@@ -256,4 +265,43 @@ class GraspRig:
         return out
 
 
-__all__ = ["LIFT_TOLERANCE", "MOVED_LIMIT", "PLACE_TOLERANCE", "TIPPED_LIMIT", "WELD", "WELD_BOTH", "GraspRig"]
+    def _push_check(self, p: Push, t: np.ndarray, pos: np.ndarray) -> Check:
+        """The pushed object moved by the asked distance along the push direction (within
+        :data:`PUSH_TOLERANCE`), and no more than :data:`PUSH_TOLERANCE` across it, at the end of the run."""
+        i = self.names.index(p.object)
+        d = pos[-1, i] - pos[0, i]
+        u = np.asarray(p.direction, dtype=float)
+        along = float(d @ u)
+        across = float(np.linalg.norm(d[:2] - along * u[:2]))
+        err = max(abs(along - p.distance), across)
+        ok = err <= PUSH_TOLERANCE
+        return Check(
+            name=f"{p.object} pushed {along:.3f} m of the asked {p.distance:g} m", kind=CheckKind.OBJECT_PUSH,
+            subject=p.object, value=err, limit=PUSH_TOLERANCE, unit="m", ok=ok, time=float(t[-1]),
+            message="" if ok else (f"the {p.object} moved {along * 100:.1f} cm along the push (asked {p.distance * 100:g} cm) "
+                                   f"and {across * 100:.1f} cm across it (at most {PUSH_TOLERANCE * 100:g} cm off)"))
+
+    def _offer_check(self, h: _Held, t: np.ndarray, pos: np.ndarray) -> Check:
+        """The object held out at the hand-over point: over the offer window its centre (MuJoCo body)
+        stays within :data:`OFFER_TOLERANCE` of the point, and the hand holds it (the weld engaged
+        before the window and not let go during it)."""
+        g, name = h.grasp, h.grasp.object
+        w = cast(tuple[float, float], g.offer_window)
+        mask = (t >= w[0] - 1e-9) & (t <= w[1] + 1e-9)
+        err = np.linalg.norm(pos[:, h.obj_index] - np.asarray(g.offer), axis=1)
+        k = int(np.flatnonzero(mask)[np.argmax(err[mask])]) if mask.any() else len(t) - 1
+        worst = float(err[k]) if mask.any() else math.inf
+        held = h.engaged_at is not None and h.engaged_at <= w[0] and (h.released_at is None or h.released_at >= w[1])
+        ok = held and worst <= OFFER_TOLERANCE
+        p = cast(tuple[float, float, float], g.offer)
+        return Check(
+            name=f"{name} handed over: held out at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m ({WELD})",
+            kind=CheckKind.OBJECT_OFFER, subject=name, value=worst if math.isfinite(worst) else 1.0,
+            limit=OFFER_TOLERANCE, unit="m", ok=ok, time=float(t[k]),
+            message="" if ok else (f"the {h.side} hand did not hold the {name} while holding it out" if not held else
+                                   f"the {name} was {worst * 100:.1f} cm from the hand-over point while held out "
+                                   f"(at most {OFFER_TOLERANCE * 100:g} cm)"))
+
+
+__all__ = ["LIFT_TOLERANCE", "MOVED_LIMIT", "OFFER_TOLERANCE", "PLACE_TOLERANCE", "PUSH_TOLERANCE", "TIPPED_LIMIT", "WELD",
+           "WELD_BOTH", "GraspRig"]

@@ -555,6 +555,20 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
                   description="time to reach out, touch, hold and come back"),
         )),
+        # --- handing over and pushing (tasks/primitives/handover.py, push.py) ---
+        ActionSchema(name="hand_over", summary="Hold a picked-up object out in front of the robot at chest height, "
+                     "for a person to take it (picks it up first when no hand holds it).", body="upper", params=(
+            _object("the object to hand over"),
+            _choice("arm", SIDES, None, "which hand holds it (default: the one that picked it up)"),
+        )),
+        ActionSchema(name="push", summary="Push a movable box or cylinder forward by a distance on what it stands on, "
+                     "with one hand on its near face (it slides with its friction).",
+                     body="upper", params=(
+            _object("the object to push"),
+            Param(name="distance", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
+                  description="how far the object is pushed forward (along the robot's heading)"),
+            _choice("arm", SIDES, None, "which hand pushes (default: the one on the object's side)"),
+        )),
     )
 }
 

@@ -191,7 +191,8 @@ def compile_actions(
             f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
             "into several shorter ones"
         )
-    checked = ground_actions(fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot), scene)
+    checked = pick_up_first(ground_actions(fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot), scene),
+                            robot)
     if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
     n = len(checked)
@@ -271,6 +272,7 @@ def compile_actions(
         description=description,
         scene=scene,
         grasps=grasps,
+        pushes=tuple(p for f in fragments for p in f.pushes),
     )
 
 
@@ -347,23 +349,29 @@ def _carrying(fragments: list[Fragment], grasps: tuple[Grasp, ...], robot: Robot
 
 def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
     """The fragments' grasps; a release (``put_down``: a grasp with a ``place``) closes the grasp
-    that holds its object (TaskDefinitionError when none does, or another hand holds it)."""
+    that holds its object, a hand-over (a grasp with an ``offer``) writes its point into it
+    (TaskDefinitionError when none does, or another hand holds it)."""
     out: list[Grasp] = []
     for f in fragments:
         for g in f.grasps:
-            if g.place is None:
+            if g.place is None and g.offer is None:
                 out.append(g)
                 continue
             held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
             if held is None:
+                then = "hand it to me" if g.offer is not None else "put it down"
                 raise TaskDefinitionError(f"{f.action.name}: no hand holds the {g.object}; pick it up first "
-                                          f'("pick up the {g.object}, then put it down")')
+                                          f'("pick up the {g.object}, then {then}")')
             if out[held].frame != g.frame:
                 raise TaskDefinitionError(f"{f.action.name}: the {g.object} is in the other hand")
-            out[held] = dataclasses.replace(out[held], end=g.end, place=g.place)
+            if g.offer is not None:  # hand_over: the same grasp, held out at a point
+                out[held] = dataclasses.replace(out[held], offer=g.offer, offer_window=g.offer_window)
+            else:
+                out[held] = dataclasses.replace(out[held], end=g.end, place=g.place)
     return tuple(out)
 
 
+HOLDING_ACTIONS = ("put_down", "hand_over")  # actions on the object a hand holds: their "it" is the held one
 PRONOUNS = frozenset({"it", "this", "that", "this one", "that one", "它", "这个", "那个"})  # the object said before
 
 
@@ -394,11 +402,11 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
                     if last is None:
                         raise GroundingError(f'"{strip_reference(ref)}" names the object said before, but none was: '
                                              'name it ("touch the box")', strip_reference(ref))
-                    from_hand = (key == "object" and a.name == "put_down") or key == "carrying"
+                    from_hand = (key == "object" and a.name in HOLDING_ACTIONS) or key == "carrying"
                     obj = held if from_hand and held is not None else last
                 else:
                     obj = ground(ref, scene, action=a.name)
-                if obj is not held or a.name != "put_down":
+                if obj is not held or a.name not in HOLDING_ACTIONS:
                     last = obj
                 if a.name == "pick_up" and key == "object":
                     held = obj
@@ -410,18 +418,41 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
     return out
 
 
+def pick_up_first(actions: Sequence[Action], robot: Robot) -> list[Action]:
+    """The actions with a ``pick_up`` of the same object (and hand, when stated) before each
+    ``hand_over`` of an object no earlier action picked up (and no put_down let go of since):
+    "hand me the cup" is "pick up the cup, then hand it over"."""
+    out: list[Action] = []
+    held: set[str] = set()
+    for a in actions:
+        g = a.params.get("object")
+        if isinstance(g, Grounded):
+            if a.name == "pick_up":
+                held.add(g.obj.name)
+            elif a.name == "put_down":
+                held.discard(g.obj.name)
+            elif a.name == "hand_over" and g.obj.name not in held and g.obj.movable:
+                pick = Action(name="pick_up", params={"object": g, "arm": a.params.get("arm")}, overlay=a.overlay)
+                out.append(fit_defaults(get_primitive("pick_up"), pick, robot))
+                a = Action(name=a.name, params=a.params, defaulted=a.defaulted)
+                held.add(g.obj.name)
+        out.append(a)
+    return out
+
+
 def _holding_hand(action: Action, fragments: list[Fragment], robot: Robot) -> Action:
     """A put_down without a hand takes the hand that holds its object (after a walk the object's
     side of the body is no guide)."""
     g = action.params.get("object")
-    if action.name != "put_down" or action.params.get("arm") or not isinstance(g, Grounded):
+    if action.name not in HOLDING_ACTIONS or action.params.get("arm") or not isinstance(g, Grounded):
         return action
     frames = {robot.frame(f"{s}_hand"): s for s in ("left", "right") if robot.has_role(f"{s}_hand")}
     held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
     if not held or held[-1].place is not None or held[-1].frame not in frames:
         return action
     if len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None:
-        raise TaskDefinitionError(f"put_down: the {g.obj.name} is held with both hands; putting it down with both hands "
+        doing = "putting it down" if action.name == "put_down" else "handing it over"
+        raise TaskDefinitionError(f"{action.name}: the {g.obj.name} is held with both hands; {doing} with both hands "
                                   "is not supported yet")
     return Action(name=action.name, params={**action.params, "arm": frames[held[-1].frame]}, overlay=action.overlay,
                   defaulted=action.defaulted)
@@ -514,4 +545,4 @@ def describe_actions(actions: Sequence[Action]) -> str:
 
 
 __all__ = ["STAND_TIME", "TRANSITION_TIME", "compile_actions", "describe_actions", "fit_actions", "ground_actions",
-           "group_actions"]
+           "group_actions", "pick_up_first"]

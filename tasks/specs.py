@@ -378,6 +378,8 @@ class Grasp:
         hold: (t_start, t_end) [s] over which the object is held lifted by ``lift``; None = none.
         place: Where the object's centre is put when it is let go [m]; None = not put down.
         tolerance: The hand holds the object when its centre is within this of ``offset`` [m].
+        offer: Where the object's centre is held out to a person (hand_over) [m]; None = not handed over.
+        offer_window: (t_start, t_end) [s] over which it is held there; None = none.
     """
 
     name: str
@@ -390,6 +392,8 @@ class Grasp:
     hold: Window | None = None
     place: Vec3 | None = None
     tolerance: float = 0.03
+    offer: Vec3 | None = None
+    offer_window: Window | None = None
 
     def __post_init__(self) -> None:
         _text("grasp", "name", self.name)
@@ -412,6 +416,55 @@ class Grasp:
         _nonneg(who, "tolerance", self.tolerance)
         if not self.tolerance > 0.0:
             raise TaskDefinitionError(f"{who}: tolerance must be > 0 m")
+        if self.offer is not None:
+            _vec3(who, "offer", self.offer)
+        _window(who, self.offer_window)
+        if (self.offer is None) != (self.offer_window is None):
+            raise TaskDefinitionError(f"{who}: offer and offer_window go together (a point and when it is held there)")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Push:
+    """A hand pushing a movable scene object: between ``start`` and ``end`` the hand moves it by
+    ``distance`` along ``direction`` (it slides with its friction; docs/objects.md).
+
+    The planner does not move the object (its hand targets on the face name it:
+    ``FrameTarget.touch``); the simulation's certificate checks how far it moved.
+
+    Attributes:
+        name: Unique label ("1 push: right hand pushes the red box").
+        object: The scene object's name (movable).
+        frame: The pushing frame (a hand's frame name).
+        direction: The push direction, a horizontal unit vector (world).
+        distance: How far the object is to move along it [m].
+        start: When the hand touches the object [s].
+        end: When the push ends [s].
+    """
+
+    name: str
+    object: str
+    frame: str
+    direction: Vec3
+    distance: float
+    start: float
+    end: float
+
+    def __post_init__(self) -> None:
+        _text("push", "name", self.name)
+        who = f"push {self.name!r}"
+        for key in ("object", "frame"):
+            value = getattr(self, key)
+            if not isinstance(value, str) or not value:
+                raise TaskDefinitionError(f"{who}: {key} must be a non-empty name, got {_show(value)}")
+            _text(who, key, value)
+        _vec3(who, "direction", self.direction)
+        if abs(math.hypot(*self.direction) - 1.0) > 1e-6 or abs(self.direction[2]) > 1e-6:
+            raise TaskDefinitionError(f"{who}: direction must be a horizontal unit vector, got {_show(self.direction)}")
+        _nonneg(who, "distance", self.distance)
+        _nonneg(who, "start", self.start, hi=MAX_HORIZON, unit="s")
+        _nonneg(who, "end", self.end, hi=MAX_HORIZON, unit="s")
+        if self.end <= self.start:
+            raise TaskDefinitionError(f"{who}: end {_num(self.end)} s must be after start {_num(self.start)} s")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -433,6 +486,7 @@ class TaskSpec:
         description: Free text (the sentence it came from).
         scene: The world around the robot (a floor plus named objects; docs/scenes.md); null = the floor only.
         grasps: Objects of the scene held by a hand over a time window (docs/objects.md).
+        pushes: Objects of the scene a hand pushes over a time window (docs/objects.md).
     """
 
     robot: str = "talos"
@@ -449,6 +503,7 @@ class TaskSpec:
     description: str = ""
     scene: Scene | None = None
     grasps: tuple[Grasp, ...] = ()
+    pushes: tuple[Push, ...] = ()
 
     def __post_init__(self) -> None:
         _text("task spec", "robot", self.robot, limit=MAX_TEXT_LENGTH)
@@ -503,6 +558,7 @@ class TaskSpec:
         if dup:
             raise TaskDefinitionError(f"task spec: names must be unique, repeated: {dup[:10]}")
         self._check_grasps(horizon)
+        self._check_pushes(horizon)
         grid = horizon / intervals
         terms = 0
         in_order: tuple[FrameTarget | CoMTarget | CoMBounds | JointTarget, ...] = (
@@ -543,7 +599,7 @@ class TaskSpec:
             if not names[g.object].movable:
                 raise TaskDefinitionError(f"grasp {g.name!r}: the {g.object} is fixed to the world (movable: false); "
                                           "only a movable object can be picked up")
-            latest = max(x for x in (g.start, g.end, *(g.hold or ())) if x is not None)
+            latest = max(x for x in (g.start, g.end, *(g.hold or ()), *(g.offer_window or ())) if x is not None)
             if latest > horizon + 1e-9:
                 raise TaskDefinitionError(f"grasp {g.name!r}: time {latest:g} s is after the end of the motion ({horizon:g} s)")
         spans = sorted(((g.start, horizon if g.end is None else g.end, g) for g in self.grasps), key=lambda x: x[:2])
@@ -554,6 +610,17 @@ class TaskSpec:
                 if s1 < e0 - 1e-9 and (g1.frame == g0.frame or g1.object == g0.object) and not two_hands:
                     raise TaskDefinitionError(f"grasps {g0.name!r} and {g1.name!r} overlap in time on the same hand "
                                               "or object; let go first")
+
+    def _check_pushes(self, horizon: float) -> None:
+        """Each push names a movable object of the scene, within the horizon."""
+        names = {o.name: o for o in self.scene.objects} if self.scene is not None else {}
+        for p in self.pushes:
+            if not isinstance(p, Push):
+                raise TaskDefinitionError(f"task spec: pushes must hold Push items, got {_show(p)}")
+            if p.object not in names or not names[p.object].movable:
+                raise TaskDefinitionError(f"push {p.name!r}: no movable object {p.object!r} in the scene")
+            if p.end > horizon + 1e-9:
+                raise TaskDefinitionError(f"push {p.name!r}: time {p.end:g} s is after the end of the motion ({horizon:g} s)")
 
     @property
     def horizon(self) -> float:

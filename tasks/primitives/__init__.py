@@ -11,7 +11,8 @@ clap, touch, hands_on_hips, cross_arms, arms_out, point, salute, arm_circles, sh
 body parts from :mod:`.bodymap`), :mod:`.head` (nod, shake_head), and the dynamic
 ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
 march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`; the actions
-on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at); holding one :mod:`.grasp` (pick_up).
+on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at); holding one :mod:`.grasp` (pick_up);
+handing it over :mod:`.handover` (hand_over); pushing one :mod:`.push` (push).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from tasks.primitives import (
     arms,
     balance,
     grasp,
+    handover,
     head,
     hop,
     jump,
@@ -30,6 +32,7 @@ from tasks.primitives import (
     locomotion,
     objects,
     posture,
+    push,
     reach,
     squat,
     wave,
@@ -72,6 +75,8 @@ PRIMITIVES: dict[str, Primitive] = {
         hop.JOG,
         *objects.PRIMITIVES,
         *grasp.PRIMITIVES,
+        *handover.PRIMITIVES,
+        *push.PRIMITIVES,
     )
 }
 

@@ -34,6 +34,7 @@ from tasks.specs import (
     OptVec3,
     Phase,
     Priority,
+    Push,
 )
 
 DEFAULT_DT = 0.075  # [s] knot spacing of compiled specs (the TaskSpec default)
@@ -71,6 +72,7 @@ class Fragment:
         dynamic: Needs the planner's CoM dynamics (steps, jumps).
         end_stance: Where the feet are at the end.
         grasps: Objects a hand takes (or lets go of) in this action.
+        pushes: Objects a hand pushes in this action (the certificate checks how far they moved).
         holds: Names of targets that stay held after the action, until the next action that
             drives one of its parts or moves the feet (or the end of the motion): a held object.
     """
@@ -89,6 +91,7 @@ class Fragment:
     end_stance: Stance
     grasps: tuple[Grasp, ...] = ()
     holds: tuple[str, ...] = ()
+    pushes: tuple[Push, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -162,6 +165,7 @@ class FragmentBuilder:
         self.joint_targets: list[JointTarget] = []
         self.grasps: list[Grasp] = []
         self.holds: list[str] = []
+        self.pushes: list[Push] = []
         self.end_stance = stance
 
     # --- time ---------------------------------------------------------------------------
@@ -262,7 +266,7 @@ class FragmentBuilder:
             targets=tuple(self.targets), com_targets=tuple(self.com_targets),
             com_bounds=tuple(self.com_bounds), joint_targets=tuple(self.joint_targets),
             parts=frozenset(parts), changes_contacts=changes, dynamic=dynamic, end_stance=self.end_stance,
-            grasps=tuple(self.grasps), holds=tuple(self.holds),
+            grasps=tuple(self.grasps), holds=tuple(self.holds), pushes=tuple(self.pushes),
         )
 
 
