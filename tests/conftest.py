@@ -102,3 +102,30 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "long" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """With ``WBMP_TEST_CPU_LOG=FILE``, append one JSON line per test: its wall time and the CPU
+    time of the test process and of the child processes it waited for (set-up, call and
+    tear-down). Wall times mislead on a loaded machine; CPU is the suite's budget
+    (docs/performance.md, "The test suite's budget")."""
+    path = os.environ.get("WBMP_TEST_CPU_LOG")
+    if not path:
+        yield
+        return
+    import json
+    import resource
+    import time
+
+    def cpu() -> tuple[float, float]:
+        own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+        return own.ru_utime + own.ru_stime, kids.ru_utime + kids.ru_stime
+
+    wall0, (own0, kids0) = time.perf_counter(), cpu()
+    yield
+    own1, kids1 = cpu()
+    line = {"test": item.nodeid, "wall": round(time.perf_counter() - wall0, 3),
+            "cpu": round(own1 - own0, 3), "cpu_children": round(kids1 - kids0, 3)}
+    with open(path, "a", encoding="utf-8") as f:
+        f.write(json.dumps(line) + "\n")
