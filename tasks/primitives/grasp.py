@@ -196,6 +196,11 @@ PRE_UP_BOTH = 0.15  # [m] and this far up (the hands come from below the surface
 BOTH_TURN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # about the heading y axis, -90 deg:
 # a hand that hangs down in its standing orientation points forward, the arms reach out under the box's weight
 BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
+FRONT_INSET = 0.01  # [m] a hand longer than the box: its fingertips this far short of the far face (the wrist back)
+RISE_BACK = 0.03  # [m] the hands first rise to the pre-grasp height with their geometry this far behind the box's near face
+HOLD_IN = 0.06  # [m] the lifted box is held this much nearer the chest than where it stood (the shoulders' lever)
+RISE_TIME = 1.0  # [s] nominal: rest -> the hands raised in front of the body, behind the box
+BESIDE_TIME = 1.6  # [s] nominal: raised -> beside the box (its pre-grasp poses); then in to the press by APPROACH_TIME + REACH_IN_TIME
 
 
 def hand_points(robot: Robot, side: str) -> np.ndarray:
@@ -230,18 +235,44 @@ def hand_points(robot: Robot, side: str) -> np.ndarray:
     return np.concatenate(points)
 
 
+def both_turn(robot: Robot, side: str) -> np.ndarray:
+    """The turn (3, 3) (heading axes) from the ``side`` hand's standing orientation to the one that
+    holds a box with both hands: about the heading's lateral axis, by the multiple of 90 deg that
+    brings its fingers (from its wrist, the hand frame's joint, to the middle of its collision
+    meshes) nearest to forward. talos's hands hang down standing: :data:`BOTH_TURN` (-90 deg); g1's
+    point forward with the elbows bent: none."""
+    model, data = robot.model, robot.data()
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    fid = robot.frame_id(f"{side}_hand")
+    wrist = data.oMi[model.frames[fid].parentJoint].translation - data.oMf[fid].translation
+    points = hand_points(robot, side)
+    fingers = 0.5 * (points.min(axis=0) + points.max(axis=0)) - standing_geometry(robot).heading.rotation.T @ wrist
+    angle = np.arctan2(fingers[0], -fingers[2])  # from hanging down (heading -z) towards forward (+x)
+    quarter = round(angle / (np.pi / 2))  # 1: forward already, 0: down, ...
+    return np.linalg.matrix_power(BOTH_TURN, (1 - quarter) % 4)
+
+
 def both_rotation(robot: Robot, side: str) -> np.ndarray:
     """The ``side`` hand's orientation holding a box with both hands (standing world frame): its
-    standing orientation turned by :data:`BOTH_TURN` about the hand frame (heading axes)."""
+    standing orientation turned by :func:`both_turn` (heading axes)."""
     Hs = standing_geometry(robot).heading.rotation
-    return Hs @ BOTH_TURN @ Hs.T @ standing_geometry(robot).rotation(f"{side}_hand")
+    return Hs @ both_turn(robot, side) @ Hs.T @ standing_geometry(robot).rotation(f"{side}_hand")
 
 
 def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -> dict[str, dict[str, np.ndarray]]:
-    """World positions [m] of each hand frame (``pre``, ``grasp``, ``lift``) and its orientation ``R``
-    pressing the box's left and right sides (seen from the robot): each hand's geometry (standing
-    orientation) :data:`SQUEEZE` inside its face, centred on the box front to back, as low as keeps
-    it :data:`GRASP_CLEARANCE` above the box's bottom, centred on the box's height if higher."""
+    """World positions [m] of each hand frame (``rise``, ``pre``, ``grasp``, ``lift``) and its
+    orientation ``R`` pressing the box's left and right sides (seen from the robot): each hand's
+    geometry (standing orientation) :data:`SQUEEZE` inside its face, as low as keeps it
+    :data:`GRASP_CLEARANCE` above the box's bottom, centred on the box's height if higher; centred
+    on the box front to back, or, a hand longer than the box, as far back as keeps its fingertips
+    :data:`FRONT_INSET` short of the far face (the wrist, wider than the hand, clear of the near
+    face: centred, talos's forearm spheres reach 2 cm into the box).
+
+    ``rise``: the pre-grasp height and side, the hand's geometry :data:`RISE_BACK` behind the box's
+    near face (so behind the edge of what it stands on): the hands come up from beside the body in
+    front of it, then forward over the surface. ``lift``: raised by ``height`` and :data:`HOLD_IN`
+    nearer the robot (at most the box's half depth): the held box nearer the chest shortens the
+    shoulders' lever on the arms' own weight and the box's (docs/objects.md)."""
     T = stance.transform_from_standing(robot)
     H = T * standing_geometry(robot).heading  # the heading frame where the robot stands
     c = H.actInv(np.asarray(obj.position, dtype=float))  # the box's centre in that frame
@@ -249,17 +280,18 @@ def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -
     half = np.abs(R_box) @ (np.asarray(obj.size, dtype=float) / 2)  # half extents along the heading axes
     out = {}
     for side, sign in (("left", 1.0), ("right", -1.0)):
-        turned = hand_points(robot, side) @ BOTH_TURN.T  # the hand's collision meshes, turned (heading axes)
+        turned = hand_points(robot, side) @ both_turn(robot, side).T  # the hand's collision meshes, turned (heading axes)
         lo, hi = turned.min(axis=0), turned.max(axis=0)
         inner = lo[1] if sign > 0 else hi[1]  # the hand's side towards the box
         y = c[1] + sign * (half[1] - SQUEEZE) - inner
-        x = c[0] - 0.5 * (lo[0] + hi[0])
+        x = min(c[0] - 0.5 * (lo[0] + hi[0]), c[0] + half[0] - FRONT_INSET - hi[0])
         z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
         grasp = np.array([x, y, z])
         R = T.rotation @ both_rotation(robot, side)
         pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP_BOTH])
-        out[side] = {"pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(grasp) + np.array([0.0, 0.0, height]),
-                     "R": R}
+        rise = np.array([min(pre[0], c[0] - half[0] - RISE_BACK - hi[0]), pre[1], pre[2]])
+        lift = grasp + np.array([-min(HOLD_IN, half[0]), 0.0, height])
+        out[side] = {"rise": H.act(rise), "pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(lift), "R": R}
     return out
 
 
@@ -280,9 +312,10 @@ def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
 
         def put(what: str, key: str, role: str = role, rpy: tuple = rpy, p: dict = p, **when) -> None:
             b.frame_target(what, role, position=tuple(float(x) for x in p[key]), rpy=rpy,
-                           tolerance=GRASP_TARGET_TOLERANCE if key != "pre" else POSE_TOLERANCE, **when)
+                           tolerance=GRASP_TARGET_TOLERANCE if key not in ("rise", "pre") else POSE_TOLERANCE, **when)
 
-        put(f"{side} hand beside the {name}", "pre", time=t_pre)
+        put(f"{side} hand raised before the {name}", "rise", time=RISE_TIME)
+        put(f"{side} hand beside the {name}", "pre", time=BESIDE_TIME)
         put(f"{side} hand presses the {name}", "grasp", window=(t_in, t_close))
         put(f"{side} hand lifts the {name}", "lift", window=(t_lift, DURATION))
         b.holds.append(b.name(f"{side} hand lifts the {name}"))
