@@ -202,7 +202,7 @@ def test_both_hands_press_the_box_sides(talos):
     """用双手拿起红色盒子 / "pick up the red box with both hands": two grasps of the box over the same
     window, one per hand; at each press target the hand's collision meshes (coal, placed where the
     target puts the hand frame) go 0.5-1.5 cm into the box (the planned squeeze) and stay clear of
-    the counter under it; a cup cannot be held that way."""
+    the counter under it, and its fingertip frames point forward; a cup cannot be held that way."""
     import coal
 
     for text in ("用双手拿起红色盒子", "pick up the red box with both hands"):
@@ -233,6 +233,10 @@ def test_both_hands_press_the_box_sides(talos):
                   for i, go in enumerate(cm.geometryObjects) if go.parentJoint in below]
         into_box = min(distance(g, M, BIG_BOX) for g, M in placed)
         assert -0.015 <= into_box <= -0.005, (side, into_box)
+        tips = [target * data.oMf[fid].actInv(data.oMf[f]).translation
+                for f, fr in enumerate(model.frames) if fr.name.startswith(f"gripper_{side}_fingertip")]
+        fingers = np.mean(tips, axis=0) - target.translation  # fingers forward: the arms reach out under the box
+        assert fingers[0] > 0.8 * np.linalg.norm(fingers), (side, fingers)
         assert min(distance(g, M, COUNTER) for g, M in placed) > 0.02
     with pytest.raises(TaskDefinitionError, match="both hands pick up a box"):
         compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "both"})], talos, scene=NEAR)
