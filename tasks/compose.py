@@ -354,7 +354,8 @@ def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
             if g.place is None:
                 out.append(g)
                 continue
-            held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
+            holders = [i for i, h in enumerate(out) if h.object == g.object and h.end is None]
+            held = next((i for i in holders if out[i].frame == g.frame), holders[0] if holders else None)
             if held is None:
                 raise TaskDefinitionError(f"{f.action.name}: no hand holds the {g.object}; pick it up first "
                                           f'("pick up the {g.object}, then put it down")')
@@ -420,11 +421,9 @@ def _holding_hand(action: Action, fragments: list[Fragment], robot: Robot) -> Ac
     held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
     if not held or held[-1].place is not None or held[-1].frame not in frames:
         return action
-    if len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None:
-        raise TaskDefinitionError(f"put_down: the {g.obj.name} is held with both hands; putting it down with both hands "
-                                  "is not supported yet")
-    return Action(name=action.name, params={**action.params, "arm": frames[held[-1].frame]}, overlay=action.overlay,
-                  defaulted=action.defaulted)
+    both = len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None
+    return Action(name=action.name, params={**action.params, "arm": "both" if both else frames[held[-1].frame]},
+                  overlay=action.overlay, defaulted=action.defaulted)
 
 
 def _check_carried(action: Action, fragments: list[Fragment], where: str) -> None:

@@ -114,14 +114,7 @@ def _check(params: dict, robot: Robot) -> None:
     if not isinstance(g.start, Stance):
         return  # where the robot will stand is not known yet (an action before it may walk)
     if params.get("arm") == "both":
-        poses = _both_poses(robot, g.start, obj, 0.0)
-        for side in ("left", "right"):
-            point = to_heading(robot, g.start.transform_from_standing(robot).actInv(poses[side]["grasp"]))
-            gap = reach_gap(robot, side, point, bend=True)
-            if gap > 1e-9:
-                raise TaskDefinitionError(
-                    f"pick_up: the {obj.name}'s {side} side is {gap:.2f} m beyond the {side} hand's reach from where the "
-                    f'robot stands: walk to it first ("walk to the {obj.name} and pick it up with both hands")')
+        _check_both_reach(robot, g.start, obj, "pick_up", f"walk to the {obj.name} and pick it up with both hands")
         return
     side = holding_arm(params, robot)
     T = g.start.transform_from_standing(robot)
@@ -295,6 +288,18 @@ def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -
     return out
 
 
+def _check_both_reach(robot: Robot, stance: Stance, obj: SceneObject, action: str, example: str) -> None:
+    """Both press poses of the box within their hands' reach from ``stance`` (bending at the hips)."""
+    poses = _both_poses(robot, stance, obj, 0.0)
+    for side in ("left", "right"):
+        point = to_heading(robot, stance.transform_from_standing(robot).actInv(poses[side]["grasp"]))
+        gap = reach_gap(robot, side, point, bend=True)
+        if gap > 1e-9:
+            raise TaskDefinitionError(
+                f"{action}: the {obj.name}'s {side} side is {gap:.2f} m beyond the {side} hand's reach from where the "
+                f'robot stands: walk to it first ("{example}")')
+
+
 def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
     """Both hands press the box's sides, lift it by ``height`` and hold it: two :class:`Grasp` of the
     same object over the same window (the payload is shared; the simulation welds it to both hands)."""
@@ -409,6 +414,11 @@ def _put_check(params: dict, robot: Robot) -> None:
     if not g.obj.movable:
         raise TaskDefinitionError(f"put_down: the {g.obj.name} is fixed in the scene; nothing holds it")
     on = destination(params)
+    if params.get("arm") == "both":
+        if on is not None:
+            raise TaskDefinitionError(f"put_down: the {g.obj.name} is held with both hands: it is put back where it was "
+                                      f"(putting it on the {on.obj.name} is not supported yet)")
+        return
     if on is None or not isinstance(g.start, Stance) or not params.get("arm"):
         return
     side = str(params["arm"])
@@ -433,6 +443,8 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     if not isinstance(g.start, Stance):
         g = dataclasses.replace(g, start=b.stance)
         b.params["object"] = g
+    if b.params.get("arm") == "both":
+        return _put_down_both(b, g)
     side = holding_arm(b.params, b.robot) if b.params.get("arm") else _held_side(b, g)
     b.params["arm"] = side
     _put_check(b.params, b.robot)
@@ -463,6 +475,42 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
         start=b.t0, end=b.t(t_rel), place=(float(place[0]), float(place[1]), float(place[2])),
         tolerance=GRASP_TOLERANCE))
     return b.finish(frozenset({f"{side}_arm", "torso"}))
+
+
+PUT_BESIDE_TIME = 2.5  # [s] nominal: let go at LOWER_TIME + RELEASE_TIME, then out beside the box (its pre-grasp poses)
+PUT_RAISED_TIME = 3.0  # [s] back in front of the body (the pick-up's raised poses); rest at PUT_DURATION
+
+
+def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
+    """Both hands lower the box back onto where it was picked up (the press poses), hold it there,
+    let go (a release per hand: each closes its hand's grasp), move out beside it and up (the
+    pre-grasp poses), back in front of the body (the raised poses: the fingers over the surface
+    only above it), and the arms to rest: the pick-up's approach in reverse."""
+    _put_check(b.params, b.robot)
+    _check_both_reach(b.robot, b.stance, g.obj, "put_down", f"walk to where the {g.obj.name} stood and put it down")
+    poses = _both_poses(b.robot, b.stance, g.obj, 0.0)
+    name = g.obj.name
+    t_rel = LOWER_TIME + RELEASE_TIME
+    place = tuple(float(x) for x in g.obj.position)
+    for side in ("left", "right"):
+        role = f"{side}_hand"
+        rpy = b.world_rotation(both_rotation(b.robot, side))
+        p = poses[side]
+        b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in p["grasp"]), rpy=rpy,
+                       window=(LOWER_TIME, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+        b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in p["pre"]), rpy=rpy,
+                       time=PUT_BESIDE_TIME, tolerance=POSE_TOLERANCE)
+        b.frame_target(f"{side} hand back before the {name}", role, position=tuple(float(x) for x in p["rise"]), rpy=rpy,
+                       time=PUT_RAISED_TIME, tolerance=POSE_TOLERANCE)
+        b.grasps.append(Grasp(
+            name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role),
+            offset=(0.0, 0.0, 0.0), start=b.t0, end=b.t(t_rel), place=(place[0], place[1], place[2]),
+            tolerance=GRASP_TOLERANCE))
+    rest_targets(b, ["left_hand", "right_hand"], tau=PUT_DURATION)
+    b.phase(f"lower the {name}", LOWER_TIME)
+    b.phase(f"let go of the {name}", t_rel)
+    b.phase(f"retreat from the {name}", PUT_DURATION)
+    return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
 def _held_side(b: FragmentBuilder, g: Grounded) -> str:

@@ -240,3 +240,28 @@ def test_both_hands_press_the_box_sides(talos):
         assert min(distance(g, M, COUNTER) for g, M in placed) > 0.02
     with pytest.raises(TaskDefinitionError, match="both hands pick up a box"):
         compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "both"})], talos, scene=NEAR)
+
+
+def test_both_hands_put_the_box_back_down(talos):
+    """"pick up the red box with both hands, then put it down" / 用双手拿起红色盒子然后放下: both grasps
+    end together at the put-down's release with the place where the box stood; each hand is lowered
+    onto its press pose of the pick-up (the box back on the counter), then out beside the box, back
+    in front of the body and to rest; putting it on another object with both hands is refused."""
+    scene = Scene(name="a box on a counter", objects=(COUNTER, BIG_BOX))
+    for text in ("pick up the red box with both hands, then put it down", "用双手拿起红色盒子然后放下"):
+        spec = compile_actions(list(parse(text).actions), talos, scene=scene)
+        left, right = spec.grasps
+        assert left.end is not None and (left.start, left.end, left.place) == (right.start, right.end, right.place)
+        assert left.place == pytest.approx(BIG_BOX.position)
+        for side in ("left", "right"):
+            press = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
+            down = next(t for t in spec.targets if t.name.endswith(f"{side} hand puts the red box down"))
+            assert down.position == pytest.approx(press.position) and down.rpy == pytest.approx(press.rpy)
+            assert down.window[1] == pytest.approx(left.end)
+            lift = next(t for t in spec.targets if t.name.endswith(f"{side} hand lifts the red box"))
+            assert lift.window[1] <= down.window[0]  # the hold ends where the put-down starts
+            rest = next(t for t in spec.targets if t.name.endswith(f"{side} hand back at rest"))
+            assert rest.time > down.window[1]
+    with pytest.raises(TaskDefinitionError, match="held with both hands: it is put back where it was"):
+        compile_actions(list(parse("pick up the red box with both hands, then put it on the counter").actions), talos,
+                        scene=scene)
