@@ -189,6 +189,7 @@ PRE_UP_BOTH = 0.15  # [m] and this far up (the hands come from below the surface
 BOTH_TURN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # about the heading y axis, -90 deg:
 # a hand that hangs down in its standing orientation points forward, the arms reach out under the box's weight
 BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
+WRIST_CLEAR = 0.01  # [m] the arm's meshes above the hand (the wrist) alongside the box stay this far off its face
 FRONT_INSET = 0.01  # [m] a hand longer than the box: its fingertips this far short of the far face (the wrist back)
 RISE_BACK = 0.03  # [m] the hands first rise to the pre-grasp height with their geometry this far behind the box's near face
 HOLD_IN = 0.06  # [m] the lifted box is held this much nearer the chest than where it stood (the shoulders' lever)
@@ -196,10 +197,11 @@ RISE_TIME = 1.0  # [s] nominal: rest -> the hands raised in front of the body, b
 BESIDE_TIME = 1.6  # [s] nominal: raised -> beside the box (its pre-grasp poses); then in to the press by APPROACH_TIME + REACH_IN_TIME
 
 
-def hand_points(robot: Robot, side: str) -> np.ndarray:
+def hand_points(robot: Robot, side: str, *, arm: bool = False) -> np.ndarray:
     """Vertices (n, 3) [m] of the collision meshes of the ``side`` hand (its frame's joint and the joints
     below) at the standing posture, relative to the hand frame, in heading axes (a primitive shape:
-    the corners of its box)."""
+    the corners of its box). With ``arm``: those of the arm above the hand instead (the joints from
+    the shoulder to the wrist that carry only this hand)."""
     model, data = robot.model, robot.data()
     cm = robot.collision_model
     gd = pin.GeometryData(cm)
@@ -207,6 +209,8 @@ def hand_points(robot: Robot, side: str) -> np.ndarray:
     pin.updateGeometryPlacements(model, data, cm, gd, robot.q_standing)
     fid = robot.frame_id(f"{side}_hand")
     below = set(model.subtrees[model.frames[fid].parentJoint])
+    if arm:
+        below = set(carrying_joints(robot, side)[1]) - below
     Hs = standing_geometry(robot).heading.rotation
     origin = data.oMf[fid].translation
     points = []
@@ -279,6 +283,12 @@ def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -
         y = c[1] + sign * (half[1] - SQUEEZE) - inner
         x = min(c[0] - 0.5 * (lo[0] + hi[0]), c[0] + half[0] - FRONT_INSET - hi[0])
         z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
+        arm = hand_points(robot, side, arm=True) @ both_turn(robot, side).T + [x, 0.0, z]  # the wrist, forearm
+        beside = (np.abs(arm[:, 0] - c[0]) < half[0]) & (np.abs(arm[:, 2] - c[2]) < half[2])  # alongside the box
+        if beside.any():  # a wrist wider than the hand (g1) stays WRIST_CLEAR off the face: the hand stops short of it
+            face = c[1] + sign * half[1]
+            wrist = arm[beside, 1].min() if sign > 0 else arm[beside, 1].max()
+            y = max(y, face + WRIST_CLEAR - wrist) if sign > 0 else min(y, face - WRIST_CLEAR - wrist)
         grasp = np.array([x, y, z])
         R = T.rotation @ both_rotation(robot, side)
         pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP_BOTH])

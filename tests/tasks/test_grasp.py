@@ -265,3 +265,41 @@ def test_both_hands_put_the_box_back_down(talos):
     with pytest.raises(TaskDefinitionError, match="held with both hands: it is put back where it was"):
         compile_actions(list(parse("pick up the red box with both hands, then put it on the counter").actions), talos,
                         scene=scene)
+
+
+def test_g1s_wider_wrist_stays_off_the_box(g1):
+    """g1 (examples/scenes/box_on_low_table.json): at each press target (coal, the meshes placed where
+    the target puts the hand frame, standing relative placements) the wrist and forearm meshes above
+    the hand stay at least 1 cm off the box, the hand's own meshes off it too (the welds hold the
+    box), and both clear the table; the hand frame is level with the box's side, not turned."""
+    import coal
+
+    from tasks.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_low_table.json")
+    box, table = scene.get("red box"), scene.get("table")
+    spec = compile_actions(list(parse("用双手拿起红色盒子").actions), g1, scene=scene)
+    model, data = g1.model, g1.data()
+    cm = g1.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, g1.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, g1.q_standing)
+
+    def distance(geometry, M, obj):
+        return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
+                             coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
+                             coal.DistanceResult())
+
+    for side in ("left", "right"):
+        t = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
+        fid = g1.frame_id(f"{side}_hand")
+        joint = model.frames[fid].parentJoint
+        target = pin.SE3(pin.rpy.rpyToMatrix(*t.rpy), np.asarray(t.position))
+        np.testing.assert_allclose(target.rotation, data.oMf[fid].rotation, atol=1e-9)  # g1's standing hand
+        placed = {i: target * data.oMf[fid].actInv(gd.oMg[i]) for i in range(len(cm.geometryObjects))}
+        hand = [i for i, go in enumerate(cm.geometryObjects) if go.parentJoint in model.subtrees[joint]]
+        wrist = [i for i, go in enumerate(cm.geometryObjects) if "wrist" in go.name and i not in hand and side in go.name]
+        assert wrist
+        assert min(distance(cm.geometryObjects[i].geometry, placed[i], box) for i in wrist) >= 0.0095
+        assert 0.0 < min(distance(cm.geometryObjects[i].geometry, placed[i], box) for i in hand) < 0.03
+        assert min(distance(cm.geometryObjects[i].geometry, placed[i], table) for i in hand + wrist) > 0.02
