@@ -4,9 +4,9 @@ The talos model's fingers are fixed links (its gripper joint moves no finger in 
 gripper cannot close on the object. The named simplification (docs/objects.md), for each
 :class:`tasks.specs.Grasp` of the spec:
 
-* the grasping hand's links (its body and everything below it) do not collide with the grasped
-  object, and do not touch the floor (they still touch every other object and every link of a
-  self-collision pair);
+* the grasping hand's links (the link of its frame's joint and every body below it, the links the
+  planner's scene rows exempt) do not collide with the grasped object, and do not touch the floor
+  (they still touch every other object and every link of a self-collision pair);
 * from the grasp's ``start`` on, at the first tick where the object's centre is within the grasp's
   ``tolerance`` of where the hand holds it (``offset`` in the hand frame), the hand's inactive weld
   to the object (:func:`sim.model.grasp_weld_name`) engages, at the relative pose the two have then
@@ -29,6 +29,7 @@ from typing import cast
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from robots.model import Robot
@@ -97,15 +98,17 @@ class GraspRig:
             self.held.append(_Held(grasp=g, side=side, eq=eq, hand_body=int(m.eq_obj1id[eq]),
                                    obj_index=self.names.index(g.object)))
         self.pushes = [p for p in spec.pushes if p.object in self.names]
-        self._bits(sm)
+        self._bits(sm, robot)
         self.pos = np.zeros((n_ticks, len(self.names), 3))
         self.quat = np.zeros((n_ticks, len(self.names), 4))  # (x, y, z, w), as the robot's base in q
         self.tilt = np.zeros((n_ticks, len(self.names)))
         self.t = np.zeros(n_ticks)
         self.n = 0
 
-    def _bits(self, sm: SimModel) -> None:
-        """The grasping hands' geoms collide with no object they grasp (and no longer with the floor)."""
+    def _bits(self, sm: SimModel, robot: Robot) -> None:
+        """The grasping hands' geoms collide with no object they grasp (and no longer with the floor).
+        A hand is, as for the planner's scene rows, the link of its frame's joint and every body below
+        it (talos: the wrist's last link, arm_*_7_link, with the gripper)."""
         m = self.model
         if not self.held:
             return
@@ -113,7 +116,11 @@ class GraspRig:
         geom_body = np.asarray(m.geom_bodyid, dtype=int)
         for side in {h.side for h in self.held}:
             bit = HAND_BITS[side]
-            hand = _descendants(m, next(h.hand_body for h in self.held if h.side == side))
+            weld = next(h.hand_body for h in self.held if h.side == side)
+            joint = robot.model.frames[robot.frame_id(f"{side}_hand")].parentJoint
+            link = next((f.name for f in robot.model.frames if f.parentJoint == joint and f.type == pin.FrameType.BODY), "")
+            root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, link) if link else -1
+            hand = _descendants(m, root if root >= 0 and weld in _descendants(m, root) else weld)
             hand_geoms = [g for g in range(m.ngeom) if role[g] == ROBOT_ROLE and int(geom_body[g]) in hand]
             grasped = {h.grasp.object for h in self.held if h.side == side}
             for g in hand_geoms:

@@ -540,7 +540,8 @@ REGISTRY: dict[str, ActionSchema] = {
         ActionSchema(name="put_down", summary="Put a held object down (where it was picked up, or on another object) and let go of it.",
                      body="upper", params=(
             _object("the held object to put down"),
-            _choice("arm", SIDES, None, "which hand holds it (default: the one on the object's side)"),
+            _choice("arm", ARMS, None, "which hand holds it, or both (a box held with both hands) (default: the hand "
+                    "that holds it)"),
             Param(name="on", kind="object", default=None,
                   description="where to put it: on top of this object (default: back where it was)"),
             _choice("direction", DIRECTIONS, None, "put it this way (seen from the robot) from where it was, or from "

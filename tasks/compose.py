@@ -357,7 +357,8 @@ def _grasps(fragments: list[Fragment], horizon: float) -> tuple[Grasp, ...]:
             if g.place is None and g.offer is None:
                 out.append(g)
                 continue
-            held = next((i for i, h in enumerate(out) if h.object == g.object and h.end is None), None)
+            holders = [i for i, h in enumerate(out) if h.object == g.object and h.end is None]
+            held = next((i for i in holders if out[i].frame == g.frame), holders[0] if holders else None)
             if held is None:
                 then = "hand it to me" if g.offer is not None else "put it down"
                 raise TaskDefinitionError(f"{f.action.name}: no hand holds the {g.object}; pick it up first "
@@ -450,12 +451,12 @@ def _holding_hand(action: Action, fragments: list[Fragment], robot: Robot) -> Ac
     held = [gr for f in fragments for gr in f.grasps if gr.object == g.obj.name]
     if not held or held[-1].place is not None or held[-1].frame not in frames:
         return action
-    if len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None:
-        doing = "putting it down" if action.name == "put_down" else "handing it over"
-        raise TaskDefinitionError(f"{action.name}: the {g.obj.name} is held with both hands; {doing} with both hands "
-                                  "is not supported yet")
-    return Action(name=action.name, params={**action.params, "arm": frames[held[-1].frame]}, overlay=action.overlay,
-                  defaulted=action.defaulted)
+    both = len(held) > 1 and held[-2].start == held[-1].start and held[-2].place is None
+    if both and action.name != "put_down":
+        raise TaskDefinitionError(f"{action.name}: the {g.obj.name} is held with both hands; handing it over with both "
+                                  "hands is not supported yet")
+    return Action(name=action.name, params={**action.params, "arm": "both" if both else frames[held[-1].frame]},
+                  overlay=action.overlay, defaulted=action.defaulted)
 
 
 def _check_carried(action: Action, fragments: list[Fragment], where: str) -> None:

@@ -114,14 +114,7 @@ def _check(params: dict, robot: Robot) -> None:
     if not isinstance(g.start, Stance):
         return  # where the robot will stand is not known yet (an action before it may walk)
     if params.get("arm") == "both":
-        poses = _both_poses(robot, g.start, obj, 0.0)
-        for side in ("left", "right"):
-            point = to_heading(robot, g.start.transform_from_standing(robot).actInv(poses[side]["grasp"]))
-            gap = reach_gap(robot, side, point, bend=True)
-            if gap > 1e-9:
-                raise TaskDefinitionError(
-                    f"pick_up: the {obj.name}'s {side} side is {gap:.2f} m beyond the {side} hand's reach from where the "
-                    f'robot stands: walk to it first ("walk to the {obj.name} and pick it up with both hands")')
+        _check_both_reach(robot, g.start, obj, "pick_up", f"walk to the {obj.name} and pick it up with both hands")
         return
     side = holding_arm(params, robot)
     T = g.start.transform_from_standing(robot)
@@ -196,12 +189,19 @@ PRE_UP_BOTH = 0.15  # [m] and this far up (the hands come from below the surface
 BOTH_TURN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # about the heading y axis, -90 deg:
 # a hand that hangs down in its standing orientation points forward, the arms reach out under the box's weight
 BOTH_TOLERANCE = 0.03  # [m] a hand holds the box when the box's centre is this close to its held place (simulation)
+WRIST_CLEAR = 0.01  # [m] the arm's meshes above the hand (the wrist) alongside the box stay this far off its face
+FRONT_INSET = 0.01  # [m] a hand longer than the box: its fingertips this far short of the far face (the wrist back)
+RISE_BACK = 0.03  # [m] the hands first rise to the pre-grasp height with their geometry this far behind the box's near face
+HOLD_IN = 0.06  # [m] the lifted box is held this much nearer the chest than where it stood (the shoulders' lever)
+RISE_TIME = 1.0  # [s] nominal: rest -> the hands raised in front of the body, behind the box
+BESIDE_TIME = 1.6  # [s] nominal: raised -> beside the box (its pre-grasp poses); then in to the press by APPROACH_TIME + REACH_IN_TIME
 
 
-def hand_points(robot: Robot, side: str) -> np.ndarray:
+def hand_points(robot: Robot, side: str, *, arm: bool = False) -> np.ndarray:
     """Vertices (n, 3) [m] of the collision meshes of the ``side`` hand (its frame's joint and the joints
     below) at the standing posture, relative to the hand frame, in heading axes (a primitive shape:
-    the corners of its box)."""
+    the corners of its box). With ``arm``: those of the arm above the hand instead (the joints from
+    the shoulder to the wrist that carry only this hand)."""
     model, data = robot.model, robot.data()
     cm = robot.collision_model
     gd = pin.GeometryData(cm)
@@ -209,6 +209,8 @@ def hand_points(robot: Robot, side: str) -> np.ndarray:
     pin.updateGeometryPlacements(model, data, cm, gd, robot.q_standing)
     fid = robot.frame_id(f"{side}_hand")
     below = set(model.subtrees[model.frames[fid].parentJoint])
+    if arm:
+        below = set(carrying_joints(robot, side)[1]) - below
     Hs = standing_geometry(robot).heading.rotation
     origin = data.oMf[fid].translation
     points = []
@@ -230,18 +232,44 @@ def hand_points(robot: Robot, side: str) -> np.ndarray:
     return np.concatenate(points)
 
 
+def both_turn(robot: Robot, side: str) -> np.ndarray:
+    """The turn (3, 3) (heading axes) from the ``side`` hand's standing orientation to the one that
+    holds a box with both hands: about the heading's lateral axis, by the multiple of 90 deg that
+    brings its fingers (from its wrist, the hand frame's joint, to the middle of its collision
+    meshes) nearest to forward. talos's hands hang down standing: :data:`BOTH_TURN` (-90 deg); g1's
+    point forward with the elbows bent: none."""
+    model, data = robot.model, robot.data()
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    fid = robot.frame_id(f"{side}_hand")
+    wrist = data.oMi[model.frames[fid].parentJoint].translation - data.oMf[fid].translation
+    points = hand_points(robot, side)
+    fingers = 0.5 * (points.min(axis=0) + points.max(axis=0)) - standing_geometry(robot).heading.rotation.T @ wrist
+    angle = np.arctan2(fingers[0], -fingers[2])  # from hanging down (heading -z) towards forward (+x)
+    quarter = round(angle / (np.pi / 2))  # 1: forward already, 0: down, ...
+    return np.linalg.matrix_power(BOTH_TURN, (1 - quarter) % 4)
+
+
 def both_rotation(robot: Robot, side: str) -> np.ndarray:
     """The ``side`` hand's orientation holding a box with both hands (standing world frame): its
-    standing orientation turned by :data:`BOTH_TURN` about the hand frame (heading axes)."""
+    standing orientation turned by :func:`both_turn` (heading axes)."""
     Hs = standing_geometry(robot).heading.rotation
-    return Hs @ BOTH_TURN @ Hs.T @ standing_geometry(robot).rotation(f"{side}_hand")
+    return Hs @ both_turn(robot, side) @ Hs.T @ standing_geometry(robot).rotation(f"{side}_hand")
 
 
 def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -> dict[str, dict[str, np.ndarray]]:
-    """World positions [m] of each hand frame (``pre``, ``grasp``, ``lift``) and its orientation ``R``
-    pressing the box's left and right sides (seen from the robot): each hand's geometry (standing
-    orientation) :data:`SQUEEZE` inside its face, centred on the box front to back, as low as keeps
-    it :data:`GRASP_CLEARANCE` above the box's bottom, centred on the box's height if higher."""
+    """World positions [m] of each hand frame (``rise``, ``pre``, ``grasp``, ``lift``) and its
+    orientation ``R`` pressing the box's left and right sides (seen from the robot): each hand's
+    geometry (standing orientation) :data:`SQUEEZE` inside its face, as low as keeps it
+    :data:`GRASP_CLEARANCE` above the box's bottom, centred on the box's height if higher; centred
+    on the box front to back, or, a hand longer than the box, as far back as keeps its fingertips
+    :data:`FRONT_INSET` short of the far face (the wrist, wider than the hand, clear of the near
+    face: centred, talos's forearm spheres reach 2 cm into the box).
+
+    ``rise``: the pre-grasp height and side, the hand's geometry :data:`RISE_BACK` behind the box's
+    near face (so behind the edge of what it stands on): the hands come up from beside the body in
+    front of it, then forward over the surface. ``lift``: raised by ``height`` and :data:`HOLD_IN`
+    nearer the robot (at most the box's half depth): the held box nearer the chest shortens the
+    shoulders' lever on the arms' own weight and the box's (docs/objects.md)."""
     T = stance.transform_from_standing(robot)
     H = T * standing_geometry(robot).heading  # the heading frame where the robot stands
     c = H.actInv(np.asarray(obj.position, dtype=float))  # the box's centre in that frame
@@ -249,18 +277,37 @@ def _both_poses(robot: Robot, stance: Stance, obj: SceneObject, height: float) -
     half = np.abs(R_box) @ (np.asarray(obj.size, dtype=float) / 2)  # half extents along the heading axes
     out = {}
     for side, sign in (("left", 1.0), ("right", -1.0)):
-        turned = hand_points(robot, side) @ BOTH_TURN.T  # the hand's collision meshes, turned (heading axes)
+        turned = hand_points(robot, side) @ both_turn(robot, side).T  # the hand's collision meshes, turned (heading axes)
         lo, hi = turned.min(axis=0), turned.max(axis=0)
         inner = lo[1] if sign > 0 else hi[1]  # the hand's side towards the box
         y = c[1] + sign * (half[1] - SQUEEZE) - inner
-        x = c[0] - 0.5 * (lo[0] + hi[0])
+        x = min(c[0] - 0.5 * (lo[0] + hi[0]), c[0] + half[0] - FRONT_INSET - hi[0])
         z = max(c[2] - 0.5 * (lo[2] + hi[2]), c[2] - half[2] + GRASP_CLEARANCE - lo[2])
+        arm = hand_points(robot, side, arm=True) @ both_turn(robot, side).T + [x, 0.0, z]  # the wrist, forearm
+        beside = (np.abs(arm[:, 0] - c[0]) < half[0]) & (np.abs(arm[:, 2] - c[2]) < half[2])  # alongside the box
+        if beside.any():  # a wrist wider than the hand (g1) stays WRIST_CLEAR off the face: the hand stops short of it
+            face = c[1] + sign * half[1]
+            wrist = arm[beside, 1].min() if sign > 0 else arm[beside, 1].max()
+            y = max(y, face + WRIST_CLEAR - wrist) if sign > 0 else min(y, face - WRIST_CLEAR - wrist)
         grasp = np.array([x, y, z])
         R = T.rotation @ both_rotation(robot, side)
         pre = grasp + np.array([0.0, sign * PRE_SIDE, PRE_UP_BOTH])
-        out[side] = {"pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(grasp) + np.array([0.0, 0.0, height]),
-                     "R": R}
+        rise = np.array([min(pre[0], c[0] - half[0] - RISE_BACK - hi[0]), pre[1], pre[2]])
+        lift = grasp + np.array([-min(HOLD_IN, half[0]), 0.0, height])
+        out[side] = {"rise": H.act(rise), "pre": H.act(pre), "grasp": H.act(grasp), "lift": H.act(lift), "R": R}
     return out
+
+
+def _check_both_reach(robot: Robot, stance: Stance, obj: SceneObject, action: str, example: str) -> None:
+    """Both press poses of the box within their hands' reach from ``stance`` (bending at the hips)."""
+    poses = _both_poses(robot, stance, obj, 0.0)
+    for side in ("left", "right"):
+        point = to_heading(robot, stance.transform_from_standing(robot).actInv(poses[side]["grasp"]))
+        gap = reach_gap(robot, side, point, bend=True)
+        if gap > 1e-9:
+            raise TaskDefinitionError(
+                f"{action}: the {obj.name}'s {side} side is {gap:.2f} m beyond the {side} hand's reach from where the "
+                f'robot stands: walk to it first ("{example}")')
 
 
 def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
@@ -280,9 +327,10 @@ def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
 
         def put(what: str, key: str, role: str = role, rpy: tuple = rpy, p: dict = p, **when) -> None:
             b.frame_target(what, role, position=tuple(float(x) for x in p[key]), rpy=rpy,
-                           tolerance=GRASP_TARGET_TOLERANCE if key != "pre" else POSE_TOLERANCE, **when)
+                           tolerance=GRASP_TARGET_TOLERANCE if key not in ("rise", "pre") else POSE_TOLERANCE, **when)
 
-        put(f"{side} hand beside the {name}", "pre", time=t_pre)
+        put(f"{side} hand raised before the {name}", "rise", time=RISE_TIME)
+        put(f"{side} hand beside the {name}", "pre", time=BESIDE_TIME)
         put(f"{side} hand presses the {name}", "grasp", window=(t_in, t_close))
         put(f"{side} hand lifts the {name}", "lift", window=(t_lift, DURATION))
         b.holds.append(b.name(f"{side} hand lifts the {name}"))
@@ -472,6 +520,12 @@ def _put_check(params: dict, robot: Robot) -> None:
                                   f'("put the {g.obj.name} down 20 cm to the left")')
     on = destination(params)
     moving = shift(params, g.start) is not None if isinstance(g.start, Stance) else False
+    if params.get("arm") == "both":
+        if on is not None or moving:
+            where = f"on the {on.obj.name}" if on is not None else "on another spot"
+            raise TaskDefinitionError(f"put_down: the {g.obj.name} is held with both hands: it is put back where it was "
+                                      f"(putting it {where} is not supported yet)")
+        return
     if (on is None and not moving) or not isinstance(g.start, Stance) or not params.get("arm"):
         return
     side = str(params["arm"])
@@ -503,6 +557,8 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     if not isinstance(g.start, Stance):
         g = dataclasses.replace(g, start=b.stance)
         b.params["object"] = g
+    if b.params.get("arm") == "both":
+        return _put_down_both(b, g)
     side = holding_arm(b.params, b.robot) if b.params.get("arm") else _held_side(b, g)
     b.params["arm"] = side
     _put_check(b.params, b.robot)
@@ -536,6 +592,42 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
         start=b.t0, end=b.t(t_rel), place=(float(place[0]), float(place[1]), float(place[2])),
         tolerance=GRASP_TOLERANCE))
     return b.finish(frozenset({f"{side}_arm", "torso"}))
+
+
+PUT_BESIDE_TIME = 2.5  # [s] nominal: let go at LOWER_TIME + RELEASE_TIME, then out beside the box (its pre-grasp poses)
+PUT_RAISED_TIME = 3.0  # [s] back in front of the body (the pick-up's raised poses); rest at PUT_DURATION
+
+
+def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
+    """Both hands lower the box back onto where it was picked up (the press poses), hold it there,
+    let go (a release per hand: each closes its hand's grasp), move out beside it and up (the
+    pre-grasp poses), back in front of the body (the raised poses: the fingers over the surface
+    only above it), and the arms to rest: the pick-up's approach in reverse."""
+    _put_check(b.params, b.robot)
+    _check_both_reach(b.robot, b.stance, g.obj, "put_down", f"walk to where the {g.obj.name} stood and put it down")
+    poses = _both_poses(b.robot, b.stance, g.obj, 0.0)
+    name = g.obj.name
+    t_rel = LOWER_TIME + RELEASE_TIME
+    place = tuple(float(x) for x in g.obj.position)
+    for side in ("left", "right"):
+        role = f"{side}_hand"
+        rpy = b.world_rotation(both_rotation(b.robot, side))
+        p = poses[side]
+        b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in p["grasp"]), rpy=rpy,
+                       window=(LOWER_TIME, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+        b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in p["pre"]), rpy=rpy,
+                       time=PUT_BESIDE_TIME, tolerance=POSE_TOLERANCE)
+        b.frame_target(f"{side} hand back before the {name}", role, position=tuple(float(x) for x in p["rise"]), rpy=rpy,
+                       time=PUT_RAISED_TIME, tolerance=POSE_TOLERANCE)
+        b.grasps.append(Grasp(
+            name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role),
+            offset=(0.0, 0.0, 0.0), start=b.t0, end=b.t(t_rel), place=(place[0], place[1], place[2]),
+            tolerance=GRASP_TOLERANCE))
+    rest_targets(b, ["left_hand", "right_hand"], tau=PUT_DURATION)
+    b.phase(f"lower the {name}", LOWER_TIME)
+    b.phase(f"let go of the {name}", t_rel)
+    b.phase(f"retreat from the {name}", PUT_DURATION)
+    return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
 def _held_side(b: FragmentBuilder, g: Grounded) -> str:

@@ -203,7 +203,7 @@ def test_both_hands_press_the_box_sides(talos):
     """用双手拿起红色盒子 / "pick up the red box with both hands": two grasps of the box over the same
     window, one per hand; at each press target the hand's collision meshes (coal, placed where the
     target puts the hand frame) go 0.5-1.5 cm into the box (the planned squeeze) and stay clear of
-    the counter under it; a cup cannot be held that way."""
+    the counter under it, and its fingertip frames point forward; a cup cannot be held that way."""
     import coal
 
     for text in ("用双手拿起红色盒子", "pick up the red box with both hands"):
@@ -234,6 +234,10 @@ def test_both_hands_press_the_box_sides(talos):
                   for i, go in enumerate(cm.geometryObjects) if go.parentJoint in below]
         into_box = min(distance(g, M, BIG_BOX) for g, M in placed)
         assert -0.015 <= into_box <= -0.005, (side, into_box)
+        tips = [target * data.oMf[fid].actInv(data.oMf[f]).translation
+                for f, fr in enumerate(model.frames) if fr.name.startswith(f"gripper_{side}_fingertip")]
+        fingers = np.mean(tips, axis=0) - target.translation  # fingers forward: the arms reach out under the box
+        assert fingers[0] > 0.8 * np.linalg.norm(fingers), (side, fingers)
         assert min(distance(g, M, COUNTER) for g, M in placed) > 0.02
     with pytest.raises(TaskDefinitionError, match="both hands pick up a box"):
         compile_actions([Action(name="pick_up", params={"object": "the cup", "arm": "both"})], talos, scene=NEAR)
@@ -285,3 +289,66 @@ def test_put_down_on_a_spot(talos):
         book = dataclasses.replace(BOOK, position=(0.72, -0.2, 0.74))
         compile_actions(list(parse("pick up the cup, then put it 20 cm forward").actions), talos,
                         scene=Scene(name="cup and book", objects=(TABLE, CUP, book)))
+
+
+def test_both_hands_put_the_box_back_down(talos):
+    """"pick up the red box with both hands, then put it down" / 用双手拿起红色盒子然后放下: both grasps
+    end together at the put-down's release with the place where the box stood; each hand is lowered
+    onto its press pose of the pick-up (the box back on the counter), then out beside the box, back
+    in front of the body and to rest; putting it on another object with both hands is refused."""
+    scene = Scene(name="a box on a counter", objects=(COUNTER, BIG_BOX))
+    for text in ("pick up the red box with both hands, then put it down", "用双手拿起红色盒子然后放下"):
+        spec = compile_actions(list(parse(text).actions), talos, scene=scene)
+        left, right = spec.grasps
+        assert left.end is not None and (left.start, left.end, left.place) == (right.start, right.end, right.place)
+        assert left.place == pytest.approx(BIG_BOX.position)
+        for side in ("left", "right"):
+            press = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
+            down = next(t for t in spec.targets if t.name.endswith(f"{side} hand puts the red box down"))
+            assert down.position == pytest.approx(press.position) and down.rpy == pytest.approx(press.rpy)
+            assert down.window[1] == pytest.approx(left.end)
+            lift = next(t for t in spec.targets if t.name.endswith(f"{side} hand lifts the red box"))
+            assert lift.window[1] <= down.window[0]  # the hold ends where the put-down starts
+            rest = next(t for t in spec.targets if t.name.endswith(f"{side} hand back at rest"))
+            assert rest.time > down.window[1]
+    with pytest.raises(TaskDefinitionError, match="held with both hands: it is put back where it was"):
+        compile_actions(list(parse("pick up the red box with both hands, then put it on the counter").actions), talos,
+                        scene=scene)
+
+
+def test_g1s_wider_wrist_stays_off_the_box(g1):
+    """g1 (examples/scenes/box_on_low_table.json): at each press target (coal, the meshes placed where
+    the target puts the hand frame, standing relative placements) the wrist and forearm meshes above
+    the hand stay at least 1 cm off the box, the hand's own meshes off it too (the welds hold the
+    box), and both clear the table; the hand frame is level with the box's side, not turned."""
+    import coal
+
+    from tasks.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_low_table.json")
+    box, table = scene.get("red box"), scene.get("table")
+    spec = compile_actions(list(parse("用双手拿起红色盒子").actions), g1, scene=scene)
+    model, data = g1.model, g1.data()
+    cm = g1.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, g1.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, g1.q_standing)
+
+    def distance(geometry, M, obj):
+        return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
+                             coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
+                             coal.DistanceResult())
+
+    for side in ("left", "right"):
+        t = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
+        fid = g1.frame_id(f"{side}_hand")
+        joint = model.frames[fid].parentJoint
+        target = pin.SE3(pin.rpy.rpyToMatrix(*t.rpy), np.asarray(t.position))
+        np.testing.assert_allclose(target.rotation, data.oMf[fid].rotation, atol=1e-9)  # g1's standing hand
+        placed = {i: target * data.oMf[fid].actInv(gd.oMg[i]) for i in range(len(cm.geometryObjects))}
+        hand = [i for i, go in enumerate(cm.geometryObjects) if go.parentJoint in model.subtrees[joint]]
+        wrist = [i for i, go in enumerate(cm.geometryObjects) if "wrist" in go.name and i not in hand and side in go.name]
+        assert wrist
+        assert min(distance(cm.geometryObjects[i].geometry, placed[i], box) for i in wrist) >= 0.0095
+        assert 0.0 < min(distance(cm.geometryObjects[i].geometry, placed[i], box) for i in hand) < 0.03
+        assert min(distance(cm.geometryObjects[i].geometry, placed[i], table) for i in hand + wrist) > 0.02
