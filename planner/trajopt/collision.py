@@ -35,6 +35,7 @@ from robots.collision import CollisionModel, body_part, collision_model
 from robots.model import Robot
 
 KNOT_PADDING = 3  # knots added on each side of a screened pair's close knots
+SCREEN_APPROACH = 0.005  # [m] a pair already within the screening distance at the start gets rows only where the guess brings it this much closer
 CHECK_TOLERANCE = 1e-4  # [m] a pair this much inside the margin without rows triggers another round
 
 
@@ -135,18 +136,20 @@ def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.n
     """Distance of every sphere pair of every checked link pair at every configuration: (T, S) [m]
     (negative: the spheres overlap); pair ``p``'s block starts at ``sets.starts[p]``."""
     model, data = robot.model, robot.data()
-    out = np.full((len(q), len(sets.sa)), np.inf)
     if len(sets.sa) == 0:
-        return out
+        return np.full((len(q), 0), np.inf)
     rsum = sets.pair_radius[sets.sa] + sets.pair_radius[sets.sb]
-    o = sets.pair_owner
+    joints, where = np.unique(sets.joints, return_inverse=True)
+    H = np.empty((len(q), len(joints), 4, 4))  # the joints' placements at every knot
     for k, qk in enumerate(q):
         pin.forwardKinematics(model, data, qk)
-        R = np.array([data.oMi[int(j)].rotation for j in sets.joints])
-        p = np.array([data.oMi[int(j)].translation for j in sets.joints])
-        world = np.einsum("nij,nj->ni", R[o], sets.pair_local) + p[o]
-        out[k] = np.linalg.norm(world[sets.sa] - world[sets.sb], axis=1) - rsum
-    return out
+        for i, j in enumerate(joints):
+            H[k, i] = data.oMi[int(j)].homogeneous
+    o = where[sets.pair_owner]  # the joint (row of H) of every sphere
+    Hs = H[:, o]
+    world = np.einsum("tsij,sj->tsi", Hs[..., :3, :3], sets.pair_local) + Hs[..., :3, 3]
+    diff = world[:, sets.sa] - world[:, sets.sb]
+    return np.sqrt(np.einsum("tsi,tsi->ts", diff, diff)) - rsum
 
 
 def pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
@@ -198,11 +201,21 @@ def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: floa
     :data:`KNOT_PADDING`. ``only`` (T, S) bool, when given, restricts the link pairs to those with
     a marked entry. All close sphere pairs, not only the closest: a solve that pushes one sphere
     pair apart slides the limb onto its neighbour, and each such round builds a solver and solves
-    again (docs/collisions.md)."""
+    again (docs/collisions.md).
+
+    Without ``only`` (the screening of the initial guess), a sphere pair that is already closer
+    than ``threshold`` at the first knot (the start posture: Talos's ankles, 19.5 mm in the
+    standing posture) counts as close only where the guess brings it :data:`SCREEN_APPROACH`
+    closer than it starts: a task that does not move it carries no row for it (the solution is
+    checked after the solve all the same, and a pair within the margin gets its rows then)."""
     rows = Rows()
     if len(sets.starts) == 0:
         return rows
     d = distances.copy()
+    if only is None and len(d):
+        near_at_start = d[0] < threshold
+        d[:, near_at_start] = np.where(d[:, near_at_start] > d[0, near_at_start] - SCREEN_APPROACH, np.inf,
+                                       d[:, near_at_start])
     d[:2] = np.inf
     d[lay.N:] = np.inf
     pair_min = np.minimum.reduceat(d, sets.starts, axis=1)
