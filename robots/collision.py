@@ -47,7 +47,7 @@ import pinocchio as pin
 if TYPE_CHECKING:
     from robots.model import Robot
 
-FIT_VERSION = 7  # bump when the fitting or the pair selection changes: the cache is keyed by it
+FIT_VERSION = 8  # bump when the fitting or the pair selection changes: the cache is keyed by it
 REST_MARGIN = 0.01  # [m] pairs whose meshes are closer than this in the standing posture are skipped ...
 REST_SPHERE_MARGIN = 0.01  # [m] ... and pairs whose (conservative) sphere sets are closer than this
 COVER_RANGE = 0.05  # [m] pairs whose own capsules' sphere sets are closer than this at rest may use other covers ...
@@ -517,7 +517,8 @@ def _check_table(robot: Robot, links: list[str]) -> None:
 
 
 def choose_covers(capsules: dict[str, list[Capsule]], alternatives: dict[str, list[Capsule]],
-                  pairs: list[tuple[str, str]], data: pin.Data) -> dict[tuple[str, str], tuple[int, int]]:
+                  pairs: list[tuple[str, str]], data: pin.Data,
+                  unchecked: set[tuple[str, str]]) -> dict[tuple[str, str], tuple[int, int]]:
     """Per pair whose own capsules' sphere sets are closer than :data:`COVER_RANGE` at the joint
     placements ``data.oMi`` (the standing posture), the covers of its two links (0: their own
     capsules; k: alternative k) whose sphere sets are farthest apart there, kept only when that is
@@ -525,14 +526,26 @@ def choose_covers(capsules: dict[str, list[Capsule]], alternatives: dict[str, li
     so the pair's sphere-set distance still never exceeds the meshes' at any posture; choosing at
     rest gives the cover tight on the side where the other link is (Talos's hanging forearm beside
     the pelvis: 13 mm -> 75 mm; the meshes are 93 mm apart). Pairs farther apart keep the own
-    capsules, the tightest overall (the arms crossing in front of the torso)."""
+    capsules, the tightest overall (the arms crossing in front of the torso).
+
+    A link keeps its own capsules in a pair when a link on its joint and the pair's other link are
+    ``unchecked`` (touching at rest): its own capsules are then what keeps the other link off
+    that neighbour's mesh (G1's chest logo, on the torso, keeps the shoulders off the torso)."""
     out: dict[tuple[str, str], tuple[int, int]] = {}
+    joint_of = {link: caps[0].joint for link, caps in capsules.items()}
+    on_joint: dict[int, list[str]] = {}
+    for link, j in joint_of.items():
+        on_joint.setdefault(j, []).append(link)
+
+    def free(link: str, other: str) -> bool:  # may ``link`` take another cover against ``other``?
+        return not any(_pair(t, other) in unchecked for t in on_joint[joint_of[link]] if t != other)
+
     for a, b in pairs:
         own = min(sphere_distance(c1, c2, data) for c1 in capsules[a] for c2 in capsules[b])
         if own >= COVER_RANGE:
             continue
-        options_a = [(0, capsules[a])] + [(c.cover, [c]) for c in alternatives.get(a, [])]
-        options_b = [(0, capsules[b])] + [(c.cover, [c]) for c in alternatives.get(b, [])]
+        options_a = [(0, capsules[a])] + [(c.cover, [c]) for c in alternatives.get(a, []) if free(a, b)]
+        options_b = [(0, capsules[b])] + [(c.cover, [c]) for c in alternatives.get(b, []) if free(b, a)]
         best = (own, (0, 0))
         for (ka, ca), (kb, cb) in itertools.product(options_a, options_b):
             d = min(sphere_distance(c1, c2, data) for c1 in ca for c2 in cb)
@@ -592,7 +605,8 @@ def _build(robot: Robot) -> CollisionModel:
     alt: dict[str, list[Capsule]] = {}
     for c in alternatives:
         alt.setdefault(c.link, []).append(c)
-    covers = choose_covers(caps, alt, sorted(pairs), data)
+    covers = choose_covers(caps, alt, sorted(pairs), data,
+                           unchecked={p for p, why in skipped.items() if why == "touching at rest"})
     used = {(link, k) for pair, ks in covers.items() for link, k in zip(pair, ks, strict=True) if k}
     return CollisionModel(robot=robot.name, capsules=tuple(capsules), pairs=tuple(sorted(pairs)),
                           skipped=dict(sorted(skipped.items())),
