@@ -35,7 +35,6 @@ from robots.collision import CollisionModel, body_part, collision_model
 from robots.model import Robot
 
 KNOT_PADDING = 3  # knots added on each side of a screened pair's close knots
-SCREEN_APPROACH = 0.005  # [m] a pair already within the screening distance at the start gets rows only where the guess brings it this much closer
 CHECK_TOLERANCE = 1e-4  # [m] a pair this much inside the margin without rows triggers another round
 
 
@@ -201,21 +200,11 @@ def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: floa
     :data:`KNOT_PADDING`. ``only`` (T, S) bool, when given, restricts the link pairs to those with
     a marked entry. All close sphere pairs, not only the closest: a solve that pushes one sphere
     pair apart slides the limb onto its neighbour, and each such round builds a solver and solves
-    again (docs/collisions.md).
-
-    Without ``only`` (the screening of the initial guess), a sphere pair that is already closer
-    than ``threshold`` at the first knot (the start posture: Talos's ankles, 19.5 mm in the
-    standing posture) counts as close only where the guess brings it :data:`SCREEN_APPROACH`
-    closer than it starts: a task that does not move it carries no row for it (the solution is
-    checked after the solve all the same, and a pair within the margin gets its rows then)."""
+    again (docs/collisions.md)."""
     rows = Rows()
     if len(sets.starts) == 0:
         return rows
     d = distances.copy()
-    if only is None and len(d):
-        near_at_start = d[0] < threshold
-        d[:, near_at_start] = np.where(d[:, near_at_start] > d[0, near_at_start] - SCREEN_APPROACH, np.inf,
-                                       d[:, near_at_start])
     d[:2] = np.inf
     d[lay.N:] = np.inf
     pair_min = np.minimum.reduceat(d, sets.starts, axis=1)

@@ -141,38 +141,6 @@ def test_screening_selects_only_close_pairs(talos):
     assert not far.spheres
 
 
-def test_screening_skips_pairs_the_guess_does_not_bring_closer(talos):
-    """A pair already within the screening distance at the start (the ankles, 19.5 mm) gets no rows
-    while the guess keeps it there, and rows where the guess brings it closer than it starts; a pair
-    that starts farther away gets rows where the guess brings it within the screening distance."""
-    from planner.trajopt.collision import SCREEN_APPROACH, sphere_pair_distances
-
-    spec = _reach_spec(talos, "reach right with your left hand 40 cm")
-    lay = make_layout(spec, talos)
-    sets = sphere_sets(talos)
-    settings = PlannerSettings()
-    names = sets.pair_names
-    q = np.repeat(talos.q_standing[None], lay.N + 1, axis=0)
-    rest = pair_distances(talos, sets, q[:1])[0]
-    static = [names[pi] for pi in np.flatnonzero(rest < settings.collision_screening)]
-    assert ("leg_left_5_link", "leg_right_5_link") in static
-    assert not select(lay, sets, sphere_pair_distances(talos, sets, q), settings.collision_screening).spheres
-    # the left arm rolled in by 0.15 rad over knots 10-14: the forearm comes within the screening
-    # distance of the pelvis (75 mm at rest)
-    model = talos.model
-    roll = model.joints[model.getJointId("arm_left_2_joint")].idx_q
-    moved = q.copy()
-    moved[10:15, roll] = max(talos.q_standing[roll] - 0.15, model.lowerPositionLimit[roll])
-    d = pair_distances(talos, sets, moved)
-    forearm = names.index(("arm_left_5_link", "base_link"))
-    assert rest[forearm] > settings.collision_screening > d[12, forearm]
-    rows = select(lay, sets, sphere_pair_distances(talos, sets, moved), settings.collision_screening)
-    assert set(rows.spheres) == {pi for pi in range(len(names))
-                                 if d[:, pi].min() < min(settings.collision_screening, rest[pi] - SCREEN_APPROACH)}
-    assert forearm in rows.spheres and min(rows.knots[forearm]) <= 10 and max(rows.knots[forearm]) >= 14
-    assert not {names.index(p) for p in static} & set(rows.spheres)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(("sentence", "moving"), [
     ("reach right with your left hand 40 cm", "left"),
