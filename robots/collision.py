@@ -47,9 +47,11 @@ import pinocchio as pin
 if TYPE_CHECKING:
     from robots.model import Robot
 
-FIT_VERSION = 6  # bump when the fitting or the pair selection changes: the cache is keyed by it
+FIT_VERSION = 8  # bump when the fitting or the pair selection changes: the cache is keyed by it
 REST_MARGIN = 0.01  # [m] pairs whose meshes are closer than this in the standing posture are skipped ...
 REST_SPHERE_MARGIN = 0.01  # [m] ... and pairs whose (conservative) sphere sets are closer than this
+COVER_RANGE = 0.05  # [m] pairs whose own capsules' sphere sets are closer than this at rest may use other covers ...
+COVER_GAIN = 0.005  # [m] ... when those are at least this much farther apart there
 CYLINDER_SAMPLES = 48  # points around a cylinder/capsule circle (the radius is inflated to cover the chords)
 SPHERE_SPACING = 0.75  # sphere-set spacing along a capsule axis, as a fraction of its radius ...
 MIN_SPHERE_SPACING = 0.03  # [m] ... but at least this (thin links get a few slightly larger spheres)
@@ -70,6 +72,8 @@ class Capsule:
         placement: Capsule frame in the joint frame; its axis is the local z, centred on the origin.
         length: Length of the axis segment [m] (0: a sphere).
         radius: Radius [m].
+        cover: 0 for the link's own capsules (:attr:`CollisionModel.capsules`), k >= 1 for its
+            k-th alternative cover (:attr:`CollisionModel.alternatives`).
     """
 
     link: str
@@ -77,6 +81,7 @@ class Capsule:
     placement: pin.SE3
     length: float
     radius: float
+    cover: int = 0
 
     def endpoints(self) -> tuple[np.ndarray, np.ndarray]:
         """The axis segment's ends in the joint frame (2 x (3,)) [m]."""
@@ -113,16 +118,35 @@ class CollisionModel:
         pairs: Link pairs to keep apart (each pair sorted, the list sorted).
         skipped: Pair -> why it is not checked (``"srdf"``, ``"adjacent"``, ``"touching at rest"``,
             ``"profile"``).
+        alternatives: Alternative covers of the links, each one capsule enclosing the whole link
+            (:func:`axis_capsules`; ``cover`` 1, 2, 3), used only by the pairs of ``covers``.
+        covers: Checked pair -> (cover of its first link, cover of its second), for the pairs that
+            are not checked with the links' own capsules (0, 0): each cover encloses its link's
+            geometry, so any choice is conservative; the choice is the one whose sphere sets are
+            farthest apart in the standing posture (see :func:`choose_covers`).
     """
 
     robot: str
     capsules: tuple[Capsule, ...]
     pairs: tuple[tuple[str, str], ...]
     skipped: dict[tuple[str, str], str] = field(default_factory=dict)
+    alternatives: tuple[Capsule, ...] = ()
+    covers: dict[tuple[str, str], tuple[int, int]] = field(default_factory=dict)
 
-    def capsules_of(self, link: str) -> tuple[Capsule, ...]:
-        """The capsules of ``link`` (one or two; empty if it has no collision geometry)."""
-        return tuple(c for c in self.capsules if c.link == link)
+    def capsules_of(self, link: str, cover: int = 0) -> tuple[Capsule, ...]:
+        """The capsules of ``link`` (one or two; empty if it has no collision geometry), or of its
+        alternative ``cover`` (one)."""
+        if cover == 0:
+            return tuple(c for c in self.capsules if c.link == link)
+        return tuple(c for c in self.alternatives if c.link == link and c.cover == cover)
+
+    def pair_capsules(self, a: str, b: str) -> tuple[tuple[Capsule, ...], tuple[Capsule, ...]]:
+        """The capsules pair (a, b) is checked with: ``a``'s and ``b``'s (their covers of :attr:`covers`)."""
+        pair = _pair(a, b)
+        ka, kb = self.covers.get(pair, (0, 0))
+        if pair[0] != a:
+            ka, kb = kb, ka
+        return self.capsules_of(a, ka), self.capsules_of(b, kb)
 
     @property
     def links(self) -> tuple[str, ...]:
@@ -282,6 +306,47 @@ def _hull_vertices(points: np.ndarray) -> np.ndarray:
         return points
 
 
+def _fit_along(pts: np.ndarray, mean: np.ndarray, axis: np.ndarray) -> tuple:
+    """(volume, centre, axis, e1, e2, length, radius) of the smallest capsule along ``axis``
+    holding the hull vertices ``pts`` (radius among a few values >= the largest radial distance)."""
+    axis = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    rel = pts - mean
+    uv = np.column_stack([rel @ e1, rel @ e2])
+    c2 = _enclosing_circle(uv)
+    origin = mean + c2[0] * e1 + c2[1] * e2
+    t = (pts - origin) @ axis
+    d = np.linalg.norm(uv - c2, axis=1)
+    r0 = float(d.max()) * (1 + 1e-9) + 1e-6
+    best = None
+    for scale in (1.0, 1.05, 1.1, 1.2, 1.35, 1.5, 1.75, 2.0):
+        r = r0 * scale
+        lo, hi = _segment_for(t, d, r)
+        volume = math.pi * r * r * (hi - lo) + 4.0 / 3.0 * math.pi * r**3
+        if best is None or volume < best[0]:
+            best = (volume, origin + 0.5 * (lo + hi) * axis, axis, e1, e2, hi - lo, r)
+    assert best is not None
+    return best
+
+
+def _as_capsule(fit: tuple) -> tuple[pin.SE3, float, float]:
+    _, centre, axis, e1, e2, length, radius = fit
+    R = np.column_stack([e1, e2, axis])
+    if np.linalg.det(R) < 0:
+        R[:, 0] = -R[:, 0]
+    return pin.SE3(R, centre), float(length), float(radius)
+
+
+def _axis_fits(points: np.ndarray) -> list[tuple]:
+    pts = _hull_vertices(np.asarray(points, dtype=float))
+    mean = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - mean, full_matrices=False)
+    return [_fit_along(pts, mean, axis) for axis in vt]
+
+
 def fit_capsule(points: np.ndarray) -> tuple[pin.SE3, float, float]:
     """(placement, length, radius) of a small capsule enclosing ``points`` (n, 3) [m].
 
@@ -289,35 +354,17 @@ def fit_capsule(points: np.ndarray) -> tuple[pin.SE3, float, float]:
     circle of their projection; radius: chosen among a few values >= the largest radial distance
     to minimize the capsule's volume; segment: the shortest one holding every point.
     """
-    pts = _hull_vertices(np.asarray(points, dtype=float))
-    mean = pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(pts - mean, full_matrices=False)
-    best = None
-    for axis in vt:  # try each principal direction, keep the smallest capsule
-        axis = axis / np.linalg.norm(axis)
-        helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        e1 = np.cross(axis, helper)
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(axis, e1)
-        rel = pts - mean
-        uv = np.column_stack([rel @ e1, rel @ e2])
-        c2 = _enclosing_circle(uv)
-        origin = mean + c2[0] * e1 + c2[1] * e2
-        t = (pts - origin) @ axis
-        d = np.linalg.norm(uv - c2, axis=1)
-        r0 = float(d.max()) * (1 + 1e-9) + 1e-6
-        for scale in (1.0, 1.05, 1.1, 1.2, 1.35, 1.5, 1.75, 2.0):
-            r = r0 * scale
-            lo, hi = _segment_for(t, d, r)
-            volume = math.pi * r * r * (hi - lo) + 4.0 / 3.0 * math.pi * r**3
-            if best is None or volume < best[0]:
-                best = (volume, origin + 0.5 * (lo + hi) * axis, axis, e1, e2, hi - lo, r)
-    assert best is not None
-    _, centre, axis, e1, e2, length, radius = best
-    R = np.column_stack([e1, e2, axis])
-    if np.linalg.det(R) < 0:
-        R[:, 0] = -R[:, 0]
-    return pin.SE3(R, centre), float(length), float(radius)
+    fits = _axis_fits(points)  # each principal direction: keep the smallest capsule
+    return _as_capsule(min(fits, key=lambda f: f[0]))
+
+
+def axis_capsules(points: np.ndarray) -> list[tuple[pin.SE3, float, float]]:
+    """One capsule enclosing ``points`` along each of their three principal directions (the
+    smallest along that direction): the alternative covers of a link (:data:`CollisionModel.alternatives`).
+    A flat link's capsule along its longest direction bulges out of its wide faces' sides (Talos's
+    pelvis: 7 cm beyond its flanks, where the forearms hang); the one along its second direction
+    hugs those flanks (8 mm) and bulges elsewhere."""
+    return [_as_capsule(f) for f in _axis_fits(points)]
 
 
 # -- distances ---------------------------------------------------------------------------------
@@ -372,11 +419,22 @@ def sphere_distance(c1: Capsule, c2: Capsule, data: pin.Data) -> float:
 
 def pair_distances(cm: CollisionModel, model: pin.Model, q: np.ndarray,
                    pairs: tuple[tuple[str, str], ...] | None = None) -> dict[tuple[str, str], float]:
-    """Capsule distance of every checked pair (or of ``pairs``) at configuration ``q`` [m]."""
+    """Capsule distance of every checked pair (or of ``pairs``) at configuration ``q``, with the
+    pair's covers (:attr:`CollisionModel.covers`) [m]."""
     data = model.createData()
     pin.forwardKinematics(model, data, q)
-    return {p: min(capsule_distance(c1, c2, data) for c1 in cm.capsules_of(p[0]) for c2 in cm.capsules_of(p[1]))
-            for p in (cm.pairs if pairs is None else pairs)}
+    out = {}
+    for p in (cm.pairs if pairs is None else pairs):
+        ca, cb = cm.pair_capsules(*p)
+        out[p] = min(capsule_distance(c1, c2, data) for c1 in ca for c2 in cb)
+    return out
+
+
+def pair_sphere_distance(cm: CollisionModel, a: str, b: str, data: pin.Data) -> float:
+    """Sphere-set distance of links ``a`` and ``b`` with the pair's covers, joint placements in
+    ``data.oMi`` [m]: what the planner keeps at least the margin."""
+    ca, cb = cm.pair_capsules(a, b)
+    return min(sphere_distance(c1, c2, data) for c1 in ca for c2 in cb)
 
 
 def mesh_distances(robot: Robot, q: np.ndarray, pairs: list[tuple[str, str]]) -> dict[tuple[str, str], float]:
@@ -458,12 +516,59 @@ def _check_table(robot: Robot, links: list[str]) -> None:
                                f"geometry{_suggest(link, links)}")
 
 
+def choose_covers(capsules: dict[str, list[Capsule]], alternatives: dict[str, list[Capsule]],
+                  pairs: list[tuple[str, str]], data: pin.Data,
+                  unchecked: set[tuple[str, str]]) -> dict[tuple[str, str], tuple[int, int]]:
+    """Per pair whose own capsules' sphere sets are closer than :data:`COVER_RANGE` at the joint
+    placements ``data.oMi`` (the standing posture), the covers of its two links (0: their own
+    capsules; k: alternative k) whose sphere sets are farthest apart there, kept only when that is
+    at least :data:`COVER_GAIN` farther than with the own capsules. Any cover encloses its link,
+    so the pair's sphere-set distance still never exceeds the meshes' at any posture; choosing at
+    rest gives the cover tight on the side where the other link is (Talos's hanging forearm beside
+    the pelvis: 13 mm -> 75 mm; the meshes are 93 mm apart). Pairs farther apart keep the own
+    capsules, the tightest overall (the arms crossing in front of the torso).
+
+    A link keeps its own capsules in a pair when a link on its joint and the pair's other link are
+    ``unchecked`` (touching at rest): its own capsules are then what keeps the other link off
+    that neighbour's mesh (G1's chest logo, on the torso, keeps the shoulders off the torso)."""
+    out: dict[tuple[str, str], tuple[int, int]] = {}
+    joint_of = {link: caps[0].joint for link, caps in capsules.items()}
+    on_joint: dict[int, list[str]] = {}
+    for link, j in joint_of.items():
+        on_joint.setdefault(j, []).append(link)
+
+    def free(link: str, other: str) -> bool:  # may ``link`` take another cover against ``other``?
+        return not any(_pair(t, other) in unchecked for t in on_joint[joint_of[link]] if t != other)
+
+    for a, b in pairs:
+        own = min(sphere_distance(c1, c2, data) for c1 in capsules[a] for c2 in capsules[b])
+        if own >= COVER_RANGE:
+            continue
+        options_a = [(0, capsules[a])] + [(c.cover, [c]) for c in alternatives.get(a, []) if free(a, b)]
+        options_b = [(0, capsules[b])] + [(c.cover, [c]) for c in alternatives.get(b, []) if free(b, a)]
+        best = (own, (0, 0))
+        for (ka, ca), (kb, cb) in itertools.product(options_a, options_b):
+            d = min(sphere_distance(c1, c2, data) for c1 in ca for c2 in cb)
+            if d > best[0]:
+                best = (d, (ka, kb))
+        if best[0] >= own + COVER_GAIN:
+            out[(a, b)] = best[1]
+    return out
+
+
 def _build(robot: Robot) -> CollisionModel:
     model = robot.model
     capsules = []
+    alternatives = []
     for link, (joint, pts) in link_points(robot).items():
-        for placement, length, radius in fit_link(pts):
+        own = fit_link(pts)
+        for placement, length, radius in own:
             capsules.append(Capsule(link=link, joint=joint, placement=placement, length=length, radius=radius))
+        for k, (placement, length, radius) in enumerate(axis_capsules(pts), start=1):
+            if len(own) == 1 and abs(length - own[0][1]) < 1e-12 and abs(radius - own[0][2]) < 1e-12:
+                continue  # the link's own capsule
+            alternatives.append(Capsule(link=link, joint=joint, placement=placement, length=length, radius=radius,
+                                        cover=k))
     caps: dict[str, list[Capsule]] = {}
     for c in capsules:
         caps.setdefault(c.link, []).append(c)
@@ -497,8 +602,15 @@ def _build(robot: Robot) -> CollisionModel:
             skipped[pair] = "touching at rest"
         else:
             pairs.add(pair)
+    alt: dict[str, list[Capsule]] = {}
+    for c in alternatives:
+        alt.setdefault(c.link, []).append(c)
+    covers = choose_covers(caps, alt, sorted(pairs), data,
+                           unchecked={p for p, why in skipped.items() if why == "touching at rest"})
+    used = {(link, k) for pair, ks in covers.items() for link, k in zip(pair, ks, strict=True) if k}
     return CollisionModel(robot=robot.name, capsules=tuple(capsules), pairs=tuple(sorted(pairs)),
-                          skipped=dict(sorted(skipped.items())))
+                          skipped=dict(sorted(skipped.items())),
+                          alternatives=tuple(c for c in alternatives if (c.link, c.cover) in used), covers=covers)
 
 
 # -- the disk cache ----------------------------------------------------------------------------
@@ -517,7 +629,7 @@ def cache_key(robot: Robot) -> str:
     """Hash of what the model depends on: URDF and SRDF content, the profile's collision table, the
     standing posture and :data:`FIT_VERSION`."""
     h = hashlib.sha256()
-    h.update(f"fit-v{FIT_VERSION}|{REST_MARGIN}|{REST_SPHERE_MARGIN}|{robot.name}".encode())
+    h.update(f"fit-v{FIT_VERSION}|{REST_MARGIN}|{REST_SPHERE_MARGIN}|{COVER_RANGE}|{COVER_GAIN}|{robot.name}".encode())
     for path in (robot.urdf_path, srdf_path(robot)):
         if path:
             try:
@@ -533,34 +645,51 @@ def _to_json(cm: CollisionModel) -> dict:
     return {
         "fit_version": FIT_VERSION,
         "robot": cm.robot,
-        "capsules": [{"link": c.link, "joint": c.joint, "rotation": c.placement.rotation.tolist(),
-                      "translation": c.placement.translation.tolist(), "length": c.length, "radius": c.radius}
-                     for c in cm.capsules],
+        "capsules": [_capsule_json(c) for c in cm.capsules],
+        "alternatives": [_capsule_json(c) for c in cm.alternatives],
         "pairs": [list(p) for p in cm.pairs],
         "skipped": [[a, b, why] for (a, b), why in cm.skipped.items()],
+        "covers": [[a, b, ka, kb] for (a, b), (ka, kb) in cm.covers.items()],
     }
+
+
+def _capsule_json(c: Capsule) -> dict:
+    return {"link": c.link, "joint": c.joint, "rotation": c.placement.rotation.tolist(),
+            "translation": c.placement.translation.tolist(), "length": c.length, "radius": c.radius,
+            "cover": c.cover}
+
+
+def _capsule_from_json(c: dict, robot: Robot) -> Capsule:
+    R = np.array(c["rotation"], dtype=float)
+    p = np.array(c["translation"], dtype=float)
+    length, radius, joint, cover = float(c["length"]), float(c["radius"]), int(c["joint"]), int(c["cover"])
+    if (R.shape != (3, 3) or p.shape != (3,) or not np.all(np.isfinite(R)) or not np.all(np.isfinite(p))
+            or not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or not (length >= 0 and radius > 0)
+            or not 0 < joint < robot.model.njoints or not isinstance(c["link"], str) or not 0 <= cover <= 3):
+        raise ValueError("bad capsule")
+    return Capsule(link=c["link"], joint=joint, placement=pin.SE3(R, p), length=length, radius=radius, cover=cover)
 
 
 def _from_json(data: dict, robot: Robot) -> CollisionModel:
     """A model from its cache file; ValueError/KeyError/TypeError when anything is off."""
     if data.get("fit_version") != FIT_VERSION or data.get("robot") != robot.name:
         raise ValueError("stale")
-    capsules = []
-    for c in data["capsules"]:
-        R = np.array(c["rotation"], dtype=float)
-        p = np.array(c["translation"], dtype=float)
-        length, radius, joint = float(c["length"]), float(c["radius"]), int(c["joint"])
-        if (R.shape != (3, 3) or p.shape != (3,) or not np.all(np.isfinite(R)) or not np.all(np.isfinite(p))
-                or not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or not (length >= 0 and radius > 0)
-                or not 0 < joint < robot.model.njoints or not isinstance(c["link"], str)):
-            raise ValueError("bad capsule")
-        capsules.append(Capsule(link=c["link"], joint=joint, placement=pin.SE3(R, p), length=length, radius=radius))
+    capsules = tuple(_capsule_from_json(c, robot) for c in data["capsules"])
+    alternatives = tuple(_capsule_from_json(c, robot) for c in data["alternatives"])
     links = {c.link for c in capsules}
     pairs = tuple(sorted(_pair(str(a), str(b)) for a, b in data["pairs"]))
     skipped = {_pair(str(a), str(b)): str(why) for a, b, why in data["skipped"]}
-    if not all(a in links and b in links for a, b in pairs) or not set(skipped.values()) <= set(SKIP_REASONS):
+    covers = {(str(a), str(b)): (int(ka), int(kb)) for a, b, ka, kb in data["covers"]}
+    if (not all(a in links and b in links for a, b in pairs) or not set(skipped.values()) <= set(SKIP_REASONS)
+            or any(c.cover < 1 for c in alternatives)
+            or any(c.cover != 0 for c in capsules)):
         raise ValueError("bad pairs")
-    return CollisionModel(robot=robot.name, capsules=tuple(capsules), pairs=pairs, skipped=skipped)
+    model = CollisionModel(robot=robot.name, capsules=capsules, pairs=pairs, skipped=skipped,
+                           alternatives=alternatives, covers=covers)
+    for (a, b), (ka, kb) in covers.items():
+        if (a, b) not in pairs or any(not model.capsules_of(link, k) for link, k in ((a, ka), (b, kb))):
+            raise ValueError("bad covers")
+    return model
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -42,18 +42,25 @@ CHECK_TOLERANCE = 1e-4  # [m] a pair this much inside the margin without rows tr
 class SphereSets:
     """The sphere sets of a robot's links and checked pairs, flattened for vectorised distances.
 
+    A sphere set is a link's own capsules' spheres (the first ``len(model.links)`` sets, one per
+    link, in the collision model's order) or an alternative cover's that some pair is checked with
+    (:attr:`robots.collision.CollisionModel.covers`; then the link's name appears twice in ``links``).
+
     Attributes:
         model: The collision model.
-        links: Link names (one sphere set per link: the spheres of its capsules).
-        joints: Joint id per link.
-        centres: Sphere centres per link, in its joint frame (n_i, 3) [m].
-        radii: Sphere radii per link (n_i,) [m].
-        pairs: Checked pairs as link indices (P, 2).
-        sa, sb: Flattened sphere indices of every sphere pair of every checked pair.
+        links: Link name of each sphere set.
+        joints: Joint id per sphere set.
+        centres: Sphere centres per set, in its joint frame (n_i, 3) [m].
+        radii: Sphere radii per set (n_i,) [m].
+        pairs: Checked pairs as sphere-set indices (P, 2).
+        sa, sb: Indices into ``pair_local``/``pair_radius`` of every sphere pair of every checked pair.
         starts: Start of each pair's block in ``sa``/``sb`` (for ``np.minimum.reduceat``).
-        sphere_owner: Link index of every flattened sphere.
-        sphere_local: Every sphere's centre in its joint frame (S, 3) [m].
-        sphere_radius: Every sphere's radius (S,) [m].
+        sphere_owner: Set index of every sphere of the links' own sets (what scene objects are kept
+            from: any cover would do, the own one is the tightest overall).
+        sphere_local: Those spheres' centres in their joint frames (S, 3) [m].
+        sphere_radius: Those spheres' radii (S,) [m].
+        pair_owner, pair_local, pair_radius: The same over every set, alternative covers included
+            (the own sets' spheres first: ``sphere_*`` is their prefix).
     """
 
     model: CollisionModel
@@ -68,6 +75,9 @@ class SphereSets:
     sphere_owner: np.ndarray
     sphere_local: np.ndarray
     sphere_radius: np.ndarray
+    pair_owner: np.ndarray
+    pair_local: np.ndarray
+    pair_radius: np.ndarray
 
     @property
     def pair_names(self) -> list[tuple[str, str]]:
@@ -84,20 +94,21 @@ def sphere_sets(robot: Robot) -> SphereSets:
     if hit is not None and hit[0] is robot:
         return hit[1]
     cm = collision_model(robot)
-    links = cm.links
-    index = {name: i for i, name in enumerate(links)}
+    bodies = [(link, 0) for link in cm.links] + sorted({(c.link, c.cover) for c in cm.alternatives})
+    index = {body: i for i, body in enumerate(bodies)}
     centres, radii, joints = [], [], []
-    for link in links:
+    for link, cover in bodies:
         cs, rs = [], []
-        for c in cm.capsules_of(link):
+        for c in cm.capsules_of(link, cover):
             pts, r = c.spheres()
             cs.append(pts)
             rs.append(np.full(len(pts), r))
         centres.append(np.vstack(cs))
         radii.append(np.concatenate(rs))
-        joints.append(cm.capsules_of(link)[0].joint)
+        joints.append(cm.capsules_of(link, cover)[0].joint)
     offsets = np.cumsum([0] + [len(c) for c in centres])
-    pairs = np.array([(index[a], index[b]) for a, b in cm.pairs], dtype=int).reshape(-1, 2)
+    pairs = np.array([(index[(a, ka)], index[(b, kb)]) for (a, b), (ka, kb)
+                      in ((p, cm.covers.get(p, (0, 0))) for p in cm.pairs)], dtype=int).reshape(-1, 2)
     sa, sb, starts = [], [], []
     n = 0
     for a, b in pairs:
@@ -107,11 +118,15 @@ def sphere_sets(robot: Robot) -> SphereSets:
         n += len(ia) * len(ib)
         sa.append(np.repeat(ia, len(ib)))
         sb.append(np.tile(ib, len(ia)))
+    owner = np.concatenate([np.full(len(c), i) for i, c in enumerate(centres)])
+    local, radius = np.vstack(centres), np.concatenate(radii)
+    own = int(offsets[len(cm.links)])  # the links' own spheres come first
     sets = SphereSets(
-        model=cm, links=links, joints=np.array(joints, dtype=int), centres=tuple(centres), radii=tuple(radii),
+        model=cm, links=tuple(link for link, _ in bodies), joints=np.array(joints, dtype=int),
+        centres=tuple(centres), radii=tuple(radii),
         pairs=pairs, sa=np.concatenate(sa) if sa else np.zeros(0, int), sb=np.concatenate(sb) if sb else np.zeros(0, int),
-        starts=np.array(starts, dtype=int), sphere_owner=np.concatenate([np.full(len(c), i) for i, c in enumerate(centres)]),
-        sphere_local=np.vstack(centres), sphere_radius=np.concatenate(radii))
+        starts=np.array(starts, dtype=int), sphere_owner=owner[:own], sphere_local=local[:own],
+        sphere_radius=radius[:own], pair_owner=owner, pair_local=local, pair_radius=radius)
     _SETS[id(robot)] = (robot, sets)
     return sets
 
@@ -120,18 +135,20 @@ def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.n
     """Distance of every sphere pair of every checked link pair at every configuration: (T, S) [m]
     (negative: the spheres overlap); pair ``p``'s block starts at ``sets.starts[p]``."""
     model, data = robot.model, robot.data()
-    out = np.full((len(q), len(sets.sa)), np.inf)
     if len(sets.sa) == 0:
-        return out
-    rsum = sets.sphere_radius[sets.sa] + sets.sphere_radius[sets.sb]
-    o = sets.sphere_owner
+        return np.full((len(q), 0), np.inf)
+    rsum = sets.pair_radius[sets.sa] + sets.pair_radius[sets.sb]
+    joints, where = np.unique(sets.joints, return_inverse=True)
+    H = np.empty((len(q), len(joints), 4, 4))  # the joints' placements at every knot
     for k, qk in enumerate(q):
         pin.forwardKinematics(model, data, qk)
-        R = np.array([data.oMi[int(j)].rotation for j in sets.joints])
-        p = np.array([data.oMi[int(j)].translation for j in sets.joints])
-        world = np.einsum("nij,nj->ni", R[o], sets.sphere_local) + p[o]
-        out[k] = np.linalg.norm(world[sets.sa] - world[sets.sb], axis=1) - rsum
-    return out
+        for i, j in enumerate(joints):
+            H[k, i] = data.oMi[int(j)].homogeneous
+    o = where[sets.pair_owner]  # the joint (row of H) of every sphere
+    Hs = H[:, o]
+    world = np.einsum("tsij,sj->tsi", Hs[..., :3, :3], sets.pair_local) + Hs[..., :3, 3]
+    diff = world[:, sets.sa] - world[:, sets.sb]
+    return np.sqrt(np.einsum("tsi,tsi->ts", diff, diff)) - rsum
 
 
 def pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:

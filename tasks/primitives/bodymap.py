@@ -29,7 +29,7 @@ import coal  # type: ignore[import-untyped]
 import numpy as np
 import pinocchio as pin
 
-from robots.collision import collision_model
+from robots.collision import collision_model, pair_sphere_distance
 from robots.model import Robot
 from tasks.primitives.geometry import standing_geometry
 
@@ -465,13 +465,12 @@ def _closest_pair(robot: Robot, q: np.ndarray, pairs: list[tuple[int, int]]) -> 
         return math.inf, ("", "")
     data = robot.data()
     pin.forwardKinematics(robot.model, data, q)
-    world = np.array([data.oMi[int(j)].act(p) for j, p in zip(s.joint, s.local, strict=True)])
+    cm = collision_model(robot)
     best, which = math.inf, ("", "")
-    for a, b in pairs:
-        ia, ib = np.flatnonzero(s.link == a), np.flatnonzero(s.link == b)
-        d = np.linalg.norm(world[ia][:, None] - world[ib][None], axis=2) - s.radius[ia][:, None] - s.radius[ib][None]
-        if d.min() < best:
-            best, which = float(d.min()), (s.links[a], s.links[b])
+    for a, b in pairs:  # with the covers the planner checks the pair with (robots.collision)
+        d = pair_sphere_distance(cm, s.links[a], s.links[b], data)
+        if d < best:
+            best, which = d, (s.links[a], s.links[b])
     return best, which
 
 
