@@ -19,7 +19,8 @@ A robot whose leg cannot is refused with the numbers (Talos' knee: about 6.5 m/s
 * ``JOG_MARGIN`` (0.2, ``jog``): G1's jog at the same 0.24 planned but failed the certificate
   (measured before the early touch-down: the push-off foot touched the floor at the end of the
   first flight, unplanned; landings 2.4-2.7 cm off their placements, slip 1.2-1.8 cm, impacts of
-  1,000-1,100 N). No robot jogs yet.
+  1,000-1,100 N; with it, the same: the push-off foot back on the floor 66 ms after leaving it,
+  a landing 3.3 cm off). No robot jogs yet.
 
 ``hop(foot, count, height [m], forward [m])``: shift the weight onto ``foot`` (both feet down,
 ``SHIFT_TIME``; HARD CoM target over that sole), lift the other foot (``LIFT_TIME``), then per
