@@ -100,7 +100,9 @@ def test_one_leg_push_is_half_of_two(talos, g1):
         assert not p.within(JOG_MARGIN)
     assert not one_leg_push(g1, G * 3 * 0.075 / 2).feasible
     assert "g1 cannot hop" not in robot_limits(g1)["hop"].get("count", "")
-    assert "at most 0.10 m per hop on g1" in robot_limits(g1)["hop"]["forward"]
+    assert "hops in place only" in robot_limits(g1)["hop"]["forward"]
+    with pytest.raises(TaskDefinitionError, match=r"hopping forward \(0.1 m a hop\) on one foot is not certified .*hop in place"):
+        _spec(g1, "hop", forward=0.1)
     assert "talos cannot hop" in robot_limits(talos)["hop"]["count"]
     for robot in (talos, g1):
         assert f"{robot.name} cannot jog" in robot_limits(robot)["jog"]["count"]
@@ -112,12 +114,14 @@ def test_one_leg_push_is_half_of_two(talos, g1):
 
 @pytest.fixture
 def one_leg_flights_allowed(monkeypatch):
-    """The two-leg margin for one-leg flights: G1's jog compiles (its structure is tested although
-    G1 refuses it by default, see test_one_leg_push_is_half_of_two)."""
+    """The two-leg margin for one-leg flights and forward hops: G1's jog and forward hops compile
+    (their structure is tested although G1 refuses them by default, see
+    test_one_leg_push_is_half_of_two)."""
     import tasks.primitives.hop as hop
 
     monkeypatch.setattr(hop, "ONE_LEG_MARGIN", TORQUE_MARGIN)
     monkeypatch.setattr(hop, "JOG_MARGIN", TORQUE_MARGIN)
+    monkeypatch.setattr(hop, "HOP_FORWARD_MAX", math.inf)
 
 
 @pytest.mark.parametrize(("direction", "axis"), [("forward", 0), ("side", 1)])
@@ -246,7 +250,7 @@ def test_lunge(g1, direction, axis, sign):
         _spec(g1, "lunge", depth=0.3)
 
 
-def test_hop_on_g1(g1):
+def test_hop_on_g1(g1, one_leg_flights_allowed):
     """G1 hops on its left foot: `count` flights without contact of at least two knots, only the
     left sole down from the lift to the recovery, landings `forward` ahead, push-off targets."""
     spec = _spec(g1, "hop", foot="left", count=3, forward=0.05)
