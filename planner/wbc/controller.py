@@ -20,6 +20,10 @@ reference's :math:`h = A_g v`), base orientation, hands and every frame a spec t
 swing feet, joint posture, plus small regularizations of :math:`a` and :math:`f`. A contact frame that is not in stance
 has its force columns removed from the dynamics (the regularization then sets its forces to 0).
 
+Contacts switch at the plan's times, except at the end of a flight (no planned contact): a sole
+that reaches its landing height early is a stance sole from then on, and the CoM reference brakes
+from the measured state (``WbcSettings.early_touchdown``).
+
 Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
 CoM Jacobian and the velocity-product accelerations), one ``centerOfMass`` at zero
 acceleration for the CoM drift, and per frame a Jacobian and a drift read from the filled data.
@@ -37,7 +41,7 @@ import proxsuite
 
 from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
-from planner.wbc.reference import PlanReference
+from planner.wbc.reference import FLIGHT_BLEND, PlanReference, _hermite
 from planner.wbc.settings import ControllerError, WbcSettings
 from robots.contact import pyramid_coefficient, pyramid_facets, sole_corners
 from robots.model import Robot
@@ -45,6 +49,30 @@ from robots.model import Robot
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+
+
+EARLY_TOUCHDOWN_HEIGHT = 0.0005  # [m] a landing sole this close to its planned height is down (MuJoCo: in contact)
+EARLY_TOUCHDOWN_FRACTION = 0.25  # not in the first quarter of a flight (the sole is leaving then)
+
+
+def _flight_landings(active: np.ndarray) -> dict[int, tuple[int, int]]:
+    """Sample -> (first sample, touch-down sample) of the flight it lies in (no active contact,
+    between two stances)."""
+    out: dict[int, tuple[int, int]] = {}
+    flags = np.asarray(active, dtype=bool)
+    air = [bool(flags.shape[1]) and not row.any() for row in flags]
+    n, k = len(air), 0
+    while k < n:
+        if not air[k]:
+            k += 1
+            continue
+        a = k
+        while k < n and air[k]:
+            k += 1
+        if a > 0 and k < n:
+            for j in range(a, k):
+                out[j] = (a, k)
+    return out
 
 
 class TickInfo(NamedTuple):
@@ -201,6 +229,8 @@ class WholeBodyController:
         flags, inverse = np.unique(ref.active, axis=0, return_inverse=True)
         self._patterns = [int(p) for p in np.asarray(inverse).reshape(-1)]
         self._pattern_flags = [tuple(bool(a) for a in row) for row in flags]
+        self._landings = _flight_landings(ref.active) if s.early_touchdown else {}
+        self._early: tuple[bool, ...] | None = None  # soles already down in the current flight
         # stacked references on the dense grid (n, ...): positions (CoM first), rotations, velocities, accelerations
         self._ref_pos = np.concatenate(
             [ref.com[:, None, :]] + [ref.frames[nm].position[:, None, :] for nm in self._frames],
@@ -361,8 +391,14 @@ class WholeBodyController:
             drift[rows] = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
             hom[i] = data.oMf[fid].homogeneous
         pattern = self._patterns[k]
+        landing = self._landings.get(k)
+        if landing is None:
+            self._early = None
+        else:
+            pattern = self._touchdown(k, landing, v, pattern)
         if pattern != self._active_key:
-            active = self._pattern_flags[pattern]
+            active = self._pattern_flags[pattern] if pattern >= 0 else self._early
+            assert active is not None
             was = self._active_flags
             for i, a in enumerate(active):
                 if a and not (was is not None and was[i]):
@@ -446,6 +482,47 @@ class WholeBodyController:
         self._last_rots = rots.copy()
         self.last = TickInfo(ok, iterations, status)
         return tau
+
+    def _touchdown(self, k: int, landing: tuple[int, int], v: np.ndarray, pattern: int) -> int:
+        """The contact pattern of flight sample ``k``: a sole that lands before the planned
+        touch-down is a stance sole from then on (key ``-1 - mask`` for such a pattern).
+
+        A sole counts as down once the flight's first ``EARLY_TOUCHDOWN_FRACTION`` has passed, it
+        is within ``EARLY_TOUCHDOWN_HEIGHT`` of its height at the planned touch-down and not rising.
+        """
+        start, touch = landing
+        if k - start < EARLY_TOUCHDOWN_FRACTION * (touch - start):
+            return pattern
+        planned = self._pattern_flags[self._patterns[touch]]
+        down = list(self._early) if self._early is not None else [False] * len(planned)
+        for i, lands in enumerate(planned):
+            if lands and not down[i]:
+                z, z_land = self._hom[i, 2, 3], self._ref_pos[touch, 1 + i, 2]
+                vz = float(self._J[5 + 6 * i] @ v)  # frame i's linear z row (LOCAL_WORLD_ALIGNED)
+                down[i] = bool(z <= z_land + EARLY_TOUCHDOWN_HEIGHT and vz <= 0.0)
+        if not any(down):
+            return pattern
+        if self._early is None:
+            self._absorb_landing(k, touch, v)
+        self._early = tuple(down)
+        return -1 - sum(1 << i for i, d in enumerate(down) if d)
+
+    def _absorb_landing(self, k: int, touch: int, v: np.ndarray) -> None:
+        """After an early touch-down at sample ``k``: the CoM reference from the measured CoM
+        and its velocity to the plan's ``FLIGHT_BLEND`` after the planned touch-down (a cubic
+        Hermite, as the reference's own landing blend), instead of falling ballistically onto
+        the sole until the planned touch-down and then braking at once (a step of ~20 m/s^2 in
+        the asked CoM acceleration, which rolled and slid G1's hopping foot)."""
+        end = min(touch + int(round(FLIGHT_BLEND * self._inv_dt)), self._n_ref - 1)
+        if end <= k:
+            return
+        dt = 1.0 / self._inv_dt
+        ts = dt * np.arange(end - k + 1)
+        pos, vel, acc = _hermite(0.0, float(ts[-1]), self._pos[0], self._J[:3] @ v, self._ref_pos[end, 0],
+                                 self._ref_vel[end, :3], ts)
+        self._ref_pos[k : end + 1, 0] = pos
+        self._ref_vel[k : end + 1, :3] = vel
+        self._ref_acc[k : end + 1, :3] = acc
 
     def _fill_qp(self, M: np.ndarray, h: np.ndarray) -> None:
         """The full QP's matrices from the kernel's outputs (when an inequality is active)."""

@@ -105,15 +105,11 @@ def test_controller_reference_unwraps_past_a_half_turn():
 
 
 @pytest.mark.slow
-def test_hop_plan_on_g1(g1, monkeypatch):
-    """hop(right, 1) on G1, allowed at jump's two-leg margin (refused by default: its hops fell in
-    MuJoCo, tasks/primitives/hop.py ONE_LEG_MARGIN): the plan passes its checks; during the flight no contact force acts,
+def test_hop_plan_on_g1(g1):
+    """hop(right, 1) on G1 (certified in MuJoCo, tests/sim/test_leg_sims.py): the plan passes its
+    checks; during the flight no contact force acts,
     both soles (Pinocchio on plan.q) are off the ground and the CoM follows a ballistic arc
     (vertical acceleration -g within the finite-difference error); only the right sole pushes."""
-    import tasks.primitives.hop as hop
-    from tasks.primitives.jump import TORQUE_MARGIN
-
-    monkeypatch.setattr(hop, "ONE_LEG_MARGIN", TORQUE_MARGIN)
     spec, plan = _plan(g1, [Action(name="hop", params={"foot": "right", "count": 1})])
     t, flight = 0.0, None
     for p in spec.phases:

@@ -40,7 +40,7 @@ CANNOT = {
     ("romeo", "jump"): "cannot jump",
     ("g1", "nod"): "no neck joint",
     ("g1", "shake_head"): "no neck joint",
-    **{(r, "hop"): "cannot hop on one foot" for r in ("talos", "g1", "romeo", "icub")},
+    **{(r, "hop"): "cannot hop on one foot" for r in ("talos", "romeo", "icub")},  # g1 hops (certified in MuJoCo)
     **{(r, "jog"): "cannot jog or run" for r in ("talos", "g1", "romeo", "icub")},
 }
 

@@ -177,3 +177,13 @@ def test_balance_filter_moves_the_com_only_where_the_zmp_moved(talos, arm):
     assert np.array_equal(ref.com[:, 2], ref.plan_com[:, 2])
     moved = np.abs(ref.zmp_shift).max(axis=1) > 0
     assert moved.any() and not moved.all()
+
+
+def test_flight_landings_map_each_flight_sample_to_its_touchdown():
+    """Samples of a flight (no active contact between two stances) know the flight's first sample
+    and its touch-down sample; stances and a flight that never lands are not flights to land."""
+    from planner.wbc.controller import _flight_landings
+
+    active = np.array([[1, 1], [0, 1], [0, 0], [0, 0], [0, 1], [1, 1], [0, 0], [0, 0]], dtype=bool)
+    assert _flight_landings(active) == {2: (2, 4), 3: (2, 4)}
+    assert _flight_landings(np.zeros((3, 0), dtype=bool)) == {}
