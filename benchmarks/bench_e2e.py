@@ -6,6 +6,7 @@ Run from the repository root::
     .venv/bin/python benchmarks/bench_e2e.py --repeat 3 --json
     .venv/bin/python benchmarks/bench_e2e.py --out benchmarks/results/e2e_<date>.json
     .venv/bin/python benchmarks/bench_e2e.py --repeat 3 --baseline /tmp/main-tree   # before/after, interleaved
+    .venv/bin/python benchmarks/bench_e2e.py --cases squat --first-run               # also a first request
 
 Each case is a fresh ``python -m wbmp.cli`` process (start-up, parsing, robot loading,
 planning, simulation and writing included), timed from outside:
@@ -13,7 +14,10 @@ planning, simulation and writing included), timed from outside:
 * ``solver cached``: ``--no-cache`` (the motion cache is bypassed), with the compiled solver
   already in the solver cache (one warm-up run first builds it if needed);
 * ``motion cached``: the same command without ``--no-cache``, after one run stored the motion:
-  the repeat is answered from the motion cache (``wbmp/motioncache.py``).
+  the repeat is answered from the motion cache (``wbmp/motioncache.py``);
+* ``first run`` (``--first-run``): the same command without ``--no-cache`` with the motion cache
+  emptied before each run: what a user's first request costs (the solve, plus hashing the
+  robot's files and storing the motion), the solver still cached.
 
 Reported per case: the median, min and max of ``--repeat`` runs [s] of wall time and of the
 process's CPU time (user + sys: steadier than the wall time on a loaded machine), the median of
@@ -37,6 +41,7 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import statistics
 import subprocess
 import sys
@@ -84,7 +89,9 @@ def _line(label: str, r: dict) -> str:
     stages = "  ".join(f"{k} {s['stages'][k]:.2f}" for k in (*STAGES, "cache", "other") if k in s["stages"])
     return (f"{label:<20} solver cached {s['median']:6.2f} s (min {s['min']:.2f}, max {s['max']:.2f}; "
             f"CPU {s['cpu_median']:.2f})  [{stages}]   motion cached {r['motion_cached']['median']:5.2f} s   "
-            f"html {r['html_bytes'] / 1e6:.2f} MB")
+            f"html {r['html_bytes'] / 1e6:.2f} MB"
+            + (f"   first run {r['first_run']['median']:5.2f} s (CPU {r['first_run']['cpu_median']:.2f})"
+               if "first_run" in r else ""))
 
 
 def main() -> int:
@@ -95,6 +102,8 @@ def main() -> int:
     parser.add_argument("--cache-dir", default=None, help="WBMP_CACHE_DIR (default: a temporary folder)")
     parser.add_argument("--baseline", default=None, metavar="TREE",
                         help="another source tree to run alternately with this one (before/after)")
+    parser.add_argument("--first-run", action="store_true",
+                        help="also time the command with the motion cache on and emptied before each run")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
     parser.add_argument("--out", default=None, help="also write the JSON results here")
     args = parser.parse_args()
@@ -132,10 +141,15 @@ def main() -> int:
             out, html = work / f"{stem}.npz", work / f"{stem}.html"
             outs[label] = (out, html, ["solve", sentence, "--out", str(out), "--html", str(html)])
             warm = run_once([*outs[label][2], "--no-cache"], envs[label], work)  # builds the solver if needed
-            per_tree[label] = {"warm_up": warm["wall"], "solver": [], "motion": []}
+            per_tree[label] = {"warm_up": warm["wall"], "solver": [], "motion": [], "first": []}
         for _ in range(args.repeat):  # interleaved: each tree sees the same load
             for label in trees:
                 per_tree[label]["solver"].append(run_once([*outs[label][2], "--no-cache"], envs[label], work))
+        if args.first_run:
+            for _ in range(args.repeat):
+                for label in trees:
+                    shutil.rmtree(Path(envs[label]["WBMP_CACHE_DIR"]) / "motions", ignore_errors=True)
+                    per_tree[label]["first"].append(run_once(outs[label][2], envs[label], work))
         for label in trees:
             run_once(outs[label][2], envs[label], work)  # stores the motion
         for _ in range(args.repeat):
@@ -147,6 +161,8 @@ def main() -> int:
                  "solver_cached": summary(per_tree[label]["solver"]),
                  "motion_cached": summary(per_tree[label]["motion"]),
                  "npz_bytes": out.stat().st_size, "html_bytes": html.stat().st_size}
+            if per_tree[label]["first"]:
+                r["first_run"] = summary(per_tree[label]["first"])
             # this tree's results where they always were; the baseline's beside them
             results.setdefault("cases" if label == "this tree" else "baseline", {})[name] = r
             if not args.json:

@@ -109,6 +109,25 @@ def mesh_files(gmodel: pin.GeometryModel) -> list[str]:
     return sorted(p for p in paths if p and os.path.isfile(p))  # noqa: PTH113
 
 
+def stored_mesh_files(urdf: str, package_dirs: tuple[str, ...], kind: str) -> list[str] | None:
+    """The mesh files of the stored ``kind`` geometry of ``urdf``, read from its entry's manifest
+    without loading the model (the motion cache hashes a robot's meshes this way); None when the
+    cache is off or holds no readable entry (then load the model and ask :func:`mesh_files`).
+    The list is not verified against the files here: the caller hashes them itself."""
+    root = cache_root()
+    if root is None:
+        return None
+    try:
+        key = geometry_key(urdf, package_dirs, kind)
+        with open(root / key / "manifest.json", "rb") as f:
+            manifest = json.loads(f.read(MAX_MANIFEST_BYTES + 1))
+        if not isinstance(manifest, dict) or manifest.get("key") != key or manifest.get("format") != FORMAT:
+            return None
+        return sorted(str(p) for p in manifest["meshes"])
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 class _Damaged(Exception):
     """An entry that cannot be trusted (the reason is the message)."""
 

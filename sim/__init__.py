@@ -6,7 +6,16 @@
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from typing import TYPE_CHECKING, Any
+
+# The simulation never renders: unless the user chose an OpenGL backend, MuJoCo is imported
+# without one (its GLFW context costs ~0.1 s of every simulated solve). This runs before any
+# sim module imports mujoco; a process that wants mujoco.Renderer after importing sim sets
+# MUJOCO_GL (glfw, egl, osmesa) itself, which is kept.
+if "mujoco" not in sys.modules:
+    os.environ.setdefault("MUJOCO_GL", "disable")
 
 if TYPE_CHECKING:
     from planner.results import Check, CheckKind
