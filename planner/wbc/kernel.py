@@ -574,5 +574,9 @@ def kernel_ready() -> bool:
     numba's cache beside this file holds it (otherwise the first tick compiles it, ~15 s)."""
     if tick_kernel.signatures:
         return True
-    cache = Path(__file__).resolve().parent / "__pycache__"
-    return any(cache.glob("wbc_kernel.tick_kernel-*.nbi"))
+    try:  # numba's own cache object knows its folder (NUMBA_CACHE_DIR too) and index file name
+        cache = tick_kernel._cache
+        return (Path(cache._cache_path) / cache._cache_file._index_name).is_file()
+    except AttributeError:  # another numba layout: the default one, <module>.<function>-<line>.<python>.nbi
+        folder = Path(__file__).resolve().parent / "__pycache__"
+        return any(folder.glob(f"{Path(__file__).stem}.tick_kernel-*.nbi"))
