@@ -71,7 +71,8 @@ class CheckKind(enum.Enum):
     ``FRICTION_CONE``, ``CENTRE_OF_PRESSURE`` (subject: the frame), ``FORCE_WITHOUT_CONTACT``,
     ``SWING_SOLE_CORNERS``, and the plan's own full dynamics recomputed with RNEA:
     ``FULL_DYNAMICS_ZMP`` (its ZMP in the support polygon) and ``FULL_DYNAMICS_WRENCH`` (the
-    planned contact moment against the one the motion needs); every plan adds ``SELF_COLLISION``
+    planned contact moment against the one the motion needs), ``ANKLE_TORQUE`` (subject: the
+    ankle joint; the planned forces' moment about it against its bound); every plan adds ``SELF_COLLISION``
     (subject: the closest link pair, ``a/b``), and a plan with a scene ``SCENE_COLLISION`` (subject:
     the closest link and object, ``link/object``).
 
@@ -108,6 +109,7 @@ class CheckKind(enum.Enum):
     SWING_SOLE_CORNERS = "swing_sole_corners"
     FULL_DYNAMICS_ZMP = "full_dynamics_zmp"
     FULL_DYNAMICS_WRENCH = "full_dynamics_wrench"
+    ANKLE_TORQUE = "ankle_torque"
     SELF_COLLISION = "self_collision"
     BASE_HEIGHT = "base_height"
     BASE_TILT = "base_tilt"

@@ -65,6 +65,7 @@ def dynamic_checks(
     *,
     force_tolerance: float = 1e-3,
     position_tolerance: float = 1e-5,
+    ankle_torque_margin: float | None = None,
 ) -> list[Check]:
     """Report of a dynamic plan, recomputed with Pinocchio and numpy from the solution.
 
@@ -83,6 +84,8 @@ def dynamic_checks(
         force_values: Solution values of ``terms.variables``.
         force_tolerance: Accepted force-law violation, as a fraction of the body weight [-].
         position_tolerance: Accepted CoP excursion and corner depth [m].
+        ankle_torque_margin: Check the moment of each sole's forces about its ankle joints
+            against this fraction of their effort limits (``CentroidalSettings``; None: no check).
 
     Returns:
         One :class:`~planner.results.Check` per group.
@@ -111,6 +114,8 @@ def dynamic_checks(
     worst("CoM dynamics m(c'' - g) = sum f", CheckKind.COM_DYNAMICS, newton, tol_n, "N")
     friction: dict[str, list] = {}
     cop: dict[str, list] = {}
+    ankle: dict[str, list] = {}
+    margin = ankle_torque_margin
     idle = []
     for k, active in enumerate(cen.contacts):
         held = {c.frame for c in active} if k in cen.dynamics_knots else set()
@@ -127,11 +132,20 @@ def dynamic_checks(
                 p = center_of_pressure(c.points_in_frame, fk[None], c.rotation, min_normal=tol_n)
                 viol = cop_violation(p, (full[:, 0].min(), full[:, 0].max()), (full[:, 1].min(), full[:, 1].max()))
                 cop.setdefault(c.frame, []).append((float(viol[0]), t[k]))
+            if margin is not None:
+                for a, moment in zip(c.ankle, c.ankle_torques(fk), strict=True):
+                    ankle.setdefault(a.joint, []).append((abs(float(moment)) / a.effort, t[k], a.effort))
     for frame, rows in friction.items():
         worst(f"{frame} friction cone", CheckKind.FRICTION_CONE, rows, tol_n, "N", frame)
     for frame, rows in cop.items():
         worst(f"{frame} centre of pressure in the sole", CheckKind.CENTRE_OF_PRESSURE, rows, position_tolerance, "m",
               frame)
+    for joint, rows in ankle.items():  # the planned forces' moment about the ankle axis, in % of its limit
+        peak, tt, effort = max(rows, key=lambda x: x[0])
+        limit = float(ankle_torque_margin or 0.0)
+        checks.append(Check(name=f"{joint} torque of the contact forces", kind=CheckKind.ANKLE_TORQUE,
+                            value=100.0 * peak, limit=100.0 * limit, unit="%", time=float(tt),
+                            ok=bool(peak * effort <= limit * effort + 0.1 * tol_n), subject=joint))  # tol: 10 cm lever
     worst("no contact force without contact", CheckKind.FORCE_WITHOUT_CONTACT, idle, 0.0, "N")
     model, data = lay.robot.model, lay.robot.data()
     depth = []
@@ -174,7 +188,8 @@ def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forc
     if forces is not None:
         out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,
                               force_tolerance=lay.centroidal_settings.force_tolerance,
-                              position_tolerance=settings.polygon_tolerance)
+                              position_tolerance=settings.polygon_tolerance,
+                              ankle_torque_margin=lay.centroidal_settings.ankle_torque_margin)
     from planner.trajopt.centroidal.zmp import zmp_checks
 
     corner = lay.pattern().corner_forces(forces) if forces is not None else None

@@ -18,6 +18,84 @@ if TYPE_CHECKING:
     from planner.trajopt.layout import Layout
 
 # ---------------------------------------------------------------------------------------------
+# Ankle joints
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AnkleAxis:
+    """One ankle joint of a foot, seen from its sole frame (fixed per robot, at the standing posture).
+
+    With the foot's own inertia and weight neglected, the joint's torque is the moment of the
+    sole's contact forces about this axis: ``tau = a . sum_i (r_i - o) x f_i``
+    (``r_i`` the force points and ``f_i`` the forces, all in the sole frame).
+
+    Attributes:
+        joint: Pinocchio joint name (``right_ankle_pitch_joint``).
+        axis: Unit joint axis in the sole frame (3,) [-].
+        origin: Joint origin in the sole frame (3,) [m] (its z: the ankle's height above the sole).
+        effort: The joint's torque limit (``model.effortLimit``) [N m].
+    """
+
+    joint: str
+    axis: np.ndarray
+    origin: np.ndarray
+    effort: float
+
+    def levers(self, points: np.ndarray) -> np.ndarray:
+        """(n, 3) vectors ``l_i = a x (r_i - o)``: the torque is ``sum_i l_i . f_i`` (sole frame) [m]."""
+        return np.cross(self.axis, np.asarray(points, dtype=float) - self.origin)
+
+
+def ankle_axes(robot: Robot, frame: str) -> tuple[AnkleAxis, ...]:
+    """The ankle joints of a sole frame, found from the kinematic chain, at the standing posture.
+
+    From the joint that moves the sole frame's link up the chain, the revolute one-degree joints
+    whose axis lies in the sole plane (pitch, roll), at most two, stopping at the first other
+    joint or at an axis parallel to one already taken (G1: ``*_ankle_roll_joint`` then
+    ``*_ankle_pitch_joint``, the knee's pitch axis ends the search; Talos: ``leg_*_6_joint``,
+    ``leg_*_5_joint``). Their axes and origins are expressed in the sole frame at
+    ``robot.q_standing`` (the parent joint's axis moves in that frame with the child's angle:
+    neglected, the ankle roll stays small on flat ground). A joint without a finite positive
+    effort limit is skipped (nothing to bound).
+
+    Args:
+        robot: The robot.
+        frame: The sole frame's name.
+
+    Returns:
+        The ankle axes, nearest the sole first (empty: none found).
+    """
+    model = robot.model
+    data = model.createData()
+    q = robot.q_standing
+    pin.computeJointJacobians(model, data, q)
+    pin.framesForwardKinematics(model, data, q)
+    fid = robot.frame_id(frame)
+    oMs = data.oMf[fid]
+    out: list[AnkleAxis] = []
+    seen: list[np.ndarray] = []
+    j = int(model.frames[fid].parentJoint)
+    while j > 0 and len(seen) < 2:
+        jm = model.joints[j]
+        if jm.nv != 1:
+            break
+        S = pin.getJointJacobian(model, data, j, pin.LOCAL)[:, jm.idx_v]  # the joint's own motion, in its frame
+        if np.linalg.norm(S[:3]) > 1e-9 or abs(np.linalg.norm(S[3:]) - 1.0) > 1e-9:
+            break  # not a revolute joint about its origin
+        axis = oMs.rotation.T @ (data.oMi[j].rotation @ S[3:])
+        if abs(axis[2]) > 0.5 or any(abs(float(axis @ a)) > 0.9 for a in seen):
+            break  # a yaw joint, or a second pitch (the knee): the ankle ends here
+        seen.append(axis)
+        effort = float(model.effortLimit[jm.idx_v])
+        if np.isfinite(effort) and effort > 0.0:
+            out.append(AnkleAxis(joint=str(model.names[j]), axis=axis, origin=np.array(oMs.actInv(data.oMi[j].translation)),
+                                 effort=effort))
+        j = int(model.parents[j])
+    return tuple(out)
+
+
+# ---------------------------------------------------------------------------------------------
 # Contact geometry
 # ---------------------------------------------------------------------------------------------
 
@@ -34,6 +112,7 @@ class ContactGeometry:
             foot, the frame origin (n = 1) of a point contact.
         points_in_frame: The same points in the contact frame (n, 3) [m].
         friction_coefficient: Coulomb friction coefficient [-].
+        ankle: The foot's ankle joints (:func:`ankle_axes`; empty for a point contact).
     """
 
     frame: str
@@ -42,6 +121,18 @@ class ContactGeometry:
     points_in_world: np.ndarray
     points_in_frame: np.ndarray
     friction_coefficient: float
+    ankle: tuple[AnkleAxis, ...] = ()
+
+    def ankle_levers(self) -> np.ndarray:
+        """(n_ankle, n_points, 3) levers of the force points about each ankle axis, in the contact frame [m]."""
+        return np.array([a.levers(self.points_in_frame) for a in self.ankle]).reshape(len(self.ankle),
+                                                                                        self.n_points, 3)
+
+    def ankle_torques(self, forces: np.ndarray) -> np.ndarray:
+        """Moment (n_ankle,) of world point forces (n_points, 3) about each ankle axis [N m]: with the
+        foot's inertia and weight neglected, the joint's torque is its opposite."""
+        local = np.asarray(forces, dtype=float) @ self.rotation  # rows R^T f_i
+        return np.einsum("jic,ic->j", self.ankle_levers(), local)
 
     @property
     def n_points(self) -> int:
@@ -54,7 +145,8 @@ class ContactGeometry:
         return self.rotation[:, 2]
 
 
-def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0) -> ContactGeometry:
+def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0,
+                     ankles: dict[str, tuple[AnkleAxis, ...]] | None = None) -> ContactGeometry:
     """Bind a spec :class:`~tasks.specs.Contact` to ``robot``: frame name, corners, friction.
 
     A foot frame (the robot's ``left_foot``/``right_foot``) gets the four corners of the profile's
@@ -65,6 +157,7 @@ def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0)
         contact: The spec contact (frame by name or role, placement, optional friction).
         robot: The robot it applies to.
         cop_margin: Inward margin of the sole rectangle that the centre of pressure keeps [m].
+        ankles: A cache frame -> :func:`ankle_axes` shared between calls (filled here).
 
     Returns:
         The bound geometry.
@@ -78,9 +171,14 @@ def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0)
     rotation = pin.rpy.rpyToMatrix(*contact.placement.rpy)
     position = np.asarray(contact.placement.position, dtype=float)
     side = robot.foot_side(frame)
+    ankle: tuple[AnkleAxis, ...] = ()
     if side is None:
         local = np.zeros((1, 3))
     else:
+        ankles = {} if ankles is None else ankles
+        if frame not in ankles:
+            ankles[frame] = ankle_axes(robot, frame)
+        ankle = ankles[frame]
         sole = robot.profile.sole
         if 2 * cop_margin >= min(sole.x_max - sole.x_min, sole.y_max - sole.y_min):
             raise PlannerError(
@@ -96,6 +194,7 @@ def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0)
         points_in_world=local @ rotation.T + position,
         points_in_frame=local,
         friction_coefficient=float(mu),
+        ankle=ankle,
     )
 
 
@@ -111,12 +210,19 @@ def contacts_per_knot(spec: TaskSpec, robot: Robot, t: Sequence[float] | np.ndar
     Returns:
         One tuple of bound contacts per knot.
     """
-    bound = [tuple(contact_geometry(c, robot, cop_margin=cop_margin) for c in p.contacts) for p in spec.phases]
+    ankles: dict[str, tuple[AnkleAxis, ...]] = {}
+    bound = [tuple(contact_geometry(c, robot, cop_margin=cop_margin, ankles=ankles) for c in p.contacts)
+             for p in spec.phases]
     return tuple(bound[spec.phase_at(float(tk))] for tk in t)
 
 
-def _geometry_values(c: ContactGeometry) -> np.ndarray:
-    return np.concatenate([c.points_in_world.ravel(), c.rotation.ravel(order="F"), [c.friction_coefficient]])
+def _geometry_values(c: ContactGeometry, *, ankle: bool = False) -> np.ndarray:
+    """Parameter values of one contact: world points, rotation (column-major), friction, then
+    (``ankle``) its ankle levers (n_ankle, n_points, 3) row-major."""
+    parts: list[np.ndarray] = [c.points_in_world.ravel(), c.rotation.ravel(order="F"), np.array([c.friction_coefficient])]
+    if ankle:
+        parts.append(c.ankle_levers().ravel())
+    return np.concatenate(parts)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -140,6 +246,7 @@ def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[Cont
     """
     robot, spec = lay.robot, lay.spec
     starts = spec.phase_start_times()
+    ankles: dict[str, tuple[AnkleAxis, ...]] = {}
     out = []
     for k, active in enumerate(lay.contacts_at):
         tk = float(lay.t[k])
@@ -156,7 +263,7 @@ def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[Cont
                                rpy=cast(Vec3, tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation)))),
                 friction_coefficient=mus.get(fid),
             )
-            geos.append(contact_geometry(contact, robot, cop_margin=cop_margin))
+            geos.append(contact_geometry(contact, robot, cop_margin=cop_margin, ankles=ankles))
         out.append(tuple(geos))
     return tuple(out)
 

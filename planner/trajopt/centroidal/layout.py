@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from planner.results import Check, Plan
     from planner.trajopt.settings import PlannerSettings
 
-DYNAMIC_FORMULATION = "lifted-com-3-momentum-affine"  # part of a dynamic layout's structure (solver cache key)
+DYNAMIC_FORMULATION = "lifted-com-3-momentum-affine-ankle"  # part of a dynamic layout's structure (solver cache key)
 
 
 class DynamicLayout(Layout):

@@ -210,6 +210,14 @@ def _generator(c: ContactGeometry, settings: CentroidalSettings) -> np.ndarray:
     return np.eye(3)
 
 
+def _ankle_bounds(c: ContactGeometry, settings: CentroidalSettings, weight: float) -> np.ndarray:
+    """Bounds (n,) of a contact's ankle-torque rows: ``ankle_torque_margin`` x each ankle joint's
+    effort limit, in body weights x m (the rows' unit); empty without ankle rows."""
+    if settings.ankle_torque_margin is None:
+        return np.zeros(0)
+    return np.array([settings.ankle_torque_margin * a.effort / weight for a in c.ankle])
+
+
 def _structure(settings: CentroidalSettings, per_knot: list) -> tuple:
     return (settings.inner_pyramid, settings.angular_momentum_weight > 0.0,
             "edges" if settings.friction_edges else "components",
@@ -253,8 +261,9 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
     for k in range(1, T - 1):
         active = contacts[k]
         n_points = sum(c.n_points for c in active)
-        structure.append((k, tuple((c.frame, c.n_points) for c in active)))
-        for c in active:
+        ankle = [_ankle_bounds(c, settings, weight) for c in active]
+        structure.append((k, tuple((c.frame, c.n_points, len(a)) for c, a in zip(active, ankle, strict=True))))
+        for c, bound in zip(active, ankle, strict=True):
             if c.frame not in frames:
                 frames.append(c.frame)
             m = c.n_points
@@ -265,10 +274,12 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
             lower.append(lo)
             upper.append(hi)
             initial.append(guess)
-            pvals.append(_geometry_values(c))
+            pvals.append(_geometry_values(c, ankle=len(bound) > 0))
             if not settings.friction_edges:
                 lbg.append(np.zeros(5 * m))
                 ubg.append(np.full(5 * m, np.inf))
+            lbg.append(-bound)
+            ubg.append(bound)
         lbg.append(np.zeros(3))
         ubg.append(np.zeros(3))
         if settings.whole_body_momentum:  # the angular-momentum rows (planner.trajopt.centroidal.momentum)
@@ -345,18 +356,20 @@ def build_centroidal(
     for k in range(1, T - 1):
         active = contacts[k]
         n_points = sum(c.n_points for c in active)
-        structure.append((k, tuple((c.frame, c.n_points) for c in active)))
+        ankle = [_ankle_bounds(c, settings, weight) for c in active]
+        structure.append((k, tuple((c.frame, c.n_points, len(a)) for c, a in zip(active, ankle, strict=True))))
         total = ca.DM.zeros(3)
         points, forces = [], []
-        for c in active:
+        for c, bound in zip(active, ankle, strict=True):
             if c.frame not in frames:
                 frames.append(c.frame)
             m = c.n_points
+            n_a = len(bound)
             u = symbol.sym(f"u_{c.frame}_{k}", b * m)
-            prm = symbol.sym(f"contact_{c.frame}_{k}", 3 * m + 10)
+            prm = symbol.sym(f"contact_{c.frame}_{k}", 3 * m + 10 + 3 * m * n_a)
             syms.append(u)
             psyms.append(prm)
-            pvals.append(_geometry_values(c))
+            pvals.append(_geometry_values(c, ankle=n_a > 0))
             index[k][c.frame] = np.arange(n, n + b * m).reshape(m, b)
             gens[k][c.frame] = _generator(c, settings)
             n += b * m
@@ -366,6 +379,7 @@ def build_centroidal(
             initial.append(guess)
             R = ca.reshape(prm[3 * m : 3 * m + 9], 3, 3)
             E = pyramid_edges(R, prm[3 * m + 9], inner=settings.inner_pyramid) if edges else None
+            E_local = pyramid_edges(ca.DM.eye(3), prm[3 * m + 9], inner=settings.inner_pyramid) if edges and n_a else None
             rows = []
             for i in range(m):
                 if edges:
@@ -382,6 +396,18 @@ def build_centroidal(
                     name=f"friction {c.frame}", knot=k, expr=expr,
                     lower=np.zeros(expr.shape[0]), upper=np.full(expr.shape[0], np.inf),
                 ))
+            if n_a:
+                # moment of the corner forces about each ankle axis, in the sole frame: sum_i l_ji . R^T f_i
+                # with the levers l_ji = a_j x (r_i - o_j) as parameters (fixed per robot and foot)
+                levers = prm[3 * m + 10:]
+                if edges:
+                    local = [ca.mtimes(E_local, u[4 * i: 4 * i + 4]) for i in range(m)]
+                else:
+                    local = [ca.mtimes(R.T, f) for f in forces[-m:]]
+                expr = ca.vertcat(*[sum(ca.dot(levers[3 * (j * m + i): 3 * (j * m + i) + 3], local[i])
+                                        for i in range(m)) for j in range(n_a)])
+                blocks.append(ConstraintBlock(name=f"ankle torque {c.frame}", knot=k, expr=expr,
+                                              lower=-bound, upper=bound))
             cost = cost + force_weight * dt * ca.sumsqr(u)
         acc = com_acceleration(com[k - 1], com[k], com[k + 1], dt)
         residual = (acc / g_norm - ca.DM(g_unit)) - total  # normalized Newton: (c'' - g)/|g| = sum u

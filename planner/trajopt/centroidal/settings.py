@@ -37,6 +37,13 @@ class CentroidalSettings:
             Pinocchio's RNEA on the planned motion) outside the support polygon of the contacts
             it holds [m].
         cop_margin: Inward margin of the sole rectangle for the CoP [m].
+        ankle_torque_margin: Per stance sole and knot, the moment of the sole's corner forces about
+            each ankle joint axis (:func:`~planner.trajopt.centroidal.contacts.ankle_axes`: pitch
+            and roll, found from the kinematic chain) stays within this fraction of the joint's
+            effort limit (2 linear rows per sole and knot; the foot's own inertia neglected). The
+            sole rectangle alone let G1 plans put a foot's whole load on the toe, 0.12 m ahead of
+            an ankle that gives 0.107 x its weight; with Talos's stronger ankles the rows do not
+            bind. None: no such rows [-].
         max_force: Upper bound of one corner's normal force, in body weights [-].
         force_tolerance: Accepted violation of the force checks in the report, as a fraction of
             the body weight [-].
@@ -60,6 +67,7 @@ class CentroidalSettings:
     momentum_tolerance: float = 0.005
     zmp_tolerance: float = 0.01
     cop_margin: float = 0.005
+    ankle_torque_margin: float | None = 0.9
     max_force: float = 10.0
     force_tolerance: float = 1e-3
     ipopt_options: tuple[tuple[str, float | int | str], ...] = (

@@ -182,7 +182,8 @@ def test_standing_forces_carry_the_weight_and_put_the_cop_under_the_com(talos, e
                                                          friction_edges=edges))
     # 3 interior knots x 2 feet x 4 corners x (4 edge weights or 3 components)
     assert terms.n_variables == 3 * 2 * 4 * (4 if edges else 3)
-    assert len(terms.g()[1]) == 3 * (3 + (0 if edges else 2 * 4 * 5))  # dynamics (+ pyramid rows)
+    # dynamics (+ pyramid rows) + 2 ankle-torque rows per foot
+    assert len(terms.g()[1]) == 3 * (3 + (0 if edges else 2 * 4 * 5) + 2 * 2)
     assert terms.dynamics_knots == (1, 2, 3)
     stats, x = _solve_forces(terms, [c0] * T, com_syms)
     assert stats["success"]
@@ -279,7 +280,8 @@ def test_contact_geometry_enters_as_parameters(talos):
     a = build_centroidal(com, 0.1, [tuple(contact_geometry(c, talos) for c in feet)] * 4, talos.mass)
     b = build_centroidal(com, 0.1, [tuple(contact_geometry(c, talos) for c in moved)] * 4, talos.mass)
     assert a.structure == b.structure
-    assert a.parameter_values.shape == b.parameter_values.shape == (2 * 2 * (12 + 10),)
+    # per knot and foot: 4 corners, rotation, friction, and the levers of 4 corners about 2 ankle axes
+    assert a.parameter_values.shape == b.parameter_values.shape == (2 * 2 * (12 + 10 + 24),)
     assert not np.allclose(a.parameter_values, b.parameter_values)
     g, _, _ = a.g()
     assert ca.depends_on(g, a.parameters)  # the pyramid edges use the rotation and friction parameters
@@ -293,7 +295,8 @@ def test_symbolic_dt_and_pyramid_with_parameters(talos, rng):
     dt = ca.SX.sym("dt")
     com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
     terms = build_centroidal(com, dt, [feet] * 3, talos.mass,
-                             settings=CentroidalSettings(whole_body_momentum=False, inner_pyramid=False, friction_edges=False))
+                             settings=CentroidalSettings(whole_body_momentum=False, inner_pyramid=False, friction_edges=False,
+                                                         ankle_torque_margin=None))
     g, _, _ = terms.g()
     fun = ca.Function("g", [terms.variables, terms.parameters, dt, *com], [g])
     u = rng.uniform(0.0, 0.2, terms.n_variables)
@@ -317,7 +320,8 @@ def test_edge_weights_give_the_dynamics_and_the_corner_forces(talos, rng):
     feet = tuple(contact_geometry(c, talos) for c in _feet(talos, yaw=0.3))
     dt = ca.SX.sym("dt")
     com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
-    terms = build_centroidal(com, dt, [feet] * 3, talos.mass, settings=CentroidalSettings(whole_body_momentum=False))
+    terms = build_centroidal(com, dt, [feet] * 3, talos.mass,
+                             settings=CentroidalSettings(whole_body_momentum=False, ankle_torque_margin=None))
     g, lbg, ubg = terms.g()
     assert g.numel() == 3 and np.all(lbg == 0.0) and np.all(ubg == 0.0)
     np.testing.assert_array_equal(terms.lower, 0.0)
@@ -593,3 +597,63 @@ def test_momentum_linearization_matches_pinocchio(talos, rng):
     assert np.abs(np.array(ours[0])).max() > 1e-3  # not a vacuous comparison
     np.testing.assert_allclose(np.array(ca.densify(ours[1])) @ x.ravel(),  # affine: J is the Jacobian
                                np.array(ours[0] - at_zero[0]).ravel(), atol=1e-10)
+
+
+def test_ankle_axes_are_found_from_the_kinematic_chain(talos, g1):
+    """The joints above each sole up to the knee: roll then pitch, axes in the sole plane, with the
+    model's effort limits; the bound is 0.9 x the limit (G1's pitch: less than its whole weight on
+    the toe corners, Talos's: more)."""
+    from planner.trajopt.centroidal.contacts import ankle_axes
+
+    expected = {"g1": ("{s}_ankle_roll_joint", "{s}_ankle_pitch_joint"), "talos": ("leg_{s}_6_joint", "leg_{s}_5_joint")}
+    for robot in (talos, g1):
+        model = robot.model
+        for side in ("left", "right"):
+            axes = ankle_axes(robot, robot.frame(f"{side}_foot"))
+            assert tuple(a.joint for a in axes) == tuple(n.format(s=side) for n in expected[robot.name])
+            np.testing.assert_allclose(np.abs(axes[0].axis), [1.0, 0.0, 0.0], atol=1e-3)  # roll
+            np.testing.assert_allclose(np.abs(axes[1].axis), [0.0, 1.0, 0.0], atol=1e-3)  # pitch
+            for a in axes:
+                assert a.effort == model.effortLimit[model.joints[model.getJointId(a.joint)].idx_v]
+                assert 0.03 < a.origin[2] < 0.15  # the ankle above the sole
+        pitch = ankle_axes(robot, robot.frame("right_foot"))[1]
+        toe = robot.profile.sole.x_max - CentroidalSettings().cop_margin
+        weight_on_toe = robot.mass * 9.81 * (toe - pitch.origin[0])
+        assert (0.9 * pitch.effort < weight_on_toe) == (robot.name == "g1")
+
+
+@pytest.mark.parametrize("edges", [True, False])
+def test_ankle_rows_are_the_moment_of_the_forces_rnea(g1, rng, edges):
+    """For a random set of corner forces on the right sole at the standing posture, the ankle rows
+    times the body weight are the joint torques that RNEA gives for these forces as external
+    forces (no gravity, no motion, so the foot's inertia plays no part), with opposite sign; and
+    the rows' bounds are 0.9 x the effort limits."""
+    model = g1.model.copy()
+    model.gravity.linear = np.zeros(3)
+    data = model.createData()
+    settings = CentroidalSettings(friction_edges=edges)
+    geo = contact_geometry(_feet(g1)[1], g1, cop_margin=settings.cop_margin)
+    com = [ca.SX.sym(f"c{k}", 3) for k in range(3)]
+    terms = build_centroidal(com, 0.1, [(), (geo,), ()], g1.mass, settings=settings)
+    block = next(b for b in terms.constraints if b.name == f"ankle torque {geo.frame}")
+    weight = g1.mass * 9.81
+    np.testing.assert_allclose(block.upper, [0.9 * a.effort / weight for a in geo.ankle])
+    np.testing.assert_allclose(block.lower, -block.upper)
+    rows = ca.Function("rows", [terms.variables, terms.parameters], [block.expr])
+    u = rng.uniform(0.0, 0.5, terms.n_variables)
+    if not edges:
+        u = rng.uniform(-0.3, 0.5, terms.n_variables)  # any force (components)
+    forces = terms.corner_forces(u)[geo.frame][1]  # (4, 3) world [N]
+    q = g1.q_standing
+    pin.forwardKinematics(model, data, q)
+    joint = model.frames[g1.frame_id(geo.frame)].parentJoint
+    fext = pin.StdVec_Force()
+    for _ in range(model.njoints):
+        fext.append(pin.Force.Zero())
+    for p, f in zip(geo.points_in_world, forces, strict=True):
+        fext[joint] += data.oMi[joint].actInv(pin.Force(f, np.cross(p, f)))
+    tau = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv), fext)
+    expected = [-tau[model.joints[model.getJointId(a.joint)].idx_v] for a in geo.ankle]
+    assert max(abs(x) for x in expected) > 1.0  # a real load [N m]
+    np.testing.assert_allclose(np.asarray(rows(u, terms.parameter_values)).ravel() * weight, expected, atol=1e-9)
+    np.testing.assert_allclose(geo.ankle_torques(forces), expected, atol=1e-9)
