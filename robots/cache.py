@@ -128,12 +128,14 @@ def stored_mesh_files(urdf: str, package_dirs: tuple[str, ...], kind: str) -> li
         return None
 
 
-class _Damaged(Exception):
-    """An entry that cannot be trusted (the reason is the message)."""
+class EntryDamaged(Exception):
+    """A disk-cache entry that cannot be trusted (the reason is the message): the robot, MuJoCo
+    and HTML mesh caches remove it with one warning and rebuild it."""
 
 
-class _Stale(Exception):
-    """An intact entry made from files that changed since (a mesh edited)."""
+class EntryStale(Exception):
+    """An intact disk-cache entry made from files that changed since (a mesh edited): rebuilt
+    without a warning."""
 
 
 def _read(entry: Path) -> pin.GeometryModel:
@@ -141,34 +143,34 @@ def _read(entry: Path) -> pin.GeometryModel:
         with open(entry / "manifest.json", "rb") as f:
             raw = f.read(MAX_MANIFEST_BYTES + 1)
     except FileNotFoundError:
-        raise _Stale("no manifest (an interrupted write)") from None
+        raise EntryStale("no manifest (an interrupted write)") from None
     if len(raw) > MAX_MANIFEST_BYTES:
-        raise _Damaged("manifest.json is too large")
+        raise EntryDamaged("manifest.json is too large")
     try:
         manifest = json.loads(raw)
         size, digest = int(manifest["size"]), str(manifest["sha256"])
         meshes = {str(p): str(h) for p, h in manifest["meshes"].items()}
         if manifest["key"] != entry.name or manifest["format"] != FORMAT:
-            raise _Damaged("manifest.json names another entry")
+            raise EntryDamaged("manifest.json names another entry")
     except (ValueError, KeyError, TypeError, AttributeError) as e:
-        raise _Damaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
+        raise EntryDamaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
     for mesh, mesh_digest in meshes.items():
         try:
             if file_sha256(mesh) != mesh_digest:
-                raise _Stale(f"{mesh} changed")
+                raise EntryStale(f"{mesh} changed")
         except OSError:
-            raise _Stale(f"{mesh} is gone") from None
+            raise EntryStale(f"{mesh} is gone") from None
     path = entry / _BINARY
     try:
         if path.stat().st_size != size or file_sha256(path) != digest:
-            raise _Damaged(f"{_BINARY} does not match its manifest (size or sha256)")
+            raise EntryDamaged(f"{_BINARY} does not match its manifest (size or sha256)")
     except OSError as e:
-        raise _Damaged(f"{_BINARY}: {e.strerror or e}") from None
+        raise EntryDamaged(f"{_BINARY}: {e.strerror or e}") from None
     gmodel = pin.GeometryModel()
     try:
         gmodel.loadFromBinary(str(path))
     except (RuntimeError, ValueError, OSError) as e:
-        raise _Damaged(f"Pinocchio cannot read {_BINARY}: {e}") from None
+        raise EntryDamaged(f"Pinocchio cannot read {_BINARY}: {e}") from None
     return gmodel
 
 
@@ -203,9 +205,9 @@ def cached_geometry(urdf: str, package_dirs: tuple[str, ...], kind: str,
     if entry.is_dir():
         try:
             return _read(entry)
-        except _Damaged as e:
+        except EntryDamaged as e:
             _log.warning("wbmp: warning: robot cache entry %s is damaged (%s); removed it, the robot is loaded from its files", entry, e)
-        except _Stale as e:
+        except EntryStale as e:
             _log.info("robot cache: entry %s is out of date (%s); rebuilding it", entry, e)
         shutil.rmtree(entry, ignore_errors=True)
     gmodel = build()

@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from robots.cache import cache_folder, file_sha256
+from robots.cache import EntryDamaged, cache_folder, file_sha256
 
 _log = logging.getLogger("sim.modelcache")
 
@@ -86,37 +86,34 @@ def model_key(robot: Any, xml: str, *, timestep: float, joint_friction: bool, sc
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-class _Damaged(Exception):
-    """An entry that cannot be trusted (the reason is the message)."""
-
 
 def _read(entry: Path) -> tuple[mujoco.MjModel, dict[str, Any]]:
     try:
         raw = (entry / _META).read_bytes()
     except FileNotFoundError:
-        raise _Damaged(f"no {_META}") from None
+        raise EntryDamaged(f"no {_META}") from None
     except OSError as e:
-        raise _Damaged(f"{_META}: {e.strerror or e}") from None
+        raise EntryDamaged(f"{_META}: {e.strerror or e}") from None
     if len(raw) > MAX_META_BYTES:
-        raise _Damaged(f"{_META} is too large")
+        raise EntryDamaged(f"{_META} is too large")
     try:
         meta = json.loads(raw)
         if meta["key"] != entry.name or meta["format"] != FORMAT:
-            raise _Damaged(f"{_META} names another entry")
+            raise EntryDamaged(f"{_META} names another entry")
         size, digest, fields = int(meta["size"]), str(meta["sha256"]), dict(meta["fields"])
     except (ValueError, KeyError, TypeError) as e:
-        raise _Damaged(f"{_META} is not a manifest ({type(e).__name__}: {e})") from None
+        raise EntryDamaged(f"{_META} is not a manifest ({type(e).__name__}: {e})") from None
     path = entry / _BINARY
     try:
         data = path.read_bytes()
     except OSError as e:
-        raise _Damaged(f"{_BINARY}: {e.strerror or e}") from None
+        raise EntryDamaged(f"{_BINARY}: {e.strerror or e}") from None
     if len(data) != size or hashlib.sha256(data).hexdigest() != digest:
-        raise _Damaged(f"{_BINARY} does not match its manifest (size or sha256)")
+        raise EntryDamaged(f"{_BINARY} does not match its manifest (size or sha256)")
     try:
         model = mujoco.MjModel.from_binary_path(str(path))
     except (ValueError, RuntimeError, OSError) as e:
-        raise _Damaged(f"MuJoCo cannot read {_BINARY}: {e}") from None
+        raise EntryDamaged(f"MuJoCo cannot read {_BINARY}: {e}") from None
     return model, fields
 
 
@@ -151,8 +148,8 @@ def cached_model(key: str | None, build: Callable[[], tuple[mujoco.MjModel, dict
             try:
                 return check(*_read(entry))
             except (KeyError, TypeError, ValueError, IndexError) as e:
-                raise _Damaged(f"{_META} does not fit the model ({type(e).__name__}: {e})") from None
-        except _Damaged as e:
+                raise EntryDamaged(f"{_META} does not fit the model ({type(e).__name__}: {e})") from None
+        except EntryDamaged as e:
             _log.warning("wbmp: warning: MuJoCo model cache entry %s is damaged (%s); removed it, the model is built again", entry, e)
             shutil.rmtree(entry, ignore_errors=True)
     model, fields = build()

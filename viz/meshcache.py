@@ -41,7 +41,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from robots.cache import cache_folder, environment, file_sha256, mesh_files
+from robots.cache import (
+    EntryDamaged,
+    EntryStale,
+    cache_folder,
+    environment,
+    file_sha256,
+    mesh_files,
+)
 
 _log = logging.getLogger("viz.meshcache")
 
@@ -188,12 +195,6 @@ def entry_key(urdf: str, package_dirs: tuple[str, ...]) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-class _Damaged(Exception):
-    """An entry that cannot be trusted (the reason is the message)."""
-
-
-class _Stale(Exception):
-    """An intact entry made from files that changed since (a mesh edited)."""
 
 
 _FIELDS = ("names", "joints", "frames", "placements", "colors", "scales", "paths", "kinds", "shapes", "statics",
@@ -205,40 +206,40 @@ def _read(entry: Path) -> ReplayGeometry:
         with open(entry / "manifest.json", "rb") as f:
             raw = f.read(MAX_MANIFEST_BYTES + 1)
     except FileNotFoundError:
-        raise _Stale("no manifest (an interrupted write)") from None
+        raise EntryStale("no manifest (an interrupted write)") from None
     if len(raw) > MAX_MANIFEST_BYTES:
-        raise _Damaged("manifest.json is too large")
+        raise EntryDamaged("manifest.json is too large")
     try:
         manifest = json.loads(raw)
         size, digest = int(manifest["size"]), str(manifest["sha256"])
         meshes = {str(p): str(h) for p, h in manifest["meshes"].items()}
         if manifest["key"] != entry.name or manifest["format"] != FORMAT:
-            raise _Damaged("manifest.json names another entry")
+            raise EntryDamaged("manifest.json names another entry")
     except (ValueError, KeyError, TypeError, AttributeError) as e:
-        raise _Damaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
+        raise EntryDamaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
     for mesh, mesh_digest in meshes.items():
         try:
             if file_sha256(mesh) != mesh_digest:
-                raise _Stale(f"{mesh} changed")
+                raise EntryStale(f"{mesh} changed")
         except OSError:
-            raise _Stale(f"{mesh} is gone") from None
+            raise EntryStale(f"{mesh} is gone") from None
     try:
         with open(entry / _DATA, "rb") as f:
             data = f.read(MAX_DATA_BYTES + 1)
     except OSError as e:
-        raise _Damaged(f"{_DATA}: {e.strerror or e}") from None
+        raise EntryDamaged(f"{_DATA}: {e.strerror or e}") from None
     if len(data) != size or hashlib.sha256(data).hexdigest() != digest:
-        raise _Damaged(f"{_DATA} does not match its manifest (size or sha256)")
+        raise EntryDamaged(f"{_DATA} does not match its manifest (size or sha256)")
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as npz:
             arrays = {name: npz[name] for name in _FIELDS}
     except (ValueError, KeyError, OSError, EOFError) as e:
-        raise _Damaged(f"numpy cannot read {_DATA}: {e}") from None
+        raise EntryDamaged(f"numpy cannot read {_DATA}: {e}") from None
     g = len(arrays["names"])
     if (any(len(arrays[k]) != g for k in _FIELDS[:12])
             or int(arrays["vcount"].sum()) != len(arrays["positions"])
             or int(arrays["fcount"].sum()) != len(arrays["faces"])):
-        raise _Damaged(f"{_DATA}'s arrays do not fit together")
+        raise EntryDamaged(f"{_DATA}'s arrays do not fit together")
     return ReplayGeometry(arrays)
 
 
@@ -277,10 +278,10 @@ def _cached(urdf: str, package_dirs: tuple[str, ...], _mtime_ns: int, _size: int
         return None
     try:
         return _read(entry)
-    except _Damaged as e:
+    except EntryDamaged as e:
         _log.warning("wbmp: warning: HTML mesh cache entry %s is damaged (%s); removed it, the meshes are "
                      "prepared from their files", entry, e)
-    except _Stale as e:
+    except EntryStale as e:
         _log.info("mesh cache: entry %s is out of date (%s); rebuilding it", entry, e)
     shutil.rmtree(entry, ignore_errors=True)
     return None

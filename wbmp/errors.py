@@ -181,9 +181,8 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     _R("planner.exceptions.UnsupportedModel", ExitCode.INVALID_SPEC, "a joint type the planner cannot model"),
     _R("planner.exceptions.SpecNotForRobot", ExitCode.INVALID_SPEC, "a joint or frame the robot does not have"),
     _R("planner.trajopt.cache_disk.EntryDamaged", None, "caught inside the solver cache"),
-    _R("robots.cache._Damaged", None, "caught inside the robot geometry cache"),
-    _R("robots.cache._Stale", None, "caught inside the robot geometry cache"),
-    _R("sim.modelcache._Damaged", None, "caught inside the MuJoCo model cache"),
+    _R("robots.cache.EntryDamaged", None, "caught inside the robot, MuJoCo and HTML mesh caches"),
+    _R("robots.cache.EntryStale", None, "caught inside the robot and HTML mesh caches"),
     # simulation: planned, but the closed-loop check failed or could not run
     _R("planner.wbc.settings.ControllerError", ExitCode.SIM_FAILED,
        "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),
