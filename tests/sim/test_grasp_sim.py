@@ -138,8 +138,8 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos):
     reach into the box by no more than the planned squeeze and its 4 mm target tolerance; while the box
     is held the static torque of every torso and arm joint (Pinocchio RNEA, half the box's weight at
     its centre on each hand) stays within 90 % of its limit; the two hands are a closed chain while they
-    hold it (Pinocchio on the planned q: their distance within 1 cm of its value at the grasp, 5 mm
-    over the lowering between the lift and the put-down, where only the chain holds them); in MuJoCo
+    hold it (Pinocchio on the planned q: their distance within 8 mm of their press targets', 6 mm over
+    the lowering between the lift and the put-down, where only the chain holds them); in MuJoCo
     both welds engage (named in the certificate), the box's body rises by the asked lift (within
     tolerance) over the hold window, level between the hands, and ends within the place tolerance of
     where it stood (the certificate's placed line); the certificate passes."""
@@ -154,18 +154,21 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos):
     g = spec.grasps[0]
     assert len(spec.grasps) == 2 and g.place is not None and g.end is not None
     fa, fb = (talos.frame_id(gr.frame) for gr in spec.grasps)
-    span = []
+    span, data = [], talos.data()
     for q in motion.q:
-        pin.framesForwardKinematics(talos.model, data := talos.data(), q)
+        pin.framesForwardKinematics(talos.model, data, q)
         span.append(np.linalg.norm(data.oMf[fa].translation - data.oMf[fb].translation))
     span = np.array(span)
-    at_grasp = span[np.argmin(np.abs(motion.t - g.start))]
+    press = {t.frame: np.asarray(t.position) for t in spec.targets if t.name.endswith("presses the red box")}
+    at_grasp = float(np.linalg.norm(press[spec.grasps[0].frame] - press[spec.grasps[1].frame]))
     lift_end = next(t.window[1] for t in spec.targets if t.name.endswith("left hand lifts the red box"))
     down = next(t.window[0] for t in spec.targets if t.name.endswith("left hand puts the red box down"))
     both = (motion.t >= g.start) & (motion.t <= g.end)
     lowering = (motion.t > lift_end) & (motion.t < down)
-    assert np.abs(span[both] - at_grasp).max() < 0.01, np.abs(span[both] - at_grasp).max()
-    assert np.abs(span[lowering] - at_grasp).max() < 0.005, np.abs(span[lowering] - at_grasp).max()
+    # the hands' targets: 4 mm each; the chain: the box centre 3 mm, 0.02 rad at the hands' 16 cm offsets
+    # (without it, 0.30 to 0.43 m)
+    assert np.abs(span[both] - at_grasp).max() < 0.008, np.abs(span[both] - at_grasp).max()
+    assert np.abs(span[lowering] - at_grasp).max() < 0.006, np.abs(span[lowering] - at_grasp).max()
     model, data = talos.model, talos.data()
     cm = talos.collision_model
     gd = pin.GeometryData(cm)
