@@ -43,7 +43,7 @@ from planner.trajopt.symbolic import model_hash
 if TYPE_CHECKING:
     from planner.trajopt.transcription import Solver
 
-FORMULATION_VERSION = "2"  # bump when build_nlp changes the NLP for the same structure
+FORMULATION_VERSION = "3"  # bump when build_nlp changes the NLP for the same structure
 MEMORY_ENTRIES = 24  # solvers kept alive in a process (least recently used dropped first)
 _MEMORY: OrderedDict[str, Solver] = OrderedDict()
 _LOCK = threading.Lock()

@@ -33,7 +33,7 @@ from planner.exceptions import SpecNotForRobot
 from robots.contact import halfplanes, sole_corners_in_world
 from robots.contact import support_polygon as polygon_of_soles
 from robots.model import Robot
-from tasks.specs import CoMBounds, CoMTarget, FrameTarget, JointTarget, Priority, TaskSpec
+from tasks.specs import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
     from planner.results import Check, Plan
@@ -49,7 +49,7 @@ class Term:
 
     Attributes:
         kind: ``contact``, ``clearance``, ``polygon``, ``com_box``, ``frame_pos``, ``frame_rot``, ``collision``,
-            ``com_pos``, ``joint``.
+            ``com_pos``, ``joint``, ``frame_rel`` (two hands holding one object: a closed chain).
         knot: Knot index (0..N).
         structure: Hashable description of the expression (no numeric values).
         params: Numeric parameters fed to the NLP (flattened).
@@ -245,7 +245,9 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
         com_target_terms(lay, com_target)
     for joint_target in spec.joint_targets:
         joint_target_terms(lay, joint_target)
-    used = sorted({t.structure[1] for t in lay.terms if t.kind in ("contact", "clearance", "frame_pos", "frame_rot")})
+    closed_chain_terms(lay)
+    used = sorted({t.structure[1] for t in lay.terms if t.kind in ("contact", "clearance", "frame_pos", "frame_rot")}
+                  | {f for t in lay.terms if t.kind == "frame_rel" for f in t.structure[1:3]})
     lay.frame_ids = used
     return lay
 
@@ -499,6 +501,65 @@ def joint_target_terms(lay: Layout, target: JointTarget) -> None:
             params=np.array([target.value, target.weight / len(ks)]),
             label=f"joint target {target.name!r}", item=target, phase=lay.phase_name(k),
         ))
+
+
+CHAIN_TOLERANCE = 0.003  # [m]: the held object's centre as placed by one hand vs by the other
+CHAIN_ORIENTATION_TOLERANCE = 0.02  # [rad]: the hands' relative orientation vs at the grasp
+
+
+def held_together(spec: TaskSpec) -> list[tuple[Grasp, Grasp]]:
+    """Pairs of grasps in which two hands hold one object together (same object and start and end)."""
+    gs = spec.grasps
+    return [(a, b) for i, a in enumerate(gs) for b in gs[i + 1:]
+            if a.object == b.object and a.frame != b.frame and abs(a.start - b.start) < 1e-9 and a.end == b.end]
+
+
+def grasp_relative_rotation(lay: Layout, a: Grasp, b: Grasp) -> np.ndarray | None:
+    """``R_a^T R_b`` of the two hands at the grasp: from their HARD orientation targets at its start
+    (None: either hand has none there)."""
+    ka = knots_of(lay.t, a.start, None, lay.N)[0]
+    rot: dict[str, np.ndarray] = {}
+    for target in lay.spec.targets:
+        if target.rpy is None or target.priority is not Priority.HARD or target.frame not in (a.frame, b.frame):
+            continue
+        if ka in knots_of(lay.t, target.time, target.window, lay.N):
+            rot.setdefault(target.frame, pin.rpy.rpyToMatrix(*target.rpy))
+    if a.frame not in rot or b.frame not in rot:
+        return None
+    return rot[a.frame].T @ rot[b.frame]
+
+
+def closed_chain_terms(lay: Layout) -> None:
+    """Two hands holding one object form a closed chain: at every knot of the shared hold, the
+    object's centre as placed by one hand (its grasp offset) is where the other places it (3 rows
+    [m]), and the hands' relative orientation stays what their targets give at the grasp (3 rows,
+    when both have one there). Stage-wise: both frames at the same knot. A knot where both hands
+    already have HARD position and orientation targets (the press, the lift, the put-down: placed
+    in the chain by the grasp) gets none: its rows would repeat the targets' (a degenerate NLP that
+    IPOPT left infeasible); the chain holds the hands between them."""
+    posed: dict[int, set[tuple[str, int]]] = {}
+    for t in lay.terms:
+        if t.kind in ("frame_pos", "frame_rot") and t.structure[-1] != "soft" and (t.kind == "frame_rot" or all(t.structure[2])):
+            posed.setdefault(t.knot, set()).add((t.kind, t.structure[1]))
+    for a, b in held_together(lay.spec):
+        fa, fb = lay.robot.frame_id(a.frame), lay.robot.frame_id(b.frame)
+        R_rel = grasp_relative_rotation(lay, a, b)
+        end = lay.spec.horizon if a.end is None else a.end
+        ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, None, (a.start, end), lay.N)})
+        upper = _target_upper("box", 3, CHAIN_TOLERANCE)
+        if R_rel is not None:
+            s = math.sin(CHAIN_ORIENTATION_TOLERANCE)
+            upper = np.concatenate([upper, _target_upper("box", 3, s)])
+        params = np.array([*a.offset, *b.offset, *(np.eye(3) if R_rel is None else R_rel).T.ravel()])
+        targeted = {(kind, f) for kind in ("frame_pos", "frame_rot") for f in (fa, fb)}
+        for k in ks:
+            if not _use(lay, k) or (R_rel is not None and targeted <= posed.get(k, set())):
+                continue
+            lay.terms.append(Term(
+                kind="frame_rel", knot=k, structure=("frame_rel", fa, fb, R_rel is not None),
+                params=params, lower=-upper, upper=upper, item=a, phase=lay.phase_name(k),
+                label=f"both hands hold the {a.object} (closed chain)",
+            ))
 
 
 def _mode(priority: Priority, tolerance: float) -> str:

@@ -27,6 +27,7 @@ IK_DAMPING = 1e-3
 CONTACT_WEIGHT = 10.0
 COM_XY_WEIGHT = 1.0
 REGULARIZATION = 1e-2  # pull towards the standing posture, per iteration
+ROT_WEIGHT = 0.3  # [m/rad] an orientation error of the hands holding one object against a position error
 
 
 def _keyframe_tasks(lay: Layout) -> dict[int, list]:
@@ -40,11 +41,12 @@ def _keyframe_tasks(lay: Layout) -> dict[int, list]:
     return out
 
 
-def solve_ik(lay: Layout, knot: int, tasks: list) -> np.ndarray | None:
-    """Configuration meeting the contacts at ``knot`` and ``tasks`` (None if it does not converge)."""
+def solve_ik(lay: Layout, knot: int, tasks: list, q0: np.ndarray | None = None) -> np.ndarray | None:
+    """Configuration meeting the contacts at ``knot`` and ``tasks`` (None if it does not converge),
+    from ``q0`` (default: the reference posture)."""
     robot = lay.robot
     model, data = robot.model, robot.data()
-    q = np.array(lay.q_ref)
+    q = np.array(lay.q_ref if q0 is None else q0)
     pin.framesForwardKinematics(model, data, q)
     com_xy0 = pin.centerOfMass(model, data, q)[:2].copy()
     contacts = lay.contacts_at[knot]
@@ -67,6 +69,10 @@ def solve_ik(lay: Layout, knot: int, tasks: list) -> np.ndarray | None:
                 J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
                 rows.append(J[sel])
                 errs.append((data.oMf[fid].translation - goal)[sel])
+            elif kind == "rot":  # goal: a rotation matrix; weighted [m/rad] against the positions
+                J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL)[3:]
+                rows.append(ROT_WEIGHT * J)
+                errs.append(ROT_WEIGHT * pin.log3(goal.T @ data.oMf[fid].rotation))
             else:
                 rows.append(J_com[sel])
                 errs.append((com - goal)[sel])
@@ -114,6 +120,54 @@ def nominal_motion(lay: Layout) -> np.ndarray:
         for k in range(k0, k1 + 1):
             s = _smoothstep((k - k0) / max(k1 - k0, 1))
             dq[k] = (1 - s) * d0 + s * d1
+    _carry_between(lay, dq, tasks)
     dq[:2] = 0.0
     dq[N] = dq[N - 1]
     return dq
+
+
+def _carry_between(lay: Layout, dq: np.ndarray, tasks: dict[int, list]) -> None:
+    """Two hands holding one object (``frame_rel`` terms): the blend of keyframes found from
+    positions only turns the hands about the object and spreads them (talos lowering a box: 0.30 to
+    0.43 m), which the chain's rows forbid. Every knot from the first to the last that places both
+    hands (HARD position and orientation targets) is solved again from the blend with both hands'
+    positions and orientations: their targets where they have them, in between on the straight line
+    (rotations: the geodesic) between the neighbouring targeted knots, the same fraction for both
+    (the object moves rigidly)."""
+    from planner.trajopt.symbolic import chart_to_configuration
+
+    model = lay.robot.model
+    pose: dict[int, dict[int, list]] = {}  # knot -> frame -> [position, rotation]
+    for t in lay.terms:
+        if t.kind == "frame_pos" and t.structure[3] != "soft" and all(t.structure[2]):
+            pose.setdefault(t.knot, {}).setdefault(t.structure[1], [None, None])[0] = np.array(t.params[:3])
+        elif t.kind == "frame_rot" and t.structure[2] != "soft":
+            pose.setdefault(t.knot, {}).setdefault(t.structure[1], [None, None])[1] = np.array(t.params[:9]).reshape(3, 3).T
+    pairs = {t.structure[1:3] for t in lay.terms if t.kind == "frame_rel"}
+    for pair in pairs:
+        chained = {t.knot for t in lay.terms if t.kind == "frame_rel" and t.structure[1:3] == pair}
+        placed = sorted(k for k, fr in pose.items()
+                        if all(f in fr and fr[f][0] is not None and fr[f][1] is not None for f in pair))
+        span = set(chained)  # with the placed knots that join the chained ones into runs
+        grown = True
+        while grown:
+            more = {j for k in span for j in (k - 1, k + 1) if j in placed and j not in span}
+            span |= more
+            grown = bool(more)
+        for k in sorted(span):
+            if k in placed:
+                goals = {f: pose[k][f] for f in pair}
+            elif k in chained:
+                k0 = max((j for j in placed if j < k), default=None)
+                k1 = min((j for j in placed if j > k), default=None)
+                if k0 is None or k1 is None:
+                    continue
+                s = _smoothstep((k - k0) / (k1 - k0))
+                goals = {f: [(1 - s) * pose[k0][f][0] + s * pose[k1][f][0],
+                             pose[k0][f][1] @ pin.exp3(s * pin.log3(pose[k0][f][1].T @ pose[k1][f][1]))] for f in pair}
+            else:
+                continue
+            ik = [task for f in pair for task in (("frame", f, goals[f][0], (True, True, True)), ("rot", f, goals[f][1], None))]
+            q = solve_ik(lay, k, ik, chart_to_configuration(model, lay.q_ref, dq[k]))
+            if q is not None:
+                dq[k] = configuration_to_chart(model, lay.q_ref, q)

@@ -32,7 +32,8 @@ def stage_function(lay: Layout, term_ids: list[int], name: str) -> ca.Function:
     dq = ca.SX.sym("dq", robot.nv)
     q_ref = ca.SX.sym("q_ref", robot.nq)
     terms = [lay.terms[i] for i in term_ids]
-    frame_ids = sorted({t.structure[1] for t in terms if t.kind in FRAME_KINDS})
+    frame_ids = sorted({t.structure[1] for t in terms if t.kind in FRAME_KINDS}
+                       | {f for t in terms if t.kind == "frame_rel" for f in t.structure[1:3]})
     oMi = kin.joint_placements(q_ref, dq)
     k = {"com": kin.com(oMi), "frames": {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, "dq": dq,
          "oMi": oMi}
@@ -81,6 +82,12 @@ def term_expression(term: Term, p, kin: dict, q_ref, robot: Robot):
         _, R = kin["frames"][s[1]]
         err = rotation_error(ca.reshape(p[0:9], 3, 3), R)
         return _target_rows(err, s[2], p[9])
+    if kind == "frame_rel":  # two hands holding one object (planner/trajopt/layout.py closed_chain_terms)
+        (pa, Ra), (pb, Rb) = (_frame(kin, f, q_ref, robot) for f in s[1:3])
+        rows = [pa + ca.mtimes(Ra, p[0:3]) - pb - ca.mtimes(Rb, p[3:6])]
+        if s[3]:
+            rows.append(rotation_error(ca.reshape(p[6:15], 3, 3), ca.mtimes(Ra.T, Rb)))
+        return ca.vertcat(*rows), 0
     if kind == "collision":
         if "oMi" not in kin:  # a caller that built only frames (the centroidal Hessian): joints from dq
             kin["oMi"] = SymbolicKinematics(robot.model).joint_placements(q_ref, kin["dq"])
@@ -96,6 +103,16 @@ def term_expression(term: Term, p, kin: dict, q_ref, robot: Robot):
         value = q_ref[iv + 1] + kin["dq"][iv]  # one-dof joints: idx_q = idx_v + 1
         return None, p[1] * (value - p[0]) ** 2
     raise PlannerError(f"internal: unknown term kind {kind!r}")
+
+
+def _frame(kin: dict, frame_id: int, q_ref, robot: Robot) -> tuple:
+    """(position, rotation) of a frame: from the stage's frames, or (a caller that built other frames)
+    from the joint placements."""
+    if frame_id in kin["frames"]:
+        return kin["frames"][frame_id]
+    if "oMi" not in kin:
+        kin["oMi"] = SymbolicKinematics(robot.model).joint_placements(q_ref, kin["dq"])
+    return SymbolicKinematics(robot.model).frame_placement(kin["oMi"], frame_id)[::-1]
 
 
 def collision_rows(oMi: list, structure: tuple, p):
