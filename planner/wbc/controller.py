@@ -22,7 +22,8 @@ has its force columns removed from the dynamics (the regularization then sets it
 
 Contacts switch at the plan's times, except at the end of a flight (no planned contact): a sole
 that reaches its landing height early is a stance sole from then on, and the CoM reference brakes
-from the measured state (``WbcSettings.early_touchdown``).
+from the measured state; and in a flight the soles' references replay the plan's path from the
+lift-off knot over the controller's (half a knot shorter) flight (``WbcSettings.early_touchdown``).
 
 Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
 CoM Jacobian and the velocity-product accelerations), one ``centerOfMass`` at zero
@@ -247,6 +248,8 @@ class WholeBodyController:
             [ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames] + mom_acc,
             axis=1,
         )
+        if s.early_touchdown:
+            self._retime_flights(ref, nc_frames=len(self._contacts))
         # per-row gains and weights of the tracking tasks
         kp = np.empty(nrow)
         w = np.empty(nrow)
@@ -318,6 +321,43 @@ class WholeBodyController:
         self._x = np.zeros(self.n)
         self._S = np.zeros((nv, 12 * nc))
         self._stance = np.zeros(0, dtype=np.int64)  # indices of the stance contacts
+
+    def _retime_flights(self, ref: PlanReference, nc_frames: int) -> None:
+        """The soles' references in each flight start when the controller's flight does.
+
+        The plan's sole leaves the floor at the lift-off knot, but the controller's stance lasts
+        half a knot longer (the reference's take-off, :mod:`planner.wbc.reference`): at the
+        switch the swing reference was already that far up and ahead, with its velocity, and the
+        sole started the flight behind it (G1's forward hop: 1 cm ahead and 1.3 cm up, 0.4 m/s).
+        The plan's sole path from the lift-off knot to the touch-down is replayed over the
+        controller's flight instead (time-compressed: velocities scaled by the ratio,
+        accelerations by its square); the touch-down time and pose are unchanged.
+        """
+        knots = np.asarray(ref.plan.t, dtype=float)
+        for a, touch in sorted(set(self._landings.values())):
+            t_a = self._t0 + a / self._inv_dt
+            before = knots[knots <= t_a + 1e-9]
+            if not len(before):
+                continue
+            a0 = int(round((float(before[-1]) - self._t0) * self._inv_dt))
+            if not 0 <= a0 < a:
+                continue
+            ratio = (touch - a0) / (touch - a)
+            src = a0 + (np.arange(a, touch + 1) - a) * ratio  # fractional source samples
+            lo = np.minimum(np.floor(src).astype(int), touch - 1)
+            w = (src - lo)[:, None]
+            near = np.round(src).astype(int)
+            for i in range(nc_frames):
+                cols = slice(3 + 6 * i, 9 + 6 * i)
+                pos = self._ref_pos[:, 1 + i]
+                vel, acc = self._ref_vel[:, cols], self._ref_acc[:, cols]
+                new_pos = (1 - w) * pos[lo] + w * pos[lo + 1]
+                new_vel = ((1 - w) * vel[lo] + w * vel[lo + 1]) * ratio
+                new_acc = ((1 - w) * acc[lo] + w * acc[lo + 1]) * ratio**2
+                self._ref_rot[a : touch + 1, i] = self._ref_rot[near, i]
+                self._ref_pos[a : touch + 1, 1 + i] = new_pos
+                self._ref_vel[a : touch + 1, cols] = new_vel
+                self._ref_acc[a : touch + 1, cols] = new_acc
 
     def _set_active(self, active: tuple[bool, ...], key: int, ref: PlanReference) -> None:
         """Gains, weights, masks and feed-forward terms for a new set of stance contacts."""
