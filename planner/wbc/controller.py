@@ -53,6 +53,8 @@ _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
 
 EARLY_TOUCHDOWN_HEIGHT = 0.0005  # [m] a landing sole this close to its planned height is down (MuJoCo: in contact)
+FLIGHT_TRAVEL = 0.005  # [m] a landing sole that moves more than this in a flight (a forward hop) gets:
+FLIGHT_WINDOW = 0.3  # [s] before that flight and after its touch-down, the momentum task's flight_momentum_weight
 EARLY_TOUCHDOWN_FRACTION = 0.25  # not in the first quarter of a flight (the sole is leaving then)
 
 
@@ -250,6 +252,19 @@ class WholeBodyController:
         )
         if s.early_touchdown:
             self._retime_flights(ref, nc_frames=len(self._contacts))
+        # flights in which a landing sole travels: a window around them for the momentum weight
+        self._near_flight = np.zeros(ref.n, dtype=bool)
+        self._travel_flight = np.zeros(ref.n, dtype=bool)
+        span = int(round(FLIGHT_WINDOW * self._inv_dt))
+        for a, touch in set(self._landings.values()):
+            lands = self._pattern_flags[self._patterns[touch]]
+            travel = max((float(np.linalg.norm(self._ref_pos[touch, 1 + i, :2] - self._ref_pos[a - 1, 1 + i, :2]))
+                          for i, on in enumerate(lands) if on), default=0.0)
+            if travel > FLIGHT_TRAVEL:
+                self._near_flight[max(a - span, 0) : touch + span + 1] = True
+                self._travel_flight[a:touch] = True
+        self._mom_near: bool | None = None
+        self._tick_k = 0
         # per-row gains and weights of the tracking tasks
         kp = np.empty(nrow)
         w = np.empty(nrow)
@@ -368,13 +383,19 @@ class WholeBodyController:
             if a:
                 on[3 + 6 * i : 9 + 6 * i] = True
         kp = np.where(on, s.contact_kp, self._kp_task)
+        w_task = self._sqrt_w_task
+        if nc and not any(active) and self._travel_flight[self._tick_k]:  # the soles must travel in a short flight
+            kp, w_task = kp.copy(), w_task.copy()
+            for i in range(nc):
+                kp[3 + 6 * i : 9 + 6 * i] = s.flight_foot_kp
         self._kp_rows = kp
         self._kd_rows = 2.0 * np.sqrt(kp)
         if self._mom_rows is not None:
             self._kd_rows[self._mom_rows] = s.momentum_kp
         mask = (~on).astype(float)  # stance rows track the anchor at rest
         self._feedforward = (self._ref_acc + self._kd_rows * self._ref_vel) * mask
-        self._w_rows = np.where(on, 0.0, self._sqrt_w_task)
+        self._w_rows = np.where(on, 0.0, w_task)
+        self._mom_near = None  # the momentum weight is set by the tick (_momentum_window)
         self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
@@ -436,6 +457,7 @@ class WholeBodyController:
             self._early = None
         else:
             pattern = self._touchdown(k, landing, v, pattern)
+        self._tick_k = k
         if pattern != self._active_key:
             active = self._pattern_flags[pattern] if pattern >= 0 else self._early
             assert active is not None
@@ -445,6 +467,10 @@ class WholeBodyController:
                     self._anchor_pos[i] = hom[i, :3, 3]  # the sole is held where it touched down
                     self._anchor_rot[i] = hom[i, :3, :3]
             self._set_active(active, pattern, ref)
+        if self._mom_rows is not None and self._near_flight[k] != self._mom_near:
+            self._mom_near = bool(self._near_flight[k])
+            w_mom = self.settings.flight_momentum_weight if self._mom_near else self.settings.momentum_weight
+            self._w_rows[self._mom_rows] = np.sqrt(w_mom)
         q_ref = ref.q[k]
         dq_post = self._dq_post
         if not self._simple_joints:
