@@ -22,7 +22,8 @@ has its force columns removed from the dynamics (the regularization then sets it
 
 Contacts switch at the plan's times, except at the end of a flight (no planned contact): a sole
 that reaches its landing height early is a stance sole from then on, and the CoM reference brakes
-from the measured state (``WbcSettings.early_touchdown``).
+from the measured state; and in a flight the soles' references replay the plan's path from the
+lift-off knot over the controller's (half a knot shorter) flight (``WbcSettings.early_touchdown``).
 
 Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
 CoM Jacobian and the velocity-product accelerations), one ``centerOfMass`` at zero
@@ -52,6 +53,8 @@ _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
 
 EARLY_TOUCHDOWN_HEIGHT = 0.0005  # [m] a landing sole this close to its planned height is down (MuJoCo: in contact)
+FLIGHT_TRAVEL = 0.005  # [m] a landing sole that moves more than this in a flight (a forward hop) gets:
+FLIGHT_WINDOW = 0.3  # [s] before that flight and after its touch-down, the momentum task's flight_momentum_weight
 EARLY_TOUCHDOWN_FRACTION = 0.25  # not in the first quarter of a flight (the sole is leaving then)
 
 
@@ -247,6 +250,21 @@ class WholeBodyController:
             [ref.com_acceleration] + [ref.frames[nm].acceleration for nm in self._frames] + mom_acc,
             axis=1,
         )
+        if s.early_touchdown:
+            self._retime_flights(ref, nc_frames=len(self._contacts))
+        # flights in which a landing sole travels: a window around them for the momentum weight
+        self._near_flight = np.zeros(ref.n, dtype=bool)
+        self._travel_flight = np.zeros(ref.n, dtype=bool)
+        span = int(round(FLIGHT_WINDOW * self._inv_dt))
+        for a, touch in set(self._landings.values()):
+            lands = self._pattern_flags[self._patterns[touch]]
+            travel = max((float(np.linalg.norm(self._ref_pos[touch, 1 + i, :2] - self._ref_pos[a - 1, 1 + i, :2]))
+                          for i, on in enumerate(lands) if on), default=0.0)
+            if travel > FLIGHT_TRAVEL:
+                self._near_flight[max(a - span, 0) : touch + span + 1] = True
+                self._travel_flight[a:touch] = True
+        self._mom_near: bool | None = None
+        self._tick_k = 0
         # per-row gains and weights of the tracking tasks
         kp = np.empty(nrow)
         w = np.empty(nrow)
@@ -319,6 +337,43 @@ class WholeBodyController:
         self._S = np.zeros((nv, 12 * nc))
         self._stance = np.zeros(0, dtype=np.int64)  # indices of the stance contacts
 
+    def _retime_flights(self, ref: PlanReference, nc_frames: int) -> None:
+        """The soles' references in each flight start when the controller's flight does.
+
+        The plan's sole leaves the floor at the lift-off knot, but the controller's stance lasts
+        half a knot longer (the reference's take-off, :mod:`planner.wbc.reference`): at the
+        switch the swing reference was already that far up and ahead, with its velocity, and the
+        sole started the flight behind it (G1's forward hop: 1 cm ahead and 1.3 cm up, 0.4 m/s).
+        The plan's sole path from the lift-off knot to the touch-down is replayed over the
+        controller's flight instead (time-compressed: velocities scaled by the ratio,
+        accelerations by its square); the touch-down time and pose are unchanged.
+        """
+        knots = np.asarray(ref.plan.t, dtype=float)
+        for a, touch in sorted(set(self._landings.values())):
+            t_a = self._t0 + a / self._inv_dt
+            before = knots[knots <= t_a + 1e-9]
+            if not len(before):
+                continue
+            a0 = int(round((float(before[-1]) - self._t0) * self._inv_dt))
+            if not 0 <= a0 < a:
+                continue
+            ratio = (touch - a0) / (touch - a)
+            src = a0 + (np.arange(a, touch + 1) - a) * ratio  # fractional source samples
+            lo = np.minimum(np.floor(src).astype(int), touch - 1)
+            w = (src - lo)[:, None]
+            near = np.round(src).astype(int)
+            for i in range(nc_frames):
+                cols = slice(3 + 6 * i, 9 + 6 * i)
+                pos = self._ref_pos[:, 1 + i]
+                vel, acc = self._ref_vel[:, cols], self._ref_acc[:, cols]
+                new_pos = (1 - w) * pos[lo] + w * pos[lo + 1]
+                new_vel = ((1 - w) * vel[lo] + w * vel[lo + 1]) * ratio
+                new_acc = ((1 - w) * acc[lo] + w * acc[lo + 1]) * ratio**2
+                self._ref_rot[a : touch + 1, i] = self._ref_rot[near, i]
+                self._ref_pos[a : touch + 1, 1 + i] = new_pos
+                self._ref_vel[a : touch + 1, cols] = new_vel
+                self._ref_acc[a : touch + 1, cols] = new_acc
+
     def _set_active(self, active: tuple[bool, ...], key: int, ref: PlanReference) -> None:
         """Gains, weights, masks and feed-forward terms for a new set of stance contacts."""
         s = self.settings
@@ -328,13 +383,19 @@ class WholeBodyController:
             if a:
                 on[3 + 6 * i : 9 + 6 * i] = True
         kp = np.where(on, s.contact_kp, self._kp_task)
+        w_task = self._sqrt_w_task
+        if nc and not any(active) and self._travel_flight[self._tick_k]:  # the soles must travel in a short flight
+            kp, w_task = kp.copy(), w_task.copy()
+            for i in range(nc):
+                kp[3 + 6 * i : 9 + 6 * i] = s.flight_foot_kp
         self._kp_rows = kp
         self._kd_rows = 2.0 * np.sqrt(kp)
         if self._mom_rows is not None:
             self._kd_rows[self._mom_rows] = s.momentum_kp
         mask = (~on).astype(float)  # stance rows track the anchor at rest
         self._feedforward = (self._ref_acc + self._kd_rows * self._ref_vel) * mask
-        self._w_rows = np.where(on, 0.0, self._sqrt_w_task)
+        self._w_rows = np.where(on, 0.0, w_task)
+        self._mom_near = None  # the momentum weight is set by the tick (_momentum_window)
         self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
@@ -396,6 +457,7 @@ class WholeBodyController:
             self._early = None
         else:
             pattern = self._touchdown(k, landing, v, pattern)
+        self._tick_k = k
         if pattern != self._active_key:
             active = self._pattern_flags[pattern] if pattern >= 0 else self._early
             assert active is not None
@@ -405,6 +467,10 @@ class WholeBodyController:
                     self._anchor_pos[i] = hom[i, :3, 3]  # the sole is held where it touched down
                     self._anchor_rot[i] = hom[i, :3, :3]
             self._set_active(active, pattern, ref)
+        if self._mom_rows is not None and self._near_flight[k] != self._mom_near:
+            self._mom_near = bool(self._near_flight[k])
+            w_mom = self.settings.flight_momentum_weight if self._mom_near else self.settings.momentum_weight
+            self._w_rows[self._mom_rows] = np.sqrt(w_mom)
         q_ref = ref.q[k]
         dq_post = self._dq_post
         if not self._simple_joints:

@@ -59,7 +59,15 @@ class WbcSettings:
             sole at once instead of at the planned touch-down, and the CoM reference brakes from
             the measured CoM from then on (:mod:`planner.wbc.controller`). G1's hopping foot
             landed ~65 ms early; as a swing foot until the planned time, then braked at once,
-            it slid 12.6 mm (0.8 mm with this).
+            it slid 12.6 mm (0.8 mm with this). The soles' references in a flight also start
+            when the controller's flight does (the plan's path from the lift-off knot, replayed
+            over the flight half a knot shorter): G1's 5 cm forward hop no longer falls.
+        flight_foot_kp: Sole stiffness in a flight in which a landing sole travels (a forward hop;
+            controller ``FLIGHT_TRAVEL``) [1/s^2]: the real flight is a third of the planned one.
+        flight_momentum_weight: The angular-momentum task's weight around such a flight
+            (``FLIGHT_WINDOW`` before it and after its touch-down) [-]: with ``momentum_weight``
+            the waist sat at its torque cap in the push and the landing sole pitched toe-up
+            (docs/control.md, "Flight soles retimed").
         active_set_iterations: When that solution violates friction or torque rows, this many
             active-set iterations on the same reduced system (violated rows held as equalities,
             rows with wrong-signed multipliers released) before proxsuite is called; a result is
@@ -96,6 +104,8 @@ class WbcSettings:
     momentum_weight: float = 100.0
     momentum_kp: float = 10.0
     early_touchdown: bool = True
+    flight_foot_kp: float = 800.0
+    flight_momentum_weight: float = 10.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -116,6 +126,8 @@ class WbcSettings:
             "friction_compensation",
             "momentum_weight",
             "momentum_kp",
+            "flight_foot_kp",
+            "flight_momentum_weight",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):

@@ -154,3 +154,36 @@ def test_g1_jump_5cm_is_certified_with_the_planned_take_off_momentum(g1):
     assert np.abs(h - ref.angular_momentum[i0]).max() < 1.2  # [N m s] it was 3.1 (pitch)
     airborne = np.all([np.abs(f[:, 2]) < 1e-6 for f in ex.contact_forces.values()], axis=0)
     assert airborne.sum() * ex.timestep > 0.1  # [s] of real flight
+
+
+@pytest.mark.parametrize("early", [True, False])
+def test_flight_sole_reference_starts_when_the_controller_flight_does(jump_plan, talos, early):
+    """The controller's flight starts half a knot after the plan's lift-off knot (the stance is
+    held until the reference's take-off). With ``early_touchdown`` the soles' references replay
+    the plan's path from the lift-off knot over that shorter flight: at the controller's first
+    flight sample each sole reference is the plan's sole at the lift-off knot (forward kinematics
+    of the plan's configuration, on the floor), not the spline's point half a knot later (already
+    off the floor), and the touch-down pose is unchanged. Without it the spline is kept."""
+    from planner.wbc import WbcSettings
+    from planner.wbc.controller import WholeBodyController
+
+    ctrl = WholeBodyController(talos, WbcSettings(early_touchdown=early))
+    ref = ctrl.reference_for(jump_plan)
+    ctrl.reset(jump_plan.q[0], np.zeros(talos.model.nv))
+    ctrl.compute(0.0, jump_plan.q[0], np.zeros(talos.model.nv), ref)  # builds the stacked references
+    air = _flight(ref)
+    a, touch = int(air[0]), int(air[-1]) + 1
+    dt = float(jump_plan.t[1] - jump_plan.t[0])
+    k_off = int(np.argmin(np.abs(jump_plan.t - (ref.times[a] - dt / 2))))
+    data = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, data, jump_plan.q[k_off])
+    for i, name in enumerate(ref.contact_frames):
+        lift = data.oMf[talos.model.getFrameId(name)].translation
+        spline = ref.frames[name].position[a]
+        assert spline[2] - lift[2] > 0.002  # the spline is already 2 mm+ up at the controller's flight start
+        got = ctrl._ref_pos[a, 1 + i]
+        if early:
+            np.testing.assert_allclose(got, lift, atol=5e-4)
+        else:
+            np.testing.assert_allclose(got, spline, atol=1e-12)
+        np.testing.assert_allclose(ctrl._ref_pos[touch, 1 + i], ref.frames[name].position[touch], atol=1e-12)
