@@ -131,9 +131,14 @@ def test_carry_the_cup_while_walking_in_mujoco(talos):
     assert (cup[walking, 2] - CUP.position[2]).min() > 0.02  # carried, not dropped (the body walks lower: 6 cm)
 
 
-@pytest.mark.slow
-def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos):
-    """用双手拿起红色盒子然后放下 on the counter of examples/scenes/box_on_counter.json, checked against
+@pytest.mark.parametrize("text", [
+    pytest.param("用双手拿起红色盒子", marks=pytest.mark.slow),
+    # the put-down's peak torque is 97 % of the 98 % the certificate allows (at the release): too
+    # near the edge for `make test` on any CPU; `make test-long` runs it
+    pytest.param("用双手拿起红色盒子然后放下", marks=pytest.mark.long),
+])
+def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos, text):
+    """用双手拿起红色盒子 (then 然后放下, put it down) on the counter of examples/scenes/box_on_counter.json, checked against
     numbers computed here: over the press window each hand's collision meshes (coal, on the planned q)
     reach into the box by no more than the planned squeeze and its 4 mm target tolerance; while the box
     is held the static torque of every torso and arm joint (Pinocchio RNEA, half the box's weight at
@@ -149,10 +154,11 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos):
 
     scene = load_scene(BOX_ON_COUNTER)
     box = scene.get("red box")
-    spec = compile_actions(list(parse("用双手拿起红色盒子然后放下").actions), talos, scene=scene)
+    spec = compile_actions(list(parse(text).actions), talos, scene=scene)
     motion = plan(spec, talos)
     g = spec.grasps[0]
-    assert len(spec.grasps) == 2 and g.place is not None and g.end is not None
+    puts_down = text.endswith("放下")
+    assert len(spec.grasps) == 2 and (g.place is not None and g.end is not None) == puts_down
     fa, fb = (talos.frame_id(gr.frame) for gr in spec.grasps)
     span, data = [], talos.data()
     for q in motion.q:
@@ -162,13 +168,14 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos):
     press = {t.frame: np.asarray(t.position) for t in spec.targets if t.name.endswith("presses the red box")}
     at_grasp = float(np.linalg.norm(press[spec.grasps[0].frame] - press[spec.grasps[1].frame]))
     lift_end = next(t.window[1] for t in spec.targets if t.name.endswith("left hand lifts the red box"))
-    down = next(t.window[0] for t in spec.targets if t.name.endswith("left hand puts the red box down"))
-    both = (motion.t >= g.start) & (motion.t <= g.end)
+    down = next((t.window[0] for t in spec.targets if t.name.endswith("left hand puts the red box down")), motion.t[-1])
+    both = (motion.t >= g.start) & (motion.t <= (g.end if g.end is not None else motion.t[-1]))
     lowering = (motion.t > lift_end) & (motion.t < down)
     # the hands' targets: 4 mm each; the chain: the box centre 3 mm, 0.02 rad at the hands' 16 cm offsets
     # (without it, 0.30 to 0.43 m)
     assert np.abs(span[both] - at_grasp).max() < 0.008, np.abs(span[both] - at_grasp).max()
-    assert np.abs(span[lowering] - at_grasp).max() < 0.006, np.abs(span[lowering] - at_grasp).max()
+    if puts_down:
+        assert np.abs(span[lowering] - at_grasp).max() < 0.006, np.abs(span[lowering] - at_grasp).max()
     model, data = talos.model, talos.data()
     cm = talos.collision_model
     gd = pin.GeometryData(cm)
@@ -217,6 +224,9 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos):
     assert rise.min() >= g.lift - LIFT_TOLERANCE, rise.min()
     assert np.abs(held_box[hold, 1] - box.position[1]).max() < 0.02
     placed = [c for c in run.certificate.checks if c.kind is CheckKind.OBJECT_PLACE]
+    if not puts_down:
+        assert placed == [] and rise[-1] >= g.lift - LIFT_TOLERANCE  # still held up at the end
+        return
     assert [c.subject for c in placed] == ["red box"] and placed[0].ok, placed  # once, not once per hand
     assert np.linalg.norm(held_box[-1] - np.asarray(box.position)) <= PLACE_TOLERANCE, held_box[-1]
 
