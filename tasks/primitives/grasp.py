@@ -82,11 +82,12 @@ def grasp_point(robot: Robot, side: str, obj: SceneObject) -> np.ndarray:
     return c
 
 
-def holding_arm(params: dict, robot: Robot) -> str:
-    """The arm that picks: the stated one, else the one on the object's side."""
+def holding_arm(params: dict, robot: Robot, action: str = "pick_up") -> str:
+    """The arm that picks (pushes, ...: ``action`` names it in errors): the stated one, else the
+    one on the object's side."""
     if params.get("arm"):
         return str(params["arm"])
-    g = grounded(params, "pick_up")
+    g = grounded(params, action)
     start = g.start if isinstance(g.start, Stance) else Stance.standing(robot)
     local = start.heading().actInv(np.asarray(g.obj.position, dtype=float))
     return "left" if local[1] >= 0 else "right"
@@ -169,7 +170,9 @@ def build_pick_up(b: FragmentBuilder) -> Fragment:
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
 
-def _parts(params: dict) -> frozenset[str]:
+def object_arm_parts(params: dict) -> frozenset[str]:
+    """The body parts an object action moves: the stated arm (or both) with the torso, else the arm on
+    the object's side, else both arms."""
     arm = params.get("arm")
     if arm == "both":
         return frozenset({"left_arm", "right_arm", "torso"})
@@ -347,7 +350,7 @@ def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
 
 
 PICK_UP = Primitive(name="pick_up", nominal_duration=lambda params, robot: DURATION, build=build_pick_up,
-                    parts=_parts, check=_check)
+                    parts=object_arm_parts, check=_check)
 
 # --- put_down ---------------------------------------------------------------------------
 LOWER_TIME = 1.5  # [s] nominal: held pose -> the grasp pose over where the object was
@@ -635,7 +638,7 @@ def _held_side(b: FragmentBuilder, g: Grounded) -> str:
 
 
 PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION, build=build_put_down,
-                     parts=_parts, check=_put_check)
+                     parts=object_arm_parts, check=_put_check)
 
 # --- carrying -------------------------------------------------------------------------
 CARRY_WEIGHT = 1000.0  # cost weight of each carrying joint's angle while the feet move [1/rad^2]
@@ -711,5 +714,5 @@ def carry_posture(robot: Robot, side: str, hand_in_standing: pin.SE3) -> dict[st
 PRIMITIVES = (PICK_UP, PUT_DOWN)
 
 __all__ = ["GRASP_TOLERANCE", "PICK_UP", "PRIMITIVES", "PUT_DOWN", "build_pick_up", "build_put_down", "carry_posture",
-           "carrying_joints", "destination", "grasp_offset", "grasp_point", "holding_arm", "place_point", "put_place",
+           "carrying_joints", "destination", "grasp_offset", "grasp_point", "holding_arm", "object_arm_parts", "place_point", "put_place",
            "shift", "shifted_place"]

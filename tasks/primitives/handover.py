@@ -37,7 +37,6 @@ import pinocchio as pin
 
 from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
-from tasks.grounding import Grounded
 from tasks.primitives.arms import reach, shoulder
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.bodymap import to_standing
@@ -48,6 +47,7 @@ from tasks.primitives.grasp import (
     grasp_offset,
     grasp_point,
     holding_arm,
+    object_arm_parts,
 )
 from tasks.primitives.objects import grounded
 from tasks.scene import SceneObject, extent
@@ -158,19 +158,8 @@ def build_hand_over(b: FragmentBuilder) -> Fragment:
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
 
-def _parts(params: dict) -> frozenset[str]:
-    arm = params.get("arm")
-    if arm:
-        return frozenset({f"{arm}_arm", "torso"})
-    g = params.get("object")
-    if isinstance(g, Grounded) and isinstance(g.start, Stance):
-        local = g.start.heading().actInv(np.asarray(g.obj.position, dtype=float))
-        return frozenset({"left_arm" if local[1] >= 0 else "right_arm", "torso"})
-    return frozenset({"left_arm", "right_arm", "torso"})
-
-
 HAND_OVER = Primitive(name="hand_over", nominal_duration=lambda params, robot: DURATION, build=build_hand_over,
-                      parts=_parts, check=_check)
+                      parts=object_arm_parts, check=_check)
 
 PRIMITIVES = (HAND_OVER,)
 

@@ -46,11 +46,10 @@ import pinocchio as pin
 
 from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
-from tasks.grounding import Grounded
 from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
 from tasks.primitives.geometry import Stance, standing_geometry
-from tasks.primitives.grasp import carry_posture, hand_points
+from tasks.primitives.grasp import carry_posture, hand_points, holding_arm, object_arm_parts
 from tasks.primitives.objects import grounded
 from tasks.scene import Scene, SceneObject, extent
 from tasks.specs import Push
@@ -89,12 +88,7 @@ def _duration(params: dict, robot: Robot) -> float:
 
 def pushing_arm(params: dict, robot: Robot) -> str:
     """The stated arm, else the one on the object's side."""
-    if params.get("arm"):
-        return str(params["arm"])
-    g = grounded(params, "push")
-    start = g.start if isinstance(g.start, Stance) else Stance.standing(robot)
-    local = start.heading().actInv(np.asarray(g.obj.position, dtype=float))
-    return "left" if local[1] >= 0 else "right"
+    return holding_arm(params, robot, "push")
 
 
 def support(scene: Scene, obj: SceneObject) -> SceneObject | None:
@@ -301,18 +295,7 @@ def build_push(b: FragmentBuilder) -> Fragment:
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
 
-def _parts(params: dict) -> frozenset[str]:
-    arm = params.get("arm")
-    if arm:
-        return frozenset({f"{arm}_arm", "torso"})
-    g = params.get("object")
-    if isinstance(g, Grounded) and isinstance(g.start, Stance):
-        local = g.start.heading().actInv(np.asarray(g.obj.position, dtype=float))
-        return frozenset({"left_arm" if local[1] >= 0 else "right_arm", "torso"})
-    return frozenset({"left_arm", "right_arm", "torso"})
-
-
-PUSH = Primitive(name="push", nominal_duration=_duration, build=build_push, parts=_parts, check=_check)
+PUSH = Primitive(name="push", nominal_duration=_duration, build=build_push, parts=object_arm_parts, check=_check)
 
 PRIMITIVES = (PUSH,)
 
