@@ -138,7 +138,14 @@ class EntryStale(Exception):
     without a warning."""
 
 
-def _read(entry: Path) -> pin.GeometryModel:
+def read_manifest(entry: Path, fmt: int) -> tuple[int, str]:
+    """The (size, sha256) ``entry``'s manifest.json records for its data file, once the manifest
+    names this entry and format ``fmt`` and every mesh file it lists still has its recorded sha256.
+
+    Raises:
+        EntryStale: No manifest (an interrupted write), or a listed mesh changed or is gone.
+        EntryDamaged: The manifest is too large, not JSON, or names another entry or format.
+    """
     try:
         with open(entry / "manifest.json", "rb") as f:
             raw = f.read(MAX_MANIFEST_BYTES + 1)
@@ -150,7 +157,7 @@ def _read(entry: Path) -> pin.GeometryModel:
         manifest = json.loads(raw)
         size, digest = int(manifest["size"]), str(manifest["sha256"])
         meshes = {str(p): str(h) for p, h in manifest["meshes"].items()}
-        if manifest["key"] != entry.name or manifest["format"] != FORMAT:
+        if manifest["key"] != entry.name or manifest["format"] != fmt:
             raise EntryDamaged("manifest.json names another entry")
     except (ValueError, KeyError, TypeError, AttributeError) as e:
         raise EntryDamaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
@@ -160,6 +167,11 @@ def _read(entry: Path) -> pin.GeometryModel:
                 raise EntryStale(f"{mesh} changed")
         except OSError:
             raise EntryStale(f"{mesh} is gone") from None
+    return size, digest
+
+
+def _read(entry: Path) -> pin.GeometryModel:
+    size, digest = read_manifest(entry, FORMAT)
     path = entry / _BINARY
     try:
         if path.stat().st_size != size or file_sha256(path) != digest:

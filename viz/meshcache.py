@@ -48,6 +48,7 @@ from robots.cache import (
     environment,
     file_sha256,
     mesh_files,
+    read_manifest,
 )
 
 _log = logging.getLogger("viz.meshcache")
@@ -55,7 +56,6 @@ _log = logging.getLogger("viz.meshcache")
 FORMAT = 1  # bump when an entry's layout changes
 _DATA = "meshes.npz"
 _SOURCES = ("meshcache.py", "scene.py")
-MAX_MANIFEST_BYTES = 1 << 20
 MAX_DATA_BYTES = 256 << 20
 # kinds: a packed mesh; a primitive (box, sphere, cylinder, capsule: ``shapes`` holds its sizes);
 # another geometry (the replay needs the real visual model)
@@ -202,27 +202,7 @@ _FIELDS = ("names", "joints", "frames", "placements", "colors", "scales", "paths
 
 
 def _read(entry: Path) -> ReplayGeometry:
-    try:
-        with open(entry / "manifest.json", "rb") as f:
-            raw = f.read(MAX_MANIFEST_BYTES + 1)
-    except FileNotFoundError:
-        raise EntryStale("no manifest (an interrupted write)") from None
-    if len(raw) > MAX_MANIFEST_BYTES:
-        raise EntryDamaged("manifest.json is too large")
-    try:
-        manifest = json.loads(raw)
-        size, digest = int(manifest["size"]), str(manifest["sha256"])
-        meshes = {str(p): str(h) for p, h in manifest["meshes"].items()}
-        if manifest["key"] != entry.name or manifest["format"] != FORMAT:
-            raise EntryDamaged("manifest.json names another entry")
-    except (ValueError, KeyError, TypeError, AttributeError) as e:
-        raise EntryDamaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
-    for mesh, mesh_digest in meshes.items():
-        try:
-            if file_sha256(mesh) != mesh_digest:
-                raise EntryStale(f"{mesh} changed")
-        except OSError:
-            raise EntryStale(f"{mesh} is gone") from None
+    size, digest = read_manifest(entry, FORMAT)
     try:
         with open(entry / _DATA, "rb") as f:
             data = f.read(MAX_DATA_BYTES + 1)
