@@ -28,6 +28,25 @@ TABLE = SceneObject(name="table", shape="box", size=(0.6, 1.0, 0.72), position=(
 NEAR = Scene(name="a cup within reach", objects=(TABLE, CUP))
 
 
+def _standing_geometry(robot):
+    """(model, data, collision model, its data) with frames and collision placements at the standing posture."""
+    model, data = robot.model, robot.data()
+    cm = robot.collision_model
+    gd = pin.GeometryData(cm)
+    pin.framesForwardKinematics(model, data, robot.q_standing)
+    pin.updateGeometryPlacements(model, data, cm, gd, robot.q_standing)
+    return model, data, cm, gd
+
+
+def distance(geometry, M: pin.SE3, obj: SceneObject) -> float:
+    """coal's distance from a collision geometry placed at ``M`` to a box scene object (negative: into it)."""
+    import coal
+
+    return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
+                         coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
+                         coal.DistanceResult())
+
+
 @pytest.fixture(scope="module")
 def talos():
     return load_robot("talos")
@@ -204,8 +223,6 @@ def test_both_hands_press_the_box_sides(talos):
     window, one per hand; at each press target the hand's collision meshes (coal, placed where the
     target puts the hand frame) go 0.5-1.5 cm into the box (the planned squeeze) and stay clear of
     the counter under it, and its fingertip frames point forward; a cup cannot be held that way."""
-    import coal
-
     for text in ("用双手拿起红色盒子", "pick up the red box with both hands"):
         (a,) = parse(text).actions
         assert (a.name, a.params["arm"]) == ("pick_up", "both")
@@ -214,16 +231,7 @@ def test_both_hands_press_the_box_sides(talos):
     left, right = spec.grasps
     assert {left.frame, right.frame} == {talos.frame("left_hand"), talos.frame("right_hand")}
     assert (left.start, left.end, left.hold) == (right.start, right.end, right.hold)
-    model, data = talos.model, talos.data()
-    cm = talos.collision_model
-    gd = pin.GeometryData(cm)
-    pin.framesForwardKinematics(model, data, talos.q_standing)
-    pin.updateGeometryPlacements(model, data, cm, gd, talos.q_standing)
-
-    def distance(geometry, M, obj):
-        return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
-                             coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
-                             coal.DistanceResult())
+    model, data, cm, gd = _standing_geometry(talos)
 
     for side in ("left", "right"):
         t = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
@@ -321,23 +329,12 @@ def test_g1s_wider_wrist_stays_off_the_box(g1):
     the target puts the hand frame, standing relative placements) the wrist and forearm meshes above
     the hand stay at least 1 cm off the box, the hand's own meshes off it too (the welds hold the
     box), and both clear the table; the hand frame is level with the box's side, not turned."""
-    import coal
-
     from tasks.scene import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_low_table.json")
     box, table = scene.get("red box"), scene.get("table")
     spec = compile_actions(list(parse("用双手拿起红色盒子").actions), g1, scene=scene)
-    model, data = g1.model, g1.data()
-    cm = g1.collision_model
-    gd = pin.GeometryData(cm)
-    pin.framesForwardKinematics(model, data, g1.q_standing)
-    pin.updateGeometryPlacements(model, data, cm, gd, g1.q_standing)
-
-    def distance(geometry, M, obj):
-        return coal.distance(geometry, coal.Transform3s(M.rotation, M.translation), coal.Box(*obj.size),
-                             coal.Transform3s(np.eye(3), np.asarray(obj.position)), coal.DistanceRequest(),
-                             coal.DistanceResult())
+    model, data, cm, gd = _standing_geometry(g1)
 
     for side in ("left", "right"):
         t = next(t for t in spec.targets if t.name.endswith(f"{side} hand presses the red box"))
