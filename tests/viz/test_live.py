@@ -79,16 +79,17 @@ def _receive_scene(web_url: str, n_objects: int, linger: float = 1.0) -> list[di
     return asyncio.run(run())
 
 
-def test_live_viewer_serves_on_loopback_and_stops(talos, synth_plan, synth_execution):
+@contextlib.contextmanager
+def _serving(robot, plan, execution, stream):
+    """A live viewer served in a thread: yields its ServerInfo once ready; on leaving, stops it and
+    checks that serve() returned within STOP_TIMEOUT and raised nothing."""
     stop = threading.Event()
     ready: list[ServerInfo] = []
     errors: list[BaseException] = []
-    out = io.StringIO()
 
     def target() -> None:
         try:
-            serve(talos, synth_plan, execution=synth_execution, stop_event=stop, stream=out,
-                  on_ready=ready.append)
+            serve(robot, plan, execution=execution, stop_event=stop, stream=stream, on_ready=ready.append)
         except BaseException as e:  # noqa: BLE001 - reported below
             errors.append(e)
 
@@ -99,7 +100,17 @@ def test_live_viewer_serves_on_loopback_and_stops(talos, synth_plan, synth_execu
         time.sleep(0.05)
     try:
         assert ready, f"viewer not ready: {errors}"
-        info = ready[0]
+        yield ready[0]
+    finally:
+        stop.set()
+        thread.join(STOP_TIMEOUT)
+    assert not thread.is_alive(), f"serve() did not return within {STOP_TIMEOUT} s of stop_event"
+    assert errors == []
+
+
+def test_live_viewer_serves_on_loopback_and_stops(talos, synth_plan, synth_execution):
+    out = io.StringIO()
+    with _serving(talos, synth_plan, synth_execution, out) as info:
         assert info.web_url.startswith("http://127.0.0.1:") and info.web_url in out.getvalue()
         web_port = int(info.web_url.split(":")[2].split("/")[0])
         zmq_port = int(info.zmq_url.rsplit(":", 1)[1])
@@ -117,13 +128,8 @@ def test_live_viewer_serves_on_loopback_and_stops(talos, synth_plan, synth_execu
         paths = {a["path"] for a in anim["animations"]}
         assert sum(p.startswith("/meshcat/wbmp/robot/planned/") for p in paths) == n_geoms
         assert sum(p.startswith("/meshcat/wbmp/robot/simulated/") for p in paths) == n_geoms
-    finally:
-        stop.set()
-        thread.join(STOP_TIMEOUT)
-    assert not thread.is_alive(), f"serve() did not return within {STOP_TIMEOUT} s of stop_event"
-    assert errors == []
     with pytest.raises(ProcessLookupError):
-        os.kill(ready[0].pid, 0)  # the server process is gone (and reaped)
+        os.kill(info.pid, 0)  # the server process is gone (and reaped)
 
 
 def test_busy_port_is_a_clear_error(talos, synth_plan):
@@ -146,26 +152,9 @@ def test_live_viewer_moves_the_held_object_as_simulated(talos, pick_plan, pick_e
 
     from tests.viz.test_scene_objects import object_clip_at
 
-    stop = threading.Event()
-    ready: list[ServerInfo] = []
-    errors: list[BaseException] = []
-
-    def target() -> None:
-        try:
-            serve(talos, pick_plan, execution=pick_execution, stop_event=stop, stream=io.StringIO(),
-                  on_ready=ready.append)
-        except BaseException as e:  # noqa: BLE001 - reported below
-            errors.append(e)
-
-    thread = threading.Thread(target=target, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + READY_TIMEOUT
-    while not ready and thread.is_alive() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    try:
-        assert ready, f"viewer not ready: {errors}"
+    with _serving(talos, pick_plan, pick_execution, io.StringIO()) as info:
         n_geoms = len(talos.visual_model.geometryObjects)
-        messages = _receive_scene(ready[0].web_url, 2 * n_geoms)
+        messages = _receive_scene(info.web_url, 2 * n_geoms)
         (anim,) = [m for m in messages if m["type"] == "set_animation"]
         paths = [a["path"] for a in anim["animations"]]
         assert paths.count("/meshcat/wbmp/scene/cup") == 1  # one node: the simulated poses, not the planned too
@@ -176,7 +165,4 @@ def test_live_viewer_moves_the_held_object_as_simulated(talos, pick_plan, pick_e
         assert np.allclose(box[:3], pick_plan.spec.scene.get("box").position)
         shapes = {m["path"] for m in messages if m["type"] == "set_object"}
         assert "/meshcat/wbmp/scene/cup/shape" in shapes
-    finally:
-        stop.set()
-        thread.join(STOP_TIMEOUT)
-    assert not thread.is_alive() and errors == []
+
