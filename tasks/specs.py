@@ -121,6 +121,13 @@ def _text(owner: str, field_name: str, value, *, limit: int = MAX_NAME_LENGTH) -
         raise TaskDefinitionError(f"{owner}: {field_name} has {len(value)} characters; at most {limit}")
 
 
+def _name(owner: str, field_name: str, value) -> None:
+    """A non-empty name (an object's, a frame's) within the text limit."""
+    if not isinstance(value, str) or not value:
+        raise TaskDefinitionError(f"{owner}: {field_name} must be a non-empty name, got {_show(value)}")
+    _text(owner, field_name, value)
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Pose:
     """A placement in the world: position [m] and roll-pitch-yaw [rad]."""
@@ -399,10 +406,7 @@ class Grasp:
         _text("grasp", "name", self.name)
         who = f"grasp {self.name!r}"
         for key in ("object", "frame"):
-            value = getattr(self, key)
-            if not isinstance(value, str) or not value:
-                raise TaskDefinitionError(f"{who}: {key} must be a non-empty name, got {_show(value)}")
-            _text(who, key, value)
+            _name(who, key, getattr(self, key))
         _vec3(who, "offset", self.offset)
         _nonneg(who, "start", self.start, hi=MAX_HORIZON, unit="s")
         if self.end is not None:
@@ -453,10 +457,7 @@ class Push:
         _text("push", "name", self.name)
         who = f"push {self.name!r}"
         for key in ("object", "frame"):
-            value = getattr(self, key)
-            if not isinstance(value, str) or not value:
-                raise TaskDefinitionError(f"{who}: {key} must be a non-empty name, got {_show(value)}")
-            _text(who, key, value)
+            _name(who, key, getattr(self, key))
         _vec3(who, "direction", self.direction)
         if abs(math.hypot(*self.direction) - 1.0) > 1e-6 or abs(self.direction[2]) > 1e-6:
             raise TaskDefinitionError(f"{who}: direction must be a horizontal unit vector, got {_show(self.direction)}")
