@@ -42,7 +42,7 @@ import proxsuite
 
 from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
-from planner.wbc.reference import FLIGHT_BLEND, PlanReference, _hermite
+from planner.wbc.reference import FLIGHT_BLEND, PlanReference, _hermite, flight_spans
 from planner.wbc.settings import ControllerError, WbcSettings
 from robots.contact import pyramid_coefficient, pyramid_facets, sole_corners
 from robots.model import Robot
@@ -64,17 +64,9 @@ def _flight_landings(active: np.ndarray) -> dict[int, tuple[int, int]]:
     out: dict[int, tuple[int, int]] = {}
     flags = np.asarray(active, dtype=bool)
     air = [bool(flags.shape[1]) and not row.any() for row in flags]
-    n, k = len(air), 0
-    while k < n:
-        if not air[k]:
-            k += 1
-            continue
-        a = k
-        while k < n and air[k]:
-            k += 1
-        if a > 0 and k < n:
-            for j in range(a, k):
-                out[j] = (a, k)
+    for a, k in flight_spans(air):
+        for j in range(a, k):
+            out[j] = (a, k)
     return out
 
 

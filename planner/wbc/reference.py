@@ -403,6 +403,22 @@ def _hermite(t0: float, t1: float, p0, v0, p1, v1, t: np.ndarray):
     return pos, vel, acc
 
 
+
+def flight_spans(airborne) -> list[tuple[int, int]]:
+    """(first airborne sample, touch-down sample) of each flight between two stances: a run of
+    airborne samples with a sample on the ground before and after it."""
+    out, n, k = [], len(airborne), 0
+    while k < n:
+        if not airborne[k]:
+            k += 1
+            continue
+        a = k
+        while k < n and airborne[k]:
+            k += 1
+        if a > 0 and k < n:
+            out.append((a, k))
+    return out
+
 def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, dcom: np.ndarray,
                        ddcom: np.ndarray, hold: int = 0) -> None:
     r"""Make the CoM reference of every flight (no active contact) ballistic, in place.
@@ -429,17 +445,7 @@ def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, d
     n = len(times)
     airborne = np.asarray(~active.any(axis=1), dtype=bool)
     g = np.array([0.0, 0.0, -9.81])
-    k = 0
-    while k < n:
-        if not airborne[k]:
-            k += 1
-            continue
-        a = k
-        while k < n and airborne[k]:
-            k += 1
-        if a == 0 or k >= n:
-            continue
-        i0, i1 = a, k  # the lift-off knot (first sample without contact) and the touch-down knot
+    for i0, i1 in flight_spans(airborne):  # the lift-off knot (first sample without contact), the touch-down knot
         t0, t1 = times[i0], times[i1]
         T = t1 - t0
         v_off = (com[i1] - com[i0]) / T - 0.5 * g * T
