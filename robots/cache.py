@@ -186,20 +186,30 @@ def _read(entry: Path) -> pin.GeometryModel:
     return gmodel
 
 
-def _write(root: Path, key: str, gmodel: pin.GeometryModel) -> None:
+def store_entry(root: Path, key: str, write: Callable[[Path], object], manifest: dict, *,
+                data: str, manifest_name: str = "manifest.json") -> None:
+    """Store one cache entry ``root/key`` atomically: ``write(folder)`` writes the data file
+    ``data`` into a temporary folder, ``manifest_name`` gets ``manifest`` plus the entry's key,
+    and the data file's size and sha256, and the folder is renamed into place (an entry another
+    process stored meanwhile is kept). Raises what ``write`` or the file system raise."""
     root.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{key[:16]}-", dir=root))
     try:
-        gmodel.saveToBinary(str(tmp / _BINARY))
-        manifest = {"key": key, "format": FORMAT, "size": (tmp / _BINARY).stat().st_size,
-                    "sha256": file_sha256(tmp / _BINARY), "meshes": {p: file_sha256(p) for p in mesh_files(gmodel)}}
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1), encoding="utf-8")
+        write(tmp)
+        path = tmp / data
+        record = {"key": key, **manifest, "size": path.stat().st_size, "sha256": file_sha256(path)}
+        (tmp / manifest_name).write_text(json.dumps(record, indent=1), encoding="utf-8")
         entry = root / key
         if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
             tmp.replace(entry)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _write(root: Path, key: str, gmodel: pin.GeometryModel) -> None:
+    store_entry(root, key, lambda tmp: gmodel.saveToBinary(str(tmp / _BINARY)),
+                {"format": FORMAT, "meshes": {p: file_sha256(p) for p in mesh_files(gmodel)}}, data=_BINARY)
 
 
 def cached_geometry(urdf: str, package_dirs: tuple[str, ...], kind: str,

@@ -28,7 +28,6 @@ import logging
 import os
 import re
 import shutil
-import tempfile
 from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
@@ -38,7 +37,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from robots.cache import EntryDamaged, cache_folder, file_sha256
+from robots.cache import EntryDamaged, cache_folder, file_sha256, store_entry
 
 _log = logging.getLogger("sim.modelcache")
 
@@ -118,19 +117,8 @@ def _read(entry: Path) -> tuple[mujoco.MjModel, dict[str, Any]]:
 
 
 def _write(root: Path, key: str, model: mujoco.MjModel, fields: dict[str, Any]) -> None:
-    root.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{key[:16]}-", dir=root))
-    try:
-        mujoco.mj_saveModel(model, str(tmp / _BINARY), None)
-        meta = {"key": key, "format": FORMAT, "size": (tmp / _BINARY).stat().st_size,
-                "sha256": file_sha256(tmp / _BINARY), "fields": fields}
-        (tmp / _META).write_text(json.dumps(meta), encoding="utf-8")
-        entry = root / key
-        if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
-            tmp.replace(entry)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
+    store_entry(root, key, lambda tmp: mujoco.mj_saveModel(model, str(tmp / _BINARY), None),
+                {"format": FORMAT, "fields": fields}, data=_BINARY, manifest_name=_META)
 
 
 def cached_model(key: str | None, build: Callable[[], tuple[mujoco.MjModel, dict[str, Any]]],

@@ -33,7 +33,6 @@ import json
 import logging
 import os
 import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,6 +48,7 @@ from robots.cache import (
     file_sha256,
     mesh_files,
     read_manifest,
+    store_entry,
 )
 
 _log = logging.getLogger("viz.meshcache")
@@ -226,20 +226,8 @@ def _read(entry: Path) -> ReplayGeometry:
 def _write(root: Path, key: str, replay: ReplayGeometry, meshes: list[str]) -> None:
     buf = io.BytesIO()
     np.savez(buf, allow_pickle=False, **replay.arrays)
-    data = buf.getvalue()
-    root.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{key[:16]}-", dir=root))
-    try:
-        (tmp / _DATA).write_bytes(data)
-        manifest = {"key": key, "format": FORMAT, "size": len(data), "sha256": hashlib.sha256(data).hexdigest(),
-                    "meshes": {p: file_sha256(p) for p in meshes}}
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1), encoding="utf-8")
-        entry = root / key
-        if not entry.exists():  # else another process stored the same key meanwhile: keep its entry
-            tmp.replace(entry)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
+    store_entry(root, key, lambda tmp: (tmp / _DATA).write_bytes(buf.getvalue()),
+                {"format": FORMAT, "meshes": {p: file_sha256(p) for p in meshes}}, data=_DATA)
 
 
 def _hashable(robot) -> tuple[str, tuple[str, ...]]:
