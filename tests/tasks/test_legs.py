@@ -135,13 +135,13 @@ def test_forward_hops_beyond_the_certified_ones_are_refused(g1, params, message)
 
 
 @pytest.mark.parametrize("robot_name", ["talos", "g1"])
-def test_jog_and_run_are_refused_on_every_robot_as_infeasible(robot_name):
+def test_jog_and_run_are_refused_on_every_robot_as_infeasible(request, robot_name):
     """No robot is certified to jog (JOG_MARGIN): "jog in place", "run" and 原地慢跑 are refused
-    as infeasible (exit 4) in one line naming the leg's push and its joint."""
+    as infeasible (exit 4) in one line naming the leg's push and its joint (romeo and icub: the
+    defaults test)."""
     from language import parse
-    from robots import load_robot
 
-    robot = load_robot(robot_name)
+    robot = request.getfixturevalue(robot_name)
     for sentence in ("jog in place", "run", "原地慢跑", "run forward 1 meter"):
         with pytest.raises(BeyondCapability, match=rf"one of {robot_name}'s legs gives .* torque limit\); "
                                                    rf"{robot_name} cannot jog or run; walk instead") as e:
