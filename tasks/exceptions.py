@@ -29,6 +29,12 @@ class UnknownAction(TaskDefinitionError):
         super().__init__(f"unknown action {name!r}{hint}")
 
 
+class BeyondCapability(TaskDefinitionError):
+    """A well-formed motion beyond what the robot can do: its torques cannot (Talos hopping on one
+    foot), or it was not certified in simulation (a forward hop longer or with more hops than G1's
+    certified ones). Infeasible (exit 4); the message names the limit and what to ask instead."""
+
+
 class SceneConflict(TaskError):
     """A hand target or a footstep lies inside a scene object, or ``walk_to`` finds no way to an
     object (enclosed, or out of reach from every place around it): infeasible in that scene (exit 4).

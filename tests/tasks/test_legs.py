@@ -11,7 +11,7 @@ import pytest
 
 from tasks.actions import REGISTRY, Action
 from tasks.compose import compile_actions
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.footsteps import standing_feet
 from tasks.primitives import PRIMITIVES, robot_limits, standing_geometry, to_knot
 from tasks.primitives.gait import ARC_STEP_FRACTION, ARC_TURN_MAX, leg_length
@@ -19,6 +19,7 @@ from tasks.primitives.hop import JOG_MARGIN, ONE_LEG_MARGIN, one_leg_push
 from tasks.primitives.jump import TORQUE_MARGIN, G, takeoff_speeds
 from tasks.primitives.legs import KICK_HEIGHT_FRACTION, KICK_REACH_FRACTION
 from tasks.serialize import spec_from_json, spec_to_json
+from wbmp.errors import ExitCode, classify
 
 LEGS = ("kick", "march", "walk_arc", "hop", "lunge", "stomp", "jog")
 ONE_LEG_PUSH = ("hop", "jog")  # refused on robots whose single leg cannot push off
@@ -100,9 +101,7 @@ def test_one_leg_push_is_half_of_two(talos, g1):
         assert not p.within(JOG_MARGIN)
     assert not one_leg_push(g1, G * 3 * 0.075 / 2).feasible
     assert "g1 cannot hop" not in robot_limits(g1)["hop"].get("count", "")
-    assert "hops in place only" in robot_limits(g1)["hop"]["forward"]
-    with pytest.raises(TaskDefinitionError, match=r"hopping forward \(0.1 m a hop\) on one foot is not certified .*hop in place"):
-        _spec(g1, "hop", forward=0.1)
+    assert "at most 0.03 m per hop and 2 hops forward on g1" in robot_limits(g1)["hop"]["forward"]
     assert "talos cannot hop" in robot_limits(talos)["hop"]["count"]
     for robot in (talos, g1):
         assert f"{robot.name} cannot jog" in robot_limits(robot)["jog"]["count"]
@@ -112,9 +111,47 @@ def test_one_leg_push_is_half_of_two(talos, g1):
         _spec(g1, "jog")
 
 
+@pytest.mark.parametrize(("params", "message"), [
+    ({"forward": 0.1}, r"hopping forward 0.1 m a hop on one foot is beyond the 0.03 m a hop certified in simulation "
+                       r".*ask for \"hop forward 3 cm\" or hop in place"),
+    ({"forward": 0.031, "count": 1}, r"beyond the 0.03 m a hop certified"),
+    ({"forward": 0.2}, r"hopping forward 0.2 m a hop .* beyond the 0.03 m a hop"),  # not "ask for 0.10 m" (g1's stride)
+    ({"forward": 0.03, "count": 3}, r"hopping forward 3 times on one foot is beyond the 2 forward hops certified "
+                                    r"in simulation .*ask for 2 hops forward, or hop in place 3 times"),
+    ({"forward": 0.01, "count": 10}, r"hopping forward 10 times"),
+])
+def test_forward_hops_beyond_the_certified_ones_are_refused(g1, params, message):
+    """G1's forward hops are certified up to HOP_FORWARD_MAX = 0.03 m a hop and
+    HOP_FORWARD_COUNT_MAX = 2 hops (tests/sim/test_leg_sims.py); beyond either, in distance or
+    in count, the hop is refused as infeasible (exit 4) in one line naming the limit and what to
+    ask instead; at the limits (and in place, any count) it compiles."""
+    with pytest.raises(BeyondCapability, match=message) as e:
+        _spec(g1, "hop", **params)
+    assert "\n" not in str(e.value)
+    assert classify(e.value) == ExitCode.INFEASIBLE
+    for ok in ({"forward": 0.03, "count": 2}, {"forward": 0.03, "count": 1}, {"count": 10}):
+        flights = [p for p in _spec(g1, "hop", **ok).phases if not p.contacts]
+        assert len(flights) == ok["count"]
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_jog_and_run_are_refused_on_every_robot_as_infeasible(request, robot_name):
+    """No robot is certified to jog (JOG_MARGIN): "jog in place", "run" and 原地慢跑 are refused
+    as infeasible (exit 4) in one line naming the leg's push and its joint (romeo and icub: the
+    defaults test)."""
+    from language import parse
+
+    robot = request.getfixturevalue(robot_name)
+    for sentence in ("jog in place", "run", "原地慢跑", "run forward 1 meter"):
+        with pytest.raises(BeyondCapability, match=rf"one of {robot_name}'s legs gives .* torque limit\); "
+                                                   rf"{robot_name} cannot jog or run; walk instead") as e:
+            compile_actions(parse(sentence).actions, robot)
+        assert "\n" not in str(e.value) and classify(e.value) == ExitCode.INFEASIBLE
+
+
 @pytest.fixture
 def one_leg_flights_allowed(monkeypatch):
-    """The two-leg margin for one-leg flights and forward hops: G1's jog and forward hops compile
+    """The two-leg margin for one-leg flights and no forward limit: G1's jog and longer forward hops compile
     (their structure is tested although G1 refuses them by default, see
     test_one_leg_push_is_half_of_two)."""
     import tasks.primitives.hop as hop
@@ -122,6 +159,7 @@ def one_leg_flights_allowed(monkeypatch):
     monkeypatch.setattr(hop, "ONE_LEG_MARGIN", TORQUE_MARGIN)
     monkeypatch.setattr(hop, "JOG_MARGIN", TORQUE_MARGIN)
     monkeypatch.setattr(hop, "HOP_FORWARD_MAX", math.inf)
+    monkeypatch.setattr(hop, "HOP_FORWARD_COUNT_MAX", 10)
 
 
 @pytest.mark.parametrize(("direction", "axis"), [("forward", 0), ("side", 1)])
