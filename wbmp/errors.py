@@ -172,7 +172,7 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     _R("tasks.exceptions.TaskDefinitionError", ExitCode.INVALID_SPEC, "an invalid spec or parameter"),
     _R("tasks.exceptions.UnknownAction", ExitCode.INVALID_SPEC, "an unknown primitive name"),
     _R("tasks.exceptions.BeyondCapability", ExitCode.INFEASIBLE,
-       "a motion beyond the robot's torques or beyond what is certified in simulation (hop, jog)"),
+       "a motion beyond the robot's torques or beyond what is certified in simulation (hop, jog, a jump too high or too long)"),
     _R("tasks.exceptions.SceneConflict", ExitCode.INFEASIBLE,
        "a hand target or a footstep inside a scene object, or an object walk_to cannot reach"),
     _R("tasks.grounding.GroundingError", ExitCode.INVALID_SPEC, "an object reference that names no object of the scene, or several"),

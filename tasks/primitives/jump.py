@@ -36,7 +36,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.model import Robot
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import Contact, JointTarget, Pose, Priority, Vec3
@@ -263,18 +263,19 @@ def max_jump_height(robot: Robot) -> float:
 
 
 def check(params: dict, robot: Robot) -> None:
-    """Refuse jumps beyond the legs' take-off speed or forward jumps beyond the longest step."""
+    """Refuse jumps beyond the legs' take-off speed or forward jumps beyond the longest step
+    (:class:`tasks.exceptions.BeyondCapability`: infeasible, exit 4)."""
     h, fwd = params["height"], params["forward"]
     v0 = math.sqrt(2.0 * G * h)
     best = _best(robot)
     if max_jump_height(robot) < MIN_HEIGHT:
-        raise TaskDefinitionError(
+        raise BeyondCapability(
             f"{robot.name} cannot jump: its leg joint speeds and torques let its centre of mass rise at about "
             f"{best.speed:.2f} m/s at best (from a {best.com_drop:.2f} m crouch, {best.limiting_joint} at its "
             f"limit), not enough for a {MIN_HEIGHT:g} m jump with a safety margin"
         )
     if v0 > TAKEOFF_MARGIN * best.speed:
-        raise TaskDefinitionError(
+        raise BeyondCapability(
             f"jump height {h:g} m needs a take-off speed of {v0:.2f} m/s (sqrt(2 g h), a {flight_time(h):.2f} s "
             f"flight); {robot.name}'s leg joint speed limits let its centre of mass rise at about {best.speed:.2f} m/s "
             f"at best (from a {best.com_drop:.2f} m crouch, {best.limiting_joint} at its limit), enough for about "
@@ -282,7 +283,7 @@ def check(params: dict, robot: Robot) -> None:
         )
     p = push_off(robot, v0)
     if p.acceleration > TORQUE_MARGIN * p.available:
-        raise TaskDefinitionError(
+        raise BeyondCapability(
             f"jump height {h:g} m needs a take-off speed of {v0:.2f} m/s; from a {p.depth:.2f} m crouch the push "
             f"stroke of {p.stroke:.2f} m needs {p.acceleration:.1f} m/s^2 of upward acceleration, but {robot.name}'s "
             f"leg torques give at most about {TORQUE_MARGIN:g} x {p.available:.1f} m/s^2 there ({p.torque_joint} "
@@ -290,7 +291,7 @@ def check(params: dict, robot: Robot) -> None:
         )
     limit = robot.profile.step_length_max
     if fwd > limit + 1e-12:
-        raise TaskDefinitionError(
+        raise BeyondCapability(
             f"jump forward {fwd:g} m is beyond {robot.name}'s {limit:.2f} m (its longest step); "
             f"ask for at most {limit:.2f} m"
         )
