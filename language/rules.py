@@ -301,6 +301,8 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             run = reference_run(part[t + 1:])
             if not run:
                 run = list(reversed(reference_run(list(reversed(part[:t])))))
+            if any(lx.actions[a].bare_left_right == "direction" and lx.actions[a].object for a, _ in part[t].value):
+                run = _without_way(run)  # "push the box to the left", 把箱子往左推: the way is a slot of its own
             if run:
                 text = normalized[run[0].start:run[-1].end]
                 ref = Item(REF, strip_reference(text), text, run[0].start, run[-1].end)
@@ -410,6 +412,15 @@ def _around_part(part: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             at = part.index(said[0])
             return [*rest[:at], trigger, *rest[at + len(said):]]
     return part
+
+
+def _without_way(run: list[Item]) -> list[Item]:
+    """A reference without the way words that end it (``the box to the left``, 箱子往左), for an action
+    that takes left and right as its direction; nothing if no word of the object is left."""
+    out = list(run)
+    while out and out[-1].kind in (LR, DIR, FILLER, CLASSIFIER):
+        out.pop()
+    return out if any(it.kind not in (FILLER, CLASSIFIER) for it in out) else []
 
 
 def _places(trigger: Item, lx: Lexicon) -> bool:
@@ -901,7 +912,12 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
             raise InvalidParameter(f'"{sideways[0][1].text}" in "{where}": say which side, e.g. "{where} to the left" or "向右"')
         for _, it in sideways:
             note(it, "no effect", "the side is given by left/right")
-    # direction
+    # direction ("put the cup down to the left": down adds nothing to the way)
+    ignored = [(v, it) for v, it in directions if v in aw.ignore_directions]
+    if ignored and len(ignored) < len(directions):
+        directions = [(v, it) for v, it in directions if v not in aw.ignore_directions]
+        for v, d_it in ignored:
+            note(d_it, "no effect", f"{name} goes {v} anyway")
     direction = _one(directions, where, "directions")
     direction_value = None
     if direction is not None:
