@@ -221,11 +221,11 @@ class Lexicon:
             for lang, frames in spec.get("around", {}).items():
                 for frame in frames:
                     opener, dots, closer = frame.partition("...")
-                    key = (phrase_key(opener), phrase_key(closer))
-                    if not dots or not any(key) or spec.get("object") is None:
+                    before, after = phrase_key(opener), phrase_key(closer)
+                    if not dots or not (before or after) or spec.get("object") is None:
                         raise VocabularyError(f"vocabulary action {name!r}: around phrase {frame!r} needs '...' (where the "
                                               "object goes), words beside it, and an object parameter")
-                    self.frames.append((*key, name))
+                    self.frames.append((before, after, name))
                     words[lang].append(frame)
             self.action_words[name] = words
             kwargs = {k: v for k, v in spec.items() if k not in ("words", "with_body", "phrases", "around")}
