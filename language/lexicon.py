@@ -160,6 +160,9 @@ class Lexicon:
         self.phrases: dict[tuple[str, ...], tuple[tuple[str, Any], ...]] = {}
         self.after_number: dict[tuple[str, ...], tuple[tuple[str, Any], ...]] = {}
         self.actions: dict[str, ActionWords] = {}
+        #: (words before the object, words after it, action) of the actions' ``around`` phrases
+        #: (``hand ... to me``: hand_over), longest first
+        self.frames: list[tuple[tuple[str, ...], tuple[str, ...], str]] = []
         self.action_bodies: dict[str, set[str]] = {}
         self.action_words: dict[str, dict[str, list[str]]] = {}
         self.units: dict[str, Unit] = {}
@@ -171,6 +174,7 @@ class Lexicon:
         for name, spec in data["units"].items():
             self.units[name] = Unit(name=name, quantity=spec["quantity"], factor=float(spec["factor"]))
         self._load_actions(data["actions"])
+        self.frames.sort(key=lambda f: -(len(f[0]) + len(f[1])))
         self._load_words(data)
         self._add_possessive_variants()
         self.max_len = max(len(k) for k in (*self.phrases, *self.after_number))
@@ -194,7 +198,7 @@ class Lexicon:
         for name, spec in actions.items():
             if name not in REGISTRY:
                 raise VocabularyError(f"vocabulary names action {name!r}, which is not in the registry ({', '.join(REGISTRY)})")
-            unknown = set(spec) - {"words", "with_body", "phrases", *(f.name for f in ActionWords.__dataclass_fields__.values())}
+            unknown = set(spec) - {"words", "with_body", "phrases", "around", *(f.name for f in ActionWords.__dataclass_fields__.values())}
             if unknown:
                 raise VocabularyError(f"vocabulary action {name!r}: unknown key(s) {sorted(unknown)}")
             words: dict[str, list[str]] = {lang: [] for lang in LANGUAGES}
@@ -214,8 +218,17 @@ class Lexicon:
                 entry = ((TRIGGER, ((name, None),)), *(_parse_item(x, f"{name}.phrases") for x in extras))
                 self._add(self.phrases, phrase, entry, f"{name}.phrases")
                 words["zh" if any("\u3400" <= ch <= "\u9fff" for ch in phrase) else "en"].append(phrase)
+            for lang, frames in spec.get("around", {}).items():
+                for frame in frames:
+                    opener, dots, closer = frame.partition("...")
+                    before, after = phrase_key(opener), phrase_key(closer)
+                    if not dots or not (before or after) or spec.get("object") is None:
+                        raise VocabularyError(f"vocabulary action {name!r}: around phrase {frame!r} needs '...' (where the "
+                                              "object goes), words beside it, and an object parameter")
+                    self.frames.append((before, after, name))
+                    words[lang].append(frame)
             self.action_words[name] = words
-            kwargs = {k: v for k, v in spec.items() if k not in ("words", "with_body", "phrases")}
+            kwargs = {k: v for k, v in spec.items() if k not in ("words", "with_body", "phrases", "around")}
             for key in ("body", "ignore_directions", "ignore_sides", "absorbs", "object_of"):
                 if key in kwargs:
                     kwargs[key] = tuple(kwargs[key])

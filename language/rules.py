@@ -64,7 +64,7 @@ from language.lexicon import (
     Lexicon,
     get_lexicon,
 )
-from language.normalize import atomize, normalize
+from language.normalize import atomize, normalize, phrase_key
 from language.plan import ActionPlan, WordUse
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
@@ -155,7 +155,7 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
     """:func:`parse_rules`, and what each word did (for ``wbmp parse``)."""
     lx = lexicon or get_lexicon()
     normalized = normalize(text)
-    items = _references(lx.segment(atomize(normalized), normalized), lx, normalized)
+    items = _references(_around(lx.segment(atomize(normalized), normalized), lx, normalized), lx, normalized)
     _refuse_unknown(items, lx)
     uses = _Uses()
     clauses = _split(items, uses, frozenset(lx.optional_adverbs))
@@ -199,6 +199,7 @@ def rules_plan(text: str) -> ActionPlan:
 REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the words of a reference can be
 SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")
 DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
+DEFINITE = ("the", "that", "this")  # "give me the box" is a hand-over, "give me a wave" a wave
 POSSESSIVES = frozenset({"your", "my", "his", "her", "their", "你的", "我的", "他的", "她的"})
 PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
 IMPLICIT_OBJECT = ("put_down", "hand_over")  # actions whose object, unsaid, is the one named before ("then put it
@@ -300,6 +301,8 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             run = reference_run(part[t + 1:])
             if not run:
                 run = list(reversed(reference_run(list(reversed(part[:t])))))
+            if any(lx.actions[a].bare_left_right == "direction" and lx.actions[a].object for a, _ in part[t].value):
+                run = _without_way(run)  # "push the box to the left", 把箱子往左推: the way is a slot of its own
             if run:
                 text = normalized[run[0].start:run[-1].end]
                 ref = Item(REF, strip_reference(text), text, run[0].start, run[-1].end)
@@ -319,6 +322,105 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             part.append(it)
     flush()
     return _pronouns(_borrow_references(out, lx))
+
+
+def _around(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
+    """Items with the words of an action's ``around`` phrase (``hand ... to me``, ``give me ...``,
+    ``... 给我``: hand_over) made its action word, where they stand around an object.
+
+    Only in a part of the sentence (between sequencing words and punctuation) that has no action
+    word of its own, and whose words in the ``...`` place (an object: fillers, directions... and at
+    least one word the vocabulary does not know, or a pronoun) would otherwise be refused: the words
+    before the object become the action word (the words after it, when none stand before), the
+    others fillers. Before the phrase only fillers, subjects and auxiliaries (``please``,
+    ``can you``); after it anything (``with your left hand``). ``give me a wave`` keeps its wave.
+    """
+    out: list[Item] = []
+    part: list[Item] = []
+    for it in [*items, None]:
+        if it is None or it.kind in (SEQ, OVERLAY, PUNCTUATION):
+            out.extend(_around_part(part, lx, normalized))
+            part.clear()
+            if it is not None:
+                out.append(it)
+        else:
+            part.append(it)
+    return out
+
+
+def _around_part(part: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
+    def noun(j: int, determiners: tuple[str, ...]) -> bool:
+        """An action word after one of ``determiners`` names an object (``the red box``), as in a reference."""
+        if part[j].kind != TRIGGER or _takes_object(part[j], lx):
+            return False
+        i = j - 1
+        while i >= 0 and part[i].kind in REF_KINDS and part[i].text not in determiners:
+            i -= 1
+        return i >= 0 and part[i].kind == FILLER and part[i].text in determiners
+
+    nouns = {j for j in range(len(part)) if noun(j, DETERMINERS)}
+    definite = {j for j in nouns if noun(j, DEFINITE)}
+    if not lx.frames or any(it.kind == TRIGGER and j not in nouns for j, it in enumerate(part)):
+        return part
+    keys = [phrase_key(it.text) for it in part]
+
+    def spell(words: tuple[str, ...], k: int) -> int:
+        """How many items from ``k`` spell ``words`` exactly (0: they do not)."""
+        got: tuple[str, ...] = ()
+        n = 0
+        while len(got) < len(words) and k + n < len(part):
+            got += keys[k + n]
+            n += 1
+        return n if words and got == words else 0
+
+    def word(j: int) -> bool:
+        """``part[j]`` can be a word of an object."""
+        return part[j].kind in REF_KINDS or part[j].text in PRONOUNS or j in nouns
+
+    def names_object(a: int, b: int, closed: bool) -> bool:
+        """Items ``a`` to ``b`` name an object: with words the vocabulary does not know, a pronoun, or
+        an action word as a noun, after ``the`` (``this``, ``that``) when the phrase has no words
+        after the object: ``give me the box``, ``give the box to me``, but ``give me a wave`` is a wave."""
+        return b > a and all(word(j) for j in range(a, b)) and any(
+            part[j].kind in (UNKNOWN, NEARMISS) or part[j].text in PRONOUNS or j in (nouns if closed else definite)
+            for j in range(a, b))
+
+    lead = 0
+    while lead < len(part) and part[lead].kind in (FILLER, SUBJECT, AUX):
+        lead += 1
+    for opener, closer, action in lx.frames:
+        for k in range(lead + 1):
+            n = spell(opener, k) if opener else 0
+            if opener and not n:
+                continue
+            first = k + n
+            if closer:
+                m = next((m for m in range(first + 1, len(part)) if spell(closer, m)), None)
+                if m is None or not names_object(first, m, True):
+                    continue
+                closing = part[m:m + spell(closer, m)]
+            else:
+                end = first
+                while end < len(part) and word(end):
+                    end += 1
+                if not names_object(first, end, False):
+                    continue
+                closing = []
+            said = part[k:first] if opener else closing
+            trigger = Item(TRIGGER, ((action, None),), normalized[said[0].start:said[-1].end], said[0].start, said[-1].end)
+            rest = [Item(FILLER, None, it.text, it.start, it.end) if opener and it in closing else it for it in part]
+            at = part.index(said[0])
+            return [*rest[:at], trigger, *rest[at + len(said):]]
+    return part
+
+
+def _without_way(run: list[Item]) -> list[Item]:
+    """A reference without the way words that end it (``the box to the left``, 箱子往左), for an action
+    that takes left and right as its direction; nothing if no word of the object is left."""
+    out = list(run)
+    while out and out[-1].kind in (LR, DIR, FILLER, CLASSIFIER):
+        out.pop()
+    return out if any(it.kind not in (FILLER, CLASSIFIER) for it in out) else []
 
 
 def _places(trigger: Item, lx: Lexicon) -> bool:
@@ -810,7 +912,12 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
             raise InvalidParameter(f'"{sideways[0][1].text}" in "{where}": say which side, e.g. "{where} to the left" or "向右"')
         for _, it in sideways:
             note(it, "no effect", "the side is given by left/right")
-    # direction
+    # direction ("put the cup down to the left": down adds nothing to the way)
+    ignored = [(v, it) for v, it in directions if v in aw.ignore_directions]
+    if ignored and len(ignored) < len(directions):
+        directions = [(v, it) for v, it in directions if v not in aw.ignore_directions]
+        for v, d_it in ignored:
+            note(d_it, "no effect", f"{name} goes {v} anyway")
     direction = _one(directions, where, "directions")
     direction_value = None
     if direction is not None:

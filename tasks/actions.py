@@ -569,6 +569,8 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="distance", kind="float", unit="m", default=0.1, minimum=0.02, maximum=0.3,
                   description="how far the object is pushed forward (along the robot's heading)"),
             _choice("arm", SIDES, None, "which hand pushes (default: the one on the object's side)"),
+            _choice("direction", DIRECTIONS, "forward", "which way (seen from the robot): forward only; the others are "
+                    "refused (pick the object up and put it down there)"),
         )),
     )
 }

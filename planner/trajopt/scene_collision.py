@@ -36,7 +36,10 @@ while it is active (and :data:`CONTACT_PADDING` knots around); a frame target th
 object over the target's knots (and as many around). A grasp (:class:`tasks.specs.Grasp`)
 excludes the spheres of the hand (the links of its frame's joint and below) from the grasped object
 over the whole motion, and every sphere while the object is held (it moves with the hand; its rows
-would keep the robot away from where it stood). The floor is not an object.
+would keep the robot away from where it stood) and :data:`CONTACT_PADDING` knots after the hand lets
+go of it (the arm is still at it: without them a forearm within the clearance at the release had to
+leave in one knot, and the plan pulled the hands apart while the simulation still welded the box to
+both). The floor is not an object.
 """
 
 from __future__ import annotations
@@ -220,6 +223,9 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
         held = np.asarray(lay.t) >= grasp.start - 1e-9
         if grasp.end is not None:
             held &= np.asarray(lay.t) <= grasp.end + 1e-9
+            if held.any():  # the arm is still at the object as the hand lets go
+                last = int(np.flatnonzero(held)[-1])
+                held[last:last + CONTACT_PADDING + 1] = True
         for oi, ob in enumerate(obs):
             if ob.name == grasp.object:
                 out[:, hand, oi] = True  # the hand goes to the object: a planned contact

@@ -597,8 +597,18 @@ def build_put_down(b: FragmentBuilder) -> Fragment:
     return b.finish(frozenset({f"{side}_arm", "torso"}))
 
 
-PUT_BESIDE_TIME = 2.5  # [s] nominal: let go at LOWER_TIME + RELEASE_TIME, then out beside the box (its pre-grasp poses)
-PUT_RAISED_TIME = 3.0  # [s] back in front of the body (the pick-up's raised poses); rest at PUT_DURATION
+# Both hands (a box): the hands stay at their press poses one knot after the welds let go (the
+# planner's scene rows leave the box to the arms a few knots after a release), then out beside the
+# box (its pre-grasp poses), back in front of the body (the pick-up's raised poses) and to rest, each
+# about as long as the pick-up's approach took. Without the stay the planned hands were already
+# moving apart as the welds let go (the reference's velocity leads its knots; the forearms, within
+# the scene clearance of the box at the press, had to leave it in one knot): the box still welded to
+# both, the arms pulled against each other and arm_*_2_joint reached the controller's 97 % cap just
+# before the release; the faster retreat (0.5 s to beside, 0.5 s up, 1 s to rest) held
+# arm_*_5_joint (3 N m) at that cap for a second (docs/objects.md).
+PUT_BESIDE_TIME = 3.0  # [s] nominal: let go at LOWER_TIME + RELEASE_TIME, then out beside the box (its pre-grasp poses)
+PUT_RAISED_TIME = 4.0  # [s] back in front of the body (the pick-up's raised poses)
+PUT_DURATION_BOTH = 5.75  # [s] the arms at rest
 
 
 def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
@@ -611,13 +621,14 @@ def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
     poses = _both_poses(b.robot, b.stance, g.obj, 0.0)
     name = g.obj.name
     t_rel = LOWER_TIME + RELEASE_TIME
+    let_go = t_rel + b.dt / b.scale  # one knot on: the hands still at the box as the welds let go
     place = tuple(float(x) for x in g.obj.position)
     for side in ("left", "right"):
         role = f"{side}_hand"
         rpy = b.world_rotation(both_rotation(b.robot, side))
         p = poses[side]
         b.frame_target(f"{side} hand puts the {name} down", role, position=tuple(float(x) for x in p["grasp"]), rpy=rpy,
-                       window=(LOWER_TIME, t_rel), tolerance=GRASP_TARGET_TOLERANCE)
+                       window=(LOWER_TIME, let_go), tolerance=GRASP_TARGET_TOLERANCE)
         b.frame_target(f"{side} hand off the {name}", role, position=tuple(float(x) for x in p["pre"]), rpy=rpy,
                        time=PUT_BESIDE_TIME, tolerance=POSE_TOLERANCE)
         b.frame_target(f"{side} hand back before the {name}", role, position=tuple(float(x) for x in p["rise"]), rpy=rpy,
@@ -626,10 +637,10 @@ def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
             name=b.name(f"{side} hand lets go of the {name}"), object=name, frame=b.robot.frame(role),
             offset=(0.0, 0.0, 0.0), start=b.t0, end=b.t(t_rel), place=(place[0], place[1], place[2]),
             tolerance=GRASP_TOLERANCE))
-    rest_targets(b, ["left_hand", "right_hand"], tau=PUT_DURATION)
+    rest_targets(b, ["left_hand", "right_hand"], tau=PUT_DURATION_BOTH)
     b.phase(f"lower the {name}", LOWER_TIME)
-    b.phase(f"let go of the {name}", t_rel)
-    b.phase(f"retreat from the {name}", PUT_DURATION)
+    b.phase(f"let go of the {name}", let_go)
+    b.phase(f"retreat from the {name}", PUT_DURATION_BOTH)
     return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
@@ -637,7 +648,8 @@ def _held_side(b: FragmentBuilder, g: Grounded) -> str:
     return holding_arm({"object": g}, b.robot)
 
 
-PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION, build=build_put_down,
+PUT_DOWN = Primitive(name="put_down", nominal_duration=lambda params, robot: PUT_DURATION_BOTH if params.get("arm") == "both"
+                     else PUT_DURATION, build=build_put_down,
                      parts=object_arm_parts, check=_put_check)
 
 # --- carrying -------------------------------------------------------------------------

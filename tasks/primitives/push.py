@@ -1,4 +1,4 @@
-"""Pushing an object forward: ``push(object, distance, arm)`` (docs/objects.md).
+"""Pushing an object forward: ``push(object, distance, arm, direction)`` (docs/objects.md).
 
 One hand pushes a movable box or cylinder forward (along the robot's heading) by ``distance`` on
 what it stands on (a table, the floor): no grasp, the object slides with its friction. Five
@@ -24,8 +24,10 @@ face names the object (``FrameTarget.touch``): the planner's scene rows, its pre
 certificate's scene-collision line leave that hand and object out, as for ``touch_object``. The
 planner does not move the object: its collision geometry stays where the scene puts it.
 
-Refused before planning, in task terms: a fixed object, a sphere or mesh, an object lower than the
-hand's clearance, a pushed path that leaves the top it stands on or comes within
+Refused before planning, in task terms: a way other than forward (``push the box to the left``:
+the hand would press a side face, which no contact placement or timing here plans; the message
+says how to move it there with a pick-up and a put-down instead), a fixed object, a sphere or
+mesh, an object lower than the hand's clearance, a pushed path that leaves the top it stands on or comes within
 :data:`PATH_CLEARANCE` of another object, the hand beyond its reach at the end of the push
 ("walk to it first"), or an object too heavy for the arm to push: the friction force
 ``mu m g`` (``mu`` the larger friction coefficient of the object and what it stands on, as
@@ -184,6 +186,13 @@ def _check(params: dict, robot: Robot) -> None:
         raise TaskDefinitionError(f"push: the {obj.name} is a {obj.shape}; wbmp pushes boxes and cylinders")
     if not robot.has_role("left_hand") or not robot.has_role("right_hand"):
         raise TaskDefinitionError(f"push: {robot.name} has no hand frames")
+    way = params.get("direction") or "forward"
+    if way != "forward":
+        cm = f"{float(params['distance']) * 100:.0f} cm"
+        said = {"left": f"{cm} to the left", "right": f"{cm} to the right", "backward": f"{cm} back"}[way]
+        raise TaskDefinitionError(
+            f"push: wbmp pushes objects forward only (along the robot's heading), not {way}: to move the {obj.name} "
+            f'{said}, pick it up and put it down there ("pick up the {obj.name}, then put it down {said}")')
     if not isinstance(g.start, Stance):
         return
     stance, side, distance = g.start, pushing_arm(params, robot), float(params["distance"])

@@ -133,8 +133,7 @@ def test_carry_the_cup_while_walking_in_mujoco(talos):
 
 @pytest.mark.parametrize("text", [
     pytest.param("用双手拿起红色盒子", marks=pytest.mark.slow),
-    # the put-down's peak torque is 97 % of the 98 % the certificate allows (at the release): too
-    # near the edge for `make test` on any CPU; `make test-long` runs it
+    # over a minute of CPU (a 12.3 s plan, 98 iterations, and its run): beyond the suite's budget; `make test-long`
     pytest.param("用双手拿起红色盒子然后放下", marks=pytest.mark.long),
 ])
 def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos, text):
@@ -147,7 +146,10 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos, text):
     the lowering between the lift and the put-down, where only the chain holds them); in MuJoCo
     both welds engage (named in the certificate), the box's body rises by the asked lift (within
     tolerance) over the hold window, level between the hands, and ends within the place tolerance of
-    where it stood (the certificate's placed line); the certificate passes."""
+    where it stood (the certificate's placed line); from the lowering on (the release and the
+    retreat) every simulated joint torque stays within 93 % of its limit (before: the controller's
+    97 % cap at the release, the arms pulling against each other through the welded box); the
+    certificate passes."""
     import coal
 
     from tasks.primitives.grasp import SQUEEZE
@@ -216,6 +218,11 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos, text):
     assert worst <= 0.9, worst
     run = simulate(motion, talos)
     assert run.certificate.ok, run.certificate.summary()
+    if puts_down:
+        after = run.t > lift_end
+        share = np.abs(run.tau[after]) / np.asarray(run.torque_limits)
+        k, j = np.unravel_index(int(np.argmax(share)), share.shape)
+        assert share[k, j] <= 0.93, (run.joint_names[j], float(share[k, j]), float(run.t[after][k]))  # measured 91.1 %
     named = [c.name for c in run.certificate.checks if c.name.startswith("grasp: ")]
     assert len(named) == 2 and all(WELD_BOTH in n for n in named), named
     held_box = run.objects["red box"]

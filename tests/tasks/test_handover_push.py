@@ -32,7 +32,9 @@ def talos():
 
 @pytest.mark.parametrize(("text", "expected"), [
     ("push the box 20 cm", [("push", {"object": "the box", "distance": 0.2})]),
-    ("push the red box forward 10 cm", [("push", {"object": "the red box", "distance": 0.1})]),
+    ("push the red box forward 10 cm", [("push", {"object": "the red box", "distance": 0.1, "direction": "forward"})]),
+    ("push the red box to the left 10 cm", [("push", {"object": "the red box", "distance": 0.1, "direction": "left"})]),
+    ("把箱子往左推10厘米", [("push", {"object": "箱子", "distance": 0.1, "direction": "left"})]),
     ("把箱子推过去", [("push", {"object": "箱子"})]),
     ("把盒子往前推20厘米", [("push", {"object": "盒子", "distance": 0.2})]),
     ("push the red box with your left hand", [("push", {"object": "the red box", "arm": "left"})]),
@@ -174,3 +176,30 @@ def test_spec_records_validate():
         Push(name="p", object="box", frame="hand", direction=(1.0, 0.0, 0.0), distance=0.1, start=1.0, end=1.0)
     with pytest.raises(TaskDefinitionError, match="offer and offer_window go together"):
         Grasp(name="g", object="cup", frame="hand", offset=(0.0, 0.0, 0.0), start=0.0, offer=(0.4, 0.0, 1.1))
+
+
+def test_pushing_sideways_is_refused_with_the_pick_up_that_does_it(talos, tmp_path, capsys):
+    """"push the red box to the left 10 cm" (and 往右推, backward) is refused before planning, in task terms
+    (wbmp solve: exit 3, one line); the sentence the message offers compiles: a grasp that places the
+    box 10 cm to the left (+y, the robot's left) of where it stood."""
+    import json
+    import re
+
+    from tasks.scene import scene_to_dict
+    from wbmp.cli import main
+
+    offered = {}
+    for text, said in (("push the red box to the left 10 cm", "10 cm to the left"), ("把红色盒子往右推5厘米", "5 cm to the right"),
+                       ("push the red box backward", "10 cm back")):
+        with pytest.raises(TaskDefinitionError, match="pushes objects forward only") as e:
+            compile_actions(list(parse(text).actions), talos, scene=SCENE)
+        offered[said] = re.search(r'\("([^"]+)"\)', str(e.value)).group(1)
+        assert offered[said].endswith(f"then put it down {said}"), str(e.value)
+    spec = compile_actions(list(parse(offered["10 cm to the left"]).actions), talos, scene=SCENE)
+    (placed,) = [g for g in spec.grasps if g.place is not None]
+    assert np.allclose(placed.place, np.asarray(BOX.position) + [0.0, 0.1, 0.0], atol=1e-9), placed.place
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene_to_dict(SCENE)))
+    assert main(["solve", "push the red box to the left 10 cm", "--scene", str(path), "--no-sim", "--quiet"]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("wbmp solve: error: ") and "forward only" in err[0], err
