@@ -9,10 +9,11 @@ link and no finger); in MuJoCo they are hinges coupled to the drive by the URDF'
   (they still touch every other object and every link of a self-collision pair);
 * a hand with a closing gripper (one hand per object): from the grasp's ``start`` its drive is
   servoed towards its closed limit (:meth:`GraspRig.drive`, at most :data:`GRIP_FRACTION` of its
-  effort limit; the controller's torque for the drive is replaced), and the finger links clear of
-  the object at that moment collide with it (those the grasp pose already sinks into it stay
-  exempt); the gripper holds the object when its fingers touch it from opposite sides, or its
-  drive is within :data:`CLOSED_MARGIN` of its closed limit; at ``end`` it opens again;
+  effort limit; the controller's torque for the drive is replaced), and its fingertips collide
+  with the object (the linkage and drive links stay exempt, like the palm: talos's inner links
+  sit 8 mm inside a cup's rim at the grasp pose); the gripper holds the object when its
+  fingertips touch it from opposite sides, or its drive is within :data:`CLOSED_MARGIN` of its
+  closed limit; at ``end`` it opens again;
 * at the first tick from the grasp's ``start`` on where the gripper holds the object (a hand
   without a gripper, or a box between both hands: at once) and the object's centre is within the
   grasp's ``tolerance`` of where the hand holds it (``offset`` in the hand frame), the hand's
@@ -86,7 +87,7 @@ class _Held:
     closed_at: float | None = None  # [s] when it held the object (pinched, or at its closed limit)
     closed_angle: float = math.nan  # [rad] the drive's angle then
     pinched: bool = False  # the fingers touch the object from opposite sides (else the drive reached its limit)
-    sunk: tuple[str, ...] = ()  # finger links already inside the object when the gripper started to close
+    sunk: tuple[str, ...] = ()  # fingertips already inside the object when the gripper started to close
 
     @property
     def how(self) -> str:
@@ -194,19 +195,17 @@ class GraspRig:
         return tau
 
     def _start_closing(self, h: _Held, d: mujoco.MjData) -> None:
-        """The fingers start to touch the object: each finger link clear of it now (MuJoCo's distance
-        between their convex geoms > 0); links the grasp pose already sinks into it stay exempt."""
+        """The fingertips (:attr:`sim.model.Gripper.pad_geoms`) start to touch the object; the other
+        finger links (linkage, drive) stay exempt like the palm. Notes the fingertips already inside
+        it (MuJoCo's distance between their convex geoms < 0): MuJoCo pushes the object off them."""
         m, gr = self.model, cast(Gripper, h.gripper)
         bit = FINGER_BITS[h.side]
         obj = int(self.object_geoms[h.obj_index])
-        sunk = []
-        for g in gr.finger_geoms:
-            if mujoco.mj_geomDistance(m, d, g, obj, 0.05, None) > 0.0:
-                m.geom_contype[g] |= bit
-            else:
-                sunk.append(m.body(int(m.geom_bodyid[g])).name)
+        for g in gr.pad_geoms:
+            m.geom_contype[g] |= bit
         m.geom_conaffinity[obj] |= bit
-        h.sunk = tuple(sorted(set(sunk)))
+        h.sunk = tuple(sorted({m.body(int(m.geom_bodyid[g])).name for g in gr.pad_geoms
+                               if mujoco.mj_geomDistance(m, d, g, obj, 0.05, None) < 0.0}))
 
     def _closed(self, h: _Held, d: mujoco.MjData) -> bool:
         """The gripper holds the object: its fingers touch it from opposite sides (two contact normals
@@ -214,7 +213,7 @@ class GraspRig:
         closed limit."""
         gr = cast(Gripper, h.gripper)
         obj = int(self.object_geoms[h.obj_index])
-        fingers = set(gr.finger_geoms)
+        fingers = set(gr.pad_geoms)
         normals = []
         for c in range(d.ncon):
             g1, g2 = (int(x) for x in d.contact.geom[c])

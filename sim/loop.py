@@ -70,7 +70,7 @@ def simulate(
     run, events, wall, rig = _closed_loop(sm, robot, ctrl, ref, s, plan.q[0], push, progress, plan)
     events += _run_events(run, wbc_settings.torque_scale)
     events += [Event(h.engaged_at, "grasp", f"the {h.side} hand holds the {h.grasp.object} ({h.how})"
-                     + (f"; inside the {h.grasp.object} as the gripper closed (no contact): {', '.join(h.sunk)}"
+                     + (f"; already inside the {h.grasp.object} as the gripper started to close: {', '.join(h.sunk)}"
                         if h.sunk else ""))
                for h in rig.held if h.engaged_at is not None]
     events.sort(key=lambda e: e.time)

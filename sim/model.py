@@ -624,6 +624,8 @@ class Gripper:
         mimics: ``(joint name, offset [rad], multiplier)`` of each joint that mimics it:
             ``q_mimic = offset + multiplier * q_drive``.
         finger_geoms: The robot geoms of the links the drive and its mimics move.
+        pad_geoms: Those of the fingertips: the links of mimic joints that hang from another moving
+            finger link (talos: ``*_fingertip_{1,2,3}_link``; not the linkage and drive links).
     """
 
     side: str
@@ -636,6 +638,7 @@ class Gripper:
     effort: float
     mimics: tuple[tuple[str, float, float], ...]
     finger_geoms: tuple[int, ...]
+    pad_geoms: tuple[int, ...]
 
 
 def _subtree(model: mujoco.MjModel, body: int) -> set[int]:
@@ -671,6 +674,8 @@ def hand_gripper(sm: SimModel, side: str) -> Gripper | None:
         bodies = _subtree(m, int(m.jnt_bodyid[jid]))
         for e in mimics:
             bodies |= _subtree(m, int(m.jnt_bodyid[m.eq_obj1id[e]]))
+        moved = {int(m.jnt_bodyid[jid])} | {int(m.jnt_bodyid[m.eq_obj1id[e]]) for e in mimics}
+        tips = {b for b in moved if b != int(m.jnt_bodyid[jid]) and int(m.body_parentid[b]) in moved}
         geoms = tuple(g for g in range(m.ngeom) if int(sm.geom_role[g]) == ROBOT_ROLE and int(m.geom_bodyid[g]) in bodies)
         pid = pm.getJointId(name)
         open_angle = float(robot.q_standing[pm.joints[pid].idx_q])
@@ -681,7 +686,7 @@ def hand_gripper(sm: SimModel, side: str) -> Gripper | None:
             effort=float(sm.torque_limits[k]),
             mimics=tuple((m.joint(int(m.eq_obj1id[e])).name, float(m.eq_data[e, 0]), float(m.eq_data[e, 1]))
                          for e in mimics),
-            finger_geoms=geoms)
+            finger_geoms=geoms, pad_geoms=tuple(g for g in geoms if int(m.geom_bodyid[g]) in tips))
     return None
 
 
