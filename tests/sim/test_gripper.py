@@ -46,6 +46,9 @@ def test_the_gripper_closes_and_the_fingers_follow(talos, side):
     assert gr.closed_angle == pytest.approx(float(limit.get("lower", "nan")))
     assert gr.open_angle == 0.0
     assert gr.effort == pytest.approx(float(limit.get("effort", "nan")))
+    tips = [f"gripper_{side}_fingertip_{k}_link" for k in (1, 2, 3)]
+    assert {sm.model.body(int(sm.model.geom_bodyid[g])).name for g in gr.pad_geoms} == set(tips)
+    assert len(gr.finger_geoms) == 7  # the drive link, two inner links, three fingertips, the single motor link
     mimics = {n: j.find("mimic") for n, j in joints.items() if j.find("mimic") is not None
               and j.find("mimic").get("joint") == drive}  # type: ignore[union-attr]
     assert len(mimics) == 6
@@ -57,7 +60,6 @@ def test_the_gripper_closes_and_the_fingers_follow(talos, side):
     d = mujoco.MjData(m)
     sm.set_state(d, talos.q_standing)
     hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"gripper_{side}_base_link")
-    tips = [f"gripper_{side}_fingertip_{k}_link" for k in (1, 2, 3)]
 
     def tips_in_hand() -> np.ndarray:
         R, p = d.xmat[hand].reshape(3, 3), d.xpos[hand]
