@@ -1,17 +1,26 @@
-"""Grasps in the simulation: the hand attaches the object once it holds it, and the checks of it.
+"""Grasps in the simulation: the gripper closes on the object, then attaches it, and the checks of it.
 
-The talos model's fingers are fixed links (its gripper joint moves no finger in the URDF), so a
-gripper cannot close on the object. The named simplification (docs/objects.md), for each
-:class:`tasks.specs.Grasp` of the spec:
+talos_reduced's fingers hang from fixed joints in Pinocchio (its ``gripper_*_joint`` moves one drive
+link and no finger); in MuJoCo they are hinges coupled to the drive by the URDF's ``<mimic>`` tags
+(:func:`sim.model.hand_gripper`). For each :class:`tasks.specs.Grasp` of the spec:
 
 * the grasping hand's links (the link of its frame's joint and every body below it, the links the
   planner's scene rows exempt) do not collide with the grasped object, and do not touch the floor
   (they still touch every other object and every link of a self-collision pair);
-* from the grasp's ``start`` on, at the first tick where the object's centre is within the grasp's
-  ``tolerance`` of where the hand holds it (``offset`` in the hand frame), the hand's inactive weld
-  to the object (:func:`sim.model.grasp_weld_name`) engages, at the relative pose the two have then
-  (no jump); at ``end`` it lets go. The object keeps its mass: its weight loads the arm through the
-  weld, and the controller, which does not model it, has to carry it.
+* a hand with a closing gripper (one hand per object): from the grasp's ``start`` its drive is
+  servoed towards its closed limit (:meth:`GraspRig.drive`, at most :data:`GRIP_FRACTION` of its
+  effort limit; the controller's torque for the drive is replaced), and its fingertips collide
+  with the object (the linkage and drive links stay exempt, like the palm: talos's inner links
+  sit 8 mm inside a cup's rim at the grasp pose); the gripper holds the object when its
+  fingertips touch it from opposite sides, or its drive is within :data:`CLOSED_MARGIN` of its
+  closed limit; at ``end`` it opens again;
+* at the first tick from the grasp's ``start`` on where the gripper holds the object (a hand
+  without a gripper, or a box between both hands: at once) and the object's centre is within the
+  grasp's ``tolerance`` of where the hand holds it (``offset`` in the hand frame), the hand's
+  inactive weld to the object (:func:`sim.model.grasp_weld_name`) engages, at the relative pose
+  the two have then (no jump): the named simplification, the fingers' friction is not what
+  carries the object; at ``end`` it lets go. The object keeps its mass: its weight loads the arm
+  through the weld, and the controller, which does not model it, has to carry it.
 
 Every tick records the movable objects' positions, orientations and tilts (the execution's
 object poses: the replay and the motion file show them); :meth:`GraspRig.checks` turns them
@@ -33,10 +42,19 @@ import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from robots.model import Robot
-from sim.model import OBJECT_PREFIX, OBJECT_ROLE, ROBOT_ROLE, SimModel, grasp_weld_name
+from sim.model import (
+    OBJECT_PREFIX,
+    OBJECT_ROLE,
+    ROBOT_ROLE,
+    Gripper,
+    SimModel,
+    grasp_weld_name,
+    hand_gripper,
+)
 from tasks.specs import Grasp, Push, TaskSpec
 
-WELD = "weld, a simplified gripper"  # how the certificate names the simplification
+WELD = "weld, a simplified gripper"  # how the certificate names the simplification (a hand without a closing gripper)
+GRIPPER_WELD = "closed gripper, then a weld: a simplified grip"  # a gripper that closed on the object, then the weld
 WELD_BOTH = "welds to both hands, a simplified two-handed squeeze"  # a box held between both hands
 LIFT_TOLERANCE = 0.02  # [m] the object may hang this much lower than asked while held
 PLACE_TOLERANCE = 0.03  # [m] a placed object's centre within this of where it was put
@@ -45,6 +63,11 @@ OFFER_TOLERANCE = 0.03  # [m] a handed-over object's centre within this of the h
 MOVED_LIMIT = 0.01  # [m] an object no hand holds moves at most this much
 TIPPED_LIMIT = 0.35  # [rad] an object tilted more than this (20 deg) is knocked over
 HAND_BITS = {"left": 16, "right": 32}  # contype bits of each hand's geoms while it grasps
+FINGER_BITS = {"left": 64, "right": 128}  # contype bits of the fingers that touch the object they close on
+GRIP_FRACTION = 0.9  # the gripper squeezes with this fraction of its drive's effort limit
+GRIP_STIFFNESS = 10.0  # [N m/rad] the drive's position servo (saturates at GRIP_FRACTION of the limit)
+CLOSED_MARGIN = 0.05  # [rad] a drive this near its closed limit is closed (nothing between the fingers)
+PINCH_COSINE = -0.5  # fingers pinch the object when two of their contact normals are this opposed
 
 
 @dataclass
@@ -59,6 +82,17 @@ class _Held:
     closest: float = math.inf  # [m] best distance of the object's centre to its held place
     drift: float = 0.0  # [m] farthest the object's centre got from its held place while held
     last: float = math.inf  # [m] its distance at the last tick
+    gripper: Gripper | None = None  # the hand's closing gripper (None: the weld alone, as for a box in both hands)
+    closing_at: float | None = None  # [s] when the gripper started to close on the object
+    closed_at: float | None = None  # [s] when it held the object (pinched, or at its closed limit)
+    closed_angle: float = math.nan  # [rad] the drive's angle then
+    pinched: bool = False  # the fingers touch the object from opposite sides (else the drive reached its limit)
+    sunk: tuple[str, ...] = ()  # fingertips already inside the object when the gripper started to close
+
+    @property
+    def how(self) -> str:
+        """How the certificate names this grasp's simplification."""
+        return WELD if self.gripper is None else GRIPPER_WELD
 
 
 def _descendants(m: mujoco.MjModel, body: int) -> set[int]:
@@ -97,6 +131,15 @@ class GraspRig:
                 continue  # no weld for this frame: the grasp's check fails (never engaged)
             self.held.append(_Held(grasp=g, side=side, eq=eq, hand_body=int(m.eq_obj1id[eq]),
                                    obj_index=self.names.index(g.object)))
+        grippers = {side: hand_gripper(sm, side) for side in {h.side for h in self.held}}
+        for h in self.held:  # one hand closes its gripper; a box between both hands is squeezed by the arms
+            both = any(o is not h and o.grasp.object == h.grasp.object and abs(o.grasp.start - h.grasp.start) < 1e-9
+                       for o in self.held)
+            h.gripper = None if both else grippers[h.side]
+        self.grippers = {h.side: h.gripper for h in self.held if h.gripper is not None}
+        self.angles = np.zeros((n_ticks, len(self.grippers)))  # [rad] each gripper's drive angle per tick
+        self.object_geoms = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, OBJECT_PREFIX + n)
+                                      for n in self.names], dtype=int)
         self.pushes = [p for p in spec.pushes if p.object in self.names]
         self._bits(sm, robot)
         self.pos = np.zeros((n_ticks, len(self.names), 3))
@@ -136,8 +179,52 @@ class GraspRig:
         """A fresh ``mujoco.MjData`` of the rig's model."""
         return mujoco.MjData(self.model)
 
+    def drive(self, t: float, d: mujoco.MjData, tau: np.ndarray) -> np.ndarray:
+        """The actuated torques ``tau`` (nv - 6,) [N m] with each grasping hand's gripper drive servoed:
+        closed from its grasp's start to its end, open otherwise, at most :data:`GRIP_FRACTION` of the
+        drive's effort limit (the controller's torque for the drive is replaced)."""
+        if not self.grippers:
+            return tau
+        tau = np.array(tau, dtype=float)
+        for gr in self.grippers.values():
+            closing = any(h.gripper is gr and t >= h.grasp.start - 1e-9 and (h.grasp.end is None or t < h.grasp.end - 1e-9)
+                          for h in self.held)
+            target = gr.closed_angle if closing else gr.open_angle
+            cap = GRIP_FRACTION * gr.effort
+            tau[gr.actuated] = float(np.clip(GRIP_STIFFNESS * (target - float(d.qpos[gr.qpos])), -cap, cap))
+        return tau
+
+    def _start_closing(self, h: _Held, d: mujoco.MjData) -> None:
+        """The fingertips (:attr:`sim.model.Gripper.pad_geoms`) start to touch the object; the other
+        finger links (linkage, drive) stay exempt like the palm. Notes the fingertips already inside
+        it (MuJoCo's distance between their convex geoms < 0): MuJoCo pushes the object off them."""
+        m, gr = self.model, cast(Gripper, h.gripper)
+        bit = FINGER_BITS[h.side]
+        obj = int(self.object_geoms[h.obj_index])
+        for g in gr.pad_geoms:
+            m.geom_contype[g] |= bit
+        m.geom_conaffinity[obj] |= bit
+        h.sunk = tuple(sorted({m.body(int(m.geom_bodyid[g])).name for g in gr.pad_geoms
+                               if mujoco.mj_geomDistance(m, d, g, obj, 0.05, None) < 0.0}))
+
+    def _closed(self, h: _Held, d: mujoco.MjData) -> bool:
+        """The gripper holds the object: its fingers touch it from opposite sides (two contact normals
+        at least :data:`PINCH_COSINE` apart), or its drive is within :data:`CLOSED_MARGIN` of its
+        closed limit."""
+        gr = cast(Gripper, h.gripper)
+        obj = int(self.object_geoms[h.obj_index])
+        fingers = set(gr.pad_geoms)
+        normals = []
+        for c in range(d.ncon):
+            g1, g2 = (int(x) for x in d.contact.geom[c])
+            if (g1 in fingers and g2 == obj) or (g2 in fingers and g1 == obj):
+                n = np.array(d.contact.frame[c, :3])  # from geom1 to geom2
+                normals.append(n if g2 == obj else -n)  # from the finger into the object
+        h.pinched = any(float(a @ b) <= PINCH_COSINE for i, a in enumerate(normals) for b in normals[i + 1:])
+        return h.pinched or abs(float(d.qpos[gr.qpos]) - gr.closed_angle) <= CLOSED_MARGIN
+
     def tick(self, t: float, d: mujoco.MjData) -> None:
-        """Engage or release the welds at time ``t`` [s], then record the objects."""
+        """Close the grippers and engage or release the welds at time ``t`` [s], then record the objects."""
         for h in self.held:
             g = h.grasp
             if h.engaged_at is None and h.released_at is None:
@@ -146,12 +233,21 @@ class GraspRig:
                 dist = float(np.linalg.norm(d.xpos[self.bodies[h.obj_index]] - at))
                 if t >= g.start - 0.25:
                     h.closest = min(h.closest, dist)
-                if t >= g.start - 1e-9 and dist <= g.tolerance and (g.end is None or t < g.end):
+                active = t >= g.start - 1e-9 and (g.end is None or t < g.end)
+                if active and h.gripper is not None and h.closing_at is None:
+                    self._start_closing(h, d)
+                    h.closing_at = t
+                closed = h.gripper is None or (active and self._closed(h, d))
+                if h.gripper is not None and closed and h.closed_at is None:
+                    h.closed_at, h.closed_angle = t, float(d.qpos[h.gripper.qpos])
+                if active and closed and dist <= g.tolerance:
                     self._engage(h, d)
                     h.engaged_at = t
             elif h.released_at is None and g.end is not None and t >= g.end - 1e-9:
                 d.eq_active[h.eq] = 0
                 h.released_at = t
+                if h.gripper is not None:  # the fingers open and stop touching the object
+                    self.model.geom_conaffinity[int(self.object_geoms[h.obj_index])] &= ~FINGER_BITS[h.side]
             elif h.released_at is None:
                 R = d.xmat[h.hand_body].reshape(3, 3)
                 h.last = float(np.linalg.norm(d.xpos[self.bodies[h.obj_index]] - R @ np.asarray(g.offset)
@@ -164,6 +260,8 @@ class GraspRig:
             self.quat[i] = d.xquat[self.bodies][:, [1, 2, 3, 0]]  # MuJoCo's (w, x, y, z) -> (x, y, z, w)
             zz = d.xmat[self.bodies][:, 8]
             self.tilt[i] = np.arccos(np.clip(zz, -1.0, 1.0))
+            for k, gr in enumerate(self.grippers.values()):
+                self.angles[i, k] = d.qpos[gr.qpos]
             self.n = i + 1
 
     def _engage(self, h: _Held, d: mujoco.MjData) -> None:
@@ -226,13 +324,23 @@ class GraspRig:
         g, name = h.grasp, h.grasp.object
         out = []
         ok = h.engaged_at is not None
-        how = WELD_BOTH if two_hands else WELD
+        how = WELD_BOTH if two_hands else h.how
+        what = how if h.gripper is None or not ok else \
+            f"gripper closed at {h.closed_angle:.2f} rad{' on it' if h.pinched else ''}, then a weld: a simplified grip"
+        if ok:
+            message = ""
+        elif h.gripper is not None and h.closed_at is None:
+            angles = self.angles[:self.n, list(self.grippers).index(h.side)]
+            nearest = float(angles[int(np.argmin(np.abs(angles - h.gripper.closed_angle)))]) if len(angles) else math.nan
+            message = (f"the {h.side} gripper never closed on the {name}: its drive got to {nearest:.2f} rad (closed: "
+                       f"{h.gripper.closed_angle:.2f} rad) and its fingers never touched the {name} from both sides")
+        else:
+            message = (f"the {h.side} hand never held the {name}: its grasp point came within "
+                       f"{h.closest * 100:.1f} cm of it (the grasp needs {g.tolerance * 100:g} cm)")
         out.append(Check(
-            name=f"grasp: {h.side} hand holds the {name} ({how})", kind=CheckKind.OBJECT_GRASP, subject=name,
+            name=f"grasp: {h.side} hand holds the {name} ({what})", kind=CheckKind.OBJECT_GRASP, subject=name,
             value=h.closest if math.isfinite(h.closest) else 1.0, limit=g.tolerance, unit="m", ok=ok,
-            time=g.start if h.engaged_at is None else h.engaged_at,
-            message="" if ok else (f"the {h.side} hand never held the {name}: its grasp point came within "
-                                   f"{h.closest * 100:.1f} cm of it (the grasp needs {g.tolerance * 100:g} cm)")))
+            time=g.start if h.engaged_at is None else h.engaged_at, message=message))
         if not first:
             return out  # the object's own lines: once for the two hands
         z0 = float(pos[0, h.obj_index, 2])
@@ -302,7 +410,7 @@ class GraspRig:
         ok = held and worst <= OFFER_TOLERANCE
         p = cast(tuple[float, float, float], g.offer)
         return Check(
-            name=f"{name} handed over: held out at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m ({WELD})",
+            name=f"{name} handed over: held out at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m ({h.how})",
             kind=CheckKind.OBJECT_OFFER, subject=name, value=worst if math.isfinite(worst) else 1.0,
             limit=OFFER_TOLERANCE, unit="m", ok=ok, time=float(t[k]),
             message="" if ok else (f"the {h.side} hand did not hold the {name} while holding it out" if not held else
@@ -310,5 +418,5 @@ class GraspRig:
                                    f"(at most {OFFER_TOLERANCE * 100:g} cm)"))
 
 
-__all__ = ["LIFT_TOLERANCE", "MOVED_LIMIT", "OFFER_TOLERANCE", "PLACE_TOLERANCE", "PUSH_TOLERANCE", "TIPPED_LIMIT", "WELD",
-           "WELD_BOTH", "GraspRig"]
+__all__ = ["CLOSED_MARGIN", "FINGER_BITS", "GRIPPER_WELD", "GRIP_FRACTION", "LIFT_TOLERANCE", "MOVED_LIMIT",
+           "OFFER_TOLERANCE", "PLACE_TOLERANCE", "PUSH_TOLERANCE", "TIPPED_LIMIT", "WELD", "WELD_BOTH", "GraspRig"]

@@ -25,7 +25,7 @@ from robots.model import Robot
 from sim.certificate import Certificate
 from sim.certify import certify, planned_touch
 from sim.execution import Event, Execution
-from sim.grasp import WELD, GraspRig
+from sim.grasp import GraspRig
 from sim.model import SimModel, build_model
 from sim.push import Push, check_push_time
 from sim.recording import BASE_BODY, Recorder, RunRecord, tilt, tilt_of, torque_fraction
@@ -69,7 +69,9 @@ def simulate(
     ref = ctrl.reference_for(plan)
     run, events, wall, rig = _closed_loop(sm, robot, ctrl, ref, s, plan.q[0], push, progress, plan)
     events += _run_events(run, wbc_settings.torque_scale)
-    events += [Event(h.engaged_at, "grasp", f"the {h.side} hand holds the {h.grasp.object} ({WELD})")
+    events += [Event(h.engaged_at, "grasp", f"the {h.side} hand holds the {h.grasp.object} ({h.how})"
+                     + (f"; already inside the {h.grasp.object} as the gripper started to close: {', '.join(h.sunk)}"
+                        if h.sunk else ""))
                for h in rig.held if h.engaged_at is not None]
     events.sort(key=lambda e: e.time)
     checks = certify(run) + tuple(rig.checks())
@@ -188,6 +190,7 @@ def _closed_loop(
         if friction.active:  # the URDF's joint friction, which the QP's rigid-body model lacks
             k = ref.index(t)
             tau = friction.add(tau, q, v, ref.q[k], ref.v[k], limits)
+        tau = rig.drive(t, d, tau)  # a grasping hand's gripper closes on its object (sim/grasp.py)
         tick_time = time.perf_counter() - tic
         d.ctrl[sm.actuator_select] = tau
         rec.record(i, t, q, v, tau, d, tick_time)

@@ -15,9 +15,11 @@ link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
 * self-collision: one explicit MuJoCo ``<pair>`` per pair of collision geoms of two links that
   the planner's collision model (:func:`robots.collision.collision_model`) says must not
   collide, and no other robot-robot contact (docs/simulation-collisions.md),
+* the fingers: a fixed URDF joint that mimics a moving one becomes a MuJoCo hinge, coupled to it
+  by a joint equality (:func:`_free_mimic_joints`; talos's gripper closes: :func:`hand_gripper`),
 * the scene's objects (:class:`tasks.scene.Scene`): static ones as geoms of the world body,
   movable ones as free bodies with their mass and friction, each with an inactive weld to each
-  hand (:func:`grasp_weld_name`; :mod:`sim.grasp` engages it when the hand holds the object).
+  hand (:func:`grasp_weld_name`; :mod:`sim.grasp` engages it when the closed hand holds the object).
 
 Joints are matched to Pinocchio by name, so either joint order works. Conventions: MuJoCo's free joint stores the
 quaternion ``(w, x, y, z)`` and the base linear velocity in the world frame; Pinocchio stores
@@ -120,7 +122,8 @@ class SimModel:
     def set_state(self, data: mujoco.MjData, q: np.ndarray, v: np.ndarray | None = None) -> None:
         """Write a Pinocchio state (q (nq,), v (nv,)) into MuJoCo data, then run mj_forward.
 
-        The scene's movable objects keep their state in ``data``.
+        The scene's movable objects and the fingers (MuJoCo's only joints: :func:`_free_mimic_joints`)
+        keep their state in ``data``.
         """
         qpos = np.array(data.qpos)
         qpos[:3] = q[:3]
@@ -207,6 +210,7 @@ def _rewrite_urdf(robot: Robot) -> str:
         ) from None
     for old in root.findall("mujoco"):
         root.remove(old)
+    _free_mimic_joints(root)
     for link in root.findall(
         "link"
     ):  # MuJoCo cannot decode these: they are rebuilt from Pinocchio's
@@ -241,6 +245,28 @@ def _rewrite_urdf(robot: Robot) -> str:
     ET.SubElement(joint, "parent", link="world")
     ET.SubElement(joint, "child", link=roots[0])
     return ET.tostring(root, encoding="unicode")
+
+
+def _free_mimic_joints(root: ET.Element) -> list[str]:
+    """Turn each fixed URDF joint that mimics a moving joint into a revolute one (in place); the
+    names of the joints turned.
+
+    talos_reduced's fingers hang from such joints (``gripper_*_inner_double_joint``,
+    ``*_fingertip_*_joint``, ...: ``type="fixed"`` with their axis, limits and a ``<mimic>`` of
+    ``gripper_*_joint``), so in Pinocchio the gripper joint moves one drive link and no finger.
+    MuJoCo's URDF import makes a ``<mimic>`` a joint equality (``polycoef`` offset, multiplier),
+    so in the simulation the fingers close with the gripper joint (:mod:`sim.grasp`). Pinocchio
+    and the planner keep the fixed joints: these joints are MuJoCo's only.
+    """
+    moving = {j.get("name") for j in root.findall("joint") if j.get("type") in ("revolute", "continuous", "prismatic")}
+    turned = []
+    for joint in root.findall("joint"):
+        mimic = joint.find("mimic")
+        if joint.get("type") == "fixed" and mimic is not None and mimic.get("joint") in moving \
+                and joint.find("limit") is not None and joint.find("axis") is not None:
+            joint.set("type", "revolute")
+            turned.append(str(joint.get("name")))
+    return turned
 
 
 @functools.cache
@@ -579,6 +605,89 @@ def _add_grasp_welds(robot: Robot, spec: mujoco.MjSpec, scene: Scene | None) -> 
                 eq.name1 = link
                 eq.name2 = OBJECT_PREFIX + obj.name
                 eq.active = False
+
+
+@dataclass(frozen=True)
+class Gripper:
+    """A hand's closing gripper in the MuJoCo model: the drive joint (a Pinocchio joint) and the
+    joints that mimic it (MuJoCo's only: :func:`_free_mimic_joints`, coupled to the drive by joint
+    equalities).
+
+    Attributes:
+        side: ``"left"`` or ``"right"``.
+        joint: The drive joint's name (talos: ``gripper_right_joint``).
+        qpos, dof: Its MuJoCo qpos and dof indices.
+        actuated: Its index among the robot's actuated joints (the controller's ``tau``).
+        open_angle: Its standing angle [rad] (talos: 0, the fingers apart).
+        closed_angle: Its limit farther from the standing angle [rad] (talos: -1.047).
+        effort: Its effort limit [N m].
+        mimics: ``(joint name, offset [rad], multiplier)`` of each joint that mimics it:
+            ``q_mimic = offset + multiplier * q_drive``.
+        finger_geoms: The robot geoms of the links the drive and its mimics move.
+        pad_geoms: Those of the fingertips: the links of mimic joints that hang from another moving
+            finger link (talos: ``*_fingertip_{1,2,3}_link``; not the linkage and drive links).
+    """
+
+    side: str
+    joint: str
+    qpos: int
+    dof: int
+    actuated: int
+    open_angle: float
+    closed_angle: float
+    effort: float
+    mimics: tuple[tuple[str, float, float], ...]
+    finger_geoms: tuple[int, ...]
+    pad_geoms: tuple[int, ...]
+
+
+def _subtree(model: mujoco.MjModel, body: int) -> set[int]:
+    out = {body}
+    for b in range(body + 1, model.nbody):
+        if int(model.body_parentid[b]) in out:
+            out.add(b)
+    return out
+
+
+def hand_gripper(sm: SimModel, side: str) -> Gripper | None:
+    """The ``side`` hand's closing gripper, or None when the hand has none: no actuated joint below
+    the hand's link that other joints mimic (a robot whose URDF has no ``<mimic>`` fingers)."""
+    robot, m = sm.robot, sm.model
+    if not robot.has_role(f"{side}_hand"):
+        return None
+    pm = robot.model
+    joint = pm.frames[robot.frame_id(f"{side}_hand")].parentJoint
+    link = next((f.name for f in pm.frames if f.parentJoint == joint and f.type == pin.FrameType.BODY), "")
+    root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, link) if link else -1
+    if root < 0:
+        return None
+    hand = _subtree(m, root)
+    actuated = list(pm.names)[2:]
+    for k, name in enumerate(actuated):
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if jid < 0 or int(m.jnt_bodyid[jid]) not in hand:
+            continue
+        mimics = [e for e in range(m.neq) if int(m.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT)
+                  and int(m.eq_obj2id[e]) == jid]
+        if not mimics:
+            continue
+        bodies = _subtree(m, int(m.jnt_bodyid[jid]))
+        for e in mimics:
+            bodies |= _subtree(m, int(m.jnt_bodyid[m.eq_obj1id[e]]))
+        moved = {int(m.jnt_bodyid[jid])} | {int(m.jnt_bodyid[m.eq_obj1id[e]]) for e in mimics}
+        tips = {b for b in moved if b != int(m.jnt_bodyid[jid]) and int(m.body_parentid[b]) in moved}
+        geoms = tuple(g for g in range(m.ngeom) if int(sm.geom_role[g]) == ROBOT_ROLE and int(m.geom_bodyid[g]) in bodies)
+        pid = pm.getJointId(name)
+        open_angle = float(robot.q_standing[pm.joints[pid].idx_q])
+        lo, hi = (float(x) for x in m.jnt_range[jid])
+        return Gripper(
+            side=side, joint=name, qpos=int(m.jnt_qposadr[jid]), dof=int(m.jnt_dofadr[jid]), actuated=k,
+            open_angle=open_angle, closed_angle=lo if abs(lo - open_angle) >= abs(hi - open_angle) else hi,
+            effort=float(sm.torque_limits[k]),
+            mimics=tuple((m.joint(int(m.eq_obj1id[e])).name, float(m.eq_data[e, 0]), float(m.eq_data[e, 1]))
+                         for e in mimics),
+            finger_geoms=geoms, pad_geoms=tuple(g for g in geoms if int(m.geom_bodyid[g]) in tips))
+    return None
 
 
 def _quat_wxyz(rpy: tuple[float, float, float]) -> list[float]:

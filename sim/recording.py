@@ -77,7 +77,8 @@ class RunRecord:
         self_samples: Every ``collision_sample_period``: tick, closest pair index (-1: none within
             the horizon) and its distance [m] (inf: none), (S, 3).
         object_names: The scene's objects.
-        scene_contacts: ``(tick, link, object, distance [m])`` of every robot-object contact.
+        scene_contacts: ``(tick, link, object, distance [m])`` of every robot-object contact but the
+            planned ones (a grasping hand and its object: a closed gripper's fingers on it).
         scene_samples: Every ``collision_sample_period``: ``(tick, link, object, distance [m])`` of
             the closest robot-object pair within the horizon (none when there is no object).
     """
@@ -227,6 +228,9 @@ class _CollisionRecorder:
         # planned contacts (a hand and the object it grasps, sim.grasp) are no collisions
         self._exempt = np.array([[(int(r), int(o)) in exempt for o in self._object_geoms] for r in self._robot_geoms],
                                 dtype=bool).reshape(len(self._robot_geoms), len(self._object_geoms))
+        self._planned = np.zeros((ngeom + 1, ngeom + 1), dtype=bool)  # the same pairs, by geom (a closed gripper's fingers)
+        for r, o in exempt:
+            self._planned[r, o] = self._planned[o, r] = True
         self._rbound = np.asarray(m.geom_rbound, dtype=float)
         self._fromto = np.zeros(6)
         self._wrench = np.zeros(6)
@@ -249,7 +253,7 @@ class _CollisionRecorder:
                 mujoco.mj_contactForce(self._m, d, c, self._wrench)
                 force[j] = self._wrench[0]
             self._self_contacts.append(np.column_stack([np.full(len(rows), i), k[hit], d.contact.dist[hit], force]))
-        touch = (self._is_object[a] & self._is_robot[b]) | (self._is_robot[a] & self._is_object[b])
+        touch = ((self._is_object[a] & self._is_robot[b]) | (self._is_robot[a] & self._is_object[b])) & ~self._planned[a, b]
         if touch.any():
             names = self._sm.geom_body_names
             for c in np.nonzero(touch)[0].tolist():

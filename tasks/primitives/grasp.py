@@ -54,9 +54,14 @@ DURATION = APPROACH_TIME + REACH_IN_TIME + CLOSE_TIME + LIFT_TIME + HOLD_TIME
 
 
 def grasp_offset(robot: Robot, side: str) -> np.ndarray:
-    """Where a held object's grasp point sits in the ``side`` hand frame (3,) [m]: the mean of the
-    fingertip frames that move with the hand (talos: between its three fingertips), else the hand
-    frame's origin."""
+    """Where a held object's grasp point sits in the ``side`` hand frame (3,) [m]: the centre of the
+    box the fingertip frames that move with the hand span (talos: midway between its two-fingertip
+    side and its one-fingertip side, where the fingers close), else the hand frame's origin.
+
+    Not the fingertips' mean: talos has two fingertips on one side and one on the other, so their
+    mean sits 1.7 cm towards the pair, and the pair's pads would sink 6 mm into a cup of 8 cm that
+    the open gripper (9.2 cm between its pads) should straddle (the simulation closes the fingers
+    on the object: docs/objects.md)."""
     model = robot.model
     hand = robot.frame_id(f"{side}_hand")
     joint = model.frames[hand].parentJoint
@@ -66,8 +71,8 @@ def grasp_offset(robot: Robot, side: str) -> np.ndarray:
     data = robot.data()
     pin.framesForwardKinematics(model, data, robot.q_standing)
     M = data.oMf[hand]
-    points = [M.actInv(data.oMf[model.getFrameId(n)].translation) for n in tips]
-    return np.mean(points, axis=0)
+    points = np.array([M.actInv(data.oMf[model.getFrameId(n)].translation) for n in tips])
+    return 0.5 * (points.min(axis=0) + points.max(axis=0))
 
 
 def grasp_point(robot: Robot, side: str, obj: SceneObject) -> np.ndarray:

@@ -69,7 +69,25 @@ def test_pick_up_and_put_down_the_cup_in_mujoco(talos, tmp_path):
     assert np.allclose(g.place, SPOT)
     assert np.linalg.norm(cup[-1] - SPOT) <= PLACE_TOLERANCE
     assert np.abs(run.objects["red box"] - np.asarray(BOX.position)).max() <= MOVED_LIMIT
+    _check_gripper(talos, run, g)
     _check_motion_file(tmp_path, talos, motion, run, g)
+
+
+def _check_gripper(talos, run, g) -> None:
+    """The gripper closed on the cup before the weld engaged and opened after the release: its drive
+    (``gripper_right_joint`` in the simulated q) open before the grasp, stopped by the cup short of
+    the URDF's closed limit while held (the certificate's angle), open again 1 s after the release."""
+    (line,) = [c for c in run.certificate.checks if c.kind == CheckKind.OBJECT_GRASP]
+    assert line.ok and "gripper closed at" in line.name and "on it, then a weld" in line.name, line.name
+    model = talos.model
+    jq = model.joints[model.getJointId("gripper_right_joint")].idx_q
+    grip, t = run.q[:, jq], run.t
+    closed = float(model.lowerPositionLimit[jq])  # [rad] -1.047
+    assert f"{grip[np.searchsorted(t, line.time)]:.2f}" in line.name
+    assert np.abs(grip[t < g.start]).max() < 0.05  # open (the servo's error against the URDF friction)
+    held = (t >= line.time + 0.3) & (t < g.end)
+    assert closed + 0.5 < grip[held].min() and grip[held].max() < -0.1, (grip[held].min(), grip[held].max())
+    assert np.abs(grip[t > g.end + 1.0]).max() < 0.05
 
 
 def _check_motion_file(tmp_path, talos, motion, run, g) -> None:

@@ -16,10 +16,12 @@ def talos_sim(talos):
 
 
 def test_free_joint_and_sizes(talos, talos_sim):
-    """The root becomes a free joint; nq/nv and actuator count match Pinocchio."""
+    """The root becomes a free joint; nq/nv match Pinocchio plus talos's 12 finger joints (6 a hand,
+    MuJoCo's only: sim/grasp.py); one actuator per actuated Pinocchio joint (the fingers have none:
+    they follow their gripper joint)."""
     m = talos_sim.model
     assert m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
-    assert (m.nq, m.nv) == (talos.nq, talos.nv)
+    assert (m.nq, m.nv) == (talos.nq + 12, talos.nv + 12)
     assert m.nu == talos.nv - 6
     assert m.opt.timestep == pytest.approx(0.001)
 
@@ -58,7 +60,7 @@ def test_state_round_trip_and_kinematics(talos, talos_sim, rng):
     # MuJoCo's base-frame-mapped velocity gives Pinocchio's kinetic energy
     pin.computeAllTerms(talos.model, data, q, v)
     mujoco.mj_forward(talos_sim.model, d)
-    mv = np.zeros(talos.nv)
+    mv = np.zeros(talos_sim.model.nv)  # (the fingers' dofs at rest: they move with their hand, as in Pinocchio)
     mujoco.mj_mulM(talos_sim.model, d, mv, d.qvel)
     assert 0.5 * d.qvel @ mv == pytest.approx(0.5 * v @ data.M @ v, rel=1e-6)
 
@@ -100,9 +102,18 @@ def test_joint_friction_switch(talos, talos_sim):
 
 def test_every_builtin_robot_compiles(any_robot):
     """Talos, G1, Romeo and iCub all become MuJoCo models (Collada meshes rebuilt, bad inertias
-    repaired) whose mass and CoM match Pinocchio's."""
+    repaired) whose mass and CoM match Pinocchio's; MuJoCo's only extra joints are hinges that a
+    joint equality couples to a Pinocchio joint (talos's fingers, 6 a hand: sim/grasp.py)."""
     sm = build_model(any_robot)
-    assert (sm.model.nq, sm.model.nv) == (any_robot.nq, any_robot.nv)
+    m = sm.model
+    names = set(any_robot.model.names)
+    extra = [j for j in range(m.njnt) if m.joint(j).name not in names and j != 0]
+    for j in extra:
+        assert int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)
+        (e,) = [e for e in range(m.neq) if int(m.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT) and int(m.eq_obj1id[e]) == j]
+        assert m.joint(int(m.eq_obj2id[e])).name in names
+    assert len(extra) == (12 if any_robot.name == "talos" else 0)
+    assert (m.nq, m.nv) == (any_robot.nq + len(extra), any_robot.nv + len(extra))
     assert sm.model.body_subtreemass[1] == pytest.approx(any_robot.mass, rel=1e-5)
     d = sm.data()
     sm.set_state(d, any_robot.q_standing)

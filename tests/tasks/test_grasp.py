@@ -70,14 +70,16 @@ def test_pick_up_writes_approach_grasp_lift_hold_and_the_grasp(spec, talos):
 
 
 def test_the_held_cup_sits_between_the_fingertips(spec, talos):
-    """At the grasp target, with the hand in its target orientation, the cup's grasp point is the mean
-    of the talos fingertip frames (Pinocchio, standing posture), and the grasp's offset carries the
-    cup's centre there; the lift target is the grasp target raised by the height."""
+    """At the grasp target, with the hand in its target orientation, the cup's grasp point is midway
+    between talos's two-fingertip side and its one-fingertip side (Pinocchio, standing posture:
+    where the closing fingers meet, sim/grasp.py), and the grasp's offset carries the cup's centre
+    there; the lift target is the grasp target raised by the height."""
     model, data = talos.model, talos.data()
     pin.framesForwardKinematics(model, data, talos.q_standing)
     hand = data.oMf[talos.frame_id("right_hand")]
-    tips = [data.oMf[f].translation for f, fr in enumerate(model.frames) if fr.name.startswith("gripper_right_fingertip")]
-    tips_in_hand = hand.actInv(np.mean(tips, axis=0))
+    local = {fr.name.split("_")[3]: hand.actInv(data.oMf[f].translation) for f, fr in enumerate(model.frames)
+             if fr.name.startswith("gripper_right_fingertip")}
+    tips_in_hand = 0.5 * (0.5 * (local["1"] + local["2"]) + local["3"])  # the pair's middle and the single tip
     at = next(t for t in spec.targets if t.name.endswith("right hand at the cup"))
     lift = next(t for t in spec.targets if t.name.endswith("right hand lifts the cup"))
     R = pin.rpy.rpyToMatrix(*at.rpy)
