@@ -153,7 +153,8 @@ def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.
     robot = lay.robot
     sets = sphere_sets(robot)
     q0 = _guess_configurations(lay, x0) if q0 is None else q0
-    rows = select(lay, sets, sphere_pair_distances(robot, sets, q0), settings.collision_screening)
+    rows = select(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision_screening),
+                  settings.collision_screening)
     set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
 
 
@@ -202,8 +203,8 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
             q = configurations(lay, dq)
             changed = []
             if sets is not None and rows is not None:
-                more = missing_rows(lay, sets, rows, sphere_pair_distances(lay.robot, sets, q),
-                                    settings.collision_margin, settings.collision_screening)
+                distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision_screening)
+                more = missing_rows(lay, sets, rows, distances, settings.collision_margin, settings.collision_screening)
                 changed = rows.merge(more)
                 if changed:
                     set_collision_terms(lay, sets, rows, changed, settings.collision_margin)

@@ -187,14 +187,34 @@ def exact_distance(ob: Obstacle, u: np.ndarray) -> np.ndarray:
 def sphere_centres(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
     """World centres of every sphere at every configuration: (T, S, 3) [m]."""
     model, data = robot.model, robot.data()
-    out = np.zeros((len(q), len(sets.sphere_radius), 3))
-    o = sets.sphere_owner
+    joints, where = np.unique(sets.joints, return_inverse=True)
+    H = np.empty((len(q), len(joints), 4, 4))  # the joints' placements at every knot
     for k, qk in enumerate(q):
         pin.forwardKinematics(model, data, qk)
-        R = np.array([data.oMi[int(j)].rotation for j in sets.joints])
-        p = np.array([data.oMi[int(j)].translation for j in sets.joints])
-        out[k] = np.einsum("nij,nj->ni", R[o], sets.sphere_local) + p[o]
-    return out
+        for i, j in enumerate(joints):
+            H[k, i] = data.oMi[int(j)].homogeneous
+    Hs = H[:, where[sets.sphere_owner]]
+    return np.einsum("tsij,sj->tsi", Hs[..., :3, :3], sets.sphere_local) + Hs[..., :3, 3]
+
+
+def _reach(ob: Obstacle, rho: np.ndarray) -> np.ndarray:
+    """Radius around the piece's centre beyond which a sphere's row value is at least 1 (farther than
+    its clearance ``rho`` (n,)): ``N < BOUND`` needs ``|u_i| < BOUND a_i`` on every axis (``N`` is at
+    least the largest ``|u_i| / a_i``), so ``|u| < BOUND |a|``."""
+    return BOUND[ob.shape] * np.linalg.norm(ob.inflated(rho), axis=1)
+
+
+def _objects_near(obs: list[Obstacle], world: np.ndarray, rho: np.ndarray) -> set[str]:
+    """Names of the objects (all their pieces at once) that some sphere at some configuration may be
+    within its clearance ``rho`` of (a broad phase: the others need no row value)."""
+    near = set()
+    for name in dict.fromkeys(ob.name for ob in obs):
+        pieces = [ob for ob in obs if ob.name == name]
+        centre = np.mean([ob.position for ob in pieces], axis=0)
+        ball = max(float(np.linalg.norm(ob.position - centre)) + float(_reach(ob, rho).max()) for ob in pieces)
+        if np.einsum("tsi,tsi->ts", world - centre, world - centre).min() < ball**2:
+            near.add(name)
+    return near
 
 
 def in_object_frame(ob: Obstacle, world: np.ndarray) -> np.ndarray:
@@ -211,13 +231,20 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
     model = lay.robot.model
     sphere_joint = sets.joints[sets.sphere_owner]
     objects = {o.name: o for o in scene.objects}
+    names = list(dict.fromkeys(ob.name for ob in obs))
+    columns = {name: [oi for oi, ob in enumerate(obs) if ob.name == name] for name in names}
+    supported: dict[tuple, list[str]] = {}  # (contact position) -> the objects it stands on
     for k, active in enumerate(lay.contacts_at):
         for fid, (_frame, M) in active.items():
+            where = tuple(M.translation)
+            if where not in supported:
+                supported[where] = [name for name in names if on_top(objects[name], where)]
+            if not supported[where]:
+                continue
             joint = model.frames[fid].parentJoint
-            for oi, ob in enumerate(obs):
-                if on_top(objects[ob.name], M.translation):
-                    lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
-                    out[lo:hi + 1, sphere_joint == joint, oi] = True
+            lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
+            for name in supported[where]:
+                out[lo:hi + 1, (sphere_joint == joint)[:, None] & np.isin(np.arange(len(obs)), columns[name])[None, :]] = True
     for grasp in lay.spec.grasps:
         hand = np.isin(sphere_joint, list(model.subtrees[model.frames[model.getFrameId(grasp.frame)].parentJoint]))
         held = np.asarray(lay.t) >= grasp.start - 1e-9
@@ -243,15 +270,28 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
     return out
 
 
-def values(lay: Layout, sets: SphereSets, obs: list[Obstacle], q: np.ndarray, clearance: float) -> np.ndarray:
+def values(lay: Layout, sets: SphereSets, obs: list[Obstacle], q: np.ndarray, clearance: float,
+           world: np.ndarray | None = None) -> np.ndarray:
     """Row values ``N / BOUND`` (T, S, O) of every sphere and object, inflated by the sphere radius +
-    ``clearance``: below 1, the pair is within ``clearance`` (conservatively); excluded pairs are inf."""
-    world = sphere_centres(lay.robot, sets, q)
+    ``clearance``: below 1, the pair is within ``clearance`` (conservatively); excluded pairs are inf,
+    and so are pairs certainly farther than ``clearance`` (an object far from every sphere, or a sphere
+    beyond its piece's :func:`_reach`: their values are at least 1 and are not computed). ``world``:
+    the spheres' centres at ``q`` when already known (:func:`sphere_centres`)."""
+    world = sphere_centres(lay.robot, sets, q) if world is None else world
     out = np.full((len(q), world.shape[1], len(obs)), np.inf)
     rho = sets.sphere_radius + clearance
+    near = _objects_near(obs, world, rho)
     for oi, ob in enumerate(obs):
-        out[:, :, oi] = row_value(ob.shape, in_object_frame(ob, world), ob.inflated(rho)[None]) / BOUND[ob.shape]
-    out[contact_exclusions(lay, sets, obs)[: len(q)]] = np.inf
+        if ob.name not in near:
+            continue
+        d = world - ob.position
+        close = np.einsum("tsi,tsi->ts", d, d) < _reach(ob, rho)[None, :] ** 2
+        if not close.any():
+            continue
+        a = np.broadcast_to(ob.inflated(rho)[None], world.shape)[close]
+        out[:, :, oi][close] = row_value(ob.shape, in_object_frame(ob, world[close]), a) / BOUND[ob.shape]
+    if np.isfinite(out).any():
+        out[contact_exclusions(lay, sets, obs)[: len(q)]] = np.inf
     return out
 
 
@@ -390,7 +430,8 @@ def missing_scene_rows(lay: Layout, rows: SceneRows, q: np.ndarray, settings: Pl
     if not obs:
         return []
     sets = sphere_sets(lay.robot)
-    violated = values(lay, sets, obs, q, settings.collision_margin - CHECK_TOLERANCE) < 1.0
+    world = sphere_centres(lay.robot, sets, q)
+    violated = values(lay, sets, obs, q, settings.collision_margin - CHECK_TOLERANCE, world) < 1.0
     for oi, spheres in rows.spheres.items():
         ks = sorted(rows.knots[oi])
         for s in spheres:
@@ -399,7 +440,7 @@ def missing_scene_rows(lay: Layout, rows: SceneRows, q: np.ndarray, settings: Pl
     violated[lay.N:] = False
     if not violated.any():
         return []
-    near = values(lay, sets, obs, q, settings.collision_screening) < 1.0
+    near = values(lay, sets, obs, q, settings.collision_screening, world) < 1.0
     bad_knots = np.asarray(violated.any(axis=1))  # (T, O)
     bad_spheres = np.asarray(violated.any(axis=0))  # (S, O)
     near &= bad_knots[:, None, :] | bad_spheres[None, :, :]
@@ -423,18 +464,31 @@ def strip_scene_terms(lay: Layout) -> Layout:
 
 def closest(lay: Layout, q: np.ndarray) -> tuple[float, float, str, str]:
     """(exact sphere-set distance [m], time [s], link, object) of the closest robot sphere and
-    object over a motion, planned contacts left out; distance inf without objects."""
+    object over a motion, planned contacts left out; distance inf without objects. Pieces are taken
+    nearest first and a piece whose distance bound (to the ball around it) is no closer than the best
+    found is skipped: a far scene costs one piece's distances."""
     obs = obstacles(lay.spec.scene)
     if not obs:
         return math.inf, 0.0, "", ""
     sets = sphere_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
-    d = np.full((len(q), world.shape[1], len(obs)), np.inf)
-    for oi, ob in enumerate(obs):
-        d[:, :, oi] = exact_distance(ob, in_object_frame(ob, world)) - sets.sphere_radius
-    d[contact_exclusions(lay, sets, obs)[: len(q)]] = np.inf
-    k, s, o = (int(i) for i in np.unravel_index(int(np.argmin(d)), d.shape))
-    return float(d[k, s, o]), float(lay.t[k]), sets.links[int(sets.sphere_owner[s])], obs[o].name
+    excluded = contact_exclusions(lay, sets, obs)[: len(q)]
+    bounds = []  # per piece, the distances of the spheres to its circumscribed ball (T, S), and their min
+    for ob in obs:
+        lower = np.linalg.norm(world - ob.position, axis=-1) - float(np.linalg.norm(ob.half)) - sets.sphere_radius
+        bounds.append(float(lower.min()))
+    best = (math.inf, 0, 0, 0)
+    for oi in np.argsort(bounds, kind="stable"):
+        if bounds[oi] >= best[0]:
+            break
+        ob = obs[oi]
+        d = exact_distance(ob, in_object_frame(ob, world)) - sets.sphere_radius
+        d[excluded[:, :, oi]] = np.inf
+        k, s = (int(i) for i in np.unravel_index(int(np.argmin(d)), d.shape))
+        if d[k, s] < best[0]:
+            best = (float(d[k, s]), k, s, int(oi))
+    d, k, s, o = best
+    return d, float(lay.t[k]), sets.links[int(sets.sphere_owner[s])], obs[o].name
 
 
 def scene_collision_check(lay: Layout, q: np.ndarray) -> Check:

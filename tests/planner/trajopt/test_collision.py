@@ -141,6 +141,39 @@ def test_screening_selects_only_close_pairs(talos):
     assert not far.spheres
 
 
+def test_broad_phase_skips_only_pairs_farther_than_asked(talos):
+    """With ``within``, the sphere-pair distances computed are the full computation's (every pair
+    written out with Pinocchio's placements), the ones skipped are at least ``within`` apart, most
+    are skipped, and the screening selects the same rows and the report the same closest pair."""
+    from planner.trajopt.collision import closest, sphere_pair_distances
+
+    spec = _reach_spec(talos, "reach right with your left hand 40 cm")
+    lay = make_layout(spec, talos)
+    sets = sphere_sets(talos)
+    rng = np.random.default_rng(11)
+    q = np.repeat(talos.q_standing[None], 12, axis=0)
+    q[:, 7:] += rng.normal(scale=0.4, size=q[:, 7:].shape)  # arms and legs through each other
+    data = talos.model.createData()
+    full = np.empty((len(q), len(sets.sa)))
+    for k, qk in enumerate(q):
+        pin.forwardKinematics(talos.model, data, qk)
+        M = [data.oMi[int(j)] for j in sets.joints[sets.pair_owner]]
+        world = np.array([m.rotation @ c + m.translation for m, c in zip(M, sets.pair_local, strict=True)])
+        full[k] = (np.linalg.norm(world[sets.sa] - world[sets.sb], axis=1)
+                   - sets.pair_radius[sets.sa] - sets.pair_radius[sets.sb])
+    part = sphere_pair_distances(talos, sets, q, within=0.03)
+    done = np.isfinite(part)
+    np.testing.assert_allclose(part[done], full[done], atol=1e-12, rtol=0)
+    assert full[~done].min() >= 0.03
+    assert (full < 0.0).any() and 0.0 < done.mean() < 0.2
+    a, b = select(lay, sets, part, 0.03), select(lay, sets, full, 0.03)
+    assert a.spheres == b.spheres and a.knots == b.knots and a.spheres
+    d, _, pair = closest(talos, sets, q, np.arange(len(q)) * 0.1)
+    k, pi = np.unravel_index(int(np.argmin(np.minimum.reduceat(full, sets.starts, axis=1))), (len(q), len(sets.pairs)))
+    assert d == pytest.approx(np.minimum.reduceat(full, sets.starts, axis=1)[k, pi], abs=1e-12)
+    assert pair == sets.pair_names[pi]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(("sentence", "moving"), [
     ("reach right with your left hand 40 cm", "left"),

@@ -178,6 +178,45 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
     assert pa.shape == pb.shape and not np.allclose(pa, pb)
 
 
+def test_broad_phase_gives_the_values_and_closest_pair_of_every_pair(talos):
+    """The screening values (below 1: within the clearance) and the report's closest sphere and object
+    are those of every (sphere, object piece) pair written out (Pinocchio placements, the row function
+    and the exact distance on every pair): the bounding-ball broad phase only skips pairs farther than
+    asked, near objects (the shapes around the arm) and far ones (a box 5 m away) alike."""
+    from planner.trajopt.scene_collision import closest, exact_distance, values
+
+    far = SceneObject(name="far box", shape="box", size=(1.0, 1.0, 1.0), position=(5.0, 0.0, 0.5))
+    scene = dataclasses.replace(_shapes_scene(), objects=(*_shapes_scene().objects, far))
+    spec = _spec(talos, "reach forward 30 cm with your right hand", scene)
+    lay = make_layout(spec, talos)
+    sets = sphere_sets(talos)
+    obs = obstacles(scene)
+    rng = np.random.default_rng(5)
+    q = np.repeat(talos.q_standing[None], 6, axis=0)
+    q[:, 7:] += rng.normal(scale=0.3, size=q[:, 7:].shape)
+    data = talos.model.createData()
+    world = np.empty((len(q), len(sets.sphere_radius), 3))
+    for k, qk in enumerate(q):
+        pin.forwardKinematics(talos.model, data, qk)
+        for s, (owner, c) in enumerate(zip(sets.sphere_owner, sets.sphere_local, strict=True)):
+            M = data.oMi[int(sets.joints[owner])]
+            world[k, s] = M.rotation @ c + M.translation
+    exact = np.stack([exact_distance(ob, (world - ob.position) @ ob.rotation) - sets.sphere_radius for ob in obs], -1)
+    for clearance in (MARGIN, 0.03, 0.3):
+        reference = np.stack([row_value(ob.shape, (world - ob.position) @ ob.rotation,
+                                        ob.half + (sets.sphere_radius + clearance)[:, None]) / BOUND[ob.shape]
+                              for ob in obs], -1)
+        np.testing.assert_array_equal(values(lay, sets, obs, q, clearance) < 1.0, reference < 1.0)
+    assert (reference < 1.0).any() and not (reference[..., -1] < 1.0).any()
+    d, time, link, name = closest(lay, q)
+    k, s, o = np.unravel_index(int(np.argmin(exact)), exact.shape)
+    assert d == pytest.approx(exact[k, s, o], abs=1e-12)
+    assert (time, link, name) == (lay.t[k], sets.links[sets.sphere_owner[s]], obs[o].name)
+    far_only = dataclasses.replace(spec, scene=Scene(objects=(far,)))
+    d_far = closest(make_layout(far_only, talos), q)[0]
+    assert d_far == pytest.approx(exact[..., obs.index(next(ob for ob in obs if ob.name == "far box")):].min(), abs=1e-12)
+
+
 @pytest.mark.slow
 def test_reach_over_the_table_keeps_every_link_the_margin_above_it(talos):
     """A reach forward over the table (the hand 10 cm above its top): every URDF collision geometry
