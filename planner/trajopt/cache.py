@@ -258,9 +258,7 @@ def _store_serialized(entry: Path, key: str, nlp: dict, derivatives: dict, nl, s
         code = 1
         try:
             code = 0 if _write_serialized(tmp, entry, key, functions, nl.n_x, nl.n_g) else 1
-        except BaseException:
-            pass
-        finally:
+        finally:  # also on an exception: os._exit ends the child here, silently, with code 1
             shutil.rmtree(tmp, ignore_errors=True)
             os._exit(code)
     _WRITERS.append(pid)
