@@ -30,6 +30,7 @@ import hashlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
@@ -257,6 +258,9 @@ def _store_serialized(entry: Path, key: str, nlp: dict, derivatives: dict, nl, s
     if pid == 0:  # the child: write, publish, leave without running this process's exit handlers
         code = 1
         try:
+            os.setsid()  # like the compiling finisher: a Ctrl-C of the planning command does not cut it short
+            for sig in (signal.SIGINT, signal.SIGTERM):  # not the parent's handlers (they raise into its code)
+                signal.signal(sig, signal.SIG_DFL)
             code = 0 if _write_serialized(tmp, entry, key, functions, nl.n_x, nl.n_g) else 1
         finally:  # also on an exception: os._exit ends the child here, silently, with code 1
             shutil.rmtree(tmp, ignore_errors=True)
@@ -409,8 +413,6 @@ def _finisher_main(argv: list[str]) -> int:
 
 def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
     """Run gcc in its own process group; on timeout kill the group (cc1 included)."""
-    import signal
-
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True)
     try:
