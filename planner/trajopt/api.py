@@ -174,7 +174,8 @@ def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tup
         lay = to_dynamic_layout(lay, settings.centroidal)
         settings = dataclasses.replace(
             settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
-            compile=settings.compile and settings.compile_dynamic)
+            compile=settings.compile and settings.compile_dynamic,
+            serialize=settings.serialize or (settings.compile and not settings.compile_dynamic))
     return lay, settings
 
 

@@ -8,6 +8,11 @@ An entry is a folder ``<cache_dir>/planner/<key>/`` holding
 * ``verified``: the sha256 of a library that a short-lived child process has loaded and
   evaluated without crashing (written by the builder; rewritten by a loader when missing).
 
+or, for a solver stored serialized (``"format": "casadi"`` in the manifest: the dynamic plans'
+solvers, whose C code takes minutes to compile), ``nlp.casadi``: the NLP's functions written by
+CasADi's serializer, read back with its deserializer (nothing is mapped as code, so no probe: the
+size and checksum checks catch a truncated or altered file before it is read).
+
 Loading a shared library maps it into the process: a truncated or forged one can kill the
 process with SIGBUS or SIGSEGV before any Python code can react, so nothing is loaded in the
 planning process before it passed, in this order: the folder is a real folder (no symlink);
@@ -42,6 +47,8 @@ from pathlib import Path
 from robots.cache import file_sha256
 
 LIBRARY = "nlp.so"
+SERIALIZED = "nlp.casadi"
+FORMATS = {"so": LIBRARY, "casadi": SERIALIZED}  # manifest "format" -> the entry's payload file
 META = "meta.json"
 VERIFIED = "verified"  # sha256 of the library that a child process loaded and evaluated
 BUILDER_PID = "builder.pid"  # in a temporary build folder: the process that owns it
@@ -157,10 +164,13 @@ def elf_problem(path: Path, size: int) -> str | None:
     return None
 
 
-def check_files(entry: Path, key: str, seen: os.stat_result | None = None) -> tuple[dict, str]:
-    """Every check that needs no loading: (manifest, library sha256), or EntryDamaged.
+def check_files(entry: Path, key: str, seen: os.stat_result | None = None,
+                expected_format: str | None = None) -> tuple[dict, str]:
+    """Every check that needs no loading: (manifest, payload sha256), or EntryDamaged.
 
-    ``seen`` is the entry's ``lstat`` (taken here when not given).
+    ``seen`` is the entry's ``lstat`` (taken here when not given). The payload is the file of the
+    manifest's ``format`` (``"so"`` when absent: :data:`FORMATS`); ``expected_format`` refuses
+    any other.
     """
     if seen is None:
         seen = os.lstat(entry)
@@ -169,21 +179,28 @@ def check_files(entry: Path, key: str, seen: os.stat_result | None = None) -> tu
     if not stat.S_ISDIR(seen.st_mode):
         raise EntryDamaged("it is a file, not a folder")
     meta = read_manifest(entry, key)
-    lib = entry / LIBRARY
+    fmt = meta.get("format", "so")
+    if not isinstance(fmt, str) or fmt not in FORMATS:
+        raise EntryDamaged(f"{META} names an unknown format ({str(fmt)[:20]!r})")
+    if expected_format is not None and fmt != expected_format:
+        raise EntryDamaged(f"{META} is for a {fmt!r} entry, not {expected_format!r}")
+    name = FORMATS[fmt]
+    payload = entry / name
     try:
-        st = os.lstat(lib)
+        st = os.lstat(payload)
     except FileNotFoundError:
-        raise EntryDamaged(f"{LIBRARY} is missing") from None
+        raise EntryDamaged(f"{name} is missing") from None
     if not stat.S_ISREG(st.st_mode):
-        raise EntryDamaged(f"{LIBRARY} is not a regular file")
+        raise EntryDamaged(f"{name} is not a regular file")
     if st.st_size != meta["size"]:
-        raise EntryDamaged(f"{LIBRARY} has {st.st_size} bytes, {META} recorded {meta['size']}")
-    problem = elf_problem(lib, st.st_size)
-    if problem:
-        raise EntryDamaged(f"{LIBRARY} {problem}")
-    digest = file_sha256(lib)
+        raise EntryDamaged(f"{name} has {st.st_size} bytes, {META} recorded {meta['size']}")
+    if fmt == "so":
+        problem = elf_problem(payload, st.st_size)
+        if problem:
+            raise EntryDamaged(f"{name} {problem}")
+    digest = file_sha256(payload)
     if digest != meta["sha256"]:
-        raise EntryDamaged(f"{LIBRARY} does not match its checksum in {META}")
+        raise EntryDamaged(f"{name} does not match its checksum in {META}")
     return meta, digest
 
 
