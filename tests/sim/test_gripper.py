@@ -16,6 +16,7 @@ import pytest
 
 from sim.grasp import CLOSED_MARGIN, GRIP_FRACTION
 from sim.model import build_model, hand_gripper
+from tests.sim.test_model import GRASPABLE
 
 FINGER_TOLERANCE = 1e-3  # [rad] a mimic joint follows the drive within this (MuJoCo's soft joint equality)
 TIP_TOLERANCE = 2e-4  # [m] a fingertip where Pinocchio puts it on the full URDF at the simulated angles
@@ -36,7 +37,8 @@ def test_the_gripper_closes_and_the_fingers_follow(talos, side):
     each other by more than 4 cm (their pads: 9.2 cm apart open)."""
     urdf = Path(talos.urdf_path)
     joints = _urdf_joints(urdf)
-    sm = build_model(talos)
+    assert hand_gripper(build_model(talos), side) is None  # no scene, nothing to grasp: fixed fingers
+    sm = build_model(talos, scene=GRASPABLE)
     gr = hand_gripper(sm, side)
     assert gr is not None
     drive = f"gripper_{side}_joint"

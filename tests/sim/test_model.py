@@ -8,6 +8,11 @@ import pinocchio as pin
 import pytest
 
 from sim import build_model
+from tasks.scene import Scene, SceneObject
+
+# a scene with something to grasp: talos's fingers move in it (sim/grasp.py)
+GRASPABLE = Scene(name="a cup", objects=(SceneObject(name="cup", shape="cylinder", size=(0.04, 0.1),
+                                                     position=(0.5, 0.0, 0.05), movable=True, mass=0.2),))
 
 
 @pytest.fixture(scope="module")
@@ -16,12 +21,11 @@ def talos_sim(talos):
 
 
 def test_free_joint_and_sizes(talos, talos_sim):
-    """The root becomes a free joint; nq/nv match Pinocchio plus talos's 12 finger joints (6 a hand,
-    MuJoCo's only: sim/grasp.py); one actuator per actuated Pinocchio joint (the fingers have none:
-    they follow their gripper joint)."""
+    """The root becomes a free joint; nq/nv and actuator count match Pinocchio (no scene: the
+    fingers stay fixed, as in Pinocchio)."""
     m = talos_sim.model
     assert m.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
-    assert (m.nq, m.nv) == (talos.nq + 12, talos.nv + 12)
+    assert (m.nq, m.nv) == (talos.nq, talos.nv)
     assert m.nu == talos.nv - 6
     assert m.opt.timestep == pytest.approx(0.001)
 
@@ -102,9 +106,10 @@ def test_joint_friction_switch(talos, talos_sim):
 
 def test_every_builtin_robot_compiles(any_robot):
     """Talos, G1, Romeo and iCub all become MuJoCo models (Collada meshes rebuilt, bad inertias
-    repaired) whose mass and CoM match Pinocchio's; MuJoCo's only extra joints are hinges that a
-    joint equality couples to a Pinocchio joint (talos's fingers, 6 a hand: sim/grasp.py)."""
-    sm = build_model(any_robot)
+    repaired) whose mass and CoM match Pinocchio's. In a scene with something to grasp, MuJoCo's
+    only extra joints are hinges that a joint equality couples to a Pinocchio joint (talos's
+    fingers, 6 a hand: sim/grasp.py); without one there are none (test_free_joint_and_sizes)."""
+    sm = build_model(any_robot, scene=GRASPABLE if any_robot.name == "talos" else None)
     m = sm.model
     names = set(any_robot.model.names)
     extra = [j for j in range(m.njnt) if m.joint(j).name not in names and j != 0]
