@@ -112,13 +112,15 @@ def test_every_builtin_robot_compiles(any_robot):
     sm = build_model(any_robot, scene=GRASPABLE if any_robot.name == "talos" else None)
     m = sm.model
     names = set(any_robot.model.names)
-    extra = [j for j in range(m.njnt) if m.joint(j).name not in names and j != 0]
+    free = [j for j in range(1, m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]  # the cup's
+    assert len(free) == (1 if any_robot.name == "talos" else 0)
+    extra = [j for j in range(m.njnt) if m.joint(j).name not in names and j != 0 and j not in free]
     for j in extra:
         assert int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)
         (e,) = [e for e in range(m.neq) if int(m.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT) and int(m.eq_obj1id[e]) == j]
         assert m.joint(int(m.eq_obj2id[e])).name in names
     assert len(extra) == (12 if any_robot.name == "talos" else 0)
-    assert (m.nq, m.nv) == (any_robot.nq + len(extra), any_robot.nv + len(extra))
+    assert (m.nq, m.nv) == (any_robot.nq + len(extra) + 7 * len(free), any_robot.nv + len(extra) + 6 * len(free))
     assert sm.model.body_subtreemass[1] == pytest.approx(any_robot.mass, rel=1e-5)
     d = sm.data()
     sm.set_state(d, any_robot.q_standing)
