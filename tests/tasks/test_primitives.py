@@ -53,7 +53,8 @@ def test_every_primitive_compiles_and_round_trips(name, robot_name):
         return
     spec = _one(robot, name)
     assert spec_from_json(spec_to_json(spec)) == spec
-    assert spec.robot == robot_name and not spec.dynamic
+    assert spec.robot == robot_name
+    assert not spec.dynamic or name == "lean"  # a lean near the edge of the feet (icub's) is planned dynamically
     for p in spec.phases:
         assert to_knot(p.duration, spec.dt) >= 1
     for item in (*spec.targets, *spec.com_targets):
