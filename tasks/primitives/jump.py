@@ -22,7 +22,13 @@ Feasibility in task terms: a rise ``h`` needs a take-off speed :math:`v_0 = \\sq
 increasing depth, the fastest the CoM can move straight up with both soles flat on the ground
 and every leg joint within its velocity limit (base translating vertically, upper body still).
 A jump whose take-off speed exceeds ``TAKEOFF_MARGIN`` times the best of these is refused with
-the numbers (e.g. a 1 m jump needs 4.4 m/s; Talos's legs give about 1.9 m/s).
+the numbers (e.g. a 1 m jump needs 4.4 m/s; Talos's legs give about 1.9 m/s). A forward jump
+covers ``forward`` during the flight, so it needs a forward take-off speed of ``forward / T``,
+which the landing must absorb: beyond ``FORWARD_SPEED`` (0.5 m/s) it is refused with the longest
+forward jump for that rise. On Talos, with the 5 cm rise (0.20 s flight), 0.10 m forward passes the
+certificate (the soles land 15 mm from their planned placements, limit 20 mm); 0.15 m lands 23 mm
+off, 0.20 m 30 mm; 0.25 m and 0.30 m do not plan (the landing's contact moment misses the full
+dynamics by 1.0-1.25 cm).
 """
 
 from __future__ import annotations
@@ -59,6 +65,7 @@ CROUCH_TOLERANCE = 0.02  # [m] CoM height at the bottom of the crouch
 END_TOLERANCE = 0.01  # [m] CoM at the end
 APEX_WEIGHT = 10.0  # soft apex target (shapes the take-off height)
 FLIGHT_CLEARANCE_MAX = 0.02  # [m] sole height at mid-flight
+FORWARD_SPEED = 0.5  # [m/s] forward take-off speed a landing absorbs (calibrated in MuJoCo on Talos, docs/dynamic.md)
 TORSO_HOLD_WEIGHT = 10.0  # joint-target weight holding each torso joint at its standing angle
 PARTS = frozenset({"legs", "com"})
 
@@ -289,18 +296,40 @@ def check(params: dict, robot: Robot) -> None:
             f"limits it); ask for at most {max_jump_height(robot):.2f} m"
         )
     limit = robot.profile.step_length_max
-    if fwd > limit + 1e-12:
+    if fwd > limit + 1e-12 and limit <= max_forward(robot, h):
         raise TaskDefinitionError(
             f"jump forward {fwd:g} m is beyond {robot.name}'s {limit:.2f} m (its longest step); "
             f"ask for at most {limit:.2f} m"
         )
+    if fwd > max_forward(robot, h) + 1e-12:
+        T = flight_time(h)
+        highest = max_jump_height(robot)
+        raise TaskDefinitionError(
+            f"jump forward {fwd:g} m with a {h:g} m rise (a {T:.2f} s flight) needs a forward take-off speed of "
+            f"{fwd / T:.2f} m/s; {robot.name} lands a forward jump at up to {FORWARD_SPEED:g} m/s, so at most "
+            f"{_cm(max_forward(robot, h)):.2f} m forward with that rise (with its highest jump, {highest:.2f} m: "
+            f"{_cm(max_forward(robot, highest)):.2f} m)"
+        )
+
+
+def _cm(x: float) -> float:
+    """``x`` rounded down to 1 cm [m]."""
+    return math.floor(x * 100.0 + 1e-9) / 100.0
+
+
+def max_forward(robot: Robot, height: float) -> float:
+    """Longest forward jump with a flight rise of ``height`` [m]: ``FORWARD_SPEED`` over the
+    flight (:func:`flight_time`), at most the longest step."""
+    return min(robot.profile.step_length_max, FORWARD_SPEED * flight_time(height))
 
 
 def limits(robot: Robot) -> dict[str, str]:
     """Robot-specific ranges of ``height`` and ``forward``."""
+    highest = max_jump_height(robot)
     return {
-        "height": f"at most {max_jump_height(robot):.2f} m on {robot.name} (joint speeds and torques of its legs)",
-        "forward": f"at most {robot.profile.step_length_max:.2f} m on {robot.name}",
+        "height": f"at most {highest:.2f} m on {robot.name} (joint speeds and torques of its legs)",
+        "forward": f"at most {FORWARD_SPEED:g} m/s x the flight time on {robot.name}: {_cm(max_forward(robot, 0.05)):.2f} m "
+                   f"with a 0.05 m rise, {_cm(max_forward(robot, highest)):.2f} m with its highest jump",
     }
 
 
@@ -394,8 +423,8 @@ def build(b: FragmentBuilder) -> Fragment:
 
 
 def size_limits(params: dict, robot: Robot) -> dict[str, float]:
-    """The highest jump the legs allow and the longest step (for ``forward``)."""
-    return {"height": max_jump_height(robot), "forward": robot.profile.step_length_max}
+    """The highest jump the legs allow and the longest forward jump with the given rise."""
+    return {"height": max_jump_height(robot), "forward": max_forward(robot, params["height"])}
 
 
 PRIMITIVE = Primitive(name="jump", nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,
