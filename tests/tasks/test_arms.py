@@ -243,6 +243,23 @@ def test_raised_arms_pass_the_horizontal_folded(talos):
     assert abs(pin.computeGeneralizedGravity(model, data, q)[v]) > model.effortLimit[v]
 
 
+def test_slow_raises_pass_the_folded_elbow_waypoints(talos):
+    """raise_arms lasting 3 s or more (slow, or stretched over a one-foot balance as in
+    "单脚站立同时举起双手") passes (0.2 ahead, 0.15 outwards, 0.4 up) L at 20 % and 80 % of its
+    time; a 2 s raise alone does not (its straight path through the front passes in MuJoCo)."""
+    assert not _targets(_spec(talos, "raise_arms", duration=2.0), "folded")
+    slow = _targets(_spec(talos, "raise_arms", duration=4.0), "folded")
+    assert len(slow) == 4  # both hands, up and down
+    overlaid = compile_actions([Action(name="balance", params={"foot": "left"}),
+                                Action(name="raise_arms", params={"duration": 2.0}, overlay=True)], talos)
+    folded = _targets(overlaid, "folded")
+    assert len(folded) == 4
+    S = _frame(talos, talos.frame("right_shoulder")).translation
+    L = _arm_length(talos, "right")
+    for t in (t for t in folded if "right" in t.name):
+        np.testing.assert_allclose(np.array(t.position) - S, L * np.array([0.2, -0.15, 0.4]), atol=GEOMETRY_ATOL)
+
+
 def test_arms_out_as_high_as_the_shoulder_torque_allows_and_circles_at_shoulder_height(talos, g1):
     """Arms out: 0.9 L out from the shoulder, at shoulder height on g1, lowered on Talos (held
     level, its arm needs more than its shoulder roll joint's torque limit against gravity:
