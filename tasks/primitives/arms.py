@@ -18,6 +18,7 @@ toe tip as the bent reach allows.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -29,6 +30,8 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
 from tasks.primitives.bodymap import (
     GAP,
+    arm_configuration,
+    arm_joints,
     body_map,
     clear_targets,
     hands_meet,
@@ -398,11 +401,54 @@ def build_cross_arms(b: FragmentBuilder) -> Fragment:
 CROSS_ARMS = Primitive(name="cross_arms", nominal_duration=_duration, build=build_cross_arms, parts=lambda p: BOTH_ARMS)
 
 OUT_REACH = 0.9  # [L] arms out and pointing: hand this far from the shoulder
+HOLD_TORQUE_FRACTION = 0.85  # of each arm joint's torque limit: the most a held-out arm may need against gravity
+DROP_STEP = 0.05  # [rad] grid of the angle a held-out arm is lowered by
+DROP_MAX = 1.0  # [rad] the lowest it goes
+
+
+@functools.cache
+def _drop(robot: Robot, side: str, u: tuple[float, float, float]) -> float:
+    gravity_v = [robot.model.joints[j].idx_v for j in arm_joints(robot, side)]
+    limits = np.asarray(robot.model.effortLimit, dtype=float)[gravity_v]
+    data = robot.data()
+
+    def holds(k: int) -> bool:
+        point = shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * _lowered(u, k * DROP_STEP)
+        tau = pin.computeGeneralizedGravity(robot.model, data, arm_configuration(robot, {side: point}))[gravity_v]
+        return bool(np.all(np.abs(tau) <= HOLD_TORQUE_FRACTION * limits))
+
+    if holds(0):
+        return 0.0
+    lo, hi = 0, round(DROP_MAX / DROP_STEP)  # bisection: the gravity torque falls as the arm is lowered
+    if not holds(hi):
+        return DROP_MAX
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if holds(mid) else (mid, hi)
+    return hi * DROP_STEP
+
+
+def _lowered(u, angle: float) -> np.ndarray:
+    """Horizontal unit vector ``u`` tilted down by ``angle`` [rad]."""
+    return math.cos(angle) * np.asarray(u, dtype=float) - math.sin(angle) * Z
+
+
+def held_out_direction(robot: Robot, side: str, u: np.ndarray) -> np.ndarray:
+    """Unit vector (heading frame) along which the ``side`` arm is held out towards horizontal ``u``:
+    ``u`` itself when the arm, posed there (:func:`~tasks.primitives.bodymap.arm_configuration`,
+    ``OUT_REACH * L`` from the shoulder), needs at most ``HOLD_TORQUE_FRACTION`` of each arm joint's
+    torque limit against gravity (Pinocchio), else ``u`` lowered by the smallest multiple of
+    ``DROP_STEP`` that does (at most ``DROP_MAX``). Why: held straight out to the side at shoulder
+    height, Talos's arm needs 1.07-1.09 x the 22.3 N m limit of its shoulder roll joint
+    (``arm_left_2_joint``); the controller saturated it and the hands sagged 5.4 cm below their
+    plan in MuJoCo. Talos lowers its arms by 0.55 rad; g1 (20 % of its limit) keeps them level."""
+    return _lowered(u, _drop(robot, side, tuple(float(x) for x in u)))
 
 
 def arms_out_point(robot: Robot, side: str) -> np.ndarray:
-    """Hand point of an arm held out to its side at shoulder height (heading frame)."""
-    return shoulder(robot, side) + SIGN[side] * OUT_REACH * arm_length(robot, side) * Y
+    """Hand point of an arm held out to its side (heading frame): ``OUT_REACH * L`` from the shoulder,
+    at shoulder height or as little below it as the arm's torque limits allow (:func:`held_out_direction`)."""
+    return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * held_out_direction(robot, side, SIGN[side] * Y)
 
 
 def build_arms_out(b: FragmentBuilder) -> Fragment:
@@ -436,8 +482,12 @@ def point_direction(side: str, direction: str) -> np.ndarray:
 
 
 def point_point(robot: Robot, side: str, direction: str) -> np.ndarray:
-    """Hand point (heading frame) of the ``side`` arm pointing towards ``direction``."""
-    return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * point_direction(side, direction)
+    """Hand point (heading frame) of the ``side`` arm pointing towards ``direction`` (a horizontal
+    direction as little lowered as the arm's torque limits need: :func:`held_out_direction`)."""
+    u = point_direction(side, direction)
+    if abs(u[2]) < 1e-12:
+        u = held_out_direction(robot, side, u)
+    return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * u
 
 
 FOLD_POINT = (0.2, 0.15, 0.4)  # [L] ahead, outwards, above the shoulder: the hand on the way up (elbow bent)

@@ -22,7 +22,14 @@ Feasibility in task terms: a rise ``h`` needs a take-off speed :math:`v_0 = \\sq
 increasing depth, the fastest the CoM can move straight up with both soles flat on the ground
 and every leg joint within its velocity limit (base translating vertically, upper body still).
 A jump whose take-off speed exceeds ``TAKEOFF_MARGIN`` times the best of these is refused with
-the numbers (e.g. a 1 m jump needs 4.4 m/s; Talos's legs give about 1.9 m/s).
+the numbers (e.g. a 1 m jump needs 4.4 m/s; Talos's legs give about 1.9 m/s). A forward jump
+covers ``forward`` during the flight, so it needs a forward take-off speed of ``forward / T``,
+which the landing must absorb: beyond the profile's ``jump_forward_speed_max`` (talos 0.5 m/s;
+g1 0: its forward jumps fell in MuJoCo, even 5 cm) it is refused with the longest forward jump for
+that rise. On Talos, with the 5 cm rise (0.20 s flight), 0.10 m forward passes the
+certificate (the soles land 15 mm from their planned placements, limit 20 mm); 0.15 m lands 23 mm
+off, 0.20 m 30 mm; 0.25 m and 0.30 m do not plan (the landing's contact moment misses the full
+dynamics by 1.0-1.25 cm).
 """
 
 from __future__ import annotations
@@ -290,18 +297,47 @@ def check(params: dict, robot: Robot) -> None:
             f"limits it); ask for at most {max_jump_height(robot):.2f} m"
         )
     limit = robot.profile.step_length_max
-    if fwd > limit + 1e-12:
+    if fwd > limit + 1e-12 and limit <= max_forward(robot, h):
         raise BeyondCapability(
             f"jump forward {fwd:g} m is beyond {robot.name}'s {limit:.2f} m (its longest step); "
             f"ask for at most {limit:.2f} m"
         )
+    speed = robot.profile.jump_forward_speed_max
+    if fwd > 1e-12 and speed <= 0.0:
+        raise BeyondCapability(
+            f"{robot.name} cannot jump forward: its forward jumps are not certified in simulation (they fell); "
+            f"jump in place, or step forward then jump"
+        )
+    if fwd > max_forward(robot, h) + 1e-12:
+        T = flight_time(h)
+        highest = max_jump_height(robot)
+        raise BeyondCapability(
+            f"jump forward {fwd:g} m with a {h:g} m rise (a {T:.2f} s flight) needs a forward take-off speed of "
+            f"{fwd / T:.2f} m/s; {robot.name} lands a forward jump at up to {speed:g} m/s, so at most "
+            f"{_cm(max_forward(robot, h)):.2f} m forward with that rise (with its highest jump, {highest:.2f} m: "
+            f"{_cm(max_forward(robot, highest)):.2f} m)"
+        )
+
+
+def _cm(x: float) -> float:
+    """``x`` rounded down to 1 cm [m]."""
+    return math.floor(x * 100.0 + 1e-9) / 100.0
+
+
+def max_forward(robot: Robot, height: float) -> float:
+    """Longest forward jump with a flight rise of ``height`` [m]: the profile's
+    ``jump_forward_speed_max`` over the flight (:func:`flight_time`), at most the longest step."""
+    return min(robot.profile.step_length_max, robot.profile.jump_forward_speed_max * flight_time(height))
 
 
 def limits(robot: Robot) -> dict[str, str]:
     """Robot-specific ranges of ``height`` and ``forward``."""
+    highest = max_jump_height(robot)
     return {
-        "height": f"at most {max_jump_height(robot):.2f} m on {robot.name} (joint speeds and torques of its legs)",
-        "forward": f"at most {robot.profile.step_length_max:.2f} m on {robot.name}",
+        "height": f"at most {highest:.2f} m on {robot.name} (joint speeds and torques of its legs)",
+        "forward": (f"at most {robot.profile.jump_forward_speed_max:g} m/s x the flight time on {robot.name}: "
+                    f"{_cm(max_forward(robot, 0.05)):.2f} m with a 0.05 m rise, {_cm(max_forward(robot, highest)):.2f} m "
+                    f"with its highest jump") if robot.profile.jump_forward_speed_max > 0 else f"0 on {robot.name} (no forward jumps)",
     }
 
 
@@ -395,8 +431,8 @@ def build(b: FragmentBuilder) -> Fragment:
 
 
 def size_limits(params: dict, robot: Robot) -> dict[str, float]:
-    """The highest jump the legs allow and the longest step (for ``forward``)."""
-    return {"height": max_jump_height(robot), "forward": robot.profile.step_length_max}
+    """The highest jump the legs allow and the longest forward jump with the given rise."""
+    return {"height": max_jump_height(robot), "forward": max_forward(robot, params["height"])}
 
 
 PRIMITIVE = Primitive(name="jump", nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,

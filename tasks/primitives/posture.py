@@ -21,8 +21,15 @@ import pinocchio as pin
 
 from robots.model import Robot
 from tasks.exceptions import TaskDefinitionError
+from tasks.primitives.arms import fold_waypoints
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
-from tasks.primitives.geometry import SIDE_SIGN, neck_range, require_role, standing_geometry
+from tasks.primitives.geometry import (
+    SIDE_SIGN,
+    neck_range,
+    ray_exit_distance,
+    require_role,
+    standing_geometry,
+)
 
 OUT_FRACTION = 0.4
 HOLD_END_FRACTION = 0.6
@@ -30,8 +37,11 @@ RAISE_HEIGHT = 0.75  # [L] hand above the shoulder frame for raise_arms
 RAISE_OUT = 0.0  # [L] hand outside the shoulder frame
 RAISE_FORWARD = 0.25  # [L] hand ahead of the shoulder frame: the arms go up through the front, on the stronger shoulder pitch joints
 RAISE_TOLERANCE = 0.02  # [m]
+FOLD_MIN_TIME = 3.0  # [s] raises at least this long pass through the folded-elbow waypoints
 ORIENTATION_TOLERANCE = 0.05  # [rad] bow and turn_head
 LEAN_TOLERANCE = 0.01  # [m]
+LEAN_ZMP_MARGIN = 0.02  # [m] a lean whose smooth ZMP comes this close to the soles' edge is planned dynamically
+G = 9.81  # [m/s^2]
 
 
 def _duration(params: dict, robot: Robot) -> float:
@@ -59,9 +69,17 @@ def raised_hand_position(robot: Robot, side: str) -> np.ndarray:
 
 
 def build_raise_arms(b: FragmentBuilder) -> Fragment:
-    """Hands up, held, back to rest."""
+    """Hands up, held, back to rest; a raise that lasts at least ``FOLD_MIN_TIME`` goes up and down
+    through the folded-elbow waypoints (:func:`tasks.primitives.arms.fold_waypoints`, as pointing up
+    and stretching do). Why: raised over 4 s while balancing on one foot, Talos's arms swung up
+    through the side with a straight elbow, past 101 % of the shoulder roll joint's torque limit
+    against gravity, and the right hand fell 8.8 cm behind its plan in MuJoCo (2.7 mm with the
+    waypoints). A 2 s raise goes straight up through the front and passes; through the waypoints
+    it whipped the arms (hand 14 cm off its plan)."""
     T = b.params["duration"]
     sides = arms_of(b.params["arm"])
+    if T * b.scale >= FOLD_MIN_TIME - 1e-9:
+        fold_waypoints(b, sides)
     for side in sides:
         b.frame_target(f"{side} hand raised", f"{side}_hand", position=b.world(raised_hand_position(b.robot, side)),
                        window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=RAISE_TOLERANCE)
@@ -191,6 +209,32 @@ def limits_lean(robot: Robot) -> dict[str, str]:
     return {"amount": f"at most [m]: {ranges} on {robot.name}"}
 
 
+def lean_zmp_shift(robot: Robot, amount: float, duration: float) -> float:
+    r"""Farthest the ZMP of a smooth lean goes from the standing CoM [m]: the CoM-only ZMP
+    :math:`c - z\ddot c / g` of a quintic (rest-to-rest) shift by ``amount`` over ``OUT_FRACTION``
+    of ``duration``, at the standing CoM height ``z``: braking into the held lean puts it
+    beyond the CoM."""
+    ramp = OUT_FRACTION * duration
+    k = float(standing_geometry(robot).com[2]) / (G * ramp * ramp)
+    tau = np.linspace(0.0, 1.0, 201)
+    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+    s2 = 60.0 * tau - 180.0 * tau**2 + 120.0 * tau**3
+    return amount * float(np.max(s - k * s2))
+
+
+def lean_needs_dynamics(robot: Robot, direction: str, amount: float, duration: float) -> bool:
+    """Whether a lean is planned with the centroidal dynamics (contact forces, the centre of
+    pressure inside the soles): when even a smooth shift's ZMP (:func:`lean_zmp_shift`) comes within
+    ``LEAN_ZMP_MARGIN`` of the soles' edge. A kinematic plan bounds the CoM, not the ZMP: "lean to
+    the left a lot" (8 cm in 2 s on Talos) rushed the CoM into the hold, its full-dynamics ZMP left
+    the feet by 0.185 m and the simulated CoM missed its target by 4.7 cm; planned with the
+    dynamics it passes. Smaller leans stay kinematic (faster, and certified: "lean forward",
+    "raise your hands while leaning forward", whose arms the dynamic plan could not raise)."""
+    g = standing_geometry(robot)
+    edge = ray_exit_distance(g.support_polygon, g.com[:2], g.heading_axis(direction)[:2], 0.0)
+    return lean_zmp_shift(robot, amount, duration) > edge - LEAN_ZMP_MARGIN
+
+
 def build_lean(b: FragmentBuilder) -> Fragment:
     """CoM shift held, then back over the standing point."""
     check_lean(b.params, b.robot)
@@ -203,7 +247,8 @@ def build_lean(b: FragmentBuilder) -> Fragment:
     home = b.world(g.com)
     b.com_target("CoM back over the feet", (home[0], home[1], None), time=T, tolerance=LEAN_TOLERANCE)
     b.phase(f"lean {b.params['direction']}", T)
-    return b.finish(frozenset({"com", "legs"}))
+    return b.finish(frozenset({"com", "legs"}), dynamic=lean_needs_dynamics(b.robot, b.params["direction"],
+                                                                             b.params["amount"], T * b.scale))
 
 
 LEAN = Primitive(name="lean", nominal_duration=_duration, build=build_lean,

@@ -2,7 +2,9 @@
 
 The point is either ``target``, given in the robot's base frame (origin at the base link's
 standing position, x forward, y left, z up: the heading frame's axes), or ``distance`` along
-``direction`` (forward, backward, left, right, up, down) from the hand's standing position.
+``direction`` (forward, backward, left, right, up, down) from the hand's standing position;
+with neither ("reach out with your left hand") the hand reaches ``DEFAULT_DIRECTION`` (forward),
+as a person reading the sentence expects.
 The hand gets there at ``OUT_FRACTION`` of the duration, holds it until ``HOLD_END_FRACTION``
 (HARD position target, tolerance ``REACH_TOLERANCE``) and goes back to rest (soft target).
 A point beyond the arm's reach is not refused here: the planner explains by how much it is
@@ -10,6 +12,8 @@ missed.
 """
 
 from __future__ import annotations
+
+from typing import cast
 
 import numpy as np
 
@@ -21,6 +25,7 @@ from tasks.primitives.geometry import StandingGeometry
 OUT_FRACTION = 0.4  # the hand arrives at this fraction of the duration
 HOLD_END_FRACTION = 0.6  # and leaves at this one
 REACH_TOLERANCE = 0.01  # [m]
+DEFAULT_DIRECTION = "forward"  # without a target or a direction
 
 
 def nominal_duration(params: dict, robot: Robot) -> float:
@@ -33,13 +38,15 @@ def parts(params: dict) -> frozenset[str]:
     return frozenset({f"{params['hand']}_arm"})
 
 
+def direction(params: dict) -> str | None:
+    """The direction to reach in: ``params["direction"]``, ``DEFAULT_DIRECTION`` without a target, else None."""
+    if params.get("direction") is not None:
+        return str(params["direction"])
+    return DEFAULT_DIRECTION if params.get("target") is None else None
+
+
 def check(params: dict, robot: Robot) -> None:
-    """Exactly one of ``target`` and ``direction``."""
-    if params.get("target") is None and params.get("direction") is None:
-        raise TaskDefinitionError(
-            "reach needs a target point [m] in the base frame or a direction "
-            "(forward, backward, left, right, up, down)"
-        )
+    """At most one of ``target`` and ``direction``."""
     if params.get("target") is not None and params.get("direction") is not None:
         raise TaskDefinitionError("reach: give a target point or a direction, not both")
 
@@ -50,7 +57,7 @@ def reach_point(geometry: StandingGeometry, params: dict) -> np.ndarray:
         base = geometry.position("base")
         return base + geometry.heading.rotation @ np.array(params["target"], dtype=float)
     hand = geometry.position(f"{params['hand']}_hand")
-    return hand + params["distance"] * geometry.heading_axis(params["direction"])
+    return hand + params["distance"] * geometry.heading_axis(cast(str, direction(params)))
 
 
 def build(b: FragmentBuilder) -> Fragment:

@@ -103,11 +103,11 @@ def test_jump_spec(name, dt, request):
 
 
 def test_forward_jump_moves_the_landing(talos):
-    """jump(forward=0.2): landing and the last stand use soles 0.2 m ahead."""
-    spec = _spec(talos, ("jump", {"height": 0.05, "forward": 0.2}, False))
+    """jump(forward=0.1): landing and the last stand use soles 0.1 m ahead."""
+    spec = _spec(talos, ("jump", {"height": 0.05, "forward": 0.1}, False))
     x0 = standing_feet(talos)[0].position[0]
     for p in spec.phases[4:]:
-        assert [c.placement.position[0] - x0 for c in p.contacts] == pytest.approx([0.2, 0.2])
+        assert [c.placement.position[0] - x0 for c in p.contacts] == pytest.approx([0.1, 0.1])
     for p in spec.phases[:3]:
         assert [c.placement.position[0] - x0 for c in p.contacts] == pytest.approx([0.0, 0.0])
 
@@ -137,14 +137,44 @@ def test_one_metre_jump_is_explained(name, best, request):
 
 
 def test_two_metre_step_and_far_forward_jump_are_refused(talos):
-    """Step and forward-jump limits come from the profile."""
+    """Step limits come from the profile, forward jumps' from the flight."""
     with pytest.raises(TaskDefinitionError, match="step length 2 m is beyond talos's 0.30 m"):
         _spec(talos, ("step", {"length": 2.0}, False))
-    with pytest.raises(TaskDefinitionError, match="jump forward 1 m is beyond talos's 0.30 m"):
-        _spec(talos, ("jump", {"height": 0.05, "forward": 1.0}, False))
+    with pytest.raises(TaskDefinitionError, match="jump forward 1 m with a 0.05 m rise"):
+        _spec(talos, ("jump", {"height": 0.05, "forward": 1.0}, False))  # talos's flights bound it below the step
+
+
+def test_forward_jump_beyond_what_the_landing_absorbs_is_refused(talos):
+    """'jump forward 30 cm' (a 5 cm rise: 0.20 s of flight, sqrt(8 h / g)) needs 1.49 m/s of forward
+    take-off speed; beyond 0.5 m/s (0.10 m) it is refused with the numbers (it planned and failed
+    the landing's dynamics check, exit 4); 0.10 m compiles."""
+    T = 2.0 * np.sqrt(2.0 * 0.05 / 9.81)
+    with pytest.raises(TaskDefinitionError) as info:
+        _spec(talos, ("jump", {"height": 0.05, "forward": 0.3}, False))
+    msg = str(info.value)
+    assert f"needs a forward take-off speed of {0.3 / T:.2f} m/s" in msg
+    assert "at most 0.10 m forward with that rise" in msg
+    _spec(talos, ("jump", {"height": 0.05, "forward": 0.1}, False))
     limits = robot_limits(talos)
     assert "0.30 m forward" in limits["step"]["length"] and "0.15 m sideways" in limits["step"]["length"]
     assert limits["jump"]["height"].startswith(f"at most {max_jump_height(talos):.2f} m")
+
+
+def test_a_robot_whose_forward_jumps_fell_refuses_them_and_jumps_in_place(g1, talos):
+    """g1's profile says 0 m/s of forward take-off (every forward jump fell in MuJoCo, even 5 cm):
+    "jump forward" (and 5 cm) is refused as beyond its capability (exit 4), a jump in place compiles;
+    "jump forward" means 0.10 m, what talos's landing absorbs with a 5 cm rise, and compiles there."""
+    from language import parse
+    from tasks.exceptions import BeyondCapability
+
+    assert g1.profile.jump_forward_speed_max == 0.0 and talos.profile.jump_forward_speed_max == 0.5
+    for fwd in (0.05, 0.1):
+        with pytest.raises(BeyondCapability, match="g1 cannot jump forward"):
+            _spec(g1, ("jump", {"height": 0.05, "forward": fwd}, False))
+    _spec(g1, ("jump", {"height": 0.05, "forward": 0.0}, False))
+    (action,) = parse("jump forward").actions
+    assert action.params["forward"] == pytest.approx(0.1)
+    compile_actions([action], talos)
 
 
 def test_takeoff_speed_estimate_is_a_real_motion(talos):
