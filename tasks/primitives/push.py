@@ -275,6 +275,12 @@ def build_push(b: FragmentBuilder) -> Fragment:
 
     b.frame_target(f"{side} hand in front of the {name}", role, position=world("pre"), rpy=rpy, time=t_pre,
                    tolerance=POSE_TOLERANCE)
+    # in to the face on the straight line, every PUSH_STEP (the hand's path is planned, not left to the NLP)
+    a = max(1, round(CONTACT_TIME / PUSH_STEP))
+    for i in range(1, a):
+        p = poses["pre"] + i / a * (poses["contact"] - poses["pre"])
+        b.frame_target(f"{side} hand nears the {name} ({i}/{a - 1})", role, position=world(p), rpy=rpy,
+                       time=t_pre + i / a * CONTACT_TIME, tolerance=PUSH_TOLERANCE, touch=name)
     b.frame_target(f"{side} hand on the {name}", role, position=world("contact"), rpy=rpy, time=t_on,
                    tolerance=PUSH_TOLERANCE, touch=name)
     n = max(1, round((t_end - t_on) / PUSH_STEP))
