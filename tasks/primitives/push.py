@@ -73,7 +73,7 @@ OFF_BACK = 0.02  # [m]
 LIFT_OFF_TIME = 0.75  # [s] then up until its lowest point is LIFT_CLEARANCE over the object's top
 LIFT_CLEARANCE = 0.05  # [m]
 RETREAT_TIME = 1.0  # [s] then back over where the object stood, to PRE_BACK in front of its near face
-REST_TIME = 1.0  # [s]
+REST_TIME = 1.5  # [s] (1 s: the wrist, arm_*_5_joint, at the controller's 97 % torque cap on the way down)
 GRAVITY = 9.81  # [m/s^2]
 SUPPORT_GAP = 0.01  # [m] an object stands on another whose top is within this of its bottom
 
