@@ -7,7 +7,9 @@ phases, both feet down:
 1. *approach*: :data:`APPROACH_TIME`, the hand to :data:`PRE_BACK` in front of the object's near
    face (seen from the robot), at the contact height;
 2. *contact*: :data:`CONTACT_TIME`, the hand to the face, its geometry :data:`PUSH_DEPTH` into it
-   (the planned press), and held there;
+   (the planned press), on the straight line through targets every :data:`PUSH_STEP` that touch
+   the object (left to the solver, the hand went up over the object's corner and dropped onto the
+   face: the robot fell);
 3. *push*: ``distance`` / :data:`PUSH_SPEED` (at least :data:`PUSH_MIN_TIME`), the hand moved
    forward by ``distance`` through targets every :data:`PUSH_STEP` (a moving planned contact);
 4. *retreat*: the hand :data:`OFF_BACK` off the face (:data:`OFF_TIME`), up until its lowest point is
