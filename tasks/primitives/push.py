@@ -7,7 +7,9 @@ phases, both feet down:
 1. *approach*: :data:`APPROACH_TIME`, the hand to :data:`PRE_BACK` in front of the object's near
    face (seen from the robot), at the contact height;
 2. *contact*: :data:`CONTACT_TIME`, the hand to the face, its geometry :data:`PUSH_DEPTH` into it
-   (the planned press), and held there;
+   (the planned press), on the straight line through targets every :data:`PUSH_STEP` that touch
+   the object (left to the solver, the hand went up over the object's corner and dropped onto the
+   face: the robot fell);
 3. *push*: ``distance`` / :data:`PUSH_SPEED` (at least :data:`PUSH_MIN_TIME`), the hand moved
    forward by ``distance`` through targets every :data:`PUSH_STEP` (a moving planned contact);
 4. *retreat*: the hand :data:`OFF_BACK` off the face (:data:`OFF_TIME`), up until its lowest point is
@@ -73,7 +75,7 @@ OFF_BACK = 0.02  # [m]
 LIFT_OFF_TIME = 0.75  # [s] then up until its lowest point is LIFT_CLEARANCE over the object's top
 LIFT_CLEARANCE = 0.05  # [m]
 RETREAT_TIME = 1.0  # [s] then back over where the object stood, to PRE_BACK in front of its near face
-REST_TIME = 1.0  # [s]
+REST_TIME = 1.5  # [s] (1 s: the wrist, arm_*_5_joint, at the controller's 97 % torque cap on the way down)
 GRAVITY = 9.81  # [m/s^2]
 SUPPORT_GAP = 0.01  # [m] an object stands on another whose top is within this of its bottom
 
@@ -275,6 +277,12 @@ def build_push(b: FragmentBuilder) -> Fragment:
 
     b.frame_target(f"{side} hand in front of the {name}", role, position=world("pre"), rpy=rpy, time=t_pre,
                    tolerance=POSE_TOLERANCE)
+    # in to the face on the straight line, every PUSH_STEP (the hand's path is planned, not left to the NLP)
+    a = max(1, round(CONTACT_TIME / PUSH_STEP))
+    for i in range(1, a):
+        p = poses["pre"] + i / a * (poses["contact"] - poses["pre"])
+        b.frame_target(f"{side} hand nears the {name} ({i}/{a - 1})", role, position=world(p), rpy=rpy,
+                       time=t_pre + i / a * CONTACT_TIME, tolerance=PUSH_TOLERANCE, touch=name)
     b.frame_target(f"{side} hand on the {name}", role, position=world("contact"), rpy=rpy, time=t_on,
                    tolerance=PUSH_TOLERANCE, touch=name)
     n = max(1, round((t_end - t_on) / PUSH_STEP))

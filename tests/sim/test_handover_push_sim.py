@@ -16,6 +16,7 @@ from language import parse
 from planner import plan
 from sim import simulate
 from sim.grasp import OFFER_TOLERANCE, PUSH_TOLERANCE
+from sim.zmp import plan_zmp_excursion
 from tasks.compose import compile_actions
 from tasks.scene import Scene, SceneObject, load_scene
 
@@ -73,18 +74,14 @@ def test_pick_up_the_cup_and_hand_it_to_me_in_the_kitchen(talos):
 
 TABLE = SceneObject(name="table", shape="box", size=(0.6, 1.0, 0.72), position=(0.75, 0.0, 0.36))
 BOX = SceneObject(name="red box", shape="box", size=(0.15, 0.15, 0.15), position=(0.6, -0.2, 0.795), movable=True,
-                  mass=0.5, friction=0.8)
+                  mass=0.5, friction=0.8, aliases=("红色盒子",))
+ON_A_TABLE = Scene(name="a box on a table", objects=(TABLE, BOX))
 
 
-@pytest.mark.long  # ~45 s of CPU (a 9.7 s plan and its run); the suite's budget holds the hand-over run only
-def test_push_the_red_box_10_cm_in_mujoco(talos):
-    """"push the red box 10 cm": the right hand frame (Pinocchio on the planned configurations) is within
-    each moving-contact target's tolerance at its knot, 10 cm forward on the box's face in all; in
-    MuJoCo (no weld: the box slides with its friction) the box's body ends within the certificate's
-    2 cm of 10 cm ahead of where it stood along the heading (+x), less than 2 cm across, still on the
-    table (its height within 5 mm), and the certificate passes."""
-    spec = compile_actions(list(parse("push the red box 10 cm").actions), talos,
-                           scene=Scene(name="a box on a table", objects=(TABLE, BOX)))
+def _push_planned_and_simulated(talos, sentence: str, distance: float) -> None:
+    """Plan ``sentence`` (a forward push of the red box by ``distance``) and check the plan, then run it
+    in MuJoCo and check what happened to the box (see the tests' docstrings)."""
+    spec = compile_actions(list(parse(sentence).actions), talos, scene=ON_A_TABLE)
     motion = plan(spec, talos)
     on = [ft for ft in spec.targets if ft.touch == "red box" and ft.time is not None]
     ks = [int(np.argmin(np.abs(motion.t - ft.time))) for ft in on]
@@ -93,8 +90,44 @@ def test_push_the_red_box_10_cm_in_mujoco(talos):
     assert (err <= np.array([ft.tolerance for ft in on]) + 1e-4).all(), err
     pushed = [ft for ft in on if "pushes" in ft.name]
     i, j = on.index(pushed[0]) - 1, on.index(pushed[-1])
-    assert hand[j, 0] - hand[i, 0] == pytest.approx(0.1, abs=0.011)
+    assert hand[j, 0] - hand[i, 0] == pytest.approx(distance, abs=0.011)
+    # the way in: on the straight line from in front of the box to its face, within the first
+    # target's tolerance (a plan that went up over the box's corner and dropped onto the face was 12.6 cm off it)
+    pre = next(ft for ft in spec.targets if ft.name.endswith("hand in front of the red box"))
+    face = on[i]
+    a, b = np.asarray(pre.position), np.asarray(face.position)
+    way = (motion.t >= pre.time - 1e-9) & (motion.t <= face.time + 1e-9)
+    path = _frame_positions(talos, motion.q[way], talos.frame("right_hand"))
+    s = np.clip((path - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    assert np.linalg.norm(path - (a + s[:, None] * (b - a)), axis=1).max() <= pre.tolerance + 1e-4
+    # the plan balances by itself: its full-dynamics ZMP (RNEA) within 5 mm of the support polygon
+    assert plan_zmp_excursion(talos, motion) is None, plan_zmp_excursion(talos, motion)
     run = simulate(motion, talos)
     assert run.certificate.ok, run.certificate.summary()
     moved = run.objects["red box"][-1] - np.asarray(BOX.position)
-    assert abs(moved[0] - 0.1) <= PUSH_TOLERANCE and abs(moved[1]) <= PUSH_TOLERANCE and abs(moved[2]) < 0.005, moved
+    assert abs(moved[0] - distance) <= PUSH_TOLERANCE and abs(moved[1]) <= PUSH_TOLERANCE and abs(moved[2]) < 0.005, moved
+    assert max(run.peak_torque_fractions().values()) <= 0.93, run.peak_torque_fractions()
+
+
+@pytest.mark.slow  # ~20 s of CPU (a 13 s plan and its 4 s run)
+def test_push_the_red_box_gently_in_mujoco(talos):
+    """"push the red box gently" (5 cm): the right hand frame (Pinocchio on the planned configurations)
+    is within each target on the box's face of its tolerance at its knot, 5 cm forward in all, and
+    comes in to the face within 2 cm of the straight line from in front of it; the plan's own ZMP
+    stays in the support polygon; in MuJoCo (no weld: the box slides with its friction) the box's
+    body ends within the certificate's 2 cm of 5 cm ahead of where it stood along the heading (+x),
+    less than 2 cm across, still on the table (its height within 5 mm), the certificate passes and
+    no joint goes beyond 93 % of its torque limit."""
+    _push_planned_and_simulated(talos, "push the red box gently", 0.05)
+
+
+@pytest.mark.long  # ~23 s of CPU (a 16 s plan and its 5 s run); the gentle push above covers the same code
+def test_push_the_red_box_10_cm_in_mujoco(talos):
+    """"push the red box 10 cm" (the default distance): the same checks, 10 cm."""
+    _push_planned_and_simulated(talos, "push the red box 10 cm", 0.1)
+
+
+@pytest.mark.long  # ~24 s of CPU (a 19 s plan and its 6 s run)
+def test_push_the_red_box_20_cm_in_chinese_in_mujoco(talos):
+    """把红色盒子往前推20厘米 (push the red box forward 20 cm): the same checks, 20 cm."""
+    _push_planned_and_simulated(talos, "把红色盒子往前推20厘米", 0.2)
