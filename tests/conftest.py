@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads OpenBLAS: see planner/__init__.py
@@ -22,6 +23,12 @@ os.environ.setdefault("WBMP_CACHE_DIR", tempfile.mkdtemp(prefix="wbmp-test-cache
 os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", tempfile.mkdtemp(prefix="wbmp-test-hypothesis-"))
 settings.register_profile("ci", derandomize=True, max_examples=60, deadline=None, database=None)
 settings.load_profile("ci")
+
+# A suite started in the background by a shell without job control (`make test &` in a script)
+# inherits SIGINT ignored, and so would every command the signal tests start: they send Ctrl-C and
+# expect it to stop the command. Python's own handler here makes the children start with the default.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 ROBOT_NAMES = ("talos", "g1", "romeo", "icub")
 
