@@ -143,14 +143,25 @@ def can_push_off_one_leg(robot: Robot) -> OneLegPush:
     return one_leg_push(robot, G * T / 2.0)
 
 
-def _refusal(what: str, robot: Robot, p: OneLegPush, margin: float, height: float | None = None) -> str:
+def _on_leg(robot: Robot, joint: str, foot: str | None) -> str:
+    """``joint`` (the two-leg estimate's limiting joint, of either leg) on the ``foot`` side's leg:
+    its mirror name (left <-> right) when that names a joint of the model."""
+    if foot is None or foot in joint:
+        return joint
+    mirror = joint.replace(OTHER[foot], foot)
+    return mirror if robot.model.existJointName(mirror) else joint
+
+
+def _refusal(what: str, robot: Robot, p: OneLegPush, margin: float, height: float | None = None,
+             foot: str | None = None) -> str:
     T = 2.0 * p.speed / G
     ask = f"a {height:g} m rise" if height is not None else f"the shortest flight the planner's {DEFAULT_DT:g} s grid holds"
     cap = (f"at most about {margin:g} x {p.available:.1f} m/s^2 there" if p.available > 0
            else f"not even the body's weight there ({p.available:.1f} m/s^2)")
     return (f"{what} needs a push-off from one leg: {ask} is a {T:.2f} s flight with a take-off speed of "
             f"{p.speed:.2f} m/s; from a {p.depth:.2f} m crouch the {p.stroke:.2f} m push stroke needs {p.needed:.1f} "
-            f"m/s^2 of upward acceleration, but one of {robot.name}'s legs gives {cap} ({p.joint} torque limit)")
+            f"m/s^2 of upward acceleration, but one of {robot.name}'s legs gives {cap} ({_on_leg(robot, p.joint, foot)} "
+            f"torque limit)")
 
 
 def _takeoff_speed(height: float, dt: float = DEFAULT_DT) -> float:
@@ -171,7 +182,7 @@ def _check_hop(params: dict, robot: Robot) -> None:
     p = one_leg_push(robot, _takeoff_speed(params["height"]))
     if not p.feasible:
         raise BeyondCapability(
-            _refusal(f"hopping on the {params['foot']} foot", robot, p, ONE_LEG_MARGIN, params["height"])
+            _refusal(f"hopping on the {params['foot']} foot", robot, p, ONE_LEG_MARGIN, params["height"], params["foot"])
             + (f"; {robot.name} cannot hop on one foot" if not can_push_off_one_leg(robot).feasible
                else "; ask for a lower hop")
         )

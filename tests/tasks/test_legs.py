@@ -86,6 +86,18 @@ def test_defaults_compile_or_are_refused_in_task_terms(name, robot_name):
     assert spec.dynamic
 
 
+@pytest.mark.parametrize("foot", ["left", "right"])
+def test_a_refused_hop_names_a_joint_of_the_hopping_leg(talos, foot):
+    """Talos cannot hop: the refusal names the limiting joint of the leg it was asked to hop on
+    (the two-leg estimate finds one of either leg; its mirror is the same joint on the other side)."""
+    import re
+
+    with pytest.raises(BeyondCapability, match="talos cannot hop on one foot") as e:
+        compile_actions([Action(name="hop", params={"foot": foot})], talos)
+    (joint,) = re.findall(r"\((\S+) torque limit\)", str(e.value))
+    assert talos.model.existJointName(joint) and f"_{foot}_" in joint
+
+
 def test_one_leg_push_is_half_of_two(talos, g1):
     """One leg's static push is half the two-leg force. Talos' knee would need 0.60 of it for the
     shortest flight: refused for hops and jogs, with the numbers. G1's needs 0.24: within the hop
