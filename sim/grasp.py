@@ -50,6 +50,7 @@ from sim.model import (
     SimModel,
     grasp_weld_name,
     hand_gripper,
+    subtree,
 )
 from tasks.specs import Grasp, Push, TaskSpec
 
@@ -93,14 +94,6 @@ class _Held:
     def how(self) -> str:
         """How the certificate names this grasp's simplification."""
         return WELD if self.gripper is None else GRIPPER_WELD
-
-
-def _descendants(m: mujoco.MjModel, body: int) -> set[int]:
-    out = {body}
-    for b in range(body + 1, m.nbody):
-        if int(m.body_parentid[b]) in out:
-            out.add(b)
-    return out
 
 
 class GraspRig:
@@ -163,7 +156,7 @@ class GraspRig:
             joint = robot.model.frames[robot.frame_id(f"{side}_hand")].parentJoint
             link = next((f.name for f in robot.model.frames if f.parentJoint == joint and f.type == pin.FrameType.BODY), "")
             root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, link) if link else -1
-            hand = _descendants(m, root if root >= 0 and weld in _descendants(m, root) else weld)
+            hand = subtree(m, root if root >= 0 and weld in subtree(m, root) else weld)
             hand_geoms = [g for g in range(m.ngeom) if role[g] == ROBOT_ROLE and int(geom_body[g]) in hand]
             grasped = {h.grasp.object for h in self.held if h.side == side}
             for g in hand_geoms:

@@ -646,7 +646,8 @@ class Gripper:
     pad_geoms: tuple[int, ...]
 
 
-def _subtree(model: mujoco.MjModel, body: int) -> set[int]:
+def subtree(model: mujoco.MjModel, body: int) -> set[int]:
+    """``body`` and every body below it (MuJoCo numbers a child after its parent)."""
     out = {body}
     for b in range(body + 1, model.nbody):
         if int(model.body_parentid[b]) in out:
@@ -666,7 +667,7 @@ def hand_gripper(sm: SimModel, side: str) -> Gripper | None:
     root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, link) if link else -1
     if root < 0:
         return None
-    hand = _subtree(m, root)
+    hand = subtree(m, root)
     actuated = list(pm.names)[2:]
     for k, name in enumerate(actuated):
         jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -676,9 +677,9 @@ def hand_gripper(sm: SimModel, side: str) -> Gripper | None:
                   and int(m.eq_obj2id[e]) == jid]
         if not mimics:
             continue
-        bodies = _subtree(m, int(m.jnt_bodyid[jid]))
+        bodies = subtree(m, int(m.jnt_bodyid[jid]))
         for e in mimics:
-            bodies |= _subtree(m, int(m.jnt_bodyid[m.eq_obj1id[e]]))
+            bodies |= subtree(m, int(m.jnt_bodyid[m.eq_obj1id[e]]))
         moved = {int(m.jnt_bodyid[jid])} | {int(m.jnt_bodyid[m.eq_obj1id[e]]) for e in mimics}
         tips = {b for b in moved if b != int(m.jnt_bodyid[jid]) and int(m.body_parentid[b]) in moved}
         geoms = tuple(g for g in range(m.ngeom) if int(sm.geom_role[g]) == ROBOT_ROLE and int(m.geom_bodyid[g]) in bodies)
