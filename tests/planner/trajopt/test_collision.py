@@ -10,7 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -18,14 +17,11 @@ import pytest
 from planner import PlannerSettings, plan
 from planner.trajopt.collision import Rows, pair_distances, select, set_collision_terms, sphere_sets
 from planner.trajopt.layout import make_layout
-from planner.trajopt.symbolic import chart_to_configuration
 from planner.trajopt.terms import stage_function
 from robots.collision import collision_model, mesh_distances
-from tests.planner.trajopt.fd import stage_rows_jacobian
+from tests.planner.trajopt.fd import check_stage_rows
 
 ROOT = Path(__file__).resolve().parents[3]
-FD_STEP = 1e-6
-FD_TOLERANCE = 2e-5  # relative to the Jacobian's scale: central differences at 1e-6 on O(1) rows
 
 
 def _reach_spec(robot, sentence):
@@ -78,13 +74,7 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
     set_collision_terms(lay, sets, rows, index, 0.01)
     fn = stage_function(lay, list(range(len(lay.terms))), "collision_stage")
     p = np.concatenate([t.params for t in lay.terms])
-    rng = np.random.default_rng(7)
-    dqs = ca.SX.sym("dq", talos.nv)
-    jac = ca.Function("j", [dqs], [ca.jacobian(fn(dqs, talos.q_standing, p)[0], dqs)])
-    for _ in range(2):
-        dq = rng.normal(scale=0.2, size=talos.nv)
-        g = np.asarray(fn(dq, talos.q_standing, p)[0]).ravel()
-        q = chart_to_configuration(talos.model, talos.q_standing, dq)
+    def reference(q):
         data = talos.model.createData()
         pin.forwardKinematics(talos.model, data, q)
         expected = []
@@ -94,11 +84,10 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
             wa = sets.centres[a] @ data.oMi[ja].rotation.T + data.oMi[ja].translation
             wb = sets.centres[b] @ data.oMi[jb].rotation.T + data.oMi[jb].translation
             expected += [float(np.sum((wa[i] - wb[j]) ** 2)) for i, j in chosen]
-        assert g.shape == (len(expected),) and len(expected) > 10
-        np.testing.assert_allclose(g, expected, atol=1e-12)
-        J = np.asarray(jac(dq))
-        fd = stage_rows_jacobian(fn, dq, talos.q_standing, p, FD_STEP)
-        assert np.abs(J - fd).max() <= FD_TOLERANCE * max(1.0, np.abs(J).max())
+        assert len(expected) > 10
+        return expected
+
+    check_stage_rows(fn, talos, p, reference, seed=7, atol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["talos", "g1", "romeo", "icub"])

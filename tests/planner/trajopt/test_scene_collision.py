@@ -10,7 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import casadi as ca
 import coal
 import numpy as np
 import pinocchio as pin
@@ -29,16 +28,13 @@ from planner.trajopt.scene_collision import (
     scene_rows_of,
     set_scene_terms,
 )
-from planner.trajopt.symbolic import chart_to_configuration
 from planner.trajopt.terms import stage_function
 from tasks.scene import Scene, SceneObject, load_scene, signed_distance
-from tests.planner.trajopt.fd import stage_rows_jacobian
+from tests.planner.trajopt.fd import check_stage_rows
 
 ROOT = Path(__file__).resolve().parents[3]
 TABLE = ROOT / "examples" / "scenes" / "table.json"
 PASSAGE = ROOT / "examples" / "scenes" / "narrow_passage.json"
-FD_STEP = 1e-6
-FD_TOLERANCE = 2e-5  # relative to the Jacobian's scale: central differences at 1e-6 on O(1) rows
 MARGIN = 0.01  # [m] PlannerSettings().collision_margin
 SOLVER_TOLERANCE = 1e-4  # [m] rows hold to IPOPT's constraint tolerance, far below this
 
@@ -109,14 +105,10 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
     assert [t.structure[1] for t in lay.terms] == ["box", "cylinder", "cylinder", "sphere"]  # the pipe: 2 pieces
     fn = stage_function(lay, list(range(len(lay.terms))), "scene_stage")
     p = np.concatenate([t.params for t in lay.terms])
-    dqs = ca.SX.sym("dq", talos.nv)
-    jac = ca.Function("j", [dqs], [ca.jacobian(fn(dqs, talos.q_standing, p)[0], dqs)])
-    rng = np.random.default_rng(3)
     data = talos.model.createData()
-    for _ in range(2):
-        dq = rng.normal(scale=0.2, size=talos.nv)
-        g = np.asarray(fn(dq, talos.q_standing, p)[0]).ravel()
-        pin.forwardKinematics(talos.model, data, chart_to_configuration(talos.model, talos.q_standing, dq))
+
+    def reference(q):
+        pin.forwardKinematics(talos.model, data, q)
         expected = []
         for ob in obs:
             for s in arm:
@@ -124,11 +116,10 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
                 centre = M.rotation @ sets.sphere_local[s] + M.translation
                 u = ob.rotation.T @ (centre - ob.position)
                 expected.append(_reference_row(ob.shape, u, ob.half + sets.sphere_radius[s] + MARGIN))
-        np.testing.assert_allclose(g, expected, rtol=1e-10, atol=1e-12)
-        J = np.asarray(jac(dq))
-        fd = stage_rows_jacobian(fn, dq, talos.q_standing, p, FD_STEP)
-        assert np.abs(J).max() > 1.0  # the rows do depend on the arm
-        assert np.abs(J - fd).max() <= FD_TOLERANCE * np.abs(J).max()
+        return expected
+
+    for J in check_stage_rows(fn, talos, p, reference, seed=3, rtol=1e-10, atol=1e-12):
+        assert np.abs(J).max() > 1.0  # the rows do depend on the arm (so the relative FD tolerance is J's own scale)
 
 
 def test_rows_are_conservative_against_the_exact_distance():
