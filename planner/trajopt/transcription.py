@@ -156,14 +156,31 @@ def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
 @dataclass(eq=False)
 class Stage:
     """The SX functions of one knot structure: ``(dq, q_ref, p) ->`` rows and cost, their Jacobian,
-    the cost's gradient and the Lagrangian's Hessian ``(dq, q_ref, p, sigma, lam)``."""
+    the cost's gradient and (:attr:`hess`, built on first use) the Lagrangian's Hessian
+    ``(dq, q_ref, p, sigma, lam)``."""
 
     fn: ca.Function
     jac: ca.Function
     grad: ca.Function
-    hess: ca.Function
     rows: int
     cost_is_zero: bool
+    name: str = ""
+    _hess: ca.Function | None = None
+
+    @property
+    def hess(self) -> ca.Function:
+        """The Lagrangian's Hessian w.r.t. ``dq`` (SX AD, ~0.04 s of CPU per Talos stage): built
+        only when asked, because a dynamic layout assembles its own chart Hessian
+        (:func:`planner.trajopt.centroidal.nlp.stage_hessians`) and never calls this one."""
+        if self._hess is None:
+            nv, nq = self.fn.size1_in(0), self.fn.size1_in(1)
+            dq, qr, ps = ca.SX.sym("dq", nv), ca.SX.sym("q_ref", nq), ca.SX.sym("p", self.fn.size1_in(2))
+            sigma = ca.SX.sym("sigma")
+            gk, ck = self.fn(dq, qr, ps)
+            lam = ca.SX.sym("lam", gk.numel())
+            self._hess = ca.Function("hess_" + self.name, [dq, qr, ps, sigma, lam],
+                                     [ca.hessian(sigma * ck + ca.dot(lam, gk), dq)[0]])
+        return self._hess
 
 
 STAGE_CACHE_SIZE = 256
@@ -186,15 +203,12 @@ def stage(lay: Layout, term_ids: list[int]) -> Stage:
     fn = stage_function(lay, term_ids, name)
     nv, nq = lay.robot.nv, lay.robot.nq
     dq, qr, ps = ca.SX.sym("dq", nv), ca.SX.sym("q_ref", nq), ca.SX.sym("p", fn.size1_in(2))
-    sigma = ca.SX.sym("sigma")
     gk, ck = fn(dq, qr, ps)
-    lam = ca.SX.sym("lam", gk.numel())
     out = Stage(
         fn=fn,
         jac=ca.Function("jac_" + name, [dq, qr, ps], [ca.jacobian(gk, dq)]),
         grad=ca.Function("grad_" + name, [dq, qr, ps], [ca.gradient(ck, dq)]),
-        hess=ca.Function("hess_" + name, [dq, qr, ps, sigma, lam], [ca.hessian(sigma * ck + ca.dot(lam, gk), dq)[0]]),
-        rows=int(gk.numel()), cost_is_zero=bool(ck.is_zero()),
+        rows=int(gk.numel()), cost_is_zero=bool(ck.is_zero()), name=name,
     )
     _STAGES[key] = out
     while len(_STAGES) > STAGE_CACHE_SIZE:
@@ -211,12 +225,21 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     quadratic terms. The derivative code (and the generated C) therefore grows with the number
     of distinct stages, not with the number of knots.
 
+    A dynamic layout (:mod:`planner.trajopt.centroidal`) gets ``grad_f`` and ``jac_g`` only: its
+    ``extend_nlp`` builds the whole ``hess_lag`` itself, so the kinematic stage Hessians are not
+    built for it (~0.4 s of CPU of a first-ever Talos walk).
+
     Returns:
         (nlp dict {x, p, f, g}, nlpsol options {grad_f, jac_g, hess_lag}, index bookkeeping).
     """
+    from planner.trajopt.centroidal.layout import DynamicLayout
+
     robot = lay.robot
     nq, nv, N = robot.nq, robot.nv, lay.N
     nl = make_nlp_layout(lay)
+    # a dynamic layout's extend_nlp assembles its own chart Hessian from the terms (one kinematic
+    # pass with its CoM and sole-corner rows): the kinematic one would be built and never called
+    with_hessian = not isinstance(lay, DynamicLayout)
     x = ca.MX.sym("x", nl.n_x_kin)
     X = ca.reshape(x, nv, N - 2)
     groups = stage_groups(lay)
@@ -249,13 +272,14 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
         rows = st.rows
         L = ca.reshape(lam_g[g_offset: g_offset + rows * n], rows, n)
         g_offset += rows * n
-        HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
         S = _selection(lay, knots)
         f = f + ca.sum2(C)
         if st.cost_is_zero:
             GC = ca.MX.zeros(nv, n)
         grad = grad + ca.mtimes(S.T, ca.vec(GC))
-        hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
+        if with_hessian:
+            HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
+            hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
         if rows:
             g.append(ca.vec(G))
             jac.append(ca.mtimes(ca.diagcat(*ca.horzsplit(JG, nv)), S))
@@ -268,9 +292,10 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     derivatives = {
         "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
         "jac_g": ca.Function("nlp_jac_g", [x, p], [g_all, jac_all], ["x", "p"], ["g", "jac_g_x"]),
-        "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)],
-                                ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
     }
+    if with_hessian:
+        derivatives["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)],
+                                              ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     nlp, derivatives = lay.extend_nlp(nlp, derivatives)  # a dynamic layout: forces, CoM dynamics, sole corners
     return nlp, derivatives, nl
 
