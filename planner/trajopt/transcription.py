@@ -4,6 +4,7 @@ stage-wise assembly of its derivatives (:func:`build_nlp`). A formulation (the l
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -104,11 +105,19 @@ def _sparse(rows, cols, values, shape) -> ca.DM:
 def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
     """Constant operators of the quadratic costs and of the velocity rows.
 
+    They depend on ``nv``, ``N`` and the velocity-limited joints only; kept per process (a dynamic
+    build asks twice: here and in its chart Hessian).
+
     Returns:
         ``A`` (second differences of dq over knots 1..N-1), ``P`` (joint part of dq at knots
         2..N), ``D`` (velocity-limited joints of dq_{k+1} - dq_k for k = 1..N-2).
     """
-    nv, N = lay.robot.nv, lay.N
+    return _operators(lay.robot.nv, lay.N, tuple(int(j) for j in velocity_joints(lay)))
+
+
+@functools.lru_cache(maxsize=16)
+def _operators(nv: int, N: int, vj: tuple[int, ...]) -> tuple[ca.DM, ca.DM, ca.DM]:
+    """:func:`_quadratic_operators` of a chart size, knot count and velocity-limited joints."""
     n_x = nv * (N - 2)
 
     def col(k: int) -> int | None:  # variable column block of knot k (None: fixed at 0)
@@ -137,7 +146,6 @@ def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
         vals += [1.0] * (nv - 6)
         r += nv - 6
     P = _sparse(rows, cols, vals, (r, n_x))
-    vj = velocity_joints(lay)
     rows, cols, vals = [], [], []
     r = 0
     for k in range(1, N - 1):
