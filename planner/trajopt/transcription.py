@@ -233,21 +233,17 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     quadratic terms. The derivative code (and the generated C) therefore grows with the number
     of distinct stages, not with the number of knots.
 
-    A dynamic layout (:mod:`planner.trajopt.centroidal`) gets ``grad_f`` and ``jac_g`` only: its
-    ``extend_nlp`` builds the whole ``hess_lag`` itself, so the kinematic stage Hessians are not
-    built for it (~0.4 s of CPU of a first-ever Talos walk).
+    The layout's ``extend_nlp`` gets ``grad_f`` and ``jac_g``; the kinematic ``hess_lag`` is built
+    afterwards, only when it returns none of its own. A dynamic layout
+    (:mod:`planner.trajopt.centroidal`) assembles the whole Hessian itself, so the kinematic stage
+    Hessians are never built for it (~0.5-0.8 s of CPU of a first-ever Talos walk).
 
     Returns:
         (nlp dict {x, p, f, g}, nlpsol options {grad_f, jac_g, hess_lag}, index bookkeeping).
     """
-    from planner.trajopt.centroidal.layout import DynamicLayout
-
     robot = lay.robot
     nq, nv, N = robot.nq, robot.nv, lay.N
     nl = make_nlp_layout(lay)
-    # a dynamic layout's extend_nlp assembles its own chart Hessian from the terms (one kinematic
-    # pass with its CoM and sole-corner rows): the kinematic one would be built and never called
-    with_hessian = not isinstance(lay, DynamicLayout)
     x = ca.MX.sym("x", nl.n_x_kin)
     X = ca.reshape(x, nv, N - 2)
     groups = stage_groups(lay)
@@ -264,8 +260,8 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     AtA, PtP = ca.mtimes(A.T, A), ca.mtimes(P.T, P)
     f = c_smooth * ca.sumsqr(ca.mtimes(A, x)) + c_posture * ca.sumsqr(ca.mtimes(P, x))
     grad = 2 * c_smooth * ca.mtimes(AtA, x) + 2 * c_posture * ca.mtimes(PtP, x)
-    hess = lam_f * (2 * c_smooth * AtA + 2 * c_posture * PtP)
     g, jac = [], []
+    hessian_blocks = []  # per stage group: what its Lagrangian Hessian is made from
     p_offset, g_offset = nq + 3, 0
     for st, (_sig, knots, _terms) in zip(stages, groups, strict=True):
         n = len(knots)
@@ -285,9 +281,7 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
         if st.cost_is_zero:
             GC = ca.MX.zeros(nv, n)
         grad = grad + ca.mtimes(S.T, ca.vec(GC))
-        if with_hessian:
-            HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
-            hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
+        hessian_blocks.append((st, n, Xg, Qr, Pg, L, S))
         if rows:
             g.append(ca.vec(G))
             jac.append(ca.mtimes(ca.diagcat(*ca.horzsplit(JG, nv)), S))
@@ -301,10 +295,14 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
         "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
         "jac_g": ca.Function("nlp_jac_g", [x, p], [g_all, jac_all], ["x", "p"], ["g", "jac_g_x"]),
     }
-    if with_hessian:
-        derivatives["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)],
-                                              ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     nlp, derivatives = lay.extend_nlp(nlp, derivatives)  # a dynamic layout: forces, CoM dynamics, sole corners
+    if "hess_lag" not in derivatives:  # the kinematic NLP's own (a dynamic layout makes the whole one)
+        hess = lam_f * (2 * c_smooth * AtA + 2 * c_posture * PtP)
+        for st, n, Xg, Qr, Pg, L, S in hessian_blocks:
+            HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
+            hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
+        derivatives = {**derivatives, "hess_lag": ca.Function(
+            "nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])}
     return nlp, derivatives, nl
 
 
