@@ -1,6 +1,7 @@
 """Planner speed on Talos: a 3 s squat and a hand reach, first-ever / cached cold / warm.
 
 Run: ``.venv/bin/python benchmarks/bench_planner.py [--repeat 3] [--first 2] [--json out.json]``
+or ``.venv/bin/python benchmarks/bench_planner.py --first-ever [--tasks squat walk] [--profile DIR]``
 
 * first-ever: a new process with an empty cache directory (build + C code generation + gcc);
 * cached cold: a new process whose cache directory holds the compiled solver;
@@ -10,6 +11,17 @@ Each plan's build time (solver construction or cache load) and solve time (IPOPT
 separately, as medians over the repetitions, with the iteration count, the end-to-end time of
 the ``plan()`` call, and the process start-up (imports + robot load) for the cold cases. This
 is a report, not a test: timings depend on the machine and on its load.
+
+``--first-ever``: every task class of ``wbmp bench`` (squat, wave, reach, bow, balance, walk, turn,
+jump on talos), each planned once in a new process with an empty solver cache directory and the
+default settings, as a user's first request runs (compiled or serialized entries are written in
+the background: ``WBMP_COMPILE_BACKGROUND`` is removed from the child's environment unless
+``--foreground``). Per task: the ``plan()`` call's wall and CPU time (the figure of the issue 18
+target, <= 5 s), its solver build and IPOPT times, and then, after the plan, the background
+writer's work: the child waits for it and reports its CPU time (gcc or the serializer, in the
+other core of a 2-core machine) and how long after the plan the entry was in place. The tasks run
+one after the other, so one task's background work never overlaps the next task's plan.
+``--profile DIR`` writes a CPU-time cProfile of each ``plan()`` call to ``DIR/<task>.prof``.
 """
 
 from __future__ import annotations
@@ -50,6 +62,74 @@ def child(case: str, cache_dir: str, runs: int) -> None:
                           "cache": s.cache, "ok": result.ok}), flush=True)
 
 
+def first_ever_child(task: str, cache_dir: str, profile: str | None) -> None:
+    """Plan the bench task ``task`` once in this new process (empty ``cache_dir``); print one JSON line."""
+    import resource
+
+    t0 = time.perf_counter()
+    from planner import PlannerSettings, plan
+    from planner.trajopt import cache
+    from robots import load_robot
+    from wbmp.bench.tasks import TASKS, spec_for
+
+    robot = load_robot("talos")
+    _, spec = spec_for(TASKS[task], robot, None)
+    startup = time.perf_counter() - t0
+    settings = PlannerSettings(cache_dir=cache_dir)
+    profiler = None
+    if profile:
+        import cProfile
+
+        profiler = cProfile.Profile(time.process_time)
+    t1, c1 = time.perf_counter(), time.process_time()
+    if profiler is not None:
+        profiler.enable()
+    result = plan(spec, robot, settings=settings, throw=False)
+    if profiler is not None:
+        profiler.disable()
+    wall, cpu = time.perf_counter() - t1, time.process_time() - c1
+    if profiler is not None and profile:
+        profiler.dump_stats(str(Path(profile) / f"{task}.prof"))
+    t2 = time.perf_counter()  # the background work this plan started: C code + gcc, or the serializer
+    cache.wait_for_background()
+    behind = time.perf_counter() - t2
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    s = result.stats
+    entries = sorted(p.name for p in (Path(cache_dir) / "planner").glob("*") if not p.name.startswith("."))
+    print(json.dumps({"task": task, "startup": startup, "plan_wall": wall, "plan_cpu": cpu, "build": s.build_time,
+                      "solve": s.solve_time, "iterations": s.iterations, "cache": s.cache, "ok": bool(result.ok),
+                      "background_cpu": children.ru_utime + children.ru_stime, "background_after_plan": behind,
+                      "entries": len(entries)}), flush=True)
+
+
+def first_ever(tasks: list[str], foreground: bool, profile: str | None) -> list[dict]:
+    """One new process per task, each with its own empty cache directory; the rows they print."""
+    import shutil
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("WBMP_COMPILE_BACKGROUND", None)
+    if foreground:
+        env["WBMP_COMPILE_BACKGROUND"] = "0"
+    rows = []
+    for task in tasks:
+        d = tempfile.mkdtemp(prefix="wbmp_first_")
+        try:
+            cmd = [sys.executable, __file__, "--first-ever-child", task, "--cache-dir", d]
+            if profile:
+                cmd += ["--profile", profile]
+            out = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env)
+        finally:
+            shutil.rmtree(d, ignore_errors=True)
+        row = next(json.loads(line) for line in out.stdout.splitlines() if line.startswith("{"))
+        rows.append(row)
+        print(f"{task:<8} plan() {row['plan_wall']:6.2f} s wall {row['plan_cpu']:6.2f} s CPU "
+              f"(build {row['build']:5.2f}, IPOPT {row['solve']:5.2f}, {row['iterations']:3d} it, {row['cache']}); "
+              f"{'<= 5 s' if row['plan_wall'] <= 5.0 else 'OVER 5 s'}; background {row['background_cpu']:5.2f} s CPU, "
+              f"done {row['background_after_plan']:5.2f} s after the plan; start-up {row['startup']:.2f} s; "
+              f"{'ok' if row['ok'] else 'NOT ok'}", flush=True)
+    return rows
+
+
 def run_child(case: str, cache_dir: str, runs: int) -> list[dict]:
     out = subprocess.run([sys.executable, __file__, "--child", case, "--cache-dir", cache_dir, "--runs", str(runs)],
                          capture_output=True, text=True, check=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
@@ -76,6 +156,13 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="cached-cold processes and warm runs per case")
     ap.add_argument("--first", type=int, default=2, help="first-ever processes per case (each compiles)")
     ap.add_argument("--json", help="also write the results here")
+    ap.add_argument("--first-ever", action="store_true",
+                    help="the first-ever plan of every wbmp bench task (new process, empty cache) instead")
+    ap.add_argument("--tasks", nargs="+", help="with --first-ever: these bench tasks only (default: all)")
+    ap.add_argument("--foreground", action="store_true",
+                    help="with --first-ever: write the cache entry in the foreground (WBMP_COMPILE_BACKGROUND=0)")
+    ap.add_argument("--profile", help="with --first-ever: write a CPU-time profile of each plan() to DIR/<task>.prof")
+    ap.add_argument("--first-ever-child", help=argparse.SUPPRESS)
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--cache-dir", help=argparse.SUPPRESS)
     ap.add_argument("--runs", type=int, default=1, help=argparse.SUPPRESS)
@@ -83,9 +170,22 @@ def main() -> None:
     if args.child:
         child(args.child, args.cache_dir, args.runs)
         return
+    if args.first_ever_child:
+        first_ever_child(args.first_ever_child, args.cache_dir, args.profile)
+        return
     info = machine()
     print(f"machine: {info['cpu']}, {info['cores']} cores, load average {info['load_average']}, "
           f"threads {info['threads']} ({info['note']})")
+    if args.first_ever:
+        from wbmp.bench.tasks import TASKS
+
+        rows = first_ever(args.tasks or list(TASKS), args.foreground, args.profile)
+        info["load_average_after"] = os.getloadavg()
+        over = [r["task"] for r in rows if r["plan_wall"] > 5.0]
+        print(f"over 5 s: {', '.join(over) or 'none'}; load average after {info['load_average_after']}")
+        if args.json:
+            Path(args.json).write_text(json.dumps({"machine": info, "first_ever": rows}, indent=2))
+        return
     results: dict[str, dict] = {}
     for case in CASES:
         first, cold = [], []

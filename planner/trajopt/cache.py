@@ -9,7 +9,8 @@ with the same structure shares one solver.
 * On disk (``settings.compile``): the NLP's functions (cost, constraints, their derivatives,
   the Lagrangian Hessian) are generated as C by CasADi, compiled by the system ``gcc`` into a
   shared library, and loaded with IPOPT through ``nlpsol(name, "ipopt", library)``
-  (``cache = "disk"``). Each entry is a directory ``<cache_dir>/planner/<key>/`` with the
+  (``cache = "disk"``). With ``settings.background_compile`` a forked child generates the C
+  code and compiles it while this process solves in memory. Each entry is a directory ``<cache_dir>/planner/<key>/`` with the
   library, its manifest (``meta.json``: key, size and checksum of the library, problem sizes)
   and a ``verified`` marker. An entry is checked before anything is loaded into this process
   (:mod:`planner.trajopt.cache_disk`: a truncated or forged library must not crash it); a damaged one
@@ -253,15 +254,35 @@ def _store_serialized(entry: Path, key: str, nlp: dict, derivatives: dict, nl, s
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         return
+    _fork_worker(tmp, lambda: _write_serialized(tmp, entry, key, functions, nl.n_x, nl.n_g))
+
+
+def _fork_worker(tmp: Path, work: Callable[[], bool]) -> None:
+    """Run ``work`` (it fills the temporary build folder ``tmp`` and publishes it) in a forked child.
+
+    The child has its own session (a Ctrl-C of the planning command does not cut it short), the
+    default SIGINT/SIGTERM handlers (not the parent's, which raise into its code), its standard
+    streams on /dev/null (a caller reading this process's output through a pipe must not wait for
+    it), a lower priority (:data:`BACKGROUND_NICE`: on a busy 2-core machine it takes the CPU the
+    foreground leaves), removes ``tmp`` when done and ends with ``os._exit`` (none of this process's exit
+    handlers). The parent records it in ``_WRITERS`` and in ``tmp``'s builder marker.
+    """
     _reap_writers()
     pid = os.fork()
-    if pid == 0:  # the child: write, publish, leave without running this process's exit handlers
+    if pid == 0:  # the child
         code = 1
         try:
-            os.setsid()  # like the compiling finisher: a Ctrl-C of the planning command does not cut it short
-            for sig in (signal.SIGINT, signal.SIGTERM):  # not the parent's handlers (they raise into its code)
+            os.setsid()
+            for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, signal.SIG_DFL)
-            code = 0 if _write_serialized(tmp, entry, key, functions, nl.n_x, nl.n_g) else 1
+            null = os.open(os.devnull, os.O_RDWR)
+            for fd in (0, 1, 2):
+                os.dup2(null, fd)
+            try:  # yield to the foreground: this plan, its simulation, the user's next command
+                os.nice(BACKGROUND_NICE)
+            except OSError:
+                pass
+            code = 0 if work() else 1
         finally:  # also on an exception: os._exit ends the child here, silently, with code 1
             shutil.rmtree(tmp, ignore_errors=True)
             os._exit(code)
@@ -272,7 +293,31 @@ def _store_serialized(entry: Path, key: str, nlp: dict, derivatives: dict, nl, s
         pass
 
 
-_WRITERS: list[int] = []  # forked writers not yet reaped
+def wait_for_background(timeout: float | None = None) -> list[int]:
+    """Wait for the background writers and compilers this process forked (tests, benchmarks);
+    their exit codes (0: the entry was published). With ``timeout`` [s], the ones still running
+    after it are left running and not reported."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    codes: list[int] = []
+    for pid in list(_WRITERS):
+        while True:
+            try:
+                done, status = os.waitpid(pid, 0 if deadline is None else os.WNOHANG)
+            except ChildProcessError:
+                _WRITERS.remove(pid)
+                break
+            if done:
+                _WRITERS.remove(pid)
+                codes.append(os.waitstatus_to_exitcode(status))
+                break
+            if deadline is not None and time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+    return codes
+
+
+_WRITERS: list[int] = []  # forked writers and compilers not yet reaped
+BACKGROUND_NICE = 10  # added to the forked writers' and compilers' nice value (gcc inherits it)
 
 
 def _reap_writers() -> None:
@@ -326,22 +371,20 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         return solver
+    if settings.background_compile and hasattr(os, "fork"):
+        # Generate the C code and compile it in a forked child: this plan runs on the in-memory
+        # solver now, and the next process with this structure loads the compiled one (the code
+        # generation alone is ~1-1.5 s of CPU for Talos, gcc 5-70 s here).
+        if progress:
+            progress("compiling the solver in the background for the next run")
+        folder = tmp
+        _fork_worker(folder, lambda: _generate_c(folder, nlp, builder) and _finish_entry(
+            folder, entry, key, nl.n_x, nl.n_g, settings.compile_flags, settings.compile_timeout))
+        return solver
     try:
         if progress:
             progress("generating C code for the solver")
-        cg = ca.CodeGenerator("nlp.c")
-        cg.add(ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]], ["x", "p"], ["f", "g"]))
-        for name in ORACLE_FUNCTIONS:
-            cg.add(builder.get_function(name))
-        cg.generate(f"{tmp}{os.sep}")  # writes <tmp>/nlp.c (no chdir: other threads keep their cwd)
-        if settings.background_compile:
-            # Compile in a detached process: this plan runs on the in-memory solver now, and the
-            # next process with this structure loads the compiled one (gcc takes 5-70 s here).
-            if progress:
-                progress("compiling the solver in the background for the next run")
-            _spawn_finisher(tmp, entry, key, nl.n_x, nl.n_g, settings)
-            tmp = None  # the finisher owns the directory now
-            return solver
+        _generate_c(tmp, nlp, builder)
         if progress:
             progress(f"compiling the solver with gcc {' '.join(settings.compile_flags)} "
                      "(first time for this task structure)")
@@ -350,8 +393,17 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
     except (OSError, RuntimeError):
         return solver
     finally:
-        if tmp is not None:
-            shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _generate_c(tmp: Path, nlp: dict, builder: ca.Function) -> bool:
+    """Write ``tmp/nlp.c``: the NLP function and the solver's oracle functions, as C."""
+    cg = ca.CodeGenerator("nlp.c")
+    cg.add(ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]], ["x", "p"], ["f", "g"]))
+    for name in ORACLE_FUNCTIONS:
+        cg.add(builder.get_function(name))
+    cg.generate(f"{tmp}{os.sep}")  # writes <tmp>/nlp.c (no chdir: other threads keep their cwd)
+    return True
 
 
 def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, timeout: float) -> bool:
@@ -380,37 +432,6 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
     return cache_disk.publish(tmp, entry, key)
 
 
-def _spawn_finisher(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, settings: PlannerSettings) -> None:
-    """Start ``python -m planner.trajopt.cache`` detached from this process to finish an entry."""
-    import sys
-
-    args = [sys.executable, "-m", "planner.trajopt.cache", str(tmp), str(entry), key, str(n_x), str(n_g),
-            str(settings.compile_timeout), *settings.compile_flags]
-    _FINISHERS[:] = [p for p in _FINISHERS if p.poll() is None]  # reap the ones that ended
-    finisher = subprocess.Popen(
-        args, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        start_new_session=True, close_fds=True,
-    )
-    _FINISHERS.append(finisher)
-    try:  # the folder is the finisher's now: sweep() must not take it while it lives
-        cache_disk.write_atomic(tmp / cache_disk.BUILDER_PID, str(finisher.pid))
-    except OSError:
-        pass
-
-
-_FINISHERS: list[subprocess.Popen] = []  # kept so a running finisher is not garbage-collected
-
-
-def _finisher_main(argv: list[str]) -> int:
-    """Entry point of the background compilation (see :func:`_spawn_finisher`)."""
-    tmp, entry, key, n_x, n_g, timeout, *flags = argv
-    try:
-        ok = _finish_entry(Path(tmp), Path(entry), key, int(n_x), int(n_g), tuple(flags), float(timeout))
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return 0 if ok else 1
-
-
 def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
     """Run gcc in its own process group; on timeout kill the group (cc1 included)."""
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
@@ -427,8 +448,3 @@ def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
         raise
     return proc.returncode == 0
 
-
-if __name__ == "__main__":
-    import sys
-
-    sys.exit(_finisher_main(sys.argv[1:]))

@@ -41,7 +41,8 @@ class Formulation(Protocol):
         ...
 
     def extend_nlp(self, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
-        """The kinematic NLP ``{x, p, f, g}`` and its ``grad_f``/``jac_g``/``hess_lag`` functions, extended."""
+        """The kinematic NLP ``{x, p, f, g}`` and its ``grad_f``/``jac_g`` functions, extended, with
+        the formulation's ``hess_lag`` (returned without one, the kinematic one is built after)."""
         ...
 
     def extend_parameters(self, p: np.ndarray) -> np.ndarray:

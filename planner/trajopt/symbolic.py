@@ -17,6 +17,7 @@ convert numerically.
 from __future__ import annotations
 
 import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import casadi as ca
@@ -147,7 +148,26 @@ class SymbolicKinematics:
         self.mass = float(sum(model.inertias[i].mass for i in range(model.njoints)))
 
     def joint_placements(self, q_ref, dq) -> list[tuple]:
-        """World placements ``(R, p)`` of every joint (index 0 = universe) at ``q_ref (+) dq``."""
+        """World placements ``(R, p)`` of every joint (index 0 = universe) at ``q_ref (+) dq``.
+
+        For SX symbols of the full sizes (how the planner calls it), the placements come from one
+        SX Function of the model built once per process (:func:`_placements_function`) and
+        evaluated on ``q_ref, dq``: the same operations on the same operands as walking the tree
+        here, but in CasADi's C++ instead of ~5,000 Python-level SX operations (a dynamic plan
+        builds its kinematics ~28 times, ~1 s of a first-ever build)."""
+        if (isinstance(q_ref, ca.SX) and isinstance(dq, ca.SX) and q_ref.shape == (self.nq, 1)
+                and dq.shape == (self.nv, 1)):
+            fn = _placements_function(self.model)
+            outs = fn(q_ref, dq)
+            if not isinstance(outs, (list, tuple)):
+                outs = [outs]
+            placements: list[tuple] = [(ca.SX.eye(3), ca.SX.zeros(3))]
+            placements += [(outs[2 * k], outs[2 * k + 1]) for k in range(len(outs) // 2)]
+            return placements
+        return self.walk(q_ref, dq)
+
+    def walk(self, q_ref, dq) -> list[tuple]:
+        """:meth:`joint_placements` by walking the tree in Python (any argument types)."""
         model = self.model
         out: list[tuple] = [(ca.SX.eye(3), ca.SX.zeros(3))]
         for i in range(1, model.njoints):
@@ -202,6 +222,42 @@ class SymbolicKinematics:
             outs += [p, R]
             names += [f"p{k}", f"R{k}"]
         return ca.Function(name, [q_ref, dq], outs, ["q_ref", "dq"], names)
+
+
+PLACEMENTS_CACHE_SIZE = 8
+_PLACEMENTS: OrderedDict[str, ca.Function] = OrderedDict()
+
+
+def kinematic_key(model: pin.Model) -> str:
+    """A hash of what the joint placements depend on: the tree, the joint types, indices, axes and
+    placements (cheaper than :func:`model_hash`: no frames, inertias or limits)."""
+    h = hashlib.sha256()
+    h.update(repr((model.nq, model.nv, model.njoints, list(model.parents))).encode())
+    for i in range(model.njoints):
+        j = model.joints[i]
+        h.update(repr((j.shortname(), j.idx_q, j.idx_v)).encode())
+        h.update(np.asarray(model.jointPlacements[i].homogeneous).tobytes())
+        if j.shortname().endswith("Unaligned"):
+            h.update(np.asarray(j.extract().axis, dtype=float).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _placements_function(model: pin.Model) -> ca.Function:
+    """SX Function ``(q_ref[nq], dq[nv]) -> (R_1, p_1, ..., R_n, p_n)`` of the joints' world
+    placements, built once per model structure and process (a small LRU keyed by
+    :func:`kinematic_key`)."""
+    key = kinematic_key(model)
+    hit = _PLACEMENTS.get(key)
+    if hit is not None:
+        _PLACEMENTS.move_to_end(key)
+        return hit
+    q_ref, dq = ca.SX.sym("q_ref", model.nq), ca.SX.sym("dq", model.nv)
+    outs = [x for R, p in SymbolicKinematics(model).walk(q_ref, dq)[1:] for x in (R, p)]
+    fn = ca.Function("placements_" + key, [q_ref, dq], outs)
+    _PLACEMENTS[key] = fn
+    while len(_PLACEMENTS) > PLACEMENTS_CACHE_SIZE:
+        _PLACEMENTS.popitem(last=False)
+    return fn
 
 
 def _quat_to_matrix(quat):

@@ -4,6 +4,7 @@ stage-wise assembly of its derivatives (:func:`build_nlp`). A formulation (the l
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -85,23 +86,38 @@ def _selection(lay: Layout, knots: list[int]) -> ca.DM:
 
 
 def _sparse(rows, cols, values, shape) -> ca.DM:
-    """Sparse DM from triplets (duplicates summed)."""
-    from scipy.sparse import coo_matrix
+    """Sparse DM from triplets (duplicates summed, explicit zeros kept).
 
-    m = coo_matrix((np.asarray(values, dtype=float), (np.asarray(rows, dtype=int), np.asarray(cols, dtype=int))),
-                   shape=shape).tocsc()
-    m.sum_duplicates()
-    return ca.DM(m)
+    Built with numpy and CasADi's compressed-column sparsity: ``scipy.sparse`` costs ~0.45 s of
+    CPU to import (its array-API shim imports ``numpy.f2py``), a third of a first-ever kinematic
+    build, and nothing else on the planning path needs it."""
+    n_rows, n_cols = int(shape[0]), int(shape[1])
+    rows = np.asarray(rows, dtype=np.int64).ravel()
+    cols = np.asarray(cols, dtype=np.int64).ravel()
+    values = np.asarray(values, dtype=float).ravel()
+    linear, where = np.unique(cols * n_rows + rows, return_inverse=True)  # column-major: CasADi's order
+    summed = np.bincount(where.ravel(), weights=values, minlength=len(linear))
+    colind = np.searchsorted(linear // n_rows if n_rows else linear, np.arange(n_cols + 1), side="left")
+    pattern = ca.Sparsity(n_rows, n_cols, colind.tolist(), (linear % n_rows if n_rows else linear).tolist())
+    return ca.DM(pattern, summed.tolist())
 
 
 def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
     """Constant operators of the quadratic costs and of the velocity rows.
 
+    They depend on ``nv``, ``N`` and the velocity-limited joints only; kept per process (a dynamic
+    build asks twice: here and in its chart Hessian).
+
     Returns:
         ``A`` (second differences of dq over knots 1..N-1), ``P`` (joint part of dq at knots
         2..N), ``D`` (velocity-limited joints of dq_{k+1} - dq_k for k = 1..N-2).
     """
-    nv, N = lay.robot.nv, lay.N
+    return _operators(lay.robot.nv, lay.N, tuple(int(j) for j in velocity_joints(lay)))
+
+
+@functools.lru_cache(maxsize=16)
+def _operators(nv: int, N: int, vj: tuple[int, ...]) -> tuple[ca.DM, ca.DM, ca.DM]:
+    """:func:`_quadratic_operators` of a chart size, knot count and velocity-limited joints."""
     n_x = nv * (N - 2)
 
     def col(k: int) -> int | None:  # variable column block of knot k (None: fixed at 0)
@@ -130,7 +146,6 @@ def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
         vals += [1.0] * (nv - 6)
         r += nv - 6
     P = _sparse(rows, cols, vals, (r, n_x))
-    vj = velocity_joints(lay)
     rows, cols, vals = [], [], []
     r = 0
     for k in range(1, N - 1):
@@ -149,14 +164,31 @@ def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
 @dataclass(eq=False)
 class Stage:
     """The SX functions of one knot structure: ``(dq, q_ref, p) ->`` rows and cost, their Jacobian,
-    the cost's gradient and the Lagrangian's Hessian ``(dq, q_ref, p, sigma, lam)``."""
+    the cost's gradient and (:attr:`hess`, built on first use) the Lagrangian's Hessian
+    ``(dq, q_ref, p, sigma, lam)``."""
 
     fn: ca.Function
     jac: ca.Function
     grad: ca.Function
-    hess: ca.Function
     rows: int
     cost_is_zero: bool
+    name: str = ""
+    _hess: ca.Function | None = None
+
+    @property
+    def hess(self) -> ca.Function:
+        """The Lagrangian's Hessian w.r.t. ``dq`` (SX AD, ~0.04 s of CPU per Talos stage): built
+        only when asked, because a dynamic layout assembles its own chart Hessian
+        (:func:`planner.trajopt.centroidal.nlp.stage_hessians`) and never calls this one."""
+        if self._hess is None:
+            nv, nq = self.fn.size1_in(0), self.fn.size1_in(1)
+            dq, qr, ps = ca.SX.sym("dq", nv), ca.SX.sym("q_ref", nq), ca.SX.sym("p", self.fn.size1_in(2))
+            sigma = ca.SX.sym("sigma")
+            gk, ck = self.fn(dq, qr, ps)
+            lam = ca.SX.sym("lam", gk.numel())
+            self._hess = ca.Function("hess_" + self.name, [dq, qr, ps, sigma, lam],
+                                     [ca.hessian(sigma * ck + ca.dot(lam, gk), dq)[0]])
+        return self._hess
 
 
 STAGE_CACHE_SIZE = 256
@@ -179,15 +211,12 @@ def stage(lay: Layout, term_ids: list[int]) -> Stage:
     fn = stage_function(lay, term_ids, name)
     nv, nq = lay.robot.nv, lay.robot.nq
     dq, qr, ps = ca.SX.sym("dq", nv), ca.SX.sym("q_ref", nq), ca.SX.sym("p", fn.size1_in(2))
-    sigma = ca.SX.sym("sigma")
     gk, ck = fn(dq, qr, ps)
-    lam = ca.SX.sym("lam", gk.numel())
     out = Stage(
         fn=fn,
         jac=ca.Function("jac_" + name, [dq, qr, ps], [ca.jacobian(gk, dq)]),
         grad=ca.Function("grad_" + name, [dq, qr, ps], [ca.gradient(ck, dq)]),
-        hess=ca.Function("hess_" + name, [dq, qr, ps, sigma, lam], [ca.hessian(sigma * ck + ca.dot(lam, gk), dq)[0]]),
-        rows=int(gk.numel()), cost_is_zero=bool(ck.is_zero()),
+        rows=int(gk.numel()), cost_is_zero=bool(ck.is_zero()), name=name,
     )
     _STAGES[key] = out
     while len(_STAGES) > STAGE_CACHE_SIZE:
@@ -203,6 +232,11 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     Hessian are assembled from those blocks and from constant sparse operators of the
     quadratic terms. The derivative code (and the generated C) therefore grows with the number
     of distinct stages, not with the number of knots.
+
+    The layout's ``extend_nlp`` gets ``grad_f`` and ``jac_g``; the kinematic ``hess_lag`` is built
+    afterwards, only when it returns none of its own. A dynamic layout
+    (:mod:`planner.trajopt.centroidal`) assembles the whole Hessian itself, so the kinematic stage
+    Hessians are never built for it (~0.5-0.8 s of CPU of a first-ever Talos walk).
 
     Returns:
         (nlp dict {x, p, f, g}, nlpsol options {grad_f, jac_g, hess_lag}, index bookkeeping).
@@ -226,8 +260,8 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     AtA, PtP = ca.mtimes(A.T, A), ca.mtimes(P.T, P)
     f = c_smooth * ca.sumsqr(ca.mtimes(A, x)) + c_posture * ca.sumsqr(ca.mtimes(P, x))
     grad = 2 * c_smooth * ca.mtimes(AtA, x) + 2 * c_posture * ca.mtimes(PtP, x)
-    hess = lam_f * (2 * c_smooth * AtA + 2 * c_posture * PtP)
     g, jac = [], []
+    hessian_blocks = []  # per stage group: what its Lagrangian Hessian is made from
     p_offset, g_offset = nq + 3, 0
     for st, (_sig, knots, _terms) in zip(stages, groups, strict=True):
         n = len(knots)
@@ -242,13 +276,12 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
         rows = st.rows
         L = ca.reshape(lam_g[g_offset: g_offset + rows * n], rows, n)
         g_offset += rows * n
-        HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
         S = _selection(lay, knots)
         f = f + ca.sum2(C)
         if st.cost_is_zero:
             GC = ca.MX.zeros(nv, n)
         grad = grad + ca.mtimes(S.T, ca.vec(GC))
-        hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
+        hessian_blocks.append((st, n, Xg, Qr, Pg, L, S))
         if rows:
             g.append(ca.vec(G))
             jac.append(ca.mtimes(ca.diagcat(*ca.horzsplit(JG, nv)), S))
@@ -261,10 +294,15 @@ def build_nlp(lay: Layout) -> tuple[dict, dict, NlpLayout]:
     derivatives = {
         "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
         "jac_g": ca.Function("nlp_jac_g", [x, p], [g_all, jac_all], ["x", "p"], ["g", "jac_g_x"]),
-        "hess_lag": ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)],
-                                ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
     }
     nlp, derivatives = lay.extend_nlp(nlp, derivatives)  # a dynamic layout: forces, CoM dynamics, sole corners
+    if "hess_lag" not in derivatives:  # the kinematic NLP's own (a dynamic layout makes the whole one)
+        hess = lam_f * (2 * c_smooth * AtA + 2 * c_posture * PtP)
+        for st, n, Xg, Qr, Pg, L, S in hessian_blocks:
+            HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
+            hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
+        derivatives = {**derivatives, "hess_lag": ca.Function(
+            "nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])}
     return nlp, derivatives, nl
 
 

@@ -19,8 +19,9 @@ COMPILE_WAIT = 480.0  # [s] bound on gcc -O0 of a small Talos squat (25 s idle) 
 
 @pytest.mark.slow
 def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, talos):
-    """Plan 1 solves in memory and returns before gcc ends; a detached process then publishes
-    a checksummed entry, which plan 2 (a fresh process's view: memory cleared) loads from disk."""
+    """Plan 1 solves in memory and returns before gcc ends; a forked child (C code, gcc) then
+    publishes a checksummed entry, which plan 2 (a fresh process's view: memory cleared) loads
+    from disk."""
     settings = PlannerSettings(cache_dir=str(tmp_path), compile=True, background_compile=True)
     spec = squat_spec(talos, 0.1, duration=2.0, dt=0.1)
     clear_memory_cache()
@@ -31,8 +32,8 @@ def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, tal
     while not (entry / "meta.json").exists() and time.monotonic() < deadline:
         time.sleep(0.5)
     assert (entry / "meta.json").exists(), "the background compilation never published its entry"
-    for finisher in cache._FINISHERS:  # published: the process is ending; reap it
-        assert finisher.wait(timeout=120) == 0
+    codes = cache.wait_for_background(timeout=120)  # published: the forked compiler is ending; reap it
+    assert codes and all(code == 0 for code in codes), codes
     assert not any(p.name.startswith(".") for p in (Path(tmp_path) / "planner").iterdir()), "temporary dir left"
     clear_memory_cache()
     second = plan(spec, talos, settings=settings)
