@@ -218,6 +218,11 @@ class GraspRig:
 
     def tick(self, t: float, d: mujoco.MjData) -> None:
         """Close the grippers and engage or release the welds at time ``t`` [s], then record the objects."""
+        if not self.held and not len(self.bodies):  # nothing to grasp or record (most runs): only the tick count
+            if self.n < len(self.t):
+                self.t[self.n] = t
+                self.n += 1
+            return
         for h in self.held:
             g = h.grasp
             if h.engaged_at is None and h.released_at is None:

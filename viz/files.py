@@ -29,6 +29,7 @@ import os
 import secrets
 import signal
 import stat
+import threading
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -236,6 +237,7 @@ class Staging:
 
     def __init__(self) -> None:
         self._staged: list[_Staged] = []
+        self._pending: list[tuple[threading.Thread, list[BaseException]]] = []  # add(..., background=True)
 
     def __enter__(self) -> Staging:
         return self
@@ -243,8 +245,12 @@ class Staging:
     def __exit__(self, *exc) -> None:
         self.discard()
 
-    def add(self, path: str | os.PathLike, write: Callable[[BinaryIO], object]) -> Path:
+    def add(self, path: str | os.PathLike, write: Callable[[BinaryIO], object], *, background: bool = False) -> Path:
         """Write an output to a temporary file beside ``path`` with ``write(binary_file)``.
+
+        With ``background``, ``write`` runs in a thread while the caller goes on (a ``write`` that
+        spends its time in code that releases the GIL, such as zlib, then overlaps the caller's work
+        on another core); :meth:`wait` (which :meth:`commit` calls) waits for it and raises its error.
 
         The temporary file gets the mode the final file will have: the existing file's mode
         when ``path`` is a regular file, else ``0o666 & ~umask``. When ``path``'s folder does
@@ -271,9 +277,28 @@ class Staging:
             self.discard()
             raise OutputWriteError(f"cannot write in {_show(folder)}: {_why(e)}; nothing was written") from e
         self._staged.append(_Staged(tmp=tmp, target=target, existed=existed, new_folders=tuple(reversed(missing))))
+        if background:
+            errors: list[BaseException] = []
+            thread = threading.Thread(target=self._write_into, args=(tmp, target, st if existed else None, write, errors),
+                                      name=f"wbmp-write-{target.name}", daemon=True)
+            self._pending.append((thread, errors))
+            thread.start()
+            return target
+        try:
+            self._write_into(tmp, target, st if existed else None, write, None)
+        except BaseException:
+            self.discard()
+            raise
+        return target
+
+    @staticmethod
+    def _write_into(tmp: Path, target: Path, st: os.stat_result | None, write: Callable[[BinaryIO], object],
+                    errors: list[BaseException] | None) -> None:
+        """``write`` into the temporary file ``tmp`` (with the mode and owner of the file it replaces,
+        ``st``), flushed to disk; an error goes to ``errors`` when given (a background write), else up."""
         try:
             fd = os.open(tmp, os.O_WRONLY | getattr(os, "O_CLOEXEC", 0))
-            if existed and st is not None:
+            if st is not None:
                 os.fchmod(fd, stat.S_IMODE(st.st_mode))
                 if (st.st_uid, st.st_gid) != (os.geteuid(), os.getegid()):
                     try:
@@ -285,12 +310,27 @@ class Staging:
                 fh.flush()
                 os.fsync(fh.fileno())
         except OSError as e:
+            error = OutputWriteError(f"cannot write {_show(target)}: {_why(e)}; nothing was written")
+            error.__cause__ = e
+            if errors is None:
+                raise error from e
+            errors.append(error)
+        except BaseException as e:
+            if errors is None:
+                raise
+            errors.append(e)
+
+    def wait(self) -> None:
+        """Wait for the background writes (:meth:`add`); the first that failed raises its error, after
+        every temporary file was removed."""
+        pending, self._pending = self._pending, []
+        failed: list[BaseException] = []
+        for thread, errors in pending:
+            thread.join()
+            failed.extend(errors)
+        if failed:
             self.discard()
-            raise OutputWriteError(f"cannot write {_show(target)}: {_why(e)}; nothing was written") from e
-        except BaseException:
-            self.discard()
-            raise
-        return target
+            raise failed[0]
 
     @staticmethod
     def _create(folder: Path, name: str) -> Path:
@@ -306,6 +346,7 @@ class Staging:
 
     def commit(self) -> list[Path]:
         """Rename every staged file onto its target; on failure undo what this command created."""
+        self.wait()
         done: list[_Staged] = []
         made: list[Path] = []
         try:
@@ -343,7 +384,10 @@ class Staging:
         return [item.target for item in done]
 
     def discard(self) -> None:
-        """Remove every temporary file not yet renamed."""
+        """Remove every temporary file not yet renamed (after the background writes ended)."""
+        pending, self._pending = self._pending, []
+        for thread, _ in pending:
+            thread.join()
         for item in self._staged:
             try:
                 item.tmp.unlink(missing_ok=True)

@@ -177,7 +177,8 @@ def pack_data(header: dict, blobs: list[bytes]) -> str:
     screenshots, the browser test); ``DecompressionStream`` would make that asynchronous."""
     head = json.dumps(header, separators=(",", ":")).encode("utf-8")
     raw = b"".join([len(head).to_bytes(4, "little"), head, *blobs])
-    packer = zlib.compressobj(9, zlib.DEFLATED, -15)
+    # level 1: a third to half of level 9's time, and ~1 % larger (talos four steps: 2.89 MB, not 2.86)
+    packer = zlib.compressobj(1, zlib.DEFLATED, -15)
     return _b64(packer.compress(raw) + packer.flush())
 
 

@@ -49,6 +49,7 @@ from robots.model import Robot
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_ACCELERATION = pin.KinematicLevel.ACCELERATION
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
 
@@ -120,7 +121,6 @@ class WholeBodyController:
         self._mu_contact = robot.profile.friction_coefficient * self.settings.friction_scale
         self._mu = float(pyramid_coefficient(self._mu_contact))  # mu', the kernel's per-axis bound
         self._com_drift = self.settings.com_drift
-        self._zero_a = np.zeros(nv)
         # pin.difference is computed inside the compiled kernel for a free flyer + 1-dof joints
         self._simple_joints = self.model.nq == nv + 1
         self._tol = self.settings.eps_abs
@@ -433,8 +433,10 @@ class WholeBodyController:
         pin.computeAllTerms(model, data, q, v)
         J[:3] = data.Jcom
         if self._com_drift:  # CoM position and its drift J'v in one call
-            # (computeAllTerms also fills data.dhg, but pin 4.1 accumulates it over calls)
-            pos[0] = pin.centerOfMass(model, data, q, v, self._zero_a)
+            # (computeAllTerms also fills data.dhg, but pin 4.1 accumulates it over calls); its forward
+            # pass left the kinematics at zero acceleration in data.v, data.a: the CoM pass alone reads
+            # them (equal, bit for bit, to centerOfMass(q, v, 0), which ran the forward pass again)
+            pos[0] = pin.centerOfMass(model, data, _ACCELERATION, False)
             drift[:3] = data.acom[0]
         else:
             pos[0] = data.com[0]

@@ -224,11 +224,13 @@ class PlanReference:
         dmom = np.empty((n, 6))  # rate of centroidal momentum (linear, angular about the CoM)
         hang = np.empty((n, 3))  # centroidal angular momentum A_g(q) v, angular rows
         lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        acceleration = pin.KinematicLevel.ACCELERATION
         for i in range(n):
             # CoM, its derivatives and forward kinematics to 2nd order, plus the momentum rate
             dmom[i] = pin.computeCentroidalMomentumTimeVariation(model, data, q[i], v[i], a[i])
             hang[i] = data.hg.angular
-            pin.centerOfMass(model, data, q[i], v[i], a[i])
+            # the call above ran the forward pass to 2nd order (data.v, data.a): the CoM pass alone
+            pin.centerOfMass(model, data, acceleration, False)
             com[i], dcom[i], ddcom[i] = data.com[0], data.vcom[0], data.acom[0]
             for j, fid in enumerate(ids):
                 placement = pin.updateFramePlacement(model, data, fid)

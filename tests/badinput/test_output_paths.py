@@ -363,6 +363,51 @@ def test_existing_regular_file_is_replaced_whole(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
 
 
+def test_background_write_is_waited_for_and_its_failure_undoes_everything(tmp_path):
+    """A background write (``wbmp solve``'s motion file, compressed while the page is built) is
+    complete when commit renames it; one that fails raises its own error at commit and leaves the
+    folder as it was; Ctrl-C meanwhile waits for the write to end and removes its temporary file."""
+    import threading
+
+    started, release = threading.Event(), threading.Event()
+
+    def slow(fh) -> None:
+        started.set()
+        release.wait(10)
+        fh.write(b"x" * 1_000_000)
+
+    with Staging() as staging:
+        staging.add(tmp_path / "m.npz", slow, background=True)
+        assert started.wait(10)
+        staging.add(tmp_path / "m.html", lambda fh: fh.write(b"<html>"))  # meanwhile, in this thread
+        release.set()
+        staging.commit()
+    assert (tmp_path / "m.npz").stat().st_size == 1_000_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.html", "m.npz"]
+
+    before = Tree(tmp_path)
+
+    def failing(fh) -> None:
+        fh.write(b"half")
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OutputWriteError, match="cannot write .*a.npz.*No space left"), Staging() as staging:
+        staging.add(tmp_path / "a.npz", failing, background=True)
+        staging.add(tmp_path / "m.html", lambda fh: fh.write(b"new"))
+        staging.commit()
+    before.assert_unchanged()
+
+    started.clear()
+    release.clear()
+    with pytest.raises(KeyboardInterrupt), Staging() as staging:
+        staging.add(tmp_path / "b.npz", slow, background=True)
+        assert started.wait(10)
+        threading.Timer(0.05, release.set).start()
+        raise KeyboardInterrupt
+    assert not any(t.name.startswith("wbmp-write") for t in threading.enumerate())  # waited for
+    before.assert_unchanged()
+
+
 def test_ctrl_c_while_writing_leaves_nothing(tmp_path, motion_file):
     """SIGINT once a temporary output file exists: exit 130 and the folder as it was (no
     temporary file, no plot folder); if the signal comes too late, every output is complete."""
