@@ -9,7 +9,8 @@ the NLP enforces everything; when the inverse kinematics does not converge the s
 is used instead for that keyframe.
 
 With a scene, the keyframes also keep the robot's sphere sets :data:`SCENE_CLEARANCE` away from
-its objects (but in planned contacts): a least-squares row per sphere closer than that, along the
+its objects (but in planned contacts, and not in motions that grasp or touch an object): a
+least-squares row per sphere closer than that, along the
 gradient of its exact distance to the whole object. Without them, the keyframe of "reach forward
 30 cm" 10 cm over the table put the fingers 6 cm into it, and IPOPT took ~100 of its 150 iterations
 to get the arm out (docs/collisions.md).
@@ -121,7 +122,12 @@ class _SceneRows:
         from planner.trajopt.scene_collision import contact_exclusions, obstacles, whole_obstacles
 
         self.model = lay.robot.model
-        self.objects = whole_obstacles(lay.spec.scene) if knot is not None else []
+        spec = lay.spec
+        # A grasp or a touch brings the hands to an object on purpose, its targets placed by its
+        # primitive: pushing the other links 2 cm away distorted those keyframes (the two-handed box
+        # pick-up no longer converged).
+        aimed = bool(spec.grasps) or any(t.touch is not None for t in spec.targets)
+        self.objects = whole_obstacles(spec.scene) if knot is not None and not aimed else []
         if not self.objects:
             return
         self.sets = sphere_sets(lay.robot)
