@@ -32,8 +32,10 @@ from planner.results import Plan, SolverStats, SolveStatus
 from planner.trajopt.centroidal.layout import to_dynamic_layout
 from planner.trajopt.checks import precheck
 from planner.trajopt.collision import (
+    Rows,
     collision_diagnosis,
     collision_rows_of,
+    idle_pairs,
     missing_rows,
     select,
     set_collision_terms,
@@ -88,8 +90,8 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             raise PlanningFailed(problem, failed)
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
-    add_screened_terms(lay, settings, x0)
-    dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0)
+    deferred = add_screened_terms(lay, settings, x0)
+    dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
     forces = lay.forces_of(raw["x"])
     result = make_plan(lay, dq, stats, settings, forces=forces)
     payload = payload_checks(robot, spec, result.t, result.q)
@@ -134,28 +136,38 @@ def _guess_configurations(lay: Layout, x0: np.ndarray) -> np.ndarray:
     return configurations(lay, dq0)
 
 
-def add_screened_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> None:
+def add_screened_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> Rows:
     """Add the self-collision and scene rows that the initial guess ``x0`` asks for (with the
-    settings that switch them on)."""
+    settings that switch them on); returns the self-collision rows left out for idle pairs
+    (:func:`add_screened_collision_terms`)."""
     if not (settings.self_collision or settings.scene_collision):
-        return
+        return Rows()
     q0 = _guess_configurations(lay, x0)
+    deferred = Rows()
     if settings.self_collision:
-        add_screened_collision_terms(lay, settings, x0, q0)
+        deferred = add_screened_collision_terms(lay, settings, x0, q0)
     if settings.scene_collision:
         add_screened_scene_terms(lay, settings, q0)
+    return deferred
 
 
 def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray,
-                                 q0: np.ndarray | None = None) -> None:
+                                 q0: np.ndarray | None = None) -> Rows:
     """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
-    ``settings.collision_screening`` (planner/trajopt/collision.py)."""
+    ``settings.collision_screening``, but for idle pairs (no closer than at rest anywhere on the
+    guess, :func:`planner.trajopt.collision.idle_pairs`), which are left to the check after the
+    solve; returns the rows left out (planner/trajopt/collision.py)."""
     robot = lay.robot
     sets = sphere_sets(robot)
     q0 = _guess_configurations(lay, x0) if q0 is None else q0
-    rows = select(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision_screening),
-                  settings.collision_screening)
+    distances = sphere_pair_distances(robot, sets, q0, within=settings.collision_screening)
+    rows = select(lay, sets, distances, settings.collision_screening)
+    idle = idle_pairs(lay, sets, distances, settings.collision_margin)
+    deferred = Rows()
+    for pi in [pi for pi in rows.spheres if idle[pi]]:
+        deferred.spheres[pi], deferred.knots[pi] = rows.spheres.pop(pi), rows.knots.pop(pi)
     set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
+    return deferred
 
 
 def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | None = None) -> Layout:
@@ -180,12 +192,16 @@ def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tup
 
 
 def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
-                           x0: np.ndarray) -> tuple[np.ndarray, SolverStats, dict]:
+                           x0: np.ndarray, deferred: Rows | None = None) -> tuple[np.ndarray, SolverStats, dict]:
     """Solve, then again from the solution while the solution asks for it: a link pair, or a robot
     sphere and a scene object, within the collision margin without rows gets them (at most
     ``settings.collision_rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
     layout whose linearized rows are off at the solution re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
+    ``deferred``: the rows screening left out for idle pairs; they are added when a solve fails
+    (and the problem is solved again from ``x0``, as it would have been with them from the start)
+    or when the solution brings some pair within the margin without rows.
     The stats add up the iterations and times of every solve."""
+    guess = x0
     sets = sphere_sets(lay.robot) if settings.self_collision else None
     rows = collision_rows_of(lay, sets) if sets is not None else None
     scene_rows = scene_rows_of(lay) if settings.scene_collision else None
@@ -198,7 +214,15 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
             stats, iterations=total.iterations + stats.iterations, build_time=total.build_time + stats.build_time,
             cache=total.cache, solve_time=total.solve_time + stats.solve_time)
         if not stats.status.ok:
-            return dq, total, raw
+            if (sets is None or rows is None or deferred is None or not deferred.spheres
+                    or stats.status not in (SolveStatus.MAX_ITERATIONS, SolveStatus.NUMERICAL_ERROR)):
+                return dq, total, raw
+            set_collision_terms(lay, sets, rows, rows.merge(deferred), settings.collision_margin)
+            deferred = None
+            if progress:
+                progress("the solve failed: solving again with the idle pairs' rows")
+            x0, lam0 = guess, None
+            continue
         reason = ""
         if collision_round < settings.collision_rounds and (sets is not None or scene_rows is not None):
             q = configurations(lay, dq)
@@ -207,6 +231,9 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
                 distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision_screening)
                 more = missing_rows(lay, sets, rows, distances, settings.collision_margin, settings.collision_screening)
                 changed = rows.merge(more)
+                if changed and deferred is not None:  # a pair came close: the idle ones' rows too
+                    changed = sorted(set(changed) | set(rows.merge(deferred)))
+                    deferred = None
                 if changed:
                     set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
             objects = missing_scene_rows(lay, scene_rows, q, settings) if scene_rows is not None else []

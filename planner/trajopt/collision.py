@@ -272,6 +272,27 @@ def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: floa
     return rows
 
 
+IDLE_TOLERANCE = 0.005  # [m] a pair whose guess comes no closer than its rest distance less this is idle
+IDLE_BUFFER = 0.005  # [m] ... provided the guess keeps it at least the margin plus this apart
+
+
+def idle_pairs(lay: Layout, sets: SphereSets, distances: np.ndarray, margin: float) -> np.ndarray:
+    """The checked link pairs (P,) bool that the initial guess leaves *idle*: at every variable knot
+    every computed sphere pair (``distances`` (T, S), :func:`sphere_pair_distances`) is no closer
+    than at rest (the start posture, knot 0) less :data:`IDLE_TOLERANCE`, and at least ``margin`` +
+    :data:`IDLE_BUFFER`. Talos's ankles and hips stay within the screening distance with both feet
+    down (19.5 and 24 mm at rest) and got a few hundred rows on every task that no solve needed; an
+    idle pair gets no rows, and the check after each solve gives it rows if the solution brings it
+    within the margin (docs/collisions.md)."""
+    if len(sets.starts) == 0:
+        return np.zeros(0, dtype=bool)
+    rest = distances[0]
+    d = distances[2:lay.N]
+    finite = np.isfinite(d)
+    moving = finite & ((d < rest[None, :] - IDLE_TOLERANCE) | (d < margin + IDLE_BUFFER))
+    return ~(np.add.reduceat(moving.any(axis=0), sets.starts) > 0)
+
+
 def set_collision_terms(lay: Layout, sets: SphereSets, rows: Rows, pairs: list[int], margin: float) -> None:
     """(Re)write the ``collision`` terms of link ``pairs`` from ``rows``: one term per pair and knot,
     a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``."""

@@ -133,6 +133,15 @@ def obstacles(scene: Scene | None) -> list[Obstacle]:
     hit = _OBSTACLES.get(id(scene))
     if hit is not None and hit[0] is scene:
         return hit[1]
+    out = [piece for ob in whole_obstacles(scene) for piece in _pieces(ob)]
+    _OBSTACLES[id(scene)] = (scene, out)
+    return out
+
+
+def whole_obstacles(scene: Scene | None) -> list[Obstacle]:
+    """The scene's objects as :class:`Obstacle`, not split into pieces (one per object, in order)."""
+    if scene is None:
+        return []
     whole = []
     for obj in scene.objects:
         R = pin.rpy.rpyToMatrix(*obj.rpy)
@@ -147,9 +156,7 @@ def obstacles(scene: Scene | None) -> list[Obstacle]:
         else:
             offset, half = _mesh_box(obj)
             whole.append(Obstacle(obj.name, "box", p + R @ offset, R, half, from_mesh=True))
-    out = [piece for ob in whole for piece in _pieces(ob)]
-    _OBSTACLES[id(scene)] = (scene, out)
-    return out
+    return whole
 
 
 # -- numerics ----------------------------------------------------------------------------------

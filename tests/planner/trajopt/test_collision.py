@@ -163,6 +163,56 @@ def test_broad_phase_skips_only_pairs_farther_than_asked(talos):
     assert pair == sets.pair_names[pi]
 
 
+def test_idle_pairs_get_no_rows_until_the_guess_brings_them_closer(talos):
+    """Talos's ankles and hips are within the screening distance at rest; a guess that keeps them
+    there (the squat's nominal motion) gives them no rows (the pairs are left to the check after the
+    solve), and a guess that swings the legs' ankles closer gives the ankle pair its rows again."""
+    from planner.trajopt.api import (
+        _formulation,
+        _guess_configurations,
+        add_screened_collision_terms,
+    )
+    from planner.trajopt.collision import IDLE_TOLERANCE, idle_pairs, sphere_pair_distances
+
+    settings = PlannerSettings(compile=False)
+    sets = sphere_sets(talos)
+    ankles = sets.pair_names.index(("leg_left_5_link", "leg_right_5_link"))
+    rest = pair_distances(talos, sets, talos.q_standing[None])[0]
+    near = {sets.pair_names[pi] for pi in np.flatnonzero(rest < settings.collision_screening)}
+    assert ("leg_left_5_link", "leg_right_5_link") in near and len(near) >= 3
+    lay, settings = _formulation(_reach_spec(talos, "squat down 10 cm"), talos, settings)
+    x0 = lay.initial_guess(settings)
+    deferred = add_screened_collision_terms(lay, settings, x0)
+    assert not [t for t in lay.terms if t.kind == "collision"]
+    assert {sets.pair_names[pi] for pi in deferred.spheres} == near
+    q = _guess_configurations(lay, x0)
+    model = talos.model
+    for side, sign in (("left", -1.0), ("right", 1.0)):  # hip roll: the legs swing towards each other
+        q[5:lay.N - 5, model.joints[model.getJointId(f"leg_{side}_2_joint")].idx_q] += sign * 0.008
+    d = sphere_pair_distances(talos, sets, q, within=settings.collision_screening)
+    moved = np.minimum.reduceat(d, sets.starts, axis=1)[:, ankles]
+    assert moved[2:lay.N].min() < rest[ankles] - IDLE_TOLERANCE - 1e-3
+    idle = idle_pairs(lay, sets, d, settings.collision_margin)
+    assert not idle[ankles]
+    assert ankles in select(lay, sets, d, settings.collision_screening).spheres
+
+
+def test_a_solve_that_fails_without_the_idle_rows_is_solved_again_with_them(talos):
+    """When the solve without the idle pairs' rows runs out of iterations, the problem is solved
+    again from the same guess with every row screening selects (what the planner did before idle
+    pairs), and the stats add up both solves."""
+    spec = _reach_spec(talos, "squat down 10 cm")
+    settings = PlannerSettings(compile=False, max_iterations=3, diagnose=False)
+    said: list[str] = []
+    failed = plan(spec, talos, settings=settings, throw=False, progress=said.append)
+    assert not failed.ok
+    assert any("idle pairs' rows" in m for m in said), said
+    assert failed.stats.iterations == 6
+    bare = plan(spec, talos, settings=PlannerSettings(compile=False, max_iterations=3, diagnose=False,
+                                                      self_collision=False), throw=False)
+    assert failed.stats.n_constraints > bare.stats.n_constraints + 300  # the ankles' and hips' rows
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(("sentence", "moving"), [
     ("reach right with your left hand 40 cm", "left"),

@@ -208,6 +208,28 @@ def test_broad_phase_gives_the_values_and_closest_pair_of_every_pair(talos):
     assert d_far == pytest.approx(exact[..., obs.index(next(ob for ob in obs if ob.name == "far box")):].min(), abs=1e-12)
 
 
+def test_nominal_keyframe_keeps_the_arm_out_of_the_table(talos):
+    """The initial guess's keyframe of a reach 10 cm over the table holds the hand at its target with
+    every URDF collision geometry clear of the table (coal): without the scene the same keyframe puts
+    the fingers into it (docs/collisions.md: that guess cost IPOPT ~100 iterations)."""
+    from planner.trajopt.nominal import _keyframe_tasks, solve_ik
+
+    table = load_scene(TABLE)
+    target = (0.45, -0.3, 0.72)
+    spec = _spec(talos, "reach forward 30 cm with your right hand", table, target=target)
+    for scene, clear in ((table, True), (None, False)):
+        lay = make_layout(dataclasses.replace(spec, scene=scene), talos)
+        tasks = _keyframe_tasks(lay)
+        k = next(k for k, ts in sorted(tasks.items()) if np.allclose(ts[0][2], target))
+        q = solve_ik(lay, k, tasks[k])
+        assert q is not None
+        data = talos.data()
+        pin.framesForwardKinematics(talos.model, data, q)
+        assert np.linalg.norm(data.oMf[tasks[k][0][1]].translation - target) < 0.01
+        d, _ = _coal_min_distance(talos, q[None], table.objects[0])
+        assert (d >= MARGIN) == clear, f"scene {scene is not None}: {d:.4f} m"
+
+
 @pytest.mark.slow
 def test_reach_over_the_table_keeps_every_link_the_margin_above_it(talos):
     """A reach forward over the table (the hand 10 cm above its top): every URDF collision geometry
