@@ -15,14 +15,21 @@ if TYPE_CHECKING:
 
 
 def initial_guess(lay: DynamicLayout) -> np.ndarray:
-    """Initial ``[x; u; c]``: the heading warm start for the chart, the weight shared by the
-    corners, the CoM of the guessed configurations."""
+    """Initial ``[x; u; c; l]``: the heading warm start for the chart, the weight shared by the
+    corners, the CoM of the guessed configurations, and (lifted) the moment of those forces
+    about that CoM (the moment rows hold at the guess)."""
+    from planner.trajopt.centroidal.momentum import force_moments
+    from planner.trajopt.centroidal.nlp import moment_rows
     from planner.trajopt.symbolic import chart_to_configuration
 
     dq = heading_guess(lay)
     model, data = lay.robot.model, lay.robot.data()
-    com = [pin.centerOfMass(model, data, chart_to_configuration(model, lay.q_ref, dq[k])) for k in range(2, lay.N)]
-    return np.concatenate([dq[2:lay.N].ravel(), lay.pattern().initial, np.ravel(com)])
+    N = lay.N
+    com = np.array([pin.centerOfMass(model, data, chart_to_configuration(model, lay.q_ref, dq[min(k, N - 1)]))
+                    for k in range(N + 1)])
+    pat = lay.pattern()
+    moments = force_moments(pat, com, pat.initial).ravel() if moment_rows(lay) else np.zeros(0)
+    return np.concatenate([dq[2:N].ravel(), pat.initial, com[2:N].ravel(), moments])
 
 
 def forces_of(lay: DynamicLayout, x: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from planner.results import Check, Plan
     from planner.trajopt.settings import PlannerSettings
 
-DYNAMIC_FORMULATION = "lifted-com-3-momentum-affine-ankle"  # part of a dynamic layout's structure (solver cache key)
+DYNAMIC_FORMULATION = "lifted-com-3-momentum-affine-ankle-lifted-moment"  # part of a dynamic layout's structure (solver cache key)
 
 
 class DynamicLayout(Layout):
@@ -98,7 +98,7 @@ class DynamicLayout(Layout):
     # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
 
     def extra_sizes(self) -> tuple[int, int]:
-        """(force + lifted CoM variables, dynamic constraint rows)."""
+        """(force + lifted CoM + lifted moment variables, dynamic constraint rows)."""
         return dynamic_sizes(self)
 
     def extend_nlp(self, nlp: dict, derivatives: dict) -> tuple[dict, dict]:

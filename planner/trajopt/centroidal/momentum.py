@@ -193,14 +193,30 @@ def euler_residual(lay: DynamicLayout, dq: np.ndarray, forces: np.ndarray) -> fl
     robot = lay.robot
     model, data = robot.model, robot.data()
     q = np.array([chart_to_configuration(model, lay.q_ref, d) for d in dq])
-    h = interval_momentum(robot, q, float(lay.dt))
     pat = lay.pattern()
-    corners = pat.corner_forces(forces)
+    h = interval_momentum(robot, q, float(lay.dt)) / pat.weight
+    com = np.array([pin.centerOfMass(model, data, qk) for qk in q])
+    moments = force_moments(pat, com, forces)
     worst = 0.0
-    for k in pat.dynamics_knots:
-        c = pin.centerOfMass(model, data, q[k])
-        moment = np.zeros(3)
+    for j, k in enumerate(pat.dynamics_knots):
+        worst = max(worst, float(np.linalg.norm((h[k] - h[k - 1]) / lay.dt - moments[j])))
+    return worst
+
+
+def force_moments(pat, com: np.ndarray, forces: np.ndarray) -> np.ndarray:
+    """Moment of the corner forces about the CoM at each dynamics knot, divided by the body weight.
+
+    Args:
+        pat: The :class:`~planner.trajopt.centroidal.pattern.CentroidalPattern`.
+        com: CoM per knot (T, 3) [m].
+        forces: The force variables.
+
+    Returns:
+        (len(pat.dynamics_knots), 3) [m], in the order of the dynamics knots.
+    """
+    corners = pat.corner_forces(forces)
+    out = np.zeros((len(pat.dynamics_knots), 3))
+    for j, k in enumerate(pat.dynamics_knots):
         for contact in pat.contacts[k]:
-            moment += np.cross(contact.points_in_world - c, corners[contact.frame][k]).sum(axis=0)
-        worst = max(worst, float(np.linalg.norm((h[k] - h[k - 1]) / lay.dt - moment)))
-    return worst / pat.weight
+            out[j] += np.cross(contact.points_in_world - com[k], corners[contact.frame][k]).sum(axis=0)
+    return out / pat.weight

@@ -41,13 +41,19 @@ def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
 class DynamicBlocks:
     """The dynamic part of a stage-wise NLP with its hand-assembled derivatives (MX).
 
-    The NLP's variables are ``[x_kin; u; c]``: the chart displacements of the variable knots,
-    the force variables, then the CoM of each variable knot (3 per knot, *lifted*: tied to the
-    configuration by equality rows). Lifting the CoM keeps the CoM Jacobian (dense over the
+    The NLP's variables are ``[x_kin; u; c; l]``: the chart displacements of the variable knots,
+    the force variables, the CoM of each variable knot (3 per knot, *lifted*: tied to the
+    configuration by equality rows), then, with :attr:`CentroidalSettings.lifts_moment`, the
+    moment of the contact forces about the CoM at each dynamics knot (3 per knot, m x body
+    weights; :func:`moment_rows`). Lifting the CoM keeps the CoM Jacobian (dense over the
     joints) out of the dynamics rows and the angular-momentum cost: those couple the forces
     with 3 CoM variables per knot instead of every joint, which makes the KKT system much
-    sparser. Rows: the centroidal rows (dynamics; friction rows without friction edges), the
-    CoM rows ``c_k - com(q_k) = 0``, then the sole-corner heights of swinging feet.
+    sparser. Lifting the moment does the same for its cost ``|Ldot_k|^2``: without it, the cost's
+    Hessian is a dense rank-3 block over each knot's edge weights (32 x 32 in double support) and
+    its CoM; with it, a diagonal. Rows: the centroidal rows (dynamics; friction rows without
+    friction edges; the moment rows ``l_k - Ldot_k(c, u) = 0``), the CoM rows ``c_k - com(q_k) =
+    0``, the sole-corner heights of swinging feet, then the whole body's momentum rows ``rate_k(x)
+    - l_k = 0`` (lifted; otherwise the rate is added to the moment rows: ``rate_k(x) - Ldot_k = 0``).
 
     Attributes:
         f: Cost added to the objective (from functions that compute values only).
@@ -55,10 +61,11 @@ class DynamicBlocks:
         f_d, g_d: The same values, from the functions that also give the derivatives (for the
             NLP's gradient and Jacobian functions, which output both).
         lbg, ubg: Their bounds.
-        grad_u, grad_c: Gradient of ``f`` (it does not depend on ``x_kin``) [MX columns].
-        jac_x, jac_u, jac_c: Jacobian of ``g`` w.r.t. ``x_kin``, ``u`` and ``c``.
-        hess_xx, hess_uu, hess_uc, hess_cc: Hessian blocks of ``lam_f f + lam . g`` (the
-            ``x``-``u`` and ``x``-``c`` blocks are zero; ``hess_xx`` is None when not asked for).
+        grad_u, grad_c, grad_l: Gradient of ``f`` (it does not depend on ``x_kin``) [MX columns].
+        jac_x, jac_u, jac_c, jac_l: Jacobian of ``g`` w.r.t. ``x_kin``, ``u``, ``c`` and ``l``.
+        hess_xx, hess_uu, hess_uc, hess_cc, hess_ll: Hessian blocks of ``lam_f f + lam . g`` (the
+            ``x``-``u``, ``x``-``c`` and every ``l``-other block are zero; ``hess_ll`` is diagonal;
+            ``hess_xx`` is None when not asked for).
         nu, eta: Multipliers (3, N-2) and (8, N-2) whose products with each variable knot's
             CoM and sole-corner heights give the curvature in ``hess_xx``.
     """
@@ -71,15 +78,18 @@ class DynamicBlocks:
     ubg: np.ndarray
     grad_u: Any
     grad_c: Any
+    grad_l: Any
     jac_x: Any
     jac_u: Any
     jac_c: Any
+    jac_l: Any
     hess_xx: Any
     nu: Any
     eta: Any
     hess_uu: Any
     hess_uc: Any
     hess_cc: Any
+    hess_ll: Any
 
 
 def _kinematic_functions(lay: DynamicLayout) -> tuple[ca.Function, ca.Function, ca.Function]:
@@ -105,6 +115,12 @@ def _kinematic_functions(lay: DynamicLayout) -> tuple[ca.Function, ca.Function, 
 def com_rows(lay: DynamicLayout) -> int:
     """Number of lifted CoM variables (and of the rows tying them to the configuration)."""
     return 3 * (lay.N - 2)
+
+
+def moment_rows(lay: DynamicLayout) -> int:
+    """Number of lifted moment variables ``l`` (3 per dynamics knot ``1..N-1``, 0 when
+    :attr:`CentroidalSettings.lifts_moment` is off), and of the momentum rows ``rate_k - l_k``."""
+    return 3 * (lay.N - 1) if lay.centroidal_settings.lifts_moment else 0
 
 
 def momentum_rates(lay: DynamicLayout, x_kin: Any, pm: Any, row_index: np.ndarray | None = None,
@@ -148,7 +164,8 @@ def momentum_rates(lay: DynamicLayout, x_kin: Any, pm: Any, row_index: np.ndarra
 
 
 def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
-                   lam_f: Any, lam: Any, *, kinematic_hessian: bool = True, pm: Any = None) -> DynamicBlocks:
+                   lam_f: Any, lam: Any, *, kinematic_hessian: bool = True, pm: Any = None,
+                   moment: Any = None) -> DynamicBlocks:
     """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
 
     The centroidal function (dynamics, friction, cost) is evaluated on the lifted CoM variables
@@ -174,6 +191,8 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
         pm: Linearization parameters of the whole-body angular momentum (MX,
             :func:`planner.trajopt.centroidal.momentum.momentum_sizes`; with
             ``CentroidalSettings.whole_body_momentum``).
+        moment: The lifted moments ``l`` (MX, :func:`moment_rows`; with
+            ``CentroidalSettings.lifts_moment``).
 
     Returns:
         The blocks.
@@ -213,7 +232,7 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
     d1 = ca.Function("dyn_centroidal_d1", [Cs, Us, Ps, dts], [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w)])
     d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.hessian(lag, w)[0]])
     n_m = 3 * n
-    lam_c, lam_m, lam_z = lam[:n_c], lam[n_c:n_c + n_m], lam[n_c + n_m:]
+    lam_c, lam_m = lam[:n_c], lam[n_c:n_c + n_m]
     g_c, f_c = g0(C, u, p, dt), f0(C, u, p, dt)
     g_cd, f_cd, J_w, G_w = d1(C, u, p, dt)
     H_w = d2(C, u, p, dt, lam_f, lam_c)
@@ -226,6 +245,7 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
     zr = [(k - 2) * 8 + feet.index(fid) * 4 + i for k, fid, i in cf.corner_rows]
     n_z = len(zr)
     Sz = ca.DM(ca.Sparsity.triplet(n_z, 8 * n, list(range(n_z)), zr), 1.0)
+    lam_z = lam[n_c + n_m:n_c + n_m + n_z]
     g_z = ca.mtimes(Sz, ca.vec(Z))
     g_zd = ca.mtimes(Sz, ca.vec(Z_d))
     jac_z = ca.mtimes(Sz, ca.diagcat(*ca.horzsplit(JZ, nv)))
@@ -237,29 +257,49 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
     from planner.trajopt.centroidal.pattern import momentum_row_index
 
     idx = momentum_row_index(cf.terms.constraints)
-    if len(idx):  # Euler for the whole body: the rows -Ldot_k get + dh/dt of the body
+    n_l = moment_rows(lay)
+    lifted = n_l > 0
+    f_l, grad_l, hess_ll = ca.MX(0), ca.MX(0, 1), ca.MX(0, 0)
+    g_r, g_rd, jac_rx, jac_l = ca.MX(0, 1), ca.MX(0, 1), ca.MX(0, nv * n), ca.MX(n_c + n_m + n_z, 0)
+    if len(idx):  # Euler for the whole body: the rows -Ldot_k get + l_k (lifted) or + dh/dt of the body
         if pm is None:
             raise ValueError("dynamic_blocks: whole-body momentum rows need their linearization parameters pm")
-        rates, jac_cx = momentum_rates(lay, x_kin, pm, idx, n_c)
-        g_c, g_cd = g_c + rates, g_cd + rates
+        if lifted:
+            if moment is None or moment.numel() != n_l or len(idx) != n_l:
+                raise ValueError("dynamic_blocks: the lifted moment needs 3 variables per dynamics knot")
+            S = ca.DM(ca.Sparsity.triplet(n_c, n_l, idx.tolist(), list(range(n_l))), 1.0)
+            g_c, g_cd = g_c + ca.mtimes(S, moment), g_cd + ca.mtimes(S, moment)
+            rates, jac_rx = momentum_rates(lay, x_kin, pm)
+            g_r = g_rd = rates - moment
+            w_l = 2 * lay.centroidal_settings.angular_momentum_weight * dt
+            f_l = 0.5 * w_l * ca.sumsqr(moment)
+            grad_l = w_l * moment
+            hess_ll = ca.MX(ca.Sparsity.diag(n_l), ca.repmat(lam_f * w_l, n_l, 1))
+            jac_l = ca.vertcat(ca.MX(S), ca.MX(n_m + n_z, n_l))
+        else:
+            rates, jac_cx = momentum_rates(lay, x_kin, pm, idx, n_c)
+            g_c, g_cd = g_c + rates, g_cd + rates
     return DynamicBlocks(
-        f=f_c,
-        g=ca.vertcat(g_c, c - ca.vec(Ck), g_z),
-        f_d=f_cd,
-        g_d=ca.vertcat(g_cd, c - ca.vec(Ck_d), g_zd),
-        lbg=np.concatenate([cf.lbg, np.zeros(n_m), np.zeros(n_z)]),
-        ubg=np.concatenate([cf.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
+        f=f_c + f_l,
+        g=ca.vertcat(g_c, c - ca.vec(Ck), g_z, g_r),
+        f_d=f_cd + f_l,
+        g_d=ca.vertcat(g_cd, c - ca.vec(Ck_d), g_zd, g_rd),
+        lbg=np.concatenate([cf.lbg, np.zeros(n_m), np.zeros(n_z), np.zeros(n_l)]),
+        ubg=np.concatenate([cf.ubg, np.zeros(n_m), np.full(n_z, np.inf), np.zeros(n_l)]),
         grad_u=G_U,
         grad_c=ca.mtimes(E.T, G_C),
-        jac_x=ca.vertcat(jac_cx, -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z),
-        jac_u=ca.vertcat(J_U, ca.MX(n_m + n_z, n_u)),
-        jac_c=ca.vertcat(ca.mtimes(J_C, E), ca.MX(ca.DM.eye(n_m)), ca.MX(n_z, n_m)),
+        grad_l=grad_l,
+        jac_x=ca.vertcat(jac_cx, -ca.diagcat(*ca.horzsplit(JC, nv)), jac_z, jac_rx),
+        jac_u=ca.vertcat(J_U, ca.MX(n_m + n_z + n_l, n_u)),
+        jac_c=ca.vertcat(ca.mtimes(J_C, E), ca.MX(ca.DM.eye(n_m)), ca.MX(n_z + n_l, n_m)),
+        jac_l=ca.vertcat(jac_l, -ca.MX(ca.DM.eye(n_l))),
         hess_xx=ca.diagcat(*ca.horzsplit(HK, nv)) if kinematic_hessian else None,
         nu=nu,
         eta=eta,
         hess_uu=H_UU,
         hess_uc=ca.mtimes(H_CU.T, E),
         hess_cc=ca.mtimes(E.T, ca.mtimes(H_CC, E)),
+        hess_ll=hess_ll,
     )
 
 
@@ -348,9 +388,10 @@ def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f
 
 
 def dynamic_sizes(lay: DynamicLayout) -> tuple[int, int]:
-    """(force + lifted CoM variables, dynamic constraint rows) of a dynamic layout."""
+    """(force + lifted CoM + lifted moment variables, dynamic constraint rows) of a dynamic layout."""
     pat = lay.pattern()
-    return pat.n_variables + com_rows(lay), len(pat.lbg) + com_rows(lay) + len(lay.corner_rows())
+    n_l = moment_rows(lay)
+    return pat.n_variables + com_rows(lay) + n_l, len(pat.lbg) + com_rows(lay) + len(lay.corner_rows()) + n_l
 
 
 def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
@@ -362,26 +403,27 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
         derivatives: Its ``grad_f``, ``jac_g``, ``hess_lag`` functions (nlpsol options).
 
     Returns:
-        The extended ``(nlp, derivatives)``: variables ``[x; u; c]``, parameters ``[p; contact
-        geometry]``, rows ``[g; dynamic rows]``.
+        The extended ``(nlp, derivatives)``: variables ``[x; u; c; l]``, parameters ``[p; contact
+        geometry; momentum linearization]``, rows ``[g; dynamic rows]``.
     """
     cf = lay.centroidal()
     robot = lay.robot
     n_x, n_p, n_g = nlp["x"].numel(), nlp["p"].numel(), nlp["g"].numel()
     n_u = cf.terms.n_variables
     n_m = com_rows(lay)
+    n_l = moment_rows(lay)
     _, n_gd = dynamic_sizes(lay)
     n_pd = cf.terms.parameter_values.size
     n_pm = momentum_parameter_count(lay)
-    x = ca.MX.sym("x", n_x + n_u + n_m)
+    x = ca.MX.sym("x", n_x + n_u + n_m + n_l)
     p = ca.MX.sym("p", n_p + n_pd + n_pm)
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", n_g + n_gd)
-    xk, u, c = x[:n_x], x[n_x:n_x + n_u], x[n_x + n_u:]
+    xk, u, c, lm = x[:n_x], x[n_x:n_x + n_u], x[n_x + n_u:n_x + n_u + n_m], x[n_x + n_u + n_m:]
     pk, pd, pm = p[:n_p], p[n_p:n_p + n_pd], p[n_p + n_pd:]
     nq = robot.nq
     b = dynamic_blocks(lay, cf, xk, u, c, pk[:nq], pd, pk[nq + 2], lam_f, lam_g[n_g:], kinematic_hessian=False,
-                       pm=pm)
+                       pm=pm, moment=lm)
     f_kd, grad_k = derivatives["grad_f"](xk, pk)
     g_kd, jac_k = derivatives["jac_g"](xk, pk)
     # the kinematic NLP's own f and g: its derivative functions would compute the derivatives too
@@ -397,12 +439,13 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
     h_k = ca.triu(quad + stage_hessians(lay, xk, pk[:nq], pk, lam_f, lam_g[:n_g], b.nu, b.eta))
     f = f_k + b.f
     g = ca.vertcat(g_k, b.g)
-    grad = ca.vertcat(grad_k, b.grad_u, b.grad_c)
-    jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u + n_m)), ca.horzcat(b.jac_x, b.jac_u, b.jac_c))
+    grad = ca.vertcat(grad_k, b.grad_u, b.grad_c, b.grad_l)
+    jac = ca.vertcat(ca.horzcat(jac_k, ca.MX(n_g, n_u + n_m + n_l)), ca.horzcat(b.jac_x, b.jac_u, b.jac_c, b.jac_l))
     hess = ca.blockcat([
-        [h_k, ca.MX(n_x, n_u), ca.MX(n_x, n_m)],
-        [ca.MX(n_u, n_x), ca.triu(b.hess_uu), b.hess_uc],
-        [ca.MX(n_m, n_x), ca.MX(n_m, n_u), ca.triu(b.hess_cc)],
+        [h_k, ca.MX(n_x, n_u), ca.MX(n_x, n_m), ca.MX(n_x, n_l)],
+        [ca.MX(n_u, n_x), ca.triu(b.hess_uu), b.hess_uc, ca.MX(n_u, n_l)],
+        [ca.MX(n_m, n_x), ca.MX(n_m, n_u), ca.triu(b.hess_cc), ca.MX(n_m, n_l)],
+        [ca.MX(n_l, n_x), ca.MX(n_l, n_u), ca.MX(n_l, n_m), b.hess_ll],
     ])
     out = {
         "grad_f": ca.Function("nlp_grad_f", [x, p], [f_kd + b.f_d, grad], ["x", "p"], ["f", "grad_f_x"]),
@@ -415,16 +458,18 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
 
 def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
                   ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bounds of the extended NLP from the kinematic ones (force boxes, free CoM, dynamic rows)."""
+    """Bounds of the extended NLP from the kinematic ones (force boxes, free CoM and moments,
+    dynamic rows)."""
     pat = lay.pattern()
     rows = lay.corner_rows()
     n_z = len(rows)
-    n_m = com_rows(lay)
+    n_m = com_rows(lay) + moment_rows(lay)
+    n_l = moment_rows(lay)
     return (
         np.concatenate([lbx, pat.lower, np.full(n_m, -np.inf)]),
         np.concatenate([ubx, pat.upper, np.full(n_m, np.inf)]),
-        np.concatenate([lbg, pat.lbg, np.zeros(n_m), swing_corner_floor(lay, rows)]),
-        np.concatenate([ubg, pat.ubg, np.zeros(n_m), np.full(n_z, np.inf)]),
+        np.concatenate([lbg, pat.lbg, np.zeros(com_rows(lay)), swing_corner_floor(lay, rows), np.zeros(n_l)]),
+        np.concatenate([ubg, pat.ubg, np.zeros(com_rows(lay)), np.full(n_z, np.inf), np.zeros(n_l)]),
     )
 
 

@@ -221,7 +221,8 @@ def _ankle_bounds(c: ContactGeometry, settings: CentroidalSettings, weight: floa
 def _structure(settings: CentroidalSettings, per_knot: list) -> tuple:
     return (settings.inner_pyramid, settings.angular_momentum_weight > 0.0,
             "edges" if settings.friction_edges else "components",
-            "whole-body momentum" if settings.whole_body_momentum else "centroidal", tuple(per_knot))
+            "whole-body momentum" if settings.whole_body_momentum else "centroidal",
+            "lifted moment" if settings.lifts_moment else "moment cost", tuple(per_knot))
 
 
 def momentum_row_index(blocks: Sequence[ConstraintBlock]) -> np.ndarray:
@@ -416,10 +417,12 @@ def build_centroidal(
         ldot = angular_momentum_rate(com[k], points, forces) if forces else ca.DM.zeros(3)  # [m x body weights]
         if settings.whole_body_momentum:
             # -Ldot_k here; the NLP adds the whole body's momentum rate (h_{k+1/2} - h_{k-1/2}) / dt
-            # to these rows (planner.trajopt.centroidal.momentum): zero when Euler's law holds
+            # to these rows (planner.trajopt.centroidal.momentum): zero when Euler's law holds. With
+            # settings.lifts_moment it adds a variable Ldot_k instead, penalized and tied to the rate
+            # by rows of its own (planner.trajopt.centroidal.nlp): no cost on the moment here
             blocks.append(ConstraintBlock(name="angular momentum", knot=k, expr=-ldot, lower=np.zeros(3),
                                           upper=np.zeros(3)))
-        if forces and settings.angular_momentum_weight > 0.0:
+        if forces and settings.angular_momentum_weight > 0.0 and not settings.lifts_moment:
             cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
     def cat(xs: list) -> np.ndarray:
         return np.concatenate(xs) if xs else np.zeros(0)

@@ -432,9 +432,11 @@ def test_centroidal_function_and_dynamic_checks_on_a_standing_plan(talos):
 
 
 def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
-    """Hand-assembled gradient, Jacobian and Lagrangian Hessian equal CasADi AD at a random point."""
+    """Hand-assembled gradient, Jacobian and Lagrangian Hessian equal CasADi AD at a random point
+    (with the forces' moment lifted to variables, the default: its rows and diagonal cost)."""
     from planner.trajopt.centroidal import centroidal_function, dynamic_blocks, to_dynamic_layout
     from planner.trajopt.centroidal.momentum import momentum_parameters, momentum_sizes
+    from planner.trajopt.centroidal.nlp import moment_rows
     from planner.trajopt.layout import make_layout
 
     feet = _feet(talos)
@@ -446,35 +448,41 @@ def test_dynamic_blocks_derivatives_match_automatic_differentiation(talos, rng):
     lay = to_dynamic_layout(make_layout(spec, talos))
     cf = centroidal_function(lay)
     nv, n = talos.nv, lay.N - 2
+    n_l = moment_rows(lay)
+    assert n_l == 3 * (lay.N - 1)
     pm = ca.MX.sym("pm", momentum_sizes(nv, lay.N))  # whole-body momentum rows (linear in x)
     x = ca.MX.sym("x", nv * n)
     u = ca.MX.sym("u", cf.terms.n_variables)
     c = ca.MX.sym("c", 3 * n)
+    m = ca.MX.sym("m", n_l)
     q_ref = ca.MX.sym("q_ref", talos.nq)
     p = ca.MX.sym("p", cf.terms.parameter_values.size)
     dt = ca.MX.sym("dt")
     lam_f = ca.MX.sym("lam_f")
-    n_g = len(cf.lbg) + 3 * n + len(cf.corner_rows)
+    n_g = len(cf.lbg) + 3 * n + len(cf.corner_rows) + n_l
     lam = ca.MX.sym("lam", n_g)
-    b = dynamic_blocks(lay, cf, x, u, c, q_ref, p, dt, lam_f, lam, pm=pm)
+    b = dynamic_blocks(lay, cf, x, u, c, q_ref, p, dt, lam_f, lam, pm=pm, moment=m)
     assert b.g.numel() == n_g == len(b.lbg)
     assert len(cf.corner_rows) == 8 * sum(1 for k in range(2, lay.N) if not lay.contacts_at[k])
-    w = ca.vertcat(x, u, c)
+    w = ca.vertcat(x, u, c, m)
     lag = lam_f * b.f + ca.dot(lam, b.g)
     zx = ca.MX(nv * n, 1)
-    ours = ca.Function("ours", [x, u, c, q_ref, p, dt, lam_f, lam, pm], [
-        ca.vertcat(zx, b.grad_u, b.grad_c), ca.horzcat(b.jac_x, b.jac_u, b.jac_c),
-        ca.blockcat([[b.hess_xx, ca.MX(nv * n, cf.terms.n_variables), ca.MX(nv * n, 3 * n)],
-                     [ca.MX(cf.terms.n_variables, nv * n), b.hess_uu, b.hess_uc],
-                     [ca.MX(3 * n, nv * n), b.hess_uc.T, b.hess_cc]])])
-    ad = ca.Function("ad", [x, u, c, q_ref, p, dt, lam_f, lam, pm],
+    n_u = cf.terms.n_variables
+    ours = ca.Function("ours", [x, u, c, m, q_ref, p, dt, lam_f, lam, pm], [
+        ca.vertcat(zx, b.grad_u, b.grad_c, b.grad_l), ca.horzcat(b.jac_x, b.jac_u, b.jac_c, b.jac_l),
+        ca.blockcat([[b.hess_xx, ca.MX(nv * n, n_u), ca.MX(nv * n, 3 * n), ca.MX(nv * n, n_l)],
+                     [ca.MX(n_u, nv * n), b.hess_uu, b.hess_uc, ca.MX(n_u, n_l)],
+                     [ca.MX(3 * n, nv * n), b.hess_uc.T, b.hess_cc, ca.MX(3 * n, n_l)],
+                     [ca.MX(n_l, nv * n), ca.MX(n_l, n_u), ca.MX(n_l, 3 * n), b.hess_ll]])])
+    ad = ca.Function("ad", [x, u, c, m, q_ref, p, dt, lam_f, lam, pm],
                      [ca.gradient(b.f, w), ca.jacobian(b.g, w), ca.hessian(lag, w)[0]])
     args = [rng.normal(size=nv * n) * 0.05, rng.uniform(0, 0.2, cf.terms.n_variables),
-            np.tile([0.0, 0.0, 0.85], n) + rng.normal(size=3 * n) * 0.02, talos.q_standing,
-            cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g),
+            np.tile([0.0, 0.0, 0.85], n) + rng.normal(size=3 * n) * 0.02, rng.normal(size=n_l) * 0.05,
+            talos.q_standing, cf.terms.parameter_values, 0.1, 0.7, rng.normal(size=n_g),
             momentum_parameters(lay, rng.normal(size=(lay.N + 1, nv)) * 0.05)]
     for a, r in zip(ours(*args), ad(*args), strict=True):
         np.testing.assert_allclose(np.array(ca.densify(a)), np.array(ca.densify(r)), atol=1e-8, rtol=1e-8)
+    assert np.abs(np.array(ca.densify(ours(*args)[2]))[-n_l:, -n_l:]).max() > 0.0  # the moment cost is there
 
 
 def test_pattern_matches_the_symbolic_terms(talos):
@@ -657,3 +665,36 @@ def test_ankle_rows_are_the_moment_of_the_forces_rnea(g1, rng, edges):
     assert max(abs(x) for x in expected) > 1.0  # a real load [N m]
     np.testing.assert_allclose(np.asarray(rows(u, terms.parameter_values)).ravel() * weight, expected, atol=1e-9)
     np.testing.assert_allclose(geo.ankle_torques(forces), expected, atol=1e-9)
+
+
+def test_lifted_moment_reaches_the_same_plan(talos):
+    """Lifting the forces' moment to variables is an exact reformulation: a short stepping-in-place
+    plan (double support, right foot lifted, double support) reaches the same optimum with and
+    without it, with 3 more variables and rows per dynamics knot."""
+    from planner import PlannerSettings, plan
+    from planner.trajopt.centroidal import to_dynamic_layout
+    from planner.trajopt.centroidal.nlp import moment_rows
+    from planner.trajopt.layout import make_layout
+
+    feet = _feet(talos)
+    spec = TaskSpec(robot="talos", phases=(
+        Phase(name="both", duration=0.3, contacts=feet),
+        Phase(name="left", duration=0.3, contacts=feet[:1]),
+        Phase(name="both again", duration=0.3, contacts=feet),
+    ), dt=0.1, dynamic=True)
+    plans = {}
+    for lifted in (True, False):
+        settings = PlannerSettings(compile=False, use_cache=False,
+                                   centroidal=CentroidalSettings(lifted_moment=lifted))
+        plans[lifted] = plan(spec, talos, settings=settings)
+    a, b = plans[True], plans[False]
+    lay = to_dynamic_layout(make_layout(spec, talos))
+    assert moment_rows(lay) == 3 * (lay.N - 1)
+    assert a.stats.n_variables - b.stats.n_variables == moment_rows(lay)
+    assert a.stats.n_constraints - b.stats.n_constraints == moment_rows(lay)
+    assert a.ok and b.ok
+    assert a.stats.objective == pytest.approx(b.stats.objective, rel=1e-5)
+    np.testing.assert_allclose(a.q, b.q, atol=1e-4)
+    for frame in a.extras["corner_forces"]:
+        np.testing.assert_allclose(a.extras["corner_forces"][frame], b.extras["corner_forces"][frame],
+                                   atol=1e-3 * talos.mass * 9.81)
