@@ -62,10 +62,6 @@ def run(args: argparse.Namespace) -> int:
     from robots.cache import cache_base, cache_usage, format_size, max_cache_bytes, remove_entry
 
     folders = _folders(args.folder)
-    try:
-        cap = max_cache_bytes(strict=True)
-    except ValueError as e:
-        raise CliError(str(e), ExitCode.USAGE) from None
     base = cache_base()
     now = time.time()
     usage = cache_usage(base, folders, now=now)
@@ -79,6 +75,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"wbmp cache: removed {len(removed)} entries ({format_size(freed)}) from "
                   f"{', '.join(folders)} in {base}")
         return ExitCode.OK
+    try:
+        cap = max_cache_bytes(strict=True)
+    except ValueError as e:
+        raise CliError(str(e), ExitCode.USAGE) from None
     total = sum(f.size for f in usage)
     if args.json:
         out: dict[str, Any] = {"cache_dir": str(base), "cap": cap, "total": total, "folders": []}
