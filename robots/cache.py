@@ -17,6 +17,10 @@ and sha256 of the binary file, checked before Pinocchio reads them; a damaged en
 manifest, wrong hash, a file Pinocchio cannot read) is removed with one warning (logger
 ``robots.cache``) and rebuilt. Entries are written to a temporary folder and renamed into place;
 a cache folder that cannot be written only costs the speed-up.
+
+The size cap of the whole cache (every folder of :func:`cache_base`) is here too, shared by every
+cache (:func:`trim_cache` after a store, :func:`mark_used` on a load; docs/performance.md): over
+``$WBMP_CACHE_MAX_SIZE`` (default 4 GiB), the least recently used entries are removed.
 """
 
 from __future__ import annotations
