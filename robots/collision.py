@@ -710,6 +710,8 @@ _MEMORY: dict[tuple[int, str], CollisionModel] = {}
 
 def collision_model(robot: Robot) -> CollisionModel:
     """The collision model of ``robot``: from memory, the disk cache, or fitted now (~1 s)."""
+    from robots.cache import mark_used, trim_cache
+
     key = cache_key(robot)
     mem = _MEMORY.get((id(robot), key))
     if mem is not None:
@@ -719,11 +721,13 @@ def collision_model(robot: Robot) -> CollisionModel:
     try:
         if path.is_file() and path.stat().st_size < (8 << 20):
             cm = _from_json(json.loads(path.read_text(encoding="utf-8")), robot)
+            mark_used(path)
     except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, RecursionError):
-        cm = None  # damaged or stale: rebuilt below
+        cm = None  # damaged, stale or removed meanwhile: rebuilt below
     if cm is None:
         cm = _build(robot)
         _write_atomic(path, json.dumps(_to_json(cm)))
+        trim_cache(path.parent)
     _MEMORY[(id(robot), key)] = cm
     return cm
 

@@ -16,7 +16,9 @@ Pinocchio; and :data:`FORMAT`. An edited file therefore misses. An entry whose `
 does not match its size and sha256, or whose ``meta.json`` is unreadable or does not fit the
 model, is removed with one warning (logger ``sim.modelcache``) and rebuilt. Entries are written
 to a temporary folder and renamed into place; a cache folder that cannot be written only costs
-the speed-up.
+the speed-up. A hit renews the entry's use time and a store applies the size cap of the whole
+cache (:func:`robots.cache.enforce_cap`); an entry removed by another process while it is read is
+a miss.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from robots.cache import EntryDamaged, cache_folder, file_sha256, store_entry
+from robots.cache import EntryDamaged, cache_folder, file_sha256, mark_used, store_entry, vanished
 
 _log = logging.getLogger("sim.modelcache")
 
@@ -134,12 +136,16 @@ def cached_model(key: str | None, build: Callable[[], tuple[mujoco.MjModel, dict
     if entry.is_dir():
         try:
             try:
-                return check(*_read(entry))
+                result = check(*_read(entry))
             except (KeyError, TypeError, ValueError, IndexError) as e:
                 raise EntryDamaged(f"{_META} does not fit the model ({type(e).__name__}: {e})") from None
+            mark_used(entry)
+            return result
         except EntryDamaged as e:
-            _log.warning("wbmp: warning: MuJoCo model cache entry %s is damaged (%s); removed it, the model is built again", entry, e)
-            shutil.rmtree(entry, ignore_errors=True)
+            if not vanished(entry):  # else removed by another process while read: a miss
+                _log.warning("wbmp: warning: MuJoCo model cache entry %s is damaged (%s); removed it, the model is built again",
+                             entry, e)
+                shutil.rmtree(entry, ignore_errors=True)
     model, fields = build()
     result = check(model, fields)
     try:

@@ -17,7 +17,8 @@ sha256, and a hit requires each to hash the same today (an edited mesh misses an
 it also holds the size and sha256 of ``meshes.npz``, checked before numpy reads it. A damaged
 entry is removed with one warning (logger ``viz.meshcache``) and rebuilt; an entry is written
 to a temporary folder and renamed into place; a cache that cannot be written only costs the
-speed-up.
+speed-up. A hit renews the entry's use time and a store applies the size cap of the whole cache
+(:func:`robots.cache.enforce_cap`); an entry removed by another process while it is read is a miss.
 
 A hit gives the replay a light visual model (:func:`replay_robot`): the same geometry objects
 (names, joints, placements, colours) without their meshes, so the visual meshes are not loaded
@@ -46,9 +47,11 @@ from robots.cache import (
     cache_folder,
     environment,
     file_sha256,
+    mark_used,
     mesh_files,
     read_manifest,
     store_entry,
+    vanished,
 )
 
 _log = logging.getLogger("viz.meshcache")
@@ -245,8 +248,12 @@ def _cached(urdf: str, package_dirs: tuple[str, ...], _mtime_ns: int, _size: int
     if not entry.is_dir():
         return None
     try:
-        return _read(entry)
+        replay = _read(entry)
+        mark_used(entry)
+        return replay
     except EntryDamaged as e:
+        if vanished(entry):  # removed by another process while read: a miss
+            return None
         _log.warning("wbmp: warning: HTML mesh cache entry %s is damaged (%s); removed it, the meshes are "
                      "prepared from their files", entry, e)
     except EntryStale as e:

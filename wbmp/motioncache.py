@@ -23,7 +23,10 @@ of its ``--scene`` file; a scene with meshes takes the ordinary path).
 Nothing is trusted blindly: an entry is used only when the sha256 of its file matches its
 manifest and :func:`wbmp.motionfile.motion_from_arrays` accepts every key, and when the spec it
 holds hashes back to its key. A damaged entry is removed with one warning (logger
-``wbmp.motioncache``) and the motion is computed again. Every file is written atomically
+``wbmp.motioncache``) and the motion is computed again. A hit renews the use time of the entry's
+manifest (and of the request record); a store applies the size cap of the whole cache
+(:func:`robots.cache.enforce_cap`: least recently used entries removed, manifest first), and an
+entry removed by another process while it is read is a miss. Every file is written atomically
 (:mod:`viz.files`); a cache folder that cannot be written only costs the speed-up.
 """
 
@@ -308,6 +311,7 @@ class MotionCache:
                 return None  # a robot file changed: a miss, the record is replaced after the solve
         except OSError:
             return None
+        _mark_used(path)
         return key, digest
 
     def load(self, key: str, *, spec_check: bool = True) -> Hit | None:
@@ -338,12 +342,15 @@ class MotionCache:
             if spec_check and meta.get("spec") != hashlib.sha256(spec_identity(motion.plan.spec).encode()).hexdigest():
                 raise ValueError("the spec it holds is not the one of its key")
         except FileNotFoundError:
+            if not manifest.exists():
+                return None  # removed by another process while read (the size cap): a miss
             self._discard([manifest], f"motion cache entry {key[:16]} lacks its motion file")
             return None
         except (OSError, ValueError, MotionFileError) as e:
             self._discard([npz, manifest, self._page(key), Path(f"{self._page(key)}.json")],
                           f"motion cache entry {npz} is damaged ({str(e)[:200]})")
             return None
+        _mark_used(manifest)
         return Hit(key=key, arrays=arrays, motion=motion, path=npz, data=data)
 
     def load_page(self, key: str) -> str | None:
@@ -381,6 +388,7 @@ class MotionCache:
                 "spec": hashlib.sha256(spec_identity(spec).encode()).hexdigest(), "wbmp": __version__}
         self._write(self._npz(key), data)
         self._write(self._manifest(key), json.dumps(meta).encode())
+        _trim(self.root)
 
     def store_request(self, rkey: str, key: str, files: dict[str, str], robot_digest: str) -> None:
         """Remember that request ``rkey`` led to motion ``key`` with these robot files."""
@@ -392,6 +400,7 @@ class MotionCache:
         self._write(self._page(key), raw)
         self._write(Path(f"{self._page(key)}.json"),
                     json.dumps({"sha256": hashlib.sha256(raw).hexdigest(), "viz": viz_hash()}).encode())
+        _trim(self.root)
 
     def _write(self, path: Path, data: bytes) -> None:
         from viz.files import OutputError, atomic_write
@@ -412,6 +421,22 @@ class MotionCache:
                 _log.warning("wbmp: warning: %s; could not remove %s (%s)", why, p, e.strerror or e)
                 return
         _log.warning("wbmp: warning: %s; removed it, the motion is computed again", why)
+
+
+def _mark_used(path: Path) -> None:
+    """Renew an entry's use time (:func:`robots.cache.mark_used`, inlined: a hit does not import
+    ``robots``, which loads Pinocchio)."""
+    try:
+        os.utime(path, follow_symlinks=os.utime not in os.supports_follow_symlinks)  # a link: not its target
+    except OSError:
+        pass
+
+
+def _trim(root: Path) -> None:
+    """Apply the whole cache's size cap after a store (:func:`robots.cache.trim_cache`)."""
+    from robots.cache import trim_cache
+
+    trim_cache(root)
 
 
 _WARNED: set[str] = set()

@@ -48,6 +48,7 @@ from planner.trajopt.cache_disk import LIBRARY, META, SERIALIZED, EntryDamaged
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import model_hash
+from robots.cache import mark_used, trim_cache
 
 if TYPE_CHECKING:
     from planner.trajopt.transcription import Solver
@@ -162,6 +163,7 @@ def _load_entry(lay: Layout, entry: Path, key: str, settings: PlannerSettings, p
         seen = os.lstat(entry)
     except OSError:  # missing; or the cache folder is a file or cannot be searched
         return None
+    mark_used(entry)  # its use time, for the size cap: an entry being read is not removed
     try:
         meta, digest = cache_disk.check_files(entry, key, seen)
         nl = make_nlp_layout(lay)
@@ -199,6 +201,7 @@ def _load_serialized(lay: Layout, entry: Path, key: str, settings: PlannerSettin
         seen = os.lstat(entry)
     except OSError:
         return None
+    mark_used(entry)  # its use time, for the size cap: an entry being read is not removed
     try:
         meta, _ = cache_disk.check_files(entry, key, seen, expected_format="casadi")
         nl = make_nlp_layout(lay)
@@ -343,7 +346,9 @@ def _write_serialized(tmp: Path, entry: Path, key: str, functions, n_x: int, n_g
             "casadi": ca.__version__, "created": time.time()}
     (tmp / META).write_text(json.dumps(meta))  # written last: an entry without it is rebuilt
     (tmp / cache_disk.BUILDER_PID).unlink(missing_ok=True)
-    return cache_disk.publish(tmp, entry, key)
+    published = cache_disk.publish(tmp, entry, key)
+    trim_cache(entry.parent)  # the size cap of the whole cache (least recently used entries go)
+    return published
 
 
 def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, settings: PlannerSettings,
@@ -429,7 +434,9 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
     }
     (tmp / META).write_text(json.dumps(meta))  # written last: an entry without it is rebuilt
     (tmp / cache_disk.BUILDER_PID).unlink(missing_ok=True)
-    return cache_disk.publish(tmp, entry, key)
+    published = cache_disk.publish(tmp, entry, key)
+    trim_cache(entry.parent)  # the size cap of the whole cache (least recently used entries go)
+    return published
 
 
 def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:

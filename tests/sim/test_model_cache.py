@@ -120,3 +120,46 @@ def test_mujoco_cache_damaged_entry_is_rebuilt_with_one_warning(talos, tmp_path,
     caplog.clear()
     _model(talos)
     assert len(counted) == 2 and not caplog.records
+
+
+def test_an_entry_removed_while_read_is_a_miss_without_a_warning(tmp_path, monkeypatch, caplog):
+    """Another process (the cache's size cap, ``wbmp cache --clear``) removes the entry after its
+    manifest was read: a miss, the model built again, no "damaged" warning; a hit renews the
+    entry's use time."""
+    import os
+    import time
+    import types
+
+    from robots.cache import cache_usage, remove_entry
+    from sim import modelcache
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("WBMP_MUJOCO_CACHE", raising=False)
+    xml = "<mujoco><worldbody><body><freejoint/><geom size='0.1'/></body></worldbody></mujoco>"
+    builds: list[int] = []
+
+    def build():
+        builds.append(1)
+        return mujoco.MjModel.from_xml_string(xml), {"n": 3}
+
+    def check(model, fields):
+        return model.nq, model.nv, fields["n"]
+
+    key = "ab" * 32
+    entry = tmp_path / "cache" / "mujoco" / key
+    assert modelcache.cached_model(key, build, check) == (7, 6, 3) and entry.is_dir()
+    os.utime(entry, (1000.0, 1000.0))
+    assert modelcache.cached_model(key, build, check) == (7, 6, 3) and len(builds) == 1  # a hit
+    assert os.lstat(entry).st_mtime > time.time() - 60
+
+    def racing_loads(raw):
+        out = json.loads(raw)
+        (victim,) = [e for f in cache_usage() for e in f.entries if e.name == key]
+        assert remove_entry(victim)
+        return out
+
+    monkeypatch.setattr(modelcache, "json", types.SimpleNamespace(loads=racing_loads, dumps=json.dumps))
+    with caplog.at_level(logging.INFO):
+        assert modelcache.cached_model(key, build, check) == (7, 6, 3)
+    assert len(builds) == 2 and entry.is_dir()  # built and stored again
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]

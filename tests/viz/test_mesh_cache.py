@@ -130,3 +130,41 @@ def test_changed_mesh_misses_without_a_warning_and_cache_off_writes_nothing(cach
     monkeypatch.setenv("WBMP_CACHE_DIR", str(cache_dir.parent.parent / "other"))
     assert _page(talos, synth_plan) == reference
     assert not (cache_dir.parent.parent / "other").exists()
+
+
+def test_an_entry_removed_while_read_is_a_miss_without_a_warning(cache_dir, tmp_path, monkeypatch, caplog):
+    """Another process (the cache's size cap, ``wbmp cache --clear``) removes the entry between
+    the manifest and the data: a miss, no "damaged" warning; a hit renews the entry's use time."""
+    import os
+    import time
+
+    import pinocchio as pin
+
+    from robots.cache import cache_usage, remove_entry
+
+    urdf = tmp_path / "box.urdf"
+    urdf.write_text('<robot name="box"><link name="base"><visual><geometry><box size="0.1 0.2 0.3"/></geometry>'
+                    "</visual></link></robot>")
+    model = pin.buildModelFromUrdf(str(urdf))
+    visual = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.VISUAL)
+    replay = meshcache.prepare(visual)
+    assert replay.arrays["kinds"].tolist() == [meshcache.PRIMITIVE]
+    key = meshcache.entry_key(str(urdf), ())
+    meshcache._write(cache_dir, key, replay, [])
+    os.utime(cache_dir / key, (1000.0, 1000.0))
+    hit = meshcache._cached.__wrapped__(str(urdf), (), 0, 0, cache_dir)
+    assert hit is not None and hit.arrays["shapes"][0].tolist() == pytest.approx([0.0, 0.1, 0.2, 0.3])
+    assert os.lstat(cache_dir / key).st_mtime > time.time() - 60
+    real = meshcache.read_manifest
+
+    def racing(entry, fmt):
+        out = real(entry, fmt)
+        (victim,) = [e for f in cache_usage() for e in f.entries if e.name == entry.name]
+        assert remove_entry(victim)
+        return out
+
+    monkeypatch.setattr(meshcache, "read_manifest", racing)
+    with caplog.at_level(logging.INFO):
+        assert meshcache._cached.__wrapped__(str(urdf), (), 0, 0, cache_dir) is None
+    assert not (cache_dir / key).exists()
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
