@@ -24,15 +24,19 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
-from planner.trajopt.layout import Layout, Term
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.term import Term
 from robots.collision import CollisionModel, body_part, collision_model
 from robots.model import Robot
+
+if TYPE_CHECKING:
+    from planner.trajopt.layout import Layout
 
 KNOT_PADDING = 3  # knots added on each side of a screened pair's close knots
 CLOSEST_WITHIN = 0.1  # [m] the report's closest pair is looked for among pairs this close first

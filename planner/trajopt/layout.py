@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import SpecNotForRobot
+from planner.trajopt.term import Term, knots_of
 from robots.contact import halfplanes, sole_corners_in_world
 from robots.contact import support_polygon as polygon_of_soles
 from robots.model import Robot
@@ -41,45 +42,6 @@ if TYPE_CHECKING:
 
 INF = math.inf
 MIN_INTERVALS = 4  # the rest constraints use two knots at each end
-
-
-@dataclass(eq=False)
-class Term:
-    """One constraint or cost at one knot.
-
-    Attributes:
-        kind: ``contact``, ``clearance``, ``polygon``, ``com_box``, ``frame_pos``, ``frame_rot``, ``collision``,
-            ``com_pos``, ``joint``, ``frame_rel`` (two hands holding one object: a closed chain).
-        knot: Knot index (0..N).
-        structure: Hashable description of the expression (no numeric values).
-        params: Numeric parameters fed to the NLP (flattened).
-        lower, upper: Bounds of the constraint rows (empty for a cost term).
-        label: What the report calls it ("left_foot contact", "target 'reach'").
-        group: The report group it belongs to (several knots share a group).
-        item: The spec item it comes from (for diagnoses).
-        phase: Name of the phase at this knot.
-        unit: Unit of the rows.
-    """
-
-    kind: str
-    knot: int
-    structure: tuple
-    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    upper: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    label: str = ""
-    item: object = None
-    phase: str = ""
-
-    @property
-    def is_cost(self) -> bool:
-        """True when the term only adds to the cost."""
-        return len(self.lower) == 0
-
-    @property
-    def n_rows(self) -> int:
-        """Number of constraint rows."""
-        return len(self.lower)
 
 
 @dataclass(eq=False)
@@ -196,19 +158,6 @@ def knot_grid(spec: TaskSpec) -> tuple[int, float, np.ndarray]:
     N = max(MIN_INTERVALS, int(round(horizon / spec.dt)))
     dt = horizon / N
     return N, dt, np.linspace(0.0, horizon, N + 1)
-
-
-def knots_of(layout_t: np.ndarray, time: float | None, window, N: int) -> list[int]:
-    """Knots where a timed item applies: nearest to ``time``, every knot in ``window``, or N."""
-    dt = layout_t[1] - layout_t[0]
-    if window is not None:
-        ks = [k for k in range(N + 1) if window[0] - 1e-9 <= layout_t[k] <= window[1] + 1e-9]
-        if not ks:
-            ks = [int(round(0.5 * (window[0] + window[1]) / dt))]
-        return ks
-    if time is None:
-        return [N]
-    return [min(N, max(0, int(round(time / dt))))]
 
 
 def make_layout(spec: TaskSpec, robot: Robot) -> Layout:

@@ -48,6 +48,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -55,11 +56,14 @@ import pinocchio as pin
 from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
-from planner.trajopt.layout import Layout, Term, knots_of
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.term import Term, knots_of
 from robots.collision import body_part
 from robots.model import Robot
 from tasks.scene import Scene, SceneObject, on_top
+
+if TYPE_CHECKING:
+    from planner.trajopt.layout import Layout
 
 P_NORM = 32  # even exponent of the box and cylinder rows
 MAX_HALF = 0.15  # [m] longer boxes and cylinders are split into pieces of at most this half extent

@@ -57,7 +57,9 @@ def test_every_task_failing_exits_4_with_the_report(failed_run):
         assert any(ln.startswith(name) for ln in outcome.out.splitlines()), outcome.out
     result = json.loads(json_path.read_text())  # ...and written
     assert {n: r["status"] for n, r in result["tasks"].items()} == {"squat": "plan failed", "reach": "plan failed"}
-    assert all(r["iterations"] == 1 and r["checks_ok"] is False for r in result["tasks"].values())
+    # one iteration a solve: the first, and the fallback with the idle self-collision rows that a solve
+    # stopped at the iteration limit gets (planner/trajopt/api.py)
+    assert all(r["iterations"] in (1, 2) and r["checks_ok"] is False for r in result["tasks"].values())
     assert result["max_iterations"] == 1
     assert result["tasks"]["squat"]["cold_process_s"] is None  # a failed plan is not timed further
     assert "| squat |" in md_path.read_text()
