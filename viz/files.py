@@ -24,13 +24,14 @@ This module is plain Python (no numpy, no wbmp import), so the CLI can check pat
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import secrets
 import signal
 import stat
 import threading
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -62,14 +63,24 @@ def _why(err: OSError) -> str:
     return err.strerror or str(err)
 
 
-def _probe_folder(folder: Path) -> str | None:
-    """None if a file can be created in ``folder``, else the reason (also right for root)."""
-    probe = folder / f".wbmp-probe-{secrets.token_hex(4)}{TMP_SUFFIX}"
-    # Ctrl-C or SIGTERM wait until the probe is gone (they arrive when the mask is restored): an
-    # interrupt between creating and removing it would leave it in the user's folder.
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait (in this thread) until the block ends, then arrive."""
     signals = {signal.SIGINT, signal.SIGTERM}
     held = signal.pthread_sigmask(signal.SIG_BLOCK, signals) if hasattr(signal, "pthread_sigmask") else None
     try:
+        yield
+    finally:
+        if held is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def _probe_folder(folder: Path) -> str | None:
+    """None if a file can be created in ``folder``, else the reason (also right for root)."""
+    probe = folder / f".wbmp-probe-{secrets.token_hex(4)}{TMP_SUFFIX}"
+    # Ctrl-C or SIGTERM wait until the probe is gone: an interrupt between creating and removing it
+    # would leave it in the user's folder.
+    with _signals_held():
         try:
             fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
         except OSError as e:
@@ -80,9 +91,6 @@ def _probe_folder(folder: Path) -> str | None:
         except OSError as e:  # pragma: no cover - created a moment ago in the same folder
             return _why(e)
         return None
-    finally:
-        if held is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 def _check_parent(path: Path, option: str, shown: str) -> None:
@@ -271,12 +279,15 @@ class Staging:
         except FileNotFoundError:
             st = None
         existed = st is not None and stat.S_ISREG(st.st_mode)
-        try:
-            tmp = self._create(folder, target.name)
-        except OSError as e:
-            self.discard()
-            raise OutputWriteError(f"cannot write in {_show(folder)}: {_why(e)}; nothing was written") from e
-        self._staged.append(_Staged(tmp=tmp, target=target, existed=existed, new_folders=tuple(reversed(missing))))
+        # Ctrl-C or SIGTERM wait until the new temporary file is on the list that discard() empties
+        # (they arrive when the mask is restored): one between creating and listing it would leave it
+        with _signals_held():
+            try:
+                tmp = self._create(folder, target.name)
+            except OSError as e:
+                self.discard()
+                raise OutputWriteError(f"cannot write in {_show(folder)}: {_why(e)}; nothing was written") from e
+            self._staged.append(_Staged(tmp=tmp, target=target, existed=existed, new_folders=tuple(reversed(missing))))
         if background:
             errors: list[BaseException] = []
             thread = threading.Thread(target=self._write_into, args=(tmp, target, st if existed else None, write, errors),
