@@ -356,12 +356,26 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
     lifts off or touches down, the CoM must already (or still) be over the soles of the phase
     with fewer feet, so the smaller of the two hulls is used (a phase in flight has none).
     """
-    spec, robot = lay.spec, lay.robot
+    spec = lay.spec
     tk = lay.t[k]
-    hulls = []
-    for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
-        if not start - 1e-9 <= tk <= start + phase.duration + 1e-9:
-            continue
+    phases = _phase_polygons(lay)
+    hulls = [phases[i] for i, (start, phase) in enumerate(zip(spec.phase_start_times(), spec.phases, strict=True))
+             if start - 1e-9 <= tk <= start + phase.duration + 1e-9 and phases[i] is not None]
+    if not hulls:
+        return np.zeros((0, 2))
+    return min(hulls, key=lambda h: h[1])[0]
+
+
+def _phase_polygons(lay: Layout) -> list[tuple[np.ndarray, float] | None]:
+    """Per phase of ``lay.spec``, the convex hull of its soles (read-only) and its area, or None
+    (no sole): computed once per layout and spec (:func:`support_polygon` asks for it at every
+    knot, several times over a plan)."""
+    cached = lay.__dict__.get("_phase_polygons")
+    if cached is not None and cached[0] is lay.spec and cached[1] is lay.robot:
+        return cached[2]
+    spec, robot = lay.spec, lay.robot
+    out: list[tuple[np.ndarray, float] | None] = []
+    for phase in spec.phases:
         soles = []
         for c in phase.contacts:
             side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
@@ -369,10 +383,13 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
                 continue  # a hand or other contact: not part of the sole polygon
             soles.append(sole_corners_in_world(robot.profile.sole, side, placement_of(c.placement)))
         if soles:
-            hulls.append(polygon_of_soles(soles))
-    if not hulls:
-        return np.zeros((0, 2))
-    return min(hulls, key=_polygon_area)
+            hull = polygon_of_soles(soles)
+            hull.setflags(write=False)  # shared by every knot of the phase
+            out.append((hull, _polygon_area(hull)))
+        else:
+            out.append(None)
+    lay.__dict__["_phase_polygons"] = (spec, robot, out)
+    return out
 
 
 def _polygon_area(hull: np.ndarray) -> float:
