@@ -16,7 +16,14 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
-from planner.trajopt.layout import Layout, halfplanes, knots_of, placement_of, support_polygon
+from planner.trajopt.layout import (
+    Layout,
+    halfplanes,
+    knots_of,
+    placement_of,
+    support_halfplanes,
+    support_polygon,
+)
 from planner.trajopt.settings import PlannerSettings
 from tasks.specs import Priority
 
@@ -95,9 +102,9 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         poly, box = [], []
         for k in ks:
             if bounds.support_polygon:
-                hull = support_polygon(lay, k)
-                if len(hull) >= 3:
-                    A, b = halfplanes(hull)
+                planes = support_halfplanes(lay, k)
+                if planes is not None:
+                    A, b = planes
                     poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
             viol = 0.0
             for i in range(3):

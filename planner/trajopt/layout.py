@@ -356,25 +356,39 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
     lifts off or touches down, the CoM must already (or still) be over the soles of the phase
     with fewer feet, so the smaller of the two hulls is used (a phase in flight has none).
     """
+    entry = _support_entry(lay, k)
+    return np.zeros((0, 2)) if entry is None else entry[0]
+
+
+def support_halfplanes(lay: Layout, k: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """``halfplanes(support_polygon(lay, k))`` (read-only arrays), None when that polygon has fewer
+    than 3 corners; computed once per phase."""
+    entry = _support_entry(lay, k)
+    return None if entry is None else entry[2]
+
+
+def _support_entry(lay: Layout, k: int) -> tuple[np.ndarray, float, tuple[np.ndarray, np.ndarray] | None] | None:
     spec = lay.spec
     tk = lay.t[k]
     phases = _phase_polygons(lay)
-    hulls = [phases[i] for i, (start, phase) in enumerate(zip(spec.phase_start_times(), spec.phases, strict=True))
-             if start - 1e-9 <= tk <= start + phase.duration + 1e-9 and phases[i] is not None]
+    hulls = []
+    for entry, start, phase in zip(phases, spec.phase_start_times(), spec.phases, strict=True):
+        if entry is not None and start - 1e-9 <= tk <= start + phase.duration + 1e-9:
+            hulls.append(entry)
     if not hulls:
-        return np.zeros((0, 2))
-    return min(hulls, key=lambda h: h[1])[0]
+        return None
+    return min(hulls, key=lambda h: h[1])
 
 
-def _phase_polygons(lay: Layout) -> list[tuple[np.ndarray, float] | None]:
-    """Per phase of ``lay.spec``, the convex hull of its soles (read-only) and its area, or None
-    (no sole): computed once per layout and spec (:func:`support_polygon` asks for it at every
-    knot, several times over a plan)."""
+def _phase_polygons(lay: Layout) -> list[tuple[np.ndarray, float, tuple[np.ndarray, np.ndarray] | None] | None]:
+    """Per phase of ``lay.spec``, the convex hull of its soles, its area and its half-planes (when it
+    has 3 corners or more), or None (no sole); arrays read-only: computed once per layout and spec
+    (:func:`support_polygon` asks for it at every knot, several times over a plan)."""
     cached = lay.__dict__.get("_phase_polygons")
     if cached is not None and cached[0] is lay.spec and cached[1] is lay.robot:
         return cached[2]
     spec, robot = lay.spec, lay.robot
-    out: list[tuple[np.ndarray, float] | None] = []
+    out: list[tuple[np.ndarray, float, tuple[np.ndarray, np.ndarray] | None] | None] = []
     for phase in spec.phases:
         soles = []
         for c in phase.contacts:
@@ -384,8 +398,10 @@ def _phase_polygons(lay: Layout) -> list[tuple[np.ndarray, float] | None]:
             soles.append(sole_corners_in_world(robot.profile.sole, side, placement_of(c.placement)))
         if soles:
             hull = polygon_of_soles(soles)
-            hull.setflags(write=False)  # shared by every knot of the phase
-            out.append((hull, _polygon_area(hull)))
+            planes = halfplanes(hull) if len(hull) >= 3 else None
+            for a in (hull, *(planes or ())):
+                a.setflags(write=False)  # shared by every knot of the phase
+            out.append((hull, _polygon_area(hull), planes))
         else:
             out.append(None)
     lay.__dict__["_phase_polygons"] = (spec, robot, out)
@@ -408,9 +424,9 @@ def balance_terms(lay: Layout, bounds: CoMBounds) -> None:
         if not _use(lay, k):
             continue
         if bounds.support_polygon:
-            hull = support_polygon(lay, k)
-            if len(hull) >= 3:
-                A, b = halfplanes(hull)
+            planes = support_halfplanes(lay, k)
+            if planes is not None:
+                A, b = planes
                 n_feet = sum(1 for fid in lay.contacts_at[k] if lay.robot.foot_side(lay.robot.model.frames[fid].name))
                 rows = max(POLYGON_ROWS.get(n_feet, 4 * n_feet), len(A))
                 A_pad = np.zeros((rows, 2))

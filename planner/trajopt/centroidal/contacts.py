@@ -265,14 +265,12 @@ def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[Cont
                     mus[robot.frame_id(c.frame)] = c.friction_coefficient
         geos = []
         for fid, (_frame, M) in active.items():
-            contact = Contact(
-                frame=robot.model.frames[fid].name,
-                placement=Pose(position=cast(Vec3, tuple(float(x) for x in M.translation)),
-                               rpy=cast(Vec3, tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation)))),
-                friction_coefficient=mus.get(fid),
-            )
-            key = (contact.frame, contact.placement.position, contact.placement.rpy, contact.friction_coefficient)
+            position = cast(Vec3, tuple(float(x) for x in M.translation))
+            rpy = cast(Vec3, tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation)))
+            key = (fid, position, rpy, mus.get(fid))
             if key not in bound:
+                contact = Contact(frame=robot.model.frames[fid].name, placement=Pose(position=position, rpy=rpy),
+                                  friction_coefficient=mus.get(fid))
                 bound[key] = contact_geometry(contact, robot, cop_margin=cop_margin, ankles=ankles)
             geos.append(bound[key])
         out.append(tuple(geos))
