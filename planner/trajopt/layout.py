@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -357,39 +357,43 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
     with fewer feet, so the smaller of the two hulls is used (a phase in flight has none).
     """
     entry = _support_entry(lay, k)
-    return np.zeros((0, 2)) if entry is None else entry[0]
+    return np.zeros((0, 2)) if entry is None else entry.hull
 
 
 def support_halfplanes(lay: Layout, k: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``halfplanes(support_polygon(lay, k))`` (read-only arrays), None when that polygon has fewer
     than 3 corners; computed once per phase."""
     entry = _support_entry(lay, k)
-    return None if entry is None else entry[2]
+    return None if entry is None else entry.planes
 
 
-def _support_entry(lay: Layout, k: int) -> tuple[np.ndarray, float, tuple[np.ndarray, np.ndarray] | None] | None:
-    spec = lay.spec
+class _PhasePolygon(NamedTuple):
+    start: float  # [s]
+    end: float  # [s]
+    hull: np.ndarray  # (M, 2), read-only
+    area: float  # [m^2]
+    planes: tuple[np.ndarray, np.ndarray] | None  # halfplanes(hull) (read-only), None: < 3 corners
+
+
+def _support_entry(lay: Layout, k: int) -> _PhasePolygon | None:
+    """The smallest support polygon of the phases that hold at knot ``k`` (None: no sole)."""
     tk = lay.t[k]
-    phases = _phase_polygons(lay)
-    hulls = []
-    for entry, start, phase in zip(phases, spec.phase_start_times(), spec.phases, strict=True):
-        if entry is not None and start - 1e-9 <= tk <= start + phase.duration + 1e-9:
-            hulls.append(entry)
+    hulls = [p for p in _phase_polygons(lay) if p.start - 1e-9 <= tk <= p.end + 1e-9]
     if not hulls:
         return None
-    return min(hulls, key=lambda h: h[1])
+    return min(hulls, key=lambda h: h.area)
 
 
-def _phase_polygons(lay: Layout) -> list[tuple[np.ndarray, float, tuple[np.ndarray, np.ndarray] | None] | None]:
-    """Per phase of ``lay.spec``, the convex hull of its soles, its area and its half-planes (when it
-    has 3 corners or more), or None (no sole); arrays read-only: computed once per layout and spec
-    (:func:`support_polygon` asks for it at every knot, several times over a plan)."""
+def _phase_polygons(lay: Layout) -> list[_PhasePolygon]:
+    """The phases of ``lay.spec`` with soles, in order: their time spans and sole polygons,
+    computed once per layout and spec (:func:`support_polygon` asks for them at every knot,
+    several times over a plan)."""
     cached = lay.__dict__.get("_phase_polygons")
     if cached is not None and cached[0] is lay.spec and cached[1] is lay.robot:
         return cached[2]
     spec, robot = lay.spec, lay.robot
-    out: list[tuple[np.ndarray, float, tuple[np.ndarray, np.ndarray] | None] | None] = []
-    for phase in spec.phases:
+    out: list[_PhasePolygon] = []
+    for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
         soles = []
         for c in phase.contacts:
             side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
@@ -401,9 +405,7 @@ def _phase_polygons(lay: Layout) -> list[tuple[np.ndarray, float, tuple[np.ndarr
             planes = halfplanes(hull) if len(hull) >= 3 else None
             for a in (hull, *(planes or ())):
                 a.setflags(write=False)  # shared by every knot of the phase
-            out.append((hull, _polygon_area(hull), planes))
-        else:
-            out.append(None)
+            out.append(_PhasePolygon(start, start + phase.duration, hull, _polygon_area(hull), planes))
     lay.__dict__["_phase_polygons"] = (spec, robot, out)
     return out
 
