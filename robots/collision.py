@@ -762,6 +762,7 @@ def _body_parts(robot: Robot) -> dict[str, str]:
         j = joint_of(role)
         return set(_ancestors(model, j)) if j is not None else set()
 
+    @functools.cache  # asked for every link: computed once per role
     def below(role: str) -> set[int]:  # the joints of the subtree under a role's joint
         j = joint_of(role)
         return {i for i in range(1, model.njoints) if j is not None and j in _ancestors(model, i)}

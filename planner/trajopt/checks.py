@@ -16,7 +16,14 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
-from planner.trajopt.layout import Layout, halfplanes, knots_of, placement_of, support_polygon
+from planner.trajopt.layout import (
+    Layout,
+    halfplanes,
+    knots_of,
+    placement_of,
+    support_halfplanes,
+    support_polygon,
+)
 from planner.trajopt.settings import PlannerSettings
 from tasks.specs import Priority
 
@@ -53,10 +60,13 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     """Every constraint group's worst violation, evaluated with Pinocchio at the knots."""
     robot, spec, t = lay.robot, lay.spec, lay.t
     model, data = robot.model, robot.data()
-    placements = []
+    used = sorted({fid for active in lay.contacts_at for fid in active}
+                  | {term.structure[1] for term in lay.terms if term.kind == "clearance"}
+                  | {robot.frame_id(target.frame) for target in spec.targets})
+    placements: list[dict[int, pin.SE3]] = []  # per knot, the placements of the frames checked
     for qk in q:
-        pin.framesForwardKinematics(model, data, qk)
-        placements.append([data.oMf[i].copy() for i in range(model.nframes)])
+        pin.forwardKinematics(model, data, qk)
+        placements.append({fid: pin.updateFramePlacement(model, data, fid).copy() for fid in used})
     checks: list[Check] = []
     # stance soles
     names: dict[int, str] = {}
@@ -92,9 +102,9 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         poly, box = [], []
         for k in ks:
             if bounds.support_polygon:
-                hull = support_polygon(lay, k)
-                if len(hull) >= 3:
-                    A, b = halfplanes(hull)
+                planes = support_halfplanes(lay, k)
+                if planes is not None:
+                    A, b = planes
                     poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
             viol = 0.0
             for i in range(3):
@@ -175,11 +185,16 @@ def _has_point(A: np.ndarray, b: np.ndarray) -> bool:
     return False
 
 
+def _with_box(A: np.ndarray, b: np.ndarray, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+    """``A x <= b`` with the rows of the xy box ``lower <= x <= upper`` appended."""
+    return (np.vstack([A, [[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]]]),
+            np.concatenate([b, [-lower[0], upper[0], -lower[1], upper[1]]]))
+
+
 def _polygon_room(A: np.ndarray, b: np.ndarray, lower=None, upper=None) -> float:
     """Radius of the largest disc inside ``A x <= b`` (and the xy box) [m]; -inf when empty."""
     if lower is not None:
-        A = np.vstack([A, [[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]]])
-        b = np.concatenate([b, [-lower[0], upper[0], -lower[1], upper[1]]])
+        A, b = _with_box(A, b, lower, upper)
     if not _has_point(A, b):
         return -math.inf
     lo, hi = 0.0, 10.0
@@ -226,15 +241,14 @@ def precheck(lay: Layout) -> str:
             if len(hull) < 3:
                 continue
             A, b = halfplanes(hull)
-            room = _polygon_room(A, b - bounds.margin)
-            if room == -math.inf:
+            if not _has_point(A, b - bounds.margin):  # no room (the width only for the message)
                 width = 2 * _polygon_room(A, b)
                 return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: the support polygon is "
                         f"{width:.3f} m wide, and the margin {bounds.margin:.3f} m on each side leaves no room")
             if any(bounds.lower[i] is not None or bounds.upper[i] is not None for i in range(2)):
                 lo_xy = [-1e3 if v is None else v for v in bounds.lower[:2]]
                 hi_xy = [1e3 if v is None else v for v in bounds.upper[:2]]
-                if _polygon_room(A, b - bounds.margin, lo_xy, hi_xy) == -math.inf:
+                if not _has_point(*_with_box(A, b - bounds.margin, lo_xy, hi_xy)):
                     return (f"CoM bound {bounds.name!r} cannot hold in phase {phase!r}: its box "
                             f"x [{_fmt(bounds.lower[0])}, {_fmt(bounds.upper[0])}] m, y [{_fmt(bounds.lower[1])}, "
                             f"{_fmt(bounds.upper[1])}] m does not overlap the support polygon shrunk by "

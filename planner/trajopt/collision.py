@@ -114,23 +114,22 @@ def sphere_sets(robot: Robot) -> SphereSets:
     offsets = np.cumsum([0] + [len(c) for c in centres])
     pairs = np.array([(index[(a, ka)], index[(b, kb)]) for (a, b), (ka, kb)
                       in ((p, cm.covers.get(p, (0, 0))) for p in cm.pairs)], dtype=int).reshape(-1, 2)
-    sa, sb, starts = [], [], []
-    n = 0
-    for a, b in pairs:
-        ia = np.arange(offsets[a], offsets[a + 1])
-        ib = np.arange(offsets[b], offsets[b + 1])
-        starts.append(n)
-        n += len(ia) * len(ib)
-        sa.append(np.repeat(ia, len(ib)))
-        sb.append(np.tile(ib, len(ia)))
+    # every sphere i of set a against every sphere j of set b, i-major, pair after pair (vectorised)
+    size = np.diff(offsets)
+    na, nb = size[pairs[:, 0]], size[pairs[:, 1]]
+    block = na * nb
+    starts = np.cumsum(block) - block
+    m = np.arange(int(block.sum())) - np.repeat(starts, block)  # index within its pair's block
+    nb_of = np.repeat(nb, block)
+    sa = np.repeat(offsets[pairs[:, 0]], block) + m // nb_of
+    sb = np.repeat(offsets[pairs[:, 1]], block) + m % nb_of
     owner = np.concatenate([np.full(len(c), i) for i, c in enumerate(centres)])
     local, radius = np.vstack(centres), np.concatenate(radii)
     own = int(offsets[len(cm.links)])  # the links' own spheres come first
     sets = SphereSets(
         model=cm, links=tuple(link for link, _ in bodies), joints=np.array(joints, dtype=int),
         centres=tuple(centres), radii=tuple(radii),
-        pairs=pairs, sa=np.concatenate(sa) if sa else np.zeros(0, int), sb=np.concatenate(sb) if sb else np.zeros(0, int),
-        starts=np.array(starts, dtype=int), sphere_owner=owner[:own], sphere_local=local[:own],
+        pairs=pairs, sa=sa.astype(int), sb=sb.astype(int), starts=starts.astype(int), sphere_owner=owner[:own], sphere_local=local[:own],
         sphere_radius=radius[:own], pair_owner=owner, pair_local=local, pair_radius=radius)
     _SETS[id(robot)] = (robot, sets)
     return sets
@@ -190,10 +189,9 @@ def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray, within:
     t = np.repeat(tp, sizes)
     si = np.repeat(sets.starts[pp], sizes) + np.arange(int(sizes.sum())) - first
     ia, ib = sets.sa[si], sets.sb[si]
-    Ha, Hb2 = H[t, o[ia]], H[t, o[ib]]
-    wa = np.einsum("nij,nj->ni", Ha[:, :3, :3], sets.pair_local[ia]) + Ha[:, :3, 3]
-    wb = np.einsum("nij,nj->ni", Hb2[:, :3, :3], sets.pair_local[ib]) + Hb2[:, :3, 3]
-    out[t, si] = np.linalg.norm(wa - wb, axis=1) - rsum[si]
+    Hs = H[:, o]  # every sphere placed once per knot (a few hundred), then gathered per entry
+    world = np.einsum("tsij,sj->tsi", Hs[..., :3, :3], sets.pair_local) + Hs[..., :3, 3]
+    out[t, si] = np.linalg.norm(world[t, ia] - world[t, ib], axis=1) - rsum[si]
     return out
 
 

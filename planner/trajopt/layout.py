@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -305,12 +305,44 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
     lifts off or touches down, the CoM must already (or still) be over the soles of the phase
     with fewer feet, so the smaller of the two hulls is used (a phase in flight has none).
     """
-    spec, robot = lay.spec, lay.robot
+    entry = _support_entry(lay, k)
+    return np.zeros((0, 2)) if entry is None else entry.hull
+
+
+def support_halfplanes(lay: Layout, k: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """``halfplanes(support_polygon(lay, k))`` (read-only arrays), None when that polygon has fewer
+    than 3 corners; computed once per phase."""
+    entry = _support_entry(lay, k)
+    return None if entry is None else entry.planes
+
+
+class _PhasePolygon(NamedTuple):
+    start: float  # [s]
+    end: float  # [s]
+    hull: np.ndarray  # (M, 2), read-only
+    area: float  # [m^2]
+    planes: tuple[np.ndarray, np.ndarray] | None  # halfplanes(hull) (read-only), None: < 3 corners
+
+
+def _support_entry(lay: Layout, k: int) -> _PhasePolygon | None:
+    """The smallest support polygon of the phases that hold at knot ``k`` (None: no sole)."""
     tk = lay.t[k]
-    hulls = []
+    hulls = [p for p in _phase_polygons(lay) if p.start - 1e-9 <= tk <= p.end + 1e-9]
+    if not hulls:
+        return None
+    return min(hulls, key=lambda h: h.area)
+
+
+def _phase_polygons(lay: Layout) -> list[_PhasePolygon]:
+    """The phases of ``lay.spec`` with soles, in order: their time spans and sole polygons,
+    computed once per layout and spec (:func:`support_polygon` asks for them at every knot,
+    several times over a plan)."""
+    cached = lay.__dict__.get("_phase_polygons")
+    if cached is not None and cached[0] is lay.spec and cached[1] is lay.robot:
+        return cached[2]
+    spec, robot = lay.spec, lay.robot
+    out: list[_PhasePolygon] = []
     for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
-        if not start - 1e-9 <= tk <= start + phase.duration + 1e-9:
-            continue
         soles = []
         for c in phase.contacts:
             side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
@@ -318,10 +350,13 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
                 continue  # a hand or other contact: not part of the sole polygon
             soles.append(sole_corners_in_world(robot.profile.sole, side, placement_of(c.placement)))
         if soles:
-            hulls.append(polygon_of_soles(soles))
-    if not hulls:
-        return np.zeros((0, 2))
-    return min(hulls, key=_polygon_area)
+            hull = polygon_of_soles(soles)
+            planes = halfplanes(hull) if len(hull) >= 3 else None
+            for a in (hull, *(planes or ())):
+                a.setflags(write=False)  # shared by every knot of the phase
+            out.append(_PhasePolygon(start, start + phase.duration, hull, _polygon_area(hull), planes))
+    lay.__dict__["_phase_polygons"] = (spec, robot, out)
+    return out
 
 
 def _polygon_area(hull: np.ndarray) -> float:
@@ -340,9 +375,9 @@ def balance_terms(lay: Layout, bounds: CoMBounds) -> None:
         if not _use(lay, k):
             continue
         if bounds.support_polygon:
-            hull = support_polygon(lay, k)
-            if len(hull) >= 3:
-                A, b = halfplanes(hull)
+            planes = support_halfplanes(lay, k)
+            if planes is not None:
+                A, b = planes
                 n_feet = sum(1 for fid in lay.contacts_at[k] if lay.robot.foot_side(lay.robot.model.frames[fid].name))
                 rows = max(POLYGON_ROWS.get(n_feet, 4 * n_feet), len(A))
                 A_pad = np.zeros((rows, 2))

@@ -117,6 +117,7 @@ def dynamic_checks(
     ankle: dict[str, list] = {}
     margin = ankle_torque_margin
     idle = []
+    soles: dict[str, tuple | None] = {}  # frame -> the full sole's x and y ranges (None: a point contact)
     for k, active in enumerate(cen.contacts):
         held = {c.frame for c in active} if k in cen.dynamics_knots else set()
         for frame, f in corners.items():
@@ -127,10 +128,14 @@ def dynamic_checks(
         for c in active:
             fk = corners[c.frame][k]
             friction.setdefault(c.frame, []).append((float(friction_violation(fk, c.rotation, c.friction_coefficient).max()), t[k]))
-            full = contact_geometry_points(lay.robot, c.frame)
-            if full is not None:
+            if c.frame not in soles:
+                full = contact_geometry_points(lay.robot, c.frame)
+                soles[c.frame] = None if full is None else ((full[:, 0].min(), full[:, 0].max()),
+                                                            (full[:, 1].min(), full[:, 1].max()))
+            ranges = soles[c.frame]
+            if ranges is not None:
                 p = center_of_pressure(c.points_in_frame, fk[None], c.rotation, min_normal=tol_n)
-                viol = cop_violation(p, (full[:, 0].min(), full[:, 0].max()), (full[:, 1].min(), full[:, 1].max()))
+                viol = cop_violation(p, *ranges)
                 cop.setdefault(c.frame, []).append((float(viol[0]), t[k]))
             if margin is not None:
                 for a, moment in zip(c.ankle, c.ankle_torques(fk), strict=True):

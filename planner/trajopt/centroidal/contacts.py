@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
@@ -122,11 +122,18 @@ class ContactGeometry:
     points_in_frame: np.ndarray
     friction_coefficient: float
     ankle: tuple[AnkleAxis, ...] = ()
+    _levers: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def ankle_levers(self) -> np.ndarray:
-        """(n_ankle, n_points, 3) levers of the force points about each ankle axis, in the contact frame [m]."""
-        return np.array([a.levers(self.points_in_frame) for a in self.ankle]).reshape(len(self.ankle),
-                                                                                        self.n_points, 3)
+        """(n_ankle, n_points, 3) levers of the force points about each ankle axis, in the contact frame [m]
+        (computed on first use, then kept: read-only)."""
+        if self._levers is None:
+            levers = np.array([a.levers(self.points_in_frame) for a in self.ankle]).reshape(len(self.ankle),
+                                                                                            self.n_points, 3)
+            levers.setflags(write=False)
+            object.__setattr__(self, "_levers", levers)  # a cache of a frozen record's function
+        assert self._levers is not None
+        return self._levers
 
     def ankle_torques(self, forces: np.ndarray) -> np.ndarray:
         """Moment (n_ankle,) of world point forces (n_points, 3) about each ankle axis [N m]: with the
@@ -247,6 +254,7 @@ def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[Cont
     robot, spec = lay.robot, lay.spec
     starts = spec.phase_start_times()
     ankles: dict[str, tuple[AnkleAxis, ...]] = {}
+    bound: dict[tuple, ContactGeometry] = {}  # a contact held over many knots is bound once
     out = []
     for k, active in enumerate(lay.contacts_at):
         tk = float(lay.t[k])
@@ -257,13 +265,14 @@ def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[Cont
                     mus[robot.frame_id(c.frame)] = c.friction_coefficient
         geos = []
         for fid, (_frame, M) in active.items():
-            contact = Contact(
-                frame=robot.model.frames[fid].name,
-                placement=Pose(position=cast(Vec3, tuple(float(x) for x in M.translation)),
-                               rpy=cast(Vec3, tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation)))),
-                friction_coefficient=mus.get(fid),
-            )
-            geos.append(contact_geometry(contact, robot, cop_margin=cop_margin, ankles=ankles))
+            position = cast(Vec3, tuple(float(x) for x in M.translation))
+            rpy = cast(Vec3, tuple(float(x) for x in pin.rpy.matrixToRpy(M.rotation)))
+            key = (fid, position, rpy, mus.get(fid))
+            if key not in bound:
+                contact = Contact(frame=robot.model.frames[fid].name, placement=Pose(position=position, rpy=rpy),
+                                  friction_coefficient=mus.get(fid))
+                bound[key] = contact_geometry(contact, robot, cop_margin=cop_margin, ankles=ankles)
+            geos.append(bound[key])
         out.append(tuple(geos))
     return tuple(out)
 

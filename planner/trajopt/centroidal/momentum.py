@@ -60,6 +60,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from planner.trajopt.centroidal.zmp import cross3
+
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout
 
@@ -218,5 +220,5 @@ def force_moments(pat, com: np.ndarray, forces: np.ndarray) -> np.ndarray:
     out = np.zeros((len(pat.dynamics_knots), 3))
     for j, k in enumerate(pat.dynamics_knots):
         for contact in pat.contacts[k]:
-            out[j] += np.cross(contact.points_in_world - com[k], corners[contact.frame][k]).sum(axis=0)
+            out[j] += cross3(contact.points_in_world - com[k], corners[contact.frame][k]).sum(axis=0)
     return out / pat.weight

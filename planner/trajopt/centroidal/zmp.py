@@ -82,11 +82,11 @@ def support_excursion(robot: Robot, q: np.ndarray, zmp: np.ndarray, frames: Sequ
     for k, ids in enumerate(frames):
         if not ids:
             continue
-        pin.framesForwardKinematics(model, data, q[k])
+        pin.forwardKinematics(model, data, q[k])  # then the held frames only (not every frame)
         pts = []
         for fid in ids:
             side = robot.foot_side(model.frames[fid].name) or "left"
-            pts.append(sole_corners_in_world(robot.profile.sole, side, data.oMf[fid]))
+            pts.append(sole_corners_in_world(robot.profile.sole, side, pin.updateFramePlacement(model, data, fid)))
         hull = support_polygon(pts)
         if len(hull) < 3:
             continue
@@ -101,15 +101,23 @@ def support_excursion(robot: Robot, q: np.ndarray, zmp: np.ndarray, frames: Sequ
 
 def planned_wrench(lay: DynamicLayout, corner_forces: dict[str, np.ndarray]) -> np.ndarray:
     """World wrench (T, 6) about the origin of a plan's corner forces (``Plan.extras["corner_forces"]``)."""
-    from planner.trajopt.centroidal.contacts import layout_contacts
-
-    contacts = layout_contacts(lay, cop_margin=lay.centroidal_settings.cop_margin)
+    contacts = lay.pattern().contacts  # layout_contacts(lay, cop_margin=lay.centroidal_settings.cop_margin)
     out = np.zeros((lay.N + 1, 6))
     for k, active in enumerate(contacts):
         for c in active:
             f = corner_forces[c.frame][k]  # (n_points, 3)
             out[k, :3] += f.sum(axis=0)
-            out[k, 3:] += np.cross(c.points_in_world, f).sum(axis=0)
+            out[k, 3:] += cross3(c.points_in_world, f).sum(axis=0)
+    return out
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (n, 3) arrays: the same operations as ``np.cross`` (equal bit
+    for bit) without its general-axis overhead, which dominates at n = 4."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
     return out
 
 
