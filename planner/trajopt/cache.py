@@ -440,9 +440,15 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
 
 
 def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
-    """Run gcc in its own process group; on timeout kill the group (cc1 included)."""
+    """Run gcc in its own process group; on timeout kill the group (cc1 included).
+
+    Its temporary files (the object file; no assembly with ``-pipe``, 0.1-0.5 GB for a Talos
+    solver otherwise) go to ``cwd``, the temporary build folder that a failed or abandoned build
+    removes: a gcc killed here or with its process used to leave them in the system's /tmp."""
+    cmd = [cmd[0], "-pipe", *cmd[1:]]
+    env = {**os.environ, "TMPDIR": str(Path(cwd).resolve())}
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            start_new_session=True)
+                            start_new_session=True, env=env)
     try:
         proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
