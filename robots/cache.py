@@ -456,9 +456,7 @@ def _remove_path(path: Path) -> bool:
         else:
             path.unlink()
         return True
-    except FileNotFoundError:
-        return False
-    except OSError:
+    except OSError:  # gone already (another process), or cannot be removed
         return False
 
 

@@ -344,10 +344,17 @@ def _write_serialized(tmp: Path, entry: Path, key: str, functions, n_x: int, n_g
     digest = cache_disk.file_sha256(path)
     meta = {"key": key, "format": "casadi", "sha256": digest, "size": path.stat().st_size, "n_x": n_x, "n_g": n_g,
             "casadi": ca.__version__, "created": time.time()}
-    (tmp / META).write_text(json.dumps(meta))  # written last: an entry without it is rebuilt
+    return _publish_entry(tmp, entry, key, meta)
+
+
+def _publish_entry(tmp: Path, entry: Path, key: str, meta: dict) -> bool:
+    """Write the manifest ``meta`` into the filled build folder ``tmp`` (last: an entry without it
+    is rebuilt), publish it as ``entry`` and apply the size cap of the whole cache (least recently
+    used entries go); True when a good entry is in place afterwards."""
+    (tmp / META).write_text(json.dumps(meta))
     (tmp / cache_disk.BUILDER_PID).unlink(missing_ok=True)
     published = cache_disk.publish(tmp, entry, key)
-    trim_cache(entry.parent)  # the size cap of the whole cache (least recently used entries go)
+    trim_cache(entry.parent)
     return published
 
 
@@ -417,7 +424,8 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
     gcc = shutil.which("gcc")
     if gcc is None:
         return False
-    cmd = [gcc, "-fPIC", "-shared", *flags, "nlp.c", "-o", LIBRARY, "-lm"]
+    # -pipe: no assembly file (0.1-0.5 GB for a Talos solver) between the compiler and the assembler
+    cmd = [gcc, "-pipe", "-fPIC", "-shared", *flags, "nlp.c", "-o", LIBRARY, "-lm"]
     if not _run_gcc(cmd, tmp, timeout):
         return False
     (tmp / "nlp.c").unlink()
@@ -432,20 +440,15 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
         "key": key, "sha256": digest, "size": lib.stat().st_size, "n_x": n_x, "n_g": n_g,
         "casadi": ca.__version__, "flags": list(flags), "created": time.time(),
     }
-    (tmp / META).write_text(json.dumps(meta))  # written last: an entry without it is rebuilt
-    (tmp / cache_disk.BUILDER_PID).unlink(missing_ok=True)
-    published = cache_disk.publish(tmp, entry, key)
-    trim_cache(entry.parent)  # the size cap of the whole cache (least recently used entries go)
-    return published
+    return _publish_entry(tmp, entry, key, meta)
 
 
 def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
     """Run gcc in its own process group; on timeout kill the group (cc1 included).
 
-    Its temporary files (the object file; no assembly with ``-pipe``, 0.1-0.5 GB for a Talos
-    solver otherwise) go to ``cwd``, the temporary build folder that a failed or abandoned build
-    removes: a gcc killed here or with its process used to leave them in the system's /tmp."""
-    cmd = [cmd[0], "-pipe", *cmd[1:]]
+    Its temporary files (the object file; the assembly without ``-pipe``) go to ``cwd``, the
+    temporary build folder that a failed or abandoned build removes: a gcc killed here or with its
+    process used to leave them in the system's /tmp."""
     env = {**os.environ, "TMPDIR": str(Path(cwd).resolve())}
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True, env=env)

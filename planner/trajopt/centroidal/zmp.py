@@ -101,7 +101,7 @@ def support_excursion(robot: Robot, q: np.ndarray, zmp: np.ndarray, frames: Sequ
 
 def planned_wrench(lay: DynamicLayout, corner_forces: dict[str, np.ndarray]) -> np.ndarray:
     """World wrench (T, 6) about the origin of a plan's corner forces (``Plan.extras["corner_forces"]``)."""
-    contacts = lay.pattern().contacts  # layout_contacts(lay, cop_margin=lay.centroidal_settings.cop_margin)
+    contacts = lay.pattern().contacts  # bound once per layout, with its CoP margin
     out = np.zeros((lay.N + 1, 6))
     for k, active in enumerate(contacts):
         for c in active:
