@@ -46,6 +46,9 @@ class SolverStats:
         n_variables, n_constraints: Problem size.
         backend: ``"ipopt"``.
         raw_status: The backend's own status string.
+        seed: Where the solve started when not from the task's own guess: ``"library (distance
+            0.0300)"``, a stored solution of the same structure (:mod:`planner.trajopt.library`);
+            empty otherwise.
     """
 
     status: SolveStatus
@@ -58,6 +61,7 @@ class SolverStats:
     n_constraints: int = 0
     backend: str = "ipopt"
     raw_status: str = ""
+    seed: str = ""
 
 
 class CheckKind(enum.Enum):

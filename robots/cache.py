@@ -261,14 +261,14 @@ def _build_and_store(root: Path, key: str, build: Callable[[], pin.GeometryModel
 # -- the size cap: least recently used entries removed ----------------------------------------
 #
 # Every disk cache of wbmp lives in one folder of cache_base() (CACHE_FOLDERS). An entry is a
-# folder named by its key (planner, robots, mujoco, viz), or the files that share a key before
+# folder named by its key (planner, seeds, robots, mujoco, viz), or the files that share a key before
 # their first dot (collision: ``<robot>-<key>.json``; motions: ``<key>.npz``, ``<key>.json``,
 # ``<key>.page``, ``<key>.page.json``; ``motions/requests/<key>.json``). Its use time is its
 # modification time, which a load renews (mark_used); names starting with a dot are temporary
 # folders and files being written, never removed here. Anything else (a name that is not a key,
 # a symbolic link) is not wbmp's and is left alone.
 
-CACHE_FOLDERS = ("planner", "robots", "mujoco", "viz", "collision", "motions")
+CACHE_FOLDERS = ("planner", "seeds", "robots", "mujoco", "viz", "collision", "motions")
 _NESTED = {"motions": ("requests",)}  # folders of file entries inside a cache folder
 MAX_SIZE_ENV = "WBMP_CACHE_MAX_SIZE"
 DEFAULT_MAX_BYTES = 4 << 30  # [bytes] 4 GiB

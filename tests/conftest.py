@@ -18,6 +18,10 @@ from hypothesis import settings
 # written to the user's solver cache: the cache tests set compile=True and their own cache_dir.
 os.environ.setdefault("WBMP_COMPILE", "0")
 os.environ.setdefault("WBMP_COMPILE_BACKGROUND", "0")  # tests that compile wait for gcc
+# Every plan from its own guess, whatever the tests before it (in this worker) planned: the solution
+# library (planner/trajopt/library.py) would make a dynamic plan's local optimum depend on the order
+# pytest-xdist hands out the tests. Its own tests switch it on (tests/planner/trajopt/test_library.py).
+os.environ.setdefault("WBMP_SOLUTION_LIBRARY", "off")
 
 
 def _temporary_folder(variable: str, prefix: str) -> None:

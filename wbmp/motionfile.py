@@ -96,7 +96,7 @@ def plan_report(plan: Plan) -> dict[str, Any]:
             "build_time": s.build_time, "solve_time": s.solve_time, "cache": s.cache,
             "objective": s.objective if np.isfinite(s.objective) else None,
             "n_variables": s.n_variables, "n_constraints": s.n_constraints, "backend": s.backend,
-            "raw_status": s.raw_status,
+            "raw_status": s.raw_status, "seed": s.seed,
         },
         "checks": [
             {"name": c.name, "violation": c.violation, "tolerance": c.tolerance if np.isfinite(c.tolerance) else None,
@@ -527,6 +527,7 @@ def _report_parts(report: dict, shown: str) -> tuple[SolverStats, tuple[Check, .
         n_constraints=int(number(solver, "n_constraints", "solver.", 0, integer=True)),
         backend=text(solver, "backend", "solver.", "ipopt"),
         raw_status=text(solver, "raw_status", "solver.", ""),
+        seed=text(solver, "seed", "solver.", ""),
     )
     raw_checks = report.get("checks", [])
     if not isinstance(raw_checks, list):

@@ -24,6 +24,17 @@ def default_compile() -> bool:
     return os.environ.get("WBMP_COMPILE", "1").strip() not in ("0", "false", "no")
 
 
+LIBRARY_MODES = ("on", "read", "off")
+
+
+def default_solution_library() -> str:
+    """``$WBMP_SOLUTION_LIBRARY``: ``off`` (or ``0``, ``false``, ``no``), ``read``; else ``on``."""
+    value = os.environ.get("WBMP_SOLUTION_LIBRARY", "on").strip().lower()
+    if value in ("0", "false", "no"):
+        return "off"
+    return value if value in LIBRARY_MODES else "on"
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PlannerSettings:
     """How :func:`planner.plan` builds and solves the NLP.
@@ -75,6 +86,11 @@ class PlannerSettings:
         warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
             ``"nominal"`` (inverse kinematics at the target times, blended: see
             :mod:`planner.trajopt.nominal`).
+        solution_library: Earlier solutions of a dynamic plan's solver structure seed its solve
+            (:mod:`planner.trajopt.library`): ``"on"`` (use the nearest, store each successful
+            plan's), ``"read"`` (use, store nothing), ``"off"`` (every solve from the task's own
+            guess: the same result whatever was planned before). Default ``$WBMP_SOLUTION_LIBRARY``,
+            else ``"on"``; needs ``use_cache``.
     """
 
     max_iterations: int = 150
@@ -102,6 +118,7 @@ class PlannerSettings:
     collision_screening: float = 0.03
     collision_rounds: int = 3
     ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
+    solution_library: str = field(default_factory=default_solution_library)
 
     def __post_init__(self) -> None:
         from planner.exceptions import PlannerError
@@ -117,3 +134,6 @@ class PlannerSettings:
             raise PlannerError(f"settings: collision_rounds must be >= 0, got {self.collision_rounds}")
         if self.warm_start not in ("standing", "nominal"):
             raise PlannerError(f"settings: warm_start must be 'standing' or 'nominal', got {self.warm_start!r}")
+        if self.solution_library not in LIBRARY_MODES:
+            raise PlannerError("settings: solution_library must be 'on', 'read' or 'off', got "
+                               f"{self.solution_library!r}")

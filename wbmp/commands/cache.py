@@ -1,7 +1,7 @@
 """``wbmp cache [FOLDER ...] [--entries] [--clear] [--json]``: what wbmp keeps on disk, and emptying it.
 
 Every cache lives in one folder of ``$WBMP_CACHE_DIR`` (default ``~/.cache/wbmp``):
-``planner robots mujoco viz collision motions`` (:data:`robots.cache.CACHE_FOLDERS`). The
+``planner seeds robots mujoco viz collision motions`` (:data:`robots.cache.CACHE_FOLDERS`). The
 listing gives each folder's entries and bytes, the total and the size cap
 (``$WBMP_CACHE_MAX_SIZE``, :func:`robots.cache.max_cache_bytes`); ``--clear`` removes the
 entries of all folders or of the ones named, and prints one line. Only wbmp's own entries are
@@ -21,7 +21,7 @@ from typing import Any
 
 from wbmp.errors import CliError, ExitCode
 
-FOLDERS_TEXT = "planner, robots, mujoco, viz, collision, motions"  # robots.cache.CACHE_FOLDERS (no import: Pinocchio)
+FOLDERS_TEXT = "planner, seeds, robots, mujoco, viz, collision, motions"  # robots.cache.CACHE_FOLDERS (no import: Pinocchio)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
