@@ -29,6 +29,13 @@ momentum matrix, re-linearized once when needed). Each row also gives the plan's
 ZMP excursion out of its support polygon (RNEA, the ``FULL_DYNAMICS_ZMP`` check) and whether
 every check of the plan passed.
 
+The solution library (``--library``, default both rows; ``planner/trajopt/library.py``): the
+plain rows solve from the task's own guess (``solution_library="off"``: what any first request of
+a structure pays). A ``+library`` row first plans the task's neighbours (``NEIGHBOURS``: the same
+action with other values, e.g. 0.12 m and 0.18 m steps for the 0.15 m walk) into a new temporary
+library, then plans the task ``--repeat`` + 1 times reading it only (``"read"``): the task's own
+solution never seeds it, as for a user whose library holds other walks of the same structure.
+
 For scale, Crocoddyl's FDDP (full dynamics, C++, single-threaded) plans one 2-step Talos walking
 phase and a Talos jump in the same run, in its own environment (``.venv-crocoddyl``, made by
 ``bash benchmarks/peers/setup.sh crocoddyl``; ``--no-peers`` skips it), and the figures the issue
@@ -56,6 +63,15 @@ TASKS = {
     "turn": ("turn 90 deg in place", [{"action": "turn", "params": {"angle": math.pi / 2}}]),
     "jump": ("jump 5 cm", [{"action": "jump", "params": {"height": 0.05}}]),
 }
+# The same action with other values: the solution library's neighbours of each task (--library).
+# None for the jump: the heights whose solver structure is the 5 cm jump's (6 cm: the same flight
+# knots) give the very same layout (the height sets the flight time, nothing else), so a "neighbour"
+# would be the task itself.
+NEIGHBOURS = {
+    "steps": [{"length": 0.12}, {"length": 0.18}],
+    "side": [{"length": 0.06}, {"length": 0.10}],
+    "turn": [{"angle": math.radians(75)}, {"angle": math.radians(105)}],
+}
 TARGETS = {"steps": 2.0, "jump": 1.5}  # [s] cached build + solve
 CROCODDYL_QUOTED = {"steps": ("one 2-step Talos walking phase", 0.3), "jump": ("Talos jump", 0.4)}  # [s], quoted
 CROCODDYL_TASKS = {"steps": "walk", "jump": "jump"}  # our task -> crocoddyl_bench.py task
@@ -74,6 +90,27 @@ def crocoddyl_peer(tasks: list[str], repeats: int) -> dict:
 FORMULATIONS = {"centroidal": False, "whole-body": True}  # name -> CentroidalSettings.whole_body_momentum
 
 
+def neighbour_library(robot, task: str, settings) -> tuple[str, list[str]]:
+    """A new solution library (a temporary cache folder) holding the solutions of the task's
+    neighbours (:data:`NEIGHBOURS`: the same action, other values); returns its folder and what
+    was planned into it."""
+    import tempfile
+    from dataclasses import replace
+
+    from planner import plan
+    from tasks.compose import compile_actions
+
+    folder = tempfile.mkdtemp(prefix="wbmp-bench-library-")
+    planned = []
+    _, actions = TASKS[task]
+    for values in NEIGHBOURS[task]:
+        neighbour = [{"action": actions[0]["action"], "params": {**actions[0]["params"], **values}}]
+        p = plan(compile_actions(neighbour, robot), robot, throw=False,
+                 settings=replace(settings, cache_dir=folder, solution_library="on"))
+        planned.append(f"{values} ({'stored' if p.ok else 'failed'})")
+    return folder, planned
+
+
 def run_task(robot, actions, *, repeat: int, settings) -> dict:
     """Plan one task ``repeat + 1`` times; the first run builds or loads the solver."""
     from planner import plan
@@ -88,7 +125,7 @@ def run_task(robot, actions, *, repeat: int, settings) -> dict:
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
             "build_s": p.stats.build_time, "solve_s": p.stats.solve_time, "cache": p.stats.cache,
             "iterations": p.stats.iterations, "ok": p.ok, "status": p.stats.status.value,
-            "objective": p.stats.objective,
+            "objective": p.stats.objective, "seed": p.stats.seed,
         })
     cached = runs[1:] or runs
     from planner.results import CheckKind
@@ -150,6 +187,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
     parser.add_argument("--out", help="also write the JSON results (with machine, load and thread settings) here")
     parser.add_argument("--no-peers", action="store_true", help="do not run Crocoddyl (.venv-crocoddyl) beside ours")
+    parser.add_argument("--library", choices=("off", "neighbours", "both"), default="both",
+                        help="the solution library (planner/trajopt/library.py): off (every solve from the task's own "
+                             "guess), neighbours (a library holding only the solutions of the same action with "
+                             "other values, NEIGHBOURS, read-only: the task's own solution never seeds it), or both "
+                             "rows (default)")
     args = parser.parse_args(argv)
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):  # before CasADi loads its OpenBLAS
         os.environ.setdefault(key, str(args.threads))
@@ -165,11 +207,24 @@ def main(argv: list[str] | None = None) -> int:
         for task in args.tasks:
             label, actions = TASKS[task]
             for form in args.formulations:
-                settings = PlannerSettings(compile_dynamic=args.compile_dynamic,
+                settings = PlannerSettings(compile_dynamic=args.compile_dynamic, solution_library="off",
                                            centroidal=CentroidalSettings(whole_body_momentum=FORMULATIONS[form]))
                 key = f"{name}/{task}" + ("" if form == "whole-body" else f" ({form})")
-                results[key] = {"label": label, "formulation": form,
-                                **run_task(robot, actions, repeat=args.repeat, settings=settings)}
+                if args.library in ("off", "both"):
+                    results[key] = {"label": label, "formulation": form, "library": "off",
+                                    **run_task(robot, actions, repeat=args.repeat, settings=settings)}
+                if args.library in ("neighbours", "both") and form == "whole-body" and task in NEIGHBOURS:
+                    import shutil
+                    from dataclasses import replace
+
+                    folder, planned = neighbour_library(robot, task, settings)
+                    try:
+                        seeded = replace(settings, cache_dir=folder, solution_library="read")
+                        results[key + " +library"] = {
+                            "label": label, "formulation": form, "library": "neighbours", "neighbours": planned,
+                            **run_task(robot, actions, repeat=args.repeat, settings=seeded)}
+                    finally:
+                        shutil.rmtree(folder, ignore_errors=True)
     info["load_average_after"] = list(os.getloadavg())
     talos_tasks = args.tasks if "talos" in args.robots else []
     croc = {"skipped": "--no-peers"} if args.no_peers else crocoddyl_peer(talos_tasks, max(1, args.repeat))
@@ -185,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
           f"medians of {args.repeat} cached runs, wall clock (CPU time of the whole plan() call in brackets); "
           f"threads {info['threads']}, load average {info['load_average'][0]:.2f} -> "
           f"{info['load_average_after'][0]:.2f}")
-    print(f"{'robot/task (formulation)':<27} {'what':<26} {'knots':>5} {'vars':>6} {'iter':>4}  {'first build':>14}  "
+    print(f"{'robot/task (formulation)':<31} {'what':<26} {'knots':>5} {'vars':>6} {'iter':>4}  {'first build':>14}  "
           f"{'cached build+solve':>22}  target   ok  ZMP out")
     for key, r in results.items():
         first = r["first"]
@@ -194,7 +249,10 @@ def main(argv: list[str] | None = None) -> int:
         verdict = "" if target is None else ("met" if r["cached_total_s"] <= target else "MISSED")
         extra = f"  rise {r['flight_rise_m']:.3f} m" if r["flight_rise_m"] is not None else ""
         zmp = "" if r["zmp_excursion_m"] is None else f" {r['zmp_excursion_m']:.3f} m"
-        print(f"{key:<27} {r['label']:<26} {r['knots']:>5} {r['variables']:>6} {r['iterations']:>4}  "
+        seed = r["runs"][-1]["seed"]
+        extra += f"  seed: {seed}" if seed else ("  (no neighbour of this structure)" if r.get("library") == "neighbours"
+                                                 else "")
+        print(f"{key:<31} {r['label']:<26} {r['knots']:>5} {r['variables']:>6} {r['iterations']:>4}  "
               f"{first['build_s']:8.2f} {first['cache']:<6}  {r['cached_build_s']:5.2f}+{r['cached_solve_s']:5.2f} "
               f"({r['cached_cpu_s']:5.2f} cpu)  {'' if target is None else f'<= {target:g}':<7} "
               f"{'yes' if r['ok'] else 'NO'} {verdict}{zmp}{extra}")
@@ -205,6 +263,8 @@ def main(argv: list[str] | None = None) -> int:
     for task, (what, seconds) in CROCODDYL_QUOTED.items():
         ours = [r["cached_total_s"] for k, r in results.items() if k == f"talos/{task}"]
         mine = f"ours (talos/{task}, cached): {ours[0]:.2f} s" if ours else "ours: not run"
+        seeded = [r["cached_total_s"] for k, r in results.items() if k == f"talos/{task} +library" and r["runs"][-1]["seed"]]
+        mine += f"; from a neighbour's solution: {seeded[0]:.2f} s" if seeded else ""
         m = measured.get(CROCODDYL_TASKS[task])
         theirs = (f"{m['build_s']['median'] + m['solve_s']['median']:.2f} s build + solve, "
                   f"{m.get('iterations', '?')} iterations" if m else "not measured")

@@ -268,6 +268,8 @@ class Plan:
             f"(build {s.build_time:.2f} s [{s.cache}], solve {s.solve_time:.2f} s), "
             f"{len(self.t)} knots over {self.t[-1]:.2f} s, {s.n_variables} variables, {s.n_constraints} constraints",
         ]
+        if s.seed:
+            lines.append(f"  started from a stored solution of this structure: {s.seed}")
         for c in self.checks:
             mark = "ok  " if c.ok else "FAIL"
             lines.append(f"  {mark} {c.name:<40} {c.violation:10.2e} {c.unit:<6} (tol {c.tolerance:.0e}, t = {c.time:.2f} s)")

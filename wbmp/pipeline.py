@@ -100,6 +100,7 @@ class SolveResult:
                 "build_time": s.build_time,
                 "solve_time": s.solve_time,
                 "cache": s.cache,
+                "seed": s.seed,
                 "n_variables": s.n_variables,
                 "n_constraints": s.n_constraints,
             },

@@ -127,3 +127,24 @@ def test_the_environment_variable_sets_the_default(monkeypatch):
     for value, mode in (("off", "off"), ("0", "off"), ("read", "read"), ("on", "on"), ("", "on")):
         monkeypatch.setenv("WBMP_SOLUTION_LIBRARY", value)
         assert PlannerSettings().solution_library == mode
+
+
+def test_wbmp_solve_uses_the_library_with_the_motion_cache_only(g1, cold, tmp_path, monkeypatch):
+    """``wbmp solve`` plans with the library when the motion cache is on; ``--no-cache`` (no motion
+    cache) plans from the task's own guess, whatever the library holds."""
+    from wbmp.pipeline import SolveRequest, solve
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("WBMP_SOLUTION_LIBRARY", "on")
+    motions = tmp_path / "motions"
+    first = solve(SolveRequest(instruction="step left 8 cm twice", robot="g1", simulate=False), cache=True,
+                  cache_dir=motions)
+    assert first.plan.ok and first.plan.stats.seed == "" and len(_files(tmp_path)) == 1
+    request = SolveRequest(instruction="step left 6 cm twice", robot="g1", simulate=False)
+    fresh = solve(request, cache=False)
+    assert fresh.plan.stats.seed == "" and fresh.plan.stats.iterations == cold.stats.iterations
+    seeded = solve(request, cache=True, cache_dir=motions)
+    assert seeded.plan.stats.seed.startswith("library")
+    assert seeded.plan.stats.iterations <= cold.stats.iterations - 5
+    assert seeded.report()["solver"]["seed"] == seeded.plan.stats.seed
+    assert "started from a stored solution of this structure: library" in seeded.plan.summary()
