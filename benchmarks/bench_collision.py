@@ -42,7 +42,8 @@ def measure(task: str, sentence: str, robot, repeat: int, cache_dir: str) -> dic
 
     _, spec = spec_for(sentence, robot, None)
     row: dict = {"task": task, "sentence": sentence}
-    variants = {label: PlannerSettings(cache_dir=cache_dir, compile=False, self_collision=on)
+    variants = {label: PlannerSettings(cache_dir=cache_dir, compile=False, self_collision=on,
+                                       solution_library="off")
                 for label, on in (("off", False), ("on", True))}
     results = {label: plan(spec, robot, settings=s, throw=False)  # builds the solver(s): not timed
                for label, s in variants.items()}
@@ -110,7 +111,7 @@ def measure_scenes(task: str, sentence: str, robot, scenes: list[str], repeat: i
     from wbmp.bench.tasks import spec_for
 
     _, spec = spec_for(sentence, robot, None)
-    settings = PlannerSettings(cache_dir=cache_dir, compile=False)
+    settings = PlannerSettings(cache_dir=cache_dir, compile=False, solution_library="off")
     row: dict = {"task": task, "sentence": sentence}
     for kind in ["none", *scenes]:
         variant = spec if kind == "none" else dataclasses.replace(spec, scene=_scene(kind))

@@ -114,6 +114,7 @@ def main() -> int:
     env.setdefault("OMP_NUM_THREADS", str(args.threads))
     env.setdefault("OPENBLAS_NUM_THREADS", str(args.threads))
     env["WBMP_COMPILE_BACKGROUND"] = "0"  # the warm-up run leaves a compiled solver behind
+    env["WBMP_SOLUTION_LIBRARY"] = "off"  # a first run's plan from its own guess, not from the warm-up's solution
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     env["PYTHONPYCACHEPREFIX"] = str(work / "pycache")
     trees = {"this tree": REPO}
