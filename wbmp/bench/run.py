@@ -210,6 +210,7 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
 def _child_env(cache_dir: str) -> dict[str, str]:
     env = dict(os.environ)
     env["WBMP_CACHE_DIR"] = cache_dir
+    env["WBMP_SOLUTION_LIBRARY"] = "off"  # as planner_settings: no plan starts from an earlier one's solution
     return env
 
 
