@@ -49,7 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(0 < N <= 5000, 0 <= t < the motion's duration)")
     p.add_argument("--no-cache", action="store_true",
                    help="neither read nor write the motion cache (a repeated request is answered from it "
-                        "otherwise: docs/cli.md)")
+                        "otherwise: docs/cli.md), and plan from the task's own guess, without the solution "
+                        "library of earlier plans")
     p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="instruction parser (default: rules)")
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL for --parser llm (env WBMP_LLM_URL)")
