@@ -38,6 +38,7 @@ import hashlib
 import os
 import tempfile
 import threading
+import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -148,7 +149,7 @@ def _seeds_of(key: str, cache_dir: str) -> dict[str, Seed]:
     folder = _folder(cache_dir, key)
     try:
         names = sorted((p for p in folder.iterdir() if p.suffix == ".npz" and not p.name.startswith(".")),
-                       key=lambda p: p.stat().st_mtime)  # oldest first, as they are dropped
+                       key=lambda p: p.stat().st_mtime_ns)  # oldest first, as they are dropped
     except OSError:
         names = []
     for path in names:
@@ -205,6 +206,7 @@ def store_seed(lay: Layout, key: str, guess: np.ndarray, raw: dict, dq: np.ndarr
                 np.array(raw["lam_g"], dtype=float), np.array(dq, dtype=float))
     seeds = _seeds_of(key, cache_dir)
     with _LOCK:
+        seeds.pop(seed.digest, None)  # the newest last
         seeds[seed.digest] = seed
         while len(seeds) > ENTRIES:
             seeds.pop(next(iter(seeds)))
@@ -217,11 +219,13 @@ def store_seed(lay: Layout, key: str, guess: np.ndarray, raw: dict, dq: np.ndarr
             with os.fdopen(fd, "wb") as f:
                 np.savez(f, **{name: getattr(seed, name) for name in _FIELDS})
             Path(tmp).replace(folder / f"{seed.digest}.npz")
+            now = time.time_ns()  # the file system's clock ticks in milliseconds: two stores would tie
+            os.utime(folder / f"{seed.digest}.npz", ns=(now, now))
         except BaseException:
             _remove(Path(tmp))
             raise
         files = sorted((p for p in folder.iterdir() if p.suffix == ".npz" and not p.name.startswith(".")),
-                       key=lambda p: p.stat().st_mtime)
+                       key=lambda p: p.stat().st_mtime_ns)
         for path in files[:-ENTRIES] if len(files) > ENTRIES else []:
             _remove(path)
     except OSError:

@@ -148,3 +148,21 @@ def test_wbmp_solve_uses_the_library_with_the_motion_cache_only(g1, cold, tmp_pa
     assert seeded.plan.stats.iterations <= cold.stats.iterations - 5
     assert seeded.report()["solver"]["seed"] == seeded.plan.stats.seed
     assert "started from a stored solution of this structure: library" in seeded.plan.summary()
+
+
+def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
+    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+    lay, full, guess = _layout(g1, _side(g1, 0.06), settings)
+    key = solver_key(lay, full)
+    raw = {"x": guess, "lam_x": np.zeros_like(guess), "lam_g": np.zeros(3)}
+    dq = np.zeros((lay.N + 1, g1.nv))
+    digests = []
+    for i in range(library.ENTRIES + 3):
+        monkeypatch.setattr(library, "descriptor", lambda _lay, i=i: np.full(4, float(i)))
+        library.store_seed(lay, key, guess, raw, dq, str(tmp_path))
+        digests.append(library.Seed(np.full(4, float(i)), *[np.zeros(0)] * 5).digest)
+    kept = {f.stem for f in _files(tmp_path)}
+    assert kept == set(digests[-library.ENTRIES:])  # the oldest three went, on disk
+    assert set(library._seeds_of(key, str(tmp_path))) == kept  # and in memory
+    library.clear_memory()
+    assert set(library._seeds_of(key, str(tmp_path))) == kept  # read back from the folder
