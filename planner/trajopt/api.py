@@ -45,7 +45,15 @@ from planner.trajopt.collision import (
 )
 from planner.trajopt.diagnose import diagnose_failure
 from planner.trajopt.layout import Layout, make_layout
-from planner.trajopt.library import Seed, find_seed, has_seeds, store_seed
+from planner.trajopt.library import (
+    EscalationRows,
+    Seed,
+    find_escalation,
+    find_seed,
+    has_seeds,
+    store_escalation,
+    store_seed,
+)
 from planner.trajopt.payload import payload_checks
 from planner.trajopt.report import configurations, make_plan
 from planner.trajopt.scene_collision import (
@@ -95,6 +103,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         return failed
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
     deferred = add_screened_terms(lay, settings, x0)
+    key0, escalation = _escalate(lay, settings, deferred, progress)
     seed = _library_seed(lay, settings, x0, progress)
     if seed is None:
         dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
@@ -121,7 +130,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             result = make_plan(lay, dq, stats, settings, forces=lay.forces_of(raw["x"]))
     forces = lay.forces_of(raw["x"])
     if result.ok:
-        _library_store(lay, settings, x0, raw, dq)
+        _library_store(lay, settings, x0, raw, dq, key0, escalation)
     payload = payload_checks(robot, spec, result.t, result.q)
     if payload:
         result = dataclasses.replace(result, checks=result.checks + tuple(payload))
@@ -252,11 +261,59 @@ def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
     return seed
 
 
-def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, raw: dict, dq: np.ndarray) -> None:
+def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, raw: dict, dq: np.ndarray,
+                   key0: str | None, escalation: EscalationRows | None) -> None:
     """Keep a successful dynamic plan's solution (and its layout's own initial guess ``guess``) as a
-    seed of its structure (``solution_library="on"``)."""
-    if isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library == "on":
-        store_seed(lay, solver_key(lay, settings), guess, raw, dq, settings.cache_dir)
+    seed of its structure (``solution_library="on"``); when collision rounds changed the structure
+    the plan started with (``key0``, before any ``escalation`` record was applied), remember the
+    self-collision rows it ended with for the next plan of ``key0``."""
+    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library == "on"):
+        return
+    key = solver_key(lay, settings)
+    store_seed(lay, key, guess, raw, dq, settings.cache_dir)
+    if key0 is None or key == key0 or not settings.self_collision:
+        return
+    sets = sphere_sets(lay.robot)
+    rows = collision_rows_of(lay, sets)
+    named = {"/".join(sets.pair_names[pi]): (set(rows.spheres[pi]), set(rows.knots[pi])) for pi in rows.spheres}
+    if named != escalation:
+        store_escalation(key0, named, settings.cache_dir)
+
+
+def _escalate(lay: Layout, settings: PlannerSettings, deferred: Rows,
+              progress: Callable[[str], None] | None) -> tuple[str | None, EscalationRows | None]:
+    """Give a dynamic layout the self-collision rows that earlier plans of its structure came to
+    need (:func:`planner.trajopt.library.find_escalation`) before its first solve: it then has their
+    final structure, and their seeds, instead of a collision round that builds another solver
+    and solves again. A record that names a pair, sphere pair or knot this layout does not have is
+    not used. Returns the structure's key before (None: the library is not used) and the record."""
+    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library != "off"
+            and settings.self_collision):
+        return None, None
+    key0 = solver_key(lay, settings)
+    record = find_escalation(key0, settings.cache_dir)
+    if record is None:
+        return key0, None
+    sets = sphere_sets(lay.robot)
+    index = {"/".join(name): pi for pi, name in enumerate(sets.pair_names)}
+    ends = np.append(sets.starts[1:], len(sets.sa))
+    extra = Rows()
+    for name, (spheres, knots) in record.items():
+        pi = index.get(name)
+        if pi is None or max(spheres) >= ends[pi] - sets.starts[pi] or min(knots) < 2 or max(knots) > lay.N - 1:
+            return key0, None
+        extra.spheres[pi], extra.knots[pi] = set(spheres), set(knots)
+    rows = collision_rows_of(lay, sets)
+    changed = rows.merge(extra)
+    if changed:
+        set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+        for pi in changed:
+            deferred.spheres.pop(pi, None)
+            deferred.knots.pop(pi, None)
+        if progress:
+            progress(f"adding the collision rows of {len(changed)} link pair(s) that earlier plans of this "
+                     "task structure needed")
+    return key0, record
 
 
 def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,

@@ -166,3 +166,68 @@ def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
     assert set(library._seeds_of(key, str(tmp_path))) == kept  # and in memory
     library.clear_memory()
     assert set(library._seeds_of(key, str(tmp_path))) == kept  # read back from the folder
+
+
+def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_first_solve(talos, tmp_path):
+    """Talos "walk forward two steps then wave your right hand": the first plan solves three
+    times (82 iterations: its right gripper comes within the margin of its right thigh, and a
+    collision round adds 17 link pairs' rows, then the momentum rows are re-linearized). The
+    library remembers the rows; the 12 cm variant gets them before its first solve, has the first
+    plan's final structure, and starts from its solution (14 iterations, 2026-11-24)."""
+    from wbmp.pipeline import SolveRequest, build_spec
+
+    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+
+    def spec_of(sentence):
+        return build_spec(SolveRequest(instruction=sentence, robot="talos", simulate=False), lambda _m: None)[1]
+
+    said: list[str] = []
+    first = plan(spec_of("walk forward two steps then wave your right hand"), talos, settings=settings,
+                 progress=said.append)
+    assert first.ok
+    assert any("came within the collision margin: solving again" in m for m in said)
+    records = sorted((tmp_path / "seeds").glob(f"*/{library.ESCALATION}"))
+    assert len(records) == 1
+    library.clear_memory()  # another process: read from the folder
+    said.clear()
+    variant = plan(spec_of("walk forward 2 steps 12 cm then wave your right hand"), talos, settings=settings,
+                   progress=said.append)
+    assert variant.ok  # every check, the self-collision check on the collision model among them
+    assert any(m.startswith("adding the collision rows of") for m in said)
+    assert not any("came within the collision margin" in m for m in said)
+    assert variant.stats.n_constraints == first.stats.n_constraints  # the first plan's final structure
+    assert variant.stats.seed.startswith("library")
+    assert variant.stats.iterations <= first.stats.iterations // 3, (variant.stats.iterations, first.stats.iterations)
+
+
+def test_an_escalation_record_that_does_not_fit_is_not_used(g1, cold, tmp_path):
+    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="read")
+    lay, full, _ = _layout(g1, _side(g1, 0.06), settings)
+    folder = tmp_path / "seeds" / solver_key(lay, full)
+    folder.mkdir(parents=True)
+    record = folder / library.ESCALATION
+    for text in ('{"format": 1, "rows": {"no_link/other_link": {"spheres": [0], "knots": [5]}}}',  # no such pair
+                 '{"format": 1, "rows": {"x": {"spheres": [0], "knots": [true]}}}', "{not json"):
+        record.write_text(text)
+        library.clear_memory()
+        said: list[str] = []
+        p = plan(_side(g1, 0.06), g1, settings=settings, progress=said.append)
+        assert not any(m.startswith("adding the collision rows") for m in said)
+        assert p.stats.n_constraints == cold.stats.n_constraints and p.stats.iterations == cold.stats.iterations
+        assert record.exists() == text.startswith('{"format": 1, "rows": {"no_link')  # not a record: removed
+
+
+def test_an_escalation_record_adds_its_rows(g1, cold, tmp_path):
+    from planner.trajopt.collision import sphere_sets
+
+    sets = sphere_sets(g1)
+    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="read")
+    lay, full, _ = _layout(g1, _side(g1, 0.06), settings)
+    name = "/".join(sets.pair_names[0])
+    library.store_escalation(solver_key(lay, full), {name: ({0}, {10, 11, 12})}, str(tmp_path))
+    library.clear_memory()
+    said: list[str] = []
+    p = plan(_side(g1, 0.06), g1, settings=settings, progress=said.append)
+    assert "adding the collision rows of 1 link pair(s) that earlier plans of this task structure needed" in said
+    assert p.stats.n_constraints == cold.stats.n_constraints + 3  # one sphere pair at three knots
+    assert p.ok
