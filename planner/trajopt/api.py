@@ -23,6 +23,7 @@ The NLP (DESIGN.md section 3), for knots ``k = 0..N`` on a uniform grid:
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -104,16 +105,17 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
     deferred = add_screened_terms(lay, settings, x0)
     key0, escalation = _escalate(lay, settings, deferred, progress)
-    seed = _library_seed(lay, settings, x0, progress)
+    seed, loaded = _library_seed(lay, settings, x0, progress)
     if seed is None:
         dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
+        stats = _with_load(stats, loaded)
         result = make_plan(lay, dq, stats, settings, forces=lay.forces_of(raw["x"]))
     else:
         assert isinstance(lay, DynamicLayout)  # only dynamic layouts get seeds (_library_seed)
         lay.set_momentum_point(seed.dq)
         dq, stats, raw = _solve_with_collisions(lay, settings, progress, seed.start(x0), deferred,
                                                 (seed.lam_x, seed.lam_g))
-        stats = dataclasses.replace(stats, seed=f"library (distance {seed.distance:.4f})")
+        stats = dataclasses.replace(_with_load(stats, loaded), seed=f"library (distance {seed.distance:.4f})")
         result = make_plan(lay, dq, stats, settings, forces=lay.forces_of(raw["x"]))
         if not result.ok:  # a seed never costs a plan: the task's own guess, as without the library
             if progress:
@@ -228,21 +230,32 @@ def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tup
     return lay, settings
 
 
+def _with_load(stats: SolverStats, loaded: tuple[float, str] | None) -> SolverStats:
+    """``stats`` with the solver's fetch before the solve (``loaded``: seconds and origin, from
+    :func:`_library_seed`; the solve itself then found it in memory)."""
+    if loaded is None:
+        return stats
+    return dataclasses.replace(stats, build_time=stats.build_time + loaded[0], cache=loaded[1])
+
+
 def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
-                  progress: Callable[[str], None] | None) -> Seed | None:
+                  progress: Callable[[str], None] | None) -> tuple[Seed | None, tuple[float, str] | None]:
     """The nearest stored solution of a dynamic layout's structure (:mod:`planner.trajopt.library`),
     when the settings use the library, it holds one that fits, and its start (:meth:`Seed.start`)
-    violates the constraints less (summed) than the layout's own initial guess ``guess``."""
+    violates the constraints less (summed) than the layout's own initial guess ``guess``; and, when
+    it fetched the solver for that, the seconds and origin of the fetch (for the stats)."""
     if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library != "off"):
-        return None
+        return None, None
     key = solver_key(lay, settings)
     if not has_seeds(key, settings.cache_dir):
-        return None
+        return None, None
+    t0 = time.perf_counter()
     solver = get_solver(lay, settings, progress)  # the structure's sizes (the solve reuses the solver)
+    loaded = (time.perf_counter() - t0, solver.origin)
     nl = solver.nlp_layout
     seed = find_seed(lay, key, nl.n_x, nl.n_g, settings.cache_dir)
     if seed is None:
-        return None
+        return None, loaded
     # Used only when it starts nearer to feasibility than the task's own guess: Talos four steps of
     # 0.10 m backward from a 0.15 m forward walk's solution started at a summed violation of 18.2
     # against the guess's 13.2 and took 23 iterations instead of 16 (docs/performance.md).
@@ -255,10 +268,10 @@ def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
         return float(np.sum(np.maximum(lbg - g, 0.0) + np.maximum(g - ubg, 0.0)))
 
     if not violation(seed.start(guess)) < violation(guess):
-        return None
+        return None, loaded
     if progress:
         progress(f"starting from a stored solution of this task structure (distance {seed.distance:.3g})")
-    return seed
+    return seed, loaded
 
 
 def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, raw: dict, dq: np.ndarray,

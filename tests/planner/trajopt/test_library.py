@@ -15,7 +15,7 @@ import pytest
 from planner import PlannerSettings, plan
 from planner.trajopt import library
 from planner.trajopt.api import _formulation, add_screened_terms
-from planner.trajopt.cache import solver_key
+from planner.trajopt.cache import clear_memory_cache, solver_key
 from tasks.compose import compile_actions
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
@@ -54,9 +54,12 @@ def test_a_neighbour_seeds_the_solve_and_read_mode_stores_nothing(g1, cold, tmp_
     assert source.stats.seed == ""  # an empty library
     files = _files(tmp_path)
     assert len(files) == 1
-    library.clear_memory()  # another process: read from the folder
+    library.clear_memory()  # another process: read from the folder, and build the solver again
+    clear_memory_cache()
     seeded = plan(_side(g1, 0.06), g1, settings=PlannerSettings(cache_dir=str(tmp_path), solution_library="read"))
     assert seeded.stats.seed.startswith("library (distance ")
+    # the solver was fetched to test the seed: its build is in the stats, not the solve's memory hit
+    assert seeded.stats.cache == "built" and seeded.stats.build_time > 0.2, seeded.stats
     assert seeded.ok and cold.ok  # every check of the plan (Pinocchio numerics), as for any plan
     assert seeded.stats.iterations <= cold.stats.iterations - 5, (seeded.stats.iterations, cold.stats.iterations)
     assert abs(seeded.stats.objective - cold.stats.objective) <= 0.01 * abs(cold.stats.objective)
