@@ -45,6 +45,7 @@ solve would demand anyway.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -57,6 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.trajopt.cache_disk import write_atomic
 from planner.trajopt.layout import Layout
 from robots.cache import trim_cache
 
@@ -122,6 +124,13 @@ def _folder(cache_dir: str, key: str) -> Path:
     return Path(cache_dir) / FOLDER / key
 
 
+def _seed_files(folder: Path) -> list[Path]:
+    """The seed files of a structure's folder, oldest first (as they are dropped); OSError when the
+    folder cannot be listed."""
+    return sorted((p for p in folder.iterdir() if p.suffix == ".npz" and not p.name.startswith(".")),
+                  key=lambda p: p.stat().st_mtime_ns)
+
+
 def _valid(seed: Seed, n_d: int, n_x: int, n_g: int, dq_shape: tuple[int, int]) -> bool:
     shapes = ((seed.descriptor, (n_d,)), (seed.guess, (n_x,)), (seed.x, (n_x,)), (seed.lam_x, (n_x,)), (seed.lam_g, (n_g,)),
               (seed.dq, dq_shape))
@@ -160,8 +169,7 @@ def _seeds_of(key: str, cache_dir: str) -> dict[str, Seed]:
     seeds: dict[str, Seed] = {}
     folder = _folder(cache_dir, key)
     try:
-        names = sorted((p for p in folder.iterdir() if p.suffix == ".npz" and not p.name.startswith(".")),
-                       key=lambda p: p.stat().st_mtime_ns)  # oldest first, as they are dropped
+        names = _seed_files(folder)
     except OSError:
         names = []
     for path in names:
@@ -201,7 +209,7 @@ def find_seed(lay: Layout, key: str, n_x: int, n_g: int, cache_dir: str) -> Seed
             continue
         d = float(np.linalg.norm(seed.descriptor - mine))
         if best is None or d < best.distance:
-            best = Seed(seed.descriptor, seed.guess, seed.x, seed.lam_x, seed.lam_g, seed.dq, d)
+            best = dataclasses.replace(seed, distance=d)
     if best is not None:
         try:
             os.utime(_folder(cache_dir, key))  # used: the cache's size cap removes the least recently used first
@@ -236,8 +244,7 @@ def store_seed(lay: Layout, key: str, guess: np.ndarray, raw: dict, dq: np.ndarr
         except BaseException:
             _remove(Path(tmp))
             raise
-        files = sorted((p for p in folder.iterdir() if p.suffix == ".npz" and not p.name.startswith(".")),
-                       key=lambda p: p.stat().st_mtime_ns)
+        files = _seed_files(folder)
         for path in files[:-ENTRIES] if len(files) > ENTRIES else []:
             _remove(path)
     except OSError:
@@ -308,14 +315,7 @@ def store_escalation(key: str, rows: EscalationRows, cache_dir: str) -> None:
     folder = _folder(cache_dir, key)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".escalation.", dir=folder)
-        try:
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-            Path(tmp).replace(folder / ESCALATION)
-        except BaseException:
-            _remove(Path(tmp))
-            raise
+        write_atomic(folder / ESCALATION, text)
     except OSError:
         pass  # a read-only or vanished cache folder: remembered in this process only
 
