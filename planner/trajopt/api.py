@@ -102,35 +102,32 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         if throw:
             raise PlanningFailed(problem, failed)
         return failed
-    x0 = lay.initial_guess(settings)  # kinematic: the nominal motion; dynamic: the heading guess
-    deferred = add_screened_terms(lay, settings, x0)
+    x0, deferred = _screened_guess(lay, settings)
     key0, escalation = _escalate(lay, settings, deferred, progress)
     seed, loaded = _library_seed(lay, settings, x0, progress)
-    if seed is None:
-        dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
-        stats = _with_load(stats, loaded)
-        result = make_plan(lay, dq, stats, settings, forces=lay.forces_of(raw["x"]))
-    else:
+    start, lam0 = (x0, None) if seed is None else (seed.start(x0), (seed.lam_x, seed.lam_g))
+    if seed is not None:
         assert isinstance(lay, DynamicLayout)  # only dynamic layouts get seeds (_library_seed)
         lay.set_momentum_point(seed.dq)
-        dq, stats, raw = _solve_with_collisions(lay, settings, progress, seed.start(x0), deferred,
-                                                (seed.lam_x, seed.lam_g))
-        stats = dataclasses.replace(_with_load(stats, loaded), seed=f"library (distance {seed.distance:.4f})")
-        result = make_plan(lay, dq, stats, settings, forces=lay.forces_of(raw["x"]))
-        if not result.ok:  # a seed never costs a plan: the task's own guess, as without the library
-            if progress:
-                progress("the solve from the stored solution failed: solving from the task's own guess")
-            tried = stats
-            lay, settings = _formulation(spec, robot, given)
-            x0 = lay.initial_guess(settings)
-            deferred = add_screened_terms(lay, settings, x0)
-            dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
-            stats = dataclasses.replace(
-                stats, iterations=tried.iterations + stats.iterations, build_time=tried.build_time + stats.build_time,
-                solve_time=tried.solve_time + stats.solve_time,
-                seed=f"{tried.seed} failed: solved again from the task's own guess")
-            result = make_plan(lay, dq, stats, settings, forces=lay.forces_of(raw["x"]))
+    dq, stats, raw = _solve_with_collisions(lay, settings, progress, start, deferred, lam0)
+    stats = _with_load(stats, loaded)
+    if seed is not None:
+        stats = dataclasses.replace(stats, seed=f"library (distance {seed.distance:.4f})")
     forces = lay.forces_of(raw["x"])
+    result = make_plan(lay, dq, stats, settings, forces=forces)
+    if seed is not None and not result.ok:  # a seed never costs a plan: the task's own guess, as without it
+        if progress:
+            progress("the solve from the stored solution failed: solving from the task's own guess")
+        tried = stats
+        lay, settings = _formulation(spec, robot, given)
+        x0, deferred = _screened_guess(lay, settings)
+        dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
+        stats = dataclasses.replace(
+            stats, iterations=tried.iterations + stats.iterations, build_time=tried.build_time + stats.build_time,
+            solve_time=tried.solve_time + stats.solve_time,
+            seed=f"{tried.seed} failed: solved again from the task's own guess")
+        forces = lay.forces_of(raw["x"])
+        result = make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:
         _library_store(lay, settings, x0, raw, dq, key0, escalation)
     payload = payload_checks(robot, spec, result.t, result.q)
@@ -163,6 +160,14 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     if throw:
         raise PlanningFailed(diagnosis, result)
     return result
+
+
+def _screened_guess(lay: Layout, settings: PlannerSettings) -> tuple[np.ndarray, Rows]:
+    """The layout's initial guess (kinematic: the nominal motion; dynamic: the heading guess) and
+    the self-collision rows screening left out for idle pairs, after adding the rows the guess asks
+    for (:func:`add_screened_terms`)."""
+    x0 = lay.initial_guess(settings)
+    return x0, add_screened_terms(lay, settings, x0)
 
 
 def _guess_configurations(lay: Layout, x0: np.ndarray) -> np.ndarray:
@@ -210,10 +215,11 @@ def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.
 
 
 def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | None = None) -> Layout:
-    """The layout :func:`plan` solves first (kinematic or dynamic, with the screened collision rows):
-    what keys its solver in the cache."""
+    """The layout :func:`plan` solves first (kinematic or dynamic, with the screened collision rows;
+    without the rows the solution library may remember for its structure): what keys its solver
+    in the cache."""
     lay, settings = _formulation(spec, robot, settings or PlannerSettings())
-    add_screened_terms(lay, settings, lay.initial_guess(settings))
+    _screened_guess(lay, settings)
     return lay
 
 
