@@ -26,6 +26,7 @@ with the same structure shares one solver.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -43,7 +44,7 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 
-from planner.trajopt import cache_disk
+from planner.trajopt import builds, cache_disk
 from planner.trajopt.cache_disk import LIBRARY, META, SERIALIZED, EntryDamaged
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
@@ -260,7 +261,7 @@ def _store_serialized(entry: Path, key: str, nlp: dict, derivatives: dict, nl, s
     _fork_worker(tmp, lambda: _write_serialized(tmp, entry, key, functions, nl.n_x, nl.n_g))
 
 
-def _fork_worker(tmp: Path, work: Callable[[], bool]) -> None:
+def _fork_worker(tmp: Path, work: Callable[[], bool], slot: builds.Slot | None = None) -> None:
     """Run ``work`` (it fills the temporary build folder ``tmp`` and publishes it) in a forked child.
 
     The child has its own session (a Ctrl-C of the planning command does not cut it short), the
@@ -268,10 +269,19 @@ def _fork_worker(tmp: Path, work: Callable[[], bool]) -> None:
     streams on /dev/null (a caller reading this process's output through a pipe must not wait for
     it), a lower priority (:data:`BACKGROUND_NICE`: on a busy 2-core machine it takes the CPU the
     foreground leaves), removes ``tmp`` when done and ends with ``os._exit`` (none of this process's exit
-    handlers). The parent records it in ``_WRITERS`` and in ``tmp``'s builder marker.
+    handlers). The parent records it in ``_WRITERS`` and in ``tmp``'s builder marker. A held build
+    lock ``slot`` passes to the child (the same open file: the parent closes its descriptor, the
+    lock stays held until the child and its compiler end), and the lock's text names the child.
     """
     _reap_writers()
-    pid = os.fork()
+    try:
+        pid = os.fork()
+    except OSError:  # no process to spare (EAGAIN, ENOMEM): the next run builds it
+        shutil.rmtree(tmp, ignore_errors=True)
+        if slot is not None:
+            slot.note(state="ended", phase="not started: fork failed")
+            slot.close()
+        return
     if pid == 0:  # the child
         code = 1
         try:
@@ -281,6 +291,8 @@ def _fork_worker(tmp: Path, work: Callable[[], bool]) -> None:
             null = os.open(os.devnull, os.O_RDWR)
             for fd in (0, 1, 2):
                 os.dup2(null, fd)
+            if slot is not None:
+                slot.note(pid=os.getpid())
             try:  # yield to the foreground: this plan, its simulation, the user's next command
                 os.nice(BACKGROUND_NICE)
             except OSError:
@@ -288,8 +300,12 @@ def _fork_worker(tmp: Path, work: Callable[[], bool]) -> None:
             code = 0 if work() else 1
         finally:  # also on an exception: os._exit ends the child here, silently, with code 1
             shutil.rmtree(tmp, ignore_errors=True)
+            if slot is not None:
+                slot.note(state="ended", phase="published" if code == 0 else "failed", compiler_pid=None)
             os._exit(code)
     _WRITERS.append(pid)
+    if slot is not None:
+        slot.close()
     try:  # the folder is the child's now: sweep() must not take it while it lives
         cache_disk.write_atomic(tmp / cache_disk.BUILDER_PID, str(pid))
     except OSError:
@@ -363,26 +379,33 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
     """Build the solver, generate C code for its functions, compile, store atomically.
 
     Returns the in-memory solver (compiled or not); a failed compilation only means that the
-    next process builds again.
+    next process builds again. The build runs only when it holds the cache's build lock and the
+    memory is there (:func:`planner.trajopt.builds.claim`, :func:`~planner.trajopt.builds.memory_refusal`);
+    otherwise the structure is recorded as skipped, and the plan runs in memory.
     """
     from planner.trajopt.ipopt import ipopt_options
     from planner.trajopt.transcription import Solver
 
     builder = ca.nlpsol("wbmp_plan", "ipopt", nlp, {**ipopt_options(settings), **derivatives})
     solver = Solver(function=builder, nlp_layout=nl, origin="built")
-    gcc = shutil.which("gcc")
+    gcc = shutil.which(settings.compiler)
     if gcc is None:
+        return solver
+    slot = _claim_build(entry.parent, key, settings, progress)
+    if slot is None:
         return solver
     tmp = None
     try:
-        entry.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
         (tmp / cache_disk.BUILDER_PID).write_text(str(os.getpid()))  # for sweep(): whose folder it is
     except OSError as e:  # an unwritable cache directory: plan in memory
         cache_disk.warn_unusable(entry.parent, (e.strerror or str(e)).lower())
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
+        slot.close()
         return solver
+    build = _Build(gcc=gcc, flags=tuple(settings.compile_flags), timeout=settings.compile_timeout,
+                   margin=settings.build_memory_margin, slot=slot)
     if settings.background_compile and hasattr(os, "fork"):
         # Generate the C code and compile it in a forked child: this plan runs on the in-memory
         # solver now, and the next process with this structure loads the compiled one (the code
@@ -390,26 +413,59 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
         if progress:
             progress("compiling the solver in the background for the next run")
         folder = tmp
-        _fork_worker(folder, lambda: _generate_c(folder, nlp, builder) and _finish_entry(
-            folder, entry, key, nl.n_x, nl.n_g, settings.compile_flags, settings.compile_timeout))
+        _fork_worker(folder, lambda: _generate_c(folder, nlp, builder, slot) and _finish_entry(
+            folder, entry, key, nl.n_x, nl.n_g, build), slot=slot)
         return solver
     try:
         if progress:
             progress("generating C code for the solver")
-        _generate_c(tmp, nlp, builder)
+        _generate_c(tmp, nlp, builder, slot)
         if progress:
-            progress(f"compiling the solver with gcc {' '.join(settings.compile_flags)} "
+            progress(f"compiling the solver with {Path(gcc).name} {' '.join(settings.compile_flags)} "
                      "(first time for this task structure)")
-        _finish_entry(tmp, entry, key, nl.n_x, nl.n_g, settings.compile_flags, settings.compile_timeout)
+        _finish_entry(tmp, entry, key, nl.n_x, nl.n_g, build)
         return solver
     except (OSError, RuntimeError):
         return solver
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+        slot.note(state="ended")
+        slot.close()
 
 
-def _generate_c(tmp: Path, nlp: dict, builder: ca.Function) -> bool:
+@dataclasses.dataclass(frozen=True, slots=True)
+class _Build:
+    """How one solver build compiles: the compiler, its flags, the time limit [s], the memory a
+    running compiler leaves (``margin`` [bytes]: below half of it the compiler is stopped), and the
+    held build lock (None: none is held, as in the direct calls of the tests)."""
+
+    gcc: str
+    flags: tuple[str, ...]
+    timeout: float
+    margin: int = 0
+    slot: builds.Slot | None = None
+
+
+def _claim_build(folder: Path, key: str, settings: PlannerSettings, progress) -> builds.Slot | None:
+    """The build lock of the cache folder for ``key``, or None (then the skip and its reason are
+    recorded, and said through ``progress``): another build runs, or the memory is not there."""
+    if not cache_disk.usable_folder(folder):
+        return None
+    reason = builds.memory_refusal(settings.build_memory, settings.build_memory_margin)
+    claimed: builds.Slot | str = reason if reason else builds.claim(folder, key)
+    if isinstance(claimed, builds.Slot):
+        return claimed
+    builds.record_skip(folder, key, claimed)
+    if progress:
+        progress(f"not compiling the solver now ({claimed}); the next run of this task structure "
+                 "compiles it")
+    return None
+
+
+def _generate_c(tmp: Path, nlp: dict, builder: ca.Function, slot: builds.Slot | None = None) -> bool:
     """Write ``tmp/nlp.c``: the NLP function and the solver's oracle functions, as C."""
+    if slot is not None:
+        slot.note(phase="generating C code")
     cg = ca.CodeGenerator("nlp.c")
     cg.add(ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]], ["x", "p"], ["f", "g"]))
     for name in ORACLE_FUNCTIONS:
@@ -418,19 +474,21 @@ def _generate_c(tmp: Path, nlp: dict, builder: ca.Function) -> bool:
     return True
 
 
-def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, timeout: float) -> bool:
+def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, build: _Build) -> bool:
     """Compile ``tmp/nlp.c``, probe-load the library in a child process, write the manifest
     and publish ``tmp`` as ``entry`` (True when a good entry is in place afterwards)."""
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        return False
     # -pipe: no assembly file (0.1-0.5 GB for a Talos solver) between the compiler and the assembler
-    cmd = [gcc, "-pipe", "-fPIC", "-shared", *flags, "nlp.c", "-o", LIBRARY, "-lm"]
-    if not _run_gcc(cmd, tmp, timeout):
+    cmd = [build.gcc, "-pipe", "-fPIC", "-shared", *build.flags, "nlp.c", "-o", LIBRARY, "-lm"]
+    if not _run_gcc(cmd, tmp, build.timeout, margin=build.margin, slot=build.slot):
+        if build.slot is not None and build.slot.info.get("stopped"):
+            builds.record_skip(entry.parent, key, build.slot.info["stopped"])
         return False
     (tmp / "nlp.c").unlink()
+    (tmp / GCC_LOG).unlink(missing_ok=True)
     lib = tmp / LIBRARY
     digest = cache_disk.file_sha256(lib)
+    if build.slot is not None:
+        build.slot.note(phase="checking the library", compiler_pid=None)
     problem = cache_disk.probe(lib, LIBRARY_FUNCTIONS)
     if problem not in (None, "unavailable"):
         return False  # never publish a library that does not load
@@ -438,29 +496,53 @@ def _finish_entry(tmp: Path, entry: Path, key: str, n_x: int, n_g: int, flags, t
         (tmp / cache_disk.VERIFIED).write_text(digest + "\n")
     meta = {
         "key": key, "sha256": digest, "size": lib.stat().st_size, "n_x": n_x, "n_g": n_g,
-        "casadi": ca.__version__, "flags": list(flags), "created": time.time(),
+        "casadi": ca.__version__, "flags": list(build.flags), "created": time.time(),
     }
-    return _publish_entry(tmp, entry, key, meta)
+    published = _publish_entry(tmp, entry, key, meta)
+    if published:
+        builds.clear_skip(entry.parent, key)
+    return published
 
 
-def _run_gcc(cmd: list[str], cwd: Path, timeout: float) -> bool:
+GCC_LOG = "gcc.log"  # the compiler's messages, in the build folder (not published)
+
+
+def _run_gcc(cmd: list[str], cwd: Path, timeout: float, *, margin: int = 0,
+             slot: builds.Slot | None = None) -> bool:
     """Run gcc in its own process group; on timeout kill the group (cc1 included).
 
     Its temporary files (the object file; the assembly without ``-pipe``) go to ``cwd``, the
     temporary build folder that a failed or abandoned build removes: a gcc killed here or with its
-    process used to leave them in the system's /tmp."""
+    process used to leave them in the system's /tmp. With a ``margin`` [bytes] the group is also
+    killed when ``MemAvailable`` falls below half of it (:func:`planner.trajopt.builds.memory_low`;
+    the reason goes to ``slot.info["stopped"]``). The compiler inherits the held build lock
+    ``slot``: the lock lasts as long as it, even if this process is killed first. Its messages go to
+    ``cwd/gcc.log`` (:data:`GCC_LOG`; a pipe that nobody reads while polling would stall a verbose compiler)."""
     env = {**os.environ, "TMPDIR": str(Path(cwd).resolve())}
-    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            start_new_session=True, env=env)
+    fds = (slot.fd,) if slot is not None and slot.fd >= 0 else ()
+    with open(Path(cwd) / GCC_LOG, "wb") as log:
+        proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=log,
+                                start_new_session=True, env=env, pass_fds=fds)
+    if slot is not None:
+        slot.note(phase="compiling", compiler_pid=proc.pid)
+    deadline = time.monotonic() + timeout
     try:
-        proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-        return False
+        while True:
+            try:
+                proc.wait(timeout=max(0.0, min(builds.WATCH_PERIOD, deadline - time.monotonic())))
+                break
+            except subprocess.TimeoutExpired:
+                pass
+            low = margin > 0 and builds.memory_low(margin)
+            if low or time.monotonic() >= deadline:
+                if low and slot is not None:
+                    slot.note(stopped=f"stopped while compiling: free memory fell below "
+                                      f"{builds.STOP_FRACTION * margin / 1e9:.1f} GB")
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+                return False
     except BaseException:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
         raise
     return proc.returncode == 0
-

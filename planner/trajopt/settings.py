@@ -5,8 +5,9 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
+from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN
 from planner.trajopt.centroidal.settings import CentroidalSettings
-from robots.cache import cache_base
+from robots.cache import cache_base, parse_size
 
 
 def default_cache_dir() -> str:
@@ -22,6 +23,22 @@ def default_background_compile() -> bool:
 def default_compile() -> bool:
     """False when ``$WBMP_COMPILE`` is ``0`` (no gcc, no disk cache), else True."""
     return os.environ.get("WBMP_COMPILE", "1").strip() not in ("0", "false", "no")
+
+
+def default_build_memory() -> int:
+    """``$WBMP_BUILD_MEMORY`` (a size: ``3.7G``, ``2500M``), else
+    :data:`planner.trajopt.builds.BUILD_MEMORY`; a value that is not a size gives the default."""
+    text = os.environ.get("WBMP_BUILD_MEMORY", "").strip()
+    try:
+        size = parse_size(text) if text else BUILD_MEMORY
+    except ValueError:
+        return BUILD_MEMORY
+    return BUILD_MEMORY if size is None else size
+
+
+def default_compiler() -> str:
+    """``$WBMP_COMPILER``, else ``gcc``: the C compiler of the solver builds."""
+    return os.environ.get("WBMP_COMPILER", "").strip() or "gcc"
 
 
 LIBRARY_MODES = ("on", "read", "off")
@@ -60,6 +77,14 @@ class PlannerSettings:
         background_compile: Compile in a detached process and solve this plan with the in-memory
             solver right away (default True unless ``$WBMP_COMPILE_BACKGROUND=0``); off: wait for
             gcc and solve with the compiled code (benchmarks of the first-ever build use that).
+            Either way at most one build runs per cache folder (:mod:`planner.trajopt.builds`).
+        build_memory: Memory one build needs [bytes] (default ``$WBMP_BUILD_MEMORY``, else
+            :data:`planner.trajopt.builds.BUILD_MEMORY`, 3.7 GB: gcc -O0 on a Talos solver). A
+            build starts only when ``MemAvailable`` holds it plus ``build_memory_margin``.
+        build_memory_margin: Memory a starting build leaves to everything else [bytes]; a running
+            compiler is stopped when ``MemAvailable`` falls below half of it.
+        compiler: The C compiler of the solver builds (a name on ``PATH`` or a path; called with
+            gcc's flags; default ``$WBMP_COMPILER``, else ``gcc``).
         contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
         limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
@@ -104,6 +129,9 @@ class PlannerSettings:
     compile_flags: tuple[str, ...] = ("-O0",)
     compile_timeout: float = 300.0
     background_compile: bool = field(default_factory=default_background_compile)
+    build_memory: int = field(default_factory=default_build_memory)
+    build_memory_margin: int = MEMORY_MARGIN
+    compiler: str = field(default_factory=default_compiler)
     contact_tolerance: float = 1e-4
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5
@@ -134,6 +162,9 @@ class PlannerSettings:
             raise PlannerError(f"settings: collision_rounds must be >= 0, got {self.collision_rounds}")
         if self.warm_start not in ("standing", "nominal"):
             raise PlannerError(f"settings: warm_start must be 'standing' or 'nominal', got {self.warm_start!r}")
+        if self.build_memory < 0 or self.build_memory_margin < 0:
+            raise PlannerError("settings: build_memory and build_memory_margin must be >= 0 bytes, got "
+                               f"{self.build_memory} and {self.build_memory_margin}")
         if self.solution_library not in LIBRARY_MODES:
             raise PlannerError("settings: solution_library must be 'on', 'read' or 'off', got "
                                f"{self.solution_library!r}")

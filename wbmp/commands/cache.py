@@ -6,7 +6,9 @@ listing gives each folder's entries and bytes, the total and the size cap
 (``$WBMP_CACHE_MAX_SIZE``, :func:`robots.cache.max_cache_bytes`); ``--clear`` removes the
 entries of all folders or of the ones named, and prints one line. Only wbmp's own entries are
 touched (names that are keys); a symbolic link is never followed; temporary files of a write in
-progress stay.
+progress stay. With the ``planner`` folder, the listing also says which solver build is running
+(structure key, pid, since when), which structures were skipped and why (another build ran; not
+enough free memory), and the memory rule (:mod:`planner.trajopt.builds`).
 
 Exit codes: 0 listed or cleared; 2 an unknown folder name, a ``$WBMP_CACHE_MAX_SIZE`` that is not
 a size, or a bad option.
@@ -30,7 +32,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Show each cache folder of $WBMP_CACHE_DIR (default ~/.cache/wbmp) with its entries "
                     "and size, the total and the cap (WBMP_CACHE_MAX_SIZE, default 4G; 0 or 'unlimited': "
                     "no cap; over it, the least recently used entries are removed after each store). "
-                    f"Folders: {FOLDERS_TEXT}.",
+                    f"Folders: {FOLDERS_TEXT}. With planner: the solver build running now (structure "
+                    "key, pid, since when), the structures skipped and why, and the memory a build needs "
+                    "(WBMP_BUILD_MEMORY, default 3.7G).",
         epilog="examples: wbmp cache; wbmp cache --clear planner; WBMP_CACHE_MAX_SIZE=2G wbmp cache",
     )
     p.add_argument("folder", nargs="*", help="cache folders to show or clear (default: all)")
@@ -56,6 +60,28 @@ def _age(seconds: float) -> str:
         if seconds >= size:
             return f"{seconds / size:.0f} {unit} ago"
     return "just now"
+
+
+def _builds(base) -> Any:
+    """The build status of the planner cache folder (:func:`planner.trajopt.builds.status`)."""
+    from planner.trajopt.builds import MEMORY_MARGIN, status
+    from planner.trajopt.settings import default_build_memory
+
+    return status(base / "planner", default_build_memory(), MEMORY_MARGIN)
+
+
+def _build_lines(st, now: float) -> list[str]:
+    from planner.trajopt.builds import describe
+
+    gb = 1e9
+    memory = "unknown" if st.available is None else f"{st.available / gb:.1f} GB"
+    lines = [f"  builds     {'running ' + describe(st.running, now) if st.running else 'none running'}",
+             f"             a build starts with {st.need / gb:.1f} GB + {st.margin / gb:.1f} GB free "
+             f"(WBMP_BUILD_MEMORY; available now: {memory})"]
+    for rec in st.skipped:
+        lines.append(f"    skipped {rec.get('key', '?')} {_age(now - rec['when'])}: {rec.get('reason', '?')} "
+                     "(the next solve of it builds it)")
+    return lines
 
 
 def run(args: argparse.Namespace) -> int:
@@ -89,6 +115,10 @@ def run(args: argparse.Namespace) -> int:
                 row["items"] = [{"folder": e.folder, "name": e.name, "size": e.size, "used": e.used}
                                 for e in f.entries]
             out["folders"].append(row)
+        if "planner" in folders:
+            st = _builds(base)
+            out["builds"] = {"running": st.running, "skipped": st.skipped, "memory_available": st.available,
+                             "build_memory": st.need, "memory_margin": st.margin}
         print(json.dumps(out, indent=2))
         return ExitCode.OK
     print(f"{base}")
@@ -103,4 +133,6 @@ def run(args: argparse.Namespace) -> int:
     entries = sum(len(f.entries) for f in usage)
     cap_text = "no cap" if cap is None else f"cap {format_size(cap)}"
     print(f"  {'total':10s} {entries:8d} {format_size(total):>11s}  ({cap_text}; WBMP_CACHE_MAX_SIZE)")
+    if "planner" in folders:
+        print("\n".join(_build_lines(_builds(base), now)))
     return ExitCode.OK

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planner import PlannerSettings, plan
-from planner.trajopt import cache
+from planner.trajopt import builds, cache
 from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, solver_key
 from tests.planner.planning_cases import squat_spec
@@ -28,12 +28,17 @@ def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, tal
     first = plan(spec, talos, settings=settings)
     assert first.stats.cache == "built" and first.ok
     entry = Path(tmp_path) / "planner" / solver_key(planned_layout(spec, talos, settings), settings)
+    building = builds.running(entry.parent)  # the build holds the cache's lock (planner/trajopt/builds.py)
+    assert building is not None and building["key"] == entry.name and building["pid"] in cache._WRITERS
+    compilers = set()
     deadline = time.monotonic() + COMPILE_WAIT
     while not (entry / "meta.json").exists() and time.monotonic() < deadline:
+        compilers.add((builds.running(entry.parent) or {}).get("compiler_pid"))
         time.sleep(0.5)
     assert (entry / "meta.json").exists(), "the background compilation never published its entry"
     codes = cache.wait_for_background(timeout=120)  # published: the forked compiler is ending; reap it
     assert codes and all(code == 0 for code in codes), codes
+    assert len(compilers - {None}) == 1 and builds.running(entry.parent) is None  # one gcc; lock free
     assert not any(p.name.startswith(".") for p in (Path(tmp_path) / "planner").iterdir()), "temporary dir left"
     clear_memory_cache()
     second = plan(spec, talos, settings=settings)
