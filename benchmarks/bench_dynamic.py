@@ -196,9 +196,9 @@ def main(argv: list[str] | None = None) -> int:
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):  # before CasADi loads its OpenBLAS
         os.environ.setdefault(key, str(args.threads))
     sys.path.insert(0, str(ROOT))
-    from planner import PlannerSettings
     from planner.trajopt.centroidal import CentroidalSettings
     from robots import load_robot
+    from wbmp.environment import planner_settings  # the WBMP_* switches, as the CLI reads them
 
     info = machine()
     results = {}
@@ -207,8 +207,8 @@ def main(argv: list[str] | None = None) -> int:
         for task in args.tasks:
             label, actions = TASKS[task]
             for form in args.formulations:
-                settings = PlannerSettings(compile_dynamic=args.compile_dynamic, solution_library="off",
-                                           centroidal=CentroidalSettings(whole_body_momentum=FORMULATIONS[form]))
+                settings = planner_settings(compile_dynamic=args.compile_dynamic, solution_library="off",
+                                            centroidal=CentroidalSettings(whole_body_momentum=FORMULATIONS[form]))
                 key = f"{name}/{task}" + ("" if form == "whole-body" else f" ({form})")
                 if args.library in ("off", "both"):
                     results[key] = {"label": label, "formulation": form, "library": "off",

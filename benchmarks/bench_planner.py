@@ -44,14 +44,15 @@ CASES = {"squat": ROOT / "examples" / "specs" / "squat.json", "reach": ROOT / "e
 def child(case: str, cache_dir: str, runs: int) -> None:
     """Plan ``case`` ``runs`` times in this process; print one JSON line per run."""
     t0 = time.perf_counter()
-    from planner import PlannerSettings, plan
+    from planner import plan
     from robots import load_robot
     from tasks.serialize import load_spec
+    from wbmp.environment import planner_settings  # the WBMP_* switches, as the CLI reads them
 
     spec = load_spec(CASES[case])
     robot = load_robot(spec.robot)
     startup = time.perf_counter() - t0
-    settings = PlannerSettings(cache_dir=cache_dir, solution_library="off")
+    settings = planner_settings(cache_dir=cache_dir, solution_library="off")
     for i in range(runs):
         t1 = time.perf_counter()
         result = plan(spec, robot, settings=settings)
@@ -67,15 +68,16 @@ def first_ever_child(task: str, cache_dir: str, profile: str | None) -> None:
     import resource
 
     t0 = time.perf_counter()
-    from planner import PlannerSettings, plan
+    from planner import plan
     from planner.trajopt import cache
     from robots import load_robot
     from wbmp.bench.tasks import TASKS, spec_for
+    from wbmp.environment import planner_settings  # the WBMP_* switches, as the CLI reads them
 
     robot = load_robot("talos")
     _, spec = spec_for(TASKS[task], robot, None)
     startup = time.perf_counter() - t0
-    settings = PlannerSettings(cache_dir=cache_dir, solution_library="off")
+    settings = planner_settings(cache_dir=cache_dir, solution_library="off")
     profiler = None
     if profile:
         import cProfile

@@ -14,13 +14,15 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
-# Solvers are built in memory (no gcc) unless a test asks for compilation, and nothing is
-# written to the user's solver cache: the cache tests set compile=True and their own cache_dir.
+# The planner's own defaults build solvers in memory and read no stored solution (it reads no
+# WBMP_* switch: wbmp/environment.py does, for the command line). These switches keep the command
+# line's runs in the tests the same: solvers in memory (no gcc), nothing written to the user's
+# solver cache (the cache tests set compile=True and their own cache_dir), and every plan from its
+# own guess, whatever the tests before it (in this worker) planned: the solution library
+# (planner/trajopt/library.py) would make a dynamic plan's local optimum depend on the order
+# pytest-xdist hands out the tests. Its own tests switch it on (tests/planner/trajopt/test_library.py).
 os.environ.setdefault("WBMP_COMPILE", "0")
 os.environ.setdefault("WBMP_COMPILE_BACKGROUND", "0")  # tests that compile wait for gcc
-# Every plan from its own guess, whatever the tests before it (in this worker) planned: the solution
-# library (planner/trajopt/library.py) would make a dynamic plan's local optimum depend on the order
-# pytest-xdist hands out the tests. Its own tests switch it on (tests/planner/trajopt/test_library.py).
 os.environ.setdefault("WBMP_SOLUTION_LIBRARY", "off")
 
 

@@ -351,14 +351,15 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
                 motions.store_request(rkey, key, files, digest)
             progress("answering from the motion cache")
             return _from_cache(request, hit, robot, timings["spec"], actions=actions, spec=spec)
-    from planner import PlannerSettings
     from planner import plan as plan_motion
+    from wbmp.environment import planner_settings
 
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
     t0 = time.perf_counter()
-    # without the motion cache (--no-cache), no solution library either: the result of the request
-    # alone, whatever was planned before (planner/trajopt/library.py)
-    settings = None if motions is not None else PlannerSettings(solution_library="off")
+    # the user's WBMP_* switches (compile, background, solution library, build memory); without the
+    # motion cache (--no-cache), no solution library either: the result of the request alone,
+    # whatever was planned before (planner/trajopt/library.py)
+    settings = planner_settings() if motions is not None else planner_settings(solution_library="off")
     plan = plan_motion(spec, robot, progress=progress, settings=settings)
     check_signals()
     timings["plan"] = time.perf_counter() - t0

@@ -1,13 +1,19 @@
-"""Planner settings: solver options and the solver cache, as a frozen dataclass."""
+"""Planner settings: solver options and the solver cache, as a frozen dataclass.
+
+No default here reads a ``WBMP_*`` switch: a plan depends on its arguments, not on the shell it
+runs in (only ``cache_dir`` defaults to ``$WBMP_CACHE_DIR``, :func:`robots.cache.cache_base`).
+The defaults keep everything in memory (no gcc, no solver written to disk, no stored solution
+read); the command line turns the disk cache and the solution library on, as the user's
+``WBMP_*`` variables say (:func:`wbmp.environment.planner_settings`).
+"""
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN
 from planner.trajopt.centroidal.settings import CentroidalSettings
-from robots.cache import cache_base, parse_size
+from robots.cache import cache_base
 
 
 def default_cache_dir() -> str:
@@ -15,41 +21,7 @@ def default_cache_dir() -> str:
     return str(cache_base())
 
 
-def default_background_compile() -> bool:
-    """False when ``$WBMP_COMPILE_BACKGROUND`` is ``0``, else True."""
-    return os.environ.get("WBMP_COMPILE_BACKGROUND", "1").strip() not in ("0", "false", "no")
-
-
-def default_compile() -> bool:
-    """False when ``$WBMP_COMPILE`` is ``0`` (no gcc, no disk cache), else True."""
-    return os.environ.get("WBMP_COMPILE", "1").strip() not in ("0", "false", "no")
-
-
-def default_build_memory() -> int:
-    """``$WBMP_BUILD_MEMORY`` (a size: ``3.7G``, ``2500M``), else
-    :data:`planner.trajopt.builds.BUILD_MEMORY`; a value that is not a size gives the default."""
-    text = os.environ.get("WBMP_BUILD_MEMORY", "").strip()
-    try:
-        size = parse_size(text) if text else BUILD_MEMORY
-    except ValueError:
-        return BUILD_MEMORY
-    return BUILD_MEMORY if size is None else size
-
-
-def default_compiler() -> str:
-    """``$WBMP_COMPILER``, else ``gcc``: the C compiler of the solver builds."""
-    return os.environ.get("WBMP_COMPILER", "").strip() or "gcc"
-
-
 LIBRARY_MODES = ("on", "read", "off")
-
-
-def default_solution_library() -> str:
-    """``$WBMP_SOLUTION_LIBRARY``: ``off`` (or ``0``, ``false``, ``no``), ``read``; else ``on``."""
-    value = os.environ.get("WBMP_SOLUTION_LIBRARY", "on").strip().lower()
-    if value in ("0", "false", "no"):
-        return "off"
-    return value if value in LIBRARY_MODES else "on"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -67,24 +39,26 @@ class PlannerSettings:
             constraints, and 1000 cut the Talos squat from 25 to 17 iterations.
         use_cache: Reuse solvers in this process and compiled solvers on disk.
         compile: Compile new solvers to C with gcc and store them in ``cache_dir`` (needs
-            ``use_cache``; default True unless ``$WBMP_COMPILE=0``). Off: solvers are built in
-            memory only (no gcc).
+            ``use_cache``). Off (the default; the command line's is on unless ``$WBMP_COMPILE=0``):
+            solvers are built in memory only (no gcc, nothing written).
         cache_dir: Directory of the on-disk solver cache (default ``$WBMP_CACHE_DIR`` or
             ``~/.cache/wbmp``).
         compile_flags: gcc flags for generated code (``-O0``: the code is ~3 MB for Talos and
             ``-O1`` takes 4x longer to compile for little solve-time gain).
         compile_timeout: Give up compiling after this long [s] (the plan still runs in memory).
         background_compile: Compile in a detached process and solve this plan with the in-memory
-            solver right away (default True unless ``$WBMP_COMPILE_BACKGROUND=0``); off: wait for
+            solver right away (default True; the command line's ``$WBMP_COMPILE_BACKGROUND=0``
+            turns it off); off: wait for
             gcc and solve with the compiled code (benchmarks of the first-ever build use that).
             Either way at most one build runs per cache folder (:mod:`planner.trajopt.builds`).
-        build_memory: Memory one build needs [bytes] (default ``$WBMP_BUILD_MEMORY``, else
-            :data:`planner.trajopt.builds.BUILD_MEMORY`, 3.7 GB: gcc -O0 on a Talos solver). A
+        build_memory: Memory one build needs [bytes] (default
+            :data:`planner.trajopt.builds.BUILD_MEMORY`, 3.7 GB: gcc -O0 on a Talos solver; the
+            command line's ``$WBMP_BUILD_MEMORY``). A
             build starts only when ``MemAvailable`` holds it plus ``build_memory_margin``.
         build_memory_margin: Memory a starting build leaves to everything else [bytes]; a running
             compiler is stopped when ``MemAvailable`` falls below half of it.
         compiler: The C compiler of the solver builds (a name on ``PATH`` or a path; called with
-            gcc's flags; default ``$WBMP_COMPILER``, else ``gcc``).
+            gcc's flags; default ``gcc``; the command line's ``$WBMP_COMPILER``).
         contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
         limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
         polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
@@ -114,8 +88,8 @@ class PlannerSettings:
         solution_library: Earlier solutions of a dynamic plan's solver structure seed its solve
             (:mod:`planner.trajopt.library`): ``"on"`` (use the nearest, store each successful
             plan's), ``"read"`` (use, store nothing), ``"off"`` (every solve from the task's own
-            guess: the same result whatever was planned before). Default ``$WBMP_SOLUTION_LIBRARY``,
-            else ``"on"``; needs ``use_cache``.
+            guess: the same result whatever was planned before: the default; the command line's
+            is ``$WBMP_SOLUTION_LIBRARY``, else ``"on"``); needs ``use_cache``.
     """
 
     max_iterations: int = 150
@@ -124,14 +98,14 @@ class PlannerSettings:
     print_level: int = 0
     objective_scaling: float = 1000.0
     use_cache: bool = True
-    compile: bool = field(default_factory=default_compile)
+    compile: bool = False
     cache_dir: str = field(default_factory=default_cache_dir)
     compile_flags: tuple[str, ...] = ("-O0",)
     compile_timeout: float = 300.0
-    background_compile: bool = field(default_factory=default_background_compile)
-    build_memory: int = field(default_factory=default_build_memory)
+    background_compile: bool = True
+    build_memory: int = BUILD_MEMORY
     build_memory_margin: int = MEMORY_MARGIN
-    compiler: str = field(default_factory=default_compiler)
+    compiler: str = "gcc"
     contact_tolerance: float = 1e-4
     limit_tolerance: float = 1e-6
     polygon_tolerance: float = 1e-5
@@ -146,7 +120,7 @@ class PlannerSettings:
     collision_screening: float = 0.03
     collision_rounds: int = 3
     ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
-    solution_library: str = field(default_factory=default_solution_library)
+    solution_library: str = "off"
 
     def __post_init__(self) -> None:
         from planner.exceptions import PlannerError

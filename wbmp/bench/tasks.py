@@ -40,11 +40,12 @@ TASK_KEYS = (
 def planner_settings(cache_dir: str, max_iterations: int | None = None):
     """PlannerSettings of a benchmark plan: solver cache in ``cache_dir``, compiled unless
     ``WBMP_BENCH_COMPILE=0`` (``--no-compile``, inherited by the child processes); every plan
-    from the task's own guess (no solution library: a repeat would start from its own solution)."""
-    from planner import PlannerSettings
+    from the task's own guess (no solution library: a repeat would start from its own solution);
+    the rest of the user's switches (:func:`wbmp.environment.planner_settings`)."""
+    from wbmp.environment import planner_settings as from_environment
 
     compile_ = os.environ.get("WBMP_BENCH_COMPILE", "1") != "0"
-    settings = PlannerSettings(cache_dir=cache_dir, compile=compile_, solution_library="off")
+    settings = from_environment(cache_dir=cache_dir, compile=compile_, solution_library="off")
     if max_iterations is not None:
         settings = dataclasses.replace(settings, max_iterations=max_iterations)
     return settings

@@ -10,8 +10,8 @@ progress stay. With the ``planner`` folder, the listing also says which solver b
 (structure key, pid, since when), which structures were skipped and why (another build ran; not
 enough free memory), and the memory rule (:mod:`planner.trajopt.builds`).
 
-Exit codes: 0 listed or cleared; 2 an unknown folder name, a ``$WBMP_CACHE_MAX_SIZE`` that is not
-a size, or a bad option.
+Exit codes: 0 listed or cleared; 2 an unknown folder name, a ``$WBMP_CACHE_MAX_SIZE`` or
+``$WBMP_BUILD_MEMORY`` that is not a size, or a bad option.
 """
 
 from __future__ import annotations
@@ -65,9 +65,9 @@ def _age(seconds: float) -> str:
 def _builds(base) -> Any:
     """The build status of the planner cache folder (:func:`planner.trajopt.builds.status`)."""
     from planner.trajopt.builds import MEMORY_MARGIN, status
-    from planner.trajopt.settings import default_build_memory
+    from wbmp.environment import build_memory
 
-    return status(base / "planner", default_build_memory(), MEMORY_MARGIN)
+    return status(base / "planner", build_memory(), MEMORY_MARGIN)
 
 
 def _build_lines(st, now: float) -> list[str]:

@@ -126,10 +126,15 @@ def test_settings_refuse_an_unknown_mode():
         PlannerSettings(solution_library="maybe")
 
 
-def test_the_environment_variable_sets_the_default(monkeypatch):
+def test_the_environment_variable_sets_the_command_lines_default(monkeypatch):
+    """$WBMP_SOLUTION_LIBRARY sets the command line's mode (wbmp/environment.py); the planner's own
+    default is off whatever it says (no hidden state: a library call reads no stored solution)."""
+    from wbmp.environment import planner_settings
+
     for value, mode in (("off", "off"), ("0", "off"), ("read", "read"), ("on", "on"), ("", "on")):
         monkeypatch.setenv("WBMP_SOLUTION_LIBRARY", value)
-        assert PlannerSettings().solution_library == mode
+        assert planner_settings().solution_library == mode
+        assert PlannerSettings().solution_library == "off"
 
 
 def test_wbmp_solve_uses_the_library_with_the_motion_cache_only(g1, cold, tmp_path, monkeypatch):
