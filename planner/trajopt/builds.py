@@ -115,14 +115,14 @@ def _pid_alive(pid: object) -> bool:
 
 
 def describe(info: dict, now: float | None = None) -> str:
-    """``key 3f2a... (pid 1234, gcc 1240, for 35 s: compiling)`` from a lock's text."""
+    """``3f2a... (pid 1234, compiler pid 1240, since 10:41:02, 35 s: compiling)`` from a lock's text."""
     now = time.time() if now is None else now
     parts = [f"pid {info.get('pid', '?')}"]
     if info.get("compiler_pid"):
         parts.append(f"compiler pid {info['compiler_pid']}")
     since = info.get("since")
     if isinstance(since, (int, float)):
-        parts.append(f"for {max(0.0, now - since):.0f} s")
+        parts.append(f"since {time.strftime('%H:%M:%S', time.localtime(since))}, {max(0.0, now - since):.0f} s")
     text = f"{info.get('key', '?')} ({', '.join(parts)}"
     return text + (f": {info['phase']})" if info.get("phase") else ")")
 

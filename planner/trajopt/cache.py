@@ -10,7 +10,9 @@ with the same structure shares one solver.
   the Lagrangian Hessian) are generated as C by CasADi, compiled by the system ``gcc`` into a
   shared library, and loaded with IPOPT through ``nlpsol(name, "ipopt", library)``
   (``cache = "disk"``). With ``settings.background_compile`` a forked child generates the C
-  code and compiles it while this process solves in memory. Each entry is a directory ``<cache_dir>/planner/<key>/`` with the
+  code and compiles it while this process solves in memory. At most one build runs per cache,
+  and only with the memory it needs (:mod:`planner.trajopt.builds`); a structure that finds a
+  build running, or too little memory, is solved in memory and built by its next solve. Each entry is a directory ``<cache_dir>/planner/<key>/`` with the
   library, its manifest (``meta.json``: key, size and checksum of the library, problem sizes)
   and a ``verified`` marker. An entry is checked before anything is loaded into this process
   (:mod:`planner.trajopt.cache_disk`: a truncated or forged library must not crash it); a damaged one
