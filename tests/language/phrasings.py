@@ -63,22 +63,32 @@ def load(path: Path = PATH) -> list[Sentence]:
     return out
 
 
+def _equal(h, v) -> bool:
+    if isinstance(v, float) or isinstance(h, float):
+        return isinstance(h, (int, float)) and isinstance(v, (int, float)) \
+            and math.isclose(h, v, rel_tol=0, abs_tol=VALUE_ATOL)
+    return h == v
+
+
 def _same(want: dict, have: dict) -> bool:
+    """The motion is the labelled one: every parameter has the value the label gives, or else
+    the registry's default (a parameter stated at its default value is what was said)."""
+    from tasks.actions import REGISTRY
+
     if want["action"] != have["action"] or want["overlay"] != bool(have.get("overlay", False)):
         return False
-    got = have["params"]
-    if set(got) - set(want["params"]):
-        return False
+    defaults = {p.name: p.default for p in REGISTRY[have["action"]].params}
+    got = {**defaults, **have["params"]}
+    for k in set(have["params"]) - set(want["params"]):
+        if not _equal(have["params"][k], defaults.get(k)):
+            return False
     for k, v in want["params"].items():
         if v == ANY:
             continue
         if k not in got:
             return False
         h = got[k]
-        if isinstance(v, float):
-            if not isinstance(h, (int, float)) or not math.isclose(h, v, rel_tol=0, abs_tol=VALUE_ATOL):
-                return False
-        elif h != v:
+        if not _equal(h, v):
             return False
     return True
 
