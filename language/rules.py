@@ -65,7 +65,9 @@ from language.lexicon import (
     get_lexicon,
 )
 from language.normalize import atomize, normalize, phrase_key
-from language.plan import ActionPlan, WordUse
+from language.objects import not_a_thing, travel_direction
+from language.plan import ActionPlan, ParsedAction, WordUse
+from language.returns import go_back, marks
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import strip_reference
@@ -73,14 +75,6 @@ from tasks.limits import MAX_REPEAT
 
 AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
 MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
-
-
-@dataclass(frozen=True, slots=True)
-class ParsedAction:
-    """An action and the names of the parameters the sentence stated."""
-
-    action: Action
-    given: frozenset[str]
 
 
 @dataclass(slots=True)
@@ -155,7 +149,7 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
     """:func:`parse_rules`, and what each word did (for ``wbmp parse``)."""
     lx = lexicon or get_lexicon()
     normalized = normalize(text)
-    items = _references(_around(lx.segment(atomize(normalized), normalized), lx, normalized), lx, normalized)
+    items = _references(_around(_nouns(lx.segment(atomize(normalized), normalized)), lx, normalized), lx, normalized)
     _refuse_unknown(items, lx)
     uses = _Uses()
     clauses = _split(items, uses, frozenset(lx.optional_adverbs))
@@ -164,10 +158,22 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
         raise EmptyInstruction(f'empty instruction "{text.strip()}": say what the robot should do, e.g. "wave your right hand twice, then squat"')
     groups: list[list[tuple[_Clause, list[ParsedAction]]]] = []
     previous: list[ParsedAction] = []
+    history: list[ParsedAction] = []  # every action so far, for "walk back" (language.returns)
     for clause in clauses:
         parsed = _parse_clause(clause, previous, lx, normalized, uses)
         if not parsed:  # a "stop" that ends the motion before it
             continue
+        if _stands_back_up(parsed, history, clause):  # "squats down and stands back up": the squat did
+            for it in clause.items:
+                uses.add(it, "no effect", f"{history[-1].action.name} ends standing", clause.index)
+            continue
+        back, start = marks(clause.items)
+        if back:
+            parsed, detail = go_back(parsed, history, start, clause.text(normalized))
+            for it in back if detail else ():
+                if it.kind == DIR:
+                    uses.add(it, "parameter", detail, clause.index)
+        history.extend(parsed)
         if clause.connector == OVERLAY and groups:
             groups[-1].append((clause, parsed))
         else:
@@ -208,6 +214,29 @@ PLACE_WORDS = ("on", "onto", "upon", "in", "into", "inside")  # "put the cup on 
 PLACE_TRIGGER_ENDINGS = ("到", "在", "进")  # 放到, 放在: the reference after the action word is where it goes
 PLACE_TRAILING = ("上面", "上边", "里面", "上", "里")  # 放到架子上: the shelf
 HOLDING = ("pick_up",)  # actions whose object a hand then holds: what a put_down's "it" names
+
+
+COME_WORDS = ("come", "comes", "came", "coming", "过来", "来")  # "come over here": towards the speaker, no way
+ENDS_STANDING = ("squat", "bow", "lunge")  # actions that come back up by themselves
+BACK_UP = ("back up", "up again")
+
+
+def _stands_back_up(parsed: list[ParsedAction], history: list[ParsedAction], clause: _Clause) -> bool:
+    """The clause only says to stand up again after an action that ends standing."""
+    return (len(parsed) == 1 and parsed[0].action.name == "stand" and not parsed[0].given and bool(history)
+            and history[-1].action.name in ENDS_STANDING
+            and all(it.kind != TRIGGER or any(w in it.text for w in BACK_UP) for it in clause.items))
+
+
+def _nouns(items: list[Item]) -> list[Item]:
+    """An adverb word after ``the``/``a`` at the end of a part is a noun, unknown to the parser
+    (``turn on the light`` is no gentle turn)."""
+    out = list(items)
+    for k, it in enumerate(items):
+        if (it.kind == ADV and not str(it.value).startswith("part_") and k > 0 and items[k - 1].kind == FILLER and items[k - 1].text in DETERMINERS
+                and " " not in it.text and (k + 1 == len(items) or items[k + 1].kind in (SEQ, OVERLAY, PUNCTUATION))):
+            out[k] = Item(UNKNOWN, None, it.text, it.start, it.end)
+    return out
 
 
 def _takes_object(trigger: Item, lx: Lexicon) -> bool:
@@ -251,6 +280,8 @@ def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             taken.pop()  # "put the cup down": the direction is a word of its own
         if taken and taken[0].text in POSSESSIVES:
             return []  # "touch your nose": a part of the body, not an object of the scene
+        if named and not_a_thing(taken, normalized[taken[0].start:taken[-1].end], lx) is not None:
+            return []  # "walk in a zigzag", "walk up the stairs": its words are refused, naming them
         return taken if named else []
 
     def merge(run: list[Item], kind: str = REF) -> None:
@@ -383,7 +414,8 @@ def _around_part(part: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
         after the object: ``give me the box``, ``give the box to me``, but ``give me a wave`` is a wave."""
         return b > a and all(word(j) for j in range(a, b)) and any(
             part[j].kind in (UNKNOWN, NEARMISS) or part[j].text in PRONOUNS or j in (nouns if closed else definite)
-            for j in range(a, b))
+            for j in range(a, b)) and (any(part[j].text in PRONOUNS for j in range(a, b))
+                                       or not_a_thing(part[a:b], normalized[part[a].start:part[b - 1].end], lx) is None)
 
     lead = 0
     while lead < len(part) and part[lead].kind in (FILLER, SUBJECT, AUX):
@@ -665,6 +697,12 @@ def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None
             raise InvalidParameter(f'"{ref.text}" in "{clause.text(normalized)}": {", ".join(sorted(with_object))} '
                                    "takes no object")
     else:  # "walk to the left": walk_to's words without an object are a walk
+        if any(n in lx.plain_forms for n in names) and all(
+                it.kind in (TRIGGER, FILLER, SUBJECT, AUX, CLASSIFIER) for it in clause.items) and any(
+                it.kind == TRIGGER and it.text.startswith(COME_WORDS) for it in clause.items):
+            said = clause.text(normalized)
+            raise InvalidParameter(f'"{said}" names no object of the scene to go to: say which thing (e.g. "walk to '
+                                   'the table", with --scene) or which way (e.g. "walk forward 1 meter")')
         names = {lx.plain_forms.get(n, n) for n in names}
     if len(names) == 1:
         return next(iter(names))
@@ -703,8 +741,18 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
     def note(it: Item, role: str, detail: str = "") -> None:
         uses.add(it, role, detail, ci)
 
-    params, copies, sources = _slots(name, clause, lx, normalized, note)
     aw = lx.actions[name]
+    sideways = any(it.kind == DIR and it.value in ("side", "sideways") for it in clause.items)
+    if aw.bare_left_right == "side" and not aw.rotation_side and not sideways:
+        way = next((it for k, it in enumerate(clause.items) if travel_direction(clause.items, k)), None)
+        if way is not None:  # "hop to the left" is no hop on the left foot
+            raise InvalidParameter(f'"{way.text}" in "{clause.text(normalized)}" is a way to go, and {name} does '
+                                   f'not travel sideways; to choose the {aw.side}, say e.g. "left {aw.side}"')
+    params, copies, sources = _slots(name, clause, lx, normalized, note)
+    if aw.ask is not None and aw.ask not in params:  # a bare "look" asks where
+        where = clause.text(normalized)
+        choices = ", ".join(REGISTRY[name].param(aw.ask).choices)
+        raise InvalidParameter(f'"{where}" does not say the {aw.ask} ({choices}): e.g. "{where} left"')
     if aw.split is not None and aw.split in params:
         pieces = _split_value(name, aw.split, params, copies, sources, clause, normalized) // copies
         if pieces > 1:
@@ -942,7 +990,9 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
         mapping = aw.adverbs.get(it.value)
         if mapping is None:
             if it.value in lx.optional_adverbs:  # "walk slowly", "wave happily": accepted, listed
-                what = "mood or style" if it.value == "mood" else f"{it.value} ({name} has no parameter for it)"
+                what = {"mood": "mood or style", "context": "context (changes nothing)",
+                        "normal_speed": "normal speed (the default)"}.get(
+                    it.value, f"{it.value} ({name} has no parameter for it)")
                 note(it, "not used", what)
                 continue
             raise misfit(it)

@@ -1,0 +1,74 @@
+"""Which words may name an object of the scene (issue 32: no silent misreadings).
+
+An object slot (``walk_to``, ``look_at``, ``touch_object``...) takes only a noun phrase, and
+without a scene a phrase is an object only if it reads as a thing: it does not start with a
+direction or a path preposition (``forward at a normal pace``, ``up the stairs``, ``in a
+zigzag``, ``over a beam``), and none of its words is a manner, path shape, place, body part or
+exercise word (``not_things`` in ``phrasings.json``: ``pace``, ``circle``, ``here``,
+``belly``, ``push-ups``, 肚子). Everything else stays words the parser does not know, so the
+sentence is refused naming them, instead of a ``walk_to "forward at a normal pace"`` that a
+scene might even match by accident.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+from language.lexicon import DIR, LR, Item, Lexicon
+
+#: Prepositions that start a path, a manner or a place, never an object after the action word.
+PATH_PREPOSITIONS = frozenset({
+    "in", "on", "at", "like", "over", "up", "down", "around", "across", "along", "through", "onto",
+    "into", "for", "by", "past", "under", "with", "as", "upstairs", "downstairs", "inside", "outside",
+})
+#: Chinese place words that end a reference without naming anything (走到桌子那里: the table).
+DEICTIC_SUFFIXES = ("那里", "这里", "那儿", "这儿", "那边", "这边")
+_EN_WORD = re.compile(r"[a-z][a-z'-]*")
+_CJK = re.compile(r"[\u3400-\u9fff]")
+
+
+def not_a_thing(run: Sequence[Item], text: str, lx: Lexicon) -> str | None:
+    """Why the words ``run`` (spelling ``text``) are no object of the scene, or None if they
+    read as a thing."""
+    if not run:
+        return "no words"
+    chinese = bool(_CJK.search(text))
+    first = run[0]
+    if first.kind in (DIR, LR) and not (chinese and "的" in text):
+        return f'"{first.text}" is a direction'  # "forward at a normal pace", 左边 (左边的箱子 is a thing)
+    words = _EN_WORD.findall(text.lower())
+    if words and not chinese and words[0] in PATH_PREPOSITIONS:
+        return f'"{words[0]}" starts a path or a manner'  # "in a zigzag", "up the stairs"
+    for w in words:
+        cls = lx.not_things.get(w)
+        if cls is not None:
+            return f'"{w}" is a {cls} word'
+    if chinese:
+        head = strip_deictic(text).rpartition("的")[2]
+        for w, cls in lx.not_things.items():
+            if _CJK.search(w) and (head == w or (head.endswith(w) and len(w) > 1)):
+                return f'"{w}" is a {cls} word'
+    return None
+
+
+def strip_deictic(text: str) -> str:
+    """A Chinese reference without a trailing 那里/这里 (走到桌子那里: 桌子)."""
+    for suffix in DEICTIC_SUFFIXES:
+        if text.endswith(suffix) and text[: -len(suffix)].strip():
+            return text[: -len(suffix)].strip()
+    return text
+
+
+def travel_direction(items: Sequence[Item], k: int) -> bool:
+    """``items[k]`` (left/right) is a way to go (``to the left``, 向左, ``towards the right``),
+    not the side of a limb."""
+    it = items[k]
+    if it.kind != LR:
+        return False
+    if it.text.startswith(("to ", "toward", "向", "往", "朝")) or it.text.endswith(("ward", "wards")):
+        return True
+    j = k - 1
+    while j >= 0 and items[j].text in ("the", "your", "his", "her", "their", "my"):
+        j -= 1
+    return j >= 0 and items[j].text in ("to", "toward", "towards", "向", "往", "朝")
