@@ -52,6 +52,32 @@ def not_a_thing(run: Sequence[Item], text: str, lx: Lexicon) -> str | None:
     return None
 
 
+#: Words after which an English reference names another object (``the box on the table``).
+RELATION_WORDS = frozenset({"on", "onto", "in", "inside", "near", "behind", "beside", "under", "below", "above",
+                            "next", "left", "right", "of", "by", "at", "with", "from", "between", "in front of"})
+DETERMINER_WORDS = frozenset({"the", "a", "an", "that", "this", "those", "these", "to", "towards", "toward"})
+
+
+def head_noun(text: str) -> str:
+    """The word a reference is about (``the red box on the table``: box; 桌子上的杯子: 杯子), as
+    ``wbmp parse`` shows it; the scene, not the parser, decides which object that is."""
+    if _CJK.search(text):
+        head = strip_deictic(text).rpartition("的")[2]
+        for det in ("那个", "这个", "那只", "这只", "那张", "这张", "那", "这"):
+            if head.startswith(det) and len(head) > len(det):
+                head = head[len(det):]
+                break
+        return head.rstrip("上里") or head
+    words = _EN_WORD.findall(text.lower())
+    out = ""
+    for w in words:
+        if out and w in RELATION_WORDS:
+            break
+        if w not in DETERMINER_WORDS:
+            out = w
+    return out or text
+
+
 def strip_deictic(text: str) -> str:
     """A Chinese reference without a trailing 那里/这里 (走到桌子那里: 桌子)."""
     for suffix in DEICTIC_SUFFIXES:
@@ -60,15 +86,14 @@ def strip_deictic(text: str) -> str:
     return text
 
 
-def travel_direction(items: Sequence[Item], k: int) -> bool:
-    """``items[k]`` (left/right) is a way to go (``to the left``, 向左, ``towards the right``),
-    not the side of a limb."""
-    it = items[k]
+def travel_direction(it: Item, normalized: str) -> bool:
+    """``it`` (left/right in the sentence ``normalized``) is a way to go (``to the left``, 向左,
+    ``towards the right``), not the side of a limb."""
     if it.kind != LR:
         return False
     if it.text.startswith(("to ", "toward", "向", "往", "朝")) or it.text.endswith(("ward", "wards")):
         return True
-    j = k - 1
-    while j >= 0 and items[j].text in ("the", "your", "his", "her", "their", "my"):
-        j -= 1
-    return j >= 0 and items[j].text in ("to", "toward", "towards", "向", "往", "朝")
+    before = normalized[:it.start].split()
+    while before and before[-1] in ("the", "your", "his", "her", "their", "my"):
+        before.pop()
+    return bool(before) and (before[-1] in ("to", "toward", "towards") or before[-1].endswith(("向", "往", "朝")))

@@ -65,7 +65,7 @@ from language.lexicon import (
     get_lexicon,
 )
 from language.normalize import atomize, normalize, phrase_key
-from language.objects import not_a_thing, travel_direction
+from language.objects import head_noun, not_a_thing, travel_direction
 from language.plan import ActionPlan, ParsedAction, WordUse
 from language.returns import go_back, marks
 from tasks.actions import REGISTRY, Action
@@ -744,7 +744,7 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
     aw = lx.actions[name]
     sideways = any(it.kind == DIR and it.value in ("side", "sideways") for it in clause.items)
     if aw.bare_left_right == "side" and not aw.rotation_side and not sideways:
-        way = next((it for k, it in enumerate(clause.items) if travel_direction(clause.items, k)), None)
+        way = next((it for it in clause.items if travel_direction(it, normalized)), None)
         if way is not None:  # "hop to the left" is no hop on the left foot
             raise InvalidParameter(f'"{way.text}" in "{clause.text(normalized)}" is a way to go, and {name} does '
                                    f'not travel sideways; to choose the {aw.side}, say e.g. "left {aw.side}"')
@@ -919,7 +919,7 @@ def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
                 raise misfit(it)
             params[aw.object] = it.value
             if it.text:  # a borrowed reference has no words of its own
-                note(it, "object", f"{aw.object}={it.value}")
+                note(it, "object", f"{aw.object}={it.value} (a thing: '{head_noun(it.value)}'; the scene resolves it)")
         elif it.kind == DEST:
             if aw.destination is None:
                 raise misfit(it)
