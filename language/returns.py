@@ -6,7 +6,7 @@ distance (or the steps) of the walk before; without a turn it is backward by tha
 Words that name the start (``to the start``, ``to where you started``, 原点, 起点) ask for it
 explicitly: with nothing walked before, or after a turn that is not a half turn, the clause is
 refused naming them instead of guessing a direction. A plain ``take a step back`` stays one
-step backward.
+step backward. ``stands back up`` after a squat (bow, lunge) adds nothing: the squat ends standing.
 """
 
 from __future__ import annotations
@@ -89,3 +89,14 @@ def go_back(parsed: list[ParsedAction], history: Sequence[ParsedAction], start: 
         given = keep | {"direction"}
     detail = f"back to the start: {action.name} {way}" + ("" if own else f", as far as {before.action.name} went")
     return [ParsedAction(action, frozenset(given))] * len(parsed), detail
+
+
+ENDS_STANDING = ("squat", "bow", "lunge")  # actions that come back up by themselves
+BACK_UP = ("back up", "up again")
+
+
+def stands_back_up(parsed: Sequence[ParsedAction], history: Sequence[ParsedAction], items: Sequence[Item]) -> bool:
+    """The clause only says to stand up again after an action that ends standing."""
+    return (len(parsed) == 1 and parsed[0].action.name == "stand" and not parsed[0].given and bool(history)
+            and history[-1].action.name in ENDS_STANDING
+            and all(it.kind != TRIGGER or any(w in it.text for w in BACK_UP) for it in items))
