@@ -22,6 +22,16 @@ PATH_PREPOSITIONS = frozenset({
     "in", "on", "at", "like", "over", "up", "down", "around", "across", "along", "through", "onto",
     "into", "for", "by", "past", "under", "with", "as", "upstairs", "downstairs", "inside", "outside",
 })
+#: Chinese words that start a path around or past a thing (绕着桌子走 walks around the table, not to it).
+ZH_PATH_PREFIXES = ("绕着", "围着", "沿着", "顺着", "围绕", "绕", "穿过", "经过", "越过", "跨过", "跳过")
+#: Words that start an English noun phrase naming a thing (after ``to``/``towards``).
+EN_DETERMINERS = frozenset({"the", "a", "an", "that", "this", "those", "these", "my", "your", "his", "her",
+                            "their", "our", "its", "some", "one", "two", "three", "another", "each", "any"})
+#: Words that only point at the speaker or a place nobody named (``walk towards me``, 看这里).
+DEICTIC = frozenset({"me", "us", "you", "yourself", "here", "there", "我", "我们", "这里", "那里", "这边", "那边",
+                     "这儿", "那儿"})
+#: Words after which such a word is where to go or aim (``towards me``, ``at yourself``, 走向我).
+GOAL_ENDINGS = ("to", "towards", "toward", "at", "over", "向", "到", "朝", "往")
 #: Chinese place words that end a reference without naming anything (走到桌子那里: the table).
 DEICTIC_SUFFIXES = ("那里", "这里", "那儿", "这儿", "那边", "这边")
 _EN_WORD = re.compile(r"[a-z][a-z'-]*")
@@ -40,6 +50,11 @@ def not_a_thing(run: Sequence[Item], text: str, lx: Lexicon) -> str | None:
     words = _EN_WORD.findall(text.lower())
     if words and not chinese and words[0] in PATH_PREPOSITIONS:
         return f'"{words[0]}" starts a path or a manner'  # "in a zigzag", "up the stairs"
+    lead = [w for w in words if w not in ("to", "towards", "toward", "over", "top", "of")]
+    if not chinese and lead and lead[0] not in EN_DETERMINERS:
+        return f'"{lead[0]}" starts no noun phrase'  # "walk away", "keep walking", "move closer"
+    if chinese and text.startswith(ZH_PATH_PREFIXES):
+        return f'"{text[:2]}" is a path around or past a thing'  # 绕着桌子走
     for w in words:
         cls = lx.not_things.get(w)
         if cls is not None:
@@ -97,3 +112,14 @@ def travel_direction(it: Item, normalized: str) -> bool:
     while before and before[-1] in ("the", "your", "his", "her", "their", "my"):
         before.pop()
     return bool(before) and (before[-1] in ("to", "toward", "towards") or before[-1].endswith(("向", "往", "朝")))
+
+
+def deictic_goal(part: Sequence[Item]) -> Item | None:
+    """In the items of one part of a sentence, a word that only points at the speaker or an
+    unnamed place where the motion should go or aim (``walk towards me``, ``point at
+    yourself``, ``come to me``, 走向我), or None."""
+    for k in range(1, len(part)):
+        it, prev = part[k], part[k - 1]
+        if it.text in DEICTIC and prev.text.split()[-1].endswith(GOAL_ENDINGS) and it.kind not in (DIR, LR):
+            return it
+    return None

@@ -102,7 +102,7 @@ def references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             taken.pop()  # "put the cup down": the direction is a word of its own
         if taken and taken[0].text in POSSESSIVES:
             return []  # "touch your nose": a part of the body, not an object of the scene
-        if named and not_a_thing(taken, normalized[taken[0].start:taken[-1].end], lx) is not None:
+        if named and not_a_thing(sorted(taken, key=lambda x: x.start), normalized[min(x.start for x in taken):max(x.end for x in taken)], lx) is not None:
             return []  # "walk in a zigzag", "walk up the stairs": its words are refused, naming them
         return taken if named else []
 

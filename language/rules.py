@@ -65,7 +65,7 @@ from language.lexicon import (
     get_lexicon,
 )
 from language.normalize import atomize, normalize
-from language.objects import head_noun, travel_direction
+from language.objects import deictic_goal, head_noun, travel_direction
 from language.plan import ActionPlan, ParsedAction, WordUse
 from language.references import around, nouns, references
 from language.returns import go_back, marks, stands_back_up
@@ -151,6 +151,7 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
     normalized = normalize(text)
     items = references(around(nouns(lx.segment(atomize(normalized), normalized)), lx, normalized), lx, normalized)
     _refuse_unknown(items, lx)
+    _refuse_deictic_goals(items, lx, normalized)
     uses = _Uses()
     clauses = _split(items, uses, frozenset(lx.optional_adverbs))
     clauses = _stops(clauses, uses, normalized)
@@ -218,6 +219,28 @@ def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
     for it in items:
         if it.kind == NEG:
             raise UnsupportedInstruction(f'"{it.text}": negations are not understood; say only what the robot should do')
+
+
+AIMING = ("walk", "step", "jog", "turn", "point", "reach", "turn_head", "walk_arc", "lean", "jump", "hop")  # and
+# every action with an object: actions whose motion goes or aims somewhere
+
+
+def _refuse_deictic_goals(items: list[Item], lx: Lexicon, normalized: str) -> None:
+    """``walk towards me``, ``point at yourself``, ``come to me``: where that is, nobody said."""
+    part: list[Item] = []
+    for it in [*items, None]:
+        if it is not None and it.kind not in (SEQ, OVERLAY, PUNCTUATION):
+            part.append(it)
+            continue
+        framed = {a for _, _, a in lx.frames}  # "hand the cup to me": the frame says who takes it
+        aims = any(t.kind == TRIGGER and any((a in AIMING or lx.actions[a].object is not None) and a not in framed
+                                             for a, _ in t.value) for t in part)
+        word = deictic_goal(part) if aims else None
+        if word is not None:
+            said = normalized[part[0].start:part[-1].end]
+            raise InvalidParameter(f'"{word.text}" in "{said}": where that is, the robot cannot know; name a thing '
+                                   'of the scene (e.g. "walk to the table", with --scene) or a way (e.g. "walk forward")')
+        part = []
 
 
 def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset()) -> list[_Clause]:
@@ -350,7 +373,7 @@ def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None
     else:  # "walk to the left": walk_to's words without an object are a walk
         if any(n in lx.plain_forms for n in names) and all(
                 it.kind in (TRIGGER, FILLER, SUBJECT, AUX, CLASSIFIER) for it in clause.items) and any(
-                it.kind == TRIGGER and it.text.startswith(COME_WORDS) for it in clause.items):
+                it.kind == TRIGGER and (it.text.startswith(COME_WORDS) or "过来" in it.text) for it in clause.items):
             said = clause.text(normalized)
             raise InvalidParameter(f'"{said}" names no object of the scene to go to: say which thing (e.g. "walk to '
                                    'the table", with --scene) or which way (e.g. "walk forward 1 meter")')

@@ -105,6 +105,15 @@ def test_chinese_body_and_place_words_are_no_objects():
     ("go to sleep", "sleep"),
     ("come here", "come here"),
     ("摸肚子", "肚子"),
+    ("walk away", "away"),
+    ("keep walking", "keep"),
+    ("move closer", "closer"),
+    ("walk towards me", "me"),
+    ("point at yourself", "yourself"),
+    ("turn on the light", "light"),
+    ("绕着桌子走", "绕"),
+    ("看那边", "那"),
+    ("走过来", "走过来"),
 ])
 def test_the_misreadings_of_the_issue(text, words):
     """The issue's examples: accepted without an object, or refused naming the words."""
