@@ -79,32 +79,7 @@ def references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
     part: list[Item] = []
 
     def reference_run(run: list[Item]) -> list[Item]:
-        taken: list[Item] = []
-        named = False  # a word the vocabulary does not know, or an action word after "the" ("the box")
-        skip = 0
-        while skip < len(run) and run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS:
-            skip += 1  # "walk slowly to the table": the adverb is a slot of its own
-        run = run[skip:]
-        for k, it in enumerate(run):
-            if it.text in PRONOUNS and not taken:
-                return [it]  # "pick it up": the pronoun alone
-            nxt = run[k + 1] if k + 1 < len(run) else None
-            noun = it.kind == TRIGGER and any(t.kind == FILLER and t.text in DETERMINERS for t in taken) \
-                and not _takes_object(it, lx)
-            if noun:
-                named = True
-            elif it.kind not in REF_KINDS or (it.kind == LR and nxt is not None and nxt.kind == BODY) \
-                    or (it.kind == ADV and it.value not in SIZE_ADVERBS):
-                break
-            named = named or it.kind in (UNKNOWN, NEARMISS)
-            taken.append(it)
-        while taken and taken[-1].kind in (FILLER, CLASSIFIER, DIR):
-            taken.pop()  # "put the cup down": the direction is a word of its own
-        if taken and taken[0].text in POSSESSIVES:
-            return []  # "touch your nose": a part of the body, not an object of the scene
-        if named and not_a_thing(sorted(taken, key=lambda x: x.start), normalized[min(x.start for x in taken):max(x.end for x in taken)], lx) is not None:
-            return []  # "walk in a zigzag", "walk up the stairs": its words are refused, naming them
-        return taken if named else []
+        return _reference_run(run, lx, normalized)
 
     def merge(run: list[Item], kind: str = REF) -> None:
         text = normalized[run[0].start:run[-1].end]
@@ -175,6 +150,39 @@ def references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
             part.append(it)
     flush()
     return _pronouns(_borrow_references(out, lx))
+
+
+def _reference_run(run: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
+    """The words of ``run`` (after an action word, or before it, reversed) that name an object:
+    up to a word that is a slot of its own, with at least one word the vocabulary does not know
+    (or an action word after a determiner), and reading as a thing (:func:`not_a_thing`)."""
+    taken: list[Item] = []
+    named = False  # a word the vocabulary does not know, or an action word after "the" ("the box")
+    skip = 0
+    while skip < len(run) and run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS:
+        skip += 1  # "walk slowly to the table": the adverb is a slot of its own
+    run = run[skip:]
+    for k, it in enumerate(run):
+        if it.text in PRONOUNS and not taken:
+            return [it]  # "pick it up": the pronoun alone
+        nxt = run[k + 1] if k + 1 < len(run) else None
+        noun = it.kind == TRIGGER and any(t.kind == FILLER and t.text in DETERMINERS for t in taken) \
+            and not _takes_object(it, lx)
+        if noun:
+            named = True
+        elif it.kind not in REF_KINDS or (it.kind == LR and nxt is not None and nxt.kind == BODY) \
+                or (it.kind == ADV and it.value not in SIZE_ADVERBS):
+            break
+        named = named or it.kind in (UNKNOWN, NEARMISS)
+        taken.append(it)
+    while taken and taken[-1].kind in (FILLER, CLASSIFIER, DIR):
+        taken.pop()  # "put the cup down": the direction is a word of its own
+    if taken and taken[0].text in POSSESSIVES:
+        return []  # "touch your nose": a part of the body, not an object of the scene
+    span = normalized[min(x.start for x in taken):max(x.end for x in taken)] if taken else ""
+    if named and not_a_thing(sorted(taken, key=lambda x: x.start), span, lx) is not None:
+        return []  # "walk in a zigzag", "walk up the stairs": its words are refused, naming them
+    return taken if named else []
 
 
 def around(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:

@@ -21,7 +21,6 @@ used, and a word that does not fit the action is an error.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,43 +37,34 @@ from language.lexicon import (
     AGAIN,
     AUX,
     BODY,
-    CARRIED,
     CLASSIFIER,
-    DEST,
     DIR,
     FILLER,
     IN_PLACE,
-    LR,
     NEARMISS,
     NEG,
-    NUM,
     OVERLAY,
     PUNCTUATION,
     REF,
-    ROT,
     SEQ,
-    SIDE,
     STOP,
     SUBJECT,
-    TIMES,
     TRIGGER,
-    UNIT,
     UNKNOWN,
     Item,
     Lexicon,
     get_lexicon,
 )
 from language.normalize import atomize, normalize
-from language.objects import deictic_goal, head_noun, travel_direction
+from language.objects import deictic_goal, travel_direction
 from language.plan import ActionPlan, ParsedAction, WordUse
 from language.references import around, nouns, references
 from language.returns import go_back, marks, stands_back_up
+from language.slots import MAX_COPIES, fmt, read_slots
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
-from tasks.limits import MAX_REPEAT
 
 AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
-MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
 
 
 @dataclass(slots=True)
@@ -422,7 +412,7 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
         if way is not None:  # "hop to the left" is no hop on the left foot
             raise InvalidParameter(f'"{way.text}" in "{clause.text(normalized)}" is a way to go, and {name} does '
                                    f'not travel sideways; to choose the {aw.side}, say e.g. "left {aw.side}"')
-    params, copies, sources = _slots(name, clause, lx, normalized, note)
+    params, copies, sources = read_slots(name, clause.items, clause.text(normalized), lx, normalized, note)
     if aw.ask is not None and aw.ask not in params:  # a bare "look" asks where
         where = clause.text(normalized)
         choices = ", ".join(REGISTRY[name].param(aw.ask).choices)
@@ -434,7 +424,7 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
             for it in clause.items:
                 n = uses.notes.get(id(it))
                 if n is not None and n[1] == "parameter" and n[2].startswith(f"{aw.split}="):
-                    uses.add(it, "parameter", f"{_fmt(name, aw.split, params[aw.split])}, {pieces} x {name}", ci)
+                    uses.add(it, "parameter", f"{fmt(name, aw.split, params[aw.split])}, {pieces} x {name}", ci)
     try:
         action = Action(name=name, params=params)
     except TaskDefinitionError as e:
@@ -485,295 +475,6 @@ def _split_value(name: str, param: str, params: dict[str, Any], copies: int, sou
         )
     params[param] = value / pieces
     return copies * pieces
-
-
-def _fmt(schema_name: str, param: str, value: Any) -> str:
-    """``param=value unit`` for word notes (``duration=4 s``, ``arm=left``)."""
-    unit = REGISTRY[schema_name].param(param).unit
-    text = f"{value:.4g}" if isinstance(value, float) else str(value)
-    return f"{param}={text}" + (f" {unit}" if unit and unit != "count" else "")
-
-
-def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
-           note: Callable[..., None] | None = None) -> tuple[dict[str, Any], int, dict[str, str]]:
-    """Parameters stated in a clause, how many copies of the action it asks for, and the words of each parameter.
-
-    ``note(item, role, detail)`` is told what each item did (for ``wbmp parse``).
-    """
-    note = note or (lambda *_: None)
-    aw = lx.actions[name]
-    schema = REGISTRY[name]
-    items = clause.items
-    where = clause.text(normalized)
-    sides: list[tuple[str, Item]] = []
-    directions: list[tuple[str, Item]] = []
-    signs: list[tuple[int, Item]] = []
-    quantities: dict[str, tuple[float, Item]] = {}
-    counts: list[tuple[Any, Item]] = []
-    adverbs: list[Item] = []
-    plural: Item | None = None
-    allowed_bodies = set(aw.body) | _with_body(lx, name)
-    consumed: set[int] = set()
-    quantity_items: dict[str, tuple[Item, Item]] = {}  # quantity -> (number item, unit item)
-    params: dict[str, Any] = {}
-
-    def misfit(it: Item, extra: str = "") -> InvalidParameter:
-        return InvalidParameter(f'"{it.text}" does not fit {name} in "{where}"{extra}')
-
-    def bare_left_right(it: Item) -> None:
-        mode = aw.bare_left_right
-        if mode == "side":
-            sides.append((it.value, it))
-        elif mode == "direction":
-            directions.append((it.value, it))
-        elif mode == "sign":
-            signs.append((1 if it.value == "left" else -1, it))
-        else:
-            raise misfit(it)
-
-    for i, it in enumerate(items):
-        if i in consumed or it.kind in (TRIGGER, AGAIN, CLASSIFIER, IN_PLACE):
-            continue
-        nxt_i = _next_index(items, i)
-        nxt = items[nxt_i] if nxt_i < len(items) else None
-        if it.kind == NUM:
-            if nxt is not None and nxt.kind == UNIT:
-                _add_quantity(quantities, lx, it, nxt, where, normalized)
-                quantity_items[lx.units[nxt.value].quantity] = (it, nxt)
-                note(nxt, "unit", nxt.value)
-                consumed.add(nxt_i)
-            elif nxt is not None and nxt.kind == TIMES:
-                counts.append((it.value, it))
-                if (nxt.start, nxt.end) != (it.start, it.end):  # "twice" is one word
-                    note(nxt, "count", "times")
-                consumed.add(nxt_i)
-            elif nxt is not None and _trigger_follows(items, nxt_i):
-                counts.append((it.value, it))  # "3 squats", "三步", "two big steps"
-            elif nxt is not None and nxt.kind == BODY and it.value in (1, 2):
-                if it.value == 2:
-                    sides.append(("both", it))  # "two hands", "两只手"
-                else:
-                    note(it, "no effect", "one (body part)")
-            else:
-                raise InvalidParameter(f'"{it.text}" in "{where}" needs a unit (e.g. "{it.text} cm", "{it.text} degrees", "{it.text} seconds") or "times"')
-        elif it.kind == TIMES:
-            if nxt is not None and nxt.kind == NUM and nxt_i == i + 1:
-                counts.append((nxt.value, nxt))  # "x3"
-                note(it, "count", "times")
-                consumed.add(nxt_i)
-            else:
-                raise InvalidParameter(f'"{it.text}" in "{where}" needs a number, e.g. "3 {it.text}"')
-        elif it.kind == UNIT:
-            raise InvalidParameter(f'"{it.text}" in "{where}" needs a number in front, e.g. "30 {it.text}"')
-        elif it.kind == LR:
-            if nxt is not None and nxt.kind == BODY and nxt_i == i + 1 and aw.side is not None:
-                sides.append((it.value, it))  # "left hand", "左手"
-            else:
-                bare_left_right(it)
-        elif it.kind == SIDE:
-            sides.append((it.value, it))
-        elif it.kind == BODY:
-            body, is_plural = it.value
-            if body not in allowed_bodies:
-                raise misfit(it)
-            note(it, "body part", body)
-            if is_plural:
-                plural = it
-        elif it.kind == DIR:
-            directions.append((it.value, it))
-        elif it.kind == ROT:
-            if aw.rotation_side and aw.side is not None:
-                sides.append(("left" if it.value > 0 else "right", it))  # "a counterclockwise circle" turns left
-            else:
-                signs.append((it.value, it))
-        elif it.kind == ADV:
-            adverbs.append(it)
-        elif it.kind == REF:
-            if aw.object is None:  # pragma: no cover - _resolve_action picks an action with an object
-                raise misfit(it)
-            params[aw.object] = it.value
-            if it.text:  # a borrowed reference has no words of its own
-                note(it, "object", f"{aw.object}={it.value} (a thing: '{head_noun(it.value)}'; the scene resolves it)")
-        elif it.kind == DEST:
-            if aw.destination is None:
-                raise misfit(it)
-            params[aw.destination] = it.value
-            note(it, "destination", f"{aw.destination}={it.value}")
-        elif it.kind == CARRIED:
-            if aw.with_object is None:
-                raise misfit(it)
-            params[aw.with_object] = it.value
-            note(it, "carried object", f"{aw.with_object}={it.value}")
-        else:  # pragma: no cover - every item kind is handled above
-            raise misfit(it)
-
-    sources: dict[str, str] = {}  # parameter -> the words that set it (for error messages)
-    # side: "left hand", "双手", or a plural body word ("raise your hands")
-    if not sides and plural is not None and aw.side is not None:
-        sides.append(("both", plural))
-    side = _one(sides, where, "sides")
-    if side is not None:
-        value, it = side
-        if aw.side is None:
-            if value not in aw.ignore_sides:
-                raise misfit(it, ": it has no side")
-            for _, s_it in sides:
-                note(s_it, "no effect", f"{name} uses both feet anyway")
-        else:
-            choices = schema.param(aw.side).choices
-            if value not in choices:
-                raise InvalidParameter(f'"{it.text}" in "{where}": {name} {aw.side} must be one of {", ".join(choices)}')
-            params[aw.side] = value
-            for _, s_it in sides:
-                note(s_it, "parameter", _fmt(name, aw.side, value))
-    # "sideways", "sidestep", "侧移": a side step or walk, the side named by left/right
-    sideways = [(v, it) for v, it in directions if v == "sideways"]
-    if sideways:
-        directions = [(v, it) for v, it in directions if v != "sideways"]
-        if not any(v in ("left", "right") for v, _ in directions):
-            raise InvalidParameter(f'"{sideways[0][1].text}" in "{where}": say which side, e.g. "{where} to the left" or "向右"')
-        for _, it in sideways:
-            note(it, "no effect", "the side is given by left/right")
-    # direction ("put the cup down to the left": down adds nothing to the way)
-    ignored = [(v, it) for v, it in directions if v in aw.ignore_directions]
-    if ignored and len(ignored) < len(directions):
-        directions = [(v, it) for v, it in directions if v not in aw.ignore_directions]
-        for v, d_it in ignored:
-            note(d_it, "no effect", f"{name} goes {v} anyway")
-    direction = _one(directions, where, "directions")
-    direction_value = None
-    if direction is not None:
-        direction_value, it = direction
-        choices = schema.param(aw.direction).choices if aw.direction else ()
-        if aw.direction and direction_value in choices:  # choices is () without a direction
-            params[aw.direction] = direction_value
-            detail, role = _fmt(name, aw.direction, direction_value), "parameter"
-        elif direction_value in aw.direction_params:
-            params.update(aw.direction_params[direction_value])
-            detail = ", ".join(_fmt(name, p, v) for p, v in aw.direction_params[direction_value].items())
-            role = "parameter"
-        elif direction_value not in aw.ignore_directions:
-            raise misfit(it, f": its directions are {', '.join(choices)}" if choices else "")
-        else:
-            detail, role = f"{name} goes {direction_value} anyway", "no effect"
-        for _, d_it in directions:
-            note(d_it, role, detail)
-    # adverbs (absolute values, or a scale of the registry default)
-    adverb_values: dict[str, tuple[float, Item]] = {}
-    for it in adverbs:
-        mapping = aw.adverbs.get(it.value)
-        if mapping is None:
-            if it.value in lx.optional_adverbs:  # "walk slowly", "wave happily": accepted, listed
-                what = {"mood": "mood or style", "context": "context (changes nothing)",
-                        "normal_speed": "normal speed (the default)"}.get(
-                    it.value, f"{it.value} ({name} has no parameter for it)")
-                note(it, "not used", what)
-                continue
-            raise misfit(it)
-        if not mapping:
-            note(it, "no effect", f"{it.value}: accepted, {name} does not change")
-        for p, v in mapping.items():
-            value = schema.param(p).default * v["scale"] if isinstance(v, dict) else v
-            if p in adverb_values and adverb_values[p][0] != value:
-                raise AmbiguousInstruction(f'"{adverb_values[p][1].text}" and "{it.text}" in "{where}" ask for different {name} {p}')
-            adverb_values[p] = (value, it)
-    params.update({p: v for p, (v, _) in adverb_values.items()})
-    sources.update({p: it.text for p, (_, it) in adverb_values.items()})
-    # quantities with units: an explicit number wins over an adverb ("jump 30 cm high")
-    for quantity, (value, it) in quantities.items():
-        if quantity == "length":
-            param = aw.length if direction_value is None else aw.length_by_direction.get(direction_value, aw.length)
-        else:
-            param = getattr(aw, quantity)
-        if param is None:
-            raise misfit(it, f": {name} takes no {quantity}")
-        params[param] = value
-        sources[param] = it.text
-    # sign of a signed angle: left / counter-clockwise positive (REP 103)
-    sign = _one(signs, where, "turning directions")
-    if sign is not None:
-        value, it = sign
-        if not aw.signed_angle or aw.angle is None:
-            raise misfit(it)
-        angle = params.get(aw.angle)
-        if angle is None:
-            angle = abs(schema.param(aw.angle).default)
-        elif angle < 0:
-            raise AmbiguousInstruction(f'"{it.text}" and a negative angle in "{where}": give one of them')
-        params[aw.angle] = sign[0] * abs(angle)
-        sources.setdefault(aw.angle, it.text)
-        for _, s_it in signs:
-            note(s_it, "parameter", f"sign of {aw.angle} ({'left' if value > 0 else 'right'})")
-    for p, (_, it) in adverb_values.items():
-        note(it, "parameter", _fmt(name, p, params[p]) if p in params and sources.get(p) == it.text
-             else f"{p} (overridden by the number)")
-    for quantity, (num_it, _) in quantity_items.items():
-        param = next((p for p, w in sources.items() if w == quantities[quantity][1].text), None)
-        if param is not None:
-            note(num_it, "parameter", _fmt(name, param, params[param]))
-    # count
-    copies = 1
-    count = _one(counts, where, "counts")
-    if count is not None:
-        n, it = count
-        if isinstance(n, float):
-            if not n.is_integer():
-                raise InvalidParameter(f'"{it.text}" in "{where}": a count must be a whole number')
-            n = int(n)
-        if aw.count is not None:
-            params[aw.count] = n
-            sources[aw.count] = it.text
-            detail = _fmt(name, aw.count, n)
-        elif 1 <= n <= MAX_COPIES:
-            copies = n
-            detail = f"{n} x {name}"
-        else:
-            raise InvalidParameter(f'"{it.text}" in "{where}": {name} can be repeated 1 to {MAX_COPIES} times')
-        for _, c_it in counts:
-            note(c_it, "count", detail)
-    return params, copies, sources
-
-
-def _trigger_follows(items: Sequence[Item], j: int) -> bool:
-    """True if ``items[j]`` is a trigger, possibly after adverbs (``two big steps``)."""
-    while j < len(items) and items[j].kind == ADV:
-        j += 1
-    return j < len(items) and items[j].kind == TRIGGER
-
-
-def _next_index(items: Sequence[Item], i: int) -> int:
-    """Index of the next item after ``i`` that is not a classifier (个, 只); ``len(items)`` if none."""
-    j = i + 1
-    while j < len(items) and items[j].kind == CLASSIFIER:
-        j += 1
-    return j
-
-
-def _add_quantity(quantities: dict, lx: Lexicon, num: Item, unit_item: Item, where: str, normalized: str) -> None:
-    unit = lx.units[unit_item.value]
-    value = num.value * unit.factor
-    if unit.quantity != "angle":  # 30 cm is 0.3 m, not 0.30000000000000004; degrees stay exact radians
-        value = float(f"{value:.12g}")
-    if unit.quantity in quantities:
-        raise AmbiguousInstruction(
-            f'"{quantities[unit.quantity][1].text}" and "{normalized[num.start : unit_item.end]}" in "{where}": give one {unit.quantity}'
-        )
-    quantities[unit.quantity] = (value, Item(NUM, value, normalized[num.start : unit_item.end], num.start, unit_item.end))
-
-
-def _one(values: list[tuple[Any, Item]], where: str, what: str) -> tuple[Any, Item] | None:
-    """The single distinct value of a slot (None if absent; an error if two differ)."""
-    if not values:
-        return None
-    distinct = {v for v, _ in values}
-    if len(distinct) > 1:
-        words = " and ".join(f'"{it.text}"' for _, it in values)
-        raise AmbiguousInstruction(f"{words} in \"{where}\" are conflicting {what}: give one")
-    return values[0]
-
-
-def _with_body(lx: Lexicon, name: str) -> set[str]:
-    return lx.action_bodies.get(name, set())
 
 
 def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -> list[tuple[int, ParsedAction]]:
