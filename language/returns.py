@@ -23,6 +23,7 @@ TRANSLATIONS = ("walk", "step")  # actions that take the robot somewhere along i
 START_WORDS = ("start", "starting", "started", "beginning", "origin", "where", "原点", "起点", "原来")
 RETURN_WORDS = ("return", "returns", "returning", "returned", "come back", "comes back", "coming back",
                 "came back", "head back", "heads back", "回")
+OPPOSITE = {"forward": "backward", "backward": "forward", "left": "right", "right": "left"}
 HALF_TURN_TOL = 0.2  # [rad] a turn this close to pi (mod 2 pi) is a half turn
 
 
@@ -53,7 +54,7 @@ def go_back(parsed: list[ParsedAction], history: Sequence[ParsedAction], start: 
     if not parsed or parsed[0].action.name not in TRANSLATIONS:
         return parsed, ""
     last = next((k for k in range(len(history) - 1, -1, -1) if history[k].action.name in TRANSLATIONS
-                 and history[k].action.params.get("direction") in ("forward", "backward")), None)
+                 and history[k].action.params.get("direction") in OPPOSITE), None)
     if last is None:
         if not start and abs(abs(_wrap(sum(p.action.params["angle"] for p in history if p.action.name == "turn")))
                              - math.pi) < HALF_TURN_TOL and parsed[0].action.params.get("direction") == "backward":
@@ -76,7 +77,7 @@ def go_back(parsed: list[ParsedAction], history: Sequence[ParsedAction], start: 
     if parsed[0].action.name == "step" and before.action.name != "step" and not start:
         return parsed, ""  # "walk forward, then take a step back": one step backward
     said = before.action.params["direction"]
-    way = said if half else ("backward" if said == "forward" else "forward")
+    way = said if half else OPPOSITE[said]  # after a half turn the robot's own frame is turned too
     own = parsed[0].given - {"direction"}
     if own:  # "walk back 1 meter": the clause's own distance, the way home
         action = Action(name=parsed[0].action.name, params={**{k: parsed[0].action.params[k] for k in own},

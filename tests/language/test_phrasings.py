@@ -163,9 +163,10 @@ def _end_position(actions) -> tuple[float, float]:
             yaw += p["angle"]
         elif a.name in ("walk", "step"):
             dist = p["distance"] if a.name == "walk" else p["count"] * p["length"]
-            sign = {"forward": 1.0, "backward": -1.0}[p["direction"]]
-            x += sign * dist * math.cos(yaw)
-            y += sign * dist * math.sin(yaw)
+            heading = yaw + {"forward": 0.0, "backward": math.pi, "left": math.pi / 2, "right": -math.pi / 2}[
+                p["direction"]]
+            x += dist * math.cos(heading)
+            y += dist * math.sin(heading)
     return x, y
 
 
@@ -179,6 +180,8 @@ def _end_position(actions) -> tuple[float, float]:
     "往前走两米，转身，走回来",
     "向前走一米，然后回到原点",
     "walk forward 2 meters, turn left, turn left, and walk back",
+    "a person walks to the right and then comes back",
+    "walk left 1 meter, turn around, then walk back",
 ])
 def test_back_means_back_to_the_start(text):
     """The robot ends where it started (dead reckoning of the parsed plan)."""
