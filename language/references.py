@@ -159,7 +159,8 @@ def _reference_run(run: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
     taken: list[Item] = []
     named = False  # a word the vocabulary does not know, or an action word after "the" ("the box")
     skip = 0
-    while skip < len(run) and run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS:
+    while skip < len(run) and ((run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS)
+                               or (run[skip].kind == FILLER and run[skip].text in ("一下", "下"))):
         skip += 1  # "walk slowly to the table": the adverb is a slot of its own
     run = run[skip:]
     for k, it in enumerate(run):

@@ -41,6 +41,7 @@ from language.lexicon import (
     DIR,
     FILLER,
     IN_PLACE,
+    LR,
     NEARMISS,
     NEG,
     OVERLAY,
@@ -225,6 +226,13 @@ def _refuse_deictic_goals(items: list[Item], lx: Lexicon, normalized: str) -> No
         framed = {a for _, _, a in lx.frames}  # "hand the cup to me": the frame says who takes it
         aims = any(t.kind == TRIGGER and any((a in AIMING or lx.actions[a].object is not None) and a not in framed
                                              for a, _ in t.value) for t in part)
+        held = next((part[k + 1] for k in range(len(part) - 1) if part[k].text == "把" and part[k + 1].kind in (BODY, LR)
+                     and any(t.kind == TRIGGER and any(lx.actions[a].object is not None for a, _ in t.value)
+                             for t in part)), None)
+        if held is not None:  # 把手放在头上: a hand is no object to put down
+            said = normalized[part[0].start:part[-1].end]
+            raise InvalidParameter(f'"{held.text}" in "{said}": a part of the body is no object of the scene; say '
+                                   'what to put, or use the body action (e.g. 摸头, 双手叉腰)')
         word = deictic_goal(part) if aims else None
         if word is not None:
             said = normalized[part[0].start:part[-1].end]

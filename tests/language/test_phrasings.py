@@ -114,6 +114,7 @@ def test_chinese_body_and_place_words_are_no_objects():
     ("绕着桌子走", "绕"),
     ("看那边", "那"),
     ("走过来", "走过来"),
+    ("把手放在头上", "手"),
 ])
 def test_the_misreadings_of_the_issue(text, words):
     """The issue's examples: accepted without an object, or refused naming the words."""
