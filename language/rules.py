@@ -300,6 +300,9 @@ def _close(clauses: list[_Clause], items: list[Item], connector: str | None, opt
         clauses.append(_Clause(connector, items, len(clauses)))
 
 
+HOLDS = ("pick_up", "hand_over", "put_down", "push", "touch_object")  # what "lower it" would move: an object
+
+
 def _stops(clauses: list[_Clause], uses: _Uses, normalized: str) -> list[_Clause]:
     """``stop`` / ``停下``: the end of the sequence, not a negation and not a step.
 
@@ -318,6 +321,14 @@ def _stops(clauses: list[_Clause], uses: _Uses, normalized: str) -> list[_Clause
             continue
         others = [it for it in clause.items if it.kind != STOP]
         actions = {a for it in others if it.kind == TRIGGER for a, _ in it.value}
+        back = [it for it in stops if it.text.split()[-1] in ("it", "them")]  # "and then lowers it"
+        if back:
+            before = {a for c in out[-1:] for it in c.items if it.kind == TRIGGER for a, _ in it.value}
+            if not before or others or any(a not in REGISTRY or REGISTRY[a].body != "upper" or a in HOLDS
+                                           for a in before):
+                raise UnsupportedInstruction(
+                    f'"{back[0].text}" in "{clause.text(normalized)}": only an arm or head gesture said just before '
+                    'it comes back down by itself; say what to move (e.g. "raise your arms")')
         if actions and "stand" not in actions:
             raise UnsupportedInstruction(
                 f'"{clause.text(normalized)}": "{stops[0].text}" before an action asks to end something the '

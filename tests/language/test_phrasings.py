@@ -220,6 +220,8 @@ def test_a_bare_look_asks_where(text):
     ("kick with the right leg, then the same with the left", "kick with the right leg, then kick with the left leg"),
     ("wave at the camera", "wave"), ("跟大家打个招呼", "挥手"), ("jog on the treadmill", "jog"),
     ("walk forward at medium speed", "walk forward"), ("复位", "stand"),
+    ("a person raises their left arm and then lowers it", "raise your left arm"),
+    ("wave, then bring it down", "wave"),
 ])
 def test_a_family_member_reads_as_its_plain_phrase(variant, plain):
     assert parse(variant).to_dict()["actions"] == parse(plain).to_dict()["actions"]
