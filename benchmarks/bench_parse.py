@@ -1,4 +1,5 @@
-"""Parse time per instruction of the rule parser (target: < 1 ms), over the test corpus.
+"""Parse time per instruction of the rule parser (target: < 1 ms), and its accuracy on the
+phrasing corpus of issue 32 (in-scope accuracy, silent misreadings, refusals).
 
 Run from the repository root::
 
@@ -9,6 +10,11 @@ Every accepted corpus sentence is parsed ``--repeat`` times after one warm-up (t
 is loaded once, at the first parse; that load is timed separately). Reports the mean, median,
 95th percentile and maximum of the per-instruction time, for English and Chinese separately,
 and exits 1 if the median is above the target. Timings are wall-clock on a shared machine.
+
+The phrasing corpus (``tests/language/corpus/sentences.jsonl``, labelled before the parser was
+changed for it) is graded by ``tests/language/phrasings.py``: accuracy over the in-scope
+sentences, the silent misreadings (exit 0, not what was said: target 0), and the refusals.
+``--misread`` lists the misread sentences, ``--refused`` the refused in-scope ones.
 """
 
 from __future__ import annotations
@@ -27,10 +33,20 @@ CJK = re.compile(r"[\u3400-\u9fff]")
 
 
 def sentences() -> list[str]:
+    """The accepted sentences of ``corpus.txt`` and the in-scope ones of the phrasing corpus."""
     sys.path.insert(0, str(ROOT))
+    from language import LanguageError, parse
     from tests.language.corpus import load_corpus
+    from tests.language.phrasings import load
 
-    return [c.text for c in load_corpus() if c.expected is not None]
+    out = [c.text for c in load_corpus() if c.expected is not None]
+    for s in load():
+        try:
+            parse(s.text)
+        except LanguageError:
+            continue
+        out.append(s.text)
+    return out
 
 
 def measure(texts: list[str], repeat: int) -> dict:
@@ -38,6 +54,7 @@ def measure(texts: list[str], repeat: int) -> dict:
     from language import parse
     from language.lexicon import get_lexicon
 
+    get_lexicon.cache_clear()  # time a fresh load (sentences() parsed with it already)
     t0 = time.perf_counter()
     get_lexicon()
     load = time.perf_counter() - t0
@@ -62,15 +79,36 @@ def measure(texts: list[str], repeat: int) -> dict:
     return out
 
 
+def accuracy() -> dict:
+    """Scores on the phrasing corpus (see ``tests.language.phrasings.score``)."""
+    sys.path.insert(0, str(ROOT))
+    from tests.language.phrasings import load, score
+
+    return score(load())
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=20, help="passes over the corpus (default: 20)")
     ap.add_argument("--json", action="store_true", help="print JSON")
+    ap.add_argument("--misread", action="store_true", help="list the silently misread sentences")
+    ap.add_argument("--refused", action="store_true", help="list the refused in-scope sentences")
     args = ap.parse_args(argv)
     result = measure(sentences(), args.repeat)
+    acc = accuracy()
+    outcomes = acc.pop("outcomes")
+    result["phrasings"] = acc
     if args.json:
         print(json.dumps(result, indent=2))
     else:
+        print(f"phrasing corpus: {acc['sentences']} sentences, {acc['in_scope']} in scope: "
+              f"{acc['in_scope_right']} right ({acc['accuracy_in_scope']:.1%}), "
+              f"{acc['refused_in_scope']} refused; silent misreadings {acc['misread']}; "
+              f"refusals {acc['refused']} ({acc['refused'] / acc['sentences']:.1%} of all), "
+              f"{acc['refusal_words_not_named']} without the labelled words")
+        for s, outcome, did in outcomes:
+            if (args.misread and outcome == "misread") or (args.refused and outcome == "refused"):
+                print(f"  {outcome}: {s.text!r} -> {did}")
         print(f"rule parser, {result['instructions']} corpus instructions x {args.repeat}; "
               f"vocabulary load {result['vocabulary_load_s'] * 1e3:.1f} ms (once)")
         print(f"{'':4} {'n':>6} {'mean':>9} {'median':>9} {'p95':>9} {'max':>9}   [us per instruction]")

@@ -20,10 +20,14 @@ from pathlib import Path
 from typing import Any
 
 from language.exceptions import VocabularyError
+from language.families import measure_variants, merge, thing_words, verb_forms
 from language.normalize import CJK, PUNCT, Atom, phrase_key, read_number
 from tasks.actions import REGISTRY, ActionSchema
 
 VOCABULARY_PATH = Path(__file__).with_name("vocabulary.json")
+#: Issue 32's phrasing families (context words, return words, not_things...), merged into the
+#: vocabulary by :func:`get_lexicon` (see :mod:`language.families`).
+PHRASINGS_PATH = Path(__file__).with_name("phrasings.json")
 LANGUAGES = ("en", "zh")
 
 # Item kinds produced by the segmenter.
@@ -151,6 +155,7 @@ class ActionWords:
     object_of: tuple[str, ...] = ()
     destination: str | None = None
     with_object: str | None = None
+    ask: str | None = None
 
 
 class Lexicon:
@@ -177,6 +182,9 @@ class Lexicon:
         self.frames.sort(key=lambda f: -(len(f[0]) + len(f[1])))
         self._load_words(data)
         self._add_possessive_variants()
+        self._add_families()
+        #: word -> class of the words that never make a phrase an object (language.families)
+        self.not_things: dict[str, str] = thing_words(data)
         self.max_len = max(len(k) for k in (*self.phrases, *self.after_number))
         self._check_registry()
 
@@ -361,6 +369,19 @@ class Lexicon:
                     raise VocabularyError(f"vocabulary action {name!r}: {key} parameter {param!r} is not a choice")
 
     # -- use -----------------------------------------------------------------------------
+    def _add_families(self) -> None:
+        """Verb forms and Chinese measure words of every phrase (:mod:`language.families`); a
+        variant that is already a phrase keeps its own meaning."""
+        words = {k[0] for k, e in self.phrases.items() if len(k) == 1 and e[0][0] == TRIGGER}
+        keys = [k for k, e in self.phrases.items() if e[0][0] == TRIGGER]
+        for variant, key in (*verb_forms(keys, words).items(), *measure_variants(keys).items()):
+            entry = self.phrases[key]
+            if len(entry) == 1 and self.phrases.get(key[-1:], ((None,),))[0][0] == DIR:
+                continue  # "stretch your arms up" says no direction: "stretches their arms" + "up" does
+            if variant[:2] in self.phrases and variant[:2] != key[:2]:
+                continue  # 高高举起: 高高 is a word of its own, not 高举 doubled
+            self.phrases.setdefault(variant, entry)
+
     def _longest(self, table: Mapping, texts: list[str], i: int) -> tuple[int, tuple | None]:
         for n in range(min(self.max_len, len(texts) - i), 0, -1):
             entry = table.get(tuple(texts[i : i + n]))
@@ -511,5 +532,7 @@ def _check_param(schema: ActionSchema, param: str, where: str) -> None:
 @functools.cache
 def get_lexicon() -> Lexicon:
     """The lexicon of the packaged vocabulary, loaded once."""
-    with VOCABULARY_PATH.open(encoding="utf-8") as f:
-        return Lexicon(json.load(f))
+    with VOCABULARY_PATH.open(encoding="utf-8") as f, PHRASINGS_PATH.open(encoding="utf-8") as g:
+        extra = json.load(g)
+        extra.pop("about", None)
+        return Lexicon(merge(json.load(f), extra))

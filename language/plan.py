@@ -40,6 +40,14 @@ ROLES = (
 
 
 @dataclass(frozen=True, slots=True)
+class ParsedAction:
+    """An action and the names of the parameters the sentence stated (the rule parser's output)."""
+
+    action: Action
+    given: frozenset[str]
+
+
+@dataclass(frozen=True, slots=True)
 class WordUse:
     """What one word or phrase of an instruction did.
 

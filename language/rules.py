@@ -21,7 +21,6 @@ used, and a word that does not fit the action is an error.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,49 +37,35 @@ from language.lexicon import (
     AGAIN,
     AUX,
     BODY,
-    CARRIED,
     CLASSIFIER,
-    DEST,
     DIR,
     FILLER,
     IN_PLACE,
     LR,
     NEARMISS,
     NEG,
-    NUM,
     OVERLAY,
     PUNCTUATION,
     REF,
-    ROT,
     SEQ,
-    SIDE,
     STOP,
     SUBJECT,
-    TIMES,
     TRIGGER,
-    UNIT,
     UNKNOWN,
     Item,
     Lexicon,
     get_lexicon,
 )
-from language.normalize import atomize, normalize, phrase_key
-from language.plan import ActionPlan, WordUse
+from language.normalize import atomize, normalize
+from language.objects import deictic_goal, travel_direction
+from language.plan import ActionPlan, ParsedAction, WordUse
+from language.references import around, nouns, references
+from language.returns import go_back, marks, stands_back_up
+from language.slots import MAX_COPIES, fmt, read_slots
 from tasks.actions import REGISTRY, Action
 from tasks.exceptions import TaskDefinitionError
-from tasks.grounding import strip_reference
-from tasks.limits import MAX_REPEAT
 
 AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
-MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
-
-
-@dataclass(frozen=True, slots=True)
-class ParsedAction:
-    """An action and the names of the parameters the sentence stated."""
-
-    action: Action
-    given: frozenset[str]
 
 
 @dataclass(slots=True)
@@ -155,8 +140,9 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
     """:func:`parse_rules`, and what each word did (for ``wbmp parse``)."""
     lx = lexicon or get_lexicon()
     normalized = normalize(text)
-    items = _references(_around(lx.segment(atomize(normalized), normalized), lx, normalized), lx, normalized)
+    items = references(around(nouns(lx.segment(atomize(normalized), normalized)), lx, normalized), lx, normalized)
     _refuse_unknown(items, lx)
+    _refuse_deictic_goals(items, lx, normalized)
     uses = _Uses()
     clauses = _split(items, uses, frozenset(lx.optional_adverbs))
     clauses = _stops(clauses, uses, normalized)
@@ -164,10 +150,22 @@ def parse_rules_explained(text: str, *, lexicon: Lexicon | None = None) -> tuple
         raise EmptyInstruction(f'empty instruction "{text.strip()}": say what the robot should do, e.g. "wave your right hand twice, then squat"')
     groups: list[list[tuple[_Clause, list[ParsedAction]]]] = []
     previous: list[ParsedAction] = []
+    history: list[ParsedAction] = []  # every action so far, for "walk back" (language.returns)
     for clause in clauses:
         parsed = _parse_clause(clause, previous, lx, normalized, uses)
         if not parsed:  # a "stop" that ends the motion before it
             continue
+        if stands_back_up(parsed, history, clause.items):  # "squats down and stands back up": the squat did
+            for it in clause.items:
+                uses.add(it, "no effect", f"{history[-1].action.name} ends standing", clause.index)
+            continue
+        back, start = marks(clause.items)
+        if back:
+            parsed, detail = go_back(parsed, history, start, clause.text(normalized))
+            for it in back if detail else ():
+                if it.kind == DIR:
+                    uses.add(it, "parameter", detail, clause.index)
+        history.extend(parsed)
         if clause.connector == OVERLAY and groups:
             groups[-1].append((clause, parsed))
         else:
@@ -196,332 +194,9 @@ def rules_plan(text: str) -> ActionPlan:
                       given=tuple(p.given for p in parsed), words=words)
 
 
-REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the words of a reference can be
-SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")
-DETERMINERS = ("the", "that", "this", "a", "an")  # after one, an action word is a noun ("the box")
-DEFINITE = ("the", "that", "this")  # "give me the box" is a hand-over, "give me a wave" a wave
-POSSESSIVES = frozenset({"your", "my", "his", "her", "their", "你的", "我的", "他的", "她的"})
-PRONOUNS = ("it", "them", "它", "它们")  # a reference to the object named before ("pick it up")
-IMPLICIT_OBJECT = ("put_down", "hand_over")  # actions whose object, unsaid, is the one named before ("then put it
-# down", 放下, "hand it to me")
-PLACE_WORDS = ("on", "onto", "upon", "in", "into", "inside")  # "put the cup on the shelf": where the destination starts
-PLACE_TRIGGER_ENDINGS = ("到", "在", "进")  # 放到, 放在: the reference after the action word is where it goes
-PLACE_TRAILING = ("上面", "上边", "里面", "上", "里")  # 放到架子上: the shelf
-HOLDING = ("pick_up",)  # actions whose object a hand then holds: what a put_down's "it" names
 
 
-def _takes_object(trigger: Item, lx: Lexicon) -> bool:
-    return any(lx.actions[a].object is not None or a in lx.object_forms for a, _ in trigger.value)
-
-
-def _references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
-    """Items with each reference to a scene object (``the red box on the table``, 桌子上的杯子)
-    merged into one ``object`` item.
-
-    In a part of the sentence (between sequencing words and punctuation) whose action word can
-    take an object (walk, look, point...), the words right after it, or else right before it,
-    that hold at least one word the vocabulary does not know (the object's name: the scene
-    decides, not the parser) are the reference, up to a word that is a slot of its own (a number,
-    a hand, a speed). Elsewhere unknown words stay unknown (and are refused).
-    """
-    out: list[Item] = []
-    part: list[Item] = []
-
-    def reference_run(run: list[Item]) -> list[Item]:
-        taken: list[Item] = []
-        named = False  # a word the vocabulary does not know, or an action word after "the" ("the box")
-        skip = 0
-        while skip < len(run) and run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS:
-            skip += 1  # "walk slowly to the table": the adverb is a slot of its own
-        run = run[skip:]
-        for k, it in enumerate(run):
-            if it.text in PRONOUNS and not taken:
-                return [it]  # "pick it up": the pronoun alone
-            nxt = run[k + 1] if k + 1 < len(run) else None
-            noun = it.kind == TRIGGER and any(t.kind == FILLER and t.text in DETERMINERS for t in taken) \
-                and not _takes_object(it, lx)
-            if noun:
-                named = True
-            elif it.kind not in REF_KINDS or (it.kind == LR and nxt is not None and nxt.kind == BODY) \
-                    or (it.kind == ADV and it.value not in SIZE_ADVERBS):
-                break
-            named = named or it.kind in (UNKNOWN, NEARMISS)
-            taken.append(it)
-        while taken and taken[-1].kind in (FILLER, CLASSIFIER, DIR):
-            taken.pop()  # "put the cup down": the direction is a word of its own
-        if taken and taken[0].text in POSSESSIVES:
-            return []  # "touch your nose": a part of the body, not an object of the scene
-        return taken if named else []
-
-    def merge(run: list[Item], kind: str = REF) -> None:
-        text = normalized[run[0].start:run[-1].end]
-        if kind == DEST:
-            text = _destination_text(text)
-        ref = Item(kind, strip_reference(text), text, run[0].start, run[-1].end)
-        first = part.index(run[0])
-        part[first:first + len(run)] = [ref]
-
-    def flush() -> None:
-        t = next((k for k, it in enumerate(part) if it.kind == TRIGGER and _takes_object(it, lx)), None)
-        if t is not None and _places(part[t], lx):
-            after = part[t + 1:]
-            dest: list[Item] = []
-            obj: list[Item] = []
-            if part[t].text.endswith(PLACE_TRIGGER_ENDINGS):  # 把杯子放到架子上
-                dest = _trim_destination(reference_run(after))
-            else:  # put the cup on the shelf
-                for p in reversed(range(len(after))):
-                    if after[p].text in PLACE_WORDS:
-                        dest = _trim_destination(reference_run(after[p + 1:]))
-                        if dest:
-                            obj = reference_run(after[:p])
-                            break
-            if dest:
-                if not obj:
-                    obj = list(reversed(reference_run(list(reversed(part[:t])))))
-                merge(dest, DEST)
-                if obj:
-                    merge(obj)
-                out.extend(part)
-                part.clear()
-                return
-        if t is not None and any(lx.actions[a].with_object is not None for a, _ in part[t].value):
-            after = part[t + 1:]
-            for p in reversed(range(len(after))):
-                if after[p].text == "with":  # walk to the table with the cup
-                    carried = reference_run(after[p + 1:])
-                    obj = reference_run(after[:p])
-                    if carried and obj:
-                        merge(carried, CARRIED)
-                        merge(obj)
-                        out.extend(part)
-                        part.clear()
-                        return
-        if t is not None:
-            run = reference_run(part[t + 1:])
-            if not run:
-                run = list(reversed(reference_run(list(reversed(part[:t])))))
-            if any(lx.actions[a].bare_left_right == "direction" and lx.actions[a].object for a, _ in part[t].value):
-                run = _without_way(run)  # "push the box to the left", 把箱子往左推: the way is a slot of its own
-            if run:
-                text = normalized[run[0].start:run[-1].end]
-                ref = Item(REF, strip_reference(text), text, run[0].start, run[-1].end)
-                first = part.index(run[0])
-                part[first:first + len(run)] = [ref]
-        out.extend(part)
-        part.clear()
-
-    for it in items:
-        if it.kind in (SEQ, OVERLAY, PUNCTUATION):
-            flush()
-            out.append(it)
-        else:
-            if part and _goes_then_acts(part[-1], it, lx):  # 走过去拿起杯子: two actions, one after the other
-                flush()
-                out.append(Item(SEQ, None, "", it.start, it.start))
-            part.append(it)
-    flush()
-    return _pronouns(_borrow_references(out, lx))
-
-
-def _around(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
-    """Items with the words of an action's ``around`` phrase (``hand ... to me``, ``give me ...``,
-    ``... 给我``: hand_over) made its action word, where they stand around an object.
-
-    Only in a part of the sentence (between sequencing words and punctuation) that has no action
-    word of its own, and whose words in the ``...`` place (an object: fillers, directions... and at
-    least one word the vocabulary does not know, or a pronoun) would otherwise be refused: the words
-    before the object become the action word (the words after it, when none stand before), the
-    others fillers. Before the phrase only fillers, subjects and auxiliaries (``please``,
-    ``can you``); after it anything (``with your left hand``). ``give me a wave`` keeps its wave.
-    """
-    out: list[Item] = []
-    part: list[Item] = []
-    for it in [*items, None]:
-        if it is None or it.kind in (SEQ, OVERLAY, PUNCTUATION):
-            out.extend(_around_part(part, lx, normalized))
-            part.clear()
-            if it is not None:
-                out.append(it)
-        else:
-            part.append(it)
-    return out
-
-
-def _around_part(part: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
-    def noun(j: int, determiners: tuple[str, ...]) -> bool:
-        """An action word after one of ``determiners`` names an object (``the red box``), as in a reference."""
-        if part[j].kind != TRIGGER or _takes_object(part[j], lx):
-            return False
-        i = j - 1
-        while i >= 0 and part[i].kind in REF_KINDS and part[i].text not in determiners:
-            i -= 1
-        return i >= 0 and part[i].kind == FILLER and part[i].text in determiners
-
-    nouns = {j for j in range(len(part)) if noun(j, DETERMINERS)}
-    definite = {j for j in nouns if noun(j, DEFINITE)}
-    if not lx.frames or any(it.kind == TRIGGER and j not in nouns for j, it in enumerate(part)):
-        return part
-    keys = [phrase_key(it.text) for it in part]
-
-    def spell(words: tuple[str, ...], k: int) -> int:
-        """How many items from ``k`` spell ``words`` exactly (0: they do not)."""
-        got: tuple[str, ...] = ()
-        n = 0
-        while len(got) < len(words) and k + n < len(part):
-            got += keys[k + n]
-            n += 1
-        return n if words and got == words else 0
-
-    def word(j: int) -> bool:
-        """``part[j]`` can be a word of an object."""
-        return part[j].kind in REF_KINDS or part[j].text in PRONOUNS or j in nouns
-
-    def names_object(a: int, b: int, closed: bool) -> bool:
-        """Items ``a`` to ``b`` name an object: with words the vocabulary does not know, a pronoun, or
-        an action word as a noun, after ``the`` (``this``, ``that``) when the phrase has no words
-        after the object: ``give me the box``, ``give the box to me``, but ``give me a wave`` is a wave."""
-        return b > a and all(word(j) for j in range(a, b)) and any(
-            part[j].kind in (UNKNOWN, NEARMISS) or part[j].text in PRONOUNS or j in (nouns if closed else definite)
-            for j in range(a, b))
-
-    lead = 0
-    while lead < len(part) and part[lead].kind in (FILLER, SUBJECT, AUX):
-        lead += 1
-    for opener, closer, action in lx.frames:
-        for k in range(lead + 1):
-            n = spell(opener, k) if opener else 0
-            if opener and not n:
-                continue
-            first = k + n
-            if closer:
-                m = next((m for m in range(first + 1, len(part)) if spell(closer, m)), None)
-                if m is None or not names_object(first, m, True):
-                    continue
-                closing = part[m:m + spell(closer, m)]
-            else:
-                end = first
-                while end < len(part) and word(end):
-                    end += 1
-                if not names_object(first, end, False):
-                    continue
-                closing = []
-            said = part[k:first] if opener else closing
-            trigger = Item(TRIGGER, ((action, None),), normalized[said[0].start:said[-1].end], said[0].start, said[-1].end)
-            rest = [Item(FILLER, None, it.text, it.start, it.end) if opener and it in closing else it for it in part]
-            at = part.index(said[0])
-            return [*rest[:at], trigger, *rest[at + len(said):]]
-    return part
-
-
-def _without_way(run: list[Item]) -> list[Item]:
-    """A reference without the way words that end it (``the box to the left``, 箱子往左), for an action
-    that takes left and right as its direction; nothing if no word of the object is left."""
-    out = list(run)
-    while out and out[-1].kind in (LR, DIR, FILLER, CLASSIFIER):
-        out.pop()
-    return out if any(it.kind not in (FILLER, CLASSIFIER) for it in out) else []
-
-
-def _places(trigger: Item, lx: Lexicon) -> bool:
-    """The action word can say where its object goes (put_down: ``put the cup on the shelf``)."""
-    return any(lx.actions[a].destination is not None for a, _ in trigger.value)
-
-
-def _trim_destination(run: list[Item]) -> list[Item]:
-    """A destination without a trailing direction word (放到架子上: 上 is a word of its own)."""
-    while len(run) > 1 and run[-1].kind == DIR:
-        run = run[:-1]
-    return run
-
-
-def _destination_text(text: str) -> str:
-    """Where an object goes, without ``top of`` and a trailing 上 (``on top of the shelf``, 架子上面)."""
-    out = text.strip()
-    if out.startswith("top of "):
-        out = out[len("top of "):]
-    for word in PLACE_TRAILING:
-        if out.endswith(word) and out[: -len(word)].strip() and "的" not in out[-len(word) - 1:]:
-            return out[: -len(word)].strip()
-    return out
-
-
-def _goes_then_acts(prev: Item, it: Item, lx: Lexicon) -> bool:
-    """``prev`` only means going to an object (走过去, walk over) and ``it`` is another action word
-    that takes one, right after it (走过去拿起那个杯子): a sequence without a sequencing word."""
-    return (prev.kind == TRIGGER and it.kind == TRIGGER and prev.end == it.start
-            and all(lx.actions[a].object is not None for a, _ in prev.value)
-            and _takes_object(it, lx) and not any(a in {b for b, _ in prev.value} for a, _ in it.value))
-
-
-def _pronouns(items: list[Item]) -> list[Item]:
-    """A pronoun reference (``pick it up``, 把它放下) names the reference before it in the sentence,
-    and so does an action of :data:`IMPLICIT_OBJECT` said without one (``then put it down``, 放下)."""
-    out: list[Item] = []
-    last = None  # the object named last
-    held = None  # the object picked up last: what a put_down's "it" names ("walk to the shelf and put it on it")
-    verb: Item | None = None  # the action word of this part of the sentence
-
-    def placing() -> bool:
-        return verb is not None and any(a in IMPLICIT_OBJECT for a, _ in verb.value)
-
-    for k, it in enumerate(items):
-        if it.kind in (SEQ, OVERLAY, PUNCTUATION):
-            verb = None
-        elif it.kind == TRIGGER:
-            verb = it
-            if any(a in HOLDING for a, _ in it.value) and out and out[-1].kind == REF and out[-1].end <= it.start:
-                held = out[-1]  # 把杯子拿起来: the object before the action word
-        if it.kind in (REF, DEST, CARRIED) and it.value in PRONOUNS:
-            from_hand = held is not None and (it.kind == CARRIED or (it.kind == REF and (placing() or _places_next(items, k))))
-            known = held if from_hand else last
-            if known is None:
-                raise InvalidParameter(f'"{it.text}": no object was named before it; say which object (e.g. "the cup")')
-            out.append(Item(it.kind, known.value, it.text, it.start, it.end))
-            if not from_hand:  # "put it on it": the second "it" is the object named before, not the held one
-                last = out[-1]
-            if it.kind == REF and verb is not None and any(a in HOLDING for a, _ in verb.value):
-                held = out[-1]  # "walk to the cup and pick it up"
-            continue
-        if it.kind in (REF, DEST):
-            last = it
-            if it.kind == REF and verb is not None and any(a in HOLDING for a, _ in verb.value):
-                held = it
-        out.append(it)
-        if it.kind == TRIGGER and last is not None and all(a in IMPLICIT_OBJECT for a, _ in it.value):
-            end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
-            if not any(x.kind == REF for x in items[k + 1:end]) and not (out[-2:-1] and out[-2].kind == REF):
-                out.append(Item(REF, (held or last).value, "", it.end, it.end))
-    return out
-
-
-def _places_next(items: list[Item], k: int) -> bool:
-    """The reference ``items[k]`` is the object of a put_down said after it (把它放到架子上)."""
-    for x in items[k + 1:]:
-        if x.kind in (SEQ, OVERLAY, PUNCTUATION):
-            return False
-        if x.kind == TRIGGER:
-            return any(a in IMPLICIT_OBJECT for a, _ in x.value)
-    return False
-
-
-def _borrow_references(items: list[Item], lx: Lexicon) -> list[Item]:
-    """``walk over and point at the cup``: words that only mean going to an object (``walk over``,
-    ``approach``, 走过去) without a reference of their own take the next reference of the sentence
-    (an ``object`` item of no words, placed after the action word)."""
-    out = list(items)
-    for k, it in enumerate(items):
-        if it.kind != TRIGGER or not all(lx.actions[a].object is not None for a, _ in it.value):
-            continue
-        end = next((j for j in range(k + 1, len(items)) if items[j].kind in (SEQ, OVERLAY, PUNCTUATION)), len(items))
-        if any(x.kind == REF for x in items[k + 1:end]) or any(x.kind == REF for x in items[:k] if x.end == it.start):
-            continue
-        ref = next((x for x in items[end:] if x.kind == REF), None)
-        if ref is not None:
-            out.insert(out.index(it) + 1, Item(REF, ref.value, "", it.end, it.end))
-    return out
-
-
+COME_WORDS = ("come", "comes", "came", "coming", "过来", "来")  # "come over here": towards the speaker, no way
 def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
     unknown = [it for it in items if it.kind in (UNKNOWN, NEARMISS)]
     if unknown:
@@ -535,6 +210,35 @@ def _refuse_unknown(items: list[Item], lx: Lexicon) -> None:
     for it in items:
         if it.kind == NEG:
             raise UnsupportedInstruction(f'"{it.text}": negations are not understood; say only what the robot should do')
+
+
+AIMING = ("walk", "step", "jog", "turn", "point", "reach", "turn_head", "walk_arc", "lean", "jump", "hop")  # and
+# every action with an object: actions whose motion goes or aims somewhere
+
+
+def _refuse_deictic_goals(items: list[Item], lx: Lexicon, normalized: str) -> None:
+    """``walk towards me``, ``point at yourself``, ``come to me``: where that is, nobody said."""
+    part: list[Item] = []
+    for it in [*items, None]:
+        if it is not None and it.kind not in (SEQ, OVERLAY, PUNCTUATION):
+            part.append(it)
+            continue
+        framed = {a for _, _, a in lx.frames}  # "hand the cup to me": the frame says who takes it
+        aims = any(t.kind == TRIGGER and any((a in AIMING or lx.actions[a].object is not None) and a not in framed
+                                             for a, _ in t.value) for t in part)
+        held = next((part[k + 1] for k in range(len(part) - 1) if part[k].text == "把" and part[k + 1].kind in (BODY, LR)
+                     and any(t.kind == TRIGGER and any(lx.actions[a].object is not None for a, _ in t.value)
+                             for t in part)), None)
+        if held is not None:  # 把手放在头上: a hand is no object to put down
+            said = normalized[part[0].start:part[-1].end]
+            raise InvalidParameter(f'"{held.text}" in "{said}": a part of the body is no object of the scene; say '
+                                   'what to put, or use the body action (e.g. 摸头, 双手叉腰)')
+        word = deictic_goal(part) if aims else None
+        if word is not None:
+            said = normalized[part[0].start:part[-1].end]
+            raise InvalidParameter(f'"{word.text}" in "{said}": where that is, the robot cannot know; name a thing '
+                                   'of the scene (e.g. "walk to the table", with --scene) or a way (e.g. "walk forward")')
+        part = []
 
 
 def _split(items: list[Item], uses: _Uses, optional: frozenset[str] = frozenset()) -> list[_Clause]:
@@ -596,6 +300,9 @@ def _close(clauses: list[_Clause], items: list[Item], connector: str | None, opt
         clauses.append(_Clause(connector, items, len(clauses)))
 
 
+HOLDS = ("pick_up", "hand_over", "put_down", "push", "touch_object")  # what "lower it" would move: an object
+
+
 def _stops(clauses: list[_Clause], uses: _Uses, normalized: str) -> list[_Clause]:
     """``stop`` / ``停下``: the end of the sequence, not a negation and not a step.
 
@@ -614,6 +321,14 @@ def _stops(clauses: list[_Clause], uses: _Uses, normalized: str) -> list[_Clause
             continue
         others = [it for it in clause.items if it.kind != STOP]
         actions = {a for it in others if it.kind == TRIGGER for a, _ in it.value}
+        back = [it for it in stops if it.text.split()[-1] in ("it", "them")]  # "and then lowers it"
+        if back:
+            before = {a for c in out[-1:] for it in c.items if it.kind == TRIGGER for a, _ in it.value}
+            if not before or others or any(a not in REGISTRY or REGISTRY[a].body != "upper" or a in HOLDS
+                                           for a in before):
+                raise UnsupportedInstruction(
+                    f'"{back[0].text}" in "{clause.text(normalized)}": only an arm or head gesture said just before '
+                    'it comes back down by itself; say what to move (e.g. "raise your arms")')
         if actions and "stand" not in actions:
             raise UnsupportedInstruction(
                 f'"{clause.text(normalized)}": "{stops[0].text}" before an action asks to end something the '
@@ -665,6 +380,12 @@ def _resolve_action(clause: _Clause, lx: Lexicon, normalized: str) -> str | None
             raise InvalidParameter(f'"{ref.text}" in "{clause.text(normalized)}": {", ".join(sorted(with_object))} '
                                    "takes no object")
     else:  # "walk to the left": walk_to's words without an object are a walk
+        if any(n in lx.plain_forms for n in names) and all(
+                it.kind in (TRIGGER, FILLER, SUBJECT, AUX, CLASSIFIER) for it in clause.items) and any(
+                it.kind == TRIGGER and (it.text.startswith(COME_WORDS) or "过来" in it.text) for it in clause.items):
+            said = clause.text(normalized)
+            raise InvalidParameter(f'"{said}" names no object of the scene to go to: say which thing (e.g. "walk to '
+                                   'the table", with --scene) or which way (e.g. "walk forward 1 meter")')
         names = {lx.plain_forms.get(n, n) for n in names}
     if len(names) == 1:
         return next(iter(names))
@@ -703,8 +424,18 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
     def note(it: Item, role: str, detail: str = "") -> None:
         uses.add(it, role, detail, ci)
 
-    params, copies, sources = _slots(name, clause, lx, normalized, note)
     aw = lx.actions[name]
+    sideways = any(it.kind == DIR and it.value in ("side", "sideways") for it in clause.items)
+    if aw.bare_left_right == "side" and not aw.rotation_side and not sideways:
+        way = next((it for it in clause.items if travel_direction(it, normalized)), None)
+        if way is not None:  # "hop to the left" is no hop on the left foot
+            raise InvalidParameter(f'"{way.text}" in "{clause.text(normalized)}" is a way to go, and {name} does '
+                                   f'not travel sideways; to choose the {aw.side}, say e.g. "left {aw.side}"')
+    params, copies, sources = read_slots(name, clause.items, clause.text(normalized), lx, normalized, note)
+    if aw.ask is not None and aw.ask not in params:  # a bare "look" asks where
+        where = clause.text(normalized)
+        choices = ", ".join(REGISTRY[name].param(aw.ask).choices)
+        raise InvalidParameter(f'"{where}" does not say the {aw.ask} ({choices}): e.g. "{where} left"')
     if aw.split is not None and aw.split in params:
         pieces = _split_value(name, aw.split, params, copies, sources, clause, normalized) // copies
         if pieces > 1:
@@ -712,7 +443,7 @@ def _parse_clause(clause: _Clause, previous: list[ParsedAction], lx: Lexicon, no
             for it in clause.items:
                 n = uses.notes.get(id(it))
                 if n is not None and n[1] == "parameter" and n[2].startswith(f"{aw.split}="):
-                    uses.add(it, "parameter", f"{_fmt(name, aw.split, params[aw.split])}, {pieces} x {name}", ci)
+                    uses.add(it, "parameter", f"{fmt(name, aw.split, params[aw.split])}, {pieces} x {name}", ci)
     try:
         action = Action(name=name, params=params)
     except TaskDefinitionError as e:
@@ -763,293 +494,6 @@ def _split_value(name: str, param: str, params: dict[str, Any], copies: int, sou
         )
     params[param] = value / pieces
     return copies * pieces
-
-
-def _fmt(schema_name: str, param: str, value: Any) -> str:
-    """``param=value unit`` for word notes (``duration=4 s``, ``arm=left``)."""
-    unit = REGISTRY[schema_name].param(param).unit
-    text = f"{value:.4g}" if isinstance(value, float) else str(value)
-    return f"{param}={text}" + (f" {unit}" if unit and unit != "count" else "")
-
-
-def _slots(name: str, clause: _Clause, lx: Lexicon, normalized: str,
-           note: Callable[..., None] | None = None) -> tuple[dict[str, Any], int, dict[str, str]]:
-    """Parameters stated in a clause, how many copies of the action it asks for, and the words of each parameter.
-
-    ``note(item, role, detail)`` is told what each item did (for ``wbmp parse``).
-    """
-    note = note or (lambda *_: None)
-    aw = lx.actions[name]
-    schema = REGISTRY[name]
-    items = clause.items
-    where = clause.text(normalized)
-    sides: list[tuple[str, Item]] = []
-    directions: list[tuple[str, Item]] = []
-    signs: list[tuple[int, Item]] = []
-    quantities: dict[str, tuple[float, Item]] = {}
-    counts: list[tuple[Any, Item]] = []
-    adverbs: list[Item] = []
-    plural: Item | None = None
-    allowed_bodies = set(aw.body) | _with_body(lx, name)
-    consumed: set[int] = set()
-    quantity_items: dict[str, tuple[Item, Item]] = {}  # quantity -> (number item, unit item)
-    params: dict[str, Any] = {}
-
-    def misfit(it: Item, extra: str = "") -> InvalidParameter:
-        return InvalidParameter(f'"{it.text}" does not fit {name} in "{where}"{extra}')
-
-    def bare_left_right(it: Item) -> None:
-        mode = aw.bare_left_right
-        if mode == "side":
-            sides.append((it.value, it))
-        elif mode == "direction":
-            directions.append((it.value, it))
-        elif mode == "sign":
-            signs.append((1 if it.value == "left" else -1, it))
-        else:
-            raise misfit(it)
-
-    for i, it in enumerate(items):
-        if i in consumed or it.kind in (TRIGGER, AGAIN, CLASSIFIER, IN_PLACE):
-            continue
-        nxt_i = _next_index(items, i)
-        nxt = items[nxt_i] if nxt_i < len(items) else None
-        if it.kind == NUM:
-            if nxt is not None and nxt.kind == UNIT:
-                _add_quantity(quantities, lx, it, nxt, where, normalized)
-                quantity_items[lx.units[nxt.value].quantity] = (it, nxt)
-                note(nxt, "unit", nxt.value)
-                consumed.add(nxt_i)
-            elif nxt is not None and nxt.kind == TIMES:
-                counts.append((it.value, it))
-                if (nxt.start, nxt.end) != (it.start, it.end):  # "twice" is one word
-                    note(nxt, "count", "times")
-                consumed.add(nxt_i)
-            elif nxt is not None and _trigger_follows(items, nxt_i):
-                counts.append((it.value, it))  # "3 squats", "三步", "two big steps"
-            elif nxt is not None and nxt.kind == BODY and it.value in (1, 2):
-                if it.value == 2:
-                    sides.append(("both", it))  # "two hands", "两只手"
-                else:
-                    note(it, "no effect", "one (body part)")
-            else:
-                raise InvalidParameter(f'"{it.text}" in "{where}" needs a unit (e.g. "{it.text} cm", "{it.text} degrees", "{it.text} seconds") or "times"')
-        elif it.kind == TIMES:
-            if nxt is not None and nxt.kind == NUM and nxt_i == i + 1:
-                counts.append((nxt.value, nxt))  # "x3"
-                note(it, "count", "times")
-                consumed.add(nxt_i)
-            else:
-                raise InvalidParameter(f'"{it.text}" in "{where}" needs a number, e.g. "3 {it.text}"')
-        elif it.kind == UNIT:
-            raise InvalidParameter(f'"{it.text}" in "{where}" needs a number in front, e.g. "30 {it.text}"')
-        elif it.kind == LR:
-            if nxt is not None and nxt.kind == BODY and nxt_i == i + 1 and aw.side is not None:
-                sides.append((it.value, it))  # "left hand", "左手"
-            else:
-                bare_left_right(it)
-        elif it.kind == SIDE:
-            sides.append((it.value, it))
-        elif it.kind == BODY:
-            body, is_plural = it.value
-            if body not in allowed_bodies:
-                raise misfit(it)
-            note(it, "body part", body)
-            if is_plural:
-                plural = it
-        elif it.kind == DIR:
-            directions.append((it.value, it))
-        elif it.kind == ROT:
-            if aw.rotation_side and aw.side is not None:
-                sides.append(("left" if it.value > 0 else "right", it))  # "a counterclockwise circle" turns left
-            else:
-                signs.append((it.value, it))
-        elif it.kind == ADV:
-            adverbs.append(it)
-        elif it.kind == REF:
-            if aw.object is None:  # pragma: no cover - _resolve_action picks an action with an object
-                raise misfit(it)
-            params[aw.object] = it.value
-            if it.text:  # a borrowed reference has no words of its own
-                note(it, "object", f"{aw.object}={it.value}")
-        elif it.kind == DEST:
-            if aw.destination is None:
-                raise misfit(it)
-            params[aw.destination] = it.value
-            note(it, "destination", f"{aw.destination}={it.value}")
-        elif it.kind == CARRIED:
-            if aw.with_object is None:
-                raise misfit(it)
-            params[aw.with_object] = it.value
-            note(it, "carried object", f"{aw.with_object}={it.value}")
-        else:  # pragma: no cover - every item kind is handled above
-            raise misfit(it)
-
-    sources: dict[str, str] = {}  # parameter -> the words that set it (for error messages)
-    # side: "left hand", "双手", or a plural body word ("raise your hands")
-    if not sides and plural is not None and aw.side is not None:
-        sides.append(("both", plural))
-    side = _one(sides, where, "sides")
-    if side is not None:
-        value, it = side
-        if aw.side is None:
-            if value not in aw.ignore_sides:
-                raise misfit(it, ": it has no side")
-            for _, s_it in sides:
-                note(s_it, "no effect", f"{name} uses both feet anyway")
-        else:
-            choices = schema.param(aw.side).choices
-            if value not in choices:
-                raise InvalidParameter(f'"{it.text}" in "{where}": {name} {aw.side} must be one of {", ".join(choices)}')
-            params[aw.side] = value
-            for _, s_it in sides:
-                note(s_it, "parameter", _fmt(name, aw.side, value))
-    # "sideways", "sidestep", "侧移": a side step or walk, the side named by left/right
-    sideways = [(v, it) for v, it in directions if v == "sideways"]
-    if sideways:
-        directions = [(v, it) for v, it in directions if v != "sideways"]
-        if not any(v in ("left", "right") for v, _ in directions):
-            raise InvalidParameter(f'"{sideways[0][1].text}" in "{where}": say which side, e.g. "{where} to the left" or "向右"')
-        for _, it in sideways:
-            note(it, "no effect", "the side is given by left/right")
-    # direction ("put the cup down to the left": down adds nothing to the way)
-    ignored = [(v, it) for v, it in directions if v in aw.ignore_directions]
-    if ignored and len(ignored) < len(directions):
-        directions = [(v, it) for v, it in directions if v not in aw.ignore_directions]
-        for v, d_it in ignored:
-            note(d_it, "no effect", f"{name} goes {v} anyway")
-    direction = _one(directions, where, "directions")
-    direction_value = None
-    if direction is not None:
-        direction_value, it = direction
-        choices = schema.param(aw.direction).choices if aw.direction else ()
-        if aw.direction and direction_value in choices:  # choices is () without a direction
-            params[aw.direction] = direction_value
-            detail, role = _fmt(name, aw.direction, direction_value), "parameter"
-        elif direction_value in aw.direction_params:
-            params.update(aw.direction_params[direction_value])
-            detail = ", ".join(_fmt(name, p, v) for p, v in aw.direction_params[direction_value].items())
-            role = "parameter"
-        elif direction_value not in aw.ignore_directions:
-            raise misfit(it, f": its directions are {', '.join(choices)}" if choices else "")
-        else:
-            detail, role = f"{name} goes {direction_value} anyway", "no effect"
-        for _, d_it in directions:
-            note(d_it, role, detail)
-    # adverbs (absolute values, or a scale of the registry default)
-    adverb_values: dict[str, tuple[float, Item]] = {}
-    for it in adverbs:
-        mapping = aw.adverbs.get(it.value)
-        if mapping is None:
-            if it.value in lx.optional_adverbs:  # "walk slowly", "wave happily": accepted, listed
-                what = "mood or style" if it.value == "mood" else f"{it.value} ({name} has no parameter for it)"
-                note(it, "not used", what)
-                continue
-            raise misfit(it)
-        if not mapping:
-            note(it, "no effect", f"{it.value}: accepted, {name} does not change")
-        for p, v in mapping.items():
-            value = schema.param(p).default * v["scale"] if isinstance(v, dict) else v
-            if p in adverb_values and adverb_values[p][0] != value:
-                raise AmbiguousInstruction(f'"{adverb_values[p][1].text}" and "{it.text}" in "{where}" ask for different {name} {p}')
-            adverb_values[p] = (value, it)
-    params.update({p: v for p, (v, _) in adverb_values.items()})
-    sources.update({p: it.text for p, (_, it) in adverb_values.items()})
-    # quantities with units: an explicit number wins over an adverb ("jump 30 cm high")
-    for quantity, (value, it) in quantities.items():
-        if quantity == "length":
-            param = aw.length if direction_value is None else aw.length_by_direction.get(direction_value, aw.length)
-        else:
-            param = getattr(aw, quantity)
-        if param is None:
-            raise misfit(it, f": {name} takes no {quantity}")
-        params[param] = value
-        sources[param] = it.text
-    # sign of a signed angle: left / counter-clockwise positive (REP 103)
-    sign = _one(signs, where, "turning directions")
-    if sign is not None:
-        value, it = sign
-        if not aw.signed_angle or aw.angle is None:
-            raise misfit(it)
-        angle = params.get(aw.angle)
-        if angle is None:
-            angle = abs(schema.param(aw.angle).default)
-        elif angle < 0:
-            raise AmbiguousInstruction(f'"{it.text}" and a negative angle in "{where}": give one of them')
-        params[aw.angle] = sign[0] * abs(angle)
-        sources.setdefault(aw.angle, it.text)
-        for _, s_it in signs:
-            note(s_it, "parameter", f"sign of {aw.angle} ({'left' if value > 0 else 'right'})")
-    for p, (_, it) in adverb_values.items():
-        note(it, "parameter", _fmt(name, p, params[p]) if p in params and sources.get(p) == it.text
-             else f"{p} (overridden by the number)")
-    for quantity, (num_it, _) in quantity_items.items():
-        param = next((p for p, w in sources.items() if w == quantities[quantity][1].text), None)
-        if param is not None:
-            note(num_it, "parameter", _fmt(name, param, params[param]))
-    # count
-    copies = 1
-    count = _one(counts, where, "counts")
-    if count is not None:
-        n, it = count
-        if isinstance(n, float):
-            if not n.is_integer():
-                raise InvalidParameter(f'"{it.text}" in "{where}": a count must be a whole number')
-            n = int(n)
-        if aw.count is not None:
-            params[aw.count] = n
-            sources[aw.count] = it.text
-            detail = _fmt(name, aw.count, n)
-        elif 1 <= n <= MAX_COPIES:
-            copies = n
-            detail = f"{n} x {name}"
-        else:
-            raise InvalidParameter(f'"{it.text}" in "{where}": {name} can be repeated 1 to {MAX_COPIES} times')
-        for _, c_it in counts:
-            note(c_it, "count", detail)
-    return params, copies, sources
-
-
-def _trigger_follows(items: Sequence[Item], j: int) -> bool:
-    """True if ``items[j]`` is a trigger, possibly after adverbs (``two big steps``)."""
-    while j < len(items) and items[j].kind == ADV:
-        j += 1
-    return j < len(items) and items[j].kind == TRIGGER
-
-
-def _next_index(items: Sequence[Item], i: int) -> int:
-    """Index of the next item after ``i`` that is not a classifier (个, 只); ``len(items)`` if none."""
-    j = i + 1
-    while j < len(items) and items[j].kind == CLASSIFIER:
-        j += 1
-    return j
-
-
-def _add_quantity(quantities: dict, lx: Lexicon, num: Item, unit_item: Item, where: str, normalized: str) -> None:
-    unit = lx.units[unit_item.value]
-    value = num.value * unit.factor
-    if unit.quantity != "angle":  # 30 cm is 0.3 m, not 0.30000000000000004; degrees stay exact radians
-        value = float(f"{value:.12g}")
-    if unit.quantity in quantities:
-        raise AmbiguousInstruction(
-            f'"{quantities[unit.quantity][1].text}" and "{normalized[num.start : unit_item.end]}" in "{where}": give one {unit.quantity}'
-        )
-    quantities[unit.quantity] = (value, Item(NUM, value, normalized[num.start : unit_item.end], num.start, unit_item.end))
-
-
-def _one(values: list[tuple[Any, Item]], where: str, what: str) -> tuple[Any, Item] | None:
-    """The single distinct value of a slot (None if absent; an error if two differ)."""
-    if not values:
-        return None
-    distinct = {v for v, _ in values}
-    if len(distinct) > 1:
-        words = " and ".join(f'"{it.text}"' for _, it in values)
-        raise AmbiguousInstruction(f"{words} in \"{where}\" are conflicting {what}: give one")
-    return values[0]
-
-
-def _with_body(lx: Lexicon, name: str) -> set[str]:
-    return lx.action_bodies.get(name, set())
 
 
 def _overlay(group: list[tuple[_Clause, list[ParsedAction]]], normalized: str) -> list[tuple[int, ParsedAction]]:

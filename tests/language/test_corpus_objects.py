@@ -35,8 +35,8 @@ def test_the_reference_is_one_word_use_with_the_object_role():
     plan = parse("walk to the red box on the table, then point at 那个杯子 with your left hand")
     refs = [w for w in plan.words if w.role == "object"]
     assert [(w.text, w.detail, w.action) for w in refs] == [
-        ("the red box on the table", "object=the red box on the table", 1),
-        ("那个杯子", "object=那个杯子", 2),
+        ("the red box on the table", "object=the red box on the table (a thing: 'box'; the scene resolves it)", 1),
+        ("那个杯子", "object=那个杯子 (a thing: '杯子'; the scene resolves it)", 2),
     ]
     assert plan.to_dict()["actions"][1]["params"] == {"object": "那个杯子", "arm": "left"}
 

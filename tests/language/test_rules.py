@@ -74,6 +74,8 @@ def test_every_action_parses_from_its_own_words(name):
         text = plain[0]
         if lx.actions[name].object is not None:
             text += " the cup" if lang == "en" else "杯子"
+        if lx.actions[name].ask is not None:  # a bare "look" asks where (issue 32)
+            text = f"{text} left" if lang == "en" else f"向左{text}"
         assert parse_rules(text)[0].action.name == name, (name, text)
 
 

@@ -30,7 +30,7 @@ def test_parse_shows_the_reference(capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["actions"] == [{"action": "walk_to", "params": {"object": "the table"}},
                               {"action": "point_at", "params": {"object": "桌子上的红色盒子"}}]
-    assert {"text": "the table", "role": "object", "detail": "object=the table", "action": 1} in out["words"]
+    assert {"text": "the table", "role": "object", "detail": "object=the table (a thing: 'table'; the scene resolves it)", "action": 1} in out["words"]
     assert main(["parse", "look at the box on the table"]) == 0
     assert "look_at  object=the box on the table" in capsys.readouterr().out
 

@@ -8,6 +8,8 @@ action carries ``"overlay": true``). ``words`` (rule parser only) says what each
 lists the same after the actions. The LLM backend reads its key from ``WBMP_LLM_API_KEY`` or
 ``OPENAI_API_KEY``; ``--llm-url``/``--llm-model`` default to ``WBMP_LLM_URL``/``WBMP_LLM_MODEL``.
 ``--llm-timeout`` bounds each whole request to the server (connect to last byte).
+``--scene FILE`` grounds every object word in that scene (which of its objects the words name),
+refusing with exit 3 as ``wbmp solve`` would when none or several match.
 
 :func:`llm_options` checks the URL, the timeout and the key before any work (``wbmp solve`` uses
 it too), so a bad value is a one-line usage error (exit 2) that never repeats the key.
@@ -37,6 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("text", nargs="+", help="the instruction (quote it, or give it as several words)")
     p.add_argument("--json", action="store_true", help="print the plan as JSON")
     p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="parser backend (default: rules)")
+    p.add_argument("--scene", metavar="FILE", default=None,
+                   help="scene JSON file: show which of its objects each object word names (docs/scenes.md)")
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL, e.g. http://127.0.0.1:11434/v1 (env WBMP_LLM_URL)")
     p.add_argument("--llm-model", default=os.environ.get("WBMP_LLM_MODEL"), help="model name (env WBMP_LLM_MODEL)")
@@ -90,11 +94,41 @@ def llm_options(args: argparse.Namespace) -> dict:
     return {"url": url, "model": args.llm_model, "api_key": key, "timeout": timeout}
 
 
+def grounded(plan, scene):
+    """``plan`` with each object word's detail naming the scene object it grounds to.
+
+    Raises:
+        GroundingError: (exit 3) a reference that names no object of the scene, or several.
+    """
+    import dataclasses
+
+    from tasks.grounding import ground
+
+    words = []
+    for w in plan.words:
+        if w.role in ("object", "destination", "carried") and w.action is not None:
+            param, _, _ = w.detail.partition("=")
+            action = plan.actions[w.action - 1]
+            value = action.params.get(param)
+            if isinstance(value, str):
+                obj = ground(value, scene, action=action.name)
+                w = dataclasses.replace(w, detail=f"{param}={value} -> scene object '{obj.name}'")
+        words.append(w)
+    return dataclasses.replace(plan, words=tuple(words))
+
+
 def run(args: argparse.Namespace) -> int:
     from language import parse
 
     text = " ".join(args.text)
+    scene = None
+    if args.scene is not None:
+        from tasks.scene import load_scene
+
+        scene = load_scene(args.scene)
     plan = parse(text, backend=args.parser, **llm_options(args))
+    if scene is not None:
+        plan = grounded(plan, scene)
     if args.json:
         out = plan.to_dict()
         if plan.words:
