@@ -165,9 +165,14 @@ SENTENCE_CASES = [
 
 
 @pytest.mark.parametrize(("text", "code", "words"), [c[1:] for c in SENTENCE_CASES], ids=[c[0] for c in SENTENCE_CASES])
-def test_sentence_beyond_a_limit_is_refused(tmp_path, capsys, monkeypatch, text, code, words):
-    """Too many actions or repeats: exit 2 (the sentence); a motion too long: exit 3 (the spec)."""
-    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+def test_sentence_beyond_a_limit_is_refused(tmp_path_factory, capsys, monkeypatch, text, code, words):
+    """Too many actions or repeats: exit 2 (the sentence); a motion too long: exit 3 (the spec).
+
+    The cache is outside the folder that must stay unchanged: a refusal of the spec's duration comes
+    after the robot is loaded, and a process that loads it first keeps its geometry in the cache (the
+    test passed only when another test of the same worker had loaded the robot before it)."""
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
+    tmp_path = tmp_path_factory.mktemp("work")
     tree = Tree(tmp_path)
     out = run_cli(["solve", text, "--no-sim", "--quiet", "--out", tmp_path / "m.npz"], capsys)
     assert_refused(out, code, *words)
