@@ -244,20 +244,39 @@ class RayPool(Backend):
         self.cache = cache
 
     def run(self, jobs: list[Any], on_record: OnRecord) -> None:  # noqa: D102 - see Backend.run
+        from wbmp.batch.raynet import loopback_only, parse_address
+
+        address = None if self.address is None else parse_address(self.address)
+        local = address is None or address.on_loopback
+        with loopback_only() if local else contextlib.nullcontext():
+            self._run(jobs, on_record, None if address is None else address.target, local=local)
+
+    def _run(self, jobs: list[Any], on_record: OnRecord, address: str | None, *, local: bool) -> None:
         import ray
+
+        from wbmp.batch.raynet import LOOPBACK, LOOPBACK_ENV
+        from wbmp.errors import CliError, ExitCode, one_line
 
         env = worker_env()
         options: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                    "logging_level": "ERROR", "configure_logging": True}
-        if self.address is None:
+        if local:  # this machine's instance: node address 127.0.0.1, its workers keep to it too
+            env.update(LOOPBACK_ENV)
+            options["_node_ip_address"] = LOOPBACK
+        if address is None:
             env["PYTHONPATH"] = local_pythonpath()
             for name in ("WBMP_CACHE_DIR", "WBMP_COMPILE", "WBMP_COMPILE_BACKGROUND", DEATH_VARIABLE):
                 if name in os.environ:
                     env[name] = os.environ[name]
             options["num_cpus"] = self.workers
+            ray.init(runtime_env={"env_vars": env}, **options)
         else:
-            options["address"] = self.address
-        ray.init(runtime_env={"env_vars": env}, **options)
+            options["address"] = address
+            try:
+                ray.init(runtime_env={"env_vars": env}, **options)
+            except (Exception, SystemExit) as e:  # noqa: BLE001 - Ray's connection errors, and its sys.exit
+                raise CliError(f"--ray {address!r}: cannot join the cluster: {one_line(str(e) or type(e).__name__, 300)}",
+                               ExitCode.USAGE) from None
         try:
             task = ray.remote(num_cpus=1, max_retries=1)(run_job)
             pending = list(reversed(jobs))

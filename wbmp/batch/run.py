@@ -120,6 +120,10 @@ def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simula
     with output_errors():
         folder = check_output_dir(out_dir, "--out-dir", [INDEX, SUMMARY, *(j.motion_name for j in jobs)])
         check_distinct({"--out-dir (index.jsonl)": folder / INDEX}, {"FILE": Path(file)})
+    if ray and ray_address is not None:  # its form, then that it answers (one line, exit 2); auto resolved
+        from wbmp.batch.raynet import check_reachable, parse_address
+
+        ray_address = check_reachable(parse_address(ray_address)).target
     return BatchPlan(file=file, out_dir=folder, jobs=jobs, n_items=len(items), workers=workers, simulate=simulate,
                      force=force, retry_failed=retry_failed, ray=ray, ray_address=ray_address, cache=cache)
 
