@@ -158,12 +158,13 @@ def resolve_auto(address: RayAddress) -> RayAddress:
     return parse_address(found)
 
 
-def probe(host: str, port: int, timeout: float = CONNECT_TIMEOUT) -> str | None:
+def probe(host: str, port: int, timeout: float | None = None) -> str | None:
     """Why ``host:port`` is not a gRPC server (None when it answers the HTTP/2 handshake).
 
     Connects (TCP), sends the HTTP/2 client preface and waits for the server's SETTINGS frame,
-    all within ``timeout`` [s]. Sends nothing else.
+    all within ``timeout`` [s] (default :data:`CONNECT_TIMEOUT`). Sends nothing else.
     """
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
     try:
         conn = socket.create_connection((host, port), timeout=timeout)
     except TimeoutError:
@@ -189,8 +190,9 @@ def probe(host: str, port: int, timeout: float = CONNECT_TIMEOUT) -> str | None:
     return None
 
 
-def check_reachable(address: RayAddress, timeout: float = CONNECT_TIMEOUT) -> RayAddress:
-    """The address (``auto`` resolved) after it answered as a gRPC server within ``timeout``.
+def check_reachable(address: RayAddress, timeout: float | None = None) -> RayAddress:
+    """The address (``auto`` resolved) after it answered as a gRPC server within ``timeout`` [s]
+    (default :data:`CONNECT_TIMEOUT`).
 
     Raises:
         CliError: one line naming the address and what went wrong (exit 2).
