@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 from collections import Counter
 from pathlib import Path
@@ -95,6 +96,13 @@ def _reject_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is not a finite number")
+    return value
+
+
 def _read_bounded(path: Path) -> bytes | None:
     """The bytes of a regular file (never blocking on a special file), None when missing.
 
@@ -134,7 +142,7 @@ def read_index_lines(text: str) -> tuple[dict[tuple[str, str], dict[str, Any]], 
         if not line.strip():
             continue
         try:
-            rec = json.loads(line, parse_constant=_reject_constant)
+            rec = json.loads(line, parse_constant=_reject_constant, parse_float=_finite)
         except RecursionError:
             damaged.append(f"line {n}: nested too deeply")
             continue
