@@ -30,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -244,11 +245,11 @@ class RayPool(Backend):
         self.cache = cache
 
     def run(self, jobs: list[Any], on_record: OnRecord) -> None:  # noqa: D102 - see Backend.run
-        from wbmp.batch.raynet import loopback_only, parse_address
+        from wbmp.batch.raynet import driver, parse_address
 
         address = None if self.address is None else parse_address(self.address)
         local = address is None or address.on_loopback
-        with loopback_only() if local else contextlib.nullcontext():
+        with driver(local=local):
             self._run(jobs, on_record, None if address is None else address.target, local=local)
 
     def _run(self, jobs: list[Any], on_record: OnRecord, address: str | None, *, local: bool) -> None:
@@ -269,14 +270,19 @@ class RayPool(Backend):
                 if name in os.environ:
                     env[name] = os.environ[name]
             options["num_cpus"] = self.workers
-            ray.init(runtime_env={"env_vars": env}, **options)
         else:
             options["address"] = address
-            try:
-                ray.init(runtime_env={"env_vars": env}, **options)
-            except (Exception, SystemExit) as e:  # noqa: BLE001 - Ray's connection errors, and its sys.exit
-                raise CliError(f"--ray {address!r}: cannot join the cluster: {one_line(str(e) or type(e).__name__, 300)}",
-                               ExitCode.USAGE) from None
+        on_term = signal.getsignal(signal.SIGTERM)
+        try:
+            ray.init(runtime_env={"env_vars": env}, **options)
+        except (Exception, SystemExit) as e:  # Ray's connection errors, and its sys.exit
+            if address is None:
+                raise
+            raise CliError(f"--ray {address!r}: cannot join the cluster: {one_line(str(e) or type(e).__name__, 300)}",
+                           ExitCode.USAGE) from None
+        finally:  # ray.init makes SIGTERM a sys.exit(15): the CLI's handler (exit 143, clean-up) is put back
+            if on_term is not None and threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGTERM, on_term)
         try:
             task = ray.remote(num_cpus=1, max_retries=1)(run_job)
             pending = list(reversed(jobs))

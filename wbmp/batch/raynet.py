@@ -39,6 +39,9 @@ LOOPBACK = "127.0.0.1"
 CLUSTER_VARIABLE = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
 #: Environment of a loopback-only Ray: the processes it starts inherit it.
 LOOPBACK_ENV = {CLUSTER_VARIABLE: "0", "RAY_USAGE_STATS_ENABLED": "0"}
+#: Environment of this process while it drives Ray (Ray reads it at its import; :func:`driver`
+#: sets the value it was read into as well).
+DRIVER_ENV = {"RAY_DISABLE_FAILURE_SIGNAL_HANDLER": "1"}
 
 _FORMS = "host:port (e.g. 127.0.0.1:6379), ray://host:port (a Ray Client server), or auto"
 _HOSTNAME = re.compile(r"^(?=.{1,253}$)[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?"
@@ -209,21 +212,45 @@ def check_reachable(address: RayAddress, timeout: float | None = None) -> RayAdd
 
 
 @contextlib.contextmanager
-def loopback_only() -> Iterator[None]:
-    """Inside the block, Ray (this process and what it starts) keeps to 127.0.0.1: the
-    variables of :data:`LOOPBACK_ENV` set, and Ray's switch read at its import turned off."""
-    saved = {name: os.environ.get(name) for name in LOOPBACK_ENV}
-    os.environ.update(LOOPBACK_ENV)
-    import ray._private.ray_constants as constants
-
-    flag = constants.ENABLE_RAY_CLUSTER
-    constants.ENABLE_RAY_CLUSTER = False
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
     try:
         yield
     finally:
-        constants.ENABLE_RAY_CLUSTER = flag
         for name, value in saved.items():
             if value is None:
                 os.environ.pop(name, None)
             else:
                 os.environ[name] = value
+
+
+@contextlib.contextmanager
+def loopback_only() -> Iterator[None]:
+    """Inside the block, Ray (this process and what it starts) keeps to 127.0.0.1: the
+    variables of :data:`LOOPBACK_ENV` set, and Ray's switch read at its import turned off."""
+    with _environment(LOOPBACK_ENV):
+        import ray._private.ray_constants as constants
+
+        flag = constants.ENABLE_RAY_CLUSTER
+        constants.ENABLE_RAY_CLUSTER = False
+        try:
+            yield
+        finally:
+            constants.ENABLE_RAY_CLUSTER = flag
+
+
+@contextlib.contextmanager
+def driver(*, local: bool) -> Iterator[None]:
+    """The environment of this process as Ray's driver: SIGTERM and SIGINT stay the CLI's
+    (Ray's own failure-signal handler, which ends the process with SIGABRT after a SIGTERM the
+    CLI handles, is not installed); with ``local``, :func:`loopback_only` too."""
+    with _environment(DRIVER_ENV), loopback_only() if local else contextlib.nullcontext():
+        import ray._private.ray_constants as constants
+
+        flag = constants.RAY_DISABLE_FAILURE_SIGNAL_HANDLER  # read at Ray's import: set it here too
+        constants.RAY_DISABLE_FAILURE_SIGNAL_HANDLER = True
+        try:
+            yield
+        finally:
+            constants.RAY_DISABLE_FAILURE_SIGNAL_HANDLER = flag
