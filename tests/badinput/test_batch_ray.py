@@ -117,3 +117,16 @@ def test_auto_is_resolved_then_checked(tmp_path, capsys, tree, monkeypatch):
     _refused(tmp_path, capsys, tree, "auto", f"auto (127.0.0.1:{port})", "cannot connect")
     monkeypatch.setenv("RAY_ADDRESS", "somewhere over the rainbow")
     _refused(tmp_path, capsys, tree, "AUTO", "RAY_ADDRESS", "is not an address")
+
+
+def test_a_temp_folder_too_long_for_rays_sockets_is_refused_before_any_work(tmp_path, capsys, tree, monkeypatch):
+    """A local instance whose temp folder is too long for a Unix socket: one line naming it and
+    RAY_TMPDIR, exit 2 (was: Ray's OSError traceback once the batch had started)."""
+    pytest.importorskip("ray", reason="ray is not installed (pip install 'wbmp[ray]')")
+    monkeypatch.setenv("RAY_TMPDIR", str(tmp_path / ("x" * 60)))
+    items = tmp_path / "items.txt"
+    items.write_text("squat\n")
+    tree.before = tree.snapshot()
+    outcome = run_cli(["batch", items, "--out-dir", tmp_path / "lib", "--no-sim", "--ray"], capsys)
+    assert_refused(outcome, 2, "--ray", "x" * 60, "too long for its sockets", "RAY_TMPDIR")
+    tree.assert_unchanged()

@@ -93,11 +93,13 @@ def _alive(children: dict[int, str]) -> list[int]:
     return [pid for pid, start in children.items() if _start_time(pid) == start]
 
 
-def _stop_after_first_record(items: Path, root: Path, out: Path, sig: int) -> tuple[int, float, dict[int, str], str]:
+def _stop_after_first_record(items: Path, root: Path, out: Path, sig: int,
+                             extra: tuple[str, ...] = ()) -> tuple[int, float, dict[int, str], str]:
     """Start the batch, send ``sig`` once its first record is reported; (exit code, seconds from
     the signal to the exit, its children when signalled, stderr)."""
     proc = subprocess.Popen([sys.executable, "-m", "wbmp.cli", "batch", str(items), "--out-dir", str(out),
-                             "--no-sim", "--no-cache", "--workers", "2"], env=_env(root), stdin=subprocess.DEVNULL,
+                             "--no-sim", "--no-cache", "--workers", "2", *extra], env=_env(root),
+                            stdin=subprocess.DEVNULL,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     lines: queue.Queue[str | None] = queue.Queue()
 
@@ -204,3 +206,29 @@ def test_a_killed_batch_leaves_no_process_and_the_next_run_mends_the_folder(batc
     records = _assert_consistent(out)
     assert {key for key, rec in records.items() if rec["status"] == "ok"} == {(f"i{n}", "talos")
                                                                               for n in range(len(SENTENCES))}
+
+
+@pytest.mark.slow
+def test_a_stopped_ray_batch_exits_143_and_shuts_its_instance_down(batch, tmp_path):
+    """SIGTERM to a batch on a local Ray instance: exit 143 (was: SIGABRT from Ray's signal
+    handler, or exit 1 from the sys.exit Ray puts on SIGTERM), every Ray process it started gone,
+    index and files agree."""
+    pytest.importorskip("ray", reason="ray is not installed (pip install 'wbmp[ray]')")
+    import shutil
+    import tempfile
+
+    items, root = batch
+    out = tmp_path / "lib"
+    short = tempfile.mkdtemp(prefix="wbmp-ray-", dir="/tmp")  # the tmp_path is too long for Ray's sockets
+    try:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setenv("RAY_TMPDIR", short)
+            got, took, children, err = _stop_after_first_record(items, root, out, signal.SIGTERM, ("--ray",))
+    finally:
+        shutil.rmtree(short, ignore_errors=True)
+    assert got == 143, err
+    assert err.rstrip().splitlines()[-1] == "wbmp: terminated", err
+    assert took < EXIT_WITHIN, f"the batch took {took:.1f} s to stop"
+    assert len(children) >= 3, children  # GCS, raylet, workers
+    assert _wait_gone(children) == []
+    assert 1 <= len(_assert_consistent(out)) < len(SENTENCES)

@@ -211,6 +211,30 @@ def check_reachable(address: RayAddress, timeout: float | None = None) -> RayAdd
     return resolved
 
 
+#: Longest path of a Unix socket (``sun_path`` less its NUL) [bytes].
+_MAX_SOCKET_PATH = 107
+#: What Ray adds below its temp folder for a socket: ``/ray/session_<date>_<time>_<us>_<pid>/sockets/plasma_store``.
+_RAY_SOCKET_TAIL = len("/ray/session_2026-11-28_11-15-06_409362_4194304/sockets/plasma_store")
+
+
+def check_local_temp() -> None:
+    """A local instance can put its sockets in Ray's temp folder (``RAY_TMPDIR``, else ``TMPDIR``,
+    else /tmp): a path too long for a Unix socket is one line before any work (exit 2), not
+    Ray's traceback after the batch started.
+
+    Raises:
+        CliError: the folder's path is too long.
+    """
+    import sys
+
+    base = os.environ.get("RAY_TMPDIR") or (os.environ.get("TMPDIR") if sys.platform.startswith("linux") else None)
+    base = base or "/tmp"
+    if len(os.fsencode(base)) + _RAY_SOCKET_TAIL > _MAX_SOCKET_PATH:
+        raise CliError(f"--ray: Ray's temp folder {one_line(base, 200)!r} is too long for its sockets (at most "
+                       f"{_MAX_SOCKET_PATH - _RAY_SOCKET_TAIL} bytes); set RAY_TMPDIR to a short folder, e.g. /tmp",
+                       ExitCode.USAGE)
+
+
 @contextlib.contextmanager
 def _environment(values: dict[str, str]) -> Iterator[None]:
     saved = {name: os.environ.get(name) for name in values}

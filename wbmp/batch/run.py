@@ -124,6 +124,10 @@ def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simula
         from wbmp.batch.raynet import check_reachable, parse_address
 
         ray_address = check_reachable(parse_address(ray_address)).target
+    elif ray:
+        from wbmp.batch.raynet import check_local_temp
+
+        check_local_temp()
     return BatchPlan(file=file, out_dir=folder, jobs=jobs, n_items=len(items), workers=workers, simulate=simulate,
                      force=force, retry_failed=retry_failed, ray=ray, ray_address=ray_address, cache=cache)
 
