@@ -76,7 +76,6 @@ def die_with_parent(parent: int) -> None:
     Linux (``PR_SET_PDEATHSIG``), else a daemon thread polling the parent's pid; if the parent
     is already gone, exit now."""
     import sys
-    import threading
 
     armed = False
     if sys.platform.startswith("linux"):
