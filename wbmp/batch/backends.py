@@ -275,6 +275,10 @@ class RayPool(Backend):
         try:
             ray.init(runtime_env={"env_vars": env}, **options)
         except (Exception, SystemExit) as e:  # Ray's connection errors, and its sys.exit
+            if isinstance(e, SystemExit) and e.code == signal.SIGTERM:  # Ray's handler met a SIGTERM
+                from wbmp.errors import Terminated
+
+                raise Terminated() from None
             if address is None:
                 raise
             raise CliError(f"--ray {address!r}: cannot join the cluster: {one_line(str(e) or type(e).__name__, 300)}",
