@@ -89,6 +89,24 @@ def _start_time(pid: int) -> str | None:
     return None if fields[0] in ("Z", "X") else fields[19]
 
 
+def _workers_lead_their_groups(children: dict[int, str]) -> None:
+    """Each pool worker (a ``spawn_main`` process) leads its own process group; the batch's
+    group holds none of them (a terminal's Ctrl-C reaches the batch only)."""
+    workers = []
+    for pid in children:
+        try:
+            cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"spawn_main" in cmdline:
+            workers.append(pid)
+    assert len(workers) == 2, children
+    deadline = time.monotonic() + 60.0  # a worker that is still starting sets its group in its initializer
+    while any(os.getpgid(pid) != pid for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert [os.getpgid(pid) for pid in workers] == workers
+
+
 def _alive(children: dict[int, str]) -> list[int]:
     return [pid for pid, start in children.items() if _start_time(pid) == start]
 
@@ -123,6 +141,8 @@ def _stop_after_first_record(items: Path, root: Path, out: Path, sig: int,
             if "[1/" in line:
                 break
         children = _descendants(proc.pid)
+        if not extra:  # the local pool
+            _workers_lead_their_groups(children)
         proc.send_signal(sig)
         t0 = time.monotonic()
         code = proc.wait(timeout=120)
