@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from tests.badinput.conftest import assert_refused, run_cli
@@ -26,6 +28,12 @@ def _batch(tmp_path, text: str, name: str = "items.txt"):
     ('{"instruction": "squat", "robot": "robbie"}\n', "items.jsonl", 3, [":1", "unknown robot 'robbie'"]),
     ("squat\nmissing_spec.json\n", "items.txt", 2, ["items.txt:2", "spec file 'missing_spec.json' not found"]),
     ("squat\n{\"instruction\": \"wave\"}\n", "items.txt", 2, [":2", "JSONL"]),
+    ('{"instruction": "squat"}\n{"spec": {"phases": [{"duration": NaN}]}}\n', "items.jsonl", 2,
+     ["items.jsonl:2", "NaN is not finite"]),
+    ('{"spec": {"phases": [{"duration": 1e999}]}}\n', "items.jsonl", 2, [":1", "1e999 is not finite"]),
+    ('{"instruction": "squat", "id": Infinity}\n', "items.jsonl", 2, [":1", "Infinity is not finite"]),
+    ('{"instruction": "squat", "robot": ' + "9" * 5000 + "}\n", "items.jsonl", 2, [":1", "too many digits"]),
+    ('{"instruction": "squat \\udc80"}\n', "items.jsonl", 2, [":1", "lone surrogate"]),
 ])
 def test_bad_batch_file_is_refused_with_its_line(tmp_path, capsys, tree, text, name, code, words):
     """A bad line is named by file and line number; exit 2 (3 for an unknown robot); nothing written."""
@@ -75,3 +83,62 @@ def test_a_motion_name_taken_by_a_folder_is_refused(tmp_path, capsys):
     outcome = run_cli(["batch", items, "--out-dir", lib, "--no-sim"], capsys)
     assert_refused(outcome, 2, "--out-dir", "sq__talos.npz", "directory")
     assert sorted(p.name for p in lib.iterdir()) == ["sq__talos.npz"]
+
+
+def _jsonl(tmp_path, *records: dict) -> Path:
+    import json
+
+    path = tmp_path / "items.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    return path
+
+
+def test_a_damaged_index_is_reported_and_mended_not_crashed_on(tmp_path, capsys):
+    """Resume over an index whose record lacks a field (was: KeyError), a torn line and a NaN:
+    each damaged line is named on stderr, its item planned again, the index rewritten with valid
+    records only; the exit code is the item's own (2: not understood)."""
+    import json
+
+    from wbmp.batch.index import read_index_report
+
+    items = _jsonl(tmp_path, {"id": "moon", "instruction": "fly to the moon"})
+    lib = tmp_path / "lib"
+    argv = ["batch", items, "--out-dir", lib, "--no-sim", "--workers", "1"]
+    assert run_cli(argv, capsys).code == 2
+    record = json.loads((lib / "index.jsonl").read_text())
+    del record["message"]
+    damaged = json.dumps(record) + "\n" + '{"id": "moon", "robot": "ta' + "\n"
+    damaged += json.dumps({**record, "message": "x", "line": float("nan")}) + "\n"
+    (lib / "index.jsonl").write_text(damaged)
+    outcome = run_cli(argv, capsys)
+    assert "Traceback" not in outcome.err and outcome.code == 2, outcome.err
+    assert "3 damaged lines left out" in outcome.err and "line 1: 'message' is missing" in outcome.err
+    assert "1 planned now, 0 done before" in outcome.out
+    records, notes = read_index_report(lib / "index.jsonl")
+    assert notes == [] and list(records) == [("moon", "talos")]
+    assert records[("moon", "talos")]["message"].startswith("could not understand")
+
+
+def test_files_and_records_that_disagree_are_mended_at_the_start(tmp_path, capsys):
+    """What a killed batch can leave: a motion file of an item with no record (removed), a
+    record naming a motion file that is gone (dropped), a temporary file (removed); a motion
+    file of no item of this batch is left alone."""
+    import json
+
+    items = _jsonl(tmp_path, {"id": "moon", "instruction": "fly to the moon"})
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    (lib / "moon__talos.npz").write_bytes(b"a motion a killed worker wrote")
+    (lib / ".moon__talos.npz.0123abcd.tmp").write_bytes(b"half")
+    (lib / "mine__talos.npz").write_bytes(b"not the batch's")
+    gone = {"id": "gone", "robot": "talos", "line": 1, "instruction": "bow", "status": "ok", "exit_code": 0,
+            "certificate": None, "message": "", "timings": {}, "cached": False, "motion": "gone__talos.npz",
+            "sha256": "0" * 64, "input_sha256": "1" * 64, "worker": None}
+    (lib / "index.jsonl").write_text(json.dumps(gone) + "\n")
+    outcome = run_cli(["batch", items, "--out-dir", lib, "--no-sim", "--workers", "1"], capsys)
+    assert "Traceback" not in outcome.err and outcome.code == 2, outcome.err
+    assert "moon__talos.npz removed (no record of it in the index)" in outcome.err
+    assert "record of gone__talos.npz dropped (the file is missing)" in outcome.err
+    assert sorted(p.name for p in lib.iterdir()) == ["index.jsonl", "mine__talos.npz", "summary.md"]
+    ids = [json.loads(line)["id"] for line in (lib / "index.jsonl").read_text().splitlines()]
+    assert ids == ["moon"]

@@ -10,6 +10,15 @@ calling (main) thread, and stop their workers when the batch stops (Ctrl-C, SIGT
   the pool: the jobs that were in flight are run again one at a time in a fresh one-worker pool,
   so that the job that kills its worker is the one recorded (exit 1, "the worker process
   died"), and the batch goes on.
+
+  Process hygiene: each worker leads its own process group (what it starts, a compiler for
+  instance, is in it too), so a stop reaches the whole group (``killpg``) and a Ctrl-C typed in
+  the terminal reaches the parent only. A stop (the end of the batch, Ctrl-C, SIGTERM) sends
+  SIGTERM to each group, and SIGKILL after :data:`STOP_GRACE`. A worker dies with its parent:
+  on Linux the kernel sends it SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``, set
+  in the worker's initializer, which then checks that the parent did not die before), and
+  elsewhere a thread polls the parent's pid. The pool's resource tracker ends when the last of
+  them has gone (it reads a pipe they hold).
 * :class:`RayPool`: one Ray task per job (``num_cpus=1``); a worker that dies is retried once by
   Ray, then recorded. Without an address, ``ray.init()`` starts a local instance with
   ``num_cpus=workers``, no dashboard and no worker logs on the terminal; it is shut down at the
@@ -18,7 +27,10 @@ calling (main) thread, and stop their workers when the batch stops (Ctrl-C, SIGT
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -32,8 +44,13 @@ OnRecord = Callable[[dict[str, Any]], None]
 
 WORKER_DIED = ("the worker process died while planning this item (killed by a signal, out of memory, "
                "or a crash in native code)")
-#: How long stopped workers get to remove their temporary files before they are killed [s].
-STOP_GRACE = 10.0
+#: How long stopped workers get to remove their temporary files before they are killed [s]
+#: (what a killed worker leaves, the batch's sweep removes).
+STOP_GRACE = 1.0
+#: How often a worker checks that its parent is alive where the kernel cannot tell it [s].
+PARENT_POLL = 0.5
+#: ``prctl`` option: the signal this process gets when its parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
 
 
 def run_job_local(job: Any, out_dir: str, simulate: bool, cache: bool) -> dict[str, Any]:
@@ -54,11 +71,42 @@ def run_job_local(job: Any, out_dir: str, simulate: bool, cache: bool) -> dict[s
 _BUSY = False
 
 
-def init_local_worker() -> None:
-    """Local-pool worker set-up: thread limits; SIGINT ignored (the parent stops the workers);
-    SIGTERM unwinds a running job, or ends an idle worker at once."""
-    import signal
+def die_with_parent(parent: int) -> None:
+    """End this process when process ``parent`` (its parent) dies: SIGKILL from the kernel on
+    Linux (``PR_SET_PDEATHSIG``), else a daemon thread polling the parent's pid; if the parent
+    is already gone, exit now."""
+    import sys
 
+    armed = False
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+        except (OSError, AttributeError):  # pragma: no cover - a libc without prctl
+            armed = False
+    if os.getppid() != parent:  # the parent died before the request reached the kernel
+        os._exit(143)
+    if armed:
+        return
+
+    def watch() -> None:  # pragma: no cover - not Linux
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL)
+        os._exit(143)
+
+    threading.Thread(target=watch, name="wbmp-parent-watch", daemon=True).start()
+
+
+def init_local_worker(parent: int | None = None) -> None:
+    """Local-pool worker set-up: its own process group; death with the parent (``parent``, its
+    pid); thread limits; SIGINT ignored (the parent stops the workers); SIGTERM unwinds a running
+    job, or ends an idle worker at once."""
+    if parent is not None:
+        die_with_parent(parent)
+    with contextlib.suppress(OSError):  # already a group leader (or not allowed): the pid is used
+        os.setpgid(0, 0)
     init_worker()
 
     def _on_term(signum, frame) -> None:  # noqa: ARG001 - the signal-handler signature
@@ -98,14 +146,14 @@ class LocalPool(Backend):
         import multiprocessing
 
         return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=init_local_worker)
+                                   initializer=init_local_worker, initargs=(os.getpid(),))
 
     def run(self, jobs: list[Any], on_record: OnRecord) -> None:  # noqa: D102 - see Backend.run
         pending = list(reversed(jobs))
         suspects: list[Any] = []
         pool = self._pool(self.workers)
+        in_flight: dict[Future, tuple[Any, float]] = {}
         try:
-            in_flight: dict[Future, tuple[Any, float]] = {}
             while pending or in_flight:
                 while pending and len(in_flight) < self.workers:
                     job = pending.pop()
@@ -131,6 +179,9 @@ class LocalPool(Backend):
                     pool = self._pool(self.workers)
         finally:
             _stop(pool)
+            for fut in in_flight:  # stopped: keep the results that came back
+                if fut.done() and not fut.cancelled() and fut.exception() is None:
+                    on_record(fut.result())
         for job in suspects:  # one at a time: the job that kills its worker is the one recorded
             t0 = time.perf_counter()
             single = self._pool(1)
@@ -143,19 +194,32 @@ class LocalPool(Backend):
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
-    """Stop a pool now: SIGTERM to its workers (a running job removes its temporary file and the
-    worker exits), SIGKILL to one still alive after :data:`STOP_GRACE`."""
+    """Stop a pool now: SIGTERM to each worker's process group (a running job removes its
+    temporary file and the worker exits), SIGKILL to the groups still alive after
+    :data:`STOP_GRACE`."""
     processes = list(getattr(pool, "_processes", {}).values())  # no public API before Python 3.14
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in processes:
-        if proc.is_alive():
-            proc.terminate()
+        _signal_group(proc, signal.SIGTERM)
     deadline = time.monotonic() + STOP_GRACE
     for proc in processes:
         proc.join(max(0.0, deadline - time.monotonic()))
-        if proc.is_alive():
-            proc.kill()
-            proc.join(5.0)
+    for proc in processes:  # the groups too: what a worker started outlives it otherwise
+        _signal_group(proc, signal.SIGKILL)
+    for proc in processes:
+        proc.join(5.0)
+
+
+def _signal_group(proc: Any, sig: int) -> None:
+    """Send ``sig`` to a worker and its process group (the worker leads it; see the module)."""
+    pid = proc.pid
+    if pid is None:
+        return
+    with contextlib.suppress(OSError):  # no such group: the worker has not set it up yet, or all are gone
+        os.killpg(pid, sig)
+    with contextlib.suppress(OSError, ValueError):
+        if proc.exitcode is None:
+            os.kill(pid, sig)
 
 
 def local_pythonpath() -> str:
@@ -180,20 +244,48 @@ class RayPool(Backend):
         self.cache = cache
 
     def run(self, jobs: list[Any], on_record: OnRecord) -> None:  # noqa: D102 - see Backend.run
+        from wbmp.batch.raynet import driver, parse_address
+
+        address = None if self.address is None else parse_address(self.address)
+        local = address is None or address.on_loopback
+        with driver(local=local):
+            self._run(jobs, on_record, None if address is None else address.target, local=local)
+
+    def _run(self, jobs: list[Any], on_record: OnRecord, address: str | None, *, local: bool) -> None:
         import ray
+
+        from wbmp.batch.raynet import LOOPBACK, LOOPBACK_ENV
+        from wbmp.errors import CliError, ExitCode, one_line
 
         env = worker_env()
         options: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                    "logging_level": "ERROR", "configure_logging": True}
-        if self.address is None:
+        if local:  # this machine's instance: node address 127.0.0.1, its workers keep to it too
+            env.update(LOOPBACK_ENV)
+            options["_node_ip_address"] = LOOPBACK
+        if address is None:
             env["PYTHONPATH"] = local_pythonpath()
             for name in ("WBMP_CACHE_DIR", "WBMP_COMPILE", "WBMP_COMPILE_BACKGROUND", DEATH_VARIABLE):
                 if name in os.environ:
                     env[name] = os.environ[name]
             options["num_cpus"] = self.workers
         else:
-            options["address"] = self.address
-        ray.init(runtime_env={"env_vars": env}, **options)
+            options["address"] = address
+        on_term = signal.getsignal(signal.SIGTERM)
+        try:
+            ray.init(runtime_env={"env_vars": env}, **options)
+        except (Exception, SystemExit) as e:  # Ray's connection errors, and its sys.exit
+            if isinstance(e, SystemExit) and e.code == signal.SIGTERM:  # Ray's handler met a SIGTERM
+                from wbmp.errors import Terminated
+
+                raise Terminated() from None
+            if address is None:
+                raise
+            raise CliError(f"--ray {address!r}: cannot join the cluster: {one_line(str(e) or type(e).__name__, 300)}",
+                           ExitCode.USAGE) from None
+        finally:  # ray.init makes SIGTERM a sys.exit(15): the CLI's handler (exit 143, clean-up) is put back
+            if on_term is not None and threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGTERM, on_term)
         try:
             task = ray.remote(num_cpus=1, max_retries=1)(run_job)
             pending = list(reversed(jobs))

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -194,16 +195,40 @@ def _spec_file(path: str, n: int, text: str, base: Path, what: str = "spec") -> 
     return str(p)
 
 
+class _NonFinite(ValueError):
+    """A number JSON has no finite value for: NaN, Infinity, or a float too large (1e999)."""
+
+
+def _no_constant(name: str) -> float:
+    raise _NonFinite(name)
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise _NonFinite(text)
+    return value
+
+
 def _json_item(path: str, n: int, text: str, base: Path) -> Item:
     try:
-        doc = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as e:
-        why = e.msg if isinstance(e, json.JSONDecodeError) else "nested too deeply"
+        doc = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
+    except _NonFinite as e:
+        raise _refuse(path, n, f"the number {one_line(str(e), 40)} is not finite; write finite numbers "
+                               "(JSON has no NaN or Infinity)") from None
+    except (ValueError, RecursionError) as e:  # JSONDecodeError, or an integer of too many digits
+        why = (e.msg if isinstance(e, json.JSONDecodeError) else "nested too deeply" if isinstance(e, RecursionError)
+               else "a number with too many digits")
         raise _refuse(path, n, f"not a JSON object ({why}); a JSONL batch file holds one object per line, "
                                'e.g. {"instruction": "squat twice", "robot": "talos"}') from None
     if not isinstance(doc, dict):
         raise _refuse(path, n, f"a JSON {type(doc).__name__}, not an object; write "
                                '{"instruction": ...} or {"spec": ...}')
+    try:
+        json.dumps(doc, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError:
+        raise _refuse(path, n, "a string holds a lone surrogate escape (such as \\ud800), which is not "
+                               "text; write the character itself or a valid pair") from None
     unknown = sorted(set(doc) - set(JSONL_KEYS))
     if unknown:
         raise _refuse(path, n, f"unknown key {one_line(unknown[0])!r}; a line may hold {', '.join(JSONL_KEYS)}")

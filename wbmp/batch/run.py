@@ -5,7 +5,8 @@ folder and every file name it will hold, Ray's presence) and raises :class:`CliE
 line; :func:`run_batch` then holds the output folder (an exclusive lock on the folder: a second
 ``wbmp batch`` on it is refused), runs the jobs that are not done, appends each record to the
 index as it arrives, and at the end — also after Ctrl-C or SIGTERM — rewrites the index and the
-summary atomically and removes temporary files of workers that were stopped.
+summary atomically and removes temporary files of workers that were stopped and motion files
+whose record did not reach the index (:func:`reconcile`; also at the start, after a kill).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import contextlib
 import fcntl
 import os
 import re
+import stat
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -28,7 +30,7 @@ from wbmp.batch.index import (
     final_records,
     index_text,
     is_done,
-    read_index,
+    read_index_report,
     summary_text,
 )
 from wbmp.batch.items import Job, check_robot, expand, read_items
@@ -118,6 +120,14 @@ def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simula
     with output_errors():
         folder = check_output_dir(out_dir, "--out-dir", [INDEX, SUMMARY, *(j.motion_name for j in jobs)])
         check_distinct({"--out-dir (index.jsonl)": folder / INDEX}, {"FILE": Path(file)})
+    if ray and ray_address is not None:  # its form, then that it answers (one line, exit 2); auto resolved
+        from wbmp.batch.raynet import check_reachable, parse_address
+
+        ray_address = check_reachable(parse_address(ray_address)).target
+    elif ray:
+        from wbmp.batch.raynet import check_local_temp
+
+        check_local_temp()
     return BatchPlan(file=file, out_dir=folder, jobs=jobs, n_items=len(items), workers=workers, simulate=simulate,
                      force=force, retry_failed=retry_failed, ray=ray, ray_address=ray_address, cache=cache)
 
@@ -149,6 +159,51 @@ def sweep_temporary(folder: Path) -> list[str]:
     return removed
 
 
+def _regular_file(path: Path) -> bool:
+    try:
+        return stat.S_ISREG(path.lstat().st_mode)
+    except OSError:
+        return False
+
+
+def reconcile(folder: Path, jobs: list[Job], records: dict[tuple[str, str], dict[str, Any]], *,
+              verify: bool) -> list[str]:
+    """Make the index (``records``, changed in place) and the motion files of ``jobs`` agree;
+    returns one note per change.
+
+    A record that names a motion file which is missing is dropped (its item is planned again).
+    A job's motion file that no record names is removed: a worker wrote it and was stopped (or
+    the batch was killed) before its record reached the index. With ``verify`` the file's
+    sha256 must also be the record's, else both go (a stopped run replaced the file).
+    """
+    notes: list[str] = []
+    for key, rec in list(records.items()):
+        motion = rec.get("motion")
+        if motion is not None and not _regular_file(folder / motion):
+            del records[key]
+            notes.append(f"record of {motion} dropped (the file is missing)")
+    for job in jobs:
+        path = folder / job.motion_name
+        if not _regular_file(path):
+            continue
+        known = records.get(job.key)
+        named = known is not None and known.get("motion") == job.motion_name
+        if named and verify and known is not None:
+            from robots.cache import file_sha256
+
+            try:
+                named = file_sha256(path) == known.get("sha256")
+            except OSError:
+                named = False
+            if not named:
+                del records[job.key]
+        if not named:
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
+            notes.append(f"{job.motion_name} removed (no record of it in the index)")
+    return notes
+
+
 def run_batch(plan: BatchPlan, progress: Any) -> BatchOutcome:
     """Run a checked batch; see the module docstring. Ctrl-C and SIGTERM propagate after the
     index and the summary were written."""
@@ -161,7 +216,13 @@ def run_batch(plan: BatchPlan, progress: Any) -> BatchOutcome:
     index_path, summary_path = folder / INDEX, folder / SUMMARY
     with _locked(folder):
         sweep_temporary(folder)
-        old = read_index(index_path)
+        old, damaged = read_index_report(index_path)
+        if damaged:
+            more = f" (and {len(damaged) - 3} more)" if len(damaged) > 3 else ""
+            progress(f"{index_path}: {len(damaged)} damaged line{'s' if len(damaged) > 1 else ''} left out, "
+                     f"their items are planned again: {'; '.join(damaged[:3])}{more}")
+        for note in reconcile(folder, plan.jobs, old, verify=False):  # what a killed batch left
+            progress(f"{folder}: {note}")
         records = dict(old)
         todo: list[Job] = []
         skipped = 0
@@ -177,7 +238,10 @@ def run_batch(plan: BatchPlan, progress: Any) -> BatchOutcome:
                    else LocalPool(plan.workers, folder, plan.simulate, cache=plan.cache))
         writer = IndexWriter(index_path)
 
+        fresh: set[tuple[str, str]] = set()
+
         def on_record(record: dict[str, Any]) -> None:
+            fresh.add((record["id"], record["robot"]))
             record["skipped"] = False
             record["backend"] = backend.name
             record["finished"] = datetime.now(UTC).isoformat(timespec="seconds")
@@ -201,6 +265,8 @@ def run_batch(plan: BatchPlan, progress: Any) -> BatchOutcome:
         finally:
             writer.close()
             sweep_temporary(folder)
+            # a job stopped after its file was written, before its record came back
+            reconcile(folder, [job for job in todo if job.key not in fresh], records, verify=True)
             ordered = final_records(plan.jobs, records)
             ours = {job.key for job in plan.jobs}
             pending = sum(1 for job in plan.jobs if job.key not in records)

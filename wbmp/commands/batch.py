@@ -15,8 +15,6 @@ import json
 import os
 import sys
 
-from wbmp.errors import CliError, ExitCode
-
 
 def _workers(text: str) -> int:
     try:
@@ -63,8 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help=f"parallel workers (default: one per CPU, here {default_workers()}); with --ray, the "
                         "number of tasks in flight (and the CPUs of a local Ray instance)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                   help="run on Ray: without ADDRESS a local instance is started and stopped; with one "
-                        "(e.g. ray://head:10001 or auto) the cluster must have wbmp installed")
+                   help="run on Ray: without ADDRESS a local instance is started on 127.0.0.1 and stopped; "
+                        "with one (host:port, ray://host:port or auto) the cluster must answer within "
+                        "5 s and have wbmp installed")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
     p.add_argument("--no-cache", action="store_true",
                    help="neither read nor write the motion cache (by default an item planned before, in any "
@@ -84,9 +83,10 @@ def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
     from wbmp.batch.run import prepare, run_batch
 
-    if args.ray is not None and args.ray != "" and not args.ray.strip():
-        raise CliError("--ray: the address is empty; give host:port, ray://host:port or auto, or no value "
-                       "for a local instance", ExitCode.USAGE)
+    if args.ray:  # the form first (one line, exit 2); prepare() checks that it answers
+        from wbmp.batch.raynet import parse_address
+
+        parse_address(args.ray)
     plan = prepare(file=args.file, out_dir=args.out_dir, robots=args.robots,
                    workers=args.workers or default_workers(), simulate=not args.no_sim, force=args.force,
                    retry_failed=args.retry_failed, ray=args.ray is not None, ray_address=args.ray or None,
