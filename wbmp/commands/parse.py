@@ -19,7 +19,7 @@ import argparse
 import json
 import os
 
-from wbmp.errors import CliError, ExitCode
+from wbmp.errors import CliError, ExitCode, require_instruction
 
 KEY_VARIABLES = ("WBMP_LLM_API_KEY", "OPENAI_API_KEY")
 
@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
     from language import parse
 
     text = " ".join(args.text)
+    require_instruction(text)  # the bound of `wbmp solve`
     plan = parse(text, backend=args.parser, **llm_options(args))
     if args.json:
         out = plan.to_dict()
