@@ -116,6 +116,18 @@ def _open_regular(path: str | Path, limit: int):
     return open_regular(path, limit)
 
 
+def _read_json(path: Path) -> Any:
+    """A manifest or record: a regular file of at most 1 MiB (:mod:`robots.safeio`) holding JSON;
+    OSError or ValueError otherwise."""
+    from robots.safeio import read_bytes
+
+    raw = read_bytes(path, _MAX_RECORD_BYTES)
+    try:
+        return json.loads(raw)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
+
+
 def _sha256_file(path: str | Path, limit: int = MAX_ENTRY_BYTES) -> str:
     from robots.safeio import sha256_file
 
@@ -288,13 +300,13 @@ class MotionCache:
     # reading
     def lookup_request(self, rkey: str) -> tuple[str, str] | None:
         """(motion key, robot digest) a request led to, when every robot file is unchanged."""
-        from robots.safeio import is_key, read_json
+        from robots.safeio import is_key
 
         if not is_key(rkey):
             return None
         path = self._request(rkey)
         try:
-            record = read_json(path, _MAX_RECORD_BYTES)
+            record = _read_json(path)
             key, files, digest = record["motion"], record["files"], record["robot"]
             # the motion key names files of this folder: a hexadecimal key, never a path
             if not (is_key(key) and isinstance(files, dict) and isinstance(digest, str)
@@ -315,14 +327,14 @@ class MotionCache:
 
     def load(self, key: str, *, spec_check: bool = True) -> Hit | None:
         """The verified entry of ``key``, or None (missing; damaged: removed with one warning)."""
-        from robots.safeio import is_key, read_json
+        from robots.safeio import is_key
         from wbmp.motionfile import MotionFileError, motion_from_arrays
 
         if not is_key(key):  # a key names files of this folder, never a path out of it
             return None
         npz, manifest = self._npz(key), self._manifest(key)
         try:
-            meta = read_json(manifest, _MAX_RECORD_BYTES)
+            meta = _read_json(manifest)
         except FileNotFoundError:
             return None
         except (OSError, ValueError) as e:
@@ -358,13 +370,13 @@ class MotionCache:
 
     def load_page(self, key: str) -> str | None:
         """The stored HTML replay data of ``key`` (verified), or None."""
-        from robots.safeio import is_key, read_bytes, read_json
+        from robots.safeio import is_key, read_bytes
 
         if not is_key(key):
             return None
         page, meta_path = self._page(key), Path(f"{self._page(key)}.json")
         try:
-            meta = read_json(meta_path, _MAX_RECORD_BYTES)
+            meta = _read_json(meta_path)
             data = read_bytes(page, MAX_ENTRY_BYTES)
         except FileNotFoundError:
             return None
