@@ -168,3 +168,24 @@ def test_a_scene_mesh_that_is_a_special_file_is_left_out_of_the_viewer(tmp_path,
     SPECIALS[special](mesh)
     geometry, _ = _object_geometry(obj)
     assert geometry is None
+
+
+@pytest.mark.parametrize("option", ["--spec", "--scene"])
+def test_a_named_pipe_without_a_writer_as_spec_or_scene_is_empty_not_a_hang(tmp_path, capsys, monkeypatch, option):
+    from tests.badinput.conftest import Tree, assert_refused
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+    pipe = tmp_path / "input.json"
+    os.mkfifo(pipe)
+    tree = Tree(tmp_path)
+    argv = ["solve", "--spec", pipe] if option == "--spec" else ["solve", "wave", "--scene", pipe]
+    outcome = run_cli([*argv, "--no-sim", "--quiet"], capsys)
+    assert_refused(outcome, 3, "input.json", "is empty")
+    tree.assert_unchanged()
+
+
+def test_dev_zero_as_a_spec_is_too_large(tmp_path, capsys, monkeypatch):
+    from tests.badinput.conftest import assert_refused
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+    assert_refused(run_cli(["solve", "--spec", "/dev/zero", "--no-sim", "--quiet"], capsys), 3, "/dev/zero", "larger")
