@@ -189,3 +189,25 @@ def test_dev_zero_as_a_spec_is_too_large(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
     assert_refused(run_cli(["solve", "--spec", "/dev/zero", "--no-sim", "--quiet"], capsys), 3, "/dev/zero", "larger")
+
+
+@pytest.mark.parametrize("special", SPECIALS)
+def test_show_html_of_a_scene_whose_mesh_is_a_special_file_finishes(motion_file, tmp_path, capsys, monkeypatch,
+                                                                    special):
+    """The mesh is left out of the replay (the page is written, exit 0): never waited on or read
+    without bound."""
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+    mesh = tmp_path / "cup.stl"
+    mesh.write_bytes(b"")
+    SPECIALS[special](mesh)
+    with np.load(motion_file) as z:
+        arrays = {k: z[k] for k in z.files}
+    spec = json.loads(str(arrays["spec_json"]))
+    spec["scene"] = {"name": "a cup", "floor_friction": 0.8, "objects": [
+        {"name": "cup", "shape": "mesh", "size": [1, 1, 1], "position": [0.6, 0.0, 0.8], "mesh": str(mesh)}]}
+    arrays["spec_json"] = np.array(json.dumps(spec))
+    np.savez(tmp_path / "m.npz", **arrays)
+    outcome = run_cli(["show", tmp_path / "m.npz", "--html", tmp_path / "m.html", "--quiet"], capsys)
+    assert "Traceback" not in outcome.err
+    assert outcome.code == 0, outcome.err
+    assert (tmp_path / "m.html").stat().st_size > 10_000
