@@ -211,3 +211,21 @@ def test_show_html_of_a_scene_whose_mesh_is_a_special_file_finishes(motion_file,
     assert "Traceback" not in outcome.err
     assert outcome.code == 0, outcome.err
     assert (tmp_path / "m.html").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("special", SPECIALS)
+def test_a_spec_whose_scene_mesh_is_a_special_file_is_refused(tmp_path, capsys, monkeypatch, special):
+    from tests.badinput.conftest import Tree, assert_refused
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+    mesh = tmp_path / "cup.stl"
+    mesh.write_bytes(b"")
+    SPECIALS[special](mesh)
+    spec = json.loads(SPEC.read_text(encoding="utf-8"))
+    spec["scene"] = {"name": "a cup", "floor_friction": 0.8, "objects": [
+        {"name": "cup", "shape": "mesh", "size": [1, 1, 1], "position": [0.6, 0.0, 0.8], "mesh": str(mesh)}]}
+    (tmp_path / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
+    tree = Tree(tmp_path)
+    outcome = run_cli(["solve", "--spec", tmp_path / "spec.json", "--no-sim", "--quiet"], capsys)
+    assert_refused(outcome, 3, "scene.objects[0].mesh", "not a regular file")
+    tree.assert_unchanged()
