@@ -23,6 +23,7 @@ from tasks.jsonio import (
     read_spec_bytes,
     to_plain,
 )
+from tasks.scene import check_scene_meshes
 from tasks.specs import SPEC_VERSION, TaskSpec
 
 
@@ -78,24 +79,6 @@ def load_spec(path: str | Path) -> TaskSpec:
         return spec
     except TaskDefinitionError as e:
         raise TaskDefinitionError(f"{where}: {e}") from None
-
-
-def check_scene_meshes(scene, prefix: str = "") -> None:
-    """Refuse a scene whose mesh file is missing or not a regular file (a FIFO would hang the
-    mesh loaders, a device would be read without end): the rule of ``load_scene``, for a spec
-    file that holds its scene."""
-    import stat
-
-    for i, obj in enumerate(getattr(scene, "objects", ()) or ()):
-        if obj.mesh is None:
-            continue
-        try:
-            regular = stat.S_ISREG(Path(obj.mesh).stat().st_mode)
-        except (OSError, ValueError):
-            raise TaskDefinitionError(f"{prefix}objects[{i}].mesh: the mesh file {obj.mesh!r} does not exist") from None
-        if not regular:
-            raise TaskDefinitionError(f"{prefix}objects[{i}].mesh: {obj.mesh!r} is not a regular file (a FIFO, "
-                                      "a device or a folder); give a mesh file (.stl, .obj, .dae)")
 
 
 __all__ = [
