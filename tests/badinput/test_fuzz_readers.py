@@ -166,3 +166,34 @@ def test_a_cache_cap_of_any_text_is_a_size_or_refused(text):
         return
     assume(size is not None)
     assert 0 < size <= MAX_SIZE_BYTES
+
+
+@pytest.fixture(scope="module")
+def spec_doc() -> dict:
+    return json.loads((Path(__file__).resolve().parents[2] / "examples" / "specs" / "squat.json").read_text())
+
+
+def _mutate(doc, data, depth: int = 0):
+    """``doc`` with one value somewhere replaced by a drawn JSON value."""
+    if isinstance(doc, dict) and doc and depth < 6 and data.draw(st.booleans()):
+        key = data.draw(st.sampled_from(sorted(doc)))
+        return {**doc, key: _mutate(doc[key], data, depth + 1)}
+    if isinstance(doc, list) and doc and depth < 6 and data.draw(st.booleans()):
+        i = data.draw(st.integers(0, len(doc) - 1))
+        return [*doc[:i], _mutate(doc[i], data, depth + 1), *doc[i + 1:]]
+    return data.draw(json_values | st.integers(-(10**400), 10**400) | st.just(float("nan")))
+
+
+@FUZZ
+@given(data=st.data())
+def test_a_mutated_spec_is_a_spec_or_refused(spec_doc, data):
+    from tasks.exceptions import TaskDefinitionError
+    from tasks.serialize import spec_from_json
+
+    doc = spec_doc
+    for _ in range(data.draw(st.integers(1, 3))):
+        doc = _mutate(doc, data)
+    try:
+        spec_from_json(json.dumps(doc))
+    except TaskDefinitionError:
+        pass
