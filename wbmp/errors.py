@@ -150,7 +150,7 @@ _R = ExitRule
 EXIT_TABLE: tuple[ExitRule, ...] = (
     # the CLI itself
     _R("wbmp.errors.CliError", OWN, "a refused input of the CLI, with the code it names"),
-    _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2)"),
+    _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
     _R("wbmp.errors.Terminated", ExitCode.TERMINATED, "SIGTERM"),
     _R("builtins.KeyboardInterrupt", ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
     # language: a sentence that is not understood

@@ -56,7 +56,8 @@ _NPY_MAGIC = b"\x93NUMPY"
 
 
 class MotionFileError(CliError):
-    """A motion file is missing, unreadable or lacks required keys (exit code 2)."""
+    """A motion file is missing, unreadable or lacks required keys (exit code 2), or its times
+    lie beyond :data:`MAX_MOTION_SECONDS` (exit code 3)."""
 
     def __init__(self, message: str, code: ExitCode = ExitCode.USAGE) -> None:
         super().__init__(message, code)
