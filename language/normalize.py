@@ -29,6 +29,7 @@ _ATOM_RE = re.compile(
     r"|(?P<space>(?:[\s_/()\[\]{}\"'`~*#]|-(?!\d))+)"
     r"|(?P<sym>\S)"
 )
+MAX_NUMBER_CHARS = 40  # digits (with sign and decimal point) of one number in an instruction
 _PLAIN = str.maketrans({"\u2018": "'", "\u2019": "'", "\u201c": '"', "\u201d": '"', "\u2212": "-", "\u2013": "-", "\u2014": "-"})
 
 EN_ONES = {
@@ -86,6 +87,11 @@ def read_number(atoms: list[Atom], i: int) -> tuple[float | int, int] | None:
     """
     a = atoms[i]
     if a.kind == NUM:
+        if len(a.text) > MAX_NUMBER_CHARS:  # int() refuses 4,301 digits and is slow long before
+            from language.exceptions import InvalidParameter
+
+            raise InvalidParameter(f"the number {a.text[:12]}... is {len(a.text):,} characters long; a number in "
+                                   f"an instruction has at most {MAX_NUMBER_CHARS} characters")
         return (float(a.text) if "." in a.text else int(a.text)), 1
     if a.kind == WORD:
         return _read_english(atoms, i)

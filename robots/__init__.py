@@ -1,5 +1,8 @@
 """Robot models and their named frames: the humanoids wbmp plans for.
 
+Each public name is imported on first access, so ``import robots.safeio`` (the safe file reader
+every layer uses) or ``import robots.cache`` do not load Pinocchio through this package's face.
+
 Example:
     >>> from robots import load_robot
     >>> talos = load_robot("talos")
@@ -7,9 +10,32 @@ Example:
     'left_sole_link'
 """
 
-from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
-from robots.model import DEFAULT_ROBOT, Robot, available_robots, level_soles, load_robot
-from robots.profile import ROLES, ExtraFrame, RobotProfile, SoleRectangle, builtin_profiles
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
+    from robots.model import DEFAULT_ROBOT, Robot, available_robots, level_soles, load_robot
+    from robots.profile import ROLES, ExtraFrame, RobotProfile, SoleRectangle, builtin_profiles
+
+_EXPORTS = {  # public name -> module that defines it
+    "DEFAULT_ROBOT": "robots.model",
+    "ROLES": "robots.profile",
+    "ExtraFrame": "robots.profile",
+    "FrameNotFound": "robots.exceptions",
+    "ProfileError": "robots.exceptions",
+    "Robot": "robots.model",
+    "RobotError": "robots.exceptions",
+    "RobotNotFound": "robots.exceptions",
+    "RobotProfile": "robots.profile",
+    "SoleRectangle": "robots.profile",
+    "available_robots": "robots.model",
+    "builtin_profiles": "robots.profile",
+    "level_soles": "robots.model",
+    "load_robot": "robots.model",
+}
 
 __all__ = [
     "DEFAULT_ROBOT",
@@ -27,3 +53,16 @@ __all__ = [
     "level_soles",
     "load_robot",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

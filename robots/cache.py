@@ -42,6 +42,8 @@ from pathlib import Path
 
 import pinocchio as pin
 
+from robots.safeio import read_json, sha256_file
+
 _log = logging.getLogger("robots.cache")
 
 FORMAT = 1  # bump when an entry's layout changes
@@ -70,13 +72,10 @@ def cache_root() -> Path | None:
     return cache_folder("robots", "WBMP_ROBOT_CACHE")
 
 
-def file_sha256(path: str | Path) -> str:
-    """sha256 of a file, read in 4 MiB blocks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 22), b""):
-            h.update(block)
-    return h.hexdigest()
+def file_sha256(path: str | Path, kind: str | int = "motion") -> str:
+    """sha256 of a regular file of at most the bound of ``kind`` (:mod:`robots.safeio`; default
+    1 GiB); OSError for a FIFO, a device, a directory or a larger file."""
+    return sha256_file(path, kind)
 
 
 @functools.cache
@@ -127,8 +126,7 @@ def stored_mesh_files(urdf: str, package_dirs: tuple[str, ...], kind: str) -> li
         return None
     try:
         key = geometry_key(urdf, package_dirs, kind)
-        with open(root / key / "manifest.json", "rb") as f:
-            manifest = json.loads(f.read(MAX_MANIFEST_BYTES + 1))
+        manifest = read_json(root / key / "manifest.json", MAX_MANIFEST_BYTES)
         if not isinstance(manifest, dict) or manifest.get("key") != key or manifest.get("format") != FORMAT:
             return None
         return sorted(str(p) for p in manifest["meshes"])
@@ -155,14 +153,12 @@ def read_manifest(entry: Path, fmt: int) -> tuple[int, str]:
         EntryDamaged: The manifest is too large, not JSON, or names another entry or format.
     """
     try:
-        with open(entry / "manifest.json", "rb") as f:
-            raw = f.read(MAX_MANIFEST_BYTES + 1)
+        manifest = read_json(entry / "manifest.json", MAX_MANIFEST_BYTES)
     except FileNotFoundError:
         raise EntryStale("no manifest (an interrupted write)") from None
-    if len(raw) > MAX_MANIFEST_BYTES:
-        raise EntryDamaged("manifest.json is too large")
+    except (OSError, ValueError) as e:  # a FIFO, a device, too large, not JSON
+        raise EntryDamaged(f"manifest.json cannot be read ({str(e)[:200]})") from None
     try:
-        manifest = json.loads(raw)
         size, digest = int(manifest["size"]), str(manifest["sha256"])
         meshes = {str(p): str(h) for p, h in manifest["meshes"].items()}
         if manifest["key"] != entry.name or manifest["format"] != fmt:
@@ -171,7 +167,7 @@ def read_manifest(entry: Path, fmt: int) -> tuple[int, str]:
         raise EntryDamaged(f"manifest.json is not a manifest ({type(e).__name__}: {e})") from None
     for mesh, mesh_digest in meshes.items():
         try:
-            if file_sha256(mesh) != mesh_digest:
+            if file_sha256(mesh, "mesh") != mesh_digest:
                 raise EntryStale(f"{mesh} changed")
         except OSError:
             raise EntryStale(f"{mesh} is gone") from None
@@ -276,6 +272,7 @@ TRIM_FRACTION = 0.9  # over the cap, entries are removed until the cache is unde
 RECENT_USE = 300.0  # [s] an entry used (stored or loaded) this recently is never removed by the cap
 _EVICTED = ".evicted."  # an entry being removed: renamed to this prefix first, then deleted
 _KEY_NAME = re.compile(r"^(?:[^/]*-)?[0-9a-f]{16,64}$")
+MAX_SIZE_BYTES = 1 << 60  # [bytes] the largest cap accepted (1 EiB)
 _UNITS = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 _UNLIMITED = ("0", "unlimited", "none", "off", "no")
 _WARNED: set[str] = set()
@@ -295,7 +292,11 @@ def parse_size(text: str) -> int | None:
     if match is None or (match.group(3) and not match.group(2) and match.group(3) != "b"):
         raise ValueError(f"{text!r} is not a size: give e.g. 4G, 500M, 2.5GiB or a number of bytes "
                          "(0 or 'unlimited': no cap)")
-    size = int(float(match.group(1)) * _UNITS[match.group(2)])
+    value_bytes = float(match.group(1)) * _UNITS[match.group(2)]  # inf for 309+ digits: never int()
+    if not value_bytes <= MAX_SIZE_BYTES:
+        raise ValueError(f"{text[:40]!r}{'...' if len(text) > 40 else ''} is larger than any cache may be "
+                         f"(at most {MAX_SIZE_BYTES >> 60} EiB): give e.g. 4G, or 'unlimited' for no cap")
+    size = int(value_bytes)
     return size if size > 0 else None
 
 

@@ -44,6 +44,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from robots.safeio import read_json
+
 if TYPE_CHECKING:
     from robots.model import Robot
 
@@ -719,8 +721,8 @@ def collision_model(robot: Robot) -> CollisionModel:
     path = cache_dir() / f"{robot.name}-{key}.json"
     cm = None
     try:
-        if path.is_file() and path.stat().st_size < (8 << 20):
-            cm = _from_json(json.loads(path.read_text(encoding="utf-8")), robot)
+        if path.is_file():  # a regular file of at most 8 MiB (a FIFO or a device is damaged)
+            cm = _from_json(read_json(path, 8 << 20), robot)
             mark_used(path)
     except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, RecursionError):
         cm = None  # damaged, stale or removed meanwhile: rebuilt below

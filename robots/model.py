@@ -21,6 +21,7 @@ import pinocchio as pin
 from robots.contact import sole_corners_in_world
 from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
 from robots.profile import SIDE_PAIRS, RobotProfile, builtin_profiles, display_path, show
+from robots.safeio import open_regular
 
 STANDING_TOLERANCE = 1e-9  # [m], residual of the sole-levelling Gauss-Newton
 
@@ -222,7 +223,7 @@ def collada_up_axis(path: str) -> str:
     if not path.lower().endswith(".dae"):
         return "Z_UP"
     try:
-        with open(path, "rb") as f:
+        with open_regular(path, "mesh") as f:  # a FIFO or a device is not waited on
             head = f.read(65536)
     except OSError:
         return "Z_UP"

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from robots.exceptions import ProfileError
+from robots.safeio import open_regular
 
 ROLES = (
     "left_foot",
@@ -557,8 +558,8 @@ def read_profile_file(path: str | Path) -> Any:
     too_big = f"{where}: the profile file is larger than {MAX_PROFILE_BYTES // 1024} kB (a profile is a few kB)"
     if st.st_size > MAX_PROFILE_BYTES:
         raise ProfileError(too_big)
-    try:
-        with open(path, "rb") as f:
+    try:  # replaced by a FIFO or a device since the stat: refused, never waited on
+        with open_regular(path, MAX_PROFILE_BYTES) as f:
             raw = f.read(MAX_PROFILE_BYTES + 1)
     except OSError as e:
         raise ProfileError(f"{where}: cannot read the profile file: {e.strerror or e}") from None

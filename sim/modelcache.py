@@ -40,6 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.cache import EntryDamaged, cache_folder, file_sha256, mark_used, store_entry, vanished
+from robots.safeio import read_bytes
 
 _log = logging.getLogger("sim.modelcache")
 
@@ -76,7 +77,7 @@ def model_key(robot: Any, xml: str, *, timestep: float, joint_friction: bool, sc
     files.update(g.meshPath for g in robot.collision_model.geometryObjects)
     if scene is not None:
         files.update(o.mesh for o in scene.objects if o.mesh)
-    meshes = {p: file_sha256(p) for p in sorted(f for f in files if f and os.path.isfile(f))}  # noqa: PTH113
+    meshes = {p: file_sha256(p, "mesh") for p in sorted(f for f in files if f and os.path.isfile(f))}  # noqa: PTH113
     blob = json.dumps({
         "xml": hashlib.sha256(xml.encode()).hexdigest(), "meshes": meshes,
         "profile": repr(robot.profile), "q_standing": np.asarray(robot.q_standing, dtype=float).tobytes().hex(),
@@ -90,13 +91,11 @@ def model_key(robot: Any, xml: str, *, timestep: float, joint_friction: bool, sc
 
 def _read(entry: Path) -> tuple[mujoco.MjModel, dict[str, Any]]:
     try:
-        raw = (entry / _META).read_bytes()
+        raw = read_bytes(entry / _META, MAX_META_BYTES)
     except FileNotFoundError:
         raise EntryDamaged(f"no {_META}") from None
-    except OSError as e:
+    except OSError as e:  # a FIFO, a device, too large
         raise EntryDamaged(f"{_META}: {e.strerror or e}") from None
-    if len(raw) > MAX_META_BYTES:
-        raise EntryDamaged(f"{_META} is too large")
     try:
         meta = json.loads(raw)
         if meta["key"] != entry.name or meta["format"] != FORMAT:
@@ -106,7 +105,7 @@ def _read(entry: Path) -> tuple[mujoco.MjModel, dict[str, Any]]:
         raise EntryDamaged(f"{_META} is not a manifest ({type(e).__name__}: {e})") from None
     path = entry / _BINARY
     try:
-        data = path.read_bytes()
+        data = read_bytes(path, "entry")
     except OSError as e:
         raise EntryDamaged(f"{_BINARY}: {e.strerror or e}") from None
     if len(data) != size or hashlib.sha256(data).hexdigest() != digest:

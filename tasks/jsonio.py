@@ -144,6 +144,22 @@ def decode_spec_bytes(raw: bytes) -> str:
         ) from None
 
 
+def _open_input(path: Path):
+    """``path`` opened for reading without waiting for a writer (``O_NONBLOCK``), then switched
+    back to blocking reads: a named pipe that nobody writes to reads as empty (refused as an
+    empty file) instead of hanging the command; a pipe with a writer (``/dev/stdin``, ``<(...)``)
+    is read to its end, a regular file as always."""
+    import os
+
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    try:
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
 def read_spec_bytes(path: str | Path, *, what: str = "spec") -> bytes:
     """The bytes of a spec file (``-`` reads standard input), at most :data:`MAX_SPEC_BYTES`.
 
@@ -151,7 +167,8 @@ def read_spec_bytes(path: str | Path, *, what: str = "spec") -> bytes:
 
     A directory, a missing or unreadable file, an empty one and one larger than the limit are
     refused with a message that says which. Character devices and pipes (``/dev/stdin``, a
-    named pipe) are read like files.
+    named pipe) are read like files, at most the limit plus one byte (``/dev/zero`` is too large);
+    a named pipe without a writer is empty, never waited on.
     """
     if str(path) == "-":
         stream = sys.stdin.buffer if sys.stdin is not None else None
@@ -179,7 +196,7 @@ def read_spec_bytes(path: str | Path, *, what: str = "spec") -> bytes:
                 f"{where} is {_size(st.st_size)}; a {what} file holds at most {_size(MAX_SPEC_BYTES)}"
             )
         try:
-            with open(path, "rb") as f:
+            with _open_input(path) as f:
                 data = f.read(MAX_SPEC_BYTES + 1)
         except PermissionError:
             raise TaskDefinitionError(f"{where} cannot be read: permission denied") from None

@@ -463,13 +463,28 @@ def load_scene(path: str | Path) -> Scene:
     base = Path.cwd() if str(path) == "-" else Path(path).resolve().parent
     try:
         scene = scene_from_json(decode_spec_bytes(raw), base=base)
-        for i, obj in enumerate(scene.objects):
-            if obj.mesh is not None and not Path(obj.mesh).is_file():
-                raise TaskDefinitionError(f"objects[{i}].mesh: the mesh file {obj.mesh!r} does not exist "
-                                          "(a mesh path is relative to the scene file)")
+        check_scene_meshes(scene, hint=" (a mesh path is relative to the scene file)")
         return scene
     except TaskDefinitionError as e:
         raise TaskDefinitionError(f"{where}: {e}") from None
+
+
+def check_scene_meshes(scene: Scene | None, prefix: str = "", hint: str = "") -> None:
+    """Refuse a scene whose mesh file is missing or not a regular file (a FIFO would hang the
+    mesh loaders, a device would be read without end): the rule of ``load_scene``, for a spec
+    file that holds its scene."""
+    import stat
+
+    for i, obj in enumerate(scene.objects if scene is not None else ()):
+        if obj.mesh is None:
+            continue
+        try:
+            regular = stat.S_ISREG(Path(obj.mesh).stat().st_mode)
+        except (OSError, ValueError):
+            raise TaskDefinitionError(f"{prefix}objects[{i}].mesh: the mesh file {obj.mesh!r} does not exist{hint}") from None
+        if not regular:
+            raise TaskDefinitionError(f"{prefix}objects[{i}].mesh: {obj.mesh!r} is not a regular file (a FIFO, "
+                                      "a device or a folder); give a mesh file (.stl, .obj, .dae)")
 
 
 __all__ = [
@@ -479,6 +494,7 @@ __all__ = [
     "SIZE_LENGTHS",
     "Scene",
     "SceneObject",
+    "check_scene_meshes",
     "check_spec_in_scene",
     "closest_object",
     "extent",

@@ -23,6 +23,7 @@ from tasks.jsonio import (
     read_spec_bytes,
     to_plain,
 )
+from tasks.scene import check_scene_meshes
 from tasks.specs import SPEC_VERSION, TaskSpec
 
 
@@ -73,7 +74,9 @@ def load_spec(path: str | Path) -> TaskSpec:
     raw = read_spec_bytes(path)
     where = "standard input" if str(path) == "-" else str(path)
     try:
-        return spec_from_json(decode_spec_bytes(raw))
+        spec = spec_from_json(decode_spec_bytes(raw))
+        check_scene_meshes(spec.scene, "scene.")
+        return spec
     except TaskDefinitionError as e:
         raise TaskDefinitionError(f"{where}: {e}") from None
 

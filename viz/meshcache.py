@@ -53,6 +53,7 @@ from robots.cache import (
     store_entry,
     vanished,
 )
+from robots.safeio import read_bytes
 
 _log = logging.getLogger("viz.meshcache")
 
@@ -207,8 +208,7 @@ _FIELDS = ("names", "joints", "frames", "placements", "colors", "scales", "paths
 def _read(entry: Path) -> ReplayGeometry:
     size, digest = read_manifest(entry, FORMAT)
     try:
-        with open(entry / _DATA, "rb") as f:
-            data = f.read(MAX_DATA_BYTES + 1)
+        data = read_bytes(entry / _DATA, MAX_DATA_BYTES)
     except OSError as e:
         raise EntryDamaged(f"{_DATA}: {e.strerror or e}") from None
     if len(data) != size or hashlib.sha256(data).hexdigest() != digest:

@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots import Robot
+from robots.safeio import read_bytes
 from viz import motion as vm
 from viz._meshcat import mg, umsgpack
 
@@ -75,8 +76,7 @@ class _MeshFile(mg.MeshGeometry):
 
 
 def _stl_file(path: str) -> _MeshFile:
-    with open(path, "rb") as f:
-        data = f.read()
+    data = read_bytes(path, "mesh")
     return _MeshFile(umsgpack.Ext(0x12, data), "stl")  # 0x12: meshcat's Uint8Array extension
 
 
@@ -130,8 +130,7 @@ class _PackedMesh(mg.Geometry):
 def stl_triangles(path: str) -> np.ndarray | None:
     """The triangles (n, 3, 3) of a binary STL file [file units], or None (ASCII or malformed)."""
     try:
-        with open(path, "rb") as f:
-            data = f.read()
+        data = read_bytes(path, "mesh")
     except OSError:
         return None
     if len(data) < 84:
@@ -365,11 +364,16 @@ def _object_geometry(obj) -> tuple[mg.Geometry | None, np.ndarray]:
         return mg.Cylinder(size[1], radius=size[0]), _UPRIGHT  # meshcat's cylinders run along y
     path = str(obj.mesh or "")
     suffix = path.rsplit(".", 1)[-1].lower()
-    loaders = {"stl": mg.StlMeshGeometry, "obj": mg.ObjMeshGeometry, "dae": mg.DaeMeshGeometry}
-    try:
-        geometry = loaders[suffix].from_file(path) if suffix in loaders else None
-    except OSError:
-        geometry = None
+    geometry: mg.Geometry | None = None
+    if suffix in ("stl", "obj", "dae"):
+        try:  # a regular file of bounded size only: a FIFO or a device is left out, never waited on
+            raw = read_bytes(path, "mesh")
+            if suffix == "stl":
+                geometry = mg.MeshGeometry(umsgpack.Ext(0x12, raw), "stl")  # 0x12: Uint8Array
+            else:
+                geometry = mg.MeshGeometry(raw.decode("utf-8"), suffix)
+        except (OSError, UnicodeDecodeError):
+            geometry = None
     return geometry, np.diag([*size, 1.0])
 
 

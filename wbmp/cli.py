@@ -89,8 +89,21 @@ def main(argv: list[str] | None = None) -> int:
             return ExitCode.TERMINATED
 
 
+def _escape_unencodable() -> None:
+    """A character the terminal's encoding cannot show (a Chinese sentence with
+    ``PYTHONIOENCODING=ascii`` or a C locale) is written escaped (``\u6325``), never a traceback."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None and getattr(stream, "errors", "strict") == "strict":
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # pragma: no cover - a stream that cannot change
+                pass
+
+
 def _main(argv: list[str] | None) -> int:
     warnings.filterwarnings("ignore", category=DeprecationWarning, module="zmq")
+    _escape_unencodable()
     parser = build_parser()
     args, extras = parser.parse_known_args(argv)
     command = getattr(args, "command", None)

@@ -108,6 +108,16 @@ def require_text(value: str | None, what: str, hint: str) -> None:
         raise CliError(f"{what} is empty: {hint}", ExitCode.USAGE)
 
 
+def require_instruction(text: str | None) -> None:
+    """Refuse an instruction longer than ``tasks.limits.MAX_TEXT_LENGTH`` characters (exit 2):
+    ``wbmp parse`` and ``wbmp solve`` read the same sentences."""
+    from tasks.limits import MAX_TEXT_LENGTH
+
+    if text is not None and len(text) > MAX_TEXT_LENGTH:
+        raise CliError(f"the instruction is {len(text):,} characters long; wbmp reads at most "
+                       f"{MAX_TEXT_LENGTH:,} (one to a few sentences)", ExitCode.USAGE)
+
+
 ROBOT_HINT = "give a robot name (talos, g1, icub, romeo; `wbmp robots` lists them) or a profile file"
 
 
@@ -140,7 +150,7 @@ _R = ExitRule
 EXIT_TABLE: tuple[ExitRule, ...] = (
     # the CLI itself
     _R("wbmp.errors.CliError", OWN, "a refused input of the CLI, with the code it names"),
-    _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2)"),
+    _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
     _R("wbmp.errors.Terminated", ExitCode.TERMINATED, "SIGTERM"),
     _R("builtins.KeyboardInterrupt", ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
     # language: a sentence that is not understood
@@ -185,6 +195,9 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     _R("planner.trajopt.cache_disk.EntryDamaged", None, "caught inside the solver cache"),
     _R("robots.cache.EntryDamaged", None, "caught inside the robot, MuJoCo and HTML mesh caches"),
     _R("robots.cache.EntryStale", None, "caught inside the robot and HTML mesh caches"),
+    _R("robots.safeio.NotRegularFile", None, "an OSError every reader catches (a FIFO, device or folder refused)"),
+    _R("robots.safeio.FileTooLarge", None, "an OSError every reader catches (a file over its kind's bound)"),
+    _R("robots.safeio.PathEscapes", None, "caught by the caches (a path read from a cache file that leads out)"),
     # simulation: planned, but the closed-loop check failed or could not run
     _R("planner.wbc.settings.ControllerError", ExitCode.SIM_FAILED,
        "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),

@@ -50,6 +50,7 @@ _log = logging.getLogger("wbmp.motioncache")
 
 FORMAT = 1  # bump when an entry's layout changes
 MAX_ENTRY_BYTES = 256 << 20  # [bytes] an entry larger than this is damaged
+_MAX_RECORD_BYTES = 1 << 20  # [bytes] a manifest or request record larger than this is damaged
 _REPO = Path(__file__).resolve().parents[1]
 _SOURCE_DIRS = ("language", "tasks", "robots", "planner", "sim")
 _SOURCE_FILES = ("wbmp/pipeline.py", "wbmp/motionfile.py", "wbmp/motioncache.py")
@@ -109,24 +110,28 @@ def _environment() -> dict[str, Any]:
 
 def _open_regular(path: str | Path, limit: int):
     """A binary file object on a regular file of at most ``limit`` bytes; OSError otherwise
-    (opened non-blocking, so a FIFO put in a file's place cannot hang the command)."""
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    (:func:`robots.safeio.open_regular`: a FIFO put in a file's place cannot hang the command)."""
+    from robots.safeio import open_regular
+
+    return open_regular(path, limit)
+
+
+def _read_json(path: Path) -> Any:
+    """A manifest or record: a regular file of at most 1 MiB (:mod:`robots.safeio`) holding JSON;
+    OSError or ValueError otherwise."""
+    from robots.safeio import read_bytes
+
+    raw = read_bytes(path, _MAX_RECORD_BYTES)
     try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
-            raise OSError(f"{path}: not a regular file of at most {limit} bytes")
-        return os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
+        return json.loads(raw)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
 
 
 def _sha256_file(path: str | Path, limit: int = MAX_ENTRY_BYTES) -> str:
-    h = hashlib.sha256()
-    with _open_regular(path, limit) as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+    from robots.safeio import sha256_file
+
+    return sha256_file(path, limit)
 
 
 def _digest(obj: Any) -> str:
@@ -295,11 +300,17 @@ class MotionCache:
     # reading
     def lookup_request(self, rkey: str) -> tuple[str, str] | None:
         """(motion key, robot digest) a request led to, when every robot file is unchanged."""
+        from robots.safeio import is_key
+
+        if not is_key(rkey):
+            return None
         path = self._request(rkey)
         try:
-            record = json.loads(path.read_text(encoding="utf-8"))
+            record = _read_json(path)
             key, files, digest = record["motion"], record["files"], record["robot"]
-            if not (isinstance(key, str) and len(key) == 64 and isinstance(files, dict)):
+            # the motion key names files of this folder: a hexadecimal key, never a path
+            if not (is_key(key) and isinstance(files, dict) and isinstance(digest, str)
+                    and all(isinstance(p, str) and isinstance(h, str) for p, h in files.items())):
                 raise ValueError("malformed")
         except FileNotFoundError:
             return None
@@ -316,11 +327,14 @@ class MotionCache:
 
     def load(self, key: str, *, spec_check: bool = True) -> Hit | None:
         """The verified entry of ``key``, or None (missing; damaged: removed with one warning)."""
+        from robots.safeio import is_key
         from wbmp.motionfile import MotionFileError, motion_from_arrays
 
+        if not is_key(key):  # a key names files of this folder, never a path out of it
+            return None
         npz, manifest = self._npz(key), self._manifest(key)
         try:
-            meta = json.loads(manifest.read_text(encoding="utf-8"))
+            meta = _read_json(manifest)
         except FileNotFoundError:
             return None
         except (OSError, ValueError) as e:
@@ -329,10 +343,11 @@ class MotionCache:
         try:
             if not isinstance(meta, dict) or meta.get("key") != key or meta.get("format") != FORMAT:
                 raise ValueError("its manifest does not describe it")
-            st = npz.stat()
-            if st.st_size != meta.get("size") or st.st_size > MAX_ENTRY_BYTES:
-                raise ValueError(f"size {st.st_size} bytes, the manifest says {meta.get('size')}")
-            data = npz.read_bytes()
+            with _open_regular(npz, MAX_ENTRY_BYTES) as fh:
+                size = os.fstat(fh.fileno()).st_size
+                if size != meta.get("size"):
+                    raise ValueError(f"size {size} bytes, the manifest says {meta.get('size')}")
+                data = fh.read(MAX_ENTRY_BYTES + 1)
             if hashlib.sha256(data).hexdigest() != meta.get("sha256"):
                 raise ValueError("sha256 mismatch")
             from wbmp.motionfile import read_npz_bytes
@@ -355,10 +370,14 @@ class MotionCache:
 
     def load_page(self, key: str) -> str | None:
         """The stored HTML replay data of ``key`` (verified), or None."""
+        from robots.safeio import is_key, read_bytes
+
+        if not is_key(key):
+            return None
         page, meta_path = self._page(key), Path(f"{self._page(key)}.json")
         try:
-            meta = json.loads(meta_path.read_text(encoding="utf-8"))
-            data = page.read_bytes()
+            meta = _read_json(meta_path)
+            data = read_bytes(page, MAX_ENTRY_BYTES)
         except FileNotFoundError:
             return None
         except (OSError, ValueError) as e:
@@ -412,7 +431,11 @@ class MotionCache:
             _warn_once(f"cannot write the motion cache in {self.root} ({e}); the motion is not cached")
 
     def _discard(self, paths: list[Path], why: str) -> None:
+        from robots.safeio import inside
+
         for p in paths:
+            if not inside(self.root, p.parent):  # never remove anything outside the cache
+                continue
             try:
                 p.unlink()
             except FileNotFoundError:

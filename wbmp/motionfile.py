@@ -27,17 +27,19 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import stat
 import struct
 import zipfile
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 from planner import Check, CheckKind, Plan, SolverStats, SolveStatus
+from robots.safeio import LIMITS, FileTooLarge, open_regular
 from tasks.exceptions import TaskError
 from tasks.serialize import spec_from_json, spec_to_json
 from viz.files import Staging, atomic_write
@@ -47,14 +49,18 @@ FORMAT_VERSION = 1
 EXEC_KEYS = ("exec_t", "exec_q", "exec_v", "exec_tau")
 REQUIRED_KEYS = ("t", "q", "v", "com", "robot", "spec_json", "report_json")
 MAX_MOTION_BYTES = 1 << 30  # [bytes] of arrays (uncompressed) a motion file may declare
+# [s] a motion file's times lie in [-MAX_MOTION_SECONDS, MAX_MOTION_SECONDS] (a plan starts at 0 s):
+# the exports and the HTML replay sample a motion's span, and nanosecond stamps must fit 64 bits
+MAX_MOTION_SECONDS = 3600.0
 _NPY_MAGIC = b"\x93NUMPY"
 
 
 class MotionFileError(CliError):
-    """A motion file is missing, unreadable or lacks required keys (exit code 2)."""
+    """A motion file is missing, unreadable or lacks required keys (exit code 2), or its times
+    lie beyond :data:`MAX_MOTION_SECONDS` (exit code 3)."""
 
-    def __init__(self, message: str) -> None:
-        super().__init__(message, ExitCode.USAGE)
+    def __init__(self, message: str, code: ExitCode = ExitCode.USAGE) -> None:
+        super().__init__(message, code)
 
 
 @dataclass(eq=False)
@@ -233,6 +239,19 @@ def load_motion(path: str | Path) -> MotionFile:
     return motion_from_arrays(arrays, source=str(path))
 
 
+def missing_motion_file(path: str | Path) -> MotionFileError:
+    """The error of a motion file that does not exist."""
+    return MotionFileError(f"motion file {str(path)!r} does not exist (write one with `wbmp solve ... --out "
+                           f"{path}`)")
+
+
+def check_motion_exists(path: str | Path) -> None:
+    """Refuse a motion file that does not exist before the outputs are checked (a missing input
+    must not be reported as a missing output folder); everything else is checked when it is read."""
+    if not os.path.lexists(path):
+        raise missing_motion_file(path)
+
+
 def _fail(shown: str, why: str) -> MotionFileError:
     return MotionFileError(f"motion file {shown}: {why}")
 
@@ -242,8 +261,7 @@ def _read_npz(path: Path, shown: str) -> dict[str, np.ndarray]:
     try:
         st = path.stat()
     except FileNotFoundError:
-        raise MotionFileError(f"motion file {shown} does not exist (write one with `wbmp solve ... --out "
-                              f"{path}`)") from None
+        raise missing_motion_file(path) from None
     except OSError as e:
         raise _fail(shown, f"cannot read it: {e.strerror or e}") from None
     if stat.S_ISDIR(st.st_mode):
@@ -252,16 +270,23 @@ def _read_npz(path: Path, shown: str) -> dict[str, np.ndarray]:
         raise _fail(shown, "not a regular file; give a motion file (.npz) written by `wbmp solve --out`")
     if st.st_size == 0:
         raise _fail(shown, "is empty (0 bytes), not a motion file")
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(8)
+    try:  # replaced by a FIFO or a device since the stat: refused, never waited on
+        fh = open_regular(path, "motion")
+    except FileTooLarge:
+        raise _fail(shown, f"is larger than the {LIMITS['motion'] >> 20} MiB a motion file may have") from None
     except OSError as e:
         raise _fail(shown, f"cannot read it: {e.strerror or e}") from None
-    if head.startswith(_NPY_MAGIC):
-        raise _fail(shown, "is a single numpy array (.npy), not a motion file (.npz archive of named arrays)")
-    if not head.startswith(b"PK"):
-        raise _fail(shown, "not a motion file: it is not an .npz (zip) archive")
-    return _read_zip(path, shown)
+    with fh:
+        try:
+            head = fh.read(8)
+            fh.seek(0)
+        except OSError as e:
+            raise _fail(shown, f"cannot read it: {e.strerror or e}") from None
+        if head.startswith(_NPY_MAGIC):
+            raise _fail(shown, "is a single numpy array (.npy), not a motion file (.npz archive of named arrays)")
+        if not head.startswith(b"PK"):
+            raise _fail(shown, "not a motion file: it is not an .npz (zip) archive")
+        return _read_zip(fh, shown)
 
 
 def read_npz_bytes(data: bytes, source: str) -> dict[str, np.ndarray]:
@@ -271,7 +296,7 @@ def read_npz_bytes(data: bytes, source: str) -> dict[str, np.ndarray]:
     return _read_zip(io.BytesIO(data), repr(source))
 
 
-def _read_zip(path: Path | io.BytesIO, shown: str) -> dict[str, np.ndarray]:
+def _read_zip(path: Path | io.BytesIO | IO[bytes], shown: str) -> dict[str, np.ndarray]:
     try:
         with zipfile.ZipFile(path) as zf:
             infos = zf.infolist()
@@ -354,6 +379,11 @@ def _times(arrays: dict[str, Any], key: str, shown: str, minimum: int) -> np.nda
     if len(t) > 1 and not np.all(np.diff(t) > 0):
         k = int(np.argmin(np.diff(t) > 0))
         raise _fail(shown, f"key {key!r} must increase, but t[{k + 1}] = {t[k + 1]!r} <= t[{k}] = {t[k]!r}")
+    if float(np.max(np.abs(t))) > MAX_MOTION_SECONDS:
+        raise MotionFileError(
+            f"motion file {shown}: key {key!r} runs from {float(t[0]):.6g} s to {float(t[-1]):.6g} s; wbmp reads "
+            f"motions whose times lie within {MAX_MOTION_SECONDS:g} s of 0 s (a plan starts at 0 s): shift or "
+            "split the motion", ExitCode.INVALID_SPEC)
     return t
 
 

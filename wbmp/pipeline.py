@@ -55,14 +55,11 @@ class SolveRequest:
 
     def check(self) -> None:
         """Refuse contradictory or empty options before any work (:class:`CliError`, exit 2)."""
-        from tasks.limits import MAX_TEXT_LENGTH
-        from wbmp.errors import ROBOT_HINT, require_text
+        from wbmp.errors import ROBOT_HINT, require_instruction, require_text
 
         require_text(self.robot, "--robot", ROBOT_HINT)
         require_text(self.scene_path, "--scene", "give a scene JSON file (docs/scenes.md)")
-        if self.instruction is not None and len(self.instruction) > MAX_TEXT_LENGTH:
-            raise CliError(f"the instruction is {len(self.instruction):,} characters long; wbmp reads at most "
-                           f"{MAX_TEXT_LENGTH:,} (one to a few sentences)", ExitCode.USAGE)
+        require_instruction(self.instruction)
         if self.push is not None and not self.simulate:
             raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
 
@@ -428,6 +425,18 @@ class OutputPaths:
     out: Path | None = None
     html: Path | None = None
     plots: Path | None = None
+
+
+def check_inputs_exist(*, spec: str | None = None, scene: str | None = None) -> None:
+    """Refuse a spec or scene file that does not exist (exit 3, the readers' own message) before
+    the outputs are checked: a missing input must not be reported as a missing output folder."""
+    import os
+
+    from tasks.exceptions import TaskDefinitionError
+
+    for what, path in (("spec", spec), ("scene", scene)):
+        if path is not None and path != "-" and path.strip() and not os.path.lexists(path):
+            raise TaskDefinitionError(f"{what} file {path!r} does not exist")
 
 
 def check_outputs(*, out: str | None = None, html: str | None = None, plots: str | None = None,

@@ -45,6 +45,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from robots.cache import file_sha256
+from robots.safeio import open_regular, read_bytes
 
 LIBRARY = "nlp.so"
 SERIALIZED = "nlp.casadi"
@@ -91,8 +92,10 @@ def _read_small(path: Path, limit: int) -> bytes:
         raise EntryDamaged(f"{path.name} is not a regular file")
     if st.st_size > limit:
         raise EntryDamaged(f"{path.name} has {st.st_size} bytes (at most {limit} expected)")
-    with open(path, "rb") as f:
-        return f.read(limit + 1)
+    try:  # replaced by a FIFO or a device since the lstat: refused, never waited on
+        return read_bytes(path, limit)
+    except OSError as e:
+        raise EntryDamaged(f"{path.name} cannot be read ({e})") from None
 
 
 def _is_int(value, low: int = 0) -> bool:
@@ -126,7 +129,7 @@ def elf_problem(path: Path, size: int) -> str | None:
     (what the dynamic loader maps) and the section header table (which gcc writes at the end
     of the file) must lie inside the file, so any truncation is found without mapping it.
     """
-    with open(path, "rb") as f:
+    with open_regular(path, 1 << 40) as f:  # a FIFO put there since the lstat is refused, never waited on
         head = f.read(64)
         if head[:4] in _MACH_O:
             return None  # macOS: the child-process probe is the check

@@ -61,6 +61,7 @@ import numpy as np
 from planner.trajopt.cache_disk import write_atomic
 from planner.trajopt.layout import Layout
 from robots.cache import trim_cache
+from robots.safeio import FileTooLarge, NotRegularFile, read_npz, read_text
 
 FOLDER = "seeds"  # below the cache folder (robots.cache.CACHE_FOLDERS)
 ENTRIES = 8  # seeds kept per structure
@@ -139,14 +140,9 @@ def _valid(seed: Seed, n_d: int, n_x: int, n_g: int, dq_shape: tuple[int, int]) 
 
 def _read(path: Path) -> Seed | None:
     """A seed file's arrays (no pickles, no other names), or None when it cannot be read."""
-    try:
-        if path.stat().st_size > _MAX_FILE_BYTES:
-            return None
-        with np.load(path, allow_pickle=False) as data:
-            if sorted(data.files) != sorted(_FIELDS):
-                return None
-            arrays = {name: np.array(data[name]) for name in _FIELDS}
-    except Exception:  # noqa: BLE001 - unreadable, truncated, not a zip (zipfile.BadZipFile): a miss
+    try:  # a regular file of bounded size only (a FIFO or a link to /dev/zero is damaged)
+        arrays = read_npz(path, _MAX_FILE_BYTES, names=_FIELDS)
+    except (OSError, ValueError):  # unreadable, truncated, not a zip, other members: a miss
         return None
     return Seed(arrays["descriptor"], arrays["guess"], arrays["x"], arrays["lam_x"], arrays["lam_g"], arrays["dq"])
 
@@ -291,11 +287,12 @@ def find_escalation(key: str, cache_dir: str) -> EscalationRows | None:
     path = _folder(cache_dir, key) / ESCALATION
     rows = None
     try:
-        if path.stat().st_size <= _MAX_ESCALATION_BYTES:
-            rows = _parse_escalation(path.read_text())
+        rows = _parse_escalation(read_text(path, _MAX_ESCALATION_BYTES))
         if rows is None:
             _remove(path)
-    except (OSError, UnicodeDecodeError):
+    except (NotRegularFile, FileTooLarge, UnicodeDecodeError):  # a FIFO, a device, too large: damaged
+        _remove(path)
+    except OSError:  # missing or unreadable: no record
         rows = None
     with _LOCK:
         _ESCALATIONS[key] = rows

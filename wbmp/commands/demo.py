@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
     from wbmp.commands.solve import print_result
     from wbmp.errors import CliError, ExitCode, one_line
-    from wbmp.pipeline import SolveRequest, check_outputs, solve, write_outputs
+    from wbmp.pipeline import SolveRequest, check_inputs_exist, check_outputs, solve, write_outputs
 
     if not args.sentence.strip():
         raise CliError(f"the sentence is empty: give an instruction in quotes, or none for {DEMO_SENTENCE!r}",
@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     request = SolveRequest(instruction=args.sentence, scene_path=args.scene, robot=args.robot,
                            simulate=not args.no_sim)
     request.check()
+    check_inputs_exist(scene=args.scene)
     check_outputs(out=args.out, html=args.html, inputs={"--scene": args.scene})  # before any work
     print(f"wbmp demo: {one_line(repr(args.sentence), 200)} on {one_line(args.robot, 200)}")
     progress = make_progress(quiet=args.quiet)

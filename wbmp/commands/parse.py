@@ -21,7 +21,7 @@ import argparse
 import json
 import os
 
-from wbmp.errors import CliError, ExitCode
+from wbmp.errors import CliError, ExitCode, require_instruction
 
 KEY_VARIABLES = ("WBMP_LLM_API_KEY", "OPENAI_API_KEY")
 
@@ -121,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     from language import parse
 
     text = " ".join(args.text)
+    require_instruction(text)  # the bound of `wbmp solve`
     scene = None
     if args.scene is not None:
         from tasks.scene import load_scene

@@ -55,10 +55,12 @@ def run(args: argparse.Namespace) -> int:
     from viz.files import Staging
     from viz.motion import VizInputError
     from viz.progress import make_progress
+    from wbmp.motionfile import check_motion_exists
     from wbmp.pipeline import check_outputs, output_errors
 
     if args.port is not None and not 1 <= args.port <= 65535:
         raise CliError(f"--port must be in 1..65535, got {args.port}", ExitCode.USAGE)
+    check_motion_exists(args.motion)  # a missing input is named as such, before the outputs
     outputs = check_outputs(html=args.html, plots=args.plots, inputs={"motion file": args.motion})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     with progress.stage("loading the motion"):

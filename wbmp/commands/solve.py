@@ -83,9 +83,10 @@ def request_from_args(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
-    from wbmp.pipeline import check_outputs, solve, write_outputs
+    from wbmp.pipeline import check_inputs_exist, check_outputs, solve, write_outputs
 
     request = request_from_args(args)
+    check_inputs_exist(spec=args.spec, scene=args.scene)
     # every output path before any work: a typo must not cost a whole solve (exit 2)
     check_outputs(out=args.out, html=args.html, plots=args.plots,
                   inputs={"--spec": args.spec, "--scene": args.scene, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES

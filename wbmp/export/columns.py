@@ -159,4 +159,15 @@ def joint_names(motion) -> list[str]:
         raise refused(f"motion file of {motion.robot_name!r}: key 'joint_names' has {len(names)} names "
                               f"for {nv - BASE_NV} joints; this export names every joint (write the file with "
                               "`wbmp solve --out`, which stores them), or use --format json or csv")
+    for i, name in enumerate(names):  # a bag's JointState and a tracker's columns are found by name
+        if not name.strip() or any(ord(c) < 32 or ord(c) == 127 for c in name) or len(name) > 256:
+            raise refused(f"motion file of {motion.robot_name!r}: key 'joint_names' has an unusable name "
+                          f"{name[:40]!r} at index {i} (empty, blank or with control characters); this "
+                          "export names every joint: use --format json or csv")
+    seen: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in seen:
+            raise refused(f"motion file of {motion.robot_name!r}: key 'joint_names' names {name[:40]!r} twice "
+                          f"(index {seen[name]} and {i}); this export names every joint once: use --format json or csv")
+        seen[name] = i
     return names

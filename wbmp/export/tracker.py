@@ -25,6 +25,7 @@ TRACKER_FORMAT = "wbmp-tracker"
 TRACKER_VERSION = 1
 DEFAULT_FPS = 50.0  # [Hz] a humanoid tracking policy's usual control rate
 MAX_FPS = 1000.0  # [Hz]
+MAX_SAMPLES = 500_000  # samples of one tracker file (about 150 MB for a 30-joint robot)
 ROOT_ROT_ORDER = "xyzw"
 SOURCES = ("plan", "execution")
 INTERPOLATION = "linear: root_pos, joint_pos, velocities; slerp (shorter arc): root_rot"
@@ -125,6 +126,10 @@ def check_fps(fps: float, duration: float | None = None) -> None:
     if duration is not None and duration * fps + _SLACK < 1.0:
         raise ValueError(f"fps {fps:g} Hz gives one sample for a {duration:g} s motion; raise it to at least "
                          f"{1.0 / duration:g} Hz")
+    if duration is not None and duration * fps + 1.0 > MAX_SAMPLES:
+        raise ValueError(f"fps {fps:g} Hz gives {duration * fps + 1.0:.0f} samples for a {duration:g} s motion, "
+                         f"more than the {MAX_SAMPLES} a tracker file holds; lower it to at most "
+                         f"{(MAX_SAMPLES - 1) / duration:g} Hz")
 
 
 def tracker_arrays(motion, fps: float = DEFAULT_FPS, source: str = "plan",
