@@ -229,3 +229,21 @@ def test_a_spec_whose_scene_mesh_is_a_special_file_is_refused(tmp_path, capsys, 
     outcome = run_cli(["solve", "--spec", tmp_path / "spec.json", "--no-sim", "--quiet"], capsys)
     assert_refused(outcome, 3, "scene.objects[0].mesh", "not a regular file")
     tree.assert_unchanged()
+
+
+@pytest.mark.parametrize("special", SPECIALS)
+def test_a_batch_item_whose_spec_is_a_special_file_is_refused(tmp_path, capsys, monkeypatch, special):
+    """A batch line naming a FIFO (no writer) or a link to /dev/zero as its spec is refused by its
+    line before any work (it said 'not found'); nothing reads it, so nothing blocks."""
+    from tests.badinput.conftest import Tree, assert_refused
+
+    monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
+    spec = tmp_path / "spec.json"
+    spec.write_text("{}")
+    SPECIALS[special](spec)
+    items = tmp_path / "items.jsonl"
+    items.write_text(json.dumps({"spec": "spec.json", "id": "s"}) + "\n")
+    tree = Tree(tmp_path)
+    outcome = run_cli(["batch", items, "--out-dir", tmp_path / "lib", "--no-sim"], capsys)
+    assert_refused(outcome, 2, "items.jsonl:1", "'spec.json' is not a regular file")
+    tree.assert_unchanged()

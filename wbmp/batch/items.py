@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from robots import safeio
 from wbmp.errors import CliError, ExitCode, one_line
 
 #: Keys a JSONL line may hold.
@@ -131,7 +132,7 @@ def read_lines(path: str) -> list[tuple[int, str]]:
         if p.stat().st_size > MAX_FILE_BYTES:
             raise CliError(f"FILE {shown} is larger than {MAX_FILE_BYTES // 2**20} MiB; split the batch",
                            ExitCode.USAGE)
-        raw = p.read_bytes()
+        raw = safeio.read_bytes(p, MAX_FILE_BYTES)  # (a FIFO or device in the file's place never blocks)
     except OSError as e:
         raise CliError(f"FILE {shown}: cannot read it: {e.strerror or e}", ExitCode.USAGE) from None
     if raw.startswith(b"\xef\xbb\xbf"):
@@ -190,6 +191,8 @@ def _spec_file(path: str, n: int, text: str, base: Path, what: str = "spec") -> 
     if not p.is_absolute():
         p = base / p
     if not p.is_file():
+        if p.exists():  # a FIFO, device or folder: read, it would block or never end
+            raise _refuse(path, n, f"{what} file {text!r} is not a regular file; give a JSON file")
         raise _refuse(path, n, f"{what} file {text!r} not found (relative paths are taken from the batch "
                                f"file's folder, {str(base)!r})")
     return str(p)
@@ -284,7 +287,7 @@ def spec_robot(item: Item) -> str:
     doc: Any = item.spec_object
     if doc is None and item.spec_path is not None:
         try:
-            doc = json.loads(Path(item.spec_path).read_text(encoding="utf-8-sig"))
+            doc = json.loads(safeio.read_text(item.spec_path, "spec", encoding="utf-8-sig"))
         except (OSError, ValueError):
             doc = None  # the solver reports the bad file for this item
     robot = doc.get("robot") if isinstance(doc, dict) else None
@@ -322,6 +325,6 @@ def _file_hash(path: str | None) -> str:
     if path is None:
         return ""
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        return safeio.sha256_file(path, "spec")
     except OSError:
         return "unreadable"
