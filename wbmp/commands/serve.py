@@ -78,13 +78,14 @@ def run(args: argparse.Namespace) -> int:
 
     check_options(args)
     session = Session(robot=args.robot, scene=os.path.abspath(args.scene) if args.scene else None,  # noqa: PTH100
-                      folder=args.motions)
+                      folder=args.motions, start_worker=False)
     try:
         try:
             server = ServeServer(session, args.port)
         except OSError as e:
             raise CliError(f"--port {args.port}: cannot listen on 127.0.0.1:{args.port} ({e.strerror or e}); "
                            "give another port, or --port 0 for any free one", ExitCode.USAGE) from None
+        session.start()  # the planning process, once the port is ours
         print(f"wbmp serve: open {server.url}  (Ctrl-C stops; the planner starts in the background)", flush=True)
         if args.open:
             import webbrowser

@@ -71,6 +71,7 @@ class ServeServer(ThreadingHTTPServer):
         self.port = int(self.server_address[1])
         self.allowed_hosts = {f"127.0.0.1:{self.port}", f"localhost:{self.port}"}
         self.allowed_origins = {f"http://{h}" for h in self.allowed_hosts}
+        self.read_timeout = READ_TIMEOUT
         self._mcap_lock = threading.Lock()
         self._meshcat: bytes | None = None
         self._index: bytes | None = None
@@ -113,6 +114,11 @@ class Handler(BaseHTTPRequestHandler):
     timeout = READ_TIMEOUT
     server_version = "wbmp-serve"
     sys_version = ""
+
+    def setup(self) -> None:
+        """The connection, with the server's read timeout."""
+        self.timeout = self.server.read_timeout
+        super().setup()
 
     def log_message(self, format: str, *args: Any) -> None:
         """Quiet: the terminal shows the page's address and nothing else."""  # quiet: the terminal shows the page's address and nothing else

@@ -131,12 +131,21 @@ class Session:
         self.last: str | None = None  # the motion corrections act on
         self._running: Job | None = None
         self._closed = False
+        self._started = False
         self._worker: Any = None
         self._conn: Any = None
         self.worker_state = "starting"
         self._thread = threading.Thread(target=self._dispatch, name="wbmp-serve-dispatch", daemon=True)
         if start_worker:
-            self._thread.start()
+            self.start()
+
+    def start(self) -> None:
+        """Start the dispatcher and the planning process (once)."""
+        with self._lock:
+            if self._started or self._closed:
+                return
+            self._started = True
+        self._thread.start()
 
     # ---- the page's requests -------------------------------------------------------------
     def submit(self, text: str) -> Job:
