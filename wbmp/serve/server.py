@@ -117,8 +117,8 @@ class Handler(BaseHTTPRequestHandler):
 
     def setup(self) -> None:
         """The connection, with the server's read timeout."""
-        self.timeout = self.server.read_timeout
         super().setup()
+        self.connection.settimeout(self.server.read_timeout)
 
     def log_message(self, format: str, *args: Any) -> None:
         """Quiet: the terminal shows the page's address and nothing else."""  # quiet: the terminal shows the page's address and nothing else
