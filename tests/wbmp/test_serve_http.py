@@ -193,3 +193,27 @@ def test_slow_client_dropped(served):
     sock.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # no blank line: the headers never end
     assert sock.recv(100) == b""  # the server closed the connection
     sock.close()
+
+
+def test_bad_options_refused_before_the_server_starts(tmp_path, capsys):
+    """One line and the CLI's exit code; nothing listens afterwards."""
+    from wbmp.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["serve", "--port", "70000"])
+    assert e.value.code == 2 and "65535" in capsys.readouterr().err
+    assert main(["serve", "--robot", "no_such_robot"]) == 3
+    assert main(["serve", "--motions", str(tmp_path / "missing")]) == 2
+    assert "not an existing folder" in capsys.readouterr().err
+    bad_scene = tmp_path / "scene.json"
+    bad_scene.write_text("{not json")
+    assert main(["serve", "--scene", str(bad_scene)]) == 3
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen(1)
+    try:
+        assert main(["serve", "--port", str(busy.getsockname()[1])]) == 2
+        err = capsys.readouterr().err
+        assert "cannot listen" in err and "--port 0" in err and err.count("\n") == 2  # one line per refusal
+    finally:
+        busy.close()

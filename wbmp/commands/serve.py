@@ -58,9 +58,10 @@ def check_options(args: argparse.Namespace) -> None:
     require_text(args.scene, "--scene", "give a scene JSON file (docs/scenes.md)")
     require_text(args.motions, "--motions", "give an existing folder")
     if args.robot is not None:
-        from robots import load_robot
+        from robots import available_robots, load_robot
 
-        load_robot(args.robot)  # an unknown robot: exit 3 now, not at the first sentence
+        if args.robot not in available_robots():
+            load_robot(args.robot)  # an unknown robot or a bad profile: exit 3 now, not at the first sentence
     if args.scene is not None:
         from tasks.scene import load_scene
 

@@ -123,7 +123,7 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
                            actions=_actions_plan(job))
     result = solve(request, progress, cache=True)
     solved = time.perf_counter() - t0
-    write_outputs(result, out=str(folder / "motion.npz"), progress=progress)
+    write_outputs(result, out=str(folder / "motion.npz"), progress=lambda _: progress("writing the motion file"))
     progress("drawing the replay")
     _write_pages(result, folder)
     report = result.report()
