@@ -58,7 +58,8 @@ WORDS: dict[str, tuple[str, ...]] = {
     "right": ("with the right hand", "with your right hand", "with the right arm", "with your right arm",
               "right hand", "right arm", "use the right hand", "用右手", "换右手", "右手"),
     "both": ("with both hands", "with both arms", "both hands", "both arms", "用双手", "双手", "两只手"),
-    "again": ("again", "once more", "one more time", "repeat", "do it again", "再来一次", "再做一次", "再来", "重复"),
+    "again": ("again", "once more", "one more time", "repeat", "do it again",
+              "再来一次", "再做一次", "再来", "重复"),
     "undo": ("undo", "go back", "back", "cancel that", "撤销", "撤回", "取消", "回到上一个"),
 }
 FILLERS = ("a little bit", "a little", "a bit", "a lot", "much", "even", "please", "now", "just", "and", "it",
@@ -66,8 +67,8 @@ FILLERS = ("a little bit", "a little", "a bit", "a lot", "much", "even", "please
 
 _LOOKUP = {phrase: kind for kind, phrases in WORDS.items() for phrase in phrases}
 _SPLIT = re.compile("\\s*(?:,|\uff0c|\u3001|;|\uff1b|\\band\\b|然后再|并且|和)\\s*")
-_THEN = re.compile(r"^\s*(?:and\s+)?(?:then|after that|afterwards|next)\b[\s,]*|^\s*(?:然后|接着|之后|再然后)[\s\uff0c,]*",
-                   re.IGNORECASE)
+_THEN = re.compile(r"^\s*(?:and\s+)?(?:then|after that|afterwards|next)\b[\s,]*"
+                   r"|^\s*(?:然后|接着|之后|再然后)[\s\uff0c,]*", re.IGNORECASE)
 
 
 class CorrectionError(ValueError):
@@ -217,9 +218,11 @@ def _hand(side: str):
     return rule
 
 
+_DURATION = "a duration (the pace of walking and stepping is the robot profile's step_duration, not an action's)"
+
 RULES: dict[str, tuple[Callable[[Action], dict[str, Any]], str]] = {
-    "slower": (_scale(SLOWER, ("duration",)), "a duration"),
-    "faster": (_scale(1 / SLOWER, ("duration",)), "a duration"),
+    "slower": (_scale(SLOWER, ("duration",)), _DURATION),
+    "faster": (_scale(1 / SLOWER, ("duration",)), _DURATION),
     "twice": (_count, "a count"),
     "lower": (_lower(SIZE, HEIGHT), "a squat or lunge depth, a bow's angle or a lifted foot's height"),
     "higher": (_lower(1 / SIZE, 1 / HEIGHT), "a squat or lunge depth, a bow's angle or a lifted foot's height"),

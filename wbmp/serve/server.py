@@ -121,7 +121,7 @@ class Handler(BaseHTTPRequestHandler):
         self.connection.settimeout(self.server.read_timeout)
 
     def log_message(self, format: str, *args: Any) -> None:
-        """Quiet: the terminal shows the page's address and nothing else."""  # quiet: the terminal shows the page's address and nothing else
+        """Quiet: the terminal shows the page's address and nothing else."""
 
     # ---- checks --------------------------------------------------------------------------
     def _host_ok(self) -> bool:
