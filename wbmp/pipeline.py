@@ -41,6 +41,8 @@ class SolveRequest:
         actions: A ``language.ActionPlan`` to plan instead of parsing ``instruction`` (which
             then only names the motion): ``wbmp serve``'s corrections change the actions'
             parameters. Such a request is looked up in the motion cache by its spec only.
+        profile: A ``robots.RobotProfile`` to plan a sentence or actions with instead of
+            ``robot`` (``wbmp serve``'s "slower" on a walk changes its ``step_duration``).
 
     :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
     needs no work to see: an empty ``robot`` or ``scene_path``, an instruction longer than
@@ -56,6 +58,7 @@ class SolveRequest:
     simulate: bool = True
     push: str | None = None
     actions: Any = None
+    profile: Any = None
 
     def check(self) -> None:
         """Refuse contradictory or empty options before any work (:class:`CliError`, exit 2)."""
@@ -171,7 +174,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
         raise CliError("give an instruction in quotes, or --spec FILE", ExitCode.USAGE)
     progress("parsing the instruction")
     actions = parse_instruction(request) if request.actions is None else request.actions
-    robot = load_robot(request.robot or "talos")
+    robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
     from tasks.compose import compile_actions, fit_actions
 
     # unstated sizes chosen within the robot's limits, so that the printed defaults are the ones used
@@ -244,7 +247,8 @@ class _LazyRobot:
         if self._robot is None:
             from robots import load_robot
 
-            self._robot = load_robot(self._request.robot or self._name)
+            request = self._request
+            self._robot = load_robot(request.profile if request.profile is not None else request.robot or self._name)
         return self._robot
 
     def __getattr__(self, attr: str) -> Any:

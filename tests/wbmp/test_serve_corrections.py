@@ -113,3 +113,44 @@ def test_again_and_undo_change_nothing():
     for kind in ("again", "undo"):
         new, changes = c.apply((kind,), acts)
         assert new == acts and changes == []
+
+
+def test_slower_on_a_walk_changes_the_robots_pace():
+    acts = c.Actions(actions=actions(("walk", {}), ("squat", {})).actions, given=(frozenset(), frozenset()),
+                     step_duration=0.8)
+    new, changes = c.apply(("slower",), acts)
+    assert new.step_duration == pytest.approx(1.2)
+    assert [(ch.name, ch.param) for ch in changes] == [("squat", "duration"), ("robot", "step_duration")]
+    assert changes[1].describe() == "robot step_duration 0.8 s -> 1.2 s (x1.5)"
+    back, _ = c.apply(("faster",), new)
+    assert back.step_duration == pytest.approx(0.8)
+    with pytest.raises(c.CorrectionError, match="walk"):  # the pace unknown: nothing to change
+        c.apply(("slower",), actions(("walk", {})))
+    assert c.apply(("slower",), c.Actions(actions=actions(("squat", {})).actions, given=(frozenset(),),
+                                          step_duration=0.8))[0].step_duration == 0.8  # nothing steps
+
+
+def test_paced_actions_are_those_timed_by_the_step_duration(talos):
+    """PACED against the compiler: with the profile's step_duration x 1.5, a lower- or whole-body
+    action's horizon grows exactly when it is in PACED (actions on scene objects, walk_to, need a
+    scene and are left out; upper-body actions never step, and their inverse kinematics is slow)."""
+    import dataclasses
+
+    from robots import load_robot
+    from tasks.compose import compile_actions, fit_actions
+    from tasks.exceptions import BeyondCapability
+
+    paced = load_robot(dataclasses.replace(talos.profile, step_duration=1.5 * talos.profile.step_duration))
+    grows = set()
+    assert not {name for name, schema in REGISTRY.items() if schema.body == "upper"} & set(c.PACED)
+    for name, schema in REGISTRY.items():
+        if any(p.name == "object" for p in schema.params) or schema.body == "upper":
+            continue
+        try:
+            before = compile_actions(fit_actions([Action(name=name)], talos), talos).horizon
+        except BeyondCapability:  # hop, jog: not on talos
+            continue
+        after = compile_actions(fit_actions([Action(name=name)], paced), paced).horizon
+        if after > before + 1e-9:
+            grows.add(name)
+    assert grows == set(c.PACED) - {"walk_to"}

@@ -21,10 +21,10 @@ def session(tmp_path):
     s.close()
 
 
-def add_motion(session, text, *, parent=None, ident="a" * 12):
+def add_motion(session, text, *, parent=None, ident="a" * 12, step_duration=0.8):
     plan = parse(text)
     motion = Motion(id=ident, text=text, kind="sentence", folder=session.folder, parent=parent,
-                    summary={"actions": describe_actions(plan)})
+                    summary={"actions": describe_actions(plan), "step_duration": step_duration})
     session.motions[motion.id] = motion
     session.history.append(motion.id)
     session.last = motion.id
@@ -80,3 +80,18 @@ def test_undo_goes_back_to_the_parent(session):
     assert session.last == first.id and job.state == "done" and job.motion == first.id
     with pytest.raises(corrections.CorrectionError, match="nothing to undo"):
         session._interpret(Job(id="k", text="撤销"))
+
+
+def test_slower_walk_sends_the_pace_and_then_keeps_it(session):
+    add_motion(session, "walk forward 1 m", step_duration=0.8)
+    job = Job(id="j", text="slower")
+    request, _ = session._interpret(job)
+    assert request["step_duration"] == pytest.approx(1.2)
+    assert request["actions"] == [{"name": "walk", "overlay": False, "given": ["direction", "distance"],
+                                   "params": {"direction": "forward", "distance": 1.0}}]
+    assert [ch["param"] for ch in job.changes] == ["step_duration"]
+    add_motion(session, "walk forward 1 m (slower)", ident="b" * 12, step_duration=1.2)
+    request, _ = session._interpret(Job(id="k", text="then squat"))
+    assert request["step_duration"] == 1.2  # a continuation keeps the pace
+    request, _ = session._interpret(Job(id="l", text="walk forward"))
+    assert "step_duration" not in request  # a new sentence: the robot's own pace

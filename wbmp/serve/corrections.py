@@ -10,8 +10,9 @@ The words (English and Chinese), after lower-casing and dropping fillers ("a bit
 一点, 再):
 
 ========================  ============================================================
-slower / 慢               every ``duration`` x 1.5
-faster / 快               every ``duration`` / 1.5
+slower / 慢               every ``duration`` x 1.5, and the robot's ``step_duration`` x 1.5 when an
+                          action steps (:data:`PACED`: walking, stepping, turning, marching)
+faster / 快               the inverse of "slower"
 twice / 两次              every ``repeat`` (or ``count``) = 2; actions with neither: the sequence twice
 lower / 低                squat and lunge ``depth`` x 1.3 (the body goes lower); kick, jump, march,
                           stomp, hop ``height`` x 0.75; bow ``angle`` x 1.3
@@ -42,6 +43,9 @@ SIZE = 1.3  # size factor of "bigger" (its inverse for "smaller"), and of "lower
 HEIGHT = 0.75  # height factor of "lower" on a lifted foot or a jump (its inverse for "higher")
 
 SIZE_PARAMS = ("depth", "angle", "radius", "amount", "length", "distance", "height")
+# actions whose timing is the robot profile's step_duration (one swing of a foot), not a parameter:
+# "slower" on them changes the pace of the robot the session plans with
+PACED = ("step", "walk", "walk_to", "turn", "walk_arc", "march", "lunge", "stomp")
 HAND_PARAMS = ("arm", "hand")
 
 # the words of each correction, matched on the whole normalized text (after fillers are dropped)
@@ -65,6 +69,7 @@ WORDS: dict[str, tuple[str, ...]] = {
 FILLERS = ("a little bit", "a little", "a bit", "a lot", "much", "even", "please", "now", "just", "and", "it",
            "一点儿", "一点", "一些", "点", "再", "请", "稍微", "还要", "还", "些")
 
+STEP_RANGE = (0.1, 5.0)  # [s] a profile's step_duration (robots.profile.NUMBERS)
 _LOOKUP = {phrase: kind for kind, phrases in WORDS.items() for phrase in phrases}
 _SPLIT = re.compile("\\s*(?:,|\uff0c|\u3001|;|\uff1b|\\band\\b|然后再|并且|和)\\s*")
 _THEN = re.compile(r"^\s*(?:and\s+)?(?:then|after that|afterwards|next)\b[\s,]*"
@@ -93,7 +98,8 @@ class Change:
                 return f"{v:.3g}" + (f" {self.unit}" if self.unit and self.unit != "count" else "")
             return str(v)
 
-        line = f"{self.action}. {self.name} {self.param} {show(self.old)} -> {show(self.new)}"
+        where = f"{self.action}. {self.name}" if self.action else self.name
+        line = f"{where} {self.param} {show(self.old)} -> {show(self.new)}"
         if isinstance(self.old, float) and isinstance(self.new, float) and self.old:
             line += f" (x{self.new / self.old:.3g})"
         return line
@@ -163,6 +169,7 @@ class Actions:
 
     actions: tuple[Action, ...]
     given: tuple[frozenset[str], ...]
+    step_duration: float | None = None  # the robot's pace [s] (None: not known, never changed)
 
     def stated(self) -> tuple[Action, ...]:
         """Actions holding only the stated parameters (the others come back as the registry's
@@ -218,7 +225,7 @@ def _hand(side: str):
     return rule
 
 
-_DURATION = "a duration (the pace of walking and stepping is the robot profile's step_duration, not an action's)"
+_DURATION = "a duration or the pace of a step"
 
 RULES: dict[str, tuple[Callable[[Action], dict[str, Any]], str]] = {
     "slower": (_scale(SLOWER, ("duration",)), _DURATION),
@@ -257,6 +264,7 @@ def apply(kinds: Sequence[str], current: Actions) -> tuple[Actions, list[Change]
     """
     actions = list(current.actions)
     given = [set(g) for g in current.given]
+    step = current.step_duration
     changes: list[Change] = []
     for kind in kinds:
         if kind in ("again", "undo"):
@@ -283,11 +291,18 @@ def apply(kinds: Sequence[str], current: Actions) -> tuple[Actions, list[Change]
                                       unit=REGISTRY[action.name].param(p).unit))
             actions[i] = Action(name=action.name, params={**action.params, **new}, overlay=action.overlay)
             given[i] |= set(new)
+        if kind in ("slower", "faster") and step is not None and any(a.name in PACED for a in actions):
+            lo, hi = STEP_RANGE
+            paced = min(max(step * (SLOWER if kind == "slower" else 1 / SLOWER), lo), hi)
+            if paced != step:
+                changed = True
+                changes.append(Change(action=0, name="robot", param="step_duration", old=step, new=paced, unit="s"))
+                step = paced
         if not changed:
             names = ", ".join(dict.fromkeys(a.name for a in actions))
             raise CorrectionError(f"'{kind}' changes {what}, and none of the last motion's actions ({names}) has "
                                   "one it can change (or each is already at its limit): say a new sentence instead")
-    return Actions(actions=tuple(actions), given=tuple(frozenset(g) for g in given)), changes
+    return Actions(actions=tuple(actions), given=tuple(frozenset(g) for g in given), step_duration=step), changes
 
 
 def _max_actions() -> int:

@@ -58,18 +58,20 @@ class Motion:
     """One planned motion of the session."""
 
     id: str
-    text: str
+    text: str  # what it is: the sentence, "squat (slower)", "squat, then wave"
     kind: str  # sentence, correction, continuation, again
     folder: Path
     summary: dict[str, Any]
     parent: str | None = None
     changes: list[dict[str, Any]] = field(default_factory=list)
+    said: str = ""  # what was typed
     created: float = field(default_factory=time.time)
 
     def brief(self) -> dict[str, Any]:
         """The history entry of the page."""
         cert = self.summary.get("certificate")
-        return {"id": self.id, "text": self.text, "kind": self.kind, "parent": self.parent,
+        return {"id": self.id, "text": self.text, "said": self.said or self.text, "kind": self.kind,
+                "parent": self.parent,
                 "changes": self.changes, "certified": None if cert is None else bool(cert["ok"]),
                 "cached": self.summary.get("cached"), "seconds": self.summary.get("total_seconds"),
                 "duration": self.summary.get("duration")}
@@ -284,8 +286,8 @@ class Session:
                 continue
             break
         if message[0] == "done":
-            motion = Motion(id=folder.name, text=job.text, kind=job.kind, folder=folder, summary=message[1],
-                            parent=parent, changes=job.changes)
+            motion = Motion(id=folder.name, text=request["text"], said=job.text, kind=job.kind, folder=folder,
+                            summary=message[1], parent=parent, changes=job.changes)
             with self._lock:
                 self.motions[motion.id] = motion
                 self.history.append(motion.id)
@@ -335,7 +337,8 @@ class Session:
             current = corrections.Actions(
                 actions=tuple(Action(name=a["name"], params=a["params"], overlay=a["overlay"])
                               for a in last.summary["actions"]),
-                given=tuple(frozenset(a["given"]) for a in last.summary["actions"]))
+                given=tuple(frozenset(a["given"]) for a in last.summary["actions"]),
+                step_duration=last.summary.get("step_duration"))
             if not current.actions:
                 raise corrections.CorrectionError("the last motion has no actions to correct (it came from a spec)")
             new, changes = corrections.apply(kinds, current)
@@ -344,7 +347,7 @@ class Session:
             with self._lock:
                 job.progress.append("; ".join(c.describe() for c in changes) or "the same actions again")
             name = _name(last.text, job.text)
-            return {"text": name, "actions": _wire(new)}, last.id
+            return {"text": name, "actions": _wire(new), "step_duration": new.step_duration}, last.id
         if rest is not None and last is not None and last.summary["actions"]:
             from language import parse
 
@@ -361,7 +364,8 @@ class Session:
             if len(both.actions) > MAX_ACTIONS:
                 raise corrections.CorrectionError(f"the continuation makes {len(both.actions)} actions; wbmp plans at "
                                                   f"most {MAX_ACTIONS} at a time: start a new sentence")
-            return {"text": f"{last.text}, then {rest}", "actions": _wire(both)}, last.id
+            return ({"text": f"{last.text}, then {rest}", "actions": _wire(both),
+                     "step_duration": last.summary.get("step_duration")}, last.id)
         job.kind = "sentence"
         return {"text": job.text, "actions": None}, None
 

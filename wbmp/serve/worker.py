@@ -113,14 +113,22 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     """Plan one job and write its files into ``job["folder"]``; returns the page's summary.
 
     ``job``: ``text`` (the sentence, or the motion's name for given actions), ``actions`` (None,
-    or what :func:`describe_actions` gives), ``robot``, ``scene``, ``folder``.
+    or what :func:`describe_actions` gives), ``robot``, ``scene``, ``folder``, ``step_duration``
+    (None: the profile's; else the robot's pace for this plan, "slower" on a walk).
     """
     from wbmp.pipeline import SolveRequest, solve, write_outputs
 
     t0 = time.perf_counter()
     folder = Path(job["folder"])
+    profile = _profile(job.get("robot"))
+    step = job.get("step_duration")
+    paced = None
+    if step is not None and step != profile.step_duration:
+        import dataclasses
+
+        paced = profile = dataclasses.replace(profile, step_duration=float(step))
     request = SolveRequest(instruction=job["text"], scene_path=job.get("scene"), robot=job.get("robot"),
-                           actions=_actions_plan(job))
+                           actions=_actions_plan(job), profile=paced)
     result = solve(request, progress, cache=True)
     solved = time.perf_counter() - t0
     write_outputs(result, out=str(folder / "motion.npz"), progress=lambda _: progress("writing the motion file"))
@@ -144,10 +152,21 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
         "certificate": certificate,
         "cached": result.cached is not None,
         "duration": float(result.plan.t[-1]),
+        "step_duration": float(profile.step_duration),
         "exit_code": int(result.exit_code),
         "seconds": solved,
         "total_seconds": time.perf_counter() - t0,
     }
+
+
+def _profile(robot: str | None):
+    """The profile of the session's robot (a built-in one without loading its model)."""
+    from robots import load_robot
+    from robots.profile import builtin_profiles
+
+    builtins = builtin_profiles()
+    name = robot or "talos"
+    return builtins[name] if name in builtins else load_robot(name).profile
 
 
 def _write_pages(result, folder: Path) -> None:
