@@ -146,6 +146,14 @@ def test_sentence_correction_download_stop(page, trap, downloads):
     assert changed > 0.002, changed  # the robot moved
     assert trap_mod.changed_fraction(raised, viewer_pixels(page)) < changed / 4  # still when paused
 
+    # the plots, drawn on demand by the planning process
+    page.evaluate("document.getElementById('draw-plots').click(), true")
+    sizes = page.wait_for("(function () { var i = document.querySelectorAll('#plots img'); "
+                          "return i.length && Array.prototype.every.call(i, function (x) { return x.complete; }) "
+                          "? Array.prototype.map.call(i, function (x) { return x.naturalWidth; }) : null; })()",
+                          PLAN_TIMEOUT, poll=0.25)
+    assert len(sizes) >= 3 and min(sizes) > 100, sizes  # PNGs the browser decoded
+
     old = page.evaluate("parseFloat(document.querySelector('#actions [data-param=duration]').textContent"
                         ".split('=')[1])")
     type_and_submit(page, "slower")

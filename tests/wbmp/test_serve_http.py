@@ -167,7 +167,8 @@ def test_ids_are_opaque(served, tmp_path):
     for path in ("/download/0123456789ab/motion.npz", "/download/../secret.txt", "/download/..%2fsecret.txt",
                  "/view/0123456789ab", "/view/../../etc/passwd", "/download/0123456789ab/secret.txt",
                  "/api/motions/0123456789ab", "/api/jobs/0123456789ab", "/static/../session.py",
-                 "/download/0123456789AB/motion.npz", "//etc/passwd"):
+                 "/download/0123456789AB/motion.npz", "//etc/passwd", "/plots/0123456789ab/joints.png",
+                 "/plots/0123456789ab/../../secret.txt"):
         status, data, _ = request(served, "GET", path)
         assert status == 404, path
         assert b"the-content-of-the-file" not in json.dumps(data).encode()
@@ -217,3 +218,45 @@ def test_bad_options_refused_before_the_server_starts(tmp_path, capsys):
         assert "cannot listen" in err and "--port 0" in err and err.count("\n") == 2  # one line per refusal
     finally:
         busy.close()
+
+
+def test_plots_of_an_unknown_motion(served):
+    status, data, _ = request(served, "POST", "/api/plots", b'{"motion": "0123456789ab"}',
+                              {"Content-Type": "application/json"})
+    assert status == 404 and "no such motion" in data["error"]
+    status, data, _ = request(served, "POST", "/api/plots", b'{"motion": ["../x"]}', {"Content-Type": "application/json"})
+    assert status == 404
+    assert served.session.state()["waiting"] == []
+
+
+def test_connections_bounded(served):
+    """MAX_CONNECTIONS idle connections hold every slot: the next is closed unanswered; once they
+    time out, the server answers again."""
+    import time
+
+    served.read_timeout = 5.0
+    idle = [socket.create_connection(("127.0.0.1", served.port), timeout=30) for _ in range(srv.MAX_CONNECTIONS)]
+    try:
+        deadline = time.monotonic() + 4
+        while served._slots._value and time.monotonic() < deadline:  # every idle one accepted, holding a slot
+            time.sleep(0.05)
+        assert served._slots._value == 0
+        extra = socket.create_connection(("127.0.0.1", served.port), timeout=30)
+        extra.sendall(f"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1:{served.port}\r\n\r\n".encode())
+        try:
+            assert extra.recv(100) == b""
+        except ConnectionResetError:
+            pass
+        extra.close()
+    finally:
+        for s in idle:
+            s.close()
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        try:
+            if request(served, "GET", "/api/state")[0] == 200:
+                break
+        except (ConnectionError, http.client.HTTPException):
+            time.sleep(0.2)
+    else:
+        pytest.fail("the server did not answer again")

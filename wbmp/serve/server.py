@@ -10,6 +10,8 @@ Routes (every other path: 404):
 ``GET /api/motions/<id>``              one motion: actions, words, plan, certificate
 ``POST /api/say``  ``{"text": ...}``   a sentence or a correction: 202 and the job's id
 ``POST /api/stop``                     cancel the running plan and the waiting ones
+``POST /api/plots`` ``{"motion": id}``   draw the motion's plots (a job, as a plan)
+``GET /plots/<id>/<name>.png``         one of them
 ``GET /view/<id>``                     the motion's replay for the page's viewer
 ``GET /download/<id>/<kind>``          ``motion.npz``, ``replay.html`` or ``motion.mcap``
 =====================================  =====================================================
@@ -25,7 +27,7 @@ Safe by default:
 - a body is at most :data:`MAX_BODY` bytes (413), a sentence at most the CLI's
   ``MAX_TEXT_LENGTH`` characters (400), one plan runs at a time and :data:`session.MAX_WAITING`
   wait (429 beyond); a request line or header that takes longer than :data:`READ_TIMEOUT` to
-  arrive closes the connection;
+  arrive closes the connection, and at most :data:`MAX_CONNECTIONS` are answered at once;
 - ids are opaque tokens looked up in the session (no path from the page reaches the file
   system); every error is ``{"error": one line, "exit_code": n}`` with the CLI's exit code.
 """
@@ -47,6 +49,7 @@ from wbmp.serve.session import Busy, Session, Unavailable
 HOST = "127.0.0.1"
 MAX_BODY = 64 * 1024  # bytes of a POST body
 READ_TIMEOUT = 10.0  # seconds for a request to arrive
+MAX_CONNECTIONS = 32  # connections answered at once; more are closed at once
 DOWNLOADS = {"motion.npz": "application/octet-stream", "replay.html": "text/html; charset=utf-8",
              "motion.mcap": "application/octet-stream"}
 _ID = r"([0-9a-f]{12})"
@@ -56,6 +59,7 @@ _ROUTES_GET = {
     "motion": re.compile(rf"^/api/motions/{_ID}$"),
     "view": re.compile(rf"^/view/{_ID}$"),
     "download": re.compile(rf"^/download/{_ID}/(motion\.npz|replay\.html|motion\.mcap)$"),
+    "plot": re.compile(rf"^/plots/{_ID}/([a-z_]+\.png)$"),
 }
 
 
@@ -64,6 +68,7 @@ class ServeServer(ThreadingHTTPServer):
 
     daemon_threads = True
     allow_reuse_address = True
+    request_queue_size = 64  # the listen backlog (the standard library's 5 drops a burst's SYNs)
 
     def __init__(self, session: Session, port: int = 0) -> None:
         super().__init__((HOST, port), Handler)
@@ -72,9 +77,28 @@ class ServeServer(ThreadingHTTPServer):
         self.allowed_hosts = {f"127.0.0.1:{self.port}", f"localhost:{self.port}"}
         self.allowed_origins = {f"http://{h}" for h in self.allowed_hosts}
         self.read_timeout = READ_TIMEOUT
+        self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
         self._mcap_lock = threading.Lock()
         self._meshcat: bytes | None = None
         self._index: bytes | None = None
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        """Answer in a thread, at most MAX_CONNECTIONS at once (more: closed unanswered)."""
+        if not self._slots.acquire(blocking=False):
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        """One connection's thread; frees its slot at the end."""
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
 
     @property
     def url(self) -> str:
@@ -253,6 +277,11 @@ class Handler(BaseHTTPRequestHandler):
                 self._json(HTTPStatus.OK, motion.full())
             elif name == "view":
                 self._file(motion.folder / "view.html", "text/html; charset=utf-8")
+            elif name == "plot":
+                if m.group(2) not in motion.summary.get("plots", ()):
+                    self._error(HTTPStatus.NOT_FOUND, "no such plot of this motion (draw them first)", 2)
+                else:
+                    self._file(motion.folder / "plots" / m.group(2), "image/png")
             else:
                 self._download(motion.id, motion.folder, m.group(2))
             return
@@ -278,7 +307,7 @@ class Handler(BaseHTTPRequestHandler):
         if not self._host_ok() or not self._post_ok():
             return
         path = urlsplit(self.path).path
-        if path not in ("/api/say", "/api/stop"):
+        if path not in ("/api/say", "/api/stop", "/api/plots"):
             self._error(HTTPStatus.NOT_FOUND, f"no action {path[:80]!r} here", 2)
             return
         data = self._body()
@@ -287,6 +316,21 @@ class Handler(BaseHTTPRequestHandler):
         session = self.server.session
         if path == "/api/stop":
             self._json(HTTPStatus.OK, {"cancelled": session.stop()})
+            return
+        if path == "/api/plots":
+            motion = data.get("motion")
+            try:
+                job = session.submit_plots(motion if isinstance(motion, str) else "")
+            except KeyError:
+                self._error(HTTPStatus.NOT_FOUND, "no such motion in this session", 2)
+                return
+            except Busy as e:
+                self._error(HTTPStatus.TOO_MANY_REQUESTS, str(e), 2)
+                return
+            except Unavailable as e:
+                self._error(HTTPStatus.SERVICE_UNAVAILABLE, str(e), 1)
+                return
+            self._json(HTTPStatus.ACCEPTED, {"job": job.id})
             return
         text = data.get("text")
         if not isinstance(text, str) or not text.strip():

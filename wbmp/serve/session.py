@@ -94,6 +94,7 @@ class Job:
     exit_code: int = 0
     motion: str | None = None
     changes: list[dict[str, Any]] = field(default_factory=list)
+    plots_of: str | None = None  # a job that draws this motion's plots
     submitted: float = field(default_factory=time.monotonic)
     started: float | None = None
     finished: float | None = None
@@ -150,7 +151,7 @@ class Session:
         self._thread.start()
 
     # ---- the page's requests -------------------------------------------------------------
-    def submit(self, text: str) -> Job:
+    def submit(self, text: str, *, plots_of: str | None = None) -> Job:
         """Queue a job for ``text`` (Busy when the queue is full, Unavailable when closed)."""
         with self._lock:
             if self._closed or self.worker_state == "failed":
@@ -158,7 +159,7 @@ class Session:
             if len(self._queue) >= MAX_WAITING + (0 if self._running is not None else 1):
                 raise Busy(f"{len(self._queue) + (self._running is not None)} plans are already waiting or running; "
                            "wait for them, or press stop")
-            job = Job(id=new_id(), text=text)
+            job = Job(id=new_id(), text=text, plots_of=plots_of, kind="plots" if plots_of else "")
             self.jobs[job.id] = job
             while len(self.jobs) > MAX_JOBS_KEPT:
                 oldest = next(iter(self.jobs))
@@ -168,6 +169,14 @@ class Session:
             self._queue.append(job)
             self._wake.notify_all()
             return job
+
+    def submit_plots(self, motion_id: str) -> Job:
+        """Queue the drawing of a motion's plots (KeyError: no such motion; Busy, Unavailable)."""
+        motion = self.motion(motion_id)
+        if motion is None:
+            raise KeyError(motion_id)
+        job = self.submit(f"plots of {motion.text}", plots_of=motion_id)
+        return job
 
     def stop(self) -> int:
         """Cancel the running plan and the waiting ones; returns how many were cancelled."""
@@ -258,6 +267,9 @@ class Session:
     def _run(self, job: Job) -> None:
         from wbmp.errors import ExitCode
 
+        if job.plots_of is not None:
+            self._run_plots(job)
+            return
         try:
             plan = self._interpret(job)
         except corrections.CorrectionError as e:
@@ -270,21 +282,10 @@ class Session:
         folder.mkdir(mode=0o700)
         request["folder"] = str(folder)
         request["robot"], request["scene"] = self.robot, self.scene
-        self._conn.send(request)
-        while True:
-            try:
-                message = self._conn.recv()
-            except (EOFError, OSError):
-                self._finish(job, "error", error="the planning process ended unexpectedly; it is started again",
-                             exit_code=1)
-                self._restart_worker()
-                shutil.rmtree(folder, ignore_errors=True)
-                return
-            if message[0] == "progress":
-                with self._lock:
-                    job.progress.append(message[1])
-                continue
-            break
+        message = self._exchange(job, request)
+        if message is None:
+            shutil.rmtree(folder, ignore_errors=True)
+            return
         if message[0] == "done":
             motion = Motion(id=folder.name, text=request["text"], said=job.text, kind=job.kind, folder=folder,
                             summary=message[1], parent=parent, changes=job.changes)
@@ -300,6 +301,41 @@ class Session:
             return
         shutil.rmtree(folder, ignore_errors=True)
         if message[0] == "cancelled":
+            self._finish(job, "cancelled", error="stopped")
+        else:
+            self._finish(job, "error", error=message[1], exit_code=message[2])
+
+    def _exchange(self, job: Job, request: dict[str, Any]) -> tuple | None:
+        """Send ``request`` to the planning process, note its progress on ``job``; its last
+        message, or None when the process died (the job failed, the process is started again)."""
+        self._conn.send(request)
+        while True:
+            try:
+                message = self._conn.recv()
+            except (EOFError, OSError):
+                self._finish(job, "error", error="the planning process ended unexpectedly; it is started again",
+                             exit_code=1)
+                self._restart_worker()
+                return None
+            if message[0] != "progress":
+                return message
+            with self._lock:
+                job.progress.append(message[1])
+
+    def _run_plots(self, job: Job) -> None:
+        motion = self.motion(job.plots_of or "")
+        if motion is None:
+            self._finish(job, "error", error="no such motion in this session", exit_code=2)
+            return
+        message = self._exchange(job, {"plots": str(motion.folder)})
+        if message is None:
+            return
+        if message[0] == "done":
+            with self._lock:
+                motion.summary["plots"] = message[1]["plots"]
+                job.motion = motion.id
+            self._finish(job, "done")
+        elif message[0] == "cancelled":
             self._finish(job, "cancelled", error="stopped")
         else:
             self._finish(job, "error", error=message[1], exit_code=message[2])

@@ -52,7 +52,8 @@ def main(conn: Any) -> None:
         clear_signals()
         _busy = True
         try:
-            summary = run_job(job, lambda text: conn.send(("progress", str(text))))
+            report = lambda text: conn.send(("progress", str(text)))  # noqa: E731
+            summary = run_plots(job, report) if "plots" in job else run_job(job, report)
             _busy = False
             conn.send(("done", summary))
         except KeyboardInterrupt:
@@ -157,6 +158,20 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
         "seconds": solved,
         "total_seconds": time.perf_counter() - t0,
     }
+
+
+def run_plots(job: dict[str, Any], progress) -> dict[str, Any]:
+    """Draw the PNG plots of the motion in ``job["plots"]`` (its folder) into its ``plots``
+    folder, as ``wbmp show --plots`` does; returns ``{"plots": [file names]}``."""
+    from viz import write_plots
+    from wbmp.commands.show import load
+
+    folder = Path(job["plots"])
+    progress("loading the motion")
+    robot, plan, execution = load(str(folder / "motion.npz"))
+    progress("drawing the plots")
+    paths = write_plots(folder / "plots", robot, plan, execution=execution)
+    return {"plots": [p.name for p in paths]}
 
 
 def _profile(robot: str | None):
