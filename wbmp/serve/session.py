@@ -95,6 +95,7 @@ class Job:
     motion: str | None = None
     changes: list[dict[str, Any]] = field(default_factory=list)
     plots_of: str | None = None  # a job that draws this motion's plots
+    stopping: bool = False  # stop was pressed while it ran
     submitted: float = field(default_factory=time.monotonic)
     started: float | None = None
     finished: float | None = None
@@ -189,10 +190,15 @@ class Session:
             running = self._running
             if running is not None and running.state == "running" and self._worker is not None:
                 running.progress.append("stopping")
-                with contextlib.suppress(ProcessLookupError, OSError):
-                    os.kill(self._worker.pid, signal.SIGINT)
+                running.stopping = True
+                self._interrupt()
                 n += 1
             return n
+
+    def _interrupt(self) -> None:
+        """SIGINT to the planning process: it stops its job as Ctrl-C stops ``wbmp solve``."""
+        with contextlib.suppress(ProcessLookupError, OSError):
+            os.kill(self._worker.pid, signal.SIGINT)
 
     def state(self) -> dict[str, Any]:
         """What the page polls."""
@@ -321,6 +327,8 @@ class Session:
                 return message
             with self._lock:
                 job.progress.append(message[1])
+                if job.stopping:  # a stop that came before the job began in the planning process
+                    self._interrupt()
 
     def _run_plots(self, job: Job) -> None:
         motion = self.motion(job.plots_of or "")

@@ -19,20 +19,23 @@ from pathlib import Path
 from typing import Any
 
 _busy = False
+_interrupted = False
 
 
 def _on_sigint(signum, frame) -> None:  # noqa: ARG001 - the signal-handler signature
+    global _interrupted
     from wbmp.errors import note_signal
 
-    if not _busy:
-        return  # a stop between jobs: nothing to stop
+    if not _busy or _interrupted:
+        return  # a stop between jobs, or a second one: nothing more to stop
+    _interrupted = True
     note_signal(signum)
     raise KeyboardInterrupt()
 
 
 def main(conn: Any) -> None:
     """The child's loop (the target of ``multiprocessing``'s spawn context)."""
-    global _busy
+    global _busy, _interrupted
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     signal.signal(signal.SIGINT, _on_sigint)
@@ -50,6 +53,7 @@ def main(conn: Any) -> None:
         if job is None:
             return
         clear_signals()
+        _interrupted = False
         _busy = True
         try:
             report = lambda text: conn.send(("progress", str(text)))  # noqa: E731
