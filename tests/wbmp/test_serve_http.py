@@ -260,3 +260,32 @@ def test_connections_bounded(served):
             time.sleep(0.2)
     else:
         pytest.fail("the server did not answer again")
+
+
+def test_ctrl_c_stops_the_server_and_removes_its_folder(tmp_path):
+    """A real ``wbmp serve`` process: it answers on the port it prints; Ctrl-C ends it with 130,
+    its planning process with it, and its temporary folder is gone."""
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+    import urllib.request
+
+    env = {**os.environ, "TMPDIR": str(tmp_path), "PYTHONPATH": os.getcwd()}
+    proc = subprocess.Popen([sys.executable, "-m", "wbmp", "serve", "--port", "0"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+    try:
+        line = proc.stdout.readline()
+        url = re.search(r"http://127\.0\.0\.1:\d+/", line).group(0)
+        with urllib.request.urlopen(url + "api/state", timeout=30) as r:
+            assert json.loads(r.read())["robot"] == "talos"
+        assert [p.name.startswith("wbmp-serve-") for p in tmp_path.iterdir()] == [True]
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130 and err.strip().endswith("wbmp: interrupted")
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith("wbmp-serve-")]
