@@ -263,8 +263,8 @@ def test_connections_bounded(served):
 
 
 def test_ctrl_c_stops_the_server_and_removes_its_folder(tmp_path):
-    """A real ``wbmp serve`` process: it answers on the port it prints; Ctrl-C ends it with 130,
-    its planning process with it, and its temporary folder is gone."""
+    """A real ``python -m wbmp serve`` process: it answers on the port it prints and its planning
+    process starts; Ctrl-C ends both (130), and its temporary folder is gone."""
     import os
     import re
     import signal
@@ -278,8 +278,17 @@ def test_ctrl_c_stops_the_server_and_removes_its_folder(tmp_path):
     try:
         line = proc.stdout.readline()
         url = re.search(r"http://127\.0\.0\.1:\d+/", line).group(0)
-        with urllib.request.urlopen(url + "api/state", timeout=30) as r:
-            assert json.loads(r.read())["robot"] == "talos"
+        import time
+
+        deadline = time.monotonic() + 120
+        while True:  # the planning process started (under python -m: not a second server)
+            with urllib.request.urlopen(url + "api/state", timeout=30) as r:
+                state = json.loads(r.read())
+            assert state["robot"] == "talos" and state["worker"] != "failed"
+            if state["worker"] == "ready" or time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+        assert state["worker"] == "ready"
         assert [p.name.startswith("wbmp-serve-") for p in tmp_path.iterdir()] == [True]
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import multiprocessing
 import os
 import secrets
 import shutil
 import signal
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -226,18 +227,31 @@ class Session:
 
     # ---- the dispatcher ------------------------------------------------------------------
     def _start_worker(self) -> None:
-        from wbmp.serve import worker
+        """The planning process: ``python -c`` of :func:`wbmp.serve.worker.child` with two pipes
+        (not multiprocessing's spawn, which runs the parent's ``__main__`` again in the child:
+        ``python -m wbmp serve`` would start a second server)."""
+        from wbmp.serve.worker import Channel
 
-        context = multiprocessing.get_context("spawn")
-        parent, child = context.Pipe()
-        process = context.Process(target=worker.main, args=(child,), name="wbmp-serve-planner", daemon=True)
-        process.start()
-        child.close()
-        if not parent.poll(WORKER_START_TIMEOUT) or parent.recv() != ("ready",):
+        to_child_r, to_child_w = os.pipe()
+        from_child_r, from_child_w = os.pipe()
+        root = str(Path(__file__).resolve().parents[2])  # the wbmp the server runs, first on the path
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
+        try:
+            process = subprocess.Popen(
+                [sys.executable, "-c", "import sys; from wbmp.serve.worker import child; "
+                 "child(int(sys.argv[1]), int(sys.argv[2]))", str(to_child_r), str(from_child_w)],
+                pass_fds=(to_child_r, from_child_w), env=env, stdin=subprocess.DEVNULL)
+        finally:
+            os.close(to_child_r)
+            os.close(from_child_w)
+        conn = Channel(from_child_r, to_child_w)
+        if not conn.poll(WORKER_START_TIMEOUT) or conn.recv() != ("ready",):
             process.kill()
+            process.wait()
+            conn.close()
             raise RuntimeError("the planning process did not start")
         with self._lock:
-            self._worker, self._conn = process, parent
+            self._worker, self._conn = process, conn
             self.worker_state = "ready"
 
     def _dispatch(self) -> None:
@@ -422,10 +436,12 @@ class Session:
         if worker is not None:
             with contextlib.suppress(OSError, ValueError, BrokenPipeError):
                 conn.send(None)
-            worker.join(5)
-            if worker.is_alive():
+            try:
+                worker.wait(10)
+            except subprocess.TimeoutExpired:
                 worker.kill()
-                worker.join(5)
+                worker.wait()
+            conn.close()
         if self._own_folder:
             shutil.rmtree(self.folder, ignore_errors=True)
 

@@ -5,7 +5,7 @@ motion cache warm between jobs, and the stop button sends it SIGINT, which stops
 way Ctrl-C stops ``wbmp solve`` (:func:`wbmp.errors.check_signals`: also when CasADi turned the
 interrupt into an IPOPT failure), after which the child waits for the next job.
 
-Messages on the pipe, child to server: ``("ready",)``, ``("progress", text)``, ``("done",
+Messages on the pipes (:class:`Channel`), child to server: ``("ready",)``, ``("progress", text)``, ``("done",
 summary)``, ``("error", one_line_message, exit_code)``, ``("cancelled",)``. Server to child: a
 job dictionary (:func:`run_job`), or None to end.
 """
@@ -33,8 +33,41 @@ def _on_sigint(signum, frame) -> None:  # noqa: ARG001 - the signal-handler sign
     raise KeyboardInterrupt()
 
 
+class Channel:
+    """Pickled messages over two pipes (``multiprocessing.connection`` framing): ``send``,
+    ``recv``, ``poll``, ``close``, as a duplex ``multiprocessing.Pipe`` end."""
+
+    def __init__(self, read_fd: int, write_fd: int) -> None:
+        from multiprocessing.connection import Connection
+
+        self._in = Connection(read_fd, writable=False)
+        self._out = Connection(write_fd, readable=False)
+
+    def send(self, obj: Any) -> None:
+        """Send one message."""
+        self._out.send(obj)
+
+    def recv(self) -> Any:
+        """The next message (EOFError when the other side is gone)."""
+        return self._in.recv()
+
+    def poll(self, timeout: float = 0.0) -> bool:
+        """Whether a message arrives within ``timeout`` seconds."""
+        return self._in.poll(timeout)
+
+    def close(self) -> None:
+        """Close both pipes."""
+        self._in.close()
+        self._out.close()
+
+
+def child(read_fd: int, write_fd: int) -> None:
+    """Entry point of the planning process (``python -c``; see ``Session._start_worker``)."""
+    main(Channel(read_fd, write_fd))
+
+
 def main(conn: Any) -> None:
-    """The child's loop (the target of ``multiprocessing``'s spawn context)."""
+    """The child's loop: jobs from ``conn``, messages back on it."""
     global _busy, _interrupted
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
