@@ -204,14 +204,20 @@ def unpack_data(text: str) -> dict:
     return {"scene": scene_cmds, "motions": motions, "durations": header["durations"], "camera": header["camera"]}
 
 
-def render_page(data: str, robot_name: str, plan, *, execution=None, title: str = "") -> str:
-    """The page around :func:`page_data`'s data: title, subtitle, meshcat's viewer, the player."""
+def render_page(data: str, robot_name: str, plan, *, execution=None, title: str = "",
+                meshcat_src: str | None = None) -> str:
+    """The page around :func:`page_data`'s data: title, subtitle, meshcat's viewer, the player.
+
+    ``meshcat_src``: load meshcat's bundle from this same-origin URL instead of embedding it
+    (``wbmp serve``'s viewer: the browser fetches the 0.85 MB once for every motion)."""
     page_title = title or plan.spec.description or plan.spec.name or f"wbmp: {robot_name}"
     template = resources.files("viz").joinpath("player.html").read_text(encoding="utf-8")
+    bundle = meshcat_bundle() if meshcat_src is None else \
+        f'</script><script src="{html.escape(meshcat_src)}">'  # an empty inline script, then the file
     return (template
             .replace("{{TITLE}}", html.escape(page_title))
             .replace("{{SUBTITLE}}", html.escape(_subtitle(robot_name, plan, execution)))
-            .replace("{{MESHCAT}}", meshcat_bundle())
+            .replace("{{MESHCAT}}", bundle)
             .replace("{{DATA}}", data))
 
 

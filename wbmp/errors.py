@@ -211,6 +211,10 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     _R("viz.motion.VizInputError", None,
        "arrays that do not match the robot: a bug (`wbmp show` names the motion file, exit 2)"),
     _R("viz.live.ViewerError", ExitCode.INTERNAL, "the meshcat server did not start or died (one line)"),
+    # wbmp serve: shown on the page as one line with this code (HTTP 400, 429, 503)
+    _R("wbmp.serve.corrections.CorrectionError", ExitCode.USAGE, "a correction that changes nothing of the last motion"),
+    _R("wbmp.serve.session.Busy", ExitCode.USAGE, "wbmp serve's queue is full (HTTP 429)"),
+    _R("wbmp.serve.session.Unavailable", ExitCode.INTERNAL, "wbmp serve's planning process is not running (HTTP 503)"),
 )
 del _R
 _RULES = {rule.exception: rule for rule in EXIT_TABLE}

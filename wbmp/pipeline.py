@@ -38,6 +38,11 @@ class SolveRequest:
         simulate: Run the controller in MuJoCo and certify the motion.
         push: ``"N@t"`` push on the base during simulation, or None: above 0 N, at most
             ``sim.MAX_PUSH_FORCE``, and a time within the motion (0 <= t < horizon).
+        actions: A ``language.ActionPlan`` to plan instead of parsing ``instruction`` (which
+            then only names the motion): ``wbmp serve``'s corrections change the actions'
+            parameters. Such a request is looked up in the motion cache by its spec only.
+        profile: A ``robots.RobotProfile`` to plan a sentence or actions with instead of
+            ``robot`` (``wbmp serve``'s "slower" on a walk changes its ``step_duration``).
 
     :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
     needs no work to see: an empty ``robot`` or ``scene_path``, an instruction longer than
@@ -52,6 +57,8 @@ class SolveRequest:
     llm_options: dict[str, Any] = field(default_factory=dict)
     simulate: bool = True
     push: str | None = None
+    actions: Any = None
+    profile: Any = None
 
     def check(self) -> None:
         """Refuse contradictory or empty options before any work (:class:`CliError`, exit 2)."""
@@ -163,8 +170,8 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     if not request.instruction or not request.instruction.strip():
         raise CliError("give an instruction in quotes, or --spec FILE", ExitCode.USAGE)
     progress("parsing the instruction")
-    actions = parse_instruction(request)
-    robot = load_robot(request.robot or "talos")
+    actions = parse_instruction(request) if request.actions is None else request.actions
+    robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
     from tasks.compose import compile_actions, fit_actions
 
     # unstated sizes chosen within the robot's limits, so that the printed defaults are the ones used
@@ -207,7 +214,7 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     request.check()
     motions = MotionCache(cache_dir)
     t0 = time.perf_counter()
-    rkey = request_key(request)
+    rkey = request_key(request) if request.actions is None else None  # given actions: keyed by the spec
     if rkey is not None and cache_read:
         found = motions.lookup_request(rkey)
         if found is not None:
@@ -237,7 +244,8 @@ class _LazyRobot:
         if self._robot is None:
             from robots import load_robot
 
-            self._robot = load_robot(self._request.robot or self._name)
+            request = self._request
+            self._robot = load_robot(request.profile if request.profile is not None else request.robot or self._name)
         return self._robot
 
     def __getattr__(self, attr: str) -> Any:
@@ -286,6 +294,8 @@ def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
     if spec is None:
         spec = plan.spec if request.instruction is None else dataclasses.replace(plan.spec,
                                                                                  description=request.instruction)
+    if actions is None and request.actions is not None:
+        actions = request.actions
     if actions is None and request.instruction is not None:
         actions = parse_instruction(request)  # milliseconds; the describe() lines and the report's actions
     plan = dataclasses.replace(plan, spec=spec, stats=dataclasses.replace(plan.stats, cache="cached"))
