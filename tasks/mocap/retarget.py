@@ -1,0 +1,297 @@
+"""A human clip as a robot task: scaled, aligned, cut into contact phases, tracked by costs.
+
+:func:`retarget_spec` makes the whole-trajectory problem the planner solves (docs/retarget.md):
+
+* **Scale** (one number per robot and clip): the robot's standing base height over the human's
+  standing pelvis height (leg length from hip to ankle, its 95th percentile over the clip, plus the
+  ankle's height and the pelvis above the hips). Arms get their own ratio (the robot's
+  shoulder-to-hand chain over the human's longest shoulder-to-hand distance).
+* **Align**: the clip already faces +x from the pelvis at its first frame with the ground at 0
+  (:func:`tasks.mocap.source.human_motion`); the whole scaled clip is moved so that its first-frame
+  feet sit where the robot's standing feet are (their mean), and each foot keeps the offset of its
+  first frame (turned with the foot's yaw), so the robot's stance width is kept.
+* **Contacts**: the labelled contacts (:func:`tasks.mocap.source.label_contacts`), sampled on the
+  knot grid, become phases; each stance of a foot is one fixed placement on the ground (the
+  median of the scaled source foot over the stance): the planner holds it in 6D (no slip) and
+  keeps every other foot above the floor. A stance that holds at the first frame is the standing
+  placement. A lead-in (standing) precedes the clip and a lead-out (both feet down where they last
+  were) follows it, so the motion starts and ends at rest.
+* **Tracking**: soft targets at every knot of the clip on the base (position and heading), torso,
+  head, both hands and, while swinging, both feet: the scaled source keypoints, each with a
+  per-keypoint offset for the robot's proportions (torso, head, shoulders: the median offset from
+  the pelvis in the heading frame; hands: from the tracked shoulder, with the arm ratio).
+
+The robot's joint, velocity and torque limits, friction, self-collision and (when a phase has one
+foot or none) the centroidal dynamics are the planner's, as for any spec.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.mocap.exceptions import ClipError
+from tasks.mocap.source import SIDES, HumanMotion, segments
+from tasks.primitives.geometry import Stance, standing_geometry
+from tasks.specs import CoMBounds, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
+
+LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
+LEAD_OUT = 0.5  # [s] both feet down after it
+DT = 0.08  # [s] knot spacing
+MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
+MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
+# Cost weights per second of tracked motion [1/m^2 s]; a knot's weight is this times dt.
+WEIGHTS = {"base": 400.0, "torso": 100.0, "head": 100.0, "left_hand": 200.0, "right_hand": 200.0,
+           "left_foot": 200.0, "right_foot": 200.0}
+HEADING_WEIGHT = 20.0  # [1/rad^2 s] base orientation towards the source heading
+SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x the source's lift, within these
+# The tracking targets' report tolerance [m]: the simulation's certificate checks each target within
+# it (plus its margin): the robot executing the plan, not the plan matching the human (that is
+# the tracking error among the figures; a robot's proportions keep it centimetres away).
+TRACK_TOLERANCE = 0.25
+TRACKED = ("base", "torso", "head", "left_hand", "right_hand", "left_foot", "right_foot")
+
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """The scaled source on the robot, on the clip's frames and the planner's time axis.
+
+    Attributes:
+        t: Frame times on the plan's time axis (F,) [s] (the lead-in shifts them).
+        points: Robot role -> target positions (F, 3) [m] (base, torso, head, hands, feet).
+        contact: Foot side -> labelled contact per frame (F,).
+        placements: Foot side -> per frame, the sole's fixed ground position while in contact
+            (F, 3) [m] (NaN in swing).
+        heading: Source heading per frame (F,) [rad].
+        scale: Body scale robot / human [-].
+        arm_scale: Arm scale robot / human [-].
+        lead_in: Seconds of standing before the clip [s].
+    """
+
+    t: np.ndarray
+    points: dict[str, np.ndarray]
+    contact: dict[str, np.ndarray]
+    placements: dict[str, np.ndarray]
+    heading: np.ndarray
+    scale: float
+    arm_scale: float
+    lead_in: float
+
+
+def _rot(yaw: np.ndarray | float) -> np.ndarray:
+    yaw = np.asarray(yaw, dtype=float)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.zeros((*yaw.shape, 3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 1, 0], out[..., 1, 1], out[..., 2, 2] = c, -s, s, c, 1.0
+    return out
+
+
+def body_scale(motion: HumanMotion, robot: Robot) -> tuple[float, float]:
+    """(body scale, arm scale) robot / human (see the module)."""
+    g = standing_geometry(robot)
+    P = motion.points
+    leg = np.mean([np.percentile(np.linalg.norm(P[f"{s}_hip"] - P[f"{s}_ankle"], axis=1), 95) for s in SIDES])
+    ankle = np.mean([np.percentile(P[f"{s}_ankle"][:, 2], 5) for s in SIDES])
+    above = np.median(P["pelvis"][:, 2] - 0.5 * (P["left_hip"][:, 2] + P["right_hip"][:, 2]))
+    human = float(leg + ankle + above)
+    robot_base = float(g.placements["base"].translation[2])
+    arm = np.mean([np.percentile(np.linalg.norm(P[f"{s}_hand"] - P[f"{s}_shoulder"], axis=1), 99) for s in SIDES])
+    robot_arm = float(np.mean([g.arm_length[s] for s in SIDES]))
+    return robot_base / human, robot_arm / float(arm)
+
+
+def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *,
+              lead_in: float = LEAD_IN) -> Reference:
+    """The scaled and aligned source keypoints and foot placements (see the module)."""
+    g = standing_geometry(robot)
+    stand = {role: M.translation for role, M in g.placements.items()}
+    s, s_arm = body_scale(motion, robot)
+    P = {k: s * v for k, v in motion.points.items()}
+    heading = motion.heading()
+    R = _rot(heading)
+    foot = {side: 0.5 * (P[f"{side}_ankle"] + P[f"{side}_toe"]) for side in SIDES}
+    for side in SIDES:
+        foot[side][:, 2] = np.minimum(P[f"{side}_ankle"][:, 2], P[f"{side}_toe"][:, 2])
+    shift = np.mean([stand[f"{side}_foot"] - foot[side][0] for side in SIDES], axis=0)
+    shift[2] = 0.0
+    P = {k: v + shift for k, v in P.items()}
+    foot = {side: v + shift for side, v in foot.items()}
+    points: dict[str, np.ndarray] = {}
+    # the base: the pelvis, its height corrected to the robot's standing base height
+    base_z = stand["base"][2] - float(np.percentile(P["pelvis"][:, 2], 95))
+    points["base"] = P["pelvis"] + [0.0, 0.0, base_z]
+    for key, role in (("torso", "torso"), ("head", "head"), ("left_shoulder", "left_shoulder"),
+                      ("right_shoulder", "right_shoulder")):
+        robot_rel = stand[role] - stand["base"]  # standing: heading 0
+        human_rel = np.einsum("fba,fb->fa", R, P[key] - P["pelvis"])  # in the heading frame
+        offset = robot_rel - np.median(human_rel, axis=0)
+        points[role] = points["base"] + (P[key] - P["pelvis"]) + np.einsum("fab,b->fa", R, offset)
+    for side in SIDES:
+        points[f"{side}_hand"] = points[f"{side}_shoulder"] + s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
+    placements: dict[str, np.ndarray] = {}
+    contact = {side: np.asarray(labels[side], dtype=bool) for side in SIDES}
+    for side in SIDES:
+        yaw = motion.foot_yaw(side)
+        d0 = stand[f"{side}_foot"] - foot[side][0]
+        d0[2] = 0.0
+        sole = foot[side] + np.einsum("fab,b->fa", _rot(yaw - yaw[0]), d0)
+        sole[:, 2] = np.maximum(sole[:, 2], 0.0)
+        points[f"{side}_foot"] = sole
+        fixed = np.full_like(sole, np.nan)
+        for a, b, down in segments(contact[side]):
+            if not down:
+                continue
+            where = stand[f"{side}_foot"] if a == 0 else np.array([*np.median(sole[a:b, :2], axis=0), 0.0])
+            fixed[a:b] = where
+        placements[side] = fixed
+    return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in)
+
+
+def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: float) -> float:
+    yaw = motion.foot_yaw(side)
+    return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
+
+
+def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
+                  description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
+    """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
+    where = motion.source or "clip"
+    duration = float(motion.t[-1])
+    if duration > MAX_CLIP:
+        raise ClipError(f"{where}: the window lasts {duration:.1f} s; wbmp retargets at most {MAX_CLIP:g} s at a "
+                        "time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with --start/--end")
+    ref = reference(motion, labels, robot)
+    g = standing_geometry(robot)
+    stand_pose = Stance.standing(robot)
+    stand_yaw = {side: float(stand_pose.sole(side).rpy[2]) for side in SIDES}
+    # the contact state per knot of the clip, cleaned of phases shorter than MIN_PHASE_KNOTS
+    n = max(1, int(round(duration / dt)))
+    frames = np.clip(np.round(np.linspace(0.0, duration, n + 1) / motion.frame_time).astype(int), 0, len(motion.t) - 1)
+    state = np.array([[ref.contact[s][f] for s in SIDES] for f in frames])  # (n+1, 2)
+    code = state[:, 0].astype(int) * 2 + state[:, 1].astype(int)
+    code = _merge_short(code, MIN_PHASE_KNOTS)
+    # stances of each foot on the knot grid -> one placement each
+    stance_pose: dict[str, list[tuple[int, int, Pose]]] = {}
+    for i, side in enumerate(SIDES):
+        down = (code >> (1 - i)) & 1
+        runs = []
+        for a, b, on in segments(down.astype(bool)):
+            if not on:
+                continue
+            fa, fb = frames[a], max(frames[min(b, n)], frames[a] + 1)
+            if a == 0:
+                pose = stand_pose.sole(side)
+            else:
+                xy = np.median(ref.points[f"{side}_foot"][fa:fb, :2], axis=0)
+                pose = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                            rpy=(0.0, 0.0, _foot_yaw_at(motion, side, fa, fb, stand_yaw[side])))
+            runs.append((a, b, pose))
+        stance_pose[side] = runs
+    # the lead-out stands each foot where it last was (a foot in the air lands where the source's last is)
+    last: dict[str, Pose] = {}
+    for side in SIDES:
+        if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
+            last[side] = stance_pose[side][-1][2]
+        else:
+            xy = ref.points[f"{side}_foot"][-1, :2]
+            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                              rpy=(0.0, 0.0, _foot_yaw_at(motion, side, len(motion.t) - 5, len(motion.t), stand_yaw[side])))
+    frames_of = {side: robot.frame(f"{side}_foot") for side in SIDES}
+
+    def contacts_at(k: int) -> tuple[Contact, ...]:
+        out = []
+        for i, side in enumerate(SIDES):
+            if (code[k] >> (1 - i)) & 1:
+                pose = next(p for a, b, p in stance_pose[side] if a <= k < b)
+                out.append(Contact(frame=frames_of[side], placement=pose))
+        return tuple(out)
+
+    phases = [Phase(name="lead-in (standing)", duration=LEAD_IN,
+                    contacts=tuple(Contact(frame=frames_of[s], placement=stand_pose.sole(s)) for s in SIDES))]
+    names = {3: "double support", 2: "left support", 1: "right support", 0: "flight"}
+    for a, b, _ in segments_of(code):
+        lift = _lift(ref, code, a, b, frames, n)
+        phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
+                            duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
+    phases = [p for p in phases if p.duration > 1e-9]
+    phases.append(Phase(name="lead-out (both feet down)", duration=LEAD_OUT,
+                        contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
+    clip_horizon = sum(p.duration for p in phases[1:-1])
+    targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon)
+    dynamic = True if dynamic is None else dynamic
+    spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
+                    com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
+                    dt=dt, dynamic=dynamic, name=name or f"retarget {where}", description=description)
+    return spec, ref
+
+
+def segments_of(code: np.ndarray) -> list[tuple[int, int, int]]:
+    """Runs of equal contact codes on the knot grid: (first knot, last knot + 1, code)."""
+    edges = np.flatnonzero(np.diff(code)) + 1
+    starts = np.concatenate([[0], edges]).astype(int)
+    ends = np.concatenate([edges, [len(code)]]).astype(int)
+    return [(int(a), int(b), int(code[a])) for a, b in zip(starts, ends, strict=True)]
+
+
+def _merge_short(code: np.ndarray, min_knots: int) -> np.ndarray:
+    """A run shorter than ``min_knots`` (not the first or last) takes the code of its longer neighbour."""
+    code = code.copy()
+    for _ in range(len(code)):
+        runs = segments_of(code)
+        short = [(b - a, i) for i, (a, b, _) in enumerate(runs) if b - a < min_knots and 0 < i < len(runs) - 1]
+        if not short:
+            break
+        _, i = min(short)
+        a, b, _ = runs[i]
+        left, right = runs[i - 1], runs[i + 1]
+        code[a:b] = left[2] if left[1] - left[0] >= right[1] - right[0] else right[2]
+    return code
+
+
+def _lift(ref: Reference, code: np.ndarray, a: int, b: int, frames: np.ndarray, n: int) -> float:
+    """Mid-swing clearance asked in a phase: 0.8 x the source's highest swinging sole, within SWING_CLEARANCE."""
+    fa, fb = frames[a], frames[min(b, n)] + 1
+    up = [ref.points[f"{side}_foot"][fa:fb, 2].max() for i, side in enumerate(SIDES) if not (code[a] >> (1 - i)) & 1]
+    if not up:
+        return 0.05
+    lo, hi = SWING_CLEARANCE
+    return float(min(hi, max(lo, 0.8 * max(up))))
+
+
+def _smoothstep(x: float) -> float:
+    x = min(1.0, max(0.0, x))
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _tracking_targets(ref: Reference, robot: Robot, code: np.ndarray, frames: np.ndarray, dt: float, n: int,
+                      horizon: float) -> list[FrameTarget]:
+    out = []
+    base_rotation = standing_geometry(robot).placements["base"].rotation
+    g = standing_geometry(robot)
+    n_in = int(round(ref.lead_in / dt))
+    for k in range(-n_in + 2, n + 1):
+        t = ref.lead_in + k * dt
+        if k * dt > horizon + 1e-9:
+            break
+        f = frames[max(k, 0)]
+        blend = 1.0 if k >= 0 else _smoothstep((k + n_in) / n_in)  # the lead-in: from standing to the first pose
+        for role in TRACKED:
+            if role.endswith("_foot"):
+                i = SIDES.index(role.split("_")[0])
+                if k < 0 or (code[k] >> (1 - i)) & 1:
+                    continue  # a stance foot is held by its contact
+            p = g.placements[role].translation + blend * (ref.points[role][f] - g.placements[role].translation)
+            out.append(FrameTarget(name=f"track {role} {t:.3f}", frame=robot.frame(role),
+                                   position=(float(p[0]), float(p[1]), float(p[2])), time=round(t, 9),
+                                   priority=Priority.SOFT, weight=WEIGHTS[role] * dt, tolerance=TRACK_TOLERANCE))
+        rpy = pin.rpy.matrixToRpy(pin.rpy.rpyToMatrix(0.0, 0.0, blend * float(ref.heading[f])) @ base_rotation)
+        out.append(FrameTarget(name=f"track heading {t:.3f}", frame=robot.frame("base"),
+                               rpy=(float(rpy[0]), float(rpy[1]), float(rpy[2])),
+                               time=round(t, 9), priority=Priority.SOFT, weight=HEADING_WEIGHT * dt,
+                               orientation_tolerance=math.pi / 2))
+    return out
