@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default="talos", help="robot name or profile file (default: talos)")
     p.add_argument("--start", type=seconds, default=None, metavar="S", help="start of the window [s] (default: 0)")
     p.add_argument("--end", type=seconds, default=None, metavar="S",
-                   help="end of the window [s] (default: the clip's end; a window lasts at most 58.4 s)")
+                   help="end of the window [s] (default: the clip's end; a window lasts at most 58.7 s)")
     p.add_argument("--skeleton", metavar="FILE", default=None,
                    help="skeleton mapping (TOML: unit, up, forward and the keypoints' joints; docs/retarget.md) "
                         "for a skeleton wbmp does not recognise")
