@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 import pinocchio as pin
@@ -40,13 +41,14 @@ from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import CoMBounds, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
 
 LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
-LEAD_OUT = 0.5  # [s] both feet down after it
+LEAD_OUT = 1.0  # [s] both feet down after it (coming to rest)
 DT = 0.08  # [s] knot spacing
 MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
 MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
 # Cost weights per second of tracked motion [1/m^2 s]; a knot's weight is this times dt.
 WEIGHTS = {"base": 400.0, "torso": 100.0, "head": 100.0, "left_hand": 200.0, "right_hand": 200.0,
            "left_foot": 200.0, "right_foot": 200.0}
+SMOOTHNESS = 1e-2  # [-] the spec's cost on accelerations (TaskSpec's default 1e-3 let a walk's plan fail its RNEA check)
 HEADING_WEIGHT = 20.0  # [1/rad^2 s] base orientation towards the source heading
 SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x the source's lift, within these
 # The tracking targets' report tolerance [m]: the simulation's certificate checks each target within
@@ -70,6 +72,8 @@ class Reference:
         scale: Body scale robot / human [-].
         arm_scale: Arm scale robot / human [-].
         lead_in: Seconds of standing before the clip [s].
+        stride_scale: How much the body's travel over the ground was shortened to fit the robot's
+            longest stride (1: not shortened).
     """
 
     t: np.ndarray
@@ -80,6 +84,7 @@ class Reference:
     scale: float
     arm_scale: float
     lead_in: float
+    stride_scale: float = 1.0
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -113,6 +118,9 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
     P = {k: s * v for k, v in motion.points.items()}
     heading = motion.heading()
     R = _rot(heading)
+    stride = stride_scale(P, labels, robot)
+    pelvis_xy = P["pelvis"] * [1.0, 1.0, 0.0]
+    P = {k: v - (1.0 - stride) * pelvis_xy for k, v in P.items()}  # the body's travel shortened, its shape kept
     foot = {side: 0.5 * (P[f"{side}_ankle"] + P[f"{side}_toe"]) for side in SIDES}
     for side in SIDES:
         foot[side][:, 2] = np.minimum(P[f"{side}_ankle"][:, 2], P[f"{side}_toe"][:, 2])
@@ -121,6 +129,8 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
     P = {k: v + shift for k, v in P.items()}
     foot = {side: v + shift for side, v in foot.items()}
     points: dict[str, np.ndarray] = {}
+    placements: dict[str, np.ndarray] = {}
+    contact = {side: np.asarray(labels[side], dtype=bool) for side in SIDES}
     # the base: the pelvis, its height corrected to the robot's standing base height
     base_z = stand["base"][2] - float(np.percentile(P["pelvis"][:, 2], 95))
     points["base"] = P["pelvis"] + [0.0, 0.0, base_z]
@@ -131,14 +141,30 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         offset = robot_rel - np.median(human_rel, axis=0)
         points[role] = points["base"] + (P[key] - P["pelvis"]) + np.einsum("fab,b->fa", R, offset)
     for side in SIDES:
-        points[f"{side}_hand"] = points[f"{side}_shoulder"] + s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
-    placements: dict[str, np.ndarray] = {}
-    contact = {side: np.asarray(labels[side], dtype=bool) for side in SIDES}
+        arm = s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
+        # a hanging arm hangs as the robot's does at standing (its hands clear of its thighs): the
+        # offset between the two, in the heading frame, applied in full to a hanging arm and
+        # fading out as the arm rises to horizontal
+        hang = np.clip(-arm[:, 2] / max(1e-6, float(np.linalg.norm(arm, axis=1).max())), 0.0, 1.0)
+        k = int(np.argmax(hang))
+        robot_arm = stand[f"{side}_hand"] - stand[f"{side}_shoulder"]
+        offset = robot_arm - R[k].T @ arm[k]
+        hand = points[f"{side}_shoulder"] + arm + hang[:, None] * np.einsum("fab,b->fa", R, offset)
+        # below the hips, a hand stays at least as far out sideways as the robot's standing hand
+        # (the robot's thighs are wider than a human's: a swinging hand would strike them)
+        local = np.einsum("fba,fb->fa", R, hand - points["base"])
+        sign = 1.0 if side == "left" else -1.0
+        least = sign * (stand[f"{side}_hand"][1] - stand["base"][1])
+        low = local[:, 2] < 0.0
+        local[low, 1] = sign * np.maximum(sign * local[low, 1], least)
+        points[f"{side}_hand"] = points["base"] + np.einsum("fab,fb->fa", R, local)
     for side in SIDES:
-        yaw = motion.foot_yaw(side)
-        d0 = stand[f"{side}_foot"] - foot[side][0]
-        d0[2] = 0.0
-        sole = foot[side] + np.einsum("fab,b->fa", _rot(yaw - yaw[0]), d0)
+        # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
+        # over the labelled stances) becomes the robot's standing one
+        lateral = np.einsum("fba,fb->fa", R, foot[side] - P["pelvis"])[:, 1]
+        stance = contact[side] if contact[side].any() else np.ones(len(lateral), dtype=bool)
+        d_y = (stand[f"{side}_foot"][1] - stand["base"][1]) - float(np.median(lateral[stance]))
+        sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
         sole[:, 2] = np.maximum(sole[:, 2], 0.0)
         points[f"{side}_foot"] = sole
         fixed = np.full_like(sole, np.nan)
@@ -149,7 +175,20 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
             fixed[a:b] = where
         placements[side] = fixed
     return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
-                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in)
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride)
+
+
+def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot: Robot) -> float:
+    """How much the body's travel is shortened so that no stride (a foot from one stance to its next)
+    exceeds the robot's: twice its profile's longest step (``step_length_max``); 1 = not shortened."""
+    longest = 0.0
+    for side in SIDES:
+        mid = 0.5 * (P[f"{side}_ankle"] + P[f"{side}_toe"])[:, :2]
+        stances = [np.median(mid[a:b], axis=0) for a, b, down in segments(np.asarray(labels[side], dtype=bool)) if down]
+        for p0, p1 in pairwise(stances):
+            longest = max(longest, float(np.linalg.norm(p1 - p0)))
+    limit = 2.0 * robot.profile.step_length_max
+    return 1.0 if longest <= limit else limit / longest
 
 
 def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: float) -> float:
@@ -226,7 +265,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     dynamic = True if dynamic is None else dynamic
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
-                    dt=dt, dynamic=dynamic, name=name or f"retarget {where}", description=description)
+                    dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
+                    description=description)
     return spec, ref
 
 
