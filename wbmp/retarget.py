@@ -54,6 +54,8 @@ class RetargetResult(SolveResult):
             section["scale"] = self.reference.scale
             section["arm_scale"] = self.reference.arm_scale
             section["lead_in_s"] = self.reference.lead_in
+            section["stride_scale"] = self.reference.stride_scale
+            section["time_scale"] = self.reference.time_scale
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:

@@ -27,6 +27,7 @@ foot or none) the centroidal dynamics are the planner's, as for any spec.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from itertools import pairwise
@@ -55,6 +56,9 @@ SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x
 # it (plus its margin): the robot executing the plan, not the plan matching the human (that is
 # the tracking error among the figures; a robot's proportions keep it centimetres away).
 TRACK_TOLERANCE = 0.25
+MIN_SWING = 0.5  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
+SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
+SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
 TRACKED = ("base", "torso", "head", "left_hand", "right_hand", "left_foot", "right_foot")
 
 
@@ -74,6 +78,7 @@ class Reference:
         lead_in: Seconds of standing before the clip [s].
         stride_scale: How much the body's travel over the ground was shortened to fit the robot's
             longest stride (1: not shortened).
+        time_scale: How much slower than the human the robot moves (1: as fast; :func:`time_scale`).
     """
 
     t: np.ndarray
@@ -85,6 +90,7 @@ class Reference:
     arm_scale: float
     lead_in: float
     stride_scale: float = 1.0
+    time_scale: float = 1.0
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -167,6 +173,7 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
         sole[:, 2] = np.maximum(sole[:, 2], 0.0)
         points[f"{side}_foot"] = sole
+        contact[side] = drop_shuffles(contact[side], sole)
         fixed = np.full_like(sole, np.nan)
         for a, b, down in segments(contact[side]):
             if not down:
@@ -178,6 +185,36 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
                      heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride)
 
 
+def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot) -> float:
+    """How much slower than the human the robot moves (1: as fast): its shortest foot swing lasts at
+    least :data:`MIN_SWING` x the robot's step duration (its profile's single support), which
+    the whole clip is slowed down to give (a robot's foot cannot be lifted and set down again as
+    fast as a human's)."""
+    shortest = math.inf
+    for side in SIDES:
+        for a, b, down in segments(np.asarray(labels[side], dtype=bool)):
+            if not down and a > 0 and b < len(motion.t):  # a swing between two stances
+                shortest = min(shortest, (b - a) * motion.frame_time)
+    least = MIN_SWING * robot.profile.step_duration
+    return 1.0 if shortest >= least else least / shortest
+
+
+def drop_shuffles(contact: np.ndarray, sole: np.ndarray) -> np.ndarray:
+    """The contact labels with the shuffles filled in: a swing in which the sole rises less than
+    :data:`SHUFFLE_LIFT` and lands less than :data:`SHUFFLE_STEP` from where it left (a weight shift,
+    a foot adjusted on the spot) stays a contact; the robot keeps that foot down."""
+    out = contact.copy()
+    runs = segments(contact)
+    for i, (a, b, down) in enumerate(runs):
+        if down:
+            continue
+        before = sole[a - 1, :2] if i > 0 else sole[a, :2]
+        after = sole[b, :2] if b < len(sole) else sole[b - 1, :2]
+        if sole[a:b, 2].max() < SHUFFLE_LIFT and np.linalg.norm(after - before) < SHUFFLE_STEP:
+            out[a:b] = True
+    return out
+
+
 def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot: Robot) -> float:
     """How much the body's travel is shortened so that no stride (a foot from one stance to its next)
     exceeds the robot's: twice its profile's longest step (``step_length_max``); 1 = not shortened."""
@@ -187,7 +224,7 @@ def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot:
         stances = [np.median(mid[a:b], axis=0) for a, b, down in segments(np.asarray(labels[side], dtype=bool)) if down]
         for p0, p1 in pairwise(stances):
             longest = max(longest, float(np.linalg.norm(p1 - p0)))
-    limit = 2.0 * robot.profile.step_length_max
+    limit = 0.9 * 2.0 * robot.profile.step_length_max  # 10 % margin: the stances are re-measured on the knot grid
     return 1.0 if longest <= limit else limit / longest
 
 
@@ -200,17 +237,20 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                   description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
     """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
     where = motion.source or "clip"
+    slow = time_scale(motion, labels, robot)
+    if slow > 1.0:
+        motion = dataclasses.replace(motion, t=motion.t * slow)
     duration = float(motion.t[-1])
     if duration > MAX_CLIP:
         raise ClipError(f"{where}: the window lasts {duration:.1f} s; wbmp retargets at most {MAX_CLIP:g} s at a "
                         "time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with --start/--end")
-    ref = reference(motion, labels, robot)
+    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow)
     g = standing_geometry(robot)
     stand_pose = Stance.standing(robot)
     stand_yaw = {side: float(stand_pose.sole(side).rpy[2]) for side in SIDES}
     # the contact state per knot of the clip, cleaned of phases shorter than MIN_PHASE_KNOTS
     n = max(1, int(round(duration / dt)))
-    frames = np.clip(np.round(np.linspace(0.0, duration, n + 1) / motion.frame_time).astype(int), 0, len(motion.t) - 1)
+    frames = np.clip(np.round(np.arange(n + 1) * dt / motion.frame_time).astype(int), 0, len(motion.t) - 1)
     state = np.array([[ref.contact[s][f] for s in SIDES] for f in frames])  # (n+1, 2)
     code = state[:, 0].astype(int) * 2 + state[:, 1].astype(int)
     code = _merge_short(code, MIN_PHASE_KNOTS)
@@ -231,11 +271,23 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                             rpy=(0.0, 0.0, _foot_yaw_at(motion, side, fa, fb, stand_yaw[side])))
             runs.append((a, b, pose))
         stance_pose[side] = runs
-    # the lead-out stands each foot where it last was (a foot in the air lands where the source's last is)
+    # the lead-out stands each foot where it last was; a foot in the air at the end lands beside the
+    # other one as at standing (or, in a flight, where the source's is)
     last: dict[str, Pose] = {}
     for side in SIDES:
         if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
             last[side] = stance_pose[side][-1][2]
+    for side in SIDES:
+        other = SIDES[1 - SIDES.index(side)]
+        if side in last:
+            continue
+        if other in last:
+            o = last[other]
+            R0 = pin.rpy.rpyToMatrix(0.0, 0.0, o.rpy[2] - stand_yaw[other])
+            rel = np.array(stand_pose.sole(side).position) - np.array(stand_pose.sole(other).position)
+            xy = np.array(o.position) + R0 @ rel
+            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                              rpy=(0.0, 0.0, float(o.rpy[2] - stand_yaw[other] + stand_yaw[side])))
         else:
             xy = ref.points[f"{side}_foot"][-1, :2]
             last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),

@@ -90,7 +90,8 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     print("\n".join(line for line in plan_lines if not is_tracking(line)))
     ref = result.reference
     print(f"retarget: {result.clip_info.get('clip')} ({result.skeleton}), {result.clip_info.get('duration_s', 0):.2f} s, "
-          f"scale {ref.scale:.3f} (arms {ref.arm_scale:.3f})")
+          f"scale {ref.scale:.3f} (arms {ref.arm_scale:.3f}, travel {ref.stride_scale:.2f}), "
+          f"{ref.time_scale:.2f} x slower than the human")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:
         cert = result.execution.certificate
