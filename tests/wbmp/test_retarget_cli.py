@@ -96,3 +96,12 @@ def test_a_skeleton_mapping_that_names_missing_joints_exits_3(tmp_path, capsys):
     code = main(["retarget", str(clip), "--skeleton", str(mapping), "--no-sim", "--quiet"])
     err = capsys.readouterr().err
     assert code == 3 and "names joints the clip does not have: Xhead" in err
+
+
+def test_help_names_the_options(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["retarget", "--help"])
+    out = capsys.readouterr().out
+    assert info.value.code == 0
+    for option in ("--robot", "--start", "--end", "--skeleton", "--out", "--html", "--no-sim"):
+        assert option in out
