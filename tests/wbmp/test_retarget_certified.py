@@ -38,3 +38,21 @@ def test_a_squat_is_certified():
     assert result.figures.per_keypoint["left_hand"] < 0.05
     report = result.report()["retarget"]
     assert report["execution"]["foot_skate_mm"] == ex.skate and report["skeleton"].startswith("CMU MotionBuilder")
+
+
+@pytest.mark.long
+def test_the_whole_chicken_dance_is_certified():
+    """The whole 4.25 s clip (both feet down, arms and hips busy): certified; measured 0.9 mm skate,
+    2.0 mm penetration executed, 2.2 cm mean tracking error planned."""
+    result = _certified("18_15_dance.bvh", 0.0, 4.25)
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 6.0
+    assert result.figures.tracking_mean < 0.04
+
+
+@pytest.mark.long
+def test_a_squat_is_certified_on_g1():
+    """G1 (scale 0.77): the squat's first 2 s certified; measured 3.4 mm skate, 2.4 mm penetration."""
+    result = retarget(RetargetRequest(clip=str(EXAMPLES / "13_29_squat.bvh"), robot="g1", start=0.0, end=2.0))
+    assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
+    assert result.figures.skate <= 2.0 and result.figures.penetration <= 1.0
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 6.0
