@@ -242,8 +242,10 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         motion = dataclasses.replace(motion, t=motion.t * slow)
     duration = float(motion.t[-1])
     if duration > MAX_CLIP:
-        raise ClipError(f"{where}: the window lasts {duration:.1f} s; wbmp retargets at most {MAX_CLIP:g} s at a "
-                        "time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with --start/--end")
+        slowed = f" ({duration / slow:.1f} s slowed {slow:.2f} x for the robot's steps)" if slow > 1.0 else ""
+        raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}; wbmp retargets at most {MAX_CLIP:g} s "
+                        "at a time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with "
+                        "--start/--end")
     ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow)
     g = standing_geometry(robot)
     stand_pose = Stance.standing(robot)

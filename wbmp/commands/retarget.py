@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default="talos", help="robot name or profile file (default: talos)")
     p.add_argument("--start", type=seconds, default=None, metavar="S", help="start of the window [s] (default: 0)")
     p.add_argument("--end", type=seconds, default=None, metavar="S",
-                   help="end of the window [s] (default: the clip's end; a window lasts at most 58.7 s)")
+                   help="end of the window [s] (default: the clip's end; a window lasts at most 58.2 s)")
     p.add_argument("--skeleton", metavar="FILE", default=None,
                    help="skeleton mapping (TOML: unit, up, forward and the keypoints' joints; docs/retarget.md) "
                         "for a skeleton wbmp does not recognise")
@@ -76,9 +76,18 @@ def run(args: argparse.Namespace) -> int:
     return int(result.exit_code)
 
 
+def _json_default(obj):
+    import numpy as np
+
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)
+
+
 def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     """The plan, the figures and the certificate (tracking targets summed up by the figures)."""
-    from wbmp.commands.solve import _json_default
     from wbmp.retarget import is_tracking
 
     if as_json:
