@@ -114,7 +114,16 @@ def retarget(request: RetargetRequest, progress: Progress = _silent) -> Retarget
         check_signals()
         timings["simulate"] = time.perf_counter() - t0
     plan_figures = figures(robot, plan.t, plan.q, spec, ref)
-    exec_figures = figures(robot, execution.t, execution.q, spec, ref) if execution is not None else None
+    exec_figures = None
+    if execution is not None:
+        import dataclasses
+
+        from tasks.mocap.figures import torque_cause
+
+        exec_figures = figures(robot, execution.t, execution.q, spec, ref)
+        why = torque_cause(robot, exec_figures.worst_role, exec_figures.worst_time, execution.t, execution.tau)
+        if why:
+            exec_figures = dataclasses.replace(exec_figures, worst=f"{exec_figures.worst}: {why}")
     return RetargetResult(robot=robot, spec=spec, plan=plan, execution=execution, timings=timings, reference=ref,
                           figures=plan_figures, exec_figures=exec_figures, skeleton=skeleton, clip_info=info)
 

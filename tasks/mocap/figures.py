@@ -39,6 +39,8 @@ class Figures:
     float_: float  # [mm]
     jerk: float  # [rad/s^3]
     per_keypoint: dict[str, float | None]  # mean tracking error per keypoint [m] (None: never tracked)
+    worst_role: str = ""  # the keypoint of the largest error
+    worst_time: float = 0.0  # [s] when it happened
 
     def to_dict(self) -> dict[str, object]:
         """The figures as JSON-ready numbers."""
@@ -119,7 +121,35 @@ def figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Ref
     jerk = float(np.abs(np.diff(joints[inside], n=3, axis=0)).mean() / dt**3) if inside.sum() > 3 else 0.0
     return Figures(tracking_mean=float(np.nanmean(stack)), tracking_max=float(np.nanmax(stack)), worst=worst,
                    skate=1000.0 * skate, penetration=1000.0 * max(0.0, -low), float_=1000.0 * max(0.0, float_),
-                   jerk=jerk, per_keypoint={r: _mean(errors[r]) for r in TRACKED})
+                   jerk=jerk, per_keypoint={r: _mean(errors[r]) for r in TRACKED}, worst_role=worst_role,
+                   worst_time=float(t[i_t]))
+
+
+def torque_cause(robot: Robot, role: str, time: float, t: np.ndarray, tau: np.ndarray,
+                 window: float = 0.3, share: float = 0.95) -> str:
+    """Why a keypoint missed its source, when a joint that carries it was at its torque limit:
+    ``"arm_right_2_joint at its torque limit (21.7 of 22.3 N m)"`` (the joint of the frame's chain
+    with the highest peak |tau| / limit within ``window`` [s] of ``time``, if at least ``share``);
+    empty otherwise. ``tau`` (T, nv - 6) [N m] at times ``t`` (T,)."""
+    model = robot.model
+    joint = model.frames[robot.frame_id(role)].parentJoint
+    chain = []
+    while joint > 1:  # the actuated joints up to the free flyer
+        chain.append(joint)
+        joint = model.parents[joint]
+    near = np.abs(t - time) <= window
+    limits = robot.torque_limits
+    if not near.any() or not chain or tau.shape[1] != len(limits):
+        return ""
+    best, name, peak, limit = 0.0, "", 0.0, 0.0
+    for j in chain:
+        col = model.joints[j].idx_v - 6
+        if not 0 <= col < len(limits) or limits[col] <= 0:
+            continue
+        p = float(np.abs(tau[near, col]).max())
+        if p / limits[col] > best:
+            best, name, peak, limit = p / limits[col], model.names[j], p, float(limits[col])
+    return f"{name} at its torque limit ({peak:.1f} of {limit:.1f} N m)" if best >= share else ""
 
 
 def _mean(values: np.ndarray) -> float | None:
