@@ -40,7 +40,8 @@ from wbmp.errors import (
     one_line,
 )
 
-COMMANDS = ("solve", "parse", "show", "export", "bench", "robots", "actions", "demo", "batch", "cache", "serve")
+COMMANDS = ("solve", "retarget", "parse", "show", "export", "bench", "robots", "actions", "demo", "batch", "cache",
+            "serve")
 
 ISSUES_HINT = "this is a bug in wbmp; please report it with the command line and the traceback above"
 

@@ -185,6 +185,8 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
        "a motion beyond the robot's torques or beyond what is certified in simulation (hop, jog, a jump too high or too long)"),
     _R("tasks.exceptions.SceneConflict", ExitCode.INFEASIBLE,
        "a hand target or a footstep inside a scene object, or an object walk_to cannot reach"),
+    _R("tasks.mocap.exceptions.ClipError", ExitCode.INVALID_SPEC,
+       "a motion-capture clip that cannot be used (damaged BVH, unknown skeleton, a window outside it)"),
     _R("tasks.grounding.GroundingError", ExitCode.INVALID_SPEC, "an object reference that names no object of the scene, or several"),
     _R("tasks.jsonio._Refused", None, "caught inside tasks.jsonio"),
     # planner: infeasible, or the solver failed (with a diagnosis)

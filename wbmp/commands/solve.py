@@ -58,6 +58,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--llm-timeout", type=timeout_seconds, default=30.0, metavar="SECONDS",
                    help="limit for each whole request to the LLM server, connect to last byte "
                         "(default: 30, at most 3600)")
+    p.add_argument("--motions", metavar="DIR", default=os.environ.get("WBMP_MOTIONS"),
+                   help="a motion library: a folder of BVH clips with a clips.csv of labels; an instruction "
+                        "that names no known action but a clip's label is that clip, retargeted "
+                        "(docs/retarget.md; env WBMP_MOTIONS)")
     p.add_argument("--quiet", action="store_true", help="no progress display; print only the results")
     p.add_argument("--json", action="store_true", help="print the report as JSON (progress as JSON lines)")
     p.set_defaults(run=run)
@@ -82,6 +86,7 @@ def request_from_args(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    from language.exceptions import LanguageError
     from viz.progress import make_progress
     from wbmp.pipeline import check_inputs_exist, check_outputs, solve, write_outputs
 
@@ -94,9 +99,24 @@ def run(args: argparse.Namespace) -> int:
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     # --plots draws the simulation's contact forces, which the motion cache does not keep: solved
     # afresh (and stored), never read
-    result = solve(request, progress, cache=not args.no_cache, cache_read=args.plots is None)
+    try:
+        result = solve(request, progress, cache=not args.no_cache, cache_read=args.plots is None)
+    except LanguageError:
+        from wbmp.motions import retarget_from_library
+
+        if not args.motions or not request.instruction:
+            raise
+        result = retarget_from_library(request.instruction, args.motions, robot=args.robot,
+                                       simulate=not args.no_sim, progress=progress)
+        if result is None:
+            raise  # no clip of the library either: refused as without it
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
-    print_result(result, written, as_json=args.json)
+    if hasattr(result, "reference"):  # a clip of the motion library (wbmp.retarget.RetargetResult)
+        from wbmp.commands.retarget import print_result as print_retarget
+
+        print_retarget(result, written, as_json=args.json)
+    else:
+        print_result(result, written, as_json=args.json)
     if args.view:
         from viz.live import ViewerError, serve
 

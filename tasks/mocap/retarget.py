@@ -1,0 +1,391 @@
+"""A human clip as a robot task: scaled, aligned, cut into contact phases, tracked by costs.
+
+:func:`retarget_spec` makes the whole-trajectory problem the planner solves (docs/retarget.md):
+
+* **Scale** (one number per robot and clip): the robot's standing base height over the human's
+  standing pelvis height (leg length from hip to ankle, its 95th percentile over the clip, plus the
+  ankle's height and the pelvis above the hips). Arms get their own ratio (the robot's
+  shoulder-to-hand chain over the human's longest shoulder-to-hand distance).
+* **Align**: the clip already faces +x from the pelvis at its first frame with the ground at 0
+  (:func:`tasks.mocap.source.human_motion`); the whole scaled clip is moved so that its first-frame
+  feet sit where the robot's standing feet are (their mean), and each foot keeps the offset of its
+  first frame (turned with the foot's yaw), so the robot's stance width is kept.
+* **Contacts**: the labelled contacts (:func:`tasks.mocap.source.label_contacts`), sampled on the
+  knot grid, become phases; each stance of a foot is one fixed placement on the ground (the
+  median of the scaled source foot over the stance): the planner holds it in 6D (no slip) and
+  keeps every other foot above the floor. A stance that holds at the first frame is the standing
+  placement. A lead-in (standing) precedes the clip and a lead-out (both feet down where they last
+  were) follows it, so the motion starts and ends at rest.
+* **Tracking**: soft targets at every knot of the clip on the base (position and heading), torso,
+  head, both hands and, while swinging, both feet: the scaled source keypoints, each with a
+  per-keypoint offset for the robot's proportions (torso, head, shoulders: the median offset from
+  the pelvis in the heading frame; hands: from the tracked shoulder, with the arm ratio).
+
+The robot's joint, velocity and torque limits, friction, self-collision and (when a phase has one
+foot or none) the centroidal dynamics are the planner's, as for any spec.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+import pinocchio as pin
+
+from robots.model import Robot
+from tasks.mocap.exceptions import ClipError
+from tasks.mocap.source import SIDES, HumanMotion, segments
+from tasks.primitives.geometry import Stance, standing_geometry
+from tasks.specs import CoMBounds, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
+
+LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
+LEAD_OUT = 1.0  # [s] both feet down after it (coming to rest)
+DT = 0.08  # [s] knot spacing
+MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
+MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
+# Cost weights per second of tracked motion [1/m^2 s]; a knot's weight is this times dt.
+WEIGHTS = {"base": 400.0, "torso": 100.0, "head": 100.0, "left_hand": 200.0, "right_hand": 200.0,
+           "left_foot": 200.0, "right_foot": 200.0}
+SMOOTHNESS = 1e-2  # [-] the spec's cost on accelerations (TaskSpec's default 1e-3 let a walk's plan fail its RNEA check)
+HEADING_WEIGHT = 20.0  # [1/rad^2 s] base orientation towards the source heading
+SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x the source's lift, within these
+# The tracking targets' report tolerance [m]: the simulation's certificate checks each target within
+# it (plus its margin): the robot executing the plan, not the plan matching the human (that is
+# the tracking error among the figures; a robot's proportions keep it centimetres away).
+TRACK_TOLERANCE = 0.25
+MIN_SWING = 0.5  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
+SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
+SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
+TRACKED = ("base", "torso", "head", "left_hand", "right_hand", "left_foot", "right_foot")
+
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """The scaled source on the robot, on the clip's frames and the planner's time axis.
+
+    Attributes:
+        t: Frame times on the plan's time axis (F,) [s] (the lead-in shifts them).
+        points: Robot role -> target positions (F, 3) [m] (base, torso, head, hands, feet).
+        contact: Foot side -> labelled contact per frame (F,).
+        placements: Foot side -> per frame, the sole's fixed ground position while in contact
+            (F, 3) [m] (NaN in swing).
+        heading: Source heading per frame (F,) [rad].
+        scale: Body scale robot / human [-].
+        arm_scale: Arm scale robot / human [-].
+        lead_in: Seconds of standing before the clip [s].
+        stride_scale: How much the body's travel over the ground was shortened to fit the robot's
+            longest stride (1: not shortened).
+        time_scale: How much slower than the human the robot moves (1: as fast; :func:`time_scale`).
+    """
+
+    t: np.ndarray
+    points: dict[str, np.ndarray]
+    contact: dict[str, np.ndarray]
+    placements: dict[str, np.ndarray]
+    heading: np.ndarray
+    scale: float
+    arm_scale: float
+    lead_in: float
+    stride_scale: float = 1.0
+    time_scale: float = 1.0
+
+
+def _rot(yaw: np.ndarray | float) -> np.ndarray:
+    yaw = np.asarray(yaw, dtype=float)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.zeros((*yaw.shape, 3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 1, 0], out[..., 1, 1], out[..., 2, 2] = c, -s, s, c, 1.0
+    return out
+
+
+def body_scale(motion: HumanMotion, robot: Robot) -> tuple[float, float]:
+    """(body scale, arm scale) robot / human (see the module)."""
+    g = standing_geometry(robot)
+    P = motion.points
+    leg = np.mean([np.percentile(np.linalg.norm(P[f"{s}_hip"] - P[f"{s}_ankle"], axis=1), 95) for s in SIDES])
+    ankle = np.mean([np.percentile(P[f"{s}_ankle"][:, 2], 5) for s in SIDES])
+    above = np.median(P["pelvis"][:, 2] - 0.5 * (P["left_hip"][:, 2] + P["right_hip"][:, 2]))
+    human = float(leg + ankle + above)
+    robot_base = float(g.placements["base"].translation[2])
+    arm = np.mean([np.percentile(np.linalg.norm(P[f"{s}_hand"] - P[f"{s}_shoulder"], axis=1), 99) for s in SIDES])
+    robot_arm = float(np.mean([g.arm_length[s] for s in SIDES]))
+    return robot_base / human, robot_arm / float(arm)
+
+
+def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *,
+              lead_in: float = LEAD_IN) -> Reference:
+    """The scaled and aligned source keypoints and foot placements (see the module)."""
+    g = standing_geometry(robot)
+    stand = {role: M.translation for role, M in g.placements.items()}
+    s, s_arm = body_scale(motion, robot)
+    P = {k: s * v for k, v in motion.points.items()}
+    heading = motion.heading()
+    R = _rot(heading)
+    stride = stride_scale(P, labels, robot)
+    pelvis_xy = P["pelvis"] * [1.0, 1.0, 0.0]
+    P = {k: v - (1.0 - stride) * pelvis_xy for k, v in P.items()}  # the body's travel shortened, its shape kept
+    foot = {side: 0.5 * (P[f"{side}_ankle"] + P[f"{side}_toe"]) for side in SIDES}
+    for side in SIDES:
+        foot[side][:, 2] = np.minimum(P[f"{side}_ankle"][:, 2], P[f"{side}_toe"][:, 2])
+    shift = np.mean([stand[f"{side}_foot"] - foot[side][0] for side in SIDES], axis=0)
+    shift[2] = 0.0
+    P = {k: v + shift for k, v in P.items()}
+    foot = {side: v + shift for side, v in foot.items()}
+    points: dict[str, np.ndarray] = {}
+    placements: dict[str, np.ndarray] = {}
+    contact = {side: np.asarray(labels[side], dtype=bool) for side in SIDES}
+    # the base: the pelvis, its height corrected to the robot's standing base height
+    base_z = stand["base"][2] - float(np.percentile(P["pelvis"][:, 2], 95))
+    points["base"] = P["pelvis"] + [0.0, 0.0, base_z]
+    for key, role in (("torso", "torso"), ("head", "head"), ("left_shoulder", "left_shoulder"),
+                      ("right_shoulder", "right_shoulder")):
+        robot_rel = stand[role] - stand["base"]  # standing: heading 0
+        human_rel = np.einsum("fba,fb->fa", R, P[key] - P["pelvis"])  # in the heading frame
+        offset = robot_rel - np.median(human_rel, axis=0)
+        points[role] = points["base"] + (P[key] - P["pelvis"]) + np.einsum("fab,b->fa", R, offset)
+    for side in SIDES:
+        arm = s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
+        # a hanging arm hangs as the robot's does at standing (its hands clear of its thighs): the
+        # offset between the two, in the heading frame, applied in full to a hanging arm and
+        # fading out as the arm rises to horizontal
+        hang = np.clip(-arm[:, 2] / max(1e-6, float(np.linalg.norm(arm, axis=1).max())), 0.0, 1.0)
+        k = int(np.argmax(hang))
+        robot_arm = stand[f"{side}_hand"] - stand[f"{side}_shoulder"]
+        offset = robot_arm - R[k].T @ arm[k]
+        hand = points[f"{side}_shoulder"] + arm + hang[:, None] * np.einsum("fab,b->fa", R, offset)
+        # below the hips, a hand stays at least as far out sideways as the robot's standing hand
+        # (the robot's thighs are wider than a human's: a swinging hand would strike them)
+        local = np.einsum("fba,fb->fa", R, hand - points["base"])
+        sign = 1.0 if side == "left" else -1.0
+        least = sign * (stand[f"{side}_hand"][1] - stand["base"][1])
+        low = local[:, 2] < 0.0
+        local[low, 1] = sign * np.maximum(sign * local[low, 1], least)
+        points[f"{side}_hand"] = points["base"] + np.einsum("fab,fb->fa", R, local)
+    for side in SIDES:
+        # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
+        # over the labelled stances) becomes the robot's standing one
+        lateral = np.einsum("fba,fb->fa", R, foot[side] - P["pelvis"])[:, 1]
+        stance = contact[side] if contact[side].any() else np.ones(len(lateral), dtype=bool)
+        d_y = (stand[f"{side}_foot"][1] - stand["base"][1]) - float(np.median(lateral[stance]))
+        sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
+        sole[:, 2] = np.maximum(sole[:, 2], 0.0)
+        points[f"{side}_foot"] = sole
+        contact[side] = drop_shuffles(contact[side], sole)
+        fixed = np.full_like(sole, np.nan)
+        for a, b, down in segments(contact[side]):
+            if not down:
+                continue
+            where = stand[f"{side}_foot"] if a == 0 else np.array([*np.median(sole[a:b, :2], axis=0), 0.0])
+            fixed[a:b] = where
+        placements[side] = fixed
+    return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride)
+
+
+def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot) -> float:
+    """How much slower than the human the robot moves (1: as fast): its shortest foot swing lasts at
+    least :data:`MIN_SWING` x the robot's step duration (its profile's single support), which
+    the whole clip is slowed down to give (a robot's foot cannot be lifted and set down again as
+    fast as a human's)."""
+    shortest = math.inf
+    for side in SIDES:
+        for a, b, down in segments(np.asarray(labels[side], dtype=bool)):
+            if not down and a > 0 and b < len(motion.t):  # a swing between two stances
+                shortest = min(shortest, (b - a) * motion.frame_time)
+    least = MIN_SWING * robot.profile.step_duration
+    return 1.0 if shortest >= least else least / shortest
+
+
+def drop_shuffles(contact: np.ndarray, sole: np.ndarray) -> np.ndarray:
+    """The contact labels with the shuffles filled in: a swing in which the sole rises less than
+    :data:`SHUFFLE_LIFT` and lands less than :data:`SHUFFLE_STEP` from where it left (a weight shift,
+    a foot adjusted on the spot) stays a contact; the robot keeps that foot down."""
+    out = contact.copy()
+    runs = segments(contact)
+    for i, (a, b, down) in enumerate(runs):
+        if down:
+            continue
+        before = sole[a - 1, :2] if i > 0 else sole[a, :2]
+        after = sole[b, :2] if b < len(sole) else sole[b - 1, :2]
+        if sole[a:b, 2].max() < SHUFFLE_LIFT and np.linalg.norm(after - before) < SHUFFLE_STEP:
+            out[a:b] = True
+    return out
+
+
+def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot: Robot) -> float:
+    """How much the body's travel is shortened so that no stride (a foot from one stance to its next)
+    exceeds the robot's: twice its profile's longest step (``step_length_max``); 1 = not shortened."""
+    longest = 0.0
+    for side in SIDES:
+        mid = 0.5 * (P[f"{side}_ankle"] + P[f"{side}_toe"])[:, :2]
+        stances = [np.median(mid[a:b], axis=0) for a, b, down in segments(np.asarray(labels[side], dtype=bool)) if down]
+        for p0, p1 in pairwise(stances):
+            longest = max(longest, float(np.linalg.norm(p1 - p0)))
+    limit = 0.9 * 2.0 * robot.profile.step_length_max  # 10 % margin: the stances are re-measured on the knot grid
+    return 1.0 if longest <= limit else limit / longest
+
+
+def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: float) -> float:
+    yaw = motion.foot_yaw(side)
+    return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
+
+
+def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
+                  description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
+    """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
+    where = motion.source or "clip"
+    slow = time_scale(motion, labels, robot)
+    if slow > 1.0:
+        motion = dataclasses.replace(motion, t=motion.t * slow)
+    duration = float(motion.t[-1])
+    if duration > MAX_CLIP:
+        slowed = f" ({duration / slow:.1f} s slowed {slow:.2f} x for the robot's steps)" if slow > 1.0 else ""
+        raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}; wbmp retargets at most {MAX_CLIP:g} s "
+                        "at a time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with "
+                        "--start/--end")
+    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow)
+    g = standing_geometry(robot)
+    stand_pose = Stance.standing(robot)
+    stand_yaw = {side: float(stand_pose.sole(side).rpy[2]) for side in SIDES}
+    # the contact state per knot of the clip, cleaned of phases shorter than MIN_PHASE_KNOTS
+    n = max(1, int(round(duration / dt)))
+    frames = np.clip(np.round(np.arange(n + 1) * dt / motion.frame_time).astype(int), 0, len(motion.t) - 1)
+    state = np.array([[ref.contact[s][f] for s in SIDES] for f in frames])  # (n+1, 2)
+    code = state[:, 0].astype(int) * 2 + state[:, 1].astype(int)
+    code = _merge_short(code, MIN_PHASE_KNOTS)
+    # stances of each foot on the knot grid -> one placement each
+    stance_pose: dict[str, list[tuple[int, int, Pose]]] = {}
+    for i, side in enumerate(SIDES):
+        down = (code >> (1 - i)) & 1
+        runs = []
+        for a, b, on in segments(down.astype(bool)):
+            if not on:
+                continue
+            fa, fb = frames[a], max(frames[min(b, n)], frames[a] + 1)
+            if a == 0:
+                pose = stand_pose.sole(side)
+            else:
+                xy = np.median(ref.points[f"{side}_foot"][fa:fb, :2], axis=0)
+                pose = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                            rpy=(0.0, 0.0, _foot_yaw_at(motion, side, fa, fb, stand_yaw[side])))
+            runs.append((a, b, pose))
+        stance_pose[side] = runs
+    # the lead-out stands each foot where it last was; a foot in the air at the end lands beside the
+    # other one as at standing (or, in a flight, where the source's is)
+    last: dict[str, Pose] = {}
+    for side in SIDES:
+        if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
+            last[side] = stance_pose[side][-1][2]
+    for side in SIDES:
+        other = SIDES[1 - SIDES.index(side)]
+        if side in last:
+            continue
+        if other in last:
+            o = last[other]
+            R0 = pin.rpy.rpyToMatrix(0.0, 0.0, o.rpy[2] - stand_yaw[other])
+            rel = np.array(stand_pose.sole(side).position) - np.array(stand_pose.sole(other).position)
+            xy = np.array(o.position) + R0 @ rel
+            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                              rpy=(0.0, 0.0, float(o.rpy[2] - stand_yaw[other] + stand_yaw[side])))
+        else:
+            xy = ref.points[f"{side}_foot"][-1, :2]
+            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                              rpy=(0.0, 0.0, _foot_yaw_at(motion, side, len(motion.t) - 5, len(motion.t), stand_yaw[side])))
+    frames_of = {side: robot.frame(f"{side}_foot") for side in SIDES}
+
+    def contacts_at(k: int) -> tuple[Contact, ...]:
+        out = []
+        for i, side in enumerate(SIDES):
+            if (code[k] >> (1 - i)) & 1:
+                pose = next(p for a, b, p in stance_pose[side] if a <= k < b)
+                out.append(Contact(frame=frames_of[side], placement=pose))
+        return tuple(out)
+
+    phases = [Phase(name="lead-in (standing)", duration=LEAD_IN,
+                    contacts=tuple(Contact(frame=frames_of[s], placement=stand_pose.sole(s)) for s in SIDES))]
+    names = {3: "double support", 2: "left support", 1: "right support", 0: "flight"}
+    for a, b, _ in segments_of(code):
+        lift = _lift(ref, code, a, b, frames, n)
+        phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
+                            duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
+    phases = [p for p in phases if p.duration > 1e-9]
+    phases.append(Phase(name="lead-out (both feet down)", duration=LEAD_OUT,
+                        contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
+    clip_horizon = sum(p.duration for p in phases[1:-1])
+    targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon)
+    dynamic = True if dynamic is None else dynamic
+    spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
+                    com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
+                    dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
+                    description=description)
+    return spec, ref
+
+
+def segments_of(code: np.ndarray) -> list[tuple[int, int, int]]:
+    """Runs of equal contact codes on the knot grid: (first knot, last knot + 1, code)."""
+    edges = np.flatnonzero(np.diff(code)) + 1
+    starts = np.concatenate([[0], edges]).astype(int)
+    ends = np.concatenate([edges, [len(code)]]).astype(int)
+    return [(int(a), int(b), int(code[a])) for a, b in zip(starts, ends, strict=True)]
+
+
+def _merge_short(code: np.ndarray, min_knots: int) -> np.ndarray:
+    """A run shorter than ``min_knots`` (not the first or last) takes the code of its longer neighbour."""
+    code = code.copy()
+    for _ in range(len(code)):
+        runs = segments_of(code)
+        short = [(b - a, i) for i, (a, b, _) in enumerate(runs) if b - a < min_knots and 0 < i < len(runs) - 1]
+        if not short:
+            break
+        _, i = min(short)
+        a, b, _ = runs[i]
+        left, right = runs[i - 1], runs[i + 1]
+        code[a:b] = left[2] if left[1] - left[0] >= right[1] - right[0] else right[2]
+    return code
+
+
+def _lift(ref: Reference, code: np.ndarray, a: int, b: int, frames: np.ndarray, n: int) -> float:
+    """Mid-swing clearance asked in a phase: 0.8 x the source's highest swinging sole, within SWING_CLEARANCE."""
+    fa, fb = frames[a], frames[min(b, n)] + 1
+    up = [ref.points[f"{side}_foot"][fa:fb, 2].max() for i, side in enumerate(SIDES) if not (code[a] >> (1 - i)) & 1]
+    if not up:
+        return 0.05
+    lo, hi = SWING_CLEARANCE
+    return float(min(hi, max(lo, 0.8 * max(up))))
+
+
+def _smoothstep(x: float) -> float:
+    x = min(1.0, max(0.0, x))
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _tracking_targets(ref: Reference, robot: Robot, code: np.ndarray, frames: np.ndarray, dt: float, n: int,
+                      horizon: float) -> list[FrameTarget]:
+    out = []
+    base_rotation = standing_geometry(robot).placements["base"].rotation
+    g = standing_geometry(robot)
+    n_in = int(round(ref.lead_in / dt))
+    for k in range(-n_in + 2, n + 1):
+        t = ref.lead_in + k * dt
+        if k * dt > horizon + 1e-9:
+            break
+        f = frames[max(k, 0)]
+        blend = 1.0 if k >= 0 else _smoothstep((k + n_in) / n_in)  # the lead-in: from standing to the first pose
+        for role in TRACKED:
+            if role.endswith("_foot"):
+                i = SIDES.index(role.split("_")[0])
+                if k < 0 or (code[k] >> (1 - i)) & 1:
+                    continue  # a stance foot is held by its contact
+            p = g.placements[role].translation + blend * (ref.points[role][f] - g.placements[role].translation)
+            out.append(FrameTarget(name=f"track {role} {t:.3f}", frame=robot.frame(role),
+                                   position=(float(p[0]), float(p[1]), float(p[2])), time=round(t, 9),
+                                   priority=Priority.SOFT, weight=WEIGHTS[role] * dt, tolerance=TRACK_TOLERANCE))
+        rpy = pin.rpy.matrixToRpy(pin.rpy.rpyToMatrix(0.0, 0.0, blend * float(ref.heading[f])) @ base_rotation)
+        out.append(FrameTarget(name=f"track heading {t:.3f}", frame=robot.frame("base"),
+                               rpy=(float(rpy[0]), float(rpy[1]), float(rpy[2])),
+                               time=round(t, 9), priority=Priority.SOFT, weight=HEADING_WEIGHT * dt,
+                               orientation_tolerance=math.pi / 2))
+    return out

@@ -1,0 +1,86 @@
+"""The TaskSpec a clip becomes (no solver): phases that follow the contact labels, stances on the
+floor, strides and swings the robot can make, soft tracking targets on the scaled source."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robots import load_robot
+from tasks.mocap import human_motion, label_contacts, read_bvh, recognize
+from tasks.mocap.retarget import retarget_spec
+from tasks.primitives.geometry import Stance
+from tasks.specs import Priority
+
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "motions"
+
+
+@pytest.fixture(scope="module")
+def talos():
+    return load_robot("talos")
+
+
+def _spec(name: str, robot, start: float = 0.0, end: float | None = None):
+    clip = read_bvh(EXAMPLES / name).window(start, end)
+    motion = human_motion(clip, recognize(clip.names))
+    labels = label_contacts(motion)
+    spec, ref = retarget_spec(motion, labels, robot)
+    return motion, labels, spec, ref
+
+
+def test_walk_phases_follow_the_labels_and_stand_on_the_floor(talos):
+    motion, labels, spec, ref = _spec("12_01_walk.bvh", talos)
+    stand = Stance.standing(talos)
+    first, last = spec.phases[0], spec.phases[-1]
+    assert len(first.contacts) == 2 and len(last.contacts) == 2
+    assert {c.placement for c in first.contacts} == {stand.left, stand.right}
+    frames = {talos.frame("left_foot"): "left", talos.frame("right_foot"): "right"}
+    agree = total = 0
+    for start, phase in zip(spec.phase_start_times()[1:-1], spec.phases[1:-1], strict=True):
+        for c in phase.contacts:
+            assert c.placement.position[2] == 0.0  # every stance on the floor
+        mid = start + 0.5 * phase.duration - ref.lead_in
+        f = int(round(mid / (motion.frame_time * ref.time_scale)))
+        down = {frames[c.frame] for c in phase.contacts}
+        agree += sum((side in down) == bool(labels[side][f]) for side in ("left", "right"))
+        total += 2
+    assert agree / total >= 0.9  # the knot grid merges only the shortest runs
+    assert sum(1 for p in spec.phases if len(p.contacts) == 1) >= 5  # single supports, alternating
+    assert not any(len(p.contacts) == 0 for p in spec.phases)  # a walk has no flight
+
+
+def test_strides_fit_the_robot(talos):
+    _, _, spec, ref = _spec("12_01_walk.bvh", talos)
+    assert 0.3 < ref.stride_scale < 0.8  # a human stride (~1.4 m) is over twice talos's 0.3 m step
+    for side in ("left", "right"):
+        frame = talos.frame(f"{side}_foot")
+        spots = []
+        for p in spec.phases:
+            for c in p.contacts:
+                if c.frame == frame and (not spots or spots[-1] != c.placement.position):
+                    spots.append(c.placement.position)
+        steps = [np.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(spots, spots[1:], strict=False)]
+        assert max(steps) <= 2 * talos.profile.step_length_max + 0.1  # 0.68 m measured; the human: ~1.4 m
+
+
+def test_quick_steps_are_slowed_down_to_the_robots_pace(talos):
+    """The wave's traffic-directing steps swing a foot for 0.18 s; talos is asked for 0.4 s at least."""
+    _, _, spec, ref = _spec("13_26_wave.bvh", talos, 0.0, 2.0)
+    assert ref.time_scale > 2.0
+    swings = [p.duration for p in spec.phases[1:-1] if len(p.contacts) == 1]
+    assert swings and min(swings) >= 0.5 * talos.profile.step_duration - spec.dt
+
+
+def test_tracking_targets_are_soft_and_on_the_source(talos):
+    _, _, spec, ref = _spec("13_29_squat.bvh", talos, 0.0, 1.0)
+    assert spec.dynamic and all(t.priority is Priority.SOFT for t in spec.targets)
+    roles = {t.name.split()[1] for t in spec.targets}
+    assert {"base", "torso", "head", "left_hand", "right_hand", "heading"} <= roles
+    # a hand target at a clip knot is the reference keypoint at that frame
+    target = next(t for t in spec.targets if t.name.startswith("track right_hand") and t.time > ref.t[0] + 0.3)
+    f = int(round((target.time - ref.t[0]) / (ref.t[1] - ref.t[0])))
+    assert np.linalg.norm(np.array(target.position) - ref.points["right_hand"][f]) < 1e-9
+    # the body scale of talos (base 1.08 m standing) to an adult CMU subject is about one
+    assert 0.8 < ref.scale < 1.3

@@ -1,0 +1,105 @@
+"""A motion library: a folder of BVH clips with a ``clips.csv`` of labels, that ``wbmp solve
+--motions DIR`` (or ``$WBMP_MOTIONS``) falls back on when a sentence names no known action.
+
+``clips.csv`` has a header row with at least ``file`` and ``label`` (``family``, and ``start`` and
+``end`` in seconds for a window of the clip, optional; examples/motions/clips.csv is one). A sentence picks the clip whose label and family words hold every
+content word of the sentence (articles, "do", "please" ... aside); none: the sentence is refused as
+before.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from wbmp.errors import CliError, ExitCode
+
+STOPWORDS = frozenset("a an the do does please can you now some me us your my of to like let's lets perform "
+                      "show".split())
+MAX_CSV_BYTES = 1024 * 1024
+
+
+@dataclass(frozen=True)
+class LibraryClip:
+    """One clip of a motion library."""
+
+    path: Path
+    label: str
+    family: str = ""
+    start: float | None = None  # [s] the window of the clip (None: its start, its end)
+    end: float | None = None
+
+    def words(self) -> set[str]:
+        """The words of its label and family."""
+        return set(_words(f"{self.label} {self.family.replace('_', ' ')}"))
+
+
+def _words(text: str) -> list[str]:
+    return re.findall(r"[a-z0-9']+", text.lower())
+
+
+def load_library(folder: str | Path) -> list[LibraryClip]:
+    """The clips of a library folder (CliError, exit 2, when it is not one)."""
+    root = Path(folder)
+    table = root / "clips.csv"
+    try:
+        if not root.is_dir():
+            raise CliError(f"--motions {folder}: no such folder (give a folder of BVH clips with a clips.csv)",
+                           ExitCode.USAGE)
+        if table.stat().st_size > MAX_CSV_BYTES:
+            raise CliError(f"--motions {folder}: clips.csv is larger than 1 MB", ExitCode.USAGE)
+        rows = list(csv.DictReader(table.read_text(encoding="utf-8").splitlines()))
+    except FileNotFoundError:
+        raise CliError(f"--motions {folder}: no clips.csv in it (columns file, label[, family])",
+                       ExitCode.USAGE) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise CliError(f"--motions {folder}: clips.csv cannot be read ({e})", ExitCode.USAGE) from None
+    clips = []
+    for row in rows:
+        name, label = (row.get("file") or "").strip(), (row.get("label") or "").strip()
+        if not name or not label or "/" in name or "\\" in name:
+            continue
+        window = [_seconds(row.get(key), folder, name, key) for key in ("start", "end")]
+        clips.append(LibraryClip(path=root / name, label=label, family=(row.get("family") or "").strip(),
+                                 start=window[0], end=window[1]))
+    return clips
+
+
+def _seconds(text: str | None, folder: str | Path, name: str, key: str) -> float | None:
+    if text is None or not text.strip():
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value >= 0.0 or value == float("inf"):
+        raise CliError(f"--motions {folder}: clips.csv row {name}: {key} must be seconds >= 0, got {text[:40]!r}",
+                       ExitCode.USAGE)
+    return value
+
+
+def match(sentence: str, clips: list[LibraryClip]) -> LibraryClip | None:
+    """The clip whose label and family hold every content word of ``sentence`` (the fewest extra words
+    wins a tie); None when no clip does."""
+    wanted = {w for w in _words(sentence) if w not in STOPWORDS}
+    if not wanted:
+        return None
+    fits = [c for c in clips if wanted <= c.words()]
+    if not fits:
+        return None
+    return min(fits, key=lambda c: (len(c.words() - wanted), str(c.path)))
+
+
+def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | None, simulate: bool, progress):
+    """The clip of the library that ``sentence`` names, retargeted (:func:`wbmp.retarget.retarget`);
+    None when no clip matches."""
+    from wbmp.retarget import RetargetRequest, retarget
+
+    clip = match(sentence, load_library(folder))
+    if clip is None:
+        return None
+    progress(f"{sentence!r}: the clip {clip.path.name} ({clip.label}) of the motion library {folder}")
+    return retarget(RetargetRequest(clip=str(clip.path), robot=robot or "talos", simulate=simulate,
+                                    start=clip.start, end=clip.end), progress)

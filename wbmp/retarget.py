@@ -1,0 +1,133 @@
+"""The retarget job: BVH clip -> human keypoints and contacts -> TaskSpec -> Plan -> Execution -> files.
+
+Wires ``tasks.mocap`` (the clip as a task), the planner and the simulation together, like
+:mod:`wbmp.pipeline` does for a sentence, and returns a :class:`RetargetResult` that the
+pipeline's writers (motion file, HTML replay) take as they take a solve's result.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from wbmp.pipeline import Progress, SolveResult, _silent
+
+
+@dataclass(kw_only=True)
+class RetargetRequest:
+    """What ``wbmp retarget`` was asked to do.
+
+    Attributes:
+        clip: The BVH file.
+        robot: Robot name or profile file.
+        start, end: The clip's window [s] (None: its start, its end).
+        skeleton: A skeleton mapping file (TOML), or None to recognise the skeleton by its joint names.
+        simulate: Run the controller in MuJoCo and certify the motion.
+        dt: Knot spacing of the plan [s].
+    """
+
+    clip: str
+    robot: str = "talos"
+    start: float | None = None
+    end: float | None = None
+    skeleton: str | None = None
+    simulate: bool = True
+    dt: float = 0.08
+
+
+@dataclass(kw_only=True)
+class RetargetResult(SolveResult):
+    """A solve's result, with the retarget's reference and its figures (plan and execution)."""
+
+    reference: Any = None
+    figures: Any = None
+    exec_figures: Any = None
+    skeleton: str = ""
+    clip_info: dict[str, Any] = field(default_factory=dict)
+
+    def report(self) -> dict[str, Any]:
+        """The solve's report with a ``retarget`` section: the clip, the scale and the figures."""
+        out = super().report()
+        section: dict[str, Any] = {**self.clip_info, "skeleton": self.skeleton}
+        if self.reference is not None:
+            section["scale"] = self.reference.scale
+            section["arm_scale"] = self.reference.arm_scale
+            section["lead_in_s"] = self.reference.lead_in
+            section["stride_scale"] = self.reference.stride_scale
+            section["time_scale"] = self.reference.time_scale
+        if self.figures is not None:
+            section["plan"] = self.figures.to_dict()
+        if self.exec_figures is not None:
+            section["execution"] = self.exec_figures.to_dict()
+        out["retarget"] = section
+        return out
+
+
+def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):
+    """(robot, spec, reference, skeleton name, clip info) of a request; ClipError (exit 3) for a bad clip."""
+    from robots import load_robot
+    from tasks.mocap import human_motion, label_contacts, load_skeleton, read_bvh, recognize
+    from tasks.mocap.retarget import retarget_spec
+    from tasks.mocap.skeleton import check_joints
+
+    progress(f"reading {request.clip}")
+    clip = read_bvh(request.clip)
+    skeleton = load_skeleton(request.skeleton) if request.skeleton is not None else recognize(clip.names, clip.source)
+    check_joints(skeleton, clip.names, clip.source)
+    window = clip.window(request.start, request.end)
+    motion = human_motion(window, skeleton)
+    labels = label_contacts(motion)
+    robot = load_robot(request.robot)
+    spec, ref = retarget_spec(motion, labels, robot, dt=request.dt, name=f"retarget {clip.source}",
+                              description=f"retarget {clip.source} [{request.start or 0:g}, "
+                                          f"{'end' if request.end is None else format(request.end, 'g')}] s")
+    info = {"clip": clip.source, "frames": window.n_frames, "frame_time_s": window.frame_time,
+            "start_s": request.start or 0.0, "duration_s": window.duration,
+            "contact_fraction": {s: float(labels[s].mean()) for s in labels}}
+    return robot, spec, ref, skeleton.name, info
+
+
+def retarget(request: RetargetRequest, progress: Progress = _silent) -> RetargetResult:
+    """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI)."""
+    from planner import plan as plan_motion
+    from tasks.mocap.figures import figures
+    from wbmp.errors import check_signals
+
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    robot, spec, ref, skeleton, info = build_retarget_spec(request, progress)
+    timings["spec"] = time.perf_counter() - t0
+    check_signals()
+    progress(f"planning {spec.horizon:.1f} s of motion for {robot.name} ({len(spec.phases)} contact phases)")
+    t0 = time.perf_counter()
+    plan = plan_motion(spec, robot, progress=progress)
+    check_signals()
+    timings["plan"] = time.perf_counter() - t0
+    execution = None
+    if request.simulate:
+        from sim import simulate
+
+        progress("simulating in MuJoCo with the whole-body controller")
+        t0 = time.perf_counter()
+        execution = simulate(plan, robot, progress=progress)
+        check_signals()
+        timings["simulate"] = time.perf_counter() - t0
+    plan_figures = figures(robot, plan.t, plan.q, spec, ref)
+    exec_figures = None
+    if execution is not None:
+        import dataclasses
+
+        from tasks.mocap.figures import torque_cause
+
+        exec_figures = figures(robot, execution.t, execution.q, spec, ref)
+        why = torque_cause(robot, exec_figures.worst_role, exec_figures.worst_time, execution.t, execution.tau)
+        if why:
+            exec_figures = dataclasses.replace(exec_figures, worst=f"{exec_figures.worst}: {why}")
+    return RetargetResult(robot=robot, spec=spec, plan=plan, execution=execution, timings=timings, reference=ref,
+                          figures=plan_figures, exec_figures=exec_figures, skeleton=skeleton, clip_info=info)
+
+
+def is_tracking(name: str) -> bool:
+    """True for a report line of a tracking target (they are summed up by the figures instead)."""
+    return "'track " in name
