@@ -200,6 +200,7 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     _R("robots.safeio.NotRegularFile", None, "an OSError every reader catches (a FIFO, device or folder refused)"),
     _R("robots.safeio.FileTooLarge", None, "an OSError every reader catches (a file over its kind's bound)"),
     _R("robots.safeio.PathEscapes", None, "caught by the caches (a path read from a cache file that leads out)"),
+    _R("wbmp.batch.items._NonFinite", None, "caught by the batch reader (a JSONL number with no finite value)"),
     # simulation: planned, but the closed-loop check failed or could not run
     _R("planner.wbc.settings.ControllerError", ExitCode.SIM_FAILED,
        "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),

@@ -204,7 +204,7 @@ def test_bad_options_refused_before_the_server_starts(tmp_path, capsys):
         main(["serve", "--port", "70000"])
     assert e.value.code == 2 and "65535" in capsys.readouterr().err
     assert main(["serve", "--robot", "no_such_robot"]) == 3
-    assert main(["serve", "--motions", str(tmp_path / "missing")]) == 2
+    assert main(["serve", "--out-dir", str(tmp_path / "missing")]) == 2
     assert "not an existing folder" in capsys.readouterr().err
     bad_scene = tmp_path / "scene.json"
     bad_scene.write_text("{not json")

@@ -2,7 +2,7 @@
 
 Runs until Ctrl-C (exit 130, the session's temporary folder removed) or SIGTERM (143). Bad
 options are refused before anything starts: an unknown robot (3), a scene file that does not
-load (3), a ``--motions`` folder that is not a writable folder or a port outside 0-65535 (2), a
+load (3), an ``--out-dir`` folder that is not a writable folder or a port outside 0-65535 (2), a
 port already in use (2).
 """
 
@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default=None, help="robot name or profile file (default: talos)")
     p.add_argument("--scene", metavar="FILE", default=None,
                    help="scene JSON file the motions are planned in (docs/scenes.md)")
-    p.add_argument("--motions", metavar="DIR", default=None,
+    p.add_argument("--out-dir", metavar="DIR", default=None,
                    help="keep the session's motion files in this existing folder (default: a temporary folder "
                         "removed when the server stops)")
     p.add_argument("--port", type=port_number, default=8765,
@@ -56,7 +56,7 @@ def check_options(args: argparse.Namespace) -> None:
 
     require_text(args.robot, "--robot", ROBOT_HINT)
     require_text(args.scene, "--scene", "give a scene JSON file (docs/scenes.md)")
-    require_text(args.motions, "--motions", "give an existing folder")
+    require_text(args.out_dir, "--out-dir", "give an existing folder")
     if args.robot is not None:
         from robots import available_robots, load_robot
 
@@ -66,11 +66,11 @@ def check_options(args: argparse.Namespace) -> None:
         from tasks.scene import load_scene
 
         load_scene(args.scene)
-    if args.motions is not None:
-        if not os.path.isdir(args.motions):  # noqa: PTH112 - False on any OSError
-            raise CliError(f"--motions {args.motions!r}: not an existing folder; create it first", ExitCode.USAGE)
-        if not os.access(args.motions, os.W_OK | os.X_OK):
-            raise CliError(f"--motions {args.motions!r}: the folder is not writable", ExitCode.USAGE)
+    if args.out_dir is not None:
+        if not os.path.isdir(args.out_dir):  # noqa: PTH112 - False on any OSError
+            raise CliError(f"--out-dir {args.out_dir!r}: not an existing folder; create it first", ExitCode.USAGE)
+        if not os.access(args.out_dir, os.W_OK | os.X_OK):
+            raise CliError(f"--out-dir {args.out_dir!r}: the folder is not writable", ExitCode.USAGE)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_options(args)
     session = Session(robot=args.robot, scene=os.path.abspath(args.scene) if args.scene else None,  # noqa: PTH100
-                      folder=args.motions, start_worker=False)
+                      folder=args.out_dir, start_worker=False)
     try:
         try:
             server = ServeServer(session, args.port)
