@@ -1,6 +1,6 @@
 """Benchmark of the whole-body controller and the closed-loop simulation (a script, not a test).
 
-Measures on Talos, with the task that DESIGN.md quotes for TSID (two 6D sole contacts, CoM,
+Measures on Talos, with the task of the TSID comparison (two 6D sole contacts, CoM,
 posture, one moving hand):
 
 1. the controller tick in closed loop in MuJoCo (wall clock and thread CPU time, median / p99),

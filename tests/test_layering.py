@@ -1,4 +1,4 @@
-"""Imports run one way (DESIGN.md section 2): a test parses every import and checks it.
+"""Imports run one way (docs/architecture.md): a test parses every import and checks it.
 
 Between packages, :data:`ALLOWED` says who may import whom. Inside a package the order is
 learnt from the imports themselves (module-level and function-level; not the ones under

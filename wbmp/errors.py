@@ -1,4 +1,4 @@
-r"""Exit codes of the CLI (DESIGN.md section 7), the table from every exception class of the layers
+r"""Exit codes of the CLI (docs/cli.md), the table from every exception class of the layers
 to them (:data:`EXIT_TABLE`, :func:`classify`), and the one-line form of an error message.
 
 Every message the CLI prints for a refused input goes through :func:`one_line`: control

@@ -1,4 +1,4 @@
-"""The motion file (``.npz``, DESIGN.md section 6) and its exports (JSON, CSV; MCAP and tracker in
+"""The motion file (``.npz``, docs/formats.md) and its exports (JSON, CSV; MCAP and tracker in
 :mod:`wbmp.export`).
 
 Keys of the ``.npz`` (``docs/formats.md`` documents them for other tools):

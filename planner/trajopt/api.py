@@ -6,7 +6,7 @@
 as parameters and bounds, solves, and reports the result checked with Pinocchio numerics
 (:mod:`planner.trajopt.checks`, :mod:`planner.trajopt.diagnose`).
 
-The NLP (DESIGN.md section 3), for knots ``k = 0..N`` on a uniform grid:
+The NLP (docs/planner.md), for knots ``k = 0..N`` on a uniform grid:
 
 * variables ``dq_k`` (nv) for ``k = 2..N-1``, tangent displacements around ``q_ref`` (the
   standing posture); ``dq_0 = dq_1 = 0`` (start at rest) and ``dq_N = dq_{N-1}`` (end at rest);

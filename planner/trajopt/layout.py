@@ -1,6 +1,6 @@
 """From a TaskSpec to a list of per-knot terms: the problem's layout, before any CasADi.
 
-The transcription (DESIGN.md section 3) uses a uniform knot grid ``t_k = k dt``, ``k = 0..N``.
+The transcription (docs/planner.md) uses a uniform knot grid ``t_k = k dt``, ``k = 0..N``.
 The decision variables are the tangent displacements ``dq_k`` (nv) around the reference
 ``q_ref`` (the standing posture). Knots 0 and 1 are fixed at ``dq = 0`` (start at rest) and
 knot N repeats knot N-1 (end at rest), so the variables are ``dq_2 .. dq_{N-1}``.

@@ -1,7 +1,7 @@
 """CasADi SX kinematics built from a Pinocchio model, over the tangent-displacement chart.
 
 The pip wheels of Pinocchio have no ``pinocchio.casadi``, so this module rebuilds forward
-kinematics as a pure function of the model (DESIGN.md section 3): it walks ``parents`` and
+kinematics as a pure function of the model (docs/planner.md): it walks ``parents`` and
 ``jointPlacements`` as rotation/translation pairs, ``oMi[i] = oMi[parent] * jointPlacements[i] *
 jMq``, frames through ``frames[f].parentJoint``, and the centre of mass as
 ``sum(m_i * oMi * lever_i) / M``.

@@ -1,4 +1,4 @@
-"""The whole-body controller: an inverse-dynamics QP that tracks a Plan (DESIGN.md section 4).
+"""The whole-body controller: an inverse-dynamics QP that tracks a Plan (docs/control.md).
 
 Modules, in import order: ``settings`` (:class:`WbcSettings`, :class:`ControllerError`),
 ``kernel`` (the numba tick arithmetic), ``reference`` (the plan as smooth references),

@@ -29,7 +29,7 @@ Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, join
 CoM Jacobian and the velocity-product accelerations), one ``centerOfMass`` at zero
 acceleration for the CoM drift, and per frame a Jacobian and a drift read from the filled data.
 The QP is a persistent dense proxsuite problem that is updated and warm-started from the
-previous solution (DESIGN.md section 4). Any other backend name goes through ``qpsolvers``.
+previous solution (docs/control.md). Any other backend name goes through ``qpsolvers``.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ def test_resample_hits_knots_and_keeps_unit_quaternions(talos, synth_plan):
 
 
 def test_geometry_placements_are_rigid_and_scale_restores_pinocchio(talos):
-    """Mirrored meshes (negative scale) stay out of the animated transform (DESIGN.md 8)."""
+    """Mirrored meshes (negative scale) stay out of the animated transform (docs/visualization.md)."""
     q = talos.q_standing
     T = vm.geometry_placements(talos, q[None, :])[:, 0]
     dets = np.linalg.det(T[:, :3, :3])

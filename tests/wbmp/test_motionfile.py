@@ -46,7 +46,7 @@ def test_round_trip_is_exact(tmp_path, talos, squat_plan, rng):
     assert m.actions == actions
     assert m.report["certificate"] == {"ok": True} and m.report["solver"]["iterations"] == squat_plan.stats.iterations
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.npz"]
-    with np.load(path) as raw:  # the keys other tools read (DESIGN.md section 6)
+    with np.load(path) as raw:  # the keys other tools read (docs/formats.md)
         assert {"t", "q", "v", "com", "robot", "joint_names", "frame_names", "exec_t", "exec_q", "exec_v",
                 "exec_tau", "spec_json", "actions_json", "report_json", "version"} <= set(raw.files)
 

@@ -1,6 +1,6 @@
 """``wbmp solve``: sentence (or TaskSpec JSON) -> plan -> simulation check -> files.
 
-Exit codes (DESIGN.md section 7): 0 planned (and certified), 2 bad usage or an instruction that
+Exit codes (docs/cli.md): 0 planned (and certified), 2 bad usage or an instruction that
 could not be understood, 3 invalid spec (unknown frame, robot, bad value), 4 infeasible or solver
 failure (the one-line diagnosis is printed), 5 planned but the simulation check failed.
 """
