@@ -1,0 +1,127 @@
+"""The certificate's intent lines (sim/intent.py): each passes on a motion that does what its
+action means and fails, in the action's words, on one that misses; the figures are checked
+against independent computations (Pinocchio on the recorded configurations, coal on the URDF
+meshes)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import sim.loop as loop
+from planner.results import CheckKind
+from sim import SimSettings, simulate
+from sim.intent import AMPLITUDE_FRACTION, EVENT_TOLERANCE, debounce, intent_checks, label_of
+
+BOTH = ("left_foot", "right_foot")
+
+
+def _record(plan, robot, monkeypatch):
+    """Simulate ``plan`` and return (execution, the RunRecord the certificate was computed from)."""
+    seen = {}
+    certify = loop.certify
+
+    def keep(run):
+        seen["run"] = run
+        return certify(run)
+
+    monkeypatch.setattr(loop, "certify", keep)
+    ex = simulate(plan, robot, settings=SimSettings(settle_time=0.2))
+    return ex, seen["run"]
+
+
+def _of(checks, kind):
+    return [c for c in checks if c.kind is kind]
+
+
+def test_labels_name_the_action():
+    lab = label_of("2 hop: hop 1: flight")
+    assert lab is not None and (lab.number, lab.action, lab.what) == (2, "hop", "hop 1: flight")
+    assert lab.who == "hop (action 2)"
+    assert label_of("stand") is None
+    assert label_of("1 raise_arms: both hands up").who == "raise arms (action 1)"
+
+
+def test_debounce_drops_short_changes_only():
+    flags = np.ones(100, dtype=bool)
+    flags[10:12] = False  # 2 ms of chatter: still in contact
+    flags[40:80] = False  # 40 ms off: a lift
+    flags[60:62] = True  # 2 ms touch inside it: still off
+    out = debounce(flags, 0.001, 0.02)
+    assert out[:40].all() and not out[40:80].any() and out[80:].all()
+
+
+def _lift_plan(robot, height):
+    """Shift, lift the right sole ``height`` (the spec's phases plan it off the floor for 1.5 s),
+    put it back: sim.handmade.foot_lift_plan with its phases named as an action's."""
+    from sim.handmade import foot_lift_plan
+
+    p = foot_lift_plan(robot, side="right", height=height)
+    phases = tuple(dataclasses.replace(ph, name=f"1 march: {ph.name}") for ph in p.spec.phases)
+    return dataclasses.replace(p, spec=dataclasses.replace(p.spec, phases=phases))
+
+
+@pytest.mark.slow
+def test_contact_events_pass_when_the_foot_lifts_and_fail_when_it_does_not(talos, monkeypatch):
+    """The right sole planned off the floor from 1.5 to 3.0 s. Lifted 5 cm: it leaves and comes
+    back within EVENT_TOLERANCE of the plan (the times measured independently from MuJoCo's sole
+    forces) and rises >= 80 % of the plan's 5 cm (Pinocchio on the recorded configurations). Not
+    lifted (the plan keeps it on the floor: the spec's phases say one thing, the motion another):
+    the line fails, naming the foot and the planned lift-off."""
+    ex, run = _record(_lift_plan(talos, 0.05), talos, monkeypatch)
+    lines = _of(intent_checks(run), CheckKind.INTENT_CONTACTS)
+    right = [c for c in lines if c.subject == "right foot"]
+    assert right and right[0].ok, right
+    force = ex.contact_forces[talos.frame("right_foot")][:, 2]
+    off = ex.t[force < 1.0]
+    assert abs(off[off > 1.0].min() - 1.5) <= EVENT_TOLERANCE
+    assert abs(off[off < 3.5].max() - 3.0) <= EVENT_TOLERANCE
+    rise = [c for c in _of(intent_checks(run), CheckKind.INTENT_AMPLITUDE) if c.subject == "right foot"]
+    data = talos.model.createData()
+    fid = talos.frame_id("right_foot")
+    z = []
+    for q in ex.q[::10]:
+        pin.framesForwardKinematics(talos.model, data, q)
+        z.append(data.oMf[fid].translation[2])
+    assert rise and rise[0].ok
+    assert rise[0].value / 100 == pytest.approx((max(z) - z[0]) / 0.05, abs=0.05)
+
+    _, stuck = _record(_lift_plan(talos, 0.0), talos, monkeypatch)
+    missed = [c for c in _of(intent_checks(stuck), CheckKind.INTENT_CONTACTS) if c.subject == "right foot"]
+    assert missed and not missed[0].ok
+    assert "march (action 1): the right foot did not leave the floor at t = 1.5" in missed[0].message
+
+
+@pytest.mark.slow
+def test_amplitude_of_a_squat_relative_to_its_plan(talos, monkeypatch):
+    """A 15 cm squat (hand-made plan, the CoM target named as a squat's): the simulated CoM goes
+    down >= 80 % of the planned shift, the figure matching the CoM computed with Pinocchio on the
+    recorded configurations; the same run with the simulated CoM's descent halved reaches ~50 % and
+    fails, saying so in the squat's words."""
+    from sim.handmade import ik_plan, smooth_bump
+    from tasks.specs import CoMTarget
+
+    depth, duration = 0.15, 3.0
+    bump = smooth_bump(duration)
+    z0 = pin.centerOfMass(talos.model, talos.data(), talos.q_standing)[2]
+    bottom = CoMTarget(name="1 squat: squat bottom #1", position=(None, None, float(z0 - depth)), time=1.5)
+    p = ik_plan(talos, duration=duration, com_offset=lambda t: np.array([0.0, 0.0, -depth * bump(t)]),
+                com_targets=(bottom,), phases=(("1 squat: squat", duration, BOTH),))
+    ex, run = _record(p, talos, monkeypatch)
+    (line,) = _of(intent_checks(run), CheckKind.INTENT_AMPLITUDE)
+    assert line.ok and line.value >= 100 * AMPLITUDE_FRACTION
+    data = talos.model.createData()
+    near = np.flatnonzero(np.abs(ex.t - 1.5) <= 0.15)
+    z = [pin.centerOfMass(talos.model, data, ex.q[n])[2] for n in near]
+    planned = p.com[0, 2] - p.com[:, 2].min()  # the plan's knots: 15 cm at 1.5 s
+    achieved = pin.centerOfMass(talos.model, data, ex.q[0])[2] - min(z)
+    assert line.value / 100 == pytest.approx(achieved / planned, abs=0.05)
+
+    com = run.com.copy()
+    com[:, 2] = com[0, 2] + 0.5 * (com[:, 2] - com[0, 2])
+    (half,) = _of(intent_checks(dataclasses.replace(run, com=com)), CheckKind.INTENT_AMPLITUDE)
+    assert not half.ok and half.value == pytest.approx(0.5 * line.value, abs=2.0)
+    assert half.message.startswith("squat (action 1): squat bottom #1: the CoM shift reached")
