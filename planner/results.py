@@ -95,7 +95,8 @@ class CheckKind(enum.Enum):
     subject: the foot), ``INTENT_FLIGHT`` (both soles off the floor for a jump's or hop's flights),
     ``INTENT_AMPLITUDE`` (a shift, turn or rise relative to the plan), ``INTENT_STEPS`` (step
     lengths and turn angles), ``INTENT_WORDS`` (what the action's word means: the clap's hands
-    meet, the salute's hand at the head, the point's direction).
+    meet, the salute's hand at the head, the point's direction). ``SELF_COLLISION_MESH``: every
+    pair of links on the URDF meshes (coal; :mod:`sim.meshcheck`).
 
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
     """
@@ -143,6 +144,7 @@ class CheckKind(enum.Enum):
     INTENT_AMPLITUDE = "intent_amplitude"
     INTENT_STEPS = "intent_steps"
     INTENT_WORDS = "intent_words"
+    SELF_COLLISION_MESH = "self_collision_mesh"
     OBJECT_TIPPED = "object_tipped"
     RECORDED = "recorded"
 

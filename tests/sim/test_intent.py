@@ -125,3 +125,36 @@ def test_amplitude_of_a_squat_relative_to_its_plan(talos, monkeypatch):
     (half,) = _of(intent_checks(dataclasses.replace(run, com=com)), CheckKind.INTENT_AMPLITUDE)
     assert not half.ok and half.value == pytest.approx(0.5 * line.value, abs=2.0)
     assert half.message.startswith("squat (action 1): squat bottom #1: the CoM shift reached")
+
+
+@pytest.mark.slow
+def test_a_jump_leaves_the_ground_and_one_that_stays_down_fails(talos, monkeypatch):
+    """Talos's default jump (5 cm): both soles leave the floor at the planned take-off and come back
+    at the planned landing (within EVENT_TOLERANCE), off the floor together for more than
+    FLIGHT_FRACTION of the planned flight (measured independently: MuJoCo's sole forces below
+    1 N, both at once); the same run with the soles kept on the floor (MuJoCo reporting contact
+    throughout) fails both lines, saying the robot did not leave the ground."""
+    from planner import PlannerSettings, plan
+    from sim.intent import FLIGHT_FRACTION
+    from tasks.actions import Action
+    from tasks.compose import compile_actions
+
+    spec = compile_actions([Action(name="jump", params={})], talos)
+    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    ex, run = _record(p, talos, monkeypatch)
+    lines = intent_checks(run)
+    (flight,) = _of(lines, CheckKind.INTENT_FLIGHT)
+    events = _of(lines, CheckKind.INTENT_CONTACTS)
+    assert flight.ok and len(events) == 2 and all(c.ok for c in events), lines
+    planned = sum(ph.duration for ph in spec.phases if not ph.contacts)
+    forces = [ex.contact_forces[talos.frame(f)][:, 2] for f in BOTH]
+    airborne = float(np.count_nonzero((forces[0] < 1.0) & (forces[1] < 1.0))) * 0.001
+    assert airborne / planned >= FLIGHT_FRACTION
+    assert flight.value / 100 == pytest.approx(airborne / planned, abs=0.15)
+
+    down = dataclasses.replace(run, contact_flags=np.ones_like(run.contact_flags))
+    lines = intent_checks(down)
+    (flight,) = _of(lines, CheckKind.INTENT_FLIGHT)
+    assert not flight.ok and flight.value == 0.0
+    assert "jump (action 1): both feet were off the floor 0.00 s" in flight.message
+    assert all(not c.ok and "did not leave the floor" in c.message for c in _of(lines, CheckKind.INTENT_CONTACTS))
