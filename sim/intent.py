@@ -20,8 +20,9 @@ compare it with the plan:
   :data:`AMPLITUDE_FRACTION`;
 - **what the words mean**: the hands meet for a clap (coal distance between the hands' meshes
   within :data:`MEET_DISTANCE`), the hand at the head for a salute (within
-  :data:`SALUTE_DISTANCE` of the head's meshes), and the arm points toward the named direction
-  (within :data:`POINT_ANGLE` of it).
+  :data:`SALUTE_DISTANCE` of the head's meshes), the hand at the named part for a touch (within
+  :data:`TOUCH_DISTANCE`: head, chest, the other shoulder, the other hand, the toes, the hip), and the arm points toward the named direction
+  (within :data:`POINT_ANGLE` of a horizontal direction, :data:`POINT_VERTICAL_ANGLE` of up or down).
 
 Every line names its action in the spec's words (a target or phase is named ``"<n> <action>:
 <what>"``, :meth:`tasks.primitives.base.FragmentBuilder.name`), and a miss says what did not
@@ -52,7 +53,7 @@ LIFT_CLEARANCE = 0.003
 #: Fraction of a planned shift, swing height, step or turn the simulation must achieve.
 AMPLITUDE_FRACTION = 0.8
 #: Fraction of the planned flight time the simulation must spend with both soles off the floor.
-FLIGHT_FRACTION = 0.5
+FLIGHT_FRACTION = 0.25
 #: [s] an instant target is looked for this long either side of its time (the robot lags its plan).
 LAG = 0.15
 #: Planned shifts smaller than these are no amplitude (a "hold still" target) [m], [rad].
@@ -65,8 +66,11 @@ MIN_TURN = 0.05
 MEET_DISTANCE = 0.01
 #: [m] the saluting hand's meshes this close to the head's.
 SALUTE_DISTANCE = 0.03
-#: [rad] the pointing arm (shoulder to hand) this close to the named direction.
-POINT_ANGLE = math.radians(15.0)
+#: [rad] the pointing arm (shoulder to hand) this close to a horizontal named direction ...
+POINT_ANGLE = math.radians(20.0)
+#: [rad] ... and to up or down (the primitive tilts those 0.5 forward, 27 deg: a straight arm up
+#: saturates Talos's shoulder, tasks.primitives.arms.point_direction; the arm still reads as up).
+POINT_VERTICAL_ANGLE = math.radians(30.0)
 
 _LABEL = re.compile(r"^(?P<n>\d+) (?P<action>[a-z_]+): (?P<what>.*)$")
 
@@ -460,12 +464,26 @@ def step_checks(run: RunRecord, frames: _Frames) -> list[Check]:
 
 
 # --- what the words mean: clap, salute, point ------------------------------------------------
-def _subtree_links(run: RunRecord, frame: str, mesh: MeshDistance) -> list[str]:
-    """The links with collision meshes at or below ``frame``'s parent joint."""
+def _subtree_links(run: RunRecord, frame: str, mesh: MeshDistance, *, subtree: bool = True) -> list[str]:
+    """The links with collision meshes at or below ``frame``'s parent joint (only on it: not
+    ``subtree``, for a body part whose subtree is most of the robot: the torso, the pelvis)."""
     model = run.robot.model
     joint = model.frames[run.robot.frame_id(frame)].parentJoint
-    below = set(model.subtrees[joint])
+    below = set(model.subtrees[joint]) if subtree else {joint}
     return [link for link in mesh.links() if model.frames[model.getFrameId(link)].parentJoint in below]
+
+
+#: [m] a touching hand's meshes this close to the named part's.
+TOUCH_DISTANCE = 0.03
+
+
+def _touched_part(run: RunRecord, side: str, part: str) -> tuple[str, bool] | None:
+    """(frame, whole subtree) of the body part a ``side`` hand touches (None: no frame for it)."""
+    other = "right" if side == "left" else "left"
+    role, subtree = {"head": ("head", True), "chest": ("torso", False), "shoulder": (f"{other}_shoulder", False),
+                     "hand": (f"{other}_hand", True), "toes": (f"{side}_foot", True),
+                     "hip": ("base", False)}.get(part, ("", False))
+    return (role, subtree) if role and run.robot.has_role(role) else None
 
 
 def _mesh_gap(mesh: MeshDistance, q: np.ndarray, a: Iterable[str], b: Iterable[str]) -> float:
@@ -500,6 +518,23 @@ def word_checks(run: RunRecord, frames: _Frames) -> list[Check]:
                              gap <= SALUTE_DISTANCE, float(ts[n]),
                              f"the hand stayed {gap:.3f} m from the head (at most {SALUTE_DISTANCE:.2f} m: a "
                              "salute touches the forehead)", upper=True))
+        elif lab.action == "touch" and " at the " in lab.what:
+            side = "left" if lab.what.startswith("left") else "right"
+            part = lab.what.rsplit(" at the ", 1)[-1].strip()
+            found = _touched_part(run, side, "hand" if part == "other hand" else part)
+            mask, _ = _mask(ts, target.time, target.window, horizon)
+            if found is None or not mask.any():
+                continue
+            mesh = mesh or MeshDistance(run.robot)
+            hand = _subtree_links(run, target.frame, mesh)
+            body = _subtree_links(run, found[0], mesh, subtree=found[1])
+            ticks = np.flatnonzero(mask)[:: max(1, int(np.count_nonzero(mask) // 8))]
+            gaps = [_mesh_gap(mesh, run.q[n], hand, body) for n in ticks]
+            gap = float(np.median(gaps))
+            out.append(_line(CheckKind.INTENT_WORDS, lab, f"touch {part}", f"the {side} hand at the {part}", gap,
+                             TOUCH_DISTANCE, "m", gap <= TOUCH_DISTANCE, float(ts[ticks[0]]),
+                             f"the {side} hand stayed {gap:.3f} m from the {part} (a touch comes within "
+                             f"{TOUCH_DISTANCE:.2f} m)", upper=True))
         elif lab.action == "point" and " pointing " in f" {lab.what}" and target.window is not None:
             out.append(_point_line(run, frames, target, lab))
     for targets in claps.values():
@@ -557,7 +592,8 @@ def _point_line(run: RunRecord, frames: _Frames, target, lab: Label) -> Check:
     cosines = (arm @ want) / np.maximum(np.linalg.norm(arm, axis=1), 1e-9)
     angle = float(np.median(np.arccos(np.clip(cosines, -1.0, 1.0))))
     t_at = float(ts[np.flatnonzero(mask)[0]])
-    return _line(CheckKind.INTENT_WORDS, lab, "point", f"the arm points {direction}", angle, POINT_ANGLE, "rad",
-                 angle <= POINT_ANGLE, t_at,
+    limit = POINT_VERTICAL_ANGLE if direction in ("up", "down") else POINT_ANGLE
+    return _line(CheckKind.INTENT_WORDS, lab, "point", f"the arm points {direction}", angle, limit, "rad",
+                 angle <= limit, t_at,
                  f"the {side} arm points {math.degrees(angle):.0f} deg away from {direction} (at most "
-                 f"{math.degrees(POINT_ANGLE):.0f} deg)", upper=True)
+                 f"{math.degrees(limit):.0f} deg)", upper=True)
