@@ -216,16 +216,17 @@ def hand_at_head(s: Sim) -> tuple[bool, str]:
 
 def pointing(s: Sim) -> tuple[bool, str]:
     best = math.inf
-    actions = s.spec.name.lower()
-    want = {"left": (0, 1, 0), "right": (0, -1, 0), "up": (0, 0, 1), "down": (0, 0, -1)}
-    d = next((np.array(v, float) for k, v in want.items() if k in actions), np.array([1.0, 0.0, 0.0]))
+    want = {"left": (0, 1, 0), "right": (0, -1, 0), "up": (0, 0, 1), "down": (0, 0, -1), "forward": (1, 0, 0)}
+    named = [t.name.rsplit("pointing ", 1)[-1] for t in s.spec.targets if "pointing " in t.name]
+    d = np.array(want.get(named[0] if named else "forward", (1, 0, 0)), dtype=float)
     for side in ("left", "right"):
         hand = _fk(s.robot, _every(s), f"{side}_hand")[:, :, 3]
         root = _fk(s.robot, _every(s), f"{side}_shoulder" if s.robot.has_role(f"{side}_shoulder") else "torso")[:, :, 3]
         arm = hand - root
         cos = (arm @ d) / np.linalg.norm(arm, axis=1)
         best = min(best, float(np.degrees(np.arccos(np.clip(cos, -1, 1))).min()))
-    return best <= 15.0, f"arm {best:.0f} deg from the named direction at the closest"
+    vertical = abs(d[2]) > 0.5
+    return best <= (30.0 if vertical else 20.0), f"arm {best:.0f} deg from the named direction at the closest"
 
 
 def stand(s: Sim) -> tuple[bool, str]:

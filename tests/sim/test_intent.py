@@ -158,3 +158,36 @@ def test_a_jump_leaves_the_ground_and_one_that_stays_down_fails(talos, monkeypat
     assert not flight.ok and flight.value == 0.0
     assert "jump (action 1): both feet were off the floor 0.00 s" in flight.message
     assert all(not c.ok and "did not leave the floor" in c.message for c in _of(lines, CheckKind.INTENT_CONTACTS))
+
+
+@pytest.mark.slow
+def test_steps_and_turns_as_planned(talos, monkeypatch):
+    """Two steps forward then a quarter turn left on Talos: each step's length and the turn's angle,
+    measured with Pinocchio on the recorded configurations at the middles of the stances, reach 80 %
+    of the planned placements (the figures checked here against the soles' planned placements);
+    the same run frozen at its first configuration (nobody moved) fails both lines, saying how far
+    the foot went."""
+    from planner import PlannerSettings, plan
+    from tasks.actions import Action
+    from tasks.compose import compile_actions
+
+    spec = compile_actions([Action(name="step", params={"direction": "forward", "count": 2}),
+                            Action(name="turn", params={"angle": 1.5707963267948966})], talos)
+    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    ex, run = _record(p, talos, monkeypatch)
+    lines = _of(intent_checks(run), CheckKind.INTENT_STEPS)
+    steps = [c for c in lines if "step lengths" in c.name]
+    turns = [c for c in lines if "turn angles" in c.name]
+    assert steps and turns and all(c.ok for c in lines), lines
+    data = talos.model.createData()
+    fid = talos.frame_id("right_foot")
+    pin.framesForwardKinematics(talos.model, data, ex.q[-1])
+    yaw_end = np.arctan2(data.oMf[fid].rotation[1, 0], data.oMf[fid].rotation[0, 0])
+    assert yaw_end == pytest.approx(1.5707963267948966, abs=0.2 * 1.5707963267948966)
+
+    frozen = dataclasses.replace(run, q=np.repeat(run.q[:1], len(run.q), axis=0))
+    lines = _of(intent_checks(frozen), CheckKind.INTENT_STEPS)
+    assert lines and not any(c.ok for c in lines)
+    step = next(c for c in lines if "step lengths" in c.name)
+    assert step.value == pytest.approx(0.0, abs=1.0)
+    assert "step (action 1): a step of the" in step.message and "went 0.000 m of the planned" in step.message
