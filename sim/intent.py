@@ -17,7 +17,7 @@ compare it with the plan:
   (bow, head turns, nod) or a frame position target (raise, reach, kick) that moves away from
   where its action began reaches at least :data:`AMPLITUDE_FRACTION` of the planned shift;
 - **steps and turns**: each sole's planned steps (length) and turns (yaw), achieved to
-  :data:`AMPLITUDE_FRACTION`;
+  :data:`AMPLITUDE_FRACTION` (a step short by at most :data:`STEP_SLACK` passes);
 - **what the words mean**: the hands meet for a clap (coal distance between the hands' meshes
   within :data:`MEET_DISTANCE`), the hand at the head for a salute (within
   :data:`SALUTE_DISTANCE` of the head's meshes), the hand at the named part for a touch (within
@@ -62,6 +62,9 @@ MIN_ROTATION = 0.05
 MIN_HAND_SHIFT = 0.04
 MIN_STEP = 0.03
 MIN_TURN = 0.05
+#: [m] a step may always fall this much short (a landing's precision: G1's 3 cm forward hops land
+#: 7 mm short, 77 %; the placement line allows 2 cm).
+STEP_SLACK = 0.01
 #: [m] the hands' meshes this close meet (a clap).
 MEET_DISTANCE = 0.01
 #: [m] the saluting hand's meshes this close to the head's.
@@ -405,7 +408,8 @@ def step_checks(run: RunRecord, frames: _Frames) -> list[Check]:
     worst)."""
     spec, ts = run.ref.plan.spec, run.t
     starts = spec.phase_start_times()
-    worst: dict[tuple[int, str], tuple[float, float, float, float, Label, str]] = {}
+    # (action, "step" | "turn") -> (passes, fraction, achieved, planned, time, label, foot) of its worst step
+    worst: dict[tuple[int, str], tuple[bool, float, float, float, float, Label, str]] = {}
     for frame in spec.contact_frames():
         stances: list[tuple[float, float, np.ndarray, float, Label | None]] = []  # t0, t1, xy, yaw, label
         for phase, t0 in zip(spec.phases, starts, strict=True):
@@ -440,18 +444,19 @@ def step_checks(run: RunRecord, frames: _Frames) -> list[Check]:
             if length >= MIN_STEP:
                 achieved = float((p1 - p0) @ step_plan / length)
                 frac = achieved / length
+                ok = frac >= AMPLITUDE_FRACTION or length - achieved <= STEP_SLACK
                 key = (lab.number, "step")
-                if key not in worst or frac < worst[key][0]:
-                    worst[key] = (frac, achieved, length, float(ts[n1]), lab, foot)
+                if key not in worst or (ok, frac) < worst[key][:2]:
+                    worst[key] = (ok, frac, achieved, length, float(ts[n1]), lab, foot)
             turn = _wrap(cur[3] - prev[3])
             if abs(turn) >= MIN_TURN:
                 achieved = _wrap(y1 - y0) * math.copysign(1.0, turn)
                 frac = achieved / abs(turn)
                 key = (lab.number, "turn")
-                if key not in worst or frac < worst[key][0]:
-                    worst[key] = (frac, achieved, abs(turn), float(ts[n1]), lab, foot)
+                if key not in worst or (frac >= AMPLITUDE_FRACTION, frac) < worst[key][:2]:
+                    worst[key] = (frac >= AMPLITUDE_FRACTION, frac, achieved, abs(turn), float(ts[n1]), lab, foot)
     out = []
-    for (_, kind), (frac, achieved, planned, t, lab, foot) in sorted(worst.items()):
+    for (_, kind), (ok, frac, achieved, planned, t, lab, foot) in sorted(worst.items()):
         if kind == "step":
             what, msg = "step lengths as planned", (f"a step of the {foot} went {achieved:.3f} m of the planned "
                                                     f"{planned:.3f} m ({100 * frac:.0f} %)")
@@ -459,7 +464,7 @@ def step_checks(run: RunRecord, frames: _Frames) -> list[Check]:
             what, msg = "turn angles as planned", (f"the {foot} turned {math.degrees(achieved):.0f} deg of the planned "
                                                    f"{math.degrees(planned):.0f} deg ({100 * frac:.0f} %)")
         out.append(_line(CheckKind.INTENT_STEPS, lab, foot, what, 100 * frac, 100 * AMPLITUDE_FRACTION, "%",
-                         frac >= AMPLITUDE_FRACTION, t, msg))
+                         ok, t, msg))
     return out
 
 
