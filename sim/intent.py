@@ -13,7 +13,7 @@ compare it with the plan:
   :data:`AMPLITUDE_FRACTION` of its planned height;
 - **flight**: for an action with flight phases (jump, hop, jog), both soles are off the floor
   at least :data:`FLIGHT_FRACTION` of the planned flight time;
-- **amplitude**: a CoM target (squat, lean, lunge, a hop's crouch), a frame orientation target
+- **amplitude**: a HARD CoM target (squat, lean, lunge, a hop's crouch), a frame orientation target
   (bow, head turns, nod) or a frame position target (raise, reach, kick) that moves away from
   where its action began reaches at least :data:`AMPLITUDE_FRACTION` of the planned shift;
 - **steps and turns**: each sole's planned steps (length) and turns (yaw), achieved to
@@ -43,6 +43,7 @@ import pinocchio as pin
 from planner.results import Check, CheckKind
 from sim.collisions import MeshDistance
 from sim.recording import RunRecord
+from tasks.specs import Priority
 
 #: [s] a simulated lift-off or touch-down this close to the planned one happens as planned.
 EVENT_TOLERANCE = 0.15
@@ -328,7 +329,7 @@ def amplitude_checks(run: RunRecord, frames: _Frames) -> list[Check]:
     for com_target in spec.com_targets:
         lab = label_of(com_target.name)
         mask, held = _mask(ts, com_target.time, com_target.window, horizon)
-        if not mask.any():
+        if not mask.any() or com_target.priority is Priority.SOFT:  # soft: a waypoint shaping the path
             continue
         axes = np.array([v is not None for v in com_target.position], dtype=float)
         k0 = frames.start_tick(lab)
@@ -345,7 +346,7 @@ def amplitude_checks(run: RunRecord, frames: _Frames) -> list[Check]:
         lab = label_of(target.name)
         mask, held = _mask(ts, target.time, target.window, horizon)
         track = frames.plan(target.frame)
-        if not mask.any() or track is None or target.touch is not None:
+        if not mask.any() or track is None or target.touch is not None or target.priority is Priority.SOFT:
             continue
         k0 = frames.start_tick(lab)
         sim_pos, sim_rot = frames.sim(target.frame)
