@@ -90,7 +90,13 @@ class CheckKind(enum.Enum):
     certificate ``OBJECT_GRASP``, ``OBJECT_LIFT``, ``OBJECT_HELD`` (held to the end: still in the
     hand), ``OBJECT_PLACE``, ``OBJECT_OFFER`` (held out for a hand-over),
     ``OBJECT_PUSH`` (moved by a push; subject: the object),
-    ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds).
+    ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds). The intent lines
+    (:mod:`sim.intent`): ``INTENT_CONTACTS`` (a sole's lift-offs and touch-downs as planned;
+    subject: the foot), ``INTENT_FLIGHT`` (both soles off the floor for a jump's or hop's flights),
+    ``INTENT_AMPLITUDE`` (a shift, turn or rise relative to the plan), ``INTENT_STEPS`` (step
+    lengths and turn angles), ``INTENT_WORDS`` (what the action's word means: the clap's hands
+    meet, the salute's hand at the head, the point's direction). ``SELF_COLLISION_MESH``: every
+    pair of links on the URDF meshes (coal; :mod:`sim.meshcheck`).
 
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
     """
@@ -133,6 +139,12 @@ class CheckKind(enum.Enum):
     OBJECT_OFFER = "object_offer"
     OBJECT_PUSH = "object_push"
     OBJECT_MOVED = "object_moved"
+    INTENT_CONTACTS = "intent_contacts"
+    INTENT_FLIGHT = "intent_flight"
+    INTENT_AMPLITUDE = "intent_amplitude"
+    INTENT_STEPS = "intent_steps"
+    INTENT_WORDS = "intent_words"
+    SELF_COLLISION_MESH = "self_collision_mesh"
     OBJECT_TIPPED = "object_tipped"
     RECORDED = "recorded"
 

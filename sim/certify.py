@@ -3,7 +3,9 @@
 :func:`certify` runs them in a fixed order: fall (base height, tilt), unplanned contacts, per
 stance foot (placement, slip), peak torque, controller QP failures, CoM and hand tracking, then
 the spec's frame and CoM targets as measured in the simulation, self-collision and scene collision
-(docs/simulation-collisions.md).
+(docs/simulation-collisions.md) and on the meshes for the pairs the collision model leaves out
+(:mod:`sim.meshcheck`), and last the intent lines of :mod:`sim.intent` (did the motion do
+what its actions mean, relative to the plan).
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ import pinocchio as pin
 from planner.results import Check, CheckKind
 from robots.collision import body_part
 from sim.collisions import MeshDistance
+from sim.intent import intent_checks
+from sim.meshcheck import mesh_self_collision_check
 from sim.recording import RunRecord, tilt, torque_fraction
 
 #: Ticks of a pair whose MuJoCo contact is deeper than the limit that coal checks on the meshes.
@@ -62,7 +66,9 @@ def certify(run: RunRecord) -> tuple[Check, ...]:
         *target_checks(run, meas),
         *com_target_checks(run),
         self_collision_check(run),
+        mesh_self_collision_check(run),
         scene_collision_check(run),
+        *intent_checks(run),
     )
 
 

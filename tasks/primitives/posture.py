@@ -30,6 +30,7 @@ from tasks.primitives.geometry import (
     require_role,
     standing_geometry,
 )
+from tasks.specs import Priority
 
 OUT_FRACTION = 0.4
 HOLD_END_FRACTION = 0.6
@@ -40,6 +41,8 @@ RAISE_TOLERANCE = 0.02  # [m]
 FOLD_MIN_TIME = 3.0  # [s] raises at least this long pass through the folded-elbow waypoints
 ORIENTATION_TOLERANCE = 0.05  # [rad] bow and turn_head
 LEAN_TOLERANCE = 0.01  # [m]
+LEAN_RAMP = (0.25, 0.5, 0.75)  # [-] fractions of the way out (and back) given a soft CoM waypoint ...
+LEAN_RAMP_WEIGHT = 100.0  # ... of this weight, on a cosine profile
 LEAN_ZMP_MARGIN = 0.02  # [m] a lean whose smooth ZMP comes this close to the soles' edge is planned dynamically
 G = 9.81  # [m/s^2]
 
@@ -245,6 +248,13 @@ def build_lean(b: FragmentBuilder) -> Fragment:
     b.com_target(f"lean {b.params['direction']}", (p[0], p[1], None),
                  window=(OUT_FRACTION * T, HOLD_END_FRACTION * T), tolerance=LEAN_TOLERANCE)
     home = b.world(g.com)
+    for k, f in enumerate(LEAN_RAMP):  # a smooth way out and back (soft): no ZMP spike at the hold's ends
+        s_ = 0.5 * (1.0 - np.cos(np.pi * f))
+        w = b.world(g.com + s_ * b.params["amount"] * g.heading_axis(b.params["direction"]))
+        b.com_target(f"CoM on the way out #{k + 1}", (w[0], w[1], None), time=f * OUT_FRACTION * T,
+                     priority=Priority.SOFT, weight=LEAN_RAMP_WEIGHT)
+        b.com_target(f"CoM on the way back #{k + 1}", (w[0], w[1], None),
+                     time=T - f * (1.0 - HOLD_END_FRACTION) * T, priority=Priority.SOFT, weight=LEAN_RAMP_WEIGHT)
     b.com_target("CoM back over the feet", (home[0], home[1], None), time=T, tolerance=LEAN_TOLERANCE)
     b.phase(f"lean {b.params['direction']}", T)
     return b.finish(frozenset({"com", "legs"}), dynamic=lean_needs_dynamics(b.robot, b.params["direction"],

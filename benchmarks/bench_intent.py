@@ -1,0 +1,326 @@
+"""Does a certified motion do what its sentence says? Sentences in users' words, one or more per
+action, on Talos and G1: planned, certified, and the intent checked independently of wbmp.
+
+Run: ``.venv/bin/python benchmarks/bench_intent.py [--robots talos,g1] [--actions clap,lean]
+[--json out.json] [--markdown out.md]``
+
+Each sentence is parsed, compiled, planned (``PlannerSettings(compile=False)``) and simulated in
+MuJoCo with the certificate (whose intent lines are ``sim/intent.py``). The *independent* check
+does not use wbmp's checks: it measures the simulated configurations with Pinocchio forward
+kinematics (CoM, frames) and coal (the URDF collision meshes), and MuJoCo's sole forces, against
+what the action means (:data:`INDEPENDENT`); where the meaning is relative to the plan (how far a
+lean goes), the plan is measured the same way. A row is a *silent wrong motion* when the
+certificate passes and the independent check says the intent was missed: the target is none.
+
+Reported per sentence: refused (the reason) / planned / certified / intent met (independent), the
+measured figure, and the certificate's first failure. This is a report, not a test; a run of the
+default sentences takes tens of minutes on two cores (use ``--actions`` for a few).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+#: action -> sentences in users' words (objects and scenes: not here, see docs/objects.md).
+SENTENCES: dict[str, tuple[str, ...]] = {
+    "stand": ("stand still for two seconds",),
+    "squat": ("squat", "do a deep squat"),
+    "lean": ("lean to your right", "lean forward"),
+    "bow": ("bow",),
+    "raise_arms": ("raise your arms",),
+    "turn_head": ("look left",),
+    "nod": ("nod",),
+    "shake_head": ("shake your head",),
+    "clap": ("clap twice",),
+    "salute": ("salute",),
+    "point": ("point to your left", "point forward"),
+    "wave": ("wave your right hand",),
+    "punch": ("punch with your right hand",),
+    "touch": ("touch your head",),
+    "hands_on_hips": ("put your hands on your hips",),
+    "arms_out": ("stretch your arms out",),
+    "step": ("take two steps forward",),
+    "walk": ("walk forward",),
+    "turn": ("turn left",),
+    "jump": ("jump",),
+    "hop": ("hop twice on your left foot",),
+    "kick": ("kick with your right leg",),
+    "march": ("march in place",),
+    "stomp": ("stomp your right foot",),
+    "balance": ("balance on your left foot",),
+    "lunge": ("lunge forward",),
+}
+
+
+@dataclass
+class Sim:
+    """What the independent checks read: the plan and the simulation, both as configurations."""
+
+    robot: object
+    spec: object
+    plan: object
+    execution: object
+
+
+def _fk(robot, qs: np.ndarray, frame: str) -> np.ndarray:
+    import pinocchio as pin
+
+    model, data = robot.model, robot.model.createData()
+    fid = robot.frame_id(frame)
+    out = np.empty((len(qs), 3, 4))
+    for n, q in enumerate(qs):
+        pin.framesForwardKinematics(model, data, q)
+        m = data.oMf[fid]
+        out[n, :, :3], out[n, :, 3] = m.rotation, m.translation
+    return out
+
+
+def _com(robot, qs: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    data = robot.model.createData()
+    return np.array([pin.centerOfMass(robot.model, data, q) for q in qs])
+
+
+def _every(s: Sim, step_s: float = 0.02) -> np.ndarray:
+    ex = s.execution
+    step = max(1, int(round(step_s / ex.timestep)))
+    return ex.q[::step]
+
+
+def _ratio_of_extent(plan_values: np.ndarray, sim_values: np.ndarray) -> float:
+    """Largest excursion of the simulation from its start over the plan's (same measure)."""
+    p = float(np.max(np.abs(plan_values - plan_values[0])))
+    x = float(np.max(np.abs(sim_values - sim_values[0])))
+    return x / p if p > 1e-9 else math.inf
+
+
+def com_axis(axis: int) -> Callable[[Sim], tuple[bool, str]]:
+    def check(s: Sim) -> tuple[bool, str]:
+        r = _ratio_of_extent(_com(s.robot, s.plan.q)[:, axis], _com(s.robot, _every(s))[:, axis])
+        return r >= 0.8, f"CoM {'xyz'[axis]} excursion {100 * r:.0f} % of the plan's"
+    return check
+
+
+def lean(s: Sim) -> tuple[bool, str]:
+    p, x = _com(s.robot, s.plan.q)[:, :2], _com(s.robot, _every(s))[:, :2]
+    r = float(np.max(np.linalg.norm(x - x[0], axis=1)) / np.max(np.linalg.norm(p - p[0], axis=1)))
+    return r >= 0.8, f"CoM horizontal shift {100 * r:.0f} % of the plan's"
+
+
+def frame_turn(role: str) -> Callable[[Sim], tuple[bool, str]]:
+    import pinocchio as pin
+
+    def check(s: Sim) -> tuple[bool, str]:
+        def angles(qs):
+            m = _fk(s.robot, qs, role)
+            return np.array([np.linalg.norm(pin.log3(m[0, :, :3].T @ r[:, :3])) for r in m])
+        r = float(angles(_every(s)).max() / angles(s.plan.q).max())
+        return r >= 0.8, f"{role} turned {100 * r:.0f} % of the plan's angle"
+    return check
+
+
+def feet_flight(s: Sim) -> tuple[bool, str]:
+    ex, spec = s.execution, s.spec
+    planned = sum(ph.duration for ph in spec.phases if not ph.contacts)
+    fz = [f[:, 2] for f in ex.contact_forces.values()]
+    air = float(np.count_nonzero(np.all([f < 1.0 for f in fz], axis=0))) * ex.timestep
+    return air >= 0.25 * planned, f"both soles unloaded {air:.3f} s of the planned {planned:.2f} s flight"
+
+
+def base_travel(s: Sim) -> tuple[bool, str]:
+    p = float(np.linalg.norm(s.plan.q[-1, :2] - s.plan.q[0, :2]))
+    x = float(np.linalg.norm(s.execution.q[-1, :2] - s.execution.q[0, :2]))
+    return x >= 0.8 * p, f"base moved {x:.3f} m of the plan's {p:.3f} m"
+
+
+def base_yaw(s: Sim) -> tuple[bool, str]:
+    def yaw(q):
+        x, y, z, w = q[3:7]
+        return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    p = abs(yaw(s.plan.q[-1]) - yaw(s.plan.q[0]))
+    x = abs(yaw(s.execution.q[-1]) - yaw(s.execution.q[0]))
+    return x >= 0.8 * p, f"base turned {math.degrees(x):.0f} deg of the plan's {math.degrees(p):.0f}"
+
+
+def sole_rise(s: Sim) -> tuple[bool, str]:
+    best = None
+    for role in ("left_foot", "right_foot"):
+        p = _fk(s.robot, s.plan.q, role)[:, 2, 3]
+        x = _fk(s.robot, _every(s), role)[:, 2, 3]
+        if p.max() - p[0] > 0.01:
+            r = (x.max() - x[0]) / (p.max() - p[0])
+            best = r if best is None else min(best, r)
+    if best is None:
+        return True, "no sole planned to rise"
+    return best >= 0.8, f"soles rose {100 * best:.0f} % of the plan's height"
+
+
+def hands_follow(s: Sim) -> tuple[bool, str]:
+    worst = 0.0
+    idx = np.searchsorted(s.execution.t, s.plan.t).clip(0, len(s.execution.t) - 1)
+    for role in ("left_hand", "right_hand"):
+        p = _fk(s.robot, s.plan.q, role)[:, :, 3]
+        x = _fk(s.robot, s.execution.q[idx], role)[:, :, 3]
+        worst = max(worst, float(np.max(np.linalg.norm(p - x, axis=1))))
+    return worst <= 0.05, f"hands within {worst:.3f} m of the planned hands"
+
+
+def _mesh_gap(s: Sim, a: str, b: str, qs: np.ndarray) -> float:
+    """Smallest coal distance between the meshes below frames ``a`` and ``b`` over ``qs``."""
+    import pinocchio as pin
+
+    robot = s.robot
+    model = robot.model
+    gm = robot.collision_model.copy()
+    gm.removeAllCollisionPairs()
+
+    def below(frame: str) -> list[int]:
+        j = model.frames[robot.frame_id(frame)].parentJoint
+        sub = set(model.subtrees[j])
+        return [i for i, o in enumerate(gm.geometryObjects) if o.parentJoint in sub]
+
+    for i in below(a):
+        for j in below(b):
+            gm.addCollisionPair(pin.CollisionPair(min(i, j), max(i, j)))
+    gd, data = gm.createData(), model.createData()
+    best = math.inf
+    for q in qs:
+        pin.computeDistances(model, data, gm, gd, q)
+        best = min(best, min(max(r.min_distance, 0.0) for r in gd.distanceResults))
+    return best
+
+
+def hands_meet(s: Sim) -> tuple[bool, str]:
+    gap = _mesh_gap(s, "left_hand", "right_hand", _every(s, 0.05))
+    return gap <= 0.01, f"hands' meshes {gap:.3f} m apart at the closest"
+
+
+def hand_at_head(s: Sim) -> tuple[bool, str]:
+    gaps = [_mesh_gap(s, f"{side}_hand", "head", _every(s, 0.05)) for side in ("left", "right")]
+    gap = min(gaps)
+    return gap <= 0.03, f"hand's meshes {gap:.3f} m from the head's at the closest"
+
+
+def pointing(s: Sim) -> tuple[bool, str]:
+    best = math.inf
+    want = {"left": (0, 1, 0), "right": (0, -1, 0), "up": (0, 0, 1), "down": (0, 0, -1), "forward": (1, 0, 0)}
+    named = [t.name.rsplit("pointing ", 1)[-1] for t in s.spec.targets if "pointing " in t.name]
+    d = np.array(want.get(named[0] if named else "forward", (1, 0, 0)), dtype=float)
+    for side in ("left", "right"):
+        hand = _fk(s.robot, _every(s), f"{side}_hand")[:, :, 3]
+        root = _fk(s.robot, _every(s), f"{side}_shoulder" if s.robot.has_role(f"{side}_shoulder") else "torso")[:, :, 3]
+        arm = hand - root
+        cos = (arm @ d) / np.linalg.norm(arm, axis=1)
+        best = min(best, float(np.degrees(np.arccos(np.clip(cos, -1, 1))).min()))
+    vertical = abs(d[2]) > 0.5
+    return best <= (30.0 if vertical else 20.0), f"arm {best:.0f} deg from the named direction at the closest"
+
+
+def stand(s: Sim) -> tuple[bool, str]:
+    x = float(np.linalg.norm(s.execution.q[-1, :2] - s.execution.q[0, :2]))
+    return x <= 0.01, f"base moved {x:.3f} m"
+
+
+#: action -> its independent intent check (Pinocchio FK, coal, MuJoCo forces; no wbmp check).
+INDEPENDENT: dict[str, Callable[[Sim], tuple[bool, str]]] = {
+    "stand": stand, "squat": com_axis(2), "lean": lean, "bow": frame_turn("torso"),
+    "raise_arms": hands_follow, "turn_head": frame_turn("head"), "nod": frame_turn("head"),
+    "shake_head": frame_turn("head"), "clap": hands_meet, "salute": hand_at_head, "point": pointing,
+    "wave": hands_follow, "punch": hands_follow, "touch": hands_follow, "hands_on_hips": hands_follow,
+    "arms_out": hands_follow, "step": base_travel, "walk": base_travel, "turn": base_yaw, "jump": feet_flight,
+    "hop": feet_flight, "kick": sole_rise, "march": sole_rise, "stomp": sole_rise, "balance": sole_rise,
+    "lunge": base_travel,
+}
+
+
+def run_one(robot_name: str, action: str, sentence: str) -> dict:
+    from language.exceptions import LanguageError
+    from planner import PlannerSettings, plan
+    from sim import SimSettings, simulate
+    from tasks.exceptions import TaskError
+    from wbmp.pipeline import SolveRequest, build_spec
+
+    row: dict = {"robot": robot_name, "action": action, "sentence": sentence}
+    t0 = time.perf_counter()
+    try:
+        robot, spec, _ = build_spec(SolveRequest(instruction=sentence, robot=robot_name))
+    except (TaskError, LanguageError) as e:  # a refusal is a result: reported with its reason
+        row.update(status="refused", reason=str(e).splitlines()[0])
+        return row
+    p = plan(spec, robot, settings=PlannerSettings(compile=False), throw=False)
+    if not p.ok:
+        row.update(status="not planned", reason=p.stats.status.name)
+        return row
+    ex = simulate(p, robot, settings=SimSettings(settle_time=0.2))
+    met, figure = INDEPENDENT[action](Sim(robot, spec, p, ex))
+    cert = ex.certificate
+    intent = [c for c in cert.checks if c.kind.value.startswith("intent") or c.kind.value == "self_collision_mesh"]
+    row.update(status="certified" if cert.ok else "failed", certified=cert.ok, intent_met=met, figure=figure,
+               reason=cert.reason, intent_lines_failed=[c.message for c in intent if not c.ok],
+               seconds=round(time.perf_counter() - t0, 1))
+    row["silent_wrong"] = bool(cert.ok and not met)
+    return row
+
+
+def markdown(rows: list[dict]) -> str:
+    lines = ["| robot | action | sentence | planned | certified | intent met (independent) | figure | "
+             "certificate's first failure |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        planned = "refused" if r["status"] == "refused" else ("no" if r["status"] == "not planned" else "yes")
+        cert = "yes" if r.get("certified") else ("—" if planned != "yes" else "no")
+        met = {True: "yes", False: "**no**"}.get(r.get("intent_met"), "—")
+        lines.append(f"| {r['robot']} | {r['action']} | {r['sentence']} | {planned} | {cert} | {met} | "
+                     f"{r.get('figure', '')} | {r.get('reason', '')} |")
+    n = [r for r in rows if r["status"] != "refused"]
+    lines.append("")
+    lines.append(f"{len(rows)} sentences, {len(n)} in scope (not refused), "
+                 f"{sum(bool(r.get('certified')) for r in n)} certified, "
+                 f"{sum(bool(r.get('intent_met')) for r in n)} met their intent (independent), "
+                 f"{sum(bool(r.get('silent_wrong')) for r in n)} silent wrong motions (certified, intent missed).")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--robots", default="talos,g1", help="comma-separated robots (default: talos,g1)")
+    ap.add_argument("--actions", default="", help="comma-separated actions (default: every one of SENTENCES)")
+    ap.add_argument("--json", default="", help="write the rows as JSON here")
+    ap.add_argument("--markdown", default="", help="write the Markdown table here")
+    args = ap.parse_args(argv)
+    actions = [a for a in args.actions.split(",") if a] or list(SENTENCES)
+    unknown = sorted(set(actions) - set(SENTENCES))
+    if unknown:
+        ap.error(f"unknown action(s) {', '.join(unknown)}; choose from {', '.join(SENTENCES)}")
+    rows = []
+    for robot in [r for r in args.robots.split(",") if r]:
+        for action in actions:
+            for sentence in SENTENCES[action]:
+                row = run_one(robot, action, sentence)
+                rows.append(row)
+                print(f"{robot:6} {action:13} {row['status']:11} intent met: {row.get('intent_met', '-')!s:5} "
+                      f"{row.get('figure', row.get('reason', ''))}", flush=True)
+    text = markdown(rows)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    if args.markdown:
+        Path(args.markdown).write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
