@@ -92,6 +92,8 @@ class CheckKind(enum.Enum):
     ``OBJECT_PUSH`` (moved by a push; subject: the object),
     ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds).
 
+    ``ESTOP``: the run was stopped by the E-stop (subject: the trigger; docs/safety.md).
+
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
     """
 
@@ -134,6 +136,7 @@ class CheckKind(enum.Enum):
     OBJECT_PUSH = "object_push"
     OBJECT_MOVED = "object_moved"
     OBJECT_TIPPED = "object_tipped"
+    ESTOP = "estop"
     RECORDED = "recorded"
 
 

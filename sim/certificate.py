@@ -6,7 +6,7 @@ Each check is a :class:`planner.results.Check` (the record the planner's report 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from planner.results import Check, CheckKind
@@ -23,11 +23,17 @@ class Certificate:
         checks: The checks in a fixed order (fall, contacts, slip, torque, tracking, targets).
         reason: The earliest failure in words ("fell at t = 1.23 s (base height 0.42 m <
             0.60 m)"); empty when ok.
+        figures: The evaluation figures (:data:`sim.figures.FIGURES`: energy, torque use, jerk,
+            feet, tracking, E-stops), key -> value; empty when not computed.
+        stops: The run's E-stops, each :meth:`sim.estop.Stop.to_dict` (when, why, what the robot
+            did, whether it stayed up).
     """
 
     ok: bool
     checks: tuple[Check, ...]
     reason: str = ""
+    figures: dict[str, float] = field(default_factory=dict)
+    stops: tuple[dict[str, Any], ...] = ()
 
     @classmethod
     def from_checks(cls, checks: tuple[Check, ...]) -> Certificate:
@@ -55,12 +61,23 @@ class Certificate:
             lines.append(
                 f"  {mark} {c.name:<34} {c.value:10.4g} {c.unit:<5} ({rel} {c.limit:.4g}, t = {c.time:.3f} s)"
             )
+        for stop in self.stops:
+            lines.append(f"  {stop.get('message', '')}")
+        if self.figures:
+            from sim.figures import describe
+
+            lines.append(describe(self.figures))
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dict."""
-        return {
+        out: dict[str, Any] = {
             "ok": bool(self.ok),
             "reason": self.reason,
             "checks": [c.to_dict() for c in self.checks],
         }
+        if self.figures:
+            out["figures"] = {k: float(v) for k, v in self.figures.items()}
+        if self.stops:
+            out["stops"] = [dict(s) for s in self.stops]
+        return out
