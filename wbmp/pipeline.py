@@ -132,6 +132,9 @@ class SolveResult:
             out["actions"] = self.actions.to_dict()["actions"]
         if self.execution is not None:
             out["certificate"] = self.execution.certificate.to_dict()
+            events = getattr(self.execution, "events", None)
+            if events:  # a fresh simulation's events (pushes, falls, E-stops); a cached one keeps its report's
+                out["events"] = [e.to_dict() for e in events]
         return out
 
 

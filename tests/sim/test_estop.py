@@ -168,3 +168,33 @@ def test_no_stop_without_a_trigger(free_run):
     """The free squat: no E-stop, a passing certificate with its figures."""
     assert free_run.stops == () and free_run.certificate.ok, free_run.certificate.summary()
     assert free_run.certificate.figures["estop_count"] == 0
+
+
+def test_the_stop_travels_in_the_motion_file_the_bag_and_the_replay(talos, squat, stopped_run, tmp_path):
+    """The motion file's report holds the stop and the events, the ROS 2 bag has one message on
+    /wbmp/execution/estop at the stop's time, and the HTML replay's subtitle names it."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from viz.html import _subtitle
+    from wbmp.export.rosbag import BagOptions, write_bag
+    from wbmp.motionfile import load_motion
+    from wbmp.pipeline import SolveResult, result_arrays
+
+    result = SolveResult(robot=talos, spec=squat.spec, plan=squat, execution=stopped_run)
+    path = tmp_path / "stopped.npz"
+    np.savez(path, **result_arrays(result))
+    motion = load_motion(path)
+    (stop,) = motion.report["certificate"]["stops"]
+    assert stop["trigger"] == "request" and stop["time"] == pytest.approx(0.6) and stop["stayed_up"]
+    assert any(e["kind"] == "estop" for e in motion.report["events"])
+    assert motion.report["certificate"]["figures"]["estop_count"] == 1
+    bag = tmp_path / "stopped.mcap"
+    with bag.open("wb") as fh:
+        write_bag(fh, motion, BagOptions(stamp=100.0))
+    with bag.open("rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        found = [(m.log_time, json.loads(d.data)) for _, ch, m, d in reader.iter_decoded_messages()
+                 if ch.topic == "/wbmp/execution/estop"]
+    assert len(found) == 1 and found[0][0] == 100_600_000_000 and found[0][1]["trigger"] == "request"
+    assert "E-stop at t = 0.600 s" in _subtitle("talos", squat, stopped_run)
