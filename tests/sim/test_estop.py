@@ -198,3 +198,18 @@ def test_the_stop_travels_in_the_motion_file_the_bag_and_the_replay(talos, squat
                  if ch.topic == "/wbmp/execution/estop"]
     assert len(found) == 1 and found[0][0] == 100_600_000_000 and found[0][1]["trigger"] == "request"
     assert "E-stop at t = 0.600 s" in _subtitle("talos", squat, stopped_run)
+
+
+def test_a_stop_in_single_support_runs_on_to_double_support(talos):
+    """A stop at 0.5 s while the plan stands on its right foot (0.4-1.0 s): the plan runs on to its next
+    double-support sample (1.0 s), whose posture is then held; the robot stays up."""
+    from sim.handmade import ik_plan
+
+    plan = ik_plan(talos, duration=1.5, name="phases", phases=(
+        ("stand", 0.4, ("left_foot", "right_foot")), ("right only", 0.6, ("right_foot",)),
+        ("stand again", 0.5, ("left_foot", "right_foot"))))
+    ex = simulate(plan, talos, settings=SETTLE, estop=EStopSettings(at=0.5, hold_time=0.8))
+    stop = ex.stops[0]
+    assert (stop.trigger, stop.response, stop.stayed_up) == ("request", "stand", True)
+    assert stop.posture_time == pytest.approx(1.0, abs=2e-3) and stop.hold_from == pytest.approx(1.0, abs=2e-3)
+    assert "ran on to the plan's double-support posture of t = 1.00 s" in stop.describe()
