@@ -4,6 +4,11 @@
 every ``control_every`` physics steps, the push applied to the base, the run stopped after a fall
 or a controller that keeps failing), records every tick (:mod:`sim.recording`), and certifies the
 record (:mod:`sim.certify`), adding whether the plan itself could balance (:mod:`sim.zmp`).
+
+Every tick also goes through the software E-stop (:mod:`sim.estop`: a stop request, a tilt, failed
+QPs, a torque held at its cap, a NaN; then a stand in the plan's nearest double-support posture or
+damping), the run may be put through faults (:mod:`sim.faults`), and the certificate carries the
+evaluation figures (:mod:`sim.figures`).
 """
 
 from __future__ import annotations
