@@ -95,6 +95,8 @@ class EStopSettings:
     def __post_init__(self) -> None:
         if self.at is not None and not (math.isfinite(self.at) and self.at >= 0):
             raise SimError(f"E-stop: the stop time must be a finite time >= 0 s, got {self.at!r}")
+        if self.flag_file is not None and not str(self.flag_file).strip():
+            raise SimError("E-stop: the flag file must be a path, got an empty one")
         if not (self.flag_period > 0 and self.max_roll_pitch > 0 and self.qp_failures >= 1
                 and self.torque_window > 0 and self.hold_time > 0 and self.lookahead >= 0
                 and self.damping > 0):

@@ -78,6 +78,7 @@ class SolveRequest:
                            f"{MAX_TEXT_LENGTH:,} (one to a few sentences)", ExitCode.USAGE)
         if self.push is not None and not self.simulate:
             raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
+        require_text(self.estop_flag, "--estop-flag", "give the path of a file whose appearance stops the motion")
         for value, option in ((self.estop_at, "--estop-at"), (self.estop_flag, "--estop-flag"),
                               (self.faults_path, "--faults")):
             if value is not None and not self.simulate:

@@ -180,5 +180,7 @@ def test_cli_refuses_a_bad_faults_file_and_stop_time(tmp_path):
     assert r.returncode == 2 and "--estop-at needs the simulation" in r.stderr
     r = _wbmp("solve", "squat", "--estop-at", "-1", "--quiet")
     assert r.returncode == 2 and "--estop-at" in r.stderr
+    r = _wbmp("solve", "squat", "--estop-flag", " ", "--quiet")
+    assert r.returncode == 2 and "--estop-flag is empty" in r.stderr
     r = _wbmp("solve", "squat", "--estop-at", "999", "--quiet", "--no-cache")
     assert r.returncode == 2 and "the motion lasts" in r.stderr, r.stderr
