@@ -213,3 +213,16 @@ def test_a_stop_in_single_support_runs_on_to_double_support(talos):
     assert (stop.trigger, stop.response, stop.stayed_up) == ("request", "stand", True)
     assert stop.posture_time == pytest.approx(1.0, abs=2e-3) and stop.hold_from == pytest.approx(1.0, abs=2e-3)
     assert "ran on to the plan's double-support posture of t = 1.00 s" in stop.describe()
+
+
+def test_g1_stops_and_stands(g1):
+    """The same stop on G1 (35 kg, four contact spheres a sole): it stands still in the squat's posture of
+    0.5 s, its CoM as low as the plan's there."""
+    plan = squat_plan(g1, depth=0.08, duration=1.5)
+    ex = simulate(plan, g1, settings=SETTLE, estop=EStopSettings(at=0.5, hold_time=0.8))
+    stop = ex.stops[0]
+    assert (stop.trigger, stop.response, stop.stayed_up) == ("request", "stand", True)
+    assert np.abs(ex.v[-1]).max() < 0.1
+    ref = WholeBodyController(g1).reference_for(plan)
+    planned = ref.com[ref.index(0.5), 2]
+    assert abs(ex.com[-1, 2] - planned) < 0.015
