@@ -6,6 +6,7 @@ Each check is a :class:`planner.results.Check` (the record the planner's report 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -64,9 +65,7 @@ class Certificate:
         for stop in self.stops:
             lines.append(f"  {stop.get('message', '')}")
         if self.figures:
-            from sim.figures import describe
-
-            lines.append(describe(self.figures))
+            lines.append(describe_figures(self.figures))
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -81,3 +80,19 @@ class Certificate:
         if self.stops:
             out["stops"] = [dict(s) for s in self.stops]
         return out
+
+
+def describe_figures(fig: Mapping[str, float]) -> str:
+    """Two lines of the evaluation figures (:mod:`sim.figures`) for a report: energy and torque, then smoothness, feet and tracking."""
+    if not fig:
+        return ""
+    g = dict(fig)
+    return (f"  figures: {g.get('execution_time', math.nan):.2f} s, work {g.get('work', math.nan):.1f} J "
+            f"(|work| {g.get('abs_work', math.nan):.1f} J, int tau^2 {g.get('torque_squared', math.nan):.3g} N2m2s), "
+            f"torque peak {100 * g.get('peak_torque_ratio', math.nan):.0f}% rms "
+            f"{100 * g.get('rms_torque_ratio', math.nan):.1f}%\n"
+            f"           jerk rms {g.get('rms_jerk', math.nan):.3g} rad/s3, feet skate "
+            f"{g.get('foot_skate', math.nan):.1f} float {g.get('foot_float', math.nan):.1f} penetration "
+            f"{g.get('foot_penetration', math.nan):.1f} mm, CoM error rms {g.get('com_error_rms', math.nan):.1f} "
+            f"max {g.get('com_error_max', math.nan):.1f} mm, hands rms {g.get('hand_error_rms', math.nan):.1f} "
+            f"max {g.get('hand_error_max', math.nan):.1f} mm, E-stops {int(g.get('estop_count', 0))}")

@@ -115,22 +115,6 @@ def figures(run: RunRecord, *, estops: int = 0, stop_time: float | None = None) 
     return out
 
 
-def describe(fig: Mapping[str, float]) -> str:
-    """Two lines for a report: energy and torque, then smoothness, feet and tracking."""
-    if not fig:
-        return ""
-    g = dict(fig)
-    return (f"  figures: {g.get('execution_time', math.nan):.2f} s, work {g.get('work', math.nan):.1f} J "
-            f"(|work| {g.get('abs_work', math.nan):.1f} J, int tau^2 {g.get('torque_squared', math.nan):.3g} N2m2s), "
-            f"torque peak {100 * g.get('peak_torque_ratio', math.nan):.0f}% rms "
-            f"{100 * g.get('rms_torque_ratio', math.nan):.1f}%\n"
-            f"           jerk rms {g.get('rms_jerk', math.nan):.3g} rad/s3, feet skate "
-            f"{g.get('foot_skate', math.nan):.1f} float {g.get('foot_float', math.nan):.1f} penetration "
-            f"{g.get('foot_penetration', math.nan):.1f} mm, CoM error rms {g.get('com_error_rms', math.nan):.1f} "
-            f"max {g.get('com_error_max', math.nan):.1f} mm, hands rms {g.get('hand_error_rms', math.nan):.1f} "
-            f"max {g.get('hand_error_max', math.nan):.1f} mm, E-stops {int(g.get('estop_count', 0))}")
-
-
 def summarize(runs: Iterable[tuple[bool, Mapping[str, float]]]) -> dict[str, float]:
     """Over many runs (passed?, figures): ``success_rate`` [-], ``runs``, and the mean of every figure
     (``mean_<key>``) over the runs that have it; E-stops are summed (``estop_count``)."""
