@@ -94,24 +94,26 @@ def study_target(tasks: list[str], robot_name: str) -> dict:
 def study_bisect(tasks: list[str], robots: list[str], steps: int, top: float) -> dict:
     """The largest push at mid-motion each motion survives."""
     rows = []
-    print("\n| motion | robot | largest push survived [N s] | first failure [N s] |\n| --- | --- | --- | --- |")
+    print("\n| motion | robot | largest push survived [N s] | first failure [N s] | its reason |\n"
+          "| --- | --- | --- | --- | --- |")
     for robot_name in robots:
         for task in tasks:
             robot, plan = _plan(TASKS[task], robot_name)
-            ok0, _ = _survives(robot, plan, 0.0)
+            ok0, why0 = _survives(robot, plan, 0.0)
             if not ok0:
-                rows.append({"task": task, "robot": robot_name, "survived": None, "failed": 0.0})
-                print(f"| {task} | {robot_name} | (fails without a push) | 0 |", flush=True)
+                rows.append({"task": task, "robot": robot_name, "survived": None, "failed": 0.0, "reason": why0})
+                print(f"| {task} | {robot_name} | (fails without a push) | 0 | {why0[:80]} |", flush=True)
                 continue
-            lo, hi = 0.0, top
+            lo, hi, why = 0.0, top, ""
             for _ in range(steps):
                 mid = 0.5 * (lo + hi)
-                if _survives(robot, plan, mid)[0]:
+                ok, reason = _survives(robot, plan, mid)
+                if ok:
                     lo = mid
                 else:
-                    hi = mid
-            rows.append({"task": task, "robot": robot_name, "survived": lo, "failed": hi})
-            print(f"| {task} | {robot_name} | {lo:.1f} | {hi:.1f} |", flush=True)
+                    hi, why = mid, reason
+            rows.append({"task": task, "robot": robot_name, "survived": lo, "failed": hi, "reason": why})
+            print(f"| {task} | {robot_name} | {lo:.1f} | {hi:.1f} | {why[:80]} |", flush=True)
     return {"rows": rows}
 
 
