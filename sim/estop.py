@@ -76,7 +76,7 @@ class EStopSettings:
         hold_time: Simulated time after the stop before the run ends [s].
         lookahead: Longest run-on of the plan to its next double-support posture [s].
         damping: Damping mode's gain per unit torque limit: :math:`k_{d,j} = ` damping
-            :math:`\\cdot \\tau_{max,j}` [s/rad] (0.1: G1's knee, 88 N m, gets 8.8 N m s/rad).
+            :math:`\\cdot \\tau_{max,j}` [s/rad] (0.1: G1's hip pitch, 88 N m, gets 8.8 N m s/rad).
         automatic: Watch the automatic triggers (tilt, QP, torque); requests and NaNs always count.
     """
 
