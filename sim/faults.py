@@ -25,7 +25,7 @@ from sim.exceptions import FaultsError
 
 #: Longest push [s]; a push lasts 0.1 s unless it says otherwise.
 MAX_PUSH_DURATION = 1.0
-#: Largest impulse [N s] (Talos, 93 kg, would get 5 m/s).
+#: Largest impulse [N s] (Talos, 90 kg, would get 5.5 m/s).
 MAX_IMPULSE = 500.0
 #: Ranges of the scalar faults.
 FRICTION_RANGE = (0.05, 2.0)

@@ -216,7 +216,7 @@ def test_a_stop_in_single_support_runs_on_to_double_support(talos):
 
 
 def test_g1_stops_and_stands(g1):
-    """The same stop on G1 (35 kg, four contact spheres a sole): it stands still in the squat's posture of
+    """The same stop on G1 (33 kg, four contact spheres a sole): it stands still in the squat's posture of
     0.5 s, its CoM as low as the plan's there."""
     plan = squat_plan(g1, depth=0.08, duration=1.5)
     ex = simulate(plan, g1, settings=SETTLE, estop=EStopSettings(at=0.5, hold_time=0.8))
