@@ -261,6 +261,7 @@ class EStop:
         self._failing = 0
         self._failures_seen = 0
         self._at_cap_since: np.ndarray = np.full(len(self.cap), math.nan)
+        self.watched = np.ones(len(self.cap), dtype=bool)  # joints the torque trigger watches
         self._next_flag = 0.0
         self._stand_k: int | None = None
         self.stand_ref: PlanReference | None = None
@@ -316,7 +317,7 @@ class EStop:
         self._failures_seen = failures
         if self._failing >= self.s.qp_failures:
             return "qp_failure", f"the controller QP failed on {self._failing} ticks in a row"
-        at_cap = np.abs(tau) >= self.cap * (1.0 - 1e-3)
+        at_cap = (np.abs(tau) >= self.cap * (1.0 - 1e-3)) & self.watched
         self._at_cap_since = np.where(at_cap, np.where(np.isnan(self._at_cap_since), t, self._at_cap_since), math.nan)
         held = t - np.where(at_cap, self._at_cap_since, t)
         j = int(np.argmax(held))
@@ -324,6 +325,11 @@ class EStop:
             name = self.robot.joint_names[j]
             return "torque_limit", f"{name} at its torque limit for {held[j]:.2f} s"
         return None
+
+    def ignore_joints(self, joints: list[int]) -> None:
+        """Joints whose applied torque is not the controller's (a grasping gripper's drive,
+        :mod:`sim.grasp`): the torque trigger does not watch them."""
+        self.watched[np.asarray(joints, dtype=int)] = False
 
     def reset_failures(self, failures: int) -> None:
         """The controller restarted (its failure count went back to ``failures``)."""

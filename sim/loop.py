@@ -319,6 +319,7 @@ def _closed_loop(
     n_ticks = n_plan + hold_ticks  # room for a stop at the very end
     rig = GraspRig(sm, robot, plan.spec, n_ticks)
     m, d = rig.model, rig.data()
+    es.ignore_joints([int(gr.actuated) for gr in rig.grippers.values()])  # the rig drives them, not the controller
     if faults is not None and faults.changes_model:
         mujoco.mj_setConst(m, d)
     q = np.array(q0, dtype=float)
