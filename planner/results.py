@@ -98,6 +98,8 @@ class CheckKind(enum.Enum):
     meet, the salute's hand at the head, the point's direction). ``SELF_COLLISION_MESH``: every
     pair of links on the URDF meshes (coal; :mod:`sim.meshcheck`).
 
+    ``ESTOP``: the run was stopped by the E-stop (subject: the trigger; docs/safety.md).
+
     ``RECORDED``: a check read back from a motion file, whose report stores no kind.
     """
 
@@ -146,6 +148,7 @@ class CheckKind(enum.Enum):
     INTENT_WORDS = "intent_words"
     SELF_COLLISION_MESH = "self_collision_mesh"
     OBJECT_TIPPED = "object_tipped"
+    ESTOP = "estop"
     RECORDED = "recorded"
 
 

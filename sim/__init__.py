@@ -20,8 +20,10 @@ if "mujoco" not in sys.modules:
 if TYPE_CHECKING:
     from planner.results import Check, CheckKind
     from sim.certificate import Certificate
-    from sim.exceptions import PushParseError, SimError, SimModelError
+    from sim.estop import EStopSettings, Stop, StopRequest
+    from sim.exceptions import FaultsError, PushParseError, SimError, SimModelError
     from sim.execution import Event, Execution
+    from sim.faults import Faults, load_faults
     from sim.loop import simulate
     from sim.model import SimModel, build_model
     from sim.push import MAX_PUSH_FORCE, Push, check_push_time, parse_push
@@ -31,8 +33,11 @@ _EXPORTS = {  # public name -> module that defines it
     "Certificate": "sim.certificate",
     "Check": "planner.results",
     "CheckKind": "planner.results",
+    "EStopSettings": "sim.estop",
     "Event": "sim.execution",
     "Execution": "sim.execution",
+    "Faults": "sim.faults",
+    "FaultsError": "sim.exceptions",
     "MAX_PUSH_FORCE": "sim.push",
     "Push": "sim.push",
     "PushParseError": "sim.exceptions",
@@ -40,8 +45,11 @@ _EXPORTS = {  # public name -> module that defines it
     "SimModel": "sim.model",
     "SimModelError": "sim.exceptions",
     "SimSettings": "sim.settings",
+    "Stop": "sim.estop",
+    "StopRequest": "sim.estop",
     "build_model": "sim.model",
     "check_push_time": "sim.push",
+    "load_faults": "sim.faults",
     "parse_push": "sim.push",
     "simulate": "sim.loop",
 }
@@ -51,16 +59,22 @@ __all__ = [
     "Certificate",
     "Check",
     "CheckKind",
+    "EStopSettings",
     "Event",
     "Execution",
+    "Faults",
+    "FaultsError",
     "Push",
     "PushParseError",
     "SimError",
     "SimModel",
     "SimModelError",
     "SimSettings",
+    "Stop",
+    "StopRequest",
     "build_model",
     "check_push_time",
+    "load_faults",
     "parse_push",
     "simulate",
 ]

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from sim.certificate import Certificate
+
+if TYPE_CHECKING:
+    from sim.estop import Stop
+    from sim.faults import Faults
 
 
 @dataclass(frozen=True, slots=True)
@@ -17,7 +21,8 @@ class Event:
 
     Attributes:
         time: When [s].
-        kind: ``push``, ``qp_failure``, ``unplanned_contact``, ``fall``, ``torque_limit``, ``stopped``.
+        kind: ``push``, ``qp_failure``, ``unplanned_contact``, ``fall``, ``torque_limit``, ``stopped``,
+            ``estop`` (the E-stop fired: :mod:`sim.estop`).
         message: Details in words.
     """
 
@@ -52,6 +57,8 @@ class Execution:
         objects: Movable scene object -> its centre's position over the run (T', 3) [m] (MuJoCo).
         object_orientations: Movable scene object -> its orientation over the run (T', 4), a unit
             quaternion (x, y, z, w) as the free flyer's in ``q`` (MuJoCo).
+        stops: The E-stops of the run (:class:`sim.estop.Stop`).
+        faults: The faults the run was put through (:class:`sim.faults.Faults`), or None.
     """
 
     t: np.ndarray
@@ -70,6 +77,13 @@ class Execution:
     torque_limits: np.ndarray = field(default_factory=lambda: np.zeros(0))
     objects: Mapping[str, np.ndarray] = field(default_factory=dict)
     object_orientations: Mapping[str, np.ndarray] = field(default_factory=dict)
+    stops: tuple[Stop, ...] = ()
+    faults: Faults | None = None
+
+    @property
+    def figures(self) -> Mapping[str, float]:
+        """The evaluation figures (docs/safety.md), as in the certificate."""
+        return self.certificate.figures
 
     def peak_torque_fractions(self) -> dict[str, float]:
         """Peak |tau| / limit of each actuated joint over the run [-], in joint order."""

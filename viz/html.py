@@ -236,6 +236,9 @@ def _subtitle(robot_name: str, plan, execution=None) -> str:
         ok = getattr(certificate, "ok", None)
         parts.append("simulation included" if ok is None else
                      f"simulation: {'certified' if ok else 'FAILED the check'}")
+        for stop in getattr(certificate, "stops", ()) or ():  # the E-stops (sim.estop, docs/safety.md)
+            if isinstance(stop, dict) and stop.get("message"):
+                parts.append(str(stop["message"]))
     return " · ".join(parts)
 
 

@@ -207,6 +207,7 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     _R("sim.exceptions.SimError", ExitCode.SIM_FAILED, "the simulation check failed or could not run"),
     _R("sim.exceptions.SimModelError", ExitCode.SIM_FAILED, "the robot cannot be built in MuJoCo"),
     _R("sim.exceptions.PushParseError", ExitCode.USAGE, "a bad --push"),
+    _R("sim.exceptions.FaultsError", ExitCode.INVALID_SPEC, "a bad --faults file (docs/safety.md)"),
     # outputs and viewers
     _R("viz.files.OutputError", ExitCode.USAGE, "an output file refused or not written"),
     _R("viz.files.OutputPathError", ExitCode.USAGE, "a bad output path"),

@@ -43,6 +43,10 @@ class SolveRequest:
             parameters. Such a request is looked up in the motion cache by its spec only.
         profile: A ``robots.RobotProfile`` to plan a sentence or actions with instead of
             ``robot`` (``wbmp serve``'s "slower" on a walk changes its ``step_duration``).
+        estop_at: Stop request at this time of the simulation [s] (``--estop-at``), or None.
+        estop_flag: Stop when this file appears during the simulation (``--estop-flag``), or None.
+        faults_path: A faults JSON file (``--faults``, docs/safety.md), or None.
+        stop_request: A ``sim.estop.StopRequest`` set from outside (SIGUSR1), or None.
 
     :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
     needs no work to see: an empty ``robot`` or ``scene_path``, an instruction longer than
@@ -59,6 +63,15 @@ class SolveRequest:
     push: str | None = None
     actions: Any = None
     profile: Any = None
+    estop_at: float | None = None
+    estop_flag: str | None = None
+    faults_path: str | None = None
+    stop_request: Any = None
+
+    @property
+    def safety(self) -> bool:
+        """A stop or faults were asked for: the result is neither read from nor stored in the motion cache."""
+        return self.estop_at is not None or self.estop_flag is not None or self.faults_path is not None
 
     def check(self) -> None:
         """Refuse contradictory or empty options before any work (:class:`CliError`, exit 2)."""
@@ -69,6 +82,11 @@ class SolveRequest:
         require_instruction(self.instruction)
         if self.push is not None and not self.simulate:
             raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
+        require_text(self.estop_flag, "--estop-flag", "give the path of a file whose appearance stops the motion")
+        for value, option in ((self.estop_at, "--estop-at"), (self.estop_flag, "--estop-flag"),
+                              (self.faults_path, "--faults")):
+            if value is not None and not self.simulate:
+                raise CliError(f"{option} needs the simulation: drop --no-sim", ExitCode.USAGE)
 
 
 @dataclass(kw_only=True)
@@ -119,6 +137,9 @@ class SolveResult:
             out["actions"] = self.actions.to_dict()["actions"]
         if self.execution is not None:
             out["certificate"] = self.execution.certificate.to_dict()
+            events = getattr(self.execution, "events", None)
+            if events:  # a fresh simulation's events (pushes, falls, E-stops); a cached one keeps its report's
+                out["events"] = [e.to_dict() for e in events]
         return out
 
 
@@ -209,6 +230,8 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
 
     if not cache:
         return _solve(request, progress)
+    if request.safety:  # a stop or faults: planned with the solution library, simulated afresh, not stored
+        cache_read = False
     from wbmp.motioncache import MotionCache, request_key
 
     request.check()
@@ -281,7 +304,11 @@ def _certificate(record: dict[str, Any]):
                          limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]), ok=bool(c["ok"]),
                          message=str(c.get("message", "")), upper=bool(c.get("upper", True)))
                    for c in record["checks"])
-    return Certificate(ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")))
+    figures = record.get("figures") or {}
+    stops = record.get("stops") or []
+    return Certificate(ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")),
+                       figures={str(k): number(v) for k, v in figures.items()} if isinstance(figures, dict) else {},
+                       stops=tuple(dict(x) for x in stops if isinstance(x, dict)) if isinstance(stops, list) else ())
 
 
 def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
@@ -334,6 +361,11 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         from sim import parse_push
 
         push = parse_push(request.push)  # before any work: a typo fails at once (exit 2)
+    faults = None
+    if request.simulate and request.faults_path is not None:
+        from sim.faults import load_faults
+
+        faults = load_faults(request.faults_path)  # before any work: a bad file fails at once (exit 3)
     t0 = time.perf_counter()
     robot, spec, actions = build_spec(request, progress)
     timings["spec"] = time.perf_counter() - t0
@@ -341,6 +373,8 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         from sim import check_push_time
 
         check_push_time(push, spec.horizon)  # a push after the motion would never act (exit 2)
+    if request.simulate:
+        _check_safety_times(request, faults, spec.horizon)
     key = digest = files = None
     if motions is not None:
         from wbmp.motioncache import motion_key, robot_files, robot_hash
@@ -352,7 +386,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     if motions is not None and files is not None:
         digest = robot_hash(robot, files)
         key = motion_key(spec, digest, simulate=request.simulate, push=push)
-        hit = motions.load(key) if read else None
+        hit = motions.load(key) if read and not request.safety else None
         if hit is not None:  # the same motion from another phrasing (or request)
             if rkey is not None:
                 motions.store_request(rkey, key, files, digest)
@@ -376,18 +410,40 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
 
         progress("simulating in MuJoCo with the whole-body controller")
         t0 = time.perf_counter()
-        execution = simulate(plan, robot, push=push, progress=progress)
+        execution = simulate(plan, robot, push=push, progress=progress, estop=_estop_settings(request),
+                             faults=faults)
         check_signals()
         timings["simulate"] = time.perf_counter() - t0
     result = SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
     if motions is not None and key is not None and files is not None and digest is not None \
-            and plan.ok and (execution is None or execution.certificate.ok):
+            and plan.ok and (execution is None or execution.certificate.ok) and not request.safety:
         # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
         motions.store(key, result_arrays(result), spec)
         if rkey is not None:
             motions.store_request(rkey, key, files, digest)
         result.cache_key = key
     return result
+
+
+def _estop_settings(request: SolveRequest) -> Any:
+    """The simulation's E-stop settings for a request (its stop time, flag file and signal)."""
+    from sim.estop import EStopSettings
+
+    return EStopSettings(at=request.estop_at, flag_file=request.estop_flag, request=request.stop_request)
+
+
+def _check_safety_times(request: SolveRequest, faults: Any, horizon: float) -> None:
+    """A stop or a faults push after the motion would never act: ``--estop-at`` exit 2, a push exit 3."""
+    if request.estop_at is not None and not 0.0 <= request.estop_at < horizon:
+        raise CliError(f"--estop-at {request.estop_at:g}: the motion lasts {horizon:.3g} s; give a time from 0 to "
+                       f"below {horizon:.3g} s", ExitCode.USAGE)
+    if faults is not None:
+        from sim.exceptions import FaultsError
+
+        for i, p in enumerate(faults.pushes):
+            if not p.t < horizon:
+                raise FaultsError(f"faults file {request.faults_path!r}: pushes[{i}].t = {p.t:g} s is after the "
+                                  f"motion, which lasts {horizon:.3g} s; give a time below {horizon:.3g} s")
 
 
 _REQUEST_KEYS = ("spec_json", "actions_json", "report_json")  # what result_arrays() rewrites for a cached result

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sim import Push, PushParseError, SimSettings, parse_push, simulate
+from sim.figures import FIGURES
 from sim.handmade import arm_plan, feet_apart_plan, squat_plan, standing_plan, with_torque_limits
 
 GRAVITY = 9.81  # [m/s^2]
@@ -98,7 +99,9 @@ def test_certificate_serializes(stand_run):
         "right_hand tracking error",
     } <= names
     text = stand_run.certificate.summary()
-    assert text.startswith("certificate: PASS") and len(text.splitlines()) == len(d["checks"]) + 1
+    rows = [line for line in text.splitlines() if line.startswith(("  ok ", "  FAIL "))]
+    assert text.startswith("certificate: PASS") and len(rows) == len(d["checks"])
+    assert "figures:" in text and set(d["figures"]) == set(FIGURES)  # the evaluation figures (docs/safety.md)
 
 
 def test_squat_tracks_the_com(talos, squat_run):

@@ -264,6 +264,7 @@ def summary_text(records: list[dict[str, Any]], *, title: str, pending: int = 0)
         c = by_robot[robot]
         lines.append(f"| {_cell(robot)} | {c.get('ok', 0)} | {c.get('failed', 0)} | {sum(c.values())} |")
     lines.append(f"| **all** | {total.get('ok', 0)} | {total.get('failed', 0)} | {len(records)} |")
+    lines += _figures_lines(records)
     codes = Counter(rec.get("exit_code") for rec in records if rec.get("status") != "ok")
     if codes:
         lines += ["", "Failures by exit code (docs/cli.md): "
@@ -275,3 +276,23 @@ def summary_text(records: list[dict[str, Any]], *, title: str, pending: int = 0)
             lines.append(f"| {_cell(rec['id'])} | {_cell(rec['robot'])} | {rec.get('line', '')} | "
                          f"{rec.get('exit_code', '')} | {_cell(rec.get('message', ''))} |")
     return "\n".join(lines) + "\n"
+
+
+def _figures_lines(records: list[dict[str, Any]]) -> list[str]:
+    """The task success rate over the records, and the mean evaluation figures of the simulated ones
+    (:func:`sim.figures.summarize`, docs/safety.md); nothing when no record has figures."""
+    rows = [(rec.get("status") == "ok", rec["figures"]) for rec in records if isinstance(rec.get("figures"), dict)]
+    if not records:
+        return []
+    rate = sum(1 for rec in records if rec.get("status") == "ok") / len(records)
+    lines = ["", f"Task success rate: {100 * rate:.1f} % ({len(records)} records)."]
+    if rows:
+        from sim.figures import FIGURES, summarize
+
+        s = summarize(rows)
+        lines += ["", f"Evaluation figures, mean over the {len(rows)} simulated records (docs/safety.md):", "",
+                  "| figure | mean | unit |", "|---|---:|---|"]
+        for key, (unit, _) in FIGURES.items():
+            value = s[key] if key == "estop_count" else s[f"mean_{key}"]
+            lines.append(f"| {key}{' (total)' if key == 'estop_count' else ''} | {value:.4g} | {unit} |")
+    return lines

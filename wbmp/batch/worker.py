@@ -162,6 +162,8 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
             if result.execution is not None:
                 cert = result.execution.certificate
                 record["certificate"] = "pass" if cert.ok else "fail"
+                if getattr(cert, "figures", None):  # the evaluation figures (docs/safety.md)
+                    record["figures"] = {k: round(float(v), 6) for k, v in cert.figures.items()}
                 if not cert.ok:
                     record["message"] = one_line(f"simulation check failed: {cert.reason}")
             record["motion"] = job.motion_name

@@ -47,6 +47,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--push", metavar="N@t", default=None,
                    help="push the base with N newtons at t seconds during the simulation, e.g. 80@1.5 "
                         "(0 < N <= 5000, 0 <= t < the motion's duration)")
+    p.add_argument("--estop-at", metavar="SECONDS", type=_stop_time, default=None,
+                   help="press the software E-stop at this time of the simulation: the robot freezes in the "
+                        "plan's nearest double-support posture and holds it (or damps every joint when it "
+                        "cannot); SIGUSR1 to the running command does the same at once (docs/safety.md)")
+    p.add_argument("--estop-flag", metavar="FILE", default=None,
+                   help="press the E-stop when FILE appears during the simulation (e.g. from a viewer)")
+    p.add_argument("--faults", metavar="FILE", default=None,
+                   help="put the simulation through the faults of this JSON file: pushes, friction and mass "
+                        "errors, joint noise, control delay, a floor step (docs/safety.md)")
     p.add_argument("--no-cache", action="store_true",
                    help="neither read nor write the motion cache (a repeated request is answered from it "
                         "otherwise: docs/cli.md), and plan from the task's own guess, without the solution "
@@ -82,7 +91,36 @@ def request_from_args(args: argparse.Namespace):
     return SolveRequest(
         instruction=text or None, spec_path=args.spec, scene_path=args.scene, robot=args.robot, simulate=not args.no_sim,
         push=args.push, parser=args.parser, llm_options=llm_options(args),
+        estop_at=getattr(args, "estop_at", None), estop_flag=getattr(args, "estop_flag", None),
+        faults_path=getattr(args, "faults", None),
     )
+
+
+def _stop_time(text: str) -> float:
+    """``--estop-at``: a finite time >= 0 [s] (argparse turns the ValueError into exit 2)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a time in seconds, e.g. 1.5") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r}: give a time >= 0 s within the motion, e.g. 1.5")
+    return value
+
+
+def _stop_on_sigusr1(request) -> None:
+    """SIGUSR1 presses the simulation's E-stop (the loop reacts on its next tick)."""
+    import signal
+    import threading
+
+    if not hasattr(signal, "SIGUSR1") or threading.current_thread() is not threading.main_thread():
+        return
+    from sim.estop import StopRequest
+
+    stop = StopRequest()
+    request.stop_request = stop
+    signal.signal(signal.SIGUSR1, lambda signum, frame: stop.request("SIGUSR1 received"))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
 
     request = request_from_args(args)
     check_inputs_exist(spec=args.spec, scene=args.scene)
+    if request.simulate:
+        _stop_on_sigusr1(request)
     # every output path before any work: a typo must not cost a whole solve (exit 2)
     check_outputs(out=args.out, html=args.html, plots=args.plots,
                   inputs={"--spec": args.spec, "--scene": args.scene, "--robot": args.robot if args.robot and os.path.isfile(args.robot)  # noqa: PTH113 - False on any OSError, where Path.is_file raises on EACCES

@@ -11,6 +11,9 @@ What the bag holds (``docs/export.md`` is the reference):
 * when the file holds a simulated execution: ``/wbmp/execution/joint_trajectory`` (positions,
   velocities, torques as ``effort``), ``/wbmp/execution/joint_states`` and ``/wbmp/execution/tf``
   (the simulated base and, when simulated, objects);
+* ``/wbmp/execution/estop`` (``std_msgs/msg/String``): one message at each E-stop of the
+  simulation, its record as JSON (when, why, what the robot did, whether it stayed up:
+  docs/safety.md);
 * ``/wbmp/report`` (``std_msgs/msg/String``, one message): the robot, spec, actions and report
   (with the simulation certificate) as JSON, also stored as MCAP metadata ``wbmp``.
 
@@ -43,6 +46,7 @@ EXEC_JOINT_STATES_TOPIC = "/wbmp/execution/joint_states"
 PLAN_TF_TOPIC = "/tf"
 EXEC_TF_TOPIC = "/wbmp/execution/tf"
 REPORT_TOPIC = "/wbmp/report"
+ESTOP_TOPIC = "/wbmp/execution/estop"
 METADATA_NAME = "wbmp"
 WORLD_FRAME = "world"
 FALLBACK_BASE_FRAME = "base_link"  # REP 105's name, for a robot this wbmp has no profile of
@@ -181,6 +185,12 @@ def write_bag(fh: IO[bytes], motion, options: BagOptions | None = None) -> None:
 
     epoch = int(stamps_ns(np.zeros(1), options.stamp)[0])
     add(epoch, REPORT_TOPIC, "std_msgs/msg/String", {"data": document})
+    certificate = report.get("certificate")
+    stops = certificate.get("stops") if isinstance(certificate, dict) else None
+    for stop in stops if isinstance(stops, list) else []:
+        if isinstance(stop, dict) and isinstance(stop.get("time"), (int, float)):
+            stop_ns = int(stamps_ns(np.array([float(stop["time"])]), options.stamp)[0])
+            add(stop_ns, ESTOP_TOPIC, "std_msgs/msg/String", {"data": json.dumps(stop)})
     for which, cols in runs:
         ns = stamps_ns(cols.t, options.stamp)
         plan = which == "plan"
