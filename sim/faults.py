@@ -21,6 +21,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from robots import safeio
 from sim.exceptions import FaultsError
 
 #: Longest push [s]; a push lasts 0.1 s unless it says otherwise.
@@ -184,11 +185,13 @@ def load_faults(path: str | Path) -> Faults:
     """Read and check a faults file (one-line :class:`FaultsError`: missing, unreadable, not JSON, a bad key)."""
     p = Path(path)
     try:
-        if not p.is_file():
+        if not p.exists():
             raise FaultsError(f"faults file {str(path)!r}: no such file (give a JSON file, docs/safety.md)")
-        if p.stat().st_size > 1_000_000:
-            raise FaultsError(f"faults file {str(path)!r}: larger than 1 MB; a faults file is a few lines of JSON")
-        text = p.read_text(encoding="utf-8")
+        text = safeio.read_text(p, "record")  # a regular file (a FIFO never blocks), at most 1 MiB
+    except safeio.NotRegularFile:
+        raise FaultsError(f"faults file {str(path)!r} is not a regular file; give a JSON file") from None
+    except safeio.FileTooLarge:
+        raise FaultsError(f"faults file {str(path)!r}: larger than 1 MiB; a faults file is a few lines of JSON") from None
     except (OSError, UnicodeDecodeError) as e:
         raise FaultsError(f"faults file {str(path)!r} cannot be read: {type(e).__name__}") from None
     try:
