@@ -92,9 +92,10 @@ def match(sentence: str, clips: list[LibraryClip]) -> LibraryClip | None:
     return min(fits, key=lambda c: (len(c.words() - wanted), str(c.path)))
 
 
-def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | None, simulate: bool, progress):
-    """The clip of the library that ``sentence`` names, retargeted (:func:`wbmp.retarget.retarget`);
-    None when no clip matches."""
+def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | None, simulate: bool, progress,
+                          cache: bool = False):
+    """The clip of the library that ``sentence`` names, retargeted (:func:`wbmp.retarget.retarget`,
+    through the motion cache with ``cache``); None when no clip matches."""
     from wbmp.retarget import RetargetRequest, retarget
 
     clip = match(sentence, load_library(folder))
@@ -102,7 +103,7 @@ def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | Non
         return None
     progress(f"{sentence!r}: the clip {clip.path.name} ({clip.label}) of the motion library {folder}")
     return retarget(RetargetRequest(clip=str(clip.path), robot=robot or "talos", simulate=simulate,
-                                    start=clip.start, end=clip.end), progress)
+                                    start=clip.start, end=clip.end), progress, cache=cache)
 
 
 def clip_words(sentence: str, clip: LibraryClip) -> tuple:

@@ -123,12 +123,13 @@ def _death_hook(item_id: str) -> Any:
         Staging.commit = original  # type: ignore[method-assign]
 
 
-def _retarget(item: Any, robot: str, simulate: bool) -> Any:
-    """A clip of a folder of clips, retargeted as ``wbmp retarget`` does (no motion cache)."""
+def _retarget(item: Any, robot: str, simulate: bool, cache: bool) -> Any:
+    """A clip of a folder of clips, retargeted as ``wbmp retarget`` does (through the motion cache
+    with ``cache``)."""
     from wbmp.retarget import RetargetRequest, retarget
 
     return retarget(RetargetRequest(clip=item.clip_path, robot=robot, simulate=simulate, start=item.start,
-                                    end=item.end))
+                                    end=item.end), cache=cache)
 
 
 def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[str, Any]:
@@ -156,7 +157,7 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
         request = SolveRequest(instruction=item.instruction, spec_path=spec_path, scene_path=item.scene_path,
                                robot=job.robot, simulate=simulate)
         try:
-            result = solve(request, cache=cache) if item.clip_path is None else _retarget(item, job.robot, simulate)
+            result = solve(request, cache=cache) if item.clip_path is None else _retarget(item, job.robot, simulate, cache)
             code = int(result.exit_code)
             t0 = time.perf_counter()
             with _death_hook(item.id):
