@@ -606,9 +606,9 @@ def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
         except RobotError:
             raise _fail(shown, f"key 'spec_json' names frame {frame!r}, which robot {robot.name!r} lacks") from None
 
-EXPORT_FORMATS = ("json", "csv", "npz", "mcap", "tracker")
+EXPORT_FORMATS = ("json", "csv", "npz", "mcap", "tracker", "lafan")
 #: file suffix -> the formats a file of that suffix may hold
-SUFFIX_FORMATS = {"json": ("json",), "csv": ("csv",), "npz": ("npz", "tracker"), "mcap": ("mcap",)}
+SUFFIX_FORMATS = {"json": ("json",), "csv": ("csv", "lafan"), "npz": ("npz", "tracker"), "mcap": ("mcap",)}
 
 
 def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | None = None, *,
@@ -628,13 +628,15 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
     Args:
         motion: A loaded motion or the path of a motion file.
         path: Output file.
-        fmt: ``json``, ``csv``, ``npz``, ``mcap`` or ``tracker``; None = from ``path``'s suffix
+        fmt: ``json``, ``csv``, ``npz``, ``mcap``, ``tracker`` or ``lafan`` (the Unitree/LAFAN1
+            CSV, :mod:`wbmp.export.lafan`); None = from ``path``'s suffix
             (``.npz`` is the motion-file copy).
         staging: Stage the files there (renamed by ``staging.commit()``) instead of writing now.
         stamp: MCAP: ROS time [s] of the motion's t = 0.
         base_frame: MCAP and tracker: the base's frame name; None = the robot profile's.
-        fps: Tracker: sample rate [Hz]; None = :data:`wbmp.export.DEFAULT_FPS`.
-        source: Tracker: ``plan`` or ``execution``.
+        fps: Tracker and lafan: sample rate [Hz]; None = :data:`wbmp.export.DEFAULT_FPS` (tracker),
+            :data:`wbmp.export.lafan.LAFAN_FPS` (lafan).
+        source: Tracker and lafan: ``plan`` or ``execution``.
 
     Returns:
         The paths written.
@@ -667,6 +669,12 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
 
         tracker = tracker_arrays(motion, DEFAULT_FPS if fps is None else fps, source, base_frame)
         staging.add(path, lambda fh: np.savez_compressed(fh, **tracker))
+        return [path]
+    if fmt == "lafan":
+        from wbmp.export.lafan import LAFAN_FPS, lafan_rows, write_lafan
+
+        rows, _ = lafan_rows(motion, LAFAN_FPS if fps is None else fps, source)
+        staging.add(path, lambda fh: write_lafan(fh, rows))
         return [path]
     arrays = _arrays_of(motion)
     if fmt == "npz":

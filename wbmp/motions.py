@@ -92,9 +92,10 @@ def match(sentence: str, clips: list[LibraryClip]) -> LibraryClip | None:
     return min(fits, key=lambda c: (len(c.words() - wanted), str(c.path)))
 
 
-def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | None, simulate: bool, progress):
-    """The clip of the library that ``sentence`` names, retargeted (:func:`wbmp.retarget.retarget`);
-    None when no clip matches."""
+def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | None, simulate: bool, progress,
+                          cache: bool = False):
+    """The clip of the library that ``sentence`` names, retargeted (:func:`wbmp.retarget.retarget`,
+    through the motion cache with ``cache``); None when no clip matches."""
     from wbmp.retarget import RetargetRequest, retarget
 
     clip = match(sentence, load_library(folder))
@@ -102,4 +103,48 @@ def retarget_from_library(sentence: str, folder: str | Path, *, robot: str | Non
         return None
     progress(f"{sentence!r}: the clip {clip.path.name} ({clip.label}) of the motion library {folder}")
     return retarget(RetargetRequest(clip=str(clip.path), robot=robot or "talos", simulate=simulate,
-                                    start=clip.start, end=clip.end), progress)
+                                    start=clip.start, end=clip.end), progress, cache=cache)
+
+
+def clip_words(sentence: str, clip: LibraryClip) -> tuple:
+    """What each word of ``sentence`` did when it picked ``clip`` (``language.plan.WordUse``, as
+    ``wbmp parse`` shows for an action): runs of content words name the clip (role ``action``,
+    action 1), the others are fillers."""
+    from language.plan import WordUse
+
+    uses: list[WordUse] = []
+    run: list[str] = []
+
+    def flush() -> None:
+        if run:
+            uses.append(WordUse(text=" ".join(run), role="action", action=1,
+                                detail=f"motion-library clip {clip.path.name} ({clip.label})"))
+            run.clear()
+
+    for word in _words(sentence):
+        if word in STOPWORDS:
+            flush()
+            uses.append(WordUse(text=word, role="filler"))
+        else:
+            run.append(word)
+    flush()
+    return tuple(uses)
+
+
+def clip_dict(clip: LibraryClip) -> dict:
+    """The clip as ``wbmp parse --json`` prints it: ``file`` (name in the library folder),
+    ``label``, ``family``, ``start`` and ``end`` [s] (null: the clip's own)."""
+    return {"file": clip.path.name, "label": clip.label, "family": clip.family, "start": clip.start,
+            "end": clip.end}
+
+
+def describe_clip(clip: LibraryClip, folder: str | Path) -> str:
+    """One line: the clip a sentence picked and what ``wbmp solve --motions`` does with it."""
+    if clip.start is None and clip.end is None:
+        window = "the whole clip"
+    else:
+        window = (f"{0.0 if clip.start is None else clip.start:g} s to "
+                  f"{'its end' if clip.end is None else f'{clip.end:g} s'}")
+    family = f", family {clip.family}" if clip.family else ""
+    return (f"1. clip {clip.path.name} of the motion library {folder} ({clip.label}{family}; {window}): "
+            "retargeted by wbmp solve --motions")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from wbmp.pipeline import Progress, SolveResult, _silent
@@ -88,10 +89,18 @@ def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):
     return robot, spec, ref, skeleton.name, info
 
 
-def retarget(request: RetargetRequest, progress: Progress = _silent) -> RetargetResult:
-    """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI)."""
+def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: bool = False,
+             cache_dir: str | Path | None = None) -> RetargetResult:
+    """Run the whole job; raises the layers' exceptions (mapped to exit codes by the CLI).
+
+    With ``cache`` (``wbmp retarget`` unless ``--no-cache``) the motion cache
+    (:mod:`wbmp.motioncache`, ``$WBMP_CACHE_DIR/motions`` or ``cache_dir``) answers a repeat: the
+    clip is read and its task built again (a fraction of a second), and the motion of that task
+    on that robot (same clip bytes, window, skeleton, robot files, simulation switch and wbmp)
+    is read back instead of planned and simulated; the figures are computed again from it. A
+    fresh result that planned (and passed its certificate) is stored.
+    """
     from planner import plan as plan_motion
-    from tasks.mocap.figures import figures
     from wbmp.errors import check_signals
 
     timings: dict[str, float] = {}
@@ -99,6 +108,19 @@ def retarget(request: RetargetRequest, progress: Progress = _silent) -> Retarget
     robot, spec, ref, skeleton, info = build_retarget_spec(request, progress)
     timings["spec"] = time.perf_counter() - t0
     check_signals()
+    motions = key = None
+    if cache:
+        from wbmp.motioncache import MotionCache, motion_key, robot_files, robot_hash
+
+        try:
+            key = motion_key(spec, robot_hash(robot, robot_files(robot)), simulate=request.simulate, push=None)
+            motions = MotionCache(cache_dir)
+        except OSError:  # a robot file that cannot be hashed: retargeted, not cached
+            motions = key = None
+        hit = motions.load(key) if motions is not None and key is not None else None
+        if hit is not None:
+            progress("answering from the motion cache")
+            return _cached_result(request, hit, robot, spec, ref, skeleton, info, timings, t0)
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name} ({len(spec.phases)} contact phases)")
     t0 = time.perf_counter()
     plan = plan_motion(spec, robot, progress=progress)
@@ -113,6 +135,22 @@ def retarget(request: RetargetRequest, progress: Progress = _silent) -> Retarget
         execution = simulate(plan, robot, progress=progress)
         check_signals()
         timings["simulate"] = time.perf_counter() - t0
+    plan_figures, exec_figures = _figures(robot, spec, ref, plan, execution)
+    result = RetargetResult(robot=robot, spec=spec, plan=plan, execution=execution, timings=timings,
+                            reference=ref, figures=plan_figures, exec_figures=exec_figures, skeleton=skeleton,
+                            clip_info=info)
+    if motions is not None and key is not None and plan.ok and (execution is None or execution.certificate.ok):
+        from wbmp.pipeline import result_arrays
+
+        motions.store(key, result_arrays(result), spec)  # only a success: a failure is worth re-checking
+        result.cache_key = key
+    return result
+
+
+def _figures(robot, spec, ref, plan, execution) -> tuple[Any, Any]:
+    """The figures of the plan and of the execution (None without one)."""
+    from tasks.mocap.figures import figures
+
     plan_figures = figures(robot, plan.t, plan.q, spec, ref)
     exec_figures = None
     if execution is not None:
@@ -121,11 +159,28 @@ def retarget(request: RetargetRequest, progress: Progress = _silent) -> Retarget
         from tasks.mocap.figures import torque_cause
 
         exec_figures = figures(robot, execution.t, execution.q, spec, ref)
-        why = torque_cause(robot, exec_figures.worst_role, exec_figures.worst_time, execution.t, execution.tau)
+        tau = getattr(execution, "tau", None)
+        why = torque_cause(robot, exec_figures.worst_role, exec_figures.worst_time, execution.t, tau) \
+            if tau is not None else ""
         if why:
             exec_figures = dataclasses.replace(exec_figures, worst=f"{exec_figures.worst}: {why}")
-    return RetargetResult(robot=robot, spec=spec, plan=plan, execution=execution, timings=timings, reference=ref,
-                          figures=plan_figures, exec_figures=exec_figures, skeleton=skeleton, clip_info=info)
+    return plan_figures, exec_figures
+
+
+def _cached_result(request: RetargetRequest, hit, robot, spec, ref, skeleton: str, info: dict[str, Any],
+                   timings: dict[str, float], t0: float) -> RetargetResult:
+    """A RetargetResult from a verified motion cache entry (figures computed again from it)."""
+    import types
+
+    from wbmp.pipeline import _from_cache
+
+    asked = types.SimpleNamespace(instruction=None, actions=None, profile=None, robot=request.robot)
+    solved = _from_cache(asked, hit, robot, time.perf_counter() - t0, spec=spec)  # type: ignore[arg-type]
+    plan_figures, exec_figures = _figures(robot, spec, ref, solved.plan, solved.execution)
+    timings = {"spec": timings["spec"], "cache": time.perf_counter() - t0}
+    return RetargetResult(robot=robot, spec=spec, plan=solved.plan, execution=solved.execution, timings=timings,
+                          reference=ref, figures=plan_figures, exec_figures=exec_figures, skeleton=skeleton,
+                          clip_info=info, cached=hit, cache_key=hit.key)
 
 
 def is_tracking(name: str) -> bool:

@@ -9,6 +9,10 @@ its first line that is neither blank nor a ``#`` comment:
   ``instruction`` (a sentence) or ``spec`` (a path, or the spec object itself), and optionally
   ``robot``, ``scene`` (a scene file, as ``wbmp solve --scene``) and ``id``.
 
+``FILE`` may also be a folder of motion-capture clips: each ``*.bvh`` file in it is one item,
+retargeted as ``wbmp retarget CLIP`` does (the window of a ``clips.csv`` row, when the folder has
+one, as ``wbmp solve --motions`` takes it).
+
 Everything here is checked before any work, and a refused file is one :class:`CliError` line
 that names the file, the line number and how to fix it (exit 2; an unknown robot is exit 3,
 as in ``wbmp solve``).
@@ -51,6 +55,9 @@ class Item:
         robot: The robot the line names, or None.
         scene_path: The scene file (resolved) the line names, or None.
         scene_text: The scene file as written in the line, or None.
+        clip_path: The BVH clip (resolved) of a folder of clips, or None.
+        clip_text: The clip's file name in that folder, or None.
+        start, end: The clip's window [s] from the folder's ``clips.csv`` (None: its start, its end).
     """
 
     id: str
@@ -62,9 +69,17 @@ class Item:
     robot: str | None = None
     scene_path: str | None = None
     scene_text: str | None = None
+    clip_path: str | None = None
+    clip_text: str | None = None
+    start: float | None = None
+    end: float | None = None
 
     def source(self) -> dict[str, Any]:
-        """What the index records of the input: ``instruction`` or ``spec``, and ``scene``."""
+        """What the index records of the input: ``instruction``, ``spec`` or ``clip`` (with its
+        ``start`` and ``end`` when the folder's clips.csv gives a window), and ``scene``."""
+        if self.clip_text is not None:
+            window = {k: v for k, v in (("start", self.start), ("end", self.end)) if v is not None}
+            return {"clip": self.clip_text, **window}
         scene = {} if self.scene_text is None else {"scene": self.scene_text}
         if self.instruction is not None:
             return {"instruction": self.instruction, **scene}
@@ -153,7 +168,10 @@ def read_lines(path: str) -> list[tuple[int, str]]:
 
 
 def read_items(path: str) -> list[Item]:
-    """The items of a batch file, in file order, duplicates (same id and content) kept once."""
+    """The items of a batch file, in file order, duplicates (same id and content) kept once; or
+    the clips of a folder of ``*.bvh`` files (:func:`clip_items`)."""
+    if Path(path).is_dir():
+        return clip_items(path)
     lines = read_lines(path)
     jsonl = lines[0][1].startswith("{")
     base = Path(path).parent
@@ -269,6 +287,31 @@ def _json_item(path: str, n: int, text: str, base: Path) -> Item:
     raise _refuse(path, n, '"spec" must be a spec file path or a spec object')
 
 
+def clip_items(folder: str) -> list[Item]:
+    """One item per ``*.bvh`` file of ``folder`` (name order; ``line`` is the position in it),
+    with the window of its ``clips.csv`` row when the folder has that table."""
+    from wbmp.motions import load_library
+
+    root = Path(folder)
+    try:
+        clips = sorted(p for p in root.iterdir() if p.suffix.lower() == ".bvh" and p.is_file())
+    except OSError as e:
+        raise CliError(f"FILE {folder!r}: cannot list the folder: {e.strerror or e}", ExitCode.USAGE) from None
+    if not clips:
+        raise CliError(f"FILE {folder!r} is a folder without .bvh clips: give a folder of BVH clips, or a "
+                       "file with one sentence, spec file or JSON object per line", ExitCode.USAGE)
+    windows = {}
+    if (root / "clips.csv").is_file():
+        windows = {c.path.name: (c.start, c.end) for c in load_library(root)}
+    items = []
+    for n, clip in enumerate(clips, 1):
+        start, end = windows.get(clip.name, (None, None))
+        text = f"{clip.name} [{start}, {end}]"
+        items.append(Item(id=_auto_id(clip.stem, "clip", text), line=n, clip_path=str(clip), clip_text=clip.name,
+                          start=start, end=end))
+    return items
+
+
 def robot_label(robot: str) -> str:
     """The robot's part of a motion file name: the name, or a profile file's stem."""
     return _slug(Path(robot).stem) if robot.lower().endswith((".toml", ".json")) else robot
@@ -310,7 +353,7 @@ def expand(items: list[Item], robots: list[str] | None, *, simulate: bool, file:
         else:
             chosen = [spec_robot(item) if item.instruction is None else "talos"]
         for robot in chosen:
-            content = _file_hash(item.spec_path)
+            content = _file_hash(item.spec_path or item.clip_path)
             parts = [json.dumps(item.source(), sort_keys=True, ensure_ascii=False), content, robot,
                      "sim" if simulate else "no-sim"]
             if item.scene_path is not None:  # (no scene: the hash of earlier versions, their records stay done)

@@ -123,6 +123,15 @@ def _death_hook(item_id: str) -> Any:
         Staging.commit = original  # type: ignore[method-assign]
 
 
+def _retarget(item: Any, robot: str, simulate: bool, cache: bool) -> Any:
+    """A clip of a folder of clips, retargeted as ``wbmp retarget`` does (through the motion cache
+    with ``cache``)."""
+    from wbmp.retarget import RetargetRequest, retarget
+
+    return retarget(RetargetRequest(clip=item.clip_path, robot=robot, simulate=simulate, start=item.start,
+                                    end=item.end), cache=cache)
+
+
 def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[str, Any]:
     """Plan (and simulate) one job, write its motion file, return its index record; with
     ``cache``, answered from (and stored into) the motion cache as ``wbmp solve`` does."""
@@ -148,7 +157,7 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
         request = SolveRequest(instruction=item.instruction, spec_path=spec_path, scene_path=item.scene_path,
                                robot=job.robot, simulate=simulate)
         try:
-            result = solve(request, cache=cache)
+            result = solve(request, cache=cache) if item.clip_path is None else _retarget(item, job.robot, simulate, cache)
             code = int(result.exit_code)
             t0 = time.perf_counter()
             with _death_hook(item.id):
@@ -166,6 +175,11 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
                     record["figures"] = {k: round(float(v), 6) for k, v in cert.figures.items()}
                 if not cert.ok:
                     record["message"] = one_line(f"simulation check failed: {cert.reason}")
+            figures = getattr(result, "figures", None)  # a clip's (wbmp.retarget.RetargetResult)
+            if figures is not None:
+                exec_figures = getattr(result, "exec_figures", None)
+                record["retarget"] = {"plan": figures.to_dict(),
+                                      "execution": None if exec_figures is None else exec_figures.to_dict()}
             record["motion"] = job.motion_name
             record["sha256"] = file_sha256(target)
         except Exception as exc:  # noqa: BLE001 - every failure of one item is recorded, the batch goes on

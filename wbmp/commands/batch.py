@@ -51,7 +51,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                "for an unknown robot).  examples: wbmp batch sentences.txt --out-dir library --robots talos,g1  |  "
                "wbmp batch items.jsonl --out-dir lib --no-sim --workers 2  |  wbmp batch big.txt --out-dir lib --ray",
     )
-    p.add_argument("file", metavar="FILE", help="the items: sentences, spec files or JSONL, one per line")
+    p.add_argument("file", metavar="FILE", help="the items: sentences, spec files or JSONL, one per line; or a folder of .bvh "
+                        "motion-capture clips, each retargeted (docs/retarget.md)")
     p.add_argument("--out-dir", required=True, metavar="DIR",
                    help="the motion library folder (created if missing; its parent must exist)")
     p.add_argument("--robots", default=None, metavar="NAMES",

@@ -8,44 +8,52 @@ from pathlib import Path
 
 from wbmp.errors import CliError, ExitCode
 
-FORMATS = ("json", "csv", "mcap", "tracker")
+FORMATS = ("json", "csv", "mcap", "tracker", "lafan")
 #: the suffix each format's file gets when --out is not given
-DEFAULT_SUFFIX = {"json": ".json", "csv": ".csv", "mcap": ".mcap", "tracker": ".tracker.npz"}
+DEFAULT_SUFFIX = {"json": ".json", "csv": ".csv", "mcap": ".mcap", "tracker": ".tracker.npz",
+                  "lafan": ".lafan.csv"}
 #: --out's suffix -> the format it implies (.npz: only with --format tracker)
 SUFFIX_FORMAT = {"json": "json", "csv": "csv", "mcap": "mcap"}
+#: formats that --out's suffix may hold besides the one it implies (the LAFAN1 file is a .csv)
+SUFFIX_ALSO = {"csv": ("lafan",)}
 #: options that belong to one format
 FORMAT_OPTIONS = {"stamp": ("--stamp", "mcap"), "base_frame": ("--base-frame", "mcap or tracker"),
-                  "fps": ("--fps", "tracker"), "source": ("--source", "tracker")}
+                  "fps": ("--fps", "tracker or lafan"), "source": ("--source", "tracker or lafan")}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "export",
-        help="convert a motion file (.npz) to JSON, CSV, a ROS 2 bag (MCAP) or a tracker file",
+        help="convert a motion file (.npz) to JSON, CSV, a ROS 2 bag (MCAP), a tracker file or the "
+             "LAFAN1 CSV of RL motion trackers",
         description="Convert a motion file written by `wbmp solve --out motion.npz`: JSON (every key: arrays "
                     "as nested lists, the spec, actions and report as objects), CSV (one row per knot: t, q_*, "
                     "v_*, com_*, after '#' lines with the robot, spec, actions and report; a simulated "
                     "execution goes to <name>.exec.csv), mcap (a ROS 2 bag: JointTrajectory, /joint_states, "
                     "/tf and the report; no ROS installation needed) or tracker (an .npz resampled at --fps "
-                    "for motion trackers). docs/export.md states every format's frames, units and orders.",
+                    "for motion trackers) or lafan (the Unitree/LAFAN1 retargeting CSV that BeyondMimic reads: no header, "
+                    "one row per frame at --fps, default 30: root x y z, root quaternion x y z w, then the "
+                    "joint positions in the robot's joint order). docs/export.md states every format's frames, "
+                    "units and orders.",
         epilog="examples: wbmp export motion.npz --format csv --out plan.csv  |  "
-               "wbmp export motion.npz --out motion.mcap  |  wbmp export motion.npz --format tracker --fps 30",
+               "wbmp export motion.npz --out motion.mcap  |  wbmp export motion.npz --format tracker --fps 30  |  "
+               "wbmp export motion.npz --format lafan --fps 50 --out motion_g1.csv",
     )
     p.add_argument("motion", help="motion file (.npz) written by wbmp solve --out")
     p.add_argument("--format", choices=FORMATS, default=None,
                    help="output format (default: from --out's suffix .json, .csv or .mcap; without --out, json)")
     p.add_argument("--out", metavar="FILE", default=None,
-                   help="output file (default: the motion file's name with .json, .csv, .mcap or "
-                        ".tracker.npz); an existing file is replaced, links, folders and devices are refused")
+                   help="output file (default: the motion file's name with .json, .csv, .mcap, "
+                        ".tracker.npz or .lafan.csv); an existing file is replaced, links, folders and devices are refused")
     p.add_argument("--stamp", type=stamp_seconds, default=None, metavar="SECONDS",
                    help="mcap: ROS time of the motion's t = 0, in seconds since the Unix epoch (default: 0)")
     p.add_argument("--base-frame", default=None, metavar="NAME",
                    help="mcap and tracker: the base's frame name (default: the robot profile's base frame, "
                         "its URDF root link: base_link for talos, pelvis for g1)")
     p.add_argument("--fps", type=frames_per_second, default=None, metavar="HZ",
-                   help="tracker: sample rate (default: 50)")
+                   help="tracker and lafan: sample rate (default: 50 for tracker, 30 for lafan)")
     p.add_argument("--source", choices=("plan", "execution"), default=None,
-                   help="tracker: resample the plan (default) or the simulated execution")
+                   help="tracker and lafan: resample the plan (default) or the simulated execution")
     p.set_defaults(run=run)
 
 
@@ -100,7 +108,7 @@ def output_path(motion: str, out: str | None, fmt: str | None) -> tuple[Path, st
             raise CliError(f"--out {out!r}: unknown format ({shown}); name it .json, .csv or .mcap, or give "
                            "--format", ExitCode.USAGE)
         fmt = SUFFIX_FORMAT[suffix]
-    elif suffix in SUFFIX_FORMAT and SUFFIX_FORMAT[suffix] != fmt:
+    elif suffix in SUFFIX_FORMAT and SUFFIX_FORMAT[suffix] != fmt and fmt not in SUFFIX_ALSO.get(suffix, ()):
         raise CliError(f"--out {out!r} ends in .{suffix} but --format is {fmt}", ExitCode.USAGE)
     return Path(out), fmt
 
@@ -119,12 +127,14 @@ def check_options(args: argparse.Namespace, fmt: str) -> None:
 
 def _check_rate(args: argparse.Namespace, motion) -> None:
     """Refuse an --fps that gives fewer than two samples of the motion (exit 2)."""
+    from wbmp.export.lafan import LAFAN_FPS
     from wbmp.export.tracker import DEFAULT_FPS, check_fps
 
     ex = motion.execution_arrays
     t = ex["exec_t"] if args.source == "execution" and ex else motion.plan.t
+    default = LAFAN_FPS if args.format == "lafan" else DEFAULT_FPS
     try:
-        check_fps(DEFAULT_FPS if args.fps is None else args.fps, float(t[-1] - t[0]))
+        check_fps(default if args.fps is None else args.fps, float(t[-1] - t[0]))
     except ValueError as e:
         raise CliError(f"--fps: {e}", ExitCode.USAGE) from None
 
@@ -147,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         with output_errors():
             check_output_file(exec_path, f"{option} (the execution's {exec_path.name})")
             check_distinct({option: path, "the execution CSV": exec_path}, {"the motion file": Path(args.motion)})
-    if fmt == "tracker":
+    if fmt in ("tracker", "lafan"):
         _check_rate(args, motion)
     with output_errors(), Staging() as staging:
         written = export_motion(motion, path, fmt, staging=staging, stamp=args.stamp or 0.0,
@@ -155,4 +165,16 @@ def run(args: argparse.Namespace) -> int:
         staging.commit()
     for p in written:
         print(f"{fmt}: {p}")
+    if fmt == "lafan":
+        _print_lafan_layout(motion, args.fps)
     return ExitCode.OK
+
+
+def _print_lafan_layout(motion, fps: float | None) -> None:
+    """The rate and column order of a LAFAN1 CSV (the file itself states neither)."""
+    from wbmp.export.columns import joint_names
+    from wbmp.export.lafan import LAFAN_FPS
+
+    names = joint_names(motion)
+    print(f"lafan: {LAFAN_FPS if fps is None else fps:g} frames/s; columns: root x y z [m], root quaternion "
+          f"x y z w, then {len(names)} joint positions [rad]: {' '.join(names)}")

@@ -8,6 +8,9 @@ action carries ``"overlay": true``). ``words`` (rule parser only) says what each
 lists the same after the actions. The LLM backend reads its key from ``WBMP_LLM_API_KEY`` or
 ``OPENAI_API_KEY``; ``--llm-url``/``--llm-model`` default to ``WBMP_LLM_URL``/``WBMP_LLM_MODEL``.
 ``--llm-timeout`` bounds each whole request to the server (connect to last byte).
+``--motions DIR`` (or ``WBMP_MOTIONS``): a sentence that names no known action but a clip of
+that motion library shows the clip (``"clip"`` in the JSON, ``"actions"`` empty) and its words,
+as ``wbmp solve --motions`` picks it; none: refused as without it.
 ``--scene FILE`` grounds every object word in that scene (which of its objects the words name),
 refusing with exit 3 as ``wbmp solve`` would when none or several match.
 
@@ -41,6 +44,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--parser", choices=("rules", "llm"), default="rules", help="parser backend (default: rules)")
     p.add_argument("--scene", metavar="FILE", default=None,
                    help="scene JSON file: show which of its objects each object word names (docs/scenes.md)")
+    p.add_argument("--motions", metavar="DIR", default=os.environ.get("WBMP_MOTIONS"),
+                   help="a motion library (BVH clips with a clips.csv of labels): a sentence that names no "
+                        "known action but a clip's label shows that clip, as wbmp solve --motions would "
+                        "retarget it (docs/retarget.md; env WBMP_MOTIONS)")
     p.add_argument("--llm-url", default=os.environ.get("WBMP_LLM_URL"),
                    help="OpenAI-compatible API base URL, e.g. http://127.0.0.1:11434/v1 (env WBMP_LLM_URL)")
     p.add_argument("--llm-model", default=os.environ.get("WBMP_LLM_MODEL"), help="model name (env WBMP_LLM_MODEL)")
@@ -117,8 +124,29 @@ def grounded(plan, scene):
     return dataclasses.replace(plan, words=tuple(words))
 
 
+def _show_clip(text: str, args: argparse.Namespace) -> bool:
+    """Print the motion-library clip ``text`` names (as ``wbmp solve --motions`` picks it); False
+    when none does."""
+    from language.plan import ActionPlan
+    from wbmp.motions import clip_dict, clip_words, describe_clip, load_library, match
+
+    clip = match(text, load_library(args.motions))
+    if clip is None:
+        return False
+    words = clip_words(text, clip)
+    if args.json:
+        print(json.dumps({"actions": [], "backend": args.parser, "clip": clip_dict(clip),
+                          "words": [w.to_dict() for w in words]}, ensure_ascii=False))
+    else:
+        print(describe_clip(clip, args.motions))
+        print("words:")
+        print(ActionPlan(actions=(), backend=args.parser, text=text, words=words).describe_words())
+    return True
+
+
 def run(args: argparse.Namespace) -> int:
     from language import parse
+    from language.exceptions import LanguageError
 
     text = " ".join(args.text)
     require_instruction(text)  # the bound of `wbmp solve`
@@ -127,7 +155,12 @@ def run(args: argparse.Namespace) -> int:
         from tasks.scene import load_scene
 
         scene = load_scene(args.scene)
-    plan = parse(text, backend=args.parser, **llm_options(args))
+    try:
+        plan = parse(text, backend=args.parser, **llm_options(args))
+    except LanguageError:
+        if not args.motions or not _show_clip(text, args):
+            raise  # no clip of the library either: refused as without it
+        return ExitCode.OK
     if scene is not None:
         plan = grounded(plan, scene)
     if args.json:

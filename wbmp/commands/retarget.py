@@ -39,6 +39,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE.npz", default=None, help="write the motion file (.npz) here")
     p.add_argument("--html", metavar="FILE", default=None, help="write a standalone HTML replay here")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
+    p.add_argument("--no-cache", action="store_true",
+                   help="neither read nor write the motion cache (by default a repeat of the same clip, window, "
+                        "skeleton and robot is answered from $WBMP_CACHE_DIR/motions, as wbmp solve does)")
     p.add_argument("--quiet", action="store_true", help="no progress display; print only the results")
     p.add_argument("--json", action="store_true", help="print the report as JSON (progress as JSON lines)")
     p.set_defaults(run=run)
@@ -70,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     request = RetargetRequest(clip=args.clip, robot=args.robot, start=args.start, end=args.end,
                               skeleton=args.skeleton, simulate=not args.no_sim)
-    result = retarget(request, progress)
+    result = retarget(request, progress, cache=not args.no_cache)
     written = write_outputs(result, out=args.out, html=args.html, progress=progress)
     print_result(result, written, as_json=args.json)
     return int(result.exit_code)

@@ -147,7 +147,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.motions or not request.instruction:
             raise
         result = retarget_from_library(request.instruction, args.motions, robot=args.robot,
-                                       simulate=not args.no_sim, progress=progress)
+                                       simulate=not args.no_sim, progress=progress,
+                                       cache=not args.no_cache and args.plots is None)
         if result is None:
             raise  # no clip of the library either: refused as without it
     written = write_outputs(result, out=args.out, html=args.html, plots=args.plots, progress=progress)
