@@ -1,0 +1,478 @@
+"""Twin test of the planner's terms: every term kind's CasADi expression against an independent
+numpy/Pinocchio computation of the same residual, and its CasADi Jacobian against central finite
+differences of that numpy form (issue 30, "Terms as classes": the test that protects the refactor).
+
+Kinematic kinds are evaluated through :func:`planner.trajopt.terms.stage_function` on one term of
+a layout built from a small real Talos spec (two-foot stance, a step on the left foot, hand
+targets, CoM target and bounds, a joint target, two hands holding one box, self- and scene
+collision), at seeded random chart displacements ``dq`` around the standing posture. The
+reference is computed on the configuration ``q_ref (+) dq`` with Pinocchio, the reference
+Jacobian by central differences of the reference along the chart. The dynamic formulation's
+per-knot expressions (friction pyramid, Newton residual, angular-momentum rate, sole corner
+heights) are evaluated the same way against numpy over their own inputs. The payload has no
+CasADi form (it is a check on the plan, :mod:`planner.trajopt.payload`): its numpy torques are
+twinned against Pinocchio's RNEA with the object's weight as an external force.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import re
+from collections.abc import Callable
+from typing import NamedTuple
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from planner.trajopt.centroidal.nlp import sole_corner_heights
+from planner.trajopt.centroidal.physics import (
+    GRAVITY,
+    angular_momentum_rate,
+    com_acceleration,
+    com_dynamics_residual,
+    friction_pyramid,
+)
+from planner.trajopt.collision import Rows, set_collision_terms, sphere_sets
+from planner.trajopt.layout import Layout, make_layout, support_halfplanes, support_polygon
+from planner.trajopt.payload import payload_torques
+from planner.trajopt.scene_collision import SceneRows, obstacles, row_value, set_scene_terms
+from planner.trajopt.symbolic import SymbolicKinematics, chart_to_configuration
+from planner.trajopt.term import Term
+from planner.trajopt.terms import stage_function, term_expression
+from robots.contact import sole_corners
+from tasks.scene import Scene, SceneObject
+from tasks.specs import (
+    CoMBounds,
+    CoMTarget,
+    Contact,
+    FrameTarget,
+    Grasp,
+    JointTarget,
+    Phase,
+    Pose,
+    Priority,
+    TaskSpec,
+)
+
+# -- named tolerances ----------------------------------------------------------------------------
+VALUE_TOL = 1e-9  # CasADi vs numpy/Pinocchio value: the same float64 arithmetic in another order
+VALUE_RTOL = 1e-10  # relative part, for rows of large magnitude (scene rows, N and N m)
+JAC_TOL = 1e-6  # CasADi Jacobian vs central differences, relative to max(1, |J|max)
+FD_STEP = 1e-6  # central-difference step on each chart coordinate (or input) [m], [rad], [N]
+DRAWS = 2  # random configurations per kind
+DQ_SCALE = 0.2  # standard deviation of the chart displacement [m], [rad]
+SEED = 20261128
+MARGIN = 0.01  # [m] collision margin written into the collision and scene terms
+
+FOOT_Y = 0.085  # [m] Talos's standing soles
+
+
+SCENE = Scene(objects=(
+    SceneObject(name="crate", shape="box", size=(0.3, 0.2, 0.25), position=(0.35, -0.4, 0.8), rpy=(0.2, -0.3, 0.5)),
+    SceneObject(name="pipe", shape="cylinder", size=(0.06, 0.5), position=(0.3, -0.3, 1.0), rpy=(1.2, 0.1, 0.0)),
+    SceneObject(name="ball", shape="sphere", size=(0.1,), position=(0.25, -0.45, 0.7)),
+    SceneObject(name="box", shape="box", size=(0.2, 0.3, 0.2), position=(0.45, 0.0, 0.9),
+                movable=True, mass=1.0),  # held in both hands
+))
+
+def _feet(*frames: str) -> tuple[Contact, ...]:
+    y = {"left_foot": FOOT_Y, "right_foot": -FOOT_Y}
+    return tuple(Contact(frame=f, placement=Pose(position=(0.0, y[f], 0.0))) for f in frames)
+
+
+def _spec() -> TaskSpec:
+    """A small Talos task with every kinematic term kind: stand, lift the right foot, stand again."""
+    return TaskSpec(
+        robot="talos",
+        phases=(Phase(name="stand", duration=0.6, contacts=_feet("left_foot", "right_foot")),
+                Phase(name="lift", duration=0.6, contacts=_feet("left_foot"), swing_height=0.05),
+                Phase(name="land", duration=0.6, contacts=_feet("left_foot", "right_foot"))),
+        targets=(
+            FrameTarget(name="reach", frame="right_hand", position=(0.3, -0.3, 1.0), rpy=(0.0, -1.2, 0.0),
+                        axes=(True, True, False), time=0.3),
+            FrameTarget(name="soft reach", frame="left_hand", position=(0.3, 0.3, 0.9), rpy=(0.3, 0.0, 0.2),
+                        time=0.3, priority=Priority.SOFT),
+            FrameTarget(name="hold left", frame="left_hand", rpy=(0.0, -1.0, 0.0), time=1.35),
+            FrameTarget(name="hold right", frame="right_hand", rpy=(0.0, -1.0, 0.3), time=1.35),
+        ),
+        com_targets=(CoMTarget(name="shift", position=(0.01, None, 0.8), time=0.3),
+                     CoMTarget(name="soft shift", position=(None, 0.02, 0.85), time=0.45,
+                               priority=Priority.SOFT)),
+        com_bounds=(CoMBounds(name="balance", lower=(None, None, 0.7), upper=(0.1, None, None)),),
+        joint_targets=(JointTarget(name="elbow", joint="arm_left_4_joint", value=-1.0, time=0.3),),
+        grasps=(Grasp(name="box left", object="box", frame="left_hand", offset=(0.0, 0.0, -0.1), start=1.35),
+                Grasp(name="box right", object="box", frame="right_hand", offset=(0.0, 0.0, -0.1), start=1.35)),
+        dt=0.075,
+        scene=SCENE,
+    )
+
+
+COLLISION_PAIRS = {("arm_left_5_link", "base_link"), ("gripper_left_base_link", "leg_right_3_link")}
+SCENE_LINKS = ("arm_right_5", "arm_right_7", "gripper_right_base")
+COLLISION_KNOT = 5
+
+
+@pytest.fixture(scope="module")
+def layout(talos) -> Layout:
+    """The spec's layout, with self-collision and scene terms at one knot appended (the grasps name
+    their hands by role, ``left_hand``: the scene rows' contact exclusions resolve it)."""
+    lay = make_layout(_spec(), talos)
+    kinematic = list(lay.terms)
+    sets = sphere_sets(talos)
+    lay.terms = []
+    rows = Rows()
+    index = [i for i, name in enumerate(sets.pair_names) if name in COLLISION_PAIRS]
+    assert len(index) == len(COLLISION_PAIRS)
+    for pi in index:
+        end = sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa)
+        rows.spheres[pi] = set(range(end - sets.starts[pi]))
+        rows.knots[pi] = {COLLISION_KNOT}
+    set_collision_terms(lay, sets, rows, index, MARGIN)
+    obs = obstacles(SCENE)
+    arm = {s for s in range(len(sets.sphere_radius)) if sets.links[sets.sphere_owner[s]].startswith(SCENE_LINKS)}
+    scene_rows = SceneRows(spheres={i: set(arm) for i in range(len(obs))},
+                           knots={i: {COLLISION_KNOT} for i in range(len(obs))})
+    set_scene_terms(lay, sets, obs, scene_rows, list(range(len(obs))), MARGIN)
+    lay.terms = kinematic + lay.terms
+    lay.__dict__["_twin_sets"] = sets
+    lay.__dict__["_twin_obstacles"] = obs
+    return lay
+
+
+# -- independent numpy/Pinocchio forms ------------------------------------------------------------
+
+
+class Kinematics(NamedTuple):
+    """Pinocchio's forward kinematics of one configuration."""
+
+    model: pin.Model
+    data: pin.Data
+    q: np.ndarray
+
+    def frame(self, fid: int) -> pin.SE3:
+        return pin.updateFramePlacement(self.model, self.data, fid)
+
+    def com(self) -> np.ndarray:
+        return np.array(pin.centerOfMass(self.model, self.data, self.q, False))
+
+
+def _kinematics(robot, q: np.ndarray) -> Kinematics:
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    return Kinematics(model, data, q)
+
+
+def _vee_antisym(M: np.ndarray) -> np.ndarray:
+    """vee((M - M^T) / 2): equals sin(angle) * axis of the rotation M."""
+    return 0.5 * np.array([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]])
+
+
+def _rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Rotation rows independently: sin(|w|) w/|w| with w = log3(R_t^T R) (Rodrigues)."""
+    w = pin.log3(R_target.T @ R)
+    angle = float(np.linalg.norm(w))
+    return w if angle < 1e-12 else math.sin(angle) * w / angle
+
+
+def _target_rotation(term: Term) -> np.ndarray:
+    return _target_rpy_matrix(term.item) if term.item is not None else _params_rotation(term.params[0:9])
+
+
+def _params_rotation(flat: np.ndarray) -> np.ndarray:
+    return np.asarray(flat, dtype=float).reshape(3, 3).T  # stored column-major
+
+
+def _target_rpy_matrix(target) -> np.ndarray:
+    return pin.rpy.rpyToMatrix(*target.rpy)
+
+
+def _contact_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    frame, M = lay.contacts_at[term.knot][term.structure[1]]
+    oMf = kin.frame(term.structure[1])
+    return np.concatenate([oMf.translation - M.translation, _rotation_error(M.rotation, oMf.rotation)])
+
+
+def _clearance_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    return np.array([kin.frame(term.structure[1]).translation[2]])
+
+
+def _polygon_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    planes = support_halfplanes(lay, term.knot)
+    assert planes is not None
+    A = np.zeros((term.structure[1], 2))
+    A[: len(planes[0])] = planes[0]
+    return A @ kin.com()[:2]
+
+
+def _com_box_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    return kin.com()[np.array(term.structure[1])]
+
+
+def _soft(err: np.ndarray, term: Term) -> np.ndarray:
+    """A soft term's cost: weight |err|^2, the weight being the term's (spec weight / knots)."""
+    return np.array([term.params[-1] * float(err @ err)])
+
+
+def _frame_pos_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    target = term.item
+    err = (kin.frame(term.structure[1]).translation - np.array(target.position))[np.array(target.axes)]
+    return _soft(err, term) if term.structure[-1] == "soft" else err
+
+
+def _frame_rot_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    R_t = _target_rotation(term)
+    err = _rotation_error(R_t, kin.frame(term.structure[1]).rotation)
+    return _soft(err, term) if term.structure[-1] == "soft" else err
+
+
+def _com_pos_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    if term.item is None:  # the CoM centring cost: towards the support polygon's centroid
+        goal = np.array([*support_polygon_centre(lay, term.knot), 0.0])
+        axes = np.array([True, True, False])
+    else:
+        goal = np.array([0.0 if v is None else v for v in term.item.position])
+        axes = np.array([v is not None for v in term.item.position])
+    err = (kin.com() - goal)[axes]
+    return _soft(err, term) if term.structure[-1] == "soft" else err
+
+
+def support_polygon_centre(lay: Layout, k: int) -> np.ndarray:
+    return support_polygon(lay, k).mean(axis=0)
+
+
+def _joint_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    target = term.item
+    jid = kin.model.getJointId(target.joint)
+    value = kin.q[kin.model.joints[jid].idx_q]
+    return np.array([term.params[1] * (value - target.value) ** 2])
+
+
+def _frame_rel_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    a, b = (g for g in lay.spec.grasps if g.object == term.item.object)
+    Ma, Mb = kin.frame(term.structure[1]), kin.frame(term.structure[2])
+    rows = [Ma.act(np.array(a.offset)) - Mb.act(np.array(b.offset))]
+    if term.structure[3]:
+        hold = {t.frame: _target_rpy_matrix(t) for t in lay.spec.targets if t.name.startswith("hold")}
+        R_rel = hold[a.frame].T @ hold[b.frame]
+        rows.append(_rotation_error(R_rel, Ma.rotation.T @ Mb.rotation))
+    return np.concatenate(rows)
+
+
+def _collision_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    sets = lay.__dict__["_twin_sets"]
+    _, ja, jb, _, _, chosen = term.structure
+    a, b = (int(x) for x in sets.pairs[sets.pair_names.index(term.item)])
+    wa = np.array([kin.data.oMi[ja].act(c) for c in sets.centres[a]])
+    wb = np.array([kin.data.oMi[jb].act(c) for c in sets.centres[b]])
+    return np.array([float(np.dot(wa[i] - wb[j], wa[i] - wb[j])) for i, j in chosen])
+
+
+def _scene_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    sets = lay.__dict__["_twin_sets"]
+    (ob,) = (o for o in lay.__dict__["_twin_obstacles"] if o.key == term.item)
+    chosen = [s for s in range(len(sets.sphere_radius))
+              if sets.links[sets.sphere_owner[s]].startswith(SCENE_LINKS)]
+    assert len(chosen) == term.n_rows  # no sphere excluded by a planned contact at this knot
+    out = []
+    for s in chosen:
+        centre = kin.data.oMi[int(sets.joints[sets.sphere_owner[s]])].act(sets.sphere_local[s])
+        u = ob.rotation.T @ (centre - ob.position)
+        a = ob.inflated(np.array([sets.sphere_radius[s] + MARGIN]))[0]
+        out.append(float(row_value(ob.shape, u, a)))
+    return np.array(out)
+
+
+class Kind(NamedTuple):
+    """One term kind: which term of the layout it picks, and its numpy form."""
+
+    select: Callable[[Term], bool]
+    reference: Callable[[Layout, Term, Kinematics], np.ndarray]
+    cost: bool = False  # the term adds to the cost (output 1) instead of rows (output 0)
+
+
+def _named(kind: str, mode: str | None = None, item=None):
+    def select(t: Term) -> bool:
+        return (t.kind == kind and (mode is None or t.structure[-1] == mode)
+                and (item is None or item(t.item)))
+    return select
+
+
+KINDS: dict[str, Kind] = {
+    "contact (foot placement)": Kind(_named("contact"), _contact_ref),
+    "swing clearance": Kind(lambda t: t.kind == "clearance" and t.lower[0] > 0, _clearance_ref),
+    "CoM support polygon (two soles)": Kind(lambda t: t.kind == "polygon" and t.structure[1] == 8, _polygon_ref),
+    "CoM support polygon (one sole)": Kind(lambda t: t.kind == "polygon" and t.structure[1] == 4, _polygon_ref),
+    "CoM bounds box": Kind(_named("com_box"), _com_box_ref),
+    "frame target position (hard)": Kind(_named("frame_pos", "box"), _frame_pos_ref),
+    "frame target position (soft)": Kind(_named("frame_pos", "soft"), _frame_pos_ref, cost=True),
+    "frame target orientation (hard)": Kind(
+        _named("frame_rot", "box", lambda item: item is not None and item.name == "reach"), _frame_rot_ref),
+    "frame target orientation (soft)": Kind(
+        _named("frame_rot", "soft", lambda item: item is not None), _frame_rot_ref, cost=True),
+    "base upright (cost)": Kind(_named("frame_rot", "soft", lambda item: item is None), _frame_rot_ref, cost=True),
+    "CoM target (hard)": Kind(_named("com_pos", "box", lambda item: item is not None), _com_pos_ref),
+    "CoM target (soft)": Kind(_named("com_pos", "soft", lambda item: item is not None), _com_pos_ref, cost=True),
+    "CoM centring (cost)": Kind(_named("com_pos", "soft", lambda item: item is None), _com_pos_ref, cost=True),
+    "joint target": Kind(_named("joint"), _joint_ref, cost=True),
+    "closed chain (two hands)": Kind(lambda t: t.kind == "frame_rel" and t.structure[3], _frame_rel_ref),
+    "self-collision spheres": Kind(_named("collision"), _collision_ref),
+    "scene collision (box)": Kind(lambda t: t.kind == "scene" and t.structure[1] == "box", _scene_ref),
+    "scene collision (cylinder)": Kind(lambda t: t.kind == "scene" and t.structure[1] == "cylinder", _scene_ref),
+    "scene collision (sphere)": Kind(lambda t: t.kind == "scene" and t.structure[1] == "sphere", _scene_ref),
+}
+
+
+def _assert_jacobian(J: np.ndarray, fd: np.ndarray, what: str) -> None:
+    scale = max(1.0, float(np.abs(J).max()))
+    worst = float(np.abs(J - fd).max())
+    assert worst <= JAC_TOL * scale, f"{what}: |J - FD| = {worst:.3e} > {JAC_TOL:g} x {scale:.3g}"
+
+
+def _central_differences(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
+    cols = []
+    for i in range(len(x)):
+        e = np.zeros(len(x))
+        e[i] = FD_STEP
+        cols.append((f(x + e) - f(x - e)) / (2 * FD_STEP))
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize("name", list(KINDS))
+def test_kinematic_term_matches_its_numpy_twin(layout, talos, name):
+    """The stage function of one term equals its numpy/Pinocchio form at random configurations,
+    and CasADi's Jacobian of it equals central differences of the numpy form along the chart."""
+    kind = KINDS[name]
+    index = next((i for i, t in enumerate(layout.terms) if kind.select(t)), None)
+    assert index is not None, f"the spec has no {name} term"
+    term = layout.terms[index]
+    fn = stage_function(layout, [index], "twin")
+    out = 1 if kind.cost else 0
+    model, q_ref = talos.model, layout.q_ref
+    dq_sym = ca.SX.sym("dq", talos.nv)
+    expr = fn(dq_sym, q_ref, term.params)[out]
+    jac = ca.Function("twin_jacobian", [dq_sym], [ca.jacobian(expr, dq_sym)])
+
+    def numpy_form(dq: np.ndarray) -> np.ndarray:
+        return np.asarray(kind.reference(layout, term, _kinematics(talos, chart_to_configuration(model, q_ref, dq))),
+                          dtype=float).ravel()
+
+    rng = np.random.default_rng(SEED)
+    for _ in range(DRAWS):
+        dq = rng.normal(scale=DQ_SCALE, size=talos.nv)
+        value = np.asarray(fn(dq, q_ref, term.params)[out], dtype=float).ravel()
+        want = numpy_form(dq)
+        assert value.shape == want.shape and len(want) == (1 if kind.cost else term.n_rows)
+        np.testing.assert_allclose(value, want, rtol=VALUE_RTOL, atol=VALUE_TOL, err_msg=name)
+        _assert_jacobian(np.asarray(jac(dq)), _central_differences(numpy_form, dq), name)
+
+
+def test_every_kinematic_term_kind_of_the_planner_has_a_twin(layout):
+    """Every kind :func:`term_expression` knows appears in the twin layout and is twinned above: a
+    new term kind fails here until it gets its twin."""
+    source = inspect.getsource(term_expression)
+    handled = {name for line in source.splitlines() if re.match(r"\s*if kind (==|in) ", line)
+               for name in re.findall(r'"([a-z_]+)"', line)}
+    assert len(handled) >= 11, handled
+    twinned = {t.kind for t in layout.terms if any(k.select(t) for k in KINDS.values())}
+    assert twinned == {t.kind for t in layout.terms} == handled
+
+
+# -- the dynamic formulation's per-knot expressions ------------------------------------------------
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    return pin.exp3(rng.normal(scale=0.4, size=3))
+
+
+def _dynamic_case(name: str, rng: np.random.Generator):
+    """(CasADi function of x, numpy function of x, x) for one dynamic expression."""
+    x_sym = ca.SX.sym("x", 0)
+    if name == "friction pyramid":
+        R = _rotation(rng)
+        x = np.concatenate([rng.normal(size=3) * 200.0 + np.array([0, 0, 400.0]), [0.7]])  # force [N], mu
+        x_sym = ca.SX.sym("x", 4)
+        expr = friction_pyramid(x_sym[0:3], R, x_sym[3])
+
+        def numpy_form(x):
+            t1, t2, n = R[:, 0], R[:, 1], R[:, 2]
+            f, mu = x[0:3], x[3] / math.sqrt(2.0)
+            fn = n @ f
+            return np.array([fn, mu * fn - t1 @ f, mu * fn + t1 @ f, mu * fn - t2 @ f, mu * fn + t2 @ f])
+    elif name == "Newton residual (CoM dynamics)":
+        mass, dt = 90.0, 0.05
+        x = np.concatenate([rng.normal(size=9) * 0.05 + np.tile([0, 0, 0.9], 3), rng.normal(size=3) * 300.0])
+        x_sym = ca.SX.sym("x", 12)
+        expr = com_dynamics_residual(mass, com_acceleration(x_sym[0:3], x_sym[3:6], x_sym[6:9], dt), x_sym[9:12])
+
+        def numpy_form(x):
+            acc = (x[0:3] - 2 * x[3:6] + x[6:9]) / dt**2
+            return mass * acc - mass * np.array([0.0, 0.0, -9.81]) - x[9:12]
+    else:  # angular-momentum rate about the CoM from point forces
+        points = rng.normal(size=(4, 3)) * 0.1
+        x = np.concatenate([[0.0, 0.0, 0.9] + rng.normal(size=3) * 0.05, rng.normal(size=12) * 100.0])
+        x_sym = ca.SX.sym("x", 15)
+        expr = angular_momentum_rate(x_sym[0:3], points, [x_sym[3 + 3 * i: 6 + 3 * i] for i in range(4)])
+
+        def numpy_form(x):
+            com, forces = x[0:3], x[3:].reshape(4, 3)
+            return sum((np.cross(p - com, f) for p, f in zip(points, forces, strict=True)), np.zeros(3))
+    fn = ca.Function("f", [x_sym], [expr, ca.jacobian(expr, x_sym)])
+    return fn, numpy_form, x
+
+
+@pytest.mark.parametrize("name", ["friction pyramid", "Newton residual (CoM dynamics)", "angular-momentum rate"])
+def test_dynamic_expression_matches_its_numpy_twin(name):
+    assert np.allclose(GRAVITY, [0.0, 0.0, -9.81])
+    rng = np.random.default_rng(SEED)
+    for _ in range(DRAWS):
+        fn, numpy_form, x = _dynamic_case(name, rng)
+        value, J = (np.asarray(v, dtype=float) for v in fn(x))
+        np.testing.assert_allclose(value.ravel(), numpy_form(x), rtol=VALUE_RTOL, atol=VALUE_TOL, err_msg=name)
+        _assert_jacobian(J, _central_differences(numpy_form, x), name)
+
+
+def test_sole_corner_heights_match_pinocchio(talos):
+    """The dynamic formulation's sole corner heights (the swing floor and the corner forces' lever
+    arms) against Pinocchio's foot placements, and their Jacobian against central differences."""
+    model, q_ref = talos.model, np.array(talos.q_standing)
+    kin = SymbolicKinematics(model)
+    dq_sym = ca.SX.sym("dq", talos.nv)
+    expr = sole_corner_heights(kin, kin.joint_placements(q_ref, dq_sym), talos)
+    fn = ca.Function("h", [dq_sym], [expr, ca.jacobian(expr, dq_sym)])
+
+    def numpy_form(dq):
+        k = _kinematics(talos, chart_to_configuration(model, q_ref, dq))
+        return np.array([k.frame(talos.frame_id(f"{side}_foot")).act(c)[2]
+                         for side in ("left", "right") for c in sole_corners(talos.profile.sole, side)])
+
+    rng = np.random.default_rng(SEED)
+    for _ in range(DRAWS):
+        dq = rng.normal(scale=DQ_SCALE, size=talos.nv)
+        value, J = (np.asarray(v, dtype=float) for v in fn(dq))
+        np.testing.assert_allclose(value.ravel(), numpy_form(dq), rtol=VALUE_RTOL, atol=VALUE_TOL)
+        _assert_jacobian(J, _central_differences(numpy_form, dq), "sole corner heights")
+
+
+def test_payload_torques_match_rnea_with_the_objects_weight(talos):
+    """The payload check's static torques (numpy: g(q) + J_p^T m g) equal Pinocchio's inverse
+    dynamics at rest with the object's weight applied as an external force on the hand's joint."""
+    model, q_ref = talos.model, np.array(talos.q_standing)
+    frame, offset, mass = "right_hand", np.array([0.05, 0.0, -0.1]), 2.5
+    fid = talos.frame_id(frame)
+    joint = model.frames[fid].parentJoint
+    rng = np.random.default_rng(SEED)
+    for _ in range(DRAWS):
+        q = chart_to_configuration(model, q_ref, rng.normal(scale=DQ_SCALE, size=talos.nv))
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, q)
+        point = data.oMf[fid].act(offset)  # the object's centre in the world
+        oMj = data.oMi[joint]
+        weight = pin.Force(np.array([0.0, 0.0, -mass * 9.81]), np.cross(point, [0.0, 0.0, -mass * 9.81]))
+        fext = [pin.Force.Zero() for _ in range(model.njoints)]
+        fext[joint] = oMj.actInv(weight)  # a world wrench about the origin, in the joint's frame
+        tau = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv), pin.StdVec_Force(fext))
+        np.testing.assert_allclose(payload_torques(talos, q, frame, offset, mass), tau[6:], rtol=1e-9, atol=1e-9)
