@@ -166,16 +166,11 @@ def _kinematics(robot, q: np.ndarray) -> Kinematics:
     return Kinematics(model, data, q)
 
 
-def _vee_antisym(M: np.ndarray) -> np.ndarray:
-    """vee((M - M^T) / 2): equals sin(angle) * axis of the rotation M."""
-    return 0.5 * np.array([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]])
-
-
 def _rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Rotation rows independently: sin(|w|) w/|w| with w = log3(R_t^T R) (Rodrigues)."""
-    w = pin.log3(R_target.T @ R)
-    angle = float(np.linalg.norm(w))
-    return w if angle < 1e-12 else math.sin(angle) * w / angle
+    """Rotation rows independently: sin(angle) * axis of R_t^T R from its unit quaternion (w, v),
+    2 w v (smooth at every angle, the same for q and -q; no log3 near pi)."""
+    quat = pin.Quaternion(R_target.T @ R)
+    return 2.0 * quat.w * np.array([quat.x, quat.y, quat.z])
 
 
 def _target_rotation(term: Term) -> np.ndarray:
@@ -476,3 +471,74 @@ def test_payload_torques_match_rnea_with_the_objects_weight(talos):
         fext[joint] = oMj.actInv(weight)  # a world wrench about the origin, in the joint's frame
         tau = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv), pin.StdVec_Force(fext))
         np.testing.assert_allclose(payload_torques(talos, q, frame, offset, mass), tau[6:], rtol=1e-9, atol=1e-9)
+
+
+# -- joint limits, velocity limits and the quadratic costs' operators -----------------------------
+
+
+def test_joint_and_velocity_limits_match_the_models_limits(layout, talos):
+    """Joint limits are variable bounds and velocity limits linear rows of the NLP: at random
+    trajectories, each joint's distance to its bounds equals its distance to Pinocchio's position
+    limits on ``q``, and the velocity rows equal Pinocchio's ``difference`` between knots (the
+    report's velocities, :func:`planner.trajopt.checks.finite_differences`, times dt) with bounds
+    ``velocityLimit dt``; the smoothness operator gives second differences and the posture operator
+    the joint part of the chart."""
+    from planner.trajopt.checks import finite_differences
+    from planner.trajopt.transcription import _quadratic_operators, bounds, make_nlp_layout
+
+    model, nv, N, q_ref = talos.model, talos.nv, layout.N, layout.q_ref
+    nl = make_nlp_layout(layout)
+    lbx, ubx, lbg, ubg = bounds(layout, nl)
+    A, P, D = (np.asarray(ca.DM(op).full()) for op in _quadratic_operators(layout))
+    lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
+    finite = (np.abs(lower) < 1e10) & (np.abs(upper) < 1e10)
+    vj = nl.velocity_joints
+    assert len(vj) > 20 and finite.sum() > 20
+    n_vel = len(vj) * (N - 2)
+    np.testing.assert_allclose(ubg[nl.n_g_kin - n_vel: nl.n_g_kin], np.tile(model.velocityLimit[vj], N - 2) * layout.dt,
+                               rtol=VALUE_RTOL, atol=VALUE_TOL)
+    rng = np.random.default_rng(SEED)
+    for _ in range(DRAWS):
+        x = rng.normal(scale=DQ_SCALE, size=nv * (N - 2))
+        dq = np.vstack([np.zeros((2, nv)), x.reshape(N - 2, nv), x[-nv:]])  # knots 0, 1 at rest; N = N - 1
+        q = np.array([chart_to_configuration(model, q_ref, d) for d in dq])
+        for k in range(2, N):
+            xk, lo, hi = x[(k - 2) * nv: (k - 1) * nv], lbx[(k - 2) * nv: (k - 1) * nv], ubx[(k - 2) * nv: (k - 1) * nv]
+            np.testing.assert_allclose((xk - lo)[6:][finite], (q[k, 7:] - lower)[finite], atol=VALUE_TOL)
+            np.testing.assert_allclose((hi - xk)[6:][finite], (upper - q[k, 7:])[finite], atol=VALUE_TOL)
+        v, _ = finite_differences(model, q, layout.dt)
+        np.testing.assert_allclose(D @ x, (v[1:N - 1, vj] * layout.dt).ravel(), rtol=VALUE_RTOL, atol=VALUE_TOL)
+        second = dq[2:N + 1] - 2 * dq[1:N] + dq[0:N - 1]  # knots 1..N-1
+        np.testing.assert_allclose(A @ x, second.ravel(), atol=VALUE_TOL)
+        np.testing.assert_allclose(P @ x, dq[2:N + 1, 6:].ravel(), atol=VALUE_TOL)
+
+
+def test_momentum_linearization_matches_pinocchios_centroidal_momentum(layout, talos):
+    """The dynamic formulation's angular-momentum rows enter linearized (no symbolic A_g): at a
+    random iterate, ``b + P dq_j + Q dq_{j+1}`` equals the exact interval momentum there
+    (Pinocchio's centroidal map at the interval's midpoint, the report's form,
+    :func:`interval_momentum`), and ``[P Q]`` equals central differences of the interval momentum
+    with the map frozen at that midpoint (the linearization's definition, module docstring)."""
+    from planner.trajopt.centroidal.layout import to_dynamic_layout
+    from planner.trajopt.centroidal.momentum import interval_linearization, interval_momentum
+
+    dyn = to_dynamic_layout(layout)
+    model, nv, N, dt, q_ref = talos.model, talos.nv, dyn.N, float(dyn.dt), dyn.q_ref
+    weight = talos.mass * 9.81
+    rng = np.random.default_rng(SEED)
+    dq = rng.normal(scale=DQ_SCALE / 4, size=(N + 1, nv))
+    b, P, Q = interval_linearization(dyn, dq)
+    q = np.array([chart_to_configuration(model, q_ref, d) for d in dq])
+    exact = interval_momentum(talos, q, dt) / weight
+    for j in (3, N // 2):
+        np.testing.assert_allclose(b[j] + P[j] @ dq[j] + Q[j] @ dq[j + 1], exact[j], rtol=VALUE_RTOL, atol=VALUE_TOL)
+        data = model.createData()
+        v = pin.difference(model, q[j], q[j + 1]) / dt
+        A = pin.computeCentroidalMap(model, data, pin.integrate(model, q[j], 0.5 * dt * v))[3:] / weight
+
+        def frozen(pair: np.ndarray, j=j, A=A) -> np.ndarray:  # A_g frozen at the iterate's midpoint
+            qa, qb = (chart_to_configuration(model, q_ref, d) for d in (pair[:nv], pair[nv:]))
+            return A @ pin.difference(model, qa, qb) / dt
+
+        fd = _central_differences(frozen, np.concatenate([dq[j], dq[j + 1]]))
+        _assert_jacobian(np.hstack([P[j], Q[j]]), fd, f"momentum interval {j}")
