@@ -542,3 +542,76 @@ def test_momentum_linearization_matches_pinocchios_centroidal_momentum(layout, t
 
         fd = _central_differences(frozen, np.concatenate([dq[j], dq[j + 1]]))
         _assert_jacobian(np.hstack([P[j], Q[j]]), fd, f"momentum interval {j}")
+
+
+# -- the report's checks measure what the rows constrain ------------------------------------------
+
+
+def _all_rows(lay: Layout, dq: np.ndarray) -> dict[int, np.ndarray]:
+    """Every constraint term's rows (CasADi, the NLP's stage functions) at chart displacements
+    ``dq`` (N+1, nv), by term index."""
+    from planner.trajopt.terms import stage_groups
+
+    out: dict[int, np.ndarray] = {}
+    for n, (_sig, knots, term_lists) in enumerate(stage_groups(lay)):
+        fn = stage_function(lay, term_lists[0], f"twin_stage_{n}")
+        for k, ids in zip(knots, term_lists, strict=True):
+            p = np.concatenate([lay.terms[i].params for i in ids]) if ids else np.zeros(0)
+            g = np.asarray(fn(dq[k], lay.q_ref, p)[0], dtype=float).ravel()
+            offset = 0
+            for i in ids:
+                out[i] = g[offset: offset + lay.terms[i].n_rows]
+                offset += lay.terms[i].n_rows
+    return out
+
+
+def test_report_checks_measure_the_rows(layout, talos):
+    """On a random trajectory (rest at both ends), each check of the report (Pinocchio numerics,
+    :func:`planner.trajopt.checks.check_plan`) equals the worst violation of the NLP's rows that
+    constrain the same thing: contact position |rows 0:3|, contact orientation asin|rows 3:6|, swing
+    clearance, support polygon, CoM box, frame and CoM target |rows|."""
+    from planner.trajopt.checks import check_plan, finite_differences
+    from planner.trajopt.settings import PlannerSettings
+
+    model, nv, N = talos.model, talos.nv, layout.N
+    rng = np.random.default_rng(SEED)
+    dq = np.zeros((N + 1, nv))
+    dq[2:N] = rng.normal(scale=DQ_SCALE / 2, size=(N - 2, nv))
+    dq[N] = dq[N - 1]
+    q = np.array([chart_to_configuration(model, layout.q_ref, d) for d in dq])
+    v, _ = finite_differences(model, q, layout.dt)
+    data = model.createData()
+    com = np.array([pin.centerOfMass(model, data, qk) for qk in q])
+    rows = _all_rows(layout, dq)
+    checks = {c.name: c for c in check_plan(layout, q, v, com, PlannerSettings())}
+    terms = layout.terms
+
+    def worst(select: Callable[[Term], bool], measure: Callable[[Term, np.ndarray], float]) -> float:
+        values = [measure(t, rows[i]) for i, t in enumerate(terms) if select(t) and i in rows]
+        assert values
+        return max(0.0, max(values))
+
+    def upper_violation(t: Term, g: np.ndarray) -> float:
+        return float(np.max(np.maximum(t.lower - g, g - t.upper)))
+
+    want = {
+        "left_foot contact position": worst(
+            lambda t: t.kind == "contact" and t.label.startswith("left_foot"), lambda t, g: float(np.linalg.norm(g[:3]))),
+        "left_foot contact orientation": worst(
+            lambda t: t.kind == "contact" and t.label.startswith("left_foot"),
+            lambda t, g: math.asin(min(1.0, float(np.linalg.norm(g[3:])))),
+        ),
+        "right_foot clearance": worst(lambda t: t.kind == "clearance", upper_violation),
+        "CoM bound 'balance' support polygon": worst(lambda t: t.kind == "polygon", upper_violation),
+        "CoM bound 'balance' box": worst(lambda t: t.kind == "com_box", upper_violation),
+        "right_hand target 'reach'": worst(
+            lambda t: t.kind == "frame_pos" and t.item is not None and t.item.name == "reach",
+            lambda t, g: float(np.linalg.norm(g))),
+        "CoM target 'shift'": worst(
+            lambda t: t.kind == "com_pos" and t.item is not None and t.item.name == "shift",
+            lambda t, g: float(np.linalg.norm(g))),
+    }
+    for name, value in want.items():
+        assert value > 1e-3, f"{name}: the random trajectory does not test it ({value})"
+        assert math.isclose(checks[name].violation, value, rel_tol=VALUE_RTOL, abs_tol=VALUE_TOL), \
+            (name, checks[name].violation, value)
