@@ -615,3 +615,89 @@ def test_report_checks_measure_the_rows(layout, talos):
         assert value > 1e-3, f"{name}: the random trajectory does not test it ({value})"
         assert math.isclose(checks[name].violation, value, rel_tol=VALUE_RTOL, abs_tol=VALUE_TOL), \
             (name, checks[name].violation, value)
+
+
+# -- the dynamic formulation's rows on a whole grid -----------------------------------------------
+
+FD_COLUMNS = 60  # random columns of the centroidal rows' Jacobian checked by central differences
+
+
+def _edges(R: np.ndarray, mu: float) -> np.ndarray:
+    """The 4 inner-pyramid edges (mu', mu', 1), (-mu', mu', 1), (-mu', -mu', 1), (mu', -mu', 1) in the world."""
+    m = mu / math.sqrt(2.0)
+    return R @ np.array([[m, -m, -m, m], [m, m, -m, -m], [1.0, 1.0, 1.0, 1.0]])
+
+
+@pytest.mark.parametrize("edges", [True, False], ids=["friction edges", "force components"])
+def test_centroidal_rows_match_numpy(layout, talos, edges):
+    """The dynamic formulation's rows over the grid (CoM dynamics with contact forces, friction
+    pyramid, angular momentum of the corner forces, ankle torques) equal numpy's, block by block, at
+    random CoM trajectories and force variables, and their Jacobian equals central differences of
+    the numpy form (a seeded sample of columns). The force readout the plan reports
+    (``generators``) is the map the rows use."""
+    from planner.trajopt.centroidal.layout import to_dynamic_layout
+    from planner.trajopt.centroidal.pattern import centroidal_function
+    from planner.trajopt.centroidal.settings import CentroidalSettings
+
+    dyn = to_dynamic_layout(layout)
+    settings = CentroidalSettings(friction_edges=edges)
+    cf = centroidal_function(dyn, settings=settings)
+    terms = cf.terms
+    N, dt, n = dyn.N, float(dyn.dt), terms.n_variables
+    g_unit = GRAVITY / np.linalg.norm(GRAVITY)
+    kinds = {b.name.rsplit(" ", 1)[0] if b.name.startswith(("ankle", "friction")) else b.name
+             for b in terms.constraints}
+    assert kinds == {"CoM dynamics", "angular momentum", "ankle torque"} | (set() if edges else {"friction"}), kinds
+
+    def forces(u: np.ndarray, k: int) -> list[tuple[object, np.ndarray]]:
+        out = []
+        for c in terms.contacts[k]:
+            idx = terms.force_index[k][c.frame]
+            E = _edges(c.rotation, c.friction_coefficient) if edges else np.eye(3)
+            out.append((c, u[idx] @ E.T))  # (n_points, 3) in body weights
+        return out
+
+    def numpy_form(x: np.ndarray) -> np.ndarray:
+        C, u = x[: 3 * (N + 1)].reshape(N + 1, 3), x[3 * (N + 1):]
+        rows = []
+        for block in terms.constraints:
+            k = block.knot
+            fk = forces(u, k)
+            if block.name == "CoM dynamics":
+                total = sum((f.sum(axis=0) for _, f in fk), np.zeros(3))
+                rows.append((C[k + 1] - 2 * C[k] + C[k - 1]) / dt**2 / 9.81 - g_unit - total)
+            elif block.name == "angular momentum":
+                rows.append(-sum((np.cross(p - C[k], fi) for c, f in fk for p, fi in
+                                  zip(c.points_in_world, f, strict=True)), np.zeros(3)))
+            elif block.name.startswith("ankle torque"):
+                (c, f), = ((c, f) for c, f in fk if block.name.endswith(c.frame))
+                rows.append(c.ankle_torques(f))  # the report's form, in body weights x m
+            else:
+                assert block.name.startswith("friction")
+                (c, f), = ((c, f) for c, f in fk if block.name.endswith(c.frame))
+                mu = c.friction_coefficient / math.sqrt(2.0)
+                t1, t2, nrm = c.rotation.T
+                rows += [np.array([nrm @ fi, mu * nrm @ fi - t1 @ fi, mu * nrm @ fi + t1 @ fi,
+                                   mu * nrm @ fi - t2 @ fi, mu * nrm @ fi + t2 @ fi]) for fi in f]
+        return np.concatenate(rows)
+
+    for k, per_frame in enumerate(terms.generators):
+        for c in terms.contacts[k]:
+            if c.frame in per_frame:
+                want = _edges(c.rotation, c.friction_coefficient) if edges else np.eye(3)
+                np.testing.assert_allclose(per_frame[c.frame], want, atol=VALUE_TOL)
+    Cs, us = ca.SX.sym("C", 3, N + 1), ca.SX.sym("u", n)
+    g = cf.function(Cs, us, terms.parameter_values, dt)[0]
+    xs = ca.vertcat(ca.vec(Cs), us)  # column-major C: knot by knot
+    fn = ca.Function("centroidal_twin", [xs], [g, ca.jacobian(g, xs)])
+    rng = np.random.default_rng(SEED)
+    for _ in range(DRAWS):
+        C = np.array([0.0, 0.0, 0.85]) + rng.normal(scale=0.05, size=(N + 1, 3))
+        u = rng.uniform(0.0, 0.1, size=n) if edges else rng.normal(scale=0.1, size=n)
+        x = np.concatenate([C.ravel(), u])
+        value, J = (np.asarray(v.full() if hasattr(v, "full") else v, dtype=float) for v in fn(x))
+        np.testing.assert_allclose(value.ravel(), numpy_form(x), rtol=VALUE_RTOL, atol=VALUE_TOL)
+        cols = rng.choice(len(x), size=FD_COLUMNS, replace=False)
+        fd = np.array([(numpy_form(x + FD_STEP * e) - numpy_form(x - FD_STEP * e)) / (2 * FD_STEP)
+                       for e in np.eye(len(x))[cols]]).T
+        _assert_jacobian(J[:, cols], fd, "centroidal rows")
