@@ -701,3 +701,44 @@ def test_centroidal_rows_match_numpy(layout, talos, edges):
         fd = np.array([(numpy_form(x + FD_STEP * e) - numpy_form(x - FD_STEP * e)) / (2 * FD_STEP)
                        for e in np.eye(len(x))[cols]]).T
         _assert_jacobian(J[:, cols], fd, "centroidal rows")
+
+
+def test_cop_of_the_corner_forces_stays_in_the_sole_shrunk_by_the_margin(layout, talos):
+    """CoP/support in the dynamic formulation is no row: the corner forces' points are the soles'
+    corners moved inward by ``cop_margin`` (here: against the sole rectangle and the stance
+    placements of the spec), so non-negative edge weights put each foot's CoP inside the shrunk
+    sole (the report's :func:`cop_violation` is 0), and the readout's corner forces are the edges'."""
+    from planner.trajopt.centroidal.checks import cop_violation
+    from planner.trajopt.centroidal.layout import to_dynamic_layout
+    from planner.trajopt.centroidal.pattern import centroidal_function
+    from planner.trajopt.centroidal.settings import CentroidalSettings
+
+    settings = CentroidalSettings()
+    dyn = to_dynamic_layout(layout)
+    terms = centroidal_function(dyn, settings=settings).terms
+    sole, margin = talos.profile.sole, settings.cop_margin
+    rng = np.random.default_rng(SEED)
+    u = rng.uniform(0.0, 1.0, size=terms.n_variables) ** 8  # a few dominant corners: CoPs near the edges
+    corner = terms.corner_forces(u)
+    seen = 0
+    for k, contacts in enumerate(terms.contacts):
+        if not 1 <= k <= dyn.N - 1:
+            continue
+        for c in contacts:
+            side = "left" if c.frame == talos.model.frames[talos.frame_id("left_foot")].name else "right"
+            placement = next(ct.placement for ph in dyn.spec.phases for ct in ph.contacts
+                             if talos.frame_id(ct.frame) == talos.frame_id(c.frame))
+            R, p = pin.rpy.rpyToMatrix(*placement.rpy), np.array(placement.position)
+            np.testing.assert_allclose(c.points_in_frame, sole_corners(sole, side, margin=margin), atol=VALUE_TOL)
+            np.testing.assert_allclose(c.points_in_world, c.points_in_frame @ R.T + p, atol=VALUE_TOL)
+            idx = terms.force_index[k][c.frame]
+            f = u[idx] @ _edges(c.rotation, c.friction_coefficient).T * terms.weight  # [N]
+            np.testing.assert_allclose(corner[c.frame][k], f, rtol=VALUE_RTOL, atol=VALUE_TOL)
+            local = f @ R  # rows R^T f_i
+            cop = (c.points_in_frame[:, :2] * local[:, 2:3]).sum(axis=0) / local[:, 2].sum()
+            x = (sole.x_min + margin, sole.x_max - margin)
+            y_left = (sole.y_min + margin, sole.y_max - margin)
+            y = y_left if side == "left" else (-y_left[1], -y_left[0])
+            assert cop_violation(cop[None], x, y)[0] <= VALUE_TOL, (k, c.frame, cop, x, y)
+            seen += 1
+    assert seen > 20
