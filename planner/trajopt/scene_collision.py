@@ -257,7 +257,7 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
             for name in supported[where]:
                 out[lo:hi + 1, (sphere_joint == joint)[:, None] & np.isin(np.arange(len(obs)), columns[name])[None, :]] = True
     for grasp in lay.spec.grasps:
-        hand = np.isin(sphere_joint, list(model.subtrees[model.frames[model.getFrameId(grasp.frame)].parentJoint]))
+        hand = np.isin(sphere_joint, list(model.subtrees[model.frames[lay.robot.frame_id(grasp.frame)].parentJoint]))
         held = np.asarray(lay.t) >= grasp.start - 1e-9
         if grasp.end is not None:
             held &= np.asarray(lay.t) <= grasp.end + 1e-9
