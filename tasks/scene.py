@@ -57,6 +57,7 @@ SIZE_MEANING = {
 #: The planner's clearance from every object [m]: a hand target or a footstep closer than this
 #: to an object (or inside it) is refused before planning.
 SCENE_MARGIN = 0.01
+MAX_STEPS = 50  # treads of one stairs element
 
 
 def _field_error(field: str, message: str) -> TaskDefinitionError:
@@ -110,6 +111,8 @@ class SceneObject:
         mass: [kg], movable objects only (> 0 for them).
         friction: Coulomb friction coefficient [-].
         mesh: Mesh file path (shape ``mesh`` only; in a scene file, relative to the file).
+        walkable: Its top face is a floor the feet may stand on (an upright box or cylinder:
+            stair treads, a box to step onto); :func:`tasks.terrain.surface_at` finds it.
     """
 
     name: str
@@ -123,6 +126,7 @@ class SceneObject:
     mass: float = 0.0
     friction: float = 0.8
     mesh: str | None = None
+    walkable: bool = False
 
     def __post_init__(self) -> None:
         _name("name", self.name)
@@ -160,11 +164,82 @@ class SceneObject:
                 raise _field_error("mesh", f"is not a usable file path: {_show(self.mesh)}")
         elif self.mesh is not None:
             raise _field_error("mesh", f"only a mesh object has a mesh file; this one is a {self.shape}")
+        if not isinstance(self.walkable, bool):
+            raise _field_error("walkable", f"must be true or false, got {_show(self.walkable)}")
+        if self.walkable and (self.shape not in ("box", "cylinder") or self.movable):
+            raise _field_error("walkable", f"only a static box or cylinder has a top to walk on; this one is a "
+                                           f"{'movable ' if self.movable else ''}{self.shape}")
 
     @property
     def names(self) -> tuple[str, ...]:
         """The name and the aliases."""
         return (self.name, *self.aliases)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Stairs:
+    """A straight flight of stairs on the floor.
+
+    Attributes:
+        name: Name of the flight (``stairs``); its treads are ``<name>.1`` ... ``<name>.<count>``.
+        count: Number of steps (treads) [-].
+        rise: Height of each step [m].
+        run: Depth of each tread [m].
+        width: Width of the flight [m].
+        position: Middle of the first riser's bottom edge, on the floor [m] (x, y).
+        yaw: Direction the flight climbs [rad] (0: +x).
+        colour: RGBA in [0, 1].
+        friction: Coulomb friction coefficient of the treads [-].
+        aliases: Other names of the flight (``staircase``, 楼梯), given to its first tread.
+    """
+
+    name: str = "stairs"
+    count: int = 3
+    rise: float = 0.1
+    run: float = 0.25
+    width: float = 1.0
+    position: tuple[float, float] = (0.5, 0.0)
+    yaw: float = 0.0
+    colour: tuple[float, float, float, float] = (0.55, 0.5, 0.45, 1.0)
+    friction: float = 0.8
+    aliases: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip() or len(self.name) > MAX_NAME_LENGTH - 4:
+            raise _field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
+        if isinstance(self.count, bool) or not isinstance(self.count, int) or not 1 <= self.count <= MAX_STEPS:
+            raise _field_error("count", f"must be a whole number of steps in [1, {MAX_STEPS}], got {self.count!r}")
+        for key in ("rise", "run", "width"):
+            v = getattr(self, key)
+            if not (_finite(v) and 0 < v <= MAX_DISTANCE):
+                raise _field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {v!r}")
+        if (not isinstance(self.position, tuple) or len(self.position) != 2
+                or not all(_finite(v) and abs(v) <= MAX_DISTANCE for v in self.position)):
+            raise _field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {self.position!r}")
+        if not (_finite(self.yaw) and abs(self.yaw) <= MAX_ANGLE):
+            raise _field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {self.yaw!r}")
+        if not (_finite(self.friction) and 0 < self.friction <= MAX_FRICTION):
+            raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {self.friction!r}")
+
+    def tread_name(self, i: int) -> str:
+        """Name of step ``i`` (1-based)."""
+        return f"{self.name}.{i}"
+
+
+def stairs_objects(stairs: Stairs) -> tuple[SceneObject, ...]:
+    """The flight as ``count`` walkable static boxes, step 1 first."""
+    c, s = math.cos(stairs.yaw), math.sin(stairs.yaw)
+    out = []
+    for i in range(1, stairs.count + 1):
+        along = (i - 0.5) * stairs.run
+        height = i * stairs.rise
+        out.append(SceneObject(
+            name=stairs.tread_name(i), shape="box", size=(stairs.run, stairs.width, height),
+            position=(stairs.position[0] + c * along, stairs.position[1] + s * along, height / 2),
+            rpy=(0.0, 0.0, float(stairs.yaw)), colour=stairs.colour, friction=stairs.friction,
+            aliases=(stairs.name, *stairs.aliases) if i == 1 else (), walkable=True,
+        ))
+    return tuple(out)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -175,17 +250,26 @@ class Scene:
         name: A label for reports.
         objects: The objects; their names and aliases are unique across the scene.
         floor_friction: Coulomb friction coefficient of the floor [-].
+        stairs: Flights of stairs; each adds its treads to ``objects`` (:func:`stairs_objects`;
+            an object equal to a tread is that tread, so a scene written out and read back is
+            the same scene).
     """
 
     name: str = ""
     objects: tuple[SceneObject, ...] = ()
     floor_friction: float = 0.8
+    stairs: tuple[Stairs, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or len(self.name) > MAX_TEXT_LENGTH:
             raise _field_error("name", f"must be a string of at most {MAX_TEXT_LENGTH} characters")
         if not isinstance(self.objects, tuple) or not all(isinstance(o, SceneObject) for o in self.objects):
             raise _field_error("objects", "must be a list of objects")
+        if not isinstance(self.stairs, tuple) or not all(isinstance(st, Stairs) for st in self.stairs):
+            raise _field_error("stairs", "must be a list of stairs")
+        treads = tuple(o for st in self.stairs for o in stairs_objects(st))
+        if treads:
+            object.__setattr__(self, "objects", tuple(o for o in self.objects if o not in treads) + treads)
         if len(self.objects) > MAX_OBJECTS:
             raise _field_error("objects", f"{len(self.objects)} objects; a scene holds at most {MAX_OBJECTS}")
         owner: dict[str, int] = {}
@@ -488,12 +572,14 @@ def check_scene_meshes(scene: Scene | None, prefix: str = "", hint: str = "") ->
 
 
 __all__ = [
+    "MAX_STEPS",
     "SCENE_MARGIN",
     "SCENE_VERSION",
     "SHAPES",
     "SIZE_LENGTHS",
     "Scene",
     "SceneObject",
+    "Stairs",
     "check_scene_meshes",
     "check_spec_in_scene",
     "closest_object",
@@ -505,5 +591,6 @@ __all__ = [
     "scene_from_json",
     "scene_to_dict",
     "signed_distance",
+    "stairs_objects",
     "to_local",
 ]

@@ -35,6 +35,7 @@ from tasks.primitives import (
     push,
     reach,
     squat,
+    terrain,
     wave,
 )
 from tasks.primitives.base import (
@@ -77,6 +78,7 @@ PRIMITIVES: dict[str, Primitive] = {
         *grasp.PRIMITIVES,
         *handover.PRIMITIVES,
         *push.PRIMITIVES,
+        *terrain.PRIMITIVES,
     )
 }
 

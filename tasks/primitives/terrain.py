@@ -1,0 +1,228 @@
+"""``step_up(object, count)``: climb onto walkable surfaces ahead, one tread at a time.
+
+The object is a walkable scene object (a stair tread, a box with ``walkable`` set; "the stairs"
+names a flight's first tread, :mod:`tasks.terrain`). The treads climbed are that object and the
+walkable objects after it straight ahead of the robot (their top centres along the heading, in
+order), ``count`` of them (default: every one of them). Each tread is climbed with a step-to
+gait: the right foot swings onto it, then the left one beside it, each sole flat at the height
+:func:`tasks.terrain.surface_at` gives under its centre (so every sole corner must be over the
+same tread: a tread shorter than the sole is refused), centred on the tread along the heading and
+keeping its lateral place. A swing clears the higher of the two treads by ``SWING_CLEARANCE`` at
+its middle (the planner's swing height is a height above the floor). Dynamic (contact forces), and
+the CoM ends over the final feet (HARD, ``END_TOLERANCE``).
+
+Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): a rise above the
+robot's ``step_height_max`` ("the 0.30 m rise onto stairs.1 is above talos's 0.20 m step"), a
+tread farther than ``step_length_max`` from the last one (or from the feet: walk closer first).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from robots.contact import sole_corners
+from robots.model import Robot
+from tasks.exceptions import BeyondCapability, TaskDefinitionError
+from tasks.grounding import Grounded
+from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
+from tasks.primitives.gait import (
+    OTHER,
+    Segment,
+    both,
+    contact,
+    heading_yaw,
+    rz,
+    sequence_duration,
+    stance_from,
+    start_placements,
+    tau,
+    write_segments,
+)
+from tasks.primitives.geometry import Stance, standing_geometry
+from tasks.primitives.objects import grounded
+from tasks.scene import Scene, SceneObject, rotation
+from tasks.specs import Pose
+from tasks.terrain import surface_at, top_height
+
+PARTS = frozenset({"legs", "com"})
+SWING_CLEARANCE = 0.09  # [m] a swinging sole above the higher tread at the middle of its swing (talos's
+#   foot cover spheres reach 6.7 cm below its sole; the planner keeps 1 cm from objects)
+END_TOLERANCE = 0.02  # [m] CoM ground projection at the end vs the point between the feet
+SETTLE_FRACTION = 0.5  # opening shift and closing settle: this fraction of step_duration
+LEVEL_TOLERANCE = 1e-3  # [m] every sole corner over the same surface height
+WAYPOINT_TOLERANCE = 0.02  # [m] the swinging sole's lift and descent waypoints
+TOE_CLEARANCE = 0.05  # [m] the sole's front edge at least this far back from a tread's front edge
+LEAD = "right"  # the foot that steps up first
+
+
+def _yaw_of(stance: Stance) -> float:
+    R = stance.heading().rotation
+    return math.atan2(R[1, 0], R[0, 0])
+
+
+def _along(obj: SceneObject, mid: np.ndarray, u: np.ndarray) -> float:
+    return float(np.dot(np.asarray(obj.position[:2]) - mid[:2], u))
+
+
+def _on_line(obj: SceneObject, mid: np.ndarray, u: np.ndarray) -> bool:
+    """The heading line through the feet crosses the object's top (at its centre's distance)."""
+    s = _along(obj, mid, u)
+    p = mid[:2] + s * u
+    return surface_at(Scene(objects=(obj,)), float(p[0]), float(p[1])).name == obj.name
+
+
+def _half_depth(obj: SceneObject, u: np.ndarray) -> float:
+    """Half the object's top face along the horizontal direction ``u`` [m]."""
+    if obj.shape == "cylinder":
+        return float(obj.size[0])
+    R = np.array(rotation(obj.rpy))
+    local = R.T @ np.array([u[0], u[1], 0.0])
+    return float(abs(local[0]) * obj.size[0] / 2 + abs(local[1]) * obj.size[1] / 2)
+
+
+def treads(scene: Scene, first: SceneObject, stance: Stance, count: int | None) -> list[SceneObject]:
+    """The walkable objects climbed: ``first`` and the ones straight ahead after it, in order."""
+    if not first.walkable or top_height(first) is None:
+        raise TaskDefinitionError(
+            f"step_up: the {first.name} is not a surface to stand on; mark it \"walkable\": true in the scene "
+            "(an upright box or cylinder), or use stairs (docs/scenes.md)")
+    mid, _ = heading_yaw({"left": stance.left, "right": stance.right})
+    yaw = _yaw_of(stance)
+    u = np.array([math.cos(yaw), math.sin(yaw)])
+    s0 = _along(first, mid, u)
+    if s0 <= 0 or not _on_line(first, mid, u):
+        raise TaskDefinitionError(
+            f"step_up: the {first.name} is not straight ahead of the robot; turn to face it first")
+    ahead = sorted((o for o in scene.objects if o.walkable and o is not first and _along(o, mid, u) > s0 + 1e-9
+                    and top_height(o) is not None and _on_line(o, mid, u)), key=lambda o: _along(o, mid, u))
+    chain = [first, *ahead]
+    if count is None:
+        return chain
+    if count > len(chain):
+        raise TaskDefinitionError(
+            f"step_up: {count} steps asked, but only {len(chain)} walkable surface(s) lie ahead from the "
+            f"{first.name} ({', '.join(o.name for o in chain)}); ask for at most {len(chain)}")
+    return chain[:count]
+
+
+def _placement(robot: Robot, scene: Scene, side: str, xy: np.ndarray, yaw: float, tread: SceneObject) -> Pose:
+    """The sole flat on the surface under ``xy``, refused when a corner is over another height."""
+    centre = surface_at(scene, float(xy[0]), float(xy[1]))
+    R = rz(yaw)
+    for corner in sole_corners(robot.profile.sole, side):
+        p = np.array([xy[0], xy[1], 0.0]) + R @ corner
+        under = surface_at(scene, float(p[0]), float(p[1]))
+        if abs(under.height - centre.height) > LEVEL_TOLERANCE or under.name != tread.name:
+            raise BeyondCapability(
+                f"step_up: {robot.name}'s {side} sole ({robot.profile.sole.x_max - robot.profile.sole.x_min:.2f} m "
+                f"long) does not fit on the {tread.name} (a corner would be over "
+                f"{'the floor' if under.name is None else 'the ' + under.name}); treads must be longer than the sole")
+    return Pose(position=(float(xy[0]), float(xy[1]), float(centre.height)), rpy=(0.0, 0.0, float(yaw)))
+
+
+@dataclass(frozen=True, slots=True)
+class Swing:
+    """One swing of the climb: segment index, side, lift-off and landing sole positions, and the
+    height its sole passes at (the higher tread plus ``SWING_CLEARANCE``) [m]."""
+
+    segment: int
+    side: str
+    start: tuple[float, float, float]
+    end: tuple[float, float, float]
+    height: float
+
+
+def plan_steps(robot: Robot, g: Grounded, count: int | None,
+               stance: Stance | None = None) -> tuple[list[Segment], dict[str, Pose], list[Swing]]:
+    """The phases of the climb, the final sole placements and the swings."""
+    st = stance if stance is not None else (g.start if isinstance(g.start, Stance) else Stance.standing(robot))
+    chain = treads(g.scene, g.obj, st, count)
+    where = start_placements(robot, st)
+    mid, _ = heading_yaw(where)
+    yaw = _yaw_of(st)
+    u = np.array([math.cos(yaw), math.sin(yaw)])
+    prof = robot.profile
+    sole_mid = np.array([(prof.sole.x_min + prof.sole.x_max) / 2, 0.0])
+    settle = SETTLE_FRACTION * prof.step_duration
+    segs = [Segment(name="shift weight", duration=settle, contacts=both(robot, where))]
+    cur = dict(where)
+    swings: list[Swing] = []
+    for i, tread in enumerate(chain):
+        # the sole centred on the tread, or back from its front edge by TOE_CLEARANCE if that is nearer
+        s = min(_along(tread, mid, u), _along(tread, mid, u) + _half_depth(tread, u) - TOE_CLEARANCE
+                - (prof.sole.x_max - prof.sole.x_min) / 2)
+        for side in (LEAD, OTHER[LEAD]):
+            here = np.asarray(cur[side].position)
+            lateral = float(np.dot(here[:2] - mid[:2], np.array([-u[1], u[0]])))
+            xy = mid[:2] + s * u + lateral * np.array([-u[1], u[0]]) - rz(yaw)[:2, :2] @ sole_mid
+            target = _placement(robot, g.scene, side, xy, yaw, tread)
+            rise = target.position[2] - here[2]
+            length = float(np.linalg.norm(np.asarray(target.position[:2]) - here[:2]))
+            if rise > prof.step_height_max + 1e-9:
+                raise BeyondCapability(
+                    f"the {rise:.2f} m rise onto the {tread.name} is above {robot.name}'s {prof.step_height_max:.2f} m "
+                    f"step (step_height_max of its profile): choose lower steps, or another robot")
+            if length > prof.step_length_max + 1e-9:
+                hint = ("walk closer to it first" if i == 0 else "the treads are too deep for it")
+                raise BeyondCapability(
+                    f"step_up: the {side} foot would step {length:.2f} m onto the {tread.name}, beyond {robot.name}'s "
+                    f"{prof.step_length_max:.2f} m step: {hint}")
+            height = max(float(here[2]), target.position[2]) + SWING_CLEARANCE
+            swings.append(Swing(len(segs), side, cur[side].position, target.position, height))
+            segs.append(Segment(name=f"step {i + 1}: {side} foot onto the {tread.name}", duration=prof.step_duration,
+                                contacts=(contact(robot, OTHER[side], cur[OTHER[side]]),), swing_height=height))
+            cur[side] = target
+            last = i == len(chain) - 1 and side == OTHER[LEAD]
+            segs.append(Segment(name="settle" if last else f"step {i + 1}: double support",
+                                duration=settle if last else prof.double_support_duration,
+                                contacts=both(robot, cur), rounding="nearest" if last else "floor"))
+    return segs, cur, swings
+
+
+def _count(params: dict) -> int | None:
+    value = params.get("count")
+    return None if value is None else int(value)
+
+
+def _duration(params: dict, robot: Robot) -> float:
+    return sequence_duration(plan_steps(robot, grounded(params, "step_up"), _count(params))[0])
+
+
+def _check(params: dict, robot: Robot) -> None:
+    plan_steps(robot, grounded(params, "step_up"), _count(params))
+
+
+def _build(b: FragmentBuilder) -> Fragment:
+    g = grounded(b.params, "step_up")
+    segs, end, swings = plan_steps(b.robot, g, _count(b.params), b.stance)
+    bounds = write_segments(b, segs)
+    for sw in swings:
+        # lift straight up, pass over the riser, come straight down: the sole above its lift-off
+        # place a third into the swing and above its landing place two thirds into it
+        k0, k1 = bounds[sw.segment], bounds[sw.segment + 1]
+        for frac, (x, y, _z), when in ((1 / 3, sw.start, "lifted"), (2 / 3, sw.end, "over its landing")):
+            b.frame_target(f"{sw.side} foot {when} ({segs[sw.segment].name})", f"{sw.side}_foot",
+                           position=(x, y, sw.height), time=tau(b, k0 + round(frac * (k1 - k0))),
+                           tolerance=WAYPOINT_TOLERANCE)
+    b.end_stance = stance_from(end)
+    home = b.end_stance.transform_from_standing(b.robot).act(standing_geometry(b.robot).com)
+    b.com_target("CoM over the feet on the last tread", (float(home[0]), float(home[1]), None),
+                 time=tau(b, bounds[-1]), tolerance=END_TOLERANCE)
+    return b.finish(PARTS, dynamic=True)
+
+
+def _limits(robot: Robot) -> dict[str, str]:
+    prof = robot.profile
+    return {"object": f"rises of at most {prof.step_height_max:.2f} m, treads at most {prof.step_length_max:.2f} m "
+                      f"apart on {robot.name}"}
+
+
+STEP_UP = Primitive(name="step_up", nominal_duration=_duration, build=_build, parts=lambda p: PARTS,
+                    check=_check, limits=_limits, dynamic=True)
+
+PRIMITIVES = (STEP_UP,)
+
+__all__ = ["PRIMITIVES", "STEP_UP", "SWING_CLEARANCE", "plan_steps", "treads"]

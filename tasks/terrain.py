@@ -1,0 +1,90 @@
+"""Terrain: stairs as walkable boxes, and the surface under a point (height and normal).
+
+A scene file's ``stairs`` element (:class:`Stairs`: count, rise, run, width, position, yaw) is
+expanded when the file is read into ``count`` static boxes with ``walkable`` set: step ``i``
+(1-based) is a solid block from the floor up to ``i * rise``, ``run`` deep and ``width`` wide,
+so the planner, MuJoCo and the viewers see the same geometry without knowing about stairs. The
+first block is named ``<name>.1`` with the alias ``<name>`` (so "the stairs" names one object,
+the first tread), the others ``<name>.2``, ``<name>.3``, ...
+
+``position`` is the middle of the first riser's bottom edge (where the stairs meet the floor in
+front of the robot) and ``yaw`` [rad] the direction the stairs climb (0: along +x).
+
+:func:`surface_at` is the height query the footstep primitives use: the highest walkable top face
+(of an upright box or cylinder) over a point, or the floor (z = 0), with its upward normal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from tasks.scene import MAX_STEPS, Scene, SceneObject, Stairs, rotation, stairs_objects, to_local
+
+UPRIGHT_COS = math.cos(math.radians(5))  # a top face tilted more than 5 deg is no walkable surface
+
+
+@dataclass(frozen=True, slots=True)
+class Surface:
+    """The surface under a point.
+
+    Attributes:
+        height: Its height [m] (0: the floor).
+        normal: Its upward unit normal in the world.
+        name: The object whose top it is (None: the floor).
+        friction: Its Coulomb friction coefficient [-].
+    """
+
+    height: float
+    normal: tuple[float, float, float]
+    name: str | None
+    friction: float
+
+
+def top_height(obj: SceneObject) -> float | None:
+    """Height of the top face's centre of an upright box or cylinder [m] (None: no flat top)."""
+    R = rotation(obj.rpy)
+    if obj.shape not in ("box", "cylinder") or R[2][2] < UPRIGHT_COS:
+        return None
+    half = obj.size[2] / 2 if obj.shape == "box" else obj.size[1] / 2
+    return obj.position[2] + R[2][2] * half
+
+
+def _over(obj: SceneObject, x: float, y: float) -> float | None:
+    """Height of the object's top face above (x, y), or None when (x, y) is not over it."""
+    top = top_height(obj)
+    if top is None:
+        return None
+    R = rotation(obj.rpy)
+    n = (R[0][2], R[1][2], R[2][2])
+    centre = [obj.position[i] + n[i] * (top - obj.position[2]) / n[2] for i in range(3)]
+    # the point on the (possibly slightly tilted) top plane above (x, y)
+    z = centre[2] - (n[0] * (x - centre[0]) + n[1] * (y - centre[1])) / n[2]
+    lx, ly, _ = to_local(obj, (x, y, z))
+    if obj.shape == "box":
+        inside = abs(lx) <= obj.size[0] / 2 + 1e-9 and abs(ly) <= obj.size[1] / 2 + 1e-9
+    else:
+        inside = math.hypot(lx, ly) <= obj.size[0] + 1e-9
+    return z if inside else None
+
+
+def surface_at(scene: Scene | None, x: float, y: float) -> Surface:
+    """The highest walkable surface over (x, y): a walkable object's top face, or the floor.
+
+    Only objects with ``walkable`` set count (a table top over the point is not a floor for the
+    feet); the floor is z = 0 with the normal +z and the scene's ``floor_friction``.
+    """
+    best = Surface(0.0, (0.0, 0.0, 1.0), None, 0.8 if scene is None else scene.floor_friction)
+    if scene is None:
+        return best
+    for obj in scene.objects:
+        if not obj.walkable:
+            continue
+        z = _over(obj, x, y)
+        if z is not None and z > best.height:
+            R = rotation(obj.rpy)
+            best = Surface(float(z), (R[0][2], R[1][2], R[2][2]), obj.name, obj.friction)
+    return best
+
+
+__all__ = ["MAX_STEPS", "Stairs", "Surface", "stairs_objects", "surface_at", "top_height"]

@@ -1,0 +1,36 @@
+"""The stairs of a scene in MuJoCo: the same treads the planner's surface query sees."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from sim.model import OBJECT_PREFIX, build_model
+from tasks.scene import load_scene
+from tasks.terrain import surface_at
+
+STAIRS = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "stairs.json"
+
+
+def test_stairs_treads_are_mujoco_boxes_and_rays_land_on_the_surface_heights(talos):
+    scene = load_scene(STAIRS)
+    sm = build_model(talos, scene=scene)
+    m = sm.model
+    for obj in scene.objects:
+        g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, OBJECT_PREFIX + obj.name)
+        assert g >= 0 and m.geom_bodyid[g] == 0 and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
+        np.testing.assert_allclose(m.geom_size[g], np.array(obj.size) / 2)
+        np.testing.assert_allclose(m.geom_pos[g], obj.position)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    start_z = 2.0
+    geomid = np.zeros(1, dtype=np.int32)
+    # beside the robot (y = 0.45, within the 1 m wide flight), off the tread edges
+    for x in np.linspace(-0.3, 1.2, 16) + 0.013:
+        dist = mujoco.mj_ray(m, d, np.array([x, 0.45, start_z]), np.array([0.0, 0.0, -1.0]), None, 1, -1, geomid)
+        assert dist > 0
+        hit = start_z - dist
+        assert hit == pytest.approx(surface_at(scene, float(x), 0.45).height, abs=1e-6), x
