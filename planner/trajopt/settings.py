@@ -47,9 +47,9 @@ class PlannerSettings:
             ``-O1`` takes 4x longer to compile for little solve-time gain).
         compile_timeout: Give up compiling after this long [s] (the plan still runs in memory).
         background_compile: Compile in a detached process and solve this plan with the in-memory
-            solver right away (default True; the command line's ``$WBMP_COMPILE_BACKGROUND=0``
-            turns it off); off: wait for
-            gcc and solve with the compiled code (benchmarks of the first-ever build use that).
+            solver right away; off (the default: a library call leaves no process behind; the
+            command line's is on unless ``$WBMP_COMPILE_BACKGROUND=0``): wait for gcc and solve
+            with the compiled code (benchmarks of the first-ever build use that).
             Either way at most one build runs per cache folder (:mod:`planner.trajopt.builds`).
         build_memory: Memory one build needs [bytes] (default
             :data:`planner.trajopt.builds.BUILD_MEMORY`, 3.7 GB: gcc -O0 on a Talos solver; the
@@ -102,7 +102,7 @@ class PlannerSettings:
     cache_dir: str = field(default_factory=default_cache_dir)
     compile_flags: tuple[str, ...] = ("-O0",)
     compile_timeout: float = 300.0
-    background_compile: bool = True
+    background_compile: bool = False
     build_memory: int = BUILD_MEMORY
     build_memory_margin: int = MEMORY_MARGIN
     compiler: str = "gcc"

@@ -44,12 +44,13 @@ def test_the_planner_reads_no_wbmp_switch():
 
 
 def test_library_defaults_ignore_the_shell(monkeypatch):
-    """PlannerSettings() is the same with every switch set the other way: in memory, no library."""
+    """PlannerSettings() is the same with every switch set the other way: in memory, no library, and a
+    compile (when asked for) in the foreground: a library call leaves no detached process."""
     for name, value in zip(SWITCHES, ("1", "0", "on", "1M", "clang"), strict=True):
         monkeypatch.setenv(name, value)
     s = PlannerSettings()
     assert (s.compile, s.background_compile, s.solution_library, s.build_memory, s.compiler) == \
-        (False, True, "off", BUILD_MEMORY, "gcc")
+        (False, False, "off", BUILD_MEMORY, "gcc")
 
 
 @pytest.mark.parametrize("environ, expected", [
