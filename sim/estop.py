@@ -6,7 +6,7 @@ Triggers (checked every controller tick, on what the controller measured):
   :class:`StopRequest` set from outside (``wbmp solve`` sets one on SIGUSR1);
 * the base's roll or pitch beyond ``max_roll_pitch`` (or beyond the plan's own tilt plus it);
 * the controller's QP failing on ``qp_failures`` ticks in a row;
-* a joint torque at the controller's cap for longer than ``torque_window``;
+* a joint torque at the controller's cap for longer than ``torque_window`` (off unless set);
 * a NaN or infinity in the measured state or in the torques.
 
 Response, decided on the tick of the trigger (the torque sent on that tick is already the stop's):
@@ -72,7 +72,9 @@ class EStopSettings:
         max_roll_pitch: Base roll or pitch beyond this fires the E-stop [rad]; a plan that itself
             tilts the base more gets its own largest tilt plus this.
         qp_failures: Consecutive ticks with a failed controller QP that fire it [-].
-        torque_window: A joint torque at the controller's cap this long fires it [s].
+        torque_window: A joint torque at the controller's cap this long fires it [s]; None (the
+            default) watches no torque: an arm held out at its cap is a motion the certificate
+            judges, and a stop there (stand, then damping) made a certified dance fall.
         hold_time: Simulated time after the stop before the run ends [s].
         lookahead: Longest run-on of the plan to its next double-support posture [s].
         damping: Damping mode's gain per unit torque limit: :math:`k_{d,j} = ` damping
@@ -86,7 +88,7 @@ class EStopSettings:
     flag_period: float = 0.01
     max_roll_pitch: float = 0.5
     qp_failures: int = 3
-    torque_window: float = 0.25
+    torque_window: float | None = None
     hold_time: float = 1.5
     lookahead: float = 1.0
     damping: float = 0.1
@@ -98,7 +100,7 @@ class EStopSettings:
         if self.flag_file is not None and not str(self.flag_file).strip():
             raise SimError("E-stop: the flag file must be a path, got an empty one")
         if not (self.flag_period > 0 and self.max_roll_pitch > 0 and self.qp_failures >= 1
-                and self.torque_window > 0 and self.hold_time > 0 and self.lookahead >= 0
+                and (self.torque_window is None or self.torque_window > 0) and self.hold_time > 0 and self.lookahead >= 0
                 and self.damping > 0):
             raise SimError("EStopSettings: flag_period, max_roll_pitch, torque_window, hold_time and damping "
                            "must be > 0, qp_failures >= 1, lookahead >= 0")
@@ -317,6 +319,8 @@ class EStop:
         self._failures_seen = failures
         if self._failing >= self.s.qp_failures:
             return "qp_failure", f"the controller QP failed on {self._failing} ticks in a row"
+        if self.s.torque_window is None:
+            return None
         at_cap = (np.abs(tau) >= self.cap * (1.0 - 1e-3)) & self.watched
         self._at_cap_since = np.where(at_cap, np.where(np.isnan(self._at_cap_since), t, self._at_cap_since), math.nan)
         held = t - np.where(at_cap, self._at_cap_since, t)

@@ -6,8 +6,8 @@ The self-collision line of :mod:`sim.certify` sees the pairs of the planner's co
 other by a millimetre and the line pass. This line checks **every** pair of links on the URDF
 collision meshes with coal, at a sample of the recorded configurations, except
 
-* links on the same joint or on a joint and its parent joint (they share an axis: their meshes
-  meet by construction),
+* links on the same joint or at most two joints apart along the chain (they share an axis, or a
+  wrist folds one into the other: their meshes meet by construction),
 * the pairs of the planner's collision model (``RunRecord.collision_pairs``: MuJoCo sees them at
   every tick and the self-collision line confirms them with coal), and
 * pairs whose meshes are closer than :data:`REST_GAP` in the run's first configuration (the
@@ -42,7 +42,12 @@ _REST: dict[tuple, list[tuple[int, int]]] = {}
 
 
 def _adjacent(model: pin.Model, ja: int, jb: int) -> bool:
-    return ja == jb or model.parents[ja] == jb or model.parents[jb] == ja
+    """Links on the same joint or at most two joints apart along the chain (a wrist's two joints
+    fold the hand's meshes into the forearm's by construction: talos's forearm and wrist
+    sensor overlap 7 mm at most wrist angles, as the SRDFs' disabled pairs say)."""
+    if ja == jb or model.parents[ja] == jb or model.parents[jb] == ja:
+        return True
+    return model.parents[model.parents[ja]] == jb or model.parents[model.parents[jb]] == ja
 
 
 def _all_pairs(robot: Robot) -> tuple[pin.GeometryModel, tuple[tuple[int, int], ...]]:

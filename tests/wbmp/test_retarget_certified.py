@@ -29,13 +29,24 @@ def _certified(clip: str, start: float, end: float):
     return result
 
 
-def test_a_squat_is_certified():
-    """The squat's first 2 s (going down): certified; its executed feet slip and sink by millimetres
-    (MuJoCo's soft contacts: 6.9 mm skate, 3.6 mm penetration measured), hands tracked to centimetres."""
-    result = _certified("13_29_squat.bvh", 0.0, 2.0)
+def test_a_squat_is_executed_and_the_meshes_name_what_is_left():
+    """The squat's first 2 s (going down), executed in MuJoCo: its feet slip and sink by millimetres
+    (MuJoCo's soft contacts: 6.9 mm skate, 3.6 mm penetration measured), hands tracked to
+    centimetres, every certificate line passes but the one on the meshes: at the bottom of the
+    human's deep squat talos's thigh passes into its pelvis (15-18 mm of hull depth, coal), a pair
+    the planner's sphere model does not keep apart yet, so it is not certified (issue 37)."""
+    from planner.results import CheckKind
+
+    result = retarget(RetargetRequest(clip=str(EXAMPLES / "13_29_squat.bvh"), robot="talos", start=0.0, end=2.0))
+    assert result.plan.ok
+    plan = result.figures
+    assert plan.skate <= 2.0 and plan.penetration <= 1.0 and plan.float_ <= 5.0  # the plan: the issue's bounds
     ex = result.exec_figures
     assert ex.skate <= 10.0 and ex.penetration <= 6.0 and ex.float_ <= 5.0
     assert result.figures.per_keypoint["left_hand"] < 0.05
+    failed = [c for c in result.execution.certificate.checks if not c.ok]
+    assert [c.kind for c in failed] == [CheckKind.SELF_COLLISION_MESH], [c.name for c in failed]
+    assert "pelvis" in failed[0].name and "thigh" in failed[0].name
     report = result.report()["retarget"]
     assert report["execution"]["foot_skate_mm"] == ex.skate and report["skeleton"].startswith("CMU MotionBuilder")
 
