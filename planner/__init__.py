@@ -18,9 +18,10 @@ dynamic formulation) and ``planner.wbc`` (the whole-body controller). See docs/a
 
 from __future__ import annotations
 
-import importlib
 import os
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robots.lazy import lazy_face
 
 # One BLAS thread unless the user says otherwise (before CasADi loads IPOPT's OpenBLAS): the NLPs are
 # too small to gain from a second thread, and when the other core is busy (another solve, a test
@@ -74,14 +75,4 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value  # later accesses skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_face(__name__, _EXPORTS)

@@ -9,9 +9,9 @@ registry actions into one spec (imported on first access: it loads the primitive
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from robots.lazy import lazy_face
 from tasks.exceptions import SceneConflict, TaskDefinitionError, TaskError, UnknownAction
 from tasks.scene import Scene, SceneObject, load_scene
 from tasks.serialize import load_spec, spec_from_dict, spec_from_json, spec_to_dict, spec_to_json
@@ -64,14 +64,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)

@@ -14,15 +14,11 @@ matplotlib or Pinocchio import).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from robots.lazy import lazy_face
 
 __all__ = ["serve", "write_html", "write_plots"]
 
 _LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots"}
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'viz' has no attribute {name!r}")
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)

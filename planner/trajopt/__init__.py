@@ -19,8 +19,9 @@ Modules, in import order (each imports only the ones above it; tests/test_layeri
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robots.lazy import lazy_face
 
 if TYPE_CHECKING:
     from planner.trajopt.api import plan
@@ -31,14 +32,4 @@ _EXPORTS = {"PlannerSettings": "planner.trajopt.settings", "plan": "planner.traj
 __all__ = ["PlannerSettings", "plan"]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_face(__name__, _EXPORTS)

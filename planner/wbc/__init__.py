@@ -7,8 +7,9 @@ Modules, in import order: ``settings`` (:class:`WbcSettings`, :class:`Controller
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robots.lazy import lazy_face
 
 if TYPE_CHECKING:
     from planner.wbc.controller import TickInfo, WholeBodyController
@@ -32,14 +33,4 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_face(__name__, _EXPORTS)

@@ -43,8 +43,7 @@ first access.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from robots.lazy import lazy_face
 
 _EXPORTS = {  # public name -> module that defines it
     "NOT_IMPLEMENTED": "wbmp.bench.tasks",
@@ -74,14 +73,4 @@ _EXPORTS = {  # public name -> module that defines it
 __all__ = sorted(name for name in _EXPORTS if not name.startswith("_"))
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value  # later accesses skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_face(__name__, _EXPORTS)

@@ -52,8 +52,9 @@ Every public name is also importable from this package (on first access).
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robots.lazy import lazy_face
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.checks import (
@@ -209,14 +210,4 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_face(__name__, _EXPORTS)
