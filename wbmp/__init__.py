@@ -11,4 +11,4 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy and CasADi lo
 # The one place the version is written: pyproject.toml reads it from here at build time
 # ([tool.setuptools.dynamic]), so a checkout and an installed copy agree, and every command is
 # spared importlib.metadata's look-up (~0.05 s at start-up).
-__version__ = "0.1.0"
+__version__ = "0.3.0.dev0"
