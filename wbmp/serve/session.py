@@ -190,16 +190,19 @@ class Session:
                 n += 1
             running = self._running
             if running is not None and running.state == "running" and self._worker is not None:
-                running.progress.append("stopping")
-                running.stopping = True
-                self._interrupt()
+                simulating = any(line.startswith("simulating") for line in running.progress)
+                running.progress.append("E-stop: bringing the robot to rest" if simulating else "stopping")
+                running.stopping = not simulating
+                self._interrupt(estop=simulating)
                 n += 1
             return n
 
-    def _interrupt(self) -> None:
-        """SIGINT to the planning process: it stops its job as Ctrl-C stops ``wbmp solve``."""
+    def _interrupt(self, *, estop: bool = False) -> None:
+        """SIGINT to the planning process: it stops its job as Ctrl-C stops ``wbmp solve``; with
+        ``estop`` (the job is simulating) SIGUSR1: the simulation's E-stop, as ``kill -USR1`` to
+        ``wbmp solve`` (the robot stands or damps; the motion shows the stop)."""
         with contextlib.suppress(ProcessLookupError, OSError):
-            os.kill(self._worker.pid, signal.SIGINT)
+            os.kill(self._worker.pid, signal.SIGUSR1 if estop else signal.SIGINT)
 
     def state(self) -> dict[str, Any]:
         """What the page polls."""

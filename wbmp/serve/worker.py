@@ -33,6 +33,16 @@ def _on_sigint(signum, frame) -> None:  # noqa: ARG001 - the signal-handler sign
     raise KeyboardInterrupt()
 
 
+_stop: Any = None  # the running job's sim.estop.StopRequest (the page's stop during the simulation)
+
+
+def _on_sigusr1(signum, frame) -> None:  # noqa: ARG001 - the signal-handler signature
+    """The stop button while the job simulates: the simulation's E-stop (the robot comes to rest,
+    the motion and its certificate say when and how), not a cancelled job."""
+    if _stop is not None:
+        _stop.request("the page's stop button")
+
+
 class Channel:
     """Pickled messages over two pipes (``multiprocessing.connection`` framing): ``send``,
     ``recv``, ``poll``, ``close``, as a duplex ``multiprocessing.Pipe`` end."""
@@ -72,6 +82,7 @@ def main(conn: Any) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     signal.signal(signal.SIGINT, _on_sigint)
+    signal.signal(signal.SIGUSR1, _on_sigusr1)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     from wbmp.errors import classify, clear_signals, one_line
 
@@ -165,9 +176,16 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
         import dataclasses
 
         paced = profile = dataclasses.replace(profile, step_duration=float(step))
+    global _stop
+    from sim.estop import StopRequest
+
+    _stop = StopRequest()
     request = SolveRequest(instruction=job["text"], scene_path=job.get("scene"), robot=job.get("robot"),
-                           actions=_actions_plan(job), profile=paced)
-    result = solve(request, progress, cache=True)
+                           actions=_actions_plan(job), profile=paced, stop_request=_stop)
+    try:
+        result = solve(request, progress, cache=True)
+    finally:
+        _stop = None
     solved = time.perf_counter() - t0
     write_outputs(result, out=str(folder / "motion.npz"), progress=lambda _: progress("writing the motion file"))
     progress("drawing the replay")
