@@ -1,6 +1,6 @@
 """A MuJoCo model built from the robot's own URDF, with index maps to Pinocchio.
 
-The URDF that Pinocchio loaded is rewritten in memory (DESIGN.md section 5, measured with
+The URDF that Pinocchio loaded is rewritten in memory (:mod:`sim.urdf`; DESIGN.md section 5, measured with
 MuJoCo 4.0): ``package://`` mesh URIs become absolute file names, a ``<mujoco><compiler/>``
 tag keeps every body (``fusestatic="false"``), and the root link hangs from a new ``world``
 link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
@@ -31,8 +31,6 @@ quaternion ``(w, x, y, z)`` and the base linear velocity in the world frame; Pin
 from __future__ import annotations
 
 import functools
-import re
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,10 +41,18 @@ import pinocchio as pin
 from robots.contact import MUJOCO_CONDIM, MUJOCO_CONE, mujoco_friction, sole_corners
 from robots.model import Robot
 from sim.exceptions import SimModelError
+
+# The URDF rewriting lives in sim.urdf; its names stay importable here.
+from sim.urdf import (  # noqa: F401 (re-exported)
+    FOREIGN_MESHES,
+    MIN_INERTIA,
+    ROOT_JOINT,
+    _free_mimic_joints,
+    _repair_inertia,
+    _rewrite_urdf,
+)
 from tasks.scene import Scene, SceneObject
 
-FOREIGN_MESHES = (".dae",)  # mesh formats MuJoCo 4 cannot read; their triangles come from Pinocchio
-ROOT_JOINT = "wbmp_root"
 FLOOR = "wbmp_floor"
 SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thick
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # robot geoms collide with the floor (and objects) only
@@ -166,112 +172,6 @@ def _as_slice(index: np.ndarray) -> slice | np.ndarray:
     if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
         return slice(int(index[0]), int(index[0]) + len(index))
     return index
-
-
-MIN_INERTIA = 1e-8  # [kg m^2] smallest principal inertia MuJoCo gets
-
-
-def _repair_inertia(link: ET.Element) -> None:
-    """Clip a link's principal inertias to >= MIN_INERTIA (some URDFs ship indefinite tensors)."""
-    tensor = link.find("inertial/inertia")
-    if tensor is None:
-        return
-    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    try:
-        ixx, ixy, ixz, iyy, iyz, izz = (float(tensor.get(k, "0")) for k in keys)
-    except ValueError:
-        return
-    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    values, vectors = np.linalg.eigh(inertia)
-    if values.min() >= MIN_INERTIA:
-        return
-    fixed = vectors @ np.diag(np.maximum(values, MIN_INERTIA)) @ vectors.T
-    for k, (r, c) in zip(keys, ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)), strict=True):
-        tensor.set(k, repr(float(fixed[r, c])))
-
-
-def _rewrite_urdf(robot: Robot, fingers: bool = False) -> str:
-    """The robot's URDF as MuJoCo reads it; ``fingers``: its mimic fingers move
-    (:func:`_free_mimic_joints`; only in a scene with something to grasp)."""
-    text = Path(robot.urdf_path).read_text(encoding="utf-8")
-
-    def resolve(match: re.Match[str]) -> str:
-        rest = match.group(1)
-        for directory in robot.package_dirs:
-            path = Path(directory) / rest
-            if path.is_file():
-                return f'filename="{path}"'
-        raise SimModelError(
-            f"robot {robot.name!r}: mesh 'package://{rest}' not found under {list(robot.package_dirs)}"
-        )
-
-    text = re.sub(r'filename="package://([^"]+)"', resolve, text)
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as e:
-        raise SimModelError(
-            f"robot {robot.name!r}: cannot parse URDF {robot.urdf_path}: {e}"
-        ) from None
-    for old in root.findall("mujoco"):
-        root.remove(old)
-    if fingers:
-        _free_mimic_joints(root)
-    for link in root.findall(
-        "link"
-    ):  # MuJoCo cannot decode these: they are rebuilt from Pinocchio's
-        for collision in link.findall("collision"):
-            mesh = collision.find("geometry/mesh")
-            if mesh is not None and Path(mesh.get("filename", "")).suffix.lower() in FOREIGN_MESHES:
-                link.remove(collision)
-        for visual in link.findall("visual"):
-            link.remove(visual)
-        _repair_inertia(link)
-    children = {
-        child.get("link") for j in root.findall("joint") if (child := j.find("child")) is not None
-    }
-    roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
-    if len(roots) != 1 or roots[0] is None:
-        raise SimModelError(
-            f"robot {robot.name!r}: the URDF must have exactly one root link, found {roots}"
-        )
-    tag = ET.SubElement(root, "mujoco")
-    ET.SubElement(
-        tag,
-        "compiler",
-        discardvisual="true",
-        fusestatic="false",
-        strippath="false",
-        balanceinertia="true",
-        boundmass="1e-6",  # massless moving links (Romeo's fingers) get 1 mg
-        boundinertia="1e-10",
-    )
-    ET.SubElement(root, "link", name="world")
-    joint = ET.SubElement(root, "joint", name=ROOT_JOINT, type="floating")
-    ET.SubElement(joint, "parent", link="world")
-    ET.SubElement(joint, "child", link=roots[0])
-    return ET.tostring(root, encoding="unicode")
-
-
-def _free_mimic_joints(root: ET.Element) -> list[str]:
-    """Turn each fixed URDF joint that mimics a moving joint into a revolute one (in place); the
-    names of the joints turned.
-
-    talos_reduced's fingers hang from such joints (``gripper_*_inner_double_joint``,
-    ``*_fingertip_*_joint``, ...: ``type="fixed"`` with their axis, limits and a ``<mimic>`` of
-    ``gripper_*_joint``), so in Pinocchio the gripper joint moves one drive link and no finger.
-    MuJoCo's URDF import makes a ``<mimic>`` a joint equality (``polycoef`` offset, multiplier),
-    so in the simulation the fingers close with the gripper joint (:mod:`sim.grasp`). Pinocchio
-    and the planner keep the fixed joints: these joints are MuJoCo's only.
-    """
-    moving = {j.get("name") for j in root.findall("joint") if j.get("type") in ("revolute", "continuous", "prismatic")}
-    turned = []
-    for joint in root.findall("joint"):
-        mimic = joint.find("mimic")
-        if joint.get("type") == "fixed" and mimic is not None and mimic.get("joint") in moving \
-                and joint.find("limit") is not None and joint.find("axis") is not None:
-            joint.set("type", "revolute")
-            turned.append(str(joint.get("name")))
-    return turned
 
 
 @functools.cache
@@ -451,61 +351,13 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
     bodies = {b.name: b for b in spec.bodies}
     _add_foreign_meshes(robot, spec, bodies, mu)
     joints = {j.name: j for j in spec.joints}
-    sole_names = {}
-    for role in ("left_foot", "right_foot"):
-        frame = pmodel.frames[robot.frame_id(role)]
-        joint_name = pmodel.names[frame.parentJoint]
-        if joint_name not in joints:
-            raise SimModelError(
-                f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo"
-            )
-        body = joints[joint_name].parent
-        for geom in body.geoms:  # the foot mesh: the sole box replaces it on the floor
-            geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
-        for child in bodies.values():  # fixed children (sole links) of the ankle body
-            if child.parent is not None and child.parent.name == body.name and not child.joints:
-                for geom in child.geoms:
-                    geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
-        side = role.split("_")[0]
-        corners = sole_corners(robot.profile.sole, side)
-        centre = np.array([corners[:, 0].mean(), corners[:, 1].mean(), 0.5 * SOLE_THICKNESS])
-        half = [0.5 * np.ptp(corners[:, 0]), 0.5 * np.ptp(corners[:, 1]), 0.5 * SOLE_THICKNESS]
-        placement = frame.placement
-        sole = body.add_geom()
-        sole.name = f"wbmp_{role}_sole"
-        sole.type = mujoco.mjtGeom.mjGEOM_BOX
-        sole.size = half
-        sole.pos = placement.rotation @ centre + placement.translation
-        quat = pin.Quaternion(placement.rotation)
-        sole.quat = [quat.w, quat.x, quat.y, quat.z]
-        set_contact_friction(sole, mu)
-        sole.contype, sole.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
-        sole.mass = 0.0
-        sole.density = 0.0
-        sole_names[role] = sole.name
+    sole_names = _add_soles(robot, spec, bodies, joints, mu)
 
     _add_scene(spec, scene)
     _add_grasp_welds(robot, spec, scene)
     actuated = list(pmodel.names)[2:]
     limits = np.array(pmodel.effortLimit, dtype=float)[6:]
-    for name, limit in zip(actuated, limits, strict=True):
-        if name not in joints:
-            raise SimModelError(
-                f"robot {robot.name!r}: Pinocchio joint {name!r} has no MuJoCo joint"
-            )
-        if not joint_friction:
-            joints[name].damping = np.zeros_like(np.asarray(joints[name].damping))
-            joints[name].frictionloss = 0.0
-        act = spec.add_actuator()
-        act.name = f"wbmp_motor_{name}"
-        act.target = name
-        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        if 0.0 < limit < np.inf:
-            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            act.ctrlrange = [-limit, limit]
-        else:  # no usable effort limit in the URDF: the controller's output is the only bound
-            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-        act.gear = [1.0, 0, 0, 0, 0, 0]
+    _add_actuators(robot, spec, joints, actuated, limits, joint_friction)
     try:
         model = spec.compile()
     except ValueError as e:
@@ -557,6 +409,69 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
         "geom_object": [int(i) for i in geom_object],
     }
     return model, fields
+
+
+def _add_soles(robot: Robot, spec: mujoco.MjSpec, bodies: dict, joints: dict, mu: float) -> dict[str, str]:
+    """One thin box per sole on its ankle body (the foot meshes stop touching the floor); the
+    role -> sole geom name map."""
+    pmodel = robot.model
+    sole_names = {}
+    for role in ("left_foot", "right_foot"):
+        frame = pmodel.frames[robot.frame_id(role)]
+        joint_name = pmodel.names[frame.parentJoint]
+        if joint_name not in joints:
+            raise SimModelError(
+                f"robot {robot.name!r}: joint {joint_name!r} of the {role} is not in MuJoCo"
+            )
+        body = joints[joint_name].parent
+        for geom in body.geoms:  # the foot mesh: the sole box replaces it on the floor
+            geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
+        for child in bodies.values():  # fixed children (sole links) of the ankle body
+            if child.parent is not None and child.parent.name == body.name and not child.joints:
+                for geom in child.geoms:
+                    geom.contype, geom.conaffinity = FOOT_CONTYPE, FOOT_CONAFFINITY
+        side = role.split("_")[0]
+        corners = sole_corners(robot.profile.sole, side)
+        centre = np.array([corners[:, 0].mean(), corners[:, 1].mean(), 0.5 * SOLE_THICKNESS])
+        half = [0.5 * np.ptp(corners[:, 0]), 0.5 * np.ptp(corners[:, 1]), 0.5 * SOLE_THICKNESS]
+        placement = frame.placement
+        sole = body.add_geom()
+        sole.name = f"wbmp_{role}_sole"
+        sole.type = mujoco.mjtGeom.mjGEOM_BOX
+        sole.size = half
+        sole.pos = placement.rotation @ centre + placement.translation
+        quat = pin.Quaternion(placement.rotation)
+        sole.quat = [quat.w, quat.x, quat.y, quat.z]
+        set_contact_friction(sole, mu)
+        sole.contype, sole.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
+        sole.mass = 0.0
+        sole.density = 0.0
+        sole_names[role] = sole.name
+    return sole_names
+
+
+def _add_actuators(robot: Robot, spec: mujoco.MjSpec, joints: dict, actuated: list[str],
+                   limits: np.ndarray, joint_friction: bool) -> None:
+    """A torque actuator per actuated joint, saturating at its URDF effort limit (none when the
+    URDF gives no usable one); without ``joint_friction`` the joints' damping and friction go."""
+    for name, limit in zip(actuated, limits, strict=True):
+        if name not in joints:
+            raise SimModelError(
+                f"robot {robot.name!r}: Pinocchio joint {name!r} has no MuJoCo joint"
+            )
+        if not joint_friction:
+            joints[name].damping = np.zeros_like(np.asarray(joints[name].damping))
+            joints[name].frictionloss = 0.0
+        act = spec.add_actuator()
+        act.name = f"wbmp_motor_{name}"
+        act.target = name
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        if 0.0 < limit < np.inf:
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [-limit, limit]
+        else:  # no usable effort limit in the URDF: the controller's output is the only bound
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        act.gear = [1.0, 0, 0, 0, 0, 0]
 
 
 def _add_scene(spec: mujoco.MjSpec, scene: Scene | None) -> None:

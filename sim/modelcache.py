@@ -60,7 +60,7 @@ def cache_root() -> Path | None:
 def _environment() -> tuple[tuple[str, str], ...]:
     root = Path(__file__).resolve().parents[1]
     out = [("format", str(FORMAT))]
-    for name in ("sim/model.py", "sim/modelcache.py", "robots/contact.py"):
+    for name in ("sim/model.py", "sim/urdf.py", "sim/modelcache.py", "robots/contact.py"):
         out.append((name, hashlib.sha256((root / name).read_bytes()).hexdigest()))
     try:
         out.append(("wbmp", metadata.version("wbmp")))
