@@ -131,6 +131,29 @@ def _segment_clear(a: np.ndarray, b: np.ndarray, clear: Callable[[np.ndarray], n
     return bool(clear(a + s * (b - a)).all())
 
 
+def _grid_costs(free: np.ndarray, s: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Dijkstra over the free cells from cell ``s`` (8-connected, no corner cutting): the path
+    cost of each cell [m] (inf where unreachable) and its parent cell (-1, -1 at ``s``)."""
+    shape = free.shape
+    cost = np.full(shape, np.inf)
+    parent = np.full((*shape, 2), -1, dtype=int)
+    cost[s] = 0.0
+    heap: list[tuple[float, tuple[int, int]]] = [(0.0, s)]
+    while heap:
+        c, (i, j) = heapq.heappop(heap)
+        if c > cost[i, j]:
+            continue
+        for dx, dy, w in _STEPS:
+            a, b = i + dx, j + dy
+            if 0 <= a < shape[0] and 0 <= b < shape[1] and free[a, b] and c + CELL * w < cost[a, b]:
+                if dx and dy and not (free[i + dx, j] and free[i, j + dy]):
+                    continue  # no corner cutting
+                cost[a, b] = c + CELL * w
+                parent[a, b] = (i, j)
+                heapq.heappush(heap, (c + CELL * w, (a, b)))
+    return cost, parent
+
+
 def plan_route(start: Sequence[float] | np.ndarray, target: SceneObject, objects: Sequence[SceneObject],
                radii: Sequence[float], accept: Callable[[np.ndarray], str]) -> Route:
     """The shortest grid path from ``start`` (x, y) [m] to a cell near ``target`` that ``accept``
@@ -178,22 +201,7 @@ def plan_route(start: Sequence[float] | np.ndarray, target: SceneObject, objects
     near = (to_target <= r.max() + GOAL_REACH) & free
     s = (int(round((p0[0] - lo[0]) / CELL)), int(round((p0[1] - lo[1]) / CELL)))
     free[s] = True
-    cost = np.full(shape, np.inf)
-    parent = np.full((*shape, 2), -1, dtype=int)
-    cost[s] = 0.0
-    heap: list[tuple[float, tuple[int, int]]] = [(0.0, s)]
-    while heap:
-        c, (i, j) = heapq.heappop(heap)
-        if c > cost[i, j]:
-            continue
-        for dx, dy, w in _STEPS:
-            a, b = i + dx, j + dy
-            if 0 <= a < shape[0] and 0 <= b < shape[1] and free[a, b] and c + CELL * w < cost[a, b]:
-                if dx and dy and not (free[i + dx, j] and free[i, j + dy]):
-                    continue  # no corner cutting
-                cost[a, b] = c + CELL * w
-                parent[a, b] = (i, j)
-                heapq.heappush(heap, (c + CELL * w, (a, b)))
+    cost, parent = _grid_costs(free, s)
     # the ring around the target (and around what it stands on: a cup on a table is reached from the table)
     ring = to_target <= r[ti] + 2 * CELL
     lo_t, hi_t = extent(target)
