@@ -165,35 +165,13 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
                 rec["message"] = " ".join((plan.diagnosis or "constraint report violated").split())[:300]
             log(f"{name}: {s.iterations} iterations, build {s.build_time:.2f} s, solve {s.solve_time:.2f} s, "
                 f"warm {rec['solve_warm_s']:.2f} s")
-            cold = [_cold_process(sentence, robot_name, cache_dir, dt, max_iterations)
-                    for _ in range(repeats if plan.ok else 0)]
-            done = [c for c in cold if c is not None]
-            if done:
-                rec["nlp_load_cold_s"] = _median([c["build_time"] for c in done])
-                rec["solve_cold_s"] = _median([c["solve_time"] for c in done])
-                rec["cold_total_s"] = _median([c["build_time"] + c["solve_time"] for c in done])
-                rec["cold_process_s"] = _median([c["process_s"] for c in done])
-                rec["cache_cold"] = done[-1]["cache"]
+            _cold_record(rec, sentence, robot_name, cache_dir, dt, max_iterations, repeats if plan.ok else 0)
         except Exception as exc:  # noqa: BLE001
             return fail("plan", exc)
 
         # controller + simulation ----------------------------------------------------------------
         if simulate and plan.ok:
-            try:
-                from sim import simulate as run_sim
-
-                log(f"{name}: simulating {spec.horizon:.1f} s in MuJoCo")
-                ex, wall = _timed(lambda: run_sim(plan, robot))
-                ticks = ex.tick_times[1:] if len(ex.tick_times) > 1 else ex.tick_times
-                rec["tick_median_us"] = 1e6 * _pct(ticks, 50)
-                rec["tick_p99_us"] = 1e6 * _pct(ticks, 99)
-                rec["realtime_factor"] = float(ex.realtime_factor)
-                rec["sim_wall_s"] = wall
-                rec["certified"] = bool(ex.certificate.ok)
-                rec["certificate_reason"] = getattr(ex.certificate, "reason", "") or ""
-            except Exception as exc:  # noqa: BLE001
-                rec["status"] = "simulation failed"
-                rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"simulate: {_one_line(exc)}"
+            _bench_simulation(rec, name, plan, robot, spec, log)
 
         # end to end ---------------------------------------------------------------------------------
         if e2e and plan.ok:
@@ -205,6 +183,40 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
         if first:
             shutil.rmtree(cache_dir, ignore_errors=True)
     return rec
+
+
+def _cold_record(rec: dict[str, Any], sentence: str, robot_name: str, cache_dir: str, dt: float | None,
+                 max_iterations: int | None, repeats: int) -> None:
+    """The cached-cold stage of :func:`bench_task` (``repeats`` fresh processes), into ``rec``."""
+    cold = [_cold_process(sentence, robot_name, cache_dir, dt, max_iterations)
+            for _ in range(repeats)]
+    done = [c for c in cold if c is not None]
+    if done:
+        rec["nlp_load_cold_s"] = _median([c["build_time"] for c in done])
+        rec["solve_cold_s"] = _median([c["solve_time"] for c in done])
+        rec["cold_total_s"] = _median([c["build_time"] + c["solve_time"] for c in done])
+        rec["cold_process_s"] = _median([c["process_s"] for c in done])
+        rec["cache_cold"] = done[-1]["cache"]
+
+
+def _bench_simulation(rec: dict[str, Any], name: str, plan: Any, robot: Any, spec: Any,
+                      log: Callable[[str], None]) -> None:
+    """The controller + simulation stage of :func:`bench_task`, into ``rec`` (a failure too)."""
+    try:
+        from sim import simulate as run_sim
+
+        log(f"{name}: simulating {spec.horizon:.1f} s in MuJoCo")
+        ex, wall = _timed(lambda: run_sim(plan, robot))
+        ticks = ex.tick_times[1:] if len(ex.tick_times) > 1 else ex.tick_times
+        rec["tick_median_us"] = 1e6 * _pct(ticks, 50)
+        rec["tick_p99_us"] = 1e6 * _pct(ticks, 99)
+        rec["realtime_factor"] = float(ex.realtime_factor)
+        rec["sim_wall_s"] = wall
+        rec["certified"] = bool(ex.certificate.ok)
+        rec["certificate_reason"] = getattr(ex.certificate, "reason", "") or ""
+    except Exception as exc:  # noqa: BLE001
+        rec["status"] = "simulation failed"
+        rec["message"] = (rec["message"] + "; " if rec["message"] else "") + f"simulate: {_one_line(exc)}"
 
 
 def _child_env(cache_dir: str) -> dict[str, str]:
