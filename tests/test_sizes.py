@@ -28,8 +28,6 @@ FUNCTION_ALLOWLIST = {
     "planner/trajopt/centroidal/checks.py::dynamic_checks": 113,
     "planner/trajopt/centroidal/nlp.py::dynamic_blocks": 138,
     "planner/trajopt/centroidal/pattern.py::build_centroidal": 147,
-    # the kinematic plan's checks
-    "planner/trajopt/checks.py::check_plan": 113,
     # the whole-body controller: the QP layout, one control step, its numeric kernel, the reference
     "planner/wbc/controller.py::WholeBodyController._build_layout": 154,
     "planner/wbc/controller.py::WholeBodyController.compute": 143,

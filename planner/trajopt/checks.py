@@ -96,32 +96,7 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         vals, times = np.array(rows).T
         checks.append(_worst(f"{frame} clearance", CheckKind.SWING_CLEARANCE, vals, times,
                              settings.polygon_tolerance, "m", frame))
-    # CoM bounds
-    for bounds in spec.com_bounds:
-        ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)
-        poly, box = [], []
-        for k in ks:
-            if bounds.support_polygon:
-                planes = support_halfplanes(lay, k)
-                if planes is not None:
-                    A, b = planes
-                    poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
-            viol = 0.0
-            for i in range(3):
-                lo, hi = bounds.lower[i], bounds.upper[i]
-                if lo is not None:
-                    viol = max(viol, lo - com[k, i])
-                if hi is not None:
-                    viol = max(viol, com[k, i] - hi)
-            box.append((viol, t[k]))
-        if bounds.support_polygon and poly:
-            vals, times = np.array(poly).T
-            checks.append(_worst(f"CoM bound {bounds.name!r} support polygon", CheckKind.COM_SUPPORT_POLYGON, vals,
-                                 times, settings.polygon_tolerance, "m", bounds.name))
-        if any(x is not None for x in (*bounds.lower, *bounds.upper)) and box:
-            vals, times = np.array(box).T
-            checks.append(_worst(f"CoM bound {bounds.name!r} box", CheckKind.COM_BOX, vals, times,
-                                 settings.polygon_tolerance, "m", bounds.name))
+    checks += _com_bound_checks(lay, com, settings)
     # frame targets
     for target in spec.targets:
         fid = robot.frame_id(target.frame)
@@ -167,6 +142,38 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
         from planner.trajopt.scene_collision import scene_collision_check
 
         checks.append(scene_collision_check(lay, q))
+    return checks
+
+
+def _com_bound_checks(lay: Layout, com: np.ndarray, settings: PlannerSettings) -> list[Check]:
+    """The worst violation of each CoM bound of the spec: its support polygon and its box."""
+    spec, t = lay.spec, lay.t
+    checks: list[Check] = []
+    for bounds in spec.com_bounds:
+        ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)
+        poly, box = [], []
+        for k in ks:
+            if bounds.support_polygon:
+                planes = support_halfplanes(lay, k)
+                if planes is not None:
+                    A, b = planes
+                    poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
+            viol = 0.0
+            for i in range(3):
+                lo, hi = bounds.lower[i], bounds.upper[i]
+                if lo is not None:
+                    viol = max(viol, lo - com[k, i])
+                if hi is not None:
+                    viol = max(viol, com[k, i] - hi)
+            box.append((viol, t[k]))
+        if bounds.support_polygon and poly:
+            vals, times = np.array(poly).T
+            checks.append(_worst(f"CoM bound {bounds.name!r} support polygon", CheckKind.COM_SUPPORT_POLYGON, vals,
+                                 times, settings.polygon_tolerance, "m", bounds.name))
+        if any(x is not None for x in (*bounds.lower, *bounds.upper)) and box:
+            vals, times = np.array(box).T
+            checks.append(_worst(f"CoM bound {bounds.name!r} box", CheckKind.COM_BOX, vals, times,
+                                 settings.polygon_tolerance, "m", bounds.name))
     return checks
 
 
