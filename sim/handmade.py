@@ -139,6 +139,18 @@ def ik_plan(
                 break
         q = np.clip(q, model.lowerPositionLimit, model.upperPositionLimit) if model.nq > 7 else q
         qs[k] = q
+    return _finish_plan(robot, data, times, qs, foot0, phases, targets=targets, com_targets=com_targets,
+                        dt=dt, name=name)
+
+
+def _finish_plan(robot: Robot, data: pin.Data, times: np.ndarray, qs: np.ndarray, foot0: dict[str, pin.SE3],
+                 phases: tuple[tuple[str, float, tuple[str, ...]], ...] | None, *,
+                 targets: tuple[FrameTarget, ...], com_targets: tuple[CoMTarget, ...], dt: float,
+                 name: str) -> Plan:
+    """The plan of :func:`ik_plan` from its IK configurations ``qs`` at ``times``: velocities and
+    accelerations by central differences, the CoM, and the spec of ``phases``."""
+    model = robot.model
+    n = len(times)
     vs = np.zeros((n, model.nv))
     for k in range(1, n - 1):
         vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
