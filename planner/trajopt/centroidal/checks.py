@@ -152,8 +152,16 @@ def dynamic_checks(
                             value=100.0 * peak, limit=100.0 * limit, unit="%", time=float(tt),
                             ok=bool(peak * effort <= limit * effort + 0.1 * tol_n), subject=joint))  # tol: 10 cm lever
     worst("no contact force without contact", CheckKind.FORCE_WITHOUT_CONTACT, idle, 0.0, "N")
+    depth = _swing_corner_depths(lay, q, corner_rows, t)
+    worst("swing sole corners above the ground", CheckKind.SWING_SOLE_CORNERS, depth, position_tolerance, "m")
+    return checks
+
+
+def _swing_corner_depths(lay: DynamicLayout, q: np.ndarray, corner_rows: Sequence[tuple[int, int, int]],
+                         t: np.ndarray) -> list[tuple[float, float]]:
+    """(depth below the ground [m], time [s]) of each swinging sole corner row, with Pinocchio."""
     model, data = lay.robot.model, lay.robot.data()
-    depth = []
+    depth: list[tuple[float, float]] = []
     sole = lay.robot.profile.sole
     corners = {side: sole_corners(sole, side) for side in ("left", "right")}
     by_knot: dict[int, list[tuple[int, int]]] = {}
@@ -166,8 +174,7 @@ def dynamic_checks(
             assert side is not None  # corner rows belong to the soles
             z = float(data.oMf[fid].act(corners[side][i])[2])
             depth.append((-z, t[k]))
-    worst("swing sole corners above the ground", CheckKind.SWING_SOLE_CORNERS, depth, position_tolerance, "m")
-    return checks
+    return depth
 
 
 def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
