@@ -145,6 +145,56 @@ def standing_waypoint(robot: Robot, label: str, time: float, *, weight: float = 
     return tuple(out)
 
 
+def _check_arguments(actions: Sequence[Action | Mapping[str, Any]], dt: float, stand_time: float,
+                     transition_time: float) -> None:
+    """:func:`compile_actions`' numbers and action count in range, else a TaskDefinitionError."""
+    if not (isinstance(dt, (int, float)) and 0.005 <= dt <= DT_MAX):
+        raise TaskDefinitionError(f"dt must be in [0.005, {DT_MAX:g}] s, got {dt!r}")
+    for what, value in (("stand_time", stand_time), ("transition_time", transition_time)):
+        if not (isinstance(value, (int, float)) and 0.0 <= value <= 10.0):
+            raise TaskDefinitionError(f"{what} must be in [0, 10] s, got {value!r}")
+    if len(actions) > MAX_ACTIONS:
+        raise TaskDefinitionError(
+            f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
+            "into several shorter ones"
+        )
+
+
+def _compile_group(group: list[tuple[int, Action]], fragments: list[Fragment], robot: Robot, stance: Stance,
+                   t0: float, dt: float, n: int) -> tuple[list[Fragment], Fragment]:
+    """The fragments of one group of overlaid actions starting at ``t0`` [s] from ``stance``, and
+    the one whose phases the group plays (the one that changes the feet's contacts, else the first);
+    ``fragments``: those of the groups before, ``n``: the number of actions.
+
+    Raises:
+        TaskDefinitionError: the group's actions cannot run together (the message says why).
+    """
+    placed = [(i, _holding_hand(_standing_at(a, stance), fragments, robot)) for i, a in group]
+    for i, a in placed:
+        _check_carried(a, fragments, _where(i, a, n))
+    _check_parts(placed)
+    length = _group_duration(placed, robot, n)
+    group_fragments = []
+    for i, a in placed:
+        try:
+            group_fragments.append(compile_action(a, robot, t0=t0, dt=dt, duration=length,
+                                                  stance=stance, label=f"{i + 1} {a.name}"))
+        except TaskDefinitionError as e:
+            raise type(e)(f"{_where(i, a, n)}{e}") from None
+    movers = [f for f in group_fragments if f.changes_contacts]
+    if len(movers) > 1:
+        a, b = movers[0].action, movers[1].action
+        raise TaskDefinitionError(f"{a.name} and {b.name} both change the feet's contacts; run them one after the other")
+    owner = movers[0] if movers else group_fragments[0]
+    if len(placed) > 1 and owner.end_stance != stance:
+        others = ", ".join(f.action.name for f in group_fragments if f is not owner)
+        raise TaskDefinitionError(
+            f"{others} cannot run while {owner.action.name} moves the feet (its targets are fixed "
+            f"where the robot stands); run them one after the other (\"then\")"
+        )
+    return group_fragments, owner
+
+
 def compile_actions(
     actions: Sequence[Action | Mapping[str, Any]],
     robot: Robot,
@@ -181,16 +231,7 @@ def compile_actions(
             when there are several.
         GroundingError: an object reference without a scene, or that names no object or several.
     """
-    if not (isinstance(dt, (int, float)) and 0.005 <= dt <= DT_MAX):
-        raise TaskDefinitionError(f"dt must be in [0.005, {DT_MAX:g}] s, got {dt!r}")
-    for what, value in (("stand_time", stand_time), ("transition_time", transition_time)):
-        if not (isinstance(value, (int, float)) and 0.0 <= value <= 10.0):
-            raise TaskDefinitionError(f"{what} must be in [0, 10] s, got {value!r}")
-    if len(actions) > MAX_ACTIONS:
-        raise TaskDefinitionError(
-            f"{len(actions)} actions; wbmp plans at most {MAX_ACTIONS} actions at a time: split the instruction "
-            "into several shorter ones"
-        )
+    _check_arguments(actions, dt, stand_time, transition_time)
     checked = pick_up_first(ground_actions(fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot), scene),
                             robot)
     if not checked:
@@ -218,29 +259,7 @@ def compile_actions(
             phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
             waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
-        group = [(i, _holding_hand(_standing_at(a, stance), fragments, robot)) for i, a in group]
-        for i, a in group:
-            _check_carried(a, fragments, _where(i, a, n))
-        _check_parts(group)
-        length = _group_duration(group, robot, n)
-        group_fragments = []
-        for i, a in group:
-            try:
-                group_fragments.append(compile_action(a, robot, t0=knot_time(k, dt), dt=dt, duration=length,
-                                                      stance=stance, label=f"{i + 1} {a.name}"))
-            except TaskDefinitionError as e:
-                raise type(e)(f"{_where(i, a, n)}{e}") from None
-        movers = [f for f in group_fragments if f.changes_contacts]
-        if len(movers) > 1:
-            a, b = movers[0].action, movers[1].action
-            raise TaskDefinitionError(f"{a.name} and {b.name} both change the feet's contacts; run them one after the other")
-        owner = movers[0] if movers else group_fragments[0]
-        if len(group) > 1 and owner.end_stance != stance:
-            others = ", ".join(f.action.name for f in group_fragments if f is not owner)
-            raise TaskDefinitionError(
-                f"{others} cannot run while {owner.action.name} moves the feet (its targets are fixed "
-                f"where the robot stands); run them one after the other (\"then\")"
-            )
+        group_fragments, owner = _compile_group(group, fragments, robot, stance, knot_time(k, dt), dt, n)
         still = _still_com(group_fragments, robot, stance, knot_time(k, dt), knot_time(k + round(owner.duration / dt), dt))
         phases.extend(owner.phases)
         k += round(owner.duration / dt)
