@@ -87,6 +87,126 @@ class FrameTrack:
     acceleration: np.ndarray
 
 
+def _dense_motion(plan: Plan, model: pin.Model, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """q, v, a at ``times``: a clamped cubic spline through the knots in chart coordinates (base
+    position in the world, rotation vector w.r.t. knot 0, joints), at rest at the end."""
+    n = len(times)
+    knots_q = np.asarray(plan.q, dtype=float)
+    knots_v = np.asarray(plan.v, dtype=float)
+    nk = len(plan.t)
+
+    # chart coordinates at the knots: base position (world), rotation vector w.r.t. knot 0, joints
+    rot0 = pin.Quaternion(
+        knots_q[0, 6], knots_q[0, 3], knots_q[0, 4], knots_q[0, 5]
+    ).toRotationMatrix()
+    chart = np.empty((nk, 6 + model.nq - 7))
+    dchart = np.empty_like(chart)
+    for k in range(nk):
+        quat = pin.Quaternion(knots_q[k, 6], knots_q[k, 3], knots_q[k, 4], knots_q[k, 5])
+        quat.normalize()
+        rot = quat.toRotationMatrix()
+        rel = rot0.T @ rot
+        chart[k, :3] = knots_q[k, :3]
+        w = pin.log3(rel)
+        unwrapped = _unwrap(w, chart[k - 1, 3:6]) if k else w
+        chart[k, 3:6] = unwrapped
+        chart[k, 6:] = knots_q[k, 7:]
+        dchart[k, :3] = rot @ knots_v[k, :3]
+        if unwrapped is w:
+            dchart[k, 3:6] = pin.Jlog3(rel) @ knots_v[k, 3:6]
+        else:  # beyond a half turn from knot 0: d/dt of the unwrapped vector, Jr(w)^+ omega
+            dchart[k, 3:6] = np.linalg.pinv(_exp3_and_jr(unwrapped[None])[1][0], rcond=1e-6) @ knots_v[k, 3:6]
+        dchart[k, 6:] = knots_v[k, 6:] if model.nq - 7 == model.nv - 6 else 0.0
+    if nk >= 2:
+        c, dc, ddc = clamped_cubic_spline(np.asarray(plan.t, dtype=float), chart, dchart[0], dchart[-1], times)
+    else:
+        c, dc, ddc = (
+            chart.repeat(n, axis=0),
+            np.zeros((n, chart.shape[1])),
+            np.zeros((n, chart.shape[1])),
+        )
+
+    rot_rel, jr = _exp3_and_jr(c[:, 3:6])
+    rot = rot0[None] @ rot_rel
+    q = np.empty((n, model.nq))
+    q[:, :3] = c[:, :3]
+    quats = np.array([pin.Quaternion(r).coeffs() for r in rot])  # (x, y, z, w)
+    q[:, 3:7] = quats
+    q[:, 7:] = c[:, 6:]
+    omega = np.einsum("nij,nj->ni", jr, dc[:, 3:6])
+    lin = np.einsum("nji,nj->ni", rot, dc[:, :3])  # R^T p'
+    v = np.empty((n, model.nv))
+    v[:, :3], v[:, 3:6], v[:, 6:] = lin, omega, dc[:, 6:]
+    a = np.empty((n, model.nv))
+    a[:, :3] = np.einsum("nji,nj->ni", rot, ddc[:, :3]) - np.cross(omega, lin)
+    a[:, 3:6] = np.einsum("nij,nj->ni", jr, ddc[:, 3:6])
+    a[:, 6:] = ddc[:, 6:]
+    # hold the end at rest
+    v[-1] = 0.0
+    a[-1] = 0.0
+    return q, v, a
+
+
+def _dense_kinematics(model: pin.Model, q: np.ndarray, v: np.ndarray, a: np.ndarray, ids: list[int]) -> tuple[
+        np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per sample: the CoM and its two derivatives, the placement (position, rotation), velocity and
+    classical acceleration (LOCAL_WORLD_ALIGNED) of the frames ``ids``, the rate of centroidal
+    momentum and the angular momentum; the last sample at rest."""
+    n = len(q)
+    data = model.createData()
+    com = np.empty((n, 3))
+    dcom = np.empty((n, 3))
+    ddcom = np.empty((n, 3))
+    pos = np.empty((len(ids), n, 3))
+    rots = np.empty((len(ids), n, 3, 3))
+    vel = np.empty((len(ids), n, 6))
+    acc = np.empty((len(ids), n, 6))
+    dmom = np.empty((n, 6))  # rate of centroidal momentum (linear, angular about the CoM)
+    hang = np.empty((n, 3))  # centroidal angular momentum A_g(q) v, angular rows
+    lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    acceleration = pin.KinematicLevel.ACCELERATION
+    for i in range(n):
+        # CoM, its derivatives and forward kinematics to 2nd order, plus the momentum rate
+        dmom[i] = pin.computeCentroidalMomentumTimeVariation(model, data, q[i], v[i], a[i])
+        hang[i] = data.hg.angular
+        # the call above ran the forward pass to 2nd order (data.v, data.a): the CoM pass alone
+        pin.centerOfMass(model, data, acceleration, False)
+        com[i], dcom[i], ddcom[i] = data.com[0], data.vcom[0], data.acom[0]
+        for j, fid in enumerate(ids):
+            placement = pin.updateFramePlacement(model, data, fid)
+            pos[j, i] = placement.translation
+            rots[j, i] = placement.rotation
+            vel[j, i] = pin.getFrameVelocity(model, data, fid, lwa).vector
+            acc[j, i] = pin.getFrameClassicalAcceleration(model, data, fid, lwa).vector
+    vel[:, -1] = 0.0
+    acc[:, -1] = 0.0
+    dcom[-1] = 0.0
+    ddcom[-1] = 0.0
+    return com, dcom, ddcom, pos, rots, vel, acc, dmom, hang
+
+
+def _contact_activity(plan: Plan, robot: Robot, contact_frames: tuple[str, ...], times: np.ndarray) -> np.ndarray:
+    """(n, len(contact_frames)) booleans: the plan's contact active at each of ``times`` (a phase
+    holds from its start to just before its end, the last one to the end)."""
+    model = robot.model
+    n = len(times)
+    active = np.zeros((n, len(contact_frames)), dtype=bool)
+    spec = plan.spec
+    starts = spec.phase_start_times()
+    for p, phase in enumerate(spec.phases):
+        t_start = starts[p]
+        t_end = t_start + phase.duration
+        mask = (
+            (times >= t_start - 1e-9) & (times < t_end - 1e-9)
+            if p < len(spec.phases) - 1
+            else times >= t_start - 1e-9
+        )
+        for contact in phase.contacts:
+            name = model.frames[robot.frame_id(contact.frame)].name
+            active[mask, contact_frames.index(name)] = True
+    return active
+
+
 class PlanReference:
     """A Plan resampled on the controller's grid (see the module docstring).
 
@@ -143,59 +263,8 @@ class PlanReference:
         self.n = n
         times = t0 + self.dt * np.arange(n)
         times[-1] = min(times[-1], float(plan.t[-1]))
-        knots_q = np.asarray(plan.q, dtype=float)
-        knots_v = np.asarray(plan.v, dtype=float)
         nk = len(plan.t)
-
-        # chart coordinates at the knots: base position (world), rotation vector w.r.t. knot 0, joints
-        rot0 = pin.Quaternion(
-            knots_q[0, 6], knots_q[0, 3], knots_q[0, 4], knots_q[0, 5]
-        ).toRotationMatrix()
-        chart = np.empty((nk, 6 + model.nq - 7))
-        dchart = np.empty_like(chart)
-        for k in range(nk):
-            quat = pin.Quaternion(knots_q[k, 6], knots_q[k, 3], knots_q[k, 4], knots_q[k, 5])
-            quat.normalize()
-            rot = quat.toRotationMatrix()
-            rel = rot0.T @ rot
-            chart[k, :3] = knots_q[k, :3]
-            w = pin.log3(rel)
-            unwrapped = _unwrap(w, chart[k - 1, 3:6]) if k else w
-            chart[k, 3:6] = unwrapped
-            chart[k, 6:] = knots_q[k, 7:]
-            dchart[k, :3] = rot @ knots_v[k, :3]
-            if unwrapped is w:
-                dchart[k, 3:6] = pin.Jlog3(rel) @ knots_v[k, 3:6]
-            else:  # beyond a half turn from knot 0: d/dt of the unwrapped vector, Jr(w)^+ omega
-                dchart[k, 3:6] = np.linalg.pinv(_exp3_and_jr(unwrapped[None])[1][0], rcond=1e-6) @ knots_v[k, 3:6]
-            dchart[k, 6:] = knots_v[k, 6:] if model.nq - 7 == model.nv - 6 else 0.0
-        if nk >= 2:
-            c, dc, ddc = clamped_cubic_spline(np.asarray(plan.t, dtype=float), chart, dchart[0], dchart[-1], times)
-        else:
-            c, dc, ddc = (
-                chart.repeat(n, axis=0),
-                np.zeros((n, chart.shape[1])),
-                np.zeros((n, chart.shape[1])),
-            )
-
-        rot_rel, jr = _exp3_and_jr(c[:, 3:6])
-        rot = rot0[None] @ rot_rel
-        q = np.empty((n, model.nq))
-        q[:, :3] = c[:, :3]
-        quats = np.array([pin.Quaternion(r).coeffs() for r in rot])  # (x, y, z, w)
-        q[:, 3:7] = quats
-        q[:, 7:] = c[:, 6:]
-        omega = np.einsum("nij,nj->ni", jr, dc[:, 3:6])
-        lin = np.einsum("nji,nj->ni", rot, dc[:, :3])  # R^T p'
-        v = np.empty((n, model.nv))
-        v[:, :3], v[:, 3:6], v[:, 6:] = lin, omega, dc[:, 6:]
-        a = np.empty((n, model.nv))
-        a[:, :3] = np.einsum("nji,nj->ni", rot, ddc[:, :3]) - np.cross(omega, lin)
-        a[:, 3:6] = np.einsum("nij,nj->ni", jr, ddc[:, 3:6])
-        a[:, 6:] = ddc[:, 6:]
-        # hold the end at rest
-        v[-1] = 0.0
-        a[-1] = 0.0
+        q, v, a = _dense_motion(plan, model, times)
         self.q, self.v, self.a = q, v, a
 
         names: list[str] = []
@@ -213,35 +282,7 @@ class PlanReference:
         names = list(dict.fromkeys(names))
         ids = [robot.frame_id(nm) for nm in names]
 
-        data = model.createData()
-        com = np.empty((n, 3))
-        dcom = np.empty((n, 3))
-        ddcom = np.empty((n, 3))
-        pos = np.empty((len(ids), n, 3))
-        rots = np.empty((len(ids), n, 3, 3))
-        vel = np.empty((len(ids), n, 6))
-        acc = np.empty((len(ids), n, 6))
-        dmom = np.empty((n, 6))  # rate of centroidal momentum (linear, angular about the CoM)
-        hang = np.empty((n, 3))  # centroidal angular momentum A_g(q) v, angular rows
-        lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        acceleration = pin.KinematicLevel.ACCELERATION
-        for i in range(n):
-            # CoM, its derivatives and forward kinematics to 2nd order, plus the momentum rate
-            dmom[i] = pin.computeCentroidalMomentumTimeVariation(model, data, q[i], v[i], a[i])
-            hang[i] = data.hg.angular
-            # the call above ran the forward pass to 2nd order (data.v, data.a): the CoM pass alone
-            pin.centerOfMass(model, data, acceleration, False)
-            com[i], dcom[i], ddcom[i] = data.com[0], data.vcom[0], data.acom[0]
-            for j, fid in enumerate(ids):
-                placement = pin.updateFramePlacement(model, data, fid)
-                pos[j, i] = placement.translation
-                rots[j, i] = placement.rotation
-                vel[j, i] = pin.getFrameVelocity(model, data, fid, lwa).vector
-                acc[j, i] = pin.getFrameClassicalAcceleration(model, data, fid, lwa).vector
-        vel[:, -1] = 0.0
-        acc[:, -1] = 0.0
-        dcom[-1] = 0.0
-        ddcom[-1] = 0.0
+        com, dcom, ddcom, pos, rots, vel, acc, dmom, hang = _dense_kinematics(model, q, v, a, ids)
         self.plan_com = com.copy()
         self.angular_momentum = hang
         self.angular_momentum_rate = dmom[:, 3:].copy()
@@ -256,20 +297,7 @@ class PlanReference:
             for j, (nm, fid) in enumerate(zip(names, ids, strict=True))
         }
 
-        active = np.zeros((n, len(self.contact_frames)), dtype=bool)
-        spec = plan.spec
-        starts = spec.phase_start_times()
-        for p, phase in enumerate(spec.phases):
-            t_start = starts[p]
-            t_end = t_start + phase.duration
-            mask = (
-                (times >= t_start - 1e-9) & (times < t_end - 1e-9)
-                if p < len(spec.phases) - 1
-                else times >= t_start - 1e-9
-            )
-            for contact in phase.contacts:
-                name = model.frames[robot.frame_id(contact.frame)].name
-                active[mask, self.contact_frames.index(name)] = True
+        active = _contact_activity(plan, robot, self.contact_frames, times)
         self.active = active
         self.times = times
         if plan.spec.dynamic and active.shape[1]:
