@@ -217,6 +217,37 @@ class WholeBodyController:
             (fid, slice(3 + 6 * i, 9 + 6 * i), i) for i, fid in enumerate(self._frame_ids)
         ]
         self._hom = np.zeros((nf, 4, 4))
+        self._build_references(ref, n_mom)
+        # per-row gains and weights of the tracking tasks
+        kp = np.empty(nrow)
+        w = np.empty(nrow)
+        kp[:3], w[:3] = s.com_kp, s.com_weight
+        for i, nm in enumerate(self._frames):
+            rows = slice(3 + 6 * i, 9 + 6 * i)
+            is_contact = nm in self._contacts
+            kp[rows] = s.foot_kp if is_contact else s.frame_kp
+            wt = s.foot_weight if is_contact else s.hand_weight
+            w[rows] = [wt] * 3 + [wt * s.orientation_factor] * 3
+        if n_mom:  # no position error: kp 0, the momentum gain is the row's damping (_set_active)
+            kp[3 + 6 * nf :], w[3 + 6 * nf :] = 0.0, s.momentum_weight
+        self._kp_task, self._sqrt_w_task = kp, np.sqrt(w)
+        self._J = np.zeros((nrow, nv))
+        self._drift = np.zeros(nrow)
+        self._a_des = np.zeros(nrow)
+        self._dq_post = np.zeros(nv)
+        self._pos = np.zeros((1 + nf, 3))
+        self._rots = np.zeros((nf, 3, 3))
+        self._anchor_pos = np.zeros((nf, 3))
+        self._anchor_rot = np.tile(np.eye(3), (nf, 1, 1))
+        self._active_key: int | None = None
+        self._active_flags: tuple[bool, ...] | None = None
+        self._last_rots = np.zeros((nf, 3, 3))
+        self._build_qp(ref)
+
+    def _build_references(self, ref: PlanReference, n_mom: int) -> None:
+        """The reference grid, its contact patterns and flights, and the stacked task references
+        (:meth:`_build_layout`); ``n_mom``: the momentum rows (0 or 3)."""
+        s = self.settings
         # the reference grid (PlanReference.index inlined in the tick) and its contact patterns
         self._t0 = float(ref.plan.t[0])
         self._inv_dt = 1.0 / ref.dt
@@ -257,30 +288,12 @@ class WholeBodyController:
                 self._travel_flight[a:touch] = True
         self._mom_near: bool | None = None
         self._tick_k = 0
-        # per-row gains and weights of the tracking tasks
-        kp = np.empty(nrow)
-        w = np.empty(nrow)
-        kp[:3], w[:3] = s.com_kp, s.com_weight
-        for i, nm in enumerate(self._frames):
-            rows = slice(3 + 6 * i, 9 + 6 * i)
-            is_contact = nm in self._contacts
-            kp[rows] = s.foot_kp if is_contact else s.frame_kp
-            wt = s.foot_weight if is_contact else s.hand_weight
-            w[rows] = [wt] * 3 + [wt * s.orientation_factor] * 3
-        if n_mom:  # no position error: kp 0, the momentum gain is the row's damping (_set_active)
-            kp[3 + 6 * nf :], w[3 + 6 * nf :] = 0.0, s.momentum_weight
-        self._kp_task, self._sqrt_w_task = kp, np.sqrt(w)
-        self._J = np.zeros((nrow, nv))
-        self._drift = np.zeros(nrow)
-        self._a_des = np.zeros(nrow)
-        self._dq_post = np.zeros(nv)
-        self._pos = np.zeros((1 + nf, 3))
-        self._rots = np.zeros((nf, 3, 3))
-        self._anchor_pos = np.zeros((nf, 3))
-        self._anchor_rot = np.tile(np.eye(3), (nf, 1, 1))
-        self._active_key: int | None = None
-        self._active_flags: tuple[bool, ...] | None = None
-        self._last_rots = np.zeros((nf, 3, 3))
+
+    def _build_qp(self, ref: PlanReference) -> None:
+        """The QP's constant matrices, regularisation, posture gains and work buffers
+        (:meth:`_build_layout`)."""
+        s = self.settings
+        nv, nc = self.nv, len(self._contacts)
         # constant matrices
         self.H = np.zeros((self.n, self.n))
         self.g = np.zeros(self.n)
