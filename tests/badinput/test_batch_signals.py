@@ -183,9 +183,10 @@ def _assert_consistent(out: Path) -> dict[tuple[str, str], dict]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("sig", "code", "last"), [(signal.SIGTERM, 143, "wbmp: terminated"),
-                                                    (signal.SIGINT, 130, "wbmp: interrupted")],
-                         ids=["sigterm", "sigint"])
+@pytest.mark.parametrize(("sig", "code", "last"), [
+    (signal.SIGTERM, 143, "wbmp: terminated"),
+    pytest.param(signal.SIGINT, 130, "wbmp: interrupted", marks=pytest.mark.long),  # the same path: make test-long
+], ids=["sigterm", "sigint"])
 def test_a_stopped_batch_ends_its_workers_at_once_and_leaves_a_consistent_folder(batch, tmp_path, sig, code, last):
     """SIGTERM / SIGINT: exit 143 / 130 within seconds, no child left, index and files agree
     (at least the first item recorded, the rest not half there)."""
@@ -228,6 +229,7 @@ def test_a_killed_batch_leaves_no_process_and_the_next_run_mends_the_folder(batc
                                                                               for n in range(len(SENTENCES))}
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~29 s)
 @pytest.mark.slow
 def test_a_stopped_ray_batch_exits_143_and_shuts_its_instance_down(batch, tmp_path):
     """SIGTERM to a batch on a local Ray instance: exit 143 (was: SIGABRT from Ray's signal

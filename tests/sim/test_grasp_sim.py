@@ -111,6 +111,7 @@ BOOK = SceneObject(name="book", shape="box", size=(0.2, 0.2, 0.04), position=(0.
                   mass=0.3, colour=(0.1, 0.6, 0.2, 1.0))
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~30 s)
 @pytest.mark.slow
 def test_put_the_cup_on_the_book_in_mujoco(talos):
     """"pick up the cup, then put it on the book": the cup's MuJoCo body ends on the book's top face
@@ -128,6 +129,7 @@ def test_put_the_cup_on_the_book_in_mujoco(talos):
     assert np.abs(run.objects["book"] - np.asarray(BOOK.position)).max() <= MOVED_LIMIT
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~22 s)
 @pytest.mark.slow
 def test_carry_the_cup_while_walking_in_mujoco(talos):
     """"pick up the cup, then walk backward two steps": while the feet move (and to the end) the

@@ -213,6 +213,7 @@ def test_a_solve_that_fails_without_the_idle_rows_is_solved_again_with_them(talo
     assert failed.stats.n_constraints > bare.stats.n_constraints + 300  # the ankles' and hips' rows
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~65 s)
 @pytest.mark.slow
 @pytest.mark.parametrize(("sentence", "moving"), [
     ("reach right with your left hand 40 cm", "left"),
@@ -232,6 +233,7 @@ def test_talos_cross_body_reaches_plan_without_penetration(talos, sentence, movi
     assert spec.targets[0].frame == talos.frame(f"{moving}_hand")
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~55 s)
 @pytest.mark.slow
 def test_hand_target_inside_the_torso_is_refused_naming_the_pair(talos, tmp_path):
     """A spec whose right-hand target is the middle of the chest (the centre of the torso's upper

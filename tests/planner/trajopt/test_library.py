@@ -176,6 +176,7 @@ def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
     assert set(library._seeds_of(key, str(tmp_path))) == kept  # read back from the folder
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~24 s)
 def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_first_solve(talos, tmp_path):
     """Talos "walk forward two steps then wave your right hand": the first plan solves three
     times (82 iterations: its right gripper comes within the margin of its right thigh, and a

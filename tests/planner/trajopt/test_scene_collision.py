@@ -246,6 +246,7 @@ def test_reach_over_the_table_keeps_every_link_the_margin_above_it(talos):
     assert d >= MARGIN - SOLVER_TOLERANCE, f"{d:.4f} m at t = {result.t[k]:.2f} s"
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~30 s)
 @pytest.mark.slow
 def test_reach_into_the_table_is_refused_naming_the_table(talos, tmp_path):
     """A hand target 4 cm above the table top (outside it, so the spec check lets it through) puts the
