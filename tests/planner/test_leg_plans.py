@@ -104,6 +104,7 @@ def test_controller_reference_unwraps_past_a_half_turn():
     assert _unwrap(small, np.array([0.0, 0.0, 0.9])) is small
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~19 s)
 @pytest.mark.slow
 def test_hop_plan_on_g1(g1):
     """hop(right, 1) on G1 (certified in MuJoCo, tests/sim/test_leg_sims.py): the plan passes its

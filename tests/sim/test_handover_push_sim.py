@@ -109,6 +109,7 @@ def _push_planned_and_simulated(talos, sentence: str, distance: float) -> None:
     assert max(run.peak_torque_fractions().values()) <= 0.93, run.peak_torque_fractions()
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~21 s)
 @pytest.mark.slow  # ~20 s of CPU (a 13 s plan and its 4 s run)
 def test_push_the_red_box_gently_in_mujoco(talos):
     """"push the red box gently" (5 cm): the right hand frame (Pinocchio on the planned configurations)

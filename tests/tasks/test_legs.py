@@ -98,6 +98,7 @@ def test_a_refused_hop_names_a_joint_of_the_hopping_leg(talos, foot):
     assert talos.model.existJointName(joint) and f"_{foot}_" in joint
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~19 s)
 def test_one_leg_push_is_half_of_two(talos, g1):
     """One leg's static push is half the two-leg force. Talos' knee would need 0.60 of it for the
     shortest flight: refused for hops and jogs, with the numbers. G1's needs 0.24: within the hop

@@ -274,6 +274,7 @@ def test_hand_target_inside_the_torso_is_refused_naming_the_pair(talos, tmp_path
     assert "torso_2_link" in out.stderr and "reach less far" in out.stderr
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~20 s)
 @pytest.mark.slow
 def test_g1_reach_plans_without_penetration(g1):
     spec = _reach_spec(g1, "reach right with your left hand 30 cm")
