@@ -1,6 +1,6 @@
 """A MuJoCo model built from the robot's own URDF, with index maps to Pinocchio.
 
-The URDF that Pinocchio loaded is rewritten in memory (:mod:`sim.urdf`; DESIGN.md section 5, measured with
+The URDF that Pinocchio loaded is rewritten in memory (:mod:`sim.urdf`; docs/control.md, measured with
 MuJoCo 4.0): ``package://`` mesh URIs become absolute file names, a ``<mujoco><compiler/>``
 tag keeps every body (``fusestatic="false"``), and the root link hangs from a new ``world``
 link through a ``floating`` joint, which MuJoCo turns into a free joint. Through

@@ -19,8 +19,7 @@ from typing import IO
 
 import numpy as np
 
-from wbmp.export.columns import execution_columns, joint_names, plan_columns, refused
-from wbmp.export.tracker import SOURCES, check_fps, resample
+from wbmp.export.tracker import resample, source_columns
 
 LAFAN_FPS = 30.0  # [Hz] the LAFAN1 retargeting data set's rate, BeyondMimic's default input rate
 ROOT_COLUMNS = ("root_x", "root_y", "root_z", "root_qx", "root_qy", "root_qz", "root_qw")
@@ -35,14 +34,7 @@ def lafan_rows(motion, fps: float = LAFAN_FPS, source: str = "plan") -> tuple[np
             ``source="execution"`` and the file holds no simulated execution.
         ValueError: a bad ``fps`` or ``source``.
     """
-    if source not in SOURCES:
-        raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
-    names = joint_names(motion)
-    cols = plan_columns(motion) if source == "plan" else execution_columns(motion)
-    if cols is None:
-        raise refused(f"motion file of {motion.robot_name!r} holds no simulated execution (it was solved "
-                      "with --no-sim); export the plan (--source plan) or solve again with the simulation")
-    check_fps(fps, float(cols.t[-1] - cols.t[0]))
+    names, cols = source_columns(motion, fps, source)
     samples = resample(cols, fps)
     rows = np.hstack([samples["root_pos"], samples["root_rot"], samples["joint_pos"]])
     return rows, names

@@ -132,6 +132,26 @@ def check_fps(fps: float, duration: float | None = None) -> None:
                          f"{(MAX_SAMPLES - 1) / duration:g} Hz")
 
 
+def source_columns(motion, fps: float, source: str) -> tuple[list[str], MotionColumns]:
+    """The joint names and the columns of ``motion``'s plan or execution, checked for a sampling
+    at ``fps`` (the tracker and LAFAN1 exports' common start).
+
+    Raises:
+        CliError (exit 2): the joints cannot be named, or ``source="execution"`` and the file
+            holds no simulated execution.
+        ValueError: a bad ``fps`` or ``source``.
+    """
+    if source not in SOURCES:
+        raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
+    names = joint_names(motion)
+    cols = plan_columns(motion) if source == "plan" else execution_columns(motion)
+    if cols is None:
+        raise refused(f"motion file of {motion.robot_name!r} holds no simulated execution (it was solved "
+                      "with --no-sim); export the plan (--source plan) or solve again with the simulation")
+    check_fps(fps, float(cols.t[-1] - cols.t[0]))
+    return names, cols
+
+
 def tracker_arrays(motion, fps: float = DEFAULT_FPS, source: str = "plan",
                    base_frame: str | None = None) -> dict[str, Any]:
     """Every key of the tracker file of ``motion``'s plan or execution, resampled at ``fps``.
@@ -142,14 +162,7 @@ def tracker_arrays(motion, fps: float = DEFAULT_FPS, source: str = "plan",
         ValueError: a bad ``fps`` or ``source``.
     """
     from wbmp.export.rosbag import WORLD_FRAME, base_frame_of
-    if source not in SOURCES:
-        raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
-    names = joint_names(motion)
-    cols = plan_columns(motion) if source == "plan" else execution_columns(motion)
-    if cols is None:
-        raise refused(f"motion file of {motion.robot_name!r} holds no simulated execution (it was solved "
-                              "with --no-sim); export the plan (--source plan) or solve again with the simulation")
-    check_fps(fps, float(cols.t[-1] - cols.t[0]))
+    names, cols = source_columns(motion, fps, source)
     out: dict[str, Any] = {
         "format": np.array(TRACKER_FORMAT), "version": np.array(TRACKER_VERSION),
         "fps": np.array(float(fps)), "robot": np.array(motion.robot_name), "source": np.array(source),
