@@ -238,9 +238,9 @@ def test_connections_bounded(served):
     idle = [socket.create_connection(("127.0.0.1", served.port), timeout=30) for _ in range(srv.MAX_CONNECTIONS)]
     try:
         deadline = time.monotonic() + 4
-        while served._slots._value and time.monotonic() < deadline:  # every idle one accepted, holding a slot
+        while served.free_slots and time.monotonic() < deadline:  # every idle one accepted, holding a slot
             time.sleep(0.05)
-        assert served._slots._value == 0
+        assert served.free_slots == 0
         extra = socket.create_connection(("127.0.0.1", served.port), timeout=30)
         extra.sendall(f"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1:{served.port}\r\n\r\n".encode())
         try:

@@ -77,28 +77,49 @@ class ServeServer(ThreadingHTTPServer):
         self.allowed_hosts = {f"127.0.0.1:{self.port}", f"localhost:{self.port}"}
         self.allowed_origins = {f"http://{h}" for h in self.allowed_hosts}
         self.read_timeout = READ_TIMEOUT
-        self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
+        self._slots_lock = threading.Lock()
+        self._answering: set[int] = set()  # id() of the connections being answered
         self._mcap_lock = threading.Lock()
         self._meshcat: bytes | None = None
         self._index: bytes | None = None
 
+    @property
+    def free_slots(self) -> int:
+        """How many more connections would be answered now."""
+        with self._slots_lock:
+            return MAX_CONNECTIONS - len(self._answering)
+
     def process_request(self, request: Any, client_address: Any) -> None:
-        """Answer in a thread, at most MAX_CONNECTIONS at once (more: closed unanswered)."""
-        if not self._slots.acquire(blocking=False):
+        """Answer in a thread, at most MAX_CONNECTIONS at once (more: closed unanswered).
+
+        A connection's slot is freed once, by whoever holds it last: Ctrl-C can arrive while the
+        thread starts (``Thread.start`` waits for it), and the started thread still frees its slot."""
+        with self._slots_lock:
+            if len(self._answering) >= MAX_CONNECTIONS:
+                full = True
+            else:
+                full = False
+                self._answering.add(id(request))
+        if full:
             self.shutdown_request(request)
             return
+        thread = threading.Thread(target=self.process_request_thread, args=(request, client_address), daemon=True)
         try:
-            super().process_request(request, client_address)
-        except BaseException:
-            self._slots.release()
-            raise
+            thread.start()
+        except RuntimeError:  # no thread could start: the connection is closed unanswered
+            self._free(request)
+            self.shutdown_request(request)
 
     def process_request_thread(self, request: Any, client_address: Any) -> None:
         """One connection's thread; frees its slot at the end."""
         try:
             super().process_request_thread(request, client_address)
         finally:
-            self._slots.release()
+            self._free(request)
+
+    def _free(self, request: Any) -> None:
+        with self._slots_lock:
+            self._answering.discard(id(request))
 
     @property
     def url(self) -> str:
