@@ -151,7 +151,8 @@ def _picker(sl: StageLayout, cols: np.ndarray) -> ca.DM:
     return _sparse(np.arange(len(cols)), cols, np.ones(len(cols)), (len(cols), sl.n_x))
 
 
-def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool) -> tuple[dict, dict, StageLayout]:
+def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool,
+                        objective_scale: float = 1.0) -> tuple[dict, dict, StageLayout]:
     """The stage-wise CasADi NLP of a layout's structure (values as parameters, the same parameter
     vector as :func:`planner.trajopt.transcription.parameter_values`) and its derivatives.
 
@@ -164,6 +165,8 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool) -> tuple[dict, dic
         lay: A kinematic layout.
         symmetric_hessian: Give the whole Lagrangian Hessian (fatrop needs it) instead of its
             upper triangle (IPOPT's).
+        objective_scale: A factor on the cost (fatrop has no ``obj_scaling_factor``: the
+            settings' ``objective_scaling`` is applied here for it).
 
     Returns:
         (nlp dict {x, p, f, g}, nlpsol options {grad_f, jac_g, hess_lag}, bookkeeping).
@@ -262,16 +265,18 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool) -> tuple[dict, dic
     perm: list[int] = []
     for s in range(K):
         if s < K - 1:
-            perm += list(s * nv + np.arange(nv)) + list(n_gap + s * nv + np.arange(nv))
+            perm += [s * nv + j for j in range(nv)] + [n_gap + s * nv + j for j in range(nv)]
         if s == 0:
-            perm += list(2 * n_gap + np.arange(2 * nv))
+            perm += [2 * n_gap + j for j in range(2 * nv)]
         for i in sl.row_terms[s]:
             r, n_rows = g_rows_of_term[i]
-            perm += list(2 * n_gap + 2 * nv + r + np.arange(n_rows))
+            perm += [2 * n_gap + 2 * nv + r + j for j in range(n_rows)]
     if len(perm) != sl.n_g or g_nat.numel() != 2 * n_gap + 2 * nv + n_term_rows:
         raise PlannerError(f"internal: {g_nat.numel()} stage-wise rows built, {sl.n_g} expected")
     g_all = g_nat[perm]
     jac_all = jac_nat[perm, :]
+    if objective_scale != 1.0:
+        f, grad, W = objective_scale * f, objective_scale * grad, objective_scale * W
     nlp = {"x": x, "p": p, "f": f, "g": g_all}
 
     # Lagrangian Hessian: the quadratic costs' diagonal and each knot's term block (dq_k, dq_k).
@@ -282,7 +287,7 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool) -> tuple[dict, dic
     lam_terms = lam_nat[2 * n_gap + 2 * nv:]
     for st, n, Xg, Qr, Pg, S, offset in hessian_blocks:
         L = ca.reshape(lam_terms[offset: offset + st.rows * n], st.rows, n)
-        HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(lam_f, 1, n), L)
+        HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(objective_scale * lam_f, 1, n), L)
         hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
     hess_out = hess if symmetric_hessian else ca.triu(hess)
     derivatives = {
@@ -362,7 +367,7 @@ def chart_of(lay: Layout, sl: StageLayout, x: np.ndarray) -> np.ndarray:
 
 
 def fatrop_options(settings: PlannerSettings, sl: StageLayout) -> dict:
-    """nlpsol options of fatrop with the stage structure given (``structure_detection: manual``)."""
+    """The ``nlpsol`` options of fatrop with the stage structure given (``structure_detection: manual``)."""
     return {
         "print_time": False,
         "structure_detection": "manual",
@@ -388,6 +393,7 @@ class StagewiseSolver:
     stage_layout: StageLayout
     backend: str
     build_time: float
+    objective_scale: float = 1.0
 
 
 CACHE_SIZE = 16
@@ -414,14 +420,15 @@ def get_stagewise_solver(lay: Layout, settings: PlannerSettings, backend: str,
     if progress:
         progress(f"building the stage-wise solver ({backend})")
     t0 = time.perf_counter()
-    nlp, derivatives, sl = build_stagewise_nlp(lay, symmetric_hessian=backend == "fatrop")
+    scale = 1.0 if backend == "ipopt" else settings.objective_scaling  # IPOPT scales it itself
+    nlp, derivatives, sl = build_stagewise_nlp(lay, symmetric_hessian=backend == "fatrop", objective_scale=scale)
     if backend == "ipopt":
         options = {**ipopt_options(settings), **derivatives}
     else:  # CasADi's fatrop interface takes no derivative functions: it builds them by AD of the NLP
         options = fatrop_options(settings, sl)
     function = ca.nlpsol(f"wbmp_stagewise_{backend}", backend, nlp, options)
     solver = StagewiseSolver(function=function, stage_layout=sl, backend=backend,
-                             build_time=time.perf_counter() - t0)
+                             build_time=time.perf_counter() - t0, objective_scale=scale)
     if settings.use_cache:
         _SOLVERS[key] = solver
         while len(_SOLVERS) > CACHE_SIZE:
@@ -483,7 +490,7 @@ def solve_stagewise(lay: Layout, settings: PlannerSettings, progress: Callable[[
     dq = chart_of(lay, sl, xs)
     stats = SolverStats(
         status=status, iterations=int(st.get("iter_count", 0)), build_time=build_time, solve_time=solve_time,
-        cache=origin, objective=float(sol["f"]), n_variables=sl.n_x, n_constraints=sl.n_g,
+        cache=origin, objective=float(sol["f"]) / solver.objective_scale, n_variables=sl.n_x, n_constraints=sl.n_g,
         backend=f"{backend} (stage-wise)", raw_status=raw_status)
     raw = {"x": dq[2:N].ravel(), "x_stagewise": xs, "lam_x": np.asarray(sol["lam_x"]).ravel(),
            "lam_g": np.asarray(sol["lam_g"]).ravel(), "g": np.asarray(sol["g"]).ravel(), "lbg": lbg, "ubg": ubg,
