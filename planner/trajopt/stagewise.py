@@ -488,10 +488,21 @@ def solve_stagewise(lay: Layout, settings: PlannerSettings, progress: Callable[[
         progress(f"solving stage-wise with {backend} ({sl.n_x} variables, {sl.n_g} constraints, "
                  f"{sl.stages} stages)")
     t1 = time.perf_counter()
-    sol = solver.function(x0=to_stagewise(lay, sl, dq0), p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    start = to_stagewise(lay, sl, dq0)
+    try:
+        sol = solver.function(x0=start, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    except RuntimeError as exc:  # fatrop raises on some failures instead of returning a status
+        # and may be left half set up (a later call ran with its default options): never reuse it
+        for key in [k for k, v in _SOLVERS.items() if v is solver]:
+            del _SOLVERS[key]
+        reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "no message"
+        sol = {"x": start, "f": np.nan, "g": np.zeros(sl.n_g), "lam_x": np.zeros(sl.n_x), "lam_g": np.zeros(sl.n_g)}
+        st = {"iter_count": 0}
+        status, raw_status = SolveStatus.NUMERICAL_ERROR, f"{backend} raised: {reason}"
+    else:
+        st = solver.function.stats()
+        status, raw_status = _status(backend, st)
     solve_time = time.perf_counter() - t1
-    st = solver.function.stats()
-    status, raw_status = _status(backend, st)
     xs = np.asarray(sol["x"], dtype=float).ravel()
     dq = chart_of(lay, sl, xs)
     stats = SolverStats(
