@@ -175,8 +175,7 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool,
     sl = stage_layout(lay)
     robot = lay.robot
     nq, nv, N, K = robot.nq, robot.nv, lay.N, sl.stages
-    nl = make_nlp_layout(lay)
-    groups = stage_groups(lay)
+    groups = stage_groups(lay)  # the parameter vector's order: stagewise_parameters gives it
     stages = [stage(lay, term_lists[0]) for _s, _k, term_lists in groups]
     n_p = nq + 3 + sum(st.fn.size1_in(2) * len(knots) for st, (_s, knots, _t) in zip(stages, groups, strict=True))
     x = ca.MX.sym("x", sl.n_x)
@@ -297,7 +296,6 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool,
         "hess_lag": ca.Function("sw_hess_l", [x, p, lam_f, lam_g], [hess_out], ["x", "p", "lam_f", "lam_g"],
                                 ["hess_gamma_x_x" if symmetric_hessian else "triu_hess_gamma_x_x"]),
     }
-    del nl  # the parameter vector's order is make_nlp_layout's: parameter_values gives it
     return nlp, derivatives, sl
 
 
