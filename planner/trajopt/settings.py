@@ -22,6 +22,8 @@ def default_cache_dir() -> str:
 
 
 LIBRARY_MODES = ("on", "read", "off")
+TRANSCRIPTIONS = ("knots", "stagewise")
+STAGEWISE_SOLVERS = ("fatrop", "ipopt")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -90,6 +92,14 @@ class PlannerSettings:
             plan's), ``"read"`` (use, store nothing), ``"off"`` (every solve from the task's own
             guess: the same result whatever was planned before: the default; the command line's
             is ``$WBMP_SOLUTION_LIBRARY``, else ``"on"``); needs ``use_cache``.
+        transcription: ``"knots"`` (the default: chart displacements per knot, solved by IPOPT,
+            :mod:`planner.trajopt.transcription`) or ``"stagewise"`` (positions and velocities as
+            states, accelerations as controls, each row on one stage or two neighbours:
+            :mod:`planner.trajopt.stagewise`; kinematic plans only, a dynamic spec keeps
+            ``"knots"``). Stage-wise solvers are built in memory (never compiled or stored).
+        stagewise_solver: The solver of the stage-wise transcription: ``"fatrop"`` (its Riccati
+            recursion uses the stage structure) or ``"ipopt"`` (MUMPS on the whole KKT system).
+        fatrop_extra: Further fatrop options as ``(name, value)`` pairs, applied last.
     """
 
     max_iterations: int = 150
@@ -121,6 +131,9 @@ class PlannerSettings:
     collision_rounds: int = 3
     ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
     solution_library: str = "off"
+    transcription: str = "knots"
+    stagewise_solver: str = "fatrop"
+    fatrop_extra: tuple[tuple[str, float | int | str | bool], ...] = ()
 
     def __post_init__(self) -> None:
         from planner.exceptions import PlannerError
@@ -139,6 +152,12 @@ class PlannerSettings:
         if self.build_memory < 0 or self.build_memory_margin < 0:
             raise PlannerError("settings: build_memory and build_memory_margin must be >= 0 bytes, got "
                                f"{self.build_memory} and {self.build_memory_margin}")
+        if self.transcription not in TRANSCRIPTIONS:
+            raise PlannerError("settings: transcription must be 'knots' or 'stagewise', got "
+                               f"{self.transcription!r}")
+        if self.stagewise_solver not in STAGEWISE_SOLVERS:
+            raise PlannerError("settings: stagewise_solver must be 'fatrop' or 'ipopt', got "
+                               f"{self.stagewise_solver!r}")
         if self.solution_library not in LIBRARY_MODES:
             raise PlannerError("settings: solution_library must be 'on', 'read' or 'off', got "
                                f"{self.solution_library!r}")

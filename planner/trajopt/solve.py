@@ -22,7 +22,14 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
     """Fetch/build the solver of a layout, solve, return (dq per knot (N+1, nv), stats, raw).
 
     ``lam0``: initial multipliers ``(lam_x, lam_g)`` of the same structure's previous solve (IPOPT
-    uses them with its ``warm_start_init_point`` option, which dynamic plans set)."""
+    uses them with its ``warm_start_init_point`` option, which dynamic plans set).
+
+    ``settings.transcription == "stagewise"`` solves a kinematic layout with the stage-wise
+    transcription (:mod:`planner.trajopt.stagewise`, fatrop or IPOPT); a dynamic one keeps this one."""
+    if settings.transcription == "stagewise" and lay.extra_sizes() == (0, 0):
+        from planner.trajopt.stagewise import solve_stagewise
+
+        return solve_stagewise(lay, settings, progress, x0=x0)
     t0 = time.perf_counter()
     solver = get_solver(lay, settings, progress)
     build_time = time.perf_counter() - t0
