@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
+from planner.trajopt.kinds import ClearanceTerm
 from planner.trajopt.layout import (
     Layout,
     halfplanes,
@@ -61,7 +62,7 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     robot, spec, t = lay.robot, lay.spec, lay.t
     model, data = robot.model, robot.data()
     used = sorted({fid for active in lay.contacts_at for fid in active}
-                  | {term.structure[1] for term in lay.terms if term.kind == "clearance"}
+                  | {term.frame_id for term in lay.terms if isinstance(term, ClearanceTerm)}
                   | {robot.frame_id(target.frame) for target in spec.targets})
     placements: list[dict[int, pin.SE3]] = []  # per knot, the placements of the frames checked
     for qk in q:
@@ -88,8 +89,8 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     # swing clearance (from the layout's clearance terms)
     clear: dict[str, list] = {}
     for term in lay.terms:
-        if term.kind == "clearance":
-            z = placements[term.knot][term.structure[1]].translation[2]
+        if isinstance(term, ClearanceTerm):
+            z = placements[term.knot][term.frame_id].translation[2]
             frame = term.label.split()[0]
             clear.setdefault(frame, []).append((term.lower[0] - z, t[term.knot]))
     for frame, rows in clear.items():
