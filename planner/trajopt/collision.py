@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from planner.trajopt.settings import PlannerSettings
-from planner.trajopt.term import NumericKinematics, StageKinematics, Term
+from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term
 from robots.collision import CollisionModel, body_part, collision_model
 from robots.model import Robot
 
@@ -236,6 +236,12 @@ class SelfCollisionTerm(Term):
         wa = ca_ @ kin.joint(ja).rotation.T + kin.joint(ja).translation
         wb = cb_ @ kin.joint(jb).rotation.T + kin.joint(jb).translation
         return np.array([float(np.dot(wa[i] - wb[j], wa[i] - wb[j])) for i, j in chosen])
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """The closest checked link pair over the plan (:func:`self_collision_check`), when
+        ``settings.self_collision``."""
+        return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.self_collision else []
 
 
 @dataclass

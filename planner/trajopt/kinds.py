@@ -22,7 +22,14 @@ import pinocchio as pin
 
 from planner.results import CheckKind
 from planner.trajopt.symbolic import rotation_error
-from planner.trajopt.term import NumericKinematics, StageKinematics, Term
+from planner.trajopt.term import (
+    NumericKinematics,
+    ReportContext,
+    StageKinematics,
+    Term,
+    knots_of,
+    worst_check,
+)
 
 if TYPE_CHECKING:
     from planner.results import Check
@@ -115,6 +122,31 @@ class ContactTerm(Term):
         return np.concatenate([oMf.translation - self.params[0:3],
                                rotation_residual(_matrix(self.params[3:12]), oMf.rotation)])
 
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """Per stance sole, the worst distance [m] and angle [rad] (``log3``) from its placement over
+        every knot where it is in contact (the fixed knots included)."""
+        names: dict[int, str] = {}
+        pos_err: dict[int, list] = {}
+        rot_err: dict[int, list] = {}
+        t = ctx.lay.t
+        for k, active in enumerate(ctx.lay.contacts_at):
+            for fid, (frame, M) in active.items():
+                names.setdefault(fid, frame)
+                oMf = ctx.placements[k][fid]
+                pos_err.setdefault(fid, []).append((np.linalg.norm(oMf.translation - M.translation), t[k]))
+                rot_err.setdefault(fid, []).append((np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)), t[k]))
+        checks = []
+        tolerance = ctx.settings.contact_tolerance
+        for fid, frame in names.items():
+            pe, rt = np.array(pos_err[fid]).T
+            checks.append(worst_check(f"{frame} contact position", CheckKind.CONTACT_POSITION, pe, rt, tolerance,
+                                      "m", frame))
+            re, rt = np.array(rot_err[fid]).T
+            checks.append(worst_check(f"{frame} contact orientation", CheckKind.CONTACT_ORIENTATION, re, rt,
+                                      tolerance, "rad", frame))
+        return checks
+
 
 @dataclass(eq=False)
 class ClearanceTerm(Term):
@@ -147,6 +179,21 @@ class ClearanceTerm(Term):
     def residual(self, kin: NumericKinematics) -> np.ndarray:
         """The rows, or ``[cost]``, in numpy (:meth:`Term.residual`)."""
         return np.array([kin.frame(self.frame_id).translation[2]])
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """Per swinging foot, the worst depth [m] below its clearance over its terms."""
+        clear: dict[str, list] = {}
+        for term in ctx.lay.terms:
+            if isinstance(term, cls):
+                z = ctx.placements[term.knot][term.frame_id].translation[2]
+                clear.setdefault(term.label.split()[0], []).append((term.lower[0] - z, ctx.lay.t[term.knot]))
+        checks = []
+        for frame, rows in clear.items():
+            vals, times = np.array(rows).T
+            checks.append(worst_check(f"{frame} clearance", CheckKind.SWING_CLEARANCE, vals, times,
+                                      ctx.settings.polygon_tolerance, "m", frame))
+        return checks
 
 
 def _com_bound_sentence(check: Check, phase: str, status: str) -> str:
@@ -183,6 +230,42 @@ class SupportPolygonTerm(Term):
         """The rows, or ``[cost]``, in numpy (:meth:`Term.residual`)."""
         A = self.params.reshape(2, self.structure[1]).T
         return A @ kin.com[:2]
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """Per CoM bound of the spec, over its knots (all of them, the fixed ones included): the worst
+        distance [m] of the CoM outside its support polygon shrunk by the margin, then (the
+        :class:`CoMBoxTerm` kind's check, reported here to keep each bound's two checks together)
+        outside its box."""
+        lay, com, t = ctx.lay, ctx.com, ctx.lay.t
+        tolerance = ctx.settings.polygon_tolerance
+        checks: list[Check] = []
+        for bounds in lay.spec.com_bounds:
+            ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)
+            poly, box = [], []
+            for k in ks:
+                if bounds.support_polygon:
+                    planes = ctx.halfplanes(k)
+                    if planes is not None:
+                        A, b = planes
+                        poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
+                viol = 0.0
+                for i in range(3):
+                    lo, hi = bounds.lower[i], bounds.upper[i]
+                    if lo is not None:
+                        viol = max(viol, lo - com[k, i])
+                    if hi is not None:
+                        viol = max(viol, com[k, i] - hi)
+                box.append((viol, t[k]))
+            if bounds.support_polygon and poly:
+                vals, times = np.array(poly).T
+                checks.append(worst_check(f"CoM bound {bounds.name!r} support polygon", CheckKind.COM_SUPPORT_POLYGON,
+                                          vals, times, tolerance, "m", bounds.name))
+            if any(x is not None for x in (*bounds.lower, *bounds.upper)) and box:
+                vals, times = np.array(box).T
+                checks.append(worst_check(f"CoM bound {bounds.name!r} box", CheckKind.COM_BOX, vals, times, tolerance,
+                                          "m", bounds.name))
+        return checks
 
     diagnosis = staticmethod(_com_bound_sentence)
 
@@ -279,6 +362,34 @@ class FramePositionTerm(_Target):
         err = (kin.frame(self.frame_id).translation - self.params[0:3])[np.array(self.axes)]
         return _target_residual(err, self.mode, self.params[3])
 
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """Per frame target of the spec, over its knots (the fixed ones included): the worst position
+        error [m] on its axes, then (the :class:`FrameOrientationTerm` kind's check, reported here to
+        keep a target's two checks together) the worst angle [rad] (``log3``). A soft target's
+        tolerance is infinite: it is reported, never failed."""
+        from tasks.specs import Priority
+
+        lay, t = ctx.lay, ctx.lay.t
+        checks = []
+        for target in lay.spec.targets:
+            fid = lay.robot.frame_id(target.frame)
+            ks = knots_of(t, target.time, target.window, lay.N)
+            tol_scale = 1.0 if target.priority is Priority.HARD else math.inf
+            if target.position is not None:
+                axes = np.array(target.axes)
+                errs = [np.linalg.norm((ctx.placements[k][fid].translation - np.array(target.position))[axes])
+                        for k in ks]
+                checks.append(worst_check(f"{target.frame} target {target.name!r}", CheckKind.TARGET_POSITION,
+                                          np.array(errs), t[ks], target.tolerance * tol_scale + 1e-9, "m", target.name))
+            if target.rpy is not None:
+                R_t = pin.rpy.rpyToMatrix(*target.rpy)
+                errs = [np.linalg.norm(pin.log3(R_t.T @ ctx.placements[k][fid].rotation)) for k in ks]
+                checks.append(worst_check(f"{target.frame} orientation target {target.name!r}",
+                                          CheckKind.TARGET_ORIENTATION, np.array(errs), t[ks],
+                                          target.orientation_tolerance * tol_scale + 1e-9, "rad", target.name))
+        return checks
+
 
 @dataclass(eq=False)
 class FrameOrientationTerm(_Target):
@@ -357,6 +468,24 @@ class CoMPositionTerm(_Target):
         """The rows, or ``[cost]``, in numpy (:meth:`Term.residual`)."""
         err = (kin.com - self.params[0:3])[np.array(self.axes)]
         return _target_residual(err, self.mode, self.params[3])
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """Per CoM target of the spec, the worst error [m] on its axes over its knots (the CoM
+        centring is a cost: not reported)."""
+        from tasks.specs import Priority
+
+        lay, com, t = ctx.lay, ctx.com, ctx.lay.t
+        checks = []
+        for com_target in lay.spec.com_targets:
+            ks = knots_of(t, com_target.time, com_target.window, lay.N)
+            axes = np.array([v is not None for v in com_target.position])
+            goal = np.array([0.0 if v is None else v for v in com_target.position])
+            errs = [np.linalg.norm((com[k] - goal)[axes]) for k in ks]
+            tol = com_target.tolerance if com_target.priority is Priority.HARD else math.inf
+            checks.append(worst_check(f"CoM target {com_target.name!r}", CheckKind.COM_TARGET, np.array(errs), t[ks],
+                                      tol + 1e-9, "m", com_target.name))
+        return checks
 
 
 @dataclass(eq=False)

@@ -57,7 +57,7 @@ from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
 from planner.trajopt.settings import PlannerSettings
-from planner.trajopt.term import NumericKinematics, StageKinematics, Term, knots_of
+from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots.collision import body_part
 from robots.model import Robot
 from tasks.scene import Scene, SceneObject, on_top
@@ -437,6 +437,13 @@ class SceneCollisionTerm(Term):
         spheres = self.params[12:].reshape(len(joints), 6)
         centres = np.array([kin.joint(j).act(c) for j, c in zip(joints, spheres[:, :3], strict=True)])
         return row_value(shape, (centres - pos_o) @ R_o, spheres[:, 3:])
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """The robot's closest approach to the scene's objects over the plan
+        (:func:`scene_collision_check`), when the spec has a scene with objects."""
+        scene = ctx.lay.spec.scene
+        return [scene_collision_check(ctx.lay, ctx.q)] if scene is not None and scene.objects else []
 
 
 def add_screened_scene_terms(lay: Layout, settings: PlannerSettings, q0: np.ndarray) -> SceneRows:

@@ -16,14 +16,17 @@ guess imports the nominal motion, which screens against the collision model.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
 
+from planner.results import Check
+
 if TYPE_CHECKING:
-    from planner.results import Check, CheckKind
+    from planner.results import CheckKind
     from robots.model import Robot
 
 #: Every term kind by its ``kind``: filled when a subclass of :class:`Term` is defined.
@@ -96,6 +99,13 @@ class Term:
         raise NotImplementedError(f"term kind {self.kind!r} has no numpy residual")
 
     @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """The constraint report's checks of this kind for a plan (Pinocchio numerics on the plan's
+        configurations, at every knot the spec item applies to, the fixed ones included): none by
+        default (a cost, or a kind reported with another)."""
+        return []
+
+    @classmethod
     def diagnosis(cls, check: Check, phase: str, status: str) -> str:
         """A sentence for a failed plan whose worst violated check is ``check`` (one of
         :attr:`check_kinds`, or a check of no kind: the joint limits), in phase ``phase``, the
@@ -111,6 +121,40 @@ class Term:
         unit = "rad" if check.unit == "rad" else "m"
         return (f"{check.name} is {gap:.2f} {unit} beyond reach at t = {check.time:.2f} s "
                 f"(closest {check.violation:.2f} {unit}, tolerance {tolerance:g} {unit})")
+
+
+@dataclass(frozen=True, eq=False)
+class ReportContext:
+    """What the report's checks of a plan read (:func:`planner.trajopt.checks.check_plan`).
+
+    Attributes:
+        lay: The layout (kinematic or dynamic).
+        q: Configurations (N+1, nq).
+        v: Velocities (N+1, nv).
+        com: CoM positions (N+1, 3) [m].
+        settings: The planner settings (tolerances).
+        placements: Per knot, the world placements of the frames the checks use.
+        halfplanes: Knot -> ``(A, b)`` of its support polygon, or None (``layout.support_halfplanes``).
+    """
+
+    lay: Any
+    q: np.ndarray
+    v: np.ndarray
+    com: np.ndarray
+    settings: Any
+    placements: list[dict[int, pin.SE3]]
+    halfplanes: Callable[[int], tuple[np.ndarray, np.ndarray] | None]
+
+
+def worst_check(name: str, kind: CheckKind, values: np.ndarray, times: np.ndarray, tolerance: float, unit: str,
+                subject: str = "") -> Check:
+    """The check of a group of violations: its worst value (at least 0) and its time."""
+    if len(values) == 0:
+        return Check.constraint(name=name, kind=kind, violation=0.0, tolerance=tolerance, unit=unit, time=0.0,
+                                subject=subject)
+    i = int(np.argmax(values))
+    return Check.constraint(name=name, kind=kind, violation=float(max(values[i], 0.0)), tolerance=tolerance,
+                            unit=unit, time=float(times[i]), subject=subject)
 
 
 def kind_of_check(kind: CheckKind) -> type[Term]:
