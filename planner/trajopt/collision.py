@@ -212,6 +212,16 @@ class SelfCollisionTerm(Term):
     kind: ClassVar[str] = "collision"
     check_kinds: ClassVar[tuple[CheckKind, ...]] = (CheckKind.SELF_COLLISION,)
 
+    @property
+    def sphere_pairs(self) -> tuple[tuple[int, int], ...]:
+        """The chosen sphere pairs ``(i, j)``: sphere i of link a, sphere j of link b."""
+        return self.structure[5]
+
+    @property
+    def n_b(self) -> int:
+        """The number of spheres of link b."""
+        return self.structure[4]
+
     def _centres(self, p) -> tuple:
         _, _, _, na, nb, _ = self.structure
         return p[0: 3 * na], p[3 * na: 3 * na + 3 * nb]
@@ -272,8 +282,7 @@ def collision_rows_of(lay: Layout, sets: SphereSets) -> Rows:
         if not isinstance(t, SelfCollisionTerm) or t.item not in index:
             continue
         pi = index[t.item]
-        nb = t.structure[4]
-        rows.spheres.setdefault(pi, set()).update(i * nb + j for i, j in t.structure[5])
+        rows.spheres.setdefault(pi, set()).update(i * t.n_b + j for i, j in t.sphere_pairs)
         rows.knots.setdefault(pi, set()).add(t.knot)
     return rows
 

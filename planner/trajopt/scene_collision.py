@@ -347,7 +347,7 @@ def scene_rows_of(lay: Layout) -> SceneRows:
         if not isinstance(t, SceneCollisionTerm):
             continue
         oi = index[str(t.item)]
-        joints = t.structure[2]
+        joints = t.joints
         local = t.params[12:].reshape(len(joints), 6)[:, :3]
         spheres = rows.spheres.setdefault(oi, set())
         for j, c in zip(joints, local, strict=True):
@@ -408,6 +408,11 @@ class SceneCollisionTerm(Term):
 
     kind: ClassVar[str] = "scene"
     check_kinds: ClassVar[tuple[CheckKind, ...]] = (CheckKind.SCENE_COLLISION,)
+
+    @property
+    def joints(self) -> tuple[int, ...]:
+        """The joint of each sphere, in row order."""
+        return self.structure[2]
 
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, 0) in CasADi (:meth:`Term.expression`)."""
