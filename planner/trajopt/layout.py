@@ -13,7 +13,8 @@ Each spec item becomes :class:`Term`\\ s at knots. A term separates
   bounds as ``lbg``/``ubg``), which change from solve to solve without a rebuild.
 
 One function per formulation piece (contacts, swing clearance, balance, frame targets, CoM
-targets, joint targets). CoM dynamics with contact forces (``spec.dynamic``) add pieces with
+targets, joint targets) picks the knots; what one term at one knot is (its rows, expression, residual,
+report and diagnosis) is its kind's class (:mod:`planner.trajopt.kinds`, ``docs/terms.md``). CoM dynamics with contact forces (``spec.dynamic``) add pieces with
 their own variables through the formulation protocol (:mod:`planner.trajopt.formulation`):
 :class:`Layout` is the kinematic formulation, ``planner.trajopt.centroidal.layout.DynamicLayout``
 the dynamic one.
@@ -44,7 +45,6 @@ from planner.trajopt.kinds import (
     JointTargetTerm,
     SupportPolygonTerm,
     target_mode,
-    target_upper,
 )
 from planner.trajopt.term import Term, knots_of
 from robots.contact import halfplanes, sole_corners_in_world
@@ -475,5 +475,3 @@ def closed_chain_terms(lay: Layout) -> None:
 def _mode(priority: Priority, tolerance: float) -> str:
     return target_mode(priority is Priority.SOFT, tolerance)
 
-
-_target_upper = target_upper  # the name the layout used before the term kinds were classes
