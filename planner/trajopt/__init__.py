@@ -5,9 +5,11 @@ Modules, in import order (each imports only the ones above it; tests/test_layeri
 
 * ``symbolic``: CasADi kinematics from a Pinocchio model, over the tangent chart;
 * ``settings``: :class:`PlannerSettings` (``centroidal.settings``: its dynamic part);
+* ``term``: a term at one knot and the registry of term kinds; ``kinds``: the kinematic kinds,
+  one class each (``collision``, ``scene_collision``: the collision kinds; docs/terms.md);
 * ``layout``: spec -> knot grid -> per-knot terms (:class:`Layout`, the kinematic formulation);
   ``formulation``: the protocol a formulation implements; ``nominal``: the warm start;
-* ``terms``: the CasADi expression of each term; ``transcription``: the NLP and its
+* ``terms``: the stage functions of the terms at a knot; ``transcription``: the NLP and its
   derivatives, bounds and parameters;
 * ``ipopt``: the backend's options and statuses; ``cache``: compiled solvers in memory and on
   disk; ``solve``: one solve of a layout;

@@ -16,6 +16,14 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
+from planner.trajopt.collision import SelfCollisionTerm
+from planner.trajopt.kinds import (
+    ClearanceTerm,
+    CoMPositionTerm,
+    ContactTerm,
+    FramePositionTerm,
+    SupportPolygonTerm,
+)
 from planner.trajopt.layout import (
     Layout,
     halfplanes,
@@ -24,7 +32,9 @@ from planner.trajopt.layout import (
     support_halfplanes,
     support_polygon,
 )
+from planner.trajopt.scene_collision import SceneCollisionTerm
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.term import ReportContext, Term, worst_check
 from tasks.specs import Priority
 
 START_TOLERANCE = 1e-3  # [m], [rad]: first-phase contacts vs the standing soles
@@ -45,136 +55,45 @@ def finite_differences(model: pin.Model, q: np.ndarray, dt: float) -> tuple[np.n
     return v, a
 
 
-def _worst(name: str, kind: CheckKind, values: np.ndarray, times: np.ndarray, tolerance: float, unit: str,
-           subject: str = "") -> Check:
-    if len(values) == 0:
-        return Check.constraint(name=name, kind=kind, violation=0.0, tolerance=tolerance, unit=unit, time=0.0,
-                                subject=subject)
-    i = int(np.argmax(values))
-    return Check.constraint(name=name, kind=kind, violation=float(max(values[i], 0.0)), tolerance=tolerance,
-                            unit=unit, time=float(times[i]), subject=subject)
+#: The term kinds whose checks the report lists before the joint limits, in this order (the CoM
+#: bound's box is reported with its polygon, a frame target's orientation with its position).
+REPORTED_BEFORE_LIMITS: tuple[type[Term], ...] = (ContactTerm, ClearanceTerm, SupportPolygonTerm, FramePositionTerm,
+                                                  CoMPositionTerm)
+#: ... and after them.
+REPORTED_AFTER_LIMITS: tuple[type[Term], ...] = (SelfCollisionTerm, SceneCollisionTerm)
 
 
 def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
                settings: PlannerSettings) -> list[Check]:
-    """Every constraint group's worst violation, evaluated with Pinocchio at the knots."""
+    """Every constraint group's worst violation, evaluated with Pinocchio at the knots: each term
+    kind's checks (:meth:`planner.trajopt.term.Term.report`), and the joint position and velocity
+    limits (bounds on the variables and rows of the transcription, not terms)."""
     robot, spec, t = lay.robot, lay.spec, lay.t
     model, data = robot.model, robot.data()
     used = sorted({fid for active in lay.contacts_at for fid in active}
-                  | {term.structure[1] for term in lay.terms if term.kind == "clearance"}
+                  | {term.frame_id for term in lay.terms if isinstance(term, ClearanceTerm)}
                   | {robot.frame_id(target.frame) for target in spec.targets})
     placements: list[dict[int, pin.SE3]] = []  # per knot, the placements of the frames checked
     for qk in q:
         pin.forwardKinematics(model, data, qk)
         placements.append({fid: pin.updateFramePlacement(model, data, fid).copy() for fid in used})
-    checks: list[Check] = []
-    # stance soles
-    names: dict[int, str] = {}
-    pos_err: dict[int, list] = {}
-    rot_err: dict[int, list] = {}
-    for k, active in enumerate(lay.contacts_at):
-        for fid, (frame, M) in active.items():
-            names.setdefault(fid, frame)
-            oMf = placements[k][fid]
-            pos_err.setdefault(fid, []).append((np.linalg.norm(oMf.translation - M.translation), t[k]))
-            rot_err.setdefault(fid, []).append((np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)), t[k]))
-    for fid, frame in names.items():
-        pe, rt = np.array(pos_err[fid]).T
-        checks.append(_worst(f"{frame} contact position", CheckKind.CONTACT_POSITION, pe, rt,
-                             settings.contact_tolerance, "m", frame))
-        re, rt = np.array(rot_err[fid]).T
-        checks.append(_worst(f"{frame} contact orientation", CheckKind.CONTACT_ORIENTATION, re, rt,
-                             settings.contact_tolerance, "rad", frame))
-    # swing clearance (from the layout's clearance terms)
-    clear: dict[str, list] = {}
-    for term in lay.terms:
-        if term.kind == "clearance":
-            z = placements[term.knot][term.structure[1]].translation[2]
-            frame = term.label.split()[0]
-            clear.setdefault(frame, []).append((term.lower[0] - z, t[term.knot]))
-    for frame, rows in clear.items():
-        vals, times = np.array(rows).T
-        checks.append(_worst(f"{frame} clearance", CheckKind.SWING_CLEARANCE, vals, times,
-                             settings.polygon_tolerance, "m", frame))
-    checks += _com_bound_checks(lay, com, settings)
-    # frame targets
-    for target in spec.targets:
-        fid = robot.frame_id(target.frame)
-        ks = knots_of(t, target.time, target.window, lay.N)
-        tol_scale = 1.0 if target.priority is Priority.HARD else math.inf
-        if target.position is not None:
-            axes = np.array(target.axes)
-            errs = [np.linalg.norm((placements[k][fid].translation - np.array(target.position))[axes]) for k in ks]
-            checks.append(_worst(f"{target.frame} target {target.name!r}", CheckKind.TARGET_POSITION, np.array(errs),
-                                 t[ks], target.tolerance * tol_scale + 1e-9, "m", target.name))
-        if target.rpy is not None:
-            R_t = pin.rpy.rpyToMatrix(*target.rpy)
-            errs = [np.linalg.norm(pin.log3(R_t.T @ placements[k][fid].rotation)) for k in ks]
-            checks.append(_worst(f"{target.frame} orientation target {target.name!r}", CheckKind.TARGET_ORIENTATION,
-                                 np.array(errs), t[ks], target.orientation_tolerance * tol_scale + 1e-9, "rad",
-                                 target.name))
-    for com_target in spec.com_targets:
-        ks = knots_of(t, com_target.time, com_target.window, lay.N)
-        axes = np.array([v is not None for v in com_target.position])
-        goal = np.array([0.0 if v is None else v for v in com_target.position])
-        errs = [np.linalg.norm((com[k] - goal)[axes]) for k in ks]
-        tol = com_target.tolerance if com_target.priority is Priority.HARD else math.inf
-        checks.append(_worst(f"CoM target {com_target.name!r}", CheckKind.COM_TARGET, np.array(errs), t[ks], tol + 1e-9,
-                             "m", com_target.name))
+    ctx = ReportContext(lay=lay, q=q, v=v, com=com, settings=settings, placements=placements,
+                        halfplanes=lambda k: support_halfplanes(lay, k))
+    checks = [c for kind in REPORTED_BEFORE_LIMITS for c in kind.report(ctx)]
     # joint limits
     lower = np.asarray(model.lowerPositionLimit, dtype=float)[7:]
     upper = np.asarray(model.upperPositionLimit, dtype=float)[7:]
     lower = np.where(np.abs(lower) < 1e10, lower, -np.inf)
     upper = np.where(np.abs(upper) < 1e10, upper, np.inf)
     viol = np.maximum(lower - q[:, 7:], q[:, 7:] - upper).max(axis=1)
-    checks.append(_worst("joint position limits", CheckKind.JOINT_POSITION_LIMITS, viol, t, settings.limit_tolerance,
-                         "rad"))
+    checks.append(worst_check("joint position limits", CheckKind.JOINT_POSITION_LIMITS, viol, t,
+                              settings.limit_tolerance, "rad"))
     vmax = np.asarray(model.velocityLimit, dtype=float)[6:]
     vmax = np.where((vmax > 0) & (vmax < 1e10), vmax, np.inf)
     vviol = (np.abs(v[:, 6:]) - vmax).max(axis=1)
-    checks.append(_worst("joint velocity limits", CheckKind.JOINT_VELOCITY_LIMITS, vviol, t,
-                         settings.limit_tolerance / lay.dt, "rad/s"))
-    if settings.self_collision:
-        from planner.trajopt.collision import self_collision_check
-
-        checks.append(self_collision_check(lay, q, settings))
-    if spec.scene is not None and spec.scene.objects:
-        from planner.trajopt.scene_collision import scene_collision_check
-
-        checks.append(scene_collision_check(lay, q))
-    return checks
-
-
-def _com_bound_checks(lay: Layout, com: np.ndarray, settings: PlannerSettings) -> list[Check]:
-    """The worst violation of each CoM bound of the spec: its support polygon and its box."""
-    spec, t = lay.spec, lay.t
-    checks: list[Check] = []
-    for bounds in spec.com_bounds:
-        ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)
-        poly, box = [], []
-        for k in ks:
-            if bounds.support_polygon:
-                planes = support_halfplanes(lay, k)
-                if planes is not None:
-                    A, b = planes
-                    poly.append((float(np.max(A @ com[k, :2] - (b - bounds.margin))), t[k]))
-            viol = 0.0
-            for i in range(3):
-                lo, hi = bounds.lower[i], bounds.upper[i]
-                if lo is not None:
-                    viol = max(viol, lo - com[k, i])
-                if hi is not None:
-                    viol = max(viol, com[k, i] - hi)
-            box.append((viol, t[k]))
-        if bounds.support_polygon and poly:
-            vals, times = np.array(poly).T
-            checks.append(_worst(f"CoM bound {bounds.name!r} support polygon", CheckKind.COM_SUPPORT_POLYGON, vals,
-                                 times, settings.polygon_tolerance, "m", bounds.name))
-        if any(x is not None for x in (*bounds.lower, *bounds.upper)) and box:
-            vals, times = np.array(box).T
-            checks.append(_worst(f"CoM bound {bounds.name!r} box", CheckKind.COM_BOX, vals, times,
-                                 settings.polygon_tolerance, "m", bounds.name))
-    return checks
+    checks.append(worst_check("joint velocity limits", CheckKind.JOINT_VELOCITY_LIMITS, vviol, t,
+                              settings.limit_tolerance / lay.dt, "rad/s"))
+    return checks + [c for kind in REPORTED_AFTER_LIMITS for c in kind.report(ctx)]
 
 
 def _has_point(A: np.ndarray, b: np.ndarray) -> bool:

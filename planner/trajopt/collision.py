@@ -6,9 +6,9 @@ capsule, which contains the link's meshes). A checked link pair at a knot become
 
     ``|c_i - c_j|^2 >= (R_a + R_b + margin)^2``   for every sphere i of a and j of b,
 
-smooth in ``dq`` (no min over segments): a ``collision`` :class:`~planner.trajopt.layout.Term`
-whose structure is ``("collision", joint_a, joint_b, n_a, n_b)`` (so it keys the solver cache)
-and whose parameters are the sphere centres in the joints' frames.
+smooth in ``dq`` (no min over segments): a :class:`SelfCollisionTerm` whose structure is
+``("collision", joint_a, joint_b, n_a, n_b, sphere pairs)`` (so it keys the solver cache) and whose
+parameters are the sphere centres in the joints' frames.
 
 Screening keeps the NLP small: the sphere-set distance of every pair is evaluated (numpy) at
 every knot of the initial guess, and rows are added only for pairs closer than
@@ -24,14 +24,14 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from planner.trajopt.settings import PlannerSettings
-from planner.trajopt.term import Term
+from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term
 from robots.collision import CollisionModel, body_part, collision_model
 from robots.model import Robot
 
@@ -202,6 +202,58 @@ def pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
     return np.minimum.reduceat(sphere_pair_distances(robot, sets, q), sets.starts, axis=1)
 
 
+@dataclass(eq=False)
+class SelfCollisionTerm(Term):
+    """Squared distances between spheres of two links, one row ``|c_i - c_j|^2 >= (R_i + R_j +
+    margin)^2`` [m^2] per chosen sphere pair ``(i, j)``. Structure ``("collision", joint a, joint b,
+    n_a, n_b, sphere pairs)``; parameters the centres in the joints' frames, column-major (3, n_a)
+    then (3, n_b). ``item`` is the link pair's names."""
+
+    kind: ClassVar[str] = "collision"
+    check_kinds: ClassVar[tuple[CheckKind, ...]] = (CheckKind.SELF_COLLISION,)
+
+    @property
+    def sphere_pairs(self) -> tuple[tuple[int, int], ...]:
+        """The chosen sphere pairs ``(i, j)``: sphere i of link a, sphere j of link b."""
+        return self.structure[5]
+
+    @property
+    def n_b(self) -> int:
+        """The number of spheres of link b."""
+        return self.structure[4]
+
+    def _centres(self, p) -> tuple:
+        _, _, _, na, nb, _ = self.structure
+        return p[0: 3 * na], p[3 * na: 3 * na + 3 * nb]
+
+    def expression(self, p, kin: StageKinematics) -> tuple:
+        """(rows, 0) in CasADi (:meth:`Term.expression`)."""
+        import casadi as ca
+
+        _, ja, jb, na, nb, chosen = self.structure
+        worlds = []
+        for j, n, flat in zip((ja, jb), (na, nb), self._centres(p), strict=True):
+            R, pos = kin.joints[j]
+            worlds.append(ca.repmat(pos, 1, n) + ca.mtimes(R, ca.reshape(flat, 3, n)))
+        wa, wb = worlds
+        return ca.vertcat(*[ca.sumsqr(wa[:, i] - wb[:, j]) for i, j in chosen]), 0
+
+    def residual(self, kin: NumericKinematics) -> np.ndarray:
+        """The rows in numpy (:meth:`Term.residual`)."""
+        _, ja, jb, na, nb, chosen = self.structure
+        ca_, cb_ = (np.asarray(flat, dtype=float).reshape(n, 3) for flat, n in zip(self._centres(self.params), (na, nb),
+                                                                                  strict=True))
+        wa = ca_ @ kin.joint(ja).rotation.T + kin.joint(ja).translation
+        wb = cb_ @ kin.joint(jb).rotation.T + kin.joint(jb).translation
+        return np.array([float(np.dot(wa[i] - wb[j], wa[i] - wb[j])) for i, j in chosen])
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """The closest checked link pair over the plan (:func:`self_collision_check`), when
+        ``settings.self_collision``."""
+        return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.self_collision else []
+
+
 @dataclass
 class Rows:
     """The collision rows of a layout, per checked link pair: the sphere pairs (indices into the
@@ -227,11 +279,10 @@ def collision_rows_of(lay: Layout, sets: SphereSets) -> Rows:
     index = {name: i for i, name in enumerate(sets.pair_names)}
     rows = Rows()
     for t in lay.terms:
-        if t.kind != "collision" or t.item not in index:
+        if not isinstance(t, SelfCollisionTerm) or t.item not in index:
             continue
         pi = index[t.item]
-        nb = t.structure[4]
-        rows.spheres.setdefault(pi, set()).update(i * nb + j for i, j in t.structure[5])
+        rows.spheres.setdefault(pi, set()).update(i * t.n_b + j for i, j in t.sphere_pairs)
         rows.knots.setdefault(pi, set()).add(t.knot)
     return rows
 
@@ -300,7 +351,7 @@ def set_collision_terms(lay: Layout, sets: SphereSets, rows: Rows, pairs: list[i
     a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``."""
     robot = lay.robot
     names = {pi: sets.pair_names[pi] for pi in pairs}
-    lay.terms = [t for t in lay.terms if not (t.kind == "collision" and t.item in names.values())]
+    lay.terms = [t for t in lay.terms if not (isinstance(t, SelfCollisionTerm) and t.item in names.values())]
     for pi in pairs:
         a, b = (int(x) for x in sets.pairs[pi])
         ca_, cb_ = sets.centres[a], sets.centres[b]
@@ -309,9 +360,9 @@ def set_collision_terms(lay: Layout, sets: SphereSets, rows: Rows, pairs: list[i
         bound = np.array([(sets.radii[a][i] + sets.radii[b][j] + margin) ** 2 for i, j in chosen])
         label = f"self-collision {body_part(robot, names[pi][0])} / {body_part(robot, names[pi][1])}"
         for k in sorted(rows.knots[pi]):
-            lay.terms.append(Term(
-                kind="collision", knot=k,
-                structure=("collision", int(sets.joints[a]), int(sets.joints[b]), len(ca_), nb, chosen),
+            lay.terms.append(SelfCollisionTerm(
+                knot=k,
+                structure=(SelfCollisionTerm.kind, int(sets.joints[a]), int(sets.joints[b]), len(ca_), nb, chosen),
                 params=np.concatenate([ca_.ravel(), cb_.ravel()]),  # (3, n) column-major: x, y, z per sphere
                 lower=bound, upper=np.full(len(chosen), math.inf),
                 label=label, item=names[pi], phase=lay.phase_name(k),
@@ -339,7 +390,7 @@ def strip_collision_terms(lay: Layout) -> Layout:
     import copy
 
     out = copy.copy(lay)
-    out.terms = [t for t in lay.terms if t.kind != "collision"]
+    out.terms = [t for t in lay.terms if not isinstance(t, SelfCollisionTerm)]
     return out
 
 
@@ -430,7 +481,7 @@ def collision_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Ca
     term modules, so they do not import it back)."""
     from planner.trajopt.symbolic import chart_to_configuration
 
-    if not any(t.kind == "collision" for t in lay.terms):
+    if not any(isinstance(t, SelfCollisionTerm) for t in lay.terms):
         return ""
     free = strip_collision_terms(lay)
     x0 = free.initial_guess(settings)

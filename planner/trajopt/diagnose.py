@@ -7,8 +7,10 @@ from __future__ import annotations
 import dataclasses
 
 from planner.results import Check, CheckKind, Plan
+from planner.trajopt.kinds import FrameOrientationTerm
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.term import kind_of_check
 from tasks.specs import Priority
 
 RELAXED_WEIGHT = 1e4  # [1/m^2] weight of a hard target turned into a cost while diagnosing
@@ -44,15 +46,13 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
                 item = _target_of(chk, hard, hard_com)
                 if item is None:
                     continue
-                tol = item.orientation_tolerance if chk.kind is CheckKind.TARGET_ORIENTATION else item.tolerance
+                tol = item.orientation_tolerance if chk.kind in FrameOrientationTerm.check_kinds else item.tolerance
                 if chk.violation > tol:
-                    misses.append((chk.violation - tol, chk, item))
+                    misses.append((chk.violation - tol, chk, tol))
             if misses:
                 misses.sort(key=lambda m: -m[0])
-                gap, chk, item = misses[0]
-                unit = "rad" if chk.unit == "rad" else "m"
-                text = (f"{chk.name} is {gap:.2f} {unit} beyond reach at t = {chk.time:.2f} s "
-                        f"(closest {chk.violation:.2f} {unit}, tolerance {tol:g} {unit})")
+                gap, chk, tol = misses[0]
+                text = kind_of_check(chk.kind).missed(chk, gap, tol)
                 if len(misses) > 1:
                     text += "; also " + ", ".join(f"{m[1].name} ({m[0]:.2f} {m[1].unit})" for m in misses[1:])
                 return text
@@ -64,16 +64,7 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
     if not bad:
         return f"the solver stopped: {status} ({failed.stats.raw_status}) after {failed.stats.iterations} iterations"
     c = bad[0]
-    phase = spec.phases[spec.phase_at(c.time)].name
-    if c.kind in _COM_BOUND_KINDS:
-        name = f"CoM bound {c.subject!r}"
-        return (f"{name} cannot hold in phase {phase!r}: the CoM ends {c.violation:.3f} m outside at "
-                f"t = {c.time:.2f} s ({status})")
-    return (f"{c.name} violated by {c.violation:.3g} {c.unit} at t = {c.time:.2f} s in phase {phase!r} "
-            f"({status})")
-
-
-_COM_BOUND_KINDS = (CheckKind.COM_SUPPORT_POLYGON, CheckKind.COM_SUPPORT_POLYGON_AT_REST, CheckKind.COM_BOX)
+    return kind_of_check(c.kind).diagnosis(c, spec.phases[spec.phase_at(c.time)].name, status)
 
 
 def _target_of(check: Check, hard, hard_com):

@@ -13,7 +13,8 @@ Each spec item becomes :class:`Term`\\ s at knots. A term separates
   bounds as ``lbg``/``ubg``), which change from solve to solve without a rebuild.
 
 One function per formulation piece (contacts, swing clearance, balance, frame targets, CoM
-targets, joint targets). CoM dynamics with contact forces (``spec.dynamic``) add pieces with
+targets, joint targets) picks the knots; what one term at one knot is (its rows, expression, residual,
+report and diagnosis) is its kind's class (:mod:`planner.trajopt.kinds`, ``docs/terms.md``). CoM dynamics with contact forces (``spec.dynamic``) add pieces with
 their own variables through the formulation protocol (:mod:`planner.trajopt.formulation`):
 :class:`Layout` is the kinematic formulation, ``planner.trajopt.centroidal.layout.DynamicLayout``
 the dynamic one.
@@ -30,6 +31,21 @@ import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import SpecNotForRobot
+from planner.trajopt.kinds import (
+    CHAIN_ORIENTATION_TOLERANCE,  # noqa: F401 - re-exported: the layout's names before the kinds were classes
+    CHAIN_TOLERANCE,  # noqa: F401
+    HARD_EQUALITY_TOLERANCE,  # noqa: F401
+    ClearanceTerm,
+    ClosedChainTerm,
+    CoMBoxTerm,
+    CoMPositionTerm,
+    ContactTerm,
+    FrameOrientationTerm,
+    FramePositionTerm,
+    JointTargetTerm,
+    SupportPolygonTerm,
+    target_mode,
+)
 from planner.trajopt.term import Term, knots_of
 from robots.contact import halfplanes, sole_corners_in_world
 from robots.contact import support_polygon as polygon_of_soles
@@ -195,9 +211,7 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
     for joint_target in spec.joint_targets:
         joint_target_terms(lay, joint_target)
     closed_chain_terms(lay)
-    used = sorted({t.structure[1] for t in lay.terms if t.kind in ("contact", "clearance", "frame_pos", "frame_rot")}
-                  | {f for t in lay.terms if t.kind == "frame_rel" for f in t.structure[1:3]})
-    lay.frame_ids = used
+    lay.frame_ids = sorted({f for t in lay.terms for f in t.frames()})
     return lay
 
 
@@ -212,12 +226,7 @@ def contact_terms(lay: Layout) -> None:
         if not _use(lay, k):
             continue
         for fid, (frame, M) in lay.contacts_at[k].items():
-            lay.terms.append(Term(
-                kind="contact", knot=k, structure=("contact", fid),
-                params=np.concatenate([M.translation, M.rotation.T.ravel()]),  # column-major R
-                lower=np.zeros(6), upper=np.zeros(6),
-                label=f"{frame} contact", phase=lay.phase_name(k),
-            ))
+            lay.terms.append(ContactTerm.at(k, fid, frame, M, lay.phase_name(k)))
 
 
 def swing_terms(lay: Layout) -> None:
@@ -229,22 +238,14 @@ def swing_terms(lay: Layout) -> None:
         for k in range(lay.N + 1):
             if not _use(lay, k) or fid in lay.contacts_at[k]:
                 continue
-            lay.terms.append(Term(
-                kind="clearance", knot=k, structure=("clearance", fid),
-                lower=np.array([0.0]), upper=np.array([INF]),
-                label=f"{frame} above ground", phase=lay.phase_name(k),
-            ))
+            lay.terms.append(ClearanceTerm.at(k, fid, 0.0, f"{frame} above ground", lay.phase_name(k)))
         for i, ph in enumerate(spec.phases):
             if any(robot.frame_id(c.frame) == fid for c in ph.contacts) or ph.swing_height <= 0:
                 continue
             k = int(round((starts[i] + 0.5 * ph.duration) / lay.dt))
             if not _use(lay, k) or fid in lay.contacts_at[k]:
                 continue
-            lay.terms.append(Term(
-                kind="clearance", knot=k, structure=("clearance", fid),
-                lower=np.array([ph.swing_height]), upper=np.array([INF]),
-                label=f"{frame} swing clearance", phase=ph.name,
-            ))
+            lay.terms.append(ClearanceTerm.at(k, fid, ph.swing_height, f"{frame} swing clearance", ph.name))
 
 
 COM_CENTERING_WEIGHT = 20.0  # [1/m^2 per s]: CoM ground projection towards the support centre
@@ -272,21 +273,16 @@ def regularization_terms(lay: Layout) -> None:
         hull = support_polygon(lay, k)
         if len(hull) >= 3:
             centre = hull.mean(axis=0)
-            lay.terms.append(Term(
-                kind="com_pos", knot=k, structure=("com_pos", (True, True, False), "soft"),
-                params=np.array([centre[0], centre[1], 0.0, COM_CENTERING_WEIGHT * lay.dt]),
-                label="CoM centring (cost)", phase=lay.phase_name(k),
-            ))
+            lay.terms.append(CoMPositionTerm.at(k, (True, True, False), [centre[0], centre[1], 0.0], "soft",
+                                                COM_CENTERING_WEIGHT * lay.dt, np.zeros(0), "CoM centring (cost)",
+                                                lay.phase_name(k)))
         yaws = [math.atan2(M.rotation[1, 0], M.rotation[0, 0]) for M in
                 (M for fid, (_, M) in lay.contacts_at[k].items() if robot.foot_side(robot.model.frames[fid].name))]
         if yaws:
             yaw = math.atan2(sum(math.sin(y) for y in yaws), sum(math.cos(y) for y in yaws))
             R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ base_rotation
-            lay.terms.append(Term(
-                kind="frame_rot", knot=k, structure=("frame_rot", base, "soft"),
-                params=np.array([*R.T.ravel(), BASE_UPRIGHT_WEIGHT * lay.dt]),
-                label="base upright (cost)", phase=lay.phase_name(k),
-            ))
+            lay.terms.append(FrameOrientationTerm.at(k, base, R, "soft", BASE_UPRIGHT_WEIGHT * lay.dt, 0.0,
+                                                     "base upright (cost)", lay.phase_name(k)))
 
 
 def _standing_base_rotation(lay: Layout) -> np.ndarray:
@@ -380,36 +376,9 @@ def balance_terms(lay: Layout, bounds: CoMBounds) -> None:
                 A, b = planes
                 n_feet = sum(1 for fid in lay.contacts_at[k] if lay.robot.foot_side(lay.robot.model.frames[fid].name))
                 rows = max(POLYGON_ROWS.get(n_feet, 4 * n_feet), len(A))
-                A_pad = np.zeros((rows, 2))
-                b_pad = np.full(rows, 1.0)
-                A_pad[: len(A)] = A
-                b_pad[: len(A)] = b - bounds.margin
-                lay.terms.append(Term(
-                    kind="polygon", knot=k, structure=("polygon", rows),
-                    params=A_pad.T.ravel(), lower=np.full(rows, -INF), upper=b_pad,
-                    label=f"CoM bound {bounds.name!r} (support polygon)", item=bounds,
-                    phase=lay.phase_name(k),
-                ))
+                lay.terms.append(SupportPolygonTerm.at(k, A, b, rows, bounds, lay.phase_name(k)))
         if any(axes):
-            lo = np.array([-INF if v is None else v for v, a in zip(bounds.lower, axes, strict=True) if a])
-            hi = np.array([INF if v is None else v for v, a in zip(bounds.upper, axes, strict=True) if a])
-            lay.terms.append(Term(
-                kind="com_box", knot=k, structure=("com_box", axes), lower=lo, upper=hi,
-                label=f"CoM bound {bounds.name!r} (box)", item=bounds, phase=lay.phase_name(k),
-            ))
-
-
-HARD_EQUALITY_TOLERANCE = 1e-6  # [m] or [rad]: below it a hard target becomes an equality
-BOX_SHRINK = 0.995  # hard targets: the NLP keeps the error this far inside the tolerance
-
-
-def _target_upper(mode: str, n: int, tolerance: float) -> np.ndarray:
-    """Row bounds of a hard target: |err_i| <= 0.995 tol / sqrt(n) (a box inside the ball)."""
-    if mode == "soft":
-        return np.zeros(0)
-    if mode == "eq":
-        return np.zeros(n)
-    return np.full(n, BOX_SHRINK * tolerance / math.sqrt(n))
+            lay.terms.append(CoMBoxTerm.at(k, bounds, axes, lay.phase_name(k)))
 
 
 def frame_target_terms(lay: Layout, target: FrameTarget) -> None:
@@ -422,46 +391,21 @@ def frame_target_terms(lay: Layout, target: FrameTarget) -> None:
             continue  # fixed start knots: checked in the report only
         scale = 1.0 / len(ks)
         if target.position is not None:
-            mode = _mode(target.priority, target.tolerance)
-            upper = _target_upper(mode, sum(target.axes), target.tolerance)
-            lay.terms.append(Term(
-                kind="frame_pos", knot=kk, structure=("frame_pos", fid, target.axes, mode),
-                params=np.array([*target.position, target.weight * scale]),
-                lower=-upper,
-                upper=upper, label=f"{target.frame} target {target.name!r}", item=target,
-                phase=lay.phase_name(k),
-            ))
+            lay.terms.append(FramePositionTerm.at(kk, fid, target, scale, lay.phase_name(k)))
         if target.rpy is not None:
             mode = _mode(target.priority, target.orientation_tolerance)
-            s = math.sin(min(target.orientation_tolerance, math.pi / 2))
-            upper = _target_upper(mode, 3, s)
-            R = pin.rpy.rpyToMatrix(*target.rpy)
-            lay.terms.append(Term(
-                kind="frame_rot", knot=kk, structure=("frame_rot", fid, mode),
-                params=np.array([*R.T.ravel(), target.weight * scale]),
-                lower=-upper,
-                upper=upper, label=f"{target.frame} orientation target {target.name!r}", item=target,
-                phase=lay.phase_name(k),
-            ))
+            lay.terms.append(FrameOrientationTerm.at(
+                kk, fid, pin.rpy.rpyToMatrix(*target.rpy), mode, target.weight * scale, target.orientation_tolerance,
+                f"{target.frame} orientation target {target.name!r}", lay.phase_name(k), item=target))
 
 
 def com_target_terms(lay: Layout, target: CoMTarget) -> None:
     """CoM position targets (per axis) at their knots, hard or soft."""
-    axes = tuple(v is not None for v in target.position)
     ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
     for kk in ks:
-        k = kk
         if kk < 2:
             continue
-        mode = _mode(target.priority, target.tolerance)
-        upper = _target_upper(mode, sum(axes), target.tolerance)
-        lay.terms.append(Term(
-            kind="com_pos", knot=kk, structure=("com_pos", axes, mode),
-            params=np.array([0.0 if v is None else v for v in target.position]
-                            + [target.weight / len(ks)]),
-            lower=-upper,
-            upper=upper, label=f"CoM target {target.name!r}", item=target, phase=lay.phase_name(k),
-        ))
+        lay.terms.append(CoMPositionTerm.of_target(kk, target, len(ks), lay.phase_name(kk)))
 
 
 def joint_target_terms(lay: Layout, target: JointTarget) -> None:
@@ -477,18 +421,9 @@ def joint_target_terms(lay: Layout, target: JointTarget) -> None:
     iv = model.joints[jid].idx_v
     ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
     for kk in ks:
-        k = kk
         if kk < 2:
             continue
-        lay.terms.append(Term(
-            kind="joint", knot=kk, structure=("joint", iv),
-            params=np.array([target.value, target.weight / len(ks)]),
-            label=f"joint target {target.name!r}", item=target, phase=lay.phase_name(k),
-        ))
-
-
-CHAIN_TOLERANCE = 0.003  # [m]: the held object's centre as placed by one hand vs by the other
-CHAIN_ORIENTATION_TOLERANCE = 0.02  # [rad]: the hands' relative orientation vs at the grasp
+        lay.terms.append(JointTargetTerm.at(kk, iv, target, len(ks), lay.phase_name(kk)))
 
 
 def held_together(spec: TaskSpec) -> list[tuple[Grasp, Grasp]]:
@@ -523,30 +458,20 @@ def closed_chain_terms(lay: Layout) -> None:
     IPOPT left infeasible); the chain holds the hands between them."""
     posed: dict[int, set[tuple[str, int]]] = {}
     for t in lay.terms:
-        if t.kind in ("frame_pos", "frame_rot") and t.structure[-1] != "soft" and (t.kind == "frame_rot" or all(t.structure[2])):
-            posed.setdefault(t.knot, set()).add((t.kind, t.structure[1]))
+        if (isinstance(t, FrameOrientationTerm) or (isinstance(t, FramePositionTerm) and all(t.axes))) and t.hard:
+            posed.setdefault(t.knot, set()).add((t.kind, t.frame_id))
     for a, b in held_together(lay.spec):
         fa, fb = lay.robot.frame_id(a.frame), lay.robot.frame_id(b.frame)
         R_rel = grasp_relative_rotation(lay, a, b)
         end = lay.spec.horizon if a.end is None else a.end
         ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, None, (a.start, end), lay.N)})
-        upper = _target_upper("box", 3, CHAIN_TOLERANCE)
-        if R_rel is not None:
-            s = math.sin(CHAIN_ORIENTATION_TOLERANCE)
-            upper = np.concatenate([upper, _target_upper("box", 3, s)])
-        params = np.array([*a.offset, *b.offset, *(np.eye(3) if R_rel is None else R_rel).T.ravel()])
-        targeted = {(kind, f) for kind in ("frame_pos", "frame_rot") for f in (fa, fb)}
+        targeted = {(cls.kind, f) for cls in (FramePositionTerm, FrameOrientationTerm) for f in (fa, fb)}
         for k in ks:
             if not _use(lay, k) or (R_rel is not None and targeted <= posed.get(k, set())):
                 continue
-            lay.terms.append(Term(
-                kind="frame_rel", knot=k, structure=("frame_rel", fa, fb, R_rel is not None),
-                params=params, lower=-upper, upper=upper, item=a, phase=lay.phase_name(k),
-                label=f"both hands hold the {a.object} (closed chain)",
-            ))
+            lay.terms.append(ClosedChainTerm.at(k, fa, fb, a, b, R_rel, lay.phase_name(k)))
 
 
 def _mode(priority: Priority, tolerance: float) -> str:
-    if priority is Priority.SOFT:
-        return "soft"
-    return "eq" if tolerance < HARD_EQUALITY_TOLERANCE else "box"
+    return target_mode(priority is Priority.SOFT, tolerance)
+

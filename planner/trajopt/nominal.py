@@ -24,6 +24,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from planner.trajopt.kinds import (
+    ClosedChainTerm,
+    CoMPositionTerm,
+    FrameOrientationTerm,
+    FramePositionTerm,
+)
 from planner.trajopt.symbolic import configuration_to_chart
 
 if TYPE_CHECKING:
@@ -43,10 +49,10 @@ def _keyframe_tasks(lay: Layout) -> dict[int, list]:
     """Knot -> list of ('frame', fid, goal, axes) / ('com', goal, axes) hard position targets."""
     out: dict[int, list] = {}
     for term in lay.terms:
-        if term.kind == "frame_pos" and term.structure[3] != "soft":
-            out.setdefault(term.knot, []).append(("frame", term.structure[1], term.params[:3], term.structure[2]))
-        elif term.kind == "com_pos" and term.structure[2] != "soft":
-            out.setdefault(term.knot, []).append(("com", None, term.params[:3], term.structure[1]))
+        if isinstance(term, FramePositionTerm) and term.hard:
+            out.setdefault(term.knot, []).append(("frame", term.frame_id, term.params[:3], term.axes))
+        elif isinstance(term, CoMPositionTerm) and term.hard:
+            out.setdefault(term.knot, []).append(("com", None, term.params[:3], term.axes))
     return out
 
 
@@ -202,13 +208,13 @@ def _carry_between(lay: Layout, dq: np.ndarray, tasks: dict[int, list]) -> None:
     model = lay.robot.model
     pose: dict[int, dict[int, list]] = {}  # knot -> frame -> [position, rotation]
     for t in lay.terms:
-        if t.kind == "frame_pos" and t.structure[3] != "soft" and all(t.structure[2]):
-            pose.setdefault(t.knot, {}).setdefault(t.structure[1], [None, None])[0] = np.array(t.params[:3])
-        elif t.kind == "frame_rot" and t.structure[2] != "soft":
-            pose.setdefault(t.knot, {}).setdefault(t.structure[1], [None, None])[1] = np.array(t.params[:9]).reshape(3, 3).T
-    pairs = {t.structure[1:3] for t in lay.terms if t.kind == "frame_rel"}
-    for pair in pairs:
-        chained = {t.knot for t in lay.terms if t.kind == "frame_rel" and t.structure[1:3] == pair}
+        if isinstance(t, FramePositionTerm) and t.hard and all(t.axes):
+            pose.setdefault(t.knot, {}).setdefault(t.frame_id, [None, None])[0] = np.array(t.params[:3])
+        elif isinstance(t, FrameOrientationTerm) and t.hard:
+            pose.setdefault(t.knot, {}).setdefault(t.frame_id, [None, None])[1] = np.array(t.params[:9]).reshape(3, 3).T
+    chains = [t for t in lay.terms if isinstance(t, ClosedChainTerm)]
+    for pair in {t.pair for t in chains}:
+        chained = {t.knot for t in chains if t.pair == pair}
         placed = sorted(k for k, fr in pose.items()
                         if all(f in fr and fr[f][0] is not None and fr[f][1] is not None for f in pair))
         span = set(chained)  # with the placed knots that join the chained ones into runs

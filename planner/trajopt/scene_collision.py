@@ -48,7 +48,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -57,7 +57,7 @@ from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
 from planner.trajopt.settings import PlannerSettings
-from planner.trajopt.term import Term, knots_of
+from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots.collision import body_part
 from robots.model import Robot
 from tasks.scene import Scene, SceneObject, on_top
@@ -344,10 +344,10 @@ def scene_rows_of(lay: Layout) -> SceneRows:
     sets = sphere_sets(lay.robot)
     sphere_joint = sets.joints[sets.sphere_owner]
     for t in lay.terms:
-        if t.kind != "scene":
+        if not isinstance(t, SceneCollisionTerm):
             continue
         oi = index[str(t.item)]
-        joints = t.structure[2]
+        joints = t.joints
         local = t.params[12:].reshape(len(joints), 6)[:, :3]
         spheres = rows.spheres.setdefault(oi, set())
         for j, c in zip(joints, local, strict=True):
@@ -378,7 +378,7 @@ def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: Sc
     """(Re)write the ``scene`` terms of ``objects`` from ``rows``: one term per object and knot, a
     row per sphere (not in a planned contact with the object there) ``N >= BOUND[shape]``."""
     keys = {obs[oi].key for oi in objects}
-    lay.terms = [t for t in lay.terms if not (t.kind == "scene" and t.item in keys)]
+    lay.terms = [t for t in lay.terms if not (isinstance(t, SceneCollisionTerm) and t.item in keys)]
     excluded = contact_exclusions(lay, sets, obs)
     for oi in objects:
         ob = obs[oi]
@@ -389,36 +389,66 @@ def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: Sc
                 continue
             a = ob.inflated(sets.sphere_radius[chosen] + margin)
             per_sphere = np.hstack([sets.sphere_local[chosen], a]).ravel()  # (c_local, a) per sphere
-            lay.terms.append(Term(
-                kind="scene", knot=k,
-                structure=("scene", ob.shape, tuple(int(sets.joints[sets.sphere_owner[s]]) for s in chosen)),
+            lay.terms.append(SceneCollisionTerm(
+                knot=k,
+                structure=(SceneCollisionTerm.kind, ob.shape, tuple(int(sets.joints[sets.sphere_owner[s]]) for s in chosen)),
                 params=np.concatenate([ob.position, ob.rotation.T.ravel(), per_sphere]),  # R column-major
                 lower=np.full(len(chosen), BOUND[ob.shape]), upper=np.full(len(chosen), math.inf),
                 label=f"scene collision {ob.name}", item=ob.key, phase=lay.phase_name(k),
             ))
 
 
-def scene_rows(oMi: list, structure: tuple, p):
-    """CasADi rows ``N`` of a ``scene`` term (see the module docstring); ``p`` = object position (3),
-    rotation column-major (9), then per sphere its centre in its joint frame (3) and ``a`` (3)."""
-    import casadi as ca
+@dataclass(eq=False)
+class SceneCollisionTerm(Term):
+    """Robot spheres kept out of one scene object: a row ``N >= BOUND[shape]`` per sphere, ``N`` the
+    smooth p-norm of the sphere's centre in the object's frame over the inflated extents ``a``
+    (module docstring). Structure ``("scene", shape, joints of the spheres)``; parameters the
+    object's position (3) and rotation column-major (9), then per sphere its centre in its joint's
+    frame (3) and ``a`` (3). ``item`` is the object's key."""
 
-    _, shape, joints = structure
-    pos_o = p[0:3]
-    R_o = ca.reshape(p[3:12], 3, 3)
-    out = []
-    for i, j in enumerate(joints):
-        off = 12 + 6 * i
-        R, pos = oMi[j]
-        c = pos + ca.mtimes(R, p[off: off + 3])
-        s = ca.mtimes(R_o.T, c - pos_o) / p[off + 3: off + 6]
-        if shape == "sphere":
-            out.append(ca.norm_2(s))
-        elif shape == "cylinder":
-            out.append(((s[0] ** 2 + s[1] ** 2) ** (P_NORM // 2) + s[2] ** P_NORM) ** (1.0 / P_NORM))
-        else:
-            out.append((s[0] ** P_NORM + s[1] ** P_NORM + s[2] ** P_NORM) ** (1.0 / P_NORM))
-    return ca.vertcat(*out)
+    kind: ClassVar[str] = "scene"
+    check_kinds: ClassVar[tuple[CheckKind, ...]] = (CheckKind.SCENE_COLLISION,)
+
+    @property
+    def joints(self) -> tuple[int, ...]:
+        """The joint of each sphere, in row order."""
+        return self.structure[2]
+
+    def expression(self, p, kin: StageKinematics) -> tuple:
+        """(rows, 0) in CasADi (:meth:`Term.expression`)."""
+        import casadi as ca
+
+        _, shape, joints = self.structure
+        pos_o = p[0:3]
+        R_o = ca.reshape(p[3:12], 3, 3)
+        out = []
+        for i, j in enumerate(joints):
+            off = 12 + 6 * i
+            R, pos = kin.joints[j]
+            c = pos + ca.mtimes(R, p[off: off + 3])
+            s = ca.mtimes(R_o.T, c - pos_o) / p[off + 3: off + 6]
+            if shape == "sphere":
+                out.append(ca.norm_2(s))
+            elif shape == "cylinder":
+                out.append(((s[0] ** 2 + s[1] ** 2) ** (P_NORM // 2) + s[2] ** P_NORM) ** (1.0 / P_NORM))
+            else:
+                out.append((s[0] ** P_NORM + s[1] ** P_NORM + s[2] ** P_NORM) ** (1.0 / P_NORM))
+        return ca.vertcat(*out), 0
+
+    def residual(self, kin: NumericKinematics) -> np.ndarray:
+        """The rows in numpy (:meth:`Term.residual`), through :func:`row_value`."""
+        _, shape, joints = self.structure
+        pos_o, R_o = self.params[0:3], self.params[3:12].reshape(3, 3).T
+        spheres = self.params[12:].reshape(len(joints), 6)
+        centres = np.array([kin.joint(j).act(c) for j, c in zip(joints, spheres[:, :3], strict=True)])
+        return row_value(shape, (centres - pos_o) @ R_o, spheres[:, 3:])
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """The robot's closest approach to the scene's objects over the plan
+        (:func:`scene_collision_check`), when the spec has a scene with objects."""
+        scene = ctx.lay.spec.scene
+        return [scene_collision_check(ctx.lay, ctx.q)] if scene is not None and scene.objects else []
 
 
 def add_screened_scene_terms(lay: Layout, settings: PlannerSettings, q0: np.ndarray) -> SceneRows:
@@ -466,7 +496,7 @@ def strip_scene_terms(lay: Layout) -> Layout:
     import copy
 
     out = copy.copy(lay)
-    out.terms = [t for t in lay.terms if t.kind != "scene"]
+    out.terms = [t for t in lay.terms if not isinstance(t, SceneCollisionTerm)]
     return out
 
 
@@ -543,7 +573,7 @@ def scene_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Callab
     term modules, so they do not import it back)."""
     from planner.trajopt.symbolic import chart_to_configuration
 
-    if not any(t.kind == "scene" for t in lay.terms):
+    if not any(isinstance(t, SceneCollisionTerm) for t in lay.terms):
         return ""
     free = strip_scene_terms(lay)
     dq, stats, _ = solve_layout(free, dataclasses.replace(settings, compile=False), x0=free.initial_guess(settings))

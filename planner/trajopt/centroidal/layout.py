@@ -27,6 +27,7 @@ from planner.trajopt.centroidal.pattern import (
     swinging_corners,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
+from planner.trajopt.kinds import SupportPolygonTerm
 from planner.trajopt.layout import Layout
 
 if TYPE_CHECKING:
@@ -171,7 +172,7 @@ def to_dynamic_layout(lay: Layout, settings: CentroidalSettings = CentroidalSett
     import dataclasses
 
     fields = {f.name: getattr(lay, f.name) for f in dataclasses.fields(lay)}
-    fields["terms"] = [t for t in lay.terms if t.kind != "polygon" or t.knot == lay.N - 1]
+    fields["terms"] = [t for t in lay.terms if not isinstance(t, SupportPolygonTerm) or t.knot == lay.N - 1]
     out = DynamicLayout(**fields)
     out.centroidal_settings = settings
     out._cf = None

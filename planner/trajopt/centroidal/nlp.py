@@ -327,8 +327,10 @@ def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f
         The (nv (N-2), nv (N-2)) block-diagonal Hessian (MX, both triangles), without the
         constant quadratic costs.
     """
+    from planner.trajopt.kinds import ClosedChainTerm, CoMPositionTerm
     from planner.trajopt.symbolic import SymbolicKinematics
-    from planner.trajopt.terms import FRAME_KINDS, stage_groups, term_expression
+    from planner.trajopt.term import StageKinematics
+    from planner.trajopt.terms import stage_groups
 
     robot = lay.robot
     nq, nv, n = robot.nq, robot.nv, lay.N - 2
@@ -341,9 +343,10 @@ def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f
         dq = ca.SX.sym("dq", nv)
         qr = ca.SX.sym("q_ref", nq)
         oMi = kin.joint_placements(qr, dq)
-        frame_ids = sorted({t.structure[1] for t in terms if t.kind in FRAME_KINDS})
+        # a closed chain's frames come from the joint placements its term builds (as before the kinds were classes)
+        frame_ids = sorted({f for t in terms if not isinstance(t, ClosedChainTerm) for f in t.frames()})
         com = kin.com(oMi)
-        k = {"com": com, "frames": {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, "dq": dq}
+        stage = StageKinematics(robot, qr, dq, com, {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids})
         ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
         sigma = ca.SX.sym("sigma")
         rows, cost, offset = [], 0, 0
@@ -354,14 +357,14 @@ def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f
         for t in terms:
             pt = ps[offset: offset + len(t.params)]
             offset += len(t.params)
-            if t.kind == "com_pos" and t.structure[2] not in ("eq", "box"):
-                sel = [i for i, a in enumerate(t.structure[1]) if a]
+            if isinstance(t, CoMPositionTerm) and not t.hard:
+                sel = [i for i, a in enumerate(t.axes) if a]
                 e = (com - pt[0:3])[sel]
                 J = ca.jacobian(com[sel], dq)
                 gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
                 nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
                 continue
-            r, cst = term_expression(t, pt, k, qr, robot)
+            r, cst = t.expression(pt, stage)
             cost = cost + cst
             if r is not None:
                 rows.append(r)

@@ -25,9 +25,8 @@ until it has a twin here).
 
 from __future__ import annotations
 
-import inspect
+import dataclasses
 import math
-import re
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -49,8 +48,8 @@ from planner.trajopt.layout import Layout, make_layout, support_halfplanes, supp
 from planner.trajopt.payload import payload_torques
 from planner.trajopt.scene_collision import SceneRows, obstacles, row_value, set_scene_terms
 from planner.trajopt.symbolic import SymbolicKinematics, chart_to_configuration
-from planner.trajopt.term import Term
-from planner.trajopt.terms import stage_function, term_expression
+from planner.trajopt.term import TERM_KINDS, NumericKinematics, StageKinematics, Term, kind_of_check
+from planner.trajopt.terms import stage_function, term_kinds
 from robots.contact import sole_corners
 from tasks.scene import Scene, SceneObject
 from tasks.specs import (
@@ -370,17 +369,130 @@ def test_kinematic_term_matches_its_numpy_twin(layout, talos, name):
         assert value.shape == want.shape and len(want) == (1 if kind.cost else term.n_rows)
         np.testing.assert_allclose(value, want, rtol=VALUE_RTOL, atol=VALUE_TOL, err_msg=name)
         _assert_jacobian(np.asarray(jac(dq)), _central_differences(numpy_form, dq), name)
+        # the kind's own numpy residual is this independent form too
+        own = term.residual(NumericKinematics(model, chart_to_configuration(model, q_ref, dq)))
+        np.testing.assert_allclose(own, want, rtol=VALUE_RTOL, atol=VALUE_TOL, err_msg=name)
 
 
-def test_every_kinematic_term_kind_of_the_planner_has_a_twin(layout):
-    """Every kind :func:`term_expression` knows appears in the twin layout and is twinned above: a
-    new term kind fails here until it gets its twin."""
-    source = inspect.getsource(term_expression)
-    handled = {name for line in source.splitlines() if re.match(r"\s*if kind (==|in) ", line)
-               for name in re.findall(r'"([a-z_]+)"', line)}
-    assert len(handled) >= 11, handled
+EXAMPLES_PER_KIND = 3  # terms of distinct structure checked per kind
+
+
+def _examples(lay: Layout, cls: type[Term]) -> list[int]:
+    """Indices of up to EXAMPLES_PER_KIND terms of ``cls`` with distinct structures (and both cost
+    and constraint variants when the kind has both)."""
+    seen: dict[tuple, int] = {}
+    for i, t in enumerate(lay.terms):
+        if type(t) is cls:
+            seen.setdefault((t.structure, t.is_cost), i)
+    by_role: dict[bool, list[int]] = {}
+    for (_, is_cost), i in seen.items():
+        by_role.setdefault(is_cost, []).append(i)
+    picked = [ids[0] for ids in by_role.values()]
+    picked += [i for i in seen.values() if i not in picked]
+    return picked[:EXAMPLES_PER_KIND]
+
+
+@pytest.mark.parametrize("kind", sorted(term_kinds()))
+def test_every_term_kinds_casadi_expression_matches_its_numpy_residual(layout, talos, kind):
+    """Each registered term kind (:data:`planner.trajopt.term.TERM_KINDS`): its CasADi expression
+    (through the NLP's stage function) equals its own numpy residual at random configurations, for
+    terms of several structures, and the CasADi Jacobian along the chart equals central differences
+    of the numpy residual."""
+    cls = term_kinds()[kind]
+    model, q_ref = talos.model, layout.q_ref
+    examples = _examples(layout, cls)
+    assert examples, f"the twin layout has no {kind!r} term"
+    rng = np.random.default_rng(SEED)
+    for index in examples:
+        term = layout.terms[index]
+        fn = stage_function(layout, [index], "twin_" + kind)
+        out = 1 if term.is_cost else 0
+        dq_sym = ca.SX.sym("dq", talos.nv)
+        jac = ca.Function("twin_jacobian", [dq_sym], [ca.jacobian(fn(dq_sym, q_ref, term.params)[out], dq_sym)])
+
+        def residual(dq: np.ndarray, term=term) -> np.ndarray:
+            return term.residual(NumericKinematics(model, chart_to_configuration(model, q_ref, dq)))
+
+        for _ in range(DRAWS):
+            dq = rng.normal(scale=DQ_SCALE, size=talos.nv)
+            value = np.asarray(fn(dq, q_ref, term.params)[out], dtype=float).ravel()
+            want = residual(dq)
+            assert want.shape == (1 if term.is_cost else term.n_rows,), (kind, want.shape)
+            np.testing.assert_allclose(value, want, rtol=VALUE_RTOL, atol=VALUE_TOL, err_msg=f"{kind} {term.label}")
+            _assert_jacobian(np.asarray(jac(dq)), _central_differences(residual, dq), f"{kind} {term.label}")
+
+
+def test_every_term_kind_of_the_planner_has_a_twin(layout):
+    """Every registered term kind appears in the twin layout, is twinned above against an
+    independent numpy form, and defines its own CasADi expression and numpy residual: a new kind
+    fails here until it gets its twin."""
+    kinds = term_kinds()
+    assert {"contact", "clearance", "polygon", "com_box", "frame_pos", "frame_rot", "com_pos", "joint",
+            "frame_rel", "collision", "scene"} <= set(kinds), set(kinds)
+    for name, cls in kinds.items():
+        assert cls.kind == name and issubclass(cls, Term)
+        assert cls.expression is not Term.expression and cls.residual is not Term.residual, name
     twinned = {t.kind for t in layout.terms if any(k.select(t) for k in KINDS.values())}
-    assert twinned == {t.kind for t in layout.terms} == handled
+    assert twinned == {t.kind for t in layout.terms} == set(kinds)
+    assert all(type(t) is kinds[t.kind] for t in layout.terms)
+
+
+def test_a_new_term_kind_is_one_class(layout, talos):
+    """What docs/terms.md tells a newcomer: a subclass of Term with a ``kind``, an expression and a
+    residual is registered on definition and goes through the NLP's stage function with the other
+    terms of its knot; a second class of the same kind name is refused."""
+    base = talos.frame_id("base")
+
+    class BaseHeight(Term):  # the base's height above a value [m]
+        kind = "test_base_height"
+
+        def frames(self) -> tuple[int, ...]:
+            return (base,)
+
+        def expression(self, p, kin: StageKinematics) -> tuple:
+            return kin.frames[base][0][2] - p[0], 0
+
+        def residual(self, kin: NumericKinematics) -> np.ndarray:
+            return np.array([kin.frame(base).translation[2] - self.params[0]])
+
+    try:
+        assert TERM_KINDS["test_base_height"] is BaseHeight
+        with pytest.raises(TypeError, match="defined twice"):
+            type("Another", (Term,), {"kind": "test_base_height"})
+        term = BaseHeight(knot=COLLISION_KNOT, structure=("test_base_height",), params=np.array([0.9]),
+                          lower=np.zeros(1), upper=np.array([np.inf]))
+        ids = [i for i, t in enumerate(layout.terms) if t.knot == COLLISION_KNOT and not t.is_cost][:3]
+        lay = dataclasses.replace(layout, terms=[*(layout.terms[i] for i in ids), term])
+        fn = stage_function(lay, list(range(len(lay.terms))), "twin_new_kind")
+        dq = np.random.default_rng(SEED).normal(scale=DQ_SCALE, size=talos.nv)
+        kin = NumericKinematics(talos.model, chart_to_configuration(talos.model, layout.q_ref, dq))
+        p = np.concatenate([t.params for t in lay.terms])
+        g = np.asarray(fn(dq, layout.q_ref, p)[0], dtype=float).ravel()
+        want = np.concatenate([t.residual(kin) for t in lay.terms])
+        np.testing.assert_allclose(g, want, rtol=VALUE_RTOL, atol=VALUE_TOL)
+    finally:
+        TERM_KINDS.pop("test_base_height", None)
+
+
+def test_the_reports_checks_find_their_kinds_diagnosis(talos):
+    """A failed plan's sentence comes from the term kind whose rows its worst check measures: the CoM
+    bound kinds speak of the bound, a check no kind claims (joint limits) gets the generic sentence."""
+    from planner.results import Check, CheckKind
+
+    def check(kind: CheckKind, name: str, subject: str = "") -> Check:
+        return Check.constraint(name=name, kind=kind, violation=0.04, tolerance=1e-3, unit="m", time=1.2,
+                                subject=subject)
+
+    assert kind_of_check(CheckKind.COM_BOX) is term_kinds()["com_box"]
+    assert kind_of_check(CheckKind.COM_SUPPORT_POLYGON_AT_REST) is term_kinds()["polygon"]
+    assert kind_of_check(CheckKind.SELF_COLLISION) is term_kinds()["collision"]
+    assert kind_of_check(CheckKind.JOINT_POSITION_LIMITS) is Term
+    bound = check(CheckKind.COM_BOX, "CoM bound 'balance' box", "balance")
+    assert kind_of_check(bound.kind).diagnosis(bound, "lift", "infeasible") == (
+        "CoM bound 'balance' cannot hold in phase 'lift': the CoM ends 0.040 m outside at t = 1.20 s (infeasible)")
+    limits = check(CheckKind.JOINT_POSITION_LIMITS, "joint position limits")
+    assert kind_of_check(limits.kind).diagnosis(limits, "lift", "infeasible") == (
+        "joint position limits violated by 0.04 m at t = 1.20 s in phase 'lift' (infeasible)")
 
 
 # -- the dynamic formulation's per-knot expressions ------------------------------------------------
