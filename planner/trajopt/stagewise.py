@@ -38,6 +38,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -185,45 +186,15 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool,
     q_ref = p[0:nq]
     w_smooth, w_posture, dt = p[nq], p[nq + 1], p[nq + 2]
     c_posture = w_posture * dt
-    ones = np.ones(nv)
 
     # Quadratic costs: f = sum_j W_j x_j^2 with W = B @ [c_posture, w_s dt, w_s / dt] (B constant).
-    rows, cols, vals = [], [], []
-    for s in range(K):
-        k = s + 1
-        base = int(sl.x_offset[s])
-        joints = base + np.arange(6, nv)
-        if k >= 2:
-            weight = 2.0 if k == N - 1 else 1.0  # knot N repeats knot N-1
-            rows += list(joints)
-            cols += [0] * len(joints)
-            vals += [weight] * len(joints)
-        if s < K - 1:
-            acc = base + 2 * nv + np.arange(nv)
-            rows += list(acc)
-            cols += [1] * nv
-            vals += list(ones)
-        else:
-            vel = base + nv + np.arange(nv)
-            rows += list(vel)
-            cols += [2] * nv
-            vals += list(ones)
-    B = _sparse(rows, cols, vals, (sl.n_x, 3))
+    B = _cost_selector(sl, N, nv)
     W = ca.mtimes(B, ca.vertcat(c_posture, w_smooth * dt, w_smooth / dt))
     f = ca.dot(W, x * x)
     grad = 2 * W * x
 
     # Gap rows, stage by stage: dq_{k+1} - dq_k - dt v_k - dt^2 a_k and v_{k+1} - v_k - dt a_k.
-    knots = list(range(1, N - 1))
-    nxt = list(range(2, N))
-    DQ0, V0, A0 = (_picker(sl, _columns(sl, part, knots)) for part in (0, 1, 2))
-    DQ1, V1 = (_picker(sl, _columns(sl, part, nxt)) for part in (0, 1))
-    J_dq = DQ1 - DQ0  # constant parts; dt-scaled parts below
-    J_v = V1 - V0
-    gap_dq = ca.mtimes(J_dq, x) - dt * ca.mtimes(V0, x) - dt**2 * ca.mtimes(A0, x)
-    gap_v = ca.mtimes(J_v, x) - dt * ca.mtimes(A0, x)
-    jac_gap_dq = ca.MX(J_dq) - dt * ca.MX(V0) - dt**2 * ca.MX(A0)
-    jac_gap_v = ca.MX(J_v) - dt * ca.MX(A0)
+    gap_dq, gap_v, jac_gap_dq, jac_gap_v = _gap_rows(sl, N, x, dt)
 
     # Start at rest: dq_1 = 0, v_1 = 0.
     start = _picker(sl, np.concatenate([_columns(sl, 0, [1]), _columns(sl, 1, [1])]))
@@ -262,15 +233,7 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool,
     g_nat = ca.vertcat(gap_dq, gap_v, ca.mtimes(start, x), *term_g)
     jac_nat = ca.vertcat(jac_gap_dq, jac_gap_v, ca.MX(start), *term_jac)
     n_gap = nv * (K - 1)
-    perm: list[int] = []
-    for s in range(K):
-        if s < K - 1:
-            perm += [s * nv + j for j in range(nv)] + [n_gap + s * nv + j for j in range(nv)]
-        if s == 0:
-            perm += [2 * n_gap + j for j in range(2 * nv)]
-        for i in sl.row_terms[s]:
-            r, n_rows = g_rows_of_term[i]
-            perm += [2 * n_gap + 2 * nv + r + j for j in range(n_rows)]
+    perm = _stage_order(sl, nv, g_rows_of_term)
     if len(perm) != sl.n_g or g_nat.numel() != 2 * n_gap + 2 * nv + n_term_rows:
         raise PlannerError(f"internal: {g_nat.numel()} stage-wise rows built, {sl.n_g} expected")
     g_all = g_nat[perm]
@@ -280,23 +243,91 @@ def build_stagewise_nlp(lay: Layout, symmetric_hessian: bool,
     nlp = {"x": x, "p": p, "f": f, "g": g_all}
 
     # Lagrangian Hessian: the quadratic costs' diagonal and each knot's term block (dq_k, dq_k).
+    lam_terms = _natural_order(lam_g, perm)[2 * n_gap + 2 * nv:]
     hess = lam_f * ca.diag(2 * W)
-    inverse = np.empty(len(perm), dtype=int)
-    inverse[np.asarray(perm)] = np.arange(len(perm))
-    lam_nat = lam_g[inverse.tolist()]
-    lam_terms = lam_nat[2 * n_gap + 2 * nv:]
     for st, n, Xg, Qr, Pg, S, offset in hessian_blocks:
         L = ca.reshape(lam_terms[offset: offset + st.rows * n], st.rows, n)
         HS = st.hess.map(n)(Xg, Qr, Pg, ca.repmat(objective_scale * lam_f, 1, n), L)
         hess = hess + ca.mtimes(S.T, ca.mtimes(ca.diagcat(*ca.horzsplit(HS, nv)), S))
-    hess_out = hess if symmetric_hessian else ca.triu(hess)
-    derivatives = {
-        "grad_f": ca.Function("sw_grad_f", [x, p], [f, ca.densify(grad)], ["x", "p"], ["f", "grad_f_x"]),
-        "jac_g": ca.Function("sw_jac_g", [x, p], [g_all, jac_all], ["x", "p"], ["g", "jac_g_x"]),
-        "hess_lag": ca.Function("sw_hess_l", [x, p, lam_f, lam_g], [hess_out], ["x", "p", "lam_f", "lam_g"],
-                                ["hess_gamma_x_x" if symmetric_hessian else "triu_hess_gamma_x_x"]),
-    }
+    derivatives = _derivatives(x, p, lam_f, lam_g, f, grad, g_all, jac_all, hess, symmetric_hessian)
     return nlp, derivatives, sl
+
+
+def _cost_selector(sl: StageLayout, N: int, nv: int) -> Any:
+    """The constant (n_x, 3) operator B of the quadratic costs' weights ``W = B @ [c_posture, w_s dt,
+    w_s / dt]``: posture on the joints of knots 2..N-1 (knot N repeats N-1), smoothness on each
+    stage's acceleration, and the last stage's velocity."""
+    rows: list[int] = []
+    cols: list[int] = []
+    vals: list[float] = []
+    K = sl.stages
+    for s in range(K):
+        k = s + 1
+        base = int(sl.x_offset[s])
+        if k >= 2:
+            joints = base + np.arange(6, nv)
+            rows += list(joints)
+            cols += [0] * len(joints)
+            vals += [2.0 if k == N - 1 else 1.0] * len(joints)
+        part, col = (2, 1) if s < K - 1 else (1, 2)
+        block = base + part * nv + np.arange(nv)
+        rows += list(block)
+        cols += [col] * nv
+        vals += [1.0] * nv
+    return _sparse(rows, cols, vals, (sl.n_x, 3))
+
+
+def _gap_rows(sl: StageLayout, N: int, x: Any, dt: Any) -> tuple[Any, Any, Any, Any]:
+    """The gap rows ``dq_{k+1} - dq_k - dt v_k - dt^2 a_k`` and ``v_{k+1} - v_k - dt a_k`` of knots
+    1..N-2, and their (linear) Jacobians."""
+    knots = list(range(1, N - 1))
+    nxt = list(range(2, N))
+    DQ0, V0, A0 = (_picker(sl, _columns(sl, part, knots)) for part in (0, 1, 2))
+    DQ1, V1 = (_picker(sl, _columns(sl, part, nxt)) for part in (0, 1))
+    J_dq = DQ1 - DQ0  # constant parts; dt-scaled parts below
+    J_v = V1 - V0
+    gap_dq = ca.mtimes(J_dq, x) - dt * ca.mtimes(V0, x) - dt**2 * ca.mtimes(A0, x)
+    gap_v = ca.mtimes(J_v, x) - dt * ca.mtimes(A0, x)
+    jac_gap_dq = ca.MX(J_dq) - dt * ca.MX(V0) - dt**2 * ca.MX(A0)
+    jac_gap_v = ca.MX(J_v) - dt * ca.MX(A0)
+    return gap_dq, gap_v, jac_gap_dq, jac_gap_v
+
+
+def _stage_order(sl: StageLayout, nv: int, g_rows_of_term: dict[int, tuple[int, int]]) -> list[int]:
+    """The permutation from the natural row order (gaps of dq, gaps of v, the start rows, the
+    terms' rows) to stage order: each stage's gap rows, then its own rows."""
+    K = sl.stages
+    n_gap = nv * (K - 1)
+    perm: list[int] = []
+    for s in range(K):
+        if s < K - 1:
+            perm += [s * nv + j for j in range(nv)] + [n_gap + s * nv + j for j in range(nv)]
+        if s == 0:
+            perm += [2 * n_gap + j for j in range(2 * nv)]
+        for i in sl.row_terms[s]:
+            r, n_rows = g_rows_of_term[i]
+            perm += [2 * n_gap + 2 * nv + r + j for j in range(n_rows)]
+    return perm
+
+
+def _natural_order(lam_g: Any, perm: list[int]) -> Any:
+    """The multipliers of the stage-ordered rows back in the natural row order."""
+    inverse = np.empty(len(perm), dtype=int)
+    inverse[np.asarray(perm)] = np.arange(len(perm))
+    return lam_g[inverse.tolist()]
+
+
+def _derivatives(x: Any, p: Any, lam_f: Any, lam_g: Any, f: Any, grad: Any, g: Any, jac: Any, hess: Any,
+                 symmetric_hessian: bool) -> dict[str, Any]:
+    """The derivative options of nlpsol: the cost's gradient, the rows' Jacobian and the Lagrangian's
+    Hessian (whole for fatrop, its upper triangle for IPOPT)."""
+    name = "hess_gamma_x_x" if symmetric_hessian else "triu_hess_gamma_x_x"
+    return {
+        "grad_f": ca.Function("sw_grad_f", [x, p], [f, ca.densify(grad)], ["x", "p"], ["f", "grad_f_x"]),
+        "jac_g": ca.Function("sw_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
+        "hess_lag": ca.Function("sw_hess_l", [x, p, lam_f, lam_g], [hess if symmetric_hessian else ca.triu(hess)],
+                                ["x", "p", "lam_f", "lam_g"], [name]),
+    }
 
 
 def stagewise_parameters(lay: Layout) -> np.ndarray:
