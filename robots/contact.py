@@ -87,12 +87,17 @@ def sole_corners_in_world(sole: SoleRectangle, side: str, placement: pin.SE3, *,
 # --------------------------------------------------------------------------------------------------
 
 
+COLLINEAR = 1e-12  # [m^2] twice the area of a triangle of hull points taken as collinear
+
+
 def convex_hull(points: np.ndarray) -> np.ndarray:
     """Counter-clockwise convex hull (H, 2) of points in the ground plane [m].
 
     Andrew's monotone chain. ``points`` is (n, 2) or (n, 3) (the third column is ignored);
-    points closer than 1e-12 m are merged and collinear points are dropped. Fewer than three
-    distinct points are returned as they are (sorted).
+    points closer than 1e-12 m are merged and collinear points are dropped (also those that
+    round-off leaves a hair off the line, |cross| <= :data:`COLLINEAR` m^2: the hull of two soles
+    side by side is the same whichever way the robot faces). Fewer than three distinct points are
+    returned as they are (sorted).
     """
     pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in np.asarray(points, dtype=float)[:, :2]})
     if len(pts) <= 2:
@@ -103,12 +108,12 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
     lower: list = []
     for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= COLLINEAR:
             lower.pop()
         lower.append(p)
     upper: list = []
     for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= COLLINEAR:
             upper.pop()
         upper.append(p)
     return np.array(lower[:-1] + upper[:-1], dtype=float)
