@@ -27,6 +27,7 @@ REST_SPEED = 1e-3  # [m/s, rad/s] the last knot's largest velocity component at 
 FLAT = 0.02  # [rad] a sole's roll or pitch within which it stands flat
 DRIFT = 0.05  # [m] the simulated base's distance from the planned end within which it is the same place
 TURN = 0.1  # [rad] the simulated base's yaw difference from the planned end likewise
+BALANCE_MARGIN = 0.02  # [m] the centre of mass inside the feet's polygon (the primitives' support margin)
 
 
 @dataclass(frozen=True)
@@ -54,9 +55,10 @@ def _yaw(quaternion: np.ndarray) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def end_state(spec: Any, plan: Any, execution: Any, feet: tuple[str, str]) -> EndState:
+def end_state(spec: Any, plan: Any, execution: Any, feet: tuple[str, str], sole: Any = None) -> EndState:
     """Where the motion of ``spec``, planned as ``plan`` and simulated as ``execution`` (None: not
-    simulated), leaves the robot; ``feet``: the frame names of its left and right foot.
+    simulated), leaves the robot; ``feet``: the frame names of its left and right foot; ``sole``:
+    its ``robots.contact.SoleRectangle`` (None: the centre of mass is not checked against the feet).
 
     Objects: a grasp held to the end, or any grasp or push (the object is no longer where the
     scene says), gives ``together``. Everything else that keeps the next plan from starting at
@@ -89,6 +91,10 @@ def end_state(spec: Any, plan: Any, execution: Any, feet: tuple[str, str]) -> En
     if float(np.max(np.abs(v))) > REST_SPEED:
         return EndState(kind="refused", reason=f"the last motion ends still moving ({float(np.max(np.abs(v))):.3g} "
                                                  "m/s or rad/s at its last knot)")
+    if sole is not None and getattr(plan, "com", None) is not None:
+        refused = _balance(last, feet, sole, np.asarray(plan.com[-1], dtype=float))
+        if refused:
+            return EndState(kind="refused", reason=refused)
     if execution is not None:
         certificate = execution.certificate
         if not certificate.ok:
@@ -103,3 +109,24 @@ def end_state(spec: Any, plan: Any, execution: Any, feet: tuple[str, str]) -> En
                                                      f"{math.degrees(turn):.0f} deg away from the planned end "
                                                      f"(more than {DRIFT:g} m or {math.degrees(TURN):.0f} deg)")
     return EndState(kind="start", q=tuple(float(x) for x in q))
+
+
+def _balance(last: Any, feet: tuple[str, str], sole: Any, com: np.ndarray) -> str:
+    """Why the centre of mass ``com`` (3,) is not over the soles of the phase ``last`` with the
+    primitives' margin (the next motion's balance bound), or ""."""
+    import pinocchio as pin
+
+    from robots.contact import polygon_margin, sole_corners_in_world, support_polygon
+
+    placements = {c.frame: pin.SE3(pin.rpy.rpyToMatrix(*c.placement.rpy), np.array(c.placement.position))
+                  for c in last.contacts}
+    polygon = support_polygon([sole_corners_in_world(sole, side, placements[frame])
+                               for side, frame in zip(("left", "right"), feet, strict=True)])
+    needed = min(BALANCE_MARGIN, 0.25 * min(sole.x_max - sole.x_min, sole.y_max - sole.y_min))
+    inside = polygon_margin(polygon, com)
+    if inside >= needed - 1e-4:
+        return ""
+    where = f"{inside * 100:.1f} cm inside the edge of its feet" if inside > 0 else \
+        f"{-inside * 100:.1f} cm outside its feet"
+    return (f"the last motion ends with the centre of mass {where} (a motion starts with it at least "
+            f"{needed * 100:.1f} cm inside)")

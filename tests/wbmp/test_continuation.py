@@ -37,7 +37,7 @@ def executed(q_end: np.ndarray, *, ok: bool = True, reason: str = "") -> CachedE
 
 def test_a_standing_end_is_the_next_start(talos, squat):
     spec, p = squat
-    end = end_state(spec, p, executed(p.q[-1]), feet(talos))
+    end = end_state(spec, p, executed(p.q[-1]), feet(talos), talos.profile.sole)
     assert end.kind == "start" and np.allclose(end.q, p.q[-1], atol=0.0)
     assert EndState.from_dict(end.to_dict()) == end
     assert end_state(spec, p, None, feet(talos)).kind == "start"  # not simulated: the plan alone
@@ -68,3 +68,11 @@ def test_holding_an_object_plans_the_two_together(talos):
     spec = compile_actions(fit_actions(parse("walk to the cup and pick it up").actions, talos), talos, scene=scene)
     end = end_state(spec, None, None, feet(talos))  # decided by the spec: no plan needed
     assert end.kind == "together" and "holding the" in end.reason and end.q is None
+
+
+def test_a_centre_of_mass_off_the_feet_is_refused(talos, squat):
+    spec, p = squat
+    com = np.array(p.com)
+    com[-1, 0] += 0.2  # 20 cm forward: beyond the toes
+    end = end_state(spec, dataclasses.replace(p, com=com), None, feet(talos), talos.profile.sole)
+    assert end.kind == "refused" and "cm outside its feet" in end.reason

@@ -214,6 +214,7 @@ class Session:
         with self._lock:
             return {
                 "robot": self.robot or "talos", "scene": Path(self.scene).name if self.scene else None,
+                "motions": Path(self.library).name if self.library else None,
                 "worker": self.worker_state,
                 "running": None if self._running is None else self._running.to_dict(),
                 "waiting": [j.to_dict() for j in self._queue],
@@ -416,7 +417,8 @@ class Session:
                 given=tuple(frozenset(a["given"]) for a in last.summary["actions"]),
                 step_duration=last.summary.get("step_duration"))
             if not current.actions:
-                raise corrections.CorrectionError("the last motion has no actions to correct (it came from a spec)")
+                raise corrections.CorrectionError("the last motion has no actions to correct (it came from a spec "
+                                                  "or is a clip of the motion library): say a new sentence")
             new, changes = corrections.apply(kinds, current)
             job.kind = "again" if set(kinds) <= {"again", "undo"} else "correction"
             job.changes = [c.to_dict() for c in changes]

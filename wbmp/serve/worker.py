@@ -273,7 +273,7 @@ def _end(result, job: dict[str, Any]):
 
     profile = _profile(job.get("robot"))
     feet = (profile.frame("left_foot") or "left_foot", profile.frame("right_foot") or "right_foot")
-    return end_state(result.spec, result.plan, result.execution, feet)
+    return end_state(result.spec, result.plan, result.execution, feet, profile.sole)
 
 
 def run_plots(job: dict[str, Any], progress) -> dict[str, Any]:
