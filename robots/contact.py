@@ -108,15 +108,26 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
     lower: list = []
     for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= COLLINEAR:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
             lower.pop()
         lower.append(p)
     upper: list = []
     for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= COLLINEAR:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
             upper.pop()
         upper.append(p)
-    return np.array(lower[:-1] + upper[:-1], dtype=float)
+    hull = lower[:-1] + upper[:-1]
+    # a corner that round-off left a hair off the line through its neighbours is dropped after
+    # the chain is built (dropping it while building could keep the wrong one of two points whose
+    # x differ by round-off)
+    i = 0
+    while len(hull) > 3 and i < len(hull):
+        if cross(hull[i - 1], hull[i], hull[(i + 1) % len(hull)]) <= COLLINEAR:
+            hull.pop(i)
+            i = max(i - 1, 0)
+        else:
+            i += 1
+    return np.array(hull, dtype=float)
 
 
 def support_polygon(corner_sets: Iterable[np.ndarray]) -> np.ndarray:

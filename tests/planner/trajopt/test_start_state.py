@@ -26,6 +26,25 @@ def moved(robot, q: np.ndarray, motion: pin.SE3) -> np.ndarray:
     return out
 
 
+def area(polygon: np.ndarray) -> float:
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+@pytest.mark.parametrize("dx", [-3e-12, 0.0, 3e-12])
+@pytest.mark.parametrize("dy", [-3e-12, 3e-12])
+def test_hull_keeps_the_outer_corners_when_round_off_reorders_the_inner_ones(dx, dy):
+    """Two soles side by side whose inner corners are off the outer edges by round-off: four
+    corners, the outer ones, whatever the sorted order of the near-equal x (G1's soles)."""
+    left = np.array([[-0.05, 0.0935], [0.12, 0.0935], [0.12, 0.1435], [-0.05, 0.1435]])
+    right = left * [1.0, -1.0]
+    left[:2] += [dx, dy]
+    right[:2] -= [dx, dy]
+    hull = convex_hull(np.vstack([left, right]))
+    assert len(hull) == 4
+    assert area(hull) == pytest.approx(0.17 * 0.287, abs=1e-9)
+
+
 @pytest.mark.parametrize("yaw", [-0.6, 0.3, 2.5])
 def test_hull_of_two_soles_does_not_depend_on_the_heading(talos, yaw):
     """Collinear corners (the front and back edges of two soles side by side) are dropped also when
