@@ -87,12 +87,17 @@ def sole_corners_in_world(sole: SoleRectangle, side: str, placement: pin.SE3, *,
 # --------------------------------------------------------------------------------------------------
 
 
+COLLINEAR = 1e-12  # [m^2] twice the area of a triangle of hull points taken as collinear
+
+
 def convex_hull(points: np.ndarray) -> np.ndarray:
     """Counter-clockwise convex hull (H, 2) of points in the ground plane [m].
 
     Andrew's monotone chain. ``points`` is (n, 2) or (n, 3) (the third column is ignored);
-    points closer than 1e-12 m are merged and collinear points are dropped. Fewer than three
-    distinct points are returned as they are (sorted).
+    points closer than 1e-12 m are merged and collinear points are dropped (also those that
+    round-off leaves a hair off the line, |cross| <= :data:`COLLINEAR` m^2: the hull of two soles
+    side by side is the same whichever way the robot faces). Fewer than three distinct points are
+    returned as they are (sorted).
     """
     pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in np.asarray(points, dtype=float)[:, :2]})
     if len(pts) <= 2:
@@ -111,7 +116,18 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
         while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
             upper.pop()
         upper.append(p)
-    return np.array(lower[:-1] + upper[:-1], dtype=float)
+    hull = lower[:-1] + upper[:-1]
+    # a corner that round-off left a hair off the line through its neighbours is dropped after
+    # the chain is built (dropping it while building could keep the wrong one of two points whose
+    # x differ by round-off)
+    i = 0
+    while len(hull) > 3 and i < len(hull):
+        if cross(hull[i - 1], hull[i], hull[(i + 1) % len(hull)]) <= COLLINEAR:
+            hull.pop(i)
+            i = max(i - 1, 0)
+        else:
+            i += 1
+    return np.array(hull, dtype=float)
 
 
 def support_polygon(corner_sets: Iterable[np.ndarray]) -> np.ndarray:

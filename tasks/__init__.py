@@ -26,6 +26,7 @@ from tasks.specs import (
     Phase,
     Pose,
     Priority,
+    StartState,
     TaskSpec,
 )
 
@@ -50,6 +51,7 @@ __all__ = [
     "Scene",
     "SceneConflict",
     "SceneObject",
+    "StartState",
     "TaskDefinitionError",
     "TaskError",
     "TaskSpec",

@@ -68,6 +68,7 @@ from tasks.specs import (
     JointTarget,
     Phase,
     Priority,
+    StartState,
     TaskSpec,
 )
 
@@ -205,6 +206,7 @@ def compile_actions(
     name: str = "",
     description: str = "",
     scene: Scene | None = None,
+    start: StartState | None = None,
 ) -> TaskSpec:
     """Compile a sequence of actions (with overlays) into one TaskSpec for ``robot``.
 
@@ -219,6 +221,9 @@ def compile_actions(
         description: Free text (e.g. the sentence the actions came from).
         scene: The objects around the robot: an action's ``object`` reference (``walk to the
             table``) is resolved against it (:func:`ground_actions`), and the spec carries it.
+        start: Where the robot stands at rest when the motion starts (where the motion before it
+            ended); None: the standing posture with its feet centred on x = y = 0. The actions'
+            targets follow the stance of its soles, and the spec carries it.
 
     Returns:
         The TaskSpec, whose horizon is the sum of the stand, action and transition times.
@@ -243,7 +248,7 @@ def compile_actions(
         return int(-(-round(seconds / dt, 6) // 1))  # ceil, robust to 0.6/0.075 = 7.999999
 
     _check_horizon(groups, robot, n, dt, knots(stand_time), knots(transition_time))
-    stance = Stance.standing(robot)
+    stance = Stance.standing(robot) if start is None else Stance.at(robot, start.q)
     phases: list[Phase] = []
     waypoints: list[JointTarget] = []
     k = 0
@@ -292,6 +297,7 @@ def compile_actions(
         scene=scene,
         grasps=grasps,
         pushes=tuple(p for f in fragments for p in f.pushes),
+        start=start,
     )
 
 

@@ -3,7 +3,7 @@
 A :class:`~tasks.specs.TaskSpec` is valid on its own; :func:`check_spec_for_robot` checks what
 needs the robot: every frame it names exists, every joint target names a one-dof joint, no
 contact is placed below the ground, and the first phase's contacts are where the robot stands
-(the motion starts from the standing posture at rest). Each error is a
+(the motion starts at rest from the spec's start state, else the standing posture). Each error is a
 :class:`~tasks.exceptions.TaskDefinitionError` naming the field (``spec.joint_targets[0].joint``)
 and how to fix it; the CLI maps it to exit code 3 (invalid spec).
 """
@@ -92,11 +92,19 @@ def _frame_id(robot: Robot, frame: str, where: str) -> int:
 
 
 def _check_start(spec: TaskSpec, robot: Robot) -> None:
+    q = robot.q_standing
+    if spec.start is not None:
+        nq = robot.model.nq
+        if len(spec.start.q) != nq:
+            raise TaskDefinitionError(
+                f"spec.start.q: {len(spec.start.q)} numbers; {robot.name}'s configuration has {nq} (the base position, "
+                f"its quaternion x y z w, then {nq - 7} joint angles in the model's order)")
+        q = np.array(spec.start.q, dtype=float)
     first = spec.phases[0]
     if not first.contacts:
         return
     data = robot.data()
-    pin.framesForwardKinematics(robot.model, data, robot.q_standing)
+    pin.framesForwardKinematics(robot.model, data, q)
     for j, contact in enumerate(first.contacts):
         oMf = data.oMf[robot.frame_id(contact.frame)]
         wanted = pin.SE3(pin.rpy.rpyToMatrix(*contact.placement.rpy), np.array(contact.placement.position, float))
@@ -108,7 +116,8 @@ def _check_start(spec: TaskSpec, robot: Robot) -> None:
             raise TaskDefinitionError(
                 f"spec.phases[0].contacts[{j}]: contact {contact.frame!r} of the first phase {first.name!r} is "
                 f"{dp:.3f} m / {dr:.3f} rad away from where {robot.name} stands (position [{at}] m, rpy "
-                f"[{rpy}] rad); the motion starts standing, so the first phase's contacts must be there"
+                f"[{rpy}] rad{' in the spec.start state' if spec.start is not None else ''}); the motion starts "
+                "there at rest, so the first phase's contacts must be where its feet are"
             )
 
 

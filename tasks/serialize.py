@@ -28,8 +28,13 @@ from tasks.specs import SPEC_VERSION, TaskSpec
 
 
 def spec_to_dict(spec: TaskSpec) -> dict[str, Any]:
-    """The JSON-compatible dictionary form of a spec (with ``version``)."""
-    return {"version": SPEC_VERSION, **to_plain(spec)}
+    """The JSON-compatible dictionary form of a spec (with ``version``); ``start`` only when the
+    spec has one (a spec that starts standing keeps the JSON, and the motion cache key, it had
+    before start states existed)."""
+    plain = to_plain(spec)
+    if plain.get("start") is None:
+        plain.pop("start", None)
+    return {"version": SPEC_VERSION, **plain}
 
 
 def spec_from_dict(data: dict[str, Any]) -> TaskSpec:

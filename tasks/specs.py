@@ -468,6 +468,35 @@ class Push:
             raise TaskDefinitionError(f"{who}: end {_num(self.end)} s must be after start {_num(self.start)} s")
 
 
+MAX_START_SIZE = 200  # numbers of a start configuration (nq: talos 39, the largest robot under 100)
+START_QUATERNION_TOLERANCE = 1e-6  # |norm - 1| of the start's base quaternion
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StartState:
+    """Where a motion starts, at rest: the configuration of its first knot (``wbmp serve``'s
+    "then <sentence>" starts where the last motion ended). None in a spec: the robot's
+    standing posture with its feet centred on x = y = 0.
+
+    Attributes:
+        q: The configuration in Pinocchio's order (nq): base position [m], base orientation as
+            a unit quaternion (x, y, z, w), then the joint angles [rad] in the model's order.
+            The velocity is zero: a motion starts at rest.
+    """
+
+    q: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.q, tuple) or not 8 <= len(self.q) <= MAX_START_SIZE:
+            raise TaskDefinitionError(f"start: q must list 8 to {MAX_START_SIZE} numbers (the base position, its "
+                                      f"quaternion x y z w, the joint angles), got {_show(self.q)}")
+        _finite("start", "q", self.q, bound=MAX_DISTANCE, unit="(m, -, rad)")
+        norm = math.sqrt(sum(float(x) ** 2 for x in self.q[3:7]))
+        if abs(norm - 1.0) > START_QUATERNION_TOLERANCE:
+            raise TaskDefinitionError(f"start: q[3:7] is the base orientation as a unit quaternion (x, y, z, w); its "
+                                      f"norm is {norm:.6g}: normalize it")
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class TaskSpec:
     """A whole-body motion request, independent of any solver.
@@ -488,6 +517,8 @@ class TaskSpec:
         scene: The world around the robot (a floor plus named objects; docs/scenes.md); null = the floor only.
         grasps: Objects of the scene held by a hand over a time window (docs/objects.md).
         pushes: Objects of the scene a hand pushes over a time window (docs/objects.md).
+        start: Where the motion starts, at rest (null: standing with the feet centred on x = y = 0);
+            the first phase's contacts must be where the feet are in it.
     """
 
     robot: str = "talos"
@@ -505,9 +536,12 @@ class TaskSpec:
     scene: Scene | None = None
     grasps: tuple[Grasp, ...] = ()
     pushes: tuple[Push, ...] = ()
+    start: StartState | None = None
 
     def __post_init__(self) -> None:
         _text("task spec", "robot", self.robot, limit=MAX_TEXT_LENGTH)
+        if self.start is not None and not isinstance(self.start, StartState):
+            raise TaskDefinitionError(f"task spec: start must be a StartState or None, got {_show(self.start)}")
         if self.scene is not None and not isinstance(self.scene, Scene):
             raise TaskDefinitionError(f"task spec: scene must be a Scene or None, got {_show(self.scene)}")
         _text("task spec", "name", self.name, limit=MAX_TEXT_LENGTH)

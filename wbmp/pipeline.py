@@ -47,6 +47,9 @@ class SolveRequest:
         estop_flag: Stop when this file appears during the simulation (``--estop-flag``), or None.
         faults_path: A faults JSON file (``--faults``, docs/safety.md), or None.
         stop_request: A ``sim.estop.StopRequest`` set from outside (SIGUSR1), or None.
+        start: A ``tasks.specs.StartState``: the sentence's or actions' motion starts there, at rest
+            (``wbmp serve``'s "then <sentence>" from where the last motion ended), or None
+            (standing at the origin). Such a request is looked up in the motion cache by its spec only.
 
     :meth:`check` (called by :func:`solve` first) refuses, with :class:`CliError` exit 2, what
     needs no work to see: an empty ``robot`` or ``scene_path``, an instruction longer than
@@ -67,6 +70,7 @@ class SolveRequest:
     estop_flag: str | None = None
     faults_path: str | None = None
     stop_request: Any = None
+    start: Any = None
 
     @property
     def safety(self) -> bool:
@@ -199,7 +203,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
     if scene is None:
         _require_scene(actions.actions)
-    spec = compile_actions(actions.actions, robot, scene=scene)
+    spec = compile_actions(actions.actions, robot, scene=scene, start=request.start)
     spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction, scene=scene)
     check_spec_for_robot(spec, robot)
     check_spec_in_scene_for_robot(spec, robot)
@@ -237,7 +241,8 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     request.check()
     motions = MotionCache(cache_dir)
     t0 = time.perf_counter()
-    rkey = request_key(request) if request.actions is None else None  # given actions: keyed by the spec
+    # given actions or a start state: keyed by the spec
+    rkey = request_key(request) if request.actions is None and request.start is None else None
     if rkey is not None and cache_read:
         found = motions.lookup_request(rkey)
         if found is not None:

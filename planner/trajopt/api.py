@@ -74,7 +74,7 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
          progress: Callable[[str], None] | None = None) -> Plan:
     """Plan a whole-body motion for ``spec`` on ``robot``, starting and ending at rest.
 
-    The motion starts at ``robot.q_standing``. Frames in the spec are role names
+    The motion starts at ``spec.start`` (else ``robot.q_standing``). Frames in the spec are role names
     (``right_hand``) or Pinocchio frame names.
 
     Args:

@@ -2,8 +2,9 @@
 
 The transcription (docs/planner.md) uses a uniform knot grid ``t_k = k dt``, ``k = 0..N``.
 The decision variables are the tangent displacements ``dq_k`` (nv) around the reference
-``q_ref`` (the standing posture). Knots 0 and 1 are fixed at ``dq = 0`` (start at rest) and
-knot N repeats knot N-1 (end at rest), so the variables are ``dq_2 .. dq_{N-1}``.
+``q_ref`` (the spec's start state, else the standing posture). Knots 0 and 1 are fixed at
+``dq = 0`` (start at rest) and knot N repeats knot N-1 (end at rest), so the variables are
+``dq_2 .. dq_{N-1}``.
 
 Each spec item becomes :class:`Term`\\ s at knots. A term separates
 
@@ -176,6 +177,18 @@ def knot_grid(spec: TaskSpec) -> tuple[int, float, np.ndarray]:
     return N, dt, np.linspace(0.0, horizon, N + 1)
 
 
+def start_configuration(spec: TaskSpec, robot: Robot) -> np.ndarray:
+    """The configuration the motion starts from, at rest (nq,): the spec's start state, else the
+    robot's standing posture (raises SpecNotForRobot when the start's size is not the robot's)."""
+    if spec.start is None:
+        return np.array(robot.q_standing, dtype=float)
+    q = np.array(spec.start.q, dtype=float)
+    if q.shape != (robot.model.nq,):
+        raise SpecNotForRobot(f"the spec's start state has {q.size} numbers; {robot.name} has a configuration of "
+                              f"{robot.model.nq} (base position, quaternion, {robot.model.nq - 7} joints)")
+    return q
+
+
 def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
     """Lay the spec out on the knot grid (raises FrameNotFound for unknown frames).
 
@@ -198,7 +211,7 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
                     active[robot.frame_id(c.frame)] = (c.frame, placement_of(c.placement))
         contacts_at.append(active)
     lay = Layout(robot=robot, spec=spec, N=N, dt=dt, t=t, phase_of_knot=phase_of_knot,
-                 contacts_at=contacts_at, frame_ids=[], terms=[], q_ref=np.array(robot.q_standing))
+                 contacts_at=contacts_at, frame_ids=[], terms=[], q_ref=start_configuration(spec, robot))
     contact_terms(lay)
     swing_terms(lay)
     regularization_terms(lay)

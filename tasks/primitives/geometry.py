@@ -105,6 +105,14 @@ class Stance:
         g = standing_geometry(robot)
         return cls(left=_pose(g.placements["left_foot"]), right=_pose(g.placements["right_foot"]))
 
+    @classmethod
+    def at(cls, robot: Robot, q) -> Stance:
+        """The stance of the configuration ``q`` (nq): where its soles are (a motion's start state)."""
+        data = robot.data()
+        pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+        return cls(left=_pose(data.oMf[robot.frame_id("left_foot")]),
+                   right=_pose(data.oMf[robot.frame_id("right_foot")]))
+
     def sole(self, side: str) -> Pose:
         """Placement of the ``side`` ('left'/'right') sole frame."""
         return self.left if side == "left" else self.right

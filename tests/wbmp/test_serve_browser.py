@@ -196,3 +196,34 @@ def test_sentence_correction_download_stop(page, trap, downloads):
     assert "stopped" in page.evaluate("document.getElementById('status').textContent")
 
     assert not [r for r in trap.requests if r.strip() and "google" not in r and "gvt1" not in r]
+
+
+def download(page: Browser, downloads, motion: str):
+    """Click the history's motion-file link of ``motion``; the file read back."""
+    from wbmp.motionfile import load_motion
+
+    page.evaluate(f"document.querySelector('#history li[data-id=\"{motion}\"] a[href$=\"motion.npz\"]').click(), true")
+    target = downloads / f"wbmp-{motion}.npz"
+    deadline = time.monotonic() + 120
+    while not target.is_file() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    time.sleep(0.5)  # the browser renames the finished download into place
+    return load_motion(target)
+
+
+@pytest.mark.long
+def test_then_continues_from_where_the_robot_stands(page, downloads):
+    """A turn, then "then squat": the page says where the continuation starts, lists only the
+    squat, and the downloaded squat starts at the downloaded turn's last knot."""
+    type_and_submit(page, "turn left 45 degrees")
+    turn = wait_done(page, page.evaluate("document.body.getAttribute('data-motion')"))
+    assert page.evaluate("document.getElementById('ends-at').getAttribute('data-kind')") == "start"
+    type_and_submit(page, "then squat")
+    squat = wait_done(page, turn)
+    note = page.evaluate("document.getElementById('starts-at').textContent")
+    assert "starts where the motion before ended" in note and "heading 4" in note, note  # 45 deg or so
+    assert "squat" in page.evaluate("document.getElementById('actions').textContent")
+    assert "turn" not in page.evaluate("document.getElementById('actions').textContent")
+    assert "continuation" in page.evaluate(f"document.querySelector('#history li[data-id=\"{squat}\"]').textContent")
+    before, after = download(page, downloads, turn), download(page, downloads, squat)
+    np.testing.assert_allclose(after.plan.q[0], before.plan.q[-1], atol=1e-9)

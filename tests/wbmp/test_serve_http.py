@@ -206,6 +206,11 @@ def test_bad_options_refused_before_the_server_starts(tmp_path, capsys):
     assert main(["serve", "--robot", "no_such_robot"]) == 3
     assert main(["serve", "--out-dir", str(tmp_path / "missing")]) == 2
     assert "not an existing folder" in capsys.readouterr().err
+    assert main(["serve", "--motions", str(tmp_path / "no-clips")]) == 2
+    assert "--motions" in capsys.readouterr().err
+    (tmp_path / "clips.csv").write_text("file,label\n")
+    assert main(["serve", "--motions", str(tmp_path)]) == 2
+    assert "lists no clip" in capsys.readouterr().err
     bad_scene = tmp_path / "scene.json"
     bad_scene.write_text("{not json")
     assert main(["serve", "--scene", str(bad_scene)]) == 3

@@ -95,3 +95,50 @@ def test_slower_walk_sends_the_pace_and_then_keeps_it(session):
     assert request["step_duration"] == 1.2  # a continuation keeps the pace
     request, _ = session._interpret(Job(id="l", text="walk forward"))
     assert "step_duration" not in request  # a new sentence: the robot's own pace
+
+
+def test_then_starts_where_the_last_motion_ended(session):
+    end_q = [0.3, 0.1, 1.0, 0.0, 0.0, 0.0, 1.0, 0.2]
+    last = add_motion(session, "turn left")
+    last.summary["end"] = {"kind": "start", "q": end_q, "reason": ""}
+    job = Job(id="j", text="then wave your right hand")
+    request, parent = session._interpret(job)
+    assert job.kind == "continuation" and parent == last.id
+    # only the new sentence is planned, from the last knot of the last motion, at its pace
+    assert request == {"text": "wave your right hand", "actions": None, "start": end_q, "step_duration": 0.8}
+    assert "starting where 'turn left' ended" in job.progress[-1]
+
+
+def test_a_correction_of_a_continuation_keeps_its_start(session):
+    last = add_motion(session, "squat")
+    last.summary["start"] = [0.3, 0.1, 1.0, 0.0, 0.0, 0.0, 1.0, 0.2]
+    request, _ = session._interpret(Job(id="j", text="slower"))
+    assert request["start"] == last.summary["start"]
+
+
+def test_then_where_no_motion_can_start_is_refused_in_words(session):
+    last = add_motion(session, "squat")
+    last.summary["end"] = {"kind": "refused", "q": None, "reason": "the last motion ends with the left foot off the "
+                           "ground (its last phase is not standing on both feet)"}
+    with pytest.raises(corrections.CorrectionError,
+                       match="no motion can start there: the last motion ends with the left foot off the ground"):
+        session._interpret(Job(id="j", text="then squat"))
+
+
+def test_then_after_holding_an_object_plans_both_from_the_last_start(session):
+    last = add_motion(session, "squat")
+    last.summary["end"] = {"kind": "together", "q": None, "reason": "the robot ends holding the cup"}
+    last.summary["start"] = [0.3, 0.1, 1.0, 0.0, 0.0, 0.0, 1.0, 0.2]
+    job = Job(id="j", text="then bow")
+    request, _ = session._interpret(job)
+    assert [a["name"] for a in request["actions"]] == ["squat", "bow"]
+    assert request["start"] == last.summary["start"] and "holding the cup" in job.progress[-1]
+
+
+def test_a_continuation_that_does_not_parse_is_the_cli_line(session):
+    last = add_motion(session, "squat")
+    last.summary["end"] = {"kind": "together", "q": None, "reason": "the robot ends holding the cup"}
+    job = session.submit("then frobnicate the garlic")
+    session._queue.clear()
+    session._run(job)
+    assert job.state == "error" and job.exit_code == 2 and "frobnicate" in job.error, job

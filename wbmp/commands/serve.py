@@ -2,7 +2,7 @@
 
 Runs until Ctrl-C (exit 130, the session's temporary folder removed) or SIGTERM (143). Bad
 options are refused before anything starts: an unknown robot (3), a scene file that does not
-load (3), an ``--out-dir`` folder that is not a writable folder or a port outside 0-65535 (2), a
+load (3), a ``--motions`` folder that is not a clip library (2), an ``--out-dir`` folder that is not a writable folder or a port outside 0-65535 (2), a
 port already in use (2).
 """
 
@@ -36,11 +36,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "again, undo, 慢一点, 再低一点), continue it (then wave), stop a plan, and download each "
                     "motion (.npz, .html, .mcap). One plan runs at a time. Stop the server with Ctrl-C.",
         epilog="examples: wbmp serve   wbmp serve --robot g1 --port 8800   "
-               "wbmp serve --scene examples/scenes/kitchen.json   (docs/serve.md)",
+               "wbmp serve --scene examples/scenes/kitchen.json   wbmp serve --motions examples/motions   "
+               "(docs/serve.md)",
     )
     p.add_argument("--robot", default=None, help="robot name or profile file (default: talos)")
     p.add_argument("--scene", metavar="FILE", default=None,
                    help="scene JSON file the motions are planned in (docs/scenes.md)")
+    p.add_argument("--motions", metavar="DIR", default=os.environ.get("WBMP_MOTIONS"),
+                   help="a motion library: a folder of BVH clips with a clips.csv of labels; a sentence that names "
+                        "no known action but a clip's label is that clip, retargeted (as wbmp solve --motions; "
+                        "default: $WBMP_MOTIONS)")
     p.add_argument("--out-dir", metavar="DIR", default=None,
                    help="keep the session's motion files in this existing folder (default: a temporary folder "
                         "removed when the server stops)")
@@ -66,6 +71,13 @@ def check_options(args: argparse.Namespace) -> None:
         from tasks.scene import load_scene
 
         load_scene(args.scene)
+    if args.motions is not None:
+        from wbmp.motions import load_library
+
+        require_text(args.motions, "--motions", "give a folder of BVH clips with a clips.csv")
+        if not load_library(args.motions):  # not a library: exit 2 now, not at the first sentence
+            raise CliError(f"--motions {args.motions}: its clips.csv lists no clip (columns file, label)",
+                           ExitCode.USAGE)
     if args.out_dir is not None:
         if not os.path.isdir(args.out_dir):  # noqa: PTH112 - False on any OSError
             raise CliError(f"--out-dir {args.out_dir!r}: not an existing folder; create it first", ExitCode.USAGE)
@@ -79,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
 
     check_options(args)
     session = Session(robot=args.robot, scene=os.path.abspath(args.scene) if args.scene else None,  # noqa: PTH100
-                      folder=args.out_dir, start_worker=False)
+                      folder=args.out_dir, start_worker=False,
+                      library=os.path.abspath(args.motions) if args.motions else None)  # noqa: PTH100
     try:
         try:
             server = ServeServer(session, args.port)

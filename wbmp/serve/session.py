@@ -6,8 +6,10 @@ told to wait, HTTP 429) and one dispatcher thread hands jobs to the planning pro
 comes (so "slower" after "squat" acts on the squat even when typed while the squat plans):
 
 - a correction (:mod:`wbmp.serve.corrections`): the last motion's actions, changed;
-- "then <sentence>": the last motion's actions followed by the sentence's (one plan from the
-  standing start: the planner has no start state, so the continuation is planned whole);
+- "then <sentence>": the sentence's actions, planned from where the last motion ended (its last
+  knot, at rest: :mod:`wbmp.continuation`); when the robot ends holding or having moved an
+  object, the last motion's actions and the sentence's are planned together from where the last
+  one started; when it does not end standing on both feet, the continuation is refused in words;
 - "undo": the motion the last correction started from becomes the last motion (no plan);
 - anything else: a new sentence.
 
@@ -117,14 +119,17 @@ class Session:
     Args:
         robot: Robot name or profile file (None: talos).
         scene: Scene file (None: no scene).
+        library: A motion library folder (``--motions``: BVH clips with a ``clips.csv``) a
+            sentence that names no known action is looked up in, or None.
         folder: Where the motions' folders go; None = a new temporary folder, removed by
             :meth:`close`.
     """
 
     def __init__(self, *, robot: str | None = None, scene: str | None = None, folder: str | Path | None = None,
-                 start_worker: bool = True) -> None:
+                 start_worker: bool = True, library: str | None = None) -> None:
         self.robot = robot
         self.scene = scene
+        self.library = library
         self._own_folder = folder is None
         self.folder = Path(tempfile.mkdtemp(prefix="wbmp-serve-")) if folder is None else Path(folder)
         self._lock = threading.Lock()
@@ -209,6 +214,7 @@ class Session:
         with self._lock:
             return {
                 "robot": self.robot or "talos", "scene": Path(self.scene).name if self.scene else None,
+                "motions": Path(self.library).name if self.library else None,
                 "worker": self.worker_state,
                 "running": None if self._running is None else self._running.to_dict(),
                 "waiting": [j.to_dict() for j in self._queue],
@@ -298,6 +304,14 @@ class Session:
         except corrections.CorrectionError as e:
             self._finish(job, "error", error=str(e), exit_code=int(ExitCode.USAGE))
             return
+        except Exception as e:  # a continuation's sentence that does not parse: the CLI's line and code
+            from wbmp.errors import classify, one_line
+
+            code = classify(e)
+            if code is None:
+                raise
+            self._finish(job, "error", error=one_line(str(e)), exit_code=int(code))
+            return
         if plan is None:  # undo: done already
             return
         request, parent = plan
@@ -305,6 +319,8 @@ class Session:
         folder.mkdir(mode=0o700)
         request["folder"] = str(folder)
         request["robot"], request["scene"] = self.robot, self.scene
+        if self.library is not None:
+            request["motions"] = self.library
         message = self._exchange(job, request)
         if message is None:
             shutil.rmtree(folder, ignore_errors=True)
@@ -401,34 +417,56 @@ class Session:
                 given=tuple(frozenset(a["given"]) for a in last.summary["actions"]),
                 step_duration=last.summary.get("step_duration"))
             if not current.actions:
-                raise corrections.CorrectionError("the last motion has no actions to correct (it came from a spec)")
+                raise corrections.CorrectionError("the last motion has no actions to correct (it came from a spec "
+                                                  "or is a clip of the motion library): say a new sentence")
             new, changes = corrections.apply(kinds, current)
             job.kind = "again" if set(kinds) <= {"again", "undo"} else "correction"
             job.changes = [c.to_dict() for c in changes]
             with self._lock:
                 job.progress.append("; ".join(c.describe() for c in changes) or "the same actions again")
             name = _name(last.text, job.text)
-            return {"text": name, "actions": _wire(new), "step_duration": new.step_duration}, last.id
-        if rest is not None and last is not None and last.summary["actions"]:
-            from language import parse
-
-            job.kind = "continuation"
-            added = parse(rest)
-            mine = corrections.Actions(
-                actions=tuple(Action(name=a["name"], params=a["params"], overlay=a["overlay"])
-                              for a in last.summary["actions"]),
-                given=tuple(frozenset(a["given"]) for a in last.summary["actions"]))
-            both = corrections.Actions(actions=mine.actions + tuple(added.actions),
-                                       given=mine.given + tuple(added.given))
-            from tasks.limits import MAX_ACTIONS
-
-            if len(both.actions) > MAX_ACTIONS:
-                raise corrections.CorrectionError(f"the continuation makes {len(both.actions)} actions; wbmp plans at "
-                                                  f"most {MAX_ACTIONS} at a time: start a new sentence")
-            return ({"text": f"{last.text}, then {rest}", "actions": _wire(both),
-                     "step_duration": last.summary.get("step_duration")}, last.id)
+            return {"text": name, "actions": _wire(new), "step_duration": new.step_duration,
+                    "start": last.summary.get("start")}, last.id
+        if rest is not None and last is not None:
+            return self._continue(job, last, rest)
         job.kind = "sentence"
         return {"text": job.text, "actions": None}, None
+
+    def _continue(self, job: Job, last: Motion, rest: str) -> tuple[dict[str, Any], str]:
+        """The worker's request for "then <rest>" after ``last`` (its end: :mod:`wbmp.continuation`)."""
+        end = last.summary.get("end") or {"kind": "together", "reason": "the last motion does not say where it ended"}
+        job.kind = "continuation"
+        if end["kind"] == "refused":
+            raise corrections.CorrectionError(
+                f"'then' starts where the last motion ended, and no motion can start there: {end['reason']}; "
+                "correct the last motion, or say a new sentence (it starts standing at the origin)")
+        if end["kind"] == "start":
+            with self._lock:
+                job.progress.append(f"starting where {_brief(last.text)} ended")
+            return {"text": rest, "actions": None, "start": end["q"],
+                    "step_duration": last.summary.get("step_duration")}, last.id
+        if not last.summary.get("actions"):
+            raise corrections.CorrectionError(
+                f"'then' starts where the last motion ended, and no motion can start there: {end['reason']}, and "
+                "the last motion has no actions to plan again with this one: say a new sentence")
+        with self._lock:
+            job.progress.append(f"{end['reason']}: planning it again together with {rest!r}, from where it started")
+        from language import parse
+        from tasks.actions import Action
+        from tasks.limits import MAX_ACTIONS
+
+        added = parse(rest)
+        mine = corrections.Actions(
+            actions=tuple(Action(name=a["name"], params=a["params"], overlay=a["overlay"])
+                          for a in last.summary["actions"]),
+            given=tuple(frozenset(a["given"]) for a in last.summary["actions"]))
+        both = corrections.Actions(actions=mine.actions + tuple(added.actions),
+                                   given=mine.given + tuple(added.given))
+        if len(both.actions) > MAX_ACTIONS:
+            raise corrections.CorrectionError(f"the continuation makes {len(both.actions)} actions; wbmp plans at "
+                                              f"most {MAX_ACTIONS} at a time: start a new sentence")
+        return ({"text": f"{last.text}, then {rest}", "actions": _wire(both),
+                 "step_duration": last.summary.get("step_duration"), "start": last.summary.get("start")}, last.id)
 
     def close(self) -> None:
         """Stop the dispatcher and the planning process, and remove a temporary folder."""
@@ -447,6 +485,11 @@ class Session:
             conn.close()
         if self._own_folder:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def _brief(text: str) -> str:
+    """A motion's name for a progress line, bounded: ``'squat'``."""
+    return repr(text if len(text) <= 80 else text[:77] + "...")
 
 
 def _name(last_text: str, correction: str) -> str:

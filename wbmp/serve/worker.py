@@ -163,8 +163,14 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
 
     ``job``: ``text`` (the sentence, or the motion's name for given actions), ``actions`` (None,
     or what :func:`describe_actions` gives), ``robot``, ``scene``, ``folder``, ``step_duration``
-    (None: the profile's; else the robot's pace for this plan, "slower" on a walk).
+    (None: the profile's; else the robot's pace for this plan, "slower" on a walk), ``start``
+    (None, or the configuration the motion starts from: "then <sentence>"), ``motions`` (None, or
+    the clip library a sentence that names no action is looked up in, as ``wbmp solve --motions``).
+
+    The summary's ``end`` (:func:`wbmp.continuation.end_state`) says whether and how a
+    continuation can start where this motion ends.
     """
+    from language.exceptions import LanguageError
     from wbmp.pipeline import SolveRequest, solve, write_outputs
 
     t0 = time.perf_counter()
@@ -180,10 +186,23 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     from sim.estop import StopRequest
 
     _stop = StopRequest()
+    start = None
+    if job.get("start") is not None:
+        from tasks.specs import StartState
+
+        start = StartState(q=tuple(float(x) for x in job["start"]))
     request = SolveRequest(instruction=job["text"], scene_path=job.get("scene"), robot=job.get("robot"),
-                           actions=_actions_plan(job), profile=paced, stop_request=_stop)
+                           actions=_actions_plan(job), profile=paced, stop_request=_stop, start=start)
+    clip = None
     try:
-        result = solve(request, progress, cache=True)
+        try:
+            result = solve(request, progress, cache=True)
+        except LanguageError:
+            if not job.get("motions") or job.get("actions") is not None:
+                raise
+            result, clip = _from_library(job, progress)
+            if result is None:
+                raise  # no clip of the library either: refused as without it
     finally:
         _stop = None
     solved = time.perf_counter() - t0
@@ -194,6 +213,10 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     words = []
     if result.actions is not None and result.actions.words:
         words = result.actions.words_dict()
+    elif clip is not None:
+        from wbmp.motions import clip_words
+
+        words = [w.to_dict() for w in clip_words(job["text"], clip)]
     certificate = None
     if result.execution is not None:
         certificate = {"ok": bool(result.execution.certificate.ok),
@@ -202,7 +225,7 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     return {
         "robot": result.robot.name,
         "actions": describe_actions(result.actions) if result.actions is not None else [],
-        "describe": result.actions.describe() if result.actions is not None else "",
+        "describe": result.actions.describe() if result.actions is not None else _clip_line(clip, job),
         "words": words,
         "plan": result.plan.summary(),
         "certificate": certificate,
@@ -212,7 +235,45 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
         "exit_code": int(result.exit_code),
         "seconds": solved,
         "total_seconds": time.perf_counter() - t0,
+        "end": _end(result, job).to_dict(),
+        "start": None if start is None else list(start.q),
     }
+
+
+def _from_library(job: dict[str, Any], progress):
+    """(the retargeted clip of the job's motion library that its sentence names, the clip), or
+    (None, None); a continuation is refused: a clip starts from its own first frame."""
+    from wbmp.motions import load_library, match, retarget_from_library
+
+    clip = match(job["text"], load_library(job["motions"]))
+    if clip is None:
+        return None, None
+    if job.get("start") is not None:
+        from wbmp.errors import CliError, ExitCode
+
+        raise CliError(f"{job['text']!r} is the motion-library clip {clip.path.name} ({clip.label}), which starts "
+                       "from its own first frame, not where the robot stands: say it as a new sentence",
+                       ExitCode.USAGE)
+    result = retarget_from_library(job["text"], job["motions"], robot=job.get("robot"), simulate=True,
+                                   progress=progress, cache=True)
+    return result, clip
+
+
+def _clip_line(clip, job: dict[str, Any]) -> str:
+    if clip is None:
+        return ""
+    from wbmp.motions import describe_clip
+
+    return describe_clip(clip, Path(job["motions"]).name)
+
+
+def _end(result, job: dict[str, Any]):
+    """Whether "then <sentence>" can start where ``result`` ends (:mod:`wbmp.continuation`)."""
+    from wbmp.continuation import end_state
+
+    profile = _profile(job.get("robot"))
+    feet = (profile.frame("left_foot") or "left_foot", profile.frame("right_foot") or "right_foot")
+    return end_state(result.spec, result.plan, result.execution, feet, profile.sole)
 
 
 def run_plots(job: dict[str, Any], progress) -> dict[str, Any]:
