@@ -18,12 +18,15 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from robots import Robot
 from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack, zmq
+
+if TYPE_CHECKING:
+    from sim.execution import Execution
 
 START_TIMEOUT = 30.0  # [s] for the server process to print its URLs
 ZMQ_TIMEOUT_MS = 10_000  # [ms] per command round trip
@@ -183,7 +186,7 @@ def stop_server(proc: subprocess.Popen, *, timeout: float = STOP_TIMEOUT) -> Non
             pass
 
 
-def load_scene(vis, robot: Robot, plan, *, execution=None, collisions: bool = False) -> tuple[float, list[float]]:
+def load_scene(vis, robot: Robot, plan, *, execution: Execution | None = None, collisions: bool = False) -> tuple[float, list[float]]:
     """Draw the plan (and the simulated robot, translucent blue; with ``collisions``, the collision
     capsules, translucent orange) and start the looping animation.
 
@@ -219,7 +222,7 @@ def load_scene(vis, robot: Robot, plan, *, execution=None, collisions: bool = Fa
     return duration, cam["target"]
 
 
-def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_browser: bool = False,
+def serve(robot: Robot, plan, *, execution: Execution | None = None, port: int | None = None, open_browser: bool = False,
           stop_event: threading.Event | None = None, stream: TextIO | None = None,
           on_ready: Callable[[ServerInfo], None] | None = None, collisions: bool = False) -> None:
     """Show ``plan`` in a live meshcat viewer on 127.0.0.1 until Ctrl-C or ``stop_event``.

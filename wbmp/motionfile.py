@@ -40,6 +40,7 @@ import numpy as np
 
 from planner import Check, CheckKind, Plan, SolverStats, SolveStatus
 from robots.safeio import LIMITS, FileTooLarge, open_regular
+from sim import Certificate, Event, Execution
 from tasks.exceptions import TaskError
 from tasks.serialize import spec_from_json, spec_to_json
 from viz.files import Staging, atomic_write
@@ -69,8 +70,9 @@ class MotionFile:
 
     Attributes:
         plan: The plan rebuilt from the arrays, the spec and the report.
-        execution_arrays: ``exec_t``, ``exec_q``, ``exec_v``, ``exec_tau`` when simulated (else empty);
-            ``exec_object_pose`` (T', k, 7) and ``object_names`` too when the scene has movable objects.
+        execution: The simulated execution when the file has one (``exec_t``, ``exec_q``,
+            ``exec_v``, ``exec_tau``, ``exec_object_pose``; its certificate and events from the
+            report), else None.
         actions: The parsed actions (list of dicts) or None.
         report: The whole report dict (``solver``, ``checks``, ``diagnosis``, ``ok``, and the
             caller's entries such as ``certificate``).
@@ -83,7 +85,7 @@ class MotionFile:
     """
 
     plan: Plan
-    execution_arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    execution: Execution | None = None
     actions: list | None = None
     report: dict = field(default_factory=dict)
     robot_name: str = ""
@@ -129,6 +131,8 @@ def motion_arrays(plan: Plan, robot, *, execution=None, actions=None, report=Non
     # the caller's report (pipeline timings, simulation certificate...) plus the plan's own
     # solver stats, constraint report and diagnosis (which win: load_motion rebuilds from them)
     full_report = {**(report or {}), **plan_report(plan)}
+    if execution is not None:  # the execution's verdict and events, as its report states them
+        full_report.update(execution_report(execution))
     out: dict[str, Any] = {
         "t": np.asarray(plan.t, dtype=float),
         "q": np.asarray(plan.q, dtype=float),
@@ -147,10 +151,60 @@ def motion_arrays(plan: Plan, robot, *, execution=None, actions=None, report=Non
     for name, arr in plan.forces.items():
         out[f"force_{name}"] = np.asarray(arr, dtype=float)
     if execution is not None:
-        for key, attr in zip(EXEC_KEYS, ("t", "q", "v", "tau"), strict=True):
-            out[key] = np.asarray(getattr(execution, attr), dtype=float)
+        out["exec_t"] = np.asarray(execution.t, dtype=float)
+        out["exec_q"] = np.asarray(execution.q, dtype=float)
+        out["exec_v"] = np.asarray(execution.v, dtype=float)
+        if execution.tau is not None:
+            out["exec_tau"] = np.asarray(execution.tau, dtype=float)
     out.update(object_arrays(plan, robot, execution))
     return out
+
+
+def execution_report(execution: Execution) -> dict[str, Any]:
+    """The report entries of an execution: its ``certificate`` (when it has one) and its
+    ``events`` (when there are any); :func:`load_motion` reads them back into the execution."""
+    out: dict[str, Any] = {}
+    if execution.certificate is not None:
+        out["certificate"] = execution.certificate.to_dict()
+    if execution.events:
+        out["events"] = [e.to_dict() for e in execution.events]
+    return out
+
+
+def certificate_from_report(record: Any) -> Certificate | None:
+    """The certificate a report stores (:meth:`sim.Certificate.to_dict`), or None when the report
+    has none or it is not one; its checks have :attr:`planner.CheckKind.RECORDED`."""
+    if not isinstance(record, dict):
+        return None
+
+    def number(x: Any) -> float:
+        return float("nan") if x is None else float(x)
+
+    try:
+        checks = tuple(Check(name=str(c["name"]), kind=CheckKind.RECORDED, value=number(c["value"]),
+                             limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]),
+                             ok=bool(c["ok"]), message=str(c.get("message", "")), upper=bool(c.get("upper", True)))
+                       for c in record["checks"])
+        figures = record.get("figures") or {}
+        stops = record.get("stops") or []
+        return Certificate(
+            ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")),
+            figures={str(k): number(v) for k, v in figures.items()} if isinstance(figures, dict) else {},
+            stops=tuple(dict(x) for x in stops if isinstance(x, dict)) if isinstance(stops, list) else ())
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+
+
+def events_from_report(records: Any) -> tuple[Event, ...]:
+    """The events a report stores (:meth:`sim.Event.to_dict`); entries that are not one are skipped."""
+    if not isinstance(records, list):
+        return ()
+    out = []
+    for e in records:
+        if isinstance(e, dict) and isinstance(e.get("time"), (int, float)) and not isinstance(e.get("time"), bool) \
+                and isinstance(e.get("kind"), str) and isinstance(e.get("message"), str):
+            out.append(Event(float(e["time"]), e["kind"], e["message"]))
+    return tuple(out)
 
 
 def object_arrays(plan: Plan, robot, execution=None) -> dict[str, np.ndarray]:
@@ -168,7 +222,7 @@ def object_arrays(plan: Plan, robot, execution=None) -> dict[str, np.ndarray]:
         planned = vm.planned_object_poses(robot, plan.spec, plan.t, plan.q)
         out["object_pose"] = np.stack([planned[n] for n in names], axis=1)
     if execution is not None:
-        executed = vm.executed_object_poses(execution, len(execution.t))
+        executed = execution.object_poses()
         if set(executed) == set(names):
             out["exec_object_pose"] = np.stack([executed[n] for n in names], axis=1)
     return out
@@ -198,7 +252,7 @@ def save_motion(path: str | Path, plan: Plan, robot, *, execution=None, actions=
         path: Output ``.npz`` path.
         plan: The plan.
         robot: The robot it was planned for (joint and frame names).
-        execution: Anything with ``t``, ``q``, ``v``, ``tau`` arrays (a simulation), or None.
+        execution: The simulated execution, or None; its certificate and events go into the report.
         actions: The parsed actions (Action objects or dicts), or None.
         report: Extra report entries (timings, the simulation ``certificate``...), merged with
             the plan's ``solver``, ``checks``, ``diagnosis`` and ``ok`` entries.
@@ -456,7 +510,7 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
         if key == "force_" or _has_control(key):
             raise _fail(shown, f"key {key[:80]!r} does not name a contact frame")
         forces[key[len("force_"):]] = _numbers(arrays, key, shown, (n, 3))
-    execution: dict[str, np.ndarray] = {}
+    execution: dict[str, np.ndarray] = {}  # the exec_* arrays, checked
     if any(k in arrays for k in EXEC_KEYS):
         lacking = [k for k in EXEC_KEYS[:3] if k not in arrays]
         if lacking:
@@ -489,9 +543,22 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
                     checks=checks, diagnosis=diagnosis)
     except (ValueError, TypeError) as e:  # pragma: no cover - every field was checked above
         raise _fail(shown, f"the arrays do not make a plan ({e})") from None
-    return MotionFile(plan=plan, execution_arrays=execution, actions=actions, report=report,
+    return MotionFile(plan=plan, execution=_execution(execution, report), actions=actions, report=report,
                       robot_name=robot_name, joint_names=joint_names, frame_names=frame_names,
                       version=int(version), objects=objects)
+
+
+def _execution(arrays: dict[str, np.ndarray], report: dict[str, Any]) -> Execution | None:
+    """The execution of checked ``exec_*`` arrays with the report's certificate and events."""
+    if not arrays:
+        return None
+    names = [str(x) for x in arrays.get("object_names", ())]
+    pose = arrays.get("exec_object_pose")
+    return Execution(t=arrays["exec_t"], q=arrays["exec_q"], v=arrays["exec_v"], tau=arrays.get("exec_tau"),
+                     certificate=certificate_from_report(report.get("certificate")),
+                     events=events_from_report(report.get("events")),
+                     objects={} if pose is None else {n: pose[:, i, :3] for i, n in enumerate(names)},
+                     object_orientations={} if pose is None else {n: pose[:, i, 3:] for i, n in enumerate(names)})
 
 
 def _object_keys(arrays: dict[str, Any], shown: str, n: int, execution: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -591,9 +658,9 @@ def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
     shown = repr(str(source))
     plan = motion.plan
     sizes = {"q": (plan.q, robot.nq, "nq"), "v": (plan.v, robot.nv, "nv")}
-    ex = motion.execution_arrays
-    if ex:
-        sizes.update({"exec_q": (ex["exec_q"], robot.nq, "nq"), "exec_v": (ex["exec_v"], robot.nv, "nv")})
+    ex = motion.execution
+    if ex is not None:
+        sizes.update({"exec_q": (ex.q, robot.nq, "nq"), "exec_v": (ex.v, robot.nv, "nv")})
     for key, (arr, want, what) in sizes.items():
         if arr.shape[1] != want:
             raise _fail(shown, f"key {key!r} has {arr.shape[1]} columns but robot {robot.name!r} has "
@@ -701,16 +768,17 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
             "spec": json.loads(str(arrays["spec_json"])), "actions": motion.actions, "report": motion.report}
     text = _csv_text(header, rows, meta).encode("utf-8")
     staging.add(path, lambda fh: fh.write(text))
-    ex = motion.execution_arrays
-    if ex:
+    ex = motion.execution
+    if ex is not None:
         exec_path = exec_csv_path(path)
-        n_tau = ex["exec_tau"].shape[1] if "exec_tau" in ex else 0
+        n_tau = ex.tau.shape[1] if ex.tau is not None else 0
         exec_header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]],
                        *[f"tau_{n}" for n in names[1][6:6 + n_tau]]]
-        parts = [ex["exec_t"][:, None], ex["exec_q"], ex["exec_v"]] + ([ex["exec_tau"]] if n_tau else [])
-        if "exec_object_pose" in ex:
-            exec_header += _object_columns([str(x) for x in ex["object_names"]])
-            parts += list(np.transpose(ex["exec_object_pose"], (1, 0, 2)))
+        parts = [ex.t[:, None], ex.q, ex.v] + ([ex.tau] if ex.tau is not None and n_tau else [])
+        poses = ex.object_poses()
+        if poses:
+            exec_header += _object_columns(list(poses))
+            parts += list(poses.values())
         exec_text = _csv_text(exec_header, np.hstack(parts), {}).encode("utf-8")
         staging.add(exec_path, lambda fh: fh.write(exec_text))
         written.append(exec_path)
@@ -751,6 +819,7 @@ def export_format(path: str | Path, fmt: str | None) -> str:
 
 
 def _arrays_of(motion: MotionFile) -> dict[str, Any]:
+    """Every key of the motion file of ``motion`` (the inverse of :func:`motion_from_arrays`)."""
     plan = motion.plan
     out: dict[str, Any] = {
         "t": plan.t, "q": plan.q, "v": plan.v, "a": plan.a, "com": plan.com,
@@ -763,7 +832,15 @@ def _arrays_of(motion: MotionFile) -> dict[str, Any]:
     }
     for name, arr in plan.forces.items():
         out[f"force_{name}"] = arr
-    out.update(motion.execution_arrays)
+    ex = motion.execution
+    if ex is not None:
+        out.update({"exec_t": ex.t, "exec_q": ex.q, "exec_v": ex.v})
+        if ex.tau is not None:
+            out["exec_tau"] = ex.tau
+        poses = ex.object_poses()
+        if poses:
+            out["exec_object_pose"] = np.stack(list(poses.values()), axis=1)
+            out["object_names"] = np.array(list(poses), dtype=str)
     if motion.objects:
         names = list(motion.objects)
         out["object_names"] = np.array(names, dtype=str)

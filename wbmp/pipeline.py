@@ -13,9 +13,17 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from wbmp.errors import CliError, ExitCode
+
+if TYPE_CHECKING:
+    from language import ActionPlan
+    from planner import Plan
+    from robots import Robot, RobotProfile
+    from sim import Execution, StopRequest
+    from tasks import TaskSpec
+    from wbmp.motioncache import Hit
 
 Progress = Callable[[str], None]
 
@@ -61,12 +69,12 @@ class SolveRequest:
     llm_options: dict[str, Any] = field(default_factory=dict)
     simulate: bool = True
     push: str | None = None
-    actions: Any = None
-    profile: Any = None
+    actions: ActionPlan | None = None
+    profile: RobotProfile | None = None
     estop_at: float | None = None
     estop_flag: str | None = None
     faults_path: str | None = None
-    stop_request: Any = None
+    stop_request: StopRequest | None = None
 
     @property
     def safety(self) -> bool:
@@ -91,21 +99,54 @@ class SolveRequest:
 
 @dataclass(kw_only=True)
 class SolveResult:
-    """Everything the job produced."""
+    """Everything the job produced: one typed record whatever its source (a fresh solve or the
+    motion cache).
 
-    robot: Any
-    spec: Any
-    plan: Any
-    actions: Any = None
-    execution: Any = None
+    Attributes:
+        spec: The compiled (or read) task spec, with this request's description.
+        plan: The plan (a cached one's stats say ``cache="cached"``).
+        robot: The robot's model, or None for a cached result until :meth:`model` loads it (a hit
+            that writes no page, plot or viewer never loads Pinocchio).
+        robot_name: The robot's name (default: ``robot.name``).
+        robot_source: What :meth:`model` loads (a name, a profile file or a
+            :class:`robots.RobotProfile`; default: ``robot_name``).
+        actions: The parsed actions of a sentence, or None for a spec file.
+        execution: The simulated execution (a cached one read back from the motion file, with its
+            certificate and events), or None without the simulation.
+        timings: Wall time of each step [s].
+        cached: The :class:`wbmp.motioncache.Hit` the result was read from, or None.
+        cache_key: Its motion cache key (also set after a fresh solve that was stored).
+    """
+
+    spec: TaskSpec
+    plan: Plan
+    robot: Robot | None = None
+    robot_name: str = ""
+    robot_source: str | RobotProfile | None = None
+    actions: ActionPlan | None = None
+    execution: Execution | None = None
     timings: dict[str, float] = field(default_factory=dict)
-    cached: Any = None  # the wbmp.motioncache.Hit this result was read from, or None
-    cache_key: str | None = None  # its motion cache key (also set after a fresh solve that was stored)
+    cached: Hit | None = None
+    cache_key: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.robot is not None and not self.robot_name:
+            self.robot_name = self.robot.name
+        if not self.robot_name:
+            raise ValueError("SolveResult needs the robot or its name")
+
+    def model(self) -> Robot:
+        """The robot's model (a cached result loads it here, once)."""
+        if self.robot is None:
+            from robots import load_robot
+
+            self.robot = load_robot(self.robot_source if self.robot_source is not None else self.robot_name)
+        return self.robot
 
     @property
     def exit_code(self) -> ExitCode:
         """0 when planned (and certified when simulated), 5 when the simulation check failed."""
-        if self.execution is not None and not self.execution.certificate.ok:
+        if self.execution is not None and not self.execution.ok:
             return ExitCode.SIM_FAILED
         return ExitCode.OK
 
@@ -113,7 +154,7 @@ class SolveResult:
         """The JSON report stored in the motion file and printed by ``--json``."""
         s = self.plan.stats
         out: dict[str, Any] = {
-            "robot": self.robot.name,
+            "robot": self.robot_name,
             "cached": self.cached is not None,
             "instruction": self.spec.description,
             "solver": {
@@ -136,10 +177,9 @@ class SolveResult:
         if self.actions is not None:
             out["actions"] = self.actions.to_dict()["actions"]
         if self.execution is not None:
-            out["certificate"] = self.execution.certificate.to_dict()
-            events = getattr(self.execution, "events", None)
-            if events:  # a fresh simulation's events (pushes, falls, E-stops); a cached one keeps its report's
-                out["events"] = [e.to_dict() for e in events]
+            from wbmp.motionfile import execution_report
+
+            out.update(execution_report(self.execution))  # its certificate and events (pushes, falls, E-stops)
         return out
 
 
@@ -249,70 +289,8 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     return _solve(request, progress, motions=motions, rkey=rkey, read=cache_read)
 
 
-class _LazyRobot:
-    """The robot of a cached result: its name at once, the model only when something needs it."""
-
-    def __init__(self, name: str, request: SolveRequest) -> None:
-        self._name = name
-        self._request = request
-        self._robot: Any = None
-
-    @property
-    def name(self) -> str:
-        """The robot's name (no model loaded)."""
-        return self._name
-
-    def load(self) -> Any:
-        """The robot itself (loaded on first use)."""
-        if self._robot is None:
-            from robots import load_robot
-
-            request = self._request
-            self._robot = load_robot(request.profile if request.profile is not None else request.robot or self._name)
-        return self._robot
-
-    def __getattr__(self, attr: str) -> Any:
-        return getattr(self.load(), attr)
-
-
-@dataclass(eq=False, kw_only=True)
-class CachedExecution:
-    """The simulated execution read back from the motion cache (arrays and certificate)."""
-
-    t: Any
-    q: Any
-    v: Any
-    tau: Any
-    certificate: Any
-    exec_object_pose: Any = None  # (T', k, 7) the movable objects' simulated poses, when the file has them
-    object_names: Any = None
-
-    @property
-    def ok(self) -> bool:
-        """The certificate passed."""
-        return bool(self.certificate.ok)
-
-
-def _certificate(record: dict[str, Any]):
-    from planner.results import Check, CheckKind
-    from sim.certificate import Certificate
-
-    def number(x: Any) -> float:
-        return float("nan") if x is None else float(x)
-
-    checks = tuple(Check(name=str(c["name"]), kind=CheckKind.RECORDED, value=number(c["value"]),
-                         limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]), ok=bool(c["ok"]),
-                         message=str(c.get("message", "")), upper=bool(c.get("upper", True)))
-                   for c in record["checks"])
-    figures = record.get("figures") or {}
-    stops = record.get("stops") or []
-    return Certificate(ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")),
-                       figures={str(k): number(v) for k, v in figures.items()} if isinstance(figures, dict) else {},
-                       stops=tuple(dict(x) for x in stops if isinstance(x, dict)) if isinstance(stops, list) else ())
-
-
-def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
-                actions: Any = None, spec: Any = None) -> SolveResult:
+def _from_cache(request: SolveRequest, hit: Hit, robot: Robot | None, elapsed: float,
+                actions: ActionPlan | None = None, spec: TaskSpec | None = None) -> SolveResult:
     """A SolveResult from a verified motion cache entry, with this request's sentence and actions."""
     import dataclasses
 
@@ -326,19 +304,12 @@ def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
     if actions is None and request.instruction is not None:
         actions = parse_instruction(request)  # milliseconds; the describe() lines and the report's actions
     plan = dataclasses.replace(plan, spec=spec, stats=dataclasses.replace(plan.stats, cache="cached"))
-    execution = None
-    if motion.execution_arrays:
-        try:
-            certificate = _certificate(motion.report["certificate"])
-        except (KeyError, TypeError, ValueError):
-            certificate = None
-        if certificate is not None:
-            ex = motion.execution_arrays
-            execution = CachedExecution(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex.get("exec_tau"),
-                                        certificate=certificate, exec_object_pose=ex.get("exec_object_pose"),
-                                        object_names=ex.get("object_names"))
-    return SolveResult(robot=robot if robot is not None else _LazyRobot(motion.robot_name, request), spec=spec,
-                       plan=plan, actions=actions, execution=execution, timings={"cache": elapsed}, cached=hit,
+    execution = motion.execution
+    if execution is not None and execution.certificate is None:
+        execution = None  # only certified results are stored: an entry without its certificate is not one
+    source = request.profile if request.profile is not None else request.robot or motion.robot_name
+    return SolveResult(robot=robot, robot_name=motion.robot_name, robot_source=source, spec=spec, plan=plan,
+                       actions=actions, execution=execution, timings={"cache": elapsed}, cached=hit,
                        cache_key=hit.key)
 
 
@@ -416,7 +387,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         timings["simulate"] = time.perf_counter() - t0
     result = SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
     if motions is not None and key is not None and files is not None and digest is not None \
-            and plan.ok and (execution is None or execution.certificate.ok) and not request.safety:
+            and plan.ok and (execution is None or execution.ok) and not request.safety:
         # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
         motions.store(key, result_arrays(result), spec)
         if rkey is not None:
@@ -456,7 +427,7 @@ def result_arrays(result: SolveResult) -> dict[str, Any]:
 
     actions = result.actions.to_dict()["actions"] if result.actions is not None else None
     if result.cached is None:
-        return motion_arrays(result.plan, result.robot, execution=result.execution, actions=actions,
+        return motion_arrays(result.plan, result.model(), execution=result.execution, actions=actions,
                              report=result.report())
     import json
 
@@ -629,10 +600,10 @@ def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str
         motions = MotionCache(cache_dir)
         data = motions.load_page(result.cache_key)
     if data is None:
-        data = page_data(result.robot, result.plan, execution=result.execution)
+        data = page_data(result.model(), result.plan, execution=result.execution)
         if motions is not None and result.cache_key is not None:
             motions.store_page(result.cache_key, data)
-    text = render_page(data, result.robot.name, result.plan, execution=result.execution, title=title)
+    text = render_page(data, result.robot_name, result.plan, execution=result.execution, title=title)
     raw = text.encode("utf-8")
     staging.add(path, lambda fh: fh.write(raw))
 
@@ -680,7 +651,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
             from viz import write_plots
 
             progress(f"writing plots to {plots}")
-            files = write_plots(paths.plots, result.robot, result.plan, execution=result.execution,
+            files = write_plots(paths.plots, result.model(), result.plan, execution=result.execution,
                                 staging=staging)
             written["plots"] = ", ".join(str(p) for p in files)
         if paths.out is not None:

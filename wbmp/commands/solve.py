@@ -162,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
         from viz.live import ViewerError, serve
 
         try:
-            serve(result.robot, result.plan, execution=result.execution)
+            serve(result.model(), result.plan, execution=result.execution)
         except ViewerError as e:
             raise CliError(f"live viewer: {e}", ExitCode.INTERNAL) from None
     return int(result.exit_code)
@@ -178,7 +178,7 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if result.actions is not None:
         print(result.actions.describe())
     print(result.plan.summary())
-    if result.execution is not None:
+    if result.execution is not None and result.execution.certificate is not None:
         print(result.execution.certificate.summary())
     for kind, path in written.items():
         print(f"wrote {kind}: {path}")
