@@ -205,6 +205,7 @@ def compile_actions(
     name: str = "",
     description: str = "",
     scene: Scene | None = None,
+    fitted: bool = False,
 ) -> TaskSpec:
     """Compile a sequence of actions (with overlays) into one TaskSpec for ``robot``.
 
@@ -219,6 +220,8 @@ def compile_actions(
         description: Free text (e.g. the sentence the actions came from).
         scene: The objects around the robot: an action's ``object`` reference (``walk to the
             table``) is resolved against it (:func:`ground_actions`), and the spec carries it.
+        fitted: The actions come from :func:`fit_actions` for this robot already (the pipeline
+            fits them to print the sizes it chose): they are not fitted again.
 
     Returns:
         The TaskSpec, whose horizon is the sum of the stand, action and transition times.
@@ -232,8 +235,8 @@ def compile_actions(
         GroundingError: an object reference without a scene, or that names no object or several.
     """
     _check_arguments(actions, dt, stand_time, transition_time)
-    checked = pick_up_first(ground_actions(fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot), scene),
-                            robot)
+    given = [_as_action(a, i) for i, a in enumerate(actions)]
+    checked = pick_up_first(ground_actions(given if fitted else fit_actions(given, robot), scene), robot)
     if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
     n = len(checked)

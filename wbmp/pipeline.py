@@ -235,12 +235,11 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
     from tasks.compose import compile_actions, fit_actions
 
-    # unstated sizes chosen within the robot's limits, so that the printed defaults are the ones used
+    # unstated sizes chosen within the robot's limits, once: the printed defaults are the ones compiled
     actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
     if scene is None:
         _require_scene(actions.actions)
-    spec = compile_actions(actions.actions, robot, scene=scene)
-    spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction, scene=scene)
+    spec = compile_actions(actions.actions, robot, scene=scene, description=request.instruction or "", fitted=True)
     check_spec_for_robot(spec, robot)
     check_spec_in_scene_for_robot(spec, robot)
     return robot, spec, actions
@@ -268,13 +267,13 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     """
     from wbmp.errors import check_signals
 
+    request.check()
     if not cache:
         return _solve(request, progress)
     if request.safety:  # a stop or faults: planned with the solution library, simulated afresh, not stored
         cache_read = False
     from wbmp.motioncache import MotionCache, request_key
 
-    request.check()
     motions = MotionCache(cache_dir)
     t0 = time.perf_counter()
     rkey = request_key(request) if request.actions is None else None  # given actions: keyed by the spec
@@ -326,7 +325,6 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     progress = checked_progress
 
     timings: dict[str, float] = {}
-    request.check()
     push = None
     if request.simulate and request.push is not None:
         from sim import parse_push

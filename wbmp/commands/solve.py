@@ -86,9 +86,7 @@ def request_from_args(args: argparse.Namespace):
         raise CliError("give either an instruction or --spec FILE, not both", ExitCode.USAGE)
     if not args.spec and not text:
         raise CliError('give an instruction in quotes (wbmp solve "squat twice") or --spec FILE', ExitCode.USAGE)
-    if args.push and args.no_sim:
-        raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
-    return SolveRequest(
+    return SolveRequest(  # SolveRequest.check() (in solve()) refuses a push without the simulation
         instruction=text or None, spec_path=args.spec, scene_path=args.scene, robot=args.robot, simulate=not args.no_sim,
         push=args.push, parser=args.parser, llm_options=llm_options(args),
         estop_at=getattr(args, "estop_at", None), estop_flag=getattr(args, "estop_flag", None),
