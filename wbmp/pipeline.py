@@ -280,12 +280,25 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     if rkey is not None and cache_read:
         found = motions.lookup_request(rkey)
         if found is not None:
-            hit = motions.load(found[0])
+            hit = motions.load(found.motion)
             if hit is not None:
                 check_signals()
                 progress("answering from the motion cache")
-                return _from_cache(request, hit, None, time.perf_counter() - t0)
+                return _from_cache(request, hit, None, time.perf_counter() - t0, actions=_stored_actions(found.actions))
     return _solve(request, progress, motions=motions, rkey=rkey, read=cache_read)
+
+
+def _stored_actions(record: dict[str, Any] | None) -> ActionPlan | None:
+    """The parsed actions a request record keeps, or None (a record without them, or damaged:
+    the sentence is parsed again)."""
+    if record is None:
+        return None
+    from language import ActionPlan, LanguageError
+
+    try:
+        return ActionPlan.from_record(record)
+    except LanguageError:
+        return None
 
 
 def _from_cache(request: SolveRequest, hit: Hit, robot: Robot | None, elapsed: float,
@@ -301,7 +314,7 @@ def _from_cache(request: SolveRequest, hit: Hit, robot: Robot | None, elapsed: f
     if actions is None and request.actions is not None:
         actions = request.actions
     if actions is None and request.instruction is not None:
-        actions = parse_instruction(request)  # milliseconds; the describe() lines and the report's actions
+        actions = parse_instruction(request)  # a request record without its actions (or damaged ones)
     plan = dataclasses.replace(plan, spec=spec, stats=dataclasses.replace(plan.stats, cache="cached"))
     execution = motion.execution
     if execution is not None and execution.certificate is None:
@@ -358,7 +371,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         hit = motions.load(key) if read and not request.safety else None
         if hit is not None:  # the same motion from another phrasing (or request)
             if rkey is not None:
-                motions.store_request(rkey, key, files, digest)
+                motions.store_request(rkey, key, files, digest, _actions_record(actions))
             progress("answering from the motion cache")
             return _from_cache(request, hit, robot, timings["spec"], actions=actions, spec=spec)
     from planner import plan as plan_motion
@@ -389,9 +402,13 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
         motions.store(key, result_arrays(result), spec)
         if rkey is not None:
-            motions.store_request(rkey, key, files, digest)
+            motions.store_request(rkey, key, files, digest, _actions_record(actions))
         result.cache_key = key
     return result
+
+
+def _actions_record(actions: ActionPlan | None) -> dict[str, Any] | None:
+    return None if actions is None else actions.to_record()
 
 
 def _estop_settings(request: SolveRequest) -> Any:

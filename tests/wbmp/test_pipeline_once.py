@@ -37,3 +37,28 @@ def test_fitted_actions_compile_to_the_same_spec(talos):
     fitted = compose.fit_actions(raw, talos)
     assert compile_actions(fitted, talos, fitted=True) == compile_actions(raw, talos)
     assert compose.fit_actions(fitted, talos) == fitted
+
+
+def test_a_repeat_from_the_motion_cache_is_not_parsed_again(tmp_path, monkeypatch):
+    """The request record keeps the parsed actions: a repeat takes them from there (words and
+    defaults included) instead of parsing the sentence again, and loads no robot model."""
+    import numpy as np
+
+    import wbmp.pipeline as pipeline
+
+    def request() -> SolveRequest:
+        return SolveRequest(instruction="squat 10 cm", robot="talos", simulate=False)
+
+    first = pipeline.solve(request(), cache=True, cache_dir=tmp_path)
+    assert first.cached is None and first.cache_key is not None and first.actions is not None
+
+    def refuse(_request):
+        raise AssertionError("the sentence was parsed again")
+
+    monkeypatch.setattr(pipeline, "parse_instruction", refuse)
+    again = pipeline.solve(request(), cache=True, cache_dir=tmp_path)
+    assert again.cached is not None and again.robot is None and again.actions is not None
+    assert again.actions == first.actions and again.actions.words == first.actions.words
+    assert again.actions.describe() == first.actions.describe()
+    assert again.report()["actions"] == first.report()["actions"]
+    assert np.array_equal(again.plan.q, first.plan.q)
