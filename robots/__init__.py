@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from robots.lazy import lazy_face
 
 if TYPE_CHECKING:
-    from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
+    from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound, WbmpError
     from robots.model import DEFAULT_ROBOT, Robot, available_robots, level_soles, load_robot
     from robots.profile import ROLES, ExtraFrame, RobotProfile, SoleRectangle, builtin_profiles
 
@@ -29,6 +29,7 @@ _EXPORTS = {  # public name -> module that defines it
     "ProfileError": "robots.exceptions",
     "Robot": "robots.model",
     "RobotError": "robots.exceptions",
+    "WbmpError": "robots.exceptions",
     "RobotNotFound": "robots.exceptions",
     "RobotProfile": "robots.profile",
     "SoleRectangle": "robots.profile",
@@ -49,6 +50,7 @@ __all__ = [
     "RobotNotFound",
     "RobotProfile",
     "SoleRectangle",
+    "WbmpError",
     "available_robots",
     "builtin_profiles",
     "level_soles",

@@ -24,6 +24,7 @@ from robots import Robot
 from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack, zmq
+from viz.exceptions import VizError
 
 if TYPE_CHECKING:
     from sim.execution import Execution
@@ -34,7 +35,7 @@ STOP_TIMEOUT = 5.0  # [s] between SIGTERM and SIGKILL
 FPS = 30.0
 
 
-class ViewerError(RuntimeError):
+class ViewerError(RuntimeError, VizError):
     """The live viewer could not start or lost its server."""
 
 

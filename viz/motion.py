@@ -21,6 +21,7 @@ import pinocchio as pin
 from robots import Robot
 from robots.contact import convex_hull as convex_hull_2d
 from robots.contact import points_in_world, polygon_margin, sole_corners
+from viz.exceptions import VizError
 
 if TYPE_CHECKING:
     from sim.execution import Execution
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
 GRAVITY = 9.81  # [m/s^2]
 
 
-class VizInputError(ValueError):
+class VizInputError(ValueError, VizError):
     """A motion given to a viewer or plot has the wrong shape or is empty."""
 
 

@@ -14,6 +14,8 @@ import enum
 import unicodedata
 from typing import Literal, NamedTuple
 
+from robots import WbmpError
+
 
 class ExitCode(enum.IntEnum):
     """Process exit codes."""
@@ -68,7 +70,7 @@ def check_signals() -> None:
     raise KeyboardInterrupt()
 
 
-class CliError(Exception):
+class CliError(WbmpError):
     """An error with a one-line message and an exit code."""
 
     def __init__(self, message: str, code: ExitCode) -> None:
@@ -148,6 +150,9 @@ _R = ExitRule
 #: (``type(exc).__mro__``), so an exception from outside the project that subclasses one of these
 #: gets its nearest ancestor's code.
 EXIT_TABLE: tuple[ExitRule, ...] = (
+    # the root of the project's errors and the layers' bases without a code of their own
+    _R("robots.exceptions.WbmpError", None, "the root of the project's errors: a class without a row of its own is a bug"),
+    _R("viz.exceptions.VizError", None, "the viz layer's base: each of its errors has a row of its own"),
     # the CLI itself
     _R("wbmp.errors.CliError", OWN, "a refused input of the CLI, with the code it names"),
     _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
