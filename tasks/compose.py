@@ -220,8 +220,7 @@ def compile_actions(
         description: Free text (e.g. the sentence the actions came from).
         scene: The objects around the robot: an action's ``object`` reference (``walk to the
             table``) is resolved against it (:func:`ground_actions`), and the spec carries it.
-        fitted: The actions come from :func:`fit_actions` for this robot already (the pipeline
-            fits them to print the sizes it chose): they are not fitted again.
+        fitted: The actions come from :func:`fit_actions` for this robot: not fitted again.
 
     Returns:
         The TaskSpec, whose horizon is the sum of the stand, action and transition times.

@@ -7,8 +7,6 @@ every step reports progress through a small callback so the CLI can show it (or 
 from __future__ import annotations
 
 import contextlib
-import io
-import struct
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -525,82 +523,6 @@ def _plot_files() -> tuple[str, ...]:
     return PLOT_FILES
 
 
-def _savez_fast(fh: Any, arrays: dict[str, Any]) -> None:
-    """``np.savez_compressed`` at zlib level 1 (what ``--out`` is written with: ~25 % less CPU than
-    level 6, and the file a fraction of a percent larger; a 1 kHz execution hardly compresses)."""
-    import zipfile
-
-    import numpy as np
-
-    with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
-        for key, value in arrays.items():
-            with zf.open(f"{key}.npy", "w", force_zip64=True) as member:
-                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
-
-
-_LOCAL = struct.Struct("<IHHHHHIIIHH")  # a zip local file header (30 bytes)
-_CENTRAL = struct.Struct("<IHHHHHHIIIHHHHHII")  # a central directory record (46 bytes)
-_END = struct.Struct("<IHHHHIIH")  # the end of central directory record (22 bytes)
-
-
-def _npz_replacing(source: bytes, replaced: dict[str, Any]) -> bytes | None:
-    """The ``.npz`` ``source`` with the arrays ``replaced`` (key -> array) written anew and every
-    other member copied byte for byte (its compressed data is not touched: a cached motion's
-    ``--out`` costs a copy, not a recompression). None when ``source`` is not a plain zip this
-    can copy (zip64, encrypted, streamed members): the caller writes the file the slow way."""
-    import zipfile
-    import zlib
-
-    import numpy as np
-
-    try:
-        infos = zipfile.ZipFile(io.BytesIO(source)).infolist()
-    except (zipfile.BadZipFile, ValueError, OSError):
-        return None
-    names = {f"{key}.npy" for key in replaced}
-    out = io.BytesIO()
-    central = []
-
-    def member(name: str, method: int, crc: int, csize: int, usize: int, dostime: int, dosdate: int,
-               payload: bytes) -> None:
-        raw = name.encode("ascii")
-        central.append(_CENTRAL.pack(0x02014B50, 20, 20, 0, method, dostime, dosdate, crc, csize, usize,
-                                     len(raw), 0, 0, 0, 0, 0, out.tell()) + raw)
-        out.write(_LOCAL.pack(0x04034B50, 20, 0, method, dostime, dosdate, crc, csize, usize, len(raw), 0) + raw)
-        out.write(payload)
-
-    for info in infos:
-        if info.filename in names:
-            continue
-        if (info.flag_bits & 0x09 or info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)
-                or not info.filename.isascii() or max(info.compress_size, info.file_size, info.header_offset) >= 1 << 31):
-            return None
-        head = source[info.header_offset:info.header_offset + _LOCAL.size]
-        if len(head) != _LOCAL.size or head[:4] != b"PK\x03\x04":
-            return None
-        fields = _LOCAL.unpack(head)
-        start = info.header_offset + _LOCAL.size + fields[9] + fields[10]
-        payload = source[start:start + info.compress_size]
-        if len(payload) != info.compress_size:
-            return None
-        y, mo, d, h, mi, sec = info.date_time
-        member(info.filename, info.compress_type, info.CRC, info.compress_size, info.file_size,
-               (h << 11) | (mi << 5) | (sec // 2), ((y - 1980) << 9) | (mo << 5) | d, payload)
-    for key, value in replaced.items():
-        buf = io.BytesIO()
-        np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
-        data = buf.getvalue()
-        packer = zlib.compressobj(6, zlib.DEFLATED, -15)
-        payload = packer.compress(data) + packer.flush()
-        member(f"{key}.npy", zipfile.ZIP_DEFLATED, zlib.crc32(data), len(payload), len(data), 0, (1 << 5) | 1,
-               payload)
-    start = out.tell()
-    for record in central:
-        out.write(record)
-    out.write(_END.pack(0x06054B50, 0, 0, len(central), len(central), out.tell() - start, start, 0))
-    return out.getvalue()
-
-
 def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str | Path | None) -> None:
     """The HTML replay; its data is reused from (or stored into) the motion cache when the
     result is in it (the page's data does not depend on the title)."""
@@ -634,6 +556,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
     ``result.timings`` (``npz``, ``html``: the ``--json`` report shows them).
     """
     from viz.files import Staging
+    from wbmp.motionfile import npz_replacing, savez_fast
 
     paths = check_outputs(out=out, html=html, plots=plots)
     written: dict[str, str] = {}
@@ -644,7 +567,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
             arrays = result_arrays(result)
             copied = None
             if result.cached is not None and result.cached.data:  # the stored file, with this request's JSON
-                copied = _npz_replacing(result.cached.data, {k: arrays[k] for k in _REQUEST_KEYS})
+                copied = npz_replacing(result.cached.data, {k: arrays[k] for k in _REQUEST_KEYS})
             if copied is not None:
                 data = copied
                 staging.add(paths.out, lambda fh: fh.write(data))
@@ -652,7 +575,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
                 # zlib level 1: the 1 kHz execution (float64) hardly compresses (6.2 MB at level 6, 6.2 MB
                 # at level 1, 6.4 MB raw for four steps) and level 6 costs ~25 % more CPU; when a page or
                 # plots follow, the file is compressed in a thread (zlib releases the GIL) beside them
-                staging.add(paths.out, lambda fh: _savez_fast(fh, arrays),
+                staging.add(paths.out, lambda fh: savez_fast(fh, arrays),
                             background=paths.html is not None or paths.plots is not None)
             written["motion"] = str(paths.out)
             result.timings["npz"] = time.perf_counter() - t0

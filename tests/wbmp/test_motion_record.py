@@ -15,8 +15,9 @@ from planner import Check, CheckKind
 from sim import Certificate, Event, Execution
 from tests.viz.conftest import synthetic_pick_up, synthetic_pick_up_execution
 from viz import motion as vm
+from wbmp.export.files import export_motion
 from wbmp.motioncache import Hit
-from wbmp.motionfile import export_motion, load_motion, motion_from_arrays, save_motion
+from wbmp.motionfile import load_motion, motion_from_arrays, save_motion
 from wbmp.pipeline import SolveRequest, SolveResult, _from_cache, result_arrays
 
 

@@ -141,7 +141,8 @@ def _check_rate(args: argparse.Namespace, motion) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viz.files import Staging, check_distinct, check_output_file
-    from wbmp.motionfile import check_motion_exists, exec_csv_path, export_motion, load_motion
+    from wbmp.export.files import exec_csv_path, export_motion
+    from wbmp.motionfile import check_motion_exists, load_motion
     from wbmp.pipeline import output_errors
 
     check_motion_exists(args.motion)  # a missing input is named as such, before the outputs
