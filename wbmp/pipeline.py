@@ -356,6 +356,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     if request.simulate:
         _check_safety_times(request, faults, spec.horizon)
     key = digest = files = None
+    library = motions is not None  # the solution library goes with the motion cache, hashable robot files or not
     if motions is not None:
         from wbmp.motioncache import motion_key, robot_files, robot_hash
 
@@ -380,7 +381,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     # the user's WBMP_* switches (compile, background, solution library, build memory); without the
     # motion cache (--no-cache), no solution library either: the result of the request alone,
     # whatever was planned before (planner/trajopt/library.py)
-    settings = planner_settings() if motions is not None else planner_settings(solution_library="off")
+    settings = planner_settings() if library else planner_settings(solution_library="off")
     plan = plan_motion(spec, robot, progress=progress, settings=settings)
     check_signals()
     timings["plan"] = time.perf_counter() - t0

@@ -62,3 +62,32 @@ def test_a_repeat_from_the_motion_cache_is_not_parsed_again(tmp_path, monkeypatc
     assert again.actions.describe() == first.actions.describe()
     assert again.report()["actions"] == first.report()["actions"]
     assert np.array_equal(again.plan.q, first.plan.q)
+
+
+def test_the_solution_library_does_not_depend_on_hashing_the_robot_files(tmp_path, monkeypatch):
+    """With the motion cache, a robot whose files cannot be hashed (the result is then not cached)
+    still plans with the user's solution library setting, as every other robot does: whether the
+    cache can store a result does not change which plan comes out."""
+    import wbmp.environment as environment
+    import wbmp.motioncache as motioncache
+    import wbmp.pipeline as pipeline
+
+    asked: list[dict] = []
+    settings = environment.planner_settings
+
+    def recorded(**overrides):
+        asked.append(overrides)
+        return settings(**overrides)
+
+    def unreadable(robot):
+        raise PermissionError("a mesh file cannot be read")
+
+    monkeypatch.setattr(environment, "planner_settings", recorded)
+    monkeypatch.setattr(motioncache, "robot_files", unreadable)
+    result = pipeline.solve(SolveRequest(instruction="squat 10 cm", robot="talos", simulate=False),
+                            cache=True, cache_dir=tmp_path)
+    assert result.plan.ok and result.cache_key is None  # planned, not stored
+    assert asked == [{}]  # the user's settings, not solution_library="off"
+    asked.clear()
+    pipeline.solve(SolveRequest(instruction="squat 10 cm", robot="talos", simulate=False), cache=False)
+    assert asked == [{"solution_library": "off"}]  # --no-cache: the request alone, as before
