@@ -31,8 +31,19 @@ class Event:
     message: str
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict."""
+        """JSON-friendly dict (:meth:`from_dict` reads it back)."""
         return {"time": float(self.time), "kind": self.kind, "message": self.message}
+
+    @classmethod
+    def from_dict(cls, record: Any) -> Event | None:
+        """The event of :meth:`to_dict`'s dict, or None when ``record`` is not one."""
+        if not isinstance(record, dict):
+            return None
+        time, kind, message = record.get("time"), record.get("kind"), record.get("message")
+        if isinstance(time, bool) or not isinstance(time, (int, float)) or not isinstance(kind, str) \
+                or not isinstance(message, str):
+            return None
+        return cls(float(time), kind, message)
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

@@ -171,40 +171,10 @@ def execution_report(execution: Execution) -> dict[str, Any]:
     return out
 
 
-def certificate_from_report(record: Any) -> Certificate | None:
-    """The certificate a report stores (:meth:`sim.Certificate.to_dict`), or None when the report
-    has none or it is not one; its checks have :attr:`planner.CheckKind.RECORDED`."""
-    if not isinstance(record, dict):
-        return None
-
-    def number(x: Any) -> float:
-        return float("nan") if x is None else float(x)
-
-    try:
-        checks = tuple(Check(name=str(c["name"]), kind=CheckKind.RECORDED, value=number(c["value"]),
-                             limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]),
-                             ok=bool(c["ok"]), message=str(c.get("message", "")), upper=bool(c.get("upper", True)))
-                       for c in record["checks"])
-        figures = record.get("figures") or {}
-        stops = record.get("stops") or []
-        return Certificate(
-            ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")),
-            figures={str(k): number(v) for k, v in figures.items()} if isinstance(figures, dict) else {},
-            stops=tuple(dict(x) for x in stops if isinstance(x, dict)) if isinstance(stops, list) else ())
-    except (KeyError, TypeError, ValueError, AttributeError):
-        return None
-
-
 def events_from_report(records: Any) -> tuple[Event, ...]:
     """The events a report stores (:meth:`sim.Event.to_dict`); entries that are not one are skipped."""
-    if not isinstance(records, list):
-        return ()
-    out = []
-    for e in records:
-        if isinstance(e, dict) and isinstance(e.get("time"), (int, float)) and not isinstance(e.get("time"), bool) \
-                and isinstance(e.get("kind"), str) and isinstance(e.get("message"), str):
-            out.append(Event(float(e["time"]), e["kind"], e["message"]))
-    return tuple(out)
+    events = [Event.from_dict(e) for e in records] if isinstance(records, list) else []
+    return tuple(e for e in events if e is not None)
 
 
 def object_arrays(plan: Plan, robot, execution=None) -> dict[str, np.ndarray]:
@@ -622,7 +592,7 @@ def _execution(arrays: dict[str, np.ndarray], report: dict[str, Any]) -> Executi
     names = [str(x) for x in arrays.get("object_names", ())]
     pose = arrays.get("exec_object_pose")
     return Execution(t=arrays["exec_t"], q=arrays["exec_q"], v=arrays["exec_v"], tau=arrays.get("exec_tau"),
-                     certificate=certificate_from_report(report.get("certificate")),
+                     certificate=Certificate.from_dict(report.get("certificate")),
                      events=events_from_report(report.get("events")),
                      objects={} if pose is None else {n: pose[:, i, :3] for i, n in enumerate(names)},
                      object_orientations={} if pose is None else {n: pose[:, i, 3:] for i, n in enumerate(names)})

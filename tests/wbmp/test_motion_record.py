@@ -108,3 +108,17 @@ def test_a_cached_result_is_the_fresh_result(talos, pick):
     assert "events" in mine and mine["events"][1]["kind"] == "estop"
     assert cached.model().nq == talos.nq and cached.robot is not None
 
+
+
+def test_a_report_entry_that_is_not_a_certificate_or_an_event_is_left_out(tmp_path, talos, pick):
+    """The certificate and events are read from the report with Certificate.from_dict and
+    Event.from_dict: a dict that is not one gives no certificate and skips the event (the file
+    still loads, as a file written by another tool does)."""
+    plan, ex = pick
+    bare = dataclasses.replace(ex, certificate=None, events=())
+    good = {"time": 1.5, "kind": "push", "message": "pushed"}
+    report = {"certificate": {"ok": True}, "events": [{"time": "soon", "kind": "push", "message": "x"}, good, 3]}
+    m = load_motion(save_motion(tmp_path / "m.npz", plan, talos, execution=bare, report=report))
+    assert m.execution is not None and m.execution.certificate is None and not m.execution.ok
+    assert m.execution.events == (Event(1.5, "push", "pushed"),)
+    assert Certificate.from_dict(_certificate().to_dict()) == _certificate()
