@@ -41,8 +41,7 @@ import numpy as np
 from planner import Check, CheckKind, Plan, SolverStats, SolveStatus
 from robots.safeio import LIMITS, FileTooLarge, open_regular
 from sim import Certificate, Event, Execution
-from tasks.exceptions import TaskError
-from tasks.serialize import spec_from_json, spec_to_json
+from tasks import TaskError, spec_from_json, spec_to_json
 from viz.files import Staging, atomic_write
 from wbmp.errors import CliError, ExitCode
 
@@ -702,7 +701,7 @@ def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
         if arr.shape[1] != want:
             raise _fail(shown, f"key {key!r} has {arr.shape[1]} columns but robot {robot.name!r} has "
                                f"{what} = {want} (a file of another robot?)")
-    from robots.exceptions import RobotError
+    from robots import RobotError
 
     for frame in plan.spec.contact_frames():
         try:

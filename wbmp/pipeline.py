@@ -208,12 +208,11 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     import dataclasses
 
     from robots import load_robot
-    from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
-    from tasks.serialize import load_spec
+    from tasks import check_spec_for_robot, check_spec_in_scene_for_robot, load_spec
 
     scene = None
     if request.scene_path is not None:
-        from tasks.scene import load_scene
+        from tasks import load_scene
 
         scene = load_scene(request.scene_path)
     if request.spec_path is not None:
@@ -231,7 +230,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     progress("parsing the instruction")
     actions = parse_instruction(request) if request.actions is None else request.actions
     robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
-    from tasks.compose import compile_actions, fit_actions
+    from tasks import compile_actions, fit_actions
 
     # unstated sizes chosen within the robot's limits, once: the printed defaults are the ones compiled
     actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
@@ -343,7 +342,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         push = parse_push(request.push)  # before any work: a typo fails at once (exit 2)
     faults = None
     if request.simulate and request.faults_path is not None:
-        from sim.faults import load_faults
+        from sim import load_faults
 
         faults = load_faults(request.faults_path)  # before any work: a bad file fails at once (exit 3)
     t0 = time.perf_counter()
@@ -412,7 +411,7 @@ def _actions_record(actions: ActionPlan | None) -> dict[str, Any] | None:
 
 def _estop_settings(request: SolveRequest) -> Any:
     """The simulation's E-stop settings for a request (its stop time, flag file and signal)."""
-    from sim.estop import EStopSettings
+    from sim import EStopSettings
 
     return EStopSettings(at=request.estop_at, flag_file=request.estop_flag, request=request.stop_request)
 
@@ -423,7 +422,7 @@ def _check_safety_times(request: SolveRequest, faults: Any, horizon: float) -> N
         raise CliError(f"--estop-at {request.estop_at:g}: the motion lasts {horizon:.3g} s; give a time from 0 to "
                        f"below {horizon:.3g} s", ExitCode.USAGE)
     if faults is not None:
-        from sim.exceptions import FaultsError
+        from sim import FaultsError
 
         for i, p in enumerate(faults.pushes):
             if not p.t < horizon:
@@ -447,7 +446,7 @@ def result_arrays(result: SolveResult) -> dict[str, Any]:
 
     import numpy as np
 
-    from tasks.serialize import spec_to_json
+    from tasks import spec_to_json
     from wbmp.motionfile import _json_default, plan_report
 
     arrays = dict(result.cached.arrays)
@@ -483,7 +482,7 @@ def check_inputs_exist(*, spec: str | None = None, scene: str | None = None) -> 
     the outputs are checked: a missing input must not be reported as a missing output folder."""
     import os
 
-    from tasks.exceptions import TaskDefinitionError
+    from tasks import TaskDefinitionError
 
     for what, path in (("spec", spec), ("scene", scene)):
         if path is not None and path != "-" and path.strip() and not os.path.lexists(path):
