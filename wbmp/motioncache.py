@@ -417,7 +417,10 @@ class MotionCache:
 
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
-        data = buf.getvalue()
+        self.store_file(key, buf.getvalue(), spec)
+
+    def store_file(self, key: str, data: bytes, spec) -> None:
+        """Store a motion file's bytes (an ``.npz``) under ``key``, the file first, then its manifest."""
         meta = {"key": key, "format": FORMAT, "size": len(data), "sha256": hashlib.sha256(data).hexdigest(),
                 "spec": hashlib.sha256(spec_identity(spec).encode()).hexdigest(), "wbmp": __version__}
         self._write(self._npz(key), data)

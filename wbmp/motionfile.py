@@ -246,6 +246,13 @@ def savez_fast(fh: Any, arrays: dict[str, Any]) -> None:
                 np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
 
 
+def npz_bytes(arrays: dict[str, Any]) -> bytes:
+    """The ``.npz`` of ``arrays`` as :func:`savez_fast` writes it, in memory."""
+    buf = io.BytesIO()
+    savez_fast(buf, arrays)
+    return buf.getvalue()
+
+
 _LOCAL = struct.Struct("<IHHHHHIIIHH")  # a zip local file header (30 bytes)
 _CENTRAL = struct.Struct("<IHHHHHHIIIHHHHHII")  # a central directory record (46 bytes)
 _END = struct.Struct("<IHHHHIIH")  # the end of central directory record (22 bytes)

@@ -114,6 +114,8 @@ class SolveResult:
         timings: Wall time of each step [s].
         cached: The :class:`wbmp.motioncache.Hit` the result was read from, or None.
         cache_key: Its motion cache key (also set after a fresh solve that was stored).
+        motion_file: The motion file (``.npz`` bytes) of a fresh result stored in the motion cache:
+            ``--out`` writes these bytes, compressed once.
     """
 
     spec: TaskSpec
@@ -126,6 +128,7 @@ class SolveResult:
     timings: dict[str, float] = field(default_factory=dict)
     cached: Hit | None = None
     cache_key: str | None = None
+    motion_file: bytes | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.robot is not None and not self.robot_name:
@@ -398,7 +401,10 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     if motions is not None and key is not None and files is not None and digest is not None \
             and plan.ok and (execution is None or execution.ok) and not request.safety:
         # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
-        motions.store(key, result_arrays(result), spec)
+        from wbmp.motionfile import npz_bytes
+
+        result.motion_file = npz_bytes(result_arrays(result))  # compressed once: the cache and --out
+        motions.store_file(key, result.motion_file, spec)
         if rkey is not None:
             motions.store_request(rkey, key, files, digest, _actions_record(actions))
         result.cache_key = key
@@ -566,8 +572,10 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
             progress(f"writing {out}")
             arrays = result_arrays(result)
             copied = None
-            if result.cached is not None and result.cached.data:  # the stored file, with this request's JSON
-                copied = npz_replacing(result.cached.data, {k: arrays[k] for k in _REQUEST_KEYS})
+            # the stored file (a cached result, or a fresh one just stored), with this request's JSON
+            stored = result.cached.data if result.cached is not None and result.cached.data else result.motion_file
+            if stored:
+                copied = npz_replacing(stored, {k: arrays[k] for k in _REQUEST_KEYS})
             if copied is not None:
                 data = copied
                 staging.add(paths.out, lambda fh: fh.write(data))

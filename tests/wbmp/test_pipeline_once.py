@@ -91,3 +91,29 @@ def test_the_solution_library_does_not_depend_on_hashing_the_robot_files(tmp_pat
     asked.clear()
     pipeline.solve(SolveRequest(instruction="squat 10 cm", robot="talos", simulate=False), cache=False)
     assert asked == [{"solution_library": "off"}]  # --no-cache: the request alone, as before
+
+
+def test_a_fresh_result_is_compressed_once_for_the_cache_and_out(tmp_path):
+    """A fresh result stored in the motion cache keeps its motion file's bytes; --out copies its
+    arrays' compressed members from them (the same compressed sizes and checksums as the stored
+    entry) and writes only the request's JSON members anew; the file reads back to the plan."""
+    import zipfile
+
+    import numpy as np
+
+    import wbmp.pipeline as pipeline
+    from wbmp.motionfile import load_motion
+
+    cache = tmp_path / "cache"
+    result = pipeline.solve(SolveRequest(instruction="squat 10 cm", robot="talos", simulate=False),
+                            cache=True, cache_dir=cache)
+    assert result.cache_key is not None and result.motion_file is not None
+    out = tmp_path / "m.npz"
+    pipeline.write_outputs(result, out=str(out), cache_dir=cache)
+    with zipfile.ZipFile(cache / f"{result.cache_key}.npz") as stored, zipfile.ZipFile(out) as written:
+        for name in ("q.npy", "v.npy", "com.npy"):
+            a, b = stored.getinfo(name), written.getinfo(name)
+            assert (a.CRC, a.compress_size, a.compress_type) == (b.CRC, b.compress_size, b.compress_type), name
+    m = load_motion(out)
+    assert np.array_equal(m.plan.q, result.plan.q) and m.plan.spec == result.spec
+    assert m.report["instruction"] == "squat 10 cm" and m.report["cached"] is False
