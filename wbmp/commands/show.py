@@ -38,8 +38,7 @@ def load(path: str):
     A damaged file is exit 2 (:func:`wbmp.motionfile.load_motion` names the key); a robot name
     in the file that this install does not know is exit 3, as an unknown robot is for ``solve``.
     """
-    from robots import load_robot
-    from robots.exceptions import RobotError
+    from robots import RobotError, load_robot
     from wbmp.motionfile import check_robot, load_motion
 
     motion = load_motion(path)

@@ -114,7 +114,7 @@ def _stop_on_sigusr1(request) -> None:
 
     if not hasattr(signal, "SIGUSR1") or threading.current_thread() is not threading.main_thread():
         return
-    from sim.estop import StopRequest
+    from sim import StopRequest
 
     stop = StopRequest()
     request.stop_request = stop
@@ -122,7 +122,7 @@ def _stop_on_sigusr1(request) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from language.exceptions import LanguageError
+    from language import LanguageError
     from viz.progress import make_progress
     from wbmp.pipeline import check_inputs_exist, check_outputs, solve, write_outputs
 
