@@ -44,7 +44,7 @@ from wbmp.pipeline import SolveRequest, solve  # noqa: E402
 def _plan(sentence: str, robot: str):
     """(robot, plan) of a sentence: from the motion cache, or planned once without simulation."""
     result = solve(SolveRequest(instruction=sentence, robot=robot, simulate=False), cache=True)
-    robot_model = result.robot.load() if hasattr(result.robot, "load") else result.robot
+    robot_model = result.model()  # a cached result loads its robot here
     return robot_model, result.plan
 
 

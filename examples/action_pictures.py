@@ -80,7 +80,7 @@ def picture(action: str, robot: str, out: Path) -> tuple[Path, float]:
     start = time.perf_counter()
     result = solve(SolveRequest(instruction=sentence(action), robot=robot, simulate=False))
     with tempfile.TemporaryDirectory() as tmp:
-        raw = plot_keyframes(Path(tmp) / "keyframes.png", result.robot, result.plan, count=5)
+        raw = plot_keyframes(Path(tmp) / "keyframes.png", result.model(), result.plan, count=5)
         with Image.open(raw) as img:
             small = img.convert("RGB").resize((int(img.width * SCALE), int(img.height * SCALE)), Image.LANCZOS)
             small = small.quantize(colors=MAX_COLOURS)

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from robots import WbmpError
 
-class LanguageError(ValueError):
+
+class LanguageError(ValueError, WbmpError):
     """Base class of every error about an instruction (the CLI exits with code 2).
 
     The message is always one line: runs of whitespace (newlines in a quoted instruction
@@ -74,5 +76,5 @@ class LLMReplyInvalid(LLMError):
     """The model's reply was not a valid action plan, even after one retry with the validation error."""
 
 
-class VocabularyError(Exception):
+class VocabularyError(WbmpError):
     """The packaged vocabulary is inconsistent with itself or with the action registry (a bug)."""

@@ -149,6 +149,28 @@ class ActionPlan:
             raise LanguageError("an action plan needs at least one action")
         return cls(actions=tuple(actions), backend=str(data.get("backend", "rules")), text=text, given=tuple(given))
 
+    def to_record(self) -> dict[str, Any]:
+        """Everything of the plan as JSON (every parameter, the stated names, the words): the
+        motion cache keeps it beside a request, so that a repeat is answered without parsing the
+        sentence again; :meth:`from_record` gives back an equal plan, words included."""
+        return {"text": self.text, "backend": self.backend,
+                "actions": [a.to_dict() for a in self.actions],
+                "given": [sorted(g) for g in self.given],
+                "words": self.words_dict()}
+
+    @classmethod
+    def from_record(cls, data: Mapping[str, Any]) -> ActionPlan:
+        """Inverse of :meth:`to_record` (LanguageError on bad content)."""
+        try:
+            words = tuple(WordUse(text=str(w["text"]), role=str(w["role"]), detail=str(w.get("detail", "")),
+                                  action=None if w.get("action") is None else int(w["action"]))
+                          for w in data["words"])
+            return cls(actions=tuple(Action.from_dict(a) for a in data["actions"]), backend=str(data["backend"]),
+                       text=str(data["text"]), given=tuple(frozenset(str(n) for n in g) for g in data["given"]),
+                       words=words)
+        except (KeyError, TypeError, ValueError, AttributeError, RecursionError, TaskDefinitionError) as e:
+            raise LanguageError(f"not an action plan record ({type(e).__name__}: {str(e)[:120]})") from None
+
     def words_dict(self) -> list[dict[str, Any]]:
         """:attr:`words` as JSON-ready dicts (``wbmp parse --json`` prints them under ``"words"``)."""
         return [w.to_dict() for w in self.words]

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from robots import WbmpError
 from tasks.exceptions import TaskDefinitionError
 
 
-class PlannerError(Exception):
+class PlannerError(WbmpError):
     """Base class of every planner error."""
 
 

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 from robots.lazy import lazy_face
 
 if TYPE_CHECKING:
-    from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound
+    from robots.contact import polygon_margin, sole_corners_in_world, support_polygon
+    from robots.exceptions import FrameNotFound, ProfileError, RobotError, RobotNotFound, WbmpError
     from robots.model import DEFAULT_ROBOT, Robot, available_robots, level_soles, load_robot
     from robots.profile import ROLES, ExtraFrame, RobotProfile, SoleRectangle, builtin_profiles
 
@@ -29,12 +30,16 @@ _EXPORTS = {  # public name -> module that defines it
     "ProfileError": "robots.exceptions",
     "Robot": "robots.model",
     "RobotError": "robots.exceptions",
+    "WbmpError": "robots.exceptions",
     "RobotNotFound": "robots.exceptions",
     "RobotProfile": "robots.profile",
     "SoleRectangle": "robots.profile",
     "available_robots": "robots.model",
     "builtin_profiles": "robots.profile",
     "level_soles": "robots.model",
+    "polygon_margin": "robots.contact",
+    "sole_corners_in_world": "robots.contact",
+    "support_polygon": "robots.contact",
     "load_robot": "robots.model",
 }
 
@@ -49,10 +54,14 @@ __all__ = [
     "RobotNotFound",
     "RobotProfile",
     "SoleRectangle",
+    "WbmpError",
     "available_robots",
     "builtin_profiles",
     "level_soles",
     "load_robot",
+    "polygon_margin",
+    "sole_corners_in_world",
+    "support_polygon",
 ]
 
 

@@ -3,7 +3,17 @@
 from __future__ import annotations
 
 
-class RobotError(Exception):
+class WbmpError(Exception):
+    """The root of every error the project raises on purpose.
+
+    One subclass per layer: :class:`RobotError` (robots), ``tasks.TaskError``,
+    ``language.LanguageError``, ``planner.PlannerError``, ``sim.SimError``, ``viz.VizError`` and
+    ``wbmp.errors.CliError``; ``wbmp.errors.EXIT_TABLE`` gives each class its exit code. It lives
+    in the lowest layer so that every package can derive from it.
+    """
+
+
+class RobotError(WbmpError):
     """Base class of every error about a robot model or profile."""
 
 

@@ -68,8 +68,33 @@ class Certificate:
             lines.append(describe_figures(self.figures))
         return "\n".join(lines)
 
+    @classmethod
+    def from_dict(cls, record: Any) -> Certificate | None:
+        """The certificate of :meth:`to_dict`'s dict (a motion file's report keeps it), or None
+        when ``record`` is not one; its checks have :attr:`CheckKind.RECORDED` (the dict keeps no
+        kind; kind takes no part in a check's equality)."""
+        if not isinstance(record, dict):
+            return None
+
+        def number(x: Any) -> float:
+            return float("nan") if x is None else float(x)
+
+        try:
+            checks = tuple(Check(name=str(c["name"]), kind=CheckKind.RECORDED, value=number(c["value"]),
+                                 limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]),
+                                 ok=bool(c["ok"]), message=str(c.get("message", "")),
+                                 upper=bool(c.get("upper", True)))
+                           for c in record["checks"])
+            figures = record.get("figures") or {}
+            stops = record.get("stops") or []
+            return cls(ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")),
+                       figures={str(k): number(v) for k, v in figures.items()} if isinstance(figures, dict) else {},
+                       stops=tuple(dict(x) for x in stops if isinstance(x, dict)) if isinstance(stops, list) else ())
+        except (KeyError, TypeError, ValueError, AttributeError):
+            return None
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict."""
+        """JSON-friendly dict (:meth:`from_dict` reads it back)."""
         out: dict[str, Any] = {
             "ok": bool(self.ok),
             "reason": self.reason,

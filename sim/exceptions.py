@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from robots import WbmpError
 
-class SimError(Exception):
+
+class SimError(WbmpError):
     """Base class of every simulation error."""
 
 

@@ -32,9 +32,16 @@ from tasks.specs import (
 
 if TYPE_CHECKING:
     from tasks.actions import Action
-    from tasks.compose import compile_actions
+    from tasks.compose import compile_actions, fit_actions
+    from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
 
-_LAZY = {"Action": "tasks.actions", "compile_actions": "tasks.compose"}  # public name -> module
+_LAZY = {  # public name -> module
+    "Action": "tasks.actions",
+    "check_spec_for_robot": "tasks.robot_check",
+    "check_spec_in_scene_for_robot": "tasks.robot_check",
+    "compile_actions": "tasks.compose",
+    "fit_actions": "tasks.compose",
+}
 
 __all__ = [
     "Action",
@@ -56,7 +63,10 @@ __all__ = [
     "TaskError",
     "TaskSpec",
     "UnknownAction",
+    "check_spec_for_robot",
+    "check_spec_in_scene_for_robot",
     "compile_actions",
+    "fit_actions",
     "load_scene",
     "load_spec",
     "spec_from_dict",

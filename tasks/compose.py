@@ -207,6 +207,7 @@ def compile_actions(
     description: str = "",
     scene: Scene | None = None,
     start: StartState | None = None,
+    fitted: bool = False,
 ) -> TaskSpec:
     """Compile a sequence of actions (with overlays) into one TaskSpec for ``robot``.
 
@@ -224,6 +225,7 @@ def compile_actions(
         start: Where the robot stands at rest when the motion starts (where the motion before it
             ended); None: the standing posture with its feet centred on x = y = 0. The actions'
             targets follow the stance of its soles, and the spec carries it.
+        fitted: The actions come from :func:`fit_actions` for this robot: not fitted again.
 
     Returns:
         The TaskSpec, whose horizon is the sum of the stand, action and transition times.
@@ -237,8 +239,8 @@ def compile_actions(
         GroundingError: an object reference without a scene, or that names no object or several.
     """
     _check_arguments(actions, dt, stand_time, transition_time)
-    checked = pick_up_first(ground_actions(fit_actions([_as_action(a, i) for i, a in enumerate(actions)], robot), scene),
-                            robot)
+    given = [_as_action(a, i) for i, a in enumerate(actions)]
+    checked = pick_up_first(ground_actions(given if fitted else fit_actions(given, robot), scene), robot)
     if not checked:
         raise TaskDefinitionError("no action to compile; give at least one action")
     n = len(checked)
@@ -279,27 +281,34 @@ def compile_actions(
     horizon = k * dt
     if horizon > MAX_HORIZON + 1e-9:
         raise TaskDefinitionError(horizon_message(horizon, "split the instruction into several shorter ones"))
+    return _spec(robot, phases, fragments, still_targets, waypoints, k * dt, dt=dt,
+                 name=name or describe_actions(checked), description=description, scene=scene, start=start)
+
+
+def _spec(robot: Robot, phases: list[Phase], fragments: list[Fragment], still_targets: list[CoMTarget],
+          waypoints: list[JointTarget], horizon: float, *, dt: float, name: str, description: str,
+          scene: Scene | None, start: StartState | None) -> TaskSpec:
+    """The TaskSpec of the compiled phases and fragments (``horizon`` [s])."""
     margin = standing_geometry(robot).support_margin
     bounds = (CoMBounds(name="balance", support_polygon=True, margin=margin),)
-    grasps = _grasps(fragments, k * dt)
+    grasps = _grasps(fragments, horizon)
     return TaskSpec(
         robot=robot.name,
         phases=tuple(phases),
-        targets=_held_targets(fragments, k * dt),
+        targets=_held_targets(fragments, horizon),
         com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),
-        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + _not_holding(waypoints, grasps, robot, k * dt)
-        + _carrying(fragments, grasps, robot, k * dt),
+        joint_targets=tuple(t for f in fragments for t in f.joint_targets) + _not_holding(waypoints, grasps, robot, horizon)
+        + _carrying(fragments, grasps, robot, horizon),
         dt=dt,
         dynamic=any(f.dynamic for f in fragments),
-        name=name or describe_actions(checked),
+        name=name,
         description=description,
         scene=scene,
         grasps=grasps,
         pushes=tuple(p for f in fragments for p in f.pushes),
         start=start,
     )
-
 
 def _held_targets(fragments: list[Fragment], horizon: float) -> tuple[FrameTarget, ...]:
     """The fragments' targets; a held one (``Fragment.holds``: a hand holding an object up) keeps

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from robots import WbmpError
+
 SUGGESTION_BAND = 0.2  # an unknown action name is offered the registry names this close to its best match
 
 
-class TaskError(Exception):
+class TaskError(WbmpError):
     """Base class of every error about a task specification or an action."""
 
 

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 from robots.lazy import lazy_face
 
-__all__ = ["serve", "write_html", "write_plots"]
+__all__ = ["VizError", "serve", "write_html", "write_plots"]
 
-_LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots"}
+_LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots", "VizError": "viz.exceptions"}
 
 
 __getattr__, __dir__ = lazy_face(__name__, _LAZY)

@@ -36,10 +36,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
+from viz.exceptions import VizError
+
 TMP_SUFFIX = ".tmp"
 
 
-class OutputError(Exception):
+class OutputError(VizError):
     """An output could not be written; the message is one line for the user."""
 
 

@@ -28,6 +28,7 @@ from viz.files import Staging, atomic_write_text
 
 if TYPE_CHECKING:
     from robots import Robot
+    from sim.execution import Execution
 
 # meshcat's drawing modules (viz._meshcat; never its server, IPython, zmq or tornado), Pinocchio
 # and numpy are imported by the functions that need them: render_page() of a cached replay needs
@@ -122,13 +123,13 @@ def _b64(data: bytes) -> str:
     return base64.b64encode(data).decode("ascii")
 
 
-def build_page(robot: Robot, plan, *, execution=None, title: str = "") -> str:
+def build_page(robot: Robot, plan, *, execution: Execution | None = None, title: str = "") -> str:
     """The HTML text of the replay (see the module docstring)."""
     return render_page(page_data(robot, plan, execution=execution), robot.name, plan, execution=execution,
                        title=title)
 
 
-def page_data(robot: Robot, plan, *, execution=None) -> str:
+def page_data(robot: Robot, plan, *, execution: Execution | None = None) -> str:
     """The replay's data (scene, motions, camera) as the page embeds it: the part of the page
     that needs the robot model; it does not depend on the title (the motion cache keeps it)."""
     import numpy as np
@@ -204,7 +205,7 @@ def unpack_data(text: str) -> dict:
     return {"scene": scene_cmds, "motions": motions, "durations": header["durations"], "camera": header["camera"]}
 
 
-def render_page(data: str, robot_name: str, plan, *, execution=None, title: str = "",
+def render_page(data: str, robot_name: str, plan, *, execution: Execution | None = None, title: str = "",
                 meshcat_src: str | None = None) -> str:
     """The page around :func:`page_data`'s data: title, subtitle, meshcat's viewer, the player.
 
@@ -221,7 +222,7 @@ def render_page(data: str, robot_name: str, plan, *, execution=None, title: str 
             .replace("{{DATA}}", data))
 
 
-def _subtitle(robot_name: str, plan, execution=None) -> str:
+def _subtitle(robot_name: str, plan, execution: Execution | None = None) -> str:
     parts = [robot_name, f"{float(plan.t[-1]):.2f} s", f"{len(plan.t)} knots"]
     stats = getattr(plan, "stats", None)
     if stats is not None:
@@ -232,17 +233,16 @@ def _subtitle(robot_name: str, plan, execution=None) -> str:
         shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
         parts.append(f"scene: {shown}")
     if execution is not None:
-        certificate = getattr(execution, "certificate", None)
-        ok = getattr(certificate, "ok", None)
-        parts.append("simulation included" if ok is None else
-                     f"simulation: {'certified' if ok else 'FAILED the check'}")
-        for stop in getattr(certificate, "stops", ()) or ():  # the E-stops (sim.estop, docs/safety.md)
+        certificate = execution.certificate
+        parts.append("simulation included" if certificate is None else
+                     f"simulation: {'certified' if certificate.ok else 'FAILED the check'}")
+        for stop in () if certificate is None else certificate.stops:  # the E-stops (sim.estop, docs/safety.md)
             if isinstance(stop, dict) and stop.get("message"):
                 parts.append(str(stop["message"]))
     return " · ".join(parts)
 
 
-def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, title: str = "",
+def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution: Execution | None = None, title: str = "",
                staging: Staging | None = None) -> Path:
     """Write a standalone HTML replay of ``plan`` (and of ``execution`` when given).
 
@@ -256,8 +256,7 @@ def write_html(path: str | os.PathLike, robot: Robot, plan, *, execution=None, t
             :mod:`viz.files` for the mode of the file).
         robot: The robot the plan is for.
         plan: A :class:`planner.Plan`.
-        execution: Optional simulated execution (a ``sim`` Execution or a mapping with
-            ``exec_t``/``exec_q``).
+        execution: Optional simulated execution (a :class:`sim.Execution`).
         title: Page title; default the spec's description or name.
         staging: Stage the file there (renamed into place by ``staging.commit()``, together with
             the command's other outputs) instead of writing it now (:mod:`viz.files`).

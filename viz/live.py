@@ -18,12 +18,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from robots import Robot
 from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack, zmq
+from viz.exceptions import VizError
+
+if TYPE_CHECKING:
+    from sim.execution import Execution
 
 START_TIMEOUT = 30.0  # [s] for the server process to print its URLs
 ZMQ_TIMEOUT_MS = 10_000  # [ms] per command round trip
@@ -31,7 +35,7 @@ STOP_TIMEOUT = 5.0  # [s] between SIGTERM and SIGKILL
 FPS = 30.0
 
 
-class ViewerError(RuntimeError):
+class ViewerError(RuntimeError, VizError):
     """The live viewer could not start or lost its server."""
 
 
@@ -183,7 +187,7 @@ def stop_server(proc: subprocess.Popen, *, timeout: float = STOP_TIMEOUT) -> Non
             pass
 
 
-def load_scene(vis, robot: Robot, plan, *, execution=None, collisions: bool = False) -> tuple[float, list[float]]:
+def load_scene(vis, robot: Robot, plan, *, execution: Execution | None = None, collisions: bool = False) -> tuple[float, list[float]]:
     """Draw the plan (and the simulated robot, translucent blue; with ``collisions``, the collision
     capsules, translucent orange) and start the looping animation.
 
@@ -219,7 +223,7 @@ def load_scene(vis, robot: Robot, plan, *, execution=None, collisions: bool = Fa
     return duration, cam["target"]
 
 
-def serve(robot: Robot, plan, *, execution=None, port: int | None = None, open_browser: bool = False,
+def serve(robot: Robot, plan, *, execution: Execution | None = None, port: int | None = None, open_browser: bool = False,
           stop_event: threading.Event | None = None, stream: TextIO | None = None,
           on_ready: Callable[[ServerInfo], None] | None = None, collisions: bool = False) -> None:
     """Show ``plan`` in a live meshcat viewer on 127.0.0.1 until Ctrl-C or ``stop_event``.

@@ -1,7 +1,7 @@
 """Numbers every view needs: resampled motions, geometry placements, CoM, ZMP, support polygons.
 
 Everything here is a pure function of explicit objects (a :class:`robots.Robot`, arrays, a
-:class:`planner.Plan`, an execution-like object); nothing draws and nothing is cached
+:class:`planner.Plan`, a :class:`sim.Execution`); nothing draws and nothing is cached
 between calls. The viewers (:mod:`viz.scene`) and the plots (:mod:`viz.plots`) share it so
 that the HTML replay, the live viewer and the PNGs show the same numbers.
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -20,11 +21,15 @@ import pinocchio as pin
 from robots import Robot
 from robots.contact import convex_hull as convex_hull_2d
 from robots.contact import points_in_world, polygon_margin, sole_corners
+from viz.exceptions import VizError
+
+if TYPE_CHECKING:
+    from sim.execution import Execution
 
 GRAVITY = 9.81  # [m/s^2]
 
 
-class VizInputError(ValueError):
+class VizInputError(ValueError, VizError):
     """A motion given to a viewer or plot has the wrong shape or is empty."""
 
 
@@ -146,22 +151,8 @@ def _knot(times: np.ndarray, t: float) -> int:
     return int(np.searchsorted(times, t - 1e-9))
 
 
-def _first_attr(obj, names: tuple[str, ...]):
-    for n in names:
-        if isinstance(obj, Mapping) and n in obj:
-            return obj[n]
-        if hasattr(obj, n):
-            return getattr(obj, n)
-    return None
-
-
-def execution_motion(robot: Robot, execution) -> Motion | None:
-    """The simulated motion of an execution (``sim`` result or a motion file's arrays).
-
-    Reads ``t``/``exec_t``, ``q``/``exec_q``, optionally ``v``/``exec_v``,
-    ``tau``/``exec_tau`` and ``forces``/``contact_forces`` (mapping frame -> (T, 3)), from
-    attributes or mapping keys, so it accepts both a ``sim`` Execution and the dictionary of
-    ``exec_*`` arrays stored in a motion file.
+def execution_motion(robot: Robot, execution: Execution | None) -> Motion | None:
+    """The simulated motion of an execution (a fresh run or one read back from a motion file).
 
     Returns:
         None when ``execution`` is None or holds no configurations.
@@ -169,58 +160,26 @@ def execution_motion(robot: Robot, execution) -> Motion | None:
     Raises:
         VizInputError: the arrays do not match the robot.
     """
-    if execution is None:
+    if execution is None or len(execution.q) == 0:
         return None
-    t = _first_attr(execution, ("t", "exec_t", "time", "times"))
-    q = _first_attr(execution, ("q", "exec_q"))
-    if t is None or q is None or len(q) == 0:
-        return None
-    t = np.asarray(t, dtype=float).reshape(-1)
-    q = _array("execution", "q", q, robot.nq)
+    t = np.asarray(execution.t, dtype=float).reshape(-1)
+    q = _array("execution", "q", execution.q, robot.nq)
     if len(t) != len(q):
         raise VizInputError(f"execution: t has {len(t)} samples but q has {len(q)} rows")
-    v = _first_attr(execution, ("v", "exec_v"))
-    tau = _first_attr(execution, ("tau", "exec_tau", "torques"))
-    forces = _first_attr(execution, ("forces", "contact_forces", "exec_forces"))
+    v, tau = execution.v, execution.tau
+    try:
+        objects = execution.object_poses()
+    except ValueError as e:
+        raise VizInputError(f"execution: {e}") from None
     return Motion(
         label="simulated",
         t=t,
         q=q,
         v=_array("execution", "v", v, robot.nv) if v is not None and len(v) else None,
         tau=_array("execution", "tau", tau, robot.nv - 6) if tau is not None and len(tau) else None,
-        forces={k: np.asarray(f, dtype=float) for k, f in dict(forces or {}).items()},
-        objects=executed_object_poses(execution, len(t)),
+        forces={k: np.asarray(f, dtype=float) for k, f in execution.contact_forces.items()},
+        objects=objects,
     )
-
-
-def executed_object_poses(execution, n: int) -> dict[str, np.ndarray]:
-    """The simulated poses (n, 7) of the movable objects of an execution: a ``sim`` Execution's
-    ``objects`` (positions) and ``object_orientations`` (quaternions x, y, z, w; identity when
-    absent), or a motion file's ``exec_object_pose`` (n, k, 7) with ``object_names`` (k,).
-
-    Raises:
-        VizInputError: the arrays do not have ``n`` rows.
-    """
-    out: dict[str, np.ndarray] = {}
-    stacked = _first_attr(execution, ("exec_object_pose",))
-    if stacked is not None:
-        listed = _first_attr(execution, ("object_names",))
-        names = [] if listed is None else [str(x) for x in np.asarray(listed).reshape(-1)]
-        arr = np.asarray(stacked, dtype=float)
-        if arr.ndim != 3 or arr.shape[0] != n or arr.shape[2] != 7 or arr.shape[1] != len(names):
-            raise VizInputError(f"execution: exec_object_pose must be ({n}, {len(names)}, 7), got {arr.shape}")
-        return {name: arr[:, i] for i, name in enumerate(names)}
-    positions = _first_attr(execution, ("objects",))
-    turns = _first_attr(execution, ("object_orientations",))
-    positions = {} if not isinstance(positions, Mapping) else positions
-    turns = {} if not isinstance(turns, Mapping) else turns
-    for name, p in dict(positions).items():
-        p = np.asarray(p, dtype=float)
-        quat = np.asarray(turns[name], dtype=float) if name in turns else np.tile([0.0, 0.0, 0.0, 1.0], (len(p), 1))
-        if p.shape != (n, 3) or quat.shape != (n, 4):
-            raise VizInputError(f"execution: the {name}'s poses must have {n} rows, got {p.shape} and {quat.shape}")
-        out[str(name)] = np.hstack([p, quat])
-    return out
 
 
 def resample_poses(t: np.ndarray, poses: np.ndarray, times: np.ndarray) -> np.ndarray:

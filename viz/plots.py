@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextvars
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -31,6 +32,9 @@ from matplotlib.patches import Polygon as PolygonPatch
 
 from robots import Robot
 from viz import motion as vm
+
+if TYPE_CHECKING:
+    from sim.execution import Execution
 from viz.files import Staging, atomic_write
 
 DPI = 100
@@ -384,7 +388,7 @@ def plot_keyframes(path: Path, robot: Robot, plan, *, count: int = 6) -> Path:
     return _save(fig, path)
 
 
-def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=None,
+def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution: Execution | None = None,
                 staging: Staging | None = None) -> list[Path]:
     """Write the PNG plots of ``plan`` (and of ``execution`` when given) into ``directory``.
 
@@ -392,7 +396,7 @@ def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=N
         directory: Output folder (created if missing).
         robot: The robot.
         plan: A :class:`planner.Plan`.
-        execution: Optional simulated execution (``sim`` Execution or ``exec_*`` mapping).
+        execution: Optional simulated execution (a :class:`sim.Execution`).
         staging: Stage the files there (renamed into place by ``staging.commit()``, together
             with the command's other outputs) instead of writing them now (:mod:`viz.files`);
             the folder is then created at the commit.
@@ -413,7 +417,7 @@ def write_plots(directory: str | os.PathLike, robot: Robot, plan, *, execution=N
         return paths
     token = _STAGING.set(staging)
     try:
-        return _draw_all(out, robot, plan, simulated, getattr(execution, "objects", None))
+        return _draw_all(out, robot, plan, simulated)
     finally:
         _STAGING.reset(token)
 
@@ -424,7 +428,7 @@ def plot_objects(path: Path, robot: Robot, plan, t: np.ndarray, objects) -> Path
 
     Args:
         t: Simulated times (T',) [s].
-        objects: Object name -> centre position (T', 3) [m] (``Execution.objects``).
+        objects: Object name -> its pose (T', 7) or centre position (T', 3) [m] (column 2 is the height).
     """
     grasps = [g for g in getattr(plan.spec, "grasps", ()) if g.object in objects]
     if not grasps:
@@ -452,7 +456,7 @@ def plot_objects(path: Path, robot: Robot, plan, t: np.ndarray, objects) -> Path
     return _save(fig, path)
 
 
-def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None, objects=None) -> list[Path]:
+def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None) -> list[Path]:
     paths = [plot_com_support(out / "com_support.png", robot, plan, simulated=simulated),
              plot_joints(out / "joints.png", robot, plan)]
     if simulated is not None and simulated.tau is not None:
@@ -461,8 +465,8 @@ def _draw_all(out: Path, robot: Robot, plan, simulated: vm.Motion | None, object
     if forces is not None:
         paths.append(forces)
     paths.append(plot_keyframes(out / "keyframes.png", robot, plan))
-    if simulated is not None and objects:
-        drawn = plot_objects(out / "objects.png", robot, plan, simulated.t, objects)
+    if simulated is not None and simulated.objects:
+        drawn = plot_objects(out / "objects.png", robot, plan, simulated.t, simulated.objects)
         if drawn is not None:
             paths.append(drawn)
     return paths

@@ -116,7 +116,7 @@ def _balance(last: Any, feet: tuple[str, str], sole: Any, com: np.ndarray) -> st
     primitives' margin (the next motion's balance bound), or ""."""
     import pinocchio as pin
 
-    from robots.contact import polygon_margin, sole_corners_in_world, support_polygon
+    from robots import polygon_margin, sole_corners_in_world, support_polygon
 
     placements = {c.frame: pin.SE3(pin.rpy.rpyToMatrix(*c.placement.rpy), np.array(c.placement.position))
                   for c in last.contacts}

@@ -14,6 +14,8 @@ import enum
 import unicodedata
 from typing import Literal, NamedTuple
 
+from robots import WbmpError
+
 
 class ExitCode(enum.IntEnum):
     """Process exit codes."""
@@ -68,7 +70,7 @@ def check_signals() -> None:
     raise KeyboardInterrupt()
 
 
-class CliError(Exception):
+class CliError(WbmpError):
     """An error with a one-line message and an exit code."""
 
     def __init__(self, message: str, code: ExitCode) -> None:
@@ -148,6 +150,9 @@ _R = ExitRule
 #: (``type(exc).__mro__``), so an exception from outside the project that subclasses one of these
 #: gets its nearest ancestor's code.
 EXIT_TABLE: tuple[ExitRule, ...] = (
+    # the root of the project's errors and the layers' bases without a code of their own
+    _R("robots.exceptions.WbmpError", None, "the root of the project's errors: a class without a row of its own is a bug"),
+    _R("viz.exceptions.VizError", None, "the viz layer's base: each of its errors has a row of its own"),
     # the CLI itself
     _R("wbmp.errors.CliError", OWN, "a refused input of the CLI, with the code it names"),
     _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
@@ -192,6 +197,8 @@ EXIT_TABLE: tuple[ExitRule, ...] = (
     # planner: infeasible, or the solver failed (with a diagnosis)
     _R("planner.exceptions.PlannerError", ExitCode.INFEASIBLE, "the planner failed"),
     _R("planner.exceptions.PlanningFailed", ExitCode.INFEASIBLE, "no plan: infeasible or the solver failed"),
+    _R("planner.trajopt.stagewise.StagewiseUnsupported", ExitCode.USAGE,
+       "the stage-wise transcription asked for a dynamic plan (kinematic plans only)"),
     _R("planner.exceptions.UnsupportedModel", ExitCode.INVALID_SPEC, "a joint type the planner cannot model"),
     _R("planner.exceptions.SpecNotForRobot", ExitCode.INVALID_SPEC, "a joint or frame the robot does not have"),
     _R("planner.trajopt.cache_disk.EntryDamaged", None, "caught inside the solver cache"),

@@ -9,7 +9,8 @@ else ``~/.cache/wbmp``, beside the solver cache's ``planner/``):
   the first time a hit asks for ``--html``, with ``<key>.page.json`` (its size and sha256).
 * ``requests/<request key>.json``: which motion a request (the exact sentence or spec file,
   robot, options) led to, with the sha256 of every robot file it depended on (profile, URDF,
-  meshes). A repeat is answered from it without loading the robot.
+  meshes) and the sentence's parsed actions (:meth:`language.ActionPlan.to_record`). A repeat
+  is answered from it without loading the robot or parsing the sentence again.
 
 The motion key (:func:`motion_key`) is a sha256 of everything that determines the numbers: the
 compiled TaskSpec's JSON without its description (two phrasings of one spec share an entry; its
@@ -42,9 +43,12 @@ import stat
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from wbmp import __version__
+
+if TYPE_CHECKING:
+    from wbmp.motionfile import MotionFile
 
 _log = logging.getLogger("wbmp.motioncache")
 
@@ -267,13 +271,22 @@ def _is_regular(path: str) -> bool:
 
 # -- entries ------------------------------------------------------------------------------------
 
+class Request(NamedTuple):
+    """What a request record says: the motion it led to, the robot digest, the parsed actions
+    (:meth:`language.ActionPlan.to_record`, None in a record without them)."""
+
+    motion: str
+    robot: str
+    actions: dict[str, Any] | None = None
+
+
 @dataclass(eq=False)
 class Hit:
     """A verified entry: the motion file's arrays (as stored) and their validated form."""
 
     key: str
     arrays: dict[str, Any]
-    motion: Any  # wbmp.motionfile.MotionFile
+    motion: MotionFile
     path: Path
     data: bytes = field(default=b"", repr=False)  # the verified bytes of the .npz
 
@@ -298,8 +311,9 @@ class MotionCache:
         return self.root / f"{key}.page"
 
     # reading
-    def lookup_request(self, rkey: str) -> tuple[str, str] | None:
-        """(motion key, robot digest) a request led to, when every robot file is unchanged."""
+    def lookup_request(self, rkey: str) -> Request | None:
+        """The motion a request led to (its key, the robot digest, the parsed actions), when every
+        robot file is unchanged."""
         from robots.safeio import is_key
 
         if not is_key(rkey):
@@ -323,7 +337,8 @@ class MotionCache:
         except OSError:
             return None
         _mark_used(path)
-        return key, digest
+        actions = record.get("actions")
+        return Request(key, digest, actions if isinstance(actions, dict) else None)
 
     def load(self, key: str, *, spec_check: bool = True) -> Hit | None:
         """The verified entry of ``key``, or None (missing; damaged: removed with one warning)."""
@@ -402,16 +417,24 @@ class MotionCache:
 
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
-        data = buf.getvalue()
+        self.store_file(key, buf.getvalue(), spec)
+
+    def store_file(self, key: str, data: bytes, spec) -> None:
+        """Store a motion file's bytes (an ``.npz``) under ``key``, the file first, then its manifest."""
         meta = {"key": key, "format": FORMAT, "size": len(data), "sha256": hashlib.sha256(data).hexdigest(),
                 "spec": hashlib.sha256(spec_identity(spec).encode()).hexdigest(), "wbmp": __version__}
         self._write(self._npz(key), data)
         self._write(self._manifest(key), json.dumps(meta).encode())
         _trim(self.root)
 
-    def store_request(self, rkey: str, key: str, files: dict[str, str], robot_digest: str) -> None:
-        """Remember that request ``rkey`` led to motion ``key`` with these robot files."""
-        self._write(self._request(rkey), json.dumps({"motion": key, "files": files, "robot": robot_digest}).encode())
+    def store_request(self, rkey: str, key: str, files: dict[str, str], robot_digest: str,
+                      actions: dict[str, Any] | None = None) -> None:
+        """Remember that request ``rkey`` led to motion ``key`` with these robot files (and its
+        parsed actions, :meth:`language.ActionPlan.to_record`: a repeat does not parse again)."""
+        record: dict[str, Any] = {"motion": key, "files": files, "robot": robot_digest}
+        if actions is not None:
+            record["actions"] = actions
+        self._write(self._request(rkey), json.dumps(record).encode())
 
     def store_page(self, key: str, data: str) -> None:
         """Store the HTML replay data of ``key``."""

@@ -1,5 +1,6 @@
-"""The motion file (``.npz``, docs/formats.md) and its exports (JSON, CSV; MCAP and tracker in
-:mod:`wbmp.export`).
+"""The motion file (``.npz``, docs/formats.md): the typed record (a :class:`MotionFile`: the plan,
+the :class:`sim.Execution`, the actions, the report) to and from its arrays, read and written
+(the exports: :mod:`wbmp.export.files`).
 
 Keys of the ``.npz`` (``docs/formats.md`` documents them for other tools):
 
@@ -24,7 +25,6 @@ naming the file and the key; it never unpickles anything.
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import os
@@ -40,8 +40,8 @@ import numpy as np
 
 from planner import Check, CheckKind, Plan, SolverStats, SolveStatus
 from robots.safeio import LIMITS, FileTooLarge, open_regular
-from tasks.exceptions import TaskError
-from tasks.serialize import spec_from_json, spec_to_json
+from sim import Certificate, Event, Execution
+from tasks import TaskError, spec_from_json, spec_to_json
 from viz.files import Staging, atomic_write
 from wbmp.errors import CliError, ExitCode
 
@@ -69,8 +69,9 @@ class MotionFile:
 
     Attributes:
         plan: The plan rebuilt from the arrays, the spec and the report.
-        execution_arrays: ``exec_t``, ``exec_q``, ``exec_v``, ``exec_tau`` when simulated (else empty);
-            ``exec_object_pose`` (T', k, 7) and ``object_names`` too when the scene has movable objects.
+        execution: The simulated execution when the file has one (``exec_t``, ``exec_q``,
+            ``exec_v``, ``exec_tau``, ``exec_object_pose``; its certificate and events from the
+            report), else None.
         actions: The parsed actions (list of dicts) or None.
         report: The whole report dict (``solver``, ``checks``, ``diagnosis``, ``ok``, and the
             caller's entries such as ``certificate``).
@@ -83,7 +84,7 @@ class MotionFile:
     """
 
     plan: Plan
-    execution_arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    execution: Execution | None = None
     actions: list | None = None
     report: dict = field(default_factory=dict)
     robot_name: str = ""
@@ -129,6 +130,8 @@ def motion_arrays(plan: Plan, robot, *, execution=None, actions=None, report=Non
     # the caller's report (pipeline timings, simulation certificate...) plus the plan's own
     # solver stats, constraint report and diagnosis (which win: load_motion rebuilds from them)
     full_report = {**(report or {}), **plan_report(plan)}
+    if execution is not None:  # the execution's verdict and events, as its report states them
+        full_report.update(execution_report(execution))
     out: dict[str, Any] = {
         "t": np.asarray(plan.t, dtype=float),
         "q": np.asarray(plan.q, dtype=float),
@@ -147,10 +150,30 @@ def motion_arrays(plan: Plan, robot, *, execution=None, actions=None, report=Non
     for name, arr in plan.forces.items():
         out[f"force_{name}"] = np.asarray(arr, dtype=float)
     if execution is not None:
-        for key, attr in zip(EXEC_KEYS, ("t", "q", "v", "tau"), strict=True):
-            out[key] = np.asarray(getattr(execution, attr), dtype=float)
+        out["exec_t"] = np.asarray(execution.t, dtype=float)
+        out["exec_q"] = np.asarray(execution.q, dtype=float)
+        out["exec_v"] = np.asarray(execution.v, dtype=float)
+        if execution.tau is not None:
+            out["exec_tau"] = np.asarray(execution.tau, dtype=float)
     out.update(object_arrays(plan, robot, execution))
     return out
+
+
+def execution_report(execution: Execution) -> dict[str, Any]:
+    """The report entries of an execution: its ``certificate`` (when it has one) and its
+    ``events`` (when there are any); :func:`load_motion` reads them back into the execution."""
+    out: dict[str, Any] = {}
+    if execution.certificate is not None:
+        out["certificate"] = execution.certificate.to_dict()
+    if execution.events:
+        out["events"] = [e.to_dict() for e in execution.events]
+    return out
+
+
+def events_from_report(records: Any) -> tuple[Event, ...]:
+    """The events a report stores (:meth:`sim.Event.to_dict`); entries that are not one are skipped."""
+    events = [Event.from_dict(e) for e in records] if isinstance(records, list) else []
+    return tuple(e for e in events if e is not None)
 
 
 def object_arrays(plan: Plan, robot, execution=None) -> dict[str, np.ndarray]:
@@ -168,7 +191,7 @@ def object_arrays(plan: Plan, robot, execution=None) -> dict[str, np.ndarray]:
         planned = vm.planned_object_poses(robot, plan.spec, plan.t, plan.q)
         out["object_pose"] = np.stack([planned[n] for n in names], axis=1)
     if execution is not None:
-        executed = vm.executed_object_poses(execution, len(execution.t))
+        executed = execution.object_poses()
         if set(executed) == set(names):
             out["exec_object_pose"] = np.stack([executed[n] for n in names], axis=1)
     return out
@@ -198,7 +221,7 @@ def save_motion(path: str | Path, plan: Plan, robot, *, execution=None, actions=
         path: Output ``.npz`` path.
         plan: The plan.
         robot: The robot it was planned for (joint and frame names).
-        execution: Anything with ``t``, ``q``, ``v``, ``tau`` arrays (a simulation), or None.
+        execution: The simulated execution, or None; its certificate and events go into the report.
         actions: The parsed actions (Action objects or dicts), or None.
         report: Extra report entries (timings, the simulation ``certificate``...), merged with
             the plan's ``solver``, ``checks``, ``diagnosis`` and ``ok`` entries.
@@ -212,6 +235,80 @@ def save_motion(path: str | Path, plan: Plan, robot, *, execution=None, actions=
     arrays = motion_arrays(plan, robot, execution=execution, actions=actions, report=report)
     _write(path, lambda fh: np.savez_compressed(fh, **arrays), staging)
     return path
+
+
+def savez_fast(fh: Any, arrays: dict[str, Any]) -> None:
+    """``np.savez_compressed`` at zlib level 1 (what ``--out`` is written with: ~25 % less CPU than
+    level 6, and the file a fraction of a percent larger; a 1 kHz execution hardly compresses)."""
+    with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        for key, value in arrays.items():
+            with zf.open(f"{key}.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+
+
+def npz_bytes(arrays: dict[str, Any]) -> bytes:
+    """The ``.npz`` of ``arrays`` as :func:`savez_fast` writes it, in memory."""
+    buf = io.BytesIO()
+    savez_fast(buf, arrays)
+    return buf.getvalue()
+
+
+_LOCAL = struct.Struct("<IHHHHHIIIHH")  # a zip local file header (30 bytes)
+_CENTRAL = struct.Struct("<IHHHHHHIIIHHHHHII")  # a central directory record (46 bytes)
+_END = struct.Struct("<IHHHHIIH")  # the end of central directory record (22 bytes)
+
+
+def npz_replacing(source: bytes, replaced: dict[str, Any]) -> bytes | None:
+    """The ``.npz`` ``source`` with the arrays ``replaced`` (key -> array) written anew and every
+    other member copied byte for byte (its compressed data is not touched: a cached motion's
+    ``--out`` costs a copy, not a recompression). None when ``source`` is not a plain zip this
+    can copy (zip64, encrypted, streamed members): the caller writes the file the slow way."""
+    try:
+        infos = zipfile.ZipFile(io.BytesIO(source)).infolist()
+    except (zipfile.BadZipFile, ValueError, OSError):
+        return None
+    names = {f"{key}.npy" for key in replaced}
+    out = io.BytesIO()
+    central = []
+
+    def member(name: str, method: int, crc: int, csize: int, usize: int, dostime: int, dosdate: int,
+               payload: bytes) -> None:
+        raw = name.encode("ascii")
+        central.append(_CENTRAL.pack(0x02014B50, 20, 20, 0, method, dostime, dosdate, crc, csize, usize,
+                                     len(raw), 0, 0, 0, 0, 0, out.tell()) + raw)
+        out.write(_LOCAL.pack(0x04034B50, 20, 0, method, dostime, dosdate, crc, csize, usize, len(raw), 0) + raw)
+        out.write(payload)
+
+    for info in infos:
+        if info.filename in names:
+            continue
+        if (info.flag_bits & 0x09 or info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)
+                or not info.filename.isascii() or max(info.compress_size, info.file_size, info.header_offset) >= 1 << 31):
+            return None
+        head = source[info.header_offset:info.header_offset + _LOCAL.size]
+        if len(head) != _LOCAL.size or head[:4] != b"PK\x03\x04":
+            return None
+        fields = _LOCAL.unpack(head)
+        start = info.header_offset + _LOCAL.size + fields[9] + fields[10]
+        payload = source[start:start + info.compress_size]
+        if len(payload) != info.compress_size:
+            return None
+        y, mo, d, h, mi, sec = info.date_time
+        member(info.filename, info.compress_type, info.CRC, info.compress_size, info.file_size,
+               (h << 11) | (mi << 5) | (sec // 2), ((y - 1980) << 9) | (mo << 5) | d, payload)
+    for key, value in replaced.items():
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
+        data = buf.getvalue()
+        packer = zlib.compressobj(6, zlib.DEFLATED, -15)
+        payload = packer.compress(data) + packer.flush()
+        member(f"{key}.npy", zipfile.ZIP_DEFLATED, zlib.crc32(data), len(payload), len(data), 0, (1 << 5) | 1,
+               payload)
+    start = out.tell()
+    for record in central:
+        out.write(record)
+    out.write(_END.pack(0x06054B50, 0, 0, len(central), len(central), out.tell() - start, start, 0))
+    return out.getvalue()
 
 
 def _write(path: Path, write, staging: Staging | None) -> Path:
@@ -456,7 +553,7 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
         if key == "force_" or _has_control(key):
             raise _fail(shown, f"key {key[:80]!r} does not name a contact frame")
         forces[key[len("force_"):]] = _numbers(arrays, key, shown, (n, 3))
-    execution: dict[str, np.ndarray] = {}
+    execution: dict[str, np.ndarray] = {}  # the exec_* arrays, checked
     if any(k in arrays for k in EXEC_KEYS):
         lacking = [k for k in EXEC_KEYS[:3] if k not in arrays]
         if lacking:
@@ -489,9 +586,22 @@ def motion_from_arrays(arrays: dict[str, Any], *, source: str = "") -> MotionFil
                     checks=checks, diagnosis=diagnosis)
     except (ValueError, TypeError) as e:  # pragma: no cover - every field was checked above
         raise _fail(shown, f"the arrays do not make a plan ({e})") from None
-    return MotionFile(plan=plan, execution_arrays=execution, actions=actions, report=report,
+    return MotionFile(plan=plan, execution=_execution(execution, report), actions=actions, report=report,
                       robot_name=robot_name, joint_names=joint_names, frame_names=frame_names,
                       version=int(version), objects=objects)
+
+
+def _execution(arrays: dict[str, np.ndarray], report: dict[str, Any]) -> Execution | None:
+    """The execution of checked ``exec_*`` arrays with the report's certificate and events."""
+    if not arrays:
+        return None
+    names = [str(x) for x in arrays.get("object_names", ())]
+    pose = arrays.get("exec_object_pose")
+    return Execution(t=arrays["exec_t"], q=arrays["exec_q"], v=arrays["exec_v"], tau=arrays.get("exec_tau"),
+                     certificate=Certificate.from_dict(report.get("certificate")),
+                     events=events_from_report(report.get("events")),
+                     objects={} if pose is None else {n: pose[:, i, :3] for i, n in enumerate(names)},
+                     object_orientations={} if pose is None else {n: pose[:, i, 3:] for i, n in enumerate(names)})
 
 
 def _object_keys(arrays: dict[str, Any], shown: str, n: int, execution: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -591,14 +701,14 @@ def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
     shown = repr(str(source))
     plan = motion.plan
     sizes = {"q": (plan.q, robot.nq, "nq"), "v": (plan.v, robot.nv, "nv")}
-    ex = motion.execution_arrays
-    if ex:
-        sizes.update({"exec_q": (ex["exec_q"], robot.nq, "nq"), "exec_v": (ex["exec_v"], robot.nv, "nv")})
+    ex = motion.execution
+    if ex is not None:
+        sizes.update({"exec_q": (ex.q, robot.nq, "nq"), "exec_v": (ex.v, robot.nv, "nv")})
     for key, (arr, want, what) in sizes.items():
         if arr.shape[1] != want:
             raise _fail(shown, f"key {key!r} has {arr.shape[1]} columns but robot {robot.name!r} has "
                                f"{what} = {want} (a file of another robot?)")
-    from robots.exceptions import RobotError
+    from robots import RobotError
 
     for frame in plan.spec.contact_frames():
         try:
@@ -606,151 +716,9 @@ def check_robot(motion: MotionFile, robot, source: str | Path) -> None:
         except RobotError:
             raise _fail(shown, f"key 'spec_json' names frame {frame!r}, which robot {robot.name!r} lacks") from None
 
-EXPORT_FORMATS = ("json", "csv", "npz", "mcap", "tracker", "lafan")
-#: file suffix -> the formats a file of that suffix may hold
-SUFFIX_FORMATS = {"json": ("json",), "csv": ("csv", "lafan"), "npz": ("npz", "tracker"), "mcap": ("mcap",)}
 
-
-def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | None = None, *,
-                  staging: Staging | None = None, stamp: float = 0.0, base_frame: str | None = None,
-                  fps: float | None = None, source: str = "plan") -> list[Path]:
-    """Export a motion file to JSON, CSV, npz, a ROS 2 bag (MCAP) or a tracker file (format from
-    ``fmt`` or the suffix; ``docs/export.md`` states each format's conventions).
-
-    JSON holds every key of the npz (arrays as nested lists; ``spec``, ``actions``, ``report``
-    as objects). CSV holds the plan as one row per knot (``t``, ``q_*``, ``v_*``, ``com_*``)
-    after ``#``-comment lines with the robot, the spec, the actions and the report as JSON;
-    the execution, when present, goes to a sibling ``<name>.exec.csv`` (``t``, ``q_*``, ``v_*``,
-    ``tau_*``). Every file is made in full before any is renamed into place: the CSV and its
-    ``.exec.csv`` appear together or not at all. MCAP: :func:`wbmp.export.write_bag`; tracker:
-    :func:`wbmp.export.tracker_arrays` (an ``.npz``).
-
-    Args:
-        motion: A loaded motion or the path of a motion file.
-        path: Output file.
-        fmt: ``json``, ``csv``, ``npz``, ``mcap``, ``tracker`` or ``lafan`` (the Unitree/LAFAN1
-            CSV, :mod:`wbmp.export.lafan`); None = from ``path``'s suffix
-            (``.npz`` is the motion-file copy).
-        staging: Stage the files there (renamed by ``staging.commit()``) instead of writing now.
-        stamp: MCAP: ROS time [s] of the motion's t = 0.
-        base_frame: MCAP and tracker: the base's frame name; None = the robot profile's.
-        fps: Tracker and lafan: sample rate [Hz]; None = :data:`wbmp.export.DEFAULT_FPS` (tracker),
-            :data:`wbmp.export.lafan.LAFAN_FPS` (lafan).
-        source: Tracker and lafan: ``plan`` or ``execution``.
-
-    Returns:
-        The paths written.
-
-    Raises:
-        MotionFileError: unknown format or a suffix that contradicts ``fmt``.
-        CliError: (exit 2) joints that MCAP and tracker cannot name, or a tracker export of an
-            execution the file lacks.
-        ValueError: a bad ``stamp``, ``fps`` or ``source``.
-    """
-    if not isinstance(motion, MotionFile):
-        motion = load_motion(motion)
-    path = Path(path)
-    fmt = export_format(path, fmt)
-    if staging is None:
-        with Staging() as own:
-            written = export_motion(motion, path, fmt, staging=own, stamp=stamp, base_frame=base_frame, fps=fps,
-                                    source=source)
-            own.commit()
-        return written
-    if fmt == "mcap":
-        from wbmp.export import BagOptions, joint_names, write_bag
-
-        joint_names(motion)  # refused before a file is opened
-        options = BagOptions(stamp=stamp, base_frame=base_frame)
-        staging.add(path, lambda fh: write_bag(fh, motion, options))
-        return [path]
-    if fmt == "tracker":
-        from wbmp.export import DEFAULT_FPS, tracker_arrays
-
-        tracker = tracker_arrays(motion, DEFAULT_FPS if fps is None else fps, source, base_frame)
-        staging.add(path, lambda fh: np.savez_compressed(fh, **tracker))
-        return [path]
-    if fmt == "lafan":
-        from wbmp.export.lafan import LAFAN_FPS, lafan_rows, write_lafan
-
-        rows, _ = lafan_rows(motion, LAFAN_FPS if fps is None else fps, source)
-        staging.add(path, lambda fh: write_lafan(fh, rows))
-        return [path]
-    arrays = _arrays_of(motion)
-    if fmt == "npz":
-        staging.add(path, lambda fh: np.savez_compressed(fh, **arrays))
-        return [path]
-    if fmt == "json":
-        doc: dict[str, Any] = {}
-        for k, val in arrays.items():
-            if k in ("spec_json", "actions_json", "report_json"):
-                doc[k[: -len("_json")]] = json.loads(str(val))
-            else:
-                val = np.asarray(val)
-                doc[k] = val.tolist() if val.ndim else val.item()
-        data = json.dumps(doc, default=_json_default).encode("utf-8")
-        staging.add(path, lambda fh: fh.write(data))
-        return [path]
-    written = [path]
-    plan = motion.plan
-    names = csv_columns(motion)
-    header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]], "com_x", "com_y", "com_z",
-              *_object_columns(list(motion.objects))]
-    rows = np.hstack([plan.t[:, None], plan.q, plan.v, plan.com, *motion.objects.values()])
-    meta = {"robot": motion.robot_name, "version": motion.version,
-            "spec": json.loads(str(arrays["spec_json"])), "actions": motion.actions, "report": motion.report}
-    text = _csv_text(header, rows, meta).encode("utf-8")
-    staging.add(path, lambda fh: fh.write(text))
-    ex = motion.execution_arrays
-    if ex:
-        exec_path = exec_csv_path(path)
-        n_tau = ex["exec_tau"].shape[1] if "exec_tau" in ex else 0
-        exec_header = ["t", *[f"q_{n}" for n in names[0]], *[f"v_{n}" for n in names[1]],
-                       *[f"tau_{n}" for n in names[1][6:6 + n_tau]]]
-        parts = [ex["exec_t"][:, None], ex["exec_q"], ex["exec_v"]] + ([ex["exec_tau"]] if n_tau else [])
-        if "exec_object_pose" in ex:
-            exec_header += _object_columns([str(x) for x in ex["object_names"]])
-            parts += list(np.transpose(ex["exec_object_pose"], (1, 0, 2)))
-        exec_text = _csv_text(exec_header, np.hstack(parts), {}).encode("utf-8")
-        staging.add(exec_path, lambda fh: fh.write(exec_text))
-        written.append(exec_path)
-    return written
-
-
-def _object_columns(names: list[str]) -> list[str]:
-    """CSV columns of the objects' poses: ``object_<name>_x .. _qw`` (the name as in ``object_names``)."""
-    return [f"object_{n}_{c}" for n in names for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
-
-
-def exec_csv_path(path: str | Path) -> Path:
-    """Where a CSV export puts the simulated execution: ``<name>.exec.csv`` beside ``path``."""
-    path = Path(path)
-    return path.with_name(path.stem + ".exec.csv")
-
-
-def export_format(path: str | Path, fmt: str | None) -> str:
-    """The export format for ``path``: ``fmt`` if given (it must not contradict the suffix),
-    else the suffix (``.json``, ``.csv``, ``.npz``, ``.mcap``).
-
-    Raises:
-        MotionFileError: unknown format, a suffix naming another format, or no usable suffix.
-    """
-    suffix = Path(path).suffix.lstrip(".").lower()
-    if fmt is not None:
-        fmt = fmt.lower()
-        if fmt not in EXPORT_FORMATS:
-            raise MotionFileError(f"unknown export format {fmt!r}; use one of {', '.join(EXPORT_FORMATS)}")
-        if suffix in SUFFIX_FORMATS and fmt not in SUFFIX_FORMATS[suffix]:
-            raise MotionFileError(f"{str(path)!r} ends in .{suffix} but the format is {fmt}")
-        return fmt
-    if suffix not in SUFFIX_FORMATS:
-        shown = f".{suffix}" if suffix else "no suffix"
-        raise MotionFileError(f"unknown export format for {str(path)!r} ({shown}); name it .json, .csv or .mcap, "
-                              "or give the format")
-    return SUFFIX_FORMATS[suffix][0]
-
-
-def _arrays_of(motion: MotionFile) -> dict[str, Any]:
+def record_arrays(motion: MotionFile) -> dict[str, Any]:
+    """Every key of the motion file of ``motion`` (the inverse of :func:`motion_from_arrays`)."""
     plan = motion.plan
     out: dict[str, Any] = {
         "t": plan.t, "q": plan.q, "v": plan.v, "a": plan.a, "com": plan.com,
@@ -763,35 +731,17 @@ def _arrays_of(motion: MotionFile) -> dict[str, Any]:
     }
     for name, arr in plan.forces.items():
         out[f"force_{name}"] = arr
-    out.update(motion.execution_arrays)
+    ex = motion.execution
+    if ex is not None:
+        out.update({"exec_t": ex.t, "exec_q": ex.q, "exec_v": ex.v})
+        if ex.tau is not None:
+            out["exec_tau"] = ex.tau
+        poses = ex.object_poses()
+        if poses:
+            out["exec_object_pose"] = np.stack(list(poses.values()), axis=1)
+            out["object_names"] = np.array(list(poses), dtype=str)
     if motion.objects:
         names = list(motion.objects)
         out["object_names"] = np.array(names, dtype=str)
         out["object_pose"] = np.stack([motion.objects[k] for k in names], axis=1)
     return out
-
-
-def csv_columns(motion: MotionFile) -> tuple[list[str], list[str]]:
-    """The names of the q and v columns of the CSV export (without the ``q_``/``v_`` prefix):
-    ``base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw, <joints>`` and
-    ``base_vx, base_vy, base_vz, base_wx, base_wy, base_wz, <joints>`` (``joint<i>`` when the file
-    names no joints or not one per velocity column)."""
-    nq, nv = motion.plan.q.shape[1], motion.plan.v.shape[1]
-    joints = list(motion.joint_names)
-    if len(joints) != nv - 6:
-        joints = [f"joint{i}" for i in range(nv - 6)]
-    q_names = ["base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw", *joints]
-    v_names = ["base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz", *joints]
-    q_names += [f"q{i}" for i in range(len(q_names), nq)]  # a joint with more than one position coordinate
-    return q_names[:nq], v_names[:nv]
-
-
-def _csv_text(header: list[str], rows: np.ndarray, meta: dict[str, Any]) -> str:
-    buf = io.StringIO()
-    for key, val in meta.items():
-        buf.write(f"# {key}: {json.dumps(val, default=_json_default)}\n")
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(header)
-    for row in rows:
-        writer.writerow([repr(float(x)) for x in row])
-    return buf.getvalue()

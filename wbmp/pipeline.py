@@ -7,15 +7,21 @@ every step reports progress through a small callback so the CLI can show it (or 
 from __future__ import annotations
 
 import contextlib
-import io
-import struct
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from wbmp.errors import CliError, ExitCode
+
+if TYPE_CHECKING:
+    from language import ActionPlan
+    from planner import Plan
+    from robots import Robot, RobotProfile
+    from sim import Execution, StopRequest
+    from tasks import StartState, TaskSpec
+    from wbmp.motioncache import Hit
 
 Progress = Callable[[str], None]
 
@@ -64,13 +70,13 @@ class SolveRequest:
     llm_options: dict[str, Any] = field(default_factory=dict)
     simulate: bool = True
     push: str | None = None
-    actions: Any = None
-    profile: Any = None
+    actions: ActionPlan | None = None
+    profile: RobotProfile | None = None
     estop_at: float | None = None
     estop_flag: str | None = None
     faults_path: str | None = None
-    stop_request: Any = None
-    start: Any = None
+    stop_request: StopRequest | None = None
+    start: StartState | None = None
 
     @property
     def safety(self) -> bool:
@@ -95,21 +101,57 @@ class SolveRequest:
 
 @dataclass(kw_only=True)
 class SolveResult:
-    """Everything the job produced."""
+    """Everything the job produced: one typed record whatever its source (a fresh solve or the
+    motion cache).
 
-    robot: Any
-    spec: Any
-    plan: Any
-    actions: Any = None
-    execution: Any = None
+    Attributes:
+        spec: The compiled (or read) task spec, with this request's description.
+        plan: The plan (a cached one's stats say ``cache="cached"``).
+        robot: The robot's model, or None for a cached result until :meth:`model` loads it (a hit
+            that writes no page, plot or viewer never loads Pinocchio).
+        robot_name: The robot's name (default: ``robot.name``).
+        robot_source: What :meth:`model` loads (a name, a profile file or a
+            :class:`robots.RobotProfile`; default: ``robot_name``).
+        actions: The parsed actions of a sentence, or None for a spec file.
+        execution: The simulated execution (a cached one read back from the motion file, with its
+            certificate and events), or None without the simulation.
+        timings: Wall time of each step [s].
+        cached: The :class:`wbmp.motioncache.Hit` the result was read from, or None.
+        cache_key: Its motion cache key (also set after a fresh solve that was stored).
+        motion_file: The motion file (``.npz`` bytes) of a fresh result stored in the motion cache:
+            ``--out`` writes these bytes, compressed once.
+    """
+
+    spec: TaskSpec
+    plan: Plan
+    robot: Robot | None = None
+    robot_name: str = ""
+    robot_source: str | RobotProfile | None = None
+    actions: ActionPlan | None = None
+    execution: Execution | None = None
     timings: dict[str, float] = field(default_factory=dict)
-    cached: Any = None  # the wbmp.motioncache.Hit this result was read from, or None
-    cache_key: str | None = None  # its motion cache key (also set after a fresh solve that was stored)
+    cached: Hit | None = None
+    cache_key: str | None = None
+    motion_file: bytes | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.robot is not None and not self.robot_name:
+            self.robot_name = self.robot.name
+        if not self.robot_name:
+            raise ValueError("SolveResult needs the robot or its name")
+
+    def model(self) -> Robot:
+        """The robot's model (a cached result loads it here, once)."""
+        if self.robot is None:
+            from robots import load_robot
+
+            self.robot = load_robot(self.robot_source if self.robot_source is not None else self.robot_name)
+        return self.robot
 
     @property
     def exit_code(self) -> ExitCode:
         """0 when planned (and certified when simulated), 5 when the simulation check failed."""
-        if self.execution is not None and not self.execution.certificate.ok:
+        if self.execution is not None and not self.execution.ok:
             return ExitCode.SIM_FAILED
         return ExitCode.OK
 
@@ -117,7 +159,7 @@ class SolveResult:
         """The JSON report stored in the motion file and printed by ``--json``."""
         s = self.plan.stats
         out: dict[str, Any] = {
-            "robot": self.robot.name,
+            "robot": self.robot_name,
             "cached": self.cached is not None,
             "instruction": self.spec.description,
             "solver": {
@@ -140,10 +182,9 @@ class SolveResult:
         if self.actions is not None:
             out["actions"] = self.actions.to_dict()["actions"]
         if self.execution is not None:
-            out["certificate"] = self.execution.certificate.to_dict()
-            events = getattr(self.execution, "events", None)
-            if events:  # a fresh simulation's events (pushes, falls, E-stops); a cached one keeps its report's
-                out["events"] = [e.to_dict() for e in events]
+            from wbmp.motionfile import execution_report
+
+            out.update(execution_report(self.execution))  # its certificate and events (pushes, falls, E-stops)
         return out
 
 
@@ -174,12 +215,11 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     import dataclasses
 
     from robots import load_robot
-    from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
-    from tasks.serialize import load_spec
+    from tasks import check_spec_for_robot, check_spec_in_scene_for_robot, load_spec
 
     scene = None
     if request.scene_path is not None:
-        from tasks.scene import load_scene
+        from tasks import load_scene
 
         scene = load_scene(request.scene_path)
     if request.spec_path is not None:
@@ -197,14 +237,14 @@ def build_spec(request: SolveRequest, progress: Progress = _silent):
     progress("parsing the instruction")
     actions = parse_instruction(request) if request.actions is None else request.actions
     robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
-    from tasks.compose import compile_actions, fit_actions
+    from tasks import compile_actions, fit_actions
 
-    # unstated sizes chosen within the robot's limits, so that the printed defaults are the ones used
+    # unstated sizes chosen within the robot's limits, once: the printed defaults are the ones compiled
     actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
     if scene is None:
         _require_scene(actions.actions)
-    spec = compile_actions(actions.actions, robot, scene=scene, start=request.start)
-    spec = dataclasses.replace(spec, robot=robot.name, description=request.instruction, scene=scene)
+    spec = compile_actions(actions.actions, robot, scene=scene, description=request.instruction or "", fitted=True,
+                           start=request.start)
     check_spec_for_robot(spec, robot)
     check_spec_in_scene_for_robot(spec, robot)
     return robot, spec, actions
@@ -232,13 +272,13 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     """
     from wbmp.errors import check_signals
 
+    request.check()
     if not cache:
         return _solve(request, progress)
     if request.safety:  # a stop or faults: planned with the solution library, simulated afresh, not stored
         cache_read = False
     from wbmp.motioncache import MotionCache, request_key
 
-    request.check()
     motions = MotionCache(cache_dir)
     t0 = time.perf_counter()
     # given actions or a start state: keyed by the spec
@@ -246,78 +286,29 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
     if rkey is not None and cache_read:
         found = motions.lookup_request(rkey)
         if found is not None:
-            hit = motions.load(found[0])
+            hit = motions.load(found.motion)
             if hit is not None:
                 check_signals()
                 progress("answering from the motion cache")
-                return _from_cache(request, hit, None, time.perf_counter() - t0)
+                return _from_cache(request, hit, None, time.perf_counter() - t0, actions=_stored_actions(found.actions))
     return _solve(request, progress, motions=motions, rkey=rkey, read=cache_read)
 
 
-class _LazyRobot:
-    """The robot of a cached result: its name at once, the model only when something needs it."""
+def _stored_actions(record: dict[str, Any] | None) -> ActionPlan | None:
+    """The parsed actions a request record keeps, or None (a record without them, or damaged:
+    the sentence is parsed again)."""
+    if record is None:
+        return None
+    from language import ActionPlan, LanguageError
 
-    def __init__(self, name: str, request: SolveRequest) -> None:
-        self._name = name
-        self._request = request
-        self._robot: Any = None
-
-    @property
-    def name(self) -> str:
-        """The robot's name (no model loaded)."""
-        return self._name
-
-    def load(self) -> Any:
-        """The robot itself (loaded on first use)."""
-        if self._robot is None:
-            from robots import load_robot
-
-            request = self._request
-            self._robot = load_robot(request.profile if request.profile is not None else request.robot or self._name)
-        return self._robot
-
-    def __getattr__(self, attr: str) -> Any:
-        return getattr(self.load(), attr)
+    try:
+        return ActionPlan.from_record(record)
+    except LanguageError:
+        return None
 
 
-@dataclass(eq=False, kw_only=True)
-class CachedExecution:
-    """The simulated execution read back from the motion cache (arrays and certificate)."""
-
-    t: Any
-    q: Any
-    v: Any
-    tau: Any
-    certificate: Any
-    exec_object_pose: Any = None  # (T', k, 7) the movable objects' simulated poses, when the file has them
-    object_names: Any = None
-
-    @property
-    def ok(self) -> bool:
-        """The certificate passed."""
-        return bool(self.certificate.ok)
-
-
-def _certificate(record: dict[str, Any]):
-    from planner.results import Check, CheckKind
-    from sim.certificate import Certificate
-
-    def number(x: Any) -> float:
-        return float("nan") if x is None else float(x)
-
-    checks = tuple(Check(name=str(c["name"]), kind=CheckKind.RECORDED, value=number(c["value"]),
-                         limit=number(c["limit"]), unit=str(c["unit"]), time=number(c["time"]), ok=bool(c["ok"]),
-                         message=str(c.get("message", "")), upper=bool(c.get("upper", True)))
-                   for c in record["checks"])
-    figures = record.get("figures") or {}
-    stops = record.get("stops") or []
-    return Certificate(ok=bool(record["ok"]), checks=checks, reason=str(record.get("reason", "")),
-                       figures={str(k): number(v) for k, v in figures.items()} if isinstance(figures, dict) else {},
-                       stops=tuple(dict(x) for x in stops if isinstance(x, dict)) if isinstance(stops, list) else ())
-
-
-def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
-                actions: Any = None, spec: Any = None) -> SolveResult:
+def _from_cache(request: SolveRequest, hit: Hit, robot: Robot | None, elapsed: float,
+                actions: ActionPlan | None = None, spec: TaskSpec | None = None) -> SolveResult:
     """A SolveResult from a verified motion cache entry, with this request's sentence and actions."""
     import dataclasses
 
@@ -329,21 +320,14 @@ def _from_cache(request: SolveRequest, hit: Any, robot: Any, elapsed: float,
     if actions is None and request.actions is not None:
         actions = request.actions
     if actions is None and request.instruction is not None:
-        actions = parse_instruction(request)  # milliseconds; the describe() lines and the report's actions
+        actions = parse_instruction(request)  # a request record without its actions (or damaged ones)
     plan = dataclasses.replace(plan, spec=spec, stats=dataclasses.replace(plan.stats, cache="cached"))
-    execution = None
-    if motion.execution_arrays:
-        try:
-            certificate = _certificate(motion.report["certificate"])
-        except (KeyError, TypeError, ValueError):
-            certificate = None
-        if certificate is not None:
-            ex = motion.execution_arrays
-            execution = CachedExecution(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex.get("exec_tau"),
-                                        certificate=certificate, exec_object_pose=ex.get("exec_object_pose"),
-                                        object_names=ex.get("object_names"))
-    return SolveResult(robot=robot if robot is not None else _LazyRobot(motion.robot_name, request), spec=spec,
-                       plan=plan, actions=actions, execution=execution, timings={"cache": elapsed}, cached=hit,
+    execution = motion.execution
+    if execution is not None and execution.certificate is None:
+        execution = None  # only certified results are stored: an entry without its certificate is not one
+    source = request.profile if request.profile is not None else request.robot or motion.robot_name
+    return SolveResult(robot=robot, robot_name=motion.robot_name, robot_source=source, spec=spec, plan=plan,
+                       actions=actions, execution=execution, timings={"cache": elapsed}, cached=hit,
                        cache_key=hit.key)
 
 
@@ -360,7 +344,6 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     progress = checked_progress
 
     timings: dict[str, float] = {}
-    request.check()
     push = None
     if request.simulate and request.push is not None:
         from sim import parse_push
@@ -368,7 +351,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         push = parse_push(request.push)  # before any work: a typo fails at once (exit 2)
     faults = None
     if request.simulate and request.faults_path is not None:
-        from sim.faults import load_faults
+        from sim import load_faults
 
         faults = load_faults(request.faults_path)  # before any work: a bad file fails at once (exit 3)
     t0 = time.perf_counter()
@@ -381,6 +364,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     if request.simulate:
         _check_safety_times(request, faults, spec.horizon)
     key = digest = files = None
+    library = motions is not None  # the solution library goes with the motion cache, hashable robot files or not
     if motions is not None:
         from wbmp.motioncache import motion_key, robot_files, robot_hash
 
@@ -394,7 +378,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         hit = motions.load(key) if read and not request.safety else None
         if hit is not None:  # the same motion from another phrasing (or request)
             if rkey is not None:
-                motions.store_request(rkey, key, files, digest)
+                motions.store_request(rkey, key, files, digest, _actions_record(actions))
             progress("answering from the motion cache")
             return _from_cache(request, hit, robot, timings["spec"], actions=actions, spec=spec)
     from planner import plan as plan_motion
@@ -405,7 +389,7 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
     # the user's WBMP_* switches (compile, background, solution library, build memory); without the
     # motion cache (--no-cache), no solution library either: the result of the request alone,
     # whatever was planned before (planner/trajopt/library.py)
-    settings = planner_settings() if motions is not None else planner_settings(solution_library="off")
+    settings = planner_settings() if library else planner_settings(solution_library="off")
     plan = plan_motion(spec, robot, progress=progress, settings=settings)
     check_signals()
     timings["plan"] = time.perf_counter() - t0
@@ -421,18 +405,25 @@ def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rk
         timings["simulate"] = time.perf_counter() - t0
     result = SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
     if motions is not None and key is not None and files is not None and digest is not None \
-            and plan.ok and (execution is None or execution.certificate.ok) and not request.safety:
+            and plan.ok and (execution is None or execution.ok) and not request.safety:
         # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
-        motions.store(key, result_arrays(result), spec)
+        from wbmp.motionfile import npz_bytes
+
+        result.motion_file = npz_bytes(result_arrays(result))  # compressed once: the cache and --out
+        motions.store_file(key, result.motion_file, spec)
         if rkey is not None:
-            motions.store_request(rkey, key, files, digest)
+            motions.store_request(rkey, key, files, digest, _actions_record(actions))
         result.cache_key = key
     return result
 
 
+def _actions_record(actions: ActionPlan | None) -> dict[str, Any] | None:
+    return None if actions is None else actions.to_record()
+
+
 def _estop_settings(request: SolveRequest) -> Any:
     """The simulation's E-stop settings for a request (its stop time, flag file and signal)."""
-    from sim.estop import EStopSettings
+    from sim import EStopSettings
 
     return EStopSettings(at=request.estop_at, flag_file=request.estop_flag, request=request.stop_request)
 
@@ -443,7 +434,7 @@ def _check_safety_times(request: SolveRequest, faults: Any, horizon: float) -> N
         raise CliError(f"--estop-at {request.estop_at:g}: the motion lasts {horizon:.3g} s; give a time from 0 to "
                        f"below {horizon:.3g} s", ExitCode.USAGE)
     if faults is not None:
-        from sim.exceptions import FaultsError
+        from sim import FaultsError
 
         for i, p in enumerate(faults.pushes):
             if not p.t < horizon:
@@ -461,13 +452,13 @@ def result_arrays(result: SolveResult) -> dict[str, Any]:
 
     actions = result.actions.to_dict()["actions"] if result.actions is not None else None
     if result.cached is None:
-        return motion_arrays(result.plan, result.robot, execution=result.execution, actions=actions,
+        return motion_arrays(result.plan, result.model(), execution=result.execution, actions=actions,
                              report=result.report())
     import json
 
     import numpy as np
 
-    from tasks.serialize import spec_to_json
+    from tasks import spec_to_json
     from wbmp.motionfile import _json_default, plan_report
 
     arrays = dict(result.cached.arrays)
@@ -503,7 +494,7 @@ def check_inputs_exist(*, spec: str | None = None, scene: str | None = None) -> 
     the outputs are checked: a missing input must not be reported as a missing output folder."""
     import os
 
-    from tasks.exceptions import TaskDefinitionError
+    from tasks import TaskDefinitionError
 
     for what, path in (("spec", spec), ("scene", scene)):
         if path is not None and path != "-" and path.strip() and not os.path.lexists(path):
@@ -544,82 +535,6 @@ def _plot_files() -> tuple[str, ...]:
     return PLOT_FILES
 
 
-def _savez_fast(fh: Any, arrays: dict[str, Any]) -> None:
-    """``np.savez_compressed`` at zlib level 1 (what ``--out`` is written with: ~25 % less CPU than
-    level 6, and the file a fraction of a percent larger; a 1 kHz execution hardly compresses)."""
-    import zipfile
-
-    import numpy as np
-
-    with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
-        for key, value in arrays.items():
-            with zf.open(f"{key}.npy", "w", force_zip64=True) as member:
-                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
-
-
-_LOCAL = struct.Struct("<IHHHHHIIIHH")  # a zip local file header (30 bytes)
-_CENTRAL = struct.Struct("<IHHHHHHIIIHHHHHII")  # a central directory record (46 bytes)
-_END = struct.Struct("<IHHHHIIH")  # the end of central directory record (22 bytes)
-
-
-def _npz_replacing(source: bytes, replaced: dict[str, Any]) -> bytes | None:
-    """The ``.npz`` ``source`` with the arrays ``replaced`` (key -> array) written anew and every
-    other member copied byte for byte (its compressed data is not touched: a cached motion's
-    ``--out`` costs a copy, not a recompression). None when ``source`` is not a plain zip this
-    can copy (zip64, encrypted, streamed members): the caller writes the file the slow way."""
-    import zipfile
-    import zlib
-
-    import numpy as np
-
-    try:
-        infos = zipfile.ZipFile(io.BytesIO(source)).infolist()
-    except (zipfile.BadZipFile, ValueError, OSError):
-        return None
-    names = {f"{key}.npy" for key in replaced}
-    out = io.BytesIO()
-    central = []
-
-    def member(name: str, method: int, crc: int, csize: int, usize: int, dostime: int, dosdate: int,
-               payload: bytes) -> None:
-        raw = name.encode("ascii")
-        central.append(_CENTRAL.pack(0x02014B50, 20, 20, 0, method, dostime, dosdate, crc, csize, usize,
-                                     len(raw), 0, 0, 0, 0, 0, out.tell()) + raw)
-        out.write(_LOCAL.pack(0x04034B50, 20, 0, method, dostime, dosdate, crc, csize, usize, len(raw), 0) + raw)
-        out.write(payload)
-
-    for info in infos:
-        if info.filename in names:
-            continue
-        if (info.flag_bits & 0x09 or info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)
-                or not info.filename.isascii() or max(info.compress_size, info.file_size, info.header_offset) >= 1 << 31):
-            return None
-        head = source[info.header_offset:info.header_offset + _LOCAL.size]
-        if len(head) != _LOCAL.size or head[:4] != b"PK\x03\x04":
-            return None
-        fields = _LOCAL.unpack(head)
-        start = info.header_offset + _LOCAL.size + fields[9] + fields[10]
-        payload = source[start:start + info.compress_size]
-        if len(payload) != info.compress_size:
-            return None
-        y, mo, d, h, mi, sec = info.date_time
-        member(info.filename, info.compress_type, info.CRC, info.compress_size, info.file_size,
-               (h << 11) | (mi << 5) | (sec // 2), ((y - 1980) << 9) | (mo << 5) | d, payload)
-    for key, value in replaced.items():
-        buf = io.BytesIO()
-        np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
-        data = buf.getvalue()
-        packer = zlib.compressobj(6, zlib.DEFLATED, -15)
-        payload = packer.compress(data) + packer.flush()
-        member(f"{key}.npy", zipfile.ZIP_DEFLATED, zlib.crc32(data), len(payload), len(data), 0, (1 << 5) | 1,
-               payload)
-    start = out.tell()
-    for record in central:
-        out.write(record)
-    out.write(_END.pack(0x06054B50, 0, 0, len(central), len(central), out.tell() - start, start, 0))
-    return out.getvalue()
-
-
 def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str | Path | None) -> None:
     """The HTML replay; its data is reused from (or stored into) the motion cache when the
     result is in it (the page's data does not depend on the title)."""
@@ -634,10 +549,10 @@ def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str
         motions = MotionCache(cache_dir)
         data = motions.load_page(result.cache_key)
     if data is None:
-        data = page_data(result.robot, result.plan, execution=result.execution)
+        data = page_data(result.model(), result.plan, execution=result.execution)
         if motions is not None and result.cache_key is not None:
             motions.store_page(result.cache_key, data)
-    text = render_page(data, result.robot.name, result.plan, execution=result.execution, title=title)
+    text = render_page(data, result.robot_name, result.plan, execution=result.execution, title=title)
     raw = text.encode("utf-8")
     staging.add(path, lambda fh: fh.write(raw))
 
@@ -653,6 +568,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
     ``result.timings`` (``npz``, ``html``: the ``--json`` report shows them).
     """
     from viz.files import Staging
+    from wbmp.motionfile import npz_replacing, savez_fast
 
     paths = check_outputs(out=out, html=html, plots=plots)
     written: dict[str, str] = {}
@@ -662,8 +578,10 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
             progress(f"writing {out}")
             arrays = result_arrays(result)
             copied = None
-            if result.cached is not None and result.cached.data:  # the stored file, with this request's JSON
-                copied = _npz_replacing(result.cached.data, {k: arrays[k] for k in _REQUEST_KEYS})
+            # the stored file (a cached result, or a fresh one just stored), with this request's JSON
+            stored = result.cached.data if result.cached is not None and result.cached.data else result.motion_file
+            if stored:
+                copied = npz_replacing(stored, {k: arrays[k] for k in _REQUEST_KEYS})
             if copied is not None:
                 data = copied
                 staging.add(paths.out, lambda fh: fh.write(data))
@@ -671,7 +589,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
                 # zlib level 1: the 1 kHz execution (float64) hardly compresses (6.2 MB at level 6, 6.2 MB
                 # at level 1, 6.4 MB raw for four steps) and level 6 costs ~25 % more CPU; when a page or
                 # plots follow, the file is compressed in a thread (zlib releases the GIL) beside them
-                staging.add(paths.out, lambda fh: _savez_fast(fh, arrays),
+                staging.add(paths.out, lambda fh: savez_fast(fh, arrays),
                             background=paths.html is not None or paths.plots is not None)
             written["motion"] = str(paths.out)
             result.timings["npz"] = time.perf_counter() - t0
@@ -685,7 +603,7 @@ def write_outputs(result: SolveResult, *, out: str | None = None, html: str | No
             from viz import write_plots
 
             progress(f"writing plots to {plots}")
-            files = write_plots(paths.plots, result.robot, result.plan, execution=result.execution,
+            files = write_plots(paths.plots, result.model(), result.plan, execution=result.execution,
                                 staging=staging)
             written["plots"] = ", ".join(str(p) for p in files)
         if paths.out is not None:

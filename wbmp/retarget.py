@@ -139,7 +139,7 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
     result = RetargetResult(robot=robot, spec=spec, plan=plan, execution=execution, timings=timings,
                             reference=ref, figures=plan_figures, exec_figures=exec_figures, skeleton=skeleton,
                             clip_info=info)
-    if motions is not None and key is not None and plan.ok and (execution is None or execution.certificate.ok):
+    if motions is not None and key is not None and plan.ok and (execution is None or execution.ok):
         from wbmp.pipeline import result_arrays
 
         motions.store(key, result_arrays(result), spec)  # only a success: a failure is worth re-checking

@@ -33,7 +33,7 @@ from planner.trajopt.term import (
 
 if TYPE_CHECKING:
     from planner.results import Check
-    from tasks.specs import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget
+    from tasks import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget
 
 INF = math.inf
 HARD_EQUALITY_TOLERANCE = 1e-6  # [m] or [rad]: below it a hard target becomes an equality
@@ -328,7 +328,7 @@ class FramePositionTerm(_Target):
     @classmethod
     def at(cls, knot: int, frame_id: int, target: FrameTarget, scale: float, phase: str) -> FramePositionTerm:
         """The term at ``knot``: its structure, parameters and row bounds."""
-        from tasks.specs import Priority
+        from tasks import Priority
 
         assert target.position is not None
         mode = target_mode(target.priority is Priority.SOFT, target.tolerance)
@@ -368,7 +368,7 @@ class FramePositionTerm(_Target):
         error [m] on its axes, then (the :class:`FrameOrientationTerm` kind's check, reported here to
         keep a target's two checks together) the worst angle [rad] (``log3``). A soft target's
         tolerance is infinite: it is reported, never failed."""
-        from tasks.specs import Priority
+        from tasks import Priority
 
         lay, t = ctx.lay, ctx.lay.t
         checks = []
@@ -446,7 +446,7 @@ class CoMPositionTerm(_Target):
     @classmethod
     def of_target(cls, knot: int, target: CoMTarget, n_knots: int, phase: str) -> CoMPositionTerm:
         """The term of a CoM target at ``knot`` (its weight shared by ``n_knots`` knots)."""
-        from tasks.specs import Priority
+        from tasks import Priority
 
         axes = tuple(v is not None for v in target.position)
         mode = target_mode(target.priority is Priority.SOFT, target.tolerance)
@@ -473,7 +473,7 @@ class CoMPositionTerm(_Target):
     def report(cls, ctx: ReportContext) -> list[Check]:
         """Per CoM target of the spec, the worst error [m] on its axes over its knots (the CoM
         centring is a cost: not reported)."""
-        from tasks.specs import Priority
+        from tasks import Priority
 
         lay, com, t = ctx.lay, ctx.com, ctx.lay.t
         checks = []

@@ -46,8 +46,11 @@ def synthetic_plan(robot, *, duration: float = SYNTH_DURATION, dt: float = 0.05)
                 stats=SolverStats(status=SolveStatus.SOLVED))
 
 
-def synthetic_execution(robot, plan, *, rate: float = 200.0) -> dict:
-    """exec_* arrays like a motion file's: plan resampled at ``rate`` Hz, torques, sole forces."""
+def synthetic_execution(robot, plan, *, rate: float = 200.0):
+    """A :class:`sim.Execution` without a certificate (as a motion file without one reads back):
+    the plan resampled at ``rate`` Hz, torques, sole forces."""
+    from sim import Execution
+
     te = np.arange(0.0, float(plan.t[-1]) + 1e-9, 1.0 / rate)
     idx = np.minimum(np.searchsorted(plan.t, te), len(plan.t) - 1)
     qe = plan.q[idx].copy()
@@ -59,7 +62,7 @@ def synthetic_execution(robot, plan, *, rate: float = 200.0) -> dict:
         robot.frame("left_foot"): np.column_stack([5 * np.sin(te), np.zeros_like(te), half + 30 * np.cos(te)]),
         robot.frame("right_foot"): np.column_stack([np.zeros_like(te), 4 + 0 * te, half - 30 * np.cos(te)]),
     }
-    return {"exec_t": te, "exec_q": qe, "exec_v": ve, "exec_tau": tau, "contact_forces": forces}
+    return Execution(t=te, q=qe, v=ve, tau=tau, certificate=None, contact_forces=forces)
 
 
 @pytest.fixture(scope="session")
@@ -70,7 +73,7 @@ def synth_plan(talos):
 
 @pytest.fixture(scope="session")
 def synth_execution(talos, synth_plan):
-    """A fake execution (arrays) for the synthetic plan."""
+    """A fake execution for the synthetic plan."""
     return synthetic_execution(talos, synth_plan)
 
 
@@ -112,20 +115,22 @@ def synthetic_pick_up(robot, plan):
     return dataclasses.replace(plan, spec=spec)
 
 
-def synthetic_pick_up_execution(robot, plan) -> dict:
-    """exec_* arrays of the pick-up plan, as a ``sim`` Execution has them: ``objects`` (the planned
-    poses resampled, the cup SIM_DROP lower) and ``object_orientations``."""
+def synthetic_pick_up_execution(robot, plan):
+    """The synthetic execution of the pick-up plan with ``objects`` (the planned poses resampled,
+    the cup SIM_DROP lower) and ``object_orientations``."""
+    import dataclasses
+
     from viz import motion as vm
 
     ex = synthetic_execution(robot, plan)
     planned = vm.planned_object_poses(robot, plan.spec, plan.t, plan.q)
     objects, turns = {}, {}
     for name, poses in planned.items():
-        sampled = vm.resample_poses(plan.t, poses, ex["exec_t"])
+        sampled = vm.resample_poses(plan.t, poses, ex.t)
         if name == "cup":
             sampled[:, 2] -= SIM_DROP
         objects[name], turns[name] = sampled[:, :3], sampled[:, 3:]
-    return {**ex, "objects": objects, "object_orientations": turns}
+    return dataclasses.replace(ex, objects=objects, object_orientations=turns)
 
 
 @pytest.fixture(scope="session")

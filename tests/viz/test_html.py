@@ -120,7 +120,7 @@ def test_planned_and_simulated_animations(page, talos, synth_plan, synth_executi
     data = _data(text)
     assert set(data["motions"]) == {"planned", "simulated"}
     assert data["durations"]["planned"] == pytest.approx(synth_plan.t[-1])
-    assert data["durations"]["simulated"] == pytest.approx(synth_execution["exec_t"][-1])
+    assert data["durations"]["simulated"] == pytest.approx(synth_execution.t[-1])
     anim = umsgpack.unpackb(data["motions"]["planned"])
     assert anim["type"] == "set_animation"
     by_path = {a["path"]: a["clip"]["tracks"] for a in anim["animations"]}

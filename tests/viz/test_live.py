@@ -159,7 +159,7 @@ def test_live_viewer_moves_the_held_object_as_simulated(talos, pick_plan, pick_e
         paths = [a["path"] for a in anim["animations"]]
         assert paths.count("/meshcat/wbmp/scene/cup") == 1  # one node: the simulated poses, not the planned too
         pose, at = object_clip_at(anim, "cup", 2.5)
-        t, cup = pick_execution["exec_t"], pick_execution["objects"]["cup"]
+        t, cup = pick_execution.t, pick_execution.objects["cup"]
         assert np.abs(pose[:3] - [np.interp(at, t, cup[:, i]) for i in range(3)]).max() < 1e-9
         box, _ = object_clip_at(anim, "box", 2.5)
         assert np.allclose(box[:3], pick_plan.spec.scene.get("box").position)

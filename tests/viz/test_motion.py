@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -69,11 +71,11 @@ def test_support_polygon_of_double_support_contains_standing_com(talos, synth_pl
         np.testing.assert_allclose(corners[:, 2], 0.0, atol=1e-6)  # soles on the ground
 
 
-def test_execution_motion_reads_sim_names_and_file_names(talos, synth_plan, synth_execution):
+def test_execution_motion_of_an_execution(talos, synth_plan, synth_execution):
     m = vm.execution_motion(talos, synth_execution)
     assert m.label == "simulated"
     assert m.tau.shape == (len(m.t), talos.nv - 6)
     assert set(m.forces) == {talos.frame("left_foot"), talos.frame("right_foot")}
     assert vm.execution_motion(talos, None) is None
     with pytest.raises(vm.VizInputError, match="execution: q"):
-        vm.execution_motion(talos, {"t": np.zeros(3), "q": np.zeros((3, 5))})
+        vm.execution_motion(talos, dataclasses.replace(synth_execution, t=np.zeros(3), q=np.zeros((3, 5))))

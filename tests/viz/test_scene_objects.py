@@ -200,7 +200,7 @@ def test_html_replay_moves_the_held_object(talos, pick_plan, pick_execution):
     data = vh.unpack_data(vh.build_page(talos, pick_plan, execution=pick_execution))
     planned = vm.planned_object_poses(talos, pick_plan.spec, pick_plan.t, pick_plan.q)
     expected = {"planned": (pick_plan.t, planned["cup"][:, :3]),
-                "simulated": (pick_execution["exec_t"], pick_execution["objects"]["cup"])}
+                "simulated": (pick_execution.t, pick_execution.objects["cup"])}
     shown = {}
     for label, (t, positions) in expected.items():
         animation = umsgpack.unpackb(data["motions"][label])

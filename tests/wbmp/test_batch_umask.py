@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import os
 import stat
-import types
 from pathlib import Path
 
 import pytest
@@ -69,7 +68,7 @@ def test_batch_folder_motion_index_and_summary_follow_the_umask(mask, items, tmp
 @pytest.fixture(scope="module")
 def motion_path(tmp_path_factory, talos, synth_plan, synth_execution) -> Path:
     ex = synth_execution
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    execution = ex
     return save_motion(tmp_path_factory.mktemp("motion") / "m.npz", synth_plan, talos, execution=execution,
                        report={"certificate": {"ok": True}})
 

@@ -124,5 +124,5 @@ def test_a_motion_removed_while_read_is_a_miss_and_a_request_hit_marks_use(base,
     record = base / "motions" / "requests" / f"{'ef' * 32}.json"
     cache.store_request("ef" * 32, KEY, {str(robot_file): motioncache._sha256_file(robot_file)}, "digest")
     os.utime(record, (1000.0, 1000.0))
-    assert cache.lookup_request("ef" * 32) == (KEY, "digest")
+    assert cache.lookup_request("ef" * 32) == (KEY, "digest", None)
     assert os.lstat(record).st_mtime > time.time() - 60

@@ -10,7 +10,6 @@ import subprocess
 import sys
 import threading
 import time
-import types
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module")
 def motion_path(tmp_path_factory, talos, synth_plan, synth_execution):
     ex = synth_execution
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    execution = ex
     path = tmp_path_factory.mktemp("motion") / "squat.npz"
     return motionfile.save_motion(path, synth_plan, talos, execution=execution,
                                   report={"certificate": {"ok": True}})
@@ -39,8 +38,8 @@ def test_export_json_has_the_same_numbers(tmp_path, motion_path, synth_plan, syn
     doc = json.loads(out.read_text())
     for key in ("t", "q", "v", "com"):
         np.testing.assert_array_equal(np.asarray(doc[key]), getattr(synth_plan, key), err_msg=key)
-    np.testing.assert_array_equal(np.asarray(doc["exec_q"]), synth_execution["exec_q"])
-    np.testing.assert_array_equal(np.asarray(doc["exec_tau"]), synth_execution["exec_tau"])
+    np.testing.assert_array_equal(np.asarray(doc["exec_q"]), synth_execution.q)
+    np.testing.assert_array_equal(np.asarray(doc["exec_tau"]), synth_execution.tau)
     assert doc["robot"] == "talos" and doc["spec"]["name"] == "synthetic squat"
     assert doc["report"]["certificate"] == {"ok": True}
 
@@ -59,8 +58,8 @@ def test_export_csv_has_the_same_numbers(tmp_path, motion_path, synth_plan, synt
     np.testing.assert_array_equal(rows[:, 1:1 + talos.nq], synth_plan.q)
     np.testing.assert_array_equal(rows[:, -3:], synth_plan.com)
     exec_rows = np.loadtxt(tmp_path / "m.exec.csv", delimiter=",", skiprows=1)
-    np.testing.assert_array_equal(exec_rows[:, 0], synth_execution["exec_t"])
-    np.testing.assert_array_equal(exec_rows[:, -(talos.nv - 6):], synth_execution["exec_tau"])
+    np.testing.assert_array_equal(exec_rows[:, 0], synth_execution.t)
+    np.testing.assert_array_equal(exec_rows[:, -(talos.nv - 6):], synth_execution.tau)
 
 
 def test_export_refuses_contradictions(tmp_path, motion_path, capsys):

@@ -12,10 +12,10 @@ import pytest
 from language import parse
 from planner import plan
 from planner.trajopt.settings import PlannerSettings
+from sim import Execution
 from sim.certificate import Certificate
 from tasks.compose import compile_actions, fit_actions
 from wbmp.continuation import DRIFT, EndState, end_state
-from wbmp.pipeline import CachedExecution
 
 
 @pytest.fixture(scope="module")
@@ -28,10 +28,10 @@ def feet(robot):
     return robot.frame("left_foot"), robot.frame("right_foot")
 
 
-def executed(q_end: np.ndarray, *, ok: bool = True, reason: str = "") -> CachedExecution:
+def executed(q_end: np.ndarray, *, ok: bool = True, reason: str = "") -> Execution:
     """The simulation's arrays as a motion file keeps them, ending at ``q_end``."""
     q = np.vstack([q_end, q_end])
-    return CachedExecution(t=np.array([0.0, 0.001]), q=q, v=np.zeros((2, q.shape[1] - 1)), tau=None,
+    return Execution(t=np.array([0.0, 0.001]), q=q, v=np.zeros((2, q.shape[1] - 1)), tau=None,
                            certificate=Certificate(ok=ok, checks=(), reason=reason))
 
 

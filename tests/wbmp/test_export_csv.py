@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import json
-import types
 
 import numpy as np
 import pinocchio as pin
@@ -21,7 +20,7 @@ BASE_V = ["base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz"]
 @pytest.fixture(scope="module")
 def motion_path(tmp_path_factory, talos, synth_plan, synth_execution):
     ex = synth_execution
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    execution = ex
     path = tmp_path_factory.mktemp("motion") / "squat.npz"
     return save_motion(path, synth_plan, talos, execution=execution, report={"certificate": {"ok": False}})
 
@@ -62,6 +61,6 @@ def test_csv_round_trips_to_the_motion_files_arrays(motion_path, tmp_path):
     _, exec_header, exec_rows = read_csv(tmp_path / "m.exec.csv")
     assert exec_header == ["t", *[f"q_{n}" for n in BASE_Q + joints], *[f"v_{n}" for n in BASE_V + joints],
                            *[f"tau_{n}" for n in joints]]
-    ex = m.execution_arrays
-    np.testing.assert_array_equal(exec_rows, np.hstack([ex["exec_t"][:, None], ex["exec_q"], ex["exec_v"],
-                                                        ex["exec_tau"]]))
+    ex = m.execution
+    np.testing.assert_array_equal(exec_rows, np.hstack([ex.t[:, None], ex.q, ex.v,
+                                                        ex.tau]))

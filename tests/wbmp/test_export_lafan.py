@@ -5,8 +5,6 @@ scipy's ``Slerp``)."""
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
@@ -41,7 +39,7 @@ def motion_path(tmp_path_factory, talos, synth_plan, synth_execution):
     plan = type(plan)(robot=plan.robot, spec=plan.spec, t=plan.t, q=q, v=plan.v, a=plan.a, com=plan.com,
                       stats=plan.stats)
     ex = synth_execution
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    execution = ex
     path = tmp_path_factory.mktemp("motion") / "turn.npz"
     return save_motion(path, plan, talos, execution=execution)
 
@@ -88,12 +86,12 @@ def test_rows_are_q_at_the_frame_times(motion_path, tmp_path, capsys):
 def test_fps_and_execution_source(motion_path, tmp_path):
     """--fps 50 --source execution: every 4th sample of the 200 Hz simulation, exactly."""
     m = load_motion(motion_path)
-    ex = m.execution_arrays
+    ex = m.execution
     out = tmp_path / "exec.csv"
     assert main(["export", str(motion_path), "--format", "lafan", "--fps", "50", "--source", "execution",
                  "--out", str(out)]) == 0
     rows = np.loadtxt(out, delimiter=",", ndmin=2)
-    sampled = ex["exec_q"][::4]
+    sampled = ex.q[::4]
     assert rows.shape == sampled.shape
     np.testing.assert_allclose(rows[:, :3], sampled[:, :3], rtol=0, atol=EXPORT_ATOL)
     np.testing.assert_allclose(rows[:, 7:], sampled[:, 7:], rtol=0, atol=EXPORT_ATOL)

@@ -5,7 +5,6 @@ every topic is compared with the motion file."""
 from __future__ import annotations
 
 import json
-import types
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +37,7 @@ TOPICS = {
 @pytest.fixture(scope="module")
 def motion_path(tmp_path_factory, talos, synth_plan, synth_execution):
     ex = synth_execution
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    execution = ex
     path = tmp_path_factory.mktemp("motion") / "squat.npz"
     return save_motion(path, synth_plan, talos, execution=execution,
                        report={"certificate": {"ok": True, "max_tracking_error": 0.0123}})
@@ -75,10 +74,10 @@ def test_every_sample_of_the_bag_is_the_motion_files(bag, motion_path):
     m = load_motion(motion_path)
     msgs = read_bag(bag)
     names = list(m.joint_names)
-    ex = m.execution_arrays
+    ex = m.execution
     runs = [("/joint_states", "/tf", "/wbmp/plan/joint_trajectory", m.plan.t, m.plan.q, m.plan.v, None),
             ("/wbmp/execution/joint_states", "/wbmp/execution/tf", "/wbmp/execution/joint_trajectory",
-             ex["exec_t"], ex["exec_q"], ex["exec_v"], ex["exec_tau"])]
+             ex.t, ex.q, ex.v, ex.tau)]
     for js_topic, tf_topic, traj_topic, t, q, v, tau in runs:
         ns = expected_ns(t)
         states, tfs = msgs[js_topic], msgs[tf_topic]

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import re
-import types
 
 import numpy as np
 import pytest
@@ -40,9 +39,8 @@ def motion_path(tmp_path_factory, talos, synth_plan):
     spec = dataclasses.replace(plan.spec, scene=dataclasses.replace(scene, objects=objects), grasps=grasps)
     plan = dataclasses.replace(plan, spec=spec)
     ex = synthetic_pick_up_execution(talos, plan)
-    ex["objects"][NAMES[0]][:, 2] -= SIM_DROP  # (the helper lowers an object called "cup" only)
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"],
-                                      objects=ex["objects"], object_orientations=ex["object_orientations"])
+    ex.objects[NAMES[0]][:, 2] -= SIM_DROP  # (the helper lowers an object called "cup" only)
+    execution = ex
     path = save_motion(tmp_path_factory.mktemp("motion") / "pick.npz", plan, talos, execution=execution)
     with np.load(path) as z:
         assert list(z["object_names"]) == NAMES

@@ -4,8 +4,6 @@ numpy's ``interp`` and scipy's ``Slerp``, independent implementations)."""
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -33,7 +31,7 @@ def motion_path(tmp_path_factory, talos, synth_plan, synth_execution):
     plan = type(plan)(robot=plan.robot, spec=plan.spec, t=plan.t, q=q, v=v, a=plan.a, com=plan.com,
                       stats=plan.stats)
     ex = synth_execution
-    execution = types.SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"])
+    execution = ex
     path = tmp_path_factory.mktemp("motion") / "turn.npz"
     return save_motion(path, plan, talos, execution=execution)
 
@@ -112,12 +110,12 @@ def test_execution_source_samples_the_simulation(motion_path, tmp_path):
     """--source execution resamples the 200 Hz simulation: at 50 fps every 4th simulated sample."""
     m = load_motion(motion_path)
     d = export(motion_path, tmp_path, "--source", "execution")
-    ex = m.execution_arrays
-    assert str(d["source"]) == "execution" and len(d["t"]) == (len(ex["exec_t"]) - 1) // 4 + 1
-    np.testing.assert_allclose(d["t"], ex["exec_t"][::4], rtol=0, atol=EXPORT_ATOL)
-    np.testing.assert_allclose(d["joint_pos"], ex["exec_q"][::4, 7:], rtol=0, atol=EXPORT_ATOL)
-    np.testing.assert_allclose(d["root_pos"], ex["exec_q"][::4, :3], rtol=0, atol=EXPORT_ATOL)
-    assert same_rotation(d["root_rot"], ex["exec_q"][::4, 3:7]) <= EXPORT_ATOL
+    ex = m.execution
+    assert str(d["source"]) == "execution" and len(d["t"]) == (len(ex.t) - 1) // 4 + 1
+    np.testing.assert_allclose(d["t"], ex.t[::4], rtol=0, atol=EXPORT_ATOL)
+    np.testing.assert_allclose(d["joint_pos"], ex.q[::4, 7:], rtol=0, atol=EXPORT_ATOL)
+    np.testing.assert_allclose(d["root_pos"], ex.q[::4, :3], rtol=0, atol=EXPORT_ATOL)
+    assert same_rotation(d["root_rot"], ex.q[::4, 3:7]) <= EXPORT_ATOL
 
 
 def test_default_output_name(motion_path, tmp_path, capsys):

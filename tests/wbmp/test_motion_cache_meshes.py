@@ -77,7 +77,7 @@ def test_visual_meshes_come_from_the_robot_cache_and_an_edit_misses(tmp_path, mo
     cache = MotionCache(tmp_path / "cache" / "motions")
     key = "a" * 64
     cache.store_request("b" * 64, key, files, robot_hash(second, files))
-    assert cache.lookup_request("b" * 64) == (key, robot_hash(second, files))
+    assert cache.lookup_request("b" * 64) == (key, robot_hash(second, files), None)
     (package / "looks.stl").write_text(stl(1.2), encoding="ascii")  # an edited visual mesh
     assert cache.lookup_request("b" * 64) is None  # the request misses
     third = robot_of(str(urdf), root, loads)

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import csv
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from planner import PlannerSettings, plan
+from sim import Execution
 from tests.planner.planning_cases import squat_spec
-from wbmp.motionfile import MotionFileError, export_motion, load_motion, save_motion
+from wbmp.export.files import export_motion
+from wbmp.motionfile import MotionFileError, load_motion, save_motion
 
 
 @pytest.fixture(scope="module")
@@ -21,8 +22,8 @@ def squat_plan(talos):
 
 def _execution(talos, rng):
     T = 7
-    return SimpleNamespace(t=np.linspace(0, 0.006, T), q=np.tile(talos.q_standing, (T, 1)),
-                           v=rng.normal(size=(T, talos.nv)), tau=rng.normal(size=(T, talos.nv - 6)))
+    return Execution(t=np.linspace(0, 0.006, T), q=np.tile(talos.q_standing, (T, 1)),
+                     v=rng.normal(size=(T, talos.nv)), tau=rng.normal(size=(T, talos.nv - 6)), certificate=None)
 
 
 def test_round_trip_is_exact(tmp_path, talos, squat_plan, rng):
@@ -41,8 +42,8 @@ def test_round_trip_is_exact(tmp_path, talos, squat_plan, rng):
     assert m.plan.ok == squat_plan.ok
     assert m.robot_name == "talos" and m.joint_names == talos.joint_names
     assert m.frame_names == ["left_sole_link", "right_sole_link"]
-    assert np.array_equal(m.execution_arrays["exec_tau"], exe.tau)
-    assert np.array_equal(m.execution_arrays["exec_q"], exe.q)
+    assert np.array_equal(m.execution.tau, exe.tau)
+    assert np.array_equal(m.execution.q, exe.q)
     assert m.actions == actions
     assert m.report["certificate"] == {"ok": True} and m.report["solver"]["iterations"] == squat_plan.stats.iterations
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.npz"]
@@ -54,7 +55,7 @@ def test_round_trip_is_exact(tmp_path, talos, squat_plan, rng):
 def test_without_execution_or_actions(tmp_path, talos, squat_plan):
     """A plan-only file loads with no execution arrays and actions None."""
     m = load_motion(save_motion(tmp_path / "p.npz", squat_plan, talos))
-    assert m.execution_arrays == {} and m.actions is None
+    assert m.execution is None and m.actions is None
 
 
 def test_json_and_csv_exports_carry_the_content(tmp_path, talos, squat_plan, rng):
@@ -93,9 +94,7 @@ def pick(talos):
 
     plan_ = synthetic_pick_up(talos, synthetic_plan(talos))
     ex = synthetic_pick_up_execution(talos, plan_)
-    exe = SimpleNamespace(t=ex["exec_t"], q=ex["exec_q"], v=ex["exec_v"], tau=ex["exec_tau"], objects=ex["objects"],
-                          object_orientations=ex["object_orientations"])
-    return plan_, exe
+    return plan_, ex
 
 
 def test_object_poses_in_the_motion_file(tmp_path, talos, pick):
@@ -116,7 +115,7 @@ def test_object_poses_in_the_motion_file(tmp_path, talos, pick):
     assert np.array_equal(arrays["exec_object_pose"][:, 1, 3:], exe.object_orientations["box"])
     m = load_motion(path)
     assert np.array_equal(m.objects["cup"], planned["cup"])
-    assert np.array_equal(m.execution_arrays["exec_object_pose"], arrays["exec_object_pose"])
+    assert np.array_equal(np.stack(list(m.execution.object_poses().values()), axis=1), arrays["exec_object_pose"])
     doc = json.loads((export_motion(m, tmp_path / "m.json")[0]).read_text())
     assert doc["object_names"] == ["cup", "box"] and np.allclose(doc["exec_object_pose"], arrays["exec_object_pose"])
     csv_path, exec_path = export_motion(m, tmp_path / "m.csv")
@@ -129,7 +128,7 @@ def test_object_poses_in_the_motion_file(tmp_path, talos, pick):
     old = {k: v for k, v in arrays.items() if "object" not in k}
     np.savez(tmp_path / "old.npz", **old)
     m_old = load_motion(tmp_path / "old.npz")
-    assert m_old.objects == {} and "exec_object_pose" not in m_old.execution_arrays
+    assert m_old.objects == {} and m_old.execution.objects == {}
 
 
 @pytest.mark.parametrize(("change", "message"), [

@@ -7,7 +7,7 @@ import zipfile
 
 import numpy as np
 
-from wbmp.pipeline import _npz_replacing
+from wbmp.motionfile import npz_replacing as _npz_replacing
 
 
 def _npz(arrays) -> bytes:

@@ -168,7 +168,7 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
             record["exit_code"] = code
             record["cached"] = result.cached is not None
             record["status"] = "ok" if code == 0 else "failed"
-            if result.execution is not None:
+            if result.execution is not None and result.execution.certificate is not None:
                 cert = result.execution.certificate
                 record["certificate"] = "pass" if cert.ok else "fail"
                 if getattr(cert, "figures", None):  # the evaluation figures (docs/safety.md)

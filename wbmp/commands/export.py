@@ -130,8 +130,8 @@ def _check_rate(args: argparse.Namespace, motion) -> None:
     from wbmp.export.lafan import LAFAN_FPS
     from wbmp.export.tracker import DEFAULT_FPS, check_fps
 
-    ex = motion.execution_arrays
-    t = ex["exec_t"] if args.source == "execution" and ex else motion.plan.t
+    ex = motion.execution
+    t = ex.t if args.source == "execution" and ex is not None else motion.plan.t
     default = LAFAN_FPS if args.format == "lafan" else DEFAULT_FPS
     try:
         check_fps(default if args.fps is None else args.fps, float(t[-1] - t[0]))
@@ -141,7 +141,8 @@ def _check_rate(args: argparse.Namespace, motion) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viz.files import Staging, check_distinct, check_output_file
-    from wbmp.motionfile import check_motion_exists, exec_csv_path, export_motion, load_motion
+    from wbmp.export.files import exec_csv_path, export_motion
+    from wbmp.motionfile import check_motion_exists, load_motion
     from wbmp.pipeline import output_errors
 
     check_motion_exists(args.motion)  # a missing input is named as such, before the outputs
@@ -152,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(path if args.out is None else args.out, option)
         check_distinct({option: path}, {"the motion file": Path(args.motion)})
     motion = load_motion(args.motion)
-    if fmt == "csv" and motion.execution_arrays:
+    if fmt == "csv" and motion.execution is not None:
         exec_path = exec_csv_path(path)
         with output_errors():
             check_output_file(exec_path, f"{option} (the execution's {exec_path.name})")

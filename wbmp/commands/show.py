@@ -33,13 +33,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def load(path: str):
-    """(robot, plan, execution arrays or None) of a motion file, with one-line errors.
+    """(robot, plan, execution or None) of a motion file, with one-line errors.
 
     A damaged file is exit 2 (:func:`wbmp.motionfile.load_motion` names the key); a robot name
     in the file that this install does not know is exit 3, as an unknown robot is for ``solve``.
     """
-    from robots import load_robot
-    from robots.exceptions import RobotError
+    from robots import RobotError, load_robot
     from wbmp.motionfile import check_robot, load_motion
 
     motion = load_motion(path)
@@ -48,7 +47,7 @@ def load(path: str):
     except RobotError as e:
         raise CliError(f"motion file {path!r}: key 'robot': {e}", ExitCode.INVALID_SPEC) from None
     check_robot(motion, robot, path)
-    return robot, motion.plan, motion.execution_arrays or None
+    return robot, motion.plan, motion.execution
 
 
 def run(args: argparse.Namespace) -> int:

@@ -86,9 +86,7 @@ def request_from_args(args: argparse.Namespace):
         raise CliError("give either an instruction or --spec FILE, not both", ExitCode.USAGE)
     if not args.spec and not text:
         raise CliError('give an instruction in quotes (wbmp solve "squat twice") or --spec FILE', ExitCode.USAGE)
-    if args.push and args.no_sim:
-        raise CliError("--push needs the simulation: drop --no-sim", ExitCode.USAGE)
-    return SolveRequest(
+    return SolveRequest(  # SolveRequest.check() (in solve()) refuses a push without the simulation
         instruction=text or None, spec_path=args.spec, scene_path=args.scene, robot=args.robot, simulate=not args.no_sim,
         push=args.push, parser=args.parser, llm_options=llm_options(args),
         estop_at=getattr(args, "estop_at", None), estop_flag=getattr(args, "estop_flag", None),
@@ -116,7 +114,7 @@ def _stop_on_sigusr1(request) -> None:
 
     if not hasattr(signal, "SIGUSR1") or threading.current_thread() is not threading.main_thread():
         return
-    from sim.estop import StopRequest
+    from sim import StopRequest
 
     stop = StopRequest()
     request.stop_request = stop
@@ -124,7 +122,7 @@ def _stop_on_sigusr1(request) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from language.exceptions import LanguageError
+    from language import LanguageError
     from viz.progress import make_progress
     from wbmp.pipeline import check_inputs_exist, check_outputs, solve, write_outputs
 
@@ -162,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         from viz.live import ViewerError, serve
 
         try:
-            serve(result.robot, result.plan, execution=result.execution)
+            serve(result.model(), result.plan, execution=result.execution)
         except ViewerError as e:
             raise CliError(f"live viewer: {e}", ExitCode.INTERNAL) from None
     return int(result.exit_code)
@@ -178,7 +176,7 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if result.actions is not None:
         print(result.actions.describe())
     print(result.plan.summary())
-    if result.execution is not None:
+    if result.execution is not None and result.execution.certificate is not None:
         print(result.execution.certificate.summary())
     for kind, path in written.items():
         print(f"wrote {kind}: {path}")

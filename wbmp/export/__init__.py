@@ -1,7 +1,7 @@
 """Exports of a motion file for other tools: a ROS 2 bag (MCAP) and a tracker file (``.npz``).
 
-The JSON and CSV exports live in :mod:`wbmp.motionfile` (they hold the motion file's keys as
-they are); the formats here convert: ROS 2 messages with stamps and frames
+The JSON and CSV exports (:mod:`wbmp.export.files`, with ``export_motion``, the entry point of
+every format) hold the motion file's keys as they are; the other formats convert: ROS 2 messages with stamps and frames
 (:mod:`wbmp.export.rosbag`), and a uniform-rate resampling for motion trackers
 (:mod:`wbmp.export.tracker`). ``docs/export.md`` states every convention.
 """

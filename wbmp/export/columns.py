@@ -67,13 +67,13 @@ def execution_columns(motion) -> MotionColumns | None:
         CliError (exit 2): the joints cannot be named one column each (see :func:`joint_names`).
     """
     joint_names(motion)
-    ex = motion.execution_arrays
-    if not ex:
+    ex = motion.execution
+    if ex is None:
         return None
-    pose = ex.get("exec_object_pose")
-    names = tuple(str(n) for n in ex.get("object_names", ())) if pose is not None else ()
-    return _columns(ex["exec_t"], ex["exec_q"], ex["exec_v"], None, ex.get("exec_tau"), names,
-                    pose if names else None)
+    poses = ex.object_poses()
+    names = tuple(poses)
+    return _columns(ex.t, ex.q, ex.v, None, ex.tau, names,
+                    np.stack(list(poses.values()), axis=1) if names else None)
 
 
 def _columns(t, q, v, a, tau, object_names=(), object_pose=None) -> MotionColumns:
@@ -95,8 +95,8 @@ def object_names(motion) -> list[str]:
     """The movable objects a motion file has poses of, in its ``object_names`` order (planned or
     simulated poses; [] for a file without objects)."""
     names = list(motion.objects)
-    if not names and "exec_object_pose" in motion.execution_arrays:
-        names = [str(n) for n in motion.execution_arrays.get("object_names", ())]
+    if not names and motion.execution is not None:
+        names = list(motion.execution.objects)
     return names
 
 

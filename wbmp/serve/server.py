@@ -145,7 +145,7 @@ class ServeServer(ThreadingHTTPServer):
         path = folder / "motion.mcap"
         with self._mcap_lock:
             if not path.exists():
-                from wbmp.motionfile import export_motion
+                from wbmp.export.files import export_motion
 
                 export_motion(folder / "motion.npz", path, "mcap")
         return path

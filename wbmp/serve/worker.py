@@ -170,7 +170,7 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     The summary's ``end`` (:func:`wbmp.continuation.end_state`) says whether and how a
     continuation can start where this motion ends.
     """
-    from language.exceptions import LanguageError
+    from language import LanguageError
     from wbmp.pipeline import SolveRequest, solve, write_outputs
 
     t0 = time.perf_counter()
@@ -188,7 +188,7 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     _stop = StopRequest()
     start = None
     if job.get("start") is not None:
-        from tasks.specs import StartState
+        from tasks import StartState
 
         start = StartState(q=tuple(float(x) for x in job["start"]))
     request = SolveRequest(instruction=job["text"], scene_path=job.get("scene"), robot=job.get("robot"),
@@ -218,12 +218,12 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
 
         words = [w.to_dict() for w in clip_words(job["text"], clip)]
     certificate = None
-    if result.execution is not None:
+    if result.execution is not None and result.execution.certificate is not None:
         certificate = {"ok": bool(result.execution.certificate.ok),
                        "summary": result.execution.certificate.summary(),
                        "checks": report.get("certificate", {}).get("checks", [])}
     return {
-        "robot": result.robot.name,
+        "robot": result.robot_name,
         "actions": describe_actions(result.actions) if result.actions is not None else [],
         "describe": result.actions.describe() if result.actions is not None else _clip_line(clip, job),
         "words": words,
@@ -311,12 +311,11 @@ def _write_pages(result, folder: Path) -> None:
     if motions is not None and result.cache_key is not None:
         data = motions.load_page(result.cache_key)
     if data is None:
-        robot = result.robot.load() if hasattr(result.robot, "load") else result.robot
-        data = page_data(robot, result.plan, execution=result.execution)
+        data = page_data(result.model(), result.plan, execution=result.execution)
         if motions is not None and result.cache_key is not None:
             motions.store_page(result.cache_key, data)
     title = result.spec.description or result.spec.name
     for name, src in (("replay.html", None), ("view.html", "/static/meshcat.js")):
-        text = render_page(data, result.robot.name, result.plan, execution=result.execution, title=title,
+        text = render_page(data, result.robot_name, result.plan, execution=result.execution, title=title,
                            meshcat_src=src)
         (folder / name).write_text(text, encoding="utf-8")
