@@ -14,11 +14,33 @@ matplotlib or Pinocchio import).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from robots.lazy import lazy_face
 
-__all__ = ["VizError", "serve", "write_html", "write_plots"]
+if TYPE_CHECKING:
+    from viz.exceptions import VizError
+    from viz.files import (
+        OutputError,
+        OutputPathError,
+        Staging,
+        check_distinct,
+        check_output_dir,
+        check_output_file,
+    )
+    from viz.html import page_data, render_page, write_html
+    from viz.live import serve
+    from viz.plots import PLOT_FILES, write_plots
 
-_LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots", "VizError": "viz.exceptions"}
+__all__ = ["PLOT_FILES", "OutputError", "OutputPathError", "Staging", "VizError", "check_distinct", "check_output_dir",
+           "check_output_file", "page_data", "render_page", "serve", "write_html", "write_plots"]
+
+_LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots", "VizError": "viz.exceptions",
+         # the output-path rules and staged writes every command's files go through (wbmp/outputs.py)
+         "OutputError": "viz.files", "OutputPathError": "viz.files", "Staging": "viz.files",
+         "check_distinct": "viz.files", "check_output_dir": "viz.files", "check_output_file": "viz.files",
+         # the HTML replay in two steps (its data is kept in the motion cache) and the plot files' names
+         "page_data": "viz.html", "render_page": "viz.html", "PLOT_FILES": "viz.plots"}
 
 
 __getattr__, __dir__ = lazy_face(__name__, _LAZY)

@@ -1,14 +1,29 @@
 """The end-to-end job: sentence or spec -> actions -> TaskSpec -> Plan -> Execution -> files.
 
-Only this package wires the layers together; each step is a function call into its layer, and
-every step reports progress through a small callback so the CLI can show it (or stay quiet).
+Only this package wires the layers together. :func:`solve` runs each step once, in this order,
+each a function of this module with typed inputs and outputs (docs/architecture.md):
+
+====  ==================  ==============================================  ===========================
+step  function            from -> to                                      layer
+====  ==================  ==============================================  ===========================
+0     read_sim_inputs     SolveRequest -> SimInputs (push, faults)        sim
+1     parse_instruction   sentence -> language.ActionPlan                 language
+2     compile_spec        ActionPlan x Robot x Scene -> tasks.TaskSpec    tasks (fit, ground, compile)
+3     check_spec          TaskSpec x Robot -> refusal in task terms       tasks
+4     plan_spec           TaskSpec x Robot -> planner.Plan                planner
+5-6   simulate_plan       Plan x Robot -> sim.Execution + certificate     sim
+7     write_outputs       SolveResult -> files                            wbmp.outputs
+====  ==================  ==============================================  ===========================
+
+The motion cache sits around steps 4-6 (:class:`_CacheEntry`): a request answered before, in any
+phrasing, is read back as the same typed :class:`SolveResult`. Every step reports progress through
+a small callback so the CLI can show it (or stay quiet).
 """
 
 from __future__ import annotations
 
-import contextlib
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,9 +34,9 @@ if TYPE_CHECKING:
     from language import ActionPlan
     from planner import Plan
     from robots import Robot, RobotProfile
-    from sim import Execution, StopRequest
-    from tasks import StartState, TaskSpec
-    from wbmp.motioncache import Hit
+    from sim import Execution, Faults, Push, StopRequest
+    from tasks import Scene, StartState, TaskSpec
+    from wbmp.motioncache import Hit, MotionCache
 
 Progress = Callable[[str], None]
 
@@ -188,8 +203,38 @@ class SolveResult:
         return out
 
 
-def parse_instruction(request: SolveRequest):
-    """Sentence -> ActionPlan with the requested backend."""
+# ---------------------------------------------------------------------------------------------
+# The steps, in the order solve() runs them; each takes and returns typed values.
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SimInputs:
+    """What a request asks of the simulation, read and checked before any work.
+
+    Attributes:
+        push: The parsed ``--push``, or None.
+        faults: The read ``--faults`` file, or None.
+    """
+
+    push: Push | None = None
+    faults: Faults | None = None
+
+
+def read_sim_inputs(request: SolveRequest) -> SimInputs:
+    """Step 0: the simulation's inputs, before any work: a push typo fails at once (exit 2), a bad
+    faults file too (exit 3)."""
+    if not request.simulate:
+        return SimInputs()
+    from sim import load_faults, parse_push
+
+    push = None if request.push is None else parse_push(request.push)
+    faults = None if request.faults_path is None else load_faults(request.faults_path)
+    return SimInputs(push=push, faults=faults)
+
+
+def parse_instruction(request: SolveRequest) -> ActionPlan:
+    """Step 1, parse: sentence -> ActionPlan with the requested backend."""
     from language import parse
 
     assert request.instruction is not None  # build_spec parses only a request with a sentence
@@ -206,48 +251,123 @@ def _require_scene(actions) -> None:
                            "(docs/scenes.md), e.g. --scene examples/scenes/kitchen.json", ExitCode.USAGE)
 
 
-def build_spec(request: SolveRequest, progress: Progress = _silent):
-    """(robot, spec, actions) for a sentence or a spec file (with the scene file, when given).
+def compile_spec(request: SolveRequest, actions: ActionPlan, robot: Robot,
+                 scene: Scene | None) -> tuple[ActionPlan, TaskSpec]:
+    """Step 2, ground and compile: the actions' unstated sizes fitted to the robot (once: the
+    printed defaults are the ones compiled), their object words grounded in the scene, and the
+    TaskSpec compiled from the request's start (or standing at the origin)."""
+    import dataclasses
+
+    from tasks import compile_actions, fit_actions
+
+    actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
+    if scene is None:
+        _require_scene(actions.actions)
+    spec = compile_actions(actions.actions, robot, scene=scene, description=request.instruction or "", fitted=True,
+                           start=request.start)
+    return actions, spec
+
+
+def _read_spec(request: SolveRequest, scene: Scene | None) -> tuple[Robot, TaskSpec]:
+    """Step 1-2 for ``--spec FILE``: the spec read, on the requested robot and scene."""
+    import dataclasses
+
+    from robots import load_robot
+    from tasks import load_spec
+
+    assert request.spec_path is not None
+    spec = load_spec(request.spec_path)
+    robot = load_robot(request.robot or spec.robot)
+    if request.robot:
+        spec = dataclasses.replace(spec, robot=robot.name)
+    if scene is not None:
+        spec = dataclasses.replace(spec, scene=scene)
+    return robot, spec
+
+
+def check_spec(spec: TaskSpec, robot: Robot) -> None:
+    """Step 3, check: unknown joints or contacts off the ground (exit 3), a hand target or a
+    footstep inside a scene object (exit 4): refused before planning, in task terms."""
+    from tasks import check_spec_for_robot, check_spec_in_scene_for_robot
+
+    check_spec_for_robot(spec, robot)
+    check_spec_in_scene_for_robot(spec, robot)
+
+
+def build_spec(request: SolveRequest, progress: Progress = _silent) -> tuple[Robot, TaskSpec, ActionPlan | None]:
+    """Steps 1-3: (robot, spec, actions) for a sentence or a spec file (with the scene file, when
+    given); actions is None for a spec file.
 
     The scene is loaded first (a bad scene file: exit 3 before anything else); a hand target or
     a footstep inside one of its objects is refused before planning (exit 4, naming the object).
     """
-    import dataclasses
-
     from robots import load_robot
-    from tasks import check_spec_for_robot, check_spec_in_scene_for_robot, load_spec
 
     scene = None
     if request.scene_path is not None:
         from tasks import load_scene
 
         scene = load_scene(request.scene_path)
+    actions: ActionPlan | None = None
     if request.spec_path is not None:
-        spec = load_spec(request.spec_path)
-        robot = load_robot(request.robot or spec.robot)
-        if request.robot:
-            spec = dataclasses.replace(spec, robot=robot.name)
-        if scene is not None:
-            spec = dataclasses.replace(spec, scene=scene)
-        check_spec_for_robot(spec, robot)  # unknown joints, contacts off the ground: exit 3, before planning
-        check_spec_in_scene_for_robot(spec, robot)  # a target inside an object: exit 4, before planning
-        return robot, spec, None
-    if not request.instruction or not request.instruction.strip():
-        raise CliError("give an instruction in quotes, or --spec FILE", ExitCode.USAGE)
-    progress("parsing the instruction")
-    actions = parse_instruction(request) if request.actions is None else request.actions
-    robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
-    from tasks import compile_actions, fit_actions
-
-    # unstated sizes chosen within the robot's limits, once: the printed defaults are the ones compiled
-    actions = dataclasses.replace(actions, actions=tuple(fit_actions(actions.actions, robot)))
-    if scene is None:
-        _require_scene(actions.actions)
-    spec = compile_actions(actions.actions, robot, scene=scene, description=request.instruction or "", fitted=True,
-                           start=request.start)
-    check_spec_for_robot(spec, robot)
-    check_spec_in_scene_for_robot(spec, robot)
+        robot, spec = _read_spec(request, scene)
+    else:
+        if not request.instruction or not request.instruction.strip():
+            raise CliError("give an instruction in quotes, or --spec FILE", ExitCode.USAGE)
+        progress("parsing the instruction")
+        parsed = parse_instruction(request) if request.actions is None else request.actions
+        robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
+        actions, spec = compile_spec(request, parsed, robot, scene)
+    check_spec(spec, robot)
     return robot, spec, actions
+
+
+def check_sim_times(request: SolveRequest, inputs: SimInputs, horizon: float) -> None:
+    """Step 3 for the simulation: a push, a stop or a faults push after the motion would never act
+    (``--push`` and ``--estop-at`` exit 2, a faults file's push exit 3)."""
+    if inputs.push is not None:
+        from sim import check_push_time
+
+        check_push_time(inputs.push, horizon)
+    if request.estop_at is not None and not 0.0 <= request.estop_at < horizon:
+        raise CliError(f"--estop-at {request.estop_at:g}: the motion lasts {horizon:.3g} s; give a time from 0 to "
+                       f"below {horizon:.3g} s", ExitCode.USAGE)
+    if inputs.faults is not None:
+        from sim import FaultsError
+
+        for i, p in enumerate(inputs.faults.pushes):
+            if not p.t < horizon:
+                raise FaultsError(f"faults file {request.faults_path!r}: pushes[{i}].t = {p.t:g} s is after the "
+                                  f"motion, which lasts {horizon:.3g} s; give a time below {horizon:.3g} s")
+
+
+def plan_spec(spec: TaskSpec, robot: Robot, progress: Progress, *, library: bool) -> Plan:
+    """Step 4, plan: the trajectory optimization, with the user's ``WBMP_*`` switches (compile,
+    background, solution library, build memory). Without the motion cache (``library`` False,
+    ``--no-cache``) there is no solution library either: the result of the request alone, whatever
+    was planned before (planner/trajopt/library.py)."""
+    from planner import plan as plan_motion
+    from wbmp.environment import planner_settings
+
+    progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
+    settings = planner_settings() if library else planner_settings(solution_library="off")
+    return plan_motion(spec, robot, progress=progress, settings=settings)
+
+
+def simulate_plan(plan: Plan, robot: Robot, request: SolveRequest, inputs: SimInputs, progress: Progress) -> Execution:
+    """Steps 5-6, simulate and certify: the whole-body controller tracks the plan in MuJoCo (with
+    the push, faults and E-stop asked for: its stop time, flag file and signal); the execution
+    carries its certificate."""
+    from sim import EStopSettings, simulate
+
+    progress("simulating in MuJoCo with the whole-body controller")
+    estop = EStopSettings(at=request.estop_at, flag_file=request.estop_flag, request=request.stop_request)
+    return simulate(plan, robot, push=inputs.push, progress=progress, estop=estop, faults=inputs.faults)
+
+
+# ---------------------------------------------------------------------------------------------
+# The job: the steps above, with the motion cache around them.
+# ---------------------------------------------------------------------------------------------
 
 
 def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = False,
@@ -256,7 +376,7 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
 
     Ctrl-C or SIGTERM stops it at the next progress message or step, also when a library
     swallowed the interrupt (CasADi turns it into an IPOPT failure): see
-    :func:`wbmp.errors.check_signals`.
+    :func:`wbmp.errors.check_signals`. Writing the files is :func:`wbmp.outputs.write_outputs`.
 
     Args:
         request: What to do.
@@ -292,6 +412,94 @@ def solve(request: SolveRequest, progress: Progress = _silent, *, cache: bool = 
                 progress("answering from the motion cache")
                 return _from_cache(request, hit, None, time.perf_counter() - t0, actions=_stored_actions(found.actions))
     return _solve(request, progress, motions=motions, rkey=rkey, read=cache_read)
+
+
+def _checked(progress: Progress) -> Progress:
+    """``progress`` that first stops on a pending Ctrl-C or SIGTERM."""
+    from wbmp.errors import check_signals
+
+    def checked_progress(message: str) -> None:
+        check_signals()
+        progress(message)
+
+    return checked_progress
+
+
+def _solve(request: SolveRequest, progress: Progress, *, motions: MotionCache | None = None,
+           rkey: str | None = None, read: bool = True) -> SolveResult:
+    """Steps 0-6 of a fresh request, answered from the motion cache when another phrasing (or
+    request) of the same spec is there, and stored there when it succeeds."""
+    from wbmp.errors import check_signals
+
+    progress = _checked(progress)
+    timings: dict[str, float] = {}
+    inputs = read_sim_inputs(request)
+    t0 = time.perf_counter()
+    robot, spec, actions = build_spec(request, progress)
+    timings["spec"] = time.perf_counter() - t0
+    check_sim_times(request, inputs, spec.horizon)
+    library = motions is not None  # the solution library goes with the motion cache, hashable robot files or not
+    entry = None if motions is None else _CacheEntry.of(motions, robot, spec, request, inputs, rkey)
+    if entry is not None and read and not request.safety:
+        hit = entry.motions.load(entry.key)
+        if hit is not None:  # the same motion from another phrasing (or request)
+            entry.remember_request(actions)
+            progress("answering from the motion cache")
+            return _from_cache(request, hit, robot, timings["spec"], actions=actions, spec=spec)
+    t0 = time.perf_counter()
+    plan = plan_spec(spec, robot, progress, library=library)
+    check_signals()
+    timings["plan"] = time.perf_counter() - t0
+    execution = None
+    if request.simulate:
+        t0 = time.perf_counter()
+        execution = simulate_plan(plan, robot, request, inputs, progress)
+        check_signals()
+        timings["simulate"] = time.perf_counter() - t0
+    result = SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
+    # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
+    if entry is not None and plan.ok and (execution is None or execution.ok) and not request.safety:
+        entry.store(result)
+    return result
+
+
+@dataclass(frozen=True)
+class _CacheEntry:
+    """Where a request's motion lives in the motion cache: its key (spec, robot files, simulation
+    and push) and the request record that points to it."""
+
+    motions: MotionCache
+    key: str
+    files: Any
+    digest: str
+    rkey: str | None
+
+    @classmethod
+    def of(cls, motions: MotionCache, robot: Robot, spec: TaskSpec, request: SolveRequest, inputs: SimInputs,
+           rkey: str | None) -> _CacheEntry | None:
+        """The entry, or None when a robot file cannot be hashed (solved, not cached)."""
+        from wbmp.motioncache import motion_key, robot_files, robot_hash
+
+        try:
+            files = robot_files(robot)
+        except OSError:
+            return None
+        digest = robot_hash(robot, files)
+        key = motion_key(spec, digest, simulate=request.simulate, push=inputs.push)
+        return cls(motions, key, files, digest, rkey)
+
+    def remember_request(self, actions: ActionPlan | None) -> None:
+        """Point the request's record (its sentence, robot and options) at this motion."""
+        if self.rkey is not None:
+            self.motions.store_request(self.rkey, self.key, self.files, self.digest, _actions_record(actions))
+
+    def store(self, result: SolveResult) -> None:
+        """Store a fresh result, compressed once (``--out`` writes the same bytes)."""
+        from wbmp.motionfile import npz_bytes
+        result.motion_file = npz_bytes(result_arrays(result))
+        self.motions.store_file(self.key, result.motion_file, result.spec)
+        self.remember_request(result.actions)
+        result.cache_key = self.key
 
 
 def _stored_actions(record: dict[str, Any] | None) -> ActionPlan | None:
@@ -331,115 +539,8 @@ def _from_cache(request: SolveRequest, hit: Hit, robot: Robot | None, elapsed: f
                        cache_key=hit.key)
 
 
-def _solve(request: SolveRequest, progress: Progress, *, motions: Any = None, rkey: str | None = None,
-           read: bool = True) -> SolveResult:
-    from wbmp.errors import check_signals
-
-    report = progress
-
-    def checked_progress(message: str) -> None:
-        check_signals()
-        report(message)
-
-    progress = checked_progress
-
-    timings: dict[str, float] = {}
-    push = None
-    if request.simulate and request.push is not None:
-        from sim import parse_push
-
-        push = parse_push(request.push)  # before any work: a typo fails at once (exit 2)
-    faults = None
-    if request.simulate and request.faults_path is not None:
-        from sim import load_faults
-
-        faults = load_faults(request.faults_path)  # before any work: a bad file fails at once (exit 3)
-    t0 = time.perf_counter()
-    robot, spec, actions = build_spec(request, progress)
-    timings["spec"] = time.perf_counter() - t0
-    if push is not None:
-        from sim import check_push_time
-
-        check_push_time(push, spec.horizon)  # a push after the motion would never act (exit 2)
-    if request.simulate:
-        _check_safety_times(request, faults, spec.horizon)
-    key = digest = files = None
-    library = motions is not None  # the solution library goes with the motion cache, hashable robot files or not
-    if motions is not None:
-        from wbmp.motioncache import motion_key, robot_files, robot_hash
-
-        try:
-            files = robot_files(robot)
-        except OSError:  # a robot file that cannot be hashed: solved, not cached
-            files, motions = None, None
-    if motions is not None and files is not None:
-        digest = robot_hash(robot, files)
-        key = motion_key(spec, digest, simulate=request.simulate, push=push)
-        hit = motions.load(key) if read and not request.safety else None
-        if hit is not None:  # the same motion from another phrasing (or request)
-            if rkey is not None:
-                motions.store_request(rkey, key, files, digest, _actions_record(actions))
-            progress("answering from the motion cache")
-            return _from_cache(request, hit, robot, timings["spec"], actions=actions, spec=spec)
-    from planner import plan as plan_motion
-    from wbmp.environment import planner_settings
-
-    progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
-    t0 = time.perf_counter()
-    # the user's WBMP_* switches (compile, background, solution library, build memory); without the
-    # motion cache (--no-cache), no solution library either: the result of the request alone,
-    # whatever was planned before (planner/trajopt/library.py)
-    settings = planner_settings() if library else planner_settings(solution_library="off")
-    plan = plan_motion(spec, robot, progress=progress, settings=settings)
-    check_signals()
-    timings["plan"] = time.perf_counter() - t0
-    execution = None
-    if request.simulate:
-        from sim import simulate
-
-        progress("simulating in MuJoCo with the whole-body controller")
-        t0 = time.perf_counter()
-        execution = simulate(plan, robot, push=push, progress=progress, estop=_estop_settings(request),
-                             faults=faults)
-        check_signals()
-        timings["simulate"] = time.perf_counter() - t0
-    result = SolveResult(robot=robot, spec=spec, plan=plan, actions=actions, execution=execution, timings=timings)
-    if motions is not None and key is not None and files is not None and digest is not None \
-            and plan.ok and (execution is None or execution.ok) and not request.safety:
-        # only results that succeeded are stored: a failure is cheap to repeat and worth re-checking
-        from wbmp.motionfile import npz_bytes
-
-        result.motion_file = npz_bytes(result_arrays(result))  # compressed once: the cache and --out
-        motions.store_file(key, result.motion_file, spec)
-        if rkey is not None:
-            motions.store_request(rkey, key, files, digest, _actions_record(actions))
-        result.cache_key = key
-    return result
-
-
 def _actions_record(actions: ActionPlan | None) -> dict[str, Any] | None:
     return None if actions is None else actions.to_record()
-
-
-def _estop_settings(request: SolveRequest) -> Any:
-    """The simulation's E-stop settings for a request (its stop time, flag file and signal)."""
-    from sim import EStopSettings
-
-    return EStopSettings(at=request.estop_at, flag_file=request.estop_flag, request=request.stop_request)
-
-
-def _check_safety_times(request: SolveRequest, faults: Any, horizon: float) -> None:
-    """A stop or a faults push after the motion would never act: ``--estop-at`` exit 2, a push exit 3."""
-    if request.estop_at is not None and not 0.0 <= request.estop_at < horizon:
-        raise CliError(f"--estop-at {request.estop_at:g}: the motion lasts {horizon:.3g} s; give a time from 0 to "
-                       f"below {horizon:.3g} s", ExitCode.USAGE)
-    if faults is not None:
-        from sim import FaultsError
-
-        for i, p in enumerate(faults.pushes):
-            if not p.t < horizon:
-                raise FaultsError(f"faults file {request.faults_path!r}: pushes[{i}].t = {p.t:g} s is after the "
-                                  f"motion, which lasts {horizon:.3g} s; give a time below {horizon:.3g} s")
 
 
 _REQUEST_KEYS = ("spec_json", "actions_json", "report_json")  # what result_arrays() rewrites for a cached result
@@ -467,148 +568,3 @@ def result_arrays(result: SolveResult) -> dict[str, Any]:
     arrays["actions_json"] = np.array(json.dumps(actions))
     arrays["report_json"] = np.array(json.dumps(full_report, default=_json_default))
     return arrays
-
-
-@contextlib.contextmanager
-def output_errors() -> Iterator[None]:
-    """Turn :class:`viz.files.OutputError` (a refused path, a failed write) into exit 2."""
-    from viz.files import OutputError
-
-    try:
-        yield
-    except OutputError as e:
-        raise CliError(str(e), ExitCode.USAGE) from None
-
-
-@dataclass(frozen=True, kw_only=True)
-class OutputPaths:
-    """The files a command will write, checked before any work (:func:`check_outputs`)."""
-
-    out: Path | None = None
-    html: Path | None = None
-    plots: Path | None = None
-
-
-def check_inputs_exist(*, spec: str | None = None, scene: str | None = None) -> None:
-    """Refuse a spec or scene file that does not exist (exit 3, the readers' own message) before
-    the outputs are checked: a missing input must not be reported as a missing output folder."""
-    import os
-
-    from tasks import TaskDefinitionError
-
-    for what, path in (("spec", spec), ("scene", scene)):
-        if path is not None and path != "-" and path.strip() and not os.path.lexists(path):
-            raise TaskDefinitionError(f"{what} file {path!r} does not exist")
-
-
-def check_outputs(*, out: str | None = None, html: str | None = None, plots: str | None = None,
-                  inputs: dict[str, str | None] | None = None) -> OutputPaths:
-    """Check every output path of ``solve``/``show``/``demo`` before any work.
-
-    Refuses (:class:`CliError`, exit 2, one line naming the option, the path and why): an empty
-    path, a directory, a symbolic link, a device or other non-regular file, a read-only file, a
-    missing or unwritable folder, two outputs on one file, an output on an input file, and a
-    motion file (``--out``) that does not end in ``.npz``. ``None`` means "not asked".
-    See :mod:`viz.files` for the rules.
-    """
-    from viz.files import OutputPathError, check_distinct, check_output_dir, check_output_file
-
-    with output_errors():
-        paths = OutputPaths(
-            out=None if out is None else check_output_file(out, "--out"),
-            html=None if html is None else check_output_file(html, "--html"),
-            plots=None if plots is None else check_output_dir(plots, "--plots", _plot_files()),
-        )
-        if paths.out is not None and paths.out.suffix.lower() != ".npz":
-            raise OutputPathError(f"--out {out!r}: a motion file ends in .npz (for JSON or CSV, write the "
-                                  ".npz and run `wbmp export`)")
-        files = {k: v for k, v in (("--out", paths.out), ("--html", paths.html)) if v is not None}
-        if paths.plots is not None:
-            files.update({f"--plots ({name})": paths.plots / name for name in _plot_files()})
-        check_distinct(files, {k: Path(v) for k, v in (inputs or {}).items() if v})
-    return paths
-
-
-def _plot_files() -> tuple[str, ...]:
-    from viz.plots import PLOT_FILES
-
-    return PLOT_FILES
-
-
-def _write_html(path: Path, result: SolveResult, staging: Any, *, cache_dir: str | Path | None) -> None:
-    """The HTML replay; its data is reused from (or stored into) the motion cache when the
-    result is in it (the page's data does not depend on the title)."""
-    from viz.html import page_data, render_page
-
-    title = result.spec.description or result.spec.name
-    data = None
-    motions = None
-    if result.cache_key is not None:
-        from wbmp.motioncache import MotionCache
-
-        motions = MotionCache(cache_dir)
-        data = motions.load_page(result.cache_key)
-    if data is None:
-        data = page_data(result.model(), result.plan, execution=result.execution)
-        if motions is not None and result.cache_key is not None:
-            motions.store_page(result.cache_key, data)
-    text = render_page(data, result.robot_name, result.plan, execution=result.execution, title=title)
-    raw = text.encode("utf-8")
-    staging.add(path, lambda fh: fh.write(raw))
-
-
-def write_outputs(result: SolveResult, *, out: str | None = None, html: str | None = None,
-                  plots: str | None = None, progress: Progress = _silent,
-                  cache_dir: str | Path | None = None) -> dict[str, str]:
-    """Write the requested files; returns {kind: path}.
-
-    The paths are checked again (:func:`check_outputs`), every file is made in a temporary file
-    beside its target, and all are renamed into place at the end: a failure (or Ctrl-C) while
-    making them leaves the folders as they were. The time each file took is added to
-    ``result.timings`` (``npz``, ``html``: the ``--json`` report shows them).
-    """
-    from viz.files import Staging
-    from wbmp.motionfile import npz_replacing, savez_fast
-
-    paths = check_outputs(out=out, html=html, plots=plots)
-    written: dict[str, str] = {}
-    with output_errors(), Staging() as staging:
-        if paths.out is not None:
-            t0 = time.perf_counter()
-            progress(f"writing {out}")
-            arrays = result_arrays(result)
-            copied = None
-            # the stored file (a cached result, or a fresh one just stored), with this request's JSON
-            stored = result.cached.data if result.cached is not None and result.cached.data else result.motion_file
-            if stored:
-                copied = npz_replacing(stored, {k: arrays[k] for k in _REQUEST_KEYS})
-            if copied is not None:
-                data = copied
-                staging.add(paths.out, lambda fh: fh.write(data))
-            else:
-                # zlib level 1: the 1 kHz execution (float64) hardly compresses (6.2 MB at level 6, 6.2 MB
-                # at level 1, 6.4 MB raw for four steps) and level 6 costs ~25 % more CPU; when a page or
-                # plots follow, the file is compressed in a thread (zlib releases the GIL) beside them
-                staging.add(paths.out, lambda fh: savez_fast(fh, arrays),
-                            background=paths.html is not None or paths.plots is not None)
-            written["motion"] = str(paths.out)
-            result.timings["npz"] = time.perf_counter() - t0
-        if paths.html is not None:
-            t0 = time.perf_counter()
-            progress(f"writing {html}")
-            _write_html(paths.html, result, staging, cache_dir=cache_dir)
-            written["html"] = str(paths.html)
-            result.timings["html"] = time.perf_counter() - t0
-        if paths.plots is not None:
-            from viz import write_plots
-
-            progress(f"writing plots to {plots}")
-            files = write_plots(paths.plots, result.model(), result.plan, execution=result.execution,
-                                staging=staging)
-            written["plots"] = ", ".join(str(p) for p in files)
-        if paths.out is not None:
-            t0 = time.perf_counter()
-            staging.wait()  # the motion file's background write (its time beyond the page's counts as npz)
-            result.timings["npz"] += time.perf_counter() - t0
-        staging.commit()
-    return written

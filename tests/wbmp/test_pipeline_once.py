@@ -101,6 +101,7 @@ def test_a_fresh_result_is_compressed_once_for_the_cache_and_out(tmp_path):
 
     import numpy as np
 
+    import wbmp.outputs as outputs
     import wbmp.pipeline as pipeline
     from wbmp.motionfile import load_motion
 
@@ -109,7 +110,7 @@ def test_a_fresh_result_is_compressed_once_for_the_cache_and_out(tmp_path):
                             cache=True, cache_dir=cache)
     assert result.cache_key is not None and result.motion_file is not None
     out = tmp_path / "m.npz"
-    pipeline.write_outputs(result, out=str(out), cache_dir=cache)
+    outputs.write_outputs(result, out=str(out), cache_dir=cache)
     with zipfile.ZipFile(cache / f"{result.cache_key}.npz") as stored, zipfile.ZipFile(out) as written:
         for name in ("q.npy", "v.npy", "com.npy"):
             a, b = stored.getinfo(name), written.getinfo(name)

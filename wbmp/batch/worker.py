@@ -136,7 +136,8 @@ def run_job(job: Any, out_dir: str, simulate: bool, cache: bool = True) -> dict[
     """Plan (and simulate) one job, write its motion file, return its index record; with
     ``cache``, answered from (and stored into) the motion cache as ``wbmp solve`` does."""
     from wbmp.errors import ExitCode, check_signals, classify, clear_signals, one_line
-    from wbmp.pipeline import SolveRequest, solve, write_outputs
+    from wbmp.outputs import write_outputs
+    from wbmp.pipeline import SolveRequest, solve
 
     clear_signals()
     t_start = time.perf_counter()

@@ -30,7 +30,7 @@ def run_command(*, robot: str, tasks: str | None, quick: bool, repeats: int | No
     """
     from viz.files import Staging, check_distinct, check_output_file
     from wbmp.errors import ROBOT_HINT, one_line, require_text
-    from wbmp.pipeline import output_errors
+    from wbmp.outputs import output_errors
 
     def log(message: str) -> None:
         check_signals()  # a Ctrl-C that CasADi swallowed (a failed solve) stops the run here

@@ -35,7 +35,8 @@ def run(args: argparse.Namespace) -> int:
     from viz.progress import make_progress
     from wbmp.commands.solve import print_result
     from wbmp.errors import CliError, ExitCode, one_line
-    from wbmp.pipeline import SolveRequest, check_inputs_exist, check_outputs, solve, write_outputs
+    from wbmp.outputs import check_inputs_exist, check_outputs, write_outputs
+    from wbmp.pipeline import SolveRequest, solve
 
     if not args.sentence.strip():
         raise CliError(f"the sentence is empty: give an instruction in quotes, or none for {DEMO_SENTENCE!r}",

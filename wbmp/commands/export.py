@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
     from viz.files import Staging, check_distinct, check_output_file
     from wbmp.export.files import exec_csv_path, export_motion
     from wbmp.motionfile import check_motion_exists, load_motion
-    from wbmp.pipeline import output_errors
+    from wbmp.outputs import output_errors
 
     check_motion_exists(args.motion)  # a missing input is named as such, before the outputs
     path, fmt = output_path(args.motion, args.out, args.format)

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     from viz.progress import make_progress
-    from wbmp.pipeline import check_outputs, write_outputs
+    from wbmp.outputs import check_outputs, write_outputs
     from wbmp.retarget import RetargetRequest, retarget
 
     if args.start is not None and args.end is not None and args.end <= args.start:

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from viz.motion import VizInputError
     from viz.progress import make_progress
     from wbmp.motionfile import check_motion_exists
-    from wbmp.pipeline import check_outputs, output_errors
+    from wbmp.outputs import check_outputs, output_errors
 
     if args.port is not None and not 1 <= args.port <= 65535:
         raise CliError(f"--port must be in 1..65535, got {args.port}", ExitCode.USAGE)

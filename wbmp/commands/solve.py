@@ -124,7 +124,8 @@ def _stop_on_sigusr1(request) -> None:
 def run(args: argparse.Namespace) -> int:
     from language import LanguageError
     from viz.progress import make_progress
-    from wbmp.pipeline import check_inputs_exist, check_outputs, solve, write_outputs
+    from wbmp.outputs import check_inputs_exist, check_outputs, write_outputs
+    from wbmp.pipeline import solve
 
     request = request_from_args(args)
     check_inputs_exist(spec=args.spec, scene=args.scene)

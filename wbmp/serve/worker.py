@@ -171,7 +171,8 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
     continuation can start where this motion ends.
     """
     from language import LanguageError
-    from wbmp.pipeline import SolveRequest, solve, write_outputs
+    from wbmp.outputs import write_outputs
+    from wbmp.pipeline import SolveRequest, solve
 
     t0 = time.perf_counter()
     folder = Path(job["folder"])
