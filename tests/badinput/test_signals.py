@@ -91,7 +91,8 @@ def work(tmp_path: Path) -> Path:
 
 CASES = [
     # (signal, expected exit, last line) x (argv, the line after which the signal is sent)
-    pytest.param(signal.SIGINT, 130, "wbmp: interrupted", id="sigint-while-ipopt-solves"),
+    pytest.param(signal.SIGINT, 130, "wbmp: interrupted", id="sigint-while-ipopt-solves",
+                 marks=pytest.mark.long),  # make test-long (~12 s): SIGTERM below is the same path
     pytest.param(signal.SIGTERM, 143, "wbmp: terminated", id="sigterm-while-ipopt-solves"),
 ]
 

@@ -425,6 +425,7 @@ def _squat_json_entry(golden: Golden, cache_dir: Path) -> Path:
     return entry
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~28 s; the plain-file entry rebuilt by gcc and the damaged entries cover the repair)
 @pytest.mark.slow
 def test_cli_solve_with_a_truncated_library_exits_0_and_repairs_the_cache(golden, tmp_path):
     """`wbmp solve --spec squat.json --no-sim` on the issue's damaged cache: exit 0, one warning,

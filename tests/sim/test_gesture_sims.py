@@ -35,6 +35,7 @@ def test_shake_head_passes(talos):
     _targets_met(cert, "head")
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~11 s; tests/sim/test_intent.py certifies pointing forward)
 def test_point_up_passes(talos):
     """Pointing up with the right arm: the hand stays within 5 cm of its plan (6.4-8.1 cm off when
     the straight arm passed the horizontal at 103 % of the shoulder's torque limit)."""

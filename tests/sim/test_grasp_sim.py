@@ -46,6 +46,7 @@ def _held_positions(talos, execution, grasp) -> np.ndarray:
     return np.array(out)
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~39 s; the box picked up with both hands below runs the grasp in MuJoCo)
 @pytest.mark.slow
 def test_pick_up_and_put_down_the_cup_in_mujoco(talos, tmp_path):
     """"pick up the cup, then put it down 20 cm to the left": the cup's MuJoCo body rises by the asked

@@ -44,6 +44,7 @@ def _frame_positions(talos, q: np.ndarray, frame: str, offset=(0.0, 0.0, 0.0)) -
     return np.array(out)
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~53 s; tests/tasks/test_handover_push.py plans the hand-over; the grasp sims run the grasp in MuJoCo)
 @pytest.mark.slow
 def test_pick_up_the_cup_and_hand_it_to_me_in_the_kitchen(talos):
     """"pick up the cup and hand it to me": the planned hand frame (Pinocchio) stays within its 4 mm

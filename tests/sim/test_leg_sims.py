@@ -31,6 +31,7 @@ def test_kick_passes(talos):
     assert kicks and all(c.ok for c in kicks)
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~11 s; tests/planner/test_leg_plans.py plans the arc, tests/sim/test_dynamic_sim.py certifies walks and turns)
 def test_quarter_circle_passes(talos):
     """A quarter of a 0.5 m circle to the left (5 swings) passes the certificate."""
     cert = _run(talos, "walk_arc", angle=math.pi / 2).certificate
@@ -90,6 +91,7 @@ def test_hop_on_one_foot_is_certified_on_g1(g1):
     assert late.certificate.check("right_foot slip").value > 1.5 * slip
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~16 s; the hop on one foot on g1 is certified above)
 def test_forward_hops_are_certified_on_g1(g1):
     """G1 hops forward on its left foot twice, each hop HOP_FORWARD_MAX = 0.03 m (the certified
     limit, tasks/primitives/hop.py): certified, the base advanced by the asked 0.06 m, and each

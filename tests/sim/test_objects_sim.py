@@ -35,6 +35,7 @@ def _run(sentence: str, robot_name: str, scene: Scene, dt: float = 0.1):
     return robot, spec, plan, simulate(plan, robot)
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~29 s; talos touching the box below is certified with a scene)
 @pytest.mark.slow
 def test_g1_walks_around_a_post_to_the_box_certified_in_mujoco():
     """The post stands in the straight line to the box: the footsteps go around it (every sole

@@ -253,6 +253,7 @@ def test_turn_head_on_talos(talos, solve):
         assert np.arctan2(fwd[1], fwd[0]) == pytest.approx(0.5, abs=0.05 + HARD_SLACK)
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~16 s; the wave while squatting below is planned as one)
 def test_three_actions_in_one_plan(talos, solve):
     """wave, then squat, then raise_arms: one plan; each part meets its intent, and the robot
     passes through its standing posture between them."""

@@ -136,6 +136,7 @@ def test_rerun_skips_done_items_and_redoes_a_damaged_file(library, tmp_path, cap
     assert not [p for p in lib.iterdir() if p.name.endswith(".tmp")]
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~16 s; tests/wbmp/test_batch_ray.py runs a batch on a local Ray instance)
 def test_same_batch_on_a_local_ray_instance(library, tmp_path):
     """--ray starts a local Ray instance (2 CPUs), gives the same records and files as the local
     pool (motion files equal to 1e-6), and shuts it down."""

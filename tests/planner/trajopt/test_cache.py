@@ -54,6 +54,7 @@ def test_same_structure_hits_memory_then_disk(cached, talos):
     assert first.com[k, 2] - cold.com[k, 2] == pytest.approx(0.04, abs=0.021)
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~16 s; tests/badinput/test_solver_cache.py damages entries every way)
 def test_corrupt_library_is_rebuilt_not_trusted(cached, talos):
     """Garbage in the cached library fails its checksum: the entry is rebuilt and the plan is right."""
     settings, spec, first = cached
