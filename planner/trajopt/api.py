@@ -94,14 +94,45 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         PlanningFailed: the problem is infeasible or the solver failed (with ``throw``).
     """
     given = settings or PlannerSettings()
-    lay, settings = _formulation(spec, robot, given)
-    problem = precheck(lay)
-    if problem:
+    lay, settings = _formulation(spec, robot, given)  # 1. formulate: the layout of terms and the settings it needs
+    refusal = precheck(lay)  # 2. refuse what needs no solve to see (a target out of every reach, ...)
+    if refusal:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
-        failed = make_plan(lay, np.zeros((lay.N + 1, robot.nv)), stats, settings, diagnosis=problem)
-        if throw:
-            raise PlanningFailed(problem, failed)
-        return failed
+        return _failed(make_plan(lay, np.zeros((lay.N + 1, robot.nv)), stats, settings, diagnosis=refusal), throw)
+    solved = _solve(spec, robot, given, lay, settings, progress)  # 3. solve: guess, seed, collision rounds
+    result, too_heavy = _with_payload(solved.plan, robot, spec)  # 4. the held objects' torques, on the plan
+    if too_heavy:  # an object too heavy for an arm: the cause, no other diagnosis
+        return _failed(result, throw)
+    if result.ok:
+        return result
+    return _failed(_diagnosed(solved, result, spec, progress), throw)  # 5. say why, in task terms
+
+
+@dataclasses.dataclass(frozen=True)
+class _Solved:
+    """Step 3's outcome: the plan and what step 5 needs to diagnose a failure."""
+
+    lay: Layout
+    settings: PlannerSettings
+    dq: np.ndarray
+    stats: SolverStats
+    raw: dict
+    forces: np.ndarray | None
+    plan: Plan
+
+
+def _failed(result: Plan, throw: bool) -> Plan:
+    """A failed plan, raised as :class:`PlanningFailed` (with ``throw``) or returned."""
+    if throw:
+        raise PlanningFailed(result.diagnosis, result)
+    return result
+
+
+def _solve(spec: TaskSpec, robot: Robot, given: PlannerSettings, lay: Layout, settings: PlannerSettings,
+           progress: Callable[[str], None] | None) -> _Solved:
+    """Step 3: the screened guess, the escalation record, the solution library's seed (a dynamic
+    plan), the solve with its collision rounds; a seeded solve that fails is done again from the
+    task's own guess (a seed never costs a plan); a plan that succeeded goes into the library."""
     x0, deferred = _screened_guess(lay, settings)
     key0, escalation = _escalate(lay, settings, deferred, progress)
     seed, loaded = _library_seed(lay, settings, x0, progress)
@@ -130,19 +161,29 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         result = make_plan(lay, dq, stats, settings, forces=forces)
     if result.ok:
         _library_store(lay, settings, x0, raw, dq, key0, escalation)
+    return _Solved(lay, settings, dq, stats, raw, forces, result)
+
+
+def _with_payload(result: Plan, robot: Robot, spec: TaskSpec) -> tuple[Plan, bool]:
+    """Step 4: the held objects' joint torques (payload checks) added to the plan's checks, and
+    whether an object is too heavy for an arm (its check's message is then the diagnosis)."""
     payload = payload_checks(robot, spec, result.t, result.q)
-    if payload:
-        result = dataclasses.replace(result, checks=result.checks + tuple(payload))
-        heavy = next((c for c in payload if not c.ok), None)
-        if heavy is not None:  # the object is the cause: no other diagnosis
-            result = dataclasses.replace(result, diagnosis=heavy.message)
-            if throw:
-                raise PlanningFailed(heavy.message, result)
-            return result
-    if result.ok:
-        return result
+    if not payload:
+        return result, False
+    result = dataclasses.replace(result, checks=result.checks + tuple(payload))
+    heavy = next((c for c in payload if not c.ok), None)
+    if heavy is None:
+        return result, False
+    return dataclasses.replace(result, diagnosis=heavy.message), True
+
+
+def _diagnosed(solved: _Solved, result: Plan, spec: TaskSpec, progress: Callable[[str], None] | None) -> Plan:
+    """Step 5: why a solve failed, in task terms: a target out of reach first (its relaxed solve
+    converges), then the scene's and the body's collision rows, then the layout's own reading of
+    the violated rows."""
     if progress:
         progress("the solve failed: diagnosing")
+    lay, settings, raw = solved.lay, solved.settings, solved.raw
     diagnosis = ""
     asked = settings.diagnose and not spec.dynamic and (settings.scene_collision or settings.self_collision)
     if asked:
@@ -156,10 +197,8 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         diagnosis = collision_diagnosis(lay, settings, solve_layout)
     if not diagnosis:
         diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw, relax=not asked))
-    result = make_plan(lay, dq, stats, settings, diagnosis=diagnosis, checks=result.checks, forces=forces)
-    if throw:
-        raise PlanningFailed(diagnosis, result)
-    return result
+    return make_plan(lay, solved.dq, solved.stats, settings, diagnosis=diagnosis, checks=result.checks,
+                     forces=solved.forces)
 
 
 def _screened_guess(lay: Layout, settings: PlannerSettings) -> tuple[np.ndarray, Rows]:
