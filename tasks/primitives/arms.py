@@ -35,6 +35,7 @@ from tasks.primitives.bodymap import (
     body_map,
     clear_targets,
     hands_meet,
+    hands_touch,
     stop_short,
     to_heading,
     to_standing,
@@ -47,6 +48,8 @@ REACH_FRACTION = 0.92  # [L] farthest hand target from the shoulder (the arm nea
 BEND_MAX = 0.7  # [rad] forward bend at the hips allowed to reach the knee and the toes
 POSE_TOLERANCE = 0.02  # [m] held hand poses and rhythmic targets
 GUARD_TOLERANCE = 0.03  # [m] punch guard / clap apart / shrug low positions
+MEET_TOLERANCE = 0.003  # [m] hands that meet (clap, touch the other hand): the planner leaves their pairs out there
+MEET_ORIENTATION = 0.05  # [rad] ... and holds each hand's orientation at the meeting point within this
 RAISE_TIME = 0.8  # [s] from rest to the first pose of a rhythmic gesture
 LOWER_TIME = 0.8  # [s] from the last pose back to rest
 TORSO_TOLERANCE = 0.05  # [rad] stretch lean
@@ -99,17 +102,37 @@ def _require_reach(action: str, robot: Robot, side: str, point: np.ndarray, what
 
 
 def _put(b: FragmentBuilder, what: str, side: str, point: np.ndarray, *, time: float | None = None,
-         window: tuple[float, float] | None = None, tolerance: float = POSE_TOLERANCE) -> None:
-    """HARD position target of the ``side`` hand at a heading-frame point."""
-    b.frame_target(what, f"{side}_hand", position=b.world(to_standing(b.robot, point)), time=time, window=window,
-                   tolerance=tolerance)
+         window: tuple[float, float] | None = None, tolerance: float = POSE_TOLERANCE, meet: bool = False) -> None:
+    """HARD position target of the ``side`` hand at a heading-frame point; ``meet``: the hand
+    touches the other hand there (``FrameTarget.meets``: the planner lets the two hands' links
+    meet), with the orientation the arms have there (:func:`meet_rotation`) as a target too."""
+    rpy = b.world_rotation(meet_rotation(b.robot, side, point)) if meet else None
+    b.frame_target(what, f"{side}_hand", position=b.world(to_standing(b.robot, point)), rpy=rpy, time=time,
+                   window=window, tolerance=tolerance, orientation_tolerance=MEET_ORIENTATION,
+                   meets=f"{_other(side)}_hand" if meet else None)
 
 
-def _hold(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], phase: str, parts: frozenset[str]) -> Fragment:
-    """Hands to ``points``, held from OUT_FRACTION to HOLD_END_FRACTION of the duration, back to rest."""
+def meet_rotation(robot: Robot, side: str, point: np.ndarray) -> np.ndarray:
+    """The ``side`` hand's orientation (standing world frame) with the arms posed at the meeting
+    points (:func:`clap_points`; :func:`~tasks.primitives.bodymap.arm_configuration`): the
+    orientation at which their meshes are ``MEET_GAP`` apart. ``point`` is that hand's meeting point."""
+    together = {s: p[0] for s, p in clap_points(robot).items()}
+    if not np.allclose(together[side], point):
+        together[side] = np.asarray(point, dtype=float)
+    q = arm_configuration(robot, together)
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.frame_id(f"{side}_hand")].rotation.copy()
+
+
+def _hold(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], phase: str, parts: frozenset[str],
+          *, meet: bool = False) -> Fragment:
+    """Hands to ``points``, held from OUT_FRACTION to HOLD_END_FRACTION of the duration, back to rest
+    (``meet``: the two hands touch there, held within ``MEET_TOLERANCE``)."""
     T = b.params["duration"]
     for side, p in points.items():
-        _put(b, f"{side} hand {what}", side, p, window=(OUT_FRACTION * T, HOLD_END_FRACTION * T))
+        _put(b, f"{side} hand {what}", side, p, window=(OUT_FRACTION * T, HOLD_END_FRACTION * T),
+             tolerance=MEET_TOLERANCE if meet else POSE_TOLERANCE, meet=meet)
     rest_targets(b, [f"{s}_hand" for s in points], tau=T)
     b.phase(phase, T)
     return b.finish(parts)
@@ -142,13 +165,15 @@ def punch_points(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _repeat(b: FragmentBuilder, side: str, n: int, d: float, start: tuple[str, np.ndarray], peak: tuple[str, np.ndarray],
-            back: str) -> None:
+            back: str, *, meet: bool = False) -> None:
     """The ``side`` hand at ``start`` when raised, then ``n`` times out to ``peak`` (at the middle of
-    each ``d``-second beat) and back to the start point (at its end): punch, clap, shrug."""
+    each ``d``-second beat) and back to the start point (at its end): punch, clap, shrug. ``meet``:
+    the peak is where the hands meet (a clap: within ``MEET_TOLERANCE``, ``FrameTarget.meets``)."""
     (start_name, home), (peak_name, point) = start, peak
     _put(b, start_name, side, home, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
     for k in range(n):
-        _put(b, f"{peak_name} #{k + 1}", side, point, time=RAISE_TIME + (k + 0.5) * d)
+        _put(b, f"{peak_name} #{k + 1}", side, point, time=RAISE_TIME + (k + 0.5) * d,
+             tolerance=MEET_TOLERANCE if meet else POSE_TOLERANCE, meet=meet)
         _put(b, f"{back} #{k + 1}", side, home, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
 
 
@@ -171,12 +196,10 @@ PUNCH = Primitive(name="punch", nominal_duration=_rhythm_duration, build=build_p
 CLAP_APART = 0.2  # [L] each hand this much farther out when apart
 
 
-def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Side -> (together, apart) hand points (heading frame): in front of the chest, ``0.3 L``
-    below the shoulders. Together, the arms posed there clear the body by
-    ``bodymap.CLEARANCE`` in the planner's sphere model (the hands go forward until the forearms
-    do), and the two arms' sphere sets are ``CLEARANCE`` apart (the hands a few cm apart: the
-    planner checks the gripper pairs, so a clap is a near miss, not a contact)."""
+def _hands_clear_points(robot: Robot) -> dict[str, np.ndarray]:
+    """Side -> hand point in front of the chest, ``0.3 L`` below the shoulders, where the arms
+    posed there clear the body by ``bodymap.CLEARANCE`` in the planner's sphere model (the hands
+    go forward until the forearms do) and the two arms' sphere sets are ``CLEARANCE`` apart."""
     m = body_map(robot)
     S = {s: shoulder(robot, s) for s in ("left", "right")}
     L = min(arm_length(robot, s) for s in S)
@@ -190,6 +213,18 @@ def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         x = max(p[0] for p in together.values())  # the hands side by side
         together = {s: np.array([x, p[1], p[2]]) for s, p in together.items()}
         together = dict(zip(("left", "right"), hands_meet(robot, together["left"], together["right"]), strict=True))
+    return together
+
+
+def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Side -> (together, apart) hand points (heading frame). Together: in front of the chest,
+    ``0.3 L`` below the shoulders, where the arms clear the body in the planner's sphere model,
+    then moved towards each other until, the arms posed there, the hands' meshes are
+    ``bodymap.MEET_GAP`` apart (coal): the hands meet. Apart: each hand ``CLAP_APART * L``
+    farther out."""
+    L = min(arm_length(robot, s) for s in ("left", "right"))
+    clear = _hands_clear_points(robot)
+    together = dict(zip(("left", "right"), hands_touch(robot, clear["left"], clear["right"]), strict=True))
     return {s: (together[s], together[s] + SIGN[s] * CLAP_APART * L * Y) for s in ("left", "right")}
 
 
@@ -199,7 +234,7 @@ def build_clap(b: FragmentBuilder) -> Fragment:
     pts = clap_points(b.robot)
     for side, (together, apart) in pts.items():
         _repeat(b, side, n, d, (f"{side} hand ready to clap", apart), (f"{side} hand clap", together),
-                f"{side} hand apart")
+                f"{side} hand apart", meet=True)
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("clap", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
@@ -327,7 +362,8 @@ def build_touch(b: FragmentBuilder) -> Fragment:
     side, part = b.params["hand"], b.params["part"]
     sides = ("left", "right") if part == "hand" else (side,)
     what = "at the other hand" if part == "hand" else f"at the {part}"
-    return _hold(b, what, {s: touch_point(b.robot, s, part) for s in sides}, f"touch {part}", touch_parts(b.params))
+    return _hold(b, what, {s: touch_point(b.robot, s, part) for s in sides}, f"touch {part}", touch_parts(b.params),
+                 meet=part == "hand")
 
 
 TOUCH = Primitive(name="touch", nominal_duration=_duration, build=build_touch, parts=touch_parts,

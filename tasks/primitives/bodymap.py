@@ -272,6 +272,50 @@ def hands_meet(robot: Robot, left_point, right_point) -> tuple[np.ndarray, np.nd
     return np.array(pl), np.array(pr)
 
 
+MEET_GAP = 0.003  # [m] mesh distance of the two hands at a clap's target (the planner's hand targets hold it within ~2 mm)
+MEET_ROUNDS = 20
+
+
+def posed_hands_distance(robot: Robot, q: np.ndarray) -> float:
+    """Smallest distance [m] between the two hands' meshes (every geometry on a hand frame's joint
+    or below it) at configuration ``q`` (coal; negative when they intersect)."""
+    m = body_map(robot)
+    cm = robot.collision_model
+    data, gdata = robot.data(), pin.GeometryData(cm)
+    pin.framesForwardKinematics(robot.model, data, q)
+    pin.updateGeometryPlacements(robot.model, data, cm, gdata, q)
+    objs = cm.geometryObjects
+    best = np.inf
+    for i in m.hand_geometries["left"]:
+        ti = coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation)
+        for j in m.hand_geometries["right"]:
+            tj = coal.Transform3s(gdata.oMg[j].rotation, gdata.oMg[j].translation)
+            best = min(best, coal.distance(objs[i].geometry, ti, objs[j].geometry, tj, coal.DistanceRequest(), coal.DistanceResult()))
+    return float(best)
+
+
+@functools.cache
+def _hands_touch_cached(robot: Robot, left: tuple, right: tuple, gap: float) -> tuple:
+    pl, pr = np.array(left), np.array(right)
+    inward = (pr - pl) / np.linalg.norm(pr - pl)
+    for _ in range(MEET_ROUNDS):
+        d = posed_hands_distance(robot, arm_configuration(robot, {"left": pl, "right": pr}))
+        step = 0.5 * (d - gap)
+        if abs(step) <= 0.25 * APPROACH_TOLERANCE:
+            break
+        pl, pr = pl + step * inward, pr - step * inward
+    return tuple(pl), tuple(pr)
+
+
+def hands_touch(robot: Robot, left_point, right_point, gap: float = MEET_GAP) -> tuple[np.ndarray, np.ndarray]:
+    """The two hand points moved symmetrically along the line between them until, with the arms
+    posed there (:func:`arm_configuration`), the two hands' meshes are ``gap`` apart (coal): a
+    clap. The planner leaves the hands' pairs out there (``FrameTarget.meets``)."""
+    pl, pr = _hands_touch_cached(robot, tuple(float(x) for x in left_point), tuple(float(x) for x in right_point),
+                                 float(gap))
+    return np.array(pl), np.array(pr)
+
+
 def obstacles_for(robot: Robot, moving: tuple[str, ...]) -> tuple[int, ...]:
     """Every collision geometry except those of the moving arms."""
     m = body_map(robot)
@@ -521,4 +565,19 @@ def _union(boxes: list[Box]) -> Box:
     return Box(np.min([b.lo for b in boxes], axis=0), np.max([b.hi for b in boxes], axis=0))
 
 
-__all__ = ["GAP", "BodyMap", "Box", "body_map", "hands_distance", "hands_meet", "mesh_distance", "obstacles_for", "stop_short", "to_heading", "to_standing"]
+__all__ = [
+    "GAP",
+    "MEET_GAP",
+    "BodyMap",
+    "Box",
+    "body_map",
+    "hands_distance",
+    "hands_meet",
+    "hands_touch",
+    "mesh_distance",
+    "obstacles_for",
+    "posed_hands_distance",
+    "stop_short",
+    "to_heading",
+    "to_standing",
+]
