@@ -211,7 +211,10 @@ def meet_exemptions(lay: Layout, sets: SphereSets) -> np.ndarray | None:
     out = np.zeros((len(t), len(sets.pairs)), dtype=bool)
     ja, jb = sets.joints[sets.pairs[:, 0]], sets.joints[sets.pairs[:, 1]]
     for target in meets:
-        below = [list(model.subtrees[model.frames[robot.frame_id(f)].parentJoint]) for f in (target.frame, target.meets)]
+        joints = [model.frames[robot.frame_id(f)].parentJoint for f in (target.frame, str(target.meets))]
+        # each frame's joint and those below it, but for the other's supports (a head on the trunk
+        # does not exempt the trunk, which carries the hand's own arm)
+        below = [sorted(set(model.subtrees[j]) - set(model.supports[k])) for j, k in (joints, joints[::-1])]
         pairs = (np.isin(ja, below[0]) & np.isin(jb, below[1])) | (np.isin(ja, below[1]) & np.isin(jb, below[0]))
         ks = knots_of(t, target.time, target.window, lay.N)
         near = (t >= t[min(ks)] - MEET_PADDING - 1e-9) & (t <= t[max(ks)] + MEET_PADDING + 1e-9)
