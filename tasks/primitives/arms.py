@@ -51,6 +51,7 @@ BEND_MAX = 0.7  # [rad] forward bend at the hips allowed to reach the knee and t
 POSE_TOLERANCE = 0.02  # [m] held hand poses and rhythmic targets
 GUARD_TOLERANCE = 0.03  # [m] punch guard / clap apart / shrug low positions
 MEET_TOLERANCE = 0.002  # [m] hands that meet (clap, touch the other hand): the planner leaves their pairs out there
+TEMPLE = 0.5  # a hand meeting the side of the head goes this fraction of the way from its centre to its front
 HEAD_GAP = 0.01  # [m] mesh distance of a saluting or head-touching hand from the head, the arm posed there
 MEET_ORIENTATION = 0.02  # [rad] ... and holds each hand's orientation at the meeting point within this
 RAISE_TIME = 0.8  # [s] from rest to the first pose of a rhythmic gesture
@@ -282,6 +283,9 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
         start = [head.center[0], o * m.beside(side, surface, o * Y), z]
         if not meets_apart(robot, side, "head"):
             return stop_short(robot, side, start, o * Y, (side,))
+        # halfway to the front of the head (the temple): the standing arm reaches it without
+        # turning the hand over (beside the head's centre Talos's arm had to flip the gripper)
+        start[0] = head.center[0] + TEMPLE * (head.hi[0] - head.center[0])
         return approach_posed(robot, side, start, o * Y, "head", HEAD_GAP)
     if part == "shoulder":
         other = shoulder(robot, _other(side))
