@@ -233,6 +233,11 @@ def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     then moved towards each other until, the arms posed there, the hands' meshes are
     ``bodymap.MEET_GAP`` apart (coal): the hands meet. Apart: each hand ``CLAP_APART * L``
     farther out."""
+    return {s: (together.copy(), apart.copy()) for s, (together, apart) in _clap_points(robot).items()}
+
+
+@functools.cache
+def _clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     L = min(arm_length(robot, s) for s in ("left", "right"))
     clear = _hands_clear_points(robot)
     together = dict(zip(("left", "right"), hands_touch(robot, clear["left"], clear["right"]), strict=True))

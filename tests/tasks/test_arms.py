@@ -195,7 +195,7 @@ def test_clapping_hands_meet_at_their_target_poses(robot_name):
     assert (tl.meets, tr.meets) == (robot.frame("right_hand"), robot.frame("left_hand"))
     assert tl.rpy is not None and tr.rpy is not None and tl.tolerance <= 0.003
     d = _posed_distance(robot, hands["left"], _posed_hand(robot, "left", tl), hands["right"], _posed_hand(robot, "right", tr))
-    assert 0.0 < d <= MEET_DISTANCE - 0.005, d
+    assert 0.0 < d <= MEET_DISTANCE - 0.003, d  # placed 5 mm apart at the posed arms; the target pose is that pose
     (al,), (ar,) = _targets(spec, "left hand apart #1"), _targets(spec, "right hand apart #1")
     assert al.meets is None and ar.meets is None
     L = min(_arm_length(robot, s) for s in ("left", "right"))
