@@ -239,7 +239,7 @@ INDEPENDENT: dict[str, Callable[[Sim], tuple[bool, str]]] = {
     "stand": stand, "squat": com_axis(2), "lean": lean, "bow": frame_turn("torso"),
     "raise_arms": hands_follow, "turn_head": frame_turn("head"), "nod": frame_turn("head"),
     "shake_head": frame_turn("head"), "clap": hands_meet, "salute": hand_at_head, "point": pointing,
-    "wave": hands_follow, "punch": hands_follow, "touch": hands_follow, "hands_on_hips": hands_follow,
+    "wave": hands_follow, "punch": hands_follow, "touch": hand_at_head, "hands_on_hips": hands_follow,
     "arms_out": hands_follow, "step": base_travel, "walk": base_travel, "turn": base_yaw, "jump": feet_flight,
     "hop": feet_flight, "kick": sole_rise, "march": sole_rise, "stomp": sole_rise, "balance": sole_rise,
     "lunge": base_travel,

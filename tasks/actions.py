@@ -336,7 +336,7 @@ REGISTRY: dict[str, ActionSchema] = {
                   description="time to raise, hold and lower"),
         )),
         ActionSchema(name="point", summary="Point with a straight arm in a direction.", body="upper", params=(
-            _choice("arm", SIDES, "right", "which arm points"),
+            _choice("arm", SIDES, None, "which arm points (default: the one on the named side, else the right)"),
             _choice("direction", POINT_DIRECTIONS, "forward", "where to point"),
             Param(name="duration", kind="float", unit="s", default=3.0, minimum=1.0, maximum=30.0,
                   description="time to point, hold and lower"),

@@ -25,9 +25,11 @@ from tasks.limits import MAX_DIGITS, MAX_ITEMS, MAX_NESTING, MAX_SPEC_BYTES
 
 
 def to_plain(obj: Any) -> Any:
-    """Dataclasses/tuples/enums -> JSON-compatible dicts/lists/values."""
+    """Dataclasses/tuples/enums -> JSON-compatible dicts/lists/values (a field whose metadata has
+    ``omit_none`` is left out when None: a field added later keeps older specs' JSON and cache keys)."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        return {f.name: to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
+                if not (f.metadata.get("omit_none") and getattr(obj, f.name) is None)}
     if isinstance(obj, enum.Enum):
         return obj.value
     if isinstance(obj, (tuple, list)):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import enum
 import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from tasks.exceptions import TaskDefinitionError
 from tasks.limits import (
@@ -219,6 +219,11 @@ class FrameTarget:
         touch: Name of the scene object the frame touches there (a planned contact: the scene
             collision checks leave that frame's link and its children out with that object over
             the target's time or window); None: no contact.
+        meets: Frame name or role of another robot frame this one touches there (a self-contact:
+            a clap's hands). The self-collision rows and checks leave out the link pairs between
+            the two frames' joints and the joints below them over the target's time or window (and a
+            few knots around it, ``planner.trajopt.collision.MEET_PADDING``); the target's own tolerance is then what keeps
+            the two apart. None: no self-contact. Left out of the JSON when None.
     """
 
     name: str
@@ -233,6 +238,7 @@ class FrameTarget:
     priority: Priority = Priority.HARD
     weight: float = 100.0
     touch: str | None = None
+    meets: str | None = field(default=None, metadata={"omit_none": True})
 
     def __post_init__(self) -> None:
         _text("target", "name", self.name)
@@ -263,6 +269,12 @@ class FrameTarget:
             _text(who, "touch", self.touch)
             if self.position is None:
                 raise TaskDefinitionError(f"{who}: a touch needs a position (the point on the object)")
+        if self.meets is not None:
+            _text(who, "meets", self.meets)
+            if self.position is None:
+                raise TaskDefinitionError(f"{who}: meets needs a position (where the frame meets the other one)")
+            if self.meets == self.frame:
+                raise TaskDefinitionError(f"{who}: meets names the target's own frame {self.frame!r}: name the other frame")
 
 
 HandTarget = FrameTarget  # the name the design documents use for hand targets

@@ -37,6 +37,7 @@ from planner.trajopt.collision import (
     Rows,
     collision_diagnosis,
     collision_rows_of,
+    exempt_distances,
     idle_pairs,
     missing_rows,
     select,
@@ -243,7 +244,7 @@ def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.
     robot = lay.robot
     sets = sphere_sets(robot)
     q0 = _guess_configurations(lay, x0) if q0 is None else q0
-    distances = sphere_pair_distances(robot, sets, q0, within=settings.collision_screening)
+    distances = exempt_distances(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision_screening))
     rows = select(lay, sets, distances, settings.collision_screening)
     idle = idle_pairs(lay, sets, distances, settings.collision_margin)
     deferred = Rows()

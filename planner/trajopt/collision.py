@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from planner.trajopt.settings import PlannerSettings
-from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term
+from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots.collision import CollisionModel, body_part, collision_model
 from robots.model import Robot
 
@@ -41,6 +41,7 @@ if TYPE_CHECKING:
 KNOT_PADDING = 3  # knots added on each side of a screened pair's close knots
 CLOSEST_WITHIN = 0.1  # [m] the report's closest pair is looked for among pairs this close first
 CHECK_TOLERANCE = 1e-4  # [m] a pair this much inside the margin without rows triggers another round
+MEET_PADDING = 0.15  # [s] a self-contact's (FrameTarget.meets) pairs are left out this long around its time or window
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,6 +196,44 @@ def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray, within:
     return out
 
 
+def meet_exemptions(lay: Layout, sets: SphereSets) -> np.ndarray | None:
+    """The (knot, checked link pair) entries (T, P) bool that planned self-contacts leave out, or
+    None when the spec has none. A target whose frame ``meets`` another (a clap's hands,
+    :attr:`tasks.specs.FrameTarget.meets`) exempts every pair of a link on its frame's joint or a
+    joint below it and a link on the other frame's joint or below it, over the target's knots and
+    :data:`MEET_PADDING` seconds around them: the two hands may touch there, and the target's
+    tolerance is what keeps them from passing through each other."""
+    meets = [t for t in lay.spec.targets if t.meets is not None]
+    if not meets or len(sets.pairs) == 0:
+        return None
+    robot, model = lay.robot, lay.robot.model
+    t = np.asarray(lay.t)
+    out = np.zeros((len(t), len(sets.pairs)), dtype=bool)
+    ja, jb = sets.joints[sets.pairs[:, 0]], sets.joints[sets.pairs[:, 1]]
+    for target in meets:
+        joints = [model.frames[robot.frame_id(f)].parentJoint for f in (target.frame, str(target.meets))]
+        # each frame's joint and those below it, but for the other's supports (a head on the trunk
+        # does not exempt the trunk, which carries the hand's own arm)
+        below = [sorted(set(model.subtrees[j]) - set(model.supports[k])) for j, k in (joints, joints[::-1])]
+        pairs = (np.isin(ja, below[0]) & np.isin(jb, below[1])) | (np.isin(ja, below[1]) & np.isin(jb, below[0]))
+        ks = knots_of(t, target.time, target.window, lay.N)
+        near = (t >= t[min(ks)] - MEET_PADDING - 1e-9) & (t <= t[max(ks)] + MEET_PADDING + 1e-9)
+        out[np.ix_(near, pairs)] = True
+    return out
+
+
+def exempt_distances(lay: Layout, sets: SphereSets, distances: np.ndarray) -> np.ndarray:
+    """``distances`` (T, S) per sphere pair with the entries of planned self-contacts
+    (:func:`meet_exemptions`) set to inf (a copy; ``distances`` itself when there are none)."""
+    ex = meet_exemptions(lay, sets)
+    if ex is None or not ex.any():
+        return distances
+    sizes = np.diff(np.append(sets.starts, len(sets.sa)))
+    out = distances.copy()
+    out[np.repeat(ex, sizes, axis=1)[: len(out)]] = np.inf
+    return out
+
+
 def pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray) -> np.ndarray:
     """Sphere-set distance of every checked link pair at every configuration: (T, P) [m]."""
     if len(sets.pairs) == 0:
@@ -299,7 +338,8 @@ def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: floa
     rows = Rows()
     if len(sets.starts) == 0:
         return rows
-    d = distances.copy()
+    ex = meet_exemptions(lay, sets)
+    d = exempt_distances(lay, sets, distances).copy()
     d[:2] = np.inf
     d[lay.N:] = np.inf
     pair_min = np.minimum.reduceat(d, sets.starts, axis=1)
@@ -320,6 +360,8 @@ def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: floa
         knots: set[int] = set()
         for k in ks:
             knots.update(range(max(2, int(k) - KNOT_PADDING), min(lay.N - 1, int(k) + KNOT_PADDING) + 1))
+        if ex is not None:  # no rows where the pair is a planned self-contact
+            knots -= {int(k) for k in np.flatnonzero(ex[:, pi])}
         rows.spheres[int(pi)] = spheres
         rows.knots[int(pi)] = knots
     return rows
@@ -374,6 +416,7 @@ def missing_rows(lay: Layout, sets: SphereSets, rows: Rows, distances: np.ndarra
     """Rows to add after a solve: for each sphere pair closer than the margin (less
     :data:`CHECK_TOLERANCE`) at a knot where it has no row, that pair's sphere pairs closer than
     the screening distance, on padded knots."""
+    distances = exempt_distances(lay, sets, distances)
     has = np.zeros(distances.shape, dtype=bool)
     for pi, sp in rows.spheres.items():
         ks = sorted(rows.knots[pi])
@@ -397,13 +440,19 @@ def strip_collision_terms(lay: Layout) -> Layout:
 # -- report ------------------------------------------------------------------------------------
 
 
-def closest(robot: Robot, sets: SphereSets, q: np.ndarray, t: np.ndarray) -> tuple[float, float, tuple[str, str]]:
-    """(distance [m], time [s], link pair) of the closest checked pair over a motion."""
+def closest(robot: Robot, sets: SphereSets, q: np.ndarray, t: np.ndarray,
+            exempt: np.ndarray | None = None) -> tuple[float, float, tuple[str, str]]:
+    """(distance [m], time [s], link pair) of the closest checked pair over a motion, leaving out
+    the ``exempt`` (T, P) entries (planned self-contacts, :func:`meet_exemptions`)."""
     if len(sets.pairs) == 0:
         return math.inf, 0.0, ("", "")
     d = np.minimum.reduceat(sphere_pair_distances(robot, sets, q, within=CLOSEST_WITHIN), sets.starts, axis=1)
+    if exempt is not None:
+        d[exempt[: len(d)]] = np.inf
     if not d.min() < CLOSEST_WITHIN:  # nothing that close: every pair (the pairs not computed are farther)
         d = pair_distances(robot, sets, q)
+        if exempt is not None:
+            d[exempt[: len(d)]] = np.inf
     k, pi = np.unravel_index(int(np.argmin(d)), d.shape)
     return float(d[k, pi]), float(t[k]), sets.pair_names[int(pi)]
 
@@ -413,7 +462,7 @@ def self_collision_check(lay: Layout, q: np.ndarray, settings: PlannerSettings) 
     it fails when the sphere sets interpenetrate by more than ``CHECK_TOLERANCE``."""
     robot = lay.robot
     sets = sphere_sets(robot)
-    d, time, (a, b) = closest(robot, sets, q, lay.t)
+    d, time, (a, b) = closest(robot, sets, q, lay.t, meet_exemptions(lay, sets))
     if not math.isfinite(d):
         return Check.constraint(name="self-collision (no pair to check)", kind=CheckKind.SELF_COLLISION,
                                 violation=0.0, tolerance=CHECK_TOLERANCE, unit="m", time=0.0)
@@ -490,7 +539,8 @@ def collision_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Ca
         return ""
     robot = lay.robot
     q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
-    d, time, (a, b) = closest(robot, sphere_sets(robot), q, lay.t)
+    sets = sphere_sets(robot)
+    d, time, (a, b) = closest(robot, sets, q, lay.t, meet_exemptions(lay, sets))
     if d >= settings.collision_margin:
         return ""
     pa, pb = body_part(robot, a), body_part(robot, b)

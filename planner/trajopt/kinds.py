@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from tasks import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget
 
 INF = math.inf
+ORIENTATION_TRACE_MIN = 1.0  # trace(R_target^T R) of a hard orientation target: within 90 deg, not the flipped pi solution
 HARD_EQUALITY_TOLERANCE = 1e-6  # [m] or [rad]: below it a hard target becomes an equality
 BOX_SHRINK = 0.995  # hard targets: the NLP keeps the error this far inside the tolerance
 
@@ -405,8 +406,11 @@ class FrameOrientationTerm(_Target):
            label: str, phase: str, item: object = None) -> FrameOrientationTerm:
         """The term at ``knot``: its structure, parameters and row bounds."""
         upper = target_upper(mode, 3, math.sin(min(tolerance, math.pi / 2)))
+        lower = -upper
+        if mode != "soft":  # the sine rows vanish at pi too: trace(R_t^T R) = 1 + 2 cos(angle) >= 1 keeps it within 90 deg
+            lower, upper = np.append(lower, ORIENTATION_TRACE_MIN), np.append(upper, math.inf)
         return cls(knot=knot, structure=(cls.kind, frame_id, mode), params=np.array([*_column_major(rotation), weight]),
-                   lower=-upper, upper=upper, label=label, item=item, phase=phase)
+                   lower=lower, upper=upper, label=label, item=item, phase=phase)
 
     @property
     def frame_id(self) -> int:
@@ -420,12 +424,17 @@ class FrameOrientationTerm(_Target):
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, cost) in CasADi (:meth:`Term.expression`)."""
         _, R = kin.frames[self.frame_id]
-        return _target_rows(rotation_error(ca.reshape(p[0:9], 3, 3), R), self.mode, p[9])
+        R_t = ca.reshape(p[0:9], 3, 3)
+        rows, cost = _target_rows(rotation_error(R_t, R), self.mode, p[9])
+        if rows is None:
+            return rows, cost
+        return ca.vertcat(rows, ca.trace(ca.mtimes(R_t.T, R))), cost
 
     def residual(self, kin: NumericKinematics) -> np.ndarray:
         """The rows, or ``[cost]``, in numpy (:meth:`Term.residual`)."""
-        err = rotation_residual(_matrix(self.params[0:9]), kin.frame(self.frame_id).rotation)
-        return _target_residual(err, self.mode, self.params[9])
+        R_t, R = _matrix(self.params[0:9]), kin.frame(self.frame_id).rotation
+        out = _target_residual(rotation_residual(R_t, R), self.mode, self.params[9])
+        return out if self.mode == "soft" else np.append(out, np.trace(R_t.T @ R))
 
 
 @dataclass(eq=False)

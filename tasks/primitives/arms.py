@@ -30,11 +30,14 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
 from tasks.primitives.bodymap import (
     GAP,
+    approach_posed,
     arm_configuration,
     arm_joints,
     body_map,
     clear_targets,
     hands_meet,
+    hands_touch,
+    meets_apart,
     stop_short,
     to_heading,
     to_standing,
@@ -47,6 +50,10 @@ REACH_FRACTION = 0.92  # [L] farthest hand target from the shoulder (the arm nea
 BEND_MAX = 0.7  # [rad] forward bend at the hips allowed to reach the knee and the toes
 POSE_TOLERANCE = 0.02  # [m] held hand poses and rhythmic targets
 GUARD_TOLERANCE = 0.03  # [m] punch guard / clap apart / shrug low positions
+MEET_TOLERANCE = 0.002  # [m] hands that meet (clap, touch the other hand): the planner leaves their pairs out there
+TEMPLE = 0.5  # a hand meeting the side of the head goes this fraction of the way from its centre to its front
+HEAD_GAP = 0.01  # [m] mesh distance of a saluting or head-touching hand from the head, the arm posed there
+MEET_ORIENTATION = 0.02  # [rad] ... and holds each hand's orientation at the meeting point within this
 RAISE_TIME = 0.8  # [s] from rest to the first pose of a rhythmic gesture
 LOWER_TIME = 0.8  # [s] from the last pose back to rest
 TORSO_TOLERANCE = 0.05  # [rad] stretch lean
@@ -99,17 +106,45 @@ def _require_reach(action: str, robot: Robot, side: str, point: np.ndarray, what
 
 
 def _put(b: FragmentBuilder, what: str, side: str, point: np.ndarray, *, time: float | None = None,
-         window: tuple[float, float] | None = None, tolerance: float = POSE_TOLERANCE) -> None:
-    """HARD position target of the ``side`` hand at a heading-frame point."""
-    b.frame_target(what, f"{side}_hand", position=b.world(to_standing(b.robot, point)), time=time, window=window,
-                   tolerance=tolerance)
+         window: tuple[float, float] | None = None, tolerance: float = POSE_TOLERANCE, meet: str | None = None) -> None:
+    """HARD position target of the ``side`` hand at a heading-frame point. ``meet``: the role the
+    hand touches there (the other hand, the head; ``FrameTarget.meets``: the planner lets their
+    links meet), held within ``MEET_TOLERANCE`` and at the orientation the arm has there
+    (:func:`meet_rotation`, within ``MEET_ORIENTATION``)."""
+    rpy = None if meet is None else b.world_rotation(meet_rotation(b.robot, side, point, meet))
+    b.frame_target(what, f"{side}_hand", position=b.world(to_standing(b.robot, point)), rpy=rpy, time=time,
+                   window=window, tolerance=tolerance if meet is None else MEET_TOLERANCE,
+                   orientation_tolerance=MEET_ORIENTATION, meets=meet)
 
 
-def _hold(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], phase: str, parts: frozenset[str]) -> Fragment:
-    """Hands to ``points``, held from OUT_FRACTION to HOLD_END_FRACTION of the duration, back to rest."""
+def meet_rotation(robot: Robot, side: str, point: np.ndarray, meet: str) -> np.ndarray:
+    """The ``side`` hand's orientation (standing world frame) with its arm posed at ``point``
+    (:func:`~tasks.primitives.bodymap.arm_configuration`; for the other hand, both arms at the clap
+    points): the orientation the meeting point was placed with (its meshes ``MEET_GAP`` from the
+    other hand's, or ``HEAD_GAP`` from the head's)."""
+    points = {side: np.asarray(point, dtype=float)}
+    if meet == f"{_other(side)}_hand":
+        points = {s: p[0] for s, p in clap_points(robot).items()} | points
+    q = arm_configuration(robot, points, natural=True)
+    data = robot.data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.frame_id(f"{side}_hand")].rotation.copy()
+
+
+def _hold(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], phase: str, parts: frozenset[str],
+          *, meet: dict[str, str] | None = None) -> Fragment:
+    """Hands to ``points``, held from OUT_FRACTION to HOLD_END_FRACTION of the duration, back to rest
+    (``meet``: side -> the role that hand touches there, :func:`_put`)."""
     T = b.params["duration"]
+    window = (OUT_FRACTION * T, HOLD_END_FRACTION * T)
     for side, p in points.items():
-        _put(b, f"{side} hand {what}", side, p, window=(OUT_FRACTION * T, HOLD_END_FRACTION * T))
+        _put(b, f"{side} hand {what}", side, p, window=window, meet=(meet or {}).get(side))
+    for role in sorted({r for r in (meet or {}).values() if not r.endswith("_hand")}):
+        # the part stays where the hand meets it (Talos leant its torso back 13 deg, the head 12 cm off the salute)
+        g = standing_geometry(b.robot)
+        b.frame_target(f"{role} still for the hand", role, position=b.world(g.position(role)),
+                       rpy=b.world_rotation(g.rotation(role)), window=window, tolerance=MEET_TOLERANCE,
+                       orientation_tolerance=MEET_ORIENTATION)
     rest_targets(b, [f"{s}_hand" for s in points], tau=T)
     b.phase(phase, T)
     return b.finish(parts)
@@ -142,13 +177,14 @@ def punch_points(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _repeat(b: FragmentBuilder, side: str, n: int, d: float, start: tuple[str, np.ndarray], peak: tuple[str, np.ndarray],
-            back: str) -> None:
+            back: str, *, meet: str | None = None) -> None:
     """The ``side`` hand at ``start`` when raised, then ``n`` times out to ``peak`` (at the middle of
-    each ``d``-second beat) and back to the start point (at its end): punch, clap, shrug."""
+    each ``d``-second beat) and back to the start point (at its end): punch, clap, shrug. ``meet``:
+    the role the hand touches at the peak (a clap: the other hand; :func:`_put`)."""
     (start_name, home), (peak_name, point) = start, peak
     _put(b, start_name, side, home, time=RAISE_TIME, tolerance=GUARD_TOLERANCE)
     for k in range(n):
-        _put(b, f"{peak_name} #{k + 1}", side, point, time=RAISE_TIME + (k + 0.5) * d)
+        _put(b, f"{peak_name} #{k + 1}", side, point, time=RAISE_TIME + (k + 0.5) * d, meet=meet)
         _put(b, f"{back} #{k + 1}", side, home, time=RAISE_TIME + (k + 1) * d, tolerance=GUARD_TOLERANCE)
 
 
@@ -171,12 +207,10 @@ PUNCH = Primitive(name="punch", nominal_duration=_rhythm_duration, build=build_p
 CLAP_APART = 0.2  # [L] each hand this much farther out when apart
 
 
-def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Side -> (together, apart) hand points (heading frame): in front of the chest, ``0.3 L``
-    below the shoulders. Together, the arms posed there clear the body by
-    ``bodymap.CLEARANCE`` in the planner's sphere model (the hands go forward until the forearms
-    do), and the two arms' sphere sets are ``CLEARANCE`` apart (the hands a few cm apart: the
-    planner checks the gripper pairs, so a clap is a near miss, not a contact)."""
+def _hands_clear_points(robot: Robot) -> dict[str, np.ndarray]:
+    """Side -> hand point in front of the chest, ``0.3 L`` below the shoulders, where the arms
+    posed there clear the body by ``bodymap.CLEARANCE`` in the planner's sphere model (the hands
+    go forward until the forearms do) and the two arms' sphere sets are ``CLEARANCE`` apart."""
     m = body_map(robot)
     S = {s: shoulder(robot, s) for s in ("left", "right")}
     L = min(arm_length(robot, s) for s in S)
@@ -190,6 +224,23 @@ def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         x = max(p[0] for p in together.values())  # the hands side by side
         together = {s: np.array([x, p[1], p[2]]) for s, p in together.items()}
         together = dict(zip(("left", "right"), hands_meet(robot, together["left"], together["right"]), strict=True))
+    return together
+
+
+def clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Side -> (together, apart) hand points (heading frame). Together: in front of the chest,
+    ``0.3 L`` below the shoulders, where the arms clear the body in the planner's sphere model,
+    then moved towards each other until, the arms posed there, the hands' meshes are
+    ``bodymap.MEET_GAP`` apart (coal): the hands meet. Apart: each hand ``CLAP_APART * L``
+    farther out."""
+    return {s: (together.copy(), apart.copy()) for s, (together, apart) in _clap_points(robot).items()}
+
+
+@functools.cache
+def _clap_points(robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    L = min(arm_length(robot, s) for s in ("left", "right"))
+    clear = _hands_clear_points(robot)
+    together = dict(zip(("left", "right"), hands_touch(robot, clear["left"], clear["right"]), strict=True))
     return {s: (together[s], together[s] + SIGN[s] * CLAP_APART * L * Y) for s in ("left", "right")}
 
 
@@ -199,7 +250,7 @@ def build_clap(b: FragmentBuilder) -> Fragment:
     pts = clap_points(b.robot)
     for side, (together, apart) in pts.items():
         _repeat(b, side, n, d, (f"{side} hand ready to clap", apart), (f"{side} hand clap", together),
-                f"{side} hand apart")
+                f"{side} hand apart", meet=f"{_other(side)}_hand")
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("clap", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
@@ -234,7 +285,13 @@ def touch_point(robot: Robot, side: str, part: str) -> np.ndarray:
         head = _need(m.head, robot, "head")
         surface = head.hi[1] if o > 0 else -head.lo[1]
         z = head.center[2] if m.torso is None else max(head.center[2], m.beside(side, m.torso.hi[2], Z))
-        return stop_short(robot, side, [head.center[0], o * m.beside(side, surface, o * Y), z], o * Y, (side,))
+        start = [head.center[0], o * m.beside(side, surface, o * Y), z]
+        if not meets_apart(robot, side, "head"):
+            return stop_short(robot, side, start, o * Y, (side,))
+        # halfway to the front of the head (the temple): the standing arm reaches it without
+        # turning the hand over (beside the head's centre Talos's arm had to flip the gripper)
+        start[0] = head.center[0] + TEMPLE * (head.hi[0] - head.center[0])
+        return approach_posed(robot, side, start, o * Y, "head", HEAD_GAP)
     if part == "shoulder":
         other = shoulder(robot, _other(side))
         front = m.torso.hi[0] if m.torso is not None else other[0]
@@ -327,7 +384,18 @@ def build_touch(b: FragmentBuilder) -> Fragment:
     side, part = b.params["hand"], b.params["part"]
     sides = ("left", "right") if part == "hand" else (side,)
     what = "at the other hand" if part == "hand" else f"at the {part}"
-    return _hold(b, what, {s: touch_point(b.robot, s, part) for s in sides}, f"touch {part}", touch_parts(b.params))
+    return _hold(b, what, {s: touch_point(b.robot, s, part) for s in sides}, f"touch {part}", touch_parts(b.params),
+                 meet=_touch_meets(b.robot, part, sides))
+
+
+def _touch_meets(robot: Robot, part: str, sides: tuple[str, ...]) -> dict[str, str] | None:
+    """The roles the touching hands meet: the other hand, or the head (the planner leaves those
+    pairs out there); other parts are reached ``GAP`` short, clear in the planner's model."""
+    if part == "hand":
+        return {s: f"{_other(s)}_hand" for s in sides}
+    if part == "head":
+        return {s: "head" for s in sides if meets_apart(robot, s, "head")} or None
+    return None
 
 
 TOUCH = Primitive(name="touch", nominal_duration=_duration, build=build_touch, parts=touch_parts,
@@ -407,13 +475,13 @@ DROP_MAX = 1.0  # [rad] the lowest it goes
 
 
 @functools.cache
-def _drop(robot: Robot, side: str, u: tuple[float, float, float]) -> float:
+def _drop(robot: Robot, side: str, u: tuple[float, float, float], reach_fraction: float = OUT_REACH) -> float:
     gravity_v = [robot.model.joints[j].idx_v for j in arm_joints(robot, side)]
     limits = np.asarray(robot.model.effortLimit, dtype=float)[gravity_v]
     data = robot.data()
 
     def holds(k: int) -> bool:
-        point = shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * _lowered(u, k * DROP_STEP)
+        point = shoulder(robot, side) + reach_fraction * arm_length(robot, side) * _lowered(u, k * DROP_STEP)
         tau = pin.computeGeneralizedGravity(robot.model, data, arm_configuration(robot, {side: point}))[gravity_v]
         return bool(np.all(np.abs(tau) <= HOLD_TORQUE_FRACTION * limits))
 
@@ -481,13 +549,36 @@ def point_direction(side: str, direction: str) -> np.ndarray:
     return u / np.linalg.norm(u)
 
 
+POINT_REACHES = (OUT_REACH, 0.8, 0.7)  # [L] a pointing hand's distances from the shoulder, tried in turn ...
+POINT_DROP = 0.15  # [rad] ... for the first whose arm, held that far below the named direction, holds
+
+
+def point_arm(params: dict) -> str:
+    """The pointing arm: the one named, else the one on the named side ("point to your left": the
+    left arm, straight out; the right arm could only point across the chest), else the right."""
+    if params.get("arm"):
+        return params["arm"]
+    return params["direction"] if params.get("direction") in SIGN else "right"
+
+
 def point_point(robot: Robot, side: str, direction: str) -> np.ndarray:
-    """Hand point (heading frame) of the ``side`` arm pointing towards ``direction`` (a horizontal
-    direction as little lowered as the arm's torque limits need: :func:`held_out_direction`)."""
+    """Hand point (heading frame) of the ``side`` arm pointing towards ``direction``. A horizontal
+    direction is held at shoulder height with the hand ``OUT_REACH * L`` from the shoulder, or
+    closer (``POINT_REACHES``: the elbow bent) when the straight arm needs more than
+    ``HOLD_TORQUE_FRACTION`` of a joint's torque limit, lowered by at most ``POINT_DROP``; if no
+    reach holds there, the straight arm lowered as little as it needs (:func:`held_out_direction`).
+    Talos's straight arm out to the side needs 1.07 x its shoulder roll limit (it used to be
+    lowered 0.55 rad, 32 deg: "point to your left" then pointed at the floor's edge); at 0.8 L
+    its elbow bends and it needs 0.93 x, at 0.7 L 0.80 x, level. G1's arm holds level (0.20 x)."""
     u = point_direction(side, direction)
-    if abs(u[2]) < 1e-12:
-        u = held_out_direction(robot, side, u)
-    return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * u
+    if abs(u[2]) >= 1e-12:
+        return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * u
+    key = tuple(float(x) for x in u)
+    for reach_fraction in POINT_REACHES:
+        drop = _drop(robot, side, key, reach_fraction)
+        if drop <= POINT_DROP + 1e-9:
+            return shoulder(robot, side) + reach_fraction * arm_length(robot, side) * _lowered(u, drop)
+    return shoulder(robot, side) + OUT_REACH * arm_length(robot, side) * held_out_direction(robot, side, u)
 
 
 FOLD_POINT = (0.2, 0.15, 0.4)  # [L] ahead, outwards, above the shoulder: the hand on the way up (elbow bent)
@@ -515,14 +606,14 @@ def build_point(b: FragmentBuilder) -> Fragment:
     through :func:`fold_point`, the elbow bent: the upper arm then passes the horizontal with the
     forearm folded. A straight arm passing it needs 1.03 x the torque limit of Talos's shoulder
     joint (``arm_right_2_joint``, 22 N m) just to hold it against gravity."""
-    side, direction = b.params["arm"], b.params["direction"]
+    side, direction = point_arm(b.params), b.params["direction"]
     if direction == "up":
         fold_waypoints(b, (side,))
     return _hold(b, f"pointing {direction}", {side: point_point(b.robot, side, direction)}, f"point {direction}",
                  _arm_parts((side,)))
 
 
-POINT = Primitive(name="point", nominal_duration=_duration, build=build_point, parts=lambda p: _arm_parts((p["arm"],)))
+POINT = Primitive(name="point", nominal_duration=_duration, build=build_point, parts=lambda p: _arm_parts((point_arm(p),)))
 
 
 def salute_point(robot: Robot, side: str) -> np.ndarray:
@@ -535,7 +626,9 @@ def salute_point(robot: Robot, side: str) -> np.ndarray:
     o = SIGN[side]
     y = o * 0.5 * (head.hi[1] if o > 0 else -head.lo[1])
     start = [m.beside(side, head.hi[0], X), head.center[1] + y, head.center[2] + 0.25 * (head.hi[2] - head.lo[2])]
-    return stop_short(robot, side, start, X, (side,))
+    if not meets_apart(robot, side, "head"):  # G1: the head is on the torso, kept GAP short in the sphere model
+        return stop_short(robot, side, start, X, (side,))
+    return approach_posed(robot, side, start, X, "head", HEAD_GAP)
 
 
 def check_salute(params: dict, robot: Robot) -> None:
@@ -547,7 +640,8 @@ def build_salute(b: FragmentBuilder) -> Fragment:
     """The hand at the forehead, held."""
     check_salute(b.params, b.robot)
     side = b.params["arm"]
-    return _hold(b, "at the forehead", {side: salute_point(b.robot, side)}, "salute", _arm_parts((side,)))
+    return _hold(b, "at the forehead", {side: salute_point(b.robot, side)}, "salute", _arm_parts((side,)),
+                 meet={side: "head"} if meets_apart(b.robot, side, "head") else None)
 
 
 SALUTE = Primitive(name="salute", nominal_duration=_duration, build=build_salute,

@@ -223,13 +223,15 @@ class FragmentBuilder:
     def frame_target(self, what: str, role: str, *, position=None, rpy=None, axes=(True, True, True),
                      time: float | None = None, window: tuple[float, float] | None = None,
                      tolerance: float = 0.01, orientation_tolerance: float = 0.05,
-                     priority: Priority = Priority.HARD, weight: float = 100.0, touch: str | None = None) -> None:
+                     priority: Priority = Priority.HARD, weight: float = 100.0, touch: str | None = None,
+                     meets: str | None = None) -> None:
         """Add a :class:`FrameTarget`; ``time``/``window`` in nominal seconds, values in world."""
         self.targets.append(FrameTarget(
             name=self.name(what), frame=self.robot.frame(role), position=position, rpy=rpy,
             axes=tuple(axes), time=None if time is None else self.t(time),
             window=None if window is None else self.window(*window), tolerance=tolerance,
             orientation_tolerance=orientation_tolerance, priority=priority, weight=weight, touch=touch,
+            meets=None if meets is None else self.robot.frame(meets),
         ))
 
     def com_target(self, what: str, position, *, time: float | None = None,

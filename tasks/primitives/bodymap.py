@@ -272,6 +272,89 @@ def hands_meet(robot: Robot, left_point, right_point) -> tuple[np.ndarray, np.nd
     return np.array(pl), np.array(pr)
 
 
+MEET_GAP = 0.005  # [m] mesh distance of the two hands at a clap's target, the arms posed there (a plan holds it within ~4 mm)
+MEET_ROUNDS = 20
+
+
+def meets_apart(robot: Robot, side: str, role: str) -> bool:
+    """Whether the ``role`` frame's links can meet the ``side`` hand as a planned self-contact: its
+    joint does not carry the hand (a head on its own neck joints, the other hand; not G1's head,
+    fixed on the torso that carries the arms)."""
+    model = robot.model
+    joint = model.frames[robot.frame_id(role)].parentJoint
+    hand = model.frames[robot.frame_id(f"{side}_hand")].parentJoint
+    return joint not in set(model.supports[hand])
+
+
+def part_geometries(robot: Robot, role: str) -> tuple[int, ...]:
+    """Indices of the collision geometries on the ``role`` frame's joint or a joint below it."""
+    model = robot.model
+    below = set(model.subtrees[model.frames[robot.frame_id(role)].parentJoint])
+    return tuple(i for i, go in enumerate(robot.collision_model.geometryObjects) if go.parentJoint in below)
+
+
+def posed_hands_distance(robot: Robot, q: np.ndarray, role: str = "right_hand", side: str = "left") -> float:
+    """Smallest distance [m] between the ``side`` hand's meshes (every geometry on its frame's
+    joint or below it) and those of the ``role`` frame (the other hand, the head) at
+    configuration ``q`` (coal; 0 when they intersect)."""
+    m = body_map(robot)
+    cm = robot.collision_model
+    data, gdata = robot.data(), pin.GeometryData(cm)
+    pin.framesForwardKinematics(robot.model, data, q)
+    pin.updateGeometryPlacements(robot.model, data, cm, gdata, q)
+    objs = cm.geometryObjects
+    best = np.inf
+    for i in m.hand_geometries[side]:
+        ti = coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation)
+        for j in part_geometries(robot, role):
+            tj = coal.Transform3s(gdata.oMg[j].rotation, gdata.oMg[j].translation)
+            best = min(best, coal.distance(objs[i].geometry, ti, objs[j].geometry, tj, coal.DistanceRequest(), coal.DistanceResult()))
+    return float(best)
+
+
+@functools.cache
+def _hands_touch_cached(robot: Robot, left: tuple, right: tuple, gap: float) -> tuple:
+    pl, pr = np.array(left), np.array(right)
+    inward = (pr - pl) / np.linalg.norm(pr - pl)
+    for _ in range(MEET_ROUNDS):
+        d = posed_hands_distance(robot, arm_configuration(robot, {"left": pl, "right": pr}, natural=True))
+        step = 0.5 * (d - gap)
+        if abs(step) <= 0.25 * APPROACH_TOLERANCE:
+            break
+        pl, pr = pl + step * inward, pr - step * inward
+    return tuple(pl), tuple(pr)
+
+
+def hands_touch(robot: Robot, left_point, right_point, gap: float = MEET_GAP) -> tuple[np.ndarray, np.ndarray]:
+    """The two hand points moved symmetrically along the line between them until, with the arms
+    posed there (:func:`arm_configuration`), the two hands' meshes are ``gap`` apart (coal): a
+    clap. The planner leaves the hands' pairs out there (``FrameTarget.meets``)."""
+    pl, pr = _hands_touch_cached(robot, tuple(float(x) for x in left_point), tuple(float(x) for x in right_point),
+                                 float(gap))
+    return np.array(pl), np.array(pr)
+
+
+@functools.cache
+def _approach_cached(robot: Robot, side: str, point: tuple, u: tuple, role: str, gap: float) -> tuple:
+    p, u_ = np.array(point), np.array(u)
+    for _ in range(MEET_ROUNDS):
+        d = posed_hands_distance(robot, arm_configuration(robot, {side: p}, natural=True), role, side)
+        step = min(d - gap, MAX_APPROACH)
+        if abs(step) <= 0.25 * APPROACH_TOLERANCE:
+            break
+        p = p - 0.7 * step * u_
+    return tuple(p)
+
+
+def approach_posed(robot: Robot, side: str, point, u, role: str, gap: float) -> np.ndarray:
+    """``point`` moved along unit direction ``-u`` (towards the body) until, with the ``side`` arm
+    posed there (:func:`arm_configuration`, the other arm standing), that hand's meshes are ``gap``
+    from the ``role`` frame's (the head's; coal): a salute, a touch. The planner leaves that pair
+    out there (``FrameTarget.meets``)."""
+    return np.array(_approach_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u), role,
+                                     float(gap)))
+
+
 def obstacles_for(robot: Robot, moving: tuple[str, ...]) -> tuple[int, ...]:
     """Every collision geometry except those of the moving arms."""
     m = body_map(robot)
@@ -391,7 +474,7 @@ def _arm_links(robot: Robot, side: str) -> set[int]:
     return {int(li) for li, j in zip(s.link, s.joint, strict=True) if int(j) in moving}
 
 
-def arm_configuration(robot: Robot, points: dict[str, np.ndarray]) -> np.ndarray:
+def arm_configuration(robot: Robot, points: dict[str, np.ndarray], *, natural: bool = False) -> np.ndarray:
     """The standing configuration with each ``side`` arm's joints moved so that its hand frame
     reaches heading-frame ``points[side]``.
 
@@ -400,10 +483,12 @@ def arm_configuration(robot: Robot, points: dict[str, np.ndarray]) -> np.ndarray
     ``ARM_IK_SEEDS`` fixed pseudo-random arm postures; of the postures that reach the point (within
     ``ARM_IK_TOLERANCE``), the one that clears the body by ``CLEARANCE`` in the sphere model (other arm
     standing), else the closest to standing; a point out of reach is approached as closely as
-    the arm goes."""
+    the arm goes. ``natural``: from the standing arm only (the posture a planner pulled towards
+    standing takes; the two arms of a symmetric robot mirror each other): the meeting points of a
+    clap or a salute and their hand orientations."""
     q = robot.q_standing.copy()
     for side, p in points.items():
-        arm = _arm_ik(robot, side, tuple(float(x) for x in p))
+        arm = _arm_ik(robot, side, tuple(float(x) for x in p), 0 if natural else ARM_IK_SEEDS)
         q[_arm_q(robot, side)] = arm
     return q
 
@@ -424,7 +509,7 @@ def _arm_q(robot: Robot, side: str) -> list[int]:
 
 
 @functools.cache
-def _arm_ik(robot: Robot, side: str, point: tuple) -> np.ndarray:
+def _arm_ik(robot: Robot, side: str, point: tuple, n_seeds: int = ARM_IK_SEEDS) -> np.ndarray:
     model, data = robot.model, robot.data()
     iq = _arm_q(robot, side)
     iv = [model.joints[j].idx_v for j in arm_joints(robot, side)]
@@ -434,7 +519,7 @@ def _arm_ik(robot: Robot, side: str, point: tuple) -> np.ndarray:
     hi = np.minimum(model.upperPositionLimit[iq], math.pi)
     stand = robot.q_standing[iq]
     rng = np.random.default_rng(0)
-    seeds = [stand] + [lo + rng.random(len(iq)) * (hi - lo) for _ in range(ARM_IK_SEEDS)]
+    seeds = [stand] + [lo + rng.random(len(iq)) * (hi - lo) for _ in range(n_seeds)]
     found = []
     for seed in seeds:
         q = robot.q_standing.copy()
@@ -455,7 +540,10 @@ def _arm_ik(robot: Robot, side: str, point: tuple) -> np.ndarray:
         clear = sphere_clearance(robot, q, side, other_arm=False)[0] if err < ARM_IK_TOLERANCE else -math.inf
         found.append(((err >= ARM_IK_TOLERANCE, clear < CLEARANCE, err if err >= ARM_IK_TOLERANCE else 0.0,
                        float(np.linalg.norm(q[iq] - stand))), q[iq].copy()))
-    return min(found, key=lambda f: f[0])[1]
+    best = min(found, key=lambda f: f[0])
+    if best[0][0] and n_seeds < ARM_IK_SEEDS:  # the standing arm does not get there: every seed
+        return _arm_ik(robot, side, point, ARM_IK_SEEDS)
+    return best[1]
 
 
 def _closest_pair(robot: Robot, q: np.ndarray, pairs: list[tuple[int, int]]) -> tuple[float, tuple[str, str]]:
@@ -521,4 +609,22 @@ def _union(boxes: list[Box]) -> Box:
     return Box(np.min([b.lo for b in boxes], axis=0), np.max([b.hi for b in boxes], axis=0))
 
 
-__all__ = ["GAP", "BodyMap", "Box", "body_map", "hands_distance", "hands_meet", "mesh_distance", "obstacles_for", "stop_short", "to_heading", "to_standing"]
+__all__ = [
+    "GAP",
+    "MEET_GAP",
+    "BodyMap",
+    "Box",
+    "approach_posed",
+    "body_map",
+    "hands_distance",
+    "hands_meet",
+    "hands_touch",
+    "meets_apart",
+    "mesh_distance",
+    "obstacles_for",
+    "part_geometries",
+    "posed_hands_distance",
+    "stop_short",
+    "to_heading",
+    "to_standing",
+]

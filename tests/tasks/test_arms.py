@@ -74,6 +74,13 @@ def _geometry_sets(robot):
     return hands, head, body, but
 
 
+def model_subtree_geometries(robot, frame):
+    """Geometries on ``frame``'s joint or a joint below it."""
+    model = robot.model
+    sub = set(model.subtrees[model.frames[robot.frame_id(frame)].parentJoint])
+    return [i for i, g in enumerate(robot.collision_model.geometryObjects) if g.parentJoint in sub]
+
+
 def _placements(robot, q):
     gdata = pin.GeometryData(robot.collision_model)
     pin.updateGeometryPlacements(robot.model, robot.data(), robot.collision_model, gdata, q)
@@ -152,22 +159,89 @@ def test_punch_hits_ahead_of_the_shoulder(talos):
     assert len(set(times)) == len(times)
 
 
+def _posed_hand(robot, side, target):
+    """The ``side`` hand's geometry placements with its frame at the target's pose (position and
+    rpy), the hand's own joints as standing: M_target * (standing hand frame)^-1 * standing geometry."""
+    pose = pin.SE3(pin.rpy.rpyToMatrix(np.array(target.rpy)), np.array(target.position))
+    hand = _frame(robot, robot.frame(f"{side}_hand"))
+    return {i: pose * hand.actInv(p) for i, p in enumerate(_placements(robot, robot.q_standing))}
+
+
+def _posed_distance(robot, set_a, placed_a, set_b, placed_b):
+    objs = robot.collision_model.geometryObjects
+    best = np.inf
+    for i in set_a:
+        for j in set_b:
+            ta = coal.Transform3s(placed_a[i].rotation, placed_a[i].translation)
+            tb = coal.Transform3s(placed_b[j].rotation, placed_b[j].translation)
+            best = min(best, coal.distance(objs[i].geometry, ta, objs[j].geometry, tb, coal.DistanceRequest(),
+                                           coal.DistanceResult()))
+    return best
+
+
 @pytest.mark.parametrize("robot_name", ["talos", "g1"])
-def test_clapping_hands_stop_a_gap_apart(robot_name):
-    """Together, the two hands (moved to their targets at the standing orientation) are at least
-    GAP apart on the meshes and less than TOUCHING_GAP_MAX; apart they are 0.4 L farther apart."""
+def test_clapping_hands_meet_at_their_target_poses(robot_name):
+    """Each clap target holds a hand's position and orientation and names the other hand
+    (``meets``: the planner leaves the two hands' pairs out there). With both hands' meshes placed
+    at those poses (coal), they are apart but less than the intent line's 1 cm; apart they are
+    0.4 L farther apart."""
     from robots import load_robot
+    from sim.intent import MEET_DISTANCE
 
     robot = load_robot(robot_name)
     spec = _spec(robot, "clap", repeat=1)
     hands, _, _, _ = _geometry_sets(robot)
-    placements = _placements(robot, robot.q_standing)
     (tl,), (tr,) = _targets(spec, "left hand clap #1"), _targets(spec, "right hand clap #1")
-    d = _distance(robot, placements, hands["left"], hands["right"], _hand_shift(robot, "left", tl), _hand_shift(robot, "right", tr))
-    assert GAP - 1e-6 <= d <= TOUCHING_GAP_MAX, d
+    assert (tl.meets, tr.meets) == (robot.frame("right_hand"), robot.frame("left_hand"))
+    assert tl.rpy is not None and tr.rpy is not None and tl.tolerance <= 0.003
+    d = _posed_distance(robot, hands["left"], _posed_hand(robot, "left", tl), hands["right"], _posed_hand(robot, "right", tr))
+    assert 0.0 < d <= MEET_DISTANCE - 0.003, d  # placed 5 mm apart at the posed arms; the target pose is that pose
     (al,), (ar,) = _targets(spec, "left hand apart #1"), _targets(spec, "right hand apart #1")
+    assert al.meets is None and ar.meets is None
     L = min(_arm_length(robot, s) for s in ("left", "right"))
     assert np.isclose(al.position[1] - ar.position[1] - (tl.position[1] - tr.position[1]), 0.4 * L, atol=1e-9)
+
+
+def test_salute_and_touch_head_meet_the_head_on_talos(talos):
+    """Talos's salute and head touch hold the hand's pose 1 cm from the head's meshes (coal, the
+    hand's meshes placed at the target's pose, the head standing), name the head (``meets``), and
+    hold the head where it stood over the same window (its pose, within 3 mm and 0.05 rad)."""
+    from sim.intent import SALUTE_DISTANCE
+
+    hands, head, _, _ = _geometry_sets(talos)
+    standing = dict(enumerate(_placements(talos, talos.q_standing)))
+    model = talos.model
+    below_head = [i for i, g in enumerate(talos.collision_model.geometryObjects)
+                  if g.parentJoint in model.subtrees[model.frames[talos.frame_id("head")].parentJoint]]
+    for name, params, what in (("salute", {"arm": "right"}, "forehead"), ("touch", {"part": "head", "hand": "left"}, "at the head")):
+        spec = _spec(talos, name, **params)
+        side = params.get("arm", params.get("hand"))
+        (t,) = [x for x in _targets(spec, what) if x.frame == talos.frame(f"{side}_hand")]
+        assert t.meets == talos.frame("head") and t.rpy is not None
+        d = _posed_distance(talos, hands[side], _posed_hand(talos, side, t), below_head, standing)
+        assert 0.003 < d <= SALUTE_DISTANCE - 0.01, (name, d)
+        (still,) = _targets(spec, "head still")
+        assert still.window == t.window and still.frame == talos.frame("head")
+        np.testing.assert_allclose(still.position, _frame(talos, talos.frame("head")).translation, atol=1e-6)
+    assert head  # the head frame carries geometry
+
+
+def test_point_to_a_side_uses_that_arm_at_shoulder_height(talos, g1):
+    """"point to your left" (no arm named) points with the left arm; the shoulder-to-hand
+    direction of the target (Pinocchio's standing shoulder frame) is within 0.15 rad of the
+    horizontal left: Talos bends its elbow (the hand 0.7-0.8 L out) rather than lower a straight
+    arm it cannot hold (1.07 x its shoulder roll's torque limit); G1 holds it straight (0.9 L)."""
+    for robot, lo, hi in ((talos, 0.69, 0.81), (g1, 0.89, 0.91)):
+        for side in ("left", "right"):
+            (t,) = _targets(_spec(robot, "point", direction=side), "pointing")
+            assert t.frame == robot.frame(f"{side}_hand")
+            v = np.array(t.position) - _frame(robot, robot.frame(f"{side}_shoulder")).translation
+            o = 1.0 if side == "left" else -1.0
+            angle = np.arccos(o * v[1] / np.linalg.norm(v))
+            assert angle <= 0.15 + 1e-6, (robot.name, side, angle)
+            assert lo * _arm_length(robot, side) <= np.linalg.norm(v) <= hi * _arm_length(robot, side), robot.name
+    (t,) = _targets(_spec(talos, "point", arm="right", direction="left"), "pointing")  # named: across the chest
+    assert t.frame == talos.frame("right_hand")
 
 
 @pytest.mark.parametrize("robot_name", ["talos", "g1"])
@@ -184,7 +258,9 @@ def test_clapping_hands_stop_a_gap_apart(robot_name):
 def test_body_touching_hands_stop_a_gap_short_of_the_body(robot_name, name, params, what):
     """Each held hand target, with the hand at its standing orientation, is at least GAP (2 cm,
     above the planner's 1 cm self-collision margin) from the meshes of the body and of the other
-    arm when it stays down, and close to the touched part (less than TOUCHING_GAP_MAX from it)."""
+    arm when it stays down, and close to the touched part (less than TOUCHING_GAP_MAX from it).
+    A target that meets the head (Talos's salute and head touch, ``meets``) is checked with the
+    hand at the target's pose, GAP from everything but the head."""
     from robots import load_robot
 
     robot = load_robot(robot_name)
@@ -193,11 +269,19 @@ def test_body_touching_hands_stop_a_gap_short_of_the_body(robot_name, name, para
     placements = _placements(robot, robot.q_standing)
     held = [t for t in spec.targets if t.window is not None and t.frame in (robot.frame("left_hand"), robot.frame("right_hand"))]
     assert held
+    standing = dict(enumerate(placements))
     for t in held:
         side = "left" if t.frame == robot.frame("left_hand") else "right"
-        shift = _hand_shift(robot, side, t)
-        to_body = _distance(robot, placements, hands[side], body if len(held) == 2 else but[side], shift)
-        to_part = _distance(robot, placements, hands[side], head if what == "head" else body, shift)
+        others = body if len(held) == 2 else but[side]
+        if t.meets is not None:  # meets the head (Talos): at its pose, clear of all but the head's links
+            met = set(model_subtree_geometries(robot, t.meets))
+            posed = _posed_hand(robot, side, t)
+            to_body = _posed_distance(robot, hands[side], posed, [i for i in others if i not in met], standing)
+            to_part = _posed_distance(robot, hands[side], posed, sorted(met), standing)
+        else:
+            shift = _hand_shift(robot, side, t)
+            to_body = _distance(robot, placements, hands[side], others, shift)
+            to_part = _distance(robot, placements, hands[side], head if what == "head" else body, shift)
         assert to_body >= GAP - 1e-6, (t.name, to_body)
         assert what == "far" or to_part <= TOUCHING_GAP_MAX, (t.name, to_part)  # the toes: as far as reachable
 
@@ -451,13 +535,14 @@ def test_clap_plan_brings_the_hands_together(talos, solve):
 
 
 @pytest.mark.slow
-def test_clap_is_executed_but_its_hands_do_not_meet_yet(talos, solve):
-    """Two claps on Talos, executed in MuJoCo: every target met and every physical check passes,
-    but the certificate's intent line fails: the hands' meshes never come within
-    ``sim.intent.MEET_DISTANCE`` (1 cm; about 0.10 m measured, issue 37: the clap's targets keep the
-    planner's sphere sets of the two arms apart, and those are much larger than the hands). The
-    line's figure is the coal distance between the two hands' URDF meshes, recomputed here with
-    Pinocchio's geometry functions on every pair of the hands' geometries."""
+def test_clap_is_executed_and_its_hands_meet(talos, solve):
+    """Two claps on Talos, executed in MuJoCo: the certificate passes, its self-collision lines
+    too, and the hands' meshes come within ``sim.intent.MEET_DISTANCE`` (1 cm) at each clap. Issue
+    37 measured 0.10 m: the clap's targets kept the planner's sphere sets of the two arms apart,
+    and those are much larger than the hands; the targets now name the other hand (``meets``) and
+    the planner leaves the hands' pairs out around each clap. Recomputed here with Pinocchio's
+    geometry functions (coal) on every pair of the hands' URDF geometries, at the recorded
+    configurations within 0.15 s of each clap."""
     import pinocchio as pin
 
     from planner.results import CheckKind
@@ -467,10 +552,9 @@ def test_clap_is_executed_but_its_hands_do_not_meet_yet(talos, solve):
     spec, plan = solve(talos, [Action(name="clap", params={"repeat": 2})])
     ex = simulate(plan, talos, settings=SimSettings(settle_time=0.2))
     cert = ex.certificate
-    others = [c for c in cert.checks if c.kind is not CheckKind.INTENT_WORDS]
-    assert all(c.ok for c in others), cert.summary()
+    assert cert.ok, cert.summary()
     (meet,) = [c for c in cert.checks if c.kind is CheckKind.INTENT_WORDS]
-    assert not meet.ok and meet.value > MEET_DISTANCE and "the hands never met" in cert.reason
+    assert meet.ok and meet.value <= MEET_DISTANCE
 
     model = talos.model
     gm = talos.collision_model.copy()
@@ -489,16 +573,39 @@ def test_clap_is_executed_but_its_hands_do_not_meet_yet(talos, solve):
         gaps = []
         for n in np.flatnonzero(np.abs(ex.t - clap) <= 0.15)[::10]:
             pin.computeDistances(model, data, gm, gd, ex.q[n])
-            gaps.append(min(r.min_distance for r in gd.distanceResults))
+            gaps.append(max(min(r.min_distance for r in gd.distanceResults), 0.0))
         closest.append(min(gaps))
-    assert min(closest) > MEET_DISTANCE
-    assert meet.value == pytest.approx(max(closest), abs=1e-4)  # the line reports the clap that came least close
+    assert len(closest) == 2 and max(closest) <= MEET_DISTANCE, closest
+    assert meet.value == pytest.approx(max(closest), abs=2e-3)  # the line reports the clap that came least close
 
 
 # --- plans with the self-collision rows on, checked on the URDF meshes ------------------------------
-def _checked_pair_distances(robot, q):
+def _meeting_knots(robot, spec, plan):
+    """Knot -> the checked link pairs a ``meets`` target leaves out there (its links and the met
+    frame's, on their joints or below, over its time or window and 0.15 s around it)."""
+    from robots.collision import collision_model
+
+    model = robot.model
+    link_joint = {model.frames[o.parentFrame].name: o.parentJoint for o in robot.collision_model.geometryObjects}
+    out: dict = {}
+    for t in spec.targets:
+        if t.meets is None:
+            continue
+        ja, jb = (model.frames[robot.frame_id(f)].parentJoint for f in (t.frame, t.meets))
+        sa = set(model.subtrees[ja]) - set(model.supports[jb])
+        sb = set(model.subtrees[jb]) - set(model.supports[ja])
+        pairs = {(a, b) for a, b in collision_model(robot).pairs
+                 if (link_joint[a] in sa and link_joint[b] in sb) or (link_joint[a] in sb and link_joint[b] in sa)}
+        lo, hi = (t.time, t.time) if t.window is None else t.window
+        for k, time in enumerate(plan.t):
+            if lo - 0.15 - 1e-9 <= time <= hi + 0.15 + 1e-9:
+                out.setdefault(k, set()).update(pairs)
+    return out
+
+
+def _checked_pair_distances(robot, q, skip=(), only=None):
     """Smallest coal distance (URDF collision meshes, Pinocchio GeometryModel + computeDistances)
-    of every link pair the planner checks, at configuration ``q`` [m]."""
+    of every link pair the planner checks (but ``skip``; or of ``only``), at configuration ``q`` [m]."""
     from robots.collision import collision_model
 
     gmodel = robot.collision_model.copy()
@@ -506,7 +613,9 @@ def _checked_pair_distances(robot, q):
     for i, obj in enumerate(gmodel.geometryObjects):
         by_link.setdefault(robot.model.frames[obj.parentFrame].name, []).append(i)
     index = []
-    for a, b in collision_model(robot).pairs:
+    for a, b in (collision_model(robot).pairs if only is None else sorted(only)):
+        if (a, b) in skip:
+            continue
         for ia in by_link.get(a, []):
             for ib in by_link.get(b, []):
                 gmodel.addCollisionPair(pin.CollisionPair(ia, ib))
@@ -532,7 +641,9 @@ def _knot_times(t, plan):
 def test_body_touching_gestures_plan_clear_of_the_meshes(talos, solve, name, params):
     """Planned on Talos with the self-collision rows on (the defaults), every hard hand target is
     met within its tolerance, and at every knot no pair the planner checks interpenetrates on the
-    URDF meshes (coal), the closest staying at least the planner's 1 cm margin apart."""
+    URDF meshes (coal), the closest staying at least the planner's 1 cm margin apart, but for the
+    pairs a planned self-contact leaves out (a clap's hands, a hand at the head: ``meets``), whose
+    meshes may touch there and do not intersect."""
     from planner import PlannerSettings
 
     spec, plan = solve(talos, [Action(name=name, params=params)])
@@ -544,8 +655,11 @@ def test_body_touching_gestures_plan_clear_of_the_meshes(talos, solve, name, par
         for time in _knot_times(t, plan):
             err = np.linalg.norm(_hand_at(talos, plan, hands[t.frame], time) - np.array(t.position))
             assert err <= t.tolerance + HARD_SLACK, (t.name, time, err)
-    closest = min(_checked_pair_distances(talos, q) for q in plan.q)
+    meeting = _meeting_knots(talos, spec, plan)  # a clap's hands, a hand at the head: left out there
+    closest = min(_checked_pair_distances(talos, q, skip=meeting.get(k, ())) for k, q in enumerate(plan.q))
     assert closest[0] >= 0.01 - HARD_SLACK, closest
+    for k, pairs in meeting.items():  # where they meet, their meshes do not pass into each other
+        assert _checked_pair_distances(talos, plan.q[k], only=pairs)[0] > 0.0, k
 
 
 def test_sphere_clearance_uses_the_planners_margin():

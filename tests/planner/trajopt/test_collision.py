@@ -306,3 +306,52 @@ def test_settings_validate_the_margin():
         PlannerSettings(collision_rounds=-1)
     assert PlannerSettings().collision_margin == 0.01
 
+
+
+def test_a_planned_self_contact_leaves_the_two_hands_pairs_out_around_it(talos):
+    """A target whose frame ``meets`` another (a clap) exempts exactly the checked pairs between
+    the links on the two hands' joints and below them (Pinocchio's subtrees, independently), on
+    the knots within MEET_PADDING of its time: screening gives them no rows there even when their
+    sphere sets overlap, and rows elsewhere stop short of those knots; the plan's check leaves them
+    out there too."""
+    import dataclasses
+
+    from planner.trajopt.collision import MEET_PADDING, exempt_distances, meet_exemptions
+    from tasks.specs import FrameTarget
+
+    spec = _reach_spec(talos, "reach right with your left hand 40 cm")
+    left, right = talos.frame("left_hand"), talos.frame("right_hand")
+    clap = FrameTarget(name="clap", frame=left, position=(0.3, 0.0, 1.1), time=1.0, meets=right)
+    spec = dataclasses.replace(spec, targets=(*spec.targets, clap))
+    lay = make_layout(spec, talos)
+    sets = sphere_sets(talos)
+    model = talos.model
+
+    def under(frame):
+        return set(model.subtrees[model.frames[talos.frame_id(frame)].parentJoint])
+
+    link_joint = {model.frames[o.parentFrame].name: o.parentJoint for o in talos.collision_model.geometryObjects}
+    want = {i for i, (a, b) in enumerate(sets.pair_names)
+            if {link_joint[a] in under(left), link_joint[b] in under(right)} == {True}
+            or {link_joint[a] in under(right), link_joint[b] in under(left)} == {True}}
+    assert len(want) >= 20  # Talos's grippers: 11 links each
+    ex = meet_exemptions(lay, sets)
+    t = np.asarray(lay.t)
+    k0 = int(np.argmin(np.abs(t - 1.0)))  # the target's knot
+    near = np.abs(t - t[k0]) <= MEET_PADDING + 1e-9
+    assert set(np.flatnonzero(ex.any(axis=0))) == want
+    assert np.array_equal(ex[:, sorted(want)], np.repeat(near[:, None], len(want), axis=1))
+
+    q = np.repeat(talos.q_standing[None], lay.N + 1, axis=0)
+    d = np.full((len(q), len(sets.sa)), 1.0)
+    sizes = np.diff(np.append(sets.starts, len(sets.sa)))
+    pi = min(want)
+    block = slice(sets.starts[pi], sets.starts[pi] + sizes[pi])
+    d[near, block] = -0.01  # the hands' sphere sets overlap only where they meet
+    assert not select(lay, sets, d, 0.03).spheres
+    assert np.isinf(exempt_distances(lay, sets, d)[near, block]).all()
+    k = int(np.flatnonzero(near)[0]) - 1  # and once just before: rows there, padded, but not into the window
+    d[k, block] = -0.01
+    rows = select(lay, sets, d, 0.03)
+    assert list(rows.spheres) == [pi] and k in rows.knots[pi]
+    assert not rows.knots[pi] & set(np.flatnonzero(near).tolist())

@@ -226,8 +226,12 @@ def _frame_pos_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
 
 def _frame_rot_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
     R_t = _target_rotation(term)
-    err = _rotation_error(R_t, kin.frame(term.structure[1]).rotation)
-    return _soft(err, term) if term.structure[-1] == "soft" else err
+    R = kin.frame(term.structure[1]).rotation
+    err = _rotation_error(R_t, R)
+    if term.structure[-1] == "soft":
+        return _soft(err, term)
+    angle = float(np.linalg.norm(pin.log3(R_t.T @ R)))  # a hard target's last row: 1 + 2 cos(angle), >= 1 within 90 deg
+    return np.append(err, 1.0 + 2.0 * np.cos(angle))
 
 
 def _com_pos_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
