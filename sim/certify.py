@@ -516,14 +516,16 @@ def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
 def _stands_on(run: RunRecord, t: float, link: str, obj: str) -> bool:
     """A foot planned to stand on ``obj`` (a phase's contact placed on its walkable top,
     :func:`tasks.surface_at`) around time ``t`` (:data:`TOUCH_PADDING`), and ``link`` is that foot's
-    link or one below it: a step onto a tread is a planned contact with it."""
+    link or one below it: a step onto a tread is a planned contact with it (the last phase's feet
+    stay there after the motion's end)."""
     from tasks import surface_at
 
     spec = run.ref.plan.spec
     model = run.robot.model
     start = 0.0
-    for phase in spec.phases:
-        if start - TOUCH_PADDING <= t <= start + phase.duration + TOUCH_PADDING:
+    for i, phase in enumerate(spec.phases):
+        end = math.inf if i == len(spec.phases) - 1 else start + phase.duration  # the robot stays on it
+        if start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
             for c in phase.contacts:
                 x, y, z = c.placement.position
                 under = surface_at(spec.scene, x, y)
