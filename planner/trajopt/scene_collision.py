@@ -1,7 +1,7 @@
 """Scene collision avoidance: every robot sphere kept a margin away from every scene object.
 
 The robot is the sphere sets of its collision model (:func:`planner.trajopt.collision.sphere_sets`,
-which contain the URDF meshes). An object of the spec's scene (:mod:`tasks.scene`) is a box, a
+which contain the URDF meshes), with its legs' sets cut into slabs (:func:`scene_sets`). An object of the spec's scene (:mod:`tasks.scene`) is a box, a
 cylinder or a sphere; a mesh object is replaced by the box that bounds its vertices. For a robot
 sphere of centre ``c`` and radius ``r`` and an object at ``(p_o, R_o)``, with ``u = R_o^T (c - p_o)``
 its centre in the object frame and ``rho = r + margin``, a ``scene`` row is
@@ -30,8 +30,10 @@ rows only for (sphere, object) pairs within ``settings.collision_screening`` on 
 the margin get rows and the NLP is solved again.
 
 Planned contacts are not collisions: a contact whose placement lies on the top face of an object
-(a foot standing on a box) excludes the spheres of the links on its frame's joint from that object
-while it is active (and :data:`CONTACT_PADDING` knots around); a frame target that touches an object
+(a foot standing on a box) excludes the spheres of the links on its frame's joint (a foot's: its
+whole leg, :func:`supporting_joints`) from that object while it is active (and
+:data:`CONTACT_PADDING` knots around), and a standing foot has no rows at all there
+(:func:`contact_exclusions`); a frame target that touches an object
 (``FrameTarget.touch``) excludes the spheres of its frame's joint and the joints below it from that
 object over the target's knots (and as many around). A grasp (:class:`tasks.specs.Grasp`)
 excludes the spheres of the hand (the links of its frame's joint and below) from the grasped object
