@@ -499,6 +499,8 @@ def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
     frame's link or one below it."""
     model = run.robot.model
     t = float(run.t[tick])
+    if _stands_on(run, t, link, obj):
+        return True
     for target in run.ref.plan.spec.targets:
         if target.touch != obj:
             continue
@@ -508,6 +510,31 @@ def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
         joint = model.frames[run.robot.frame_id(target.frame)].parentJoint
         if model.existFrame(link) and model.frames[model.getFrameId(link)].parentJoint in model.subtrees[joint]:
             return True
+    return False
+
+
+def _stands_on(run: RunRecord, t: float, link: str, obj: str) -> bool:
+    """A foot planned to stand on ``obj`` (a phase's contact placed on its walkable top,
+    :func:`tasks.surface_at`) around time ``t`` (:data:`TOUCH_PADDING`), and ``link`` is that foot's
+    link or one below it: a step onto a tread is a planned contact with it (the last phase's feet
+    stay there after the motion's end)."""
+    from tasks import surface_at
+
+    spec = run.ref.plan.spec
+    model = run.robot.model
+    start = 0.0
+    for i, phase in enumerate(spec.phases):
+        end = math.inf if i == len(spec.phases) - 1 else start + phase.duration  # the robot stays on it
+        if start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
+            for c in phase.contacts:
+                x, y, z = c.placement.position
+                under = surface_at(spec.scene, x, y)
+                if run.robot.foot_side(c.frame) is None or under.name != obj or abs(under.height - z) > 0.01:
+                    continue
+                joint = model.frames[run.robot.frame_id(c.frame)].parentJoint
+                if model.existFrame(link) and model.frames[model.getFrameId(link)].parentJoint in model.subtrees[joint]:
+                    return True
+        start += phase.duration
     return False
 
 

@@ -232,7 +232,12 @@ def contact_event_checks(run: RunRecord, frames: _Frames) -> list[Check]:
         foot = f"{side} foot" if side else frame
         plan_track = frames.plan(frame)
         sim_z = frames.sim(frame)[0][:, 2]
-        floor = float(np.min(sim_z[planned])) if planned.any() else float(sim_z[0])
+        floor: float | np.ndarray = float(np.min(sim_z[planned])) if planned.any() else float(sim_z[0])
+        if plan_track is not None and planned.any():  # on terrain: the height the sole last stood at (plan)
+            last = np.maximum.accumulate(np.where(planned, np.arange(len(planned)), 0))
+            stood = plan_track[0][last, 2]
+            if float(np.ptp(stood)) > 0.01:  # steps up or down: each stance at its own height
+                floor = np.where(planned[last], stood, floor)
         sim_off = debounce(~run.contact_flags[j] & (sim_z > floor + LIFT_CLEARANCE), dt)
         worst: tuple[float, int, str, Label | None] = (0.0, 0, "", None)  # timing error [s], tick, what, label
         low: tuple[float, int, str, Label | None] = (math.inf, 0, "", None)  # rise fraction, tick, what, label

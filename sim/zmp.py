@@ -10,12 +10,18 @@ from __future__ import annotations
 import numpy as np
 
 from planner import Plan
-from planner.trajopt.centroidal.zmp import full_dynamics_wrench, support_excursion, zmp_of_wrenches
+from planner.trajopt.centroidal.zmp import (
+    full_dynamics_wrench,
+    support_excursion,
+    support_heights,
+    zmp_of_wrenches,
+)
 from robots.model import Robot
 
 
 def plan_zmp(robot: Robot, plan: Plan) -> np.ndarray:
-    r"""ZMP of the plan at its knots from the full rigid-body dynamics (flat ground at z = 0).
+    r"""ZMP of the plan at its knots from the full rigid-body dynamics, on the plane of the knot's
+    contacts (their mean height: z = 0 on the floor, :func:`planner.trajopt.centroidal.zmp.support_heights`).
 
     At each knot, inverse dynamics (``pin.rnea`` on the plan's ``q`` with central finite-difference
     velocities and accelerations, :func:`planner.trajopt.centroidal.zmp.full_dynamics_wrench`)
@@ -26,7 +32,10 @@ def plan_zmp(robot: Robot, plan: Plan) -> np.ndarray:
     Returns:
         (T, 2) ZMP per knot [m] (NaN where the contacts would have to pull, :math:`F_z \le 0`).
     """
-    return zmp_of_wrenches(full_dynamics_wrench(robot, plan.q, plan.dt))
+    spec = plan.spec
+    heights = [support_heights([c.placement.position for c in spec.phases[spec.phase_at(float(t))].contacts])
+               for t in plan.t]
+    return zmp_of_wrenches(full_dynamics_wrench(robot, plan.q, plan.dt), np.array(heights))
 
 
 def plan_zmp_excursion(

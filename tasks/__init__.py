@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from tasks.actions import Action
     from tasks.compose import compile_actions, fit_actions
     from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
+    from tasks.terrain import surface_at
 
 _LAZY = {  # public name -> module
     "Action": "tasks.actions",
@@ -41,6 +42,7 @@ _LAZY = {  # public name -> module
     "check_spec_in_scene_for_robot": "tasks.robot_check",
     "compile_actions": "tasks.compose",
     "fit_actions": "tasks.compose",
+    "surface_at": "tasks.terrain",
 }
 
 __all__ = [
@@ -73,6 +75,7 @@ __all__ = [
     "spec_from_json",
     "spec_to_dict",
     "spec_to_json",
+    "surface_at",
 ]
 
 

@@ -57,10 +57,11 @@ def _keyframe_tasks(lay: Layout) -> dict[int, list]:
 
 
 def solve_ik(lay: Layout, knot: int, tasks: list, q0: np.ndarray | None = None,
-             avoid_scene: bool = True) -> np.ndarray | None:
+             avoid_scene: bool = True, iterations: int = IK_ITERATIONS) -> np.ndarray | None:
     """Configuration meeting the contacts at ``knot`` and ``tasks`` (None if it does not converge),
     from ``q0`` (default: the reference posture), its spheres kept clear of the scene's objects
-    (:class:`_SceneRows`) when ``avoid_scene``; when the contacts are not met with them, without."""
+    (:class:`_SceneRows`) when ``avoid_scene``; when the contacts are not met with them, without;
+    at most ``iterations`` Gauss-Newton steps."""
     robot = lay.robot
     model, data = robot.model, robot.data()
     q = np.array(lay.q_ref if q0 is None else q0)
@@ -68,7 +69,7 @@ def solve_ik(lay: Layout, knot: int, tasks: list, q0: np.ndarray | None = None,
     com_xy0 = pin.centerOfMass(model, data, q)[:2].copy()
     contacts = lay.contacts_at[knot]
     scene = _SceneRows(lay, knot if avoid_scene else None)
-    for _ in range(IK_ITERATIONS):
+    for _ in range(iterations):
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         rows, errs = [], []
@@ -113,7 +114,7 @@ def solve_ik(lay: Layout, knot: int, tasks: list, q0: np.ndarray | None = None,
     pin.framesForwardKinematics(model, data, q)
     for fid, (_frame, M) in contacts.items():
         if np.linalg.norm(pin.log6(M.actInv(data.oMf[fid])).vector) > 1e-3:
-            return solve_ik(lay, knot, tasks, q0, avoid_scene=False) if scene.objects else None
+            return solve_ik(lay, knot, tasks, q0, avoid_scene=False, iterations=iterations) if scene.objects else None
     return q
 
 
@@ -124,8 +125,12 @@ class _SceneRows:
     to the whole object (negative inside) and the row ``n^T J_c`` (``n`` its gradient)."""
 
     def __init__(self, lay: Layout, knot: int | None) -> None:
-        from planner.trajopt.collision import sphere_sets
-        from planner.trajopt.scene_collision import contact_exclusions, obstacles, whole_obstacles
+        from planner.trajopt.scene_collision import (
+            contact_exclusions,
+            obstacles,
+            scene_sets,
+            whole_obstacles,
+        )
 
         self.model = lay.robot.model
         spec = lay.spec
@@ -136,7 +141,7 @@ class _SceneRows:
         self.objects = whole_obstacles(spec.scene) if knot is not None and not aimed else []
         if not self.objects:
             return
-        self.sets = sphere_sets(lay.robot)
+        self.sets = scene_sets(lay.robot)
         pieces = obstacles(lay.spec.scene)
         excluded = contact_exclusions(lay, self.sets, pieces)[knot]  # (S, pieces)
         self.allowed = np.array([~excluded[:, [i for i, p in enumerate(pieces) if p.name == ob.name]].any(axis=1)

@@ -1,7 +1,7 @@
 """Scene collision avoidance: every robot sphere kept a margin away from every scene object.
 
 The robot is the sphere sets of its collision model (:func:`planner.trajopt.collision.sphere_sets`,
-which contain the URDF meshes). An object of the spec's scene (:mod:`tasks.scene`) is a box, a
+which contain the URDF meshes), with its legs' sets cut into slabs (:func:`scene_sets`). An object of the spec's scene (:mod:`tasks.scene`) is a box, a
 cylinder or a sphere; a mesh object is replaced by the box that bounds its vertices. For a robot
 sphere of centre ``c`` and radius ``r`` and an object at ``(p_o, R_o)``, with ``u = R_o^T (c - p_o)``
 its centre in the object frame and ``rho = r + margin``, a ``scene`` row is
@@ -30,8 +30,10 @@ rows only for (sphere, object) pairs within ``settings.collision_screening`` on 
 the margin get rows and the NLP is solved again.
 
 Planned contacts are not collisions: a contact whose placement lies on the top face of an object
-(a foot standing on a box) excludes the spheres of the links on its frame's joint from that object
-while it is active (and :data:`CONTACT_PADDING` knots around); a frame target that touches an object
+(a foot standing on a box) excludes the spheres of the links on its frame's joint (a foot's: its
+whole leg, :func:`supporting_joints`) from that object while it is active (and
+:data:`CONTACT_PADDING` knots around), and a standing foot has no rows at all there
+(:func:`contact_exclusions`); a frame target that touches an object
 (``FrameTarget.touch``) excludes the spheres of its frame's joint and the joints below it from that
 object over the target's knots (and as many around). A grasp (:class:`tasks.specs.Grasp`)
 excludes the spheres of the hand (the links of its frame's joint and below) from the grasped object
@@ -45,6 +47,7 @@ both). The floor is not an object.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -58,7 +61,7 @@ from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
-from robots.collision import body_part
+from robots.collision import Capsule, body_part, fit_capsule, link_points
 from robots.model import Robot
 from tasks.scene import Scene, SceneObject, on_top
 
@@ -69,6 +72,7 @@ P_NORM = 32  # even exponent of the box and cylinder rows
 MAX_HALF = 0.15  # [m] longer boxes and cylinders are split into pieces of at most this half extent
 BOUND = {"box": 3.0 ** (1.0 / P_NORM), "cylinder": 2.0 ** (1.0 / P_NORM), "sphere": 1.0}
 CONTACT_PADDING = 2  # knots around an active contact on an object where its link may touch it
+LEG_SLAB = 0.1  # [m] a leg link's scene cover: one capsule per slab of its hull this thick (below)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,8 +237,107 @@ def in_object_frame(ob: Obstacle, world: np.ndarray) -> np.ndarray:
     return (world - ob.position) @ ob.rotation
 
 
+def supporting_joints(robot: Robot, fid: int) -> list[int]:
+    """The joints whose spheres may touch the object a contact on frame ``fid`` stands on: the frame's
+    joint, and for a foot every joint of its leg (the foot's joint and its parents below the root).
+
+    **Why the whole leg:** the object under a flat sole lies below the sole's plane (its top face *is*
+    that plane), and the leg's meshes lie above it (Talos's shin and ankle meshes 7 cm above the
+    sole), so the leg cannot touch the object it stands on; its capsule cover can: Talos's shin
+    capsule reaches 8 mm below the sole and its foot capsule 67 mm. The leg still keeps its margin
+    from every other object (the next riser), and the simulation checks the meshes."""
+    model = robot.model
+    joint = int(model.frames[fid].parentJoint)
+    if robot.foot_side(model.frames[fid].name) is None:
+        return [joint]
+    chain = []
+    while joint > 1:  # joint 1 is the free flyer (the base moves with it)
+        chain.append(joint)
+        joint = int(model.parents[joint])
+    return chain
+
+
+def slab_capsules(points: np.ndarray, slab: float) -> list[tuple[pin.SE3, float, float]]:
+    """(placement, length, radius) of capsules whose union contains the convex hull of ``points``
+    (n, 3): the hull cut across its principal axis into equal slabs at most ``slab`` thick [m], one
+    capsule (:func:`robots.collision.fit_capsule`) around each slab's vertices (the hull's vertices in
+    it and its edges' crossings with the two cutting planes: a capsule is convex, so it then holds
+    the slab)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(points)
+    tri = hull.simplices
+    edges = np.unique(np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [0, 2]]]), axis=1), axis=0)
+    vertices = points[hull.vertices]
+    mean = vertices.mean(axis=0)
+    axis = np.linalg.svd(vertices - mean, full_matrices=False)[2][0]
+    t = (points - mean) @ axis
+    tv = t[hull.vertices]
+    cuts = np.linspace(tv.min(), tv.max(), max(1, math.ceil((tv.max() - tv.min()) / slab - 1e-9)) + 1)
+    ta, tb = t[edges[:, 0]], t[edges[:, 1]]
+    out = []
+    for lo, hi in itertools.pairwise(cuts):
+        parts = [vertices[(tv >= lo - 1e-12) & (tv <= hi + 1e-12)]]
+        for c in (lo, hi):
+            cross = (ta - c) * (tb - c) < 0
+            w = ((c - ta[cross]) / (tb[cross] - ta[cross]))[:, None]
+            parts.append(points[edges[cross, 0]] * (1 - w) + points[edges[cross, 1]] * w)
+        out.append(fit_capsule(np.vstack(parts)))
+    return out
+
+
+_SCENE_SETS: dict[int, tuple[Robot, SphereSets]] = {}
+
+
+def scene_sets(robot: Robot) -> SphereSets:
+    """The spheres kept from scene objects: the links' own sphere sets
+    (:func:`planner.trajopt.collision.sphere_sets`), but for the legs above the feet, whose one or
+    two capsules are cut into slabs :data:`LEG_SLAB` thick (:func:`slab_capsules`).
+
+    **Why:** a link's capsules are fitted for self-collision, and a leg's are wide: Talos's shin is
+    one capsule of 0.127 m radius around the knee's motor housing, reaching 6 cm in front of its
+    meshes at the ankle and 8 mm below the sole, so on stairs the stance shin "touched" the next
+    riser with 8 cm of air between the meshes, and no plan of the climb existed. The slab capsules
+    contain the same meshes (their hull) and follow them: the shin's cover ends 5 cm above the sole
+    and 1 to 2 cm from its meshes' front. The feet keep theirs (the sole stands on objects; a
+    swinging foot clears them by the swing height). Cached per robot object."""
+    hit = _SCENE_SETS.get(id(robot))
+    if hit is not None and hit[0] is robot:
+        return hit[1]
+    sets = sphere_sets(robot)
+    model = robot.model
+    feet = [robot.frame_id(f"{side}_foot") for side in ("left", "right")]
+    legs = {j for fid in feet for j in supporting_joints(robot, fid)} - {int(model.frames[f].parentJoint) for f in feet}
+    points = link_points(robot)
+    owner, local, radius = [], [], []
+    for i, link in enumerate(sets.links[: len(sets.model.links)]):
+        mine = sets.sphere_owner == i
+        joint = int(sets.joints[i])
+        if joint in legs and link in points and len(points[link][1]) >= 8:
+            for M, length, r in slab_capsules(points[link][1], LEG_SLAB):
+                c, rr = Capsule(link, joint, M, length, r).spheres()
+                owner.append(np.full(len(c), i))
+                local.append(c)
+                radius.append(np.full(len(c), rr))
+        else:
+            owner.append(sets.sphere_owner[mine])
+            local.append(sets.sphere_local[mine])
+            radius.append(sets.sphere_radius[mine])
+    out = dataclasses.replace(sets, sphere_owner=np.concatenate(owner), sphere_local=np.vstack(local),
+                              sphere_radius=np.concatenate(radius))
+    _SCENE_SETS[id(robot)] = (robot, out)
+    return out
+
+
 def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np.ndarray:
-    """(N+1, S, O) bool: sphere ``s`` may touch object ``o`` at knot ``k`` (a planned contact on it)."""
+    """(N+1, S, O) bool: sphere ``s`` may touch object ``o`` at knot ``k`` (a planned contact on it).
+
+    A foot in a planned contact carries no rows against any object (and :data:`CONTACT_PADDING`
+    knots around): it stands where its placement puts it, and the placement was checked against
+    every object before planning, on the exact shapes (:func:`tasks.scene.check_spec_in_scene`:
+    its sole corners). Its rows would only ask whether the foot's cover, 3 cm longer than Talos's
+    foot, fits: a sole 5 cm from the next riser of a flight of stairs is 9 mm inside the margin of
+    the rows (their bulge, module docstring), and no plan existed."""
     out = np.zeros((lay.N + 1, len(sets.sphere_radius), len(obs)), dtype=bool)
     scene = lay.spec.scene
     if scene is None:
@@ -248,14 +351,16 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
     for k, active in enumerate(lay.contacts_at):
         for fid, (_frame, M) in active.items():
             where = tuple(M.translation)
+            lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
+            if lay.robot.foot_side(model.frames[fid].name):  # a standing foot is where its placement is
+                out[lo:hi + 1, sphere_joint == model.frames[fid].parentJoint, :] = True
             if where not in supported:
                 supported[where] = [name for name in names if on_top(objects[name], where)]
             if not supported[where]:
                 continue
-            joint = model.frames[fid].parentJoint
-            lo, hi = max(0, k - CONTACT_PADDING), min(lay.N, k + CONTACT_PADDING)
+            mine = np.isin(sphere_joint, supporting_joints(lay.robot, fid))
             for name in supported[where]:
-                out[lo:hi + 1, (sphere_joint == joint)[:, None] & np.isin(np.arange(len(obs)), columns[name])[None, :]] = True
+                out[lo:hi + 1, mine[:, None] & np.isin(np.arange(len(obs)), columns[name])[None, :]] = True
     for grasp in lay.spec.grasps:
         hand = np.isin(sphere_joint, list(model.subtrees[model.frames[lay.robot.frame_id(grasp.frame)].parentJoint]))
         held = np.asarray(lay.t) >= grasp.start - 1e-9
@@ -341,7 +446,7 @@ def scene_rows_of(lay: Layout) -> SceneRows:
     if not obs:
         return rows
     index = {ob.key: i for i, ob in enumerate(obs)}
-    sets = sphere_sets(lay.robot)
+    sets = scene_sets(lay.robot)
     sphere_joint = sets.joints[sets.sphere_owner]
     for t in lay.terms:
         if not isinstance(t, SceneCollisionTerm):
@@ -457,7 +562,7 @@ def add_screened_scene_terms(lay: Layout, settings: PlannerSettings, q0: np.ndar
     obs = obstacles(lay.spec.scene)
     if not obs:
         return SceneRows()
-    sets = sphere_sets(lay.robot)
+    sets = scene_sets(lay.robot)
     rows = select(lay, values(lay, sets, obs, q0, settings.collision_screening) < 1.0)
     set_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision_margin)
     return rows
@@ -470,7 +575,7 @@ def missing_scene_rows(lay: Layout, rows: SceneRows, q: np.ndarray, settings: Pl
     obs = obstacles(lay.spec.scene)
     if not obs:
         return []
-    sets = sphere_sets(lay.robot)
+    sets = scene_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
     violated = values(lay, sets, obs, q, settings.collision_margin - CHECK_TOLERANCE, world) < 1.0
     for oi, spheres in rows.spheres.items():
@@ -511,7 +616,7 @@ def closest(lay: Layout, q: np.ndarray) -> tuple[float, float, str, str]:
     obs = obstacles(lay.spec.scene)
     if not obs:
         return math.inf, 0.0, "", ""
-    sets = sphere_sets(lay.robot)
+    sets = scene_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
     excluded = contact_exclusions(lay, sets, obs)[: len(q)]
     bounds = []  # per piece, the distances of the spheres to its circumscribed ball (T, S), and their min

@@ -56,6 +56,8 @@ LEVEL_TOLERANCE = 1e-3  # [m] every sole corner over the same surface height
 WAYPOINT_TOLERANCE = 0.02  # [m] the swinging sole's lift and descent waypoints
 TOE_CLEARANCE = 0.05  # [m] the sole's front edge at least this far back from a tread's front edge
 LEAD = "right"  # the foot that steps up first
+DOUBLE_SUPPORT = 0.3  # [s] at least, between two steps: the weight moves up (or down) a step onto the other
+#   foot (with talos's 0.15 s the trailing sole slipped 12 mm in MuJoCo as it unloaded, limit 10 mm)
 
 
 def _yaw_of(stance: Stance) -> float:
@@ -177,7 +179,7 @@ def plan_steps(robot: Robot, g: Grounded, count: int | None,
             cur[side] = target
             last = i == len(chain) - 1 and side == OTHER[LEAD]
             segs.append(Segment(name="settle" if last else f"step {i + 1}: double support",
-                                duration=settle if last else prof.double_support_duration,
+                                duration=settle if last else max(prof.double_support_duration, DOUBLE_SUPPORT),
                                 contacts=both(robot, cur), rounding="nearest" if last else "floor"))
     return segs, cur, swings
 

@@ -100,7 +100,8 @@ def test_a_touch_names_an_object_of_the_spec_scene():
 
 def test_the_planner_leaves_out_only_the_touching_hand_and_box_in_the_window(talos):
     """contact_exclusions: the spheres of the right hand's joint and the joints below it (Pinocchio
-    subtree), with the box, on the target's knots (and the padding); nothing else."""
+    subtree), with the box, on the target's knots (and the padding); nothing else but the standing
+    feet (their placements were checked against the scene before planning: no rows while they stand)."""
     from planner.trajopt.collision import sphere_sets
     from planner.trajopt.layout import knots_of, make_layout
     from planner.trajopt.scene_collision import CONTACT_PADDING, contact_exclusions, obstacles
@@ -117,6 +118,10 @@ def test_the_planner_leaves_out_only_the_touching_hand_and_box_in_the_window(tal
     ks = knots_of(lay.t, target.time, target.window, lay.N)
     spheres = {s for s in range(len(sets.sphere_radius)) if int(sets.joints[sets.sphere_owner[s]]) in below}
     assert spheres
+    feet = {int(model.frames[talos.frame_id(f"{side}_foot")].parentJoint) for side in ("left", "right")}
+    standing = np.array([int(sets.joints[o]) in feet for o in sets.sphere_owner])
+    assert out[:, standing].all()  # both feet stand through the whole touch
+    out = out & ~standing[None, :, None]
     knots, sph, _ = np.nonzero(out)
     assert set(sph.tolist()) == spheres
     assert min(knots) == max(0, min(ks) - CONTACT_PADDING) and max(knots) == min(lay.N, max(ks) + CONTACT_PADDING)

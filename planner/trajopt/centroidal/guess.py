@@ -20,9 +20,11 @@ def initial_guess(lay: DynamicLayout) -> np.ndarray:
     about that CoM (the moment rows hold at the guess)."""
     from planner.trajopt.centroidal.momentum import force_moments
     from planner.trajopt.centroidal.nlp import moment_rows
+    from planner.trajopt.centroidal.stepping import stepping_guess
     from planner.trajopt.symbolic import chart_to_configuration
 
-    dq = heading_guess(lay)
+    stepped = stepping_guess(lay)  # a climb: every knot by inverse kinematics (None on a floor)
+    dq = heading_guess(lay) if stepped is None else stepped
     model, data = lay.robot.model, lay.robot.data()
     N = lay.N
     com = np.array([pin.centerOfMass(model, data, chart_to_configuration(model, lay.q_ref, dq[min(k, N - 1)]))

@@ -17,7 +17,6 @@ import pytest
 
 from planner import PlannerSettings, plan
 from planner.trajopt.api import planned_layout
-from planner.trajopt.collision import sphere_sets
 from planner.trajopt.layout import make_layout
 from planner.trajopt.scene_collision import (
     BOUND,
@@ -26,6 +25,7 @@ from planner.trajopt.scene_collision import (
     obstacles,
     row_value,
     scene_rows_of,
+    scene_sets,
     set_scene_terms,
 )
 from planner.trajopt.terms import stage_function
@@ -94,7 +94,7 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
     spec = _spec(talos, "reach forward 30 cm with your right hand", scene)
     lay = make_layout(spec, talos)
     lay.terms = []
-    sets = sphere_sets(talos)
+    sets = scene_sets(talos)
     obs = obstacles(scene)
     arm = [s for s in range(len(sets.sphere_radius))
            if sets.links[sets.sphere_owner[s]].startswith(("arm_right_5", "arm_right_7", "gripper_right_base"))]
@@ -162,7 +162,7 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
         table.objects[0], position=(0.7, 0.05, 0.3), size=(0.7, 1.1, 0.6), rpy=(0.0, 0.0, 0.1)),))
     b = planned_layout(dataclasses.replace(spec, scene=moved), talos, dataclasses.replace(settings, scene_collision=False))
     rows = scene_rows_of(a)
-    set_scene_terms(b, sphere_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
+    set_scene_terms(b, scene_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
     assert a.structure() == b.structure()
     pa = np.concatenate([t.params for t in a.terms if t.kind == "scene"])
     pb = np.concatenate([t.params for t in b.terms if t.kind == "scene"])
@@ -174,13 +174,13 @@ def test_broad_phase_gives_the_values_and_closest_pair_of_every_pair(talos):
     are those of every (sphere, object piece) pair written out (Pinocchio placements, the row function
     and the exact distance on every pair): the bounding-ball broad phase only skips pairs farther than
     asked, near objects (the shapes around the arm) and far ones (a box 5 m away) alike."""
-    from planner.trajopt.scene_collision import closest, exact_distance, values
+    from planner.trajopt.scene_collision import closest, contact_exclusions, exact_distance, values
 
     far = SceneObject(name="far box", shape="box", size=(1.0, 1.0, 1.0), position=(5.0, 0.0, 0.5))
     scene = dataclasses.replace(_shapes_scene(), objects=(*_shapes_scene().objects, far))
     spec = _spec(talos, "reach forward 30 cm with your right hand", scene)
     lay = make_layout(spec, talos)
-    sets = sphere_sets(talos)
+    sets = scene_sets(talos)
     obs = obstacles(scene)
     rng = np.random.default_rng(5)
     q = np.repeat(talos.q_standing[None], 6, axis=0)
@@ -197,6 +197,7 @@ def test_broad_phase_gives_the_values_and_closest_pair_of_every_pair(talos):
         reference = np.stack([row_value(ob.shape, (world - ob.position) @ ob.rotation,
                                         ob.half + (sets.sphere_radius + clearance)[:, None]) / BOUND[ob.shape]
                               for ob in obs], -1)
+        reference[contact_exclusions(lay, sets, obs)[: len(q)]] = np.inf  # the standing feet: no rows
         np.testing.assert_array_equal(values(lay, sets, obs, q, clearance) < 1.0, reference < 1.0)
     assert (reference < 1.0).any() and not (reference[..., -1] < 1.0).any()
     d, time, link, name = closest(lay, q)
