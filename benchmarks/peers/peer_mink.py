@@ -112,6 +112,9 @@ def peer_plan(res, data: dict, clip: Path) -> dict:
     rec = {"frames": frames, "solve_s": float(data["solve_s"]), "load_s": float(data["load_s"]),
            "qp_solves": int(data["iterations"]), "versions": [str(v) for v in data["versions"]],
            "frames_per_s": frames / float(data["solve_s"]) if float(data["solve_s"]) > 0 else None}
+    if "solve_cpu_s" in data:
+        rec["solve_cpu_s"] = float(data["solve_cpu_s"])
+        rec["frames_per_cpu_s"] = frames / rec["solve_cpu_s"] if rec["solve_cpu_s"] > 0 else None
     rec["kinematic"] = _figs(figures(robot, np.asarray(ref.t), q_src, spec, ref))
     plan = _as_plan(robot, spec, ref, q_src, Plan, SolverStats, SolveStatus)
     plan = dataclasses.replace(plan, spec=_own_placements(robot, plan))
@@ -201,16 +204,17 @@ def _row(r: dict) -> list[str]:
     w, m = r.get("wbmp", {}), r.get("mink", {})
     plan, exe = w.get("plan") or {}, w.get("executed") or {}
     kin, mexe = m.get("kinematic") or {}, m.get("executed") or {}
-    status = "error" if "error" in w else ("yes" if w.get("planned") else "no")
+    status = "yes" if w.get("planned") else ("no" if "PlanningFailed" in w.get("error", "PlanningFailed") else "error")
     work = (w.get("plan_s") or 0) + (w.get("certificate_s") or 0)
     return [r["clip"].removesuffix(".bvh"), r["robot"], status, "yes" if w.get("certified") else "no",
             f"{_f(plan.get('foot_skate_mm'))} / {_f(exe.get('foot_skate_mm'))}",
             _f(exe.get("penetration_mm")), _f(exe.get("float_mm")),
             f"{_f(plan.get('tracking_mean_m'), '.3f')} / {_f(plan.get('tracking_max_m'), '.2f')}",
             f"{_f(w.get('plan_s'), '.0f')} + {_f(w.get('certificate_s'), '.0f')}" if "plan_s" in w else "-",
-            _f(w.get("frames") / work if work > 0 and w.get("frames") else None, ".0f"),
+            f"{_f(w.get('frames') / work if work > 0 and w.get('frames') else None, '.0f')} / "
+            f"{_f(w.get('frames') / w['cpu_s'] if w.get('cpu_s') and w.get('frames') else None, '.0f')}",
             # the peer
-            _f(m.get("frames_per_s"), ".0f"),
+            f"{_f(m.get('frames_per_s'), '.0f')} / {_f(m.get('frames_per_cpu_s'), '.0f')}",
             f"{_f(kin.get('foot_skate_mm'))} / {_f(mexe.get('foot_skate_mm'))}",
             f"{_f(kin.get('penetration_mm'))} / {_f(kin.get('float_mm'))}",
             f"{_f(kin.get('tracking_mean_m'), '.3f')} / {_f(kin.get('tracking_max_m'), '.2f')}",
@@ -218,17 +222,29 @@ def _row(r: dict) -> list[str]:
 
 
 HEAD = ["clip", "robot", "planned", "certified", "skate plan / exec [mm]", "penetration exec [mm]",
-        "float exec [mm]", "tracking mean / max (plan) [m]", "plan + certificate [s]", "source frames/s",
-        "mink frames/s", "mink skate IK / exec [mm]", "mink penetration / float (IK) [mm]",
+        "float exec [mm]", "tracking mean / max (plan) [m]", "plan + certificate [s]", "source frames/s (wall / CPU)",
+        "mink frames/s (wall / CPU)", "mink skate IK / exec [mm]", "mink penetration / float (IK) [mm]",
         "mink tracking mean / max [m]", "mink certified"]
 
 
 def markdown(docs: list[dict]) -> str:
     """The results table with medians and the machine (see bench_retarget.py)."""
-    runs = [r for d in docs for r in d["runs"]]
+    merged: dict[tuple[str, str], dict] = {}  # a wbmp-only and a peer-only run of the same clip and robot: one row
+    for r in (r for d in docs for r in d["runs"]):
+        row = merged.setdefault((r["robot"], r["clip"]), {"clip": r["clip"], "robot": r["robot"], "wbmp": {}})
+        for key, value in r.items():
+            if value or key not in row:
+                row[key] = value
+    runs = list(merged.values())
     lines = ["| " + " | ".join(HEAD) + " |", "|" + " --- |" * len(HEAD)]
     lines += ["| " + " | ".join(_row(r)) + " |" for r in runs]
-    out = ["\n".join(lines), ""]
+    out = ["\n".join(lines), "", "Why a motion was not certified (wbmp; the first failed checks, or the planner's diagnosis):", ""]
+    for r in runs:
+        w = r["wbmp"]
+        if w and not w.get("certified"):
+            why = w.get("error") or "; ".join(w.get("certificate_failures") or []) or w.get("diagnosis") or "?"
+            out.append(f"- {r['clip'].removesuffix('.bvh')} on {r['robot']}: {why[:260]}")
+    out.append("")
     for robot in sorted({r["robot"] for r in runs}):
         rs = [r for r in runs if r["robot"] == robot]
         ok = [r for r in rs if r["wbmp"].get("certified")]
@@ -239,11 +255,13 @@ def markdown(docs: list[dict]) -> str:
             return statistics.median(vals) if vals else None
 
         fps = med([r["wbmp"]["frames"] / (r["wbmp"]["plan_s"] + r["wbmp"]["certificate_s"])
-                   for r in rs if r["wbmp"].get("plan_s")])
+                   for r in rs if r["wbmp"].get("certificate_s")])
+        cpu = med([r["wbmp"].get("cpu_s") for r in rs])
         out.append(f"- **{robot}**: wbmp planned {sum(bool(r['wbmp'].get('planned')) for r in rs)} / {len(rs)}, "
                    f"certified {len(ok)} / {len(rs)}; median plan + certificate "
                    f"{_f(med([r['wbmp'].get('plan_s', 0) + r['wbmp'].get('certificate_s', 0) for r in rs if 'plan_s' in r['wbmp']]), '.0f')} s, "
-                   f"median {_f(fps, '.0f')} source frames/s (wall). mink peer: median "
+                   f"median {_f(fps, '.0f')} source frames/s (wall, of the clips simulated), median CPU {_f(cpu, '.0f')} s per clip. "
+                   f"mink peer: median "
                    f"{_f(med([r.get('mink', {}).get('frames_per_s') for r in rs]), '.0f')} frames/s, certified "
                    f"{len(peer)} / {sum('certified' in r.get('mink', {}) for r in rs)}; median skate (IK) "
                    f"{_f(med([(r.get('mink', {}).get('kinematic') or {}).get('foot_skate_mm') for r in rs]))} mm, "
