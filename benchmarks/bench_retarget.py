@@ -52,7 +52,8 @@ MARK = "<!-- bench_retarget -->"
 
 
 def clips_of(folder: Path, only: list[str] | None) -> list[dict]:
-    """The rows of ``folder/clips.csv`` (file, family, start, end), in file order."""
+    """The rows of ``folder/clips.csv`` (file, family, start, end), in file order (``only``: those
+    whose file name holds one of these, in their order)."""
     rows = []
     with (folder / "clips.csv").open(newline="", encoding="utf-8") as f:
         for row in csv.DictReader(f):
@@ -61,6 +62,8 @@ def clips_of(folder: Path, only: list[str] | None) -> list[dict]:
             rows.append({"file": row["file"], "family": row.get("family") or row["file"],
                          "start": float(row["start"]) if row.get("start") else None,
                          "end": float(row["end"]) if row.get("end") else None})
+    if only:  # in the order asked
+        rows.sort(key=lambda r: next(i for i, o in enumerate(only) if o in r["file"]))
     return rows
 
 
