@@ -206,7 +206,9 @@ def _row(r: dict) -> list[str]:
     kin, mexe = m.get("kinematic") or {}, m.get("executed") or {}
     status = "yes" if w.get("planned") else ("no" if "PlanningFailed" in w.get("error", "PlanningFailed") else "error")
     work = (w.get("plan_s") or 0) + (w.get("certificate_s") or 0)
-    return [r["clip"].removesuffix(".bvh"), r["robot"], status, "yes" if w.get("certified") else "no",
+    if not w:  # the peer ran on this clip, wbmp did not (a subset run)
+        status = "not run"
+    return [r["clip"].removesuffix(".bvh"), r["robot"], status, ("yes" if w.get("certified") else "no") if w else "-",
             f"{_f(plan.get('foot_skate_mm'))} / {_f(exe.get('foot_skate_mm'))}",
             _f(exe.get("penetration_mm")), _f(exe.get("float_mm")),
             f"{_f(plan.get('tracking_mean_m'), '.3f')} / {_f(plan.get('tracking_max_m'), '.2f')}",
@@ -246,9 +248,11 @@ def markdown(docs: list[dict]) -> str:
             out.append(f"- {r['clip'].removesuffix('.bvh')} on {r['robot']}: {why[:260]}")
     out.append("")
     for robot in sorted({r["robot"] for r in runs}):
-        rs = [r for r in runs if r["robot"] == robot]
+        everything = [r for r in runs if r["robot"] == robot]
+        rs = [r for r in everything if r["wbmp"]]
         ok = [r for r in rs if r["wbmp"].get("certified")]
-        peer = [r for r in rs if r.get("mink", {}).get("certified")]
+        peers = [r for r in everything if r.get("mink")]
+        peer = [r for r in peers if r["mink"].get("certified")]
 
         def med(vals):
             vals = [v for v in vals if v is not None]
@@ -262,11 +266,11 @@ def markdown(docs: list[dict]) -> str:
                    f"{_f(med([r['wbmp'].get('plan_s', 0) + r['wbmp'].get('certificate_s', 0) for r in rs if 'plan_s' in r['wbmp']]), '.0f')} s, "
                    f"median {_f(fps, '.0f')} source frames/s (wall, of the clips simulated), median CPU {_f(cpu, '.0f')} s per clip. "
                    f"mink peer: median "
-                   f"{_f(med([r.get('mink', {}).get('frames_per_s') for r in rs]), '.0f')} frames/s, certified "
-                   f"{len(peer)} / {sum('certified' in r.get('mink', {}) for r in rs)}; median skate (IK) "
-                   f"{_f(med([(r.get('mink', {}).get('kinematic') or {}).get('foot_skate_mm') for r in rs]))} mm, "
-                   f"penetration {_f(med([(r.get('mink', {}).get('kinematic') or {}).get('penetration_mm') for r in rs]))} mm, "
-                   f"float {_f(med([(r.get('mink', {}).get('kinematic') or {}).get('float_mm') for r in rs]))} mm.")
+                   f"{_f(med([r['mink'].get('frames_per_s') for r in peers]), '.0f')} frames/s (wall), certified "
+                   f"{len(peer)} / {sum('certified' in r['mink'] for r in peers)}; median skate (IK) "
+                   f"{_f(med([(r['mink'].get('kinematic') or {}).get('foot_skate_mm') for r in peers]))} mm, "
+                   f"penetration {_f(med([(r['mink'].get('kinematic') or {}).get('penetration_mm') for r in peers]))} mm, "
+                   f"float {_f(med([(r['mink'].get('kinematic') or {}).get('float_mm') for r in peers]))} mm.")
     m0 = docs[0]["machine"]
     loads = [r.get("load1_before") for r in runs] + [r.get("load1_after") for r in runs]
     loads = [x for x in loads if x is not None]
