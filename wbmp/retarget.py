@@ -186,3 +186,66 @@ def _cached_result(request: RetargetRequest, hit, robot, spec, ref, skeleton: st
 def is_tracking(name: str) -> bool:
     """True for a report line of a tracking target (they are summed up by the figures instead)."""
     return "'track " in name
+
+
+def keypoint_plot(result: RetargetResult) -> Any:
+    """What ``--plot`` draws (:class:`viz.KeypointPlot`): the executed motion's keypoints when
+    simulated, else the plan's, against the scaled source; the same samples the figures are
+    computed from (:func:`tasks.mocap.figures.tracks`), so its largest error is the report's."""
+    import numpy as np
+
+    from tasks.mocap.figures import contact_windows, tracks
+    from viz import KeypointPlot
+
+    robot, ref = result.model(), result.reference
+    motion = result.execution if result.execution is not None else result.plan
+    t, q = np.asarray(motion.t, dtype=float), np.asarray(motion.q)
+    tr = tracks(robot, t, q, ref)
+    sel = tr.inside
+    contact = {}
+    for side in ("left", "right"):
+        on = np.zeros(len(t), dtype=bool)
+        for a, b in contact_windows(result.spec, robot.frame(f"{side}_foot")):
+            on |= (t >= a - 1e-9) & (t <= b + 1e-9)
+        contact[side] = on[sel]
+    which = "executed (MuJoCo)" if result.execution is not None else "plan"
+    title = (f"{Path(str(result.clip_info.get('clip', ''))).name} on {robot.name}: source (scaled, dashed) vs robot {which} "
+             f"(solid)")
+    return KeypointPlot(t=tr.t[sel], robot={r: p[sel] for r, p in tr.robot.items()},
+                        source={r: p[sel] for r, p in tr.source.items()},
+                        error={r: e[sel] for r, e in tr.error.items()},
+                        foot_height={s: c[sel, :, 2].min(axis=1) for s, c in tr.corners.items()},
+                        contact=contact, title=title)
+
+
+def plot_path(option: str, clip: str, others: dict[str, str | None]) -> Path:
+    """The PNG file of ``--plot PNG|DIR`` (in a folder: ``<clip stem>_keypoints.png``), checked
+    before any work; CliError (exit 2) for a path that cannot be written, one that is another
+    output's or input's (``others``: option -> path) or a file name not ending in ``.png``."""
+    import os
+
+    from viz import check_distinct, check_output_dir, check_output_file
+    from wbmp.errors import CliError, ExitCode
+    from wbmp.outputs import output_errors
+
+    name = f"{Path(clip).stem}_keypoints.png"
+    with output_errors():
+        if os.path.isdir(option) or option.endswith(("/", os.sep)):  # noqa: PTH112
+            path = check_output_dir(option.rstrip("/" + os.sep) or "/", "--plot", (name,)) / name
+        else:
+            path = check_output_file(option, "--plot")
+            if path.suffix.lower() != ".png":
+                raise CliError(f"--plot {option!r}: the plot is a PNG: give a file ending in .png or a folder",
+                               ExitCode.USAGE)
+        check_distinct({"--plot": path}, {k: Path(v) for k, v in others.items() if v})
+    return path
+
+
+def write_plot(result: RetargetResult, path: str | Path) -> Path:
+    """Draw :func:`keypoint_plot` of ``result`` into ``path`` (atomically)."""
+    from viz import plot_keypoints
+    from wbmp.outputs import output_errors
+
+    data = keypoint_plot(result)
+    with output_errors():
+        return plot_keypoints(path, data)

@@ -5,11 +5,14 @@
 #   .venv-tsid       pin 4.1.0 (the project's) + tsid 1.10.0 built from source: libtsid has no
 #                    binary wheel, and the tsid binding wheel crashes with pin 4.1, so both are
 #                    compiled here against the installed pin (long: ~40 min on 2 busy cores)
+#   .venv-mink       mink 1.3.0 + the daqp QP solver + MuJoCo 4.0.0 (the project's), for the
+#                    per-frame IK retargeter of benchmarks/bench_retarget.py (MINK_VENV=DIR puts
+#                    it elsewhere; binary wheels only, about a minute)
 #
 # The two cannot share one environment: crocoddyl needs pin 4.0, and TSID should tick on the
 # same pin 4.1 as wbmp's controller for a fair comparison.
 #
-# Usage: bash benchmarks/peers/setup.sh [crocoddyl|tsid|all]   (default: all)
+# Usage: bash benchmarks/peers/setup.sh [crocoddyl|tsid|mink|all]   (default: all)
 # Idempotent: an environment whose imports already work is left alone. CMEEL_JOBS sets the
 # number of compile jobs (default 2); the C++ unit tests are not built (CMEEL_RUN_TESTS=OFF). Exit code 3 when an environment cannot be made.
 set -uo pipefail
@@ -64,13 +67,28 @@ setup_tsid() {
   fi
 }
 
+setup_mink() {
+  local V="${MINK_VENV:-$ROOT/.venv-mink}"
+  if "$V/bin/python" -c "import mink, daqp, mujoco" >/dev/null 2>&1; then
+    echo "mink: $V ready"; return 0
+  fi
+  make_venv "$V" || return 1
+  echo "mink: installing mink 1.3.0, daqp and mujoco 4.0.0 into $V"
+  pipq "$V" "mink==1.3.0" "daqp" "mujoco==4.0.0"
+  "$V/bin/python" -c "import mink, mujoco, qpsolvers
+assert 'daqp' in qpsolvers.available_solvers, qpsolvers.available_solvers
+print('mink ready with mujoco', mujoco.__version__)"
+}
+
 case "$WHAT" in
   crocoddyl) setup_crocoddyl || status=3 ;;
   tsid) setup_tsid || status=3 ;;
+  mink) setup_mink || status=3 ;;
   all)
     setup_crocoddyl || { echo "crocoddyl environment failed" >&2; status=3; }
     setup_tsid || { echo "tsid environment failed" >&2; status=3; }
+    setup_mink || { echo "mink environment failed" >&2; status=3; }
     ;;
-  *) echo "usage: $0 [crocoddyl|tsid|all]" >&2; exit 2 ;;
+  *) echo "usage: $0 [crocoddyl|tsid|mink|all]" >&2; exit 2 ;;
 esac
 exit $status

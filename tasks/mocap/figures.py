@@ -69,8 +69,38 @@ def contact_windows(spec: TaskSpec, frame: str) -> list[tuple[float, float]]:
     return [(float(a), float(b)) for a, b, _ in spans]
 
 
-def figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Reference) -> Figures:
-    """The figures of configurations ``q`` (T, nq) at times ``t`` (T,) [s] retargeting ``ref``."""
+@dataclass(frozen=True, eq=False)
+class Tracks:
+    """The tracked keypoints of a motion beside their scaled source, sample by sample.
+
+    Attributes:
+        t: Sample times (T,) [s].
+        robot: Role -> the robot frame's position (T, 3) [m] (Pinocchio forward kinematics).
+        source: Role -> the scaled source keypoint at the same time (T, 3) [m].
+        error: Role -> their distance (T,) [m]; NaN outside the clip, and for a foot while its
+            labelled contact holds (it tracks its fixed placement then, not the rolling source foot).
+        soles: Foot side -> the sole frame's position (T, 3) [m].
+        corners: Foot side -> the sole's four corners (T, 4, 3) [m].
+        inside: The samples within the clip's span (T,).
+    """
+
+    t: np.ndarray
+    robot: dict[str, np.ndarray]
+    source: dict[str, np.ndarray]
+    error: dict[str, np.ndarray]
+    soles: dict[str, np.ndarray]
+    corners: dict[str, np.ndarray]
+    inside: np.ndarray
+
+    def worst(self) -> tuple[str, int, float]:
+        """(role, sample index, error [m]) of the largest tracking error."""
+        stack = np.array([self.error[r] for r in TRACKED])
+        i_role, i_t = np.unravel_index(np.nanargmax(stack), stack.shape)
+        return TRACKED[int(i_role)], int(i_t), float(stack[i_role, i_t])
+
+
+def tracks(robot: Robot, t: np.ndarray, q: np.ndarray, ref: Reference) -> Tracks:
+    """The tracked keypoints of configurations ``q`` (T, nq) at times ``t`` (T,) [s] and their source."""
     model, data = robot.model, robot.data()
     clip0, clip1 = float(ref.t[0]), float(ref.t[-1])
     fids = {role: robot.frame_id(role) for role in TRACKED}
@@ -87,21 +117,29 @@ def figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Ref
             corners[side][i] = robot.sole_corners_in_world(qi, side)
     inside = (t >= clip0 - 1e-9) & (t <= clip1 + 1e-9)
     frame_of = np.clip(np.round((t - clip0) / (ref.t[1] - ref.t[0])).astype(int), 0, len(ref.t) - 1)
+    source = {role: ref.points[role][frame_of] for role in TRACKED}
     errors: dict[str, np.ndarray] = {}
     for role in TRACKED:
-        err = np.linalg.norm(pos[role] - ref.points[role][frame_of], axis=1)
+        err = np.linalg.norm(pos[role] - source[role], axis=1)
         if role.endswith("_foot"):  # a stance foot tracks its fixed placement, not the rolling source foot
             side = role.split("_")[0]
             err = np.where(ref.contact[side][frame_of], np.nan, err)
         errors[role] = np.where(inside, err, np.nan)
-    stack = np.array([errors[r] for r in TRACKED])
-    i_role, i_t = np.unravel_index(np.nanargmax(stack), stack.shape)
-    worst_role = TRACKED[i_role]
-    p_robot, p_ref = pos[worst_role][i_t], ref.points[worst_role][frame_of[i_t]]
-    d = p_robot - p_ref
+    return Tracks(t=np.asarray(t, dtype=float), robot=pos, source=source, error=errors, soles=soles,
+                  corners=corners, inside=inside)
+
+
+def figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Reference) -> Figures:
+    """The figures of configurations ``q`` (T, nq) at times ``t`` (T,) [s] retargeting ``ref``."""
+    tr = tracks(robot, t, q, ref)
+    clip0, clip1 = float(ref.t[0]), float(ref.t[-1])
+    soles, corners, inside = tr.soles, tr.corners, tr.inside
+    stack = np.array([tr.error[r] for r in TRACKED])
+    worst_role, i_t, worst_err = tr.worst()
+    d = tr.robot[worst_role][i_t] - tr.source[worst_role][i_t]
     axis = int(np.argmax(np.abs(d)))
     words = [("behind", "ahead of"), ("right of", "left of"), ("below", "above")][axis]
-    worst = (f"{worst_role.replace('_', ' ')} {float(stack[i_role, i_t]):.2f} m from the source at {t[i_t]:.2f} s, "
+    worst = (f"{worst_role.replace('_', ' ')} {worst_err:.2f} m from the source at {t[i_t]:.2f} s, "
              f"mostly {abs(d[axis]):.2f} m {words[int(d[axis] > 0)]} it")
     skate = 0.0
     float_ = 0.0
@@ -121,7 +159,7 @@ def figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Ref
     jerk = float(np.abs(np.diff(joints[inside], n=3, axis=0)).mean() / dt**3) if inside.sum() > 3 else 0.0
     return Figures(tracking_mean=float(np.nanmean(stack)), tracking_max=float(np.nanmax(stack)), worst=worst,
                    skate=1000.0 * skate, penetration=1000.0 * max(0.0, -low), float_=1000.0 * max(0.0, float_),
-                   jerk=jerk, per_keypoint={r: _mean(errors[r]) for r in TRACKED}, worst_role=worst_role,
+                   jerk=jerk, per_keypoint={r: _mean(tr.error[r]) for r in TRACKED}, worst_role=worst_role,
                    worst_time=float(t[i_t]))
 
 

@@ -38,6 +38,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "for a skeleton wbmp does not recognise")
     p.add_argument("--out", metavar="FILE.npz", default=None, help="write the motion file (.npz) here")
     p.add_argument("--html", metavar="FILE", default=None, help="write a standalone HTML replay here")
+    p.add_argument("--plot", metavar="PNG|DIR", default=None,
+                   help="write a PNG of the source's (scaled) keypoints against the robot's (executed, or the "
+                        "plan's with --no-sim) over time, per body, with the tracking error and the feet's "
+                        "height over their labelled contacts (in a folder: CLIP_keypoints.png)")
     p.add_argument("--no-sim", action="store_true", help="skip the MuJoCo simulation check")
     p.add_argument("--no-cache", action="store_true",
                    help="neither read nor write the motion cache (by default a repeat of the same clip, window, "
@@ -63,18 +67,23 @@ def run(args: argparse.Namespace) -> int:
 
     from viz.progress import make_progress
     from wbmp.outputs import check_outputs, write_outputs
-    from wbmp.retarget import RetargetRequest, retarget
+    from wbmp.retarget import RetargetRequest, plot_path, retarget, write_plot
 
     if args.start is not None and args.end is not None and args.end <= args.start:
         raise CliError(f"--end {args.end:g} s must be after --start {args.start:g} s", ExitCode.USAGE)
     check_outputs(out=args.out, html=args.html,
                   inputs={"clip": args.clip, "--skeleton": args.skeleton,
                           "--robot": args.robot if os.path.isfile(args.robot) else None})  # noqa: PTH113
+    plot = None if args.plot is None else plot_path(
+        args.plot, args.clip, {"clip": args.clip, "--skeleton": args.skeleton, "--out": args.out, "--html": args.html})
     progress = make_progress(quiet=args.quiet, json_lines=args.json)
     request = RetargetRequest(clip=args.clip, robot=args.robot, start=args.start, end=args.end,
                               skeleton=args.skeleton, simulate=not args.no_sim)
     result = retarget(request, progress, cache=not args.no_cache)
     written = write_outputs(result, out=args.out, html=args.html, progress=progress)
+    if plot is not None:
+        progress(f"writing {plot}")
+        written["plot"] = str(write_plot(result, plot))
     print_result(result, written, as_json=args.json)
     return int(result.exit_code)
 
