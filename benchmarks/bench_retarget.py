@@ -7,7 +7,7 @@ background with ``nice``)::
     nice .venv/bin/python benchmarks/bench_retarget.py --robots g1 --out benchmarks/results/retarget_g1.json
     .venv/bin/python benchmarks/bench_retarget.py --table benchmarks/results/retarget_*.json --docs docs/retarget.md
 
-For each clip of ``clips.csv`` (``--clips DIR``, default ``../shared/mocap``; its ``start``/``end``
+For each clip of ``clips.csv`` (``--clips DIR``, default ``examples/motions``, five of the 13 CMU clips; its ``start``/``end``
 columns when it has them, else the whole clip) and robot:
 
 * **wbmp**: :func:`wbmp.retarget.retarget` (no motion cache): planned (the plan's constraint report
@@ -46,7 +46,7 @@ sys.path.insert(0, str(ROOT / "benchmarks" / "peers"))
 
 from common import machine_info  # noqa: E402
 
-DEFAULT_CLIPS = ROOT.parent / "shared" / "mocap"
+DEFAULT_CLIPS = ROOT / "examples" / "motions"  # five of the 13 CMU clips; --clips DIR for all 13
 MINK_VENV = Path(os.environ.get("MINK_VENV", ROOT / ".venv-mink"))
 MARK = "<!-- bench_retarget -->"
 
