@@ -490,14 +490,8 @@ class WholeBodyController:
                     self._anchor_pos[i] = hom[i, :3, 3]  # the sole is held where it touched down
                     self._anchor_rot[i] = hom[i, :3, :3]
             self._set_active(active, pattern, ref)
-        if self._mom_rows is not None and self._near_flight[k] != self._mom_near:
-            self._mom_near = bool(self._near_flight[k])
-            w_mom = self.settings.flight_momentum_weight if self._mom_near else self.settings.momentum_weight
-            self._w_rows[self._mom_rows] = np.sqrt(w_mom)
-        if self._near_any_flight[k] != self._com_near:
-            self._com_near = bool(self._near_any_flight[k])
-            w_com = self.settings.flight_com_weight if self._com_near else self.settings.com_weight
-            self._w_rows[:3] = np.sqrt(w_com)
+        if self._near_flight[k] != self._mom_near or self._near_any_flight[k] != self._com_near:
+            self._flight_weights(k)
         q_ref = ref.q[k]
         dq_post = self._dq_post
         if not self._simple_joints:
@@ -575,6 +569,17 @@ class WholeBodyController:
         self._last_rots = rots.copy()
         self.last = TickInfo(ok, iterations, status)
         return tau
+
+    def _flight_weights(self, k: int) -> None:
+        """The momentum rows' and the CoM rows' weights at sample ``k`` (near a flight or not)."""
+        s = self.settings
+        if self._near_flight[k] != self._mom_near:
+            self._mom_near = bool(self._near_flight[k])
+            if self._mom_rows is not None:
+                self._w_rows[self._mom_rows] = np.sqrt(s.flight_momentum_weight if self._mom_near else s.momentum_weight)
+        if self._near_any_flight[k] != self._com_near:
+            self._com_near = bool(self._near_any_flight[k])
+            self._w_rows[:3] = np.sqrt(s.flight_com_weight if self._com_near else s.com_weight)
 
     def _touchdown(self, k: int, landing: tuple[int, int], v: np.ndarray, pattern: int) -> int:
         """The contact pattern of flight sample ``k``: a sole that lands before the planned
