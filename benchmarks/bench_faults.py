@@ -7,8 +7,11 @@ Three studies, each printed as a Markdown table (docs/safety.md holds the result
   response (stand or damp) and the joint speeds at the end. Target: >= 95 % standing.
 * ``--target``: every bench motion (``wbmp bench``'s task classes) with a 20 N s push on the base at
   mid-motion and the floor friction times 0.7: PASS or FAIL of the certificate.
-* ``--bisect``: for each bench motion on each ``--robots``, the largest push impulse at mid-motion
-  (bisection, ``--steps`` steps between 0 and ``--max-impulse`` N s) whose certificate passes.
+* ``--bisect``: for each bench motion on each ``--robots`` and each fault kind of ``--kinds``
+  (:data:`KINDS`: a push at mid-motion forward, backward, left or right, 0-80 N s; the floor's
+  friction, x 1 down to x 0.05; the base's mass, x 1 up to x 3; a control delay, 0-32 ticks; joint
+  angle noise, 0-0.04 rad), the worst fault whose certificate passes: the range's worst end first,
+  then ``--steps`` halvings (the delay: down to one tick).
 
 The plans come from the motion cache (``wbmp solve`` stores them) or are planned once, without
 simulation; each simulation is a new :func:`sim.simulate` with its faults.
@@ -17,7 +20,8 @@ Usage::
 
     .venv/bin/python benchmarks/bench_faults.py --stops 40
     .venv/bin/python benchmarks/bench_faults.py --target --tasks squat,wave,reach,bow
-    .venv/bin/python benchmarks/bench_faults.py --bisect --robots talos,g1 --tasks squat,wave --steps 5
+    .venv/bin/python benchmarks/bench_faults.py --bisect --robots talos,g1 --tasks squat,wave \
+        --kinds push-forward,friction --steps 4 --log rows.jsonl
 """
 
 from __future__ import annotations
@@ -26,6 +30,9 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,12 +78,17 @@ def study_stops(n: int, seed: int, robot_name: str) -> dict:
     return {"sentence": DEMO_SENTENCE, "robot": robot_name, "seed": seed, "rows": rows, "standing": up}
 
 
+def _run(robot, plan, faults: dict) -> tuple[bool, str]:
+    """(the certificate passed, its reason) of one simulation with ``faults`` (a faults file's dict)."""
+    ex = simulate(plan, robot, faults=faults_from_dict(faults) if faults else None)
+    return ex.ok, ex.certificate.reason if ex.certificate is not None else ""
+
+
 def _survives(robot, plan, impulse: float, friction: float = 1.0) -> tuple[bool, str]:
-    faults = {"friction_scale": friction}
+    faults: dict = {"friction_scale": friction}
     if impulse > 0:
         faults["pushes"] = [{"t": 0.5 * float(plan.t[-1]), "impulse": impulse, "direction": [1, 0, 0]}]
-    ex = simulate(plan, robot, faults=faults_from_dict(faults))
-    return ex.ok, ex.certificate.reason
+    return _run(robot, plan, faults)
 
 
 def study_target(tasks: list[str], robot_name: str) -> dict:
@@ -91,29 +103,96 @@ def study_target(tasks: list[str], robot_name: str) -> dict:
     return {"robot": robot_name, "rows": rows}
 
 
-def study_bisect(tasks: list[str], robots: list[str], steps: int, top: float) -> dict:
-    """The largest push at mid-motion each motion survives."""
-    rows = []
-    print("\n| motion | robot | largest push survived [N s] | first failure [N s] | its reason |\n"
-          "| --- | --- | --- | --- | --- |")
+@dataclass(frozen=True)
+class Kind:
+    """A fault kind the bisection searches: its faults at a severity, and the severity's range.
+
+    ``severity`` runs from ``start`` (no fault, or the mildest) to ``stop`` (the worst tried); a
+    motion that survives a severity is assumed to survive every milder one.
+    """
+
+    name: str
+    unit: str
+    start: float
+    stop: float
+    faults: Callable[[float, float], dict]  # (severity, mid-motion time) -> the faults file
+    integer: bool = False
+    fmt: str = "{:.1f}"
+
+
+def _push(direction: tuple[float, float, float]) -> Callable[[float, float], dict]:
+    def faults(impulse: float, t_mid: float) -> dict:
+        return {"pushes": [{"t": t_mid, "impulse": impulse, "direction": list(direction)}]} if impulse > 0 else {}
+    return faults
+
+
+#: The fault kinds of ``--bisect`` (``--kinds``); push directions in the world, which is the robot's
+#: frame at the start of every bench motion (it starts facing +x).
+KINDS: dict[str, Kind] = {k.name: k for k in (
+    Kind("push-forward", "N s", 0.0, 80.0, _push((1.0, 0.0, 0.0))),
+    Kind("push-backward", "N s", 0.0, 80.0, _push((-1.0, 0.0, 0.0))),
+    Kind("push-left", "N s", 0.0, 80.0, _push((0.0, 1.0, 0.0))),
+    Kind("push-right", "N s", 0.0, 80.0, _push((0.0, -1.0, 0.0))),
+    Kind("friction", "x mu", 1.0, 0.05, lambda f, _t: {"friction_scale": f}, fmt="{:.2f}"),
+    Kind("base-mass", "x mass", 1.0, 3.0, lambda m, _t: {"mass_scale": {"base": m}}, fmt="{:.2f}"),
+    Kind("delay", "ticks", 0.0, 32.0, lambda d, _t: {"delay_ticks": int(d)}, integer=True, fmt="{:.0f}"),
+    Kind("joint-noise", "rad", 0.0, 0.04, lambda s, _t: {"joint_noise": s}, fmt="{:.4f}"),
+)}
+
+
+def _bisect(kind: Kind, steps: int, passes: Callable[[float], tuple[bool, str]]) -> tuple[float, float | None, str]:
+    """(the worst severity that passed, the mildest that failed or None, its reason), in ``steps``
+    halvings of [start, stop] (integer kinds: until the two are neighbours)."""
+    ok, why = passes(kind.stop)
+    if ok:
+        return kind.stop, None, ""
+    good, bad = kind.start, kind.stop
+    for _ in range(steps if not kind.integer else 64):
+        if kind.integer and abs(bad - good) <= 1:
+            break
+        mid = 0.5 * (good + bad)
+        if kind.integer:
+            mid = float(round(mid))
+        ok, reason = passes(mid)
+        if ok:
+            good = mid
+        else:
+            bad, why = mid, reason
+    return good, bad, why
+
+
+def _run_kind(robot, plan, kind: Kind, t_mid: float, severity: float) -> tuple[bool, str]:
+    return _run(robot, plan, kind.faults(severity, t_mid))
+
+
+def study_bisect(tasks: list[str], robots: list[str], kinds: list[str], steps: int, log: Path | None) -> dict:
+    """For each motion, robot and fault kind, the worst fault whose certificate passes (the worst
+    of the range is tried first: a motion that survives it needs no bisection)."""
+    rows: list[dict] = []
+    print("\n| motion | robot | fault | survives | fails | unit | its reason |\n| --- | --- | --- | --- | --- | --- | --- |")
     for robot_name in robots:
         for task in tasks:
             robot, plan = _plan(TASKS[task], robot_name)
-            ok0, why0 = _survives(robot, plan, 0.0)
+            t_mid = 0.5 * float(plan.t[-1])
+            ok0, why0 = _run(robot, plan, {})
             if not ok0:
-                rows.append({"task": task, "robot": robot_name, "survived": None, "failed": 0.0, "reason": why0})
-                print(f"| {task} | {robot_name} | (fails without a push) | 0 | {why0[:80]} |", flush=True)
+                rows.append({"task": task, "robot": robot_name, "kind": None, "survived": None, "failed": None,
+                             "reason": why0})
+                print(f"| {task} | {robot_name} | (fails without a fault) | | | | {why0[:80]} |", flush=True)
                 continue
-            lo, hi, why = 0.0, top, ""
-            for _ in range(steps):
-                mid = 0.5 * (lo + hi)
-                ok, reason = _survives(robot, plan, mid)
-                if ok:
-                    lo = mid
-                else:
-                    hi, why = mid, reason
-            rows.append({"task": task, "robot": robot_name, "survived": lo, "failed": hi, "reason": why})
-            print(f"| {task} | {robot_name} | {lo:.1f} | {hi:.1f} | {why[:80]} |", flush=True)
+            for name in kinds:
+                kind = KINDS[name]
+                t0 = time.perf_counter()
+                good, bad, why = _bisect(kind, steps, partial(_run_kind, robot, plan, kind, t_mid))
+                row = {"task": task, "robot": robot_name, "kind": name, "unit": kind.unit, "survived": good,
+                       "failed": bad, "reason": why, "wall_s": time.perf_counter() - t0}
+                rows.append(row)
+                shown = kind.fmt.format(good) + ("" if bad is not None else " (the range's end)")
+                print(f"| {task} | {robot_name} | {name} | {shown} | "
+                      f"{'-' if bad is None else kind.fmt.format(bad)} | {kind.unit} | {why[:80]} |", flush=True)
+                if log is not None:
+                    with log.open("a") as fh:
+                        fh.write(json.dumps(row) + "\n")
     return {"rows": rows}
 
 
@@ -125,8 +204,9 @@ def main() -> int:
     p.add_argument("--bisect", action="store_true", help="the largest push each motion survives")
     p.add_argument("--robots", default="talos", help="comma-separated robots (default talos)")
     p.add_argument("--tasks", default=",".join(TASKS), help=f"comma-separated task classes (default {','.join(TASKS)})")
-    p.add_argument("--steps", type=int, default=5, help="bisection steps (default 5)")
-    p.add_argument("--max-impulse", type=float, default=80.0, help="bisection upper bound [N s] (default 80)")
+    p.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated fault kinds of --bisect (default {','.join(KINDS)})")
+    p.add_argument("--steps", type=int, default=4, help="bisection steps (default 4)")
+    p.add_argument("--log", metavar="FILE", help="append each --bisect row to this JSON-lines file as it is found")
     p.add_argument("--json", metavar="FILE", help="write the results here")
     args = p.parse_args()
     tasks = [t for t in args.tasks.split(",") if t]
@@ -134,13 +214,17 @@ def main() -> int:
     if unknown:
         p.error(f"unknown task {unknown[0]!r}; the tasks are {', '.join(TASKS)}")
     robots = [r for r in args.robots.split(",") if r]
+    kinds = [k for k in args.kinds.split(",") if k]
+    bad_kinds = [k for k in kinds if k not in KINDS]
+    if bad_kinds:
+        p.error(f"unknown fault kind {bad_kinds[0]!r}; the kinds are {', '.join(KINDS)}")
     out: dict = {}
     if args.stops:
         out["stops"] = study_stops(args.stops, args.seed, robots[0])
     if args.target:
         out["target"] = study_target(tasks, robots[0])
     if args.bisect:
-        out["bisect"] = study_bisect(tasks, robots, args.steps, args.max_impulse)
+        out["bisect"] = study_bisect(tasks, robots, kinds, args.steps, Path(args.log) if args.log else None)
     if not out:
         p.error("choose a study: --stops N, --target or --bisect")
     if args.json:

@@ -71,6 +71,17 @@ def _flight_landings(active: np.ndarray) -> dict[int, tuple[int, int]]:
     return out
 
 
+def _flight_window(active: np.ndarray, span: int) -> np.ndarray:
+    """Samples (n,) within ``span`` samples of a flight (no active contact, between two stances):
+    from ``span`` before its first sample to ``span`` after its touch-down sample."""
+    flags = np.asarray(active, dtype=bool)
+    air = [bool(flags.shape[1]) and not row.any() for row in flags]
+    out = np.zeros(len(flags), dtype=bool)
+    for a, touch in flight_spans(air):
+        out[max(a - span, 0) : touch + span + 1] = True
+    return out
+
+
 class TickInfo(NamedTuple):
     """What the last tick did.
 
@@ -287,6 +298,10 @@ class WholeBodyController:
                 self._near_flight[max(a - span, 0) : touch + span + 1] = True
                 self._travel_flight[a:touch] = True
         self._mom_near: bool | None = None
+        # every flight (a jump, a hop): FLIGHT_WINDOW before it and after its touch-down, the CoM rows
+        # weigh flight_com_weight (the push-off and the landing follow the plan's momentum, not the CoM)
+        self._near_any_flight = _flight_window(ref.active, span)
+        self._com_near: bool | None = None
         self._tick_k = 0
 
     def _build_qp(self, ref: PlanReference) -> None:
@@ -401,6 +416,7 @@ class WholeBodyController:
         self._feedforward = (self._ref_acc + self._kd_rows * self._ref_vel) * mask
         self._w_rows = np.where(on, 0.0, w_task)
         self._mom_near = None  # the momentum weight is set by the tick (_momentum_window)
+        self._com_near = None  # and the CoM weight
         self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
@@ -474,10 +490,8 @@ class WholeBodyController:
                     self._anchor_pos[i] = hom[i, :3, 3]  # the sole is held where it touched down
                     self._anchor_rot[i] = hom[i, :3, :3]
             self._set_active(active, pattern, ref)
-        if self._mom_rows is not None and self._near_flight[k] != self._mom_near:
-            self._mom_near = bool(self._near_flight[k])
-            w_mom = self.settings.flight_momentum_weight if self._mom_near else self.settings.momentum_weight
-            self._w_rows[self._mom_rows] = np.sqrt(w_mom)
+        if self._near_flight[k] != self._mom_near or self._near_any_flight[k] != self._com_near:
+            self._flight_weights(k)
         q_ref = ref.q[k]
         dq_post = self._dq_post
         if not self._simple_joints:
@@ -555,6 +569,17 @@ class WholeBodyController:
         self._last_rots = rots.copy()
         self.last = TickInfo(ok, iterations, status)
         return tau
+
+    def _flight_weights(self, k: int) -> None:
+        """The momentum rows' and the CoM rows' weights at sample ``k`` (near a flight or not)."""
+        s = self.settings
+        if self._near_flight[k] != self._mom_near:
+            self._mom_near = bool(self._near_flight[k])
+            if self._mom_rows is not None:
+                self._w_rows[self._mom_rows] = np.sqrt(s.flight_momentum_weight if self._mom_near else s.momentum_weight)
+        if self._near_any_flight[k] != self._com_near:
+            self._com_near = bool(self._near_any_flight[k])
+            self._w_rows[:3] = np.sqrt(s.flight_com_weight if self._com_near else s.com_weight)
 
     def _touchdown(self, k: int, landing: tuple[int, int], v: np.ndarray, pattern: int) -> int:
         """The contact pattern of flight sample ``k``: a sole that lands before the planned

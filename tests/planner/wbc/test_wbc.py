@@ -187,3 +187,19 @@ def test_flight_landings_map_each_flight_sample_to_its_touchdown():
     active = np.array([[1, 1], [0, 1], [0, 0], [0, 0], [0, 1], [1, 1], [0, 0], [0, 0]], dtype=bool)
     assert _flight_landings(active) == {2: (2, 4), 3: (2, 4)}
     assert _flight_landings(np.zeros((3, 0), dtype=bool)) == {}
+
+
+def test_flight_window_weighs_the_com_as_flight_com_weight_around_each_flight(g1):
+    """The window of flight_com_weight: from `span` samples before a flight to `span` after its
+    touch-down (none without a flight); away from flights a tick weighs the CoM rows com_weight."""
+    from planner.wbc.controller import _flight_window
+
+    active = np.array([[1, 1]] * 5 + [[0, 0]] * 3 + [[1, 1]] * 6 + [[0, 1]] * 2, dtype=bool)
+    window = _flight_window(active, 2)
+    np.testing.assert_array_equal(np.flatnonzero(window), np.arange(3, 11))  # 5-2 .. touch-down 8 + 2
+    assert not _flight_window(active[:, :0], 2).any() and not _flight_window(active[:5], 2).any()
+    plan = standing_plan(g1, duration=0.2)
+    for w in (50.0, 7.0):
+        ctrl = WholeBodyController(g1, WbcSettings(com_weight=w, flight_com_weight=3.0))
+        ctrl.compute(0.0, plan.q[0], np.zeros(g1.nv), plan)
+        np.testing.assert_allclose(ctrl._w_rows[:3], np.sqrt(w))
