@@ -318,6 +318,8 @@ def _hands_touch_cached(robot: Robot, left: tuple, right: tuple, gap: float) -> 
     inward = (pr - pl) / np.linalg.norm(pr - pl)
     for _ in range(MEET_ROUNDS):
         d = posed_hands_distance(robot, arm_configuration(robot, {"left": pl, "right": pr}, natural=True))
+        if not np.isfinite(d):  # a hand without collision meshes: the points as given
+            break
         step = 0.5 * (d - gap)
         if abs(step) <= 0.25 * APPROACH_TOLERANCE:
             break
@@ -335,14 +337,21 @@ def hands_touch(robot: Robot, left_point, right_point, gap: float = MEET_GAP) ->
 
 
 @functools.cache
-def _approach_cached(robot: Robot, side: str, point: tuple, u: tuple, role: str, gap: float) -> tuple:
+def _approach_cached(robot: Robot, side: str, point: tuple, u: tuple, role: str, gap: float) -> tuple | None:
+    """The approached point, or None when the posed hand does not come within ``gap`` of the part
+    before moving ``MAX_APPROACH`` (an arm too short for it, icub's for its head; no meshes)."""
     p, u_ = np.array(point), np.array(u)
+    start = p.copy()
     for _ in range(MEET_ROUNDS):
         d = posed_hands_distance(robot, arm_configuration(robot, {side: p}, natural=True), role, side)
+        if not np.isfinite(d):
+            return None
         step = min(d - gap, MAX_APPROACH)
         if abs(step) <= 0.25 * APPROACH_TOLERANCE:
-            break
+            return tuple(p)
         p = p - 0.7 * step * u_
+        if float(np.dot(start - p, u_)) > MAX_APPROACH:
+            return None
     return tuple(p)
 
 
@@ -351,8 +360,10 @@ def approach_posed(robot: Robot, side: str, point, u, role: str, gap: float) -> 
     posed there (:func:`arm_configuration`, the other arm standing), that hand's meshes are ``gap``
     from the ``role`` frame's (the head's; coal): a salute, a touch. The planner leaves that pair
     out there (``FrameTarget.meets``)."""
-    return np.array(_approach_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u), role,
-                                     float(gap)))
+    found = _approach_cached(robot, side, tuple(float(x) for x in point), tuple(float(x) for x in u), role, float(gap))
+    if found is None:  # the arm does not bring the hand there: the standing hand stopped short, as for any part
+        return stop_short(robot, side, point, u, (side,))
+    return np.array(found)
 
 
 def obstacles_for(robot: Robot, moving: tuple[str, ...]) -> tuple[int, ...]:
