@@ -215,6 +215,23 @@ def _phase_label(run: RunRecord, t: float) -> Label | None:
     return label_of(spec.phases[spec.phase_at(t)].name)
 
 
+def _stance_floor(planned: np.ndarray, plan_z: np.ndarray, floor: float) -> float | np.ndarray:
+    """The floor a sole's rise is measured from: ``floor`` (the lowest simulated stance height) on
+    one level; on steps (planned stances whose median heights differ by more than 1 cm), per tick
+    the median planned height of the stance it last stood in. Each stance's median, not its every
+    tick: the plan's sole, interpolated between knots, is already rising on a stance's last ticks
+    before a short flight (a g1 hop's 2-knot flight: 1.8 cm)."""
+    runs = _runs(planned)
+    heights = [float(np.median(plan_z[a:b])) for a, b in runs]
+    if max(heights) - min(heights) <= 0.01:
+        return floor
+    out = np.full(len(planned), floor, dtype=float)
+    starts = [a for a, _ in runs]
+    for a, nxt, h in zip(starts, [*starts[1:], len(planned)], heights, strict=True):
+        out[a:nxt] = h  # from a stance's first tick to the next stance's
+    return out
+
+
 def contact_event_checks(run: RunRecord, frames: _Frames) -> list[Check]:
     """Per sole with planned swings: each lift-off and touch-down within :data:`EVENT_TOLERANCE` of
     the plan's, and the sole's rise at least :data:`AMPLITUDE_FRACTION` of the planned one."""
@@ -232,12 +249,10 @@ def contact_event_checks(run: RunRecord, frames: _Frames) -> list[Check]:
         foot = f"{side} foot" if side else frame
         plan_track = frames.plan(frame)
         sim_z = frames.sim(frame)[0][:, 2]
-        floor: float | np.ndarray = float(np.min(sim_z[planned])) if planned.any() else float(sim_z[0])
+        lowest = float(np.min(sim_z[planned])) if planned.any() else float(sim_z[0])
+        floor: float | np.ndarray = lowest
         if plan_track is not None and planned.any():  # on terrain: the height the sole last stood at (plan)
-            last = np.maximum.accumulate(np.where(planned, np.arange(len(planned)), 0))
-            stood = plan_track[0][last, 2]
-            if float(np.ptp(stood)) > 0.01:  # steps up or down: each stance at its own height
-                floor = np.where(planned[last], stood, floor)
+            floor = _stance_floor(planned, plan_track[0][:, 2], lowest)
         sim_off = debounce(~run.contact_flags[j] & (sim_z > floor + LIFT_CLEARANCE), dt)
         worst: tuple[float, int, str, Label | None] = (0.0, 0, "", None)  # timing error [s], tick, what, label
         low: tuple[float, int, str, Label | None] = (math.inf, 0, "", None)  # rise fraction, tick, what, label
