@@ -237,12 +237,7 @@ def joint_plan(
     bump = smooth_bump(duration)
     draft = ik_plan(robot, duration=duration, dt=dt, name=name)  # standing: its spec and timing
     qs = np.array([pin.interpolate(model, robot.q_standing, goal, bump(t)) for t in draft.t])
-    n = len(qs)
-    vs = np.zeros((n, model.nv))
-    for k in range(1, n - 1):
-        vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
-    acc = np.zeros((n, model.nv))
-    acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
+    vs, acc = central_differences(model, qs, dt)
     data = robot.data()
     coms = np.array([pin.centerOfMass(model, data, q) for q in qs])
     return dataclasses.replace(draft, q=qs, v=vs, a=acc, com=coms)
@@ -362,3 +357,16 @@ def feet_apart_plan(
         com_offset=lambda t: np.array([0.0, -0.5 * distance * ramp(t), 0.0]),
         name="feet apart",
     )
+
+
+def central_differences(model: pin.Model, qs: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities and accelerations of configurations ``qs`` (n, nq) sampled every ``dt`` [s] by
+    central differences on the configuration manifold (``pin.difference``); zero at both ends (a
+    motion from and to rest)."""
+    n = len(qs)
+    vs = np.zeros((n, model.nv))
+    for k in range(1, n - 1):
+        vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
+    acc = np.zeros((n, model.nv))
+    acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
+    return vs, acc

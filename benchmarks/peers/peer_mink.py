@@ -170,6 +170,8 @@ def _smooth(x: float) -> float:
 
 def _as_plan(robot, spec, ref, q_src: np.ndarray, Plan, SolverStats, SolveStatus):
     """The peer's configurations as a plan on the spec's horizon (see the module)."""
+    from sim.handmade import central_differences
+
     model = robot.model
     dt = float(ref.t[1] - ref.t[0])
     lead = float(ref.t[0])
@@ -181,12 +183,7 @@ def _as_plan(robot, spec, ref, q_src: np.ndarray, Plan, SolverStats, SolveStatus
             qs[k] = pin.interpolate(model, q_stand, q_src[0], _smooth(tk / lead))
         else:
             qs[k] = q_src[min(int(round((tk - lead) / dt)), len(q_src) - 1)]
-    n = len(qs)
-    vs = np.zeros((n, model.nv))
-    for k in range(1, n - 1):
-        vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
-    acc = np.zeros((n, model.nv))
-    acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
+    vs, acc = central_differences(model, qs, dt)
     data = model.createData()
     coms = np.array([pin.centerOfMass(model, data, qk) for qk in qs])
     return Plan(robot=robot.name, spec=spec, t=times, q=qs, v=vs, a=acc, com=coms,
