@@ -87,8 +87,23 @@ def _target_residual(err: np.ndarray, mode: str, weight: float) -> np.ndarray:
     return np.array([weight * float(err @ err)])
 
 
+class _OneFrame:
+    """A term on one frame, the second entry of its structure (``(kind, frame id, ...)``)."""
+
+    structure: tuple
+
+    @property
+    def frame_id(self) -> int:
+        """The frame's id."""
+        return self.structure[1]
+
+    def frames(self) -> tuple[int, ...]:
+        """The frame ids the expression reads."""
+        return (self.frame_id,)
+
+
 @dataclass(eq=False)
-class ContactTerm(Term):
+class ContactTerm(_OneFrame, Term):
     """A stance sole fixed in 6D to its placement: 3 position rows [m], 3 rotation rows [rad]
     (sin of the angle times the axis). Structure ``("contact", frame id)``; parameters the
     placement's position and rotation."""
@@ -102,15 +117,6 @@ class ContactTerm(Term):
         return cls(knot=knot, structure=(cls.kind, frame_id),
                    params=np.concatenate([placement.translation, _column_major(placement.rotation)]),
                    lower=np.zeros(6), upper=np.zeros(6), label=f"{frame} contact", phase=phase)
-
-    @property
-    def frame_id(self) -> int:
-        """The frame's id."""
-        return self.structure[1]
-
-    def frames(self) -> tuple[int, ...]:
-        """The frame ids the expression reads."""
-        return (self.frame_id,)
 
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, cost) in CasADi (:meth:`Term.expression`)."""
@@ -150,7 +156,7 @@ class ContactTerm(Term):
 
 
 @dataclass(eq=False)
-class ClearanceTerm(Term):
+class ClearanceTerm(_OneFrame, Term):
     """A foot off the ground above a height (its frame's z >= ``lower``) [m]: 0 at every swing knot,
     the phase's ``swing_height`` at its middle. Structure ``("clearance", frame id)``."""
 
@@ -162,15 +168,6 @@ class ClearanceTerm(Term):
         """The term at ``knot``: its structure, parameters and row bounds."""
         return cls(knot=knot, structure=(cls.kind, frame_id), lower=np.array([height]), upper=np.array([INF]),
                    label=label, phase=phase)
-
-    @property
-    def frame_id(self) -> int:
-        """The frame's id."""
-        return self.structure[1]
-
-    def frames(self) -> tuple[int, ...]:
-        """The frame ids the expression reads."""
-        return (self.frame_id,)
 
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, cost) in CasADi (:meth:`Term.expression`)."""
@@ -319,7 +316,7 @@ class _Target(Term):
 
 
 @dataclass(eq=False)
-class FramePositionTerm(_Target):
+class FramePositionTerm(_OneFrame, _Target):
     """A frame's position on the target's axes [m]. Structure ``("frame_pos", frame id, axes,
     mode)``; parameters the position and the weight."""
 
@@ -339,18 +336,9 @@ class FramePositionTerm(_Target):
                    label=f"{target.frame} target {target.name!r}", item=target, phase=phase)
 
     @property
-    def frame_id(self) -> int:
-        """The frame's id."""
-        return self.structure[1]
-
-    @property
     def axes(self) -> tuple[bool, ...]:
         """The axes the term acts on."""
         return self.structure[2]
-
-    def frames(self) -> tuple[int, ...]:
-        """The frame ids the expression reads."""
-        return (self.frame_id,)
 
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, cost) in CasADi (:meth:`Term.expression`)."""
@@ -393,7 +381,7 @@ class FramePositionTerm(_Target):
 
 
 @dataclass(eq=False)
-class FrameOrientationTerm(_Target):
+class FrameOrientationTerm(_OneFrame, _Target):
     """A frame's orientation [rad] (sin of the angle times the axis): a target's, or the base
     upright (a cost). Structure ``("frame_rot", frame id, mode)``; parameters the rotation and the
     weight."""
@@ -411,15 +399,6 @@ class FrameOrientationTerm(_Target):
             lower, upper = np.append(lower, ORIENTATION_TRACE_MIN), np.append(upper, math.inf)
         return cls(knot=knot, structure=(cls.kind, frame_id, mode), params=np.array([*_column_major(rotation), weight]),
                    lower=lower, upper=upper, label=label, item=item, phase=phase)
-
-    @property
-    def frame_id(self) -> int:
-        """The frame's id."""
-        return self.structure[1]
-
-    def frames(self) -> tuple[int, ...]:
-        """The frame ids the expression reads."""
-        return (self.frame_id,)
 
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, cost) in CasADi (:meth:`Term.expression`)."""
