@@ -51,8 +51,8 @@ from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import model_hash
 from planner.trajopt.terms import stage_groups
 from planner.trajopt.transcription import (
-    LIMIT_CLAMP,
     _sparse,
+    chart_position_limits,
     make_nlp_layout,
     parameter_values,
     stage,
@@ -339,13 +339,7 @@ def stagewise_bounds(lay: Layout, sl: StageLayout) -> tuple[np.ndarray, ...]:
     """(lbx, ubx, lbg, ubg): joint position limits on ``dq_k``, velocity limits on ``v_k`` (k >= 2),
     gap and start rows equal to 0, the terms' bounds."""
     robot, nv = lay.robot, sl.nv
-    lo = np.full(nv, -np.inf)
-    hi = np.full(nv, np.inf)
-    lower = np.asarray(robot.model.lowerPositionLimit, dtype=float)[7:]
-    upper = np.asarray(robot.model.upperPositionLimit, dtype=float)[7:]
-    ref = lay.q_ref[7:]
-    lo[6:] = np.where(np.abs(lower) < LIMIT_CLAMP, np.minimum(lower - ref, 0.0), -np.inf)
-    hi[6:] = np.where(np.abs(upper) < LIMIT_CLAMP, np.maximum(upper - ref, 0.0), np.inf)
+    lo, hi = chart_position_limits(lay)
     vj = velocity_joints(lay)
     vmax = np.asarray(robot.model.velocityLimit, dtype=float)[vj]
     lbx = np.full(sl.n_x, -np.inf)

@@ -320,9 +320,11 @@ def parameter_values(lay: Layout, nl: NlpLayout) -> np.ndarray:
     return lay.extend_parameters(p)
 
 
-def bounds(lay: Layout, nl: NlpLayout) -> tuple[np.ndarray, ...]:
-    """(lbx, ubx, lbg, ubg) of a layout."""
-    robot, N, nv = lay.robot, lay.N, lay.robot.nv
+def chart_position_limits(lay: Layout) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) of one knot's chart displacement ``dq`` (nv): the joints' position limits about the
+    reference ``q_ref`` (never excluding it; an unbounded joint, |limit| >= ``LIMIT_CLAMP``, stays
+    free), the floating base free."""
+    robot, nv = lay.robot, lay.robot.nv
     lo = np.full(nv, -np.inf)
     hi = np.full(nv, np.inf)
     lower = np.asarray(robot.model.lowerPositionLimit, dtype=float)[7:]
@@ -330,6 +332,13 @@ def bounds(lay: Layout, nl: NlpLayout) -> tuple[np.ndarray, ...]:
     ref = lay.q_ref[7:]
     lo[6:] = np.where(np.abs(lower) < LIMIT_CLAMP, np.minimum(lower - ref, 0.0), -np.inf)
     hi[6:] = np.where(np.abs(upper) < LIMIT_CLAMP, np.maximum(upper - ref, 0.0), np.inf)
+    return lo, hi
+
+
+def bounds(lay: Layout, nl: NlpLayout) -> tuple[np.ndarray, ...]:
+    """(lbx, ubx, lbg, ubg) of a layout."""
+    robot, N = lay.robot, lay.N
+    lo, hi = chart_position_limits(lay)
     lbx = np.tile(lo, N - 2)
     ubx = np.tile(hi, N - 2)
     lbg = [lay.terms[i].lower for i in nl.row_order]
