@@ -150,12 +150,7 @@ def _finish_plan(robot: Robot, data: pin.Data, times: np.ndarray, qs: np.ndarray
     """The plan of :func:`ik_plan` from its IK configurations ``qs`` at ``times``: velocities and
     accelerations by central differences, the CoM, and the spec of ``phases``."""
     model = robot.model
-    n = len(times)
-    vs = np.zeros((n, model.nv))
-    for k in range(1, n - 1):
-        vs[k] = pin.difference(model, qs[k - 1], qs[k + 1]) / (2 * dt)
-    acc = np.zeros((n, model.nv))
-    acc[1:-1] = (vs[2:] - vs[:-2]) / (2 * dt)
+    vs, acc = central_differences(model, qs, dt)
     coms = np.array([pin.centerOfMass(model, data, qk) for qk in qs])
     if phases is None:
         phases = (("stand", float(times[-1]), ("left_foot", "right_foot")),)
