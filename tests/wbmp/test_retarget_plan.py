@@ -23,21 +23,14 @@ pytestmark = pytest.mark.skipif(not MOCAP.is_dir(), reason="the shared CMU clips
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory):
     """The squat clip's first 1.5 s on talos, planned (no simulation), read back from its motion file."""
-    import os
 
     tmp = tmp_path_factory.mktemp("retarget")
-    old = {k: os.environ.get(k) for k in ("WBMP_COMPILE", "WBMP_CACHE_DIR")}
-    os.environ.update(WBMP_COMPILE="0", WBMP_CACHE_DIR=str(tmp / "cache"))
-    try:
-        out = tmp / "squat.npz"
+    out = tmp / "squat.npz"
+    with pytest.MonkeyPatch.context() as mp:  # module-scoped: the environment restored after the run
+        mp.setenv("WBMP_COMPILE", "0")
+        mp.setenv("WBMP_CACHE_DIR", str(tmp / "cache"))
         code = main(["retarget", str(MOCAP / "13_29_squat.bvh"), "--robot", "talos", "--start", "0", "--end", "1.5",
                      "--no-sim", "--quiet", "--out", str(out)])
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     assert code == 0
     return load_motion(out)
 

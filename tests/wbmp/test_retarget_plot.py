@@ -23,24 +23,17 @@ WINDOW = ("--start", "0", "--end", "0.6")
 def run(tmp_path_factory):
     """The dance's first 0.6 s on talos, planned (no simulation) with ``--plot DIR/``; then the
     same request answered from the motion cache as a RetargetResult."""
-    import os
 
     from wbmp.retarget import RetargetRequest, retarget
 
     tmp = tmp_path_factory.mktemp("plot")
-    old = {k: os.environ.get(k) for k in ("WBMP_COMPILE", "WBMP_CACHE_DIR")}
-    os.environ.update(WBMP_COMPILE="0", WBMP_CACHE_DIR=str(tmp / "cache"))
-    try:
+    with pytest.MonkeyPatch.context() as mp:  # module-scoped: the environment restored after the two runs
+        mp.setenv("WBMP_COMPILE", "0")
+        mp.setenv("WBMP_CACHE_DIR", str(tmp / "cache"))
         code = main(["retarget", str(DANCE), "--robot", "talos", *WINDOW, "--no-sim", "--json",
                      "--out", str(tmp / "m.npz"), "--plot", str(tmp / "plots") + "/"])
         result = retarget(RetargetRequest(clip=str(DANCE), robot="talos", start=0.0, end=0.6, simulate=False),
                           cache=True, cache_dir=tmp / "cache" / "motions")
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     return code, tmp, result
 
 
