@@ -20,8 +20,9 @@ from language.exceptions import (
     UnknownWords,
     UnsupportedInstruction,
 )
+from language.llm import check_api_key, check_timeout, check_url
 from language.parse import BACKENDS, parse
-from language.plan import ActionPlan
+from language.plan import ActionPlan, WordUse
 
 __all__ = [
     "BACKENDS",
@@ -37,5 +38,9 @@ __all__ = [
     "NoAction",
     "UnknownWords",
     "UnsupportedInstruction",
+    "WordUse",
+    "check_api_key",
+    "check_timeout",
+    "check_url",
     "parse",
 ]

@@ -22,7 +22,7 @@ from typing import Any
 from language.exceptions import VocabularyError
 from language.families import measure_variants, merge, thing_words, verb_forms
 from language.normalize import CJK, PUNCT, Atom, phrase_key, read_number
-from tasks.actions import REGISTRY, ActionSchema
+from tasks import REGISTRY, ActionSchema
 
 VOCABULARY_PATH = Path(__file__).with_name("vocabulary.json")
 #: Issue 32's phrasing families (context words, return words, not_things...), merged into the

@@ -62,7 +62,7 @@ from language.exceptions import (
 from language.plan import ActionPlan
 from language.rules import rules_plan
 from language.validate import SchemaViolation, validate
-from tasks.actions import REGISTRY, actions_json_schema
+from tasks import REGISTRY, actions_json_schema
 
 #: Sentences whose rule-parser output is shown to the model as examples.
 FEW_SHOT = (

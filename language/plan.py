@@ -14,9 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from language.exceptions import LanguageError, UnsupportedInstruction
-from tasks.actions import REGISTRY, Action
-from tasks.exceptions import TaskDefinitionError
-from tasks.limits import MAX_ACTIONS
+from tasks import MAX_ACTIONS, REGISTRY, Action, TaskDefinitionError
 
 #: What a word of the instruction did (``WordUse.role``).
 ROLES = (

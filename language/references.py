@@ -34,7 +34,7 @@ from language.lexicon import (
 )
 from language.normalize import phrase_key
 from language.objects import not_a_thing
-from tasks.grounding import strip_reference
+from tasks import strip_reference
 
 REF_KINDS = (UNKNOWN, NEARMISS, FILLER, DIR, LR, CLASSIFIER, ADV)  # what the words of a reference can be
 SIZE_ADVERBS = ("big", "small")  # the adverbs that can qualify an object ("the big box")

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from language.exceptions import InvalidParameter
 from language.lexicon import DIR, TRIGGER, Item
 from language.plan import ParsedAction
-from tasks.actions import Action
+from tasks import Action
 
 TRANSLATIONS = ("walk", "step")  # actions that take the robot somewhere along its heading
 START_WORDS = ("start", "starting", "started", "beginning", "origin", "where", "原点", "起点", "原来")

@@ -62,8 +62,7 @@ from language.plan import ActionPlan, ParsedAction, WordUse
 from language.references import around, nouns, references
 from language.returns import go_back, marks, stands_back_up
 from language.slots import MAX_COPIES, fmt, read_slots
-from tasks.actions import REGISTRY, Action
-from tasks.exceptions import TaskDefinitionError
+from tasks import REGISTRY, Action, TaskDefinitionError
 
 AND_WORDS = ("and", "和", "并", "并且")  # "slowly and deeply": adverbs joined by these stay with their action
 

@@ -35,8 +35,7 @@ from language.lexicon import (
     Lexicon,
 )
 from language.objects import head_noun
-from tasks.actions import REGISTRY, ActionSchema
-from tasks.limits import MAX_REPEAT
+from tasks import MAX_REPEAT, REGISTRY, ActionSchema
 
 MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
 OPTIONAL_DETAIL = {"mood": "mood or style", "context": "context (changes nothing)",

@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 
 # One BLAS thread unless the user says otherwise (before CasADi loads IPOPT's OpenBLAS): the NLPs are
 # too small to gain from a second thread, and when the other core is busy (another solve, a test
@@ -33,18 +33,33 @@ if TYPE_CHECKING:
     from planner.exceptions import PlannerError, PlanningFailed, UnsupportedModel
     from planner.results import Check, CheckKind, ConstraintCheck, Plan, SolverStats, SolveStatus
     from planner.trajopt.api import plan
+    from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN, build_status, describe_build
+    from planner.trajopt.cache import clear_memory_cache
     from planner.trajopt.centroidal.settings import CentroidalSettings
-    from planner.trajopt.settings import PlannerSettings
+    from planner.trajopt.centroidal.zmp import (
+        full_dynamics_wrench,
+        support_excursion,
+        support_heights,
+        zmp_of_wrenches,
+    )
+    from planner.trajopt.settings import PlannerSettings, default_cache_dir
     from planner.wbc.controller import WholeBodyController
+    from planner.wbc.friction import JointFriction
+    from planner.wbc.kernel import kernel_ready
+    from planner.wbc.reference import PlanReference
     from planner.wbc.settings import ControllerError, WbcSettings
 
 _EXPORTS = {  # public name -> module that defines it
+    "BUILD_MEMORY": "planner.trajopt.builds",
     "CentroidalSettings": "planner.trajopt.centroidal.settings",
     "Check": "planner.results",
     "CheckKind": "planner.results",
     "ConstraintCheck": "planner.results",
     "ControllerError": "planner.wbc.settings",
+    "JointFriction": "planner.wbc.friction",
+    "MEMORY_MARGIN": "planner.trajopt.builds",
     "Plan": "planner.results",
+    "PlanReference": "planner.wbc.reference",
     "PlannerError": "planner.exceptions",
     "PlannerSettings": "planner.trajopt.settings",
     "PlanningFailed": "planner.exceptions",
@@ -53,16 +68,29 @@ _EXPORTS = {  # public name -> module that defines it
     "UnsupportedModel": "planner.exceptions",
     "WbcSettings": "planner.wbc.settings",
     "WholeBodyController": "planner.wbc.controller",
+    "build_status": "planner.trajopt.builds",
+    "clear_memory_cache": "planner.trajopt.cache",
+    "default_cache_dir": "planner.trajopt.settings",
+    "describe_build": "planner.trajopt.builds",
+    "full_dynamics_wrench": "planner.trajopt.centroidal.zmp",
+    "kernel_ready": "planner.wbc.kernel",
     "plan": "planner.trajopt.api",
+    "support_excursion": "planner.trajopt.centroidal.zmp",
+    "support_heights": "planner.trajopt.centroidal.zmp",
+    "zmp_of_wrenches": "planner.trajopt.centroidal.zmp",
 }
 
 __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
+    "BUILD_MEMORY",
+    "MEMORY_MARGIN",
     "CentroidalSettings",
     "Check",
     "CheckKind",
     "ConstraintCheck",
     "ControllerError",
+    "JointFriction",
     "Plan",
+    "PlanReference",
     "PlannerError",
     "PlannerSettings",
     "PlanningFailed",
@@ -71,7 +99,16 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "UnsupportedModel",
     "WbcSettings",
     "WholeBodyController",
+    "build_status",
+    "clear_memory_cache",
+    "default_cache_dir",
+    "describe_build",
+    "full_dynamics_wrench",
+    "kernel_ready",
     "plan",
+    "support_excursion",
+    "support_heights",
+    "zmp_of_wrenches",
 ]
 
 

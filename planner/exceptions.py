@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from robots import WbmpError
-from tasks.exceptions import TaskDefinitionError
+from tasks import TaskDefinitionError
 
 
 class PlannerError(WbmpError):

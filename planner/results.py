@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from tasks.specs import TaskSpec
+from tasks import TaskSpec
 
 
 class SolveStatus(enum.Enum):

@@ -95,7 +95,7 @@ def _environment() -> tuple[tuple[str, str], ...]:
     return tuple(out)
 
 
-def environment() -> tuple[tuple[str, str], ...]:
+def cache_environment() -> tuple[tuple[str, str], ...]:
     """What every entry's key holds besides its files: :data:`FORMAT`, the sources of this module
     and :mod:`robots.model` (the Collada up-axis correction), the versions of wbmp, Pinocchio and
     coal (the HTML replay's mesh cache, :mod:`viz.meshcache`, keys on it too)."""
@@ -236,7 +236,7 @@ def cached_geometry(urdf: str, package_dirs: tuple[str, ...], kind: str,
             mark_used(entry)
             return gmodel
         except EntryDamaged as e:
-            if vanished(entry):  # removed by another process while read: a miss
+            if entry_vanished(entry):  # removed by another process while read: a miss
                 return _build_and_store(root, key, build)
             _log.warning("wbmp: warning: robot cache entry %s is damaged (%s); removed it, the robot is loaded from its files", entry, e)
         except EntryStale as e:
@@ -337,7 +337,7 @@ def mark_used(path: str | Path) -> None:
         pass
 
 
-def vanished(entry: str | Path) -> bool:
+def entry_vanished(entry: str | Path) -> bool:
     """True when nothing is at ``entry`` any more: another process removed it (the cap, ``wbmp
     cache --clear``) while this one read it. A reader treats that as a miss, not as damage."""
     return not os.path.lexists(entry)

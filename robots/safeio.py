@@ -18,7 +18,7 @@ file as unreadable (a cache entry as damaged, an input with its one-line error);
 is still :class:`FileNotFoundError`.
 
 Paths read *from* a file (a cache record naming another entry) must stay inside the folder the
-file belongs to: :func:`inside` resolves a path and says whether it does, :func:`confined`
+file belongs to: :func:`path_inside` resolves a path and says whether it does, :func:`confined`
 raises :class:`PathEscapes` when it does not, and :func:`is_key` checks the hexadecimal keys
 the caches name their entries by.
 
@@ -199,7 +199,7 @@ def is_key(text: object, length: int | tuple[int, int] = 64) -> bool:
     return low <= len(text) <= high
 
 
-def inside(folder: str | os.PathLike[str], path: str | os.PathLike[str]) -> bool:
+def path_inside(folder: str | os.PathLike[str], path: str | os.PathLike[str]) -> bool:
     """True when ``path`` (relative paths are taken from ``folder``), links resolved, is inside
     ``folder`` (or is it)."""
     try:
@@ -211,11 +211,11 @@ def inside(folder: str | os.PathLike[str], path: str | os.PathLike[str]) -> bool
 
 
 def confined(folder: str | os.PathLike[str], path: str | os.PathLike[str]) -> Path:
-    """``folder / path`` when it resolves inside ``folder`` (:func:`inside`).
+    """``folder / path`` when it resolves inside ``folder`` (:func:`path_inside`).
 
     Raises:
         PathEscapes: It resolves outside.
     """
-    if not inside(folder, path):
+    if not path_inside(folder, path):
         raise PathEscapes(f"{os.fspath(path)!r} leads outside {os.fspath(folder)}")
     return Path(folder) / path

@@ -9,7 +9,7 @@ import os
 import sys
 from typing import TYPE_CHECKING
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 
 # The simulation never renders: unless the user chose an OpenGL backend, MuJoCo is imported
 # without one (its GLFW context costs ~0.1 s of every simulated solve). This runs before any
@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from sim.exceptions import FaultsError, PushParseError, SimError, SimModelError
     from sim.execution import Event, Execution
     from sim.faults import Faults, load_faults
+    from sim.figures import FIGURES, summarize_figures
     from sim.loop import simulate
     from sim.model import SimModel, build_model
     from sim.push import MAX_PUSH_FORCE, Push, check_push_time, parse_push
@@ -37,6 +38,7 @@ _EXPORTS = {  # public name -> module that defines it
     "EStopSettings": "sim.estop",
     "Event": "sim.execution",
     "Execution": "sim.execution",
+    "FIGURES": "sim.figures",
     "Faults": "sim.faults",
     "FaultsError": "sim.exceptions",
     "MAX_PUSH_FORCE": "sim.push",
@@ -53,9 +55,11 @@ _EXPORTS = {  # public name -> module that defines it
     "load_faults": "sim.faults",
     "parse_push": "sim.push",
     "simulate": "sim.loop",
+    "summarize_figures": "sim.figures",
 }
 
 __all__ = [
+    "FIGURES",
     "MAX_PUSH_FORCE",
     "Certificate",
     "Check",
@@ -78,6 +82,7 @@ __all__ = [
     "load_faults",
     "parse_push",
     "simulate",
+    "summarize_figures",
 ]
 
 

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from planner.results import Check, CheckKind
+from planner import Check, CheckKind
 
 __all__ = ["Certificate", "Check", "CheckKind"]
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
-from planner.results import Check, CheckKind
-from robots.collision import body_part
+from planner import Check, CheckKind
+from robots import body_part
 from sim.collisions import MeshDistance
 from sim.intent import intent_checks
 from sim.meshcheck import mesh_self_collision_check

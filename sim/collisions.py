@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 
 
 class MeshDistance:

@@ -34,11 +34,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from planner import Plan, SolverStats, SolveStatus
-from planner.wbc.reference import PlanReference
-from robots.model import Robot
+from planner import Plan, PlanReference, SolverStats, SolveStatus
+from robots import Robot
 from sim.exceptions import SimError
-from tasks.specs import Phase, TaskSpec
+from tasks import Phase, TaskSpec
 
 #: The triggers, as named in the certificate, the events and docs/safety.md.
 TRIGGERS = ("request", "tilt", "qp_failure", "torque_limit", "nan")

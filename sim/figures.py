@@ -1,7 +1,7 @@
 """The evaluation figures of a simulated motion: time, energy, torque use, smoothness, feet, tracking.
 
 Each figure is defined in docs/safety.md; :func:`figures` computes them from a run's record (one row
-per controller tick, the torque of a tick held until the next), :func:`summarize` turns the figures
+per controller tick, the torque of a tick held until the next), :func:`summarize_figures` turns the figures
 of many runs into a table's numbers (``wbmp batch``).
 """
 
@@ -115,7 +115,7 @@ def figures(run: RunRecord, *, estops: int = 0, stop_time: float | None = None) 
     return out
 
 
-def summarize(runs: Iterable[tuple[bool, Mapping[str, float]]]) -> dict[str, float]:
+def summarize_figures(runs: Iterable[tuple[bool, Mapping[str, float]]]) -> dict[str, float]:
     """Over many runs (passed?, figures): ``success_rate`` [-], ``runs``, and the mean of every figure
     (``mean_<key>``) over the runs that have it; E-stops are summed (``estop_count``)."""
     rows = list(runs)

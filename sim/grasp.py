@@ -40,8 +40,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from planner.results import Check, CheckKind
-from robots.model import Robot
+from planner import Check, CheckKind
+from robots import Robot
 from sim.model import (
     OBJECT_PREFIX,
     OBJECT_ROLE,
@@ -52,7 +52,7 @@ from sim.model import (
     hand_gripper,
     subtree,
 )
-from tasks.specs import Grasp, Push, TaskSpec
+from tasks import Grasp, Push, TaskSpec
 
 WELD = "weld, a simplified gripper"  # how the certificate names the simplification (a hand without a closing gripper)
 GRIPPER_WELD = "closed gripper, then a weld: a simplified grip"  # a gripper that closed on the object, then the weld

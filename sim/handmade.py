@@ -19,18 +19,8 @@ import numpy as np
 import pinocchio as pin
 
 from planner import Plan, SolverStats, SolveStatus
-from robots.model import Robot
-from tasks.specs import (
-    CoMBounds,
-    CoMTarget,
-    Contact,
-    FrameTarget,
-    Phase,
-    Pose,
-    Priority,
-    TaskSpec,
-    Vec3,
-)
+from robots import Robot
+from tasks import CoMBounds, CoMTarget, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec, Vec3
 
 Offset = Callable[[float], np.ndarray]
 

@@ -40,10 +40,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from planner.results import Check, CheckKind
+from planner import Check, CheckKind
 from sim.collisions import MeshDistance
 from sim.recording import RunRecord
-from tasks.specs import Priority
+from tasks import Priority
 
 #: [s] a simulated lift-off or touch-down this close to the planned one happens as planned.
 EVENT_TOLERANCE = 0.15

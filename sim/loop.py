@@ -23,13 +23,16 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
-from planner import Plan
-from planner.results import Check, CheckKind
-from planner.wbc import WholeBodyController
-from planner.wbc.friction import JointFriction
-from planner.wbc.kernel import kernel_ready
-from planner.wbc.reference import PlanReference
-from robots.model import Robot
+from planner import (
+    Check,
+    CheckKind,
+    JointFriction,
+    Plan,
+    PlanReference,
+    WholeBodyController,
+    kernel_ready,
+)
+from robots import Robot
 from sim.certificate import Certificate
 from sim.certify import certify, planned_touch
 from sim.estop import EStop, EStopSettings, Stop

@@ -26,9 +26,8 @@ import coal  # type: ignore[import-untyped]
 import numpy as np
 import pinocchio as pin
 
-from planner.results import Check, CheckKind
-from robots.collision import body_part
-from robots.model import Robot
+from planner import Check, CheckKind
+from robots import Robot, body_part
 from sim.recording import RunRecord
 
 #: [m] pairs whose meshes are closer than this in the run's first configuration are not checked.

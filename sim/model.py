@@ -38,8 +38,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from robots.contact import MUJOCO_CONDIM, MUJOCO_CONE, mujoco_friction, sole_corners
-from robots.model import Robot
+from robots import MUJOCO_CONDIM, MUJOCO_CONE, Robot, mujoco_friction, sole_corners
 from sim.exceptions import SimModelError
 
 # The URDF rewriting lives in sim.urdf; its names stay importable here.
@@ -51,7 +50,7 @@ from sim.urdf import (  # noqa: F401 (re-exported)
     _repair_inertia,
     _rewrite_urdf,
 )
-from tasks.scene import Scene, SceneObject
+from tasks import Scene, SceneObject
 
 FLOOR = "wbmp_floor"
 SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thick
@@ -264,7 +263,7 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
 
 def model_pairs(robot: Robot) -> tuple[tuple[str, str], ...]:
     """The link pairs of the robot's collision model that must not collide (sorted names)."""
-    from robots.collision import collision_model
+    from robots import collision_model
 
     return tuple(tuple(sorted(p)) for p in collision_model(robot).pairs)  # type: ignore[misc]
 

@@ -39,8 +39,15 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from robots.cache import EntryDamaged, cache_folder, file_sha256, mark_used, store_entry, vanished
-from robots.safeio import read_bytes
+from robots import (
+    EntryDamaged,
+    cache_folder,
+    entry_vanished,
+    file_sha256,
+    mark_used,
+    read_bytes,
+    store_entry,
+)
 
 _log = logging.getLogger("sim.modelcache")
 
@@ -141,7 +148,7 @@ def cached_model(key: str | None, build: Callable[[], tuple[mujoco.MjModel, dict
             mark_used(entry)
             return result
         except EntryDamaged as e:
-            if not vanished(entry):  # else removed by another process while read: a miss
+            if not entry_vanished(entry):  # else removed by another process while read: a miss
                 _log.warning("wbmp: warning: MuJoCo model cache entry %s is damaged (%s); removed it, the model is built again",
                              entry, e)
                 shutil.rmtree(entry, ignore_errors=True)

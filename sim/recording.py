@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from planner.wbc.reference import PlanReference
-from robots.model import Robot
+from planner import PlanReference
+from robots import Robot
 from sim.model import OBJECT_ROLE, ROBOT_ROLE, SimModel
 from sim.settings import SimSettings
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from planner.wbc import WbcSettings
+from planner import WbcSettings
 from sim.exceptions import SimError
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robots.model import Robot
+from robots import Robot
 from sim.exceptions import SimModelError
 
 FOREIGN_MESHES = (".dae",)  # mesh formats MuJoCo 4 cannot read; their triangles come from Pinocchio

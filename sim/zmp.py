@@ -9,14 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner import Plan
-from planner.trajopt.centroidal.zmp import (
-    full_dynamics_wrench,
-    support_excursion,
-    support_heights,
-    zmp_of_wrenches,
-)
-from robots.model import Robot
+from planner import Plan, full_dynamics_wrench, support_excursion, support_heights, zmp_of_wrenches
+from robots import Robot
 
 
 def plan_zmp(robot: Robot, plan: Plan) -> np.ndarray:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 from tasks.exceptions import SceneConflict, TaskDefinitionError, TaskError, UnknownAction
 from tasks.scene import Scene, SceneObject, load_scene
 from tasks.serialize import load_spec, spec_from_dict, spec_from_json, spec_to_dict, spec_to_json
@@ -31,22 +31,67 @@ from tasks.specs import (
 )
 
 if TYPE_CHECKING:
-    from tasks.actions import Action
+    from tasks.actions import REGISTRY, Action, ActionSchema, actions_json_schema, get_action
     from tasks.compose import compile_actions, fit_actions
+    from tasks.grounding import ground, strip_reference
+    from tasks.limits import MAX_ACTIONS, MAX_REPEAT, MAX_TEXT_LENGTH
+    from tasks.mocap import (
+        human_motion,
+        label_contacts,
+        load_skeleton,
+        read_bvh,
+        recognize_skeleton,
+    )
+    from tasks.mocap.figures import contact_windows, motion_figures, torque_cause, tracks
+    from tasks.mocap.retarget import retarget_spec
+    from tasks.mocap.skeleton import check_joints
+    from tasks.primitives import PRIMITIVES
     from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
+    from tasks.scene import on_top
+    from tasks.specs import Push, Vec3
     from tasks.terrain import surface_at
 
 _LAZY = {  # public name -> module
     "Action": "tasks.actions",
+    "ActionSchema": "tasks.actions",
+    "MAX_ACTIONS": "tasks.limits",
+    "MAX_REPEAT": "tasks.limits",
+    "MAX_TEXT_LENGTH": "tasks.limits",
+    "PRIMITIVES": "tasks.primitives",
+    "Push": "tasks.specs",
+    "REGISTRY": "tasks.actions",
+    "Vec3": "tasks.specs",
+    "actions_json_schema": "tasks.actions",
+    "check_joints": "tasks.mocap.skeleton",
     "check_spec_for_robot": "tasks.robot_check",
     "check_spec_in_scene_for_robot": "tasks.robot_check",
     "compile_actions": "tasks.compose",
+    "contact_windows": "tasks.mocap.figures",
     "fit_actions": "tasks.compose",
+    "get_action": "tasks.actions",
+    "ground": "tasks.grounding",
+    "human_motion": "tasks.mocap",
+    "label_contacts": "tasks.mocap",
+    "load_skeleton": "tasks.mocap",
+    "motion_figures": "tasks.mocap.figures",
+    "on_top": "tasks.scene",
+    "read_bvh": "tasks.mocap",
+    "recognize_skeleton": "tasks.mocap",
+    "retarget_spec": "tasks.mocap.retarget",
+    "strip_reference": "tasks.grounding",
     "surface_at": "tasks.terrain",
+    "torque_cause": "tasks.mocap.figures",
+    "tracks": "tasks.mocap.figures",
 }
 
 __all__ = [
+    "MAX_ACTIONS",
+    "MAX_REPEAT",
+    "MAX_TEXT_LENGTH",
+    "PRIMITIVES",
+    "REGISTRY",
     "Action",
+    "ActionSchema",
     "CoMBounds",
     "CoMTarget",
     "Contact",
@@ -57,6 +102,7 @@ __all__ = [
     "Phase",
     "Pose",
     "Priority",
+    "Push",
     "Scene",
     "SceneConflict",
     "SceneObject",
@@ -65,17 +111,34 @@ __all__ = [
     "TaskError",
     "TaskSpec",
     "UnknownAction",
+    "Vec3",
+    "actions_json_schema",
+    "check_joints",
     "check_spec_for_robot",
     "check_spec_in_scene_for_robot",
     "compile_actions",
+    "contact_windows",
     "fit_actions",
+    "get_action",
+    "ground",
+    "human_motion",
+    "label_contacts",
     "load_scene",
+    "load_skeleton",
     "load_spec",
+    "motion_figures",
+    "on_top",
+    "read_bvh",
+    "recognize_skeleton",
+    "retarget_spec",
     "spec_from_dict",
     "spec_from_json",
     "spec_to_dict",
     "spec_to_json",
+    "strip_reference",
     "surface_at",
+    "torque_cause",
+    "tracks",
 ]
 
 

@@ -41,7 +41,7 @@ from typing import Any, cast
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.actions import Action, get_action
 from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import Grounded, GroundingError, ground, strip_reference

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.specs import Contact, Phase, Pose
 

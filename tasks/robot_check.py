@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from robots.exceptions import FrameNotFound
-from robots.model import Robot
+from robots import FrameNotFound, Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.limits import GROUND_TOLERANCE, START_TOLERANCE
 from tasks.scene import SCENE_MARGIN, check_spec_in_scene
@@ -70,7 +69,7 @@ def check_spec_in_scene_for_robot(spec: TaskSpec, robot: Robot, *, margin: float
     """
     if spec.scene is None or not spec.scene.objects:
         return
-    from robots.contact import sole_corners
+    from robots import sole_corners
 
     roles = {robot.frame_id(f"{side}_{part}"): (side, part) for side in ("left", "right") for part in ("foot", "hand")}
     points, labels = {}, {}

@@ -2,11 +2,9 @@
 the package itself (``from robots import Robot``), whose ``__init__`` lists the public names,
 never one of its modules (``from robots.model import Robot``).
 
-The imports that still reach into another package's modules are listed in
-``tests/faces_bypasses.txt``; the list may only shrink. A new one fails (import the name from the
-package, adding it to the package's ``__init__`` if it is public); one that is gone must be
-deleted from the list, so the count recorded there is the count in the code. Imports under
-``if TYPE_CHECKING:`` do not count (they never run), nor do imports inside a package.
+``tests/test_layering.py`` checks which package may import which; this test checks how: every
+runtime import of another package names its face. Imports under ``if TYPE_CHECKING:`` do not
+count (they never run), nor do imports inside a package.
 """
 
 from __future__ import annotations
@@ -15,8 +13,6 @@ import ast
 from pathlib import Path
 
 from tests.test_layering import PACKAGES, ROOT, _runtime_imports
-
-ALLOWLIST = Path(__file__).with_name("faces_bypasses.txt")
 
 
 def bypasses(root: Path = ROOT) -> set[tuple[str, str]]:
@@ -37,27 +33,10 @@ def bypasses(root: Path = ROOT) -> set[tuple[str, str]]:
     return out
 
 
-def allowed() -> set[tuple[str, str]]:
-    """The recorded bypasses: ``file -> module`` lines (``#`` comments)."""
-    out = set()
-    for line in ALLOWLIST.read_text(encoding="utf-8").splitlines():
-        line = line.split("#", 1)[0].strip()
-        if line:
-            file, module = (part.strip() for part in line.split("->"))
-            out.add((file, module))
-    return out
-
-
-def test_no_new_import_bypasses_a_face():
-    new = sorted(bypasses() - allowed())
-    assert not new, ("imports that bypass a package's face (import the name from the package; add it to "
-                     "its __init__ if it is public):\n" + "\n".join(f"  {f}: import of {m}" for f, m in new))
-
-
-def test_the_list_of_bypasses_only_shrinks():
-    gone = sorted(allowed() - bypasses())
-    assert not gone, ("these bypasses are gone: delete their lines from tests/faces_bypasses.txt:\n"
-                      + "\n".join(f"  {f} -> {m}" for f, m in gone))
+def test_every_import_of_another_package_goes_through_its_face():
+    found = sorted(bypasses())
+    assert not found, ("imports that bypass a package's face (import the name from the package; add it to "
+                       "its __init__ if it is public):\n" + "\n".join(f"  {f}: import of {m}" for f, m in found))
 
 
 def test_the_checker_sees_a_bypass_and_a_face(tmp_path):

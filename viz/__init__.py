@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 
 if TYPE_CHECKING:
     from viz.exceptions import VizError
@@ -25,27 +25,66 @@ if TYPE_CHECKING:
         OutputError,
         OutputPathError,
         Staging,
+        atomic_write,
+        atomic_write_text,
         check_distinct,
         check_output_dir,
         check_output_file,
     )
-    from viz.html import page_data, render_page, write_html
-    from viz.live import serve
+    from viz.html import meshcat_bundle, page_data, render_page, write_html
+    from viz.live import ViewerError, serve
+    from viz.motion import VizInputError
     from viz.plots import PLOT_FILES, write_plots
+    from viz.progress import make_progress
     from viz.retarget_plot import KeypointPlot, plot_keypoints
 
-__all__ = ["PLOT_FILES", "KeypointPlot", "OutputError", "OutputPathError", "Staging", "VizError", "check_distinct",
-           "check_output_dir", "check_output_file", "page_data", "plot_keypoints", "render_page", "serve", "write_html",
-           "write_plots"]
+__all__ = [
+    "PLOT_FILES",
+    "KeypointPlot",
+    "OutputError",
+    "OutputPathError",
+    "Staging",
+    "ViewerError",
+    "VizError",
+    "VizInputError",
+    "atomic_write",
+    "atomic_write_text",
+    "check_distinct",
+    "check_output_dir",
+    "check_output_file",
+    "make_progress",
+    "meshcat_bundle",
+    "page_data",
+    "plot_keypoints",
+    "render_page",
+    "serve",
+    "write_html",
+    "write_plots",
+]
 
-_LAZY = {"write_html": "viz.html", "serve": "viz.live", "write_plots": "viz.plots", "VizError": "viz.exceptions",
-         # the output-path rules and staged writes every command's files go through (wbmp/outputs.py)
-         "OutputError": "viz.files", "OutputPathError": "viz.files", "Staging": "viz.files",
-         "check_distinct": "viz.files", "check_output_dir": "viz.files", "check_output_file": "viz.files",
-         # the HTML replay in two steps (its data is kept in the motion cache) and the plot files' names
-         "page_data": "viz.html", "render_page": "viz.html", "PLOT_FILES": "viz.plots",
-         # a retargeted motion's keypoints against the scaled source (wbmp retarget --plot)
-         "KeypointPlot": "viz.retarget_plot", "plot_keypoints": "viz.retarget_plot"}
+_LAZY = {
+    "KeypointPlot": "viz.retarget_plot",
+    "OutputError": "viz.files",
+    "OutputPathError": "viz.files",
+    "PLOT_FILES": "viz.plots",
+    "Staging": "viz.files",
+    "ViewerError": "viz.live",
+    "VizError": "viz.exceptions",
+    "VizInputError": "viz.motion",
+    "atomic_write": "viz.files",
+    "atomic_write_text": "viz.files",
+    "check_distinct": "viz.files",
+    "check_output_dir": "viz.files",
+    "check_output_file": "viz.files",
+    "make_progress": "viz.progress",
+    "meshcat_bundle": "viz.html",
+    "page_data": "viz.html",
+    "plot_keypoints": "viz.retarget_plot",
+    "render_page": "viz.html",
+    "serve": "viz.live",
+    "write_html": "viz.html",
+    "write_plots": "viz.plots",
+}
 
 
 __getattr__, __dir__ = lazy_face(__name__, _LAZY)

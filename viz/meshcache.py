@@ -11,7 +11,7 @@ name, parent joint and frame, placement, colour, mesh scale and path, and its pa
 
 The key is a sha256 of the URDF's content and real path, the package folders, the sources of
 this module and :mod:`viz.scene` (the decimation and quantization), the robot cache's
-environment (:func:`robots.cache.environment`: the up-axis correction, the Pinocchio and coal
+environment (:func:`robots.cache.cache_environment`: the up-axis correction, the Pinocchio and coal
 versions), numpy's version and :data:`FORMAT`. The manifest lists every mesh file with its
 sha256, and a hit requires each to hash the same today (an edited mesh misses and is rebuilt);
 it also holds the size and sha256 of ``meshes.npz``, checked before numpy reads it. A damaged
@@ -41,19 +41,19 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from robots.cache import (
+from robots import (
     EntryDamaged,
     EntryStale,
+    cache_environment,
     cache_folder,
-    environment,
+    entry_vanished,
     file_sha256,
     mark_used,
     mesh_files,
+    read_bytes,
     read_manifest,
     store_entry,
-    vanished,
 )
-from robots.safeio import read_bytes
 
 _log = logging.getLogger("viz.meshcache")
 
@@ -194,7 +194,7 @@ def entry_key(urdf: str, package_dirs: tuple[str, ...]) -> str:
     """The entry key of a URDF's replay geometry (module docstring)."""
     blob = json.dumps({"format": FORMAT, "urdf": file_sha256(urdf), "path": os.path.realpath(urdf),
                        "package_dirs": [os.path.realpath(p) for p in package_dirs],
-                       "sources": _sources(), "robots": environment(), "numpy": np.__version__},
+                       "sources": _sources(), "robots": cache_environment(), "numpy": np.__version__},
                       sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -252,7 +252,7 @@ def _cached(urdf: str, package_dirs: tuple[str, ...], _mtime_ns: int, _size: int
         mark_used(entry)
         return replay
     except EntryDamaged as e:
-        if vanished(entry):  # removed by another process while read: a miss
+        if entry_vanished(entry):  # removed by another process while read: a miss
             return None
         _log.warning("wbmp: warning: HTML mesh cache entry %s is damaged (%s); removed it, the meshes are "
                      "prepared from their files", entry, e)

@@ -18,9 +18,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from robots import Robot
-from robots.contact import convex_hull as convex_hull_2d
-from robots.contact import points_in_world, polygon_margin, sole_corners
+from robots import Robot, points_in_world, polygon_margin, sole_corners
+from robots import convex_hull as convex_hull_2d
 from viz.exceptions import VizError
 
 if TYPE_CHECKING:

@@ -31,8 +31,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from robots import Robot
-from robots.safeio import read_bytes
+from robots import Robot, read_bytes
 from viz import motion as vm
 from viz._meshcat import mg, umsgpack
 
@@ -286,7 +285,7 @@ COLLISION_COLOR = 0xFF8C1A  # the collision capsules, translucent orange
 def add_collision_capsules(vis, robot: Robot, *, motion: str = "planned", opacity: float = 0.35) -> int:
     """Draw the robot's collision capsules (robots/collision.py) under the visual geometry of their
     joint, so they follow the animation; returns how many were drawn."""
-    from robots.collision import collision_model
+    from robots import collision_model
 
     base = vis[ROOT]["robot"][motion]
     by_joint: dict[int, pin.GeometryObject] = {}

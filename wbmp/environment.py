@@ -53,8 +53,8 @@ def build_memory(environ: Mapping[str, str] | None = None) -> int:
     Raises:
         CliError: Not a size (exit 2, one line saying what is accepted).
     """
-    from planner.trajopt.builds import BUILD_MEMORY
-    from robots.cache import parse_size
+    from planner import BUILD_MEMORY
+    from robots import parse_size
 
     environ = os.environ if environ is None else environ
     text = environ.get("WBMP_BUILD_MEMORY", "").strip()

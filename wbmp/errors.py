@@ -113,7 +113,7 @@ def require_text(value: str | None, what: str, hint: str) -> None:
 def require_instruction(text: str | None) -> None:
     """Refuse an instruction longer than ``tasks.limits.MAX_TEXT_LENGTH`` characters (exit 2):
     ``wbmp parse`` and ``wbmp solve`` read the same sentences."""
-    from tasks.limits import MAX_TEXT_LENGTH
+    from tasks import MAX_TEXT_LENGTH
 
     if text is not None and len(text) > MAX_TEXT_LENGTH:
         raise CliError(f"the instruction is {len(text):,} characters long; wbmp reads at most "

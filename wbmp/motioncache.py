@@ -65,7 +65,7 @@ _ENV = ("WBMP_COMPILE",)
 
 def cache_root() -> Path:
     """``$WBMP_CACHE_DIR/motions``, else ``~/.cache/wbmp/motions``."""
-    from robots.cache import cache_base
+    from robots import cache_base
 
     return cache_base() / "motions"
 
@@ -115,7 +115,7 @@ def _environment() -> dict[str, Any]:
 def _open_regular(path: str | Path, limit: int):
     """A binary file object on a regular file of at most ``limit`` bytes; OSError otherwise
     (:func:`robots.safeio.open_regular`: a FIFO put in a file's place cannot hang the command)."""
-    from robots.safeio import open_regular
+    from robots import open_regular
 
     return open_regular(path, limit)
 
@@ -123,7 +123,7 @@ def _open_regular(path: str | Path, limit: int):
 def _read_json(path: Path) -> Any:
     """A manifest or record: a regular file of at most 1 MiB (:mod:`robots.safeio`) holding JSON;
     OSError or ValueError otherwise."""
-    from robots.safeio import read_bytes
+    from robots import read_bytes
 
     raw = read_bytes(path, _MAX_RECORD_BYTES)
     try:
@@ -133,7 +133,7 @@ def _read_json(path: Path) -> Any:
 
 
 def _sha256_file(path: str | Path, limit: int = MAX_ENTRY_BYTES) -> str:
-    from robots.safeio import sha256_file
+    from robots import sha256_file
 
     return sha256_file(path, limit)
 
@@ -148,7 +148,7 @@ def _visual_meshes(robot) -> list[str]:
     """The visual model's mesh files: from the robot cache's manifest when it holds the visual
     geometry (loading the visual model costs ~0.16 s of CPU for Talos, and a solve never needs
     it), else from the model itself."""
-    from robots.cache import mesh_files, stored_mesh_files
+    from robots import mesh_files, stored_mesh_files
 
     listed = stored_mesh_files(robot.urdf_path, robot.package_dirs, "visual")
     return listed if listed is not None else mesh_files(robot.visual_model)
@@ -177,7 +177,7 @@ def spec_identity(spec) -> str:
     """The spec's JSON without its description (the sentence): two phrasings share a motion."""
     import dataclasses
 
-    from tasks.serialize import spec_to_json
+    from tasks import spec_to_json
 
     return spec_to_json(dataclasses.replace(spec, description=""), indent=None)
 
@@ -314,7 +314,7 @@ class MotionCache:
     def lookup_request(self, rkey: str) -> Request | None:
         """The motion a request led to (its key, the robot digest, the parsed actions), when every
         robot file is unchanged."""
-        from robots.safeio import is_key
+        from robots import is_key
 
         if not is_key(rkey):
             return None
@@ -342,7 +342,7 @@ class MotionCache:
 
     def load(self, key: str, *, spec_check: bool = True) -> Hit | None:
         """The verified entry of ``key``, or None (missing; damaged: removed with one warning)."""
-        from robots.safeio import is_key
+        from robots import is_key
         from wbmp.motionfile import MotionFileError, motion_from_arrays
 
         if not is_key(key):  # a key names files of this folder, never a path out of it
@@ -385,7 +385,7 @@ class MotionCache:
 
     def load_page(self, key: str) -> str | None:
         """The stored HTML replay data of ``key`` (verified), or None."""
-        from robots.safeio import is_key, read_bytes
+        from robots import is_key, read_bytes
 
         if not is_key(key):
             return None
@@ -445,7 +445,7 @@ class MotionCache:
         _trim(self.root)
 
     def _write(self, path: Path, data: bytes) -> None:
-        from viz.files import OutputError, atomic_write
+        from viz import OutputError, atomic_write
 
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -454,10 +454,10 @@ class MotionCache:
             _warn_once(f"cannot write the motion cache in {self.root} ({e}); the motion is not cached")
 
     def _discard(self, paths: list[Path], why: str) -> None:
-        from robots.safeio import inside
+        from robots import path_inside
 
         for p in paths:
-            if not inside(self.root, p.parent):  # never remove anything outside the cache
+            if not path_inside(self.root, p.parent):  # never remove anything outside the cache
                 continue
             try:
                 p.unlink()
@@ -480,7 +480,7 @@ def _mark_used(path: Path) -> None:
 
 def _trim(root: Path) -> None:
     """Apply the whole cache's size cap after a store (:func:`robots.cache.trim_cache`)."""
-    from robots.cache import trim_cache
+    from robots import trim_cache
 
     trim_cache(root)
 

@@ -39,10 +39,10 @@ from typing import IO, Any
 import numpy as np
 
 from planner import Check, CheckKind, Plan, SolverStats, SolveStatus
-from robots.safeio import LIMITS, FileTooLarge, open_regular
+from robots import LIMITS, FileTooLarge, open_regular
 from sim import Certificate, Event, Execution
 from tasks import TaskError, spec_from_json, spec_to_json
-from viz.files import Staging, atomic_write
+from viz import Staging, atomic_write
 from wbmp.errors import CliError, ExitCode
 
 FORMAT_VERSION = 1

@@ -110,7 +110,7 @@ def clip_words(sentence: str, clip: LibraryClip) -> tuple:
     """What each word of ``sentence`` did when it picked ``clip`` (``language.plan.WordUse``, as
     ``wbmp parse`` shows for an action): runs of content words name the clip (role ``action``,
     action 1), the others are fillers."""
-    from language.plan import WordUse
+    from language import WordUse
 
     uses: list[WordUse] = []
     run: list[str] = []

@@ -68,13 +68,19 @@ class RetargetResult(SolveResult):
 def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):
     """(robot, spec, reference, skeleton name, clip info) of a request; ClipError (exit 3) for a bad clip."""
     from robots import load_robot
-    from tasks.mocap import human_motion, label_contacts, load_skeleton, read_bvh, recognize
-    from tasks.mocap.retarget import retarget_spec
-    from tasks.mocap.skeleton import check_joints
+    from tasks import (
+        check_joints,
+        human_motion,
+        label_contacts,
+        load_skeleton,
+        read_bvh,
+        recognize_skeleton,
+        retarget_spec,
+    )
 
     progress(f"reading {request.clip}")
     clip = read_bvh(request.clip)
-    skeleton = load_skeleton(request.skeleton) if request.skeleton is not None else recognize(clip.names, clip.source)
+    skeleton = load_skeleton(request.skeleton) if request.skeleton is not None else recognize_skeleton(clip.names, clip.source)
     check_joints(skeleton, clip.names, clip.source)
     window = clip.window(request.start, request.end)
     motion = human_motion(window, skeleton)
@@ -149,16 +155,16 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
 
 def _figures(robot, spec, ref, plan, execution) -> tuple[Any, Any]:
     """The figures of the plan and of the execution (None without one)."""
-    from tasks.mocap.figures import figures
+    from tasks import motion_figures
 
-    plan_figures = figures(robot, plan.t, plan.q, spec, ref)
+    plan_figures = motion_figures(robot, plan.t, plan.q, spec, ref)
     exec_figures = None
     if execution is not None:
         import dataclasses
 
-        from tasks.mocap.figures import torque_cause
+        from tasks import torque_cause
 
-        exec_figures = figures(robot, execution.t, execution.q, spec, ref)
+        exec_figures = motion_figures(robot, execution.t, execution.q, spec, ref)
         tau = getattr(execution, "tau", None)
         why = torque_cause(robot, exec_figures.worst_role, exec_figures.worst_time, execution.t, tau) \
             if tau is not None else ""
@@ -194,7 +200,7 @@ def keypoint_plot(result: RetargetResult) -> Any:
     computed from (:func:`tasks.mocap.figures.tracks`), so its largest error is the report's."""
     import numpy as np
 
-    from tasks.mocap.figures import contact_windows, tracks
+    from tasks import contact_windows, tracks
     from viz import KeypointPlot
 
     robot, ref = result.model(), result.reference

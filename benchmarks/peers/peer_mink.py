@@ -4,7 +4,7 @@
   the same kinematic tree as wbmp's simulation) with a site at each tracked Pinocchio frame, the
   standing configuration and the scaled source keypoints (:class:`tasks.mocap.retarget.Reference`).
 * :func:`peer_plan`: the peer's configurations back in Pinocchio order, their figures
-  (:func:`tasks.mocap.figures.figures`: the same definitions and labelled contacts as wbmp's),
+  (:func:`tasks.mocap.figures.motion_figures`: the same definitions and labelled contacts as wbmp's),
   and a :class:`planner.Plan` of them (a 0.8 s smoothstep from standing into the first frame,
   the clip at its source rate, the last frame held for the lead-out; velocities and
   accelerations by central differences; wbmp's spec of the clip) tracked by wbmp's controller
@@ -104,7 +104,7 @@ def peer_plan(res, data: dict, clip: Path) -> dict:
     """Figures and certificate of the peer's output ``data`` for our result ``res`` of the same clip."""
     from planner import Plan, SolverStats, SolveStatus
     from sim import simulate
-    from tasks.mocap.figures import figures
+    from tasks.mocap.figures import motion_figures
 
     robot, ref, spec = res.robot, res.reference, res.spec
     q_src = to_pinocchio(robot, np.asarray(data["qpos"]))
@@ -115,7 +115,7 @@ def peer_plan(res, data: dict, clip: Path) -> dict:
     if "solve_cpu_s" in data:
         rec["solve_cpu_s"] = float(data["solve_cpu_s"])
         rec["frames_per_cpu_s"] = frames / rec["solve_cpu_s"] if rec["solve_cpu_s"] > 0 else None
-    rec["kinematic"] = _figs(figures(robot, np.asarray(ref.t), q_src, spec, ref))
+    rec["kinematic"] = _figs(motion_figures(robot, np.asarray(ref.t), q_src, spec, ref))
     plan = _as_plan(robot, spec, ref, q_src, Plan, SolverStats, SolveStatus)
     plan = dataclasses.replace(plan, spec=_own_placements(robot, plan))
     t0 = time.perf_counter()
@@ -129,7 +129,7 @@ def peer_plan(res, data: dict, clip: Path) -> dict:
     rec["certified"] = bool(execution.ok)
     rec["certificate_failures"] = [f"{c.name}: {c.violation:.3g} {c.unit}" for c in execution.certificate.checks
                                    if not c.ok][:6]
-    rec["executed"] = _figs(figures(robot, execution.t, execution.q, spec, ref))
+    rec["executed"] = _figs(motion_figures(robot, execution.t, execution.q, spec, ref))
     return rec
 
 

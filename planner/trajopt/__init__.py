@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 
 if TYPE_CHECKING:
     from planner.trajopt.api import plan

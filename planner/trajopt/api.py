@@ -67,8 +67,8 @@ from planner.trajopt.scene_collision import (
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.solve import solve_layout
 from planner.trajopt.transcription import bounds, parameter_values
-from robots.model import Robot
-from tasks.specs import TaskSpec
+from robots import Robot
+from tasks import TaskSpec
 
 
 def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = None, throw: bool = True,

@@ -19,7 +19,7 @@ entry (:func:`planner.trajopt.cache.get_solver`, background or not):
   is recorded as a skip. Where ``/proc/meminfo`` cannot be read (not Linux) memory is not checked.
 
 ``wbmp cache`` shows the running build (key, pid, the compiler's pid, since when, what it does)
-and the skipped structures (:func:`status`). The lock file's text is JSON written by the holder;
+and the skipped structures (:func:`build_status`). The lock file's text is JSON written by the holder;
 it is informative only: whether a build runs is the lock itself.
 """
 
@@ -114,7 +114,7 @@ def _pid_alive(pid: object) -> bool:
     return True
 
 
-def describe(info: dict, now: float | None = None) -> str:
+def describe_build(info: dict, now: float | None = None) -> str:
     """``3f2a... (pid 1234, compiler pid 1240, since 10:41:02, 35 s: compiling)`` from a lock's text."""
     now = time.time() if now is None else now
     parts = [f"pid {info.get('pid', '?')}"]
@@ -177,7 +177,7 @@ def claim(folder: Path, key: str) -> Slot | str:
         return f"the build lock {path} cannot be opened ({(e.strerror or str(e)).lower()})"
     if not _try_lock(fd, path):
         os.close(fd)
-        return f"another build is running: {describe(_read_info(path))}"
+        return f"another build is running: {describe_build(_read_info(path))}"
     slot = Slot(fd, path, key)
     slot.note(state="running", phase="starting")
     clear_skip(folder, key)
@@ -274,6 +274,6 @@ class BuildStatus:
     margin: int
 
 
-def status(folder: Path, need: int = BUILD_MEMORY, margin: int = MEMORY_MARGIN) -> BuildStatus:
+def build_status(folder: Path, need: int = BUILD_MEMORY, margin: int = MEMORY_MARGIN) -> BuildStatus:
     """The builds of the solver cache folder ``folder`` (``<cache_dir>/planner``)."""
     return BuildStatus(running(folder), skipped(folder), mem_available(), need, margin)

@@ -51,7 +51,7 @@ from planner.trajopt.cache_disk import LIBRARY, META, SERIALIZED, EntryDamaged
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import model_hash
-from robots.cache import mark_used, trim_cache
+from robots import mark_used, trim_cache
 
 if TYPE_CHECKING:
     from planner.trajopt.transcription import Solver

@@ -44,8 +44,7 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from robots.cache import file_sha256
-from robots.safeio import open_regular, read_bytes
+from robots import file_sha256, open_regular, read_bytes
 
 LIBRARY = "nlp.so"
 SERIALIZED = "nlp.casadi"

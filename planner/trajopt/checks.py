@@ -35,7 +35,7 @@ from planner.trajopt.layout import (
 from planner.trajopt.scene_collision import SceneCollisionTerm
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import ReportContext, Term, worst_check
-from tasks.specs import Priority
+from tasks import Priority
 
 START_TOLERANCE = 1e-3  # [m], [rad]: first-phase contacts vs the standing soles
 

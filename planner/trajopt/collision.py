@@ -32,8 +32,7 @@ import pinocchio as pin
 from planner.results import Check, CheckKind
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
-from robots.collision import CollisionModel, body_part, collision_model
-from robots.model import Robot
+from robots import CollisionModel, Robot, body_part, collision_model
 
 if TYPE_CHECKING:
     from planner.trajopt.layout import Layout

@@ -11,7 +11,7 @@ from planner.trajopt.kinds import FrameOrientationTerm
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import kind_of_check
-from tasks.specs import Priority
+from tasks import Priority
 
 RELAXED_WEIGHT = 1e4  # [1/m^2] weight of a hard target turned into a cost while diagnosing
 

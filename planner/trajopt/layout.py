@@ -48,10 +48,9 @@ from planner.trajopt.kinds import (
     target_mode,
 )
 from planner.trajopt.term import Term, knots_of
-from robots.contact import halfplanes, sole_corners_in_world
-from robots.contact import support_polygon as polygon_of_soles
-from robots.model import Robot
-from tasks.specs import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
+from robots import Robot, halfplanes, sole_corners_in_world
+from robots import support_polygon as polygon_of_soles
+from tasks import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
     from planner.results import Check, Plan

@@ -60,8 +60,7 @@ import numpy as np
 
 from planner.trajopt.cache_disk import write_atomic
 from planner.trajopt.layout import Layout
-from robots.cache import trim_cache
-from robots.safeio import FileTooLarge, NotRegularFile, read_npz, read_text
+from robots import FileTooLarge, NotRegularFile, read_npz, read_text, trim_cache
 
 FOLDER = "seeds"  # below the cache folder (robots.cache.CACHE_FOLDERS)
 ENTRIES = 8  # seeds kept per structure

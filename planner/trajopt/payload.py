@@ -23,8 +23,8 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
-from robots.model import Robot
-from tasks.specs import TaskSpec
+from robots import Robot
+from tasks import TaskSpec
 
 PAYLOAD_TORQUE_FRACTION = 0.9  # of a joint's torque limit, holding the object still
 GRAVITY = 9.81  # [m/s^2]

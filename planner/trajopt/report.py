@@ -10,7 +10,7 @@ from planner.trajopt.checks import check_plan, finite_differences
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import chart_to_configuration
-from robots.model import Robot
+from robots import Robot
 
 
 def configurations(lay: Layout, dq: np.ndarray) -> np.ndarray:

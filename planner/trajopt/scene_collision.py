@@ -61,9 +61,8 @@ from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
-from robots.collision import Capsule, body_part, fit_capsule, link_points
-from robots.model import Robot
-from tasks.scene import Scene, SceneObject, on_top
+from robots import Capsule, Robot, body_part, fit_capsule, link_points
+from tasks import Scene, SceneObject, on_top
 
 if TYPE_CHECKING:
     from planner.trajopt.layout import Layout

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN
 from planner.trajopt.centroidal.settings import CentroidalSettings
-from robots.cache import cache_base
+from robots import cache_base
 
 
 def default_cache_dir() -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 
 if TYPE_CHECKING:
     from planner.wbc.controller import TickInfo, WholeBodyController

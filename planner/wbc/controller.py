@@ -44,8 +44,7 @@ from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
 from planner.wbc.reference import FLIGHT_BLEND, PlanReference, _hermite, flight_spans
 from planner.wbc.settings import ControllerError, WbcSettings
-from robots.contact import pyramid_coefficient, pyramid_facets, sole_corners
-from robots.model import Robot
+from robots import Robot, pyramid_coefficient, pyramid_facets, sole_corners
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 
 VELOCITY_SCALE = 0.02  # [rad/s] the Coulomb term's tanh reaches 76 % of the friction at this speed
 RETURN_RATE = 20.0  # [1/s] desired joint speed per radian of error

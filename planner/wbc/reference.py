@@ -24,8 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.results import Plan
-from robots.contact import points_in_world, sole_corners, support_polygon
-from robots.model import Robot
+from robots import Robot, points_in_world, sole_corners, support_polygon
 
 
 def _skew_batch(w: np.ndarray) -> np.ndarray:

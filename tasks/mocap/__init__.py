@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from tasks.mocap.bvh import BvhClip, read_bvh
 from tasks.mocap.exceptions import ClipError
-from tasks.mocap.skeleton import SkeletonMap, load_skeleton, recognize
+from tasks.mocap.skeleton import SkeletonMap, load_skeleton, recognize_skeleton
 from tasks.mocap.source import HumanMotion, human_motion, label_contacts
 
 __all__ = ["BvhClip", "ClipError", "HumanMotion", "SkeletonMap", "human_motion", "label_contacts",
-           "load_skeleton", "read_bvh", "recognize"]
+           "load_skeleton", "read_bvh", "recognize_skeleton"]

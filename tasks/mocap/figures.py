@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.mocap.retarget import TRACKED, Reference
 from tasks.mocap.source import SIDES
 from tasks.specs import TaskSpec
@@ -129,7 +129,7 @@ def tracks(robot: Robot, t: np.ndarray, q: np.ndarray, ref: Reference) -> Tracks
                   corners=corners, inside=inside)
 
 
-def figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Reference) -> Figures:
+def motion_figures(robot: Robot, t: np.ndarray, q: np.ndarray, spec: TaskSpec, ref: Reference) -> Figures:
     """The figures of configurations ``q`` (T, nq) at times ``t`` (T,) [s] retargeting ``ref``."""
     tr = tracks(robot, t, q, ref)
     clip0, clip1 = float(ref.t[0]), float(ref.t[-1])

@@ -71,7 +71,7 @@ DAZ = SkeletonMap(
 BUILTIN = (MOTIONBUILDER, DAZ)
 
 
-def recognize(names: tuple[str, ...], source: str = "clip") -> SkeletonMap:
+def recognize_skeleton(names: tuple[str, ...], source: str = "clip") -> SkeletonMap:
     """The built-in skeleton whose keypoint joints the clip has (ClipError when none fits)."""
     have = set(names)
     for skeleton in BUILTIN:

@@ -17,7 +17,7 @@ handing it over :mod:`.handover` (hand_over); pushing one :mod:`.push` (push).
 
 from __future__ import annotations
 
-from robots.model import Robot
+from robots import Robot
 from tasks.actions import REGISTRY, Action, get_action
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives import (

@@ -15,7 +15,7 @@ centre).
 
 from __future__ import annotations
 
-from robots.model import Robot
+from robots import Robot
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 
 SHIFT_TIME = 1.0  # [s] weight shift before and after the one-foot stance

@@ -20,7 +20,7 @@ from typing import cast
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.actions import Action
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.geometry import Stance, StandingGeometry, _clean, standing_geometry

@@ -29,8 +29,7 @@ import coal  # type: ignore[import-untyped]
 import numpy as np
 import pinocchio as pin
 
-from robots.collision import collision_model, pair_sphere_distance
-from robots.model import Robot
+from robots import Robot, collision_model, pair_sphere_distance
 from tasks.primitives.geometry import standing_geometry
 
 GAP = 0.02  # [m] hand-to-body clearance of body-touching targets (>= the planner's 1 cm self-collision margin)

@@ -21,7 +21,7 @@ from typing import cast
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import standing_feet
 from tasks.primitives.base import DEFAULT_DT, FragmentBuilder

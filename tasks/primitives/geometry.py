@@ -23,8 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from robots.contact import convex_hull, polygon_margin, support_polygon
-from robots.model import Robot
+from robots import Robot, convex_hull, polygon_margin, support_polygon
 from tasks.exceptions import TaskDefinitionError
 from tasks.specs import Pose
 
@@ -201,7 +200,7 @@ def standing_geometry(robot: Robot) -> StandingGeometry:
     pin.framesForwardKinematics(model, data, q)
     com = np.array(pin.centerOfMass(model, data, q), dtype=float)
     placements = {}
-    from robots.profile import ROLES
+    from robots import ROLES
 
     for role in ROLES:
         if robot.has_role(role):

@@ -28,7 +28,7 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import Grounded
 from tasks.primitives.arms import POSE_TOLERANCE, reach_gap

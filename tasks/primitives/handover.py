@@ -35,7 +35,7 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.arms import reach, shoulder
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive

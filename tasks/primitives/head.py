@@ -9,7 +9,7 @@ range in a direction the gesture uses.
 
 from __future__ import annotations
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import neck_range, require_role, standing_geometry

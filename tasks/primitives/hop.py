@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.primitives.base import DEFAULT_DT, Fragment, FragmentBuilder, Primitive
 from tasks.primitives.gait import (

@@ -42,7 +42,7 @@ from typing import cast
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance, standing_geometry

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import lateral_step_max, step_width
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from robots.model import Robot
+from robots import Robot
 from tasks.footsteps import (
     ContactSequence,
     footsteps,

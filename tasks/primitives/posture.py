@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.arms import fold_waypoints
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets

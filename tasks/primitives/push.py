@@ -48,7 +48,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets

@@ -17,7 +17,7 @@ from typing import cast
 
 import numpy as np
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
 from tasks.primitives.geometry import StandingGeometry

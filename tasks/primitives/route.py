@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import SceneConflict
 from tasks.primitives.bodymap import body_map
 from tasks.scene import SceneObject, extent, on_top, rotation

@@ -7,7 +7,7 @@ the CoM ground projection stays over the support polygon (the spec's CoM bounds)
 
 from __future__ import annotations
 
-from robots.model import Robot
+from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 

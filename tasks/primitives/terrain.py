@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robots.contact import sole_corners
-from robots.model import Robot
+from robots import Robot, sole_corners
 from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.grounding import Grounded
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive

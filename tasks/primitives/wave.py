@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robots.model import Robot
+from robots import Robot
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of, rest_targets
 from tasks.primitives.geometry import SIDE_SIGN
 

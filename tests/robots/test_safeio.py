@@ -117,13 +117,13 @@ def test_inside_and_confined(tmp_path):
     root = tmp_path / "cache"
     (root / "sub").mkdir(parents=True)
     (tmp_path / "outside").mkdir()
-    assert safeio.inside(root, "sub/x.json")
-    assert safeio.inside(root, root / "sub")
-    assert not safeio.inside(root, "../outside/x.json")
-    assert not safeio.inside(root, "sub/../../outside")
-    assert not safeio.inside(root, "/etc/passwd")
+    assert safeio.path_inside(root, "sub/x.json")
+    assert safeio.path_inside(root, root / "sub")
+    assert not safeio.path_inside(root, "../outside/x.json")
+    assert not safeio.path_inside(root, "sub/../../outside")
+    assert not safeio.path_inside(root, "/etc/passwd")
     (root / "escape").symlink_to(tmp_path / "outside")  # a link inside that leads out
-    assert not safeio.inside(root, "escape/x.json")
+    assert not safeio.path_inside(root, "escape/x.json")
     assert safeio.confined(root, "sub/x.json") == root / "sub" / "x.json"
     with pytest.raises(safeio.PathEscapes):
         safeio.confined(root, "../outside")

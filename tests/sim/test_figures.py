@@ -9,7 +9,7 @@ import pytest
 
 from sim import SimSettings, simulate
 from sim.estop import EStopSettings
-from sim.figures import FIGURES, summarize
+from sim.figures import FIGURES, summarize_figures
 from sim.handmade import squat_plan
 
 
@@ -58,7 +58,7 @@ def test_summary_over_runs():
     """The success rate and the means over runs that have a figure; E-stops are summed."""
     rows = [(True, {"work": 10.0, "estop_count": 0.0}), (False, {"work": 30.0, "estop_count": 1.0}),
             (True, {"estop_count": 1.0})]
-    s = summarize(rows)
+    s = summarize_figures(rows)
     assert s["runs"] == 3 and s["success_rate"] == pytest.approx(2 / 3)
     assert s["mean_work"] == 20.0 and s["estop_count"] == 2.0
-    assert math.isnan(s["mean_abs_work"]) and math.isnan(summarize([])["success_rate"])
+    assert math.isnan(s["mean_abs_work"]) and math.isnan(summarize_figures([])["success_rate"])

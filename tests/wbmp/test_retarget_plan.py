@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 
 from robots import load_robot
-from tasks.mocap import human_motion, label_contacts, read_bvh, recognize
+from tasks.mocap import human_motion, label_contacts, read_bvh, recognize_skeleton
 from tasks.mocap.retarget import reference
 from wbmp.cli import main
 from wbmp.motionfile import load_motion
@@ -71,7 +71,7 @@ def test_the_reported_tracking_error_is_the_distance_to_the_scaled_source(planne
     """The hands' tracking error, from the planned q and a reference rebuilt from the clip."""
     talos = load_robot("talos")
     clip = read_bvh(MOCAP / "13_29_squat.bvh").window(0.0, 1.5)
-    motion = human_motion(clip, recognize(clip.names))
+    motion = human_motion(clip, recognize_skeleton(clip.names))
     ref = reference(motion, label_contacts(motion), talos, lead_in=planned.report["retarget"]["lead_in_s"])
     plan = planned.plan
     data = talos.model.createData()

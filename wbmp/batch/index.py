@@ -177,7 +177,7 @@ def read_index(path: Path) -> dict[tuple[str, str], dict[str, Any]]:
 
 def is_done(record: dict[str, Any] | None, job: Any, out_dir: Path, *, retry_failed: bool = False) -> bool:
     """True when ``job`` need not run again (the module's resume rule)."""
-    from robots.cache import file_sha256
+    from robots import file_sha256
 
     if record is None or record.get("input_sha256") != job.input_sha256:
         return False
@@ -280,16 +280,16 @@ def summary_text(records: list[dict[str, Any]], *, title: str, pending: int = 0)
 
 def _figures_lines(records: list[dict[str, Any]]) -> list[str]:
     """The task success rate over the records, and the mean evaluation figures of the simulated ones
-    (:func:`sim.figures.summarize`, docs/safety.md); nothing when no record has figures."""
+    (:func:`sim.figures.summarize_figures`, docs/safety.md); nothing when no record has figures."""
     rows = [(rec.get("status") == "ok", rec["figures"]) for rec in records if isinstance(rec.get("figures"), dict)]
     if not records:
         return []
     rate = sum(1 for rec in records if rec.get("status") == "ok") / len(records)
     lines = ["", f"Task success rate: {100 * rate:.1f} % ({len(records)} records)."]
     if rows:
-        from sim.figures import FIGURES, summarize
+        from sim import FIGURES, summarize_figures
 
-        s = summarize(rows)
+        s = summarize_figures(rows)
         lines += ["", f"Evaluation figures, mean over the {len(rows)} simulated records (docs/safety.md):", "",
                   "| figure | mean | unit |", "|---|---:|---|"]
         for key, (unit, _) in FIGURES.items():

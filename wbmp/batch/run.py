@@ -104,7 +104,7 @@ def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simula
             retry_failed: bool = False, ray: bool = False, ray_address: str | None = None,
             cache: bool = True) -> BatchPlan:
     """Every check before any work (:class:`CliError`, one line, exit 2 or 3)."""
-    from viz.files import check_distinct, check_output_dir
+    from viz import check_distinct, check_output_dir
     from wbmp.outputs import output_errors
 
     if workers < 1:
@@ -189,7 +189,7 @@ def reconcile(folder: Path, jobs: list[Job], records: dict[tuple[str, str], dict
         known = records.get(job.key)
         named = known is not None and known.get("motion") == job.motion_name
         if named and verify and known is not None:
-            from robots.cache import file_sha256
+            from robots import file_sha256
 
             try:
                 named = file_sha256(path) == known.get("sha256")
@@ -207,7 +207,7 @@ def reconcile(folder: Path, jobs: list[Job], records: dict[tuple[str, str], dict
 def run_batch(plan: BatchPlan, progress: Any) -> BatchOutcome:
     """Run a checked batch; see the module docstring. Ctrl-C and SIGTERM propagate after the
     index and the summary were written."""
-    from viz.files import atomic_write_text
+    from viz import atomic_write_text
     from wbmp.batch.backends import LocalPool, RayPool
 
     t0 = time.perf_counter()

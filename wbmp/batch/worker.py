@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from robots.cache import file_sha256
+from robots import file_sha256
 
 #: BLAS/OpenMP thread variables set to 1 in every worker (as ``wbmp.cli.run`` does for one solve):
 #: the workers are the parallelism, and a second thread per worker only competes for the cores.
@@ -108,7 +108,7 @@ def _death_hook(item_id: str) -> Any:
     if how not in _DEATHS or target != item_id:
         yield
         return
-    from viz.files import Staging
+    from viz import Staging
 
     original = Staging.commit
 

@@ -43,7 +43,7 @@ first access.
 
 from __future__ import annotations
 
-from robots.lazy import lazy_face
+from robots import lazy_face
 
 _EXPORTS = {  # public name -> module that defines it
     "NOT_IMPLEMENTED": "wbmp.bench.tasks",

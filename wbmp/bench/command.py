@@ -28,7 +28,7 @@ def run_command(*, robot: str, tasks: str | None, quick: bool, repeats: int | No
         CliError: A bad option (exit 2), a bad ``--from`` file (exit 2).
         RobotError: An unknown robot (exit 3), before any work.
     """
-    from viz.files import Staging, check_distinct, check_output_file
+    from viz import Staging, check_distinct, check_output_file
     from wbmp.errors import ROBOT_HINT, one_line, require_text
     from wbmp.outputs import output_errors
 

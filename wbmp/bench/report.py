@@ -36,7 +36,7 @@ def plot_scaling(scaling: dict[str, Any], path: str | Path, title: str = "") -> 
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    from viz.files import atomic_write
+    from viz import atomic_write
 
     path = Path(path)
     try:

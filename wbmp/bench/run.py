@@ -113,7 +113,7 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
     try:
         from language import parse
         from robots import load_robot
-        from tasks.compose import compile_actions
+        from tasks import compile_actions
 
         robot = load_robot(robot_name)
         parse_times, spec_times = [], []
@@ -135,8 +135,8 @@ def bench_task(name: str, sentence: str, *, robot_name: str, repeats: int, dt: f
 
     # plan: first-ever, warm, cached cold -----------------------------------------------------
     try:
+        from planner import clear_memory_cache
         from planner import plan as plan_motion
-        from planner.trajopt.cache import clear_memory_cache
     except Exception as exc:  # noqa: BLE001
         return fail("planner import", exc)
 
@@ -255,7 +255,7 @@ def _end_to_end(sentence: str, robot_name: str, cache_dir: str, spec, repeats: i
             proc, wall = _timed(lambda: subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,  # noqa: B023 - _timed calls it at once
                                                        check=False))
             if mode == "sentence" and proc.returncode == ExitCode.USAGE and "not available" in proc.stderr:
-                from tasks.serialize import spec_to_json
+                from tasks import spec_to_json
 
                 mode = "spec"
                 Path(spec_file).write_text(spec_to_json(spec))
@@ -337,7 +337,7 @@ def run_bench(*, robot: str = "talos", tasks: list[str] | None = None, quick: bo
     Raises:
         CliError: A bad option (exit 2), checked before any work (:func:`check_options`).
     """
-    from planner.trajopt.settings import default_cache_dir
+    from planner import default_cache_dir
 
     names, reps = check_options(tasks=tasks, quick=quick, repeats=repeats, dt=dt, max_iterations=max_iterations)
     # First-ever builds are timed with gcc in the loop (and cached-cold runs need the entry on

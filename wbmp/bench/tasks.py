@@ -54,7 +54,7 @@ def planner_settings(cache_dir: str, max_iterations: int | None = None):
 def spec_for(sentence: str, robot, dt: float | None):
     """(actions, spec) of a task sentence on ``robot``, the knot spacing replaced by ``dt`` if given."""
     from language import parse
-    from tasks.compose import compile_actions
+    from tasks import compile_actions
 
     actions = parse(sentence)
     spec = compile_actions(actions.actions, robot)

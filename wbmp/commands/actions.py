@@ -42,8 +42,7 @@ def _param_dict(p) -> dict[str, Any]:
 
 def describe(names: list[str] | None = None, robot: Any = None) -> list[dict[str, Any]]:
     """JSON-friendly description of the primitives ``names`` (all when None)."""
-    from tasks.actions import REGISTRY, get_action
-    from tasks.primitives import PRIMITIVES
+    from tasks import PRIMITIVES, REGISTRY, get_action
 
     schemas = [get_action(n) for n in names] if names else list(REGISTRY.values())
     rows = []

@@ -81,7 +81,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viz.progress import make_progress
+    from viz import make_progress
     from wbmp.batch.run import prepare, run_batch
 
     if args.ray:  # the form first (one line, exit 2); prepare() checks that it answers

@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _folders(names: list[str]) -> tuple[str, ...]:
-    from robots.cache import CACHE_FOLDERS
+    from robots import CACHE_FOLDERS
 
     for name in names:
         if name.strip("/") not in CACHE_FOLDERS:
@@ -63,19 +63,19 @@ def _age(seconds: float) -> str:
 
 
 def _builds(base) -> Any:
-    """The build status of the planner cache folder (:func:`planner.trajopt.builds.status`)."""
-    from planner.trajopt.builds import MEMORY_MARGIN, status
+    """The build status of the planner cache folder (:func:`planner.trajopt.builds.build_status`)."""
+    from planner import MEMORY_MARGIN, build_status
     from wbmp.environment import build_memory
 
-    return status(base / "planner", build_memory(), MEMORY_MARGIN)
+    return build_status(base / "planner", build_memory(), MEMORY_MARGIN)
 
 
 def _build_lines(st, now: float) -> list[str]:
-    from planner.trajopt.builds import describe
+    from planner import describe_build
 
     gb = 1e9
     memory = "unknown" if st.available is None else f"{st.available / gb:.1f} GB"
-    lines = [f"  builds     {'running ' + describe(st.running, now) if st.running else 'none running'}",
+    lines = [f"  builds     {'running ' + describe_build(st.running, now) if st.running else 'none running'}",
              f"             a build starts with {st.need / gb:.1f} GB + {st.margin / gb:.1f} GB free "
              f"(WBMP_BUILD_MEMORY; available now: {memory})"]
     for rec in st.skipped:
@@ -85,7 +85,7 @@ def _build_lines(st, now: float) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robots.cache import cache_base, cache_usage, format_size, max_cache_bytes, remove_entry
+    from robots import cache_base, cache_usage, format_size, max_cache_bytes, remove_entry
 
     folders = _folders(args.folder)
     base = cache_base()

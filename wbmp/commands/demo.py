@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viz.progress import make_progress
+    from viz import make_progress
     from wbmp.commands.solve import print_result
     from wbmp.errors import CliError, ExitCode, one_line
     from wbmp.outputs import check_inputs_exist, check_outputs, write_outputs

@@ -140,7 +140,7 @@ def _check_rate(args: argparse.Namespace, motion) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viz.files import Staging, check_distinct, check_output_file
+    from viz import Staging, check_distinct, check_output_file
     from wbmp.export.files import exec_csv_path, export_motion
     from wbmp.motionfile import check_motion_exists, load_motion
     from wbmp.outputs import output_errors

@@ -59,8 +59,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def timeout_seconds(text: str) -> float:
     """``--llm-timeout`` value: a finite number of seconds above 0, at most 3600."""
-    from language.exceptions import BackendError
-    from language.llm import check_timeout
+    from language import BackendError, check_timeout
 
     try:
         value = float(text)
@@ -82,8 +81,7 @@ def llm_options(args: argparse.Namespace) -> dict:
     """
     if args.parser != "llm":
         return {}
-    from language.exceptions import BackendError
-    from language.llm import check_api_key, check_timeout, check_url
+    from language import BackendError, check_api_key, check_timeout, check_url
 
     if not args.llm_url:
         raise CliError("--parser llm needs --llm-url URL (or WBMP_LLM_URL)", ExitCode.USAGE)
@@ -109,7 +107,7 @@ def grounded(plan, scene):
     """
     import dataclasses
 
-    from tasks.grounding import ground
+    from tasks import ground
 
     words = []
     for w in plan.words:
@@ -127,7 +125,7 @@ def grounded(plan, scene):
 def _show_clip(text: str, args: argparse.Namespace) -> bool:
     """Print the motion-library clip ``text`` names (as ``wbmp solve --motions`` picks it); False
     when none does."""
-    from language.plan import ActionPlan
+    from language import ActionPlan
     from wbmp.motions import clip_dict, clip_words, describe_clip, load_library, match
 
     clip = match(text, load_library(args.motions))
@@ -145,14 +143,13 @@ def _show_clip(text: str, args: argparse.Namespace) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from language import parse
-    from language.exceptions import LanguageError
+    from language import LanguageError, parse
 
     text = " ".join(args.text)
     require_instruction(text)  # the bound of `wbmp solve`
     scene = None
     if args.scene is not None:
-        from tasks.scene import load_scene
+        from tasks import load_scene
 
         scene = load_scene(args.scene)
     try:

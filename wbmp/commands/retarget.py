@@ -65,7 +65,7 @@ def seconds(text: str) -> float:
 def run(args: argparse.Namespace) -> int:
     import os
 
-    from viz.progress import make_progress
+    from viz import make_progress
     from wbmp.outputs import check_outputs, write_outputs
     from wbmp.retarget import RetargetRequest, plot_path, retarget, write_plot
 

@@ -25,8 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def describe_collisions(name: str) -> dict:
     """A JSON-friendly summary of a robot's collision model (robots/collision.py)."""
-    from robots import load_robot
-    from robots.collision import body_part, collision_model
+    from robots import body_part, collision_model, load_robot
 
     r = load_robot(name)
     cm = collision_model(r)

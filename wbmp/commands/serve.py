@@ -68,7 +68,7 @@ def check_options(args: argparse.Namespace) -> None:
         if args.robot not in available_robots():
             load_robot(args.robot)  # an unknown robot or a bad profile: exit 3 now, not at the first sentence
     if args.scene is not None:
-        from tasks.scene import load_scene
+        from tasks import load_scene
 
         load_scene(args.scene)
     if args.motions is not None:

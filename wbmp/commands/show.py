@@ -51,9 +51,7 @@ def load(path: str):
 
 
 def run(args: argparse.Namespace) -> int:
-    from viz.files import Staging
-    from viz.motion import VizInputError
-    from viz.progress import make_progress
+    from viz import Staging, VizInputError, make_progress
     from wbmp.motionfile import check_motion_exists
     from wbmp.outputs import check_outputs, output_errors
 
@@ -87,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         print(line)
     if (outputs.html or outputs.plots) and not args.view:
         return ExitCode.OK
-    from viz.live import ViewerError, serve
+    from viz import ViewerError, serve
 
     try:
         serve(robot, plan, execution=execution, port=args.port, open_browser=args.open, collisions=args.collisions)

@@ -123,7 +123,7 @@ def _stop_on_sigusr1(request) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from language import LanguageError
-    from viz.progress import make_progress
+    from viz import make_progress
     from wbmp.outputs import check_inputs_exist, check_outputs, write_outputs
     from wbmp.pipeline import solve
 
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         print_result(result, written, as_json=args.json)
     if args.view:
-        from viz.live import ViewerError, serve
+        from viz import ViewerError, serve
 
         try:
             serve(result.model(), result.plan, execution=result.execution)

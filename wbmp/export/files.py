@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from viz.files import Staging
+from viz import Staging
 from wbmp.motionfile import MotionFile, MotionFileError, _json_default, load_motion, record_arrays
 
 #: the export formats (``wbmp export --format``)

@@ -73,7 +73,7 @@ class BagOptions:
 
 def base_frame_of(robot_name: str) -> str:
     """The base frame of a robot by its built-in profile's ``base`` role, else ``base_link``."""
-    from robots.profile import builtin_profiles
+    from robots import builtin_profiles
 
     profile = builtin_profiles().get(robot_name)
     frame = profile.frame("base") if profile is not None else None
@@ -134,7 +134,7 @@ def _tf(cols: MotionColumns, k: int, ns: int, world: str, base: str,
 
 def bag_document(motion) -> dict[str, Any]:
     """The JSON of ``/wbmp/report``: robot, format version, spec, actions, report."""
-    from tasks.serialize import spec_to_json
+    from tasks import spec_to_json
 
     return {"robot": motion.robot_name, "version": motion.version,
             "spec": json.loads(spec_to_json(motion.plan.spec, indent=None)),

@@ -36,7 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from tasks.actions import REGISTRY, Action
+from tasks import REGISTRY, Action
 
 SLOWER = 1.5  # duration factor of "slower" (its inverse for "faster")
 SIZE = 1.3  # size factor of "bigger" (its inverse for "smaller"), and of "lower"/"higher"
@@ -306,6 +306,6 @@ def apply(kinds: Sequence[str], current: Actions) -> tuple[Actions, list[Change]
 
 
 def _max_actions() -> int:
-    from tasks.limits import MAX_ACTIONS
+    from tasks import MAX_ACTIONS
 
     return MAX_ACTIONS

@@ -135,7 +135,7 @@ class ServeServer(ThreadingHTTPServer):
     def meshcat(self) -> bytes:
         """The bundle of meshcat's viewer."""
         if self._meshcat is None:
-            from viz.html import meshcat_bundle
+            from viz import meshcat_bundle
 
             self._meshcat = meshcat_bundle().encode("utf-8")
         return self._meshcat
@@ -357,7 +357,7 @@ class Handler(BaseHTTPRequestHandler):
         if not isinstance(text, str) or not text.strip():
             self._error(HTTPStatus.BAD_REQUEST, 'type an instruction, e.g. "squat twice" or 深蹲两次', 2)
             return
-        from tasks.limits import MAX_TEXT_LENGTH
+        from tasks import MAX_TEXT_LENGTH
 
         if len(text) > MAX_TEXT_LENGTH:
             self._error(HTTPStatus.BAD_REQUEST, f"the instruction is {len(text):,} characters long; wbmp reads at most "

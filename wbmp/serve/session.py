@@ -392,7 +392,7 @@ class Session:
 
     def _interpret(self, job: Job) -> tuple[dict[str, Any], str | None] | None:
         """The worker's request for ``job`` and the motion it starts from (None for undo)."""
-        from tasks.actions import Action
+        from tasks import Action
 
         with self._lock:
             last = self.motions.get(self.last) if self.last else None
@@ -452,8 +452,8 @@ class Session:
         with self._lock:
             job.progress.append(f"{end['reason']}: planning it again together with {rest!r}, from where it started")
         from language import parse
-        from tasks.actions import Action
-        from tasks.limits import MAX_ACTIONS
+        from tasks import MAX_ACTIONS
+        from tasks import Action
 
         added = parse(rest)
         mine = corrections.Actions(
@@ -494,7 +494,7 @@ def _brief(text: str) -> str:
 
 def _name(last_text: str, correction: str) -> str:
     """The corrected motion's name: ``squat (slower)``, bounded."""
-    from tasks.limits import MAX_TEXT_LENGTH
+    from tasks import MAX_TEXT_LENGTH
 
     base = last_text if len(last_text) < 200 else last_text[:197] + "..."
     return f"{base} ({correction.strip()})"[:MAX_TEXT_LENGTH]
@@ -502,8 +502,6 @@ def _name(last_text: str, correction: str) -> str:
 
 def _wire(actions: corrections.Actions) -> list[dict[str, Any]]:
     """Actions as the worker's job carries them (plain values: the pipe pickles them)."""
-    from tasks.actions import _plain
-
     return [{"name": a.name, "overlay": bool(a.overlay), "given": sorted(g),
-             "params": {k: _plain(v) for k, v in a.params.items() if v is not None and k in g}}
+             "params": {k: v for k, v in a.to_dict()["params"].items() if k in g}}
             for a, g in zip(actions.actions, actions.given, strict=True)]

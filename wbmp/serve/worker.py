@@ -133,8 +133,8 @@ def _actions_plan(job: dict[str, Any]):
     """The job's ActionPlan when it gives actions (a correction, a continuation), else None."""
     if job.get("actions") is None:
         return None
-    from language.plan import ActionPlan
-    from tasks.actions import Action
+    from language import ActionPlan
+    from tasks import Action
 
     actions = tuple(Action(name=a["name"], params=a["params"], overlay=a["overlay"]) for a in job["actions"])
     return ActionPlan(actions=actions, backend="rules", text=job["text"],
@@ -144,14 +144,14 @@ def _actions_plan(job: dict[str, Any]):
 def describe_actions(plan) -> list[dict[str, Any]]:
     """Every action with all its parameters, the stated ones and their units (the page's list and
     the corrections' input)."""
-    from tasks.actions import REGISTRY, _plain
+    from tasks import REGISTRY
 
     out = []
     for i, a in enumerate(plan.actions):
         schema = REGISTRY[a.name]
         out.append({
             "name": a.name, "overlay": bool(a.overlay),
-            "params": {k: _plain(v) for k, v in a.params.items() if v is not None},
+            "params": a.to_dict()["params"],
             "given": sorted(plan.given[i]),
             "units": {p.name: p.unit for p in schema.params},
         })
@@ -184,7 +184,7 @@ def run_job(job: dict[str, Any], progress) -> dict[str, Any]:
 
         paced = profile = dataclasses.replace(profile, step_duration=float(step))
     global _stop
-    from sim.estop import StopRequest
+    from sim import StopRequest
 
     _stop = StopRequest()
     start = None
@@ -293,8 +293,7 @@ def run_plots(job: dict[str, Any], progress) -> dict[str, Any]:
 
 def _profile(robot: str | None):
     """The profile of the session's robot (a built-in one without loading its model)."""
-    from robots import load_robot
-    from robots.profile import builtin_profiles
+    from robots import builtin_profiles, load_robot
 
     builtins = builtin_profiles()
     name = robot or "talos"
@@ -304,7 +303,7 @@ def _profile(robot: str | None):
 def _write_pages(result, folder: Path) -> None:
     """``replay.html`` (standalone, the download) and ``view.html`` (the same page, meshcat's
     bundle from the server's ``/static/meshcat.js``: the in-page viewer, cached by the browser)."""
-    from viz.html import page_data, render_page
+    from viz import page_data, render_page
     from wbmp.motioncache import MotionCache
 
     data = None

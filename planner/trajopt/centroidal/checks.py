@@ -12,7 +12,7 @@ from planner.results import Check, CheckKind
 from planner.trajopt.centroidal.contacts import contact_geometry_points
 from planner.trajopt.centroidal.pattern import CentroidalPattern, CentroidalTerms
 from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
-from robots.contact import center_of_pressure, friction_violation, sole_corners
+from robots import center_of_pressure, friction_violation, sole_corners
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout

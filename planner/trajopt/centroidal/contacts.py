@@ -10,9 +10,8 @@ import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import PlannerError
-from robots.contact import sole_corners
-from robots.model import Robot
-from tasks.specs import Contact, Pose, TaskSpec, Vec3
+from robots import Robot, sole_corners
+from tasks import Contact, Pose, TaskSpec, Vec3
 
 if TYPE_CHECKING:
     from planner.trajopt.layout import Layout

@@ -11,8 +11,7 @@ import casadi as ca
 import numpy as np
 
 from planner.trajopt.centroidal.pattern import CentroidalFunction
-from robots.contact import sole_corners
-from robots.model import Robot
+from robots import Robot, sole_corners
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout

@@ -26,8 +26,8 @@ from planner.trajopt.centroidal.physics import (
     pyramid_edges,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
-from robots.model import Robot
-from tasks.specs import TaskSpec
+from robots import Robot
+from tasks import TaskSpec
 
 if TYPE_CHECKING:
     from planner.trajopt.centroidal.layout import DynamicLayout

@@ -9,7 +9,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from robots.contact import pyramid_coefficient, pyramid_edges_in_contact
+from robots import pyramid_coefficient, pyramid_edges_in_contact
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2], world frame (z up)
 

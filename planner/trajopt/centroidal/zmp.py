@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from robots.contact import halfplanes, sole_corners_in_world, support_polygon
+from robots import halfplanes, sole_corners_in_world, support_polygon
 
 if TYPE_CHECKING:
     from planner.results import Check

@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tasks.mocap import ClipError, read_bvh, recognize
+from tasks.mocap import ClipError, read_bvh, recognize_skeleton
 from tasks.mocap.bvh import parse_bvh
 from tasks.mocap.skeleton import DAZ, MOTIONBUILDER, load_skeleton
 
@@ -49,7 +49,7 @@ def test_forward_kinematics_matches_se3_composition(name):
     P = clip.positions()
     rng = np.random.default_rng(0)
     for frame in rng.choice(clip.n_frames, 4, replace=False):
-        for joint in [clip.index(n) for n in recognize(clip.names).joints.values()]:
+        for joint in [clip.index(n) for n in recognize_skeleton(clip.names).joints.values()]:
             ref = _reference(clip, joint, int(frame))
             assert np.linalg.norm(P[frame, joint] - ref) < 1e-9 * max(1.0, np.linalg.norm(ref))
 
@@ -58,7 +58,7 @@ def test_every_shared_clip_reads_with_its_skeleton():
     rows = {r.split(",")[0]: r for r in (MOCAP / "clips.csv").read_text().splitlines()[1:]}
     for path in sorted(MOCAP.glob("*.bvh")):
         clip = read_bvh(path)
-        skeleton = recognize(clip.names, str(path))
+        skeleton = recognize_skeleton(clip.names, str(path))
         assert skeleton is (DAZ if "Daz" in rows[path.name] else MOTIONBUILDER)
         assert abs(clip.frame_time - 1 / 120) < 1e-5
         assert f",{clip.n_frames}," in rows[path.name]
@@ -99,7 +99,7 @@ def test_bad_files_are_refused_in_one_line(raw, message):
 def test_unknown_skeleton_and_a_mapping_file(tmp_path):
     clip = parse_bvh((HEAD + "Frames: 3\nFrame Time: 0.01\n" + "0 0 0 0 0 0\n" * 3).encode(), "tiny.bvh")
     with pytest.raises(ClipError, match="unknown skeleton.*--skeleton FILE"):
-        recognize(clip.names, "tiny.bvh")
+        recognize_skeleton(clip.names, "tiny.bvh")
     mapping = tmp_path / "mine.toml"
     mapping.write_text("name = 'mine'\nunit = 0.01\n[joints]\n"
                        + "".join(f"{k} = '{v}'\n" for k, v in DAZ.joints.items()))

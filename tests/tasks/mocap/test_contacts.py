@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tasks.mocap import human_motion, label_contacts, read_bvh, recognize
+from tasks.mocap import human_motion, label_contacts, read_bvh, recognize_skeleton
 from tasks.mocap.source import segments
 
 MOCAP = Path("/work/shared/mocap")
@@ -17,7 +17,7 @@ pytestmark = pytest.mark.skipif(not MOCAP.is_dir(), reason="the shared CMU clips
 
 def _labels(name: str):
     clip = read_bvh(MOCAP / name)
-    motion = human_motion(clip, recognize(clip.names))
+    motion = human_motion(clip, recognize_skeleton(clip.names))
     return motion, label_contacts(motion)
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robots import load_robot
-from tasks.mocap import human_motion, label_contacts, read_bvh, recognize
+from tasks.mocap import human_motion, label_contacts, read_bvh, recognize_skeleton
 from tasks.mocap.retarget import retarget_spec
 from tasks.primitives.geometry import Stance
 from tasks.specs import Priority
@@ -24,7 +24,7 @@ def talos():
 
 def _spec(name: str, robot, start: float = 0.0, end: float | None = None):
     clip = read_bvh(EXAMPLES / name).window(start, end)
-    motion = human_motion(clip, recognize(clip.names))
+    motion = human_motion(clip, recognize_skeleton(clip.names))
     labels = label_contacts(motion)
     spec, ref = retarget_spec(motion, labels, robot)
     return motion, labels, spec, ref
