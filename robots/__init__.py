@@ -1,7 +1,8 @@
 """Robot models and their named frames: the humanoids wbmp plans for.
 
-Each public name is imported on first access, so ``import robots.safeio`` (the safe file reader
-every layer uses) or ``import robots.cache`` do not load Pinocchio through this package's face.
+Each public name is imported on first access, so the safe file readers (``robots.read_text``,
+:mod:`robots.safeio`) and the disk store every cache uses (``robots.store_entry``,
+:mod:`robots.store`) load nothing but the standard library: no Pinocchio.
 
 Example:
     >>> from robots import load_robot
@@ -17,27 +18,7 @@ from typing import TYPE_CHECKING
 from robots.lazy import lazy_face
 
 if TYPE_CHECKING:
-    from robots.cache import (
-        CACHE_FOLDERS,
-        EntryDamaged,
-        EntryStale,
-        cache_base,
-        cache_environment,
-        cache_folder,
-        cache_usage,
-        entry_vanished,
-        file_sha256,
-        format_size,
-        mark_used,
-        max_cache_bytes,
-        mesh_files,
-        parse_size,
-        read_manifest,
-        remove_entry,
-        store_entry,
-        stored_mesh_files,
-        trim_cache,
-    )
+    from robots.cache import cache_environment, mesh_files, stored_mesh_files
     from robots.collision import (
         Capsule,
         CollisionModel,
@@ -79,14 +60,34 @@ if TYPE_CHECKING:
         read_text,
         sha256_file,
     )
+    from robots.store import (
+        CACHE_FOLDERS,
+        EntryDamaged,
+        EntryStale,
+        cache_base,
+        cache_folder,
+        cache_usage,
+        entry_vanished,
+        file_sha256,
+        format_size,
+        mark_used,
+        max_cache_bytes,
+        parse_size,
+        process_alive,
+        read_manifest,
+        remove_entry,
+        store_entry,
+        trim_cache,
+        write_text_atomic,
+    )
 
 _EXPORTS = {  # public name -> module that defines it
-    "CACHE_FOLDERS": "robots.cache",
+    "CACHE_FOLDERS": "robots.store",
     "Capsule": "robots.collision",
     "CollisionModel": "robots.collision",
     "DEFAULT_ROBOT": "robots.model",
-    "EntryDamaged": "robots.cache",
-    "EntryStale": "robots.cache",
+    "EntryDamaged": "robots.store",
+    "EntryStale": "robots.store",
     "ExtraFrame": "robots.profile",
     "FileTooLarge": "robots.safeio",
     "FrameNotFound": "robots.exceptions",
@@ -105,30 +106,31 @@ _EXPORTS = {  # public name -> module that defines it
     "available_robots": "robots.model",
     "body_part": "robots.collision",
     "builtin_profiles": "robots.profile",
-    "cache_base": "robots.cache",
+    "cache_base": "robots.store",
     "cache_environment": "robots.cache",
-    "cache_folder": "robots.cache",
-    "cache_usage": "robots.cache",
+    "cache_folder": "robots.store",
+    "cache_usage": "robots.store",
     "center_of_pressure": "robots.contact",
     "collision_model": "robots.collision",
     "convex_hull": "robots.contact",
-    "entry_vanished": "robots.cache",
-    "file_sha256": "robots.cache",
+    "entry_vanished": "robots.store",
+    "file_sha256": "robots.store",
     "fit_capsule": "robots.collision",
-    "format_size": "robots.cache",
+    "format_size": "robots.store",
     "friction_violation": "robots.contact",
     "halfplanes": "robots.contact",
     "is_key": "robots.safeio",
     "level_soles": "robots.model",
     "link_points": "robots.collision",
     "load_robot": "robots.model",
-    "mark_used": "robots.cache",
-    "max_cache_bytes": "robots.cache",
+    "mark_used": "robots.store",
+    "max_cache_bytes": "robots.store",
     "mesh_files": "robots.cache",
     "mujoco_friction": "robots.contact",
     "open_regular": "robots.safeio",
+    "process_alive": "robots.store",
     "pair_sphere_distance": "robots.collision",
-    "parse_size": "robots.cache",
+    "parse_size": "robots.store",
     "path_inside": "robots.safeio",
     "points_in_world": "robots.contact",
     "polygon_margin": "robots.contact",
@@ -136,17 +138,18 @@ _EXPORTS = {  # public name -> module that defines it
     "pyramid_edges_in_contact": "robots.contact",
     "pyramid_facets": "robots.contact",
     "read_bytes": "robots.safeio",
-    "read_manifest": "robots.cache",
+    "read_manifest": "robots.store",
     "read_npz": "robots.safeio",
     "read_text": "robots.safeio",
-    "remove_entry": "robots.cache",
+    "remove_entry": "robots.store",
     "sha256_file": "robots.safeio",
     "sole_corners": "robots.contact",
     "sole_corners_in_world": "robots.contact",
-    "store_entry": "robots.cache",
+    "store_entry": "robots.store",
     "stored_mesh_files": "robots.cache",
     "support_polygon": "robots.contact",
-    "trim_cache": "robots.cache",
+    "trim_cache": "robots.store",
+    "write_text_atomic": "robots.store",
 }
 
 __all__ = [
@@ -201,6 +204,7 @@ __all__ = [
     "path_inside",
     "points_in_world",
     "polygon_margin",
+    "process_alive",
     "pyramid_coefficient",
     "pyramid_edges_in_contact",
     "pyramid_facets",
@@ -216,6 +220,7 @@ __all__ = [
     "stored_mesh_files",
     "support_polygon",
     "trim_cache",
+    "write_text_atomic",
 ]
 
 

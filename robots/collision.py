@@ -37,8 +37,6 @@ import hashlib
 import itertools
 import json
 import math
-import os
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -72,6 +70,7 @@ from robots.capsules import (  # noqa: F401 (re-exported)
     sphere_distance,
 )
 from robots.safeio import read_json
+from robots.store import write_text_atomic
 
 if TYPE_CHECKING:
     from robots.model import Robot
@@ -238,7 +237,7 @@ def _build(robot: Robot) -> CollisionModel:
 
 def cache_dir() -> Path:
     """``$WBMP_CACHE_DIR/collision`` (else ``~/.cache/wbmp/collision``): the root the solver cache uses."""
-    from robots.cache import cache_folder
+    from robots.store import cache_folder
 
     folder = cache_folder("collision")
     assert folder is not None  # no switch: never off
@@ -313,16 +312,10 @@ def _from_json(data: dict, robot: Robot) -> CollisionModel:
 
 
 def _write_atomic(path: Path, text: str) -> None:
+    """Store a fit; a cache folder that cannot be written only costs the speed-up."""
     with contextlib.suppress(OSError):
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
-            Path(tmp).replace(path)
-        except OSError:
-            with contextlib.suppress(OSError):
-                Path(tmp).unlink()
+        write_text_atomic(path, text)
 
 
 _MEMORY: dict[tuple[int, str], CollisionModel] = {}
@@ -330,7 +323,7 @@ _MEMORY: dict[tuple[int, str], CollisionModel] = {}
 
 def collision_model(robot: Robot) -> CollisionModel:
     """The collision model of ``robot``: from memory, the disk cache, or fitted now (~1 s)."""
-    from robots.cache import mark_used, trim_cache
+    from robots.store import mark_used, trim_cache
 
     key = cache_key(robot)
     mem = _MEMORY.get((id(robot), key))

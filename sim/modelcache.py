@@ -17,7 +17,7 @@ does not match its size and sha256, or whose ``meta.json`` is unreadable or does
 model, is removed with one warning (logger ``sim.modelcache``) and rebuilt. Entries are written
 to a temporary folder and renamed into place; a cache folder that cannot be written only costs
 the speed-up. A hit renews the entry's use time and a store applies the size cap of the whole
-cache (:func:`robots.cache.enforce_cap`); an entry removed by another process while it is read is
+cache (:func:`robots.store.enforce_cap`); an entry removed by another process while it is read is
 a miss.
 """
 

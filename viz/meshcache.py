@@ -18,7 +18,7 @@ it also holds the size and sha256 of ``meshes.npz``, checked before numpy reads 
 entry is removed with one warning (logger ``viz.meshcache``) and rebuilt; an entry is written
 to a temporary folder and renamed into place; a cache that cannot be written only costs the
 speed-up. A hit renews the entry's use time and a store applies the size cap of the whole cache
-(:func:`robots.cache.enforce_cap`); an entry removed by another process while it is read is a miss.
+(:func:`robots.store.enforce_cap`); an entry removed by another process while it is read is a miss.
 
 A hit gives the replay a light visual model (:func:`replay_robot`): the same geometry objects
 (names, joints, placements, colours) without their meshes, so the visual meshes are not loaded

@@ -18,7 +18,7 @@ variable                    field                                   unset
 ``WBMP_COMPILER``           ``compiler``                            ``gcc``
 ========================== ====================================== =========================
 
-(``WBMP_CACHE_DIR`` is read by :func:`robots.cache.cache_base`, the default ``cache_dir``.)
+(``WBMP_CACHE_DIR`` is read by :func:`robots.store.cache_base`, the default ``cache_dir``.)
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ manifest and :func:`wbmp.motionfile.motion_from_arrays` accepts every key, and w
 holds hashes back to its key. A damaged entry is removed with one warning (logger
 ``wbmp.motioncache``) and the motion is computed again. A hit renews the use time of the entry's
 manifest (and of the request record); a store applies the size cap of the whole cache
-(:func:`robots.cache.enforce_cap`: least recently used entries removed, manifest first), and an
+(:func:`robots.store.enforce_cap`: least recently used entries removed, manifest first), and an
 entry removed by another process while it is read is a miss. Every file is written atomically
 (:mod:`viz.files`); a cache folder that cannot be written only costs the speed-up.
 """
@@ -45,6 +45,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from robots import mark_used
 from wbmp import __version__
 
 if TYPE_CHECKING:
@@ -336,7 +337,7 @@ class MotionCache:
                 return None  # a robot file changed: a miss, the record is replaced after the solve
         except OSError:
             return None
-        _mark_used(path)
+        mark_used(path)
         actions = record.get("actions")
         return Request(key, digest, actions if isinstance(actions, dict) else None)
 
@@ -380,7 +381,7 @@ class MotionCache:
             self._discard([npz, manifest, self._page(key), Path(f"{self._page(key)}.json")],
                           f"motion cache entry {npz} is damaged ({str(e)[:200]})")
             return None
-        _mark_used(manifest)
+        mark_used(manifest)
         return Hit(key=key, arrays=arrays, motion=motion, path=npz, data=data)
 
     def load_page(self, key: str) -> str | None:
@@ -469,17 +470,8 @@ class MotionCache:
         _log.warning("wbmp: warning: %s; removed it, the motion is computed again", why)
 
 
-def _mark_used(path: Path) -> None:
-    """Renew an entry's use time (:func:`robots.cache.mark_used`, inlined: a hit does not import
-    ``robots``, which loads Pinocchio)."""
-    try:
-        os.utime(path, follow_symlinks=os.utime not in os.supports_follow_symlinks)  # a link: not its target
-    except OSError:
-        pass
-
-
 def _trim(root: Path) -> None:
-    """Apply the whole cache's size cap after a store (:func:`robots.cache.trim_cache`)."""
+    """Apply the whole cache's size cap after a store (:func:`robots.store.trim_cache`)."""
     from robots import trim_cache
 
     trim_cache(root)

@@ -9,7 +9,7 @@ step  function            from -> to                                      layer
 0     read_sim_inputs     SolveRequest -> SimInputs (push, faults)        sim
 1     parse_instruction   sentence -> language.ActionPlan                 language
 2     compile_spec        ActionPlan x Robot x Scene -> tasks.TaskSpec    tasks (fit, ground, compile)
-3     check_spec          TaskSpec x Robot -> refusal in task terms       tasks
+3     check_spec          TaskSpec x Robot -> bound TaskSpec              tasks (bind: roles -> frames)
 4     plan_spec           TaskSpec x Robot -> planner.Plan                planner
 5-6   simulate_plan       Plan x Robot -> sim.Execution + certificate     sim
 7     write_outputs       SolveResult -> files                            wbmp.outputs
@@ -285,13 +285,13 @@ def _read_spec(request: SolveRequest, scene: Scene | None) -> tuple[Robot, TaskS
     return robot, spec
 
 
-def check_spec(spec: TaskSpec, robot: Robot) -> None:
-    """Step 3, check: unknown joints or contacts off the ground (exit 3), a hand target or a
-    footstep inside a scene object (exit 4): refused before planning, in task terms."""
-    from tasks import check_spec_for_robot, check_spec_in_scene_for_robot
+def check_spec(spec: TaskSpec, robot: Robot) -> TaskSpec:
+    """Step 3, check and bind (:func:`tasks.bind`): unknown frames or joints, contacts off the
+    ground (exit 3), a hand target or a footstep inside a scene object (exit 4) are refused before
+    planning, in task terms; the spec comes back naming only the robot's frames (roles resolved)."""
+    from tasks import bind
 
-    check_spec_for_robot(spec, robot)
-    check_spec_in_scene_for_robot(spec, robot)
+    return bind(spec, robot)
 
 
 def build_spec(request: SolveRequest, progress: Progress = _silent) -> tuple[Robot, TaskSpec, ActionPlan | None]:
@@ -318,7 +318,7 @@ def build_spec(request: SolveRequest, progress: Progress = _silent) -> tuple[Rob
         parsed = parse_instruction(request) if request.actions is None else request.actions
         robot = load_robot(request.profile if request.profile is not None else request.robot or "talos")
         actions, spec = compile_spec(request, parsed, robot, scene)
-    check_spec(spec, robot)
+    spec = check_spec(spec, robot)
     return robot, spec, actions
 
 

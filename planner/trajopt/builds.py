@@ -33,6 +33,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from robots import process_alive
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX: no lock (and no fork: builds run in the foreground)
@@ -102,18 +104,6 @@ def _read_info(path: Path) -> dict:
     return info if isinstance(info, dict) else {}
 
 
-def _pid_alive(pid: object) -> bool:
-    if not isinstance(pid, int) or pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True  # it exists (another user's)
-    return True
-
-
 def describe_build(info: dict, now: float | None = None) -> str:
     """``3f2a... (pid 1234, compiler pid 1240, since 10:41:02, 35 s: compiling)`` from a lock's text."""
     now = time.time() if now is None else now
@@ -162,7 +152,7 @@ def _try_lock(fd: int, path: Path) -> bool:
         return False
     except OSError:  # no flock here (some network file systems)
         info = _read_info(path)
-        return info.get("state") != "running" or not _pid_alive(info.get("pid"))
+        return info.get("state") != "running" or not process_alive(info.get("pid"))
 
 
 def claim(folder: Path, key: str) -> Slot | str:
@@ -202,7 +192,7 @@ def running(folder: Path) -> dict | None:
             return _read_info(path) or {"key": "?", "pid": "?"}
         except OSError:
             info = _read_info(path)
-            return info if info.get("state") == "running" and _pid_alive(info.get("pid")) else None
+            return info if info.get("state") == "running" and process_alive(info.get("pid")) else None
         fcntl.flock(fd, fcntl.LOCK_UN)
         return None
     finally:

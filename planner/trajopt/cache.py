@@ -51,7 +51,7 @@ from planner.trajopt.cache_disk import LIBRARY, META, SERIALIZED, EntryDamaged
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.symbolic import model_hash
-from robots import mark_used, trim_cache
+from robots import mark_used, trim_cache, write_text_atomic
 
 if TYPE_CHECKING:
     from planner.trajopt.transcription import Solver
@@ -310,7 +310,7 @@ def _fork_worker(tmp: Path, work: Callable[[], bool], slot: builds.Slot | None =
     if slot is not None:
         slot.close()
     try:  # the folder is the child's now: sweep() must not take it while it lives
-        cache_disk.write_atomic(tmp / cache_disk.BUILDER_PID, str(pid))
+        write_text_atomic(tmp / cache_disk.BUILDER_PID, str(pid))
     except OSError:
         pass
 

@@ -38,13 +38,19 @@ import stat
 import struct
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from robots import file_sha256, open_regular, read_bytes
+from robots import (
+    EntryDamaged,
+    file_sha256,
+    open_regular,
+    process_alive,
+    read_bytes,
+    write_text_atomic,
+)
 
 LIBRARY = "nlp.so"
 SERIALIZED = "nlp.casadi"
@@ -66,10 +72,6 @@ _log = logging.getLogger("planner.trajopt.cache")
 _LOCK = threading.Lock()
 _SWEPT: set[str] = set()
 _WARNED_FOLDERS: set[str] = set()
-
-
-class EntryDamaged(Exception):
-    """An entry that must not be loaded; the message says what is wrong with it."""
 
 
 def warn(message: str) -> None:
@@ -277,24 +279,9 @@ def verify_loadable(entry: Path, digest: str, functions: Iterable[str],
     if problem:
         raise EntryDamaged(f"{LIBRARY} {problem}")
     try:
-        write_atomic(entry / VERIFIED, digest + "\n")
+        write_text_atomic(entry / VERIFIED, digest + "\n")
     except OSError:
         pass  # a read-only cache: the next process probes again
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write a small text file through a temporary file and a rename (never half-written)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 # -- removing, publishing, sweeping -----------------------------------------------------------
@@ -416,15 +403,7 @@ def _builder_alive(folder: Path) -> bool:
         pid = int(_read_small(folder / BUILDER_PID, 64).decode("ascii").strip())
     except (EntryDamaged, OSError, ValueError):
         return False
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True  # it exists (another user's)
-    return True
+    return process_alive(pid)
 
 
 def sweep(folder: Path, *, now: float | None = None) -> list[str]:

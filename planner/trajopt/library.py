@@ -58,11 +58,10 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.trajopt.cache_disk import write_atomic
 from planner.trajopt.layout import Layout
-from robots import FileTooLarge, NotRegularFile, read_npz, read_text, trim_cache
+from robots import FileTooLarge, NotRegularFile, read_npz, read_text, trim_cache, write_text_atomic
 
-FOLDER = "seeds"  # below the cache folder (robots.cache.CACHE_FOLDERS)
+FOLDER = "seeds"  # below the cache folder (robots.store.CACHE_FOLDERS)
 ENTRIES = 8  # seeds kept per structure
 MEMORY_KEYS = 16  # structures whose seeds this process keeps in memory
 _FIELDS = ("descriptor", "guess", "x", "lam_x", "lam_g", "dq")
@@ -311,7 +310,7 @@ def store_escalation(key: str, rows: EscalationRows, cache_dir: str) -> None:
     folder = _folder(cache_dir, key)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        write_atomic(folder / ESCALATION, text)
+        write_text_atomic(folder / ESCALATION, text)
     except OSError:
         pass  # a read-only or vanished cache folder: remembered in this process only
 

@@ -1,7 +1,7 @@
 """Planner settings: solver options and the solver cache, as a frozen dataclass.
 
 No default here reads a ``WBMP_*`` switch: a plan depends on its arguments, not on the shell it
-runs in (only ``cache_dir`` defaults to ``$WBMP_CACHE_DIR``, :func:`robots.cache.cache_base`).
+runs in (only ``cache_dir`` defaults to ``$WBMP_CACHE_DIR``, :func:`robots.store.cache_base`).
 The defaults keep everything in memory (no gcc, no solver written to disk, no stored solution
 read); the command line turns the disk cache and the solution library on, as the user's
 ``WBMP_*`` variables say (:func:`wbmp.environment.planner_settings`).
@@ -17,7 +17,7 @@ from robots import cache_base
 
 
 def default_cache_dir() -> str:
-    """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp`` (:func:`robots.cache.cache_base`)."""
+    """``$WBMP_CACHE_DIR``, else ``~/.cache/wbmp`` (:func:`robots.store.cache_base`)."""
     return str(cache_base())
 
 

@@ -126,7 +126,7 @@ def test_the_motion_cache_reads_any_files_as_entries_or_misses(record, manifest,
 @given(manifest=json_values, raw=st.binary(max_size=100))
 def test_the_robot_and_solver_cache_manifests_are_read_or_damaged(manifest, raw):
     from planner.trajopt import cache_disk
-    from robots.cache import EntryDamaged, EntryStale, read_manifest
+    from robots.store import EntryDamaged, EntryStale, read_manifest
 
     with tempfile.TemporaryDirectory() as tmp:
         entry = Path(tmp) / KEY
@@ -158,7 +158,7 @@ def test_an_escalation_record_of_any_text_is_rows_or_none(text):
 @given(st.text(max_size=60) | st.builds(lambda n, unit: "9" * n + unit, st.integers(300, 5000),
                                         st.sampled_from(["", "k", "G", "TiB", ".5M", "b"])))
 def test_a_cache_cap_of_any_text_is_a_size_or_refused(text):
-    from robots.cache import MAX_SIZE_BYTES, parse_size
+    from robots.store import MAX_SIZE_BYTES, parse_size
 
     try:
         size = parse_size(text)

@@ -110,7 +110,7 @@ def test_parse_and_solve_share_the_sentence_bound(tmp_path, capsys, monkeypatch)
 @pytest.mark.parametrize("value", ["9" * 400, "9" * 4400, "99999999999999999999T", "2000000T"])
 def test_a_cache_cap_beyond_any_disk_is_refused_or_ignored(tmp_path, capsys, monkeypatch, value):
     """``wbmp cache`` refuses it (exit 2, one line); a store warns once and keeps the default cap."""
-    from robots.cache import DEFAULT_MAX_BYTES, max_cache_bytes
+    from robots.store import DEFAULT_MAX_BYTES, max_cache_bytes
 
     monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setenv("WBMP_CACHE_MAX_SIZE", value)
@@ -119,7 +119,7 @@ def test_a_cache_cap_beyond_any_disk_is_refused_or_ignored(tmp_path, capsys, mon
 
 
 def test_a_large_cache_cap_is_still_a_cap(monkeypatch):
-    from robots.cache import parse_size
+    from robots.store import parse_size
 
     assert parse_size("1024T") == 1 << 50
     assert parse_size("1048576") == 1 << 20

@@ -126,7 +126,7 @@ def test_a_special_seed_or_escalation_record_is_removed(tmp_path, special):
 
 @pytest.mark.parametrize("special", SPECIALS)
 def test_a_special_manifest_of_the_robot_or_mesh_cache_is_damaged(tmp_path, special):
-    from robots.cache import EntryDamaged, read_manifest
+    from robots.store import EntryDamaged, read_manifest
 
     entry = tmp_path / ("0" * 64)
     entry.mkdir()

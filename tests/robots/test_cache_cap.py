@@ -1,4 +1,4 @@
-"""The size cap of the whole disk cache (robots/cache.py): least recently used entries go first.
+"""The size cap of the whole disk cache (robots/store.py): least recently used entries go first.
 
 Real files in a temporary ``$WBMP_CACHE_DIR``: entries of every layout (a folder per key; files
 sharing a key), their use times set with ``os.utime``; what remains is checked against the
@@ -16,7 +16,7 @@ import pinocchio as pin
 import pytest
 
 from planner.trajopt import cache_disk
-from robots import cache
+from robots import cache, store
 
 URDF = """<robot name="probe">
   <link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
@@ -35,7 +35,7 @@ def base(tmp_path, monkeypatch) -> Path:
     root = tmp_path / "cache"
     root.mkdir()
     monkeypatch.setenv("WBMP_CACHE_DIR", str(root))
-    monkeypatch.setenv(cache.MAX_SIZE_ENV, "10000")
+    monkeypatch.setenv(store.MAX_SIZE_ENV, "10000")
     monkeypatch.delenv("WBMP_ROBOT_CACHE", raising=False)
     return root
 
@@ -72,21 +72,21 @@ def _bytes_on_disk(base: Path) -> int:
     (" 2 gb ", 2 << 30), ("10000", 10000), ("0", None), ("unlimited", None), ("OFF", None),
 ])
 def test_sizes_are_parsed_with_binary_units(text, expected):
-    assert cache.parse_size(text) == expected
+    assert store.parse_size(text) == expected
 
 
 @pytest.mark.parametrize("text", ["abc", "4X", "-1", "4ib", "G", "1.2.3"])
 def test_a_bad_size_is_refused_and_the_default_kept_with_one_warning(text, monkeypatch, caplog):
     with pytest.raises(ValueError, match="is not a size"):
-        cache.parse_size(text)
-    monkeypatch.setenv(cache.MAX_SIZE_ENV, text)
-    with pytest.raises(ValueError, match=cache.MAX_SIZE_ENV):
-        cache.max_cache_bytes(strict=True)
-    cache._WARNED.discard(text)
+        store.parse_size(text)
+    monkeypatch.setenv(store.MAX_SIZE_ENV, text)
+    with pytest.raises(ValueError, match=store.MAX_SIZE_ENV):
+        store.max_cache_bytes(strict=True)
+    store._WARNED.discard(text)
     with caplog.at_level(logging.WARNING, logger="robots.cache"):
-        assert cache.max_cache_bytes() == cache.DEFAULT_MAX_BYTES
-        assert cache.max_cache_bytes() == cache.DEFAULT_MAX_BYTES
-    assert len([r for r in caplog.records if cache.MAX_SIZE_ENV in r.getMessage()]) == 1
+        assert store.max_cache_bytes() == store.DEFAULT_MAX_BYTES
+        assert store.max_cache_bytes() == store.DEFAULT_MAX_BYTES
+    assert len([r for r in caplog.records if store.MAX_SIZE_ENV in r.getMessage()]) == 1
 
 
 def test_the_least_recently_used_entries_go_until_under_90_percent_of_the_cap(base):
@@ -96,13 +96,13 @@ def test_the_least_recently_used_entries_go_until_under_90_percent_of_the_cap(ba
     d = _file_entry(base, "collision", "talos-" + _key(4)[:20], 3000, age=3600)
     e = _folder_entry(base, "viz", _key(5), 3000, age=10)  # used seconds ago
     assert _bytes_on_disk(base) == 15000
-    removed = cache.enforce_cap()
+    removed = store.enforce_cap()
     # oldest first: a (15000 -> 12000), b (-> 9000 = 90 % of 10000): then it stops
     assert [r.name for r in removed] == [a.name, _key(2)]
     assert not a.exists() and not any(p.exists() for p in b)
     assert c.is_dir() and all(p.exists() for p in d) and e.is_dir()
     assert _bytes_on_disk(base) == 9000 <= 0.9 * 10000
-    assert cache.enforce_cap() == []  # under the cap: nothing more
+    assert store.enforce_cap() == []  # under the cap: nothing more
     assert not [p for p in (base / "planner").iterdir()]  # nothing left aside
 
 
@@ -126,11 +126,11 @@ def test_recent_entries_temporaries_and_foreign_files_stay_even_over_the_cap(bas
     old_left.mkdir(parents=True)
     os.utime(old_left, (0, 0))
     before = _bytes_on_disk(base)
-    assert cache.enforce_cap() == []
+    assert store.enforce_cap() == []
     assert _bytes_on_disk(base) == before  # 4 x 3000 + 20000 (+ the foreign 5000) > 10000, nothing removed
     assert temp.is_dir() and foreign.is_dir() and (outside / "precious").exists()
     assert not old_left.exists()
-    usage = {f.name: f for f in cache.cache_usage()}
+    usage = {f.name: f for f in store.cache_usage()}
     assert usage["viz"].link and usage["viz"].size == 0
     assert len(usage["robots"].entries) == 4 and usage["planner"].pending == 20000
     assert sum(f.size for f in usage.values()) == 4 * 3000 + 20000
@@ -142,12 +142,12 @@ def test_no_cap_when_turned_off_and_only_in_the_wbmp_cache_folder(base, tmp_path
     elsewhere = tmp_path / "mine"  # a cache_dir a caller chose (PlannerSettings(cache_dir=...))
     for i in range(4):
         _folder_entry(elsewhere, "planner", _key(i)[:24], 3000, age=3600 * (i + 1))
-    monkeypatch.setenv(cache.MAX_SIZE_ENV, "unlimited")
-    assert cache.trim_cache(base / "robots") == []
-    monkeypatch.setenv(cache.MAX_SIZE_ENV, "10k")  # 10240 bytes: 12000 is over it
-    assert cache.trim_cache(elsewhere / "planner") == []
+    monkeypatch.setenv(store.MAX_SIZE_ENV, "unlimited")
+    assert store.trim_cache(base / "robots") == []
+    monkeypatch.setenv(store.MAX_SIZE_ENV, "10k")  # 10240 bytes: 12000 is over it
+    assert store.trim_cache(elsewhere / "planner") == []
     assert _bytes_on_disk(elsewhere) == 12000
-    removed = cache.trim_cache(base / "robots")
+    removed = store.trim_cache(base / "robots")
     assert [r.name for r in removed] == [_key(3)]  # the oldest: 9000 <= 90 % of 10240
     assert _bytes_on_disk(base) == 9000
 
@@ -169,7 +169,7 @@ def _build(urdf: str, count: list[int]):
 def test_a_robot_cache_store_applies_the_cap_and_a_load_marks_the_entry_used(base, tmp_path):
     urdf, builds = _probe(tmp_path), []
     old = _folder_entry(base, "mujoco", _key(1), 10000, age=3600)  # at the cap
-    assert cache.enforce_cap() == []
+    assert store.enforce_cap() == []
     g = cache.cached_geometry(urdf, (), "collision", _build(urdf, builds))
     assert len(builds) == 1 and not old.exists()  # the store went over the cap: the old entry went
     entry = base / "robots" / cache.geometry_key(urdf, (), "collision")
@@ -185,12 +185,12 @@ def test_a_robot_cache_store_applies_the_cap_and_a_load_marks_the_entry_used(bas
 def test_a_robot_entry_removed_while_read_is_a_miss_without_a_warning(base, tmp_path, monkeypatch, caplog):
     urdf, builds = _probe(tmp_path), []
     cache.cached_geometry(urdf, (), "collision", _build(urdf, builds))
-    real = cache.read_manifest
+    real = store.read_manifest
 
     def racing(entry, fmt):  # the manifest is read, then another process removes the entry
         out = real(entry, fmt)
-        (victim,) = [e for f in cache.cache_usage() for e in f.entries if e.name == entry.name]
-        assert cache.remove_entry(victim)
+        (victim,) = [e for f in store.cache_usage() for e in f.entries if e.name == entry.name]
+        assert store.remove_entry(victim)
         return out
 
     monkeypatch.setattr(cache, "read_manifest", racing)
@@ -209,8 +209,8 @@ def test_a_robot_entry_removed_while_read_is_a_miss_without_a_warning(base, tmp_
 def test_a_solver_entry_removed_while_checked_is_dropped_without_a_warning(base, caplog):
     entry = _folder_entry(base, "planner", _key(1)[:24], 1000, age=3600)
     seen = os.lstat(entry)
-    (victim,) = cache.cache_usage()[0].entries
-    assert cache.remove_entry(victim) and not entry.exists()
+    (victim,) = store.cache_usage()[0].entries
+    assert store.remove_entry(victim) and not entry.exists()
     with pytest.raises(OSError):
         cache_disk.check_files(entry, victim.name, None)
     with caplog.at_level(logging.WARNING):

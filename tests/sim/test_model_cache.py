@@ -130,7 +130,7 @@ def test_an_entry_removed_while_read_is_a_miss_without_a_warning(tmp_path, monke
     import time
     import types
 
-    from robots.cache import cache_usage, remove_entry
+    from robots.store import cache_usage, remove_entry
     from sim import modelcache
 
     monkeypatch.setenv("WBMP_CACHE_DIR", str(tmp_path / "cache"))

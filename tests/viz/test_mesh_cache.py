@@ -140,7 +140,7 @@ def test_an_entry_removed_while_read_is_a_miss_without_a_warning(cache_dir, tmp_
 
     import pinocchio as pin
 
-    from robots.cache import cache_usage, remove_entry
+    from robots.store import cache_usage, remove_entry
 
     urdf = tmp_path / "box.urdf"
     urdf.write_text('<robot name="box"><link name="base"><visual><geometry><box size="0.1 0.2 0.3"/></geometry>'

@@ -14,7 +14,7 @@ import types
 
 import pytest
 
-from robots.cache import CACHE_FOLDERS, cache_usage, remove_entry
+from robots.store import CACHE_FOLDERS, cache_usage, remove_entry
 from wbmp import motioncache
 from wbmp.cli import main
 from wbmp.commands.cache import FOLDERS_TEXT

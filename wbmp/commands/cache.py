@@ -1,9 +1,9 @@
 """``wbmp cache [FOLDER ...] [--entries] [--clear] [--json]``: what wbmp keeps on disk, and emptying it.
 
 Every cache lives in one folder of ``$WBMP_CACHE_DIR`` (default ``~/.cache/wbmp``):
-``planner seeds robots mujoco viz collision motions`` (:data:`robots.cache.CACHE_FOLDERS`). The
+``planner seeds robots mujoco viz collision motions`` (:data:`robots.store.CACHE_FOLDERS`). The
 listing gives each folder's entries and bytes, the total and the size cap
-(``$WBMP_CACHE_MAX_SIZE``, :func:`robots.cache.max_cache_bytes`); ``--clear`` removes the
+(``$WBMP_CACHE_MAX_SIZE``, :func:`robots.store.max_cache_bytes`); ``--clear`` removes the
 entries of all folders or of the ones named, and prints one line. Only wbmp's own entries are
 touched (names that are keys); a symbolic link is never followed; temporary files of a write in
 progress stay. With the ``planner`` folder, the listing also says which solver build is running
@@ -21,9 +21,10 @@ import json
 import time
 from typing import Any
 
+from robots import CACHE_FOLDERS
 from wbmp.errors import CliError, ExitCode
 
-FOLDERS_TEXT = "planner, seeds, robots, mujoco, viz, collision, motions"  # robots.cache.CACHE_FOLDERS (no import: Pinocchio)
+FOLDERS_TEXT = ", ".join(CACHE_FOLDERS)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

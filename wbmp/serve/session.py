@@ -452,8 +452,7 @@ class Session:
         with self._lock:
             job.progress.append(f"{end['reason']}: planning it again together with {rest!r}, from where it started")
         from language import parse
-        from tasks import MAX_ACTIONS
-        from tasks import Action
+        from tasks import MAX_ACTIONS, Action
 
         added = parse(rest)
         mine = corrections.Actions(
