@@ -32,6 +32,7 @@ from tasks.specs import (
 
 if TYPE_CHECKING:
     from tasks.actions import REGISTRY, Action, ActionSchema, actions_json_schema, get_action
+    from tasks.bind import bind, resolve_frames
     from tasks.compose import compile_actions, fit_actions
     from tasks.grounding import ground, strip_reference
     from tasks.limits import MAX_ACTIONS, MAX_REPEAT, MAX_TEXT_LENGTH
@@ -52,6 +53,8 @@ if TYPE_CHECKING:
     from tasks.terrain import surface_at
 
 _LAZY = {  # public name -> module
+    "bind": "tasks.bind",
+    "resolve_frames": "tasks.bind",
     "Action": "tasks.actions",
     "ActionSchema": "tasks.actions",
     "MAX_ACTIONS": "tasks.limits",
@@ -113,6 +116,7 @@ __all__ = [
     "UnknownAction",
     "Vec3",
     "actions_json_schema",
+    "bind",
     "check_joints",
     "check_spec_for_robot",
     "check_spec_in_scene_for_robot",
@@ -130,6 +134,7 @@ __all__ = [
     "on_top",
     "read_bvh",
     "recognize_skeleton",
+    "resolve_frames",
     "retarget_spec",
     "spec_from_dict",
     "spec_from_json",
