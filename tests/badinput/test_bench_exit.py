@@ -32,20 +32,18 @@ _ENV = ("WBMP_BENCH_COMPILE", "WBMP_COMPILE_BACKGROUND", "WBMP_CACHE_DIR")
 def failed_run(tmp_path_factory) -> tuple[Outcome, Path, Path]:
     """Every task of a real (tiny) benchmark fails: (outcome, JSON, Markdown)."""
     folder = tmp_path_factory.mktemp("bench-exit")
-    saved = {k: os.environ.get(k) for k in _ENV}
-    os.environ["WBMP_CACHE_DIR"] = str(folder / "cache")
     from wbmp.cli import main
 
     out, err = io.StringIO(), io.StringIO()
-    try:
+    with pytest.MonkeyPatch.context() as mp:  # restores what the bench command sets, too
+        for k in _ENV:
+            if k in os.environ:
+                mp.setenv(k, os.environ[k])
+            else:
+                mp.delenv(k, raising=False)
+        mp.setenv("WBMP_CACHE_DIR", str(folder / "cache"))
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             code = main([*FAILING, "--json", str(folder / "r.json"), "--markdown", str(folder / "r.md")])
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     return Outcome(int(code), out.getvalue(), err.getvalue()), folder / "r.json", folder / "r.md"
 
 
