@@ -43,7 +43,7 @@ if TYPE_CHECKING:
         read_bvh,
         recognize_skeleton,
     )
-    from tasks.mocap.figures import contact_windows, motion_figures, torque_cause, tracks
+    from tasks.mocap.figures import Tracks, contact_windows, motion_figures, torque_cause, tracks
     from tasks.mocap.retarget import retarget_spec
     from tasks.mocap.skeleton import check_joints
     from tasks.primitives import PRIMITIVES
@@ -85,6 +85,7 @@ _LAZY = {  # public name -> module
     "surface_at": "tasks.terrain",
     "torque_cause": "tasks.mocap.figures",
     "tracks": "tasks.mocap.figures",
+    "Tracks": "tasks.mocap.figures",
 }
 
 __all__ = [
@@ -113,6 +114,7 @@ __all__ = [
     "TaskDefinitionError",
     "TaskError",
     "TaskSpec",
+    "Tracks",
     "UnknownAction",
     "Vec3",
     "actions_json_schema",

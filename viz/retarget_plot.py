@@ -6,8 +6,8 @@ plan), and their distance (the tracking error; a foot's only while it swings). T
 is marked and written in the title, the number the report prints as the tracking error's max. A
 last row shows each foot's lowest sole point above the floor, with its labelled contacts shaded.
 
-Takes plain arrays (:class:`KeypointPlot`): the caller computes them (``wbmp.retarget`` from
-:func:`tasks.mocap.figures.tracks`), so what is drawn is what the figures are made of.
+Takes the figures' own samples (:class:`KeypointPlot` around :func:`tasks.mocap.figures.tracks`'
+:class:`~tasks.mocap.figures.Tracks`), so what is drawn is what the figures are made of.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -25,6 +26,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from viz.files import atomic_write
+
+if TYPE_CHECKING:
+    from tasks import Tracks
 
 DPI = 90
 ROBOT_COLOR = "#c1121f"
@@ -40,32 +44,46 @@ class KeypointPlot:
     """What the plot draws.
 
     Attributes:
-        t: Sample times (T,) [s].
-        robot: Body role -> the robot's keypoint (T, 3) [m].
-        source: Body role -> the scaled source keypoint (T, 3) [m].
-        error: Body role -> tracking error (T,) [m] (NaN where not counted).
-        foot_height: Foot side -> lowest sole point's height (T,) [m].
+        tracks: The robot's keypoints beside the scaled source, their tracking error and the soles
+            (:class:`tasks.mocap.figures.Tracks`, at the samples drawn): what the report's figures
+            are computed from.
         contact: Foot side -> labelled contact at each sample (T,) bool.
         title: The first title line (clip, robot, which motion).
     """
 
-    t: np.ndarray
-    robot: dict[str, np.ndarray]
-    source: dict[str, np.ndarray]
-    error: dict[str, np.ndarray]
-    foot_height: dict[str, np.ndarray]
+    tracks: Tracks
     contact: dict[str, np.ndarray]
     title: str = ""
 
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times (T,) [s]."""
+        return self.tracks.t
+
+    @property
+    def robot(self) -> dict[str, np.ndarray]:
+        """Body role -> the robot's keypoint (T, 3) [m]."""
+        return self.tracks.robot
+
+    @property
+    def source(self) -> dict[str, np.ndarray]:
+        """Body role -> the scaled source keypoint (T, 3) [m]."""
+        return self.tracks.source
+
+    @property
+    def error(self) -> dict[str, np.ndarray]:
+        """Body role -> tracking error (T,) [m] (NaN where not counted)."""
+        return self.tracks.error
+
+    @property
+    def foot_height(self) -> dict[str, np.ndarray]:
+        """Foot side -> the lowest sole point's height (T,) [m]."""
+        return self.tracks.foot_heights()
+
     def worst(self) -> tuple[str, float, float]:
-        """(body role, time [s], error [m]) of the largest tracking error drawn."""
-        best = ("", 0.0, -1.0)
-        for role, err in self.error.items():
-            if np.isfinite(err).any():
-                i = int(np.nanargmax(err))
-                if err[i] > best[2]:
-                    best = (role, float(self.t[i]), float(err[i]))
-        return best
+        """(body role, time [s], error [m]) of the largest tracking error drawn (the report's)."""
+        role, i, err = self.tracks.worst()
+        return role, float(self.t[i]) if err >= 0 else 0.0, err
 
     def annotation(self) -> str:
         """The title's second line: ``max tracking error 0.141 m: left hand at 2.40 s``."""

@@ -217,11 +217,7 @@ def keypoint_plot(result: RetargetResult) -> Any:
     which = "executed (MuJoCo)" if result.execution is not None else "plan"
     title = (f"{Path(str(result.clip_info.get('clip', ''))).name} on {robot.name}: source (scaled, dashed) vs robot {which} "
              f"(solid)")
-    return KeypointPlot(t=tr.t[sel], robot={r: p[sel] for r, p in tr.robot.items()},
-                        source={r: p[sel] for r, p in tr.source.items()},
-                        error={r: e[sel] for r, e in tr.error.items()},
-                        foot_height={s: c[sel, :, 2].min(axis=1) for s, c in tr.corners.items()},
-                        contact=contact, title=title)
+    return KeypointPlot(tracks=tr.select(sel), contact=contact, title=title)
 
 
 def plot_path(option: str, clip: str, others: dict[str, str | None]) -> Path:

@@ -93,10 +93,25 @@ class Tracks:
     inside: np.ndarray
 
     def worst(self) -> tuple[str, int, float]:
-        """(role, sample index, error [m]) of the largest tracking error."""
+        """(role, sample index, error [m]) of the largest tracking error; ("", 0, -1.0) when no
+        sample has one."""
         stack = np.array([self.error[r] for r in TRACKED])
+        if not np.isfinite(stack).any():
+            return "", 0, -1.0
         i_role, i_t = np.unravel_index(np.nanargmax(stack), stack.shape)
         return TRACKED[int(i_role)], int(i_t), float(stack[i_role, i_t])
+
+    def select(self, keep: np.ndarray) -> Tracks:
+        """These tracks at the samples ``keep`` (a boolean mask or indices) only."""
+        def cut(d: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+            return {k: v[keep] for k, v in d.items()}
+
+        return Tracks(t=self.t[keep], robot=cut(self.robot), source=cut(self.source), error=cut(self.error),
+                      soles=cut(self.soles), corners=cut(self.corners), inside=self.inside[keep])
+
+    def foot_heights(self) -> dict[str, np.ndarray]:
+        """Foot side -> the height of its sole's lowest corner (T,) [m]."""
+        return {s: c[:, :, 2].min(axis=1) for s, c in self.corners.items()}
 
 
 def tracks(robot: Robot, t: np.ndarray, q: np.ndarray, ref: Reference) -> Tracks:
