@@ -34,3 +34,34 @@ def test_stairs_treads_are_mujoco_boxes_and_rays_land_on_the_surface_heights(tal
         assert dist > 0
         hit = start_z - dist
         assert hit == pytest.approx(surface_at(scene, float(x), 0.45).height, abs=1e-6), x
+
+
+SLOPE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "slope.json"
+
+
+def test_the_slope_is_a_tilted_mujoco_box_and_rays_land_on_the_inclined_plane(talos):
+    """The ramp of ``examples/scenes/slope.json`` in MuJoCo: vertical rays land on the plane
+    ``z = tan(10 deg) (x - 0.15)`` by hand, on the landing at its top edge's height, on the floor
+    before and after; its geom's normal is the plane's (MuJoCo's own rotation of the geom)."""
+    scene = load_scene(SLOPE)
+    slope = scene.slopes[0]
+    m = build_model(talos, scene=scene).model
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, OBJECT_PREFIX + "slope")
+    assert g >= 0 and m.geom_bodyid[g] == 0 and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
+    angle = slope.angle
+    np.testing.assert_allclose(d.geom_xmat[g].reshape(3, 3)[:, 2], [-np.sin(angle), 0.0, np.cos(angle)], atol=1e-9)
+    top = slope.length * np.tan(angle)
+    geomid = np.zeros(1, dtype=np.int32)
+    for x in np.linspace(-0.2, 1.4, 33) + 0.007:
+        dist = mujoco.mj_ray(m, d, np.array([x, 0.45, 2.0]), np.array([0.0, 0.0, -1.0]), None, 1, -1, geomid)
+        hit = 2.0 - dist
+        if 0.15 <= x <= 0.65:
+            expected = np.tan(angle) * (x - 0.15)
+        elif 0.65 < x <= 1.25:
+            expected = top
+        else:
+            expected = 0.0
+        assert hit == pytest.approx(expected, abs=1e-6), x
+        assert surface_at(scene, float(x), 0.45).height == pytest.approx(expected, abs=1e-9)

@@ -21,7 +21,15 @@ import pytest
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.exceptions import BeyondCapability, TaskDefinitionError
-from tasks.scene import Scene, Slope, load_scene, scene_from_dict, scene_from_json, scene_to_dict, signed_distance
+from tasks.scene import (
+    Scene,
+    Slope,
+    load_scene,
+    scene_from_dict,
+    scene_from_json,
+    scene_to_dict,
+    signed_distance,
+)
 from tasks.specs import StartState
 from tasks.terrain import sole_rpy, surface_at
 
