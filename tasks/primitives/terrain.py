@@ -13,7 +13,8 @@ the CoM ends over the final feet (HARD, ``END_TOLERANCE``).
 
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): a rise above the
 robot's ``step_height_max`` ("the 0.30 m rise onto stairs.1 is above talos's 0.20 m step"), a
-tread farther than ``step_length_max`` from the last one (or from the feet: walk closer first).
+tread farther than ``climb_length_max`` (or ``step_length_max``) from the last one (or from the feet:
+walk closer first).
 """
 
 from __future__ import annotations
@@ -57,10 +58,16 @@ WAYPOINT_TOLERANCE = 0.02  # [m] the swinging sole's lift and descent waypoints
 TOE_CLEARANCE = 0.05  # [m] the sole's front edge at least this far back from a tread's front edge
 EDGE = 0.02  # [m] a sole's heel past a surface's near edge (a slope's foot, a landing's seam), its toe before a slope's top
 FLOOR_CLEARANCE = 0.05  # [m] the heel from the last step's foot at the end of a descent (when within reach)
-REACH = 0.95  # a station at most this fraction of step_length_max ahead of the last one
+REACH = 0.95  # a station at most this fraction of the robot's stride (stride()) ahead of the last one
 LEAD = "right"  # the foot that steps up first
 DOUBLE_SUPPORT = 0.3  # [s] at least, between two steps: the weight moves up (or down) a step onto the other
 #   foot (with talos's 0.15 s the trailing sole slipped 12 mm in MuJoCo as it unloaded, limit 10 mm)
+
+
+def stride(robot: Robot) -> float:
+    """The longest step onto another surface [m]: the profile's ``climb_length_max``, or its
+    ``step_length_max`` when that is 0."""
+    return robot.profile.climb_length_max or robot.profile.step_length_max
 
 
 def _yaw_of(stance: Stance) -> float:
@@ -180,7 +187,7 @@ def stations(robot: Robot, chain: list[SceneObject | None], mid: np.ndarray, u: 
     The floor (None, at the end of a descent): ``EDGE`` past the last surface's far edge, or farther
     out to ``REACH`` (the heel away from the riser or the slope's foot)."""
     half = (robot.profile.sole.x_max - robot.profile.sole.x_min) / 2
-    reach = REACH * robot.profile.step_length_max
+    reach = REACH * stride(robot)
     out: list[tuple[SceneObject | None, float]] = []
     last, edge = start, start
     for tread in chain:
@@ -250,11 +257,11 @@ def plan_steps(robot: Robot, g: Grounded, count: int | None, stance: Stance | No
                     f"the {abs(rise):.2f} m {'drop' if rise < 0 else 'rise'} onto the {_words(tread)} is above "
                     f"{robot.name}'s {prof.step_height_max:.2f} m step (step_height_max of its profile): choose lower "
                     "steps, or another robot")
-            if length > prof.step_length_max + 1e-9:
+            if length > stride(robot) + 1e-9:
                 hint = ("walk closer to it first" if i == 0 else "the treads are too deep for it")
                 raise BeyondCapability(
                     f"step_{'down' if down else 'up'}: the {side} foot would step {length:.2f} m onto the "
-                    f"{_words(tread)}, beyond {robot.name}'s {prof.step_length_max:.2f} m step: {hint}")
+                    f"{_words(tread)}, beyond {robot.name}'s {stride(robot):.2f} m step: {hint}")
             height = max(_top(robot, side, cur[side]), _top(robot, side, target)) + SWING_CLEARANCE
             swings.append(Swing(len(segs), side, cur[side].position, target.position, height))
             segs.append(Segment(name=f"step {i + 1}: {side} foot onto the {_words(tread)}", duration=prof.step_duration,
@@ -297,7 +304,7 @@ def _build(b: FragmentBuilder, down: bool = False) -> Fragment:
 
 def _limits(robot: Robot) -> dict[str, str]:
     prof = robot.profile
-    return {"object": f"rises of at most {prof.step_height_max:.2f} m, treads at most {prof.step_length_max:.2f} m "
+    return {"object": f"rises of at most {prof.step_height_max:.2f} m, treads at most {stride(robot):.2f} m "
                       f"apart on {robot.name}"}
 
 

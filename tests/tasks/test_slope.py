@@ -189,3 +189,28 @@ def test_the_words_for_slopes_and_descents(text, action, scene_file, name):
     actions = parse(text).actions
     assert [a.name for a in actions] == [action]
     assert ground(actions[0].params["object"], load_scene(scene_file), action=action).name == name
+
+
+def test_g1_climbs_the_stairs_with_its_climb_stride_and_is_refused_without_it(g1):
+    """G1's walking stride (0.20 m) is shorter than the 0.25 m treads; its profile's climb stride
+    (``climb_length_max`` 0.26 m, certified up these stairs in MuJoCo) lets it climb them, each sole
+    flat on its tread by hand; with the climb stride unset it is refused, naming the 0.20 m step."""
+    import dataclasses
+
+    scene = load_scene(STAIRS)
+    flight = scene.stairs[0]
+    assert g1.profile.climb_length_max == pytest.approx(0.26) and g1.profile.step_length_max == pytest.approx(0.20)
+    spec = compile_actions([Action(name="step_up", params={"object": "the stairs"})], g1, scene=scene)
+    tops = set()
+    for phase in spec.phases:
+        for c in phase.contacts:
+            corners = _corners(g1, c)
+            steps = {int(np.floor((x - flight.position[0]) / flight.run)) + 1 for x in corners[:, 0]}
+            assert len(steps) == 1  # every corner over one tread (or the floor)
+            step = min(max(steps.pop(), 0), flight.count)
+            np.testing.assert_allclose(corners[:, 2], flight.rise * step, atol=1e-9)
+            tops.add(step)
+    assert tops == {0, 1, 2, 3}
+    walker = dataclasses.replace(g1, profile=dataclasses.replace(g1.profile, climb_length_max=0.0))
+    with pytest.raises(BeyondCapability, match="onto the stairs.1, beyond g1's 0.20 m step: walk closer"):
+        compile_actions([Action(name="step_up", params={"object": "the stairs"})], walker, scene=scene)
