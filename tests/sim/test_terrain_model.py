@@ -65,3 +65,20 @@ def test_the_slope_is_a_tilted_mujoco_box_and_rays_land_on_the_inclined_plane(ta
             expected = 0.0
         assert hit == pytest.approx(expected, abs=1e-6), x
         assert surface_at(scene, float(x), 0.45).height == pytest.approx(expected, abs=1e-9)
+
+
+def test_a_swing_is_measured_from_the_lower_of_the_stances_around_it():
+    """The intent check's floor under a sole (``sim.intent._stance_floor``): standing, the height it
+    stands at; swinging, the lower of where it lifted off and where it lands, so a step down is
+    back on the tread below when it lands there, not when it passes the tread it left (by hand)."""
+    from sim.intent import _stance_floor
+
+    planned = np.array([1, 1, 1, 0, 0, 0, 1, 1, 1, 0, 0, 0, 1, 1, 1], dtype=bool)
+    down = np.repeat([0.3, 0.25, 0.2, 0.15, 0.1], 3)  # the plan's sole height: down two steps
+    down[6:9] = 0.2
+    down[12:] = 0.1
+    np.testing.assert_allclose(_stance_floor(planned, down, 0.0), np.repeat([0.3, 0.2, 0.2, 0.1, 0.1], 3))
+    up = down[::-1].copy()
+    np.testing.assert_allclose(_stance_floor(planned, up, 0.0), np.repeat([0.1, 0.1, 0.2, 0.2, 0.3], 3))
+    flat = np.full(15, 0.004)
+    assert _stance_floor(planned, flat, -0.001) == -0.001  # one level: the lowest simulated stance
