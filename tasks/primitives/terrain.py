@@ -1,4 +1,5 @@
-"""``step_up(object, count)``: climb onto walkable surfaces ahead, one tread at a time.
+"""``step_up(object, count)`` and ``step_down(object, count)``: climb onto walkable surfaces ahead,
+or down from them to the floor, one station at a time (stairs, boxes, slopes).
 
 The object is a walkable scene object (a stair tread, a box with ``walkable`` set; "the stairs"
 names a flight's first tread, :mod:`tasks.terrain`). The treads climbed are that object and the
@@ -10,6 +11,11 @@ same tread: a tread shorter than the sole is refused), centred on the tread alon
 keeping its lateral place. A swing clears the higher of the two treads by ``SWING_CLEARANCE`` at
 its middle (the planner's swing height is a height above the floor). Dynamic (contact forces), and
 the CoM ends over the final feet (HARD, ``END_TOLERANCE``).
+
+A slope (a walkable top tilted by more than 5 deg, :func:`tasks.terrain.is_slope`) is climbed at
+several stations (:func:`stations`), each sole flat on the inclined plane (its rpy from the
+surface normal, :func:`tasks.terrain.sole_rpy`). ``step_down`` walks the walkable surfaces ahead
+that lie lower than the last (:func:`descent`), then the floor, with the same gait.
 
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): a rise above the
 robot's ``step_height_max`` ("the 0.30 m rise onto stairs.1 is above talos's 0.20 m step"), a
