@@ -1,5 +1,6 @@
 """Talos walks up and down the 10 deg slope of ``examples/scenes/slope.json``, and down the stairs
-of ``examples/scenes/stairs.json`` from their top tread (issue 33), certified in MuJoCo.
+of ``examples/scenes/stairs.json`` from their top tread; g1 walks up those stairs with its climb
+stride (issue 33); each certified in MuJoCo.
 
 The foot placements are recomputed independently of the planner and of ``tasks.terrain``:
 Pinocchio forward kinematics of the planned and of the executed configurations, every sole corner
@@ -44,26 +45,28 @@ def _surface(scene, p: np.ndarray) -> float:
     return flight.rise * min(max(step, 0), flight.count) if step <= flight.count else 0.0
 
 
-CASES = {
-    "up the slope": ("slope.json", "step_up", "the slope", None, {0.0, "slope", TOP}),
-    "down the slope": ("slope.json", "step_down", "the slope", (0.8, TOP), {0.0, "slope", TOP}),
-    "down the stairs": ("stairs.json", "step_down", "the stairs", (0.7695, 0.3), {0.0, 0.1, 0.2, 0.3}),
+CASES = {  # robot, scene, action, object, start (feet centre x, height; facing -x), the surfaces stood on
+    "up the slope": ("talos", "slope.json", "step_up", "the slope", None, {0.0, "slope", TOP}),
+    "down the slope": ("talos", "slope.json", "step_down", "the slope", (0.8, TOP), {0.0, "slope", TOP}),
+    "down the stairs": ("talos", "stairs.json", "step_down", "the stairs", (0.7695, 0.3), {0.0, 0.1, 0.2, 0.3}),
+    "g1 up the stairs": ("g1", "stairs.json", "step_up", "the stairs", None, {0.0, 0.1, 0.2, 0.3}),
 }
 
 
 @pytest.mark.long  # minutes each: a dynamic plan with scene rows, then ~9 s of MuJoCo and the certificate
 @pytest.mark.parametrize("case", list(CASES))
-def test_talos_walks_the_slope_and_down_the_stairs_certified_with_the_soles_on_the_surfaces(talos, case):
-    file, action, obj, start, expected = CASES[case]
+def test_the_slope_and_the_stairs_up_and_down_certified_with_the_soles_on_the_surfaces(request, case):
+    name, file, action, obj, start, expected = CASES[case]
+    robot = request.getfixturevalue(name)
     scene = load_scene(SCENES / file)
-    spec = compile_actions([Action(name=action, params={"object": obj})], talos, scene=scene,
-                           start=None if start is None else start_on(talos, *start))
-    result = plan(spec, talos, settings=PlannerSettings())
+    spec = compile_actions([Action(name=action, params={"object": obj})], robot, scene=scene,
+                           start=None if start is None else start_on(robot, *start))
+    result = plan(spec, robot, settings=PlannerSettings())
     assert result.ok
-    execution = simulate(result, talos)
+    execution = simulate(result, robot)
     assert execution.certificate.ok, execution.certificate.reason
 
-    model, data = talos.model, talos.data()
+    model, data = robot.model, robot.data()
     t_exec = np.asarray(execution.t) - float(execution.t[0])
     t0, seen = 0.0, set()
     for phase in spec.phases:
@@ -77,10 +80,10 @@ def test_talos_walks_the_slope_and_down_the_stairs_certified_with_the_soles_on_t
             for q, tolerance, along in ((result.q[k_plan], 1e-3, 1e-3),
                                         (execution.q[k_exec], PLACEMENT_TARGET, SLOPE_PLACEMENT if tilted else PLACEMENT_TARGET)):
                 pin.framesForwardKinematics(model, data, q)
-                corners = talos.sole_corners_in_world(q, side)
+                corners = robot.sole_corners_in_world(q, side)
                 gaps = [float(c[2] - _surface(scene, np.asarray(c))) for c in corners]
                 assert max(abs(g) for g in gaps) < tolerance, f"{contact.frame} at t = {middle:.2f} s: {gaps}"
-                M = data.oMf[talos.frame_id(contact.frame)]
+                M = data.oMf[robot.frame_id(contact.frame)]
                 off = float(np.linalg.norm(M.translation - np.array(contact.placement.position)))
                 assert off < along, f"{contact.frame} at t = {middle:.2f} s: {off * 1e3:.1f} mm from its placement"
             heights = {round(_surface(scene, np.asarray(c)), 6) for c in corners}
