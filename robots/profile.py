@@ -68,6 +68,7 @@ NUMBERS: dict[str, tuple[float, float, bool, str, str]] = {
     "double_support_duration": (0.05, 5.0, True, "a duration in seconds", ""),
     "squat_depth_max": (0.0, 1.0, False, "a length in metres", ""),
     "step_height_max": (0.0, 1.0, False, "a length in metres", ""),
+    "climb_length_max": (0.0, 2.0, True, "a length in metres", " (0 = step_length_max)"),
     "jump_forward_speed_max": (0.0, 5.0, True, "a speed in metres per second", " (0 = no forward jumps)"),
 }
 SOLE_KEYS = ("x_min", "x_max", "y_min", "y_max")
@@ -410,6 +411,9 @@ class RobotProfile:
         double_support_duration: Double-support duration between steps [s].
         squat_depth_max: Deepest CoM lowering the squat primitive allows [m].
         step_height_max: Highest rise one step climbs (a stair tread, a box underfoot) [m].
+        climb_length_max: Longest step onto a higher or lower surface (stairs, a slope) [m]; 0:
+            ``step_length_max``. A step-to climb stands on both feet between steps, so it may
+            be longer than a walking stride (g1: 0.26 m, its 0.25 m stair treads, certified).
         jump_forward_speed_max: Fastest forward take-off a jump's landing absorbs [m/s] (its
             distance over the flight time; 0: forward jumps are refused). Calibrated in MuJoCo:
             talos 0.5 m/s (0.10 m with a 5 cm rise); g1's forward jumps all fall, so 0.
@@ -435,6 +439,7 @@ class RobotProfile:
     double_support_duration: float = 0.2
     squat_depth_max: float = 0.3
     step_height_max: float = 0.15
+    climb_length_max: float = 0.0
     jump_forward_speed_max: float = 0.5
     collisions: CollisionTable = field(default_factory=CollisionTable)
     source: str = field(default="", compare=False)

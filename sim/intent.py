@@ -218,7 +218,9 @@ def _phase_label(run: RunRecord, t: float) -> Label | None:
 def _stance_floor(planned: np.ndarray, plan_z: np.ndarray, floor: float) -> float | np.ndarray:
     """The floor a sole's rise is measured from: ``floor`` (the lowest simulated stance height) on
     one level; on steps (planned stances whose median heights differ by more than 1 cm), per tick
-    the median planned height of the stance it last stood in. Each stance's median, not its every
+    the median planned height of the stance it stands in, and during a swing the lower of the
+    stances before and after it (stepping down, the sole is back on a tread below where it stood:
+    against the old height it "touched down" 0.17 s early on talos's stairs). Each stance's median, not its every
     tick: the plan's sole, interpolated between knots, is already rising on a stance's last ticks
     before a short flight (a g1 hop's 2-knot flight: 1.8 cm)."""
     runs = _runs(planned)
@@ -227,8 +229,10 @@ def _stance_floor(planned: np.ndarray, plan_z: np.ndarray, floor: float) -> floa
         return floor
     out = np.full(len(planned), floor, dtype=float)
     starts = [a for a, _ in runs]
-    for a, nxt, h in zip(starts, [*starts[1:], len(planned)], heights, strict=True):
-        out[a:nxt] = h  # from a stance's first tick to the next stance's
+    for i, ((a, b), nxt, h) in enumerate(zip(runs, [*starts[1:], len(planned)], heights, strict=True)):
+        out[a:b] = h
+        # the swing after it: the lower of the two stances (a step down lands below where it stood)
+        out[b:nxt] = min(h, heights[i + 1]) if i + 1 < len(heights) else h
     return out
 
 

@@ -517,11 +517,17 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="carrying", kind="object", default=None,
                   description="an object a hand holds and carries along (\"with the cup\"); it must be held already"),
         )),
-        ActionSchema(name="step_up", summary="Step up onto a walkable surface ahead (a box) or up a flight of stairs, "
-                     "both feet on each tread.", body="lower", dynamic=True, params=(
+        ActionSchema(name="step_up", summary="Step up onto a walkable surface ahead (a box), up a flight of stairs or "
+                     "up a slope, both feet on each tread.", body="lower", dynamic=True, params=(
             _object("the tread or box to step onto first (\"the stairs\": their first step)"),
             Param(name="count", kind="int", unit="count", default=None, minimum=1, maximum=50,
                   description="how many treads to climb (default: every walkable surface straight ahead)"),
+        )),
+        ActionSchema(name="step_down", summary="Walk down a slope or a flight of stairs ahead onto the floor, both feet "
+                     "on each step (from where the robot stands on them).", body="lower", dynamic=True, params=(
+            _object("the slope or the stairs to walk down (\"the stairs\": their first step)"),
+            Param(name="count", kind="int", unit="count", default=None, minimum=1, maximum=50,
+                  description="how many steps down (default: down to the floor)"),
         )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(

@@ -249,8 +249,8 @@ def compile_actions(
     def knots(seconds: float) -> int:
         return int(-(-round(seconds / dt, 6) // 1))  # ceil, robust to 0.6/0.075 = 7.999999
 
-    _check_horizon(groups, robot, n, dt, knots(stand_time), knots(transition_time))
     stance = Stance.standing(robot) if start is None else Stance.at(robot, start.q)
+    _check_horizon(groups, robot, n, dt, knots(stand_time), knots(transition_time), stance)
     phases: list[Phase] = []
     waypoints: list[JointTarget] = []
     k = 0
@@ -557,10 +557,13 @@ def _group_duration(group: list[tuple[int, Action]], robot: Robot, n: int) -> fl
 
 
 def _check_horizon(groups: list[list[tuple[int, Action]]], robot: Robot, n: int, dt: float, stand_knots: int,
-                   transition_knots: int) -> None:
-    """Refuse a motion longer than MAX_HORIZON before compiling any action (same knot rounding)."""
+                   transition_knots: int, stance: Stance) -> None:
+    """Refuse a motion longer than MAX_HORIZON before compiling any action (same knot rounding); the
+    first group's grounded objects know where the robot starts (a descent from a tread)."""
     k = 2 * stand_knots + transition_knots * (len(groups) - 1)
-    for group in groups:
+    for j, group in enumerate(groups):
+        if j == 0:
+            group = [(i, _standing_at(a, stance)) for i, a in group]
         k += int(-(-round(_group_duration(group, robot, n) / dt, 6) // 1))
     if k * dt > MAX_HORIZON + 1e-9:
         raise TaskDefinitionError(horizon_message(k * dt, "split the instruction into several shorter ones"))

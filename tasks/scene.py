@@ -242,6 +242,89 @@ def stairs_objects(stairs: Stairs) -> tuple[SceneObject, ...]:
     return tuple(out)
 
 
+MAX_SLOPE = math.radians(25)  # [rad] the steepest walkable surface (a slope's angle, a tilted walkable top)
+SEAM = 0.02  # [m] a slope's box reaches this far past its top edge into the landing (no gap between them)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Slope:
+    """A straight ramp up from the floor (an inclined plane), with a flat landing at its top.
+
+    Attributes:
+        name: Name of the ramp (``slope``); its landing is ``<name>.top``.
+        angle: Inclination of the ramp [rad], in (0, :data:`MAX_SLOPE`].
+        length: Horizontal length of the ramp, from its bottom edge to its top edge [m].
+        width: Width of the ramp and its landing [m].
+        position: Middle of the ramp's bottom edge, on the floor [m] (x, y).
+        yaw: Direction the ramp climbs [rad] (0: +x).
+        landing: Depth of the flat landing at the ramp's top (height ``length * tan(angle)``) [m]; 0: none.
+        colour: RGBA in [0, 1].
+        friction: Coulomb friction coefficient of the ramp and the landing [-].
+        aliases: Other names of the ramp (``ramp``, 斜坡).
+    """
+
+    name: str = "slope"
+    angle: float = math.radians(10)
+    length: float = 0.5
+    width: float = 1.0
+    position: tuple[float, float] = (0.5, 0.0)
+    yaw: float = 0.0
+    landing: float = 0.5
+    colour: tuple[float, float, float, float] = (0.5, 0.55, 0.45, 1.0)
+    friction: float = 0.8
+    aliases: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip() or len(self.name) > MAX_NAME_LENGTH - 4:
+            raise _field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
+        if not (_finite(self.angle) and 0 < self.angle <= MAX_SLOPE + 1e-12):
+            raise _field_error("angle", f"must be an inclination in (0, {MAX_SLOPE:.4f}] rad (25 deg), got "
+                                        f"{_show(self.angle)}")
+        for key in ("length", "width"):
+            v = getattr(self, key)
+            if not (_finite(v) and 0 < v <= MAX_DISTANCE):
+                raise _field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {_show(v)}")
+        if not (_finite(self.landing) and 0 <= self.landing <= MAX_DISTANCE):
+            raise _field_error("landing", f"must be a length in [0, {MAX_DISTANCE:g}] m, got {_show(self.landing)}")
+        if (not isinstance(self.position, tuple) or len(self.position) != 2
+                or not all(_finite(v) and abs(v) <= MAX_DISTANCE for v in self.position)):
+            raise _field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {self.position!r}")
+        if not (_finite(self.yaw) and abs(self.yaw) <= MAX_ANGLE):
+            raise _field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {self.yaw!r}")
+        if not (_finite(self.friction) and 0 < self.friction <= MAX_FRICTION):
+            raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {self.friction!r}")
+
+    @property
+    def height(self) -> float:
+        """Height of the ramp's top edge and of its landing [m]."""
+        return self.length * math.tan(self.angle)
+
+
+def slope_objects(slope: Slope) -> tuple[SceneObject, ...]:
+    """The ramp as one walkable static box tilted by ``angle`` (its top face the inclined plane, from
+    the bottom edge on the floor to the top edge; thick enough to reach the floor under the top edge),
+    then the landing (a walkable box as high as the top edge, ``landing`` deep), if any."""
+    c, s = math.cos(slope.yaw), math.sin(slope.yaw)
+    ca, sa = math.cos(slope.angle), math.sin(slope.angle)
+    along = slope.length / ca  # the ramp's length on the incline
+    thick = slope.height / ca + SEAM  # its bottom face meets the floor under the top edge
+    # centre: the bottom edge + half the incline along it - half the thickness along the normal
+    u, w = along / 2 * ca + thick / 2 * sa, along / 2 * sa - thick / 2 * ca  # in the climbing plane
+    ramp = SceneObject(
+        name=slope.name, shape="box", size=(along, slope.width, thick),
+        position=(slope.position[0] + c * u, slope.position[1] + s * u, w),
+        rpy=(0.0, -float(slope.angle), float(slope.yaw)), colour=slope.colour, friction=slope.friction,
+        aliases=slope.aliases, walkable=True)
+    if slope.landing <= 0:
+        return (ramp,)
+    d = slope.length + slope.landing / 2
+    top = SceneObject(
+        name=f"{slope.name}.top", shape="box", size=(slope.landing, slope.width, slope.height),
+        position=(slope.position[0] + c * d, slope.position[1] + s * d, slope.height / 2),
+        rpy=(0.0, 0.0, float(slope.yaw)), colour=slope.colour, friction=slope.friction, walkable=True)
+    return ramp, top
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Scene:
     """A floor plus named objects.
@@ -253,12 +336,14 @@ class Scene:
         stairs: Flights of stairs; each adds its treads to ``objects`` (:func:`stairs_objects`;
             an object equal to a tread is that tread, so a scene written out and read back is
             the same scene).
+        slopes: Ramps; each adds its ramp and landing to ``objects`` (:func:`slope_objects`, likewise).
     """
 
     name: str = ""
     objects: tuple[SceneObject, ...] = ()
     floor_friction: float = 0.8
     stairs: tuple[Stairs, ...] = ()
+    slopes: tuple[Slope, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or len(self.name) > MAX_TEXT_LENGTH:
@@ -267,7 +352,10 @@ class Scene:
             raise _field_error("objects", "must be a list of objects")
         if not isinstance(self.stairs, tuple) or not all(isinstance(st, Stairs) for st in self.stairs):
             raise _field_error("stairs", "must be a list of stairs")
+        if not isinstance(self.slopes, tuple) or not all(isinstance(sl, Slope) for sl in self.slopes):
+            raise _field_error("slopes", "must be a list of slopes")
         treads = tuple(o for st in self.stairs for o in stairs_objects(st))
+        treads += tuple(o for sl in self.slopes for o in slope_objects(sl))
         if treads:
             object.__setattr__(self, "objects", tuple(o for o in self.objects if o not in treads) + treads)
         if len(self.objects) > MAX_OBJECTS:
@@ -351,8 +439,10 @@ def extent(obj: SceneObject) -> tuple[tuple[float, float, float], tuple[float, f
 
 
 def on_top(obj: SceneObject, point: Iterable[float], *, tolerance: float = GROUND_TOLERANCE) -> bool:
-    """The point lies on the upward top face of an upright box or cylinder (a support surface)."""
-    if obj.shape not in ("box", "cylinder") or rotation(obj.rpy)[2][2] < math.cos(math.radians(5)):
+    """The point lies on the upward top face of an upright box or cylinder (a support surface), or
+    of a walkable one tilted by at most :data:`MAX_SLOPE` (a slope)."""
+    steepest = MAX_SLOPE if obj.walkable else math.radians(5)
+    if obj.shape not in ("box", "cylinder") or rotation(obj.rpy)[2][2] < math.cos(steepest) - 1e-12:
         return False
     x, y, z = to_local(obj, point)
     top = obj.size[2] / 2 if obj.shape == "box" else obj.size[1] / 2
@@ -572,6 +662,7 @@ def check_scene_meshes(scene: Scene | None, prefix: str = "", hint: str = "") ->
 
 
 __all__ = [
+    "MAX_SLOPE",
     "MAX_STEPS",
     "SCENE_MARGIN",
     "SCENE_VERSION",
@@ -579,6 +670,7 @@ __all__ = [
     "SIZE_LENGTHS",
     "Scene",
     "SceneObject",
+    "Slope",
     "Stairs",
     "check_scene_meshes",
     "check_spec_in_scene",
@@ -591,6 +683,7 @@ __all__ = [
     "scene_from_json",
     "scene_to_dict",
     "signed_distance",
+    "slope_objects",
     "stairs_objects",
     "to_local",
 ]

@@ -1,4 +1,4 @@
-"""Terrain: stairs as walkable boxes, and the surface under a point (height and normal).
+"""Terrain: stairs and slopes as walkable boxes, and the surface under a point (height and normal).
 
 A scene file's ``stairs`` element (:class:`Stairs`: count, rise, run, width, position, yaw) is
 expanded when the file is read into ``count`` static boxes with ``walkable`` set: step ``i``
@@ -10,6 +10,10 @@ the first tread), the others ``<name>.2``, ``<name>.3``, ...
 ``position`` is the middle of the first riser's bottom edge (where the stairs meet the floor in
 front of the robot) and ``yaw`` [rad] the direction the stairs climb (0: along +x).
 
+A ``slopes`` element (:class:`Slope`: angle, length, width, position, yaw, landing) becomes a
+walkable box tilted by its angle (its top face the inclined plane, from its bottom edge on the
+floor) named ``<name>``, and a flat walkable landing ``<name>.top`` at the top edge's height.
+
 :func:`surface_at` is the height query the footstep primitives use: the highest walkable top face
 (of an upright box or cylinder) over a point, or the floor (z = 0), with its upward normal.
 """
@@ -19,9 +23,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from tasks.scene import MAX_STEPS, Scene, SceneObject, Stairs, rotation, stairs_objects, to_local
+from tasks.scene import (
+    MAX_SLOPE,
+    MAX_STEPS,
+    Scene,
+    SceneObject,
+    Slope,
+    Stairs,
+    rotation,
+    slope_objects,
+    stairs_objects,
+    to_local,
+)
 
-UPRIGHT_COS = math.cos(math.radians(5))  # a top face tilted more than 5 deg is no walkable surface
+UPRIGHT_COS = math.cos(math.radians(5))  # a top face tilted more than 5 deg is not flat (a step's top)
+SLOPE_COS = math.cos(MAX_SLOPE) - 1e-12  # a walkable top face tilted more than MAX_SLOPE is no surface
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,9 +58,10 @@ class Surface:
 
 
 def top_height(obj: SceneObject) -> float | None:
-    """Height of the top face's centre of an upright box or cylinder [m] (None: no flat top)."""
+    """Height of the top face's centre of an upright box or cylinder, or of a walkable one tilted by
+    at most :data:`~tasks.scene.MAX_SLOPE` (a slope) [m] (None: no top to stand on)."""
     R = rotation(obj.rpy)
-    if obj.shape not in ("box", "cylinder") or R[2][2] < UPRIGHT_COS:
+    if obj.shape not in ("box", "cylinder") or R[2][2] < (SLOPE_COS if obj.walkable else UPRIGHT_COS):
         return None
     half = obj.size[2] / 2 if obj.shape == "box" else obj.size[1] / 2
     return obj.position[2] + R[2][2] * half
@@ -68,6 +85,26 @@ def _over(obj: SceneObject, x: float, y: float) -> float | None:
     return z if inside else None
 
 
+def is_slope(obj: SceneObject) -> bool:
+    """A walkable top tilted by more than 5 deg (a ramp: walked up in strides, the soles tilted)."""
+    return obj.walkable and top_height(obj) is not None and rotation(obj.rpy)[2][2] < UPRIGHT_COS
+
+
+def sole_rpy(normal: tuple[float, float, float], yaw: float) -> tuple[float, float, float]:
+    """Roll, pitch, yaw of a sole lying flat on a surface of upward unit ``normal`` and heading
+    ``yaw`` [rad]: its z axis the normal, its x axis the heading projected vertically onto the
+    surface (seen from above the sole points along the heading: its yaw is ``yaw``)."""
+    n = [float(c) for c in normal]
+    h = [math.cos(yaw), math.sin(yaw), 0.0]
+    x = [h[0], h[1], -(h[0] * n[0] + h[1] * n[1]) / n[2]]
+    norm = math.sqrt(sum(a * a for a in x))
+    x = [a / norm for a in x]
+    y = [n[1] * x[2] - n[2] * x[1], n[2] * x[0] - n[0] * x[2], n[0] * x[1] - n[1] * x[0]]
+    # R = [x y n] = Rz(yaw) Ry(pitch) Rx(roll): R20 = -sin(pitch), R21 = cos(pitch) sin(roll), ...
+    pitch = math.asin(max(-1.0, min(1.0, -x[2])))
+    return (math.atan2(y[2], n[2]) + 0.0, pitch + 0.0, math.atan2(x[1], x[0]) + 0.0)  # no -0.0
+
+
 def surface_at(scene: Scene | None, x: float, y: float) -> Surface:
     """The highest walkable surface over (x, y): a walkable object's top face, or the floor.
 
@@ -87,4 +124,5 @@ def surface_at(scene: Scene | None, x: float, y: float) -> Surface:
     return best
 
 
-__all__ = ["MAX_STEPS", "Stairs", "Surface", "stairs_objects", "surface_at", "top_height"]
+__all__ = ["MAX_SLOPE", "MAX_STEPS", "Slope", "Stairs", "Surface", "is_slope", "slope_objects", "sole_rpy",
+           "stairs_objects", "surface_at", "top_height"]

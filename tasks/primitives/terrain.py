@@ -1,4 +1,5 @@
-"""``step_up(object, count)``: climb onto walkable surfaces ahead, one tread at a time.
+"""``step_up(object, count)`` and ``step_down(object, count)``: climb onto walkable surfaces ahead,
+or down from them to the floor, one station at a time (stairs, boxes, slopes).
 
 The object is a walkable scene object (a stair tread, a box with ``walkable`` set; "the stairs"
 names a flight's first tread, :mod:`tasks.terrain`). The treads climbed are that object and the
@@ -11,9 +12,15 @@ keeping its lateral place. A swing clears the higher of the two treads by ``SWIN
 its middle (the planner's swing height is a height above the floor). Dynamic (contact forces), and
 the CoM ends over the final feet (HARD, ``END_TOLERANCE``).
 
+A slope (a walkable top tilted by more than 5 deg, :func:`tasks.terrain.is_slope`) is climbed at
+several stations (:func:`stations`), each sole flat on the inclined plane (its rpy from the
+surface normal, :func:`tasks.terrain.sole_rpy`). ``step_down`` walks the walkable surfaces ahead
+that lie lower than the last (:func:`descent`), then the floor, with the same gait.
+
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): a rise above the
 robot's ``step_height_max`` ("the 0.30 m rise onto stairs.1 is above talos's 0.20 m step"), a
-tread farther than ``step_length_max`` from the last one (or from the feet: walk closer first).
+tread farther than ``climb_length_max`` (or ``step_length_max``) from the last one (or from the feet:
+walk closer first).
 """
 
 from __future__ import annotations
@@ -44,7 +51,7 @@ from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.primitives.objects import grounded
 from tasks.scene import Scene, SceneObject, rotation
 from tasks.specs import Pose
-from tasks.terrain import surface_at, top_height
+from tasks.terrain import is_slope, sole_rpy, surface_at, top_height
 
 PARTS = frozenset({"legs", "com"})
 SWING_CLEARANCE = 0.09  # [m] a swinging sole above the higher tread at the middle of its swing (talos's
@@ -54,9 +61,18 @@ SETTLE_FRACTION = 0.5  # opening shift and closing settle: this fraction of step
 LEVEL_TOLERANCE = 1e-3  # [m] every sole corner over the same surface height
 WAYPOINT_TOLERANCE = 0.02  # [m] the swinging sole's lift and descent waypoints
 TOE_CLEARANCE = 0.05  # [m] the sole's front edge at least this far back from a tread's front edge
+EDGE = 0.02  # [m] a sole's heel past a surface's near edge (a slope's foot, a landing's seam), its toe before a slope's top
+FLOOR_CLEARANCE = 0.05  # [m] the heel from the last step's foot at the end of a descent (when within reach)
+REACH = 0.95  # a station at most this fraction of the robot's stride (stride()) ahead of the last one
 LEAD = "right"  # the foot that steps up first
 DOUBLE_SUPPORT = 0.3  # [s] at least, between two steps: the weight moves up (or down) a step onto the other
 #   foot (with talos's 0.15 s the trailing sole slipped 12 mm in MuJoCo as it unloaded, limit 10 mm)
+
+
+def stride(robot: Robot) -> float:
+    """The longest step onto another surface [m]: the profile's ``climb_length_max``, or its
+    ``step_length_max`` when that is 0."""
+    return robot.profile.climb_length_max or robot.profile.step_length_max
 
 
 def _yaw_of(stance: Stance) -> float:
@@ -73,15 +89,6 @@ def _on_line(obj: SceneObject, mid: np.ndarray, u: np.ndarray) -> bool:
     s = _along(obj, mid, u)
     p = mid[:2] + s * u
     return surface_at(Scene(objects=(obj,)), float(p[0]), float(p[1])).name == obj.name
-
-
-def _half_depth(obj: SceneObject, u: np.ndarray) -> float:
-    """Half the object's top face along the horizontal direction ``u`` [m]."""
-    if obj.shape == "cylinder":
-        return float(obj.size[0])
-    R = np.array(rotation(obj.rpy))
-    local = R.T @ np.array([u[0], u[1], 0.0])
-    return float(abs(local[0]) * obj.size[0] / 2 + abs(local[1]) * obj.size[1] / 2)
 
 
 def treads(scene: Scene, first: SceneObject, stance: Stance, count: int | None) -> list[SceneObject]:
@@ -109,19 +116,108 @@ def treads(scene: Scene, first: SceneObject, stance: Stance, count: int | None) 
     return chain[:count]
 
 
-def _placement(robot: Robot, scene: Scene, side: str, xy: np.ndarray, yaw: float, tread: SceneObject) -> Pose:
-    """The sole flat on the surface under ``xy``, refused when a corner is over another height."""
+def descent(scene: Scene, named: SceneObject, stance: Stance, count: int | None) -> list[SceneObject | None]:
+    """The surfaces walked down onto: the walkable objects straight ahead lower than the last (a
+    slope: lower at its far edge), nearest first, then the floor (None); ``named`` among them."""
+    mid, _ = heading_yaw({"left": stance.left, "right": stance.right})
+    yaw = _yaw_of(stance)
+    u = np.array([math.cos(yaw), math.sin(yaw)])
+    here = surface_at(scene, float(mid[0]), float(mid[1]))
+    ahead = sorted((o for o in scene.objects if o.walkable and o.name != here.name and _along(o, mid, u) > 0
+                    and top_height(o) is not None and _on_line(o, mid, u)), key=lambda o: _along(o, mid, u))
+    chain: list[SceneObject | None] = []
+    level = here.height
+    for obj in ahead:
+        lo, hi = _extent(obj, mid, u)
+        near = surface_at(Scene(objects=(obj,)), *(mid[:2] + (lo + 1e-3) * u)).height
+        far = surface_at(Scene(objects=(obj,)), *(mid[:2] + (hi - 1e-3) * u)).height
+        if near > level + LEVEL_TOLERANCE or far > near + LEVEL_TOLERANCE:
+            break  # it goes up again: the descent ends before it
+        chain.append(obj)
+        level = far
+    if named not in chain:
+        raise TaskDefinitionError(
+            f"step_down: the {named.name} is not below the robot straight ahead ("
+            + (f"it stands on the {here.name}" if here.name else "it stands on the floor")
+            + "); walk down from where it stands, facing the way down")
+    chain.append(None)
+    return chain if count is None else chain[:count]
+
+
+def _placement(robot: Robot, scene: Scene, side: str, xy: np.ndarray, yaw: float, tread: SceneObject | None) -> Pose:
+    """The sole flat on the surface under ``xy`` (its height and normal: tilted on a slope), refused
+    when a corner is over another surface or off its plane."""
     centre = surface_at(scene, float(xy[0]), float(xy[1]))
-    R = rz(yaw)
+    rpy = sole_rpy(centre.normal, yaw)
+    R = np.array(rotation(rpy))
+    origin = np.array([xy[0], xy[1], centre.height])
     for corner in sole_corners(robot.profile.sole, side):
-        p = np.array([xy[0], xy[1], 0.0]) + R @ corner
+        p = origin + R @ corner
         under = surface_at(scene, float(p[0]), float(p[1]))
-        if abs(under.height - centre.height) > LEVEL_TOLERANCE or under.name != tread.name:
+        if abs(under.height - p[2]) > LEVEL_TOLERANCE or under.name != _name(tread):
             raise BeyondCapability(
                 f"step_up: {robot.name}'s {side} sole ({robot.profile.sole.x_max - robot.profile.sole.x_min:.2f} m "
-                f"long) does not fit on the {tread.name} (a corner would be over "
+                f"long) does not fit on the {_words(tread)} (a corner would be over "
                 f"{'the floor' if under.name is None else 'the ' + under.name}); treads must be longer than the sole")
-    return Pose(position=(float(xy[0]), float(xy[1]), float(centre.height)), rpy=(0.0, 0.0, float(yaw)))
+    return Pose(position=(float(xy[0]), float(xy[1]), float(centre.height)), rpy=rpy)
+
+
+def _name(tread: SceneObject | None) -> str | None:
+    return None if tread is None else tread.name
+
+
+def _words(tread: SceneObject | None) -> str:
+    return "floor" if tread is None else tread.name
+
+
+def _extent(obj: SceneObject, mid: np.ndarray, u: np.ndarray) -> tuple[float, float]:
+    """The object's top face from its near edge to its far edge along the horizontal ``u`` [m]."""
+    if obj.shape == "cylinder":
+        s = _along(obj, mid, u)
+        return s - float(obj.size[0]), s + float(obj.size[0])
+    R = np.array(rotation(obj.rpy))
+    a, b, c = (np.asarray(obj.size) / 2)
+    ends = [float(np.dot(np.asarray(obj.position[:2]) + (R @ np.array([i * a, j * b, c]))[:2] - mid[:2], u))
+            for i in (-1, 1) for j in (-1, 1)]
+    return min(ends), max(ends)
+
+
+def stations(robot: Robot, chain: list[SceneObject | None], mid: np.ndarray, u: np.ndarray,
+             start: float, down: bool = False) -> list[tuple[SceneObject | None, float]]:
+    """Where both soles stand in turn: (surface, the soles' centre along ``u`` from ``mid``) [m].
+
+    A flat tread: one station, centred on it, or (up) back from its front edge by ``TOE_CLEARANCE``, or
+    at most ``REACH`` steps ahead of the last one (but not off its near edge). A slope: evenly spaced
+    stations at most ``REACH`` apart from ``EDGE`` past its near edge to ``EDGE`` before its far one.
+    The floor (None, at the end of a descent): ``EDGE`` past the last surface's far edge, or farther
+    out to ``REACH`` (the heel away from the riser or the slope's foot)."""
+    half = (robot.profile.sole.x_max - robot.profile.sole.x_min) / 2
+    reach = REACH * stride(robot)
+    out: list[tuple[SceneObject | None, float]] = []
+    last, edge = start, start
+    for tread in chain:
+        if tread is None:
+            out.append((None, max(edge + EDGE + half, min(last + reach, edge + FLOOR_CLEARANCE + half))))
+            break
+        lo, hi = _extent(tread, mid, u)
+        edge = hi
+        if is_slope(tread):
+            first, final = lo + EDGE + half, hi - EDGE - half
+            n = max(1, math.ceil((final - first) / reach - 1e-9) + 1) if final > first else 1
+            out += [(tread, first + (final - first) * i / max(n - 1, 1)) for i in range(n)]
+        else:
+            s = _along(tread, mid, u) if down else min(_along(tread, mid, u), hi - TOE_CLEARANCE - half)
+            if s > last + reach:  # a landing after a slope: its near end
+                s = max(last + reach, lo + EDGE + half)
+            out.append((tread, s))
+        last = out[-1][1]
+    return out
+
+
+def _top(robot: Robot, side: str, pose: Pose) -> float:
+    """The highest sole corner of a placement [m] (a tilted sole's toe on a slope)."""
+    R = np.array(rotation(pose.rpy))
+    return float(max((np.asarray(pose.position) + R @ c)[2] for c in sole_corners(robot.profile.sole, side)))
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,11 +232,12 @@ class Swing:
     height: float
 
 
-def plan_steps(robot: Robot, g: Grounded, count: int | None,
-               stance: Stance | None = None) -> tuple[list[Segment], dict[str, Pose], list[Swing]]:
-    """The phases of the climb, the final sole placements and the swings."""
+def plan_steps(robot: Robot, g: Grounded, count: int | None, stance: Stance | None = None,
+               down: bool = False) -> tuple[list[Segment], dict[str, Pose], list[Swing]]:
+    """The phases of the climb (``down``: of the descent), the final sole placements and the swings."""
     st = stance if stance is not None else (g.start if isinstance(g.start, Stance) else Stance.standing(robot))
-    chain = treads(g.scene, g.obj, st, count)
+    chain: list[SceneObject | None] = (descent(g.scene, g.obj, st, count) if down
+                                       else list(treads(g.scene, g.obj, st, count)))
     where = start_placements(robot, st)
     mid, _ = heading_yaw(where)
     yaw = _yaw_of(st)
@@ -151,10 +248,8 @@ def plan_steps(robot: Robot, g: Grounded, count: int | None,
     segs = [Segment(name="shift weight", duration=settle, contacts=both(robot, where))]
     cur = dict(where)
     swings: list[Swing] = []
-    for i, tread in enumerate(chain):
-        # the sole centred on the tread, or back from its front edge by TOE_CLEARANCE if that is nearer
-        s = min(_along(tread, mid, u), _along(tread, mid, u) + _half_depth(tread, u) - TOE_CLEARANCE
-                - (prof.sole.x_max - prof.sole.x_min) / 2)
+    plan = stations(robot, chain, mid, u, float(sole_mid[0]), down)
+    for i, (tread, s) in enumerate(plan):
         for side in (LEAD, OTHER[LEAD]):
             here = np.asarray(cur[side].position)
             lateral = float(np.dot(here[:2] - mid[:2], np.array([-u[1], u[0]])))
@@ -162,21 +257,22 @@ def plan_steps(robot: Robot, g: Grounded, count: int | None,
             target = _placement(robot, g.scene, side, xy, yaw, tread)
             rise = target.position[2] - here[2]
             length = float(np.linalg.norm(np.asarray(target.position[:2]) - here[:2]))
-            if rise > prof.step_height_max + 1e-9:
+            if abs(rise) > prof.step_height_max + 1e-9:
                 raise BeyondCapability(
-                    f"the {rise:.2f} m rise onto the {tread.name} is above {robot.name}'s {prof.step_height_max:.2f} m "
-                    f"step (step_height_max of its profile): choose lower steps, or another robot")
-            if length > prof.step_length_max + 1e-9:
+                    f"the {abs(rise):.2f} m {'drop' if rise < 0 else 'rise'} onto the {_words(tread)} is above "
+                    f"{robot.name}'s {prof.step_height_max:.2f} m step (step_height_max of its profile): choose lower "
+                    "steps, or another robot")
+            if length > stride(robot) + 1e-9:
                 hint = ("walk closer to it first" if i == 0 else "the treads are too deep for it")
                 raise BeyondCapability(
-                    f"step_up: the {side} foot would step {length:.2f} m onto the {tread.name}, beyond {robot.name}'s "
-                    f"{prof.step_length_max:.2f} m step: {hint}")
-            height = max(float(here[2]), target.position[2]) + SWING_CLEARANCE
+                    f"step_{'down' if down else 'up'}: the {side} foot would step {length:.2f} m onto the "
+                    f"{_words(tread)}, beyond {robot.name}'s {stride(robot):.2f} m step: {hint}")
+            height = max(_top(robot, side, cur[side]), _top(robot, side, target)) + SWING_CLEARANCE
             swings.append(Swing(len(segs), side, cur[side].position, target.position, height))
-            segs.append(Segment(name=f"step {i + 1}: {side} foot onto the {tread.name}", duration=prof.step_duration,
+            segs.append(Segment(name=f"step {i + 1}: {side} foot onto the {_words(tread)}", duration=prof.step_duration,
                                 contacts=(contact(robot, OTHER[side], cur[OTHER[side]]),), swing_height=height))
             cur[side] = target
-            last = i == len(chain) - 1 and side == OTHER[LEAD]
+            last = i == len(plan) - 1 and side == OTHER[LEAD]
             segs.append(Segment(name="settle" if last else f"step {i + 1}: double support",
                                 duration=settle if last else max(prof.double_support_duration, DOUBLE_SUPPORT),
                                 contacts=both(robot, cur), rounding="nearest" if last else "floor"))
@@ -188,17 +284,13 @@ def _count(params: dict) -> int | None:
     return None if value is None else int(value)
 
 
-def _duration(params: dict, robot: Robot) -> float:
-    return sequence_duration(plan_steps(robot, grounded(params, "step_up"), _count(params))[0])
+def _plan(params: dict, robot: Robot, down: bool, stance: Stance | None = None):
+    action = "step_down" if down else "step_up"
+    return plan_steps(robot, grounded(params, action), _count(params), stance, down=down)
 
 
-def _check(params: dict, robot: Robot) -> None:
-    plan_steps(robot, grounded(params, "step_up"), _count(params))
-
-
-def _build(b: FragmentBuilder) -> Fragment:
-    g = grounded(b.params, "step_up")
-    segs, end, swings = plan_steps(b.robot, g, _count(b.params), b.stance)
+def _build(b: FragmentBuilder, down: bool = False) -> Fragment:
+    segs, end, swings = _plan(b.params, b.robot, down, b.stance)
     bounds = write_segments(b, segs)
     for sw in swings:
         # lift straight up, pass over the riser, come straight down: the sole above its lift-off
@@ -210,20 +302,24 @@ def _build(b: FragmentBuilder) -> Fragment:
                            tolerance=WAYPOINT_TOLERANCE)
     b.end_stance = stance_from(end)
     home = b.end_stance.transform_from_standing(b.robot).act(standing_geometry(b.robot).com)
-    b.com_target("CoM over the feet on the last tread", (float(home[0]), float(home[1]), None),
+    b.com_target(f"CoM over the feet on the last {'step' if down else 'tread'}", (float(home[0]), float(home[1]), None),
                  time=tau(b, bounds[-1]), tolerance=END_TOLERANCE)
     return b.finish(PARTS, dynamic=True)
 
 
 def _limits(robot: Robot) -> dict[str, str]:
     prof = robot.profile
-    return {"object": f"rises of at most {prof.step_height_max:.2f} m, treads at most {prof.step_length_max:.2f} m "
+    return {"object": f"rises of at most {prof.step_height_max:.2f} m, treads at most {stride(robot):.2f} m "
                       f"apart on {robot.name}"}
 
 
-STEP_UP = Primitive(name="step_up", nominal_duration=_duration, build=_build, parts=lambda p: PARTS,
-                    check=_check, limits=_limits, dynamic=True)
+STEP_UP = Primitive(name="step_up", nominal_duration=lambda p, r: sequence_duration(_plan(p, r, False)[0]),
+                    build=_build, parts=lambda p: PARTS, check=lambda p, r: _plan(p, r, False) and None,
+                    limits=_limits, dynamic=True)
+STEP_DOWN = Primitive(name="step_down", nominal_duration=lambda p, r: sequence_duration(_plan(p, r, True)[0]),
+                      build=lambda b: _build(b, down=True), parts=lambda p: PARTS,
+                      check=lambda p, r: _plan(p, r, True) and None, limits=_limits, dynamic=True)
 
-PRIMITIVES = (STEP_UP,)
+PRIMITIVES = (STEP_UP, STEP_DOWN)
 
-__all__ = ["PRIMITIVES", "STEP_UP", "SWING_CLEARANCE", "plan_steps", "treads"]
+__all__ = ["PRIMITIVES", "STEP_DOWN", "STEP_UP", "SWING_CLEARANCE", "descent", "plan_steps", "stations", "treads"]

@@ -115,3 +115,68 @@ def test_the_stepping_guess_stands_on_the_treads_and_swings_over_them(climb):
     assert lowest > -1e-3  # no swinging sole corner below the surface under it
     v = values(lay, scene_sets(robot), obstacles(lay.spec.scene), q, 0.0)
     assert v.min() > 0.95  # no leg sphere in a tread it does not stand on (the rows' own bulge aside)
+
+
+SLOPE = Path(__file__).resolve().parents[3] / "examples" / "scenes" / "slope.json"
+
+
+@pytest.fixture(scope="module")
+def slope_walk(talos):
+    """The layout of "walk up the slope" on Talos and its stepping guess (N+1, nq)."""
+    spec = compile_actions([Action(name="step_up", params={"object": "the slope"})], talos,
+                           scene=load_scene(SLOPE))
+    lay, _ = _formulation(spec, talos, PlannerSettings())
+    dq = stepping_guess(lay)
+    assert dq is not None
+    q = np.array([chart_to_configuration(talos.model, lay.q_ref, d) for d in dq])
+    return lay, q
+
+
+def _on_slope(slope, p: np.ndarray) -> float:
+    """Height of the example's walkable surface under a point, by hand: floor, 10 deg plane, landing."""
+    d = p[0] - slope.position[0]
+    return float(np.tan(slope.angle) * min(max(d, 0.0), slope.length)) if d < slope.length + slope.landing else 0.0
+
+
+def test_the_slope_guess_stands_flat_on_the_plane(slope_walk):
+    """The fast twin of ``tests/sim/test_slope_walk.py``: Pinocchio FK of the stepping guess puts
+    each standing sole's corners on the surface under them (the inclined plane by hand: 1 mm), and
+    no swinging sole corner below it."""
+    lay, q = slope_walk
+    robot = lay.robot
+    slope = lay.spec.scene.slopes[0]
+    worst, lowest, tilted = 0.0, np.inf, 0
+    for k in range(lay.N + 1):
+        for side in ("left", "right"):
+            fid = robot.frame_id(f"{side}_foot")
+            corners = robot.sole_corners_in_world(q[k], side)
+            gaps = [float(c[2] - _on_slope(slope, c)) for c in corners]
+            if fid in lay.contacts_at[k]:
+                worst = max(worst, max(abs(g) for g in gaps))
+                tilted += int(0 < corners[0][0] - slope.position[0] < slope.length)
+            else:
+                lowest = min(lowest, min(gaps))
+    assert worst < 1e-3
+    assert lowest > -1e-3
+    assert tilted > 20  # knots with a sole on the ramp itself
+
+
+def test_the_friction_cones_on_the_slope_open_about_its_normal(slope_walk, talos):
+    """A contact on the ramp: its force generators (the friction pyramid's edges) make the same
+    angle with the plane's normal by hand, and their sum lies along it."""
+    from planner.trajopt.centroidal.contacts import contact_geometry
+    from planner.trajopt.centroidal.physics import pyramid_coefficient, pyramid_edges
+
+    lay, _ = slope_walk
+    slope = lay.spec.scene.slopes[0]
+    n = np.array([-np.sin(slope.angle), 0.0, np.cos(slope.angle)])
+    on_ramp = [c for p in lay.spec.phases for c in p.contacts if abs(c.placement.rpy[1]) > 0.1]
+    assert on_ramp
+    c = contact_geometry(on_ramp[0], talos)
+    np.testing.assert_allclose(c.normal, n, atol=1e-12)
+    mu = c.friction_coefficient
+    E = pyramid_edges(c.rotation, mu)
+    cos = (E.T @ n) / np.linalg.norm(E, axis=0)
+    np.testing.assert_allclose(cos, 1.0 / np.sqrt(1.0 + 2.0 * pyramid_coefficient(mu) ** 2), atol=1e-12)
+    total = E.sum(axis=1)
+    np.testing.assert_allclose(total / np.linalg.norm(total), n, atol=1e-12)
