@@ -10,13 +10,27 @@ and how to fix it; the CLI maps it to exit code 3 (invalid spec).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 
 from robots import FrameNotFound, Robot
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import SceneConflict, TaskDefinitionError
 from tasks.limits import GROUND_TOLERANCE, START_TOLERANCE
-from tasks.scene import SCENE_MARGIN, check_spec_in_scene
+from tasks.scene import (
+    SCENE_MARGIN,
+    Scene,
+    _frame_words,
+    _point,
+    _relation,
+    _where,
+    closest_object,
+    on_top,
+    rotation,
+    signed_distance,
+)
 from tasks.specs import TaskSpec
 
 
@@ -60,7 +74,7 @@ def check_spec_for_robot(spec: TaskSpec, robot: Robot) -> None:
 def check_spec_in_scene_for_robot(spec: TaskSpec, robot: Robot, *, margin: float = SCENE_MARGIN) -> None:
     """Refuse hand targets and footsteps inside the spec's scene objects, soles included.
 
-    :func:`tasks.scene.check_spec_in_scene` with the robot's sole corners for every contact on
+    :func:`tasks.robot_check.check_spec_in_scene` with the robot's sole corners for every contact on
     a foot frame: a sole that overlaps an object (within ``margin``) is refused as well as one
     whose frame origin is inside it.
 
@@ -133,3 +147,75 @@ def _close(name: str, names: list[str]) -> str:
 
 
 __all__ = ["check_spec_for_robot", "check_spec_in_scene_for_robot"]
+
+
+def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
+                        contact_points: Mapping[str, Any] | None = None,
+                        labels: Mapping[str, str] | None = None) -> None:
+    """Refuse a spec whose hand targets or footsteps lie inside a scene object (or within ``margin``).
+
+    A frame target's position (every axis counted) closer than ``margin`` to an object (but the one
+    it touches, ``touch``), or a
+    contact whose placement (and, when ``contact_points`` gives them for its frame, the points
+    ``(k, 3)`` in the contact frame, e.g. the sole corners), lifted by ``2 * margin`` along the
+    contact normal (the foot above its sole), comes closer than ``margin`` to an object, raises :class:`~tasks.exceptions.SceneConflict` naming the object. A contact whose
+    points all lie on the top face of an upright box or cylinder stands on it: a support, not a
+    conflict. Meshes are not checked here (the planner keeps the robot clear of them).
+
+    Args:
+        spec: The spec, with its scene.
+        margin: The planner's clearance [m].
+        contact_points: Per contact frame, points in the contact frame [m] (the sole corners).
+        labels: Per frame, the words messages use (``right hand``); default: the frame name.
+
+    Raises:
+        SceneConflict: message in task terms, ``the right hand target (0.45, -0.2, 0.8) of 'reach' is
+            inside the table (...)``; exit code 4 (infeasible).
+    """
+    scene = spec.scene
+    if scene is None or not scene.objects:
+        return
+    words = dict(labels or {})
+
+    def label(frame: str) -> str:
+        return words.get(frame, _frame_words(frame))
+
+    for target in spec.targets:
+        if target.position is None or not all(target.axes):
+            continue
+        others = scene if target.touch is None else Scene(objects=tuple(o for o in scene.objects if o.name != target.touch))
+        hit = closest_object(others, target.position)
+        if hit is not None and hit[1] < margin:
+            obj, d = hit
+            raise SceneConflict(
+                f"the {label(target.frame)} target {_point(target.position)} of {target.name!r} is {_relation(d)} "
+                f"the {obj.name} ({_where(obj)}; the robot keeps {margin:g} m away from objects): move the "
+                f"target out of the {obj.name}, or the {obj.name} in the scene", obj.name)
+    seen: set[tuple[str, tuple[float, ...], tuple[float, ...]]] = set()
+    for phase in spec.phases:
+        for contact in phase.contacts:
+            key = (contact.frame, contact.placement.position, contact.placement.rpy)
+            if key in seen:
+                continue
+            seen.add(key)
+            R = rotation(contact.placement.rpy)
+            local: list[tuple[float, ...]] = [(0.0, 0.0, 0.0)]
+            if contact_points is not None and contact.frame in contact_points:
+                local += [tuple(float(c) for c in p) for p in contact_points[contact.frame]]
+            points = [tuple(contact.placement.position[i] + sum(R[i][j] * lp[j] for j in range(3)) for i in range(3))
+                      for lp in local]
+            # the foot is above its sole: test the sole points lifted by twice the margin along the
+            # contact normal (a sole under an object's bottom face is inside it, not "against" it)
+            lifted = [tuple(p[i] + 2 * margin * R[i][2] for i in range(3)) for p in points]
+            for obj in scene.objects:
+                dists = [signed_distance(obj, p) for p in lifted]
+                if any(d is None for d in dists):
+                    continue
+                d = min(x for x in dists if x is not None)
+                if d >= margin or all(on_top(obj, p) for p in points):
+                    continue
+                raise SceneConflict(
+                    f"the {label(contact.frame)} placement {_point(contact.placement.position)} in phase "
+                    f"{phase.name!r} puts the sole {_relation(d)} the {obj.name} ({_where(obj)}; the robot keeps "
+                    f"{margin:g} m away from objects): step elsewhere, or move the {obj.name} in the scene",
+                    obj.name)

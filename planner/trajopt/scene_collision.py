@@ -333,7 +333,7 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
 
     A foot in a planned contact carries no rows against any object (and :data:`CONTACT_PADDING`
     knots around): it stands where its placement puts it, and the placement was checked against
-    every object before planning, on the exact shapes (:func:`tasks.scene.check_spec_in_scene`:
+    every object before planning, on the exact shapes (:func:`tasks.robot_check.check_spec_in_scene`:
     its sole corners). Its rows would only ask whether the foot's cover, 3 cm longer than Talos's
     foot, fits: a sole 5 cm from the next riser of a flight of stairs is 9 mm inside the margin of
     the rows (their bulge, module docstring), and no plan existed."""

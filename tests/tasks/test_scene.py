@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from tasks.exceptions import SceneConflict, TaskDefinitionError
+from tasks.robot_check import check_spec_in_scene
 from tasks.scene import (
     SCENE_MARGIN,
     Scene,
     SceneObject,
-    check_spec_in_scene,
     load_scene,
     scene_from_dict,
     scene_to_dict,
