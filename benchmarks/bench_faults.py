@@ -9,8 +9,8 @@ Three studies, each printed as a Markdown table (docs/safety.md holds the result
   mid-motion and the floor friction times 0.7: PASS or FAIL of the certificate.
 * ``--bisect``: for each bench motion on each ``--robots`` and each fault kind of ``--kinds``
   (:data:`KINDS`: a push at mid-motion forward, backward, left or right, 0-80 N s; the floor's
-  friction, x 1 down to x 0.05; the base's mass, x 1 up to x 3; a control delay, 0-32 ticks; joint
-  angle noise, 0-0.04 rad), the worst fault whose certificate passes: the range's worst end first,
+  friction, x 1 down to x 0.05; the base's mass, x 1 up to x 5; a control delay, 0-50 ticks; joint
+  angle noise, 0-0.1 rad: the faults file's own limits, except the friction's 0.05 floor), the worst fault whose certificate passes: the range's worst end first,
   then ``--steps`` halvings (the delay: down to one tick).
 
 The plans come from the motion cache (``wbmp solve`` stores them) or are planned once, without
@@ -42,7 +42,7 @@ import numpy as np  # noqa: E402
 
 from sim import simulate  # noqa: E402
 from sim.estop import EStopSettings  # noqa: E402
-from sim.faults import faults_from_dict  # noqa: E402
+from sim.faults import MASS_RANGE, MAX_DELAY_TICKS, MAX_JOINT_NOISE, faults_from_dict  # noqa: E402
 from wbmp.bench.tasks import TASKS  # noqa: E402
 from wbmp.commands.demo import DEMO_SENTENCE  # noqa: E402
 from wbmp.pipeline import SolveRequest, solve  # noqa: E402
@@ -134,9 +134,9 @@ KINDS: dict[str, Kind] = {k.name: k for k in (
     Kind("push-left", "N s", 0.0, 80.0, _push((0.0, 1.0, 0.0))),
     Kind("push-right", "N s", 0.0, 80.0, _push((0.0, -1.0, 0.0))),
     Kind("friction", "x mu", 1.0, 0.05, lambda f, _t: {"friction_scale": f}, fmt="{:.2f}"),
-    Kind("base-mass", "x mass", 1.0, 3.0, lambda m, _t: {"mass_scale": {"base": m}}, fmt="{:.2f}"),
-    Kind("delay", "ticks", 0.0, 32.0, lambda d, _t: {"delay_ticks": int(d)}, integer=True, fmt="{:.0f}"),
-    Kind("joint-noise", "rad", 0.0, 0.04, lambda s, _t: {"joint_noise": s}, fmt="{:.4f}"),
+    Kind("base-mass", "x mass", 1.0, MASS_RANGE[1], lambda m, _t: {"mass_scale": {"base": m}}, fmt="{:.2f}"),
+    Kind("delay", "ticks", 0.0, float(MAX_DELAY_TICKS), lambda d, _t: {"delay_ticks": int(d)}, integer=True, fmt="{:.0f}"),
+    Kind("joint-noise", "rad", 0.0, MAX_JOINT_NOISE, lambda s, _t: {"joint_noise": s}, fmt="{:.4f}"),
 )}
 
 

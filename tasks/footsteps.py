@@ -19,9 +19,12 @@ Gaits (directions are taken in the heading frame of the start stance: x forward,
 - ``left``/``right``: ``count`` side steps; each is the leading foot (the one on the side of
   motion) moving out by ``length``, then the other foot following by ``length``, so the feet
   alternate and the body advances ``count * length``; at most ``lateral_step_max(robot)``.
-- ``turn(angle)``: the feet rotate about the point between them, alternately, the foot on the
-  side of the turn first; each swing turns the foot at most ``TURN_STEP_MAX`` beyond the other
-  one, and the last swing brings the feet parallel again.
+- ``turn(angle)``: the feet rotate about the point between them, alternately; each swing turns
+  the foot at most ``TURN_STEP_MAX`` beyond the other one, and the last swing, always the foot on
+  the far side of the turn, brings the feet parallel again. A swing that lands the foot turned
+  toward the other one (toe-in: the far-side foot overtaking) lands it ``sole.x_max * sin(toe-in)``
+  farther out along its own lateral axis, so the toes stay as far apart as the standing feet's
+  (talos's shins intersected in the toe-in double supports of a 90 degree turn otherwise).
 """
 
 from __future__ import annotations
@@ -306,10 +309,15 @@ def turn(robot: Robot, angle: float, *, left: Pose | None = None, right: Pose | 
          swing_height: float = SWING_HEIGHT, label: str = "", step_max: float = TURN_STEP_MAX) -> ContactSequence:
     """Turn in place by ``angle`` (left, counter-clockwise, positive) in alternating swings.
 
-    The feet rotate about the point between them. With ``n = ceil(|angle| / step_max)``, the foot
-    on the side of the turn swings to ``angle / n``, the other to ``2 angle / n`` and so on, and a
-    last swing brings the feet parallel: ``n + 1`` swings, the feet never more than ``step_max``
-    apart in yaw.
+    The feet rotate about the point between them. With ``n = ceil(|angle| / step_max)``, the feet
+    swing to ``angle / n``, ``2 angle / n`` and so on, alternately, and a last swing brings the
+    feet parallel: ``n + 1`` swings, the feet never more than ``step_max`` apart in yaw. That last
+    swing is the far-side foot's (the right foot in a left turn), so the near-side foot swings
+    first when ``n`` is odd, the far-side foot when it is even. The far-side foot's other swings
+    turn it toward the near-side foot (toe-in); each lands :func:`toe_in_widening` farther out
+    along the foot's lateral axis, so the toes (and the shins above them) stay as far apart as
+    the standing feet's. The end stance is the start stance turned by ``angle`` about its mid
+    point.
 
     Args:
         robot: The robot.
@@ -337,16 +345,28 @@ def turn(robot: Robot, angle: float, *, left: Pose | None = None, right: Pose | 
     where = {"left": left, "right": right}
     frames = {s: robot.frame(f"{s}_foot") for s in SIDES}
     steps: list[Footstep] = []
-    side = "left" if angle > 0 else "right"
+    near = "left" if angle > 0 else "right"
+    side = near if n % 2 == 1 else OTHER[near]
     for k in range(1, n + 2):
         theta = min(k, n) * inc
-        target = Pose(position=_clean(mid + _rz(theta) @ offsets[side]),
-                      rpy=_clean((where[side].rpy[0], where[side].rpy[1], _wrap(yaw0 + theta + rel_yaw[side]))))
+        yaw = _wrap(yaw0 + theta + rel_yaw[side])
+        position = mid + _rz(theta) @ offsets[side]
+        if side != near and k <= n:  # toe-in: the far-side foot overtakes the near-side one
+            outward = 1.0 if side == "left" else -1.0
+            position = position + _rz(yaw) @ np.array([0.0, outward * toe_in_widening(robot, abs(inc)), 0.0])
+        target = Pose(position=_clean(position), rpy=_clean((where[side].rpy[0], where[side].rpy[1], yaw)))
         steps.append(Footstep(side=side, frame=frames[side], start=where[side], target=target))
         where[side] = target
         side = OTHER[side]
     phases = _phases(robot, steps, left, right, swing_height, label)
     return ContactSequence(phases=phases, steps=tuple(steps), left=where["left"], right=where["right"])
+
+
+def toe_in_widening(robot: Robot, toe_in: float) -> float:
+    """How much farther out a turning foot lands when it is turned ``toe_in`` [rad] toward the
+    other foot [m]: ``sole.x_max * sin(toe_in)``, the distance its toe (the sole's front edge) comes
+    inward by turning, so the toes stay as far apart as parallel feet's."""
+    return float(robot.profile.sole.x_max * math.sin(abs(toe_in)))
 
 
 __all__ = [
@@ -359,6 +379,7 @@ __all__ = [
     "standing_feet",
     "step_length_limit",
     "step_width",
+    "toe_in_widening",
     "turn",
     "walk",
 ]

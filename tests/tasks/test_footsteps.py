@@ -42,6 +42,10 @@ def _check_consistent(seq, robot, start):
     assert [s.side for s in seq.steps] == swung
 
 
+def _wrap(a: float) -> float:
+    return math.atan2(math.sin(a), math.cos(a))
+
+
 def _yaw_gap(a: Pose, b: Pose) -> float:
     return abs(math.atan2(math.sin(a.rpy[2] - b.rpy[2]), math.cos(a.rpy[2] - b.rpy[2])))
 
@@ -153,9 +157,14 @@ def test_two_steps_sideways_alternate_the_leading_foot(talos, g1):
         assert [s.side for s in right.steps] == ["right", "left"]
 
 
+TOE_IN_GAP = 0.9  # toe-in double supports keep this share of the standing soles' gap (unwidened: talos 20 %)
+
+
 @pytest.mark.parametrize("angle", [math.pi / 2, -math.pi / 2, 0.3, math.pi])
 def test_turn_in_place(talos, g1, angle):
-    """Alternating swings, feet within TURN_STEP_MAX in yaw, no overlap, same mid point, same width."""
+    """Alternating swings, feet within TURN_STEP_MAX in yaw, no overlap, same mid point, same width;
+    the far-side foot swings last, and where it overtakes the other (toe-in) the soles stay about
+    as far apart as standing (talos's shins met there when they did not)."""
     for robot in (talos, g1):
         start = standing_feet(robot)
         left_sole = _sole_polygon(robot, "left", start[0])
@@ -167,13 +176,26 @@ def test_turn_in_place(talos, g1, angle):
         seq = turn(robot, angle)
         n = math.ceil(abs(angle) / TURN_STEP_MAX - 1e-9)
         assert len(seq.steps) == n + 1
-        assert seq.steps[0].side == ("left" if angle > 0 else "right")
+        far = "right" if angle > 0 else "left"
+        assert seq.steps[-1].side == far
         assert all(a.side != b.side for a, b in zip(seq.steps, seq.steps[1:]))
-        for contacts in _placements(seq, robot):
-            if len(contacts) == 2:
+        standing_gap = _separation(_sole_polygon(robot, "left", start[0]), _sole_polygon(robot, "right", start[1]))
+        swung = None
+        toe_ins = 0
+        for i, contacts in enumerate(_placements(seq, robot)):
+            if len(contacts) == 1:
+                swung = ({"left", "right"} - set(contacts)).pop()
+            elif len(contacts) == 2:
                 assert _yaw_gap(contacts["left"], contacts["right"]) <= TURN_STEP_MAX + 1e-9
-                assert _separation(_sole_polygon(robot, "left", contacts["left"]),
-                                   _sole_polygon(robot, "right", contacts["right"])) > CLEARANCE
+                gap = _separation(_sole_polygon(robot, "left", contacts["left"]),
+                                  _sole_polygon(robot, "right", contacts["right"]))
+                assert gap > CLEARANCE
+                # the far-side foot, turned past the near-side one: toe-in
+                ahead = _wrap(contacts[far].rpy[2] - contacts["left" if far == "right" else "right"].rpy[2]) * math.copysign(1.0, angle)
+                if swung == far and ahead > 1e-6:
+                    toe_ins += 1
+                    assert gap >= TOE_IN_GAP * standing_gap, f"toe-in double support {i}: soles {gap:.4f} m apart"
+        assert toe_ins == n // 2
         for side, p0 in zip(("left", "right"), start, strict=True):
             assert seq.final(side).rpy[2] == pytest.approx(math.atan2(math.sin(p0.rpy[2] + angle), math.cos(p0.rpy[2] + angle)), abs=1e-12)
         mid0 = 0.5 * np.add(start[0].position, start[1].position)
