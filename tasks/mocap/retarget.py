@@ -56,9 +56,15 @@ SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x
 # it (plus its margin): the robot executing the plan, not the plan matching the human (that is
 # the tracking error among the figures; a robot's proportions keep it centimetres away).
 TRACK_TOLERANCE = 0.25
+STRIDE_STEPS = 2.0  # [-] the longest stride asked, in the robot's longest steps (stride_scale)
 MIN_SWING = 0.5  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
+#: [-] of the robot's standing base height: the lowest the base is asked to go. A deeper human squat
+#: is raised as a whole (base, torso, head, arms) to this: at talos's hip pitch of -1.9 rad (base
+#: 0.55 m) its thigh meshes pass into its pelvis (coal), a pair its capsule model cannot keep apart
+#: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
+MIN_BASE_HEIGHT = 0.6
 TRACKED = ("base", "torso", "head", "left_hand", "right_hand", "left_foot", "right_foot")
 
 
@@ -79,6 +85,8 @@ class Reference:
         stride_scale: How much the body's travel over the ground was shortened to fit the robot's
             longest stride (1: not shortened).
         time_scale: How much slower than the human the robot moves (1: as fast; :func:`time_scale`).
+        raised: Per frame, how far the body was raised so that the base stays at
+            :data:`MIN_BASE_HEIGHT` of its standing height or above (F,) [m] (a deep squat's gap).
     """
 
     t: np.ndarray
@@ -91,6 +99,7 @@ class Reference:
     lead_in: float
     stride_scale: float = 1.0
     time_scale: float = 1.0
+    raised: np.ndarray | None = None
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -140,6 +149,10 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
     # the base: the pelvis, its height corrected to the robot's standing base height
     base_z = stand["base"][2] - float(np.percentile(P["pelvis"][:, 2], 95))
     points["base"] = P["pelvis"] + [0.0, 0.0, base_z]
+    # a squat deeper than the robot's lowest base is raised as a whole (MIN_BASE_HEIGHT): the torso,
+    # head, shoulders and hands are placed from the base below
+    raised = np.maximum(0.0, MIN_BASE_HEIGHT * stand["base"][2] - points["base"][:, 2])
+    points["base"][:, 2] += raised
     for key, role in (("torso", "torso"), ("head", "head"), ("left_shoulder", "left_shoulder"),
                       ("right_shoulder", "right_shoulder")):
         robot_rel = stand[role] - stand["base"]  # standing: heading 0
@@ -182,7 +195,7 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
             fixed[a:b] = where
         placements[side] = fixed
     return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
-                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride)
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised)
 
 
 def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot) -> float:
@@ -224,7 +237,7 @@ def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot:
         stances = [np.median(mid[a:b], axis=0) for a, b, down in segments(np.asarray(labels[side], dtype=bool)) if down]
         for p0, p1 in pairwise(stances):
             longest = max(longest, float(np.linalg.norm(p1 - p0)))
-    limit = 0.9 * 2.0 * robot.profile.step_length_max  # 10 % margin: the stances are re-measured on the knot grid
+    limit = 0.9 * STRIDE_STEPS * robot.profile.step_length_max  # 10 % margin: the stances are re-measured on the knot grid
     return 1.0 if longest <= limit else limit / longest
 
 
