@@ -65,6 +65,8 @@ SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is n
 #: 0.55 m) its thigh meshes pass into its pelvis (coal), a pair its capsule model cannot keep apart
 #: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
 MIN_BASE_HEIGHT = 0.6
+#: [-] of a shoulder joint's torque limit: the most an arm's weight may ask of it (the rest moves the arm).
+ARM_TORQUE_MARGIN = 0.8
 TRACKED = ("base", "torso", "head", "left_hand", "right_hand", "left_foot", "right_foot")
 
 
@@ -87,6 +89,9 @@ class Reference:
         time_scale: How much slower than the human the robot moves (1: as fast; :func:`time_scale`).
         raised: Per frame, how far the body was raised so that the base stays at
             :data:`MIN_BASE_HEIGHT` of its standing height or above (F,) [m] (a deep squat's gap).
+        arm_moved: Hand side -> per frame, how far the hand target was turned towards the vertical
+            so that the arm's weight stays within its shoulder's torque limits (F,) [m]
+            (:func:`arm_reach`: talos cannot hold its arm out sideways).
     """
 
     t: np.ndarray
@@ -100,6 +105,7 @@ class Reference:
     stride_scale: float = 1.0
     time_scale: float = 1.0
     raised: np.ndarray | None = None
+    arm_moved: dict[str, np.ndarray] | None = None
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -159,6 +165,7 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         human_rel = np.einsum("fba,fb->fa", R, P[key] - P["pelvis"])  # in the heading frame
         offset = robot_rel - np.median(human_rel, axis=0)
         points[role] = points["base"] + (P[key] - P["pelvis"]) + np.einsum("fab,b->fa", R, offset)
+    arm_moved: dict[str, np.ndarray] = {}
     for side in SIDES:
         arm = s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
         # a hanging arm hangs as the robot's does at standing (its hands clear of its thighs): the
@@ -176,7 +183,10 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         least = sign * (stand[f"{side}_hand"][1] - stand["base"][1])
         low = local[:, 2] < 0.0
         local[low, 1] = sign * np.maximum(sign * local[low, 1], least)
-        points[f"{side}_hand"] = points["base"] + np.einsum("fab,fb->fa", R, local)
+        hand = points["base"] + np.einsum("fab,fb->fa", R, local)
+        most = arm_reach(robot, side) * g.arm_length[side]
+        points[f"{side}_hand"] = _hold_arm(hand, points[f"{side}_shoulder"], R, most)
+        arm_moved[side] = np.linalg.norm(points[f"{side}_hand"] - hand, axis=1)
     for side in SIDES:
         # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
         # over the labelled stances) becomes the robot's standing one
@@ -195,7 +205,55 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
             fixed[a:b] = where
         placements[side] = fixed
     return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
-                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised)
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised,
+                     arm_moved=arm_moved)
+
+
+def arm_reach(robot: Robot, side: str) -> float:
+    """The farthest a hand may be held out sideways from its shoulder, as a fraction of the arm's
+    length [-] (1: anywhere). For the joint carrying the robot's shoulder frame and its parent:
+    the arm beyond it, stretched horizontally, loads it with its weight times its CoM's distance;
+    where that is more than :data:`ARM_TORQUE_MARGIN` of the joint's torque limit, the hand is kept
+    within that fraction out sideways (a bent arm's CoM is nearer still). Talos's shoulder roll
+    carries 0.65 of its stretched arm's 27.3 N m (a forward raise loads its stronger first joint);
+    G1's joints carry the whole."""
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, robot.q_standing)
+    shoulder = int(model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint)
+    reach = 1.0
+    for j in (int(model.parents[shoulder]), shoulder):
+        if j <= 1 or model.joints[j].nv != 1:
+            continue
+        sub = [k for k in range(1, model.njoints) if j in _ancestors_of(model, k)]
+        mass = sum(model.inertias[k].mass for k in sub)
+        com = sum(model.inertias[k].mass * data.oMi[k].act(model.inertias[k].lever) for k in sub) / mass
+        moment = mass * 9.81 * float(np.linalg.norm(com - data.oMi[j].translation))
+        reach = min(reach, ARM_TORQUE_MARGIN * float(model.effortLimit[model.joints[j].idx_v]) / moment)
+    return reach
+
+
+def _ancestors_of(model: pin.Model, k: int) -> list[int]:
+    out = []
+    while k > 0:
+        out.append(k)
+        k = int(model.parents[k])
+    return out
+
+
+def _hold_arm(hand: np.ndarray, shoulder: np.ndarray, R: np.ndarray, most: float) -> np.ndarray:  # noqa: N803
+    """The hand targets turned towards the vertical, keeping their distance from the shoulder and
+    their forward offset, where they are farther than ``most`` [m] out sideways from it (in the
+    heading frame ``R``); unchanged elsewhere."""
+    d = np.einsum("fba,fb->fa", R, hand - shoulder)
+    over = np.abs(d[:, 1]) > most
+    if not over.any():
+        return hand
+    out = d.copy()
+    out[over, 1] = np.sign(d[over, 1]) * most
+    rest = np.sqrt(np.maximum(0.0, np.sum(d[over] ** 2, axis=1) - out[over, 0] ** 2 - most**2))
+    out[over, 2] = np.where(d[over, 2] >= 0.0, rest, -rest)
+    return shoulder + np.einsum("fab,fb->fa", R, out)
 
 
 def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot) -> float:

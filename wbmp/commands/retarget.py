@@ -100,7 +100,7 @@ def _json_default(obj):
 
 def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     """The plan, the figures and the certificate (tracking targets summed up by the figures)."""
-    from wbmp.retarget import is_tracking, raised_max
+    from wbmp.retarget import arm_moved_max, is_tracking, raised_max
 
     if as_json:
         report = result.report()
@@ -116,6 +116,10 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if raised_max(ref) > 0:
         print(f"retarget: the body raised up to {raised_max(ref):.3f} m: the human goes lower than the robot's "
               "lowest base (0.6 of its standing height: deeper, its thighs meet its pelvis)")
+    for side, moved in arm_moved_max(ref).items():
+        if moved > 0.005:
+            print(f"retarget: the {side} hand turned up to {moved:.3f} m towards the vertical: the human holds the "
+                  "arm out further than the robot's shoulder can carry")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:
         cert = result.execution.certificate

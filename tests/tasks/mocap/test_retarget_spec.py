@@ -84,3 +84,56 @@ def test_tracking_targets_are_soft_and_on_the_source(talos):
     assert np.linalg.norm(np.array(target.position) - ref.points["right_hand"][f]) < 1e-9
     # the body scale of talos (base 1.08 m standing) to an adult CMU subject is about one
     assert 0.8 < ref.scale < 1.3
+
+
+def test_a_deep_squat_is_raised_to_the_robots_lowest_base(talos):
+    """The human's squat takes the pelvis to 40 % of its standing height; talos's base is asked to
+    go no lower than 0.6 of its standing height (its thigh meshes pass into its pelvis below: coal
+    in tests/wbmp/test_retarget_certified.py); the whole upper body is raised with it, the rest of
+    the clip is untouched."""
+    from tasks.mocap.retarget import MIN_BASE_HEIGHT
+    from tasks.primitives.geometry import standing_geometry
+
+    _, _, _, ref = _spec("13_29_squat.bvh", talos)
+    stand = float(standing_geometry(talos).placements["base"].translation[2])
+    base = ref.points["base"][:, 2]
+    assert base.min() >= MIN_BASE_HEIGHT * stand - 1e-9
+    assert 0.1 < ref.raised.max() < 0.4  # the human's 0.6 m drop, scaled, is deeper than talos's lowest base
+    low = ref.raised > 0
+    assert 0.1 < low.mean() < 0.8  # only around the bottom of the squat
+    for role in ("torso", "head", "left_hand", "right_hand"):  # raised with the base: the body's shape is kept
+        gap = ref.points[role][:, 2] - base
+        assert np.ptp(gap[low]) < np.ptp(gap) + 1e-9
+    np.testing.assert_allclose(base[~low], ref.points["base"][~low, 2])
+
+
+def test_an_arm_held_out_sideways_is_turned_to_what_the_shoulder_carries(talos):
+    """Talos's shoulder roll (arm_right_2_joint, 22.3 N m) cannot hold the stretched arm out sideways:
+    Pinocchio's gravity torque of that pose is above the limit. The wave's raised right hand is
+    turned towards the vertical where the human holds it out; the stretched arm rolled out as far
+    sideways as the farthest target left has a gravity torque within the rule's margin of the limit
+    (a bent arm's, its CoM nearer the shoulder, is less)."""
+    import pinocchio as pin
+
+    from tasks.mocap.retarget import ARM_TORQUE_MARGIN, _rot
+    from tasks.primitives.geometry import standing_geometry
+
+    model = talos.model
+    data = model.createData()
+    joint = model.getJointId("arm_right_2_joint")
+    limit = float(model.effortLimit[model.joints[joint].idx_v])
+
+    def gravity(angle: float) -> float:  # the stretched arm rolled out sideways by ``angle`` [rad]
+        q = np.array(talos.q_standing, dtype=float)
+        for i in range(1, 8):
+            q[model.joints[model.getJointId(f"arm_right_{i}_joint")].idx_q] = 0.0
+        q[model.joints[joint].idx_q] = -angle
+        return abs(float(pin.computeGeneralizedGravity(model, data, q)[model.joints[joint].idx_v]))
+
+    assert gravity(np.pi / 2) > limit  # out sideways: beyond the shoulder
+    _, _, _, ref = _spec("13_26_wave.bvh", talos)
+    assert ref.arm_moved["right"].max() > 0.1 and ref.arm_moved["left"].max() < 0.05
+    d = np.einsum("fba,fb->fa", _rot(ref.heading), ref.points["right_hand"] - ref.points["right_shoulder"])
+    length = standing_geometry(talos).arm_length["right"]
+    out = float(np.max(np.abs(d[:, 1]))) / length  # the farthest out sideways a hand is left, of the arm
+    assert gravity(float(np.arcsin(out))) <= ARM_TORQUE_MARGIN * limit * 1.02
