@@ -79,8 +79,8 @@ def raised_max(reference: Any) -> float:
 
 
 def arm_moved_max(reference: Any) -> dict[str, float]:
-    """Per hand, how far its target was turned at most towards the vertical (its shoulder's
-    torque limits) [m]."""
+    """Per hand, how far its target was brought in sideways at most (its shoulder's torque
+    limits) [m]."""
     moved = getattr(reference, "arm_moved", None) or {}
     return {side: float(max(v)) if len(v) else 0.0 for side, v in moved.items()}
 

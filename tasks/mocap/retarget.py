@@ -89,8 +89,8 @@ class Reference:
         time_scale: How much slower than the human the robot moves (1: as fast; :func:`time_scale`).
         raised: Per frame, how far the body was raised so that the base stays at
             :data:`MIN_BASE_HEIGHT` of its standing height or above (F,) [m] (a deep squat's gap).
-        arm_moved: Hand side -> per frame, how far the hand target was turned towards the vertical
-            so that the arm's weight stays within its shoulder's torque limits (F,) [m]
+        arm_moved: Hand side -> per frame, how far the hand target was brought in sideways so
+            that the arm's weight stays within its shoulder's torque limits (F,) [m]
             (:func:`arm_reach`: talos cannot hold its arm out sideways).
     """
 
@@ -242,18 +242,12 @@ def _ancestors_of(model: pin.Model, k: int) -> list[int]:
 
 
 def _hold_arm(hand: np.ndarray, shoulder: np.ndarray, R: np.ndarray, most: float) -> np.ndarray:  # noqa: N803
-    """The hand targets turned towards the vertical, keeping their distance from the shoulder and
-    their forward offset, where they are farther than ``most`` [m] out sideways from it (in the
-    heading frame ``R``); unchanged elsewhere."""
+    """The hand targets brought in sideways to at most ``most`` [m] out from the shoulder (in the
+    heading frame ``R``), their forward and vertical offsets kept (the elbow bends); unchanged
+    elsewhere. Continuous in the source: a hand passing the shoulder's height does not jump."""
     d = np.einsum("fba,fb->fa", R, hand - shoulder)
-    over = np.abs(d[:, 1]) > most
-    if not over.any():
-        return hand
-    out = d.copy()
-    out[over, 1] = np.sign(d[over, 1]) * most
-    rest = np.sqrt(np.maximum(0.0, np.sum(d[over] ** 2, axis=1) - out[over, 0] ** 2 - most**2))
-    out[over, 2] = np.where(d[over, 2] >= 0.0, rest, -rest)
-    return shoulder + np.einsum("fab,fb->fa", R, out)
+    d[:, 1] = np.clip(d[:, 1], -most, most)
+    return shoulder + np.einsum("fab,fb->fa", R, d)
 
 
 def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot) -> float:

@@ -118,7 +118,7 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
               "lowest base (0.6 of its standing height: deeper, its thighs meet its pelvis)")
     for side, moved in arm_moved_max(ref).items():
         if moved > 0.005:
-            print(f"retarget: the {side} hand turned up to {moved:.3f} m towards the vertical: the human holds the "
+            print(f"retarget: the {side} hand brought in sideways up to {moved:.3f} m: the human holds the "
                   "arm out further than the robot's shoulder can carry")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:

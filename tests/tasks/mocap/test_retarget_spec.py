@@ -107,10 +107,10 @@ def test_a_deep_squat_is_raised_to_the_robots_lowest_base(talos):
     np.testing.assert_allclose(base[~low], ref.points["base"][~low, 2])
 
 
-def test_an_arm_held_out_sideways_is_turned_to_what_the_shoulder_carries(talos):
+def test_an_arm_held_out_sideways_is_brought_in_to_what_the_shoulder_carries(talos):
     """Talos's shoulder roll (arm_right_2_joint, 22.3 N m) cannot hold the stretched arm out sideways:
     Pinocchio's gravity torque of that pose is above the limit. The wave's raised right hand is
-    turned towards the vertical where the human holds it out; the stretched arm rolled out as far
+    brought in sideways where the human holds it out; the stretched arm rolled out as far
     sideways as the farthest target left has a gravity torque within the rule's margin of the limit
     (a bent arm's, its CoM nearer the shoulder, is less)."""
     import pinocchio as pin
