@@ -60,3 +60,24 @@ def test_a_squat_is_certified_on_g1():
     assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
     assert result.figures.skate <= 2.0 and result.figures.penetration <= 1.0
     assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 1.0
+
+
+@pytest.mark.long
+def test_the_whole_wave_is_certified_with_the_hand_brought_in():
+    """The wave (2.4 s, slowed for its steps): talos's shoulder cannot hold the waving arm out
+    sideways, so the hand is brought in (the gap reported); certified. Fast twin:
+    tests/tasks/mocap/test_retarget_spec.py::test_an_arm_held_out_sideways_is_brought_in_to_what_the_shoulder_carries."""
+    result = _certified("13_26_wave.bvh", 0.0, 2.4)
+    moved = result.report()["retarget"]["arm_moved_m"]
+    assert moved["right"] > 0.1
+    assert result.exec_figures.penetration <= 1.0 and result.exec_figures.float_ <= 5.0
+
+
+@pytest.mark.long
+def test_the_chicken_dance_is_certified_on_g1_with_the_shoulders_held_out():
+    """G1's upper arms passed 13 mm into its torso on the meshes in the dance; with the shoulders'
+    posture term, certified. Fast twin: tests/tasks/mocap/test_retarget_spec.py::
+    test_the_shoulders_are_held_out_away_from_the_torso."""
+    result = retarget(RetargetRequest(clip=str(EXAMPLES / "18_15_dance.bvh"), robot="g1", start=0.0, end=4.25))
+    assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 1.0

@@ -137,3 +137,56 @@ def test_an_arm_held_out_sideways_is_brought_in_to_what_the_shoulder_carries(tal
     length = standing_geometry(talos).arm_length["right"]
     out = float(np.max(np.abs(d[:, 1]))) / length  # the farthest out sideways a hand is left, of the arm
     assert gravity(float(np.arcsin(out))) <= ARM_TORQUE_MARGIN * limit * 1.02
+
+
+@pytest.mark.parametrize("name", ["talos", "g1"])
+def test_the_shoulders_are_held_out_away_from_the_torso(name):
+    """The posture term's target angles take each hand outwards (Pinocchio forward kinematics) and,
+    on G1, whose upper arm hangs 9 mm from its torso at standing (a pair the planner's capsules
+    cannot keep apart), the upper arm away from the torso: the coal distance between their meshes
+    grows."""
+    import coal
+    import pinocchio as pin
+
+    from tasks.mocap.retarget import shoulders_out
+
+    robot = talos_or_g1(name)
+    model, gm = robot.model, robot.collision_model
+    data, gd = model.createData(), pin.GeometryData(gm)
+    targets = shoulders_out(robot, 3.0)
+    assert len(targets) == 2 and all(t.window == (0.0, 3.0) and t.weight > 0 for t in targets)
+    torso_joint = model.frames[robot.frame_id("torso")].parentJoint
+    torso = [i for i, g in enumerate(gm.geometryObjects) if g.parentJoint == torso_joint]
+
+    def gap(q: np.ndarray, side: str) -> float:
+        pin.updateGeometryPlacements(model, data, gm, gd, q)
+        joint = model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint
+        arm = [i for i, g in enumerate(gm.geometryObjects) if g.parentJoint in (joint, joint + 1)]
+        best = np.inf
+        for i in torso:
+            for j in arm:
+                r = coal.DistanceResult()
+                coal.distance(gm.geometryObjects[i].geometry, coal.Transform3s(gd.oMg[i]),
+                              gm.geometryObjects[j].geometry, coal.Transform3s(gd.oMg[j]), coal.DistanceRequest(), r)
+                best = min(best, r.min_distance)
+        return best
+
+    q = np.array(robot.q_standing, dtype=float)
+    for t in targets:
+        q[model.joints[model.getJointId(t.joint)].idx_q] = t.value
+    stand = np.array(robot.q_standing, dtype=float)
+
+    def out(q: np.ndarray, side: str) -> float:
+        pin.framesForwardKinematics(model, data, q)
+        return abs(float(data.oMf[robot.frame_id(f"{side}_hand")].translation[1]
+                         - data.oMf[robot.frame_id("base")].translation[1]))
+
+    for t in targets:
+        side = t.name.split()[0]
+        assert out(q, side) > out(stand, side) + 0.03
+        if name == "g1":
+            assert gap(q, side) > gap(stand, side) + 0.01
+
+
+def talos_or_g1(name: str):
+    return load_robot(name)
