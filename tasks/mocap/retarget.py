@@ -411,14 +411,16 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
 def shoulders_out(robot: Robot, horizon: float) -> tuple[JointTarget, ...]:
     """Soft targets holding each shoulder's joint (the one carrying the robot's shoulder frame)
     :data:`SHOULDER_OUT` outwards of its standing angle over the whole motion (outwards: the way
-    that takes the hand away from the body's middle, by forward kinematics)."""
+    that takes the hand away from the body's middle, by forward kinematics); none on a shoulder
+    that cannot carry its stretched arm held out (:func:`arm_reach` < 1: talos, whose chicken
+    dance then saturated the shoulder, its hand 0.12 m off its plan)."""
     model = robot.model
     data = model.createData()
     out = []
     for side in SIDES:
         joint = int(model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint)
-        if model.joints[joint].nq != 1:
-            continue
+        if model.joints[joint].nq != 1 or arm_reach(robot, side) < 1.0:
+            continue  # a shoulder that cannot carry its arm held out is not asked to hold it out
         i = model.joints[joint].idx_q
         lateral = []
         for delta in (-0.05, 0.05):

@@ -141,10 +141,10 @@ def test_an_arm_held_out_sideways_is_brought_in_to_what_the_shoulder_carries(tal
 
 @pytest.mark.parametrize("name", ["talos", "g1"])
 def test_the_shoulders_are_held_out_away_from_the_torso(name):
-    """The posture term's target angles take each hand outwards (Pinocchio forward kinematics) and,
-    on G1, whose upper arm hangs 9 mm from its torso at standing (a pair the planner's capsules
-    cannot keep apart), the upper arm away from the torso: the coal distance between their meshes
-    grows."""
+    """G1's upper arm hangs 9 mm from its torso at standing (a pair the planner's capsules cannot
+    keep apart): the posture term's target angles take each hand outwards (Pinocchio forward
+    kinematics) and the upper arm away from the torso (the coal distance between their meshes
+    grows). Talos's weak shoulder roll is not asked to hold its arm out."""
     import coal
     import pinocchio as pin
 
@@ -154,6 +154,9 @@ def test_the_shoulders_are_held_out_away_from_the_torso(name):
     model, gm = robot.model, robot.collision_model
     data, gd = model.createData(), pin.GeometryData(gm)
     targets = shoulders_out(robot, 3.0)
+    if name == "talos":  # its shoulder roll cannot carry the stretched arm held out: not asked to
+        assert targets == ()
+        return
     assert len(targets) == 2 and all(t.window == (0.0, 3.0) and t.weight > 0 for t in targets)
     torso_joint = model.frames[robot.frame_id("torso")].parentJoint
     torso = [i for i, g in enumerate(gm.geometryObjects) if g.parentJoint == torso_joint]
@@ -184,8 +187,7 @@ def test_the_shoulders_are_held_out_away_from_the_torso(name):
     for t in targets:
         side = t.name.split()[0]
         assert out(q, side) > out(stand, side) + 0.03
-        if name == "g1":
-            assert gap(q, side) > gap(stand, side) + 0.01
+        assert gap(q, side) > gap(stand, side) + 0.01
 
 
 def talos_or_g1(name: str):
