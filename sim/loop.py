@@ -79,7 +79,8 @@ def simulate(
     if push is not None:
         check_push_time(push, float(plan.t[-1]))  # before any work
     s = settings if settings is not None else SimSettings()
-    sm = build_model(robot, timestep=s.timestep, joint_friction=s.joint_friction, scene=plan.spec.scene)
+    sm = build_model(robot, timestep=s.timestep, joint_friction=s.joint_friction, scene=plan.spec.scene,
+                     floor_timeconst=s.floor_timeconst)
     if faults is not None and faults.changes_model:  # on a copy: the built model may be shared
         sm = replace(sm, model=copy.deepcopy(sm.model))
         apply_to_model(faults, sm.model, base_body=BASE_BODY, floor_geom=sm.floor_geom,

@@ -175,7 +175,7 @@ def _as_slice(index: np.ndarray) -> slice | np.ndarray:
 
 @functools.cache
 def _cached(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | None,
-            pairs: tuple[tuple[str, str], ...] | None) -> SimModel:
+            pairs: tuple[tuple[str, str], ...] | None, floor_timeconst: float | None = None) -> SimModel:
     """In memory per process, and on disk across processes (:mod:`sim.modelcache`)."""
     from sim.modelcache import cached_model, model_key
 
@@ -184,10 +184,10 @@ def _cached(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | 
     xml = _rewrite_urdf(robot, fingers=scene is not None and any(o.movable for o in scene.objects))
     try:
         key: str | None = model_key(robot, xml, timestep=timestep, joint_friction=joint_friction, scene=scene,
-                                    pairs=pairs)
+                                    pairs=pairs, floor_timeconst=floor_timeconst)
     except OSError:  # a mesh that cannot be read: _build reports it
         key = None
-    return cached_model(key, lambda: _build(robot, timestep, joint_friction, scene, pairs, xml),
+    return cached_model(key, lambda: _build(robot, timestep, joint_friction, scene, pairs, xml, floor_timeconst),
                         lambda model, fields: _sim_model(robot, model, fields, scene, pairs, xml))
 
 
@@ -237,7 +237,8 @@ def _sim_model(robot: Robot, model: mujoco.MjModel, fields: dict, scene: Scene |
 
 def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool = True,
                 scene: Scene | None = None,
-                collision_pairs: tuple[tuple[str, str], ...] | None = None) -> SimModel:
+                collision_pairs: tuple[tuple[str, str], ...] | None = None,
+                floor_timeconst: float | None = None) -> SimModel:
     """Build (once per robot and options) the MuJoCo model of ``robot``.
 
     Args:
@@ -248,6 +249,8 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
         scene: Objects around the robot (None: the floor only).
         collision_pairs: The link pairs that must not collide (sorted names); None takes the
             robot's collision model's (:func:`robots.collision.collision_model`).
+        floor_timeconst: The floor's and soles' contact time constant (``solref`` ``(t, 1)``) [s];
+            None keeps MuJoCo's default (:class:`sim.settings.SimSettings`).
 
     Returns:
         The compiled model with its index maps.
@@ -258,7 +261,8 @@ def build_model(robot: Robot, *, timestep: float = 0.001, joint_friction: bool =
             cannot be built (an unreadable mesh).
     """
     pairs = None if collision_pairs is None else tuple(tuple(sorted(p)) for p in collision_pairs)
-    return _cached(robot, float(timestep), bool(joint_friction), scene, pairs)
+    stiff = None if floor_timeconst is None else float(floor_timeconst)
+    return _cached(robot, float(timestep), bool(joint_friction), scene, pairs, stiff)
 
 
 def model_pairs(robot: Robot) -> tuple[tuple[str, str], ...]:
@@ -321,7 +325,8 @@ def _add_foreign_meshes(robot: Robot, spec: mujoco.MjSpec, bodies: dict, mu: flo
 
 
 def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | None,
-           pairs: tuple[tuple[str, str], ...], xml: str) -> tuple[mujoco.MjModel, dict]:
+           pairs: tuple[tuple[str, str], ...], xml: str,
+           floor_timeconst: float | None = None) -> tuple[mujoco.MjModel, dict]:
     """The compiled model and its index maps in JSON types (see :func:`_sim_model`)."""
     try:
         spec = mujoco.MjSpec.from_string(xml)
@@ -351,6 +356,9 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
     _add_foreign_meshes(robot, spec, bodies, mu)
     joints = {j.name: j for j in spec.joints}
     sole_names = _add_soles(robot, spec, bodies, joints, mu)
+    if floor_timeconst is not None:  # both sides of a sole's contact: MuJoCo mixes the two geoms' solref
+        for geom in (floor, *(g for g in spec.geoms if g.name in sole_names.values())):
+            geom.solref = [floor_timeconst, 1.0]
 
     _add_scene(spec, scene)
     _add_grasp_welds(robot, spec, scene)

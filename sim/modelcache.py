@@ -78,14 +78,15 @@ def _environment() -> tuple[tuple[str, str], ...]:
 
 
 def model_key(robot: Any, xml: str, *, timestep: float, joint_friction: bool, scene: Any,
-              pairs: tuple[tuple[str, str], ...]) -> str:
+              pairs: tuple[tuple[str, str], ...], floor_timeconst: float | None = None) -> str:
     """The entry key of a MuJoCo model (module docstring); OSError when a file cannot be read."""
     files = set(_MESH_FILE.findall(xml))
     files.update(g.meshPath for g in robot.collision_model.geometryObjects)
     if scene is not None:
         files.update(o.mesh for o in scene.objects if o.mesh)
     meshes = {p: file_sha256(p, "mesh") for p in sorted(f for f in files if f and os.path.isfile(f))}  # noqa: PTH113
-    blob = json.dumps({
+    extra = {} if floor_timeconst is None else {"floor_timeconst": float(floor_timeconst)}
+    blob = json.dumps({**extra,
         "xml": hashlib.sha256(xml.encode()).hexdigest(), "meshes": meshes,
         "profile": repr(robot.profile), "q_standing": np.asarray(robot.q_standing, dtype=float).tobytes().hex(),
         "effort": np.asarray(robot.model.effortLimit, dtype=float).tobytes().hex(),

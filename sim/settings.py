@@ -39,6 +39,11 @@ class SimSettings:
         self_distance_horizon: Self distances beyond this are not measured [m] (the line then
             reports "> horizon").
         scene_distance_horizon: Robot-object distances beyond this are not measured [m].
+        floor_timeconst: Time constant of the floor's and the soles' contact (MuJoCo ``solref``
+            ``(timeconst, 1)``: critically damped) [s]; None keeps MuJoCo's default (0.02 s).
+            Stiffer is a harder floor: a loaded sole sinks and creeps less (talos's squat:
+            3.3 mm deep and 13.8 mm of stance slip with 0.02 s, 0.4 and 3.1 mm with 0.005 s;
+            docs/retarget.md). At least two timesteps (MuJoCo's stability rule).
     """
 
     timestep: float = 0.001
@@ -62,11 +67,17 @@ class SimSettings:
     collision_sample_period: float = 0.02
     self_distance_horizon: float = 0.1
     scene_distance_horizon: float = 5.0
+    floor_timeconst: float | None = None
 
     def __post_init__(self) -> None:
         if not (self.timestep > 0 and self.control_every >= 1 and self.settle_time >= 0):
             raise SimError(
                 "SimSettings: timestep must be > 0, control_every >= 1, settle_time >= 0"
+            )
+        if self.floor_timeconst is not None and not self.floor_timeconst >= 2 * self.timestep:
+            raise SimError(
+                f"SimSettings: floor_timeconst must be at least two timesteps ({2 * self.timestep:g} s), "
+                f"got {self.floor_timeconst!r}"
             )
         if not (self.self_penetration_limit >= 0 and self.self_contact_force_limit >= 0
                 and self.collision_sample_period > 0

@@ -14,6 +14,11 @@ from typing import Any
 
 from wbmp.pipeline import Progress, SolveResult, _silent
 
+#: [s] The floor's contact time constant in a retarget's simulation (MuJoCo ``solref``; its
+#: default is 0.02 s): a harder floor, on which a loaded sole sinks and creeps by a fraction of a
+#: millimetre instead of 3-14 mm (docs/retarget.md, "The floor").
+FLOOR_TIMECONST = 0.005
+
 
 @dataclass(kw_only=True)
 class RetargetRequest:
@@ -57,12 +62,27 @@ class RetargetResult(SolveResult):
             section["lead_in_s"] = self.reference.lead_in
             section["stride_scale"] = self.reference.stride_scale
             section["time_scale"] = self.reference.time_scale
+            section["raised_m"] = raised_max(self.reference)
+            section["arm_moved_m"] = arm_moved_max(self.reference)
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:
             section["execution"] = self.exec_figures.to_dict()
         out["retarget"] = section
         return out
+
+
+def raised_max(reference: Any) -> float:
+    """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
+    raised = getattr(reference, "raised", None)
+    return 0.0 if raised is None or len(raised) == 0 else float(max(raised))
+
+
+def arm_moved_max(reference: Any) -> dict[str, float]:
+    """Per hand, how far its target was brought in sideways at most (its shoulder's torque
+    limits) [m]."""
+    moved = getattr(reference, "arm_moved", None) or {}
+    return {side: float(max(v)) if len(v) else 0.0 for side, v in moved.items()}
 
 
 def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):
@@ -134,11 +154,11 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
     timings["plan"] = time.perf_counter() - t0
     execution = None
     if request.simulate:
-        from sim import simulate
+        from sim import SimSettings, simulate
 
         progress("simulating in MuJoCo with the whole-body controller")
         t0 = time.perf_counter()
-        execution = simulate(plan, robot, progress=progress)
+        execution = simulate(plan, robot, progress=progress, settings=SimSettings(floor_timeconst=FLOOR_TIMECONST))
         check_signals()
         timings["simulate"] = time.perf_counter() - t0
     plan_figures, exec_figures = _figures(robot, spec, ref, plan, execution)

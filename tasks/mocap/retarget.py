@@ -39,7 +39,16 @@ from robots import Robot
 from tasks.mocap.exceptions import ClipError
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
-from tasks.specs import CoMBounds, Contact, FrameTarget, Phase, Pose, Priority, TaskSpec
+from tasks.specs import (
+    CoMBounds,
+    Contact,
+    FrameTarget,
+    JointTarget,
+    Phase,
+    Pose,
+    Priority,
+    TaskSpec,
+)
 
 LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
 LEAD_OUT = 1.0  # [s] both feet down after it (coming to rest)
@@ -56,9 +65,25 @@ SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x
 # it (plus its margin): the robot executing the plan, not the plan matching the human (that is
 # the tracking error among the figures; a robot's proportions keep it centimetres away).
 TRACK_TOLERANCE = 0.25
+STRIDE_STEPS = 2.0  # [-] the longest stride asked, in the robot's longest steps (stride_scale)
 MIN_SWING = 0.5  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
+#: [-] of the robot's standing base height: the lowest the base is asked to go. A deeper human squat
+#: is raised as a whole (base, torso, head, arms) to this: at talos's hip pitch of -1.9 rad (base
+#: 0.55 m) its thigh meshes pass into its pelvis (coal), a pair its capsule model cannot keep apart
+#: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
+MIN_BASE_HEIGHT = 0.6
+#: [rad] how far out from standing a soft posture term holds each shoulder's joint (the joint carrying
+#: the robot's shoulder frame: the roll on talos and G1), and its weight: the planner's capsules do
+#: not keep the upper arm off the torso (they touch at rest), so an arm brought in to the chest
+#: passed into it on the meshes (G1's chicken dance: torso / upper arm 13 mm deep; with this,
+#: certified, the tracking error's mean 15.5 against 15.3 mm).
+SHOULDER_OUT = 0.15
+SHOULDER_WEIGHT = 10.0
+#: [-] of a shoulder joint's torque limit: the most an arm's weight may ask of it (the rest moves the
+#: arm; with 0.8 talos's waving hand sagged 61 mm off its plan, with 0.65 the wave is certified).
+ARM_TORQUE_MARGIN = 0.65
 TRACKED = ("base", "torso", "head", "left_hand", "right_hand", "left_foot", "right_foot")
 
 
@@ -79,6 +104,11 @@ class Reference:
         stride_scale: How much the body's travel over the ground was shortened to fit the robot's
             longest stride (1: not shortened).
         time_scale: How much slower than the human the robot moves (1: as fast; :func:`time_scale`).
+        raised: Per frame, how far the body was raised so that the base stays at
+            :data:`MIN_BASE_HEIGHT` of its standing height or above (F,) [m] (a deep squat's gap).
+        arm_moved: Hand side -> per frame, how far the hand target was brought in sideways so
+            that the arm's weight stays within its shoulder's torque limits (F,) [m]
+            (:func:`arm_reach`: talos cannot hold its arm out sideways).
     """
 
     t: np.ndarray
@@ -91,6 +121,8 @@ class Reference:
     lead_in: float
     stride_scale: float = 1.0
     time_scale: float = 1.0
+    raised: np.ndarray | None = None
+    arm_moved: dict[str, np.ndarray] | None = None
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -140,12 +172,17 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
     # the base: the pelvis, its height corrected to the robot's standing base height
     base_z = stand["base"][2] - float(np.percentile(P["pelvis"][:, 2], 95))
     points["base"] = P["pelvis"] + [0.0, 0.0, base_z]
+    # a squat deeper than the robot's lowest base is raised as a whole (MIN_BASE_HEIGHT): the torso,
+    # head, shoulders and hands are placed from the base below
+    raised = np.maximum(0.0, MIN_BASE_HEIGHT * stand["base"][2] - points["base"][:, 2])
+    points["base"][:, 2] += raised
     for key, role in (("torso", "torso"), ("head", "head"), ("left_shoulder", "left_shoulder"),
                       ("right_shoulder", "right_shoulder")):
         robot_rel = stand[role] - stand["base"]  # standing: heading 0
         human_rel = np.einsum("fba,fb->fa", R, P[key] - P["pelvis"])  # in the heading frame
         offset = robot_rel - np.median(human_rel, axis=0)
         points[role] = points["base"] + (P[key] - P["pelvis"]) + np.einsum("fab,b->fa", R, offset)
+    arm_moved: dict[str, np.ndarray] = {}
     for side in SIDES:
         arm = s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
         # a hanging arm hangs as the robot's does at standing (its hands clear of its thighs): the
@@ -163,7 +200,10 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         least = sign * (stand[f"{side}_hand"][1] - stand["base"][1])
         low = local[:, 2] < 0.0
         local[low, 1] = sign * np.maximum(sign * local[low, 1], least)
-        points[f"{side}_hand"] = points["base"] + np.einsum("fab,fb->fa", R, local)
+        hand = points["base"] + np.einsum("fab,fb->fa", R, local)
+        most = arm_reach(robot, side) * g.arm_length[side]
+        points[f"{side}_hand"] = _hold_arm(hand, points[f"{side}_shoulder"], R, most)
+        arm_moved[side] = np.linalg.norm(points[f"{side}_hand"] - hand, axis=1)
     for side in SIDES:
         # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
         # over the labelled stances) becomes the robot's standing one
@@ -182,7 +222,49 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
             fixed[a:b] = where
         placements[side] = fixed
     return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
-                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride)
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised,
+                     arm_moved=arm_moved)
+
+
+def arm_reach(robot: Robot, side: str) -> float:
+    """The farthest a hand may be held out sideways from its shoulder, as a fraction of the arm's
+    length [-] (1: anywhere). For the joint carrying the robot's shoulder frame and its parent:
+    the arm beyond it, stretched horizontally, loads it with its weight times its CoM's distance;
+    where that is more than :data:`ARM_TORQUE_MARGIN` of the joint's torque limit, the hand is kept
+    within that fraction out sideways (a bent arm's CoM is nearer still). Talos's shoulder roll
+    (22.3 N m) cannot hold its stretched arm's 27.3 N m: 0.53 (a forward raise loads its stronger
+    first joint); G1's joints carry the whole."""
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, robot.q_standing)
+    shoulder = int(model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint)
+    reach = 1.0
+    for j in (int(model.parents[shoulder]), shoulder):
+        if j <= 1 or model.joints[j].nv != 1:
+            continue
+        sub = [k for k in range(1, model.njoints) if j in _ancestors_of(model, k)]
+        mass = sum(model.inertias[k].mass for k in sub)
+        com = sum(model.inertias[k].mass * data.oMi[k].act(model.inertias[k].lever) for k in sub) / mass
+        moment = mass * 9.81 * float(np.linalg.norm(com - data.oMi[j].translation))
+        reach = min(reach, ARM_TORQUE_MARGIN * float(model.effortLimit[model.joints[j].idx_v]) / moment)
+    return reach
+
+
+def _ancestors_of(model: pin.Model, k: int) -> list[int]:
+    out = []
+    while k > 0:
+        out.append(k)
+        k = int(model.parents[k])
+    return out
+
+
+def _hold_arm(hand: np.ndarray, shoulder: np.ndarray, R: np.ndarray, most: float) -> np.ndarray:  # noqa: N803
+    """The hand targets brought in sideways to at most ``most`` [m] out from the shoulder (in the
+    heading frame ``R``), their forward and vertical offsets kept (the elbow bends); unchanged
+    elsewhere. Continuous in the source: a hand passing the shoulder's height does not jump."""
+    d = np.einsum("fba,fb->fa", R, hand - shoulder)
+    d[:, 1] = np.clip(d[:, 1], -most, most)
+    return shoulder + np.einsum("fab,fb->fa", R, d)
 
 
 def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot) -> float:
@@ -224,7 +306,7 @@ def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot:
         stances = [np.median(mid[a:b], axis=0) for a, b, down in segments(np.asarray(labels[side], dtype=bool)) if down]
         for p0, p1 in pairwise(stances):
             longest = max(longest, float(np.linalg.norm(p1 - p0)))
-    limit = 0.9 * 2.0 * robot.profile.step_length_max  # 10 % margin: the stances are re-measured on the knot grid
+    limit = 0.9 * STRIDE_STEPS * robot.profile.step_length_max  # 10 % margin: the stances are re-measured on the knot grid
     return 1.0 if longest <= limit else limit / longest
 
 
@@ -317,11 +399,42 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     clip_horizon = sum(p.duration for p in phases[1:-1])
     targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon)
     dynamic = True if dynamic is None else dynamic
+    horizon = sum(p.duration for p in phases)
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
+                    joint_targets=shoulders_out(robot, horizon),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
     return spec, ref
+
+
+def shoulders_out(robot: Robot, horizon: float) -> tuple[JointTarget, ...]:
+    """Soft targets holding each shoulder's joint (the one carrying the robot's shoulder frame)
+    :data:`SHOULDER_OUT` outwards of its standing angle over the whole motion (outwards: the way
+    that takes the hand away from the body's middle, by forward kinematics); none on a shoulder
+    that cannot carry its stretched arm held out (:func:`arm_reach` < 1: talos, whose chicken
+    dance then saturated the shoulder, its hand 0.12 m off its plan)."""
+    model = robot.model
+    data = model.createData()
+    out = []
+    for side in SIDES:
+        joint = int(model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint)
+        if model.joints[joint].nq != 1 or arm_reach(robot, side) < 1.0:
+            continue  # a shoulder that cannot carry its arm held out is not asked to hold it out
+        i = model.joints[joint].idx_q
+        lateral = []
+        for delta in (-0.05, 0.05):
+            q = np.array(robot.q_standing, dtype=float)
+            q[i] += delta
+            pin.framesForwardKinematics(model, data, q)
+            lateral.append(abs(float(data.oMf[robot.frame_id(f"{side}_hand")].translation[1]
+                                     - data.oMf[robot.frame_id("base")].translation[1])))
+        sign = 1.0 if lateral[1] > lateral[0] else -1.0
+        value = float(robot.q_standing[i]) + sign * SHOULDER_OUT
+        value = min(max(value, float(model.lowerPositionLimit[i])), float(model.upperPositionLimit[i]))
+        out.append(JointTarget(name=f"{side} shoulder out", joint=model.names[joint], value=value,
+                               window=(0.0, horizon), weight=SHOULDER_WEIGHT))
+    return tuple(out)
 
 
 def segments_of(code: np.ndarray) -> list[tuple[int, int, int]]:

@@ -29,34 +29,27 @@ def _certified(clip: str, start: float, end: float):
     return result
 
 
-def test_a_squat_is_executed_and_the_meshes_name_what_is_left():
-    """The squat's first 2 s (going down), executed in MuJoCo: its feet slip and sink by millimetres
-    (MuJoCo's soft contacts: 6.9 mm skate, 3.6 mm penetration measured), hands tracked to
-    centimetres, every certificate line passes but the one on the meshes: at the bottom of the
-    human's deep squat talos's thigh passes into its pelvis (15-18 mm of hull depth, coal), a pair
-    the planner's sphere model does not keep apart yet, so it is not certified (issue 37)."""
-    from planner.results import CheckKind
-
-    result = retarget(RetargetRequest(clip=str(EXAMPLES / "13_29_squat.bvh"), robot="talos", start=0.0, end=2.0))
-    assert result.plan.ok
-    plan = result.figures
-    assert plan.skate <= 2.0 and plan.penetration <= 1.0 and plan.float_ <= 5.0  # the plan: the issue's bounds
-    ex = result.exec_figures
-    assert ex.skate <= 10.0 and ex.penetration <= 6.0 and ex.float_ <= 5.0
-    assert result.figures.per_keypoint["left_hand"] < 0.05
-    failed = [c for c in result.execution.certificate.checks if not c.ok]
-    assert [c.kind for c in failed] == [CheckKind.SELF_COLLISION_MESH], [c.name for c in failed]
-    assert "pelvis" in failed[0].name and "thigh" in failed[0].name
+def test_a_squat_is_certified_raised_to_talos_lowest_base():
+    """The squat's first 2 s (going down), executed in MuJoCo on the retarget's hard floor and
+    certified: the human's squat is deeper than talos's lowest base (below it its thigh meshes pass
+    into its pelvis: coal, 15 mm, before the raise), so the body is raised by the named amount;
+    the executed feet hold (measured 2.1 mm skate, 0.4 mm penetration on the whole clip) within
+    the issue's bounds for a certified motion (skate 5 mm, penetration 1 mm, float 5 mm)."""
+    result = _certified("13_29_squat.bvh", 0.0, 2.0)
     report = result.report()["retarget"]
+    assert 0.05 < report["raised_m"] < 0.4
+    ex = result.exec_figures
+    assert ex.skate <= 5.0 and ex.penetration <= 1.0 and ex.float_ <= 5.0
+    assert result.figures.per_keypoint["left_hand"] < 0.05
     assert report["execution"]["foot_skate_mm"] == ex.skate and report["skeleton"].startswith("CMU MotionBuilder")
 
 
 @pytest.mark.long
 def test_the_whole_chicken_dance_is_certified():
     """The whole 4.25 s clip (both feet down, arms and hips busy): certified; measured 0.9 mm skate,
-    2.0 mm penetration executed, 2.2 cm mean tracking error planned."""
+    2.0 mm penetration executed on MuJoCo's default floor, 2.2 cm mean tracking error planned."""
     result = _certified("18_15_dance.bvh", 0.0, 4.25)
-    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 6.0
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 1.0
     assert result.figures.tracking_mean < 0.04
 
 
@@ -66,4 +59,27 @@ def test_a_squat_is_certified_on_g1():
     result = retarget(RetargetRequest(clip=str(EXAMPLES / "13_29_squat.bvh"), robot="g1", start=0.0, end=2.0))
     assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
     assert result.figures.skate <= 2.0 and result.figures.penetration <= 1.0
-    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 6.0
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 1.0
+
+
+@pytest.mark.long
+def test_the_whole_wave_is_certified_with_the_hand_brought_in():
+    """The wave (2.4 s, slowed for its steps): talos's shoulder cannot hold the waving arm out
+    sideways, so the hand is brought in (the gap reported); certified. Fast twin:
+    tests/tasks/mocap/test_retarget_spec.py::test_an_arm_held_out_sideways_is_brought_in_to_what_the_shoulder_carries."""
+    result = _certified("13_26_wave.bvh", 0.0, 2.4)
+    moved = result.report()["retarget"]["arm_moved_m"]
+    assert moved["right"] > 0.1
+    # its steps' landings: 1.6 mm deep, 7.6 mm of skate measured (the issue's 1 and 5 mm: not met yet)
+    assert result.exec_figures.penetration <= 2.5 and result.exec_figures.float_ <= 5.0
+    assert result.exec_figures.skate <= 10.0
+
+
+@pytest.mark.long
+def test_the_chicken_dance_is_certified_on_g1_with_the_shoulders_held_out():
+    """G1's upper arms passed 13 mm into its torso on the meshes in the dance; with the shoulders'
+    posture term, certified. Fast twin: tests/tasks/mocap/test_retarget_spec.py::
+    test_the_shoulders_are_held_out_away_from_the_torso."""
+    result = retarget(RetargetRequest(clip=str(EXAMPLES / "18_15_dance.bvh"), robot="g1", start=0.0, end=4.25))
+    assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.penetration <= 1.0

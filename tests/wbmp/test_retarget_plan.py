@@ -88,10 +88,12 @@ def test_the_reported_tracking_error_is_the_distance_to_the_scaled_source(planne
     assert reported["tracking_mean_m"] < 0.06  # the squat is tracked to a few centimetres on average
     per = reported["tracking_mean_per_keypoint_m"]
     assert per["left_hand"] < 0.05 and per["right_hand"] < 0.05
-    # the robot goes down with the human: its base is lowest where the scaled pelvis is lowest (±0.2 s)
+    # the robot goes down with the human: its base is lowest while the scaled pelvis is at the
+    # robot's lowest base (the squat raised to it: a plateau), within 0.2 s
     base_z = []
     for q in plan.q:
         pin.framesForwardKinematics(talos.model, data, q)
         base_z.append(data.oMf[talos.frame_id("base")].translation[2])
     t_low = plan.t[int(np.argmin(base_z))]
-    assert abs(t_low - ref.t[int(np.argmin(ref.points["base"][:, 2]))]) < 0.2
+    low = ref.t[ref.raised > 0] if ref.raised.max() > 0 else ref.t[[int(np.argmin(ref.points["base"][:, 2]))]]
+    assert low[0] - 0.2 < t_low < low[-1] + 0.2

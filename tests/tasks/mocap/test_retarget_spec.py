@@ -84,3 +84,111 @@ def test_tracking_targets_are_soft_and_on_the_source(talos):
     assert np.linalg.norm(np.array(target.position) - ref.points["right_hand"][f]) < 1e-9
     # the body scale of talos (base 1.08 m standing) to an adult CMU subject is about one
     assert 0.8 < ref.scale < 1.3
+
+
+def test_a_deep_squat_is_raised_to_the_robots_lowest_base(talos):
+    """The human's squat takes the pelvis to 40 % of its standing height; talos's base is asked to
+    go no lower than 0.6 of its standing height (its thigh meshes pass into its pelvis below: coal
+    in tests/wbmp/test_retarget_certified.py); the whole upper body is raised with it, the rest of
+    the clip is untouched."""
+    from tasks.mocap.retarget import MIN_BASE_HEIGHT
+    from tasks.primitives.geometry import standing_geometry
+
+    _, _, _, ref = _spec("13_29_squat.bvh", talos)
+    stand = float(standing_geometry(talos).placements["base"].translation[2])
+    base = ref.points["base"][:, 2]
+    assert base.min() >= MIN_BASE_HEIGHT * stand - 1e-9
+    assert 0.1 < ref.raised.max() < 0.4  # the human's 0.6 m drop, scaled, is deeper than talos's lowest base
+    low = ref.raised > 0
+    assert 0.1 < low.mean() < 0.8  # only around the bottom of the squat
+    for role in ("torso", "head", "left_hand", "right_hand"):  # raised with the base: the body's shape is kept
+        gap = ref.points[role][:, 2] - base
+        assert np.ptp(gap[low]) < np.ptp(gap) + 1e-9
+    np.testing.assert_allclose(base[~low], ref.points["base"][~low, 2])
+
+
+def test_an_arm_held_out_sideways_is_brought_in_to_what_the_shoulder_carries(talos):
+    """Talos's shoulder roll (arm_right_2_joint, 22.3 N m) cannot hold the stretched arm out sideways:
+    Pinocchio's gravity torque of that pose is above the limit. The wave's raised right hand is
+    brought in sideways where the human holds it out; the stretched arm rolled out as far
+    sideways as the farthest target left has a gravity torque within the rule's margin of the limit
+    (a bent arm's, its CoM nearer the shoulder, is less)."""
+    import pinocchio as pin
+
+    from tasks.mocap.retarget import ARM_TORQUE_MARGIN, _rot
+    from tasks.primitives.geometry import standing_geometry
+
+    model = talos.model
+    data = model.createData()
+    joint = model.getJointId("arm_right_2_joint")
+    limit = float(model.effortLimit[model.joints[joint].idx_v])
+
+    def gravity(angle: float) -> float:  # the stretched arm rolled out sideways by ``angle`` [rad]
+        q = np.array(talos.q_standing, dtype=float)
+        for i in range(1, 8):
+            q[model.joints[model.getJointId(f"arm_right_{i}_joint")].idx_q] = 0.0
+        q[model.joints[joint].idx_q] = -angle
+        return abs(float(pin.computeGeneralizedGravity(model, data, q)[model.joints[joint].idx_v]))
+
+    assert gravity(np.pi / 2) > limit  # out sideways: beyond the shoulder
+    _, _, _, ref = _spec("13_26_wave.bvh", talos)
+    assert ref.arm_moved["right"].max() > 0.1 and ref.arm_moved["left"].max() < 0.05
+    d = np.einsum("fba,fb->fa", _rot(ref.heading), ref.points["right_hand"] - ref.points["right_shoulder"])
+    length = standing_geometry(talos).arm_length["right"]
+    out = float(np.max(np.abs(d[:, 1]))) / length  # the farthest out sideways a hand is left, of the arm
+    assert gravity(float(np.arcsin(out))) <= ARM_TORQUE_MARGIN * limit * 1.02
+
+
+@pytest.mark.parametrize("name", ["talos", "g1"])
+def test_the_shoulders_are_held_out_away_from_the_torso(name):
+    """G1's upper arm hangs 9 mm from its torso at standing (a pair the planner's capsules cannot
+    keep apart): the posture term's target angles take each hand outwards (Pinocchio forward
+    kinematics) and the upper arm away from the torso (the coal distance between their meshes
+    grows). Talos's weak shoulder roll is not asked to hold its arm out."""
+    import coal
+    import pinocchio as pin
+
+    from tasks.mocap.retarget import shoulders_out
+
+    robot = talos_or_g1(name)
+    model, gm = robot.model, robot.collision_model
+    data, gd = model.createData(), pin.GeometryData(gm)
+    targets = shoulders_out(robot, 3.0)
+    if name == "talos":  # its shoulder roll cannot carry the stretched arm held out: not asked to
+        assert targets == ()
+        return
+    assert len(targets) == 2 and all(t.window == (0.0, 3.0) and t.weight > 0 for t in targets)
+    torso_joint = model.frames[robot.frame_id("torso")].parentJoint
+    torso = [i for i, g in enumerate(gm.geometryObjects) if g.parentJoint == torso_joint]
+
+    def gap(q: np.ndarray, side: str) -> float:
+        pin.updateGeometryPlacements(model, data, gm, gd, q)
+        joint = model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint
+        arm = [i for i, g in enumerate(gm.geometryObjects) if g.parentJoint in (joint, joint + 1)]
+        best = np.inf
+        for i in torso:
+            for j in arm:
+                r = coal.DistanceResult()
+                coal.distance(gm.geometryObjects[i].geometry, coal.Transform3s(gd.oMg[i]),
+                              gm.geometryObjects[j].geometry, coal.Transform3s(gd.oMg[j]), coal.DistanceRequest(), r)
+                best = min(best, r.min_distance)
+        return best
+
+    q = np.array(robot.q_standing, dtype=float)
+    for t in targets:
+        q[model.joints[model.getJointId(t.joint)].idx_q] = t.value
+    stand = np.array(robot.q_standing, dtype=float)
+
+    def out(q: np.ndarray, side: str) -> float:
+        pin.framesForwardKinematics(model, data, q)
+        return abs(float(data.oMf[robot.frame_id(f"{side}_hand")].translation[1]
+                         - data.oMf[robot.frame_id("base")].translation[1]))
+
+    for t in targets:
+        side = t.name.split()[0]
+        assert out(q, side) > out(stand, side) + 0.03
+        assert gap(q, side) > gap(stand, side) + 0.01
+
+
+def talos_or_g1(name: str):
+    return load_robot(name)
