@@ -73,7 +73,7 @@ def _figs(f) -> dict | None:
 
 def run_ours(path: Path, row: dict, robot: str) -> tuple[dict, object]:
     """One clip on one robot with wbmp; (record, result)."""
-    from wbmp.retarget import RetargetRequest, arm_moved_max, raised_max, retarget
+    from wbmp.retarget import RetargetRequest, retarget
 
     req = RetargetRequest(clip=str(path), robot=robot, start=row["start"], end=row["end"], simulate=True)
     c0, w0 = time.process_time(), time.perf_counter()
@@ -91,7 +91,7 @@ def run_ours(path: Path, row: dict, robot: str) -> tuple[dict, object]:
     rec = {
         "frames": frames, "duration_s": res.clip_info["duration_s"], "horizon_s": float(res.spec.horizon),
         "time_scale": res.reference.time_scale, "stride_scale": res.reference.stride_scale,
-        "raised_m": raised_max(res.reference), "arm_moved_m": arm_moved_max(res.reference),
+        "raised_m": res.reference.raised_max(), "arm_moved_m": res.reference.arm_moved_max(),
         "planned": bool(res.plan.ok), "plan_status": res.plan.stats.status.value,
         "iterations": int(res.plan.stats.iterations), "diagnosis": res.plan.diagnosis[:300],
         "certified": bool(res.execution is not None and res.execution.ok),

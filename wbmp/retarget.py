@@ -62,27 +62,14 @@ class RetargetResult(SolveResult):
             section["lead_in_s"] = self.reference.lead_in
             section["stride_scale"] = self.reference.stride_scale
             section["time_scale"] = self.reference.time_scale
-            section["raised_m"] = raised_max(self.reference)
-            section["arm_moved_m"] = arm_moved_max(self.reference)
+            section["raised_m"] = self.reference.raised_max()
+            section["arm_moved_m"] = self.reference.arm_moved_max()
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:
             section["execution"] = self.exec_figures.to_dict()
         out["retarget"] = section
         return out
-
-
-def raised_max(reference: Any) -> float:
-    """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
-    raised = getattr(reference, "raised", None)
-    return 0.0 if raised is None or len(raised) == 0 else float(max(raised))
-
-
-def arm_moved_max(reference: Any) -> dict[str, float]:
-    """Per hand, how far its target was brought in sideways at most (its shoulder's torque
-    limits) [m]."""
-    moved = getattr(reference, "arm_moved", None) or {}
-    return {side: float(max(v)) if len(v) else 0.0 for side, v in moved.items()}
 
 
 def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):

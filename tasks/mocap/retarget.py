@@ -124,6 +124,15 @@ class Reference:
     raised: np.ndarray | None = None
     arm_moved: dict[str, np.ndarray] | None = None
 
+    def raised_max(self) -> float:
+        """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
+        return 0.0 if self.raised is None or len(self.raised) == 0 else float(np.max(self.raised))
+
+    def arm_moved_max(self) -> dict[str, float]:
+        """Hand side -> how far its target was brought in sideways at most (its shoulder's torque
+        limits) [m]."""
+        return {side: float(np.max(v)) if len(v) else 0.0 for side, v in (self.arm_moved or {}).items()}
+
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
     yaw = np.asarray(yaw, dtype=float)

@@ -100,7 +100,7 @@ def _json_default(obj):
 
 def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     """The plan, the figures and the certificate (tracking targets summed up by the figures)."""
-    from wbmp.retarget import arm_moved_max, is_tracking, raised_max
+    from wbmp.retarget import is_tracking
 
     if as_json:
         report = result.report()
@@ -113,10 +113,10 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     print(f"retarget: {result.clip_info.get('clip')} ({result.skeleton}), {result.clip_info.get('duration_s', 0):.2f} s, "
           f"scale {ref.scale:.3f} (arms {ref.arm_scale:.3f}, travel {ref.stride_scale:.2f}), "
           f"{ref.time_scale:.2f} x slower than the human")
-    if raised_max(ref) > 0:
-        print(f"retarget: the body raised up to {raised_max(ref):.3f} m: the human goes lower than the robot's "
+    if ref.raised_max() > 0:
+        print(f"retarget: the body raised up to {ref.raised_max():.3f} m: the human goes lower than the robot's "
               "lowest base (0.6 of its standing height: deeper, its thighs meet its pelvis)")
-    for side, moved in arm_moved_max(ref).items():
+    for side, moved in ref.arm_moved_max().items():
         if moved > 0.005:
             print(f"retarget: the {side} hand brought in sideways up to {moved:.3f} m: the human holds the "
                   "arm out further than the robot's shoulder can carry")
