@@ -179,7 +179,9 @@ def hands_follow(s: Sim) -> tuple[bool, str]:
 
 
 def _mesh_gap(s: Sim, a: str, b: str, qs: np.ndarray) -> float:
-    """Smallest coal distance between the meshes below frames ``a`` and ``b`` over ``qs``."""
+    """Smallest coal distance between the meshes below frames ``a`` and ``b`` over ``qs``. A frame
+    whose joint carries the other's (G1's head, fixed on the torso that carries the arms) counts
+    its own link's meshes only: the torso's and the arms' are not the head."""
     import pinocchio as pin
 
     robot = s.robot
@@ -187,13 +189,17 @@ def _mesh_gap(s: Sim, a: str, b: str, qs: np.ndarray) -> float:
     gm = robot.collision_model.copy()
     gm.removeAllCollisionPairs()
 
-    def below(frame: str) -> list[int]:
-        j = model.frames[robot.frame_id(frame)].parentJoint
+    def below(frame: str, other: str) -> list[int]:
+        fid = robot.frame_id(frame)
+        j = model.frames[fid].parentJoint
+        if j in set(model.supports[model.frames[robot.frame_id(other)].parentJoint]):
+            name = model.frames[fid].name
+            return [i for i, o in enumerate(gm.geometryObjects) if model.frames[o.parentFrame].name == name]
         sub = set(model.subtrees[j])
         return [i for i, o in enumerate(gm.geometryObjects) if o.parentJoint in sub]
 
-    for i in below(a):
-        for j in below(b):
+    for i in below(a, b):
+        for j in below(b, a):
             gm.addCollisionPair(pin.CollisionPair(min(i, j), max(i, j)))
     gd, data = gm.createData(), model.createData()
     best = math.inf
@@ -316,7 +322,7 @@ def main(argv: list[str] | None = None) -> int:
     text = markdown(rows)
     print(text)
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1))
+        Path(args.json).write_text(json.dumps(rows, indent=1, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
     if args.markdown:
         Path(args.markdown).write_text(text)
     return 0
