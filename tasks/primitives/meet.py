@@ -47,6 +47,7 @@ from tasks.primitives.bodymap import (
     GAP,
     approach_posed,
     arm_configuration,
+    arm_joints,
     body_map,
     clear_targets,
     hands_meet,
@@ -54,6 +55,7 @@ from tasks.primitives.bodymap import (
     meets_apart,
     stop_short,
 )
+from tasks.specs import JointTarget
 
 TEMPLE = 0.5  # a hand meeting the side of the head goes this fraction of the way from its centre to its front
 HEAD_GAP = 0.01  # [m] mesh distance of a saluting or head-touching hand from the head, the arm posed there
@@ -131,9 +133,28 @@ def build_clap(b: FragmentBuilder) -> Fragment:
         meet = f"{_other(side)}_hand"
         _repeat(b, side, n, d, (f"{side} hand ready to clap", apart), (f"{side} hand clap", together),
                 f"{side} hand apart", meet=meet, rotation=meet_rotation(b.robot, side, together, meet))
+    _hold_upper_arms(b, _rhythm_duration(b.params, b.robot))
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("clap", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
+
+
+UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding each shoulder's roll at its standing angle through a clap
+
+
+def _hold_upper_arms(b: FragmentBuilder, T: float) -> None:
+    """Each shoulder's roll joint (the arm's second, which swings the upper arm in to the body)
+    held at its standing angle over the whole gesture (a cost): the hands come together by the
+    shoulder's yaw and the elbow. The planner does not see the upper arm against the torso (their
+    meshes are 9 mm apart standing, too close to keep its 1 cm margin: "touching at rest"), and
+    G1's plan swung the right upper arm into the torso's meshes (coal) to bring the hands in."""
+    q = b.robot.q_standing
+    for side in ("left", "right"):
+        j = arm_joints(b.robot, side)[1]
+        name = b.robot.model.names[j]
+        b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
+                                           value=float(q[b.robot.model.joints[j].idx_q]), window=b.window(0.0, T),
+                                           weight=UPPER_ARM_WEIGHT))
 
 
 CLAP = Primitive(name="clap", nominal_duration=_rhythm_duration, build=build_clap, parts=lambda p: BOTH_ARMS)
