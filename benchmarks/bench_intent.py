@@ -363,7 +363,9 @@ def main(argv: list[str] | None = None) -> int:
                 row = run_one(robot, action, sentence)
                 rows.append(row)
                 print(f"{robot:6} {action:13} {row['status']:11} intent met: {row.get('intent_met', '-')!s:5} "
-                      f"{row.get('figure', row.get('reason', ''))}", flush=True)
+                      f"{row.get('figure', row.get('reason', ''))}"
+                      + (f" | mesh plan {row['mesh_plan'] or 'none'}, sim {row['mesh_sim'] or 'none'}" if "mesh_plan" in row else ""),
+                      flush=True)
     text = markdown(rows)
     print(text)
     if args.json:
