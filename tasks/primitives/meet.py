@@ -81,6 +81,8 @@ def _hold_meeting(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], 
     """:func:`tasks.primitives.arms._hold` with the hands in ``meet`` (side -> the role it touches)
     held at the orientation their arms were placed with (:func:`meet_rotation`)."""
     rotations = {s: meet_rotation(b.robot, s, points[s], role) for s, role in (meet or {}).items()}
+    if meet:  # the arm that stays down stays out of the torso (G1's salute: its left upper arm was in it)
+        _hold_upper_arms(b, b.params["duration"], tuple(s for s in ("left", "right") if s not in points))
     return _hold(b, what, points, phase, parts, meet=meet, rotations=rotations)
 
 
@@ -133,23 +135,24 @@ def build_clap(b: FragmentBuilder) -> Fragment:
         meet = f"{_other(side)}_hand"
         _repeat(b, side, n, d, (f"{side} hand ready to clap", apart), (f"{side} hand clap", together),
                 f"{side} hand apart", meet=meet, rotation=meet_rotation(b.robot, side, together, meet))
-    _hold_upper_arms(b, _rhythm_duration(b.params, b.robot))
+    _hold_upper_arms(b, _rhythm_duration(b.params, b.robot), ("left", "right"))
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("clap", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
 
 
-UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding each shoulder's roll at its standing angle through a clap
+UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding a shoulder's roll at its standing angle (clap, salute)
 
 
-def _hold_upper_arms(b: FragmentBuilder, T: float) -> None:
-    """Each shoulder's roll joint (the arm's second, which swings the upper arm in to the body)
-    held at its standing angle over the whole gesture (a cost): the hands come together by the
-    shoulder's yaw and the elbow. The planner does not see the upper arm against the torso (their
-    meshes are 9 mm apart standing, too close to keep its 1 cm margin: "touching at rest"), and
-    G1's plan swung the right upper arm into the torso's meshes (coal) to bring the hands in."""
+def _hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...]) -> None:
+    """The ``sides`` shoulders' roll joint (the arm's second, which swings the upper arm in to the
+    body) held at its standing angle over the whole gesture (a cost): a clap's hands come together
+    by the shoulders' yaw and the elbows. The planner does not see the upper arm against the torso
+    (their meshes are 9 mm apart standing, too close to keep its 1 cm margin: "touching at rest"),
+    and G1's plan swung the right upper arm into the torso's meshes (coal) to bring the hands in;
+    in its salute, the left arm, which stays down."""
     q = b.robot.q_standing
-    for side in ("left", "right"):
+    for side in sides:
         j = arm_joints(b.robot, side)[1]
         name = b.robot.model.names[j]
         b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
