@@ -684,3 +684,33 @@ def test_sphere_clearance_uses_the_planners_margin():
 
     assert PLANNER_MARGIN == PlannerSettings().collision_margin
     assert CLEARANCE > PLANNER_MARGIN
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_meeting_gestures_hold_the_shoulders_roll_at_standing(robot_name):
+    """The planner does not check the upper arms against the torso (touching at rest); G1's clap
+    swung its right upper arm into the torso's meshes, its salute the left one. The clap holds both
+    shoulders' roll joint (the URDF's names) at its standing angle over the whole gesture, the
+    salute the arm that stays down; the pointing arm (no meeting) none."""
+    from robots import load_robot
+
+    robot = load_robot(robot_name)
+    roll = {"talos": "arm_{}_2_joint", "g1": "{}_shoulder_roll_joint"}[robot_name]
+    model = robot.model
+
+    def held(spec):
+        out = {}
+        for jt in spec.joint_targets:
+            if jt.joint in {roll.format(s) for s in ("left", "right")} and jt.window is not None:
+                q0 = robot.q_standing[model.joints[model.getJointId(jt.joint)].idx_q]
+                starts = [t.time if t.time is not None else t.window[0] for t in spec.targets
+                          if "hand" in t.name and (t.time is not None or t.window is not None)]
+                assert jt.value == pytest.approx(q0) and jt.window[0] <= min(starts) + 1e-9  # from the gesture's start
+                out[jt.joint] = jt.window[1]
+        return out
+
+    clap = _spec(robot, "clap", repeat=1)
+    assert set(held(clap)) == {roll.format("left"), roll.format("right")}
+    assert min(held(clap).values()) >= max(t.time for t in clap.targets if t.meets is not None)
+    assert set(held(_spec(robot, "salute", arm="right"))) == {roll.format("left")}
+    assert not held(_spec(robot, "point", arm="right", direction="forward"))
