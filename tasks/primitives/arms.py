@@ -38,6 +38,7 @@ from tasks.primitives.bodymap import (
     to_standing,
 )
 from tasks.primitives.geometry import standing_geometry
+from tasks.specs import JointTarget
 
 OUT_FRACTION = 0.4  # held poses are reached at this fraction of the duration
 HOLD_END_FRACTION = 0.6  # and left at this one
@@ -150,6 +151,26 @@ def _rhythm_duration(params: dict, robot: Robot) -> float:
 
 
 BOTH_ARMS = _arm_parts(("left", "right"))
+
+
+UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding a shoulder's roll at its standing angle (clap, salute)
+
+
+def hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...]) -> None:
+    """The ``sides`` shoulders' roll joint (the arm's second, which swings the upper arm in to the
+    body) held at its standing angle over the whole gesture (a cost): a clap's hands come together
+    by the shoulders' yaw and the elbows. The planner does not see the upper arm against the torso
+    (their meshes are 9 mm apart standing, too close to keep its 1 cm margin: "touching at rest"),
+    and G1's plan swung the right upper arm into the torso's meshes (coal) to bring the hands in;
+    in its salute, the left arm, which stays down; in its hops and one-foot balances, an arm that
+    swung for balance."""
+    q = b.robot.q_standing
+    for side in sides:
+        j = arm_joints(b.robot, side)[1]
+        name = b.robot.model.names[j]
+        b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
+                                           value=float(q[b.robot.model.joints[j].idx_q]), window=b.window(0.0, T),
+                                           weight=UPPER_ARM_WEIGHT))
 
 
 # --- punch ---------------------------------------------------------------------------------
@@ -537,6 +558,7 @@ __all__ = [
     "circle_points",
     "cross_points",
     "hips_points",
+    "hold_upper_arms",
     "point_point",
     "punch_points",
     "reach_gap",

@@ -39,6 +39,7 @@ from tasks.primitives.arms import (
     _rhythm_duration,
     arm_length,
     hip_point,
+    hold_upper_arms,
     reach,
     shoulder,
 )
@@ -47,7 +48,6 @@ from tasks.primitives.bodymap import (
     GAP,
     approach_posed,
     arm_configuration,
-    arm_joints,
     body_map,
     clear_targets,
     hands_meet,
@@ -55,7 +55,6 @@ from tasks.primitives.bodymap import (
     meets_apart,
     stop_short,
 )
-from tasks.specs import JointTarget
 
 TEMPLE = 0.5  # a hand meeting the side of the head goes this fraction of the way from its centre to its front
 HEAD_GAP = 0.01  # [m] mesh distance of a saluting or head-touching hand from the head, the arm posed there
@@ -82,7 +81,7 @@ def _hold_meeting(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], 
     held at the orientation their arms were placed with (:func:`meet_rotation`)."""
     rotations = {s: meet_rotation(b.robot, s, points[s], role) for s, role in (meet or {}).items()}
     if meet:  # the arm that stays down stays out of the torso (G1's salute: its left upper arm was in it)
-        _hold_upper_arms(b, b.params["duration"], tuple(s for s in ("left", "right") if s not in points))
+        hold_upper_arms(b, b.params["duration"], tuple(s for s in ("left", "right") if s not in points))
     return _hold(b, what, points, phase, parts, meet=meet, rotations=rotations)
 
 
@@ -135,29 +134,10 @@ def build_clap(b: FragmentBuilder) -> Fragment:
         meet = f"{_other(side)}_hand"
         _repeat(b, side, n, d, (f"{side} hand ready to clap", apart), (f"{side} hand clap", together),
                 f"{side} hand apart", meet=meet, rotation=meet_rotation(b.robot, side, together, meet))
-    _hold_upper_arms(b, _rhythm_duration(b.params, b.robot), ("left", "right"))
+    hold_upper_arms(b, _rhythm_duration(b.params, b.robot), ("left", "right"))
     rest_targets(b, ["left_hand", "right_hand"], tau=_rhythm_duration(b.params, b.robot))
     b.phase("clap", _rhythm_duration(b.params, b.robot))
     return b.finish(BOTH_ARMS)
-
-
-UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding a shoulder's roll at its standing angle (clap, salute)
-
-
-def _hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...]) -> None:
-    """The ``sides`` shoulders' roll joint (the arm's second, which swings the upper arm in to the
-    body) held at its standing angle over the whole gesture (a cost): a clap's hands come together
-    by the shoulders' yaw and the elbows. The planner does not see the upper arm against the torso
-    (their meshes are 9 mm apart standing, too close to keep its 1 cm margin: "touching at rest"),
-    and G1's plan swung the right upper arm into the torso's meshes (coal) to bring the hands in;
-    in its salute, the left arm, which stays down."""
-    q = b.robot.q_standing
-    for side in sides:
-        j = arm_joints(b.robot, side)[1]
-        name = b.robot.model.names[j]
-        b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
-                                           value=float(q[b.robot.model.joints[j].idx_q]), window=b.window(0.0, T),
-                                           weight=UPPER_ARM_WEIGHT))
 
 
 CLAP = Primitive(name="clap", nominal_duration=_rhythm_duration, build=build_clap, parts=lambda p: BOTH_ARMS)
