@@ -714,3 +714,24 @@ def test_meeting_gestures_hold_the_shoulders_roll_at_standing(robot_name):
     assert min(held(clap).values()) >= max(t.time for t in clap.targets if t.meets is not None)
     assert set(held(_spec(robot, "salute", arm="right"))) == {roll.format("left")}
     assert not held(_spec(robot, "point", arm="right", direction="forward"))
+
+
+@pytest.mark.parametrize(("name", "params"), [("hop", {"foot": "left", "count": 1}), ("balance", {}), ("kick", {}),
+                                              ("stomp", {}), ("march", {})])
+def test_leg_motions_hold_the_shoulders_roll_at_standing(g1, name, params):
+    """G1's hop, balance and kick swung an upper arm into the torso's meshes (coal), a pair the
+    planner does not check: both shoulders' roll joints (the URDF's names) are held at their
+    standing angle (a cost) from the motion's start to its end."""
+    spec = _spec(g1, name, **params)
+    model = g1.model
+    t, span = 0.0, []
+    for ph in spec.phases:  # the action's own phases ("1 hop: ..."), between the composer's start and end
+        if ph.name.startswith(f"1 {name}"):
+            span += [t, t + ph.duration]
+        t += ph.duration
+    start, end = min(span), max(span)
+    for side in ("left", "right"):
+        joint = f"{side}_shoulder_roll_joint"
+        (jt,) = [t for t in spec.joint_targets if t.joint == joint and t.window is not None]
+        assert jt.value == pytest.approx(g1.q_standing[model.joints[model.getJointId(joint)].idx_q])
+        assert jt.window[0] <= start + 1e-9 and jt.window[1] >= end - 1e-9, (jt.window, start, end)
