@@ -179,7 +179,9 @@ def hands_follow(s: Sim) -> tuple[bool, str]:
 
 
 def _mesh_gap(s: Sim, a: str, b: str, qs: np.ndarray) -> float:
-    """Smallest coal distance between the meshes below frames ``a`` and ``b`` over ``qs``."""
+    """Smallest coal distance between the meshes below frames ``a`` and ``b`` over ``qs``. A frame
+    whose joint carries the other's (G1's head, fixed on the torso that carries the arms) counts
+    its own link's meshes only: the torso's and the arms' are not the head."""
     import pinocchio as pin
 
     robot = s.robot
@@ -187,13 +189,17 @@ def _mesh_gap(s: Sim, a: str, b: str, qs: np.ndarray) -> float:
     gm = robot.collision_model.copy()
     gm.removeAllCollisionPairs()
 
-    def below(frame: str) -> list[int]:
-        j = model.frames[robot.frame_id(frame)].parentJoint
+    def below(frame: str, other: str) -> list[int]:
+        fid = robot.frame_id(frame)
+        j = model.frames[fid].parentJoint
+        if j in set(model.supports[model.frames[robot.frame_id(other)].parentJoint]):
+            name = model.frames[fid].name
+            return [i for i, o in enumerate(gm.geometryObjects) if model.frames[o.parentFrame].name == name]
         sub = set(model.subtrees[j])
         return [i for i, o in enumerate(gm.geometryObjects) if o.parentJoint in sub]
 
-    for i in below(a):
-        for j in below(b):
+    for i in below(a, b):
+        for j in below(b, a):
             gm.addCollisionPair(pin.CollisionPair(min(i, j), max(i, j)))
     gd, data = gm.createData(), model.createData()
     best = math.inf
@@ -246,6 +252,42 @@ INDEPENDENT: dict[str, Callable[[Sim], tuple[bool, str]]] = {
 }
 
 
+def mesh_collisions(robot, qs: np.ndarray) -> dict[tuple[str, str], int]:
+    """Link pairs whose URDF collision meshes intersect (coal), with how many of ``qs`` they do so
+    at: every pair of geometries on joints more than two apart along the chain (a wrist folds its
+    hand into its forearm by construction) whose meshes are at least 2 mm apart standing (built
+    touching: they cannot be kept apart from the first instant)."""
+    import coal  # type: ignore[import-untyped]
+    import pinocchio as pin
+
+    model, cm = robot.model, robot.collision_model
+    objs = cm.geometryObjects
+    data, gd = model.createData(), pin.GeometryData(cm)
+
+    def near(ja: int, jb: int) -> bool:
+        up = {ja: [ja, model.parents[ja], model.parents[model.parents[ja]]],
+              jb: [jb, model.parents[jb], model.parents[model.parents[jb]]]}
+        return ja in up[jb] or jb in up[ja]
+
+    def placed(q):
+        pin.updateGeometryPlacements(model, data, cm, gd, q)
+        return [coal.Transform3s(gd.oMg[i].rotation, gd.oMg[i].translation) for i in range(len(objs))]
+
+    rest = placed(robot.q_standing)
+    pairs = [(i, j) for i in range(len(objs)) for j in range(i + 1, len(objs))
+             if not near(int(objs[i].parentJoint), int(objs[j].parentJoint))
+             and coal.distance(objs[i].geometry, rest[i], objs[j].geometry, rest[j], coal.DistanceRequest(),
+                               coal.DistanceResult()) >= 0.002]
+    hits: dict[tuple[str, str], int] = {}
+    for q in qs:
+        T = placed(q)
+        for i, j in pairs:
+            if coal.collide(objs[i].geometry, T[i], objs[j].geometry, T[j], coal.CollisionRequest(), coal.CollisionResult()):
+                key = (model.frames[objs[i].parentFrame].name, model.frames[objs[j].parentFrame].name)
+                hits[key] = hits.get(key, 0) + 1
+    return hits
+
+
 def run_one(robot_name: str, action: str, sentence: str) -> dict:
     from language.exceptions import LanguageError
     from planner import PlannerSettings, plan
@@ -272,24 +314,33 @@ def run_one(robot_name: str, action: str, sentence: str) -> dict:
                reason=cert.reason, intent_lines_failed=[c.message for c in intent if not c.ok],
                seconds=round(time.perf_counter() - t0, 1))
     row["silent_wrong"] = bool(cert.ok and not met)
+    if cert.ok:  # issue 37: on the meshes no certified motion has a colliding pair
+        row["mesh_plan"] = {" / ".join(k): n for k, n in mesh_collisions(robot, p.q).items()}
+        sim_q = _every(Sim(robot, spec, p, ex), 0.08)
+        row["mesh_sim"] = {" / ".join(k): n for k, n in mesh_collisions(robot, sim_q).items()}
     return row
 
 
 def markdown(rows: list[dict]) -> str:
     lines = ["| robot | action | sentence | planned | certified | intent met (independent) | figure | "
-             "certificate's first failure |", "|---|---|---|---|---|---|---|---|"]
+             "certificate's first failure | colliding mesh pairs, plan / simulation (coal) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         planned = "refused" if r["status"] == "refused" else ("no" if r["status"] == "not planned" else "yes")
         cert = "yes" if r.get("certified") else ("—" if planned != "yes" else "no")
         met = {True: "yes", False: "**no**"}.get(r.get("intent_met"), "—")
+        mesh = ""
+        if "mesh_plan" in r:
+            mesh = "; ".join(f"{k} {w}" for w, d in (("plan", r["mesh_plan"]), ("sim", r["mesh_sim"])) for k in d) or "none"
         lines.append(f"| {r['robot']} | {r['action']} | {r['sentence']} | {planned} | {cert} | {met} | "
-                     f"{r.get('figure', '')} | {r.get('reason', '')} |")
+                     f"{r.get('figure', '')} | {r.get('reason', '')} | {mesh} |")
     n = [r for r in rows if r["status"] != "refused"]
     lines.append("")
     lines.append(f"{len(rows)} sentences, {len(n)} in scope (not refused), "
                  f"{sum(bool(r.get('certified')) for r in n)} certified, "
                  f"{sum(bool(r.get('intent_met')) for r in n)} met their intent (independent), "
-                 f"{sum(bool(r.get('silent_wrong')) for r in n)} silent wrong motions (certified, intent missed).")
+                 f"{sum(bool(r.get('silent_wrong')) for r in n)} silent wrong motions (certified, intent missed), "
+                 f"{sum(bool(r.get('mesh_plan') or r.get('mesh_sim')) for r in n)} certified with a colliding mesh pair.")
     return "\n".join(lines) + "\n"
 
 
@@ -312,11 +363,13 @@ def main(argv: list[str] | None = None) -> int:
                 row = run_one(robot, action, sentence)
                 rows.append(row)
                 print(f"{robot:6} {action:13} {row['status']:11} intent met: {row.get('intent_met', '-')!s:5} "
-                      f"{row.get('figure', row.get('reason', ''))}", flush=True)
+                      f"{row.get('figure', row.get('reason', ''))}"
+                      + (f" | mesh plan {row['mesh_plan'] or 'none'}, sim {row['mesh_sim'] or 'none'}" if "mesh_plan" in row else ""),
+                      flush=True)
     text = markdown(rows)
     print(text)
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1))
+        Path(args.json).write_text(json.dumps(rows, indent=1, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
     if args.markdown:
         Path(args.markdown).write_text(text)
     return 0

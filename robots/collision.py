@@ -255,7 +255,7 @@ def cache_key(robot: Robot) -> str:
                 h.update(Path(path).read_bytes())
             except OSError:
                 h.update(path.encode())
-    h.update(repr(robot.profile.collisions).encode())
+    h.update(robot.profile.collisions.fit_key().encode())
     h.update(np.asarray(robot.q_standing, dtype=float).tobytes())
     return h.hexdigest()[:20]
 

@@ -130,6 +130,35 @@ class Robot:
             self._frame_ids[name] = fid
         return fid
 
+    def meet_joint(self, name_or_role: str) -> int:
+        """The joint whose subtree is the frame's part in a planned self-contact: the frame's parent
+        joint, for a hand frame ``[collisions] meet_joints`` joints higher up (G1's wrist links)."""
+        model = self.model
+        fid = self.frame_id(name_or_role)
+        joint = model.frames[fid].parentJoint
+        if fid in {self.frame_id(f"{s}_hand") for s in ("left", "right") if self.has_role(f"{s}_hand")}:
+            for _ in range(self.profile.collisions.meet_joints):
+                if model.parents[joint] > 1:  # not past the root joint
+                    joint = model.parents[joint]
+        return int(joint)
+
+    def meet_links(self, name_or_role: str, other: str) -> frozenset[str]:
+        """The links (frames carrying collision geometry) that make up the frame ``name_or_role``'s
+        part when it meets ``other``'s (a hand meeting the other hand or the head): those on its
+        :meth:`meet_joint` or below it, but for the joints that carry ``other``'s (a head on the
+        trunk leaves out the trunk, which carries the hand's own arm). When its joint carries
+        ``other``'s (G1's head is fixed on the torso, whose joint carries the arms), only the
+        frame's own link."""
+        model = self.model
+        joint, theirs = self.meet_joint(name_or_role), self.meet_joint(other)
+        geoms = self.collision_model.geometryObjects
+        if joint in set(model.supports[theirs]):
+            own = model.frames[self.frame_id(name_or_role)].name
+            return frozenset(model.frames[g.parentFrame].name for g in geoms
+                             if model.frames[g.parentFrame].name == own)
+        below = set(model.subtrees[joint]) - set(model.supports[theirs])
+        return frozenset(model.frames[g.parentFrame].name for g in geoms if g.parentJoint in below)
+
     def data(self) -> pin.Data:
         """A fresh Pinocchio data for this model."""
         return self.model.createData()

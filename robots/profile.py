@@ -72,8 +72,9 @@ NUMBERS: dict[str, tuple[float, float, bool, str, str]] = {
     "jump_forward_speed_max": (0.0, 5.0, True, "a speed in metres per second", " (0 = no forward jumps)"),
 }
 SOLE_KEYS = ("x_min", "x_max", "y_min", "y_max")
-COLLISION_KEYS = ("add", "remove", "body_parts")
+COLLISION_KEYS = ("add", "remove", "body_parts", "meet_joints")
 MAX_COLLISION_ENTRIES = 1024  # pairs in add/remove, names in body_parts
+MAX_MEET_JOINTS = 6  # collisions.meet_joints: joints above a hand frame's joint that count as the hand
 EXTRA_FRAME_KEYS = ("name", "parent", "translation")
 
 Vec3 = tuple[float, float, float]
@@ -334,17 +335,26 @@ class SoleRectangle:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CollisionTable:
     """The profile's ``[collisions]`` table: link pairs to add to or remove from the self-collision
-    checks, and human names of links for messages (``robots.collision``, ``docs/collisions.md``)."""
+    checks, human names of links for messages (``robots.collision``, ``docs/collisions.md``), and
+    ``meet_joints``: how many joints above a hand frame's joint count as the hand in a planned
+    self-contact (a clap; :meth:`robots.Robot.meet_links`; G1's wrist roll and pitch links sit
+    above its hand frame's joint: 2; 0 = the hand frame's joint and below)."""
 
     add: tuple[tuple[str, str], ...] = ()
     remove: tuple[tuple[str, str], ...] = ()
     body_parts: tuple[tuple[str, str], ...] = ()
+    meet_joints: int = 0
+
+    def fit_key(self) -> str:
+        """What the fitted collision model depends on (add, remove, body_parts; not meet_joints),
+        in the text the whole table's repr had before meet_joints: the fits cached then still match."""
+        return f"CollisionTable(add={self.add!r}, remove={self.remove!r}, body_parts={self.body_parts!r})"
 
 
 def _collisions(where: str, value: Any) -> CollisionTable:
     table = _table(where, "collisions", value,
                    "a table [collisions] with add = [[link, link], ...], remove = [[link, link], ...] "
-                   "and body_parts = {link = \"name\"}")
+                   "and body_parts = {link = \"name\"}, meet_joints = N")
     unknown = [k for k in table if k not in COLLISION_KEYS]
     if unknown:
         raise ProfileError(f"{where}: collisions: unknown key {unknown[0]!r}{_suggest(unknown[0], COLLISION_KEYS)}; "
@@ -376,7 +386,11 @@ def _collisions(where: str, value: Any) -> CollisionTable:
     parts = tuple((_text(where, "collisions.body_parts", link, "link names as keys"),
                    _text(where, f"collisions.body_parts.{link}", text, "a human name such as 'left forearm'"))
                   for link, text in names.items())
-    return CollisionTable(add=lists["add"], remove=lists["remove"], body_parts=parts)
+    meet = table.get("meet_joints", 0)
+    if not isinstance(meet, int) or isinstance(meet, bool) or not 0 <= meet <= MAX_MEET_JOINTS:
+        raise _fail(where, "collisions.meet_joints",
+                    f"a whole number of joints in [0, {MAX_MEET_JOINTS}] above the hand frame's joint", meet)
+    return CollisionTable(add=lists["add"], remove=lists["remove"], body_parts=parts, meet_joints=meet)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -494,11 +494,17 @@ def step_checks(run: RunRecord, frames: _Frames) -> list[Check]:
 
 
 # --- what the words mean: clap, salute, point ------------------------------------------------
-def _subtree_links(run: RunRecord, frame: str, mesh: MeshDistance, *, subtree: bool = True) -> list[str]:
+def _subtree_links(run: RunRecord, frame: str, mesh: MeshDistance, *, subtree: bool = True,
+                   toucher: str | None = None) -> list[str]:
     """The links with collision meshes at or below ``frame``'s parent joint (only on it: not
-    ``subtree``, for a body part whose subtree is most of the robot: the torso, the pelvis)."""
+    ``subtree``, for a body part whose subtree is most of the robot: the torso, the pelvis). A part
+    whose joint carries the ``toucher`` frame's (G1's head, fixed on the torso that carries the
+    arms) is its own link only: the torso and the touching arm are not the head."""
     model = run.robot.model
-    joint = model.frames[run.robot.frame_id(frame)].parentJoint
+    fid = run.robot.frame_id(frame)
+    joint = model.frames[fid].parentJoint
+    if toucher is not None and joint in set(model.supports[model.frames[run.robot.frame_id(toucher)].parentJoint]):
+        return [link for link in mesh.links() if link == model.frames[fid].name]
     below = set(model.subtrees[joint]) if subtree else {joint}
     return [link for link in mesh.links() if model.frames[model.getFrameId(link)].parentJoint in below]
 
@@ -539,7 +545,7 @@ def word_checks(run: RunRecord, frames: _Frames) -> list[Check]:
             if not mask.any() or not run.robot.has_role("head"):
                 continue
             hand = _subtree_links(run, target.frame, mesh)
-            head = _subtree_links(run, "head", mesh)
+            head = _subtree_links(run, "head", mesh, toucher=target.frame)
             ticks = np.flatnonzero(mask)[:: max(1, int(np.count_nonzero(mask) // 8))]
             gaps = [_mesh_gap(mesh, run.q[n], hand, head) for n in ticks]
             gap = float(np.median(gaps))
@@ -557,7 +563,8 @@ def word_checks(run: RunRecord, frames: _Frames) -> list[Check]:
                 continue
             mesh = mesh or MeshDistance(run.robot)
             hand = _subtree_links(run, target.frame, mesh)
-            body = _subtree_links(run, found[0], mesh, subtree=found[1])
+            body = _subtree_links(run, found[0], mesh, subtree=found[1],
+                                  toucher=target.frame if found[0] == "head" else None)
             ticks = np.flatnonzero(mask)[:: max(1, int(np.count_nonzero(mask) // 8))]
             gaps = [_mesh_gap(mesh, run.q[n], hand, body) for n in ticks]
             gap = float(np.median(gaps))

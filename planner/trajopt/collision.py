@@ -198,23 +198,24 @@ def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray, within:
 def meet_exemptions(lay: Layout, sets: SphereSets) -> np.ndarray | None:
     """The (knot, checked link pair) entries (T, P) bool that planned self-contacts leave out, or
     None when the spec has none. A target whose frame ``meets`` another (a clap's hands,
-    :attr:`tasks.specs.FrameTarget.meets`) exempts every pair of a link on its frame's joint or a
-    joint below it and a link on the other frame's joint or below it, over the target's knots and
-    :data:`MEET_PADDING` seconds around them: the two hands may touch there, and the target's
-    tolerance is what keeps them from passing through each other."""
+    :attr:`tasks.specs.FrameTarget.meets`) exempts every pair of a link of its frame's part and a
+    link of the other frame's part (:meth:`robots.Robot.meet_links`: the links on the frame's joint
+    or below it, a hand's from ``[collisions] meet_joints`` joints higher up; G1's head, on the
+    torso, only its own link), over the target's knots and :data:`MEET_PADDING` seconds around
+    them: the two parts may touch there, and the target's tolerance is what keeps them from
+    passing through each other."""
     meets = [t for t in lay.spec.targets if t.meets is not None]
     if not meets or len(sets.pairs) == 0:
         return None
-    robot, model = lay.robot, lay.robot.model
+    robot = lay.robot
     t = np.asarray(lay.t)
     out = np.zeros((len(t), len(sets.pairs)), dtype=bool)
-    ja, jb = sets.joints[sets.pairs[:, 0]], sets.joints[sets.pairs[:, 1]]
+    links = np.asarray(sets.links)
+    la, lb = links[sets.pairs[:, 0]], links[sets.pairs[:, 1]]
     for target in meets:
-        joints = [model.frames[robot.frame_id(f)].parentJoint for f in (target.frame, str(target.meets))]
-        # each frame's joint and those below it, but for the other's supports (a head on the trunk
-        # does not exempt the trunk, which carries the hand's own arm)
-        below = [sorted(set(model.subtrees[j]) - set(model.supports[k])) for j, k in (joints, joints[::-1])]
-        pairs = (np.isin(ja, below[0]) & np.isin(jb, below[1])) | (np.isin(ja, below[1]) & np.isin(jb, below[0]))
+        mine, theirs = robot.meet_links(target.frame, str(target.meets)), robot.meet_links(str(target.meets), target.frame)
+        a, b = sorted(mine), sorted(theirs)
+        pairs = (np.isin(la, a) & np.isin(lb, b)) | (np.isin(la, b) & np.isin(lb, a))
         ks = knots_of(t, target.time, target.window, lay.N)
         near = (t >= t[min(ks)] - MEET_PADDING - 1e-9) & (t <= t[max(ks)] + MEET_PADDING + 1e-9)
         out[np.ix_(near, pairs)] = True

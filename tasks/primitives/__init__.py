@@ -7,8 +7,8 @@ knot grid from ``t0``. :func:`tasks.compose.compile_actions` assembles fragments
 
 One module per primitive or family: :mod:`.squat`, :mod:`.wave`, :mod:`.reach`,
 :mod:`.posture` (stand, raise_arms, bow, turn_head, lean), :mod:`.balance`, :mod:`.arms` (punch,
-clap, touch, hands_on_hips, cross_arms, arms_out, point, salute, arm_circles, shrug, stretch;
-body parts from :mod:`.bodymap`), :mod:`.head` (nod, shake_head), and the dynamic
+hands_on_hips, cross_arms, arms_out, point, arm_circles, shrug, stretch) and :mod:`.meet` (the
+hand meets the body: clap, touch, salute; body parts from :mod:`.bodymap`), :mod:`.head` (nod, shake_head), and the dynamic
 ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
 march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`; the actions
 on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at); holding one :mod:`.grasp` (pick_up);
@@ -30,6 +30,7 @@ from tasks.primitives import (
     jump,
     legs,
     locomotion,
+    meet,
     objects,
     posture,
     push,
@@ -56,6 +57,7 @@ PRIMITIVES: dict[str, Primitive] = {
         squat.PRIMITIVE,
         wave.PRIMITIVE,
         *arms.PRIMITIVES,
+        *meet.PRIMITIVES,
         *head.PRIMITIVES,
         reach.PRIMITIVE,
         posture.RAISE_ARMS,

@@ -16,6 +16,7 @@ centre).
 from __future__ import annotations
 
 from robots import Robot
+from tasks.primitives.arms import hold_upper_arms
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 
 SHIFT_TIME = 1.0  # [s] weight shift before and after the one-foot stance
@@ -52,6 +53,7 @@ def build(b: FragmentBuilder) -> Fragment:
     b.phase(f"shift onto the {stance} foot", SHIFT_TIME)
     b.phase(f"stand on the {stance} foot", SHIFT_TIME + D, b.contacts((stance,)), swing_height=CLEARANCE)
     b.phase("both feet down", nominal_duration(b.params, b.robot))
+    hold_upper_arms(b, b.nominal, ("left", "right"))  # G1's right upper arm went into the torso's meshes
     return b.finish(PARTS, dynamic=True)
 
 

@@ -276,36 +276,35 @@ MEET_ROUNDS = 20
 
 
 def meets_apart(robot: Robot, side: str, role: str) -> bool:
-    """Whether the ``role`` frame's links can meet the ``side`` hand as a planned self-contact: its
-    joint does not carry the hand (a head on its own neck joints, the other hand; not G1's head,
-    fixed on the torso that carries the arms)."""
-    model = robot.model
-    joint = model.frames[robot.frame_id(role)].parentJoint
-    hand = model.frames[robot.frame_id(f"{side}_hand")].parentJoint
-    return joint not in set(model.supports[hand])
+    """Whether the ``role`` frame's part can meet the ``side`` hand as a planned self-contact: it
+    has links of its own there (:meth:`robots.Robot.meet_links`: the other hand, a head on its own
+    neck joints, or G1's head link, fixed on the torso that carries the arms)."""
+    return bool(robot.meet_links(role, f"{side}_hand"))
 
 
-def part_geometries(robot: Robot, role: str) -> tuple[int, ...]:
-    """Indices of the collision geometries on the ``role`` frame's joint or a joint below it."""
+def meet_geometries(robot: Robot, role: str, other: str) -> tuple[int, ...]:
+    """Indices of the collision geometries of the ``role`` frame's part where it meets ``other``
+    (:meth:`robots.Robot.meet_links`: a hand's from ``[collisions] meet_joints`` joints up)."""
     model = robot.model
-    below = set(model.subtrees[model.frames[robot.frame_id(role)].parentJoint])
-    return tuple(i for i, go in enumerate(robot.collision_model.geometryObjects) if go.parentJoint in below)
+    links = robot.meet_links(role, other)
+    return tuple(i for i, go in enumerate(robot.collision_model.geometryObjects)
+                 if model.frames[go.parentFrame].name in links)
 
 
 def posed_hands_distance(robot: Robot, q: np.ndarray, role: str = "right_hand", side: str = "left") -> float:
-    """Smallest distance [m] between the ``side`` hand's meshes (every geometry on its frame's
-    joint or below it) and those of the ``role`` frame (the other hand, the head) at
-    configuration ``q`` (coal; 0 when they intersect)."""
-    m = body_map(robot)
+    """Smallest distance [m] between the ``side`` hand's meshes and those of the ``role`` frame
+    (the other hand, the head) at configuration ``q``, each part as the planner leaves it out
+    where they meet (:func:`meet_geometries`; coal; 0 when they intersect)."""
     cm = robot.collision_model
     data, gdata = robot.data(), pin.GeometryData(cm)
     pin.framesForwardKinematics(robot.model, data, q)
     pin.updateGeometryPlacements(robot.model, data, cm, gdata, q)
     objs = cm.geometryObjects
     best = np.inf
-    for i in m.hand_geometries[side]:
+    hand = f"{side}_hand"
+    for i in meet_geometries(robot, hand, role):
         ti = coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation)
-        for j in part_geometries(robot, role):
+        for j in meet_geometries(robot, role, hand):
             tj = coal.Transform3s(gdata.oMg[j].rotation, gdata.oMg[j].translation)
             best = min(best, coal.distance(objs[i].geometry, ti, objs[j].geometry, tj, coal.DistanceRequest(), coal.DistanceResult()))
     return float(best)
@@ -629,10 +628,10 @@ __all__ = [
     "hands_distance",
     "hands_meet",
     "hands_touch",
+    "meet_geometries",
     "meets_apart",
     "mesh_distance",
     "obstacles_for",
-    "part_geometries",
     "posed_hands_distance",
     "stop_short",
     "to_heading",

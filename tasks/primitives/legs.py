@@ -32,6 +32,7 @@ import numpy as np
 from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import lateral_step_max, step_width
+from tasks.primitives.arms import hold_upper_arms
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.gait import (
     OTHER,
@@ -116,6 +117,7 @@ def _build_kick(b: FragmentBuilder) -> Fragment:
     b.phase(f"shift onto the {stance} foot", SHIFT_TIME)
     b.phase(f"kick with the {leg} foot", SHIFT_TIME + D, b.contacts((stance,)), swing_height=0.02)
     b.phase("both feet down", end)
+    hold_upper_arms(b, b.nominal, ("left", "right"))  # G1's right upper arm went into the torso's meshes
     return b.finish(PARTS, dynamic=True)
 
 
@@ -182,6 +184,7 @@ def _lifts(name: str, sides_of, double_scale: float) -> Primitive:
         where = start_placements(b.robot, b.stance)
         write_segments(b, _lift_segments(b.robot, where, sides_of(b.params), b.params["height"], double_scale))
         _com_home(b, b.stance, nominal_duration(b.params, b.robot))
+        hold_upper_arms(b, b.nominal, ("left", "right"))  # G1's upper arms went into the torso's meshes
         return b.finish(PARTS, dynamic=True)
 
     def limits(robot: Robot) -> dict[str, str]:

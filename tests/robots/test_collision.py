@@ -167,6 +167,9 @@ def test_profile_adds_removes_and_names_pairs(tmp_path, talos):
     ({"add": [["base_link", "nolink"]]}, "collisions.add[0]: the robot has no link 'nolink'"),
     ({"add": [["a", "b"]], "remove": [["b", "a"]]}, "is both added and removed"),
     ({"body_parts": {"base_link": 3}}, "collisions.body_parts.base_link: expected a human name"),
+    ({"meet_joints": -1}, "collisions.meet_joints: expected a whole number of joints in [0, 6]"),
+    ({"meet_joints": "two"}, "collisions.meet_joints: expected a whole number of joints in [0, 6]"),
+    ({"meet_joints": True}, "collisions.meet_joints: expected a whole number of joints"),
 ])
 def test_bad_collision_tables_are_named(tmp_path, collisions, message):
     path = _talos_profile(tmp_path, collisions)
@@ -205,6 +208,29 @@ def test_robots_cli_prints_the_collision_model(capsys):
     assert main(["robots", "--collisions", "--json", "talos"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert ["arm_left_5_link", "base_link"] in row["pairs"] and row["skipped"]["srdf"]
+
+
+def test_meet_links_are_the_hands_links_and_g1s_wrists(talos, g1):
+    """A planned self-contact's parts (``Robot.meet_links``): Talos's hand is every link below its
+    hand frame's joint (the gripper, the wrist sensor: ``[collisions] meet_joints`` = 0), the head
+    the links below its neck; G1's hand is its three wrist links (meet_joints = 2: the wrist roll
+    and pitch links sit above the hand frame's joint), its head only the head link (the head is on
+    the torso, whose joint carries the arms). Reference: the URDF chains, by name."""
+    from robots.profile import CollisionTable
+
+    model = talos.model
+    for side in ("left", "right"):
+        hand_joint = model.frames[talos.frame_id(f"{side}_hand")].parentJoint
+        below = {model.frames[g.parentFrame].name for g in talos.collision_model.geometryObjects
+                 if g.parentJoint in model.subtrees[hand_joint]}
+        assert talos.meet_links(f"{side}_hand", "head") == below and f"gripper_{side}_base_link" in below
+    assert talos.meet_links("head", "left_hand") == {"head_2_link", "rgbd_link"}
+    assert g1.profile.collisions.meet_joints == 2 and talos.profile.collisions.meet_joints == 0
+    assert g1.meet_links("left_hand", "right_hand") == {f"left_wrist_{j}_link" for j in ("roll", "pitch", "yaw")}
+    assert g1.meet_links("head", "right_hand") == {"head_link"}
+    # the fitted model does not depend on meet_joints: the cached fits stay valid
+    assert CollisionTable(meet_joints=2).fit_key() == CollisionTable().fit_key() == \
+        "CollisionTable(add=(), remove=(), body_parts=())"
 
 
 def test_profile_without_collisions_table_keeps_defaults():

@@ -287,3 +287,21 @@ def test_a_lean_reaches_its_planned_shift(talos, monkeypatch):
     assert 0.02 < planned < 0.045
     assert shift >= AMPLITUDE_FRACTION * planned
     assert line.value / 100 == pytest.approx(shift / planned, abs=0.05)
+
+
+def test_the_head_a_hand_touches_is_its_own_link_on_the_torso(talos, g1):
+    """The salute and touch-head lines measure the hand against the head's meshes: on Talos every
+    link below the head's neck joint; on G1, whose head is fixed on the torso (the joint that
+    carries both arms), the head link alone, not the torso and the arms (the hand paired with
+    itself crashed the certificate). Reference: the URDFs' link names."""
+    from types import SimpleNamespace
+
+    from sim.collisions import MeshDistance
+    from sim.intent import _subtree_links
+
+    for robot, want in ((talos, {"head_2_link", "rgbd_link"}), (g1, {"head_link"})):
+        run = SimpleNamespace(robot=robot)
+        links = _subtree_links(run, "head", MeshDistance(robot), toucher=robot.frame("right_hand"))
+        assert set(links) == want, robot.name
+    hand = _subtree_links(SimpleNamespace(robot=g1), g1.frame("right_hand"), MeshDistance(g1))
+    assert hand == ["right_wrist_yaw_link"]

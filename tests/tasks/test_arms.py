@@ -202,27 +202,42 @@ def test_clapping_hands_meet_at_their_target_poses(robot_name):
     assert np.isclose(al.position[1] - ar.position[1] - (tl.position[1] - tr.position[1]), 0.4 * L, atol=1e-9)
 
 
-def test_salute_and_touch_head_meet_the_head_on_talos(talos):
-    """Talos's salute and head touch hold the hand's pose 1 cm from the head's meshes (coal, the
-    hand's meshes placed at the target's pose, the head standing), name the head (``meets``), and
-    hold the head where it stood over the same window (its pose, within 3 mm and 0.05 rad)."""
+def _head_geometries(robot, side):
+    """The head's meshes a ``side`` hand meets: below the head frame's joint, or only the head
+    frame's own link when that joint carries the arm too (G1's head, fixed on the torso)."""
+    model = robot.model
+    joint = model.frames[robot.frame_id("head")].parentJoint
+    if joint in model.supports[model.frames[robot.frame_id(f"{side}_hand")].parentJoint]:
+        return [i for i, g in enumerate(robot.collision_model.geometryObjects) if g.parentFrame == robot.frame_id("head")]
+    return model_subtree_geometries(robot, "head")
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_salute_and_touch_head_meet_the_head(robot_name):
+    """The salute and the head touch hold the hand's pose 1 cm from the head's meshes (coal, the
+    hand's meshes placed at the target's pose, the head standing; G1's head is its own link, on the
+    torso), name the head (``meets``), and hold the head where it stood over the same window (its
+    pose, within 3 mm and 0.05 rad). The salute's hand is in front of the forehead: ahead of the
+    head's centre and above it."""
+    from robots import load_robot
     from sim.intent import SALUTE_DISTANCE
 
-    hands, head, _, _ = _geometry_sets(talos)
-    standing = dict(enumerate(_placements(talos, talos.q_standing)))
-    model = talos.model
-    below_head = [i for i, g in enumerate(talos.collision_model.geometryObjects)
-                  if g.parentJoint in model.subtrees[model.frames[talos.frame_id("head")].parentJoint]]
+    robot = load_robot(robot_name)
+    hands, head, _, _ = _geometry_sets(robot)
+    standing = dict(enumerate(_placements(robot, robot.q_standing)))
     for name, params, what in (("salute", {"arm": "right"}, "forehead"), ("touch", {"part": "head", "hand": "left"}, "at the head")):
-        spec = _spec(talos, name, **params)
+        spec = _spec(robot, name, **params)
         side = params.get("arm", params.get("hand"))
-        (t,) = [x for x in _targets(spec, what) if x.frame == talos.frame(f"{side}_hand")]
-        assert t.meets == talos.frame("head") and t.rpy is not None
-        d = _posed_distance(talos, hands[side], _posed_hand(talos, side, t), below_head, standing)
+        (t,) = [x for x in _targets(spec, what) if x.frame == robot.frame(f"{side}_hand")]
+        assert t.meets == robot.frame("head") and t.rpy is not None
+        d = _posed_distance(robot, hands[side], _posed_hand(robot, side, t), _head_geometries(robot, side), standing)
         assert 0.003 < d <= SALUTE_DISTANCE - 0.01, (name, d)
         (still,) = _targets(spec, "head still")
-        assert still.window == t.window and still.frame == talos.frame("head")
-        np.testing.assert_allclose(still.position, _frame(talos, talos.frame("head")).translation, atol=1e-6)
+        assert still.window == t.window and still.frame == robot.frame("head")
+        np.testing.assert_allclose(still.position, _frame(robot, robot.frame("head")).translation, atol=1e-6)
+        if name == "salute":
+            centre = np.mean([standing[i].translation for i in head], axis=0)
+            assert t.position[0] > centre[0] and t.position[2] > centre[2], (t.position, centre)
     assert head  # the head frame carries geometry
 
 
@@ -273,8 +288,8 @@ def test_body_touching_hands_stop_a_gap_short_of_the_body(robot_name, name, para
     for t in held:
         side = "left" if t.frame == robot.frame("left_hand") else "right"
         others = body if len(held) == 2 else but[side]
-        if t.meets is not None:  # meets the head (Talos): at its pose, clear of all but the head's links
-            met = set(model_subtree_geometries(robot, t.meets))
+        if t.meets is not None:  # meets the head: at its pose, clear of all but the head's links
+            met = set(_head_geometries(robot, side))
             posed = _posed_hand(robot, side, t)
             to_body = _posed_distance(robot, hands[side], posed, [i for i in others if i not in met], standing)
             to_part = _posed_distance(robot, hands[side], posed, sorted(met), standing)
@@ -669,3 +684,54 @@ def test_sphere_clearance_uses_the_planners_margin():
 
     assert PLANNER_MARGIN == PlannerSettings().collision_margin
     assert CLEARANCE > PLANNER_MARGIN
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_meeting_gestures_hold_the_shoulders_roll_at_standing(robot_name):
+    """The planner does not check the upper arms against the torso (touching at rest); G1's clap
+    swung its right upper arm into the torso's meshes, its salute the left one. The clap holds both
+    shoulders' roll joint (the URDF's names) at its standing angle over the whole gesture, the
+    salute the arm that stays down; the pointing arm (no meeting) none."""
+    from robots import load_robot
+
+    robot = load_robot(robot_name)
+    roll = {"talos": "arm_{}_2_joint", "g1": "{}_shoulder_roll_joint"}[robot_name]
+    model = robot.model
+
+    def held(spec):
+        out = {}
+        for jt in spec.joint_targets:
+            if jt.joint in {roll.format(s) for s in ("left", "right")} and jt.window is not None:
+                q0 = robot.q_standing[model.joints[model.getJointId(jt.joint)].idx_q]
+                starts = [t.time if t.time is not None else t.window[0] for t in spec.targets
+                          if "hand" in t.name and (t.time is not None or t.window is not None)]
+                assert jt.value == pytest.approx(q0) and jt.window[0] <= min(starts) + 1e-9  # from the gesture's start
+                out[jt.joint] = jt.window[1]
+        return out
+
+    clap = _spec(robot, "clap", repeat=1)
+    assert set(held(clap)) == {roll.format("left"), roll.format("right")}
+    assert min(held(clap).values()) >= max(t.time for t in clap.targets if t.meets is not None)
+    assert set(held(_spec(robot, "salute", arm="right"))) == {roll.format("left")}
+    assert not held(_spec(robot, "point", arm="right", direction="forward"))
+
+
+@pytest.mark.parametrize(("name", "params"), [("hop", {"foot": "left", "count": 1}), ("balance", {}), ("kick", {}),
+                                              ("stomp", {}), ("march", {})])
+def test_leg_motions_hold_the_shoulders_roll_at_standing(g1, name, params):
+    """G1's hop, balance and kick swung an upper arm into the torso's meshes (coal), a pair the
+    planner does not check: both shoulders' roll joints (the URDF's names) are held at their
+    standing angle (a cost) from the motion's start to its end."""
+    spec = _spec(g1, name, **params)
+    model = g1.model
+    t, span = 0.0, []
+    for ph in spec.phases:  # the action's own phases ("1 hop: ..."), between the composer's start and end
+        if ph.name.startswith(f"1 {name}"):
+            span += [t, t + ph.duration]
+        t += ph.duration
+    start, end = min(span), max(span)
+    for side in ("left", "right"):
+        joint = f"{side}_shoulder_roll_joint"
+        (jt,) = [t for t in spec.joint_targets if t.joint == joint and t.window is not None]
+        assert jt.value == pytest.approx(g1.q_standing[model.joints[model.getJointId(joint)].idx_q])
+        assert jt.window[0] <= start + 1e-9 and jt.window[1] >= end - 1e-9, (jt.window, start, end)

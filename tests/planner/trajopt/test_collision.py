@@ -355,3 +355,28 @@ def test_a_planned_self_contact_leaves_the_two_hands_pairs_out_around_it(talos):
     rows = select(lay, sets, d, 0.03)
     assert list(rows.spheres) == [pi] and k in rows.knots[pi]
     assert not rows.knots[pi] & set(np.flatnonzero(near).tolist())
+
+
+def test_g1s_planned_self_contacts_leave_out_its_wrists_and_only_its_head_link(g1):
+    """G1's ``[collisions] meet_joints`` = 2: a clap exempts the checked pairs between the two
+    arms' wrist roll, pitch and yaw links (by name, from the URDF: the roll and pitch links sit
+    above the hand frame's joint, 1 cm apart in the sphere model at a clap); a hand meeting the
+    head (fixed on the torso, whose joint carries both arms) exempts the head link's pairs with
+    that hand's wrist links only, not the torso's nor the other arm's."""
+    import dataclasses
+
+    from planner.trajopt.collision import meet_exemptions
+    from tasks.specs import FrameTarget
+
+    spec = _reach_spec(g1, "reach right with your left hand 20 cm")
+    left, right, head = g1.frame("left_hand"), g1.frame("right_hand"), g1.frame("head")
+    wrists = {s: {f"{s}_wrist_{j}_link" for j in ("roll", "pitch", "yaw")} for s in ("left", "right")}
+    sets = sphere_sets(g1)
+    for target, a, b in ((FrameTarget(name="clap", frame=left, position=(0.3, 0.0, 0.9), time=1.0, meets=right),
+                          wrists["left"], wrists["right"]),
+                         (FrameTarget(name="salute", frame=right, position=(0.1, -0.05, 1.2), time=1.0, meets=head),
+                          wrists["right"], {"head_link"})):
+        lay = make_layout(dataclasses.replace(spec, targets=(*spec.targets, target)), g1)
+        want = {i for i, (x, y) in enumerate(sets.pair_names) if (x in a and y in b) or (x in b and y in a)}
+        assert {tuple(sorted(sets.pair_names[i])) for i in want} == {tuple(sorted((x, y))) for x in a for y in b}
+        assert set(np.flatnonzero(meet_exemptions(lay, sets).any(axis=0))) == want
