@@ -32,7 +32,7 @@ from tasks.specs import (
 
 if TYPE_CHECKING:
     from tasks.actions import REGISTRY, Action, ActionSchema, actions_json_schema, get_action
-    from tasks.bind import bind, resolve_frames
+    from tasks.binding import bind, resolve_frames
     from tasks.compose import compile_actions, fit_actions
     from tasks.grounding import ground, strip_reference
     from tasks.limits import MAX_ACTIONS, MAX_REPEAT, MAX_TEXT_LENGTH
@@ -53,8 +53,8 @@ if TYPE_CHECKING:
     from tasks.terrain import surface_at
 
 _LAZY = {  # public name -> module
-    "bind": "tasks.bind",
-    "resolve_frames": "tasks.bind",
+    "bind": "tasks.binding",
+    "resolve_frames": "tasks.binding",
     "Action": "tasks.actions",
     "ActionSchema": "tasks.actions",
     "MAX_ACTIONS": "tasks.limits",

@@ -49,3 +49,21 @@ def test_the_checker_sees_a_bypass_and_a_face(tmp_path):
         "if TYPE_CHECKING:\n    from robots.profile import RobotProfile\n"
         "def f():\n    from robots.model import load_robot\n    import planner.wbc\n", encoding="utf-8")
     assert bypasses(tmp_path) == {("tasks/a.py", "robots.model"), ("tasks/a.py", "planner.wbc")}
+
+
+def test_no_public_name_of_a_lazy_face_is_also_a_module_of_its_package():
+    """``from tasks import bind`` must give the function: once a submodule ``tasks.bind`` is
+    imported, Python sets the package's attribute ``bind`` to that module and the lazy face's
+    ``__getattr__`` is never asked (the function must live in a module of another name)."""
+    clashes = []
+    for init in sorted(i for pkg in PACKAGES for i in (ROOT / pkg).rglob("__init__.py")):
+        tree = ast.parse(init.read_text(encoding="utf-8"))
+        names: set[str] = set()
+        for node in tree.body:
+            if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id in ("_EXPORTS", "_LAZY")
+                                                    for t in node.targets) and isinstance(node.value, ast.Dict):
+                names |= {k.value for k in node.value.keys if isinstance(k, ast.Constant)}
+        folder = init.parent
+        modules = {p.stem for p in folder.glob("*.py")} | {p.name for p in folder.iterdir() if (p / "__init__.py").is_file()}
+        clashes += [f"{folder.relative_to(ROOT).as_posix()}: {n}" for n in sorted(names & modules)]
+    assert not clashes, "a face name that is also a module of its package: " + ", ".join(clashes)

@@ -311,7 +311,7 @@ def test_unknown_robot_in_the_file_is_exit_3_for_show(robot, code, words, tmp_pa
     (lambda a: a.update(q=np.hstack([a["q"], a["q"][:, :1]]), v=a["v"], a=a["a"]), ("'q'", "40 columns", "nq = 39")),
     (lambda a: a.update(v=np.hstack([a["v"], a["v"][:, :1]]), a=np.hstack([a["a"], a["a"][:, :1]])),
      ("'v'", "nv = 38")),
-    (lambda a: a.update(spec_json=np.array(str(a["spec_json"]).replace("left_foot", "left_hoof"))),
+    (lambda a: a.update(spec_json=np.array(str(a["spec_json"]).replace("left_sole_link", "left_hoof"))),
      ("spec_json",)),
 ])
 def test_motion_of_another_shape_than_its_robot(change, words, tmp_path, motion_file, capsys):
