@@ -201,7 +201,8 @@ def _sentence_run(robot, actions, monkeypatch):
     return spec, *_record(plan(spec, robot, settings=PlannerSettings(compile=False)), robot, monkeypatch)
 
 
-@pytest.mark.slow
+@pytest.mark.long  # in make test-long (~14 s): the 2-core suite stays under 10 minutes; twin:
+# tests/tasks/test_arms.py::test_point_to_a_side_uses_that_arm_at_shoulder_height (the plan)
 def test_pointing_forward_passes_and_to_the_side_below_the_shoulder_fails(talos, monkeypatch):
     """Talos points forward with its right arm: the shoulder-to-hand direction, recomputed with
     Pinocchio over the held window, is a few degrees from forward and the line passes. Pointing
@@ -230,7 +231,8 @@ def test_pointing_forward_passes_and_to_the_side_below_the_shoulder_fails(talos,
             assert line.message.startswith("point (action 1): the right arm points")
 
 
-@pytest.mark.slow
+@pytest.mark.long  # in make test-long (~14 s): the 2-core suite stays under 10 minutes; twin:
+# tests/tasks/test_arms.py::test_salute_and_touch_head_meet_the_head (the plan, on the meshes)
 def test_a_salute_at_the_forehead_passes_on_the_meshes(talos, monkeypatch):
     """Talos's salute (issue 37: the hand 0.17 m from the head; now placed 1 cm from the head's
     meshes with the arm posed there, the head held still): the line's distance is the median coal

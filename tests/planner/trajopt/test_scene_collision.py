@@ -231,7 +231,8 @@ def test_nominal_keyframe_keeps_the_arm_out_of_the_table(talos):
         assert (d >= MARGIN) == clear, f"scene {scene is not None}: {d:.4f} m"
 
 
-@pytest.mark.slow
+@pytest.mark.long  # in make test-long (~21 s): the 2-core suite stays under 10 minutes; twins: the scene rows against
+# numpy and finite differences, and test_nominal_keyframe_keeps_the_arm_out_of_the_table above
 def test_reach_over_the_table_keeps_every_link_the_margin_above_it(talos):
     """A reach forward over the table (the hand 10 cm above its top): every URDF collision geometry
     stays at least the margin from the table at every knot (coal, independent of the sphere sets), and
