@@ -173,6 +173,23 @@ class SceneObject:
         return (self.name, *self.aliases)
 
 
+def _check_terrain_name(name: object) -> None:
+    """A stairs' or a slope's name (its parts are named ``<name>.<part>``)."""
+    if not isinstance(name, str) or not name.strip() or len(name) > MAX_NAME_LENGTH - 4:
+        raise _field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
+
+
+def _check_terrain_placement(position: object, yaw: float, friction: float) -> None:
+    """A stairs' or a slope's place on the floor, heading and friction."""
+    if (not isinstance(position, tuple) or len(position) != 2
+            or not all(_finite(v) and abs(v) <= MAX_DISTANCE for v in position)):
+        raise _field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {position!r}")
+    if not (_finite(yaw) and abs(yaw) <= MAX_ANGLE):
+        raise _field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {yaw!r}")
+    if not (_finite(friction) and 0 < friction <= MAX_FRICTION):
+        raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {friction!r}")
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Stairs:
     """A straight flight of stairs on the floor.
@@ -202,21 +219,14 @@ class Stairs:
     aliases: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name.strip() or len(self.name) > MAX_NAME_LENGTH - 4:
-            raise _field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
+        _check_terrain_name(self.name)
         if isinstance(self.count, bool) or not isinstance(self.count, int) or not 1 <= self.count <= MAX_STEPS:
             raise _field_error("count", f"must be a whole number of steps in [1, {MAX_STEPS}], got {self.count!r}")
         for key in ("rise", "run", "width"):
             v = getattr(self, key)
             if not (_finite(v) and 0 < v <= MAX_DISTANCE):
                 raise _field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {v!r}")
-        if (not isinstance(self.position, tuple) or len(self.position) != 2
-                or not all(_finite(v) and abs(v) <= MAX_DISTANCE for v in self.position)):
-            raise _field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {self.position!r}")
-        if not (_finite(self.yaw) and abs(self.yaw) <= MAX_ANGLE):
-            raise _field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {self.yaw!r}")
-        if not (_finite(self.friction) and 0 < self.friction <= MAX_FRICTION):
-            raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {self.friction!r}")
+        _check_terrain_placement(self.position, self.yaw, self.friction)
 
     def tread_name(self, i: int) -> str:
         """Name of step ``i`` (1-based)."""
@@ -272,8 +282,7 @@ class Slope:
     aliases: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name.strip() or len(self.name) > MAX_NAME_LENGTH - 4:
-            raise _field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
+        _check_terrain_name(self.name)
         if not (_finite(self.angle) and 0 < self.angle <= MAX_SLOPE + 1e-12):
             raise _field_error("angle", f"must be an inclination in (0, {MAX_SLOPE:.4f}] rad (25 deg), got "
                                         f"{_show(self.angle)}")
@@ -283,13 +292,7 @@ class Slope:
                 raise _field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {_show(v)}")
         if not (_finite(self.landing) and 0 <= self.landing <= MAX_DISTANCE):
             raise _field_error("landing", f"must be a length in [0, {MAX_DISTANCE:g}] m, got {_show(self.landing)}")
-        if (not isinstance(self.position, tuple) or len(self.position) != 2
-                or not all(_finite(v) and abs(v) <= MAX_DISTANCE for v in self.position)):
-            raise _field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {self.position!r}")
-        if not (_finite(self.yaw) and abs(self.yaw) <= MAX_ANGLE):
-            raise _field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {self.yaw!r}")
-        if not (_finite(self.friction) and 0 < self.friction <= MAX_FRICTION):
-            raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {self.friction!r}")
+        _check_terrain_placement(self.position, self.yaw, self.friction)
 
     @property
     def height(self) -> float:

@@ -205,7 +205,8 @@ def test_a_stopped_batch_ends_its_workers_at_once_and_leaves_a_consistent_folder
     assert "not run (the batch was stopped)" in summary
 
 
-@pytest.mark.slow
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~24 s); twin: the SIGTERM-stopped batch
+# above (workers ended, a consistent folder)
 def test_a_killed_batch_leaves_no_process_and_the_next_run_mends_the_folder(batch, tmp_path):
     """SIGKILL of the batch: its workers die with it (PR_SET_PDEATHSIG) and the resource tracker
     after them; the next run of the same batch plans what is left and finishes with an index and

@@ -47,6 +47,8 @@ def _phase_middles(spec, n_contacts):
     return out
 
 
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~15 s); twin:
+# tests/sim/test_leg_sims.py::test_kick_passes (the kick planned, then certified in MuJoCo)
 def test_kick_plan(talos):
     """kick(right, forward, 0.15 m): at the target time the right sole is 0.15 m up and ahead
     (within the 2 cm tolerance), while the left sole stays where it stands."""

@@ -25,16 +25,20 @@ from tasks.scene import load_scene
 STAIRS = Path(__file__).resolve().parents[3] / "examples" / "scenes" / "stairs.json"
 
 
+def _step_up_guess(robot, scene: Path, words: str):
+    """The layout of "walk up <words>" in ``scene`` and its stepping guess (N+1, nq)."""
+    spec = compile_actions([Action(name="step_up", params={"object": words})], robot, scene=load_scene(scene))
+    lay, _ = _formulation(spec, robot, PlannerSettings())
+    dq = stepping_guess(lay)
+    assert dq is not None
+    q = np.array([chart_to_configuration(robot.model, lay.q_ref, d) for d in dq])
+    return lay, q
+
+
 @pytest.fixture(scope="module")
 def climb(talos):
     """The layout of "walk up the stairs" on Talos and its stepping guess (N+1, nq)."""
-    spec = compile_actions([Action(name="step_up", params={"object": "the stairs"})], talos,
-                           scene=load_scene(STAIRS))
-    lay, _ = _formulation(spec, talos, PlannerSettings())
-    dq = stepping_guess(lay)
-    assert dq is not None
-    q = np.array([chart_to_configuration(talos.model, lay.q_ref, d) for d in dq])
-    return lay, q
+    return _step_up_guess(talos, STAIRS, "the stairs")
 
 
 def _vertices(robot, link: str) -> tuple[int, np.ndarray]:
@@ -123,13 +127,7 @@ SLOPE = Path(__file__).resolve().parents[3] / "examples" / "scenes" / "slope.jso
 @pytest.fixture(scope="module")
 def slope_walk(talos):
     """The layout of "walk up the slope" on Talos and its stepping guess (N+1, nq)."""
-    spec = compile_actions([Action(name="step_up", params={"object": "the slope"})], talos,
-                           scene=load_scene(SLOPE))
-    lay, _ = _formulation(spec, talos, PlannerSettings())
-    dq = stepping_guess(lay)
-    assert dq is not None
-    q = np.array([chart_to_configuration(talos.model, lay.q_ref, d) for d in dq])
-    return lay, q
+    return _step_up_guess(talos, SLOPE, "the slope")
 
 
 def _on_slope(slope, p: np.ndarray) -> float:
