@@ -7,6 +7,8 @@ offline, driven by ``vocabulary.json`` (a new primitive needs words, not parser 
 registry schema. Every failure is a :class:`LanguageError` with a one-line message.
 """
 
+from typing import TYPE_CHECKING
+
 from language.exceptions import (
     AmbiguousInstruction,
     BackendError,
@@ -20,9 +22,15 @@ from language.exceptions import (
     UnknownWords,
     UnsupportedInstruction,
 )
-from language.llm import check_api_key, check_timeout, check_url
 from language.parse import BACKENDS, parse
 from language.plan import ActionPlan, WordUse
+from robots import lazy_face
+
+if TYPE_CHECKING:
+    from language.llm import check_api_key, check_timeout, check_url
+
+# The LLM backend's option checks load its HTTP and TLS modules: on first use only.
+_EXPORTS = {"check_api_key": "language.llm", "check_timeout": "language.llm", "check_url": "language.llm"}
 
 __all__ = [
     "BACKENDS",
@@ -44,3 +52,5 @@ __all__ = [
     "check_url",
     "parse",
 ]
+
+__getattr__, __dir__ = lazy_face(__name__, _EXPORTS)
