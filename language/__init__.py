@@ -19,8 +19,11 @@ from language.exceptions import (
     LLMReplyInvalid,
     LLMUnavailable,
     NoAction,
+    SchemaViolation,
     UnknownWords,
     UnsupportedInstruction,
+    UnsupportedSchema,
+    VocabularyError,
 )
 from language.parse import BACKENDS, parse
 from language.plan import ActionPlan, WordUse
@@ -44,8 +47,11 @@ __all__ = [
     "LLMUnavailable",
     "LanguageError",
     "NoAction",
+    "SchemaViolation",
     "UnknownWords",
     "UnsupportedInstruction",
+    "UnsupportedSchema",
+    "VocabularyError",
     "WordUse",
     "check_api_key",
     "check_timeout",

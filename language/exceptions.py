@@ -78,3 +78,16 @@ class LLMReplyInvalid(LLMError):
 
 class VocabularyError(WbmpError):
     """The packaged vocabulary is inconsistent with itself or with the action registry (a bug)."""
+
+
+class SchemaViolation(LanguageError):
+    """An instance does not match the schema (the message lists where and why)."""
+
+    def __init__(self, errors: list[str]) -> None:
+        self.errors = errors
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        super().__init__(f"{errors[0]}{more}")
+
+
+class UnsupportedSchema(ValueError):
+    """The schema uses a keyword this validator does not implement (a bug, not bad input)."""

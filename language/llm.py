@@ -57,11 +57,12 @@ from language.exceptions import (
     LanguageError,
     LLMReplyInvalid,
     LLMUnavailable,
+    SchemaViolation,
     UnsupportedInstruction,
 )
 from language.plan import ActionPlan
 from language.rules import rules_plan
-from language.validate import SchemaViolation, validate
+from language.validate import validate
 from tasks import REGISTRY, actions_json_schema
 
 #: Sentences whose rule-parser output is shown to the model as examples.

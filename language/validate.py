@@ -16,26 +16,13 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from language.exceptions import LanguageError
+from language.exceptions import SchemaViolation, UnsupportedSchema
 
 ANNOTATIONS = frozenset({"$schema", "title", "description", "default", "examples", "$comment"})
 SUPPORTED = frozenset({
     "type", "properties", "required", "additionalProperties", "items", "minItems", "maxItems",
     "enum", "const", "minimum", "maximum", "oneOf",
 }) | ANNOTATIONS
-
-
-class SchemaViolation(LanguageError):
-    """An instance does not match the schema (the message lists where and why)."""
-
-    def __init__(self, errors: list[str]) -> None:
-        self.errors = errors
-        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        super().__init__(f"{errors[0]}{more}")
-
-
-class UnsupportedSchema(ValueError):
-    """The schema uses a keyword this validator does not implement (a bug, not bad input)."""
 
 
 def validate(instance: Any, schema: Mapping[str, Any]) -> None:

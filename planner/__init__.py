@@ -30,7 +30,14 @@ from robots import lazy_face
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 if TYPE_CHECKING:
-    from planner.exceptions import PlannerError, PlanningFailed, UnsupportedModel
+    from planner.exceptions import (
+        ControllerError,
+        PlannerError,
+        PlanningFailed,
+        SpecNotForRobot,
+        StagewiseUnsupported,
+        UnsupportedModel,
+    )
     from planner.results import Check, CheckKind, ConstraintCheck, Plan, SolverStats, SolveStatus
     from planner.trajopt.api import plan
     from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN, build_status, describe_build
@@ -47,7 +54,7 @@ if TYPE_CHECKING:
     from planner.wbc.friction import JointFriction
     from planner.wbc.kernel import kernel_ready
     from planner.wbc.reference import PlanReference
-    from planner.wbc.settings import ControllerError, WbcSettings
+    from planner.wbc.settings import WbcSettings
 
 _EXPORTS = {  # public name -> module that defines it
     "BUILD_MEMORY": "planner.trajopt.builds",
@@ -55,7 +62,7 @@ _EXPORTS = {  # public name -> module that defines it
     "Check": "planner.results",
     "CheckKind": "planner.results",
     "ConstraintCheck": "planner.results",
-    "ControllerError": "planner.wbc.settings",
+    "ControllerError": "planner.exceptions",
     "JointFriction": "planner.wbc.friction",
     "MEMORY_MARGIN": "planner.trajopt.builds",
     "Plan": "planner.results",
@@ -78,6 +85,8 @@ _EXPORTS = {  # public name -> module that defines it
     "support_excursion": "planner.trajopt.centroidal.zmp",
     "support_heights": "planner.trajopt.centroidal.zmp",
     "zmp_of_wrenches": "planner.trajopt.centroidal.zmp",
+    "SpecNotForRobot": "planner.exceptions",
+    "StagewiseUnsupported": "planner.exceptions",
 }
 
 __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
@@ -96,6 +105,8 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "PlanningFailed",
     "SolveStatus",
     "SolverStats",
+    "SpecNotForRobot",
+    "StagewiseUnsupported",
     "UnsupportedModel",
     "WbcSettings",
     "WholeBodyController",

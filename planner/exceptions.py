@@ -37,3 +37,12 @@ class PlanningFailed(PlannerError):
         self.diagnosis = diagnosis
         self.plan = plan
         super().__init__(diagnosis)
+
+
+class StagewiseUnsupported(PlannerError):
+    """The layout has variables or rows the stage-wise transcription does not write (a dynamic
+    formulation's contact forces, lifted CoM and momentum rows)."""
+
+
+class ControllerError(PlannerError):
+    """The whole-body controller was misconfigured (unknown backend, bad reference)."""

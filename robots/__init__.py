@@ -52,6 +52,7 @@ if TYPE_CHECKING:
         LIMITS,
         FileTooLarge,
         NotRegularFile,
+        PathEscapes,
         is_key,
         open_regular,
         path_inside,
@@ -150,6 +151,7 @@ _EXPORTS = {  # public name -> module that defines it
     "support_polygon": "robots.contact",
     "trim_cache": "robots.store",
     "write_text_atomic": "robots.store",
+    "PathEscapes": "robots.safeio",
 }
 
 __all__ = [
@@ -167,6 +169,7 @@ __all__ = [
     "FileTooLarge",
     "FrameNotFound",
     "NotRegularFile",
+    "PathEscapes",
     "ProfileError",
     "Robot",
     "RobotError",

@@ -8,7 +8,7 @@ class WbmpError(Exception):
 
     One subclass per layer: :class:`RobotError` (robots), ``tasks.TaskError``,
     ``language.LanguageError``, ``planner.PlannerError``, ``sim.SimError``, ``viz.VizError`` and
-    ``wbmp.errors.CliError``; ``wbmp.errors.EXIT_TABLE`` gives each class its exit code. It lives
+    ``wbmp.errors.CliError``; ``wbmp.errors.exit_table()`` gives each class its exit code. It lives
     in the lowest layer so that every package can derive from it.
     """
 

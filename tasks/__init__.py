@@ -12,7 +12,15 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from robots import lazy_face
-from tasks.exceptions import SceneConflict, TaskDefinitionError, TaskError, UnknownAction
+from tasks.exceptions import (
+    BeyondCapability,
+    ClipError,
+    GroundingError,
+    SceneConflict,
+    TaskDefinitionError,
+    TaskError,
+    UnknownAction,
+)
 from tasks.scene import Scene, SceneObject, load_scene
 from tasks.serialize import load_spec, spec_from_dict, spec_from_json, spec_to_dict, spec_to_json
 from tasks.specs import (
@@ -96,11 +104,14 @@ __all__ = [
     "REGISTRY",
     "Action",
     "ActionSchema",
+    "BeyondCapability",
+    "ClipError",
     "CoMBounds",
     "CoMTarget",
     "Contact",
     "FrameTarget",
     "Grasp",
+    "GroundingError",
     "HandTarget",
     "JointTarget",
     "Phase",

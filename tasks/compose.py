@@ -43,8 +43,8 @@ import pinocchio as pin
 
 from robots import Robot
 from tasks.actions import Action, get_action
-from tasks.exceptions import TaskDefinitionError
-from tasks.grounding import Grounded, GroundingError, ground, strip_reference
+from tasks.exceptions import GroundingError, TaskDefinitionError
+from tasks.grounding import Grounded, ground, strip_reference
 from tasks.limits import MAX_ACTIONS, MAX_HORIZON, horizon_message
 from tasks.primitives import (
     DEFAULT_DT,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from robots import WbmpError
 
 SUGGESTION_BAND = 0.2  # an unknown action name is offered the registry names this close to its best match
@@ -48,3 +50,22 @@ class SceneConflict(TaskError):
     def __init__(self, message: str, object_name: str) -> None:
         self.object_name = object_name
         super().__init__(message)
+
+
+class GroundingError(TaskDefinitionError):
+    """A reference that names no object of the scene, several, or an object with no scene (exit 3).
+
+    Attributes:
+        reference: The reference as said.
+        candidates: Names of the objects it could mean (ambiguous), else empty.
+    """
+
+    def __init__(self, message: str, reference: str, candidates: Sequence[str] = ()) -> None:
+        self.reference = reference
+        self.candidates = tuple(candidates)
+        super().__init__(message)
+
+
+class ClipError(TaskDefinitionError):
+    """A motion-capture clip that cannot be used: a damaged or unsupported BVH file, a skeleton
+    wbmp does not know, a time window outside the clip or beyond the work bounds (exit 3)."""

@@ -23,12 +23,12 @@ objects of the scene for an unknown reference, the candidates for an ambiguous o
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
 from tasks.actions import MAX_REFERENCE_LENGTH
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import GroundingError
 from tasks.scene import Scene, SceneObject, extent
 
 NEAR_DISTANCE = 0.5  # [m] gap between the bounding boxes of two objects "near" each other
@@ -69,20 +69,6 @@ ZH_RELATIONS: dict[str, str] = {
 }
 LEADING = ("over to", "up to", "towards", "toward", "to", "at", "over", "into", "the", "that", "this", "a", "an",
            "那个", "这个", "那只", "这只", "那张", "这张", "一个", "那", "这", "到", "向", "往", "朝", "着", "去")
-
-
-class GroundingError(TaskDefinitionError):
-    """A reference that names no object of the scene, several, or an object with no scene (exit 3).
-
-    Attributes:
-        reference: The reference as said.
-        candidates: Names of the objects it could mean (ambiguous), else empty.
-    """
-
-    def __init__(self, message: str, reference: str, candidates: Sequence[str] = ()) -> None:
-        self.reference = reference
-        self.candidates = tuple(candidates)
-        super().__init__(message)
 
 
 def _norm(text: str) -> str:

@@ -20,10 +20,15 @@ from typing import TYPE_CHECKING
 from robots import lazy_face
 
 if TYPE_CHECKING:
-    from viz.exceptions import VizError
-    from viz.files import (
+    from viz.exceptions import (
         OutputError,
         OutputPathError,
+        OutputWriteError,
+        ViewerError,
+        VizError,
+        VizInputError,
+    )
+    from viz.files import (
         Staging,
         atomic_write,
         atomic_write_text,
@@ -32,8 +37,7 @@ if TYPE_CHECKING:
         check_output_file,
     )
     from viz.html import meshcat_bundle, page_data, render_page, write_html
-    from viz.live import ViewerError, serve
-    from viz.motion import VizInputError
+    from viz.live import serve
     from viz.plots import PLOT_FILES, write_plots
     from viz.progress import make_progress
     from viz.retarget_plot import KeypointPlot, plot_keypoints
@@ -43,6 +47,7 @@ __all__ = [
     "KeypointPlot",
     "OutputError",
     "OutputPathError",
+    "OutputWriteError",
     "Staging",
     "ViewerError",
     "VizError",
@@ -64,13 +69,14 @@ __all__ = [
 
 _LAZY = {
     "KeypointPlot": "viz.retarget_plot",
-    "OutputError": "viz.files",
-    "OutputPathError": "viz.files",
+    "OutputError": "viz.exceptions",
+    "OutputPathError": "viz.exceptions",
+    "OutputWriteError": "viz.exceptions",
     "PLOT_FILES": "viz.plots",
     "Staging": "viz.files",
-    "ViewerError": "viz.live",
+    "ViewerError": "viz.exceptions",
     "VizError": "viz.exceptions",
-    "VizInputError": "viz.motion",
+    "VizInputError": "viz.exceptions",
     "atomic_write": "viz.files",
     "atomic_write_text": "viz.files",
     "check_distinct": "viz.files",

@@ -36,25 +36,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from viz.exceptions import VizError
+from viz.exceptions import OutputPathError, OutputWriteError
 
 TMP_SUFFIX = ".tmp"
-
-
-class OutputError(VizError):
-    """An output could not be written; the message is one line for the user."""
-
-
-class OutputPathError(OutputError, ValueError):
-    """An output path wbmp will not write; the message names the option, the path and why."""
-
-
-class OutputWriteError(OutputError):
-    """Writing or renaming an output failed (disk full, file too large, folder changed...).
-
-    Nothing was left behind: the temporary files are removed, and so are the outputs this
-    command had created.
-    """
 
 
 def _show(path: str | os.PathLike) -> str:

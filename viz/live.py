@@ -24,7 +24,7 @@ from robots import Robot
 from viz import motion as vm
 from viz import scene
 from viz._meshcat import meshcat, umsgpack, zmq
-from viz.exceptions import VizError
+from viz.exceptions import ViewerError
 
 if TYPE_CHECKING:
     from sim.execution import Execution
@@ -33,10 +33,6 @@ START_TIMEOUT = 30.0  # [s] for the server process to print its URLs
 ZMQ_TIMEOUT_MS = 10_000  # [ms] per command round trip
 STOP_TIMEOUT = 5.0  # [s] between SIGTERM and SIGKILL
 FPS = 30.0
-
-
-class ViewerError(RuntimeError, VizError):
-    """The live viewer could not start or lost its server."""
 
 
 @dataclass(frozen=True, kw_only=True)

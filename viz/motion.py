@@ -20,16 +20,12 @@ import pinocchio as pin
 
 from robots import Robot, points_in_world, polygon_margin, sole_corners
 from robots import convex_hull as convex_hull_2d
-from viz.exceptions import VizError
+from viz.exceptions import VizInputError
 
 if TYPE_CHECKING:
     from sim.execution import Execution
 
 GRAVITY = 9.81  # [m/s^2]
-
-
-class VizInputError(ValueError, VizError):
-    """A motion given to a viewer or plot has the wrong shape or is empty."""
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

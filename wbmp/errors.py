@@ -1,5 +1,5 @@
 r"""Exit codes of the CLI (docs/cli.md), the table from every exception class of the layers
-to them (:data:`EXIT_TABLE`, :func:`classify`), and the one-line form of an error message.
+to them (:func:`exit_table`, :func:`classify`), and the one-line form of an error message.
 
 Every message the CLI prints for a refused input goes through :func:`one_line`: control
 characters (ANSI escapes, NUL, bells, newlines), bidirectional overrides and the lone surrogates
@@ -11,6 +11,7 @@ back) keeps its start and end around a ``[... N characters cut ...]`` mark.
 from __future__ import annotations
 
 import enum
+import functools
 import unicodedata
 from typing import Literal, NamedTuple
 
@@ -78,6 +79,26 @@ class CliError(WbmpError):
         super().__init__(message)
 
 
+class MotionFileError(CliError):
+    """A motion file is missing, unreadable or lacks required keys (exit code 2), or its times
+    lie beyond ``wbmp.motionfile.MAX_MOTION_SECONDS`` (exit code 3)."""
+
+    def __init__(self, message: str, code: ExitCode = ExitCode.USAGE) -> None:
+        super().__init__(message, code)
+
+
+class CorrectionError(ValueError, WbmpError):
+    """``wbmp serve``: a correction that cannot act on the last motion's actions (one line, for the page)."""
+
+
+class Busy(WbmpError):  # noqa: N818 - a state, not a failure
+    """``wbmp serve``: the queue is full (HTTP 429)."""
+
+
+class Unavailable(WbmpError):  # noqa: N818
+    """``wbmp serve``: the planning process cannot take jobs (HTTP 503)."""
+
+
 #: Longest error message printed [characters]; longer ones are cut in the middle.
 MAX_MESSAGE = 1000
 _ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
@@ -128,121 +149,184 @@ OWN: Literal["own"] = "own"
 
 
 class ExitRule(NamedTuple):
-    """One row of :data:`EXIT_TABLE`.
+    """One row of :func:`exit_table`.
 
     Attributes:
-        exception: Full name of the class, ``module.Class``, the module being where it is defined.
+        exception: The exception class.
         code: The exit code; :data:`OWN` for an exception that carries one; None for a class that
             must never reach the CLI (caught inside its layer, or a bug if it escapes): the CLI
             prints the traceback and exits 1 (``wbmp.cli.run``).
         why: What the exception means, in the words of docs/cli.md.
     """
 
-    exception: str
+    exception: type[BaseException]
     code: ExitCode | Literal["own"] | None
     why: str
 
 
-_R = ExitRule
-#: Every exception class of every layer and its exit code (docs/cli.md holds the same table, and
-#: tests/wbmp/test_errors.py checks that each class defined in the packages has its row). A class
-#: decides by its own row; :func:`classify` walks the exception's classes most specific first
-#: (``type(exc).__mro__``), so an exception from outside the project that subclasses one of these
-#: gets its nearest ancestor's code.
-EXIT_TABLE: tuple[ExitRule, ...] = (
-    # the root of the project's errors and the layers' bases without a code of their own
-    _R("robots.exceptions.WbmpError", None, "the root of the project's errors: a class without a row of its own is a bug"),
-    _R("viz.exceptions.VizError", None, "the viz layer's base: each of its errors has a row of its own"),
-    # the CLI itself
-    _R("wbmp.errors.CliError", OWN, "a refused input of the CLI, with the code it names"),
-    _R("wbmp.motionfile.MotionFileError", OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
-    _R("wbmp.errors.Terminated", ExitCode.TERMINATED, "SIGTERM"),
-    _R("builtins.KeyboardInterrupt", ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
-    # language: a sentence that is not understood
-    _R("language.exceptions.LanguageError", ExitCode.USAGE, "the instruction is not understood"),
-    _R("language.exceptions.EmptyInstruction", ExitCode.USAGE, "an empty instruction"),
-    _R("language.exceptions.UnknownWords", ExitCode.USAGE, "words the parser does not know"),
-    _R("language.exceptions.NoAction", ExitCode.USAGE, "no action in the instruction"),
-    _R("language.exceptions.AmbiguousInstruction", ExitCode.USAGE, "an instruction with two readings"),
-    _R("language.exceptions.UnsupportedInstruction", ExitCode.USAGE, "an action the robots cannot do"),
-    _R("language.exceptions.InvalidParameter", ExitCode.USAGE, "a parameter the sentence gives out of range"),
-    _R("language.exceptions.BackendError", ExitCode.USAGE, "the parser backend failed"),
-    _R("language.exceptions.LLMError", ExitCode.USAGE, "the LLM backend failed"),
-    _R("language.exceptions.LLMUnavailable", ExitCode.USAGE, "the LLM server cannot be reached or refused"),
-    _R("language.exceptions.LLMReplyInvalid", ExitCode.USAGE, "the LLM's reply is not an action plan"),
-    _R("language.validate.SchemaViolation", ExitCode.USAGE, "an action plan against the registry's schema"),
-    _R("language.llm._ReplyError", ExitCode.USAGE, "an invalid LLM reply (caught: it triggers the retry)"),
-    _R("language.exceptions.VocabularyError", None, "the shipped vocabulary is inconsistent: a bug"),
-    _R("language.validate.UnsupportedSchema", None, "a schema keyword the validator lacks: a bug"),
-    _R("language.llm._BadNumber", None, "caught inside language.llm"),
-    _R("language.llm._Deadline", None, "caught inside language.llm"),
-    _R("language.llm._TooLarge", None, "caught inside language.llm"),
-    _R("language.llm._BadEncoding", None, "caught inside language.llm"),
-    # robots and tasks: an invalid spec, parameter or robot
-    _R("robots.exceptions.RobotError", ExitCode.INVALID_SPEC, "a robot that cannot be loaded"),
-    _R("robots.exceptions.RobotNotFound", ExitCode.INVALID_SPEC, "an unknown robot name"),
-    _R("robots.exceptions.FrameNotFound", ExitCode.INVALID_SPEC, "a frame the robot does not have"),
-    _R("robots.exceptions.ProfileError", ExitCode.INVALID_SPEC, "a bad robot profile file"),
-    _R("tasks.exceptions.TaskError", ExitCode.INVALID_SPEC, "an invalid task spec"),
-    _R("tasks.exceptions.TaskDefinitionError", ExitCode.INVALID_SPEC, "an invalid spec or parameter"),
-    _R("tasks.exceptions.UnknownAction", ExitCode.INVALID_SPEC, "an unknown primitive name"),
-    _R("tasks.exceptions.BeyondCapability", ExitCode.INFEASIBLE,
-       "a motion beyond the robot's torques or beyond what is certified in simulation (hop, jog, a jump too high or too long)"),
-    _R("tasks.exceptions.SceneConflict", ExitCode.INFEASIBLE,
-       "a hand target or a footstep inside a scene object, or an object walk_to cannot reach"),
-    _R("tasks.mocap.exceptions.ClipError", ExitCode.INVALID_SPEC,
-       "a motion-capture clip that cannot be used (damaged BVH, unknown skeleton, a window outside it)"),
-    _R("tasks.grounding.GroundingError", ExitCode.INVALID_SPEC, "an object reference that names no object of the scene, or several"),
-    _R("tasks.jsonio._Refused", None, "caught inside tasks.jsonio"),
-    # planner: infeasible, or the solver failed (with a diagnosis)
-    _R("planner.exceptions.PlannerError", ExitCode.INFEASIBLE, "the planner failed"),
-    _R("planner.exceptions.PlanningFailed", ExitCode.INFEASIBLE, "no plan: infeasible or the solver failed"),
-    _R("planner.trajopt.stagewise.StagewiseUnsupported", ExitCode.USAGE,
-       "the stage-wise transcription asked for a dynamic plan (kinematic plans only)"),
-    _R("planner.exceptions.UnsupportedModel", ExitCode.INVALID_SPEC, "a joint type the planner cannot model"),
-    _R("planner.exceptions.SpecNotForRobot", ExitCode.INVALID_SPEC, "a joint or frame the robot does not have"),
-    _R("robots.store.EntryDamaged", None, "caught inside the solver, robot, MuJoCo and HTML mesh caches"),
-    _R("robots.store.EntryStale", None, "caught inside the robot and HTML mesh caches"),
-    _R("robots.safeio.NotRegularFile", None, "an OSError every reader catches (a FIFO, device or folder refused)"),
-    _R("robots.safeio.FileTooLarge", None, "an OSError every reader catches (a file over its kind's bound)"),
-    _R("robots.safeio.PathEscapes", None, "caught by the caches (a path read from a cache file that leads out)"),
-    _R("wbmp.batch.items._NonFinite", None, "caught by the batch reader (a JSONL number with no finite value)"),
-    # simulation: planned, but the closed-loop check failed or could not run
-    _R("planner.wbc.settings.ControllerError", ExitCode.SIM_FAILED,
-       "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),
-    _R("sim.exceptions.SimError", ExitCode.SIM_FAILED, "the simulation check failed or could not run"),
-    _R("sim.exceptions.SimModelError", ExitCode.SIM_FAILED, "the robot cannot be built in MuJoCo"),
-    _R("sim.exceptions.PushParseError", ExitCode.USAGE, "a bad --push"),
-    _R("sim.exceptions.FaultsError", ExitCode.INVALID_SPEC, "a bad --faults file (docs/safety.md)"),
-    # outputs and viewers
-    _R("viz.files.OutputError", ExitCode.USAGE, "an output file refused or not written"),
-    _R("viz.files.OutputPathError", ExitCode.USAGE, "a bad output path"),
-    _R("viz.files.OutputWriteError", ExitCode.USAGE, "an output that could not be written (nothing was)"),
-    _R("viz.motion.VizInputError", None,
-       "arrays that do not match the robot: a bug (`wbmp show` names the motion file, exit 2)"),
-    _R("viz.live.ViewerError", ExitCode.INTERNAL, "the meshcat server did not start or died (one line)"),
-    # wbmp serve: shown on the page as one line with this code (HTTP 400, 429, 503)
-    _R("wbmp.serve.corrections.CorrectionError", ExitCode.USAGE, "a correction that changes nothing of the last motion"),
-    _R("wbmp.serve.session.Busy", ExitCode.USAGE, "wbmp serve's queue is full (HTTP 429)"),
-    _R("wbmp.serve.session.Unavailable", ExitCode.INTERNAL, "wbmp serve's planning process is not running (HTTP 503)"),
-)
-del _R
-_RULES = {rule.exception: rule for rule in EXIT_TABLE}
+@functools.cache
+def exit_table() -> tuple[ExitRule, ...]:
+    """Every exception class of every layer and its exit code, keyed by the class.
+
+    docs/cli.md holds the same table, and tests/wbmp/test_errors.py checks that each public
+    exception class defined in the packages has its row. A class decides by its own row;
+    :func:`classify` walks the exception's classes most specific first (``type(exc).__mro__``), so
+    an exception from outside the project that subclasses one of these gets its nearest
+    ancestor's code; a private class (``_Refused``), caught inside its module, has no row.
+
+    Every class lives in its layer's exception module (``robots.exceptions``, ``tasks.exceptions``,
+    ``language.exceptions``, ``planner.exceptions``, ``sim.exceptions``, ``viz.exceptions``, this
+    module; the stores' and readers' ``OSError`` kinds in ``robots.store`` and ``robots.safeio``):
+    building the table imports those light modules only, never a layer's heavy code (CasADi, MuJoCo,
+    the server). It is built on the first error classified, not when the CLI starts.
+    """
+    from language import (
+        AmbiguousInstruction,
+        BackendError,
+        EmptyInstruction,
+        InvalidParameter,
+        LanguageError,
+        LLMError,
+        LLMReplyInvalid,
+        LLMUnavailable,
+        NoAction,
+        SchemaViolation,
+        UnknownWords,
+        UnsupportedInstruction,
+        UnsupportedSchema,
+        VocabularyError,
+    )
+    from planner import (
+        ControllerError,
+        PlannerError,
+        PlanningFailed,
+        SpecNotForRobot,
+        StagewiseUnsupported,
+        UnsupportedModel,
+    )
+    from robots import (
+        EntryDamaged,
+        EntryStale,
+        FileTooLarge,
+        FrameNotFound,
+        NotRegularFile,
+        PathEscapes,
+        ProfileError,
+        RobotError,
+        RobotNotFound,
+        WbmpError,
+    )
+    from sim import FaultsError, PushParseError, SimError, SimModelError
+    from tasks import (
+        BeyondCapability,
+        ClipError,
+        GroundingError,
+        SceneConflict,
+        TaskDefinitionError,
+        TaskError,
+        UnknownAction,
+    )
+    from viz import (
+        OutputError,
+        OutputPathError,
+        OutputWriteError,
+        ViewerError,
+        VizError,
+        VizInputError,
+    )
+
+    _R = ExitRule
+    return (
+        # the root of the project's errors and the layers' bases without a code of their own
+        _R(WbmpError, None, "the root of the project's errors: a class without a row of its own is a bug"),
+        _R(VizError, None, "the viz layer's base: each of its errors has a row of its own"),
+        # the CLI itself
+        _R(CliError, OWN, "a refused input of the CLI, with the code it names"),
+        _R(MotionFileError, OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
+        _R(Terminated, ExitCode.TERMINATED, "SIGTERM"),
+        _R(KeyboardInterrupt, ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
+        # language: a sentence that is not understood
+        _R(LanguageError, ExitCode.USAGE, "the instruction is not understood"),
+        _R(EmptyInstruction, ExitCode.USAGE, "an empty instruction"),
+        _R(UnknownWords, ExitCode.USAGE, "words the parser does not know"),
+        _R(NoAction, ExitCode.USAGE, "no action in the instruction"),
+        _R(AmbiguousInstruction, ExitCode.USAGE, "an instruction with two readings"),
+        _R(UnsupportedInstruction, ExitCode.USAGE, "an action the robots cannot do"),
+        _R(InvalidParameter, ExitCode.USAGE, "a parameter the sentence gives out of range"),
+        _R(BackendError, ExitCode.USAGE, "the parser backend failed"),
+        _R(LLMError, ExitCode.USAGE, "the LLM backend failed"),
+        _R(LLMUnavailable, ExitCode.USAGE, "the LLM server cannot be reached or refused"),
+        _R(LLMReplyInvalid, ExitCode.USAGE, "the LLM's reply is not an action plan"),
+        _R(SchemaViolation, ExitCode.USAGE, "an action plan against the registry's schema"),
+        _R(VocabularyError, None, "the shipped vocabulary is inconsistent: a bug"),
+        _R(UnsupportedSchema, None, "a schema keyword the validator lacks: a bug"),
+        # robots and tasks: an invalid spec, parameter or robot
+        _R(RobotError, ExitCode.INVALID_SPEC, "a robot that cannot be loaded"),
+        _R(RobotNotFound, ExitCode.INVALID_SPEC, "an unknown robot name"),
+        _R(FrameNotFound, ExitCode.INVALID_SPEC, "a frame the robot does not have"),
+        _R(ProfileError, ExitCode.INVALID_SPEC, "a bad robot profile file"),
+        _R(TaskError, ExitCode.INVALID_SPEC, "an invalid task spec"),
+        _R(TaskDefinitionError, ExitCode.INVALID_SPEC, "an invalid spec or parameter"),
+        _R(UnknownAction, ExitCode.INVALID_SPEC, "an unknown primitive name"),
+        _R(BeyondCapability, ExitCode.INFEASIBLE,
+           "a motion beyond the robot's torques or beyond what is certified in simulation (hop, jog, a jump too high or too long)"),
+        _R(SceneConflict, ExitCode.INFEASIBLE,
+           "a hand target or a footstep inside a scene object, or an object walk_to cannot reach"),
+        _R(ClipError, ExitCode.INVALID_SPEC,
+           "a motion-capture clip that cannot be used (damaged BVH, unknown skeleton, a window outside it)"),
+        _R(GroundingError, ExitCode.INVALID_SPEC, "an object reference that names no object of the scene, or several"),
+        # planner: infeasible, or the solver failed (with a diagnosis)
+        _R(PlannerError, ExitCode.INFEASIBLE, "the planner failed"),
+        _R(PlanningFailed, ExitCode.INFEASIBLE, "no plan: infeasible or the solver failed"),
+        _R(StagewiseUnsupported, ExitCode.USAGE,
+           "the stage-wise transcription asked for a dynamic plan (kinematic plans only)"),
+        _R(UnsupportedModel, ExitCode.INVALID_SPEC, "a joint type the planner cannot model"),
+        _R(SpecNotForRobot, ExitCode.INVALID_SPEC, "a joint or frame the robot does not have"),
+        # the stores and the file readers: caught inside the layer that raised them
+        _R(EntryDamaged, None, "caught inside the solver, robot, MuJoCo and HTML mesh caches"),
+        _R(EntryStale, None, "caught inside the robot and HTML mesh caches"),
+        _R(NotRegularFile, None, "an OSError every reader catches (a FIFO, device or folder refused)"),
+        _R(FileTooLarge, None, "an OSError every reader catches (a file over its kind's bound)"),
+        _R(PathEscapes, None, "caught by the caches (a path read from a cache file that leads out)"),
+        # simulation: planned, but the closed-loop check failed or could not run
+        _R(ControllerError, ExitCode.SIM_FAILED,
+           "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),
+        _R(SimError, ExitCode.SIM_FAILED, "the simulation check failed or could not run"),
+        _R(SimModelError, ExitCode.SIM_FAILED, "the robot cannot be built in MuJoCo"),
+        _R(PushParseError, ExitCode.USAGE, "a bad --push"),
+        _R(FaultsError, ExitCode.INVALID_SPEC, "a bad --faults file (docs/safety.md)"),
+        # outputs and viewers
+        _R(OutputError, ExitCode.USAGE, "an output file refused or not written"),
+        _R(OutputPathError, ExitCode.USAGE, "a bad output path"),
+        _R(OutputWriteError, ExitCode.USAGE, "an output that could not be written (nothing was)"),
+        _R(VizInputError, None,
+           "arrays that do not match the robot: a bug (`wbmp show` names the motion file, exit 2)"),
+        _R(ViewerError, ExitCode.INTERNAL, "the meshcat server did not start or died (one line)"),
+        # wbmp serve: shown on the page as one line with this code (HTTP 400, 429, 503)
+        _R(CorrectionError, ExitCode.USAGE, "a correction that changes nothing of the last motion"),
+        _R(Busy, ExitCode.USAGE, "wbmp serve's queue is full (HTTP 429)"),
+        _R(Unavailable, ExitCode.INTERNAL, "wbmp serve's planning process is not running (HTTP 503)"),
+    )
 
 
 def full_name(cls: type) -> str:
-    """``module.Class`` of a class: its key in :data:`EXIT_TABLE`."""
+    """``module.Class`` of a class, as docs/cli.md names it."""
     return f"{cls.__module__}.{cls.__qualname__}"
 
 
+@functools.cache
+def _rules() -> dict[type[BaseException], ExitRule]:
+    return {rule.exception: rule for rule in exit_table()}
+
+
 def classify(exc: BaseException) -> ExitCode | None:
-    """Exit code of an exception by :data:`EXIT_TABLE`; None for an unexpected one (a bug).
+    """Exit code of an exception by :func:`exit_table`; None for an unexpected one (a bug).
 
     The most specific class with a row decides (the exception's own class, then its bases in
     method resolution order); a row without a code (None) means a bug: the traceback is shown.
     """
     for cls in type(exc).__mro__:
-        rule = _RULES.get(full_name(cls))
+        rule = _rules().get(cls)
         if rule is not None:
             if rule.code == "own":  # CliError and its subclasses carry their code
                 return ExitCode(exc.code)  # type: ignore[attr-defined]

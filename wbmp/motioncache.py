@@ -344,7 +344,8 @@ class MotionCache:
     def load(self, key: str, *, spec_check: bool = True) -> Hit | None:
         """The verified entry of ``key``, or None (missing; damaged: removed with one warning)."""
         from robots import is_key
-        from wbmp.motionfile import MotionFileError, motion_from_arrays
+        from wbmp.errors import MotionFileError
+        from wbmp.motionfile import motion_from_arrays
 
         if not is_key(key):  # a key names files of this folder, never a path out of it
             return None

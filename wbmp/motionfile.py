@@ -43,7 +43,7 @@ from robots import LIMITS, FileTooLarge, open_regular
 from sim import Certificate, Event, Execution
 from tasks import TaskError, spec_from_json, spec_to_json
 from viz import Staging, atomic_write
-from wbmp.errors import CliError, ExitCode
+from wbmp.errors import ExitCode, MotionFileError
 
 FORMAT_VERSION = 1
 EXEC_KEYS = ("exec_t", "exec_q", "exec_v", "exec_tau")
@@ -53,14 +53,6 @@ MAX_MOTION_BYTES = 1 << 30  # [bytes] of arrays (uncompressed) a motion file may
 # the exports and the HTML replay sample a motion's span, and nanosecond stamps must fit 64 bits
 MAX_MOTION_SECONDS = 3600.0
 _NPY_MAGIC = b"\x93NUMPY"
-
-
-class MotionFileError(CliError):
-    """A motion file is missing, unreadable or lacks required keys (exit code 2), or its times
-    lie beyond :data:`MAX_MOTION_SECONDS` (exit code 3)."""
-
-    def __init__(self, message: str, code: ExitCode = ExitCode.USAGE) -> None:
-        super().__init__(message, code)
 
 
 @dataclass(eq=False)

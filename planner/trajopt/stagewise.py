@@ -43,7 +43,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from planner.exceptions import PlannerError
+from planner.exceptions import PlannerError, StagewiseUnsupported
 from planner.results import SolverStats, SolveStatus
 from planner.trajopt.ipopt import _STATUS, ipopt_options
 from planner.trajopt.layout import Layout
@@ -61,11 +61,6 @@ from planner.trajopt.transcription import (
 
 SOLVERS = ("ipopt", "fatrop")
 METIS = 5  # IPOPT's mumps_pivot_order for METIS
-
-
-class StagewiseUnsupported(PlannerError):
-    """The layout has variables or rows the stage-wise transcription does not write (a dynamic
-    formulation's contact forces, lifted CoM and momentum rows)."""
 
 
 @dataclass(frozen=True, eq=False)

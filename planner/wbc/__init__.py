@@ -12,12 +12,13 @@ from typing import TYPE_CHECKING
 from robots import lazy_face
 
 if TYPE_CHECKING:
+    from planner.exceptions import ControllerError
     from planner.wbc.controller import TickInfo, WholeBodyController
     from planner.wbc.reference import PlanReference
-    from planner.wbc.settings import ControllerError, WbcSettings
+    from planner.wbc.settings import WbcSettings
 
 _EXPORTS = {  # public name -> module that defines it
-    "ControllerError": "planner.wbc.settings",
+    "ControllerError": "planner.exceptions",
     "PlanReference": "planner.wbc.reference",
     "TickInfo": "planner.wbc.controller",
     "WbcSettings": "planner.wbc.settings",

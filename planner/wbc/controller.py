@@ -40,10 +40,11 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
+from planner.exceptions import ControllerError
 from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
 from planner.wbc.reference import FLIGHT_BLEND, PlanReference, _hermite, flight_spans
-from planner.wbc.settings import ControllerError, WbcSettings
+from planner.wbc.settings import WbcSettings
 from robots import Robot, pyramid_coefficient, pyramid_facets, sole_corners
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent

@@ -5,11 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from planner.exceptions import PlannerError
-
-
-class ControllerError(PlannerError):
-    """The whole-body controller was misconfigured (unknown backend, bad reference)."""
+from planner.exceptions import ControllerError
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

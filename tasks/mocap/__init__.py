@@ -6,8 +6,8 @@ Imports only ``tasks`` and ``robots`` (the layering of docs/architecture.md).
 
 from __future__ import annotations
 
+from tasks.exceptions import ClipError
 from tasks.mocap.bvh import BvhClip, read_bvh
-from tasks.mocap.exceptions import ClipError
 from tasks.mocap.skeleton import SkeletonMap, load_skeleton, recognize_skeleton
 from tasks.mocap.source import HumanMotion, human_motion, label_contacts
 

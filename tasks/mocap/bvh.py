@@ -9,7 +9,7 @@ format (CMU's and Daz's conversions both write it so).
 
 Strict: anything that is not such a file (empty, binary, truncated, a channel count that does not
 match the numbers, a frame count that does not match the lines, NaN or infinite values, more than
-:data:`MAX_FRAMES` frames) is refused with :class:`~tasks.mocap.exceptions.ClipError`, one line
+:data:`MAX_FRAMES` frames) is refused with :class:`~tasks.exceptions.ClipError`, one line
 naming the file and the problem. Why not an installed parser: the maintained ones (``pybvh``,
 ``bvhio``) are full toolkits (writers, editing, their own transform classes) for the few hundred
 lines needed here, and none refuses a damaged file with a message a user can act on.
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tasks.mocap.exceptions import ClipError
+from tasks.exceptions import ClipError
 
 MAX_FILE_BYTES = 256 * 1024 * 1024  # a 10-minute 120 Hz clip of 43 joints is ~60 MB of text
 MAX_FRAMES = 120 * 600  # 10 minutes at 120 frames/s; a window of at most 60 s is planned

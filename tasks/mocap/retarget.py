@@ -36,7 +36,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots import Robot
-from tasks.mocap.exceptions import ClipError
+from tasks.exceptions import ClipError
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (

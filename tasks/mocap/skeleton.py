@@ -15,7 +15,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from tasks.mocap.exceptions import ClipError
+from tasks.exceptions import ClipError
 
 KEYPOINTS = ("pelvis", "torso", "head", "left_shoulder", "right_shoulder", "left_hand", "right_hand",
              "left_hip", "right_hip", "left_ankle", "right_ankle", "left_toe", "right_toe")

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tasks.exceptions import ClipError
 from tasks.mocap.bvh import BvhClip
-from tasks.mocap.exceptions import ClipError
 from tasks.mocap.skeleton import KEYPOINTS, SkeletonMap
 
 CONTACT_HEIGHT = 0.06  # [m] lowest foot point above the ground: in contact below

@@ -19,7 +19,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from wbmp.motionfile import MotionFileError, motion_from_arrays, read_npz_bytes
+from wbmp.errors import MotionFileError
+from wbmp.motionfile import motion_from_arrays, read_npz_bytes
 
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

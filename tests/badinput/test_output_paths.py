@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 
 from tests.badinput.conftest import REPO, Tree, assert_refused, run_cli
-from viz.files import OutputWriteError, Staging, atomic_write
+from viz import OutputWriteError
+from viz.files import Staging, atomic_write
 
 SQ = REPO / "examples" / "specs" / "squat.json"
 IS_ROOT = os.geteuid() == 0

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from language.validate import SchemaViolation, UnsupportedSchema, errors, validate
+from language.exceptions import SchemaViolation, UnsupportedSchema
+from language.validate import errors, validate
 from tasks.actions import actions_json_schema
 
 SCHEMA = actions_json_schema()

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from tasks.grounding import GroundingError, colour_name, gap, ground, in_relation, strip_reference
+from tasks.exceptions import GroundingError
+from tasks.grounding import colour_name, gap, ground, in_relation, strip_reference
 from tasks.scene import Scene, SceneObject, load_scene
 
 SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"

@@ -16,8 +16,7 @@ import pytest
 from robots import load_robot
 from tasks.actions import Action
 from tasks.compose import compile_actions
-from tasks.exceptions import TaskDefinitionError
-from tasks.grounding import GroundingError
+from tasks.exceptions import GroundingError, TaskDefinitionError
 from tasks.primitives.arms import BEND_MAX, REACH_FRACTION
 from tasks.primitives.geometry import Stance
 from tasks.primitives.objects import LOOK_TOLERANCE, POINT_CLEARANCE, WALK_MARGIN

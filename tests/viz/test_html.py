@@ -145,7 +145,7 @@ def test_bad_plan_shape_is_a_clear_error(tmp_path, talos, synth_plan):
     import dataclasses
 
     bad = dataclasses.replace(synth_plan, q=synth_plan.q[:, :10])
-    from viz.motion import VizInputError
+    from viz import VizInputError
 
     with pytest.raises(VizInputError, match=r"plan: q must be a non-empty \(T, 39\) array"):
         vh.write_html(tmp_path / "bad.html", talos, bad)

@@ -14,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from viz import ViewerError
 from viz._meshcat import umsgpack
-from viz.live import ServerInfo, ViewerError, serve
+from viz.live import ServerInfo, serve
 
 # Bounds on hangs, not on speed: each wait ends as soon as its event happens, so they can be
 # generous for a loaded 2-core machine (a fraction of a second to a few seconds when idle).

@@ -11,8 +11,9 @@ import pytest
 from planner import PlannerSettings, plan
 from sim import Execution
 from tests.planner.planning_cases import squat_spec
+from wbmp.errors import MotionFileError
 from wbmp.export.files import export_motion
-from wbmp.motionfile import MotionFileError, load_motion, save_motion
+from wbmp.motionfile import load_motion, save_motion
 
 
 @pytest.fixture(scope="module")

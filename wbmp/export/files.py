@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 
 from viz import Staging
-from wbmp.motionfile import MotionFile, MotionFileError, _json_default, load_motion, record_arrays
+from wbmp.errors import MotionFileError
+from wbmp.motionfile import MotionFile, _json_default, load_motion, record_arrays
 
 #: the export formats (``wbmp export --format``)
 EXPORT_FORMATS = ("json", "csv", "npz", "mcap", "tracker", "lafan")

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from tasks import REGISTRY, Action
+from wbmp.errors import CorrectionError
 
 SLOWER = 1.5  # duration factor of "slower" (its inverse for "faster")
 SIZE = 1.3  # size factor of "bigger" (its inverse for "smaller"), and of "lower"/"higher"
@@ -74,10 +75,6 @@ _LOOKUP = {phrase: kind for kind, phrases in WORDS.items() for phrase in phrases
 _SPLIT = re.compile("\\s*(?:,|\uff0c|\u3001|;|\uff1b|\\band\\b|然后再|并且|和)\\s*")
 _THEN = re.compile(r"^\s*(?:and\s+)?(?:then|after that|afterwards|next)\b[\s,]*"
                    r"|^\s*(?:然后|接着|之后|再然后)[\s\uff0c,]*", re.IGNORECASE)
-
-
-class CorrectionError(ValueError):
-    """A correction that cannot act on the last motion's actions (one line, for the page)."""
 
 
 @dataclass(frozen=True)

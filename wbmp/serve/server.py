@@ -44,7 +44,8 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-from wbmp.serve.session import Busy, Session, Unavailable
+from wbmp.errors import Busy, Unavailable
+from wbmp.serve.session import Session
 
 HOST = "127.0.0.1"
 MAX_BODY = 64 * 1024  # bytes of a POST body

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from wbmp.errors import Busy, CorrectionError, Unavailable
 from wbmp.serve import corrections
 
 MAX_WAITING = 2  # jobs waiting behind the running one; more is refused (429)
@@ -41,14 +42,6 @@ MAX_JOBS_KEPT = 100  # finished jobs remembered for the page
 MAX_MOTIONS = 200  # motions of one session (their files stay until the server stops)
 MAX_PROGRESS = 40  # progress lines kept per job
 WORKER_START_TIMEOUT = 600.0  # seconds for the planning process to import its libraries
-
-
-class Busy(Exception):  # noqa: N818 - a state, not a failure
-    """The queue is full (HTTP 429)."""
-
-
-class Unavailable(Exception):  # noqa: N818
-    """The planning process cannot take jobs (HTTP 503)."""
 
 
 def new_id() -> str:
@@ -301,7 +294,7 @@ class Session:
             return
         try:
             plan = self._interpret(job)
-        except corrections.CorrectionError as e:
+        except CorrectionError as e:
             self._finish(job, "error", error=str(e), exit_code=int(ExitCode.USAGE))
             return
         except Exception as e:  # a continuation's sentence that does not parse: the CLI's line and code
@@ -400,12 +393,12 @@ class Session:
         rest = corrections.continuation(job.text)
         if kinds is not None:
             if last is None:
-                raise corrections.CorrectionError(f"'{job.text.strip()}' corrects the last motion, and there is none "
-                                                  "yet: say a sentence first, e.g. squat twice")
+                raise CorrectionError(f"'{job.text.strip()}' corrects the last motion, and there is none "
+                                      "yet: say a sentence first, e.g. squat twice")
             if kinds == ("undo",):
                 job.kind = "undo"
                 if last.parent is None or last.parent not in self.motions:
-                    raise corrections.CorrectionError("nothing to undo: the last motion is not a correction")
+                    raise CorrectionError("nothing to undo: the last motion is not a correction")
                 with self._lock:
                     self.last = last.parent
                     job.motion = last.parent
@@ -417,8 +410,8 @@ class Session:
                 given=tuple(frozenset(a["given"]) for a in last.summary["actions"]),
                 step_duration=last.summary.get("step_duration"))
             if not current.actions:
-                raise corrections.CorrectionError("the last motion has no actions to correct (it came from a spec "
-                                                  "or is a clip of the motion library): say a new sentence")
+                raise CorrectionError("the last motion has no actions to correct (it came from a spec "
+                                      "or is a clip of the motion library): say a new sentence")
             new, changes = corrections.apply(kinds, current)
             job.kind = "again" if set(kinds) <= {"again", "undo"} else "correction"
             job.changes = [c.to_dict() for c in changes]
@@ -437,7 +430,7 @@ class Session:
         end = last.summary.get("end") or {"kind": "together", "reason": "the last motion does not say where it ended"}
         job.kind = "continuation"
         if end["kind"] == "refused":
-            raise corrections.CorrectionError(
+            raise CorrectionError(
                 f"'then' starts where the last motion ended, and no motion can start there: {end['reason']}; "
                 "correct the last motion, or say a new sentence (it starts standing at the origin)")
         if end["kind"] == "start":
@@ -446,7 +439,7 @@ class Session:
             return {"text": rest, "actions": None, "start": end["q"],
                     "step_duration": last.summary.get("step_duration")}, last.id
         if not last.summary.get("actions"):
-            raise corrections.CorrectionError(
+            raise CorrectionError(
                 f"'then' starts where the last motion ended, and no motion can start there: {end['reason']}, and "
                 "the last motion has no actions to plan again with this one: say a new sentence")
         with self._lock:
@@ -462,7 +455,7 @@ class Session:
         both = corrections.Actions(actions=mine.actions + tuple(added.actions),
                                    given=mine.given + tuple(added.given))
         if len(both.actions) > MAX_ACTIONS:
-            raise corrections.CorrectionError(f"the continuation makes {len(both.actions)} actions; wbmp plans at "
+            raise CorrectionError(f"the continuation makes {len(both.actions)} actions; wbmp plans at "
                                               f"most {MAX_ACTIONS} at a time: start a new sentence")
         return ({"text": f"{last.text}, then {rest}", "actions": _wire(both),
                  "step_duration": last.summary.get("step_duration"), "start": last.summary.get("start")}, last.id)
