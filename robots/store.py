@@ -9,7 +9,9 @@ caches built on it: the robots' geometry (:mod:`robots.cache`), the collision fi
 (:mod:`robots.collision`), the planner's compiled solvers and solution library
 (``planner.trajopt.cache_disk``, ``planner.trajopt.library``), the MuJoCo models
 (``sim.modelcache``), the HTML meshes (``viz.meshcache``) and the motions (``wbmp.motioncache``).
-A temporary folder whose writer died is found by :func:`process_alive`. The size cap
+What a writer that died left (a temporary folder, an entry moved aside) is removed by
+:func:`sweep_stale` (once per cache folder and process; :func:`process_alive` tells a live
+writer). The size cap
 (:func:`trim_cache`, :func:`enforce_cap`; docs/performance.md) removes the least recently used
 entries over ``$WBMP_CACHE_MAX_SIZE``.
 
@@ -28,6 +30,7 @@ import re
 import shutil
 import stat
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -107,6 +110,7 @@ def store_entry(root: Path, key: str, write: Callable[[Path], object], manifest:
     process stored meanwhile is kept); then the cache's size cap is applied (:func:`trim_cache`).
     Raises what ``write`` or the file system raise."""
     root.mkdir(parents=True, exist_ok=True)
+    sweep_stale(root)  # temporary folders of writers that died (once per process)
     tmp = Path(tempfile.mkdtemp(prefix=f".{key[:16]}-", dir=root))
     try:
         write(tmp)
@@ -148,6 +152,85 @@ def process_alive(pid: object) -> bool:
     except OSError:
         return True  # it exists (another user's)
     return True
+
+
+
+# -- removing and sweeping: what a writer that died left behind --------------------------------
+
+TEMP_MAX_AGE = 3600.0  # [s] a temporary folder older than this whose writer is gone is removed
+TEMP_ABANDONED_AGE = 86400.0  # [s] ... and older than this whatever its pid says (pids are reused)
+_STORE_TEMP = re.compile(r"^\.[^.][^/]*-[a-z0-9_]{8}$")  # store_entry's tempfile.mkdtemp(prefix=".<key16>-")
+_SWEPT: set[str] = set()
+_SWEEP_LOCK = threading.Lock()
+
+
+def remove_tree(path: Path) -> None:
+    """Remove a file, a symbolic link (never its target) or a folder tree; OSError when it stays.
+    A folder someone made unreadable (``chmod 000``) is made the owner's again first."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return
+    if not stat.S_ISDIR(st.st_mode):
+        path.unlink()
+        return
+    try:
+        shutil.rmtree(path)
+        return
+    except FileNotFoundError:
+        return
+    except OSError:
+        pass
+    path.chmod(0o700)
+    for dirpath, dirnames, _ in os.walk(path):
+        for d in dirnames:
+            sub = Path(dirpath) / d
+            if not sub.is_symlink():
+                sub.chmod(0o700)
+    shutil.rmtree(path)
+
+
+def sweep_stale(folder: Path, *, temporary: re.Pattern[str] = _STORE_TEMP, moved_aside: tuple[str, ...] = (),
+                owner_alive: Callable[[Path], bool] | None = None, now: float | None = None) -> list[str]:
+    """Remove what writers that died left in a cache folder; the names removed.
+
+    Runs once per folder and process (later calls return ``[]``): a listing, not a walk. Removed:
+    every name that starts with one of ``moved_aside`` (entries moved aside to be deleted), and each
+    temporary folder or file (a name ``temporary`` matches) older than :data:`TEMP_MAX_AGE` whose
+    writer is gone (``owner_alive(path)`` False; without ``owner_alive``, a writer that records no
+    pid: the age alone), or older than :data:`TEMP_ABANDONED_AGE` whatever it says. Entries and
+    names that are not the cache's are never touched; a name that cannot be removed is left.
+    """
+    with _SWEEP_LOCK:
+        if str(folder) in _SWEPT:
+            return []
+        _SWEPT.add(str(folder))
+    now = time.time() if now is None else now
+    removed: list[str] = []
+    try:
+        paths = list(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for path in paths:
+        name = path.name
+        if moved_aside and name.startswith(moved_aside):
+            stale = True
+        elif temporary.match(name):
+            try:
+                age = now - os.lstat(path).st_mtime
+            except OSError:
+                continue
+            stale = age > TEMP_ABANDONED_AGE or (
+                age > TEMP_MAX_AGE and (owner_alive is None or not owner_alive(path)))
+        else:
+            continue
+        if stale:
+            try:
+                remove_tree(path)
+                removed.append(name)
+            except OSError:
+                pass
+    return removed
 
 
 # -- the size cap: least recently used entries removed ----------------------------------------
@@ -348,12 +431,9 @@ def cache_usage(base: Path | None = None, folders: tuple[str, ...] = CACHE_FOLDE
 def _remove_path(path: Path) -> bool:
     """Remove a file, or a folder tree (symbolic links inside are removed, never followed)."""
     try:
-        if os.path.isdir(path) and not os.path.islink(path):  # noqa: PTH112, PTH114
-            shutil.rmtree(path)
-        else:
-            path.unlink()
+        remove_tree(path)
         return True
-    except OSError:  # gone already (another process), or cannot be removed
+    except OSError:  # cannot be removed
         return False
 
 

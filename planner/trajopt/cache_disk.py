@@ -32,7 +32,6 @@ import json
 import logging
 import os
 import re
-import shutil
 import signal
 import stat
 import struct
@@ -49,6 +48,8 @@ from robots import (
     open_regular,
     process_alive,
     read_bytes,
+    remove_tree,
+    sweep_stale,
     write_text_atomic,
 )
 
@@ -60,8 +61,6 @@ VERIFIED = "verified"  # sha256 of the library that a child process loaded and e
 BUILDER_PID = "builder.pid"  # in a temporary build folder: the process that owns it
 META_MAX_BYTES = 65536  # a manifest is ~250 bytes; a larger one is not ours
 PROBE_TIMEOUT = 120.0  # [s] a healthy library loads and evaluates in ~1 s
-TEMP_MAX_AGE = 3600.0  # [s] a temporary build folder older than this whose builder is gone is removed
-TEMP_ABANDONED_AGE = 86400.0  # [s] ... and older than this whatever its pid says (pids are reused)
 _TEMP_NAME = re.compile(r"^\.[0-9a-f]{24}\.")
 _ASIDE_PREFIX = ".damaged."
 _PUBLISH_TRIES = 50  # rounds a publisher retries while racing others (each round moves one thing)
@@ -70,7 +69,6 @@ _MACH_O = (b"\xfe\xed\xfa\xce", b"\xfe\xed\xfa\xcf", b"\xce\xfa\xed\xfe", b"\xcf
 
 _log = logging.getLogger("planner.trajopt.cache")
 _LOCK = threading.Lock()
-_SWEPT: set[str] = set()
 _WARNED_FOLDERS: set[str] = set()
 
 
@@ -287,32 +285,6 @@ def verify_loadable(entry: Path, digest: str, functions: Iterable[str],
 # -- removing, publishing, sweeping -----------------------------------------------------------
 
 
-def remove(path: Path) -> None:
-    """Remove a file, symlink (not its target) or folder tree; OSError when it stays."""
-    try:
-        st = os.lstat(path)
-    except FileNotFoundError:
-        return
-    if not stat.S_ISDIR(st.st_mode):
-        os.unlink(path)
-        return
-    try:
-        shutil.rmtree(path)
-        return
-    except FileNotFoundError:
-        return
-    except OSError:
-        pass
-    # A folder we cannot list or empty (chmod 000 by someone): make it ours again, then retry.
-    os.chmod(path, 0o700)
-    for dirpath, dirnames, _ in os.walk(path):
-        for d in dirnames:
-            p = os.path.join(dirpath, d)
-            if not os.path.islink(p):
-                os.chmod(p, 0o700)
-    shutil.rmtree(path)
-
-
 def _same(path: Path, seen: os.stat_result) -> bool:
     try:
         now = os.lstat(path)
@@ -330,7 +302,7 @@ def discard(entry: Path, seen: os.stat_result, reason: str) -> None:
     if not _same(entry, seen):
         return
     try:
-        remove(entry)
+        remove_tree(entry)
         warn(f"solver cache entry {entry} is damaged ({reason}); removed it, the solver is rebuilt")
         return
     except OSError as e:
@@ -392,7 +364,7 @@ def publish(tmp: Path, entry: Path, key: str) -> bool:
             else:
                 return True
         try:
-            remove(aside)
+            remove_tree(aside)
         except OSError:
             pass  # left for the sweep (it removes every moved-aside name)
     return False
@@ -407,42 +379,12 @@ def _builder_alive(folder: Path) -> bool:
 
 
 def sweep(folder: Path, *, now: float | None = None) -> list[str]:
-    """Remove stale temporary build folders and moved-aside entries below ``folder``.
-
-    Runs once per folder and process (later calls return ``[]``). A temporary build folder is
-    stale when it is older than :data:`TEMP_MAX_AGE` and its builder process is gone, or older
-    than :data:`TEMP_ABANDONED_AGE`. Returns the names removed.
-    """
-    key = str(folder)
-    with _LOCK:
-        if key in _SWEPT:
-            return []
-        _SWEPT.add(key)
-    now = time.time() if now is None else now
-    removed: list[str] = []
-    try:
-        names = os.listdir(folder)
-    except OSError:
-        return removed
-    for name in names:
-        path = folder / name
-        if name.startswith(_ASIDE_PREFIX):
-            stale = True
-        elif _TEMP_NAME.match(name):
-            try:
-                age = now - os.lstat(path).st_mtime
-            except OSError:
-                continue
-            stale = age > TEMP_ABANDONED_AGE or (age > TEMP_MAX_AGE and not _builder_alive(path))
-        else:
-            continue
-        if stale:
-            try:
-                remove(path)
-                removed.append(name)
-            except OSError:
-                pass
-    return removed
+    """Remove stale temporary build folders and moved-aside entries below ``folder``
+    (:func:`robots.store.sweep_stale`: once per folder and process). A temporary build folder is
+    stale when it is older than an hour and its builder process is gone (:data:`BUILDER_PID`), or
+    older than a day. Returns the names removed."""
+    return sweep_stale(folder, temporary=_TEMP_NAME, moved_aside=(_ASIDE_PREFIX,), owner_alive=_builder_alive,
+                       now=now)
 
 
 def usable_folder(folder: Path) -> bool:
