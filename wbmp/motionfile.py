@@ -136,7 +136,7 @@ def motion_arrays(plan: Plan, robot, *, execution=None, actions=None, report=Non
                                 dtype=str),
         "spec_json": np.array(spec_to_json(plan.spec, indent=None)),
         "actions_json": np.array(json.dumps(_plain_actions(actions))),
-        "report_json": np.array(json.dumps(full_report, default=_json_default)),
+        "report_json": np.array(json.dumps(full_report, default=json_default)),
         "version": np.array(FORMAT_VERSION),
     }
     for name, arr in plan.forces.items():
@@ -195,7 +195,9 @@ def _plain_actions(actions) -> list | None:
     return [a.to_dict() if hasattr(a, "to_dict") else a for a in actions]
 
 
-def _json_default(obj):
+def json_default(obj):
+    """``json.dumps``'s ``default`` for the reports: numpy scalars and arrays as numbers and lists,
+    enums by their value, anything else by its text."""
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
@@ -718,7 +720,7 @@ def record_arrays(motion: MotionFile) -> dict[str, Any]:
         "frame_names": np.array(motion.frame_names, dtype=str),
         "spec_json": np.array(spec_to_json(plan.spec, indent=None)),
         "actions_json": np.array(json.dumps(motion.actions)),
-        "report_json": np.array(json.dumps(motion.report, default=_json_default)),
+        "report_json": np.array(json.dumps(motion.report, default=json_default)),
         "version": np.array(motion.version),
     }
     for name, arr in plan.forces.items():

@@ -470,7 +470,7 @@ class _CacheEntry:
 
     motions: MotionCache
     key: str
-    files: Any
+    files: dict[str, str]  # {path: sha256} of the robot's files (wbmp.motioncache.robot_files)
     digest: str
     rkey: str | None
 
@@ -560,11 +560,11 @@ def result_arrays(result: SolveResult) -> dict[str, Any]:
     import numpy as np
 
     from tasks import spec_to_json
-    from wbmp.motionfile import _json_default, plan_report
+    from wbmp.motionfile import json_default, plan_report
 
     arrays = dict(result.cached.arrays)
     full_report = {**result.cached.motion.report, **result.report(), **plan_report(result.plan)}
     arrays["spec_json"] = np.array(spec_to_json(result.plan.spec, indent=None))
     arrays["actions_json"] = np.array(json.dumps(actions))
-    arrays["report_json"] = np.array(json.dumps(full_report, default=_json_default))
+    arrays["report_json"] = np.array(json.dumps(full_report, default=json_default))
     return arrays

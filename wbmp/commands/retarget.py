@@ -88,14 +88,6 @@ def run(args: argparse.Namespace) -> int:
     return int(result.exit_code)
 
 
-def _json_default(obj):
-    import numpy as np
-
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
 
 
 def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
@@ -105,7 +97,9 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if as_json:
         report = result.report()
         report["files"] = written
-        print(json.dumps(report, default=_json_default, ensure_ascii=False))
+        from wbmp.motionfile import json_default
+
+        print(json.dumps(report, default=json_default, ensure_ascii=False))
         return
     plan_lines = result.plan.summary().splitlines()
     print("\n".join(line for line in plan_lines if not is_tracking(line)))

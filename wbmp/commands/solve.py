@@ -172,7 +172,9 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if as_json:
         report = result.report()
         report["files"] = written
-        print(json.dumps(report, default=_json_default, ensure_ascii=False))
+        from wbmp.motionfile import json_default
+
+        print(json.dumps(report, default=json_default, ensure_ascii=False))
         return
     if result.actions is not None:
         print(result.actions.describe())
@@ -184,11 +186,3 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     sys.stdout.flush()
 
 
-def _json_default(obj):
-    import numpy as np
-
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)

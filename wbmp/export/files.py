@@ -14,7 +14,7 @@ import numpy as np
 
 from viz import Staging
 from wbmp.errors import MotionFileError
-from wbmp.motionfile import MotionFile, _json_default, load_motion, record_arrays
+from wbmp.motionfile import MotionFile, json_default, load_motion, record_arrays
 
 #: the export formats (``wbmp export --format``)
 EXPORT_FORMATS = ("json", "csv", "npz", "mcap", "tracker", "lafan")
@@ -99,7 +99,7 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
             else:
                 val = np.asarray(val)
                 doc[k] = val.tolist() if val.ndim else val.item()
-        data = json.dumps(doc, default=_json_default).encode("utf-8")
+        data = json.dumps(doc, default=json_default).encode("utf-8")
         staging.add(path, lambda fh: fh.write(data))
         return [path]
     written = [path]
@@ -179,7 +179,7 @@ def csv_columns(motion: MotionFile) -> tuple[list[str], list[str]]:
 def _csv_text(header: list[str], rows: np.ndarray, meta: dict[str, Any]) -> str:
     buf = io.StringIO()
     for key, val in meta.items():
-        buf.write(f"# {key}: {json.dumps(val, default=_json_default)}\n")
+        buf.write(f"# {key}: {json.dumps(val, default=json_default)}\n")
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(header)
     for row in rows:
