@@ -32,9 +32,7 @@ if TYPE_CHECKING:
         Staging,
         atomic_write,
         atomic_write_text,
-        check_distinct,
-        check_output_dir,
-        check_output_file,
+        signals_held,
     )
     from viz.html import meshcat_bundle, page_data, render_page, write_html
     from viz.live import serve
@@ -54,15 +52,13 @@ __all__ = [
     "VizInputError",
     "atomic_write",
     "atomic_write_text",
-    "check_distinct",
-    "check_output_dir",
-    "check_output_file",
     "make_progress",
     "meshcat_bundle",
     "page_data",
     "plot_keypoints",
     "render_page",
     "serve",
+    "signals_held",
     "write_html",
     "write_plots",
 ]
@@ -79,9 +75,7 @@ _LAZY = {
     "VizInputError": "viz.exceptions",
     "atomic_write": "viz.files",
     "atomic_write_text": "viz.files",
-    "check_distinct": "viz.files",
-    "check_output_dir": "viz.files",
-    "check_output_file": "viz.files",
+    "signals_held": "viz.files",
     "make_progress": "viz.progress",
     "meshcat_bundle": "viz.html",
     "page_data": "viz.html",

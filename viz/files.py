@@ -1,6 +1,7 @@
-"""Output files: check every path before any work, write through temporary files, rename together.
+"""Output files: written through temporary files and renamed together.
 
-The rules (``docs/formats.md``, "Output files"):
+The CLI checks every output path before any work (``wbmp/outputs.py``; the rules in
+``docs/formats.md``, "Output files"):
 
 * An output path must be a new file in an existing, writable folder, or an existing regular
   file that the user may write (it is replaced, and keeps its permission bits and owner).
@@ -19,7 +20,8 @@ removes the temporary files and leaves the folder as it was. If a rename itself 
 changed under wbmp), the files this command created are removed again; a file it already
 replaced keeps the new, complete content. Nothing is ever half-written.
 
-This module is plain Python (no numpy, no wbmp import), so the CLI can check paths cheaply.
+This module is plain Python (no numpy, no wbmp import): the viewers write through it, and so do
+the CLI's writers.
 """
 
 from __future__ import annotations
@@ -31,12 +33,12 @@ import secrets
 import signal
 import stat
 import threading
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from viz.exceptions import OutputPathError, OutputWriteError
+from viz.exceptions import OutputWriteError
 
 TMP_SUFFIX = ".tmp"
 
@@ -50,7 +52,7 @@ def _why(err: OSError) -> str:
 
 
 @contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
+def signals_held() -> Iterator[None]:
     """SIGINT and SIGTERM wait (in this thread) until the block ends, then arrive."""
     signals = {signal.SIGINT, signal.SIGTERM}
     held = signal.pthread_sigmask(signal.SIG_BLOCK, signals) if hasattr(signal, "pthread_sigmask") else None
@@ -59,152 +61,6 @@ def _signals_held() -> Iterator[None]:
     finally:
         if held is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
-
-
-def _probe_folder(folder: Path) -> str | None:
-    """None if a file can be created in ``folder``, else the reason (also right for root)."""
-    probe = folder / f".wbmp-probe-{secrets.token_hex(4)}{TMP_SUFFIX}"
-    # Ctrl-C or SIGTERM wait until the probe is gone: an interrupt between creating and removing it
-    # would leave it in the user's folder.
-    with _signals_held():
-        try:
-            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
-        except OSError as e:
-            return _why(e)
-        os.close(fd)
-        try:
-            os.unlink(probe)
-        except OSError as e:  # pragma: no cover - created a moment ago in the same folder
-            return _why(e)
-        return None
-
-
-def _check_parent(path: Path, option: str, shown: str) -> None:
-    parent = path.parent
-    try:
-        st = parent.stat()
-    except FileNotFoundError:
-        raise OutputPathError(f"{option} {shown}: folder {_show(parent)} does not exist (create it first)") from None
-    except NotADirectoryError:
-        raise OutputPathError(f"{option} {shown}: a part of {_show(parent)} is a file, not a folder") from None
-    except OSError as e:
-        raise OutputPathError(f"{option} {shown}: cannot use folder {_show(parent)}: {_why(e)}") from None
-    if not stat.S_ISDIR(st.st_mode):
-        raise OutputPathError(f"{option} {shown}: {_show(parent)} is not a folder")
-    reason = _probe_folder(parent)
-    if reason is not None:
-        raise OutputPathError(f"{option} {shown}: cannot write in folder {_show(parent)}: {reason}")
-
-
-def _lstat(path: Path, option: str, shown: str) -> os.stat_result | None:
-    try:
-        return path.lstat()
-    except FileNotFoundError:
-        return None
-    except NotADirectoryError:
-        raise OutputPathError(f"{option} {shown}: a part of {_show(path.parent)} is a file, not a folder") from None
-    except OSError as e:
-        if e.errno == errno.ENAMETOOLONG:
-            raise OutputPathError(f"{option} {shown}: file name too long") from None
-        raise OutputPathError(f"{option} {shown}: {_why(e)}") from None
-
-
-def _check_existing_file(path: Path, st: os.stat_result, option: str, shown: str) -> None:
-    mode = st.st_mode
-    if stat.S_ISLNK(mode):
-        raise OutputPathError(f"{option} {shown}: is a symbolic link; wbmp does not write through or replace "
-                              "links (give the link's target or another name)")
-    if stat.S_ISDIR(mode):
-        raise OutputPathError(f"{option} {shown}: is a directory; give a file name")
-    if not stat.S_ISREG(mode):
-        raise OutputPathError(f"{option} {shown}: not a regular file; wbmp writes only regular files")
-    if not os.access(path, os.W_OK):
-        raise OutputPathError(f"{option} {shown}: the file is read-only; wbmp does not replace it "
-                              "(make it writable or give another name)")
-
-
-def _text(path: str | os.PathLike | None, option: str) -> str:
-    text = "" if path is None else os.fspath(path)
-    if isinstance(text, bytes):  # pragma: no cover - the CLI passes str
-        text = os.fsdecode(text)
-    if not text.strip():
-        raise OutputPathError(f"{option}: empty path")
-    if "\0" in text:
-        raise OutputPathError(f"{option} {_show(text)}: the path contains a NUL character")
-    return text
-
-
-def check_output_file(path: str | os.PathLike, option: str) -> Path:
-    """The path of an output file that may be written, or :class:`OutputPathError` saying why not.
-
-    Args:
-        path: The path as the user gave it.
-        option: The option it came from (``--out``), named in the message.
-    """
-    text = _text(path, option)
-    shown = _show(text)
-    if text.endswith(("/", os.sep)):
-        raise OutputPathError(f"{option} {shown}: ends in '/', which names a folder; give a file name")
-    out = Path(text)
-    if out.name in ("", ".", ".."):
-        raise OutputPathError(f"{option} {shown}: names a directory; give a file name")
-    st = _lstat(out, option, shown)
-    if st is not None:
-        _check_existing_file(out, st, option, shown)
-    _check_parent(out, option, shown)
-    return out
-
-
-def check_output_dir(path: str | os.PathLike, option: str, names: Iterable[str] = ()) -> Path:
-    """The path of an output folder, with every file ``names`` it will hold checked.
-
-    A missing folder is fine when its parent exists and is writable (it is created when the
-    outputs are committed). A link to a folder is followed (the link itself is never replaced).
-    """
-    text = _text(path, option)
-    shown = _show(text)
-    out = Path(text)
-    st = _lstat(out, option, shown)
-    if st is None:
-        _check_parent(out, option, shown)
-        return out
-    if stat.S_ISLNK(st.st_mode):
-        try:
-            st = out.stat()
-        except OSError:
-            raise OutputPathError(f"{option} {shown}: is a dangling symbolic link") from None
-    if not stat.S_ISDIR(st.st_mode):
-        raise OutputPathError(f"{option} {shown}: exists and is not a folder")
-    reason = _probe_folder(out)
-    if reason is not None:
-        raise OutputPathError(f"{option} {shown}: cannot write in this folder: {reason}")
-    for name in names:
-        inner = out / name
-        inner_shown = _show(inner)
-        st_inner = _lstat(inner, option, shown)
-        if st_inner is not None:
-            try:
-                _check_existing_file(inner, st_inner, option, inner_shown)
-            except OutputPathError as e:
-                raise OutputPathError(f"{option} {shown}: {str(e)[len(option) + 1:]}") from None
-    return out
-
-
-def _key(path: Path) -> str:
-    return os.path.normcase(os.path.realpath(path))
-
-
-def check_distinct(outputs: Mapping[str, Path], inputs: Mapping[str, Path] | None = None) -> None:
-    """Refuse two outputs on one file, or an output on an input (``OutputPathError``)."""
-    seen: dict[str, str] = {}
-    for option, path in (inputs or {}).items():
-        seen.setdefault(_key(path), option)
-    for option, path in outputs.items():
-        k = _key(path)
-        if k in seen:
-            other = seen[k]
-            raise OutputPathError(f"{option} {_show(path)}: the same file as {other}; give another name")
-        seen[k] = option
 
 
 @dataclass
@@ -267,7 +123,7 @@ class Staging:
         existed = st is not None and stat.S_ISREG(st.st_mode)
         # Ctrl-C or SIGTERM wait until the new temporary file is on the list that discard() empties
         # (they arrive when the mask is restored): one between creating and listing it would leave it
-        with _signals_held():
+        with signals_held():
             try:
                 tmp = self._create(folder, target.name)
             except OSError as e:

@@ -5,14 +5,185 @@ of :mod:`wbmp.pipeline`), staged so that a failure leaves the folders as they we
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
+import secrets
+import stat
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from viz import OutputPathError, signals_held
 from wbmp.errors import CliError, ExitCode
 from wbmp.pipeline import _REQUEST_KEYS, Progress, SolveResult, _silent, result_arrays
+
+# -- the output-path rules: every output a command will write, checked before any work ---------
+#
+# Each refusal is one OutputPathError (exit 2) naming the option, the path and why: an empty path or
+# one with a NUL, a folder where a file is wanted, a symbolic link (never written through or
+# replaced), a device or other non-regular file, a read-only file, a missing or unwritable folder
+# (probed by creating a file there: right for root too), two outputs on one file, an output on an
+# input file. The writers (viz.Staging, viz.atomic_write) then write through temporary files
+# renamed into place: nothing half-written.
+
+TMP_SUFFIX = ".tmp"
+
+
+def _show(path: str | os.PathLike) -> str:
+    return repr(os.fspath(path))
+
+
+def _why(err: OSError) -> str:
+    return err.strerror or str(err)
+
+
+def _probe_folder(folder: Path) -> str | None:
+    """None if a file can be created in ``folder``, else the reason (also right for root)."""
+    probe = folder / f".wbmp-probe-{secrets.token_hex(4)}{TMP_SUFFIX}"
+    # Ctrl-C or SIGTERM wait until the probe is gone: an interrupt between creating and removing it
+    # would leave it in the user's folder.
+    with signals_held():
+        try:
+            fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
+        except OSError as e:
+            return _why(e)
+        os.close(fd)
+        try:
+            probe.unlink()
+        except OSError as e:  # pragma: no cover - created a moment ago in the same folder
+            return _why(e)
+        return None
+
+
+def _check_parent(path: Path, option: str, shown: str) -> None:
+    parent = path.parent
+    try:
+        st = parent.stat()
+    except FileNotFoundError:
+        raise OutputPathError(f"{option} {shown}: folder {_show(parent)} does not exist (create it first)") from None
+    except NotADirectoryError:
+        raise OutputPathError(f"{option} {shown}: a part of {_show(parent)} is a file, not a folder") from None
+    except OSError as e:
+        raise OutputPathError(f"{option} {shown}: cannot use folder {_show(parent)}: {_why(e)}") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise OutputPathError(f"{option} {shown}: {_show(parent)} is not a folder")
+    reason = _probe_folder(parent)
+    if reason is not None:
+        raise OutputPathError(f"{option} {shown}: cannot write in folder {_show(parent)}: {reason}")
+
+
+def _lstat(path: Path, option: str, shown: str) -> os.stat_result | None:
+    try:
+        return path.lstat()
+    except FileNotFoundError:
+        return None
+    except NotADirectoryError:
+        raise OutputPathError(f"{option} {shown}: a part of {_show(path.parent)} is a file, not a folder") from None
+    except OSError as e:
+        if e.errno == errno.ENAMETOOLONG:
+            raise OutputPathError(f"{option} {shown}: file name too long") from None
+        raise OutputPathError(f"{option} {shown}: {_why(e)}") from None
+
+
+def _check_existing_file(path: Path, st: os.stat_result, option: str, shown: str) -> None:
+    mode = st.st_mode
+    if stat.S_ISLNK(mode):
+        raise OutputPathError(f"{option} {shown}: is a symbolic link; wbmp does not write through or replace "
+                              "links (give the link's target or another name)")
+    if stat.S_ISDIR(mode):
+        raise OutputPathError(f"{option} {shown}: is a directory; give a file name")
+    if not stat.S_ISREG(mode):
+        raise OutputPathError(f"{option} {shown}: not a regular file; wbmp writes only regular files")
+    if not os.access(path, os.W_OK):
+        raise OutputPathError(f"{option} {shown}: the file is read-only; wbmp does not replace it "
+                              "(make it writable or give another name)")
+
+
+def _text(path: str | os.PathLike | None, option: str) -> str:
+    text = "" if path is None else os.fspath(path)
+    if isinstance(text, bytes):  # pragma: no cover - the CLI passes str
+        text = os.fsdecode(text)
+    if not text.strip():
+        raise OutputPathError(f"{option}: empty path")
+    if "\0" in text:
+        raise OutputPathError(f"{option} {_show(text)}: the path contains a NUL character")
+    return text
+
+
+def check_output_file(path: str | os.PathLike, option: str) -> Path:
+    """The path of an output file that may be written, or :class:`OutputPathError` saying why not.
+
+    Args:
+        path: The path as the user gave it.
+        option: The option it came from (``--out``), named in the message.
+    """
+    text = _text(path, option)
+    shown = _show(text)
+    if text.endswith(("/", os.sep)):
+        raise OutputPathError(f"{option} {shown}: ends in '/', which names a folder; give a file name")
+    out = Path(text)
+    if out.name in ("", ".", ".."):
+        raise OutputPathError(f"{option} {shown}: names a directory; give a file name")
+    st = _lstat(out, option, shown)
+    if st is not None:
+        _check_existing_file(out, st, option, shown)
+    _check_parent(out, option, shown)
+    return out
+
+
+def check_output_dir(path: str | os.PathLike, option: str, names: Iterable[str] = ()) -> Path:
+    """The path of an output folder, with every file ``names`` it will hold checked.
+
+    A missing folder is fine when its parent exists and is writable (it is created when the
+    outputs are committed). A link to a folder is followed (the link itself is never replaced).
+    """
+    text = _text(path, option)
+    shown = _show(text)
+    out = Path(text)
+    st = _lstat(out, option, shown)
+    if st is None:
+        _check_parent(out, option, shown)
+        return out
+    if stat.S_ISLNK(st.st_mode):
+        try:
+            st = out.stat()
+        except OSError:
+            raise OutputPathError(f"{option} {shown}: is a dangling symbolic link") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise OutputPathError(f"{option} {shown}: exists and is not a folder")
+    reason = _probe_folder(out)
+    if reason is not None:
+        raise OutputPathError(f"{option} {shown}: cannot write in this folder: {reason}")
+    for name in names:
+        inner = out / name
+        inner_shown = _show(inner)
+        st_inner = _lstat(inner, option, shown)
+        if st_inner is not None:
+            try:
+                _check_existing_file(inner, st_inner, option, inner_shown)
+            except OutputPathError as e:
+                raise OutputPathError(f"{option} {shown}: {str(e)[len(option) + 1:]}") from None
+    return out
+
+
+def _key(path: Path) -> str:
+    return os.path.normcase(os.path.realpath(path))
+
+
+def check_distinct(outputs: Mapping[str, Path], inputs: Mapping[str, Path] | None = None) -> None:
+    """Refuse two outputs on one file, or an output on an input (``OutputPathError``)."""
+    seen: dict[str, str] = {}
+    for option, path in (inputs or {}).items():
+        seen.setdefault(_key(path), option)
+    for option, path in outputs.items():
+        k = _key(path)
+        if k in seen:
+            other = seen[k]
+            raise OutputPathError(f"{option} {_show(path)}: the same file as {other}; give another name")
+        seen[k] = option
+
 
 
 @contextlib.contextmanager
@@ -55,10 +226,7 @@ def check_outputs(*, out: str | None = None, html: str | None = None, plots: str
     path, a directory, a symbolic link, a device or other non-regular file, a read-only file, a
     missing or unwritable folder, two outputs on one file, an output on an input file, and a
     motion file (``--out``) that does not end in ``.npz``. ``None`` means "not asked".
-    See :mod:`viz.files` for the rules.
     """
-    from viz import OutputPathError, check_distinct, check_output_dir, check_output_file
-
     with output_errors():
         paths = OutputPaths(
             out=None if out is None else check_output_file(out, "--out"),

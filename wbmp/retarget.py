@@ -233,9 +233,8 @@ def plot_path(option: str, clip: str, others: dict[str, str | None]) -> Path:
     output's or input's (``others``: option -> path) or a file name not ending in ``.png``."""
     import os
 
-    from viz import check_distinct, check_output_dir, check_output_file
     from wbmp.errors import CliError, ExitCode
-    from wbmp.outputs import output_errors
+    from wbmp.outputs import check_distinct, check_output_dir, check_output_file, output_errors
 
     name = f"{Path(clip).stem}_keypoints.png"
     with output_errors():

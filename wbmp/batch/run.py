@@ -104,8 +104,7 @@ def prepare(*, file: str, out_dir: str, robots: str | None, workers: int, simula
             retry_failed: bool = False, ray: bool = False, ray_address: str | None = None,
             cache: bool = True) -> BatchPlan:
     """Every check before any work (:class:`CliError`, one line, exit 2 or 3)."""
-    from viz import check_distinct, check_output_dir
-    from wbmp.outputs import output_errors
+    from wbmp.outputs import check_distinct, check_output_dir, output_errors
 
     if workers < 1:
         raise CliError(f"--workers {workers}: give at least 1 worker", ExitCode.USAGE)

@@ -28,9 +28,9 @@ def run_command(*, robot: str, tasks: str | None, quick: bool, repeats: int | No
         CliError: A bad option (exit 2), a bad ``--from`` file (exit 2).
         RobotError: An unknown robot (exit 3), before any work.
     """
-    from viz import Staging, check_distinct, check_output_file
+    from viz import Staging
     from wbmp.errors import ROBOT_HINT, one_line, require_text
-    from wbmp.outputs import output_errors
+    from wbmp.outputs import check_distinct, check_output_file, output_errors
 
     def log(message: str) -> None:
         check_signals()  # a Ctrl-C that CasADi swallowed (a failed solve) stops the run here

@@ -140,10 +140,10 @@ def _check_rate(args: argparse.Namespace, motion) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viz import Staging, check_distinct, check_output_file
+    from viz import Staging
     from wbmp.export.files import exec_csv_path, export_motion
     from wbmp.motionfile import check_motion_exists, load_motion
-    from wbmp.outputs import output_errors
+    from wbmp.outputs import check_distinct, check_output_file, output_errors
 
     check_motion_exists(args.motion)  # a missing input is named as such, before the outputs
     path, fmt = output_path(args.motion, args.out, args.format)
