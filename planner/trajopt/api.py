@@ -193,13 +193,18 @@ def _diagnosed(solved: _Solved, result: Plan, spec: TaskSpec, progress: Callable
         # the iteration limit when the target is out of reach anyway.
         diagnosis = diagnose_failure(lay, result, settings, raw, targets_only=True)
     if not diagnosis and settings.scene_collision and settings.diagnose:
-        diagnosis = scene_diagnosis(lay, settings, solve_layout)
+        diagnosis = scene_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
     if not diagnosis and settings.self_collision and settings.diagnose:
-        diagnosis = collision_diagnosis(lay, settings, solve_layout)
+        diagnosis = collision_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
     if not diagnosis:
         diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw, relax=not asked))
     return make_plan(lay, solved.dq, solved.stats, settings, diagnosis=diagnosis, checks=result.checks,
                      forces=solved.forces)
+
+
+def _solve_uncompiled(lay: Layout, settings: PlannerSettings) -> tuple:
+    """A layout solved from its initial guess without a compile (a diagnosis's collision-free solve)."""
+    return solve_layout(lay, dataclasses.replace(settings, compile=False), x0=lay.initial_guess(settings))
 
 
 def _screened_guess(lay: Layout, settings: PlannerSettings) -> tuple[np.ndarray, Rows]:

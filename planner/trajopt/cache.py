@@ -61,10 +61,10 @@ MEMORY_ENTRIES = 24  # solvers kept alive in a process (least recently used drop
 _MEMORY: OrderedDict[str, Solver] = OrderedDict()
 _LOCK = threading.Lock()
 _SOURCES = (  # relative to planner/trajopt/: the files that determine the compiled structure
-    "symbolic.py", "layout.py", "term.py", "terms.py", "kinds.py", "collision.py", "scene_collision.py",
+    "symbolic.py", "layout_data.py", "layout.py", "term.py", "terms.py", "kinds.py", "collision.py", "scene_collision.py",
     "transcription.py", "ipopt.py", "cache.py",
     "centroidal/settings.py", "centroidal/physics.py", "centroidal/contacts.py", "centroidal/pattern.py",
-    "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
+    "centroidal/heading.py", "centroidal/data.py", "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
 )
 
 
