@@ -42,7 +42,14 @@ if TYPE_CHECKING:
         support_heights,
         zmp_of_wrenches,
     )
-    from planner.trajopt.settings import PlannerSettings, default_cache_dir
+    from planner.trajopt.settings import (
+        CacheSettings,
+        CollisionSettings,
+        PlannerSettings,
+        SolverSettings,
+        Tolerances,
+        default_cache_dir,
+    )
     from planner.wbc.controller import WholeBodyController
     from planner.wbc.friction import JointFriction
     from planner.wbc.kernel import kernel_ready
@@ -51,9 +58,11 @@ if TYPE_CHECKING:
 
 _EXPORTS = {  # public name -> module that defines it
     "BUILD_MEMORY": "planner.trajopt.builds",
+    "CacheSettings": "planner.trajopt.settings",
     "CentroidalSettings": "planner.trajopt.centroidal.settings",
     "Check": "planner.results",
     "CheckKind": "planner.results",
+    "CollisionSettings": "planner.trajopt.settings",
     "ConstraintCheck": "planner.results",
     "ControllerError": "planner.wbc.settings",
     "JointFriction": "planner.wbc.friction",
@@ -64,7 +73,9 @@ _EXPORTS = {  # public name -> module that defines it
     "PlannerSettings": "planner.trajopt.settings",
     "PlanningFailed": "planner.exceptions",
     "SolveStatus": "planner.results",
+    "SolverSettings": "planner.trajopt.settings",
     "SolverStats": "planner.results",
+    "Tolerances": "planner.trajopt.settings",
     "UnsupportedModel": "planner.exceptions",
     "WbcSettings": "planner.wbc.settings",
     "WholeBodyController": "planner.wbc.controller",
@@ -83,9 +94,11 @@ _EXPORTS = {  # public name -> module that defines it
 __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
     "BUILD_MEMORY",
     "MEMORY_MARGIN",
+    "CacheSettings",
     "CentroidalSettings",
     "Check",
     "CheckKind",
+    "CollisionSettings",
     "ConstraintCheck",
     "ControllerError",
     "JointFriction",
@@ -95,7 +108,9 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "PlannerSettings",
     "PlanningFailed",
     "SolveStatus",
+    "SolverSettings",
     "SolverStats",
+    "Tolerances",
     "UnsupportedModel",
     "WbcSettings",
     "WholeBodyController",

@@ -186,15 +186,16 @@ def _diagnosed(solved: _Solved, result: Plan, spec: TaskSpec, progress: Callable
         progress("the solve failed: diagnosing")
     lay, settings, raw = solved.lay, solved.settings, solved.raw
     diagnosis = ""
-    asked = settings.diagnose and not spec.dynamic and (settings.scene_collision or settings.self_collision)
+    collision = settings.collision
+    asked = settings.diagnose and not spec.dynamic and (collision.scene_collision or collision.self_collision)
     if asked:
         # A target out of reach is the cause whatever the collision rows say, and the relaxed solve
         # that finds it converges: asked first, it spares the collision-free re-solve, which runs to
         # the iteration limit when the target is out of reach anyway.
         diagnosis = diagnose_failure(lay, result, settings, raw, targets_only=True)
-    if not diagnosis and settings.scene_collision and settings.diagnose:
+    if not diagnosis and settings.collision.scene_collision and settings.diagnose:
         diagnosis = scene_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
-    if not diagnosis and settings.self_collision and settings.diagnose:
+    if not diagnosis and settings.collision.self_collision and settings.diagnose:
         diagnosis = collision_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
     if not diagnosis:
         diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw, relax=not asked))
@@ -204,7 +205,8 @@ def _diagnosed(solved: _Solved, result: Plan, spec: TaskSpec, progress: Callable
 
 def _solve_uncompiled(lay: Layout, settings: PlannerSettings) -> tuple:
     """A layout solved from its initial guess without a compile (a diagnosis's collision-free solve)."""
-    return solve_layout(lay, dataclasses.replace(settings, compile=False), x0=lay.initial_guess(settings))
+    in_memory = dataclasses.replace(settings, cache=dataclasses.replace(settings.cache, compile=False))
+    return solve_layout(lay, in_memory, x0=lay.initial_guess(settings))
 
 
 def _screened_guess(lay: Layout, settings: PlannerSettings) -> tuple[np.ndarray, Rows]:
@@ -229,13 +231,13 @@ def add_screened_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -
     """Add the self-collision and scene rows that the initial guess ``x0`` asks for (with the
     settings that switch them on); returns the self-collision rows left out for idle pairs
     (:func:`add_screened_collision_terms`)."""
-    if not (settings.self_collision or settings.scene_collision):
+    if not (settings.collision.self_collision or settings.collision.scene_collision):
         return Rows()
     q0 = _guess_configurations(lay, x0)
     deferred = Rows()
-    if settings.self_collision:
+    if settings.collision.self_collision:
         deferred = add_screened_collision_terms(lay, settings, x0, q0)
-    if settings.scene_collision:
+    if settings.collision.scene_collision:
         add_screened_scene_terms(lay, settings, q0)
     return deferred
 
@@ -243,19 +245,19 @@ def add_screened_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -
 def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray,
                                  q0: np.ndarray | None = None) -> Rows:
     """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
-    ``settings.collision_screening``, but for idle pairs (no closer than at rest anywhere on the
+    ``settings.collision.screening``, but for idle pairs (no closer than at rest anywhere on the
     guess, :func:`planner.trajopt.collision.idle_pairs`), which are left to the check after the
     solve; returns the rows left out (planner/trajopt/collision.py)."""
     robot = lay.robot
     sets = sphere_sets(robot)
     q0 = _guess_configurations(lay, x0) if q0 is None else q0
-    distances = exempt_distances(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision_screening))
-    rows = select(lay, sets, distances, settings.collision_screening)
-    idle = idle_pairs(lay, sets, distances, settings.collision_margin)
+    distances = exempt_distances(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision.screening))
+    rows = select(lay, sets, distances, settings.collision.screening)
+    idle = idle_pairs(lay, sets, distances, settings.collision.margin)
     deferred = Rows()
     for pi in [pi for pi in rows.spheres if idle[pi]]:
         deferred.spheres[pi], deferred.knots[pi] = rows.spheres.pop(pi), rows.knots.pop(pi)
-    set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
+    set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision.margin)
     return deferred
 
 
@@ -274,10 +276,13 @@ def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tup
     lay = make_layout(spec, robot)
     if spec.dynamic:
         lay = to_dynamic_layout(lay, settings.centroidal)
+        solver, cache = settings.solver, settings.cache
         settings = dataclasses.replace(
-            settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
-            compile=settings.compile and settings.compile_dynamic,
-            serialize=settings.serialize or (settings.compile and not settings.compile_dynamic))
+            settings,
+            solver=dataclasses.replace(solver,
+                                       ipopt_extra=(*settings.centroidal.ipopt_options, *solver.ipopt_extra)),
+            cache=dataclasses.replace(cache, compile=cache.compile and cache.compile_dynamic,
+                                      serialize=cache.serialize or (cache.compile and not cache.compile_dynamic)))
     return lay, settings
 
 
@@ -295,16 +300,16 @@ def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
     when the settings use the library, it holds one that fits, and its start (:meth:`Seed.start`)
     violates the constraints less (summed) than the layout's own initial guess ``guess``; and, when
     it fetched the solver for that, the seconds and origin of the fetch (for the stats)."""
-    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library != "off"):
+    if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library != "off"):
         return None, None
     key = solver_key(lay, settings)
-    if not has_seeds(key, settings.cache_dir):
+    if not has_seeds(key, settings.cache.cache_dir):
         return None, None
     t0 = time.perf_counter()
     solver = get_solver(lay, settings, progress)  # the structure's sizes (the solve reuses the solver)
     loaded = (time.perf_counter() - t0, solver.origin)
     nl = solver.nlp_layout
-    seed = find_seed(lay, key, nl.n_x, nl.n_g, settings.cache_dir)
+    seed = find_seed(lay, key, nl.n_x, nl.n_g, settings.cache.cache_dir)
     if seed is None:
         return None, loaded
     # Used only when it starts nearer to feasibility than the task's own guess: Talos four steps of
@@ -331,17 +336,17 @@ def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, ra
     seed of its structure (``solution_library="on"``); when collision rounds changed the structure
     the plan started with (``key0``, before any ``escalation`` record was applied), remember the
     self-collision rows it ended with for the next plan of ``key0``."""
-    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library == "on"):
+    if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library == "on"):
         return
     key = solver_key(lay, settings)
-    store_seed(lay, key, guess, raw, dq, settings.cache_dir)
-    if key0 is None or key == key0 or not settings.self_collision:
+    store_seed(lay, key, guess, raw, dq, settings.cache.cache_dir)
+    if key0 is None or key == key0 or not settings.collision.self_collision:
         return
     sets = sphere_sets(lay.robot)
     rows = collision_rows_of(lay, sets)
     named = {"/".join(sets.pair_names[pi]): (set(rows.spheres[pi]), set(rows.knots[pi])) for pi in rows.spheres}
     if named != escalation:
-        store_escalation(key0, named, settings.cache_dir)
+        store_escalation(key0, named, settings.cache.cache_dir)
 
 
 def _escalate(lay: Layout, settings: PlannerSettings, deferred: Rows,
@@ -351,11 +356,12 @@ def _escalate(lay: Layout, settings: PlannerSettings, deferred: Rows,
     final structure, and their seeds, instead of a collision round that builds another solver
     and solves again. A record that names a pair, sphere pair or knot this layout does not have is
     not used. Returns the structure's key before (None: the library is not used) and the record."""
-    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library != "off"
-            and settings.self_collision):
+    cache = settings.cache
+    if not (isinstance(lay, DynamicLayout) and cache.use_cache and cache.solution_library != "off"
+            and settings.collision.self_collision):
         return None, None
     key0 = solver_key(lay, settings)
-    record = find_escalation(key0, settings.cache_dir)
+    record = find_escalation(key0, settings.cache.cache_dir)
     if record is None:
         return key0, None
     sets = sphere_sets(lay.robot)
@@ -370,7 +376,7 @@ def _escalate(lay: Layout, settings: PlannerSettings, deferred: Rows,
     rows = collision_rows_of(lay, sets)
     changed = rows.merge(extra)
     if changed:
-        set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+        set_collision_terms(lay, sets, rows, changed, settings.collision.margin)
         for pi in changed:
             deferred.spheres.pop(pi, None)
             deferred.knots.pop(pi, None)
@@ -385,7 +391,7 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
                            lam0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, SolverStats, dict]:
     """Solve, then again from the solution while the solution asks for it: a link pair, or a robot
     sphere and a scene object, within the collision margin without rows gets them (at most
-    ``settings.collision_rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
+    ``settings.collision.rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
     layout whose linearized rows are off at the solution re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
     ``deferred``: the rows screening left out for idle pairs; they are added when a solve fails
     (and the problem is solved again from ``x0``, as it would have been with them from the start)
@@ -393,9 +399,9 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
     ``lam0``: the first solve's initial multipliers (a seed's, :mod:`planner.trajopt.library`).
     The stats add up the iterations and times of every solve."""
     guess = x0
-    sets = sphere_sets(lay.robot) if settings.self_collision else None
+    sets = sphere_sets(lay.robot) if settings.collision.self_collision else None
     rows = collision_rows_of(lay, sets) if sets is not None else None
-    scene_rows = scene_rows_of(lay) if settings.scene_collision else None
+    scene_rows = scene_rows_of(lay) if settings.collision.scene_collision else None
     total: SolverStats | None = None
     collision_round = relinearized = 0
     while True:
@@ -407,25 +413,26 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
             if (sets is None or rows is None or deferred is None or not deferred.spheres
                     or stats.status not in (SolveStatus.MAX_ITERATIONS, SolveStatus.NUMERICAL_ERROR)):
                 return dq, total, raw
-            set_collision_terms(lay, sets, rows, rows.merge(deferred), settings.collision_margin)
+            set_collision_terms(lay, sets, rows, rows.merge(deferred), settings.collision.margin)
             deferred = None
             if progress:
                 progress("the solve failed: solving again with the idle pairs' rows")
             x0, lam0 = guess, None
             continue
         reason = ""
-        if collision_round < settings.collision_rounds and (sets is not None or scene_rows is not None):
+        if collision_round < settings.collision.rounds and (sets is not None or scene_rows is not None):
             q = configurations(lay, dq)
             changed = []
             if sets is not None and rows is not None:
-                distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision_screening)
-                more = missing_rows(lay, sets, rows, distances, settings.collision_margin, settings.collision_screening)
+                distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision.screening)
+                more = missing_rows(lay, sets, rows, distances, settings.collision.margin,
+                                    settings.collision.screening)
                 changed = rows.merge(more)
                 if changed and deferred is not None:  # a pair came close: the idle ones' rows too
                     changed = sorted(set(changed) | set(rows.merge(deferred)))
                     deferred = None
                 if changed:
-                    set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+                    set_collision_terms(lay, sets, rows, changed, settings.collision.margin)
             objects = missing_scene_rows(lay, scene_rows, q, settings) if scene_rows is not None else []
             if changed or objects:
                 collision_round += 1

@@ -12,10 +12,10 @@ parameters are the sphere centres in the joints' frames.
 
 Screening keeps the NLP small: the sphere-set distance of every pair is evaluated (numpy) at
 every knot of the initial guess, and rows are added only for pairs closer than
-``settings.collision_screening`` somewhere, over the knots where they are (widened by
+``settings.collision.screening`` somewhere, over the knots where they are (widened by
 :data:`KNOT_PADDING` on each side). After a solve every pair is checked on the solution; a pair
 closer than the margin without rows gets them and the NLP is solved again from that solution
-(at most ``settings.collision_rounds`` times). See ``docs/collisions.md``.
+(at most ``settings.collision.rounds`` times). See ``docs/collisions.md``.
 """
 
 from __future__ import annotations
@@ -289,7 +289,7 @@ class SelfCollisionTerm(Term):
     def report(cls, ctx: ReportContext) -> list[Check]:
         """The closest checked link pair over the plan (:func:`self_collision_check`), when
         ``settings.self_collision``."""
-        return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.self_collision else []
+        return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.collision.self_collision else []
 
 
 @dataclass
@@ -539,7 +539,7 @@ def collision_diagnosis(lay: L, settings: PlannerSettings, solve: Callable[[L], 
     q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
     sets = sphere_sets(robot)
     d, time, (a, b) = closest(robot, sets, q, lay.t, meet_exemptions(lay, sets))
-    if d >= settings.collision_margin:
+    if d >= settings.collision.margin:
         return ""
     pa, pb = body_part(robot, a), body_part(robot, b)
     if pb.startswith(("left", "right")) and not pa.startswith(("left", "right")):

@@ -88,7 +88,7 @@ class Layout(LayoutData):
     def initial_guess(self, settings: PlannerSettings | None = None) -> np.ndarray:
         """The solver's starting point: the nominal motion when ``settings.warm_start`` asks for it,
         else rest (``dq = 0``)."""
-        if settings is not None and settings.warm_start == "nominal":
+        if settings is not None and settings.solver.warm_start == "nominal":
             from planner.trajopt.nominal import nominal_motion
 
             return nominal_motion(self)[2:self.N].ravel()

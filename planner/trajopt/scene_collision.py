@@ -24,7 +24,7 @@ has the table of it.
 Numeric values (object pose, inflated extents, sphere centres in their joint frames) are term
 parameters; the structure ``("scene", shape, joints of the spheres)`` keys the solver cache, so two
 scenes whose objects are close to the same links share a solver. Screening as for self-collision:
-rows only for (sphere, object) pairs within ``settings.collision_screening`` on the initial guess
+rows only for (sphere, object) pairs within ``settings.collision.screening`` on the initial guess
 (the same function, inflated by the screening distance), on those knots widened by
 :data:`~planner.trajopt.collision.KNOT_PADDING`; after a solve, pairs the solution brings within
 the margin get rows and the NLP is solved again.
@@ -557,13 +557,13 @@ class SceneCollisionTerm(Term):
 
 def add_screened_scene_terms(lay: LayoutData, settings: PlannerSettings, q0: np.ndarray) -> SceneRows:
     """Add the rows of the (sphere, object) pairs that the initial guess ``q0`` (N+1, nq) brings
-    within ``settings.collision_screening``; returns them (empty without a scene)."""
+    within ``settings.collision.screening``; returns them (empty without a scene)."""
     obs = obstacles(lay.spec.scene)
     if not obs:
         return SceneRows()
     sets = scene_sets(lay.robot)
-    rows = select(lay, values(lay, sets, obs, q0, settings.collision_screening) < 1.0)
-    set_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision_margin)
+    rows = select(lay, values(lay, sets, obs, q0, settings.collision.screening) < 1.0)
+    set_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision.margin)
     return rows
 
 
@@ -576,7 +576,7 @@ def missing_scene_rows(lay: LayoutData, rows: SceneRows, q: np.ndarray, settings
         return []
     sets = scene_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
-    violated = values(lay, sets, obs, q, settings.collision_margin - CHECK_TOLERANCE, world) < 1.0
+    violated = values(lay, sets, obs, q, settings.collision.margin - CHECK_TOLERANCE, world) < 1.0
     for oi, spheres in rows.spheres.items():
         ks = sorted(rows.knots[oi])
         for s in spheres:
@@ -585,13 +585,13 @@ def missing_scene_rows(lay: LayoutData, rows: SceneRows, q: np.ndarray, settings
     violated[lay.N:] = False
     if not violated.any():
         return []
-    near = values(lay, sets, obs, q, settings.collision_screening, world) < 1.0
+    near = values(lay, sets, obs, q, settings.collision.screening, world) < 1.0
     bad_knots = np.asarray(violated.any(axis=1))  # (T, O)
     bad_spheres = np.asarray(violated.any(axis=0))  # (S, O)
     near &= bad_knots[:, None, :] | bad_spheres[None, :, :]
     changed = rows.merge(select(lay, near | violated))
     if changed:
-        set_scene_terms(lay, sets, obs, rows, changed, settings.collision_margin)
+        set_scene_terms(lay, sets, obs, rows, changed, settings.collision.margin)
     return changed
 
 
@@ -684,7 +684,7 @@ def scene_diagnosis(lay: L, settings: PlannerSettings, solve: Callable[[L], tupl
         return ""
     q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
     d, time, link, name = closest(lay, q)
-    if d >= settings.collision_margin:
+    if d >= settings.collision.margin:
         return ""
     what = "pass through" if d < 0 else f"come within {max(d, 0.0) * 1000:.0f} mm of"
     return (f"the {body_part(lay.robot, link)} would {what} the {name} at t = {time:.1f} s ({link}): "

@@ -190,17 +190,17 @@ def dynamic_plan_checks(lay: DynamicData, q: np.ndarray, com: np.ndarray, forces
         com: CoM per knot (N+1, 3) [m].
         forces: Solution values of the force variables (None: none available).
         checks: The kinematic report (``planner.trajopt.checks.check_plan``).
-        settings: ``PlannerSettings`` (``polygon_tolerance`` [m]).
+        settings: ``PlannerSettings`` (``tolerances.polygon`` [m]).
 
     Returns:
         The checks.
     """
     out = [c for c in checks if c.kind is not CheckKind.COM_SUPPORT_POLYGON]
-    out += rest_polygon_checks(lay, com, settings.polygon_tolerance)
+    out += rest_polygon_checks(lay, com, settings.tolerances.polygon)
     if forces is not None:
         out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,
                               force_tolerance=lay.centroidal_settings.force_tolerance,
-                              position_tolerance=settings.polygon_tolerance,
+                              position_tolerance=settings.tolerances.polygon,
                               ankle_torque_margin=lay.centroidal_settings.ankle_torque_margin)
     from planner.trajopt.centroidal.zmp import zmp_checks
 

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.trajopt.api import planned_layout
 from planner.trajopt.layout import make_layout
 from planner.trajopt.scene_collision import (
@@ -35,7 +35,7 @@ from tests.planner.trajopt.fd import check_stage_rows
 ROOT = Path(__file__).resolve().parents[3]
 TABLE = ROOT / "examples" / "scenes" / "table.json"
 PASSAGE = ROOT / "examples" / "scenes" / "narrow_passage.json"
-MARGIN = 0.01  # [m] PlannerSettings().collision_margin
+MARGIN = 0.01  # [m] PlannerSettings().collision.margin
 SOLVER_TOLERANCE = 1e-4  # [m] rows hold to IPOPT's constraint tolerance, far below this
 
 
@@ -149,7 +149,7 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
     rows against a table moved and resized give the same structure (one solver) with other
     parameters: poses and sizes are values, not structure."""
     spec = _spec(talos, "reach forward 30 cm with your right hand")
-    settings = PlannerSettings(compile=False)
+    settings = PlannerSettings(cache=CacheSettings(compile=False))
     bare = planned_layout(spec, talos, settings)
     far = Scene(objects=(SceneObject(name="far box", shape="box", size=(1.0, 1.0, 1.0), position=(5.0, 0.0, 0.5)),))
     far_lay = planned_layout(dataclasses.replace(spec, scene=far), talos, settings)
@@ -160,7 +160,10 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
     assert any(t.kind == "scene" for t in a.terms) and a.structure() != bare.structure()
     moved = dataclasses.replace(table, objects=(dataclasses.replace(
         table.objects[0], position=(0.7, 0.05, 0.3), size=(0.7, 1.1, 0.6), rpy=(0.0, 0.0, 0.1)),))
-    b = planned_layout(dataclasses.replace(spec, scene=moved), talos, dataclasses.replace(settings, scene_collision=False))
+    b = planned_layout(dataclasses.replace(spec, scene=moved), talos,
+                       dataclasses.replace(settings,
+                                           collision=dataclasses.replace(settings.collision,
+                                                                         scene_collision=False)))
     rows = scene_rows_of(a)
     set_scene_terms(b, scene_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
     assert a.structure() == b.structure()
@@ -239,7 +242,7 @@ def test_reach_over_the_table_keeps_every_link_the_margin_above_it(talos):
     the plan's scene collision check names the closest body part."""
     table = load_scene(TABLE)
     spec = _spec(talos, "reach forward 30 cm with your right hand", table, target=(0.45, -0.3, 0.72))
-    result = plan(spec, talos, settings=PlannerSettings(compile=False))
+    result = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok, result.diagnosis
     assert all(c.ok for c in result.checks)
     check = next(c for c in result.checks if c.kind.value == "scene_collision")
@@ -273,7 +276,7 @@ def test_walk_through_the_narrow_passage_keeps_clear_of_the_walls(talos):
     passage = load_scene(PASSAGE)
     spec = _spec(talos, "walk forward 0.5 m", passage)
     assert spec.dynamic
-    result = plan(spec, talos, settings=PlannerSettings(compile=False))
+    result = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok, result.diagnosis
     check = next(c for c in result.checks if c.kind.value == "scene_collision")
     assert check.ok and "wall" in check.name
