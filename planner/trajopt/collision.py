@@ -387,12 +387,13 @@ def idle_pairs(lay: LayoutData, sets: SphereSets, distances: np.ndarray, margin:
     return ~(np.add.reduceat(moving.any(axis=0), sets.starts) > 0)
 
 
-def set_collision_terms(lay: LayoutData, sets: SphereSets, rows: Rows, pairs: list[int], margin: float) -> None:
-    """(Re)write the ``collision`` terms of link ``pairs`` from ``rows``: one term per pair and knot,
-    a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``."""
+def with_collision_terms(lay: L, sets: SphereSets, rows: Rows, pairs: list[int], margin: float) -> L:
+    """A copy of ``lay`` whose ``collision`` terms of link ``pairs`` are (re)written from ``rows``: one
+    term per pair and knot, a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``
+    (``lay`` is not changed)."""
     robot = lay.robot
     names = {pi: sets.pair_names[pi] for pi in pairs}
-    lay.terms = [t for t in lay.terms if not (isinstance(t, SelfCollisionTerm) and t.item in names.values())]
+    terms = [t for t in lay.terms if not (isinstance(t, SelfCollisionTerm) and t.item in names.values())]
     for pi in pairs:
         a, b = (int(x) for x in sets.pairs[pi])
         ca_, cb_ = sets.centres[a], sets.centres[b]
@@ -401,13 +402,14 @@ def set_collision_terms(lay: LayoutData, sets: SphereSets, rows: Rows, pairs: li
         bound = np.array([(sets.radii[a][i] + sets.radii[b][j] + margin) ** 2 for i, j in chosen])
         label = f"self-collision {body_part(robot, names[pi][0])} / {body_part(robot, names[pi][1])}"
         for k in sorted(rows.knots[pi]):
-            lay.terms.append(SelfCollisionTerm(
+            terms.append(SelfCollisionTerm(
                 knot=k,
                 structure=(SelfCollisionTerm.kind, int(sets.joints[a]), int(sets.joints[b]), len(ca_), nb, chosen),
                 params=np.concatenate([ca_.ravel(), cb_.ravel()]),  # (3, n) column-major: x, y, z per sphere
                 lower=bound, upper=np.full(len(chosen), math.inf),
                 label=label, item=names[pi], phase=lay.phase_name(k),
             ))
+    return lay.with_terms(terms)
 
 
 def missing_rows(lay: LayoutData, sets: SphereSets, rows: Rows, distances: np.ndarray, margin: float,
@@ -429,11 +431,7 @@ def missing_rows(lay: LayoutData, sets: SphereSets, rows: Rows, distances: np.nd
 
 def strip_collision_terms(lay: L) -> L:
     """A copy of ``lay`` without its collision terms (the same class: kinematic or dynamic)."""
-    import copy
-
-    out = copy.copy(lay)
-    out.terms = [t for t in lay.terms if not isinstance(t, SelfCollisionTerm)]
-    return out
+    return lay.with_terms([t for t in lay.terms if not isinstance(t, SelfCollisionTerm)])
 
 
 # -- report ------------------------------------------------------------------------------------

@@ -8,7 +8,9 @@ them imports the layout back (not even for its type).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 import pinocchio as pin
@@ -62,6 +64,13 @@ class LayoutData:
             tuple(self.frame_ids),
             tuple((t.knot, t.structure, len(t.params), t.n_rows) for t in self.terms),
         )
+
+    def with_terms(self, terms: list[Term]) -> Self:
+        """A copy of this layout (the same class, its cached parts shared) with ``terms`` instead of
+        its own; this one is not changed (the collision rounds build their layouts this way)."""
+        out = copy.copy(self)
+        out.terms = list(terms)
+        return out
 
     def phase_name(self, k: int) -> str:
         """Name of the phase at knot ``k``."""

@@ -477,12 +477,13 @@ def select(lay: LayoutData, close: np.ndarray) -> SceneRows:
     return rows
 
 
-def set_scene_terms(lay: LayoutData, sets: SphereSets, obs: list[Obstacle], rows: SceneRows, objects: list[int],
-                    margin: float) -> None:
-    """(Re)write the ``scene`` terms of ``objects`` from ``rows``: one term per object and knot, a
-    row per sphere (not in a planned contact with the object there) ``N >= BOUND[shape]``."""
+def with_scene_terms(lay: L, sets: SphereSets, obs: list[Obstacle], rows: SceneRows, objects: list[int],
+                     margin: float) -> L:
+    """A copy of ``lay`` whose ``scene`` terms of ``objects`` are (re)written from ``rows``: one term
+    per object and knot, a row per sphere (not in a planned contact with the object there)
+    ``N >= BOUND[shape]`` (``lay`` is not changed)."""
     keys = {obs[oi].key for oi in objects}
-    lay.terms = [t for t in lay.terms if not (isinstance(t, SceneCollisionTerm) and t.item in keys)]
+    terms = [t for t in lay.terms if not (isinstance(t, SceneCollisionTerm) and t.item in keys)]
     excluded = contact_exclusions(lay, sets, obs)
     for oi in objects:
         ob = obs[oi]
@@ -493,13 +494,14 @@ def set_scene_terms(lay: LayoutData, sets: SphereSets, obs: list[Obstacle], rows
                 continue
             a = ob.inflated(sets.sphere_radius[chosen] + margin)
             per_sphere = np.hstack([sets.sphere_local[chosen], a]).ravel()  # (c_local, a) per sphere
-            lay.terms.append(SceneCollisionTerm(
+            terms.append(SceneCollisionTerm(
                 knot=k,
                 structure=(SceneCollisionTerm.kind, ob.shape, tuple(int(sets.joints[sets.sphere_owner[s]]) for s in chosen)),
                 params=np.concatenate([ob.position, ob.rotation.T.ravel(), per_sphere]),  # R column-major
                 lower=np.full(len(chosen), BOUND[ob.shape]), upper=np.full(len(chosen), math.inf),
                 label=f"scene collision {ob.name}", item=ob.key, phase=lay.phase_name(k),
             ))
+    return lay.with_terms(terms)
 
 
 @dataclass(eq=False)
@@ -555,25 +557,26 @@ class SceneCollisionTerm(Term):
         return [scene_collision_check(ctx.lay, ctx.q)] if scene is not None and scene.objects else []
 
 
-def add_screened_scene_terms(lay: LayoutData, settings: PlannerSettings, q0: np.ndarray) -> SceneRows:
-    """Add the rows of the (sphere, object) pairs that the initial guess ``q0`` (N+1, nq) brings
-    within ``settings.collision.screening``; returns them (empty without a scene)."""
+def add_screened_scene_terms(lay: L, settings: PlannerSettings, q0: np.ndarray) -> tuple[L, SceneRows]:
+    """A copy of ``lay`` with the rows of the (sphere, object) pairs that the initial guess ``q0``
+    (N+1, nq) brings within ``settings.collision.screening``, and those rows (``lay`` itself and
+    no rows without a scene; ``lay`` is not changed)."""
     obs = obstacles(lay.spec.scene)
     if not obs:
-        return SceneRows()
+        return lay, SceneRows()
     sets = scene_sets(lay.robot)
     rows = select(lay, values(lay, sets, obs, q0, settings.collision.screening) < 1.0)
-    set_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision.margin)
-    return rows
+    return with_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision.margin), rows
 
 
-def missing_scene_rows(lay: LayoutData, rows: SceneRows, q: np.ndarray, settings: PlannerSettings) -> list[int]:
+def missing_scene_rows(lay: L, rows: SceneRows, q: np.ndarray, settings: PlannerSettings) -> tuple[L, list[int]]:
     """After a solve: pairs within the margin (less ``CHECK_TOLERANCE``) at a knot without their row
-    get rows (pairs within the screening distance of those objects, there); returns the objects whose
-    rows changed (their terms rewritten)."""
+    get rows (pairs within the screening distance of those objects, there, merged into ``rows``);
+    returns the layout with them (a copy with those objects' terms rewritten; ``lay`` itself when
+    none changed; ``lay`` is not changed) and the objects whose rows changed."""
     obs = obstacles(lay.spec.scene)
     if not obs:
-        return []
+        return lay, []
     sets = scene_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
     violated = values(lay, sets, obs, q, settings.collision.margin - CHECK_TOLERANCE, world) < 1.0
@@ -584,24 +587,20 @@ def missing_scene_rows(lay: LayoutData, rows: SceneRows, q: np.ndarray, settings
     violated[:2] = False
     violated[lay.N:] = False
     if not violated.any():
-        return []
+        return lay, []
     near = values(lay, sets, obs, q, settings.collision.screening, world) < 1.0
     bad_knots = np.asarray(violated.any(axis=1))  # (T, O)
     bad_spheres = np.asarray(violated.any(axis=0))  # (S, O)
     near &= bad_knots[:, None, :] | bad_spheres[None, :, :]
     changed = rows.merge(select(lay, near | violated))
     if changed:
-        set_scene_terms(lay, sets, obs, rows, changed, settings.collision.margin)
-    return changed
+        return with_scene_terms(lay, sets, obs, rows, changed, settings.collision.margin), changed
+    return lay, changed
 
 
 def strip_scene_terms(lay: L) -> L:
     """A copy of ``lay`` without its scene terms (the same class: kinematic or dynamic)."""
-    import copy
-
-    out = copy.copy(lay)
-    out.terms = [t for t in lay.terms if not isinstance(t, SceneCollisionTerm)]
-    return out
+    return lay.with_terms([t for t in lay.terms if not isinstance(t, SceneCollisionTerm)])
 
 
 # -- report ------------------------------------------------------------------------------------

@@ -15,7 +15,13 @@ import pinocchio as pin
 import pytest
 
 from planner import CacheSettings, CollisionSettings, PlannerSettings, SolverSettings, plan
-from planner.trajopt.collision import Rows, pair_distances, select, set_collision_terms, sphere_sets
+from planner.trajopt.collision import (
+    Rows,
+    pair_distances,
+    select,
+    sphere_sets,
+    with_collision_terms,
+)
 from planner.trajopt.layout import make_layout
 from planner.trajopt.terms import stage_function
 from robots.collision import collision_model, mesh_distances
@@ -71,7 +77,7 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
         n = (sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa)) - sets.starts[pi]
         rows.spheres[pi] = set(range(n))
         rows.knots[pi] = {5}
-    set_collision_terms(lay, sets, rows, index, 0.01)
+    lay = with_collision_terms(lay, sets, rows, index, 0.01)
     fn = stage_function(lay, list(range(len(lay.terms))), "collision_stage")
     p = np.concatenate([t.params for t in lay.terms])
     def reference(q):
@@ -182,7 +188,7 @@ def test_idle_pairs_get_no_rows_until_the_guess_brings_them_closer(talos):
     assert ("leg_left_5_link", "leg_right_5_link") in near and len(near) >= 3
     lay, settings = _formulation(_reach_spec(talos, "squat down 10 cm"), talos, settings)
     x0 = lay.initial_guess(settings)
-    deferred = add_screened_collision_terms(lay, settings, x0)
+    lay, deferred = add_screened_collision_terms(lay, settings, x0)
     assert not [t for t in lay.terms if t.kind == "collision"]
     assert {sets.pair_names[pi] for pi in deferred.spheres} == near
     q = _guess_configurations(lay, x0)

@@ -45,7 +45,7 @@ def cold(g1):
 def _layout(g1, spec, settings):
     lay, settings = _formulation(spec, g1, settings)
     guess = lay.initial_guess(settings)
-    add_screened_terms(lay, settings, guess)
+    lay, _ = add_screened_terms(lay, settings, guess)
     return lay, settings, guess
 
 

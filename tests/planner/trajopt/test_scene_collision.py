@@ -26,7 +26,7 @@ from planner.trajopt.scene_collision import (
     row_value,
     scene_rows_of,
     scene_sets,
-    set_scene_terms,
+    with_scene_terms,
 )
 from planner.trajopt.terms import stage_function
 from tasks.scene import Scene, SceneObject, load_scene, signed_distance
@@ -101,7 +101,7 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
     assert len(arm) >= 4
     n = len(obs)
     rows = SceneRows(spheres={i: set(arm) for i in range(n)}, knots={i: {5} for i in range(n)})
-    set_scene_terms(lay, sets, obs, rows, list(range(n)), MARGIN)
+    lay = with_scene_terms(lay, sets, obs, rows, list(range(n)), MARGIN)
     assert [t.structure[1] for t in lay.terms] == ["box", "cylinder", "cylinder", "sphere"]  # the pipe: 2 pieces
     fn = stage_function(lay, list(range(len(lay.terms))), "scene_stage")
     p = np.concatenate([t.params for t in lay.terms])
@@ -165,7 +165,7 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
                                            collision=dataclasses.replace(settings.collision,
                                                                          scene_collision=False)))
     rows = scene_rows_of(a)
-    set_scene_terms(b, scene_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
+    b = with_scene_terms(b, scene_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
     assert a.structure() == b.structure()
     pa = np.concatenate([t.params for t in a.terms if t.kind == "scene"])
     pb = np.concatenate([t.params for t in b.terms if t.kind == "scene"])
@@ -283,3 +283,31 @@ def test_walk_through_the_narrow_passage_keeps_clear_of_the_walls(talos):
     for wall in passage.objects:
         d, k = _coal_min_distance(talos, result.q[2:], wall)  # knots 0 and 1: the fixed standing start
         assert d >= MARGIN - SOLVER_TOLERANCE, f"{wall.name}: {d:.4f} m at t = {result.t[k + 2]:.2f} s"
+
+
+def test_a_collision_round_returns_a_new_layout_and_leaves_its_input_unchanged(talos):
+    """A collision round on the nominal guess of a reach whose fingers go through the table (the
+    target 4 cm above its top, as in the refused reach above) gives a new layout with the table's
+    rows, of the same class; the layout it was given keeps its term list, its structure and every
+    parameter. A second round on the same motion finds nothing more and hands its layout back."""
+    from planner.trajopt.api import _formulation, collision_round
+    from planner.trajopt.collision import Rows, sphere_sets
+
+    spec = _spec(talos, "reach forward 30 cm with your right hand", load_scene(TABLE), target=(0.45, -0.3, 0.66))
+    lay, settings = _formulation(spec, talos, PlannerSettings(cache=CacheSettings(compile=False)))
+    terms, structure = lay.terms, lay.structure()
+    params = [t.params.copy() for t in lay.terms]
+    x0 = lay.initial_guess(settings)
+    dq = np.zeros((lay.N + 1, talos.nv))
+    dq[2:lay.N] = x0.reshape(lay.N - 2, talos.nv)
+    dq[lay.N] = dq[lay.N - 1]
+    rows, scene_rows = Rows(), SceneRows()
+    new, pairs, objects, _ = collision_round(lay, settings, dq, sphere_sets(talos), rows, scene_rows, None)
+    assert objects and {obstacles(spec.scene)[o].name for o in objects} == {"table"}  # pieces of it
+    assert type(new) is type(lay)
+    assert any(t.kind == "scene" for t in new.terms) and new.structure() != structure
+    assert lay.terms is terms and lay.structure() == structure  # the input: untouched
+    assert not any(t.kind in ("scene", "collision") for t in lay.terms)
+    assert all(np.array_equal(t.params, p) for t, p in zip(lay.terms, params, strict=True))
+    again, pairs2, objects2, _ = collision_round(new, settings, dq, sphere_sets(talos), rows, scene_rows, None)
+    assert again is new and pairs2 == [] and objects2 == []
