@@ -4,7 +4,7 @@ action, on Talos and G1: planned, certified, and the intent checked independentl
 Run: ``.venv/bin/python benchmarks/bench_intent.py [--robots talos,g1] [--actions clap,lean]
 [--json out.json] [--markdown out.md]``
 
-Each sentence is parsed, compiled, planned (``PlannerSettings(compile=False)``) and simulated in
+Each sentence is parsed, compiled, planned (``PlannerSettings(cache=CacheSettings(compile=False))``) and simulated in
 MuJoCo with the certificate (whose intent lines are ``sim/intent.py``). The *independent* check
 does not use wbmp's checks: it measures the simulated configurations with Pinocchio forward
 kinematics (CoM, frames) and coal (the URDF collision meshes), and MuJoCo's sole forces, against

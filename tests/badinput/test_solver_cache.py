@@ -319,11 +319,11 @@ PLAN_IN_CHILD = f"""
 import sys
 import numpy as np
 from robots import load_robot
-from planner import PlannerSettings
+from planner import CacheSettings, PlannerSettings
 from planner.trajopt import plan
 from tests.planner.planning_cases import squat_spec
 talos = load_robot("talos")
-settings = PlannerSettings(cache_dir=sys.argv[1], compile=True, background_compile=False)
+settings = PlannerSettings(cache=CacheSettings(cache_dir=sys.argv[1], compile=True, background_compile=False))
 result = plan(squat_spec(talos, {DEPTH}, duration={DURATION}, dt={DT}), talos, settings=settings)
 np.save(sys.argv[2], result.q)
 print(result.stats.cache, result.ok)
