@@ -145,7 +145,7 @@ def _solve(spec: TaskSpec, robot: Robot, given: PlannerSettings, lay: Layout, se
     start, lam0 = (x0, None) if seed is None else (seed.start(x0), (seed.lam_x, seed.lam_g))
     if seed is not None:
         assert isinstance(lay, DynamicLayout)  # only dynamic layouts get seeds (_library_seed)
-        lay.set_momentum_point(seed.dq)
+        lay = lay.with_momentum_point(seed.dq)
     lay, dq, stats, raw = _solve_with_collisions(lay, settings, progress, start, deferred, lam0)
     stats = _with_load(stats, loaded)
     if seed is not None:
@@ -462,7 +462,9 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
                 reason = (f"{len(changed)} more link pair(s) and {len(objects)} object(s) came within the "
                           "collision margin")
         lam0 = None
-        if not reason and lay.relinearize(dq, raw["x"], relinearized):
+        relinearized_lay = None if reason else lay.relinearized(dq, raw["x"], relinearized)
+        if relinearized_lay is not None:
+            lay = relinearized_lay
             relinearized += 1
             reason = "re-linearized about the solution"
             lam0 = (raw["lam_x"], raw["lam_g"])  # same structure: the multipliers warm-start it too

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Self
 
 import numpy as np
 import pinocchio as pin
@@ -107,10 +107,11 @@ class Layout(LayoutData):
         """(net force per contact frame for :attr:`Plan.forces`, extra entries for :attr:`Plan.extras`)."""
         return {}, {}
 
-    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
-        """Re-linearize rows about a solution (``dq`` (N+1, nv), all variables ``x``) before solve
-        ``round_ + 1``; True: solve again (warm-started from it). The kinematic formulation is exact: never."""
-        return False
+    def relinearized(self, dq: np.ndarray, x: np.ndarray, round_: int) -> Self | None:
+        """The layout with rows re-linearized about a solution (``dq`` (N+1, nv), all variables ``x``)
+        for solve ``round_ + 1`` (a new one, warm-started from the solution; this one is not changed),
+        or None: no need. The kinematic formulation is exact: always None."""
+        return None
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """A failed plan in task terms; ``relaxed`` runs the generic diagnosis (hard targets relaxed

@@ -9,6 +9,9 @@ built on first use from the layout's data alone (``contacts``, ``pattern``, ``he
 
 from __future__ import annotations
 
+import copy
+from typing import Self
+
 import numpy as np
 
 from planner.trajopt.centroidal.contacts import layout_contacts
@@ -29,25 +32,30 @@ class DynamicData(LayoutData):
 
     Attributes:
         centroidal_settings: Weights and options of the dynamic terms.
-        momentum_residual: Euler's law at the last solution checked / (m g) [m].
+        momentum_residual: Euler's law / (m g) [m] at the solution the momentum rows were last
+            re-linearized about (nan before).
     """
 
     centroidal_settings: CentroidalSettings
     _cf: CentroidalFunction | None
     _pattern: CentroidalPattern | None
     _momentum_point: np.ndarray | None
-    momentum_residual: float = float("nan")  # Euler's law at the last solution checked / (m g) [m]
+    momentum_residual: float = float("nan")  # Euler's law at the momentum point / (m g) [m]
 
     def momentum_point(self) -> np.ndarray:
         """Chart displacements (N+1, nv) the whole-body momentum rows are linearized about: the
-        last solution given to :meth:`set_momentum_point`, else the initial guess's."""
+        solution given to :meth:`with_momentum_point`, else the initial guess's."""
         if self._momentum_point is None:
             self._momentum_point = heading_guess(self)
         return self._momentum_point
 
-    def set_momentum_point(self, dq: np.ndarray) -> None:
-        """Linearize the whole-body momentum rows about ``dq`` (N+1, nv) from the next solve on."""
-        self._momentum_point = np.array(dq, dtype=float)
+    def with_momentum_point(self, dq: np.ndarray, residual: float = float("nan")) -> Self:
+        """A copy of this layout whose whole-body momentum rows are linearized about ``dq`` (N+1, nv)
+        (``residual``: Euler's law there, for the record); this one is not changed."""
+        out = copy.copy(self)
+        out._momentum_point = np.array(dq, dtype=float)
+        out.momentum_residual = residual
+        return out
 
     def centroidal(self) -> CentroidalFunction:
         """The centroidal function of this layout (CasADi; built once, only to build a solver)."""

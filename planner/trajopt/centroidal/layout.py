@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Self
 
 import numpy as np
 
@@ -84,20 +84,19 @@ class DynamicLayout(DynamicData, Layout):
         corner = self.pattern().corner_forces(forces)
         return {frame: f.sum(axis=1) for frame, f in corner.items()}, {"corner_forces": corner}
 
-    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
-        """Linearize the whole-body momentum rows about the solution ``dq`` again, when Euler's law
-        with the exact :math:`A_g` is off by more than ``CentroidalSettings.momentum_tolerance``,
-        for at most ``momentum_iterations`` rounds."""
+    def relinearized(self, dq: np.ndarray, x: np.ndarray, round_: int) -> Self | None:
+        """This layout with the whole-body momentum rows linearized about the solution ``dq`` again
+        (a copy; this one is not changed), when Euler's law with the exact :math:`A_g` is off by more
+        than ``CentroidalSettings.momentum_tolerance``, for at most ``momentum_iterations`` rounds."""
         s = self.centroidal_settings
         if not s.whole_body_momentum or round_ >= s.momentum_iterations:
-            return False
+            return None
         from planner.trajopt.centroidal.momentum import euler_residual
 
-        self.momentum_residual = euler_residual(self, dq, self.forces_of(x))
-        if self.momentum_residual <= s.momentum_tolerance:
-            return False
-        self.set_momentum_point(dq)
-        return True
+        residual = euler_residual(self, dq, self.forces_of(x))
+        if residual <= s.momentum_tolerance:
+            return None
+        return self.with_momentum_point(dq, residual)
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """The worst violated group of the failed plan (no relaxed solve)."""

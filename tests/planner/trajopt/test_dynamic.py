@@ -324,8 +324,11 @@ def test_relinearized_resolve_is_warm_started(g1):
     _, settings = _formulation(spec, g1, SETTINGS)
     dq, stats, raw = solve_layout(lay, settings, x0=lay.initial_guess(settings))
     assert stats.status.ok
-    assert lay.relinearize(dq, raw["x"], 0)  # the push-off folds the legs far from the warm start
-    first = lay.momentum_residual
+    point = lay.momentum_point().copy()
+    relinearized = lay.relinearized(dq, raw["x"], 0)  # the push-off folds the legs far from the warm start
+    assert relinearized is not None
+    np.testing.assert_array_equal(lay.momentum_point(), point)  # the layout solved: unchanged
+    lay, first = relinearized, relinearized.momentum_residual
     warm_dq, warm, warm_raw = solve_layout(lay, settings, x0=raw["x"], lam0=(raw["lam_x"], raw["lam_g"]))
     cold_dq, cold, _ = solve_layout(lay, settings, x0=raw["x"])
     assert warm.status.ok and cold.status.ok
