@@ -37,13 +37,13 @@ sys.path.insert(0, str(ROOT))
 
 
 def measure(task: str, sentence: str, robot, repeat: int, cache_dir: str) -> dict:
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, CollisionSettings, PlannerSettings, plan
     from wbmp.bench.tasks import spec_for
 
     _, spec = spec_for(sentence, robot, None)
     row: dict = {"task": task, "sentence": sentence}
-    variants = {label: PlannerSettings(cache_dir=cache_dir, compile=False, self_collision=on,
-                                       solution_library="off")
+    variants = {label: PlannerSettings(cache=CacheSettings(cache_dir=cache_dir, compile=False, solution_library="off"),
+                                       collision=CollisionSettings(self_collision=on))
                 for label, on in (("off", False), ("on", True))}
     results = {label: plan(spec, robot, settings=s, throw=False)  # builds the solver(s): not timed
                for label, s in variants.items()}
@@ -66,7 +66,7 @@ def measure(task: str, sentence: str, robot, repeat: int, cache_dir: str) -> dic
         row[f"n_constraints_{label}"] = result.stats.n_constraints
     closest = closest_pair(robot, results["on"])
     row["closest"] = f"{closest[1][0]} / {closest[1][1]} {closest[0] * 1000:.1f} mm"
-    row["active"] = bool(closest[0] < variants["on"].collision_margin + ACTIVE_TOLERANCE)
+    row["active"] = bool(closest[0] < variants["on"].collision.margin + ACTIVE_TOLERANCE)
     row["solve_ratio"] = row["solve_on_s"] / max(row["solve_off_s"], 1e-9)
     row["plan_ratio"] = row["plan_on_s"] / max(row["plan_off_s"], 1e-9)
     row["cpu_ratio"] = row["cpu_on_s"] / max(row["cpu_off_s"], 1e-9)
@@ -99,7 +99,8 @@ def _scene(kind: str):
         return table
     if kind == "far":
         obj = table.objects[0]
-        return dataclasses.replace(table, objects=(dataclasses.replace(obj, position=(5.0, 0.0, obj.position[2])),))
+        return dataclasses.replace(table,
+                                   objects=(dataclasses.replace(obj, position=(5.0, 0.0, obj.position[2])),))
     raise SystemExit(f"bench_collision.py: error: unknown scene {kind!r}; the scenes are far, table")
 
 
@@ -107,11 +108,11 @@ def measure_scenes(task: str, sentence: str, robot, scenes: list[str], repeat: i
     """Median plan time of one task without a scene and with each of ``scenes`` (warm solvers)."""
     import dataclasses
 
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from wbmp.bench.tasks import spec_for
 
     _, spec = spec_for(sentence, robot, None)
-    settings = PlannerSettings(cache_dir=cache_dir, compile=False, solution_library="off")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=cache_dir, compile=False, solution_library="off"))
     row: dict = {"task": task, "sentence": sentence}
     for kind in ["none", *scenes]:
         variant = spec if kind == "none" else dataclasses.replace(spec, scene=_scene(kind))

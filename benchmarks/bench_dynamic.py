@@ -106,7 +106,8 @@ def neighbour_library(robot, task: str, settings) -> tuple[str, list[str]]:
     for values in NEIGHBOURS[task]:
         neighbour = [{"action": actions[0]["action"], "params": {**actions[0]["params"], **values}}]
         p = plan(compile_actions(neighbour, robot), robot, throw=False,
-                 settings=replace(settings, cache_dir=folder, solution_library="on"))
+                 settings=replace(settings,
+                                  cache=replace(settings.cache, cache_dir=folder, solution_library="on")))
         planned.append(f"{values} ({'stored' if p.ok else 'failed'})")
     return folder, planned
 
@@ -207,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         for task in args.tasks:
             label, actions = TASKS[task]
             for form in args.formulations:
-                settings = planner_settings(compile_dynamic=args.compile_dynamic, solution_library="off",
+                settings = planner_settings(cache={"compile_dynamic": args.compile_dynamic, "solution_library": "off"},
                                             centroidal=CentroidalSettings(whole_body_momentum=FORMULATIONS[form]))
                 key = f"{name}/{task}" + ("" if form == "whole-body" else f" ({form})")
                 if args.library in ("off", "both"):
@@ -219,7 +220,9 @@ def main(argv: list[str] | None = None) -> int:
 
                     folder, planned = neighbour_library(robot, task, settings)
                     try:
-                        seeded = replace(settings, cache_dir=folder, solution_library="read")
+                        seeded = replace(settings,
+                                         cache=replace(settings.cache, cache_dir=folder,
+                                                       solution_library="read"))
                         results[key + " +library"] = {
                             "label": label, "formulation": form, "library": "neighbours", "neighbours": planned,
                             **run_task(robot, actions, repeat=args.repeat, settings=seeded)}

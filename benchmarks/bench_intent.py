@@ -4,7 +4,7 @@ action, on Talos and G1: planned, certified, and the intent checked independentl
 Run: ``.venv/bin/python benchmarks/bench_intent.py [--robots talos,g1] [--actions clap,lean]
 [--json out.json] [--markdown out.md]``
 
-Each sentence is parsed, compiled, planned (``PlannerSettings(compile=False)``) and simulated in
+Each sentence is parsed, compiled, planned (``PlannerSettings(cache=CacheSettings(compile=False))``) and simulated in
 MuJoCo with the certificate (whose intent lines are ``sim/intent.py``). The *independent* check
 does not use wbmp's checks: it measures the simulated configurations with Pinocchio forward
 kinematics (CoM, frames) and coal (the URDF collision meshes), and MuJoCo's sole forces, against
@@ -290,7 +290,7 @@ def mesh_collisions(robot, qs: np.ndarray) -> dict[tuple[str, str], int]:
 
 def run_one(robot_name: str, action: str, sentence: str) -> dict:
     from language.exceptions import LanguageError
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from sim import SimSettings, simulate
     from tasks.exceptions import TaskError
     from wbmp.pipeline import SolveRequest, build_spec
@@ -302,7 +302,7 @@ def run_one(robot_name: str, action: str, sentence: str) -> dict:
     except (TaskError, LanguageError) as e:  # a refusal is a result: reported with its reason
         row.update(status="refused", reason=str(e).splitlines()[0])
         return row
-    p = plan(spec, robot, settings=PlannerSettings(compile=False), throw=False)
+    p = plan(spec, robot, settings=PlannerSettings(cache=CacheSettings(compile=False)), throw=False)
     if not p.ok:
         row.update(status="not planned", reason=p.stats.status.name)
         return row

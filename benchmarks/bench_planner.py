@@ -52,7 +52,7 @@ def child(case: str, cache_dir: str, runs: int) -> None:
     spec = load_spec(CASES[case])
     robot = load_robot(spec.robot)
     startup = time.perf_counter() - t0
-    settings = planner_settings(cache_dir=cache_dir, solution_library="off")
+    settings = planner_settings(cache={"cache_dir": cache_dir, "solution_library": "off"})
     for i in range(runs):
         t1 = time.perf_counter()
         result = plan(spec, robot, settings=settings)
@@ -77,7 +77,7 @@ def first_ever_child(task: str, cache_dir: str, profile: str | None) -> None:
     robot = load_robot("talos")
     _, spec = spec_for(TASKS[task], robot, None)
     startup = time.perf_counter() - t0
-    settings = planner_settings(cache_dir=cache_dir, solution_library="off")
+    settings = planner_settings(cache={"cache_dir": cache_dir, "solution_library": "off"})
     profiler = None
     if profile:
         import cProfile

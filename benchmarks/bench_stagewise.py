@@ -83,11 +83,11 @@ def evaluation_times(spec, robot, settings, variant: str) -> dict:
 
 def run_variant(robot, spec, variant: str, repeat: int, reference, fatrop_extra: tuple = ()) -> dict:
     """Plan ``spec`` ``repeat + 1`` times with one variant's settings."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, SolverSettings, plan
 
     transcription, solver = VARIANTS[variant]
-    settings = PlannerSettings(compile=False, solution_library="off", transcription=transcription,
-                               stagewise_solver=solver, fatrop_extra=fatrop_extra)
+    settings = PlannerSettings(cache=CacheSettings(compile=False, solution_library="off"),
+                               solver=SolverSettings(transcription=transcription, stagewise_solver=solver, fatrop_extra=fatrop_extra))
     runs = []
     result = None
     for i in range(repeat + 1):

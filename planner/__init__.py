@@ -49,7 +49,14 @@ if TYPE_CHECKING:
         support_heights,
         zmp_of_wrenches,
     )
-    from planner.trajopt.settings import PlannerSettings, default_cache_dir
+    from planner.trajopt.settings import (
+        CacheSettings,
+        CollisionSettings,
+        PlannerSettings,
+        SolverSettings,
+        Tolerances,
+        default_cache_dir,
+    )
     from planner.wbc.controller import WholeBodyController
     from planner.wbc.friction import JointFriction
     from planner.wbc.kernel import kernel_ready
@@ -58,9 +65,11 @@ if TYPE_CHECKING:
 
 _EXPORTS = {  # public name -> module that defines it
     "BUILD_MEMORY": "planner.trajopt.builds",
+    "CacheSettings": "planner.trajopt.settings",
     "CentroidalSettings": "planner.trajopt.centroidal.settings",
     "Check": "planner.results",
     "CheckKind": "planner.results",
+    "CollisionSettings": "planner.trajopt.settings",
     "ConstraintCheck": "planner.results",
     "ControllerError": "planner.exceptions",
     "JointFriction": "planner.wbc.friction",
@@ -71,7 +80,9 @@ _EXPORTS = {  # public name -> module that defines it
     "PlannerSettings": "planner.trajopt.settings",
     "PlanningFailed": "planner.exceptions",
     "SolveStatus": "planner.results",
+    "SolverSettings": "planner.trajopt.settings",
     "SolverStats": "planner.results",
+    "Tolerances": "planner.trajopt.settings",
     "UnsupportedModel": "planner.exceptions",
     "WbcSettings": "planner.wbc.settings",
     "WholeBodyController": "planner.wbc.controller",
@@ -92,9 +103,11 @@ _EXPORTS = {  # public name -> module that defines it
 __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cover
     "BUILD_MEMORY",
     "MEMORY_MARGIN",
+    "CacheSettings",
     "CentroidalSettings",
     "Check",
     "CheckKind",
+    "CollisionSettings",
     "ConstraintCheck",
     "ControllerError",
     "JointFriction",
@@ -104,9 +117,11 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "PlannerSettings",
     "PlanningFailed",
     "SolveStatus",
+    "SolverSettings",
     "SolverStats",
     "SpecNotForRobot",
     "StagewiseUnsupported",
+    "Tolerances",
     "UnsupportedModel",
     "WbcSettings",
     "WholeBodyController",

@@ -496,7 +496,7 @@ def enforce_cap(base: Path | None = None, *, now: float | None = None) -> list[C
 def trim_cache(folder: str | Path) -> list[CacheEntry]:
     """Call after storing an entry in the cache folder ``folder`` (``<base>/<name>``): applies the
     cap (:func:`enforce_cap`) when ``<base>`` is the wbmp cache folder (:func:`cache_base`), never
-    to a folder a caller chose elsewhere (``PlannerSettings(cache_dir=...)``)."""
+    to a folder a caller chose elsewhere (``CacheSettings(cache_dir=...)``)."""
     try:
         base = Path(folder).parent
         if os.path.realpath(base) != os.path.realpath(cache_base()):

@@ -3,7 +3,9 @@
 Between packages, :data:`ALLOWED` says who may import whom. Inside a package the order is
 learnt from the imports themselves (module-level and function-level; not the ones under
 ``if TYPE_CHECKING:``, which never run): the module graph must have no cycle, and inside
-``planner/`` the subpackages follow :data:`PLANNER_ALLOWED`.
+``planner/`` the subpackages follow :data:`PLANNER_ALLOWED`. Counting the ``TYPE_CHECKING``
+imports too, there is no cycle either: a module that needs another's type takes data from below
+it, not the object that imports it back.
 """
 
 from __future__ import annotations
@@ -59,12 +61,13 @@ def module_name(path: Path, root: Path = ROOT) -> str:
     return ".".join(parts)
 
 
-def _runtime_imports(tree: ast.AST):
-    """Import nodes that run: everywhere (functions included) except under ``if TYPE_CHECKING:``."""
+def _runtime_imports(tree: ast.AST, type_checking: bool = False):
+    """Import nodes that run: everywhere (functions included) except under ``if TYPE_CHECKING:``
+    (those too with ``type_checking``)."""
     stack = [tree]
     while stack:
         node = stack.pop()
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+        if not type_checking and isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
             stack.extend(node.orelse)
             continue
         if isinstance(node, (ast.Import, ast.ImportFrom)):
@@ -72,12 +75,14 @@ def _runtime_imports(tree: ast.AST):
         stack.extend(ast.iter_child_nodes(node))
 
 
-def imported_modules(source: str, module: str, is_package: bool, known: set[str]) -> set[str]:
+def imported_modules(source: str, module: str, is_package: bool, known: set[str],
+                     type_checking: bool = False) -> set[str]:
     """Modules among ``known`` that the source of ``module`` imports (``from a import b``: the
-    module ``a.b`` when it is one, else ``a``)."""
+    module ``a.b`` when it is one, else ``a``); with ``type_checking``, the imports under
+    ``if TYPE_CHECKING:`` count too."""
     out = set()
     here = module.split(".") if is_package else module.split(".")[:-1]
-    for node in _runtime_imports(ast.parse(source)):
+    for node in _runtime_imports(ast.parse(source), type_checking):
         if isinstance(node, ast.Import):
             targets = [a.name for a in node.names]
         else:
@@ -94,11 +99,12 @@ def imported_modules(source: str, module: str, is_package: bool, known: set[str]
     return out
 
 
-def module_graph(package: str, root: Path = ROOT) -> dict[str, set[str]]:
-    """Import graph of the modules of one top-level package: module -> modules it imports."""
+def module_graph(package: str, root: Path = ROOT, type_checking: bool = False) -> dict[str, set[str]]:
+    """Import graph of the modules of one top-level package: module -> modules it imports (with
+    ``type_checking``, the imports under ``if TYPE_CHECKING:`` too)."""
     files = {module_name(p, root): p for p in sorted((root / package).rglob("*.py"))}
     known = set(files)
-    return {m: imported_modules(p.read_text(encoding="utf-8"), m, p.name == "__init__.py", known)
+    return {m: imported_modules(p.read_text(encoding="utf-8"), m, p.name == "__init__.py", known, type_checking)
             for m, p in files.items()}
 
 
@@ -175,6 +181,17 @@ def test_no_import_cycle_inside_a_package():
     assert not cycles, "import cycles:\n" + "\n".join(cycles)
 
 
+def test_no_import_cycle_even_counting_type_checking_imports():
+    """Inside every package the modules import each other one way even for their types (the
+    imports under ``if TYPE_CHECKING:`` counted): no module takes an object whose module imports it."""
+    cycles = []
+    for pkg in PACKAGES:
+        cycle = find_cycle(module_graph(pkg, type_checking=True))
+        if cycle:
+            cycles.append(f"{pkg}: " + " -> ".join([*cycle, cycle[0]]))
+    assert not cycles, "import cycles through TYPE_CHECKING imports:\n" + "\n".join(cycles)
+
+
 def test_planner_subpackages_one_way():
     """planner.trajopt and planner.wbc share only planner.results and planner.exceptions."""
     graph = module_graph("planner")
@@ -206,4 +223,7 @@ def test_module_graph_reads_function_level_and_relative_imports():
     source = ("from typing import TYPE_CHECKING\nfrom . import b\nif TYPE_CHECKING:\n    from p.c import X\n"
               "def f():\n    from .sub.d import g\n    import p.c as c\n")
     assert imported_modules(source, "p.a", False, known) == {"p.b", "p.sub.d", "p.c"}
+    typed = "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from p.c import X\n"
+    assert imported_modules(typed, "p.a", False, known) == set()
+    assert imported_modules(typed, "p.a", False, known, type_checking=True) == {"p.c"}
     assert imported_modules("from .sub import d\n", "p", True, known) == {"p.sub.d"}

@@ -6,7 +6,7 @@ read, unless the caller asks). The command line and the programs of :mod:`wbmp` 
 settings here, so a user's shell switches what it always did:
 
 ========================== ====================================== =========================
-variable                    field                                   unset
+variable                    field of ``settings.cache``             unset
 ========================== ====================================== =========================
 ``WBMP_COMPILE``            ``compile`` (``0``/``false``/``no``:   on: gcc, solvers on disk
                             off)
@@ -18,7 +18,8 @@ variable                    field                                   unset
 ``WBMP_COMPILER``           ``compiler``                            ``gcc``
 ========================== ====================================== =========================
 
-(``WBMP_CACHE_DIR`` is read by :func:`robots.store.cache_base`, the default ``cache_dir``.)
+(``WBMP_CACHE_DIR`` is read by :func:`robots.store.cache_base`, the default ``cache_dir``.) Every
+variable sets a field of :class:`planner.CacheSettings`.
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ def build_memory(environ: Mapping[str, str] | None = None) -> int:
 
 
 def settings_from_environment(environ: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """The :class:`planner.PlannerSettings` fields that the environment sets (the table above),
+    """The :class:`planner.CacheSettings` fields that the environment sets (the table above),
     each with the command line's default when its variable is unset."""
     environ = os.environ if environ is None else environ
     return {
@@ -81,9 +82,12 @@ def settings_from_environment(environ: Mapping[str, str] | None = None) -> dict[
     }
 
 
-def planner_settings(environ: Mapping[str, str] | None = None, **given: Any) -> PlannerSettings:
-    """:class:`planner.PlannerSettings` from the environment (:func:`settings_from_environment`);
-    the fields ``given`` win."""
-    from planner import PlannerSettings
+def planner_settings(environ: Mapping[str, str] | None = None, *, cache: Mapping[str, Any] | None = None,
+                     **given: Any) -> PlannerSettings:
+    """:class:`planner.PlannerSettings` whose cache settings come from the environment
+    (:func:`settings_from_environment`), the fields in ``cache`` winning; ``given``: the other
+    fields (``solver=SolverSettings(...)``, ``collision=...``)."""
+    from planner import CacheSettings, PlannerSettings
 
-    return PlannerSettings(**{**settings_from_environment(environ), **given})
+    return PlannerSettings(cache=CacheSettings(**{**settings_from_environment(environ), **(cache or {})}),
+                           **given)

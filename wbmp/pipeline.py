@@ -350,7 +350,7 @@ def plan_spec(spec: TaskSpec, robot: Robot, progress: Progress, *, library: bool
     from wbmp.environment import planner_settings
 
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
-    settings = planner_settings() if library else planner_settings(solution_library="off")
+    settings = planner_settings() if library else planner_settings(cache={"solution_library": "off"})
     return plan_motion(spec, robot, progress=progress, settings=settings)
 
 

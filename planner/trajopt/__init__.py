@@ -4,10 +4,12 @@ solved with IPOPT, checked with Pinocchio numerics.
 Modules, in import order (each imports only the ones above it; tests/test_layering.py checks):
 
 * ``symbolic``: CasADi kinematics from a Pinocchio model, over the tangent chart;
-* ``settings``: :class:`PlannerSettings` (``centroidal.settings``: its dynamic part);
+* ``settings``: :class:`PlannerSettings`, composed of one small frozen dataclass per concern
+  (solver, cache, collision, tolerances; ``centroidal.settings``: its dynamic part);
 * ``term``: a term at one knot and the registry of term kinds; ``kinds``: the kinematic kinds,
   one class each (``collision``, ``scene_collision``: the collision kinds; docs/terms.md);
-* ``layout``: spec -> knot grid -> per-knot terms (:class:`Layout`, the kinematic formulation);
+* ``layout_data``: a layout's data (:class:`LayoutData`, what the term modules below the
+  layout take); ``layout``: spec -> knot grid -> per-knot terms (:class:`Layout`, the kinematic formulation);
   ``formulation``: the protocol a formulation implements; ``nominal``: the warm start;
 * ``terms``: the stage functions of the terms at a knot; ``transcription``: the NLP and its
   derivatives, bounds and parameters;

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
@@ -35,15 +36,16 @@ from planner.trajopt.centroidal.layout import DynamicLayout, to_dynamic_layout
 from planner.trajopt.checks import precheck
 from planner.trajopt.collision import (
     Rows,
+    SphereSets,
     collision_diagnosis,
     collision_rows_of,
     exempt_distances,
     idle_pairs,
     missing_rows,
     select,
-    set_collision_terms,
     sphere_pair_distances,
     sphere_sets,
+    with_collision_terms,
 )
 from planner.trajopt.diagnose import diagnose_failure
 from planner.trajopt.layout import Layout, make_layout
@@ -59,6 +61,7 @@ from planner.trajopt.library import (
 from planner.trajopt.payload import payload_checks
 from planner.trajopt.report import configurations, make_plan
 from planner.trajopt.scene_collision import (
+    SceneRows,
     add_screened_scene_terms,
     missing_scene_rows,
     scene_diagnosis,
@@ -69,6 +72,8 @@ from planner.trajopt.solve import solve_layout
 from planner.trajopt.transcription import bounds, parameter_values
 from robots import Robot
 from tasks import TaskSpec
+
+L = TypeVar("L", bound=Layout)  # a layout, kinematic or dynamic: the functions hand back the same class
 
 
 def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = None, throw: bool = True,
@@ -134,14 +139,14 @@ def _solve(spec: TaskSpec, robot: Robot, given: PlannerSettings, lay: Layout, se
     """Step 3: the screened guess, the escalation record, the solution library's seed (a dynamic
     plan), the solve with its collision rounds; a seeded solve that fails is done again from the
     task's own guess (a seed never costs a plan); a plan that succeeded goes into the library."""
-    x0, deferred = _screened_guess(lay, settings)
-    key0, escalation = _escalate(lay, settings, deferred, progress)
+    lay, x0, deferred = _screened_guess(lay, settings)
+    lay, key0, escalation = _escalate(lay, settings, deferred, progress)
     seed, loaded = _library_seed(lay, settings, x0, progress)
     start, lam0 = (x0, None) if seed is None else (seed.start(x0), (seed.lam_x, seed.lam_g))
     if seed is not None:
         assert isinstance(lay, DynamicLayout)  # only dynamic layouts get seeds (_library_seed)
-        lay.set_momentum_point(seed.dq)
-    dq, stats, raw = _solve_with_collisions(lay, settings, progress, start, deferred, lam0)
+        lay = lay.with_momentum_point(seed.dq)
+    lay, dq, stats, raw = _solve_with_collisions(lay, settings, progress, start, deferred, lam0)
     stats = _with_load(stats, loaded)
     if seed is not None:
         stats = dataclasses.replace(stats, seed=f"library (distance {seed.distance:.4f})")
@@ -152,8 +157,8 @@ def _solve(spec: TaskSpec, robot: Robot, given: PlannerSettings, lay: Layout, se
             progress("the solve from the stored solution failed: solving from the task's own guess")
         tried = stats
         lay, settings = _formulation(spec, robot, given)
-        x0, deferred = _screened_guess(lay, settings)
-        dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
+        lay, x0, deferred = _screened_guess(lay, settings)
+        lay, dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
         stats = dataclasses.replace(
             stats, iterations=tried.iterations + stats.iterations, build_time=tried.build_time + stats.build_time,
             solve_time=tried.solve_time + stats.solve_time,
@@ -186,28 +191,36 @@ def _diagnosed(solved: _Solved, result: Plan, spec: TaskSpec, progress: Callable
         progress("the solve failed: diagnosing")
     lay, settings, raw = solved.lay, solved.settings, solved.raw
     diagnosis = ""
-    asked = settings.diagnose and not spec.dynamic and (settings.scene_collision or settings.self_collision)
+    collision = settings.collision
+    asked = settings.diagnose and not spec.dynamic and (collision.scene_collision or collision.self_collision)
     if asked:
         # A target out of reach is the cause whatever the collision rows say, and the relaxed solve
         # that finds it converges: asked first, it spares the collision-free re-solve, which runs to
         # the iteration limit when the target is out of reach anyway.
         diagnosis = diagnose_failure(lay, result, settings, raw, targets_only=True)
-    if not diagnosis and settings.scene_collision and settings.diagnose:
-        diagnosis = scene_diagnosis(lay, settings, solve_layout)
-    if not diagnosis and settings.self_collision and settings.diagnose:
-        diagnosis = collision_diagnosis(lay, settings, solve_layout)
+    if not diagnosis and settings.collision.scene_collision and settings.diagnose:
+        diagnosis = scene_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
+    if not diagnosis and settings.collision.self_collision and settings.diagnose:
+        diagnosis = collision_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
     if not diagnosis:
         diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw, relax=not asked))
     return make_plan(lay, solved.dq, solved.stats, settings, diagnosis=diagnosis, checks=result.checks,
                      forces=solved.forces)
 
 
-def _screened_guess(lay: Layout, settings: PlannerSettings) -> tuple[np.ndarray, Rows]:
-    """The layout's initial guess (kinematic: the nominal motion; dynamic: the heading guess) and
-    the self-collision rows screening left out for idle pairs, after adding the rows the guess asks
-    for (:func:`add_screened_terms`)."""
+def _solve_uncompiled(lay: Layout, settings: PlannerSettings) -> tuple:
+    """A layout solved from its initial guess without a compile (a diagnosis's collision-free solve)."""
+    in_memory = dataclasses.replace(settings, cache=dataclasses.replace(settings.cache, compile=False))
+    return solve_layout(lay, in_memory, x0=lay.initial_guess(settings))
+
+
+def _screened_guess(lay: L, settings: PlannerSettings) -> tuple[L, np.ndarray, Rows]:
+    """The layout with the rows its initial guess asks for (:func:`add_screened_terms`), the guess
+    (kinematic: the nominal motion; dynamic: the heading guess) and the self-collision rows
+    screening left out for idle pairs."""
     x0 = lay.initial_guess(settings)
-    return x0, add_screened_terms(lay, settings, x0)
+    screened, deferred = add_screened_terms(lay, settings, x0)
+    return screened, x0, deferred
 
 
 def _guess_configurations(lay: Layout, x0: np.ndarray) -> np.ndarray:
@@ -220,38 +233,37 @@ def _guess_configurations(lay: Layout, x0: np.ndarray) -> np.ndarray:
     return configurations(lay, dq0)
 
 
-def add_screened_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray) -> Rows:
-    """Add the self-collision and scene rows that the initial guess ``x0`` asks for (with the
-    settings that switch them on); returns the self-collision rows left out for idle pairs
-    (:func:`add_screened_collision_terms`)."""
-    if not (settings.self_collision or settings.scene_collision):
-        return Rows()
+def add_screened_terms(lay: L, settings: PlannerSettings, x0: np.ndarray) -> tuple[L, Rows]:
+    """The layout with the self-collision and scene rows that the initial guess ``x0`` asks for (with
+    the settings that switch them on; a copy: ``lay`` is not changed), and the self-collision rows
+    left out for idle pairs (:func:`add_screened_collision_terms`)."""
+    if not (settings.collision.self_collision or settings.collision.scene_collision):
+        return lay, Rows()
     q0 = _guess_configurations(lay, x0)
     deferred = Rows()
-    if settings.self_collision:
-        deferred = add_screened_collision_terms(lay, settings, x0, q0)
-    if settings.scene_collision:
-        add_screened_scene_terms(lay, settings, q0)
-    return deferred
+    if settings.collision.self_collision:
+        lay, deferred = add_screened_collision_terms(lay, settings, x0, q0)
+    if settings.collision.scene_collision:
+        lay, _ = add_screened_scene_terms(lay, settings, q0)
+    return lay, deferred
 
 
-def add_screened_collision_terms(lay: Layout, settings: PlannerSettings, x0: np.ndarray,
-                                 q0: np.ndarray | None = None) -> Rows:
-    """Add the self-collision rows of the link pairs that the initial guess ``x0`` brings within
-    ``settings.collision_screening``, but for idle pairs (no closer than at rest anywhere on the
-    guess, :func:`planner.trajopt.collision.idle_pairs`), which are left to the check after the
-    solve; returns the rows left out (planner/trajopt/collision.py)."""
+def add_screened_collision_terms(lay: L, settings: PlannerSettings, x0: np.ndarray,
+                                 q0: np.ndarray | None = None) -> tuple[L, Rows]:
+    """The layout with the self-collision rows of the link pairs that the initial guess ``x0`` brings
+    within ``settings.collision.screening`` (a copy: ``lay`` is not changed), but for idle pairs (no
+    closer than at rest anywhere on the guess, :func:`planner.trajopt.collision.idle_pairs`), which
+    are left to the check after the solve; and the rows left out (planner/trajopt/collision.py)."""
     robot = lay.robot
     sets = sphere_sets(robot)
     q0 = _guess_configurations(lay, x0) if q0 is None else q0
-    distances = exempt_distances(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision_screening))
-    rows = select(lay, sets, distances, settings.collision_screening)
-    idle = idle_pairs(lay, sets, distances, settings.collision_margin)
+    distances = exempt_distances(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision.screening))
+    rows = select(lay, sets, distances, settings.collision.screening)
+    idle = idle_pairs(lay, sets, distances, settings.collision.margin)
     deferred = Rows()
     for pi in [pi for pi in rows.spheres if idle[pi]]:
         deferred.spheres[pi], deferred.knots[pi] = rows.spheres.pop(pi), rows.knots.pop(pi)
-    set_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision_margin)
-    return deferred
+    return with_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision.margin), deferred
 
 
 def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | None = None) -> Layout:
@@ -259,8 +271,7 @@ def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | Non
     without the rows the solution library may remember for its structure): what keys its solver
     in the cache."""
     lay, settings = _formulation(spec, robot, settings or PlannerSettings())
-    _screened_guess(lay, settings)
-    return lay
+    return _screened_guess(lay, settings)[0]
 
 
 def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tuple[Layout, PlannerSettings]:
@@ -269,10 +280,13 @@ def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tup
     lay = make_layout(spec, robot)
     if spec.dynamic:
         lay = to_dynamic_layout(lay, settings.centroidal)
+        solver, cache = settings.solver, settings.cache
         settings = dataclasses.replace(
-            settings, ipopt_extra=(*settings.centroidal.ipopt_options, *settings.ipopt_extra),
-            compile=settings.compile and settings.compile_dynamic,
-            serialize=settings.serialize or (settings.compile and not settings.compile_dynamic))
+            settings,
+            solver=dataclasses.replace(solver,
+                                       ipopt_extra=(*settings.centroidal.ipopt_options, *solver.ipopt_extra)),
+            cache=dataclasses.replace(cache, compile=cache.compile and cache.compile_dynamic,
+                                      serialize=cache.serialize or (cache.compile and not cache.compile_dynamic)))
     return lay, settings
 
 
@@ -290,16 +304,16 @@ def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
     when the settings use the library, it holds one that fits, and its start (:meth:`Seed.start`)
     violates the constraints less (summed) than the layout's own initial guess ``guess``; and, when
     it fetched the solver for that, the seconds and origin of the fetch (for the stats)."""
-    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library != "off"):
+    if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library != "off"):
         return None, None
     key = solver_key(lay, settings)
-    if not has_seeds(key, settings.cache_dir):
+    if not has_seeds(key, settings.cache.cache_dir):
         return None, None
     t0 = time.perf_counter()
     solver = get_solver(lay, settings, progress)  # the structure's sizes (the solve reuses the solver)
     loaded = (time.perf_counter() - t0, solver.origin)
     nl = solver.nlp_layout
-    seed = find_seed(lay, key, nl.n_x, nl.n_g, settings.cache_dir)
+    seed = find_seed(lay, key, nl.n_x, nl.n_g, settings.cache.cache_dir)
     if seed is None:
         return None, loaded
     # Used only when it starts nearer to feasibility than the task's own guess: Talos four steps of
@@ -326,33 +340,35 @@ def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, ra
     seed of its structure (``solution_library="on"``); when collision rounds changed the structure
     the plan started with (``key0``, before any ``escalation`` record was applied), remember the
     self-collision rows it ended with for the next plan of ``key0``."""
-    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library == "on"):
+    if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library == "on"):
         return
     key = solver_key(lay, settings)
-    store_seed(lay, key, guess, raw, dq, settings.cache_dir)
-    if key0 is None or key == key0 or not settings.self_collision:
+    store_seed(lay, key, guess, raw, dq, settings.cache.cache_dir)
+    if key0 is None or key == key0 or not settings.collision.self_collision:
         return
     sets = sphere_sets(lay.robot)
     rows = collision_rows_of(lay, sets)
     named = {"/".join(sets.pair_names[pi]): (set(rows.spheres[pi]), set(rows.knots[pi])) for pi in rows.spheres}
     if named != escalation:
-        store_escalation(key0, named, settings.cache_dir)
+        store_escalation(key0, named, settings.cache.cache_dir)
 
 
-def _escalate(lay: Layout, settings: PlannerSettings, deferred: Rows,
-              progress: Callable[[str], None] | None) -> tuple[str | None, EscalationRows | None]:
+def _escalate(lay: L, settings: PlannerSettings, deferred: Rows,
+              progress: Callable[[str], None] | None) -> tuple[L, str | None, EscalationRows | None]:
     """Give a dynamic layout the self-collision rows that earlier plans of its structure came to
     need (:func:`planner.trajopt.library.find_escalation`) before its first solve: it then has their
     final structure, and their seeds, instead of a collision round that builds another solver
     and solves again. A record that names a pair, sphere pair or knot this layout does not have is
-    not used. Returns the structure's key before (None: the library is not used) and the record."""
-    if not (isinstance(lay, DynamicLayout) and settings.use_cache and settings.solution_library != "off"
-            and settings.self_collision):
-        return None, None
+    not used. Returns the layout with those rows (a copy; ``lay`` is not changed), the structure's key
+    before (None: the library is not used) and the record; the rows added leave ``deferred``."""
+    cache = settings.cache
+    if not (isinstance(lay, DynamicLayout) and cache.use_cache and cache.solution_library != "off"
+            and settings.collision.self_collision):
+        return lay, None, None
     key0 = solver_key(lay, settings)
-    record = find_escalation(key0, settings.cache_dir)
+    record = find_escalation(key0, settings.cache.cache_dir)
     if record is None:
-        return key0, None
+        return lay, key0, None
     sets = sphere_sets(lay.robot)
     index = {"/".join(name): pi for pi, name in enumerate(sets.pair_names)}
     ends = np.append(sets.starts[1:], len(sets.sa))
@@ -360,39 +376,69 @@ def _escalate(lay: Layout, settings: PlannerSettings, deferred: Rows,
     for name, (spheres, knots) in record.items():
         pi = index.get(name)
         if pi is None or max(spheres) >= ends[pi] - sets.starts[pi] or min(knots) < 2 or max(knots) > lay.N - 1:
-            return key0, None
+            return lay, key0, None
         extra.spheres[pi], extra.knots[pi] = set(spheres), set(knots)
     rows = collision_rows_of(lay, sets)
     changed = rows.merge(extra)
     if changed:
-        set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
+        lay = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
         for pi in changed:
             deferred.spheres.pop(pi, None)
             deferred.knots.pop(pi, None)
         if progress:
             progress(f"adding the collision rows of {len(changed)} link pair(s) that earlier plans of this "
                      "task structure needed")
-    return key0, record
+    return lay, key0, record
 
 
-def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None,
+def collision_round(lay: L, settings: PlannerSettings, dq: np.ndarray, sets: SphereSets | None, rows: Rows | None,
+                    scene_rows: SceneRows | None, deferred: Rows | None) -> tuple[L, list[int], list[int], Rows | None]:
+    """One collision round after a solve ``dq`` (N+1, nv): the link pairs (``sets``, ``rows``; None:
+    no self-collision rows) and the (sphere, object) pairs (``scene_rows``; None: no scene rows) that
+    the solution brings within the margin without rows get them, and when a link pair came close the
+    rows ``deferred`` for idle pairs too.
+
+    Returns the layout to solve next (a new one with the rows; ``lay`` itself when none changed:
+    ``lay`` is never changed), the link pairs and the objects whose rows changed, and the deferred
+    rows left. ``rows`` and ``scene_rows``, the record of the rows the layout has, are updated."""
+    q = configurations(lay, dq)
+    changed: list[int] = []
+    if sets is not None and rows is not None:
+        distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision.screening)
+        more = missing_rows(lay, sets, rows, distances, settings.collision.margin, settings.collision.screening)
+        changed = rows.merge(more)
+        if changed and deferred is not None:  # a pair came close: the idle ones' rows too
+            changed = sorted(set(changed) | set(rows.merge(deferred)))
+            deferred = None
+        if changed:
+            lay = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
+    objects: list[int] = []
+    if scene_rows is not None:
+        lay, objects = missing_scene_rows(lay, scene_rows, q, settings)
+    return lay, changed, objects, deferred
+
+
+def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable[[str], None] | None,
                            x0: np.ndarray, deferred: Rows | None = None,
-                           lam0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, SolverStats, dict]:
+                           lam0: tuple[np.ndarray, np.ndarray] | None = None,
+                           ) -> tuple[L, np.ndarray, SolverStats, dict]:
     """Solve, then again from the solution while the solution asks for it: a link pair, or a robot
     sphere and a scene object, within the collision margin without rows gets them (at most
-    ``settings.collision_rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
+    ``settings.collision.rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
     layout whose linearized rows are off at the solution re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
     ``deferred``: the rows screening left out for idle pairs; they are added when a solve fails
     (and the problem is solved again from ``x0``, as it would have been with them from the start)
     or when the solution brings some pair within the margin without rows.
     ``lam0``: the first solve's initial multipliers (a seed's, :mod:`planner.trajopt.library`).
-    The stats add up the iterations and times of every solve."""
+    Returns the layout last solved (each round's rows make a new one, :func:`collision_round`;
+    ``lay`` is not changed by them), the solution and stats (adding up the iterations and times of
+    every solve) and the solver's raw output."""
     guess = x0
-    sets = sphere_sets(lay.robot) if settings.self_collision else None
+    sets = sphere_sets(lay.robot) if settings.collision.self_collision else None
     rows = collision_rows_of(lay, sets) if sets is not None else None
-    scene_rows = scene_rows_of(lay) if settings.scene_collision else None
+    scene_rows = scene_rows_of(lay) if settings.collision.scene_collision else None
     total: SolverStats | None = None
-    collision_round = relinearized = 0
+    rounds = relinearized = 0
     while True:
         dq, stats, raw = solve_layout(lay, settings, progress, x0=x0, lam0=lam0)
         total = stats if total is None else dataclasses.replace(
@@ -401,38 +447,29 @@ def _solve_with_collisions(lay: Layout, settings: PlannerSettings, progress: Cal
         if not stats.status.ok:
             if (sets is None or rows is None or deferred is None or not deferred.spheres
                     or stats.status not in (SolveStatus.MAX_ITERATIONS, SolveStatus.NUMERICAL_ERROR)):
-                return dq, total, raw
-            set_collision_terms(lay, sets, rows, rows.merge(deferred), settings.collision_margin)
+                return lay, dq, total, raw
+            lay = with_collision_terms(lay, sets, rows, rows.merge(deferred), settings.collision.margin)
             deferred = None
             if progress:
                 progress("the solve failed: solving again with the idle pairs' rows")
             x0, lam0 = guess, None
             continue
         reason = ""
-        if collision_round < settings.collision_rounds and (sets is not None or scene_rows is not None):
-            q = configurations(lay, dq)
-            changed = []
-            if sets is not None and rows is not None:
-                distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision_screening)
-                more = missing_rows(lay, sets, rows, distances, settings.collision_margin, settings.collision_screening)
-                changed = rows.merge(more)
-                if changed and deferred is not None:  # a pair came close: the idle ones' rows too
-                    changed = sorted(set(changed) | set(rows.merge(deferred)))
-                    deferred = None
-                if changed:
-                    set_collision_terms(lay, sets, rows, changed, settings.collision_margin)
-            objects = missing_scene_rows(lay, scene_rows, q, settings) if scene_rows is not None else []
+        if rounds < settings.collision.rounds and (sets is not None or scene_rows is not None):
+            lay, changed, objects, deferred = collision_round(lay, settings, dq, sets, rows, scene_rows, deferred)
             if changed or objects:
-                collision_round += 1
+                rounds += 1
                 reason = (f"{len(changed)} more link pair(s) and {len(objects)} object(s) came within the "
                           "collision margin")
         lam0 = None
-        if not reason and lay.relinearize(dq, raw["x"], relinearized):
+        relinearized_lay = None if reason else lay.relinearized(dq, raw["x"], relinearized)
+        if relinearized_lay is not None:
+            lay = relinearized_lay
             relinearized += 1
             reason = "re-linearized about the solution"
             lam0 = (raw["lam_x"], raw["lam_g"])  # same structure: the multipliers warm-start it too
         if not reason:
-            return dq, total, raw
+            return lay, dq, total, raw
         if progress:
             progress(f"{reason}: solving again")
         x0 = raw["x"]

@@ -61,10 +61,10 @@ MEMORY_ENTRIES = 24  # solvers kept alive in a process (least recently used drop
 _MEMORY: OrderedDict[str, Solver] = OrderedDict()
 _LOCK = threading.Lock()
 _SOURCES = (  # relative to planner/trajopt/: the files that determine the compiled structure
-    "symbolic.py", "layout.py", "term.py", "terms.py", "kinds.py", "collision.py", "scene_collision.py",
+    "symbolic.py", "layout_data.py", "layout.py", "term.py", "terms.py", "kinds.py", "collision.py", "scene_collision.py",
     "transcription.py", "ipopt.py", "cache.py",
     "centroidal/settings.py", "centroidal/physics.py", "centroidal/contacts.py", "centroidal/pattern.py",
-    "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
+    "centroidal/heading.py", "centroidal/data.py", "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
 )
 
 
@@ -89,7 +89,7 @@ def solver_key(lay: Layout, settings: PlannerSettings) -> str:
     h.update(model_hash(lay.robot.model).encode())
     h.update(repr(lay.structure()).encode())
     h.update(json.dumps(ipopt_options(settings), sort_keys=True).encode())
-    if settings.serialize and not settings.compile:
+    if settings.cache.serialize and not settings.cache.compile:
         h.update(b"serialized")  # another kind of entry than a compiled one
     return h.hexdigest()[:24]
 
@@ -106,7 +106,7 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
     from planner.trajopt.transcription import Solver, build_nlp
 
     key = solver_key(lay, settings)
-    if settings.use_cache:
+    if settings.cache.use_cache:
         with _LOCK:
             hit = _MEMORY.get(key)
             if hit is not None:
@@ -115,9 +115,9 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
             return Solver(function=hit.function, nlp_layout=hit.nlp_layout, origin="memory")
     t0 = time.perf_counter()
     solver = None
-    entry = Path(settings.cache_dir) / "planner" / key
-    disk = settings.use_cache and settings.compile
-    serial = settings.use_cache and settings.serialize and not disk
+    entry = Path(settings.cache.cache_dir) / "planner" / key
+    disk = settings.cache.use_cache and settings.cache.compile
+    serial = settings.cache.use_cache and settings.cache.serialize and not disk
     if disk or serial:
         cache_disk.sweep(entry.parent)  # stale temporary build folders (once per process)
     if disk:
@@ -140,7 +140,7 @@ def get_solver(lay: Layout, settings: PlannerSettings, progress: Callable[[str],
             if serial and cache_disk.usable_folder(entry.parent):
                 _store_serialized(entry, key, nlp, derivatives, nl, settings)
     solver.build_time = time.perf_counter() - t0
-    if settings.use_cache:
+    if settings.cache.use_cache:
         with _LOCK:
             _MEMORY[key] = solver
             while len(_MEMORY) > MEMORY_ENTRIES:
@@ -253,7 +253,7 @@ def _store_serialized(entry: Path, key: str, nlp: dict, derivatives: dict, nl, s
     except OSError as e:
         cache_disk.warn_unusable(entry.parent, (e.strerror or str(e)).lower())
         return
-    if not (settings.background_compile and hasattr(os, "fork")):
+    if not (settings.cache.background_compile and hasattr(os, "fork")):
         try:
             _write_serialized(tmp, entry, key, functions, nl.n_x, nl.n_g)
         except (OSError, RuntimeError):
@@ -391,7 +391,7 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
 
     builder = ca.nlpsol("wbmp_plan", "ipopt", nlp, {**ipopt_options(settings), **derivatives})
     solver = Solver(function=builder, nlp_layout=nl, origin="built")
-    gcc = shutil.which(settings.compiler)
+    gcc = shutil.which(settings.cache.compiler)
     if gcc is None:
         return solver
     slot = _claim_build(entry.parent, key, settings, progress)
@@ -407,9 +407,10 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
             shutil.rmtree(tmp, ignore_errors=True)
         slot.close()
         return solver
-    build = _Build(gcc=gcc, flags=tuple(settings.compile_flags), timeout=settings.compile_timeout,
-                   margin=settings.build_memory_margin, slot=slot)
-    if settings.background_compile and hasattr(os, "fork"):
+    cache = settings.cache
+    build = _Build(gcc=gcc, flags=tuple(cache.compile_flags), timeout=cache.compile_timeout,
+                   margin=cache.build_memory_margin, slot=slot)
+    if settings.cache.background_compile and hasattr(os, "fork"):
         # Generate the C code and compile it in a forked child: this plan runs on the in-memory
         # solver now, and the next process with this structure loads the compiled one (the code
         # generation alone is ~1-1.5 s of CPU for Talos, gcc 5-70 s here).
@@ -424,7 +425,7 @@ def _compile_entry(entry: Path, key: str, nlp: dict, derivatives: dict, nl, sett
             progress("generating C code for the solver")
         _generate_c(tmp, nlp, builder, slot)
         if progress:
-            progress(f"compiling the solver with {Path(gcc).name} {' '.join(settings.compile_flags)} "
+            progress(f"compiling the solver with {Path(gcc).name} {' '.join(settings.cache.compile_flags)} "
                      "(first time for this task structure)")
         _finish_entry(tmp, entry, key, nl.n_x, nl.n_g, build)
         return solver
@@ -454,7 +455,7 @@ def _claim_build(folder: Path, key: str, settings: PlannerSettings, progress) ->
     recorded, and said through ``progress``): another build runs, or the memory is not there."""
     if not cache_disk.usable_folder(folder):
         return None
-    reason = builds.memory_refusal(settings.build_memory, settings.build_memory_margin)
+    reason = builds.memory_refusal(settings.cache.build_memory, settings.cache.build_memory_margin)
     claimed: builds.Slot | str = reason if reason else builds.claim(folder, key)
     if isinstance(claimed, builds.Slot):
         return claimed

@@ -87,12 +87,12 @@ def check_plan(lay: Layout, q: np.ndarray, v: np.ndarray, com: np.ndarray,
     upper = np.where(np.abs(upper) < 1e10, upper, np.inf)
     viol = np.maximum(lower - q[:, 7:], q[:, 7:] - upper).max(axis=1)
     checks.append(worst_check("joint position limits", CheckKind.JOINT_POSITION_LIMITS, viol, t,
-                              settings.limit_tolerance, "rad"))
+                              settings.tolerances.limit, "rad"))
     vmax = np.asarray(model.velocityLimit, dtype=float)[6:]
     vmax = np.where((vmax > 0) & (vmax < 1e10), vmax, np.inf)
     vviol = (np.abs(v[:, 6:]) - vmax).max(axis=1)
     checks.append(worst_check("joint velocity limits", CheckKind.JOINT_VELOCITY_LIMITS, vviol, t,
-                              settings.limit_tolerance / lay.dt, "rad/s"))
+                              settings.tolerances.limit / lay.dt, "rad/s"))
     return checks + [c for kind in REPORTED_AFTER_LIMITS for c in kind.report(ctx)]
 
 

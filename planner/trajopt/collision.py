@@ -12,30 +12,29 @@ parameters are the sphere centres in the joints' frames.
 
 Screening keeps the NLP small: the sphere-set distance of every pair is evaluated (numpy) at
 every knot of the initial guess, and rows are added only for pairs closer than
-``settings.collision_screening`` somewhere, over the knots where they are (widened by
+``settings.collision.screening`` somewhere, over the knots where they are (widened by
 :data:`KNOT_PADDING` on each side). After a solve every pair is checked on the solution; a pair
 closer than the margin without rows gets them and the NLP is solved again from that solution
-(at most ``settings.collision_rounds`` times). See ``docs/collisions.md``.
+(at most ``settings.collision.rounds`` times). See ``docs/collisions.md``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 import pinocchio as pin
 
 from planner.results import Check, CheckKind
+from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots import CollisionModel, Robot, body_part, collision_model
 
-if TYPE_CHECKING:
-    from planner.trajopt.layout import Layout
+L = TypeVar("L", bound=LayoutData)  # a layout, kinematic or dynamic: what strip_* hands back
 
 KNOT_PADDING = 3  # knots added on each side of a screened pair's close knots
 CLOSEST_WITHIN = 0.1  # [m] the report's closest pair is looked for among pairs this close first
@@ -195,7 +194,7 @@ def sphere_pair_distances(robot: Robot, sets: SphereSets, q: np.ndarray, within:
     return out
 
 
-def meet_exemptions(lay: Layout, sets: SphereSets) -> np.ndarray | None:
+def meet_exemptions(lay: LayoutData, sets: SphereSets) -> np.ndarray | None:
     """The (knot, checked link pair) entries (T, P) bool that planned self-contacts leave out, or
     None when the spec has none. A target whose frame ``meets`` another (a clap's hands,
     :attr:`tasks.specs.FrameTarget.meets`) exempts every pair of a link of its frame's part and a
@@ -222,7 +221,7 @@ def meet_exemptions(lay: Layout, sets: SphereSets) -> np.ndarray | None:
     return out
 
 
-def exempt_distances(lay: Layout, sets: SphereSets, distances: np.ndarray) -> np.ndarray:
+def exempt_distances(lay: LayoutData, sets: SphereSets, distances: np.ndarray) -> np.ndarray:
     """``distances`` (T, S) per sphere pair with the entries of planned self-contacts
     (:func:`meet_exemptions`) set to inf (a copy; ``distances`` itself when there are none)."""
     ex = meet_exemptions(lay, sets)
@@ -290,7 +289,7 @@ class SelfCollisionTerm(Term):
     def report(cls, ctx: ReportContext) -> list[Check]:
         """The closest checked link pair over the plan (:func:`self_collision_check`), when
         ``settings.self_collision``."""
-        return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.self_collision else []
+        return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.collision.self_collision else []
 
 
 @dataclass
@@ -313,7 +312,7 @@ class Rows:
         return changed
 
 
-def collision_rows_of(lay: Layout, sets: SphereSets) -> Rows:
+def collision_rows_of(lay: LayoutData, sets: SphereSets) -> Rows:
     """The :class:`Rows` of the ``collision`` terms already in a layout."""
     index = {name: i for i, name in enumerate(sets.pair_names)}
     rows = Rows()
@@ -326,7 +325,7 @@ def collision_rows_of(lay: Layout, sets: SphereSets) -> Rows:
     return rows
 
 
-def select(lay: Layout, sets: SphereSets, distances: np.ndarray, threshold: float,
+def select(lay: LayoutData, sets: SphereSets, distances: np.ndarray, threshold: float,
            only: np.ndarray | None = None) -> Rows:
     """Rows for the link pairs closer than ``threshold`` at some variable knot (``distances``:
     (T, S) per sphere pair): per link pair, every sphere pair closer than ``threshold`` at such a
@@ -371,7 +370,7 @@ IDLE_TOLERANCE = 0.005  # [m] a pair whose guess comes no closer than its rest d
 IDLE_BUFFER = 0.005  # [m] ... provided the guess keeps it at least the margin plus this apart
 
 
-def idle_pairs(lay: Layout, sets: SphereSets, distances: np.ndarray, margin: float) -> np.ndarray:
+def idle_pairs(lay: LayoutData, sets: SphereSets, distances: np.ndarray, margin: float) -> np.ndarray:
     """The checked link pairs (P,) bool that the initial guess leaves *idle*: at every variable knot
     every computed sphere pair (``distances`` (T, S), :func:`sphere_pair_distances`) is no closer
     than at rest (the start posture, knot 0) less :data:`IDLE_TOLERANCE`, and at least ``margin`` +
@@ -388,12 +387,13 @@ def idle_pairs(lay: Layout, sets: SphereSets, distances: np.ndarray, margin: flo
     return ~(np.add.reduceat(moving.any(axis=0), sets.starts) > 0)
 
 
-def set_collision_terms(lay: Layout, sets: SphereSets, rows: Rows, pairs: list[int], margin: float) -> None:
-    """(Re)write the ``collision`` terms of link ``pairs`` from ``rows``: one term per pair and knot,
-    a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``."""
+def with_collision_terms(lay: L, sets: SphereSets, rows: Rows, pairs: list[int], margin: float) -> L:
+    """A copy of ``lay`` whose ``collision`` terms of link ``pairs`` are (re)written from ``rows``: one
+    term per pair and knot, a row per selected sphere pair ``|c_i - c_j|^2 >= (R_i + R_j + margin)^2``
+    (``lay`` is not changed)."""
     robot = lay.robot
     names = {pi: sets.pair_names[pi] for pi in pairs}
-    lay.terms = [t for t in lay.terms if not (isinstance(t, SelfCollisionTerm) and t.item in names.values())]
+    terms = [t for t in lay.terms if not (isinstance(t, SelfCollisionTerm) and t.item in names.values())]
     for pi in pairs:
         a, b = (int(x) for x in sets.pairs[pi])
         ca_, cb_ = sets.centres[a], sets.centres[b]
@@ -402,16 +402,17 @@ def set_collision_terms(lay: Layout, sets: SphereSets, rows: Rows, pairs: list[i
         bound = np.array([(sets.radii[a][i] + sets.radii[b][j] + margin) ** 2 for i, j in chosen])
         label = f"self-collision {body_part(robot, names[pi][0])} / {body_part(robot, names[pi][1])}"
         for k in sorted(rows.knots[pi]):
-            lay.terms.append(SelfCollisionTerm(
+            terms.append(SelfCollisionTerm(
                 knot=k,
                 structure=(SelfCollisionTerm.kind, int(sets.joints[a]), int(sets.joints[b]), len(ca_), nb, chosen),
                 params=np.concatenate([ca_.ravel(), cb_.ravel()]),  # (3, n) column-major: x, y, z per sphere
                 lower=bound, upper=np.full(len(chosen), math.inf),
                 label=label, item=names[pi], phase=lay.phase_name(k),
             ))
+    return lay.with_terms(terms)
 
 
-def missing_rows(lay: Layout, sets: SphereSets, rows: Rows, distances: np.ndarray, margin: float,
+def missing_rows(lay: LayoutData, sets: SphereSets, rows: Rows, distances: np.ndarray, margin: float,
                  screening: float) -> Rows:
     """Rows to add after a solve: for each sphere pair closer than the margin (less
     :data:`CHECK_TOLERANCE`) at a knot where it has no row, that pair's sphere pairs closer than
@@ -428,13 +429,9 @@ def missing_rows(lay: Layout, sets: SphereSets, rows: Rows, distances: np.ndarra
     return select(lay, sets, distances, screening, only=violated)
 
 
-def strip_collision_terms(lay: Layout) -> Layout:
+def strip_collision_terms(lay: L) -> L:
     """A copy of ``lay`` without its collision terms (the same class: kinematic or dynamic)."""
-    import copy
-
-    out = copy.copy(lay)
-    out.terms = [t for t in lay.terms if not isinstance(t, SelfCollisionTerm)]
-    return out
+    return lay.with_terms([t for t in lay.terms if not isinstance(t, SelfCollisionTerm)])
 
 
 # -- report ------------------------------------------------------------------------------------
@@ -457,7 +454,7 @@ def closest(robot: Robot, sets: SphereSets, q: np.ndarray, t: np.ndarray,
     return float(d[k, pi]), float(t[k]), sets.pair_names[int(pi)]
 
 
-def self_collision_check(lay: Layout, q: np.ndarray, settings: PlannerSettings) -> Check:
+def self_collision_check(lay: LayoutData, q: np.ndarray, settings: PlannerSettings) -> Check:
     """The plan's ``self-collision`` check: the closest pair of the collision model and its distance;
     it fails when the sphere sets interpenetrate by more than ``CHECK_TOLERANCE``."""
     robot = lay.robot
@@ -484,7 +481,7 @@ def _target_time(target, horizon: float) -> float:
     return horizon if target.time is None else target.time
 
 
-def _advice(lay: Layout, side_hint: str, time: float, obstacle: str) -> str:
+def _advice(lay: LayoutData, side_hint: str, time: float, obstacle: str) -> str:
     """What to change, from the spec's hard position targets: the target nearest in time to the
     collision, preferring the colliding limb's hand. A reach with one hand gets "reach less far
     right, or with the left hand" (the direction it moves in most); when both hands have targets
@@ -523,25 +520,24 @@ def _advice(lay: Layout, side_hint: str, time: float, obstacle: str) -> str:
     return f"reach less far {word}, or with the {other} hand"
 
 
-def collision_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Callable) -> str:
+def collision_diagnosis(lay: L, settings: PlannerSettings, solve: Callable[[L], tuple]) -> str:
     """When the plan with collision rows failed: solve without them; if that motion brings a pair
     within the margin, the collision is the cause, said in task terms (empty string otherwise).
-    ``solve_layout`` is :func:`planner.trajopt.solve.solve_layout` (passed in: the solver imports the
-    term modules, so they do not import it back)."""
+    ``solve`` solves a layout from its initial guess without a compile and returns
+    :func:`planner.trajopt.solve.solve_layout`'s ``(dq, stats, raw)`` (passed in: the solver imports
+    the term modules, so they do not import it back)."""
     from planner.trajopt.symbolic import chart_to_configuration
 
     if not any(isinstance(t, SelfCollisionTerm) for t in lay.terms):
         return ""
-    free = strip_collision_terms(lay)
-    x0 = free.initial_guess(settings)
-    dq, stats, _ = solve_layout(free, dataclasses.replace(settings, compile=False), x0=x0)
+    dq, stats, _ = solve(strip_collision_terms(lay))
     if not stats.status.ok:
         return ""
     robot = lay.robot
     q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
     sets = sphere_sets(robot)
     d, time, (a, b) = closest(robot, sets, q, lay.t, meet_exemptions(lay, sets))
-    if d >= settings.collision_margin:
+    if d >= settings.collision.margin:
         return ""
     pa, pb = body_part(robot, a), body_part(robot, b)
     if pb.startswith(("left", "right")) and not pa.startswith(("left", "right")):

@@ -38,7 +38,8 @@ def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: 
                               if tg in hard_com else tg for tg in spec.com_targets),
         )
         relaxed_lay = make_layout(relaxed_spec, lay.robot)
-        dq, stats, _ = solve_layout(relaxed_lay, dataclasses.replace(settings, compile=False))
+        in_memory = dataclasses.replace(settings, cache=dataclasses.replace(settings.cache, compile=False))
+        dq, stats, _ = solve_layout(relaxed_lay, in_memory)
         if stats.status.ok:
             relaxed = make_plan(relaxed_lay, dq, stats, settings)
             misses = []

@@ -19,7 +19,7 @@ solver cache.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, Self, runtime_checkable
 
 if TYPE_CHECKING:
     import numpy as np
@@ -71,8 +71,9 @@ class Formulation(Protocol):
         """(net force per contact frame, extra :attr:`Plan.extras` entries) of the force variables."""
         ...
 
-    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
-        """Re-linearize about a solution before solve ``round_ + 1``; True: solve again from it."""
+    def relinearized(self, dq: np.ndarray, x: np.ndarray, round_: int) -> Self | None:
+        """The formulation re-linearized about a solution for solve ``round_ + 1`` (a new one: this
+        one is not changed), or None: no need to solve again."""
         ...
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:

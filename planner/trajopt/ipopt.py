@@ -11,15 +11,15 @@ def ipopt_options(settings: PlannerSettings) -> dict:
     return {
         "print_time": False,
         "ipopt": {
-            "print_level": int(settings.print_level),
+            "print_level": int(settings.solver.print_level),
             "sb": "yes",
-            "max_iter": int(settings.max_iterations),
-            "tol": float(settings.tolerance),
-            "constr_viol_tol": float(settings.constraint_tolerance),
+            "max_iter": int(settings.solver.max_iterations),
+            "tol": float(settings.solver.tolerance),
+            "constr_viol_tol": float(settings.solver.constraint_tolerance),
             "linear_solver": "mumps",
             "mu_strategy": "adaptive",
-            "obj_scaling_factor": float(settings.objective_scaling),
-            **dict(settings.ipopt_extra),
+            "obj_scaling_factor": float(settings.solver.objective_scaling),
+            **dict(settings.solver.ipopt_extra),
         },
     }
 

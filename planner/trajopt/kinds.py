@@ -144,7 +144,7 @@ class ContactTerm(_OneFrame, Term):
                 pos_err.setdefault(fid, []).append((np.linalg.norm(oMf.translation - M.translation), t[k]))
                 rot_err.setdefault(fid, []).append((np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)), t[k]))
         checks = []
-        tolerance = ctx.settings.contact_tolerance
+        tolerance = ctx.settings.tolerances.contact
         for fid, frame in names.items():
             pe, rt = np.array(pos_err[fid]).T
             checks.append(worst_check(f"{frame} contact position", CheckKind.CONTACT_POSITION, pe, rt, tolerance,
@@ -190,7 +190,7 @@ class ClearanceTerm(_OneFrame, Term):
         for frame, rows in clear.items():
             vals, times = np.array(rows).T
             checks.append(worst_check(f"{frame} clearance", CheckKind.SWING_CLEARANCE, vals, times,
-                                      ctx.settings.polygon_tolerance, "m", frame))
+                                      ctx.settings.tolerances.polygon, "m", frame))
         return checks
 
 
@@ -236,7 +236,7 @@ class SupportPolygonTerm(Term):
         :class:`CoMBoxTerm` kind's check, reported here to keep each bound's two checks together)
         outside its box."""
         lay, com, t = ctx.lay, ctx.com, ctx.lay.t
-        tolerance = ctx.settings.polygon_tolerance
+        tolerance = ctx.settings.tolerances.polygon
         checks: list[Check] = []
         for bounds in lay.spec.com_bounds:
             ks = range(lay.N + 1) if bounds.window is None else knots_of(t, None, bounds.window, lay.N)

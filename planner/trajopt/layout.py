@@ -25,8 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Self
 
 import numpy as np
 import pinocchio as pin
@@ -47,7 +46,8 @@ from planner.trajopt.kinds import (
     SupportPolygonTerm,
     target_mode,
 )
-from planner.trajopt.term import Term, knots_of
+from planner.trajopt.layout_data import LayoutData
+from planner.trajopt.term import knots_of
 from robots import Robot, halfplanes, sole_corners_in_world
 from robots import support_polygon as polygon_of_soles
 from tasks import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
@@ -60,54 +60,9 @@ INF = math.inf
 MIN_INTERVALS = 4  # the rest constraints use two knots at each end
 
 
-@dataclass(eq=False)
-class Layout:
-    """The problem of one spec on one robot, as data.
-
-    Attributes:
-        robot: The robot.
-        spec: The spec.
-        N: Number of intervals (knots 0..N).
-        dt: Knot spacing [s].
-        t: Knot times (N+1,) [s].
-        phase_of_knot: Phase index per knot (the later phase at a boundary).
-        contacts_at: Per knot, the contacts active there (frame id -> (spec frame, placement)).
-        frame_ids: Frame ids the terms use, in a fixed order.
-        terms: Every term.
-        q_ref: Reference (= start) configuration (nq,).
-    """
-
-    robot: Robot
-    spec: TaskSpec
-    N: int
-    dt: float
-    t: np.ndarray
-    phase_of_knot: list[int]
-    contacts_at: list[dict[int, tuple[str, pin.SE3]]]
-    frame_ids: list[int]
-    terms: list[Term]
-    q_ref: np.ndarray
-
-    @property
-    def variable_knots(self) -> range:
-        """Knots whose dq is a decision variable."""
-        return range(2, self.N)
-
-    def free_knot(self, k: int) -> int:
-        """The knot whose variables define knot ``k`` (N maps to N-1)."""
-        return min(k, self.N - 1)
-
-    def structure(self) -> tuple:
-        """Hashable structure of the NLP (no numeric values)."""
-        return (
-            self.N,
-            tuple(self.frame_ids),
-            tuple((t.knot, t.structure, len(t.params), t.n_rows) for t in self.terms),
-        )
-
-    def phase_name(self, k: int) -> str:
-        """Name of the phase at knot ``k``."""
-        return self.spec.phases[self.phase_of_knot[k]].name
+class Layout(LayoutData):
+    """The kinematic formulation of one spec on one robot: its data (:class:`LayoutData`) and the
+    formulation protocol's methods (:class:`planner.trajopt.formulation.Formulation`)."""
 
     # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
     # The kinematic formulation: no variables, rows or parameters beyond the chart's; the
@@ -133,7 +88,7 @@ class Layout:
     def initial_guess(self, settings: PlannerSettings | None = None) -> np.ndarray:
         """The solver's starting point: the nominal motion when ``settings.warm_start`` asks for it,
         else rest (``dq = 0``)."""
-        if settings is not None and settings.warm_start == "nominal":
+        if settings is not None and settings.solver.warm_start == "nominal":
             from planner.trajopt.nominal import nominal_motion
 
             return nominal_motion(self)[2:self.N].ravel()
@@ -152,10 +107,11 @@ class Layout:
         """(net force per contact frame for :attr:`Plan.forces`, extra entries for :attr:`Plan.extras`)."""
         return {}, {}
 
-    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
-        """Re-linearize rows about a solution (``dq`` (N+1, nv), all variables ``x``) before solve
-        ``round_ + 1``; True: solve again (warm-started from it). The kinematic formulation is exact: never."""
-        return False
+    def relinearized(self, dq: np.ndarray, x: np.ndarray, round_: int) -> Self | None:
+        """The layout with rows re-linearized about a solution (``dq`` (N+1, nv), all variables ``x``)
+        for solve ``round_ + 1`` (a new one, warm-started from the solution; this one is not changed),
+        or None: no need. The kinematic formulation is exact: always None."""
+        return None
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """A failed plan in task terms; ``relaxed`` runs the generic diagnosis (hard targets relaxed
@@ -306,7 +262,7 @@ def _standing_base_rotation(lay: Layout) -> np.ndarray:
     return pin.rpy.rpyToMatrix(0.0, 0.0, -yaw) @ data.oMf[lay.robot.frame_id("base")].rotation
 
 
-def support_polygon(lay: Layout, k: int) -> np.ndarray:
+def support_polygon(lay: LayoutData, k: int) -> np.ndarray:
     """Corners (M, 2) of the support polygon at knot ``k`` [m], counter-clockwise.
 
     Inside a phase it is the convex hull of the phase's soles. On a boundary knot, where a foot
@@ -317,7 +273,7 @@ def support_polygon(lay: Layout, k: int) -> np.ndarray:
     return np.zeros((0, 2)) if entry is None else entry.hull
 
 
-def support_halfplanes(lay: Layout, k: int) -> tuple[np.ndarray, np.ndarray] | None:
+def support_halfplanes(lay: LayoutData, k: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``halfplanes(support_polygon(lay, k))`` (read-only arrays), None when that polygon has fewer
     than 3 corners; computed once per phase."""
     entry = _support_entry(lay, k)
@@ -332,7 +288,7 @@ class _PhasePolygon(NamedTuple):
     planes: tuple[np.ndarray, np.ndarray] | None  # halfplanes(hull) (read-only), None: < 3 corners
 
 
-def _support_entry(lay: Layout, k: int) -> _PhasePolygon | None:
+def _support_entry(lay: LayoutData, k: int) -> _PhasePolygon | None:
     """The smallest support polygon of the phases that hold at knot ``k`` (None: no sole)."""
     tk = lay.t[k]
     hulls = [p for p in _phase_polygons(lay) if p.start - 1e-9 <= tk <= p.end + 1e-9]
@@ -341,7 +297,7 @@ def _support_entry(lay: Layout, k: int) -> _PhasePolygon | None:
     return min(hulls, key=lambda h: h.area)
 
 
-def _phase_polygons(lay: Layout) -> list[_PhasePolygon]:
+def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
     """The phases of ``lay.spec`` with soles, in order: their time spans and sole polygons,
     computed once per layout and spec (:func:`support_polygon` asks for them at every knot,
     several times over a plan)."""

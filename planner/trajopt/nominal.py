@@ -19,7 +19,6 @@ to get the arm out (docs/collisions.md).
 from __future__ import annotations
 
 from itertools import pairwise
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -30,10 +29,8 @@ from planner.trajopt.kinds import (
     FrameOrientationTerm,
     FramePositionTerm,
 )
+from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.symbolic import configuration_to_chart
-
-if TYPE_CHECKING:
-    from planner.trajopt.layout import Layout
 
 IK_ITERATIONS = 30
 IK_DAMPING = 1e-3
@@ -45,7 +42,7 @@ SCENE_CLEARANCE = 0.02  # [m] keyframe spheres are pushed this far from scene ob
 SCENE_WEIGHT = 1.0  # a scene row's weight against a target's position error
 
 
-def _keyframe_tasks(lay: Layout) -> dict[int, list]:
+def _keyframe_tasks(lay: LayoutData) -> dict[int, list]:
     """Knot -> list of ('frame', fid, goal, axes) / ('com', goal, axes) hard position targets."""
     out: dict[int, list] = {}
     for term in lay.terms:
@@ -56,7 +53,7 @@ def _keyframe_tasks(lay: Layout) -> dict[int, list]:
     return out
 
 
-def solve_ik(lay: Layout, knot: int, tasks: list, q0: np.ndarray | None = None,
+def solve_ik(lay: LayoutData, knot: int, tasks: list, q0: np.ndarray | None = None,
              avoid_scene: bool = True, iterations: int = IK_ITERATIONS) -> np.ndarray | None:
     """Configuration meeting the contacts at ``knot`` and ``tasks`` (None if it does not converge),
     from ``q0`` (default: the reference posture), its spheres kept clear of the scene's objects
@@ -124,7 +121,7 @@ class _SceneRows:
     knot, ``SCENE_WEIGHT * (d - r - SCENE_CLEARANCE)`` with ``d`` the exact distance of its centre
     to the whole object (negative inside) and the row ``n^T J_c`` (``n`` its gradient)."""
 
-    def __init__(self, lay: Layout, knot: int | None) -> None:
+    def __init__(self, lay: LayoutData, knot: int | None) -> None:
         from planner.trajopt.scene_collision import (
             contact_exclusions,
             obstacles,
@@ -177,7 +174,7 @@ def _smoothstep(s: float) -> float:
     return s * s * (3.0 - 2.0 * s)
 
 
-def nominal_motion(lay: Layout) -> np.ndarray:
+def nominal_motion(lay: LayoutData) -> np.ndarray:
     """Chart displacements (N+1, nv) of the nominal motion (zeros where no target asks)."""
     nv, N = lay.robot.nv, lay.N
     dq = np.zeros((N + 1, nv))
@@ -200,7 +197,7 @@ def nominal_motion(lay: Layout) -> np.ndarray:
     return dq
 
 
-def _carry_between(lay: Layout, dq: np.ndarray, tasks: dict[int, list]) -> None:
+def _carry_between(lay: LayoutData, dq: np.ndarray, tasks: dict[int, list]) -> None:
     """Two hands holding one object (``frame_rel`` terms): the blend of keyframes found from
     positions only turns the hands about the object and spreads them (talos lowering a box: 0.30 to
     0.43 m), which the chain's rows forbid. Every knot from the first to the last that places both

@@ -24,7 +24,7 @@ has the table of it.
 Numeric values (object pose, inflated extents, sphere centres in their joint frames) are term
 parameters; the structure ``("scene", shape, joints of the spheres)`` keys the solver cache, so two
 scenes whose objects are close to the same links share a solver. Screening as for self-collision:
-rows only for (sphere, object) pairs within ``settings.collision_screening`` on the initial guess
+rows only for (sphere, object) pairs within ``settings.collision.screening`` on the initial guess
 (the same function, inflated by the screening distance), on those knots widened by
 :data:`~planner.trajopt.collision.KNOT_PADDING`; after a solve, pairs the solution brings within
 the margin get rows and the NLP is solved again.
@@ -51,7 +51,7 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -59,13 +59,13 @@ import pinocchio as pin
 from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
+from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots import Capsule, Robot, body_part, fit_capsule, link_points
 from tasks import Scene, SceneObject, on_top
 
-if TYPE_CHECKING:
-    from planner.trajopt.layout import Layout
+L = TypeVar("L", bound=LayoutData)  # a layout, kinematic or dynamic: what strip_* hands back
 
 P_NORM = 32  # even exponent of the box and cylinder rows
 MAX_HALF = 0.15  # [m] longer boxes and cylinders are split into pieces of at most this half extent
@@ -328,7 +328,7 @@ def scene_sets(robot: Robot) -> SphereSets:
     return out
 
 
-def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np.ndarray:
+def contact_exclusions(lay: LayoutData, sets: SphereSets, obs: list[Obstacle]) -> np.ndarray:
     """(N+1, S, O) bool: sphere ``s`` may touch object ``o`` at knot ``k`` (a planned contact on it).
 
     A foot in a planned contact carries no rows against any object (and :data:`CONTACT_PADDING`
@@ -385,7 +385,7 @@ def contact_exclusions(lay: Layout, sets: SphereSets, obs: list[Obstacle]) -> np
     return out
 
 
-def values(lay: Layout, sets: SphereSets, obs: list[Obstacle], q: np.ndarray, clearance: float,
+def values(lay: LayoutData, sets: SphereSets, obs: list[Obstacle], q: np.ndarray, clearance: float,
            world: np.ndarray | None = None) -> np.ndarray:
     """Row values ``N / BOUND`` (T, S, O) of every sphere and object, inflated by the sphere radius +
     ``clearance``: below 1, the pair is within ``clearance`` (conservatively); excluded pairs are inf,
@@ -437,7 +437,7 @@ class SceneRows:
         return not self.spheres
 
 
-def scene_rows_of(lay: Layout) -> SceneRows:
+def scene_rows_of(lay: LayoutData) -> SceneRows:
     """The :class:`SceneRows` of the ``scene`` terms already in a layout (spheres found by joint and
     centre, which the terms' structure and parameters hold)."""
     obs = obstacles(lay.spec.scene)
@@ -461,7 +461,7 @@ def scene_rows_of(lay: Layout) -> SceneRows:
     return rows
 
 
-def select(lay: Layout, close: np.ndarray) -> SceneRows:
+def select(lay: LayoutData, close: np.ndarray) -> SceneRows:
     """Rows for the (sphere, object) pairs marked in ``close`` (T, S, O) at a variable knot: per
     object, the union of its marked spheres, on their knots widened by ``KNOT_PADDING``."""
     rows = SceneRows()
@@ -477,12 +477,13 @@ def select(lay: Layout, close: np.ndarray) -> SceneRows:
     return rows
 
 
-def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: SceneRows, objects: list[int],
-                    margin: float) -> None:
-    """(Re)write the ``scene`` terms of ``objects`` from ``rows``: one term per object and knot, a
-    row per sphere (not in a planned contact with the object there) ``N >= BOUND[shape]``."""
+def with_scene_terms(lay: L, sets: SphereSets, obs: list[Obstacle], rows: SceneRows, objects: list[int],
+                     margin: float) -> L:
+    """A copy of ``lay`` whose ``scene`` terms of ``objects`` are (re)written from ``rows``: one term
+    per object and knot, a row per sphere (not in a planned contact with the object there)
+    ``N >= BOUND[shape]`` (``lay`` is not changed)."""
     keys = {obs[oi].key for oi in objects}
-    lay.terms = [t for t in lay.terms if not (isinstance(t, SceneCollisionTerm) and t.item in keys)]
+    terms = [t for t in lay.terms if not (isinstance(t, SceneCollisionTerm) and t.item in keys)]
     excluded = contact_exclusions(lay, sets, obs)
     for oi in objects:
         ob = obs[oi]
@@ -493,13 +494,14 @@ def set_scene_terms(lay: Layout, sets: SphereSets, obs: list[Obstacle], rows: Sc
                 continue
             a = ob.inflated(sets.sphere_radius[chosen] + margin)
             per_sphere = np.hstack([sets.sphere_local[chosen], a]).ravel()  # (c_local, a) per sphere
-            lay.terms.append(SceneCollisionTerm(
+            terms.append(SceneCollisionTerm(
                 knot=k,
                 structure=(SceneCollisionTerm.kind, ob.shape, tuple(int(sets.joints[sets.sphere_owner[s]]) for s in chosen)),
                 params=np.concatenate([ob.position, ob.rotation.T.ravel(), per_sphere]),  # R column-major
                 lower=np.full(len(chosen), BOUND[ob.shape]), upper=np.full(len(chosen), math.inf),
                 label=f"scene collision {ob.name}", item=ob.key, phase=lay.phase_name(k),
             ))
+    return lay.with_terms(terms)
 
 
 @dataclass(eq=False)
@@ -555,28 +557,29 @@ class SceneCollisionTerm(Term):
         return [scene_collision_check(ctx.lay, ctx.q)] if scene is not None and scene.objects else []
 
 
-def add_screened_scene_terms(lay: Layout, settings: PlannerSettings, q0: np.ndarray) -> SceneRows:
-    """Add the rows of the (sphere, object) pairs that the initial guess ``q0`` (N+1, nq) brings
-    within ``settings.collision_screening``; returns them (empty without a scene)."""
+def add_screened_scene_terms(lay: L, settings: PlannerSettings, q0: np.ndarray) -> tuple[L, SceneRows]:
+    """A copy of ``lay`` with the rows of the (sphere, object) pairs that the initial guess ``q0``
+    (N+1, nq) brings within ``settings.collision.screening``, and those rows (``lay`` itself and
+    no rows without a scene; ``lay`` is not changed)."""
     obs = obstacles(lay.spec.scene)
     if not obs:
-        return SceneRows()
+        return lay, SceneRows()
     sets = scene_sets(lay.robot)
-    rows = select(lay, values(lay, sets, obs, q0, settings.collision_screening) < 1.0)
-    set_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision_margin)
-    return rows
+    rows = select(lay, values(lay, sets, obs, q0, settings.collision.screening) < 1.0)
+    return with_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision.margin), rows
 
 
-def missing_scene_rows(lay: Layout, rows: SceneRows, q: np.ndarray, settings: PlannerSettings) -> list[int]:
+def missing_scene_rows(lay: L, rows: SceneRows, q: np.ndarray, settings: PlannerSettings) -> tuple[L, list[int]]:
     """After a solve: pairs within the margin (less ``CHECK_TOLERANCE``) at a knot without their row
-    get rows (pairs within the screening distance of those objects, there); returns the objects whose
-    rows changed (their terms rewritten)."""
+    get rows (pairs within the screening distance of those objects, there, merged into ``rows``);
+    returns the layout with them (a copy with those objects' terms rewritten; ``lay`` itself when
+    none changed; ``lay`` is not changed) and the objects whose rows changed."""
     obs = obstacles(lay.spec.scene)
     if not obs:
-        return []
+        return lay, []
     sets = scene_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
-    violated = values(lay, sets, obs, q, settings.collision_margin - CHECK_TOLERANCE, world) < 1.0
+    violated = values(lay, sets, obs, q, settings.collision.margin - CHECK_TOLERANCE, world) < 1.0
     for oi, spheres in rows.spheres.items():
         ks = sorted(rows.knots[oi])
         for s in spheres:
@@ -584,30 +587,26 @@ def missing_scene_rows(lay: Layout, rows: SceneRows, q: np.ndarray, settings: Pl
     violated[:2] = False
     violated[lay.N:] = False
     if not violated.any():
-        return []
-    near = values(lay, sets, obs, q, settings.collision_screening, world) < 1.0
+        return lay, []
+    near = values(lay, sets, obs, q, settings.collision.screening, world) < 1.0
     bad_knots = np.asarray(violated.any(axis=1))  # (T, O)
     bad_spheres = np.asarray(violated.any(axis=0))  # (S, O)
     near &= bad_knots[:, None, :] | bad_spheres[None, :, :]
     changed = rows.merge(select(lay, near | violated))
     if changed:
-        set_scene_terms(lay, sets, obs, rows, changed, settings.collision_margin)
-    return changed
+        return with_scene_terms(lay, sets, obs, rows, changed, settings.collision.margin), changed
+    return lay, changed
 
 
-def strip_scene_terms(lay: Layout) -> Layout:
+def strip_scene_terms(lay: L) -> L:
     """A copy of ``lay`` without its scene terms (the same class: kinematic or dynamic)."""
-    import copy
-
-    out = copy.copy(lay)
-    out.terms = [t for t in lay.terms if not isinstance(t, SceneCollisionTerm)]
-    return out
+    return lay.with_terms([t for t in lay.terms if not isinstance(t, SceneCollisionTerm)])
 
 
 # -- report ------------------------------------------------------------------------------------
 
 
-def closest(lay: Layout, q: np.ndarray) -> tuple[float, float, str, str]:
+def closest(lay: LayoutData, q: np.ndarray) -> tuple[float, float, str, str]:
     """(exact sphere-set distance [m], time [s], link, object) of the closest robot sphere and
     object over a motion, planned contacts left out; distance inf without objects. Pieces are taken
     nearest first and a piece whose distance bound (to the ball around it) is no closer than the best
@@ -636,7 +635,7 @@ def closest(lay: Layout, q: np.ndarray) -> tuple[float, float, str, str]:
     return d, float(lay.t[k]), sets.links[int(sets.sphere_owner[s])], obs[o].name
 
 
-def scene_collision_check(lay: Layout, q: np.ndarray) -> Check:
+def scene_collision_check(lay: LayoutData, q: np.ndarray) -> Check:
     """The plan's ``scene collision`` check: the closest body part and object and their distance (the
     robot's sphere sets, which contain its meshes, against the exact shapes); it fails when they
     interpenetrate by more than ``CHECK_TOLERANCE``."""
@@ -653,7 +652,7 @@ def scene_collision_check(lay: Layout, q: np.ndarray) -> Check:
 # -- diagnosis ---------------------------------------------------------------------------------
 
 
-def _advice(lay: Layout, name: str) -> str:
+def _advice(lay: LayoutData, name: str) -> str:
     """What to change: the hard target nearest to the object, or the object."""
     pieces = [o for o in obstacles(lay.spec.scene) if o.name == name]
     best = None
@@ -670,22 +669,21 @@ def _advice(lay: Layout, name: str) -> str:
     return f"move target {target.name!r} farther from the {name}, or the {name} in the scene"
 
 
-def scene_diagnosis(lay: Layout, settings: PlannerSettings, solve_layout: Callable) -> str:
+def scene_diagnosis(lay: L, settings: PlannerSettings, solve: Callable[[L], tuple]) -> str:
     """When the plan with scene rows failed: solve without them; if that motion brings the robot within
     the margin of an object, the object is the cause, said in task terms (empty string otherwise).
-    ``solve_layout`` is :func:`planner.trajopt.solve.solve_layout` (passed in: the solver imports the
-    term modules, so they do not import it back)."""
+    ``solve`` solves a layout from its initial guess without a compile (as in
+    :func:`planner.trajopt.collision.collision_diagnosis`)."""
     from planner.trajopt.symbolic import chart_to_configuration
 
     if not any(isinstance(t, SceneCollisionTerm) for t in lay.terms):
         return ""
-    free = strip_scene_terms(lay)
-    dq, stats, _ = solve_layout(free, dataclasses.replace(settings, compile=False), x0=free.initial_guess(settings))
+    dq, stats, _ = solve(strip_scene_terms(lay))
     if not stats.status.ok:
         return ""
     q = np.array([chart_to_configuration(lay.robot.model, lay.q_ref, d) for d in dq])
     d, time, link, name = closest(lay, q)
-    if d >= settings.collision_margin:
+    if d >= settings.collision.margin:
         return ""
     what = "pass through" if d < 0 else f"come within {max(d, 0.0) * 1000:.0f} mm of"
     return (f"the {body_part(lay.robot, link)} would {what} the {name} at t = {time:.1f} s ({link}): "

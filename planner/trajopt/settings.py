@@ -1,4 +1,15 @@
-"""Planner settings: solver options and the solver cache, as a frozen dataclass.
+"""Planner settings: four small frozen dataclasses, one per concern, composed into one.
+
+* :class:`SolverSettings`: the NLP solver's options (IPOPT, the transcription, fatrop, the guess);
+* :class:`CacheSettings`: where solvers are kept, how they are built (gcc, background builds and
+  their memory), the solution library;
+* :class:`CollisionSettings`: the self- and scene-collision rows;
+* :class:`Tolerances`: what the plan's report accepts;
+
+composed into :class:`PlannerSettings` with the CoM dynamics' own (:class:`CentroidalSettings`) and
+the diagnosis switch: ``PlannerSettings(solver=SolverSettings(max_iterations=50),
+cache=CacheSettings(compile=True))``; one field changed with ``dataclasses.replace(settings,
+cache=dataclasses.replace(settings.cache, compile=False))``.
 
 No default here reads a ``WBMP_*`` switch: a plan depends on its arguments, not on the shell it
 runs in (only ``cache_dir`` defaults to ``$WBMP_CACHE_DIR``, :func:`robots.store.cache_base`).
@@ -11,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from planner.exceptions import PlannerError
 from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN
 from planner.trajopt.centroidal.settings import CentroidalSettings
 from robots import cache_base
@@ -24,11 +36,12 @@ def default_cache_dir() -> str:
 LIBRARY_MODES = ("on", "read", "off")
 TRANSCRIPTIONS = ("knots", "stagewise")
 STAGEWISE_SOLVERS = ("fatrop", "ipopt")
+WARM_STARTS = ("standing", "nominal")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class PlannerSettings:
-    """How :func:`planner.plan` builds and solves the NLP.
+class SolverSettings:
+    """How the NLP is transcribed and solved.
 
     Attributes:
         max_iterations: IPOPT iteration limit (feasible plans without collision rows need <= 30
@@ -39,6 +52,52 @@ class PlannerSettings:
         print_level: IPOPT print level (0 = silent, 5 = per-iteration table).
         objective_scaling: IPOPT ``obj_scaling_factor``; the costs are small next to the
             constraints, and 1000 cut the Talos squat from 25 to 17 iterations.
+        ipopt_extra: Further IPOPT options as ``(name, value)`` pairs, applied last (dynamic
+            specs prepend ``centroidal.ipopt_options``).
+        warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
+            ``"nominal"`` (inverse kinematics at the target times, blended: see
+            :mod:`planner.trajopt.nominal`).
+        transcription: ``"knots"`` (the default: chart displacements per knot, solved by IPOPT,
+            :mod:`planner.trajopt.transcription`) or ``"stagewise"`` (positions and velocities as
+            states, accelerations as controls, each row on one stage or two neighbours:
+            :mod:`planner.trajopt.stagewise`; kinematic plans only, a dynamic spec keeps
+            ``"knots"``). Stage-wise solvers are built in memory (never compiled or stored).
+        stagewise_solver: The solver of the stage-wise transcription: ``"fatrop"`` (its Riccati
+            recursion uses the stage structure) or ``"ipopt"`` (MUMPS on the whole KKT system).
+        fatrop_extra: Further fatrop options as ``(name, value)`` pairs, applied last.
+    """
+
+    max_iterations: int = 150
+    tolerance: float = 1e-6
+    constraint_tolerance: float = 1e-7
+    print_level: int = 0
+    objective_scaling: float = 1000.0
+    ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
+    warm_start: str = "nominal"
+    transcription: str = "knots"
+    stagewise_solver: str = "fatrop"
+    fatrop_extra: tuple[tuple[str, float | int | str | bool], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.max_iterations < 1:
+            raise PlannerError(f"settings: max_iterations must be >= 1, got {self.max_iterations}")
+        if not self.tolerance > 0 or not self.constraint_tolerance > 0:
+            raise PlannerError("settings: tolerance and constraint_tolerance must be > 0")
+        if self.warm_start not in WARM_STARTS:
+            raise PlannerError(f"settings: warm_start must be 'standing' or 'nominal', got {self.warm_start!r}")
+        if self.transcription not in TRANSCRIPTIONS:
+            raise PlannerError("settings: transcription must be 'knots' or 'stagewise', got "
+                               f"{self.transcription!r}")
+        if self.stagewise_solver not in STAGEWISE_SOLVERS:
+            raise PlannerError("settings: stagewise_solver must be 'fatrop' or 'ipopt', got "
+                               f"{self.stagewise_solver!r}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CacheSettings:
+    """Where solvers (and stored solutions) are kept and how new solvers are built.
+
+    Attributes:
         use_cache: Reuse solvers in this process and compiled solvers on disk.
         compile: Compile new solvers to C with gcc and store them in ``cache_dir`` (needs
             ``use_cache``). Off (the default; the command line's is on unless ``$WBMP_COMPILE=0``):
@@ -55,16 +114,12 @@ class PlannerSettings:
             Either way at most one build runs per cache folder (:mod:`planner.trajopt.builds`).
         build_memory: Memory one build needs [bytes] (default
             :data:`planner.trajopt.builds.BUILD_MEMORY`, 3.7 GB: gcc -O0 on a Talos solver; the
-            command line's ``$WBMP_BUILD_MEMORY``). A
-            build starts only when ``MemAvailable`` holds it plus ``build_memory_margin``.
+            command line's ``$WBMP_BUILD_MEMORY``). A build starts only when ``MemAvailable``
+            holds it plus ``build_memory_margin``.
         build_memory_margin: Memory a starting build leaves to everything else [bytes]; a running
             compiler is stopped when ``MemAvailable`` falls below half of it.
         compiler: The C compiler of the solver builds (a name on ``PATH`` or a path; called with
             gcc's flags; default ``gcc``; the command line's ``$WBMP_COMPILER``).
-        contact_tolerance: Accepted stance-sole error in the report [m] and [rad].
-        limit_tolerance: Accepted joint-limit violation in the report [rad, rad/s].
-        polygon_tolerance: Accepted CoM excursion outside the shrunk polygon/box [m].
-        centroidal: Weights and options of the CoM dynamics with contact forces (dynamic specs).
         compile_dynamic: Also compile the solvers of dynamic specs (off: their gcc -O0 code takes
             minutes to compile and is not faster than CasADi's virtual machine; they are built
             in memory in a few seconds and stored serialized instead, see ``serialize``).
@@ -72,41 +127,13 @@ class PlannerSettings:
             compiling them (needs ``use_cache``; ignored with ``compile``). Dynamic specs set it
             when ``compile`` is on and ``compile_dynamic`` off: the next process reads the
             solver (~1.2 s of CPU for Talos 4 steps) instead of building it (~3 s).
-        diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
-            culprit and how far it is.
-        ipopt_extra: Further IPOPT options as ``(name, value)`` pairs, applied last (dynamic
-            specs prepend ``centroidal.ipopt_options``).
-        self_collision: Keep the links of the robot's collision model apart (``docs/collisions.md``).
-        scene_collision: Keep the robot's sphere sets ``collision_margin`` away from the objects of the
-            spec's scene, except in planned contacts (``docs/collisions.md``).
-        collision_margin: Smallest distance between two links' sphere sets, and between a link's
-            sphere set and a scene object [m].
-        collision_screening: Pairs closer than this on the initial guess get distance rows [m].
-        collision_rounds: Re-solves allowed when the solution brings an unscreened pair within
-            the margin (each adds its rows and starts from the previous solution).
-        warm_start: Initial guess: ``"standing"`` (the standing posture at every knot) or
-            ``"nominal"`` (inverse kinematics at the target times, blended: see
-            :mod:`planner.trajopt.nominal`).
         solution_library: Earlier solutions of a dynamic plan's solver structure seed its solve
             (:mod:`planner.trajopt.library`): ``"on"`` (use the nearest, store each successful
             plan's), ``"read"`` (use, store nothing), ``"off"`` (every solve from the task's own
             guess: the same result whatever was planned before: the default; the command line's
             is ``$WBMP_SOLUTION_LIBRARY``, else ``"on"``); needs ``use_cache``.
-        transcription: ``"knots"`` (the default: chart displacements per knot, solved by IPOPT,
-            :mod:`planner.trajopt.transcription`) or ``"stagewise"`` (positions and velocities as
-            states, accelerations as controls, each row on one stage or two neighbours:
-            :mod:`planner.trajopt.stagewise`; kinematic plans only, a dynamic spec keeps
-            ``"knots"``). Stage-wise solvers are built in memory (never compiled or stored).
-        stagewise_solver: The solver of the stage-wise transcription: ``"fatrop"`` (its Riccati
-            recursion uses the stage structure) or ``"ipopt"`` (MUMPS on the whole KKT system).
-        fatrop_extra: Further fatrop options as ``(name, value)`` pairs, applied last.
     """
 
-    max_iterations: int = 150
-    tolerance: float = 1e-6
-    constraint_tolerance: float = 1e-7
-    print_level: int = 0
-    objective_scaling: float = 1000.0
     use_cache: bool = True
     compile: bool = False
     cache_dir: str = field(default_factory=default_cache_dir)
@@ -116,48 +143,80 @@ class PlannerSettings:
     build_memory: int = BUILD_MEMORY
     build_memory_margin: int = MEMORY_MARGIN
     compiler: str = "gcc"
-    contact_tolerance: float = 1e-4
-    limit_tolerance: float = 1e-6
-    polygon_tolerance: float = 1e-5
-    diagnose: bool = True
-    centroidal: CentroidalSettings = field(default_factory=CentroidalSettings)
     compile_dynamic: bool = False
     serialize: bool = False
-    warm_start: str = "nominal"
-    self_collision: bool = True
-    scene_collision: bool = True
-    collision_margin: float = 0.01
-    collision_screening: float = 0.03
-    collision_rounds: int = 3
-    ipopt_extra: tuple[tuple[str, float | int | str], ...] = ()
     solution_library: str = "off"
-    transcription: str = "knots"
-    stagewise_solver: str = "fatrop"
-    fatrop_extra: tuple[tuple[str, float | int | str | bool], ...] = ()
 
     def __post_init__(self) -> None:
-        from planner.exceptions import PlannerError
-
-        if self.max_iterations < 1:
-            raise PlannerError(f"settings: max_iterations must be >= 1, got {self.max_iterations}")
-        if not self.tolerance > 0 or not self.constraint_tolerance > 0:
-            raise PlannerError("settings: tolerance and constraint_tolerance must be > 0")
-        if not 0.0 <= self.collision_margin <= 0.5 or not self.collision_screening >= self.collision_margin:
-            raise PlannerError("settings: expected 0 <= collision_margin <= 0.5 m and collision_screening >= "
-                               f"collision_margin, got {self.collision_margin:g} and {self.collision_screening:g}")
-        if self.collision_rounds < 0:
-            raise PlannerError(f"settings: collision_rounds must be >= 0, got {self.collision_rounds}")
-        if self.warm_start not in ("standing", "nominal"):
-            raise PlannerError(f"settings: warm_start must be 'standing' or 'nominal', got {self.warm_start!r}")
         if self.build_memory < 0 or self.build_memory_margin < 0:
             raise PlannerError("settings: build_memory and build_memory_margin must be >= 0 bytes, got "
                                f"{self.build_memory} and {self.build_memory_margin}")
-        if self.transcription not in TRANSCRIPTIONS:
-            raise PlannerError("settings: transcription must be 'knots' or 'stagewise', got "
-                               f"{self.transcription!r}")
-        if self.stagewise_solver not in STAGEWISE_SOLVERS:
-            raise PlannerError("settings: stagewise_solver must be 'fatrop' or 'ipopt', got "
-                               f"{self.stagewise_solver!r}")
         if self.solution_library not in LIBRARY_MODES:
             raise PlannerError("settings: solution_library must be 'on', 'read' or 'off', got "
                                f"{self.solution_library!r}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CollisionSettings:
+    """The collision rows (``docs/collisions.md``).
+
+    Attributes:
+        self_collision: Keep the links of the robot's collision model apart.
+        scene_collision: Keep the robot's sphere sets ``margin`` away from the objects of the
+            spec's scene, except in planned contacts.
+        margin: Smallest distance between two links' sphere sets, and between a link's sphere set
+            and a scene object [m].
+        screening: Pairs closer than this on the initial guess get distance rows [m].
+        rounds: Re-solves allowed when the solution brings an unscreened pair within the margin
+            (each adds its rows and starts from the previous solution).
+    """
+
+    self_collision: bool = True
+    scene_collision: bool = True
+    margin: float = 0.01
+    screening: float = 0.03
+    rounds: int = 3
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.margin <= 0.5 or not self.screening >= self.margin:
+            raise PlannerError("settings: expected 0 <= collision.margin <= 0.5 m and collision.screening >= "
+                               f"collision.margin, got {self.margin:g} and {self.screening:g}")
+        if self.rounds < 0:
+            raise PlannerError(f"settings: collision.rounds must be >= 0, got {self.rounds}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Tolerances:
+    """What the plan's report accepts (the solver's own tolerances are :class:`SolverSettings`').
+
+    Attributes:
+        contact: Accepted stance-sole error [m] and [rad].
+        limit: Accepted joint-limit violation [rad, rad/s].
+        polygon: Accepted CoM excursion outside the shrunk polygon/box [m].
+    """
+
+    contact: float = 1e-4
+    limit: float = 1e-6
+    polygon: float = 1e-5
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PlannerSettings:
+    """How :func:`planner.plan` builds and solves the NLP, one field per concern.
+
+    Attributes:
+        solver: The NLP solver's options (:class:`SolverSettings`).
+        cache: The solver cache and builds, the solution library (:class:`CacheSettings`).
+        collision: The self- and scene-collision rows (:class:`CollisionSettings`).
+        tolerances: What the plan's report accepts (:class:`Tolerances`).
+        centroidal: Weights and options of the CoM dynamics with contact forces (dynamic specs).
+        diagnose: On failure, solve a relaxed problem (hard targets as costs) to name the
+            culprit and how far it is.
+    """
+
+    solver: SolverSettings = field(default_factory=SolverSettings)
+    cache: CacheSettings = field(default_factory=CacheSettings)
+    collision: CollisionSettings = field(default_factory=CollisionSettings)
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    centroidal: CentroidalSettings = field(default_factory=CentroidalSettings)
+    diagnose: bool = True

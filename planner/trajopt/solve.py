@@ -26,7 +26,7 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
 
     ``settings.transcription == "stagewise"`` solves a kinematic layout with the stage-wise
     transcription (:mod:`planner.trajopt.stagewise`, fatrop or IPOPT); a dynamic one keeps this one."""
-    if settings.transcription == "stagewise" and lay.extra_sizes() == (0, 0):
+    if settings.solver.transcription == "stagewise" and lay.extra_sizes() == (0, 0):
         from planner.trajopt.stagewise import solve_stagewise
 
         return solve_stagewise(lay, settings, progress, x0=x0)

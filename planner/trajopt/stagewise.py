@@ -395,11 +395,11 @@ def fatrop_options(settings: PlannerSettings, sl: StageLayout) -> dict:
         "nu": list(sl.nu),
         "ng": list(sl.ng),
         "fatrop": {
-            "print_level": int(settings.print_level),
-            "max_iter": int(settings.max_iterations),
-            "tol": float(settings.tolerance),
-            "constr_viol_tol": float(settings.constraint_tolerance),
-            **dict(settings.fatrop_extra),
+            "print_level": int(settings.solver.print_level),
+            "max_iter": int(settings.solver.max_iterations),
+            "tol": float(settings.solver.tolerance),
+            "constr_viol_tol": float(settings.solver.constraint_tolerance),
+            **dict(settings.solver.fatrop_extra),
         },
     }
 
@@ -420,8 +420,9 @@ _SOLVERS: OrderedDict[tuple, StagewiseSolver] = OrderedDict()
 
 
 def _options_key(settings: PlannerSettings) -> tuple:
-    return (settings.max_iterations, settings.tolerance, settings.constraint_tolerance, settings.print_level,
-            settings.objective_scaling, settings.ipopt_extra, settings.fatrop_extra)
+    s = settings.solver
+    return (s.max_iterations, s.tolerance, s.constraint_tolerance, s.print_level, s.objective_scaling,
+            s.ipopt_extra, s.fatrop_extra)
 
 
 def get_stagewise_solver(lay: Layout, settings: PlannerSettings, backend: str,
@@ -432,28 +433,28 @@ def get_stagewise_solver(lay: Layout, settings: PlannerSettings, backend: str,
     if backend not in SOLVERS:
         raise PlannerError(f"settings: the stage-wise solver must be one of {', '.join(SOLVERS)}, got {backend!r}")
     key = (model_hash(lay.robot.model), lay.structure(), backend, _options_key(settings))
-    hit = _SOLVERS.get(key) if settings.use_cache else None
+    hit = _SOLVERS.get(key) if settings.cache.use_cache else None
     if hit is not None:
         _SOLVERS.move_to_end(key)
         return hit, "memory"
     if progress:
         progress(f"building the stage-wise solver ({backend})")
     t0 = time.perf_counter()
-    scale = 1.0 if backend == "ipopt" else settings.objective_scaling  # IPOPT scales it itself
+    scale = 1.0 if backend == "ipopt" else settings.solver.objective_scaling  # IPOPT scales it itself
     nlp, derivatives, sl = build_stagewise_nlp(lay, symmetric_hessian=backend == "fatrop", objective_scale=scale)
     if backend == "ipopt":
         options = ipopt_options(settings)
         # METIS: MUMPS's automatic ordering fills this banded KKT system in badly (talos squat: 3.7 s
         # of CPU for 11 iterations against 0.8 s with METIS; docs/performance.md).
         options["ipopt"] = {"mumps_pivot_order": METIS, **options["ipopt"]} if not any(
-            k == "mumps_pivot_order" for k, _ in settings.ipopt_extra) else options["ipopt"]
+            k == "mumps_pivot_order" for k, _ in settings.solver.ipopt_extra) else options["ipopt"]
         options = {**options, **derivatives}
     else:  # CasADi's fatrop interface takes no derivative functions: it builds them by AD of the NLP
         options = fatrop_options(settings, sl)
     function = ca.nlpsol(f"wbmp_stagewise_{backend}", backend, nlp, options)
     solver = StagewiseSolver(function=function, stage_layout=sl, backend=backend,
                              build_time=time.perf_counter() - t0, objective_scale=scale)
-    if settings.use_cache:
+    if settings.cache.use_cache:
         _SOLVERS[key] = solver
         while len(_SOLVERS) > CACHE_SIZE:
             _SOLVERS.popitem(last=False)
@@ -489,7 +490,7 @@ def solve_stagewise(lay: Layout, settings: PlannerSettings, progress: Callable[[
     Raises:
         StagewiseUnsupported: a dynamic layout.
     """
-    backend = backend or settings.stagewise_solver
+    backend = backend or settings.solver.stagewise_solver
     t0 = time.perf_counter()
     solver, origin = get_stagewise_solver(lay, settings, backend, progress)
     build_time = time.perf_counter() - t0

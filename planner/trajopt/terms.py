@@ -10,12 +10,12 @@ import casadi as ca
 import planner.trajopt.collision
 import planner.trajopt.kinds
 import planner.trajopt.scene_collision  # noqa: F401 - the modules that define term kinds register them
-from planner.trajopt.layout import Layout
+from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.symbolic import SymbolicKinematics
 from planner.trajopt.term import TERM_KINDS, StageKinematics, Term
 
 
-def stage_groups(lay: Layout) -> list[tuple[tuple, list[int], list[list[int]]]]:
+def stage_groups(lay: LayoutData) -> list[tuple[tuple, list[int], list[list[int]]]]:
     """Variable knots grouped by the structure of their terms: (signature, knots, terms per knot)."""
     per_knot: dict[int, list[int]] = {k: [] for k in lay.variable_knots}
     for i, term in enumerate(lay.terms):
@@ -29,7 +29,7 @@ def stage_groups(lay: Layout) -> list[tuple[tuple, list[int], list[list[int]]]]:
     return [(sig, knots, terms) for sig, (knots, terms) in groups.items()]
 
 
-def stage_function(lay: Layout, term_ids: list[int], name: str) -> ca.Function:
+def stage_function(lay: LayoutData, term_ids: list[int], name: str) -> ca.Function:
     """SX function ``(dq[nv], q_ref[nq], p) -> (g, cost)`` of the terms at one knot."""
     robot = lay.robot
     kin = SymbolicKinematics(robot.model)

@@ -14,6 +14,7 @@ import numpy as np
 
 from planner.exceptions import PlannerError
 from planner.trajopt.layout import Layout
+from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.symbolic import model_hash
 from planner.trajopt.terms import stage_function, stage_groups
 
@@ -54,7 +55,7 @@ class Solver:
     extras: dict = field(default_factory=dict)
 
 
-def velocity_joints(lay: Layout) -> np.ndarray:
+def velocity_joints(lay: LayoutData) -> np.ndarray:
     """Tangent indices of actuated joints with a finite, positive velocity limit."""
     vmax = np.asarray(lay.robot.model.velocityLimit, dtype=float)
     idx = [i for i in range(6, lay.robot.nv) if 0.0 < vmax[i] < LIMIT_CLAMP]
@@ -102,7 +103,7 @@ def _sparse(rows, cols, values, shape) -> ca.DM:
     return ca.DM(pattern, summed.tolist())
 
 
-def _quadratic_operators(lay: Layout) -> tuple[ca.DM, ca.DM, ca.DM]:
+def _quadratic_operators(lay: LayoutData) -> tuple[ca.DM, ca.DM, ca.DM]:
     """Constant operators of the quadratic costs and of the velocity rows.
 
     They depend on ``nv``, ``N`` and the velocity-limited joints only; kept per process (a dynamic

@@ -409,7 +409,7 @@ def stop_short(robot: Robot, side: str, point, u, moving: tuple[str, ...], *, cl
 # functions below pose the arms at the targets (position inverse kinematics of the arm joints,
 # Pinocchio) and measure the sphere-set distances of the checked pairs that involve a moving arm.
 
-PLANNER_MARGIN = 0.01  # [m] the planner's self-collision margin (PlannerSettings.collision_margin; a test keeps them equal)
+PLANNER_MARGIN = 0.01  # [m] the planner's self-collision margin (PlannerSettings.collision.margin; a test keeps them equal)
 SPHERE_GAP = 0.01  # [m] room left beyond the margin between sphere sets at a target (the plan's posture differs from ours)
 CLEARANCE = PLANNER_MARGIN + SPHERE_GAP  # [m] sphere-set distance at a body-touching target
 ARM_IK_ITERATIONS = 150

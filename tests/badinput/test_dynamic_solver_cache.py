@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.trajopt import cache, cache_disk
 from planner.trajopt.api import _formulation, planned_layout
 from planner.trajopt.cache import clear_memory_cache, get_solver, solver_key
@@ -37,7 +37,7 @@ def small_spec(robot):
 
 
 def settings_for(cache_dir: Path, *, background: bool) -> PlannerSettings:
-    return PlannerSettings(cache_dir=str(cache_dir), compile=True, background_compile=background)
+    return PlannerSettings(cache=CacheSettings(cache_dir=str(cache_dir), compile=True, background_compile=background))
 
 
 def wait_for_writers() -> None:
@@ -81,7 +81,7 @@ def golden(tmp_path_factory, g1) -> Golden:
     assert first.ok and first.stats.cache == "built"
     wait_for_writers()
     settings = dynamic_settings(spec, g1, cache_dir)
-    assert settings.serialize and not settings.compile
+    assert settings.cache.serialize and not settings.cache.compile
     key = solver_key(planned_layout(spec, g1, settings), settings)
     entry = cache_dir / "planner" / key
     assert sorted(p.name for p in entry.iterdir()) == ["meta.json", "nlp.casadi"]

@@ -30,7 +30,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from planner import PlannerSettings
+from planner import CacheSettings, PlannerSettings
 from planner.trajopt import cache_disk, plan
 from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, solver_key
@@ -50,7 +50,7 @@ def small_spec(robot):
 
 
 def settings_for(cache_dir: Path) -> PlannerSettings:
-    return PlannerSettings(cache_dir=str(cache_dir), compile=True, background_compile=False)
+    return PlannerSettings(cache=CacheSettings(cache_dir=str(cache_dir), compile=True, background_compile=False))
 
 
 class Golden:
@@ -319,11 +319,11 @@ PLAN_IN_CHILD = f"""
 import sys
 import numpy as np
 from robots import load_robot
-from planner import PlannerSettings
+from planner import CacheSettings, PlannerSettings
 from planner.trajopt import plan
 from tests.planner.planning_cases import squat_spec
 talos = load_robot("talos")
-settings = PlannerSettings(cache_dir=sys.argv[1], compile=True, background_compile=False)
+settings = PlannerSettings(cache=CacheSettings(cache_dir=sys.argv[1], compile=True, background_compile=False))
 result = plan(squat_spec(talos, {DEPTH}, duration={DURATION}, dt={DT}), talos, settings=settings)
 np.save(sys.argv[2], result.q)
 print(result.stats.cache, result.ok)
@@ -411,7 +411,7 @@ def _squat_json_entry(golden: Golden, cache_dir: Path) -> Path:
 
     spec = load_spec(SQ)
     robot = load_robot(spec.robot)
-    settings = PlannerSettings(cache_dir=str(cache_dir), compile=True)
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(cache_dir), compile=True))
     lay = planned_layout(spec, robot, settings)
     from planner.trajopt.transcription import make_nlp_layout
 

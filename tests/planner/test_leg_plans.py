@@ -19,10 +19,11 @@ HARD_SLACK = 1e-4  # [m] solver tolerance on top of a HARD target's own toleranc
 
 
 def _plan(robot, actions):
-    from planner import PlannerSettings
+    from planner import CacheSettings, PlannerSettings
 
     spec = compile_actions(actions, robot)
-    result = planner.plan(spec, robot, settings=PlannerSettings(compile=False), throw=False)
+    result = planner.plan(spec, robot, settings=PlannerSettings(cache=CacheSettings(compile=False)),
+                          throw=False)
     assert result.ok, f"{spec.name}: {result.diagnosis}\n{result.summary()}"
     assert all(c.ok for c in result.checks), result.summary()
     return spec, result

@@ -139,7 +139,7 @@ def test_recent_entries_temporaries_and_foreign_files_stay_even_over_the_cap(bas
 def test_no_cap_when_turned_off_and_only_in_the_wbmp_cache_folder(base, tmp_path, monkeypatch):
     for i in range(4):
         _folder_entry(base, "robots", _key(i), 3000, age=3600 * (i + 1))
-    elsewhere = tmp_path / "mine"  # a cache_dir a caller chose (PlannerSettings(cache_dir=...))
+    elsewhere = tmp_path / "mine"  # a cache_dir a caller chose (CacheSettings(cache_dir=...))
     for i in range(4):
         _folder_entry(elsewhere, "planner", _key(i)[:24], 3000, age=3600 * (i + 1))
     monkeypatch.setenv(store.MAX_SIZE_ENV, "unlimited")

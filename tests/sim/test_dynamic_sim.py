@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.wbc.reference import PlanReference
 from sim import simulate
 from tasks.actions import Action
@@ -24,7 +24,7 @@ G = 9.81
 @pytest.fixture(scope="module")
 def jump_plan(talos):
     spec = compile_actions([Action(name="jump", params={"height": 0.05})], talos, dt=0.075)
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     return p
 
@@ -94,7 +94,7 @@ def test_talos_four_steps_forward_is_certified(talos):
     spec = compile_actions(
         [Action(name="step", params={"direction": "forward", "length": 0.15, "count": 4})], talos, dt=0.075
     )
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     ex = simulate(p, talos)
     assert ex.certificate.ok, ex.certificate.summary()
@@ -121,7 +121,7 @@ def test_g1_walk_and_turn_are_certified(g1, action, advance):
     moment 0.18-0.19 m from the full dynamics'). Both track within 1 cm now.
     """
     spec = compile_actions([action], g1, dt=0.075)
-    p = plan(spec, g1, settings=PlannerSettings(compile=False))
+    p = plan(spec, g1, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     ex = simulate(p, g1)
     assert ex.certificate.ok, ex.certificate.summary()
@@ -141,7 +141,7 @@ def test_g1_jump_5cm_is_certified_with_the_planned_take_off_momentum(g1):
     with 4.3-4.9 N m s of pitch momentum against the planned 1.4-1.9 and fell on landing.
     """
     spec = compile_actions([Action(name="jump", params={"height": 0.05})], g1, dt=0.075)
-    p = plan(spec, g1, settings=PlannerSettings(compile=False))
+    p = plan(spec, g1, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     waist = [g1.joint_names.index(n) for n in jump.torso_joints(g1)]
     assert np.abs(p.q[:, 7:][:, waist]).max() < 0.1  # [rad] the torso is held (it folded to 0.95)

@@ -192,12 +192,12 @@ def test_talos_turn_survives_a_push_at_mid_motion_on_a_slippery_floor(talos):
     the floor's friction times 0.7: the certificate passes, and the shins' meshes (coal, on the
     recorded configurations) never meet (they did 5.3 mm deep when the toe-in steps landed at
     the standing width)."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     spec = compile_actions([Action(name="turn", params={"angle": np.pi / 2})], talos, dt=0.075)
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     t_mid = 0.5 * float(p.t[-1])
     ex = simulate(p, talos, faults=faults_from_dict(
         {"pushes": [{"t": t_mid, "impulse": 20.0, "direction": [1, 0, 0]}], "friction_scale": 0.7}))

@@ -13,12 +13,12 @@ pytestmark = pytest.mark.slow
 
 
 def _certificate(robot, name: str, **params):
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     result = plan(compile_actions([Action(name=name, params=params)], robot), robot,
-                  settings=PlannerSettings(compile=False))
+                  settings=PlannerSettings(cache=CacheSettings(compile=False)))
     return simulate(result, robot, settings=SimSettings(settle_time=0.2)).certificate
 
 

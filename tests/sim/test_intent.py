@@ -134,13 +134,13 @@ def test_a_jump_leaves_the_ground_and_one_that_stays_down_fails(talos, monkeypat
     FLIGHT_FRACTION of the planned flight (measured independently: MuJoCo's sole forces below
     1 N, both at once); the same run with the soles kept on the floor (MuJoCo reporting contact
     throughout) fails both lines, saying the robot did not leave the ground."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from sim.intent import FLIGHT_FRACTION
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     spec = compile_actions([Action(name="jump", params={})], talos)
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     ex, run = _record(p, talos, monkeypatch)
     lines = intent_checks(run)
     (flight,) = _of(lines, CheckKind.INTENT_FLIGHT)
@@ -168,13 +168,13 @@ def test_steps_and_turns_as_planned(talos, monkeypatch):
     of the planned placements (the figures checked here against the soles' planned placements);
     the same run frozen at its first configuration (nobody moved) fails both lines, saying how far
     the foot went."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     spec = compile_actions([Action(name="step", params={"direction": "forward", "count": 2}),
                             Action(name="turn", params={"angle": 1.5707963267948966})], talos)
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     ex, run = _record(p, talos, monkeypatch)
     lines = _of(intent_checks(run), CheckKind.INTENT_STEPS)
     steps = [c for c in lines if "step lengths" in c.name]
@@ -195,11 +195,11 @@ def test_steps_and_turns_as_planned(talos, monkeypatch):
 
 
 def _sentence_run(robot, actions, monkeypatch):
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.compose import compile_actions
 
     spec = compile_actions(actions, robot)
-    return spec, *_record(plan(spec, robot, settings=PlannerSettings(compile=False)), robot, monkeypatch)
+    return spec, *_record(plan(spec, robot, settings=PlannerSettings(cache=CacheSettings(compile=False))), robot, monkeypatch)
 
 
 @pytest.mark.long  # in make test-long (~14 s): the 2-core suite stays under 10 minutes; twin:

@@ -13,12 +13,12 @@ pytestmark = pytest.mark.slow
 
 
 def _run(robot, name: str, **params):
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     result = plan(compile_actions([Action(name=name, params=params)], robot), robot,
-                  settings=PlannerSettings(compile=False))
+                  settings=PlannerSettings(cache=CacheSettings(compile=False)))
     return simulate(result, robot, settings=SimSettings(settle_time=0.2))
 
 
@@ -61,13 +61,13 @@ def test_hop_on_one_foot_is_certified_on_g1(g1):
     a stance sole when it gets there (WbcSettings.early_touchdown). With the switch at the planned
     time instead, the foot was pressed into the floor as a swing foot and slid 12.6 mm (> 10 mm)
     when it became a stance foot; with it, 0.8 mm (the CoM reference brakes from the touch-down)."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from planner.wbc import WbcSettings
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     spec = compile_actions([Action(name="hop", params={"foot": "right", "count": 1})], g1)
-    p = plan(spec, g1, settings=PlannerSettings(compile=False))
+    p = plan(spec, g1, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     ex = simulate(p, g1, settings=SimSettings(settle_time=0.2))
     assert ex.certificate.ok, ex.certificate.summary()
@@ -105,14 +105,14 @@ def test_forward_hops_are_certified_on_g1(g1):
     About 25 s of CPU."""
     import pinocchio as pin
 
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
     from tasks.primitives.hop import HOP_FORWARD_COUNT_MAX, HOP_FORWARD_MAX
 
     count, forward = HOP_FORWARD_COUNT_MAX, HOP_FORWARD_MAX
     spec = compile_actions([Action(name="hop", params={"foot": "left", "count": count, "forward": forward})], g1)
-    p = plan(spec, g1, settings=PlannerSettings(compile=False))
+    p = plan(spec, g1, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     planned = p.q[-1, 0] - p.q[0, 0]
     assert planned == pytest.approx(count * forward, abs=0.005)  # [m] the plan moves the base as asked

@@ -30,7 +30,9 @@ def _no_compilation(monkeypatch, tmp_path):
 def _run(sentence: str, robot_name: str, scene: Scene, dt: float = 0.1):
     robot = load_robot(robot_name)
     spec = compile_actions(parse(sentence).actions, robot, dt=dt, scene=scene)
-    plan = planner.plan(spec, robot, settings=planner.PlannerSettings(compile=False), throw=False)
+    plan = planner.plan(spec, robot,
+                        settings=planner.PlannerSettings(cache=planner.CacheSettings(compile=False)),
+                        throw=False)
     assert plan.ok, f"{plan.stats.status.value}: {plan.diagnosis}"
     return robot, spec, plan, simulate(plan, robot)
 

@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 from language import parse
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from robots.contact import halfplanes, sole_corners_in_world, support_polygon
 from sim import simulate
 from sim.zmp import plan_zmp
@@ -49,7 +49,7 @@ def zmp_outside(robot, p) -> tuple[np.ndarray, list[str]]:
 def walk_then_wave(talos):
     spec = compile_actions(parse(SENTENCE).actions, talos)
     assert spec.dynamic  # the wave too is planned with the contact forces
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert p.ok, p.summary()
     return p
 

@@ -473,7 +473,7 @@ def solve():
     """``solve(robot, actions) -> (spec, plan)``, each distinct request solved once."""
     planner = pytest.importorskip("planner")
     cache: dict = {}
-    settings = planner.PlannerSettings(compile=False)
+    settings = planner.PlannerSettings(cache=planner.CacheSettings(compile=False))
 
     def _solve(robot, actions):
         key = (robot.name, json.dumps([a.to_dict() for a in actions], sort_keys=True))
@@ -662,7 +662,7 @@ def test_body_touching_gestures_plan_clear_of_the_meshes(talos, solve, name, par
     from planner import PlannerSettings
 
     spec, plan = solve(talos, [Action(name=name, params=params)])
-    assert PlannerSettings().self_collision
+    assert PlannerSettings().collision.self_collision
     hands = {talos.frame("left_hand"): "left_hand", talos.frame("right_hand"): "right_hand"}
     hard = [t for t in spec.targets if t.priority.name == "HARD" and t.position is not None and t.frame in hands]
     assert hard
@@ -682,7 +682,7 @@ def test_sphere_clearance_uses_the_planners_margin():
     from planner import PlannerSettings
     from tasks.primitives.bodymap import CLEARANCE, PLANNER_MARGIN
 
-    assert PLANNER_MARGIN == PlannerSettings().collision_margin
+    assert PLANNER_MARGIN == PlannerSettings().collision.margin
     assert CLEARANCE > PLANNER_MARGIN
 
 

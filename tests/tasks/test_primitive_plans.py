@@ -31,10 +31,10 @@ HARD_SLACK = 1e-4  # [m, rad] solver tolerance on top of a hard target's own tol
 @pytest.fixture(scope="session")
 def solve():
     """``solve(robot, actions) -> (spec, plan)``, each distinct request solved once."""
-    from planner import PlannerSettings
+    from planner import CacheSettings, PlannerSettings
 
     cache: dict = {}
-    settings = PlannerSettings(compile=False)
+    settings = PlannerSettings(cache=CacheSettings(compile=False))
 
     def _solve(robot, actions):
         key = (robot.name, json.dumps([a.to_dict() for a in actions], sort_keys=True))
@@ -291,10 +291,11 @@ def test_wave_while_squatting_in_one_plan(g1, solve):
 def test_reach_out_of_range_is_explained_by_the_planner(talos):
     """A base-frame point 1.5 m ahead is not refused by the primitive; the planner fails and its
     diagnosis names the reach target and how far it is missed."""
-    from planner import PlannerSettings
+    from planner import CacheSettings, PlannerSettings
 
     spec = compile_actions([Action(name="reach", params={"target": (1.5, -0.3, 0.3)})], talos, dt=DT)
-    plan = planner_trajopt.plan(spec, talos, settings=PlannerSettings(compile=False), throw=False)
+    plan = planner_trajopt.plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)),
+                                throw=False)
     assert not plan.ok
     assert "reach: right hand at the reach point" in plan.diagnosis and "beyond reach" in plan.diagnosis
 

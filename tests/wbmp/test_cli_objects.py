@@ -67,7 +67,9 @@ def test_walk_to_the_kitchen_table_plans_on_talos():
     robot = load_robot("talos")
     kitchen = load_scene(KITCHEN)
     spec = compile_actions(parse("walk over to the table").actions, robot, dt=0.1, scene=kitchen)
-    plan = planner.plan(spec, robot, settings=planner.PlannerSettings(compile=False), throw=False)
+    plan = planner.plan(spec, robot,
+                        settings=planner.PlannerSettings(cache=planner.CacheSettings(compile=False)),
+                        throw=False)
     assert plan.ok, f"{plan.stats.status.value}: {plan.diagnosis}"
     data = robot.data()
     q = plan.q[-1]

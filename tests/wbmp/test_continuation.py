@@ -11,7 +11,7 @@ import pytest
 
 from language import parse
 from planner import plan
-from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.settings import CacheSettings, PlannerSettings
 from sim import Execution
 from sim.certificate import Certificate
 from tasks.compose import compile_actions, fit_actions
@@ -21,7 +21,7 @@ from wbmp.continuation import DRIFT, EndState, end_state
 @pytest.fixture(scope="module")
 def squat(talos):
     spec = compile_actions(fit_actions(parse("squat").actions, talos), talos)
-    return spec, plan(spec, talos, settings=PlannerSettings(solution_library="off"))
+    return spec, plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(solution_library="off")))
 
 
 def feet(robot):

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from planner import PlannerSettings
+from planner import PlannerSettings, SolverSettings
 from planner.trajopt.builds import BUILD_MEMORY
 from wbmp.environment import planner_settings, settings_from_environment
 from wbmp.errors import CliError, ExitCode
@@ -49,7 +49,8 @@ def test_library_defaults_ignore_the_shell(monkeypatch):
     for name, value in zip(SWITCHES, ("1", "0", "on", "1M", "clang"), strict=True):
         monkeypatch.setenv(name, value)
     s = PlannerSettings()
-    assert (s.compile, s.background_compile, s.solution_library, s.build_memory, s.compiler) == \
+    c = s.cache
+    assert (c.compile, c.background_compile, c.solution_library, c.build_memory, c.compiler) == \
         (False, False, "off", BUILD_MEMORY, "gcc")
 
 
@@ -66,13 +67,14 @@ def test_the_command_line_reads_the_switches(environ, expected):
     got = settings_from_environment(environ)
     assert tuple(got[k] for k in ("compile", "background_compile", "solution_library", "build_memory",
                                   "compiler")) == expected
-    s = planner_settings(environ, max_iterations=7)
-    assert s.max_iterations == 7 and s.compile == expected[0] and s.solution_library == expected[2]
+    s = planner_settings(environ, solver=SolverSettings(max_iterations=7))
+    assert s.solver.max_iterations == 7 and s.cache.compile == expected[0] and s.cache.solution_library == expected[2]
 
 
 def test_given_fields_win_over_the_environment():
-    s = planner_settings({"WBMP_COMPILE": "1", "WBMP_SOLUTION_LIBRARY": "on"}, compile=False, solution_library="off")
-    assert not s.compile and s.solution_library == "off"
+    s = planner_settings({"WBMP_COMPILE": "1", "WBMP_SOLUTION_LIBRARY": "on"},
+                         cache={"compile": False, "solution_library": "off"})
+    assert not s.cache.compile and s.cache.solution_library == "off"
 
 
 def test_a_build_memory_that_is_not_a_size_is_one_line_exit_2():

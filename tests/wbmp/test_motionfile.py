@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from sim import Execution
 from tests.planner.planning_cases import squat_spec
 from wbmp.errors import MotionFileError
@@ -18,7 +18,8 @@ from wbmp.motionfile import load_motion, save_motion
 
 @pytest.fixture(scope="module")
 def squat_plan(talos):
-    return plan(squat_spec(talos, 0.1, duration=2.0, dt=0.1), talos, settings=PlannerSettings(compile=False))
+    return plan(squat_spec(talos, 0.1, duration=2.0, dt=0.1), talos,
+                settings=PlannerSettings(cache=CacheSettings(compile=False)))
 
 
 def _execution(talos, rng):

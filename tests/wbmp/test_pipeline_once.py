@@ -90,7 +90,7 @@ def test_the_solution_library_does_not_depend_on_hashing_the_robot_files(tmp_pat
     assert asked == [{}]  # the user's settings, not solution_library="off"
     asked.clear()
     pipeline.solve(SolveRequest(instruction="squat 10 cm", robot="talos", simulate=False), cache=False)
-    assert asked == [{"solution_library": "off"}]  # --no-cache: the request alone, as before
+    assert asked == [{"cache": {"solution_library": "off"}}]  # --no-cache: the request alone, as before
 
 
 def test_a_fresh_result_is_compressed_once_for_the_cache_and_out(tmp_path):

@@ -45,9 +45,10 @@ def planner_settings(cache_dir: str, max_iterations: int | None = None):
     from wbmp.environment import planner_settings as from_environment
 
     compile_ = os.environ.get("WBMP_BENCH_COMPILE", "1") != "0"
-    settings = from_environment(cache_dir=cache_dir, compile=compile_, solution_library="off")
+    settings = from_environment(cache={"cache_dir": cache_dir, "compile": compile_, "solution_library": "off"})
     if max_iterations is not None:
-        settings = dataclasses.replace(settings, max_iterations=max_iterations)
+        settings = dataclasses.replace(settings, solver=dataclasses.replace(settings.solver,
+                                                                            max_iterations=max_iterations))
     return settings
 
 

@@ -45,8 +45,10 @@ concatenates to its own variables, constraints and cost. Numeric checks on a fin
 
 Modules, in import order: ``settings``, ``physics`` (the per-knot expressions), ``contacts``
 (contact geometry), ``pattern`` (assembly over the knot grid: the sparsity pattern and the CasADi
-terms), ``nlp`` (the extension of the kinematic NLP), ``guess`` (initial guess), ``checks``
-(numeric checks of a plan), ``diagnose``, ``layout`` (:class:`DynamicLayout`, the formulation).
+terms), ``heading`` (the chart's heading guess), ``data`` (:class:`DynamicData`: a layout's data
+with these parts, what the modules after it take), ``nlp`` (the extension of the kinematic NLP),
+``guess`` (initial guess), ``checks`` (numeric checks of a plan), ``diagnose``, ``layout``
+(:class:`DynamicLayout`, the formulation).
 Every public name is also importable from this package (on first access).
 """
 
@@ -72,8 +74,10 @@ if TYPE_CHECKING:
         contacts_per_knot,
         layout_contacts,
     )
+    from planner.trajopt.centroidal.data import DynamicData
     from planner.trajopt.centroidal.diagnose import diagnose_dynamic
-    from planner.trajopt.centroidal.guess import forces_of, heading_guess, initial_guess
+    from planner.trajopt.centroidal.guess import forces_of, initial_guess
+    from planner.trajopt.centroidal.heading import heading_guess
     from planner.trajopt.centroidal.layout import (
         DYNAMIC_FORMULATION,
         DynamicLayout,
@@ -147,10 +151,11 @@ _EXPORTS = {  # public name -> module that defines it
     "stage_hessians": "planner.trajopt.centroidal.nlp",
     "swing_corner_floor": "planner.trajopt.centroidal.nlp",
     "DYNAMIC_FORMULATION": "planner.trajopt.centroidal.layout",
+    "DynamicData": "planner.trajopt.centroidal.data",
     "DynamicLayout": "planner.trajopt.centroidal.layout",
     "to_dynamic_layout": "planner.trajopt.centroidal.layout",
     "forces_of": "planner.trajopt.centroidal.guess",
-    "heading_guess": "planner.trajopt.centroidal.guess",
+    "heading_guess": "planner.trajopt.centroidal.heading",
     "initial_guess": "planner.trajopt.centroidal.guess",
     "center_of_pressure": "planner.trajopt.centroidal.checks",
     "cop_violation": "planner.trajopt.centroidal.checks",
@@ -172,6 +177,7 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "ConstraintBlock",
     "ContactGeometry",
     "DynamicBlocks",
+    "DynamicData",
     "DynamicLayout",
     "angular_momentum_rate",
     "build_centroidal",

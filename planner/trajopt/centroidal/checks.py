@@ -10,16 +10,16 @@ import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from planner.trajopt.centroidal.contacts import contact_geometry_points
+from planner.trajopt.centroidal.data import DynamicData
 from planner.trajopt.centroidal.pattern import CentroidalPattern, CentroidalTerms
 from planner.trajopt.centroidal.physics import GRAVITY, com_dynamics_residual
 from robots import center_of_pressure, friction_violation, sole_corners
 
 if TYPE_CHECKING:
-    from planner.trajopt.centroidal.layout import DynamicLayout
     from planner.trajopt.settings import PlannerSettings
 
 
-def rest_polygon_checks(lay: DynamicLayout, com: np.ndarray, tolerance: float) -> list[Check]:
+def rest_polygon_checks(lay: DynamicData, com: np.ndarray, tolerance: float) -> list[Check]:
     """Support-polygon CoM bounds of a dynamic plan, where they apply: at the last knot (at rest).
 
     Args:
@@ -56,7 +56,7 @@ def cop_violation(cop: np.ndarray, x_range: tuple[float, float], y_range: tuple[
 
 
 def dynamic_checks(
-    lay: DynamicLayout,
+    lay: DynamicData,
     q: np.ndarray,
     com: np.ndarray,
     terms: CentroidalTerms | CentroidalPattern,
@@ -157,7 +157,7 @@ def dynamic_checks(
     return checks
 
 
-def _swing_corner_depths(lay: DynamicLayout, q: np.ndarray, corner_rows: Sequence[tuple[int, int, int]],
+def _swing_corner_depths(lay: DynamicData, q: np.ndarray, corner_rows: Sequence[tuple[int, int, int]],
                          t: np.ndarray) -> list[tuple[float, float]]:
     """(depth below the ground [m], time [s]) of each swinging sole corner row, with Pinocchio."""
     model, data = lay.robot.model, lay.robot.data()
@@ -177,7 +177,7 @@ def _swing_corner_depths(lay: DynamicLayout, q: np.ndarray, corner_rows: Sequenc
     return depth
 
 
-def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
+def dynamic_plan_checks(lay: DynamicData, q: np.ndarray, com: np.ndarray, forces: np.ndarray | None,
                         checks: Sequence[Check], settings: PlannerSettings) -> list[Check]:
     """The report of a dynamic plan: the kinematic checks with the support polygon taken at rest
     (the last knot), plus the dynamic checks (:func:`dynamic_checks`) and the plan's full
@@ -190,17 +190,17 @@ def dynamic_plan_checks(lay: DynamicLayout, q: np.ndarray, com: np.ndarray, forc
         com: CoM per knot (N+1, 3) [m].
         forces: Solution values of the force variables (None: none available).
         checks: The kinematic report (``planner.trajopt.checks.check_plan``).
-        settings: ``PlannerSettings`` (``polygon_tolerance`` [m]).
+        settings: ``PlannerSettings`` (``tolerances.polygon`` [m]).
 
     Returns:
         The checks.
     """
     out = [c for c in checks if c.kind is not CheckKind.COM_SUPPORT_POLYGON]
-    out += rest_polygon_checks(lay, com, settings.polygon_tolerance)
+    out += rest_polygon_checks(lay, com, settings.tolerances.polygon)
     if forces is not None:
         out += dynamic_checks(lay, q, com, lay.pattern(), lay.corner_rows(), forces,
                               force_tolerance=lay.centroidal_settings.force_tolerance,
-                              position_tolerance=settings.polygon_tolerance,
+                              position_tolerance=settings.tolerances.polygon,
                               ankle_torque_margin=lay.centroidal_settings.ankle_torque_margin)
     from planner.trajopt.centroidal.zmp import zmp_checks
 

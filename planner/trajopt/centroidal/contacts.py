@@ -4,17 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import PlannerError
+from planner.trajopt.layout_data import LayoutData
 from robots import Robot, sole_corners
 from tasks import Contact, Pose, TaskSpec, Vec3
-
-if TYPE_CHECKING:
-    from planner.trajopt.layout import Layout
 
 # ---------------------------------------------------------------------------------------------
 # Ankle joints
@@ -236,8 +234,8 @@ def _geometry_values(c: ContactGeometry, *, ankle: bool = False) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 
-def layout_contacts(lay: Layout, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
-    """Per knot of a :class:`planner.trajopt.layout.Layout`, the contacts it holds, as geometry.
+def layout_contacts(lay: LayoutData, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:
+    """Per knot of a :class:`planner.trajopt.layout_data.LayoutData`, the contacts it holds, as geometry.
 
     A contact holds at both ends of its phase (the layout's ``contacts_at``), so forces may act
     at the knot where a foot lifts off or touches down. The friction coefficient is the spec

@@ -2,13 +2,8 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from planner.results import Plan
-    from planner.trajopt.centroidal.layout import DynamicLayout
-
-from planner.results import CheckKind
+from planner.results import CheckKind, Plan
+from planner.trajopt.centroidal.data import DynamicData
 
 #: What to try when a dynamic plan fails on a group of this kind.
 HINTS = {
@@ -19,7 +14,7 @@ HINTS = {
 }
 
 
-def diagnose_dynamic(lay: DynamicLayout, failed: Plan) -> str:
+def diagnose_dynamic(lay: DynamicData, failed: Plan) -> str:
     """Explain a failed dynamic plan in task terms: the worst violated group, when, in which phase."""
     spec = lay.spec
     status = failed.stats.status.value

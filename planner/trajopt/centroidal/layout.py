@@ -5,12 +5,12 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Self
 
 import numpy as np
 
 from planner.trajopt.centroidal.checks import dynamic_plan_checks
-from planner.trajopt.centroidal.contacts import layout_contacts
+from planner.trajopt.centroidal.data import DynamicData
 from planner.trajopt.centroidal.diagnose import diagnose_dynamic
 from planner.trajopt.centroidal.guess import forces_of, initial_guess
 from planner.trajopt.centroidal.nlp import (
@@ -18,13 +18,6 @@ from planner.trajopt.centroidal.nlp import (
     extend_bounds,
     extend_nlp,
     extend_parameters,
-)
-from planner.trajopt.centroidal.pattern import (
-    CentroidalFunction,
-    CentroidalPattern,
-    centroidal_function,
-    centroidal_pattern,
-    swinging_corners,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
 from planner.trajopt.kinds import SupportPolygonTerm
@@ -37,64 +30,20 @@ if TYPE_CHECKING:
 DYNAMIC_FORMULATION = "lifted-com-3-momentum-affine-ankle-lifted-moment"  # part of a dynamic layout's structure (solver cache key)
 
 
-class DynamicLayout(Layout):
-    """A :class:`planner.trajopt.layout.Layout` with CoM dynamics and contact forces.
+class DynamicLayout(DynamicData, Layout):
+    """A :class:`planner.trajopt.layout.Layout` with CoM dynamics and contact forces: the data
+    (:class:`planner.trajopt.centroidal.data.DynamicData`) and the formulation protocol.
 
     Built by :func:`to_dynamic_layout`. Its :meth:`structure` adds the force pattern (contacts per
     knot, swinging sole corners), so the solver cache never confuses it with a kinematic
     layout or with another contact pattern.
-
-    Attributes:
-        centroidal_settings: Weights and options of the dynamic terms.
-        kinematic_terms: Number of chart variables ``nv (N - 2)`` (the forces follow).
     """
-
-    centroidal_settings: CentroidalSettings
-    _cf: CentroidalFunction | None
-    _pattern: CentroidalPattern | None
-    _momentum_point: np.ndarray | None
-    momentum_residual: float = float("nan")  # Euler's law at the last solution checked / (m g) [m]
-
-    def momentum_point(self) -> np.ndarray:
-        """Chart displacements (N+1, nv) the whole-body momentum rows are linearized about: the
-        last solution given to :meth:`set_momentum_point`, else the initial guess's."""
-        if self._momentum_point is None:
-            from planner.trajopt.centroidal.guess import heading_guess
-
-            self._momentum_point = heading_guess(self)
-        return self._momentum_point
-
-    def set_momentum_point(self, dq: np.ndarray) -> None:
-        """Linearize the whole-body momentum rows about ``dq`` (N+1, nv) from the next solve on."""
-        self._momentum_point = np.array(dq, dtype=float)
-
-    def centroidal(self) -> CentroidalFunction:
-        """The centroidal function of this layout (CasADi; built once, only to build a solver)."""
-        if self._cf is None:
-            self._cf = centroidal_function(self, settings=self.centroidal_settings)
-        return self._cf
-
-    def pattern(self) -> CentroidalPattern:
-        """The numbers of the centroidal terms (no CasADi; what a cached solver needs)."""
-        if self._pattern is None:
-            contacts = layout_contacts(self, cop_margin=self.centroidal_settings.cop_margin)
-            self._pattern = centroidal_pattern(contacts, self.robot.mass, settings=self.centroidal_settings)
-        return self._pattern
-
-    def corner_rows(self) -> tuple[tuple[int, int, int], ...]:
-        """(knot, foot frame id, corner) of the sole-corner rows (feet not in contact)."""
-        return swinging_corners(self)
 
     def structure(self) -> tuple:
         """Kinematic structure + the dynamic one (with :data:`DYNAMIC_FORMULATION`, bumped when the
         dynamic NLP changes; the solver cache also hashes the centroidal sources)."""
         return (super().structure(), "dynamic", DYNAMIC_FORMULATION, self.pattern().structure,
                 self.corner_rows(), self.centroidal_settings)
-
-    @property
-    def n_kinematic(self) -> int:
-        """Number of chart variables (the force variables come after them)."""
-        return self.robot.nv * (self.N - 2)
 
     # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
 
@@ -135,20 +84,19 @@ class DynamicLayout(Layout):
         corner = self.pattern().corner_forces(forces)
         return {frame: f.sum(axis=1) for frame, f in corner.items()}, {"corner_forces": corner}
 
-    def relinearize(self, dq: np.ndarray, x: np.ndarray, round_: int) -> bool:
-        """Linearize the whole-body momentum rows about the solution ``dq`` again, when Euler's law
-        with the exact :math:`A_g` is off by more than ``CentroidalSettings.momentum_tolerance``,
-        for at most ``momentum_iterations`` rounds."""
+    def relinearized(self, dq: np.ndarray, x: np.ndarray, round_: int) -> Self | None:
+        """This layout with the whole-body momentum rows linearized about the solution ``dq`` again
+        (a copy; this one is not changed), when Euler's law with the exact :math:`A_g` is off by more
+        than ``CentroidalSettings.momentum_tolerance``, for at most ``momentum_iterations`` rounds."""
         s = self.centroidal_settings
         if not s.whole_body_momentum or round_ >= s.momentum_iterations:
-            return False
+            return None
         from planner.trajopt.centroidal.momentum import euler_residual
 
-        self.momentum_residual = euler_residual(self, dq, self.forces_of(x))
-        if self.momentum_residual <= s.momentum_tolerance:
-            return False
-        self.set_momentum_point(dq)
-        return True
+        residual = euler_residual(self, dq, self.forces_of(x))
+        if residual <= s.momentum_tolerance:
+            return None
+        return self.with_momentum_point(dq, residual)
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """The worst violated group of the failed plan (no relaxed solve)."""

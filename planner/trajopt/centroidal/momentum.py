@@ -55,15 +55,11 @@ Values are divided by the body weight :math:`m|g|` like the force variables (uni
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import pinocchio as pin
 
+from planner.trajopt.centroidal.data import DynamicData
 from planner.trajopt.centroidal.zmp import cross3
-
-if TYPE_CHECKING:
-    from planner.trajopt.centroidal.layout import DynamicLayout
 
 
 def momentum_sizes(nv: int, N: int) -> int:
@@ -97,7 +93,7 @@ def momentum_jacobian_pattern(nv: int, N: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array(rows, dtype=int), np.array(cols, dtype=int)
 
 
-def interval_linearization(lay: DynamicLayout, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def interval_linearization(lay: DynamicData, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The interval momenta linearized about chart displacements ``dq`` (N+1, nv).
 
     Returns:
@@ -146,7 +142,7 @@ def interval_momentum(robot, q: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
-def momentum_parameters(lay: DynamicLayout, dq: np.ndarray) -> np.ndarray:
+def momentum_parameters(lay: DynamicData, dq: np.ndarray) -> np.ndarray:
     """Parameters of the angular-momentum rows linearized about chart displacements ``dq`` (N+1, nv).
 
     The rate of dynamics knot ``k`` is ``(h_{k+1/2} - h_{k-1/2}) / dt``, with the interval momenta
@@ -178,7 +174,7 @@ def momentum_parameters(lay: DynamicLayout, dq: np.ndarray) -> np.ndarray:
     return np.concatenate([rate.ravel(), *values])
 
 
-def euler_residual(lay: DynamicLayout, dq: np.ndarray, forces: np.ndarray) -> float:
+def euler_residual(lay: DynamicData, dq: np.ndarray, forces: np.ndarray) -> float:
     """Largest violation of the whole body's Euler law at a solution, divided by the body weight [m].
 
     The exact rows of :mod:`this module <planner.trajopt.centroidal.momentum>` (Pinocchio's

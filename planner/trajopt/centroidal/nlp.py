@@ -5,16 +5,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from planner.trajopt.centroidal.data import DynamicData
 from planner.trajopt.centroidal.pattern import CentroidalFunction
 from robots import Robot, sole_corners
-
-if TYPE_CHECKING:
-    from planner.trajopt.centroidal.layout import DynamicLayout
 
 
 def sole_corner_heights(kin: Any, oMi: Any, robot: Robot) -> Any:
@@ -91,7 +89,7 @@ class DynamicBlocks:
     hess_ll: Any
 
 
-def _kinematic_functions(lay: DynamicLayout) -> tuple[ca.Function, ca.Function, ca.Function]:
+def _kinematic_functions(lay: DynamicData) -> tuple[ca.Function, ca.Function, ca.Function]:
     """SX functions of one knot: (dq, q_ref) -> (c, Jc, z, Jz), (dq, q_ref, nu, eta) ->
     hess(nu.c + eta.z), and (dq, q_ref) -> (c, z) (the values alone: what the rows need)."""
     from planner.trajopt.symbolic import SymbolicKinematics
@@ -111,18 +109,18 @@ def _kinematic_functions(lay: DynamicLayout) -> tuple[ca.Function, ca.Function, 
     return first, second, values
 
 
-def com_rows(lay: DynamicLayout) -> int:
+def com_rows(lay: DynamicData) -> int:
     """Number of lifted CoM variables (and of the rows tying them to the configuration)."""
     return 3 * (lay.N - 2)
 
 
-def moment_rows(lay: DynamicLayout) -> int:
+def moment_rows(lay: DynamicData) -> int:
     """Number of lifted moment variables ``l`` (3 per dynamics knot ``1..N-1``, 0 when
     :attr:`CentroidalSettings.lifts_moment` is off), and of the momentum rows ``rate_k - l_k``."""
     return 3 * (lay.N - 1) if lay.centroidal_settings.lifts_moment else 0
 
 
-def momentum_rates(lay: DynamicLayout, x_kin: Any, pm: Any, row_index: np.ndarray | None = None,
+def momentum_rates(lay: DynamicData, x_kin: Any, pm: Any, row_index: np.ndarray | None = None,
                    n_rows: int | None = None) -> tuple[Any, Any]:
     """Whole-body angular-momentum rates of the dynamics knots 1..N-1 and their Jacobian w.r.t. ``x_kin``.
 
@@ -162,7 +160,7 @@ def momentum_rates(lay: DynamicLayout, x_kin: Any, pm: Any, row_index: np.ndarra
     return r + ca.mtimes(J, x_kin), J
 
 
-def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
+def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
                    lam_f: Any, lam: Any, *, kinematic_hessian: bool = True, pm: Any = None,
                    moment: Any = None) -> DynamicBlocks:
     """Assemble the dynamic terms of a stage-wise NLP with exact derivatives.
@@ -302,7 +300,7 @@ def dynamic_blocks(lay: DynamicLayout, cf: CentroidalFunction, x_kin: Any, u: An
     )
 
 
-def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
+def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
                    eta: Any) -> Any:
     """Block-diagonal chart Hessian of a dynamic NLP's Lagrangian, one SX function per stage type.
 
@@ -389,14 +387,14 @@ def stage_hessians(lay: DynamicLayout, x_kin: Any, q_ref: Any, p_kin: Any, lam_f
     return ca.diagcat(*[blocks[kk] for kk in range(2, lay.N)])
 
 
-def dynamic_sizes(lay: DynamicLayout) -> tuple[int, int]:
+def dynamic_sizes(lay: DynamicData) -> tuple[int, int]:
     """(force + lifted CoM + lifted moment variables, dynamic constraint rows) of a dynamic layout."""
     pat = lay.pattern()
     n_l = moment_rows(lay)
     return pat.n_variables + com_rows(lay) + n_l, len(pat.lbg) + com_rows(lay) + len(lay.corner_rows()) + n_l
 
 
-def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
+def extend_nlp(lay: DynamicData, nlp: dict, derivatives: dict) -> tuple[dict, dict]:
     """Add the forces, lifted CoM, CoM dynamics and sole-corner rows to a stage-wise kinematic NLP.
 
     Args:
@@ -458,7 +456,7 @@ def extend_nlp(lay: DynamicLayout, nlp: dict, derivatives: dict) -> tuple[dict, 
     return {"x": x, "p": p, "f": f, "g": g}, out
 
 
-def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
+def extend_bounds(lay: DynamicData, lbx: np.ndarray, ubx: np.ndarray, lbg: np.ndarray,
                   ubg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Bounds of the extended NLP from the kinematic ones (force boxes, free CoM and moments,
     dynamic rows)."""
@@ -478,7 +476,7 @@ def extend_bounds(lay: DynamicLayout, lbx: np.ndarray, ubx: np.ndarray, lbg: np.
 SWING_CLEARANCE = 0.01  # [m] lowest sole corner of a swinging foot, away from lift-off and touch-down
 
 
-def swing_corner_floor(lay: DynamicLayout, rows: Sequence[tuple[int, int, int]]) -> np.ndarray:
+def swing_corner_floor(lay: DynamicData, rows: Sequence[tuple[int, int, int]]) -> np.ndarray:
     """Lower bounds of the swinging sole-corner heights [m].
 
     0 at the first and last free knot of a swing (the sole may still or already touch there),
@@ -496,16 +494,16 @@ def swing_corner_floor(lay: DynamicLayout, rows: Sequence[tuple[int, int, int]])
     return floor
 
 
-def momentum_parameter_count(lay: DynamicLayout) -> int:
+def momentum_parameter_count(lay: DynamicData) -> int:
     """Number of whole-body momentum linearization parameters (0 when the setting is off)."""
     from planner.trajopt.centroidal.momentum import momentum_sizes
 
     return momentum_sizes(lay.robot.nv, lay.N) if lay.centroidal_settings.whole_body_momentum else 0
 
 
-def extend_parameters(lay: DynamicLayout, p: np.ndarray) -> np.ndarray:
+def extend_parameters(lay: DynamicData, p: np.ndarray) -> np.ndarray:
     """Parameter values of the extended NLP: the kinematic ones, the contact geometry, then the
-    whole-body momentum linearized at :meth:`DynamicLayout.momentum_point`."""
+    whole-body momentum linearized at :meth:`DynamicData.momentum_point`."""
     parts = [p, lay.pattern().parameter_values]
     if lay.centroidal_settings.whole_body_momentum:
         from planner.trajopt.centroidal.momentum import momentum_parameters

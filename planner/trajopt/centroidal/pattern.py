@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -26,11 +26,9 @@ from planner.trajopt.centroidal.physics import (
     pyramid_edges,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
+from planner.trajopt.layout_data import LayoutData
 from robots import Robot
 from tasks import TaskSpec
-
-if TYPE_CHECKING:
-    from planner.trajopt.centroidal.layout import DynamicLayout
 
 # ---------------------------------------------------------------------------------------------
 # Assembly over a knot grid
@@ -510,7 +508,7 @@ class CentroidalFunction:
         return (self.terms.structure, self.corner_rows)
 
 
-def centroidal_function(lay: DynamicLayout, *, settings: CentroidalSettings = CentroidalSettings(),
+def centroidal_function(lay: LayoutData, *, settings: CentroidalSettings = CentroidalSettings(),
                         first_free_knot: int = 2) -> CentroidalFunction:
     """Build :class:`CentroidalFunction` for a :class:`planner.trajopt.layout.Layout`.
 
@@ -534,7 +532,7 @@ def centroidal_function(lay: DynamicLayout, *, settings: CentroidalSettings = Ce
     return CentroidalFunction(function=fn, terms=terms, corner_rows=rows, lbg=lbg, ubg=ubg)
 
 
-def swinging_corners(lay: DynamicLayout, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
+def swinging_corners(lay: LayoutData, *, first_free_knot: int = 2) -> tuple[tuple[int, int, int], ...]:
     """(knot, foot frame id, corner) of every sole corner of a foot not in contact at a variable knot."""
     feet = [lay.robot.frame_id(f"{s}_foot") for s in ("left", "right")]
     return tuple((k, fid, i) for k in range(first_free_knot, lay.N) for fid in feet

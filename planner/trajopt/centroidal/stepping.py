@@ -22,20 +22,18 @@ from the previous knot's solution):
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-if TYPE_CHECKING:
-    from planner.trajopt.layout import Layout
+from planner.trajopt.layout_data import LayoutData
 
 FLOOR_TOLERANCE = 1e-6  # [m] a foot placement this close to z = 0 is on the floor
 COM_WINDOW = 0.3  # [s] the CoM target averages the support polygon's centre over this window
 IK_ITERATIONS = 8  # Gauss-Newton steps per knot, from the previous knot's solution
 
 
-def on_terrain(lay: Layout) -> bool:
+def on_terrain(lay: LayoutData) -> bool:
     """Some foot placement of the layout is off the floor (z != 0)."""
     robot = lay.robot
     for active in lay.contacts_at:
@@ -67,7 +65,7 @@ def swing_pose(M0: pin.SE3, M1: pin.SE3, height: float, s: float) -> pin.SE3:
     return pin.SE3(R, np.array([xy[0], xy[1], z]))
 
 
-def _swings(lay: Layout) -> dict[int, dict[int, pin.SE3]]:
+def _swings(lay: LayoutData) -> dict[int, dict[int, pin.SE3]]:
     """Knot -> foot frame id -> the swinging sole's guessed pose (feet between two placements)."""
     robot = lay.robot
     feet = [robot.frame_id(f"{side}_foot") for side in ("left", "right")]
@@ -90,7 +88,7 @@ def _swings(lay: Layout) -> dict[int, dict[int, pin.SE3]]:
     return out
 
 
-def _com_targets(lay: Layout) -> np.ndarray:
+def _com_targets(lay: LayoutData) -> np.ndarray:
     """(N+1, 2): the support polygon's centre per knot, averaged over :data:`COM_WINDOW`."""
     from planner.trajopt.layout import support_polygon
 
@@ -108,7 +106,7 @@ def _com_targets(lay: Layout) -> np.ndarray:
     return np.column_stack([np.convolve(padded[:, i], kernel, mode="valid") for i in range(2)])
 
 
-def stepping_guess(lay: Layout) -> np.ndarray | None:
+def stepping_guess(lay: LayoutData) -> np.ndarray | None:
     """Chart displacements (N+1, nv) of the interpolated stepping, or None when every foot
     placement is on the floor (the heading guess serves) or a knot's inverse kinematics fails."""
     from planner.trajopt.nominal import solve_ik

@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from planner.trajopt.centroidal.data import DynamicData
 from robots import halfplanes, sole_corners_in_world, support_polygon
 
 if TYPE_CHECKING:
     from planner.results import Check
-    from planner.trajopt.centroidal.layout import DynamicLayout
     from robots.model import Robot
 
 
@@ -112,7 +112,7 @@ def support_excursion(robot: Robot, q: np.ndarray, zmp: np.ndarray, frames: Sequ
     return out
 
 
-def planned_wrench(lay: DynamicLayout, corner_forces: dict[str, np.ndarray]) -> np.ndarray:
+def planned_wrench(lay: DynamicData, corner_forces: dict[str, np.ndarray]) -> np.ndarray:
     """World wrench (T, 6) about the origin of a plan's corner forces (``Plan.extras["corner_forces"]``)."""
     contacts = lay.pattern().contacts  # bound once per layout, with its CoP margin
     out = np.zeros((lay.N + 1, 6))
@@ -134,7 +134,7 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def zmp_checks(lay: DynamicLayout, q: np.ndarray, corner_forces: dict[str, np.ndarray] | None,
+def zmp_checks(lay: DynamicData, q: np.ndarray, corner_forces: dict[str, np.ndarray] | None,
                tolerance: float) -> list[Check]:
     """The plan's full-dynamics checks: its ZMP (RNEA) inside the support polygon of the contacts
     it holds at each knot, and the contact moment its forces give against the one RNEA needs.

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, get_solver, solver_key
 from planner.trajopt.layout import make_layout
@@ -17,7 +17,7 @@ from tests.planner.planning_cases import squat_spec
 @pytest.fixture(scope="module")
 def cached(tmp_path_factory, talos):
     """A short squat planned once with a fresh disk cache (compiled with gcc)."""
-    settings = PlannerSettings(cache_dir=str(tmp_path_factory.mktemp("wbmp_cache")), compile=True)
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path_factory.mktemp("wbmp_cache")), compile=True))
     spec = squat_spec(talos, 0.1, duration=2.0, dt=0.1)
     clear_memory_cache()
     first = plan(spec, talos, settings=settings)
@@ -27,7 +27,7 @@ def cached(tmp_path_factory, talos):
 def _entry(settings, talos, spec):
     from pathlib import Path
 
-    return Path(settings.cache_dir) / "planner" / solver_key(planned_layout(spec, talos, settings), settings)
+    return Path(settings.cache.cache_dir) / "planner" / solver_key(planned_layout(spec, talos, settings), settings)
 
 
 def test_first_plan_builds_and_stores_a_compiled_entry(cached, talos):
@@ -90,7 +90,7 @@ def test_stale_entry_is_deleted(cached, talos):
 
 def test_structure_changes_change_the_key(talos):
     """A different structure (a target at another time) gets another key; values do not."""
-    settings = PlannerSettings(compile=False)
+    settings = PlannerSettings(cache=CacheSettings(compile=False))
     a = make_layout(squat_spec(talos, 0.10), talos)
     b = make_layout(squat_spec(talos, 0.12), talos)
     c = make_layout(squat_spec(talos, 0.10, duration=2.4), talos)
@@ -99,7 +99,7 @@ def test_structure_changes_change_the_key(talos):
 
 def test_cache_disabled_builds_every_time(talos):
     """use_cache=False never reuses a solver."""
-    settings = PlannerSettings(use_cache=False, compile=False)
+    settings = PlannerSettings(cache=CacheSettings(use_cache=False, compile=False))
     lay = make_layout(squat_spec(talos, 0.1, duration=2.0, dt=0.1), talos)
     assert get_solver(lay, settings).origin == "built"
     assert get_solver(lay, settings).origin == "built"
@@ -109,6 +109,6 @@ def test_unwritable_cache_directory_still_plans(tmp_path, talos):
     """A cache directory that cannot be created (a file is in the way) only costs the disk cache."""
     blocker = tmp_path / "file"
     blocker.write_text("not a directory")
-    settings = PlannerSettings(cache_dir=str(blocker / "cache"), compile=True, use_cache=False)
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(blocker / "cache"), compile=True, use_cache=False))
     result = plan(squat_spec(talos, 0.05, duration=2.0, dt=0.1), talos, settings=settings)
     assert result.ok and result.stats.cache == "built"

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.trajopt import builds, cache
 from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, solver_key
@@ -22,7 +22,7 @@ def test_background_compile_publishes_an_entry_the_next_plan_loads(tmp_path, tal
     """Plan 1 solves in memory and returns before gcc ends; a forked child (C code, gcc) then
     publishes a checksummed entry, which plan 2 (a fresh process's view: memory cleared) loads
     from disk."""
-    settings = PlannerSettings(cache_dir=str(tmp_path), compile=True, background_compile=True)
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), compile=True, background_compile=True))
     spec = squat_spec(talos, 0.1, duration=2.0, dt=0.1)
     clear_memory_cache()
     first = plan(spec, talos, settings=settings)

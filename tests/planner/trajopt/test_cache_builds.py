@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.trajopt import builds, cache
 from planner.trajopt.api import planned_layout
 from planner.trajopt.cache import clear_memory_cache, solver_key
@@ -159,8 +159,8 @@ def test_back_to_back_new_structures_build_one_at_a_time(tmp_path, talos):
     compilers' own log shows no overlap), the ones that found a build running are recorded as
     skipped, and a skipped structure planned again once the cache is idle is built then."""
     compiler, log = _fake_compiler(tmp_path, 2.5)
-    settings = PlannerSettings(cache_dir=str(tmp_path / "cache"), compile=True, background_compile=True,
-                               compiler=str(compiler), build_memory=SMALL, build_memory_margin=0)
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path / "cache"), compile=True, background_compile=True,
+                                                   compiler=str(compiler), build_memory=SMALL, build_memory_margin=0))
     folder = tmp_path / "cache" / "planner"
     seen: list[int] = []
     stop = threading.Event()
@@ -207,8 +207,8 @@ def test_memory_rule_starts_no_build_and_says_why(tmp_path, talos):
     """A build estimate above the memory available: no build starts (no worker, no build folder,
     no lock held), the plan still solves in memory, and the reason is visible in the progress, in
     the skip record and in ``wbmp cache``."""
-    settings = PlannerSettings(cache_dir=str(tmp_path), compile=True, background_compile=True,
-                               build_memory=1 << 50)
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), compile=True, background_compile=True,
+                                                   build_memory=1 << 50))
     spec = squat_spec(talos, 0.05, duration=0.5, dt=0.1)
     folder = tmp_path / "planner"
     clear_memory_cache()

@@ -671,7 +671,7 @@ def test_lifted_moment_reaches_the_same_plan(talos):
     """Lifting the forces' moment to variables is an exact reformulation: a short stepping-in-place
     plan (double support, right foot lifted, double support) reaches the same optimum with and
     without it, with 3 more variables and rows per dynamics knot."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from planner.trajopt.centroidal import to_dynamic_layout
     from planner.trajopt.centroidal.nlp import moment_rows
     from planner.trajopt.layout import make_layout
@@ -684,7 +684,7 @@ def test_lifted_moment_reaches_the_same_plan(talos):
     ), dt=0.1, dynamic=True)
     plans = {}
     for lifted in (True, False):
-        settings = PlannerSettings(compile=False, use_cache=False,
+        settings = PlannerSettings(cache=CacheSettings(compile=False, use_cache=False),
                                    centroidal=CentroidalSettings(lifted_moment=lifted))
         plans[lifted] = plan(spec, talos, settings=settings)
     a, b = plans[True], plans[False]

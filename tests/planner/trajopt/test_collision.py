@@ -14,8 +14,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings, plan
-from planner.trajopt.collision import Rows, pair_distances, select, set_collision_terms, sphere_sets
+from planner import CacheSettings, CollisionSettings, PlannerSettings, SolverSettings, plan
+from planner.trajopt.collision import (
+    Rows,
+    pair_distances,
+    select,
+    sphere_sets,
+    with_collision_terms,
+)
 from planner.trajopt.layout import make_layout
 from planner.trajopt.terms import stage_function
 from robots.collision import collision_model, mesh_distances
@@ -71,7 +77,7 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
         n = (sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa)) - sets.starts[pi]
         rows.spheres[pi] = set(range(n))
         rows.knots[pi] = {5}
-    set_collision_terms(lay, sets, rows, index, 0.01)
+    lay = with_collision_terms(lay, sets, rows, index, 0.01)
     fn = stage_function(lay, list(range(len(lay.terms))), "collision_stage")
     p = np.concatenate([t.params for t in lay.terms])
     def reference(q):
@@ -101,7 +107,7 @@ def test_reference_posture_has_no_pair_within_the_margin(name):
 
     robot = load_robot(name)
     sets = sphere_sets(robot)
-    margin = PlannerSettings().collision_margin
+    margin = PlannerSettings().collision.margin
     d = pair_distances(robot, sets, robot.q_standing[None])[0]
     names = sets.pair_names
     mesh = mesh_distances(robot, robot.q_standing, names)
@@ -111,7 +117,7 @@ def test_reference_posture_has_no_pair_within_the_margin(name):
         assert mesh[pair] >= d[pi] - 1e-6, (pair, mesh[pair], d[pi])
     if name == "talos":
         assert d.min() > margin + 0.005
-        screened = {names[pi] for pi in np.flatnonzero(d < PlannerSettings().collision_screening)}
+        screened = {names[pi] for pi in np.flatnonzero(d < PlannerSettings().collision.screening)}
         assert not any("arm" in a or "arm" in b for a, b in screened), screened
 
 
@@ -174,27 +180,27 @@ def test_idle_pairs_get_no_rows_until_the_guess_brings_them_closer(talos):
     )
     from planner.trajopt.collision import IDLE_TOLERANCE, idle_pairs, sphere_pair_distances
 
-    settings = PlannerSettings(compile=False)
+    settings = PlannerSettings(cache=CacheSettings(compile=False))
     sets = sphere_sets(talos)
     ankles = sets.pair_names.index(("leg_left_5_link", "leg_right_5_link"))
     rest = pair_distances(talos, sets, talos.q_standing[None])[0]
-    near = {sets.pair_names[pi] for pi in np.flatnonzero(rest < settings.collision_screening)}
+    near = {sets.pair_names[pi] for pi in np.flatnonzero(rest < settings.collision.screening)}
     assert ("leg_left_5_link", "leg_right_5_link") in near and len(near) >= 3
     lay, settings = _formulation(_reach_spec(talos, "squat down 10 cm"), talos, settings)
     x0 = lay.initial_guess(settings)
-    deferred = add_screened_collision_terms(lay, settings, x0)
+    lay, deferred = add_screened_collision_terms(lay, settings, x0)
     assert not [t for t in lay.terms if t.kind == "collision"]
     assert {sets.pair_names[pi] for pi in deferred.spheres} == near
     q = _guess_configurations(lay, x0)
     model = talos.model
     for side, sign in (("left", -1.0), ("right", 1.0)):  # hip roll: the legs swing towards each other
         q[5:lay.N - 5, model.joints[model.getJointId(f"leg_{side}_2_joint")].idx_q] += sign * 0.008
-    d = sphere_pair_distances(talos, sets, q, within=settings.collision_screening)
+    d = sphere_pair_distances(talos, sets, q, within=settings.collision.screening)
     moved = np.minimum.reduceat(d, sets.starts, axis=1)[:, ankles]
     assert moved[2:lay.N].min() < rest[ankles] - IDLE_TOLERANCE - 1e-3
-    idle = idle_pairs(lay, sets, d, settings.collision_margin)
+    idle = idle_pairs(lay, sets, d, settings.collision.margin)
     assert not idle[ankles]
-    assert ankles in select(lay, sets, d, settings.collision_screening).spheres
+    assert ankles in select(lay, sets, d, settings.collision.screening).spheres
 
 
 def test_a_solve_that_fails_without_the_idle_rows_is_solved_again_with_them(talos):
@@ -202,14 +208,18 @@ def test_a_solve_that_fails_without_the_idle_rows_is_solved_again_with_them(talo
     again from the same guess with every row screening selects (what the planner did before idle
     pairs), and the stats add up both solves."""
     spec = _reach_spec(talos, "squat down 10 cm")
-    settings = PlannerSettings(compile=False, max_iterations=3, diagnose=False)
+    settings = PlannerSettings(cache=CacheSettings(compile=False), solver=SolverSettings(max_iterations=3),
+                               diagnose=False)
     said: list[str] = []
     failed = plan(spec, talos, settings=settings, throw=False, progress=said.append)
     assert not failed.ok
     assert any("idle pairs' rows" in m for m in said), said
     assert failed.stats.iterations == 6
-    bare = plan(spec, talos, settings=PlannerSettings(compile=False, max_iterations=3, diagnose=False,
-                                                      self_collision=False), throw=False)
+    bare = plan(spec, talos,
+                settings=PlannerSettings(cache=CacheSettings(compile=False),
+                                         solver=SolverSettings(max_iterations=3), diagnose=False,
+                                         collision=CollisionSettings(self_collision=False)),
+                throw=False)
     assert failed.stats.n_constraints > bare.stats.n_constraints + 300  # the ankles' and hips' rows
 
 
@@ -223,7 +233,7 @@ def test_talos_cross_body_reaches_plan_without_penetration(talos, sentence, movi
     """Issue 15: the forearm went through the pelvis, the gripper into the thigh. Now every pair of
     links apart at rest stays apart (coal on the URDF meshes) at every knot."""
     spec = _reach_spec(talos, sentence)
-    result = plan(spec, talos, settings=PlannerSettings(compile=False))
+    result = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok
     check = next(c for c in result.checks if c.kind.value == "self_collision")
     assert check.ok and "closest" in check.name
@@ -278,7 +288,7 @@ def test_hand_target_inside_the_torso_is_refused_naming_the_pair(talos, tmp_path
 @pytest.mark.slow
 def test_g1_reach_plans_without_penetration(g1):
     spec = _reach_spec(g1, "reach right with your left hand 30 cm")
-    result = plan(spec, g1, settings=PlannerSettings(compile=False))
+    result = plan(spec, g1, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok and all(c.ok for c in result.checks)
     d, pair, k = _closest_mesh_pair(g1, result.q, _pairs_apart_at_rest(g1))
     assert d > 1e-3, f"{pair} at t = {result.t[k]:.2f} s: {d:.4f} m"
@@ -292,7 +302,7 @@ def test_dynamic_two_steps_still_plan_with_collision_rows(talos):
     spec = compile_actions([Action(name="step", params={"direction": "forward", "length": 0.15, "count": 2})],
                            talos, dt=0.075)
     assert spec.dynamic
-    result = plan(spec, talos, settings=PlannerSettings(compile=False))
+    result = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok
     assert any(c.kind.value == "self_collision" and c.ok for c in result.checks)
 
@@ -300,11 +310,11 @@ def test_dynamic_two_steps_still_plan_with_collision_rows(talos):
 def test_settings_validate_the_margin():
     from planner.exceptions import PlannerError
 
-    with pytest.raises(PlannerError, match="collision_margin"):
-        PlannerSettings(collision_margin=-0.01)
-    with pytest.raises(PlannerError, match="collision_rounds"):
-        PlannerSettings(collision_rounds=-1)
-    assert PlannerSettings().collision_margin == 0.01
+    with pytest.raises(PlannerError, match=r"collision\.margin"):
+        PlannerSettings(collision=CollisionSettings(margin=-0.01))
+    with pytest.raises(PlannerError, match=r"collision\.rounds"):
+        PlannerSettings(collision=CollisionSettings(rounds=-1))
+    assert PlannerSettings().collision.margin == 0.01
 
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.results import CheckKind
 from planner.trajopt.centroidal import SWING_CLEARANCE, CentroidalSettings
 from robots.contact import halfplanes, sole_corners, support_polygon
@@ -26,7 +26,7 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import standing_feet
 from tests.tolerances import CONTACT_POS_ATOL, CONTACT_ROT_ATOL
 
-SETTINGS = PlannerSettings(compile=False)  # in-memory solvers: no gcc in the test loop
+SETTINGS = PlannerSettings(cache=CacheSettings(compile=False))  # in-memory solvers: no gcc in the test loop
 G = 9.81
 FORCE_ATOL = 1.0  # [N] (IPOPT's tolerance on weight-normalized rows, times ~900 N)
 COP_ATOL = 1e-5  # [m] (corner weights meet u >= 0 to IPOPT's bound tolerance; at 1e-6 a Talos turn
@@ -290,7 +290,8 @@ def test_g1_steps_without_whole_body_momentum_break_euler(g1):
     plan's own report flags (the checks of ``verify`` can fail)."""
     spec = compile_actions([Action(name="step", params={"direction": "forward", "length": 0.15, "count": 4})], g1,
                            dt=0.075)
-    settings = PlannerSettings(compile=False, centroidal=CentroidalSettings(whole_body_momentum=False))
+    settings = PlannerSettings(cache=CacheSettings(compile=False),
+                               centroidal=CentroidalSettings(whole_body_momentum=False))
     p = plan(spec, g1, settings=settings, throw=False)
     assert whole_body_euler(p, g1) > 0.05
     assert not _check(p, CheckKind.FULL_DYNAMICS_ZMP).ok
@@ -323,8 +324,11 @@ def test_relinearized_resolve_is_warm_started(g1):
     _, settings = _formulation(spec, g1, SETTINGS)
     dq, stats, raw = solve_layout(lay, settings, x0=lay.initial_guess(settings))
     assert stats.status.ok
-    assert lay.relinearize(dq, raw["x"], 0)  # the push-off folds the legs far from the warm start
-    first = lay.momentum_residual
+    point = lay.momentum_point().copy()
+    relinearized = lay.relinearized(dq, raw["x"], 0)  # the push-off folds the legs far from the warm start
+    assert relinearized is not None
+    np.testing.assert_array_equal(lay.momentum_point(), point)  # the layout solved: unchanged
+    lay, first = relinearized, relinearized.momentum_residual
     warm_dq, warm, warm_raw = solve_layout(lay, settings, x0=raw["x"], lam0=(raw["lam_x"], raw["lam_g"]))
     cold_dq, cold, _ = solve_layout(lay, settings, x0=raw["x"])
     assert warm.status.ok and cold.status.ok

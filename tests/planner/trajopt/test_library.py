@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, SolverSettings, plan
 from planner.trajopt import library
 from planner.trajopt.api import _formulation, add_screened_terms
 from planner.trajopt.cache import clear_memory_cache, solver_key
@@ -39,24 +39,26 @@ def _fresh_memory():
 @pytest.fixture(scope="module")
 def cold(g1):
     """The 6 cm plan from its own guess (library off)."""
-    return plan(_side(g1, 0.06), g1, settings=PlannerSettings(solution_library="off"))
+    return plan(_side(g1, 0.06), g1, settings=PlannerSettings(cache=CacheSettings(solution_library="off")))
 
 
 def _layout(g1, spec, settings):
     lay, settings = _formulation(spec, g1, settings)
     guess = lay.initial_guess(settings)
-    add_screened_terms(lay, settings, guess)
+    lay, _ = add_screened_terms(lay, settings, guess)
     return lay, settings, guess
 
 
 def test_a_neighbour_seeds_the_solve_and_read_mode_stores_nothing(g1, cold, tmp_path):
-    source = plan(_side(g1, 0.08), g1, settings=PlannerSettings(cache_dir=str(tmp_path), solution_library="on"))
+    source = plan(_side(g1, 0.08), g1,
+                  settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on")))
     assert source.stats.seed == ""  # an empty library
     files = _files(tmp_path)
     assert len(files) == 1
     library.clear_memory()  # another process: read from the folder, and build the solver again
     clear_memory_cache()
-    seeded = plan(_side(g1, 0.06), g1, settings=PlannerSettings(cache_dir=str(tmp_path), solution_library="read"))
+    seeded = plan(_side(g1, 0.06), g1,
+                  settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read")))
     assert seeded.stats.seed.startswith("library (distance ")
     # the solver was fetched to test the seed: its build is in the stats, not the solve's memory hit
     assert seeded.stats.cache == "built" and seeded.stats.build_time > 0.2, seeded.stats
@@ -64,13 +66,14 @@ def test_a_neighbour_seeds_the_solve_and_read_mode_stores_nothing(g1, cold, tmp_
     assert seeded.stats.iterations <= cold.stats.iterations - 5, (seeded.stats.iterations, cold.stats.iterations)
     assert abs(seeded.stats.objective - cold.stats.objective) <= 0.01 * abs(cold.stats.objective)
     assert _files(tmp_path) == files  # "read" stored nothing
-    off = plan(_side(g1, 0.06), g1, settings=PlannerSettings(cache_dir=str(tmp_path), solution_library="off"))
+    off = plan(_side(g1, 0.06), g1,
+               settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="off")))
     assert off.stats.seed == "" and off.stats.iterations == cold.stats.iterations
     np.testing.assert_array_equal(off.q, cold.q)  # off: the history-free result
 
 
 def test_damaged_and_foreign_files_are_removed_not_used(g1, cold, tmp_path):
-    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
     lay, full, _ = _layout(g1, _side(g1, 0.06), settings)
     folder = tmp_path / "seeds" / solver_key(lay, full)
     folder.mkdir(parents=True)
@@ -86,7 +89,7 @@ def test_damaged_and_foreign_files_are_removed_not_used(g1, cold, tmp_path):
 
 
 def test_a_seed_that_starts_farther_from_feasibility_than_the_guess_is_not_used(g1, cold, tmp_path):
-    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
     lay, full, guess = _layout(g1, _side(g1, 0.06), settings)
     key = solver_key(lay, full)
     rng = np.random.default_rng(0)
@@ -94,7 +97,8 @@ def test_a_seed_that_starts_farther_from_feasibility_than_the_guess_is_not_used(
     raw = {"x": far, "lam_x": np.zeros_like(far), "lam_g": np.zeros(cold.stats.n_constraints)}
     library.store_seed(lay, key, guess, raw, np.zeros((lay.N + 1, g1.nv)), str(tmp_path))
     assert library.has_seeds(key, str(tmp_path))
-    p = plan(_side(g1, 0.06), g1, settings=PlannerSettings(cache_dir=str(tmp_path), solution_library="read"))
+    p = plan(_side(g1, 0.06), g1,
+             settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read")))
     assert p.stats.seed == "" and p.stats.iterations == cold.stats.iterations
     np.testing.assert_array_equal(p.q, cold.q)
 
@@ -102,11 +106,12 @@ def test_a_seed_that_starts_farther_from_feasibility_than_the_guess_is_not_used(
 def test_a_seeded_solve_that_fails_is_done_again_from_the_guess(g1, tmp_path):
     """A seed that is accepted but whose solve stops at the iteration limit: the task's own guess
     is solved next, and the stats say both."""
-    source = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+    source = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
     plan(_side(g1, 0.08), g1, settings=source)
     lay8, full8, _ = _layout(g1, _side(g1, 0.08), source)
     stored = next(iter(library._seeds_of(solver_key(lay8, full8), str(tmp_path)).values()))
-    short = PlannerSettings(cache_dir=str(tmp_path), solution_library="read", max_iterations=2, diagnose=False)
+    short = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read"),
+                            solver=SolverSettings(max_iterations=2), diagnose=False)
     lay, full, _ = _layout(g1, _side(g1, 0.06), short)  # another solver key: the options differ
     library.store_seed(lay8, solver_key(lay, full), stored.guess,
                        {"x": stored.x, "lam_x": stored.lam_x, "lam_g": stored.lam_g}, stored.dq, str(tmp_path))
@@ -123,7 +128,7 @@ def test_settings_refuse_an_unknown_mode():
     from planner.exceptions import PlannerError
 
     with pytest.raises(PlannerError, match="solution_library must be 'on', 'read' or 'off'"):
-        PlannerSettings(solution_library="maybe")
+        PlannerSettings(cache=CacheSettings(solution_library="maybe"))
 
 
 def test_the_environment_variable_sets_the_command_lines_default(monkeypatch):
@@ -133,8 +138,8 @@ def test_the_environment_variable_sets_the_command_lines_default(monkeypatch):
 
     for value, mode in (("off", "off"), ("0", "off"), ("read", "read"), ("on", "on"), ("", "on")):
         monkeypatch.setenv("WBMP_SOLUTION_LIBRARY", value)
-        assert planner_settings().solution_library == mode
-        assert PlannerSettings().solution_library == "off"
+        assert planner_settings().cache.solution_library == mode
+        assert PlannerSettings().cache.solution_library == "off"
 
 
 def test_wbmp_solve_uses_the_library_with_the_motion_cache_only(g1, cold, tmp_path, monkeypatch):
@@ -159,7 +164,7 @@ def test_wbmp_solve_uses_the_library_with_the_motion_cache_only(g1, cold, tmp_pa
 
 
 def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
-    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
     lay, full, guess = _layout(g1, _side(g1, 0.06), settings)
     key = solver_key(lay, full)
     raw = {"x": guess, "lam_x": np.zeros_like(guess), "lam_g": np.zeros(3)}
@@ -185,7 +190,7 @@ def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_firs
     plan's final structure, and starts from its solution (14 iterations, 2026-11-24)."""
     from wbmp.pipeline import SolveRequest, build_spec
 
-    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="on")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
 
     def spec_of(sentence):
         return build_spec(SolveRequest(instruction=sentence, robot="talos", simulate=False), lambda _m: None)[1]
@@ -210,7 +215,7 @@ def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_firs
 
 
 def test_an_escalation_record_that_does_not_fit_is_not_used(g1, cold, tmp_path):
-    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="read")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read"))
     lay, full, _ = _layout(g1, _side(g1, 0.06), settings)
     folder = tmp_path / "seeds" / solver_key(lay, full)
     folder.mkdir(parents=True)
@@ -230,7 +235,7 @@ def test_an_escalation_record_adds_its_rows(g1, cold, tmp_path):
     from planner.trajopt.collision import sphere_sets
 
     sets = sphere_sets(g1)
-    settings = PlannerSettings(cache_dir=str(tmp_path), solution_library="read")
+    settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read"))
     lay, full, _ = _layout(g1, _side(g1, 0.06), settings)
     name = "/".join(sets.pair_names[0])
     library.store_escalation(solver_key(lay, full), {name: ({0}, {10, 11, 12})}, str(tmp_path))

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, plan
 from planner.trajopt.api import planned_layout
 from planner.trajopt.layout import make_layout
 from planner.trajopt.scene_collision import (
@@ -26,7 +26,7 @@ from planner.trajopt.scene_collision import (
     row_value,
     scene_rows_of,
     scene_sets,
-    set_scene_terms,
+    with_scene_terms,
 )
 from planner.trajopt.terms import stage_function
 from tasks.scene import Scene, SceneObject, load_scene, signed_distance
@@ -35,7 +35,7 @@ from tests.planner.trajopt.fd import check_stage_rows
 ROOT = Path(__file__).resolve().parents[3]
 TABLE = ROOT / "examples" / "scenes" / "table.json"
 PASSAGE = ROOT / "examples" / "scenes" / "narrow_passage.json"
-MARGIN = 0.01  # [m] PlannerSettings().collision_margin
+MARGIN = 0.01  # [m] PlannerSettings().collision.margin
 SOLVER_TOLERANCE = 1e-4  # [m] rows hold to IPOPT's constraint tolerance, far below this
 
 
@@ -101,7 +101,7 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
     assert len(arm) >= 4
     n = len(obs)
     rows = SceneRows(spheres={i: set(arm) for i in range(n)}, knots={i: {5} for i in range(n)})
-    set_scene_terms(lay, sets, obs, rows, list(range(n)), MARGIN)
+    lay = with_scene_terms(lay, sets, obs, rows, list(range(n)), MARGIN)
     assert [t.structure[1] for t in lay.terms] == ["box", "cylinder", "cylinder", "sphere"]  # the pipe: 2 pieces
     fn = stage_function(lay, list(range(len(lay.terms))), "scene_stage")
     p = np.concatenate([t.params for t in lay.terms])
@@ -149,7 +149,7 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
     rows against a table moved and resized give the same structure (one solver) with other
     parameters: poses and sizes are values, not structure."""
     spec = _spec(talos, "reach forward 30 cm with your right hand")
-    settings = PlannerSettings(compile=False)
+    settings = PlannerSettings(cache=CacheSettings(compile=False))
     bare = planned_layout(spec, talos, settings)
     far = Scene(objects=(SceneObject(name="far box", shape="box", size=(1.0, 1.0, 1.0), position=(5.0, 0.0, 0.5)),))
     far_lay = planned_layout(dataclasses.replace(spec, scene=far), talos, settings)
@@ -160,9 +160,12 @@ def test_far_object_adds_no_rows_and_object_numbers_are_parameters(talos):
     assert any(t.kind == "scene" for t in a.terms) and a.structure() != bare.structure()
     moved = dataclasses.replace(table, objects=(dataclasses.replace(
         table.objects[0], position=(0.7, 0.05, 0.3), size=(0.7, 1.1, 0.6), rpy=(0.0, 0.0, 0.1)),))
-    b = planned_layout(dataclasses.replace(spec, scene=moved), talos, dataclasses.replace(settings, scene_collision=False))
+    b = planned_layout(dataclasses.replace(spec, scene=moved), talos,
+                       dataclasses.replace(settings,
+                                           collision=dataclasses.replace(settings.collision,
+                                                                         scene_collision=False)))
     rows = scene_rows_of(a)
-    set_scene_terms(b, scene_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
+    b = with_scene_terms(b, scene_sets(talos), obstacles(moved), rows, sorted(rows.spheres), MARGIN)
     assert a.structure() == b.structure()
     pa = np.concatenate([t.params for t in a.terms if t.kind == "scene"])
     pb = np.concatenate([t.params for t in b.terms if t.kind == "scene"])
@@ -239,7 +242,7 @@ def test_reach_over_the_table_keeps_every_link_the_margin_above_it(talos):
     the plan's scene collision check names the closest body part."""
     table = load_scene(TABLE)
     spec = _spec(talos, "reach forward 30 cm with your right hand", table, target=(0.45, -0.3, 0.72))
-    result = plan(spec, talos, settings=PlannerSettings(compile=False))
+    result = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok, result.diagnosis
     assert all(c.ok for c in result.checks)
     check = next(c for c in result.checks if c.kind.value == "scene_collision")
@@ -273,10 +276,38 @@ def test_walk_through_the_narrow_passage_keeps_clear_of_the_walls(talos):
     passage = load_scene(PASSAGE)
     spec = _spec(talos, "walk forward 0.5 m", passage)
     assert spec.dynamic
-    result = plan(spec, talos, settings=PlannerSettings(compile=False))
+    result = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     assert result.ok, result.diagnosis
     check = next(c for c in result.checks if c.kind.value == "scene_collision")
     assert check.ok and "wall" in check.name
     for wall in passage.objects:
         d, k = _coal_min_distance(talos, result.q[2:], wall)  # knots 0 and 1: the fixed standing start
         assert d >= MARGIN - SOLVER_TOLERANCE, f"{wall.name}: {d:.4f} m at t = {result.t[k + 2]:.2f} s"
+
+
+def test_a_collision_round_returns_a_new_layout_and_leaves_its_input_unchanged(talos):
+    """A collision round on the nominal guess of a reach whose fingers go through the table (the
+    target 4 cm above its top, as in the refused reach above) gives a new layout with the table's
+    rows, of the same class; the layout it was given keeps its term list, its structure and every
+    parameter. A second round on the same motion finds nothing more and hands its layout back."""
+    from planner.trajopt.api import _formulation, collision_round
+    from planner.trajopt.collision import Rows, sphere_sets
+
+    spec = _spec(talos, "reach forward 30 cm with your right hand", load_scene(TABLE), target=(0.45, -0.3, 0.66))
+    lay, settings = _formulation(spec, talos, PlannerSettings(cache=CacheSettings(compile=False)))
+    terms, structure = lay.terms, lay.structure()
+    params = [t.params.copy() for t in lay.terms]
+    x0 = lay.initial_guess(settings)
+    dq = np.zeros((lay.N + 1, talos.nv))
+    dq[2:lay.N] = x0.reshape(lay.N - 2, talos.nv)
+    dq[lay.N] = dq[lay.N - 1]
+    rows, scene_rows = Rows(), SceneRows()
+    new, pairs, objects, _ = collision_round(lay, settings, dq, sphere_sets(talos), rows, scene_rows, None)
+    assert objects and {obstacles(spec.scene)[o].name for o in objects} == {"table"}  # pieces of it
+    assert type(new) is type(lay)
+    assert any(t.kind == "scene" for t in new.terms) and new.structure() != structure
+    assert lay.terms is terms and lay.structure() == structure  # the input: untouched
+    assert not any(t.kind in ("scene", "collision") for t in lay.terms)
+    assert all(np.array_equal(t.params, p) for t, p in zip(lay.terms, params, strict=True))
+    again, pairs2, objects2, _ = collision_round(new, settings, dq, sphere_sets(talos), rows, scene_rows, None)
+    assert again is new and pairs2 == [] and objects2 == []

@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, CollisionSettings, PlannerSettings, SolverSettings, plan
 from planner.exceptions import PlannerError
 from planner.results import SolveStatus
 from planner.trajopt.centroidal.layout import to_dynamic_layout
@@ -28,8 +28,12 @@ from tests.planner.planning_cases import assert_plan_meets_spec, squat_spec
 
 # A short squat on the G1 (12 intervals): each solve takes well under a second. No collision rows:
 # the transcriptions are compared, not the screening (whose first use builds the sphere model).
-SETTINGS = PlannerSettings(compile=False, self_collision=False, scene_collision=False)
-STAGEWISE = {solver: dataclasses.replace(SETTINGS, transcription="stagewise", stagewise_solver=solver)
+SETTINGS = PlannerSettings(cache=CacheSettings(compile=False),
+                           collision=CollisionSettings(self_collision=False, scene_collision=False))
+STAGEWISE = {solver: dataclasses.replace(SETTINGS,
+                                         solver=dataclasses.replace(SETTINGS.solver,
+                                                                    transcription="stagewise",
+                                                                    stagewise_solver=solver))
              for solver in ("fatrop", "ipopt")}
 # The two transcriptions are the same problem in other variables, each solved to IPOPT's (or
 # fatrop's) tol 1e-6 on its own scaled KKT conditions: their optima agree to this in joint angle.
@@ -151,14 +155,16 @@ def test_a_dynamic_layout_is_refused_and_plans_keep_the_current_transcription(g1
 @pytest.mark.parametrize("field, value", [("transcription", "fatrop"), ("stagewise_solver", "mumps")])
 def test_settings_refuse_an_unknown_transcription_or_solver(field, value):
     with pytest.raises(PlannerError, match=field):
-        PlannerSettings(**{field: value})
+        SolverSettings(**{field: value})
 
 
 def test_a_solver_that_raises_gives_a_failed_plan_not_a_traceback(g1):
     """fatrop raises (here: an option it does not know, set when the solve starts) instead of
     returning a status: the plan fails with a numerical-error status that names the reason."""
-    settings = PlannerSettings(compile=False, transcription="stagewise", diagnose=False, self_collision=False,
-                               scene_collision=False, fatrop_extra=(("no_such_option", 1),))
+    settings = PlannerSettings(cache=CacheSettings(compile=False),
+                               solver=SolverSettings(transcription="stagewise", fatrop_extra=(("no_such_option", 1),)),
+                               diagnose=False,
+                               collision=CollisionSettings(self_collision=False, scene_collision=False))
     result = plan(small_squat(g1), g1, settings=settings, throw=False)
     assert not result.ok
     assert result.stats.status is SolveStatus.NUMERICAL_ERROR

@@ -11,7 +11,7 @@ import pytest
 
 from language import parse
 from planner import plan
-from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.settings import CacheSettings, PlannerSettings
 from robots.contact import convex_hull
 from tasks.compose import compile_actions, fit_actions
 from tasks.specs import StartState
@@ -66,7 +66,7 @@ def test_a_plan_from_a_moved_start_is_the_standing_plan_moved(talos, yaw=-0.6):
     here = compile_actions(actions, talos)
     there = compile_actions(actions, talos, start=StartState(q=tuple(float(x) for x in start)))
     assert there.start is not None and here.start is None
-    settings = PlannerSettings(solution_library="off")
+    settings = PlannerSettings(cache=CacheSettings(solution_library="off"))
     p0, p1 = plan(here, talos, settings=settings), plan(there, talos, settings=settings)
     assert p0.ok and p1.ok
     np.testing.assert_allclose(p1.q[0], start, atol=1e-12)  # the first knot is the start state

@@ -43,10 +43,10 @@ from planner.trajopt.centroidal.physics import (
     com_dynamics_residual,
     friction_pyramid,
 )
-from planner.trajopt.collision import Rows, set_collision_terms, sphere_sets
+from planner.trajopt.collision import Rows, sphere_sets, with_collision_terms
 from planner.trajopt.layout import Layout, make_layout, support_halfplanes, support_polygon
 from planner.trajopt.payload import payload_torques
-from planner.trajopt.scene_collision import SceneRows, obstacles, row_value, set_scene_terms
+from planner.trajopt.scene_collision import SceneRows, obstacles, row_value, with_scene_terms
 from planner.trajopt.symbolic import SymbolicKinematics, chart_to_configuration
 from planner.trajopt.term import TERM_KINDS, NumericKinematics, StageKinematics, Term, kind_of_check
 from planner.trajopt.terms import stage_function, term_kinds
@@ -138,12 +138,12 @@ def layout(talos) -> Layout:
         end = sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa)
         rows.spheres[pi] = set(range(end - sets.starts[pi]))
         rows.knots[pi] = {COLLISION_KNOT}
-    set_collision_terms(lay, sets, rows, index, MARGIN)
+    lay = with_collision_terms(lay, sets, rows, index, MARGIN)
     obs = obstacles(SCENE)
     arm = {s for s in range(len(sets.sphere_radius)) if sets.links[sets.sphere_owner[s]].startswith(SCENE_LINKS)}
     scene_rows = SceneRows(spheres={i: set(arm) for i in range(len(obs))},
                            knots={i: {COLLISION_KNOT} for i in range(len(obs))})
-    set_scene_terms(lay, sets, obs, scene_rows, list(range(len(obs))), MARGIN)
+    lay = with_scene_terms(lay, sets, obs, scene_rows, list(range(len(obs))), MARGIN)
     lay.terms = kinematic + lay.terms
     return lay
 

@@ -8,14 +8,14 @@ import re
 import numpy as np
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CacheSettings, PlannerSettings, SolverSettings, plan
 from planner.exceptions import PlanningFailed
 from robots import FrameNotFound
 from tasks.specs import CoMBounds, Phase, Priority
 from tests.planner.planning_cases import assert_plan_meets_spec, reach_spec, squat_spec
 
 # Built in memory only: the disk cache has its own tests (test_cache.py).
-SETTINGS = PlannerSettings(compile=False)
+SETTINGS = PlannerSettings(cache=CacheSettings(compile=False))
 
 
 @pytest.fixture(scope="module")
@@ -185,9 +185,10 @@ def test_nominal_warm_start_saves_iterations_and_keeps_the_optimum(talos, talos_
     """Starting from the blended inverse-kinematics motion takes fewer iterations than starting
     from the standing posture, and lands on the same optimum."""
     spec, _ = talos_squat
-    base = dataclasses.replace(SETTINGS, self_collision=False)  # the collision rounds add a solve each
+    # without self-collision rows: the collision rounds add a solve each
+    base = dataclasses.replace(SETTINGS, collision=dataclasses.replace(SETTINGS.collision, self_collision=False))
     nominal = plan(spec, talos, settings=base)
-    standing = plan(spec, talos, settings=dataclasses.replace(base, warm_start="standing"))
+    standing = plan(spec, talos, settings=dataclasses.replace(base, solver=SolverSettings(warm_start="standing")))
     assert nominal.stats.iterations < standing.stats.iterations
     assert nominal.stats.objective == pytest.approx(standing.stats.objective, rel=1e-5)
     assert np.abs(nominal.q - standing.q).max() < 1e-3

@@ -1,0 +1,77 @@
+"""The data of a layout: one spec on one robot laid out on the knot grid, without the formulation.
+
+:class:`LayoutData` is what the free functions of the term modules read (the nominal motion, the
+self- and scene-collision rows, the centroidal pieces); :class:`planner.trajopt.layout.Layout` adds
+the formulation protocol's methods on top. The modules below the layout take this data, so none of
+them imports the layout back (not even for its type).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from typing import Self
+
+import numpy as np
+import pinocchio as pin
+
+from planner.trajopt.term import Term
+from robots import Robot
+from tasks import TaskSpec
+
+
+@dataclass(eq=False)
+class LayoutData:
+    """The problem of one spec on one robot, as data.
+
+    Attributes:
+        robot: The robot.
+        spec: The spec.
+        N: Number of intervals (knots 0..N).
+        dt: Knot spacing [s].
+        t: Knot times (N+1,) [s].
+        phase_of_knot: Phase index per knot (the later phase at a boundary).
+        contacts_at: Per knot, the contacts active there (frame id -> (spec frame, placement)).
+        frame_ids: Frame ids the terms use, in a fixed order.
+        terms: Every term.
+        q_ref: Reference (= start) configuration (nq,).
+    """
+
+    robot: Robot
+    spec: TaskSpec
+    N: int
+    dt: float
+    t: np.ndarray
+    phase_of_knot: list[int]
+    contacts_at: list[dict[int, tuple[str, pin.SE3]]]
+    frame_ids: list[int]
+    terms: list[Term]
+    q_ref: np.ndarray
+
+    @property
+    def variable_knots(self) -> range:
+        """Knots whose dq is a decision variable."""
+        return range(2, self.N)
+
+    def free_knot(self, k: int) -> int:
+        """The knot whose variables define knot ``k`` (N maps to N-1)."""
+        return min(k, self.N - 1)
+
+    def structure(self) -> tuple:
+        """Hashable structure of the NLP (no numeric values)."""
+        return (
+            self.N,
+            tuple(self.frame_ids),
+            tuple((t.knot, t.structure, len(t.params), t.n_rows) for t in self.terms),
+        )
+
+    def with_terms(self, terms: list[Term]) -> Self:
+        """A copy of this layout (the same class, its cached parts shared) with ``terms`` instead of
+        its own; this one is not changed (the collision rounds build their layouts this way)."""
+        out = copy.copy(self)
+        out.terms = list(terms)
+        return out
+
+    def phase_name(self, k: int) -> str:
+        """Name of the phase at knot ``k``."""
+        return self.spec.phases[self.phase_of_knot[k]].name
