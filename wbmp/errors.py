@@ -164,22 +164,31 @@ class ExitRule(NamedTuple):
     why: str
 
 
-@functools.cache
-def exit_table() -> tuple[ExitRule, ...]:
-    """Every exception class of every layer and its exit code, keyed by the class.
+def _root_rows() -> tuple[ExitRule, ...]:
+    """The root of the project's errors and the layers' bases without a code of their own."""
+    from robots import WbmpError
+    from viz import VizError
 
-    docs/cli.md holds the same table, and tests/wbmp/test_errors.py checks that each public
-    exception class defined in the packages has its row. A class decides by its own row;
-    :func:`classify` walks the exception's classes most specific first (``type(exc).__mro__``), so
-    an exception from outside the project that subclasses one of these gets its nearest
-    ancestor's code; a private class (``_Refused``), caught inside its module, has no row.
+    _R = ExitRule
+    return (
+        _R(WbmpError, None, "the root of the project's errors: a class without a row of its own is a bug"),
+        _R(VizError, None, "the viz layer's base: each of its errors has a row of its own"),
+    )
 
-    Every class lives in its layer's exception module (``robots.exceptions``, ``tasks.exceptions``,
-    ``language.exceptions``, ``planner.exceptions``, ``sim.exceptions``, ``viz.exceptions``, this
-    module; the stores' and readers' ``OSError`` kinds in ``robots.store`` and ``robots.safeio``):
-    building the table imports those light modules only, never a layer's heavy code (CasADi, MuJoCo,
-    the server). It is built on the first error classified, not when the CLI starts.
-    """
+
+def _cli_rows() -> tuple[ExitRule, ...]:
+    """The CLI itself."""
+    _R = ExitRule
+    return (
+        _R(CliError, OWN, "a refused input of the CLI, with the code it names"),
+        _R(MotionFileError, OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
+        _R(Terminated, ExitCode.TERMINATED, "SIGTERM"),
+        _R(KeyboardInterrupt, ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
+    )
+
+
+def _language_rows() -> tuple[ExitRule, ...]:
+    """Language: a sentence that is not understood."""
     from language import (
         AmbiguousInstruction,
         BackendError,
@@ -196,56 +205,9 @@ def exit_table() -> tuple[ExitRule, ...]:
         UnsupportedSchema,
         VocabularyError,
     )
-    from planner import (
-        ControllerError,
-        PlannerError,
-        PlanningFailed,
-        SpecNotForRobot,
-        StagewiseUnsupported,
-        UnsupportedModel,
-    )
-    from robots import (
-        EntryDamaged,
-        EntryStale,
-        FileTooLarge,
-        FrameNotFound,
-        NotRegularFile,
-        PathEscapes,
-        ProfileError,
-        RobotError,
-        RobotNotFound,
-        WbmpError,
-    )
-    from sim import FaultsError, PushParseError, SimError, SimModelError
-    from tasks import (
-        BeyondCapability,
-        ClipError,
-        GroundingError,
-        SceneConflict,
-        TaskDefinitionError,
-        TaskError,
-        UnknownAction,
-    )
-    from viz import (
-        OutputError,
-        OutputPathError,
-        OutputWriteError,
-        ViewerError,
-        VizError,
-        VizInputError,
-    )
 
     _R = ExitRule
     return (
-        # the root of the project's errors and the layers' bases without a code of their own
-        _R(WbmpError, None, "the root of the project's errors: a class without a row of its own is a bug"),
-        _R(VizError, None, "the viz layer's base: each of its errors has a row of its own"),
-        # the CLI itself
-        _R(CliError, OWN, "a refused input of the CLI, with the code it names"),
-        _R(MotionFileError, OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
-        _R(Terminated, ExitCode.TERMINATED, "SIGTERM"),
-        _R(KeyboardInterrupt, ExitCode.INTERRUPTED, "Ctrl-C (SIGINT)"),
-        # language: a sentence that is not understood
         _R(LanguageError, ExitCode.USAGE, "the instruction is not understood"),
         _R(EmptyInstruction, ExitCode.USAGE, "an empty instruction"),
         _R(UnknownWords, ExitCode.USAGE, "words the parser does not know"),
@@ -260,7 +222,24 @@ def exit_table() -> tuple[ExitRule, ...]:
         _R(SchemaViolation, ExitCode.USAGE, "an action plan against the registry's schema"),
         _R(VocabularyError, None, "the shipped vocabulary is inconsistent: a bug"),
         _R(UnsupportedSchema, None, "a schema keyword the validator lacks: a bug"),
-        # robots and tasks: an invalid spec, parameter or robot
+    )
+
+
+def _spec_rows() -> tuple[ExitRule, ...]:
+    """Robots and tasks: an invalid spec, parameter or robot."""
+    from robots import FrameNotFound, ProfileError, RobotError, RobotNotFound
+    from tasks import (
+        BeyondCapability,
+        ClipError,
+        GroundingError,
+        SceneConflict,
+        TaskDefinitionError,
+        TaskError,
+        UnknownAction,
+    )
+
+    _R = ExitRule
+    return (
         _R(RobotError, ExitCode.INVALID_SPEC, "a robot that cannot be loaded"),
         _R(RobotNotFound, ExitCode.INVALID_SPEC, "an unknown robot name"),
         _R(FrameNotFound, ExitCode.INVALID_SPEC, "a frame the robot does not have"),
@@ -275,38 +254,103 @@ def exit_table() -> tuple[ExitRule, ...]:
         _R(ClipError, ExitCode.INVALID_SPEC,
            "a motion-capture clip that cannot be used (damaged BVH, unknown skeleton, a window outside it)"),
         _R(GroundingError, ExitCode.INVALID_SPEC, "an object reference that names no object of the scene, or several"),
-        # planner: infeasible, or the solver failed (with a diagnosis)
+    )
+
+
+def _planner_rows() -> tuple[ExitRule, ...]:
+    """Planner: infeasible, or the solver failed (with a diagnosis)."""
+    from planner import (
+        PlannerError,
+        PlanningFailed,
+        SpecNotForRobot,
+        StagewiseUnsupported,
+        UnsupportedModel,
+    )
+
+    _R = ExitRule
+    return (
         _R(PlannerError, ExitCode.INFEASIBLE, "the planner failed"),
         _R(PlanningFailed, ExitCode.INFEASIBLE, "no plan: infeasible or the solver failed"),
         _R(StagewiseUnsupported, ExitCode.USAGE,
            "the stage-wise transcription asked for a dynamic plan (kinematic plans only)"),
         _R(UnsupportedModel, ExitCode.INVALID_SPEC, "a joint type the planner cannot model"),
         _R(SpecNotForRobot, ExitCode.INVALID_SPEC, "a joint or frame the robot does not have"),
-        # the stores and the file readers: caught inside the layer that raised them
+    )
+
+
+def _store_rows() -> tuple[ExitRule, ...]:
+    """The stores and the file readers: caught inside the layer that raised them."""
+    from robots import EntryDamaged, EntryStale, FileTooLarge, NotRegularFile, PathEscapes
+
+    _R = ExitRule
+    return (
         _R(EntryDamaged, None, "caught inside the solver, robot, MuJoCo and HTML mesh caches"),
         _R(EntryStale, None, "caught inside the robot and HTML mesh caches"),
         _R(NotRegularFile, None, "an OSError every reader catches (a FIFO, device or folder refused)"),
         _R(FileTooLarge, None, "an OSError every reader catches (a file over its kind's bound)"),
         _R(PathEscapes, None, "caught by the caches (a path read from a cache file that leads out)"),
-        # simulation: planned, but the closed-loop check failed or could not run
+    )
+
+
+def _sim_rows() -> tuple[ExitRule, ...]:
+    """Simulation: planned, but the closed-loop check failed or could not run."""
+    from planner import ControllerError
+    from sim import FaultsError, PushParseError, SimError, SimModelError
+
+    _R = ExitRule
+    return (
         _R(ControllerError, ExitCode.SIM_FAILED,
            "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),
         _R(SimError, ExitCode.SIM_FAILED, "the simulation check failed or could not run"),
         _R(SimModelError, ExitCode.SIM_FAILED, "the robot cannot be built in MuJoCo"),
         _R(PushParseError, ExitCode.USAGE, "a bad --push"),
         _R(FaultsError, ExitCode.INVALID_SPEC, "a bad --faults file (docs/safety.md)"),
-        # outputs and viewers
+    )
+
+
+def _output_rows() -> tuple[ExitRule, ...]:
+    """Outputs and viewers."""
+    from viz import OutputError, OutputPathError, OutputWriteError, ViewerError, VizInputError
+
+    _R = ExitRule
+    return (
         _R(OutputError, ExitCode.USAGE, "an output file refused or not written"),
         _R(OutputPathError, ExitCode.USAGE, "a bad output path"),
         _R(OutputWriteError, ExitCode.USAGE, "an output that could not be written (nothing was)"),
         _R(VizInputError, None,
            "arrays that do not match the robot: a bug (`wbmp show` names the motion file, exit 2)"),
         _R(ViewerError, ExitCode.INTERNAL, "the meshcat server did not start or died (one line)"),
-        # wbmp serve: shown on the page as one line with this code (HTTP 400, 429, 503)
+    )
+
+
+def _serve_rows() -> tuple[ExitRule, ...]:
+    """``wbmp serve``: shown on the page as one line with this code (HTTP 400, 429, 503)."""
+    _R = ExitRule
+    return (
         _R(CorrectionError, ExitCode.USAGE, "a correction that changes nothing of the last motion"),
         _R(Busy, ExitCode.USAGE, "wbmp serve's queue is full (HTTP 429)"),
         _R(Unavailable, ExitCode.INTERNAL, "wbmp serve's planning process is not running (HTTP 503)"),
     )
+
+
+@functools.cache
+def exit_table() -> tuple[ExitRule, ...]:
+    """Every exception class of every layer and its exit code, keyed by the class.
+
+    docs/cli.md holds the same table, and tests/wbmp/test_errors.py checks that each public
+    exception class defined in the packages has its row. A class decides by its own row;
+    :func:`classify` walks the exception's classes most specific first (``type(exc).__mro__``), so
+    an exception from outside the project that subclasses one of these gets its nearest
+    ancestor's code; a private class (``_Refused``), caught inside its module, has no row.
+
+    Every class lives in its layer's exception module (``robots.exceptions``, ``tasks.exceptions``,
+    ``language.exceptions``, ``planner.exceptions``, ``sim.exceptions``, ``viz.exceptions``, this
+    module; the stores' and readers' ``OSError`` kinds in ``robots.store`` and ``robots.safeio``):
+    building the table imports those light modules only, never a layer's heavy code (CasADi, MuJoCo,
+    the server). It is built on the first error classified, not when the CLI starts.
+    """
+    return (_root_rows() + _cli_rows() + _language_rows() + _spec_rows() + _planner_rows() + _store_rows()
+            + _sim_rows() + _output_rows() + _serve_rows())
 
 
 def full_name(cls: type) -> str:
