@@ -43,7 +43,7 @@ import pinocchio as pin
 
 from robots import Robot
 from tasks.actions import Action, get_action
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.grounding import Grounded, GroundingError, ground, strip_reference
 from tasks.limits import MAX_ACTIONS, MAX_HORIZON, horizon_message
 from tasks.primitives import (
@@ -423,6 +423,8 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
     last: SceneObject | None = None  # the object said before: what "it" names
     held: SceneObject | None = None  # the object picked up last: what a put_down's "it" names
     for i, a in enumerate(actions):
+        if a.name in SEAT_ACTIONS:
+            a = _seated(a, scene, out[-1] if out else None, _where(i, a, len(actions)))
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
             out.append(a)
@@ -451,6 +453,37 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
             params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=cast(Scene, scene))  # ground() raised without one
         out.append(Action(name=a.name, params=params, overlay=a.overlay, defaulted=a.defaulted))
     return out
+
+
+SEAT_ACTIONS = ("sit_down", "stand_up")
+
+
+def _seated(a: Action, scene: Scene | None, before: Action | None, where: str) -> Action:
+    """``sit_down``/``stand_up`` with their seat: the one said, the scene's seat, or the one sat on
+    (BeyondCapability: no seat in the scene, one said that is no seat, a stand_up not after a sit_down)."""
+    if a.name == "stand_up":
+        if before is None or before.name != "sit_down":
+            raise BeyondCapability(f'{where}stand up: the robot is not sitting; say "sit down, then stand up" '
+                                   "(a motion starts standing)")
+        if a.params.get("object") is None:
+            return Action(name=a.name, params={**a.params, "object": before.params["object"]}, overlay=a.overlay,
+                          defaulted=a.defaulted)
+        return a
+    seats = [o for o in (scene.objects if scene is not None else ()) if o.seat]
+    said = a.params.get("object")
+    if said is None:
+        if not seats:
+            raise BeyondCapability(f"{where}sit down: there is no seat in the scene (a chair or a bench: an object "
+                                   'with "seat": true); give a scene with one, e.g. --scene examples/scenes/chair.json')
+        return Action(name=a.name, params={**a.params, "object": Grounded(reference=seats[0].name, obj=seats[0],
+                                                                         scene=cast(Scene, scene))},
+                      overlay=a.overlay, defaulted=a.defaulted)
+    if not isinstance(said, Grounded) and scene is not None:
+        obj = ground(said, scene, action=a.name)
+        if not obj.seat:
+            raise BeyondCapability(f"{where}sit down: the {obj.name} is not a seat (give the scene a chair or a "
+                                   'bench: an object with "seat": true)')
+    return a
 
 
 def pick_up_first(actions: Sequence[Action], robot: Robot) -> list[Action]:

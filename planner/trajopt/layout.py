@@ -50,7 +50,7 @@ from planner.trajopt.kinds import (
 from planner.trajopt.term import Term, knots_of
 from robots import Robot, halfplanes, sole_corners_in_world
 from robots import support_polygon as polygon_of_soles
-from tasks import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
+from tasks import CoMBounds, CoMTarget, Contact, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
     from planner.results import Check, Plan
@@ -355,7 +355,10 @@ def _phase_polygons(lay: Layout) -> list[_PhasePolygon]:
         for c in phase.contacts:
             side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
             if side is None:
-                continue  # a hand or other contact: not part of the sole polygon
+                if region_supports(c):  # a thigh on a seat: its support region bears weight
+                    soles.append(np.asarray(c.region, dtype=float) @ placement_of(c.placement).rotation.T
+                                 + np.asarray(c.placement.position, dtype=float))
+                continue  # a hand or other point contact: not part of the sole polygon
             soles.append(sole_corners_in_world(robot.profile.sole, side, placement_of(c.placement)))
         if soles:
             hull = polygon_of_soles(soles)
@@ -365,6 +368,18 @@ def _phase_polygons(lay: Layout) -> list[_PhasePolygon]:
             out.append(_PhasePolygon(start, start + phase.duration, hull, _polygon_area(hull), planes))
     lay.__dict__["_phase_polygons"] = (spec, robot, out)
     return out
+
+
+SUPPORT_NORMAL_COS = math.cos(math.radians(30))  # a region on a surface tilted at most this much bears weight
+
+
+def region_supports(contact: Contact) -> bool:
+    """A contact with a support region on a surface facing up (its normal, or its placement's z axis,
+    within 30 deg of vertical): its corners join the soles' support polygon."""
+    if contact.region is None:
+        return False
+    n = contact.normal if contact.normal is not None else tuple(pin.rpy.rpyToMatrix(*contact.placement.rpy)[:, 2])
+    return float(n[2]) >= SUPPORT_NORMAL_COS
 
 
 def _polygon_area(hull: np.ndarray) -> float:
