@@ -124,9 +124,10 @@ def _check_parts(group: list[tuple[int, Action]]) -> None:
             seen[part] = (i, a)
 
 
-def _stand_phase(name: str, duration: float, robot: Robot, stance: Stance) -> Phase:
+def _stand_phase(name: str, duration: float, robot: Robot, stance: Stance, seated: tuple[Contact, ...] = ()) -> Phase:
+    """Both soles down, plus the contacts an action left held (``seated``: the thighs on a seat)."""
     contacts = tuple(Contact(frame=robot.frame(f"{s}_foot"), placement=stance.sole(s)) for s in ("left", "right"))
-    return Phase(name=name, duration=duration, contacts=contacts)
+    return Phase(name=name, duration=duration, contacts=contacts + seated)
 
 
 def standing_waypoint(robot: Robot, label: str, time: float, *, weight: float = WAYPOINT_WEIGHT) -> tuple[JointTarget, ...]:
@@ -260,24 +261,29 @@ def compile_actions(
         waypoints.extend(standing_waypoint(robot, "start", knot_time(k, dt)))
     fragments: list[Fragment] = []
     still_targets: list[CoMTarget] = []
+    seated: tuple[Contact, ...] = ()  # contacts an action left held (sitting): no standing waypoints then
     for gi, group in enumerate(groups):
         if gi > 0 and knots(transition_time):
             n_tr = knots(transition_time)
-            phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
-            waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
+            phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance, seated))
+            if not seated:
+                waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
         group_fragments, owner = _compile_group(group, fragments, robot, stance, knot_time(k, dt), dt, n)
         still = _still_com(group_fragments, robot, stance, knot_time(k, dt), knot_time(k + round(owner.duration / dt), dt))
         phases.extend(owner.phases)
         k += round(owner.duration / dt)
         stance = owner.end_stance
+        seated = owner.end_contacts
         fragments.extend(group_fragments)
         still_targets.extend(still)
     if knots(stand_time):
-        waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
-        phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
+        if not seated:
+            waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
+        phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance, seated))
         k += knots(stand_time)
-    waypoints.extend(standing_waypoint(robot, "end", knot_time(k, dt)))
+    if not seated:
+        waypoints.extend(standing_waypoint(robot, "end", knot_time(k, dt)))
     horizon = k * dt
     if horizon > MAX_HORIZON + 1e-9:
         raise TaskDefinitionError(horizon_message(horizon, "split the instruction into several shorter ones"))
@@ -423,6 +429,8 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
     last: SceneObject | None = None  # the object said before: what "it" names
     held: SceneObject | None = None  # the object picked up last: what a put_down's "it" names
     for i, a in enumerate(actions):
+        if a.name == "stand" and out and out[-1].name == "sit_down":  # "sit down, then stand up": rise first
+            a = Action(name="stand_up", params={}, overlay=a.overlay)
         if a.name in SEAT_ACTIONS:
             a = _seated(a, scene, out[-1] if out else None, _where(i, a, len(actions)))
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}

@@ -40,6 +40,7 @@ from planner.trajopt.kinds import (
     ClosedChainTerm,
     CoMBoxTerm,
     CoMPositionTerm,
+    ContactPositionTerm,
     ContactTerm,
     FrameOrientationTerm,
     FramePositionTerm,
@@ -238,7 +239,18 @@ def contact_terms(lay: Layout) -> None:
         if not _use(lay, k):
             continue
         for fid, (frame, M) in lay.contacts_at[k].items():
-            lay.terms.append(ContactTerm.at(k, fid, frame, M, lay.phase_name(k)))
+            near = 6 if lay.robot.foot_side(lay.robot.model.frames[fid].name) else min(
+                (_chain_joints(lay.robot, fid, other) for other in lay.contacts_at[k] if other != fid), default=6)
+            kind = ContactPositionTerm if near < 6 else ContactTerm  # a sole keeps its 6 rows
+            lay.terms.append(kind.at(k, fid, frame, M, lay.phase_name(k)))
+
+
+def _chain_joints(robot: Robot, a: int, b: int) -> int:
+    """The one-dof joints on the kinematic path between frames ``a`` and ``b`` (a thigh and its foot: 3)."""
+    model = robot.model
+    sa = set(model.supports[model.frames[a].parentJoint])
+    sb = set(model.supports[model.frames[b].parentJoint])
+    return sum(model.joints[j].nv == 1 for j in sa ^ sb)
 
 
 def swing_terms(lay: Layout) -> None:

@@ -4,7 +4,7 @@ rise from it, the feet staying where they are.
 The seat is a scene object with ``seat`` set (a chair's or a bench's seat: a static upright box);
 with no object said, the scene's seat (:func:`tasks.compose.ground_actions` refuses a scene without
 one, in task terms). The sitting posture (:func:`sitting`) keeps the base upright and both shins
-vertical over the soles, and pitches the thighs back by the angle at which their lowest points
+leaning forward by ``SHIN_TILT`` over the soles, and pitches the thighs back by the angle at which their lowest points
 (the thigh links' collision meshes) rest on the seat's top: each thigh then holds a contact on the
 seat, a :class:`~tasks.specs.Contact` on the thigh link with its **support region** (the corners of
 the rectangle under the thigh's lowest vertices, within ``REGION_BAND`` of them, in the thigh frame),
@@ -34,17 +34,23 @@ from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance
 from tasks.primitives.objects import grounded
 from tasks.scene import SceneObject, on_top, rotation
-from tasks.specs import Contact, FrameTarget, Pose
+from tasks.specs import Contact, FrameTarget, Pose, Priority
 
 PARTS = frozenset({"legs", "com", "torso"})
 LOWER = 3.0  # [s] nominal: from standing onto the seat
 SETTLE = 1.0  # [s] nominal: sitting, before the fragment ends (or before rising)
 RISE = 3.0  # [s] nominal: from the seat to standing
+SHIN_TILT = 0.5  # [rad] the shins lean forward (knees ahead of the ankles, the feet tucked under the seat): the
+#   hips come 0.14 m closer to the feet, so that a forward lean brings the CoM over the soles
 MAX_TILT = 0.6  # [rad] the thighs pitched back past level at most this much (a low seat)
 REGION_BAND = 0.005  # [m] a thigh's support region: its collision vertices this close to its lowest one
+REGION_MIN = 0.02  # [m] a support region at least this long and wide over the seat
 SEAT_TOLERANCE = 0.002  # [m] a region corner on the seat's top face
 STAND_TOLERANCE = 0.02  # [m] the base back at its standing place after rising
 SIDES = ("left", "right")
+HANDS_FORWARD, HANDS_OUT, HANDS_UP = 0.30, 0.32, 0.0  # [m] the hands while seated, in the sitting base frame
+HANDS_TOLERANCE = 0.05  # [m]
+TOUCH_WEIGHT = 1e-3  # the legs' touch targets only open the seat to them: a nearly free soft target
 APPROACH = 0.5  # the legs may touch the seat from this fraction of the way down (and up to it on the way
 #   up): their capsule covers reach the seat before the meshes do (talos's thigh cover: 8 mm at 3.4 s)
 
@@ -95,8 +101,8 @@ def _posture(robot: Robot, tilt: float) -> tuple[np.ndarray, dict[str, np.ndarra
     pin.framesForwardKinematics(model, data, q)
     sole0 = data.oMf[robot.frame_id("left_foot")].translation.copy()
     base0 = q[:3].copy()
-    for leg in legs.values():
-        q[leg.hip], q[leg.knee], q[leg.ankle] = -leg.sign * p, leg.sign * p, 0.0
+    for leg in legs.values():  # the knee ahead of the ankle by SHIN_TILT: hip + knee = SHIN_TILT = -ankle
+        q[leg.hip], q[leg.knee], q[leg.ankle] = -leg.sign * p, leg.sign * (p + SHIN_TILT), -leg.sign * SHIN_TILT
     q[:3] = base0
     q[3:7] = pin.Quaternion(np.eye(3)).coeffs()  # upright: shins vertical with the ankles at zero
     pin.framesForwardKinematics(model, data, q)
@@ -116,6 +122,21 @@ def _posture(robot: Robot, tilt: float) -> tuple[np.ndarray, dict[str, np.ndarra
 def _bottom(robot: Robot, tilt: float) -> float:
     _, verts = _posture(robot, tilt)
     return float(min(v[:, 2].min() for v in verts.values()))
+
+
+def _region(verts: np.ndarray, seat: SceneObject) -> np.ndarray:
+    """Corners (4, 3) of a thigh's support region (world): the rectangle, in the seat's frame, of its
+    vertices within ``REGION_BAND`` of the lowest one, cut to the seat's top (the part over the seat)."""
+    R, c = np.asarray(rotation(seat.rpy)), np.asarray(seat.position)
+    z = float(verts[:, 2].min())
+    low = (verts[verts[:, 2] <= z + REGION_BAND] - c) @ R
+    half = np.asarray(seat.size[:2]) / 2
+    lo = np.maximum(low[:, :2].min(axis=0), -half)
+    hi = np.minimum(low[:, :2].max(axis=0), half)
+    if np.any(hi - lo < REGION_MIN):
+        lo, hi = low[:, :2].min(axis=0), low[:, :2].max(axis=0)  # not over the seat: refused by the caller
+    local = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    return np.column_stack([local, np.zeros(4)]) @ R.T + np.array([c[0], c[1], z])
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,12 +175,7 @@ def sitting(robot: Robot, stance: Stance, seat: SceneObject) -> Sitting:
     normal = tuple(float(v) for v in np.asarray(rotation(seat.rpy))[:, 2])
     contacts = []
     for side, leg in _legs(robot).items():
-        v = verts[side]
-        low = v[v[:, 2] <= v[:, 2].min() + REGION_BAND]
-        z = float(v[:, 2].min())
-        rect = np.array([[x, y, z] for x, y in ((low[:, 0].min(), low[:, 1].min()), (low[:, 0].max(), low[:, 1].min()),
-                                                (low[:, 0].max(), low[:, 1].max()), (low[:, 0].min(), low[:, 1].max()))])
-        world = rect @ T.rotation.T + T.translation
+        world = _region(verts[side] @ T.rotation.T + T.translation, seat)
         M = data.oMf[robot.frame_id(leg.thigh)]
         for corner in world:
             if not on_top(seat, corner, tolerance=SEAT_TOLERANCE):
@@ -191,7 +207,7 @@ def _leg_roots(robot: Robot) -> list[str]:
     return out
 
 
-def _touch(b: FragmentBuilder, s: Sitting, window: tuple[float, float]) -> None:
+def _touch(b: FragmentBuilder, s: Sitting, window: tuple[float, float], hold: bool = False) -> None:
     """The thighs rest on the seat over ``window`` (nominal s): the legs' links may touch it then
     (the planner's scene rows and checks leave them out with the seat; every other part keeps clear)."""
     model, data = b.robot.model, b.robot.model.createData()
@@ -199,7 +215,24 @@ def _touch(b: FragmentBuilder, s: Sitting, window: tuple[float, float]) -> None:
     for frame in _leg_roots(b.robot):
         p = tuple(float(c) for c in data.oMf[b.robot.frame_id(frame)].translation)
         b.targets.append(FrameTarget(name=b.name(f"{frame} at the {s.seat.name}"), frame=frame, position=p,
-                                     window=b.window(*window), tolerance=0.01, touch=s.seat.name))
+                                     window=b.window(*window), tolerance=0.01, touch=s.seat.name,
+                                     priority=Priority.SOFT, weight=TOUCH_WEIGHT))
+        if hold:  # seated until the next action moves the legs (stand_up) or the motion ends
+            b.holds.append(b.name(f"{frame} at the {s.seat.name}"))
+
+
+def _hands(b: FragmentBuilder, s: Sitting, window: tuple[float, float], hold: bool = False) -> None:
+    """Both hands forward over the thighs while seated (hanging, they would be inside the thighs)."""
+    base = pin.XYZQUATToSE3(s.q[:7])
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        if not b.robot.has_role(f"{side}_hand"):
+            continue
+        p = base.act(np.array([HANDS_FORWARD, sign * HANDS_OUT, HANDS_UP]))
+        what = f"{side} hand over the thighs"
+        b.frame_target(what, f"{side}_hand", position=tuple(float(c) for c in p), window=window,
+                       tolerance=HANDS_TOLERANCE)
+        if hold:
+            b.holds.append(b.name(what))
 
 
 def build_sit_down(b: FragmentBuilder) -> Fragment:
@@ -207,7 +240,9 @@ def build_sit_down(b: FragmentBuilder) -> Fragment:
     s = _seat(b, "sit_down")
     b.phase("sit down", LOWER)
     b.phase("sitting", LOWER + SETTLE, (*b.contacts(), *s.contacts))
-    _touch(b, s, (APPROACH * LOWER, LOWER + SETTLE))
+    _touch(b, s, (APPROACH * LOWER, LOWER + SETTLE), hold=True)
+    _hands(b, s, (LOWER, LOWER + SETTLE), hold=True)
+    b.end_contacts = s.contacts  # it stays seated: the phases after it keep the thighs on the seat
     return b.finish(PARTS)
 
 
@@ -217,6 +252,7 @@ def build_stand_up(b: FragmentBuilder) -> Fragment:
     b.phase("sitting", SETTLE, (*b.contacts(), *s.contacts))
     b.phase("stand up", SETTLE + RISE)
     _touch(b, s, (0.0, SETTLE + (1 - APPROACH) * RISE))
+    _hands(b, s, (0.0, SETTLE))
     base = b.geometry.position("base") if "base" in b.geometry.placements else None
     if base is not None:
         b.frame_target("base back where it stands", "base", position=b.world(base), time=SETTLE + RISE,
