@@ -22,6 +22,7 @@ from sim.collisions import MeshDistance
 from sim.intent import intent_checks
 from sim.meshcheck import mesh_self_collision_check
 from sim.recording import RunRecord, tilt, torque_fraction
+from sim.seat import seat_checks
 
 #: Ticks of a pair whose MuJoCo contact is deeper than the limit that coal checks on the meshes.
 CONFIRM_TICKS = 5
@@ -59,6 +60,7 @@ def certify(run: RunRecord) -> tuple[Check, ...]:
         *fall_checks(run),
         unplanned_contacts_check(run, meas),
         *foot_checks(run, meas),
+        *seat_checks(run),
         peak_torque_check(run),
         qp_failures_check(run),
         com_tracking_check(run, meas),

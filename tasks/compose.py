@@ -425,7 +425,7 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
         GroundingError: a reference and no scene, or one that names no object or several; the
             message names the action when there are several (``action 2 (point_at): ...``).
     """
-    out = []
+    out: list[Action] = []
     last: SceneObject | None = None  # the object said before: what "it" names
     held: SceneObject | None = None  # the object picked up last: what a put_down's "it" names
     for i, a in enumerate(actions):

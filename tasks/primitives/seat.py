@@ -34,7 +34,7 @@ from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance
 from tasks.primitives.objects import grounded
 from tasks.scene import SceneObject, on_top, rotation
-from tasks.specs import Contact, FrameTarget, Pose, Priority
+from tasks.specs import Contact, FrameTarget, Pose, Vec3
 
 PARTS = frozenset({"legs", "com", "torso"})
 LOWER = 3.0  # [s] nominal: from standing onto the seat
@@ -50,7 +50,7 @@ STAND_TOLERANCE = 0.02  # [m] the base back at its standing place after rising
 SIDES = ("left", "right")
 HANDS_FORWARD, HANDS_OUT, HANDS_UP = 0.30, 0.32, 0.0  # [m] the hands while seated, in the sitting base frame
 HANDS_TOLERANCE = 0.05  # [m]
-TOUCH_WEIGHT = 1e-3  # the legs' touch targets only open the seat to them: a nearly free soft target
+TOUCH_TOLERANCE = 1.0  # [m] the legs' touch targets only open the seat to them: a ball wider than the motion
 APPROACH = 0.5  # the legs may touch the seat from this fraction of the way down (and up to it on the way
 #   up): their capsule covers reach the seat before the meshes do (talos's thigh cover: 8 mm at 3.4 s)
 
@@ -124,6 +124,10 @@ def _bottom(robot: Robot, tilt: float) -> float:
     return float(min(v[:, 2].min() for v in verts.values()))
 
 
+def _vec(v) -> Vec3:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
 def _region(verts: np.ndarray, seat: SceneObject) -> np.ndarray:
     """Corners (4, 3) of a thigh's support region (world): the rectangle, in the seat's frame, of its
     vertices within ``REGION_BAND`` of the lowest one, cut to the seat's top (the part over the seat)."""
@@ -172,7 +176,7 @@ def sitting(robot: Robot, stance: Stance, seat: SceneObject) -> Sitting:
     base = T * pin.XYZQUATToSE3(q[:7])
     q[:7] = pin.SE3ToXYZQUAT(base)
     pin.framesForwardKinematics(model, data, q)
-    normal = tuple(float(v) for v in np.asarray(rotation(seat.rpy))[:, 2])
+    normal = np.asarray(rotation(seat.rpy))[:, 2]
     contacts = []
     for side, leg in _legs(robot).items():
         world = _region(verts[side] @ T.rotation.T + T.translation, seat)
@@ -182,10 +186,10 @@ def sitting(robot: Robot, stance: Stance, seat: SceneObject) -> Sitting:
                 raise BeyondCapability(
                     f"sit_down: the {seat.name} is not under {robot.name}'s {side} thigh where it would sit "
                     f"(at {corner[0]:.2f}, {corner[1]:.2f}, {corner[2]:.2f} m): turn your back to it and walk to it first")
-        region = tuple(tuple(float(c) for c in M.actInv(corner)) for corner in world)
-        contacts.append(Contact(frame=leg.thigh, placement=Pose(position=tuple(float(c) for c in M.translation),
-                                                                 rpy=tuple(float(c) for c in pin.rpy.matrixToRpy(M.rotation))),
-                                friction_coefficient=seat.friction, region=region, normal=normal))  # type: ignore[arg-type]
+        region = tuple(_vec(M.actInv(corner)) for corner in world)
+        contacts.append(Contact(frame=leg.thigh, placement=Pose(position=_vec(M.translation),
+                                                                 rpy=_vec(pin.rpy.matrixToRpy(M.rotation))),
+                                friction_coefficient=seat.friction, region=region, normal=_vec(normal)))
     return Sitting(q=q, contacts=tuple(contacts), seat=seat)
 
 
@@ -213,10 +217,9 @@ def _touch(b: FragmentBuilder, s: Sitting, window: tuple[float, float], hold: bo
     model, data = b.robot.model, b.robot.model.createData()
     pin.framesForwardKinematics(model, data, s.q)
     for frame in _leg_roots(b.robot):
-        p = tuple(float(c) for c in data.oMf[b.robot.frame_id(frame)].translation)
+        p = _vec(data.oMf[b.robot.frame_id(frame)].translation)
         b.targets.append(FrameTarget(name=b.name(f"{frame} at the {s.seat.name}"), frame=frame, position=p,
-                                     window=b.window(*window), tolerance=0.01, touch=s.seat.name,
-                                     priority=Priority.SOFT, weight=TOUCH_WEIGHT))
+                                     window=b.window(*window), tolerance=TOUCH_TOLERANCE, touch=s.seat.name))
         if hold:  # seated until the next action moves the legs (stand_up) or the motion ends
             b.holds.append(b.name(f"{frame} at the {s.seat.name}"))
 
