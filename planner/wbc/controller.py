@@ -218,8 +218,8 @@ class WholeBodyController:
         # corner geometry (sole frame, pulled cop_margin inside) and the force -> wrench map G0 (6 x 12)
         g0s = []
         regions = _regions(ref, self.robot)
-        # a region contact on another body part (a thigh on a seat, 3 joints above its held sole) is
-        # held in position only: its 3 rotation rows would repeat the sole's and make the QP infeasible
+        # a region contact on another body part (a thigh on a seat, 3 joints above its held sole): its
+        # forces act at its corners, its position is tracked as a stiff task, its orientation is free
         self._position_only = [i for i, name in enumerate(self._contacts)
                                if self.robot.foot_side(name) is None and name in regions]
         for name in self._contacts:
@@ -448,8 +448,11 @@ class WholeBodyController:
         self._mom_near = None  # the momentum weight is set by the tick (_momentum_window)
         self._com_near = None  # and the CoM weight
         self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
-        for i in self._position_only:
-            self._stance_rows[6 * i + 3 : 6 * i + 6] = 0.0  # 0 = 0 rows: the orientation follows the chain
+        for i in self._position_only:  # its forces act, its place is a stiff task (not a constraint: with the
+            # soles' rows and the pelvis between the two hips, hard rows were rank-deficient and the QP failed)
+            self._stance_rows[6 * i : 6 * i + 6] = 0.0
+            if active[i]:
+                self._w_rows[3 + 6 * i : 6 + 6 * i] = self._sqrt_w_task[3 + 6 * i : 6 + 6 * i]
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
         self._stance = np.array([i for i, a in enumerate(active) if a], dtype=np.int64)

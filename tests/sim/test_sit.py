@@ -1,0 +1,74 @@
+"""Talos sits down on the chair of ``examples/scenes/chair.json`` (and stands up again): the plan's
+seat contacts recomputed independently of the planner and of :mod:`tasks.primitives.seat`.
+
+References: Pinocchio forward kinematics of the planned configurations at every knot the plan holds
+the thighs on the seat, the thighs' collision-mesh vertices carried to the world by Pinocchio's
+geometry placements, the seat's top face by hand from its box (0.31 m, x -0.55..-0.10 m). The fast
+twin: ``tests/tasks/test_seat.py`` (the sitting configuration, the compiled contacts, the refusals).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from planner import PlannerSettings, plan
+from tasks.actions import Action
+from tasks.compose import compile_actions
+from tasks.scene import load_scene
+
+CHAIR = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "chair.json"
+TOP, X_RANGE, Y_HALF = 0.31, (-0.55, -0.10), 0.25  # the seat's top face, by hand from chair.json
+
+
+def _vertices(robot, data, cdata, q, links) -> np.ndarray:
+    pin.updateGeometryPlacements(robot.model, data, robot.collision_model, cdata, q)
+    out = [np.asarray(g.geometry.vertices(), dtype=float).reshape(-1, 3) @ cdata.oMg[i].rotation.T + cdata.oMg[i].translation
+           for i, g in enumerate(robot.collision_model.geometryObjects)
+           if robot.model.frames[g.parentFrame].name in links and hasattr(g.geometry, "num_vertices")]
+    return np.vstack(out)
+
+
+@pytest.mark.long  # a kinematic plan with scene rows: 5 s with a built solver, about a minute cold
+@pytest.mark.parametrize("stand_up", [False, True], ids=["sit down", "sit down then stand up"])
+def test_the_planned_thighs_rest_on_the_seat_and_nothing_else_touches_it(talos, stand_up):
+    scene = load_scene(CHAIR)
+    actions = [Action(name="sit_down", params={})] + ([Action(name="stand_up", params={})] if stand_up else [])
+    spec = compile_actions(actions, talos, scene=scene)
+    p = plan(spec, talos, settings=PlannerSettings())
+    assert p.ok
+    model, data = talos.model, talos.model.createData()
+    cdata = talos.collision_model.createData()
+    seat_phases = [(sum(ph.duration for ph in spec.phases[:i]), ph) for i, ph in enumerate(spec.phases)
+                   if any(c.region for c in ph.contacts)]
+    assert seat_phases
+    thighs = {c.frame for _, ph in seat_phases for c in ph.contacts if c.region}
+    others = {f.name for f in model.frames if f.type == pin.FrameType.BODY} - thighs
+    held = 0
+    for k, tk in enumerate(p.t):
+        on = [ph for t0, ph in seat_phases if t0 - 1e-9 <= tk <= t0 + ph.duration + 1e-9]
+        if not on:
+            continue
+        held += 1
+        pin.framesForwardKinematics(model, data, p.q[k])
+        for c in (c for c in on[0].contacts if c.region):
+            M = data.oMf[talos.frame_id(c.frame)]
+            corners = np.asarray(c.region) @ M.rotation.T + M.translation
+            assert np.allclose(corners[:, 2], TOP, atol=1e-3)  # every region corner on the seat's top
+            assert np.all((corners[:, 0] >= X_RANGE[0]) & (corners[:, 0] <= X_RANGE[1]))
+            assert np.all(np.abs(corners[:, 1]) <= Y_HALF)
+        low = _vertices(talos, data, cdata, p.q[k], thighs)
+        assert low[:, 2].min() == pytest.approx(TOP, abs=2e-3)  # the thighs rest on it, not in it
+        rest = _vertices(talos, data, cdata, p.q[k], others)
+        over = rest[(rest[:, 0] >= X_RANGE[0]) & (rest[:, 0] <= X_RANGE[1]) & (np.abs(rest[:, 1]) <= Y_HALF)]
+        assert over[:, 2].min() > TOP + 0.002  # every other link above the seat (talos's hip links: 5.7 mm)
+    assert held * spec.dt >= 1.0
+    if stand_up:  # back up: the base at its standing place (2 cm), the feet never moved
+        pin.framesForwardKinematics(model, data, p.q[-1])
+        ref = talos.model.createData()
+        pin.framesForwardKinematics(model, ref, talos.q_standing)
+        base = talos.frame_id("base")
+        assert np.linalg.norm(data.oMf[base].translation - ref.oMf[base].translation) < 0.02
