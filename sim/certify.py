@@ -497,8 +497,8 @@ TOUCH_PADDING = 0.3  # [s] around a planned touch's time or window, its hand may
 
 def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
     """Whether a robot-object contact is planned: a frame target of the spec touches ``obj``
-    (``FrameTarget.touch``) around that time (:data:`TOUCH_PADDING`), and ``link`` is the target
-    frame's link or one below it."""
+    (``FrameTarget.touch``) around that time (:data:`TOUCH_PADDING`; a window to the motion's end:
+    after it too, the robot still sits), and ``link`` is the target frame's link or one below it."""
     model = run.robot.model
     t = float(run.t[tick])
     if _stands_on(run, t, link, obj):
@@ -507,6 +507,8 @@ def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
         if target.touch != obj:
             continue
         start, end = target.window if target.window is not None else (target.time, target.time)
+        if end is not None and end >= float(run.ref.plan.t[-1]) - 1e-9:
+            end = math.inf  # held to the motion's end (seated): it stays touching after it
         if start is None or end is None or not start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
             continue
         joint = model.frames[run.robot.frame_id(target.frame)].parentJoint

@@ -1,5 +1,6 @@
 """Talos sits down on the chair of ``examples/scenes/chair.json`` (and stands up again): the plan's
-seat contacts recomputed independently of the planner and of :mod:`tasks.primitives.seat`.
+seat contacts recomputed independently of the planner and of :mod:`tasks.primitives.seat`, and the
+motion certified in MuJoCo (the seat lines of :mod:`sim.seat` among the certificate's).
 
 References: Pinocchio forward kinematics of the planned configurations at every knot the plan holds
 the thighs on the seat, the thighs' collision-mesh vertices carried to the world by Pinocchio's
@@ -15,7 +16,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner import PlannerSettings, plan
+from planner import CheckKind, PlannerSettings, plan
+from sim import simulate
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.scene import load_scene
@@ -32,14 +34,32 @@ def _vertices(robot, data, cdata, q, links) -> np.ndarray:
     return np.vstack(out)
 
 
-@pytest.mark.long  # a kinematic plan with scene rows: 5 s with a built solver, about a minute cold
+@pytest.mark.long  # a kinematic plan with scene rows (5 s with a built solver, about a minute cold), then
+#   6 to 10 s of MuJoCo and the certificate (about a minute)
 @pytest.mark.parametrize("stand_up", [False, True], ids=["sit down", "sit down then stand up"])
-def test_the_planned_thighs_rest_on_the_seat_and_nothing_else_touches_it(talos, stand_up):
+def test_sitting_on_the_chair_planned_and_certified_with_the_thighs_on_the_seat(talos, stand_up):
     scene = load_scene(CHAIR)
     actions = [Action(name="sit_down", params={})] + ([Action(name="stand_up", params={})] if stand_up else [])
     spec = compile_actions(actions, talos, scene=scene)
     p = plan(spec, talos, settings=PlannerSettings())
     assert p.ok
+    _planned_on_the_seat(talos, spec, p, stand_up)
+    execution = simulate(p, talos)
+    assert execution.certificate.ok, execution.certificate.reason
+    seat = [c for c in execution.certificate.checks
+            if c.kind in (CheckKind.SEAT_PLACEMENT, CheckKind.SEAT_SLIP, CheckKind.SEAT_CONTACT)]
+    assert len(seat) == 7 and all(c.ok for c in seat)  # per thigh: where, slip, how long; nothing else on it
+    model, data = talos.model, talos.model.createData()
+    t = np.asarray(execution.t)
+    sitting = (t > 3.9) & (t < 4.6)  # seated in both motions (sat on from 3.6 s, rising from 6.0 s)
+    for q in np.asarray(execution.q)[sitting][::50]:  # the executed region corners on the seat's top (5 mm)
+        pin.framesForwardKinematics(model, data, q)
+        for c in (c for c in spec.phases[2].contacts if c.region):
+            M = data.oMf[talos.frame_id(c.frame)]
+            assert np.allclose((np.asarray(c.region) @ M.rotation.T + M.translation)[:, 2], TOP, atol=5e-3)
+
+
+def _planned_on_the_seat(talos, spec, p, stand_up: bool) -> None:
     model, data = talos.model, talos.model.createData()
     cdata = talos.collision_model.createData()
     seat_phases = [(sum(ph.duration for ph in spec.phases[:i]), ph) for i, ph in enumerate(spec.phases)
