@@ -45,6 +45,7 @@ SHIN_TILT = 0.5  # [rad] the shins lean forward (knees ahead of the ankles, the 
 MAX_TILT = 0.6  # [rad] the thighs pitched back past level at most this much (a low seat)
 REGION_BAND = 0.005  # [m] a thigh's support region: its collision vertices this close to its lowest one
 REGION_MIN = 0.02  # [m] a support region at least this long and wide over the seat
+REGION_INSET = 0.005  # [m] a support region cut to the seat's top ends this far inside its edges
 SEAT_TOLERANCE = 0.002  # [m] a region corner on the seat's top face
 STAND_TOLERANCE = 0.02  # [m] the base back at its standing place after rising
 SIDES = ("left", "right")
@@ -130,11 +131,11 @@ def _vec(v) -> Vec3:
 
 def _region(verts: np.ndarray, seat: SceneObject) -> np.ndarray:
     """Corners (4, 3) of a thigh's support region (world): the rectangle, in the seat's frame, of its
-    vertices within ``REGION_BAND`` of the lowest one, cut to the seat's top (the part over the seat)."""
+    vertices within ``REGION_BAND`` of the lowest one, cut to the seat's top ``REGION_INSET`` inside its edges."""
     R, c = np.asarray(rotation(seat.rpy)), np.asarray(seat.position)
     z = float(verts[:, 2].min())
     low = (verts[verts[:, 2] <= z + REGION_BAND] - c) @ R
-    half = np.asarray(seat.size[:2]) / 2
+    half = np.asarray(seat.size[:2]) / 2 - REGION_INSET
     lo = np.maximum(low[:, :2].min(axis=0), -half)
     hi = np.minimum(low[:, :2].max(axis=0), half)
     if np.any(hi - lo < REGION_MIN):
