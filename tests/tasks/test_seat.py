@@ -155,3 +155,32 @@ def test_standing_up_after_sitting_down_is_stand_up(talos, chair, text):
 def test_a_seat_object_keeps_older_scene_json(chair):
     plain = SceneObject(name="box", shape="box", size=(0.1, 0.1, 0.1), position=(1.0, 0.0, 0.05))
     assert "seat" not in scene_to_dict(dataclasses.replace(chair, objects=(plain,)))["objects"][0]
+
+
+def test_the_planner_holds_the_thighs_in_position_and_counts_their_regions_in_the_support_polygon(talos, chair, sat):
+    """While seated the support polygon is the hull of the sole rectangles and the thighs' regions
+    (by hand: scipy's hull of those corners); the thighs get 3 position rows, the soles their 6."""
+    from scipy.spatial import ConvexHull
+
+    from planner.trajopt.layout import make_layout, support_polygon
+    from robots import sole_corners_in_world
+
+    spec = compile_actions([Action(name="sit_down", params={})], talos, scene=chair)
+    lay = make_layout(spec, talos)
+    seated = next(k for k in lay.variable_knots if len(lay.contacts_at[k]) == 4 and k > 0
+                  and len(lay.contacts_at[k - 1]) == 4)
+    pts = [sole_corners_in_world(talos.profile.sole, side, pin.SE3(pin.rpy.rpyToMatrix(*spec.phases[0].contacts[i].placement.rpy),
+                                                                  np.asarray(spec.phases[0].contacts[i].placement.position)))
+           for i, side in enumerate(("left", "right"))]
+    for c in sat.contacts:
+        R = pin.rpy.rpyToMatrix(*c.placement.rpy)
+        pts.append(np.asarray(c.region) @ R.T + np.asarray(c.placement.position))
+    xy = np.vstack(pts)[:, :2]
+    want = xy[ConvexHull(xy).vertices]
+    got = support_polygon(lay, seated)
+    assert len(got) == len(want) and all(np.min(np.linalg.norm(want - g, axis=1)) < 1e-9 for g in got)
+    assert got[:, 0].min() < -0.20  # the polygon reaches back under the thighs (the soles end at -0.10)
+    kinds = {(t.kind, t.structure[1]) for t in lay.terms if t.knot == seated and t.kind.startswith("contact")}
+    thighs = {talos.frame_id(c.frame) for c in sat.contacts}
+    assert {f for k, f in kinds if k == "contact_position"} == thighs
+    assert {f for k, f in kinds if k == "contact"} == {talos.frame_id(f"{s}_foot") for s in ("left", "right")}
