@@ -144,7 +144,9 @@ class Pose:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Contact:
-    """A foot (or other body) held fixed in 6D at a ground placement during a phase.
+    """A foot (or other body) held fixed in 6D at a ground placement during a phase (a body part a
+    few joints from another contact, a thigh on a seat above its sole: in position, the planner's
+    ``contact_position`` rows).
 
     Attributes:
         frame: Frame name or role (``left_foot``); its z axis is the contact normal.
