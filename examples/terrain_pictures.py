@@ -1,4 +1,4 @@
-"""Draw the terrain motions on talos: a side view of the stairs climb and of the slope walk.
+"""Draw the terrain motions on talos: a side view of the stairs climb, the slope walk and the sit.
 
 Each sentence is planned in its example scene (no simulation) and drawn from the side (x forward,
 z up): the scene objects' outlines (their x-z projection), the floor, and the robot's stick figure
@@ -27,9 +27,10 @@ from tasks.scene import load_scene, rotation  # noqa: E402
 from viz.plots import skeleton_segments  # noqa: E402
 from wbmp.pipeline import SolveRequest, solve  # noqa: E402
 
-PICTURES = {
-    "stairs": ("walk up the stairs", "stairs.json"),
-    "slope": ("walk up the slope", "slope.json"),
+PICTURES = {  # name: sentence, scene file, the drawing's x range [m]
+    "stairs": ("walk up the stairs", "stairs.json", (-0.5, 1.5)),
+    "slope": ("walk up the slope", "slope.json", (-0.5, 1.5)),
+    "chair": ("sit down, then stand up", "chair.json", (-1.0, 1.0)),
 }
 INSTANTS = 6
 
@@ -44,7 +45,7 @@ def outline(obj) -> np.ndarray:
 
 
 def draw(name: str, out: Path) -> Path:
-    sentence, file = PICTURES[name]
+    sentence, file, xlim = PICTURES[name]
     path = ROOT / "examples" / "scenes" / file
     scene = load_scene(path)
     result = solve(SolveRequest(instruction=sentence, robot="talos", scene_path=str(path), simulate=False))
@@ -61,7 +62,7 @@ def draw(name: str, out: Path) -> Path:
             ax.plot([p0[0], p1[0]], [p0[2], p1[2]], color=(shade * 0.4, shade * 0.6, shade), lw=1.6,
                     solid_capstyle="round", zorder=2 + i)
     ax.set_aspect("equal")
-    ax.set_xlim(-0.5, 1.5)
+    ax.set_xlim(*xlim)
     ax.set_ylim(-0.1, 1.9)
     ax.set_title(f'"{sentence}" (talos, {file}): side view, t = 0 to {plan.t[-1]:.1f} s', fontsize=10)
     ax.set_xlabel("x [m]")
@@ -75,10 +76,14 @@ def draw(name: str, out: Path) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", default=str(ROOT / "docs" / "images" / "terrain"), help="output folder")
+    parser.add_argument("names", nargs="*", help=f"the pictures to draw, of {', '.join(PICTURES)} (default: all)")
     args = parser.parse_args(argv)
+    unknown = [n for n in args.names if n not in PICTURES]
+    if unknown:
+        parser.error(f"no picture called {', '.join(unknown)}; choose among {', '.join(PICTURES)}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for name in PICTURES:
+    for name in args.names or PICTURES:
         print(draw(name, out), flush=True)
     return 0
 

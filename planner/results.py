@@ -90,7 +90,9 @@ class CheckKind(enum.Enum):
     certificate ``OBJECT_GRASP``, ``OBJECT_LIFT``, ``OBJECT_HELD`` (held to the end: still in the
     hand), ``OBJECT_PLACE``, ``OBJECT_OFFER`` (held out for a hand-over),
     ``OBJECT_PUSH`` (moved by a push; subject: the object),
-    ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds). The intent lines
+    ``OBJECT_MOVED`` and ``OBJECT_TIPPED`` (the objects no hand holds). A plan with a support-region
+    contact on an object (a thigh on a seat, :mod:`sim.seat`) adds ``SEAT_PLACEMENT``, ``SEAT_SLIP``
+    and ``SEAT_CONTACT`` (subject: the contact frame; ``others``: no other link touches the seat). The intent lines
     (:mod:`sim.intent`): ``INTENT_CONTACTS`` (a sole's lift-offs and touch-downs as planned;
     subject: the foot), ``INTENT_FLIGHT`` (both soles off the floor for a jump's or hop's flights),
     ``INTENT_AMPLITUDE`` (a shift, turn or rise relative to the plan), ``INTENT_STEPS`` (step
@@ -148,6 +150,9 @@ class CheckKind(enum.Enum):
     INTENT_WORDS = "intent_words"
     SELF_COLLISION_MESH = "self_collision_mesh"
     OBJECT_TIPPED = "object_tipped"
+    SEAT_PLACEMENT = "seat_placement"
+    SEAT_SLIP = "seat_slip"
+    SEAT_CONTACT = "seat_contact"
     ESTOP = "estop"
     RECORDED = "recorded"
 

@@ -22,6 +22,7 @@ from sim.collisions import MeshDistance
 from sim.intent import intent_checks
 from sim.meshcheck import mesh_self_collision_check
 from sim.recording import RunRecord, tilt, torque_fraction
+from sim.seat import seat_checks
 
 #: Ticks of a pair whose MuJoCo contact is deeper than the limit that coal checks on the meshes.
 CONFIRM_TICKS = 5
@@ -59,6 +60,7 @@ def certify(run: RunRecord) -> tuple[Check, ...]:
         *fall_checks(run),
         unplanned_contacts_check(run, meas),
         *foot_checks(run, meas),
+        *seat_checks(run),
         peak_torque_check(run),
         qp_failures_check(run),
         com_tracking_check(run, meas),
@@ -495,8 +497,8 @@ TOUCH_PADDING = 0.3  # [s] around a planned touch's time or window, its hand may
 
 def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
     """Whether a robot-object contact is planned: a frame target of the spec touches ``obj``
-    (``FrameTarget.touch``) around that time (:data:`TOUCH_PADDING`), and ``link`` is the target
-    frame's link or one below it."""
+    (``FrameTarget.touch``) around that time (:data:`TOUCH_PADDING`; a window to the motion's end:
+    after it too, the robot still sits), and ``link`` is the target frame's link or one below it."""
     model = run.robot.model
     t = float(run.t[tick])
     if _stands_on(run, t, link, obj):
@@ -505,6 +507,8 @@ def planned_touch(run: RunRecord, tick: int, link: str, obj: str) -> bool:
         if target.touch != obj:
             continue
         start, end = target.window if target.window is not None else (target.time, target.time)
+        if end is not None and end >= float(run.ref.plan.t[-1]) - 1e-9:
+            end = math.inf  # held to the motion's end (seated): it stays touching after it
         if start is None or end is None or not start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
             continue
         joint = model.frames[run.robot.frame_id(target.frame)].parentJoint

@@ -529,6 +529,16 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="count", kind="int", unit="count", default=None, minimum=1, maximum=50,
                   description="how many steps down (default: down to the floor)"),
         )),
+        ActionSchema(name="sit_down", summary="Sit down on a seat of the scene behind the robot (a chair, a bench), "
+                     "the feet staying where they are.", body="whole", params=(
+            Param(name="object", kind="object", default=None,
+                  description="the seat to sit on, as said (\"the chair\"; default: the scene's seat)"),
+        )),
+        ActionSchema(name="stand_up", summary="Stand up from the seat the robot sits on (after sit_down).",
+                     body="whole", params=(
+            Param(name="object", kind="object", default=None,
+                  description="the seat it sits on (default: the one it sat down on)"),
+        )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(
             _object("the object to look at"),

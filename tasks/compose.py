@@ -43,7 +43,7 @@ import pinocchio as pin
 
 from robots import Robot
 from tasks.actions import Action, get_action
-from tasks.exceptions import GroundingError, TaskDefinitionError
+from tasks.exceptions import BeyondCapability, GroundingError, TaskDefinitionError
 from tasks.grounding import Grounded, ground, strip_reference
 from tasks.limits import MAX_ACTIONS, MAX_HORIZON, horizon_message
 from tasks.primitives import (
@@ -124,9 +124,10 @@ def _check_parts(group: list[tuple[int, Action]]) -> None:
             seen[part] = (i, a)
 
 
-def _stand_phase(name: str, duration: float, robot: Robot, stance: Stance) -> Phase:
+def _stand_phase(name: str, duration: float, robot: Robot, stance: Stance, seated: tuple[Contact, ...] = ()) -> Phase:
+    """Both soles down, plus the contacts an action left held (``seated``: the thighs on a seat)."""
     contacts = tuple(Contact(frame=robot.frame(f"{s}_foot"), placement=stance.sole(s)) for s in ("left", "right"))
-    return Phase(name=name, duration=duration, contacts=contacts)
+    return Phase(name=name, duration=duration, contacts=contacts + seated)
 
 
 def standing_waypoint(robot: Robot, label: str, time: float, *, weight: float = WAYPOINT_WEIGHT) -> tuple[JointTarget, ...]:
@@ -260,24 +261,29 @@ def compile_actions(
         waypoints.extend(standing_waypoint(robot, "start", knot_time(k, dt)))
     fragments: list[Fragment] = []
     still_targets: list[CoMTarget] = []
+    seated: tuple[Contact, ...] = ()  # contacts an action left held (sitting): no standing waypoints then
     for gi, group in enumerate(groups):
         if gi > 0 and knots(transition_time):
             n_tr = knots(transition_time)
-            phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance))
-            waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
+            phases.append(_stand_phase("transition", knot_time(n_tr, dt), robot, stance, seated))
+            if not seated:
+                waypoints.extend(standing_waypoint(robot, f"transition {gi}", knot_time(k + n_tr // 2, dt)))
             k += n_tr
         group_fragments, owner = _compile_group(group, fragments, robot, stance, knot_time(k, dt), dt, n)
         still = _still_com(group_fragments, robot, stance, knot_time(k, dt), knot_time(k + round(owner.duration / dt), dt))
         phases.extend(owner.phases)
         k += round(owner.duration / dt)
         stance = owner.end_stance
+        seated = owner.end_contacts
         fragments.extend(group_fragments)
         still_targets.extend(still)
     if knots(stand_time):
-        waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
-        phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance))
+        if not seated:
+            waypoints.extend(standing_waypoint(robot, "stand", knot_time(k, dt)))
+        phases.append(_stand_phase("stand", knot_time(knots(stand_time), dt), robot, stance, seated))
         k += knots(stand_time)
-    waypoints.extend(standing_waypoint(robot, "end", knot_time(k, dt)))
+    if not seated:
+        waypoints.extend(standing_waypoint(robot, "end", knot_time(k, dt)))
     horizon = k * dt
     if horizon > MAX_HORIZON + 1e-9:
         raise TaskDefinitionError(horizon_message(horizon, "split the instruction into several shorter ones"))
@@ -419,10 +425,14 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
         GroundingError: a reference and no scene, or one that names no object or several; the
             message names the action when there are several (``action 2 (point_at): ...``).
     """
-    out = []
+    out: list[Action] = []
     last: SceneObject | None = None  # the object said before: what "it" names
     held: SceneObject | None = None  # the object picked up last: what a put_down's "it" names
     for i, a in enumerate(actions):
+        if a.name == "stand" and out and out[-1].name == "sit_down":  # "sit down, then stand up": rise first
+            a = Action(name="stand_up", params={}, overlay=a.overlay)
+        if a.name in SEAT_ACTIONS:
+            a = _seated(a, scene, out[-1] if out else None, _where(i, a, len(actions)))
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
             out.append(a)
@@ -451,6 +461,37 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
             params[key] = Grounded(reference=strip_reference(ref), obj=obj, scene=cast(Scene, scene))  # ground() raised without one
         out.append(Action(name=a.name, params=params, overlay=a.overlay, defaulted=a.defaulted))
     return out
+
+
+SEAT_ACTIONS = ("sit_down", "stand_up")
+
+
+def _seated(a: Action, scene: Scene | None, before: Action | None, where: str) -> Action:
+    """``sit_down``/``stand_up`` with their seat: the one said, the scene's seat, or the one sat on
+    (BeyondCapability: no seat in the scene, one said that is no seat, a stand_up not after a sit_down)."""
+    if a.name == "stand_up":
+        if before is None or before.name != "sit_down":
+            raise BeyondCapability(f'{where}stand up: the robot is not sitting; say "sit down, then stand up" '
+                                   "(a motion starts standing)")
+        if a.params.get("object") is None:
+            return Action(name=a.name, params={**a.params, "object": before.params["object"]}, overlay=a.overlay,
+                          defaulted=a.defaulted)
+        return a
+    seats = [o for o in (scene.objects if scene is not None else ()) if o.seat]
+    said = a.params.get("object")
+    if said is None:
+        if not seats:
+            raise BeyondCapability(f"{where}sit down: there is no seat in the scene (a chair or a bench: an object "
+                                   'with "seat": true); give a scene with one, e.g. --scene examples/scenes/chair.json')
+        return Action(name=a.name, params={**a.params, "object": Grounded(reference=seats[0].name, obj=seats[0],
+                                                                         scene=cast(Scene, scene))},
+                      overlay=a.overlay, defaulted=a.defaulted)
+    if not isinstance(said, Grounded) and scene is not None:
+        obj = ground(said, scene, action=a.name)
+        if not obj.seat:
+            raise BeyondCapability(f"{where}sit down: the {obj.name} is not a seat (give the scene a chair or a "
+                                   'bench: an object with "seat": true)')
+    return a
 
 
 def pick_up_first(actions: Sequence[Action], robot: Robot) -> list[Action]:

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +110,8 @@ class SceneObject:
         mesh: Mesh file path (shape ``mesh`` only; in a scene file, relative to the file).
         walkable: Its top face is a floor the feet may stand on (an upright box or cylinder:
             stair treads, a box to step onto); :func:`tasks.terrain.surface_at` finds it.
+        seat: Its top face is a seat (a chair's, a bench's): ``sit_down`` sits on it (a static
+            upright box; None, left out of the JSON, is false).
     """
 
     name: str
@@ -124,6 +126,7 @@ class SceneObject:
     friction: float = 0.8
     mesh: str | None = None
     walkable: bool = False
+    seat: bool | None = field(default=None, metadata={"omit_none": True})
 
     def __post_init__(self) -> None:
         _name("name", self.name)
@@ -166,6 +169,12 @@ class SceneObject:
         if self.walkable and (self.shape not in ("box", "cylinder") or self.movable):
             raise _field_error("walkable", f"only a static box or cylinder has a top to walk on; this one is a "
                                            f"{'movable ' if self.movable else ''}{self.shape}")
+        if self.seat is not None and not isinstance(self.seat, bool):
+            raise _field_error("seat", f"must be true or false, got {_show(self.seat)}")
+        if self.seat and (self.shape != "box" or self.movable or rotation(self.rpy)[2][2] < math.cos(math.radians(5))):
+            raise _field_error("seat", f"only a static upright box has a top to sit on; this one is a "
+                                       f"{'movable ' if self.movable else ''}{self.shape}"
+                                       f"{' tilted by more than 5 deg' if self.shape == 'box' else ''}")
 
     @property
     def names(self) -> tuple[str, ...]:

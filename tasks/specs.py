@@ -44,6 +44,8 @@ from tasks.limits import (
 from tasks.scene import Scene
 
 Vec3 = tuple[float, float, float]
+MAX_REGION_POINTS = 16  # a contact's support region corners
+MAX_REGION_EXTENT = 2.0  # [m] a region corner from its contact frame
 OptVec3 = tuple[float | None, float | None, float | None]
 Window = tuple[float, float]
 
@@ -142,17 +144,27 @@ class Pose:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Contact:
-    """A foot (or other body) held fixed in 6D at a ground placement during a phase.
+    """A foot (or other body) held fixed in 6D at a ground placement during a phase (a body part a
+    few joints from another contact, a thigh on a seat above its sole: in position, the planner's
+    ``contact_position`` rows).
 
     Attributes:
         frame: Frame name or role (``left_foot``); its z axis is the contact normal.
         placement: Where the frame is held [m, rad].
         friction_coefficient: Coulomb friction [-]; None takes the robot profile's.
+        region: The support region of a contact on another body part than a sole (a thigh on a
+            seat, a hand on a table): its corner points in the contact frame [m], at least 3
+            (the force points of the dynamic formulation, part of the support polygon); None (left
+            out of the JSON): the profile's sole rectangle for a foot, the frame origin otherwise.
+        normal: The surface's upward unit normal in the world (None, left out of the JSON: the
+            placement's z axis); the friction cone opens about it.
     """
 
     frame: str
     placement: Pose
     friction_coefficient: float | None = None
+    region: tuple[Vec3, ...] | None = field(default=None, metadata={"omit_none": True})
+    normal: Vec3 | None = field(default=None, metadata={"omit_none": True})
 
     def __post_init__(self) -> None:
         if not isinstance(self.frame, str) or not self.frame:
@@ -165,6 +177,16 @@ class Contact:
                     hi=MAX_FRICTION)
             if not self.friction_coefficient > 0.0:
                 raise TaskDefinitionError(f"contact {self.frame}: friction_coefficient must be > 0")
+        if self.region is not None:
+            if not isinstance(self.region, tuple) or not 3 <= len(self.region) <= MAX_REGION_POINTS:
+                raise TaskDefinitionError(f"contact {self.frame}: region must be 3 to {MAX_REGION_POINTS} points "
+                                          f"[x, y, z] in the contact frame [m], got {_show(self.region)}")
+            for i, point in enumerate(self.region):
+                _vec3(f"contact {self.frame}", f"region[{i}]", point, bound=MAX_REGION_EXTENT)
+        if self.normal is not None:
+            _vec3(f"contact {self.frame}", "normal", self.normal, bound=1.0 + 1e-6, unit="")
+            if abs(math.hypot(*self.normal) - 1.0) > 1e-6:
+                raise TaskDefinitionError(f"contact {self.frame}: normal must be a unit vector, got {_show(self.normal)}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -145,14 +145,50 @@ class ContactTerm(_OneFrame, Term):
                 rot_err.setdefault(fid, []).append((np.linalg.norm(pin.log3(M.rotation.T @ oMf.rotation)), t[k]))
         checks = []
         tolerance = ctx.settings.tolerances.contact
+        position_only = {t.frame_id for t in ctx.lay.terms if isinstance(t, ContactPositionTerm)}
         for fid, frame in names.items():
             pe, rt = np.array(pos_err[fid]).T
             checks.append(worst_check(f"{frame} contact position", CheckKind.CONTACT_POSITION, pe, rt, tolerance,
                                       "m", frame))
+            if fid in position_only:
+                continue  # its orientation follows from the other contact's rows, to the solver's tolerance
             re, rt = np.array(rot_err[fid]).T
             checks.append(worst_check(f"{frame} contact orientation", CheckKind.CONTACT_ORIENTATION, re, rt,
                                       tolerance, "rad", frame))
         return checks
+
+
+@dataclass(eq=False)
+class ContactPositionTerm(ContactTerm):
+    """A contact held in position only (3 rows [m]): one whose frame is fewer than 6 joints from
+    another contact of the same knot (a thigh on a seat, 3 joints above its foot's sole). Its 6D
+    rows would repeat that chain's (the foot fixes all but 3 of the thigh's degrees of freedom), and
+    the solver, given redundant equalities, declared the sit infeasible; the orientation follows from
+    the other contact and is reported with the soles' (:meth:`ContactTerm.report`). Structure
+    ``("contact_position", frame id)``."""
+
+    kind: ClassVar[str] = "contact_position"
+    check_kinds: ClassVar[tuple[CheckKind, ...]] = ()
+
+    @classmethod
+    def at(cls, knot: int, frame_id: int, frame: str, placement: pin.SE3, phase: str) -> ContactPositionTerm:
+        """The term at ``knot``: its structure, parameters and row bounds."""
+        return cls(knot=knot, structure=(cls.kind, frame_id), params=np.array(placement.translation, dtype=float),
+                   lower=np.zeros(3), upper=np.zeros(3), label=f"{frame} contact", phase=phase)
+
+    def expression(self, p, kin: StageKinematics) -> tuple:
+        """(rows, cost) in CasADi (:meth:`Term.expression`)."""
+        pos, _ = kin.frames[self.frame_id]
+        return pos - p[0:3], 0
+
+    def residual(self, kin: NumericKinematics) -> np.ndarray:
+        """The rows, or ``[cost]``, in numpy (:meth:`Term.residual`)."""
+        return kin.frame(self.frame_id).translation - self.params[0:3]
+
+    @classmethod
+    def report(cls, ctx: ReportContext) -> list[Check]:
+        """None of its own: :meth:`ContactTerm.report` covers every contact."""
+        return []
 
 
 @dataclass(eq=False)

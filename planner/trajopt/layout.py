@@ -39,6 +39,7 @@ from planner.trajopt.kinds import (
     ClosedChainTerm,
     CoMBoxTerm,
     CoMPositionTerm,
+    ContactPositionTerm,
     ContactTerm,
     FrameOrientationTerm,
     FramePositionTerm,
@@ -50,7 +51,7 @@ from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.term import knots_of
 from robots import Robot, halfplanes, sole_corners_in_world
 from robots import support_polygon as polygon_of_soles
-from tasks import CoMBounds, CoMTarget, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
+from tasks import CoMBounds, CoMTarget, Contact, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
 
 if TYPE_CHECKING:
     from planner.results import Check, Plan
@@ -194,7 +195,18 @@ def contact_terms(lay: Layout) -> None:
         if not _use(lay, k):
             continue
         for fid, (frame, M) in lay.contacts_at[k].items():
-            lay.terms.append(ContactTerm.at(k, fid, frame, M, lay.phase_name(k)))
+            near = 6 if lay.robot.foot_side(lay.robot.model.frames[fid].name) else min(
+                (_chain_joints(lay.robot, fid, other) for other in lay.contacts_at[k] if other != fid), default=6)
+            kind = ContactPositionTerm if near < 6 else ContactTerm  # a sole keeps its 6 rows
+            lay.terms.append(kind.at(k, fid, frame, M, lay.phase_name(k)))
+
+
+def _chain_joints(robot: Robot, a: int, b: int) -> int:
+    """The one-dof joints on the kinematic path between frames ``a`` and ``b`` (a thigh and its foot: 3)."""
+    model = robot.model
+    sa = set(model.supports[model.frames[a].parentJoint])
+    sb = set(model.supports[model.frames[b].parentJoint])
+    return sum(model.joints[j].nv == 1 for j in sa ^ sb)
 
 
 def swing_terms(lay: Layout) -> None:
@@ -311,7 +323,10 @@ def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
         for c in phase.contacts:
             side = robot.foot_side(robot.model.frames[robot.frame_id(c.frame)].name)
             if side is None:
-                continue  # a hand or other contact: not part of the sole polygon
+                if region_supports(c):  # a thigh on a seat: its support region bears weight
+                    soles.append(np.asarray(c.region, dtype=float) @ placement_of(c.placement).rotation.T
+                                 + np.asarray(c.placement.position, dtype=float))
+                continue  # a hand or other point contact: not part of the sole polygon
             soles.append(sole_corners_in_world(robot.profile.sole, side, placement_of(c.placement)))
         if soles:
             hull = polygon_of_soles(soles)
@@ -321,6 +336,18 @@ def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
             out.append(_PhasePolygon(start, start + phase.duration, hull, _polygon_area(hull), planes))
     lay.__dict__["_phase_polygons"] = (spec, robot, out)
     return out
+
+
+SUPPORT_NORMAL_COS = math.cos(math.radians(30))  # a region on a surface tilted at most this much bears weight
+
+
+def region_supports(contact: Contact) -> bool:
+    """A contact with a support region on a surface facing up (its normal, or its placement's z axis,
+    within 30 deg of vertical): its corners join the soles' support polygon."""
+    if contact.region is None:
+        return False
+    n = contact.normal if contact.normal is not None else tuple(pin.rpy.rpyToMatrix(*contact.placement.rpy)[:, 2])
+    return float(n[2]) >= SUPPORT_NORMAL_COS
 
 
 def _polygon_area(hull: np.ndarray) -> float:

@@ -82,6 +82,29 @@ def _flight_window(active: np.ndarray, span: int) -> np.ndarray:
     return out
 
 
+def _regions(ref: PlanReference, robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per contact frame of the spec with a 4-corner support region (a thigh on a seat): its corners
+    in the frame (4, 3) and the rotation (3, 3) from the frame to its friction cone's frame (z: the
+    surface normal, x: the frame's x made orthogonal to it), at the planned placement. The
+    controller's corner forces of that contact are in the cone's frame, so its pyramids open about
+    the surface normal, as the planner's (``planner.trajopt.centroidal.contact_geometry``)."""
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for phase in ref.plan.spec.phases:
+        for c in phase.contacts:
+            if c.region is None or len(c.region) != 4:
+                continue
+            name = robot.model.frames[robot.frame_id(c.frame)].name
+            R = pin.rpy.rpyToMatrix(*c.placement.rpy)
+            z = np.asarray(c.normal if c.normal is not None else R[:, 2], dtype=float)
+            z = z / np.linalg.norm(z)
+            x = R[:, 0] - (R[:, 0] @ z) * z
+            if np.linalg.norm(x) < 1e-6:
+                x = R[:, 1] - (R[:, 1] @ z) * z
+            x = x / np.linalg.norm(x)
+            out[name] = (np.asarray(c.region, dtype=float), R.T @ np.column_stack([x, np.cross(z, x), z]))
+    return out
+
+
 class TickInfo(NamedTuple):
     """What the last tick did.
 
@@ -195,13 +218,21 @@ class WholeBodyController:
         self.n_in = 16 * nc + self.nu
         # corner geometry (sole frame, pulled cop_margin inside) and the force -> wrench map G0 (6 x 12)
         g0s = []
+        regions = _regions(ref, self.robot)
+        # a region contact on another body part (a thigh on a seat, 3 joints above its held sole): its
+        # forces act at its corners, its position is tracked as a stiff task, its orientation is free
+        self._position_only = [i for i, name in enumerate(self._contacts)
+                               if self.robot.foot_side(name) is None and name in regions]
         for name in self._contacts:
-            side = self.robot.foot_side(name) or "left"
-            corners = sole_corners(self.robot.profile.sole, side, margin=s.cop_margin)
+            foot = self.robot.foot_side(name)
+            corners = sole_corners(self.robot.profile.sole, foot or "left", margin=s.cop_margin)
+            cone = np.eye(3)  # the corner forces' frame in the contact frame (a sole: the same)
+            if foot is None and name in regions:  # a region on another body part (a thigh on a seat)
+                corners, cone = regions[name]
             g0 = np.zeros((6, 12))
             for k, c in enumerate(corners):
-                g0[:3, 3 * k : 3 * k + 3] = np.eye(3)
-                g0[3:, 3 * k : 3 * k + 3] = pin.skew(c)
+                g0[:3, 3 * k : 3 * k + 3] = cone
+                g0[3:, 3 * k : 3 * k + 3] = pin.skew(c) @ cone
             g0s.append(g0 * self._f_scale)
         self._g0_arr = np.array(g0s).reshape(nc, 6, 12)  # the kernel's corner-force -> wrench maps
         # frames: contact frames first (stance rows), then hands and spec target frames
@@ -346,7 +377,7 @@ class WholeBodyController:
         self._ga = np.zeros(nv)
         self._xbuf = np.zeros(self.n)
         self._taubuf = np.zeros(self.nu)
-        self._fast_path = bool(s.fast_path and s.backend == "proxsuite")
+        self._fast_path = bool(s.fast_path and s.backend == "proxsuite" and not self._position_only)
         self._active_iters = int(s.active_set_iterations) if self._fast_path else 0
         self._info = np.zeros(2, dtype=np.int64)
         self._l_tau = self.l[16 * nc :]
@@ -418,6 +449,11 @@ class WholeBodyController:
         self._mom_near = None  # the momentum weight is set by the tick (_momentum_window)
         self._com_near = None  # and the CoM weight
         self._stance_rows = on[3 : 3 + 6 * nc].astype(float)
+        for i in self._position_only:  # its forces act, its place is a stiff task (not a constraint: with the
+            # soles' rows and the pelvis between the two hips, hard rows were rank-deficient and the QP failed)
+            self._stance_rows[6 * i : 6 * i + 6] = 0.0
+            if active[i]:
+                self._w_rows[3 + 6 * i : 6 + 6 * i] = self._sqrt_w_task[3 + 6 * i : 6 + 6 * i]
         self._frame_active = np.zeros(len(self._frames), dtype=bool)
         self._frame_active[:nc] = active
         self._stance = np.array([i for i, a in enumerate(active) if a], dtype=np.int64)

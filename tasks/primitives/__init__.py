@@ -35,6 +35,7 @@ from tasks.primitives import (
     posture,
     push,
     reach,
+    seat,
     squat,
     terrain,
     wave,
@@ -81,6 +82,7 @@ PRIMITIVES: dict[str, Primitive] = {
         *handover.PRIMITIVES,
         *push.PRIMITIVES,
         *terrain.PRIMITIVES,
+        *seat.PRIMITIVES,
     )
 }
 

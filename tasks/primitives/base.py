@@ -75,6 +75,8 @@ class Fragment:
         pushes: Objects a hand pushes in this action (the certificate checks how far they moved).
         holds: Names of targets that stay held after the action, until the next action that
             drives one of its parts or moves the feet (or the end of the motion): a held object.
+        end_contacts: Contacts besides the soles held after the action, until the next one (the
+            thighs on a seat after ``sit_down``): the standing phases between and after keep them.
     """
 
     action: Action
@@ -92,6 +94,7 @@ class Fragment:
     grasps: tuple[Grasp, ...] = ()
     holds: tuple[str, ...] = ()
     pushes: tuple[Push, ...] = ()
+    end_contacts: tuple[Contact, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -167,6 +170,7 @@ class FragmentBuilder:
         self.holds: list[str] = []
         self.pushes: list[Push] = []
         self.end_stance = stance
+        self.end_contacts: tuple[Contact, ...] = ()
 
     # --- time ---------------------------------------------------------------------------
     def knot(self, tau: float) -> int:
@@ -269,6 +273,7 @@ class FragmentBuilder:
             com_bounds=tuple(self.com_bounds), joint_targets=tuple(self.joint_targets),
             parts=frozenset(parts), changes_contacts=changes, dynamic=dynamic, end_stance=self.end_stance,
             grasps=tuple(self.grasps), holds=tuple(self.holds), pushes=tuple(self.pushes),
+            end_contacts=self.end_contacts,
         )
 
 

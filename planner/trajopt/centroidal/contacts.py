@@ -191,15 +191,32 @@ def contact_geometry(contact: Contact, robot: Robot, *, cop_margin: float = 0.0,
             )
         local = sole_corners(sole, side, margin=cop_margin)
     mu = contact.friction_coefficient or robot.profile.friction_coefficient
+    world = local @ rotation.T + position
+    if contact.region is not None:  # a support region on another body part: its corners are the force points
+        world = np.asarray(contact.region, dtype=float) @ rotation.T + position
+    if contact.normal is not None:  # the cone opens about the surface's normal, not the frame's z axis
+        rotation = normal_frame(np.asarray(contact.normal, dtype=float), rotation[:, 0])
     return ContactGeometry(
         frame=frame,
         rotation=rotation,
         position=position,
-        points_in_world=local @ rotation.T + position,
-        points_in_frame=local,
+        points_in_world=world,
+        points_in_frame=(world - position) @ rotation,
         friction_coefficient=float(mu),
         ankle=ankle,
     )
+
+
+def normal_frame(normal: np.ndarray, x_hint: np.ndarray) -> np.ndarray:
+    """A rotation (3, 3) whose z axis is the unit ``normal`` and whose x axis is ``x_hint`` made
+    orthogonal to it (the world x or y axis when the hint is along the normal)."""
+    z = normal / np.linalg.norm(normal)
+    for hint in (x_hint, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
+        x = hint - (hint @ z) * z
+        if np.linalg.norm(x) > 1e-6:
+            x = x / np.linalg.norm(x)
+            return np.column_stack([x, np.cross(z, x), z])
+    raise AssertionError("unreachable: two orthogonal hints cannot both be along the normal")  # pragma: no cover
 
 
 def contacts_per_knot(spec: TaskSpec, robot: Robot, t: Sequence[float] | np.ndarray, *, cop_margin: float = 0.0) -> tuple[tuple[ContactGeometry, ...], ...]:

@@ -44,6 +44,7 @@ from planner.trajopt.centroidal.physics import (
     friction_pyramid,
 )
 from planner.trajopt.collision import Rows, sphere_sets, with_collision_terms
+from planner.trajopt.kinds import ContactPositionTerm
 from planner.trajopt.layout import Layout, make_layout, support_halfplanes, support_polygon
 from planner.trajopt.payload import payload_torques
 from planner.trajopt.scene_collision import SceneRows, obstacles, row_value, with_scene_terms
@@ -129,6 +130,9 @@ def layout(talos) -> Layout:
     their hands by role, ``left_hand``: the scene rows' contact exclusions resolve it)."""
     lay = make_layout(_spec(), talos)
     kinematic = list(lay.terms)
+    thigh = talos.frame_id("leg_left_3_link")  # a thigh held on a seat in position only (sit_down)
+    kinematic.append(ContactPositionTerm.at(COLLISION_KNOT, thigh, "leg_left_3_link",
+                                            pin.SE3(np.eye(3), np.array([-0.22, 0.085, 0.37])), "twin"))
     sets = sphere_sets(talos)
     lay.terms = []
     rows = Rows()
@@ -195,6 +199,10 @@ def _contact_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
     frame, M = lay.contacts_at[term.knot][term.structure[1]]
     oMf = kin.frame(term.structure[1])
     return np.concatenate([oMf.translation - M.translation, _rotation_error(M.rotation, oMf.rotation)])
+
+
+def _contact_position_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    return kin.frame(term.structure[1]).translation - np.array([-0.22, 0.085, 0.37])  # the fixture's seat place
 
 
 def _clearance_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
@@ -308,6 +316,7 @@ def _named(kind: str, mode: str | None = None, item=None):
 
 KINDS: dict[str, Kind] = {
     "contact (foot placement)": Kind(_named("contact"), _contact_ref),
+    "contact (position only: a thigh on a seat)": Kind(_named("contact_position"), _contact_position_ref),
     "swing clearance": Kind(lambda t: t.kind == "clearance" and t.lower[0] > 0, _clearance_ref),
     "CoM support polygon (two soles)": Kind(lambda t: t.kind == "polygon" and t.structure[1] == 8, _polygon_ref),
     "CoM support polygon (one sole)": Kind(lambda t: t.kind == "polygon" and t.structure[1] == 4, _polygon_ref),
