@@ -28,8 +28,6 @@ FUNCTION_ALLOWLIST = {
     # the whole-body controller: one control step and its numeric kernel (the hot path)
     "planner/wbc/controller.py::WholeBodyController.compute": 143,
     "planner/wbc/kernel.py::tick_kernel": 217,
-    # the motion file's exports
-    "wbmp/export/files.py::export_motion": 104,
 }
 
 

@@ -92,16 +92,26 @@ def export_motion(motion: MotionFile | str | Path, path: str | Path, fmt: str | 
         staging.add(path, lambda fh: np.savez_compressed(fh, **arrays))
         return [path]
     if fmt == "json":
-        doc: dict[str, Any] = {}
-        for k, val in arrays.items():
-            if k in ("spec_json", "actions_json", "report_json"):
-                doc[k[: -len("_json")]] = json.loads(str(val))
-            else:
-                val = np.asarray(val)
-                doc[k] = val.tolist() if val.ndim else val.item()
-        data = json.dumps(doc, default=json_default).encode("utf-8")
+        data = _json_bytes(arrays)
         staging.add(path, lambda fh: fh.write(data))
         return [path]
+    return _stage_csv(motion, arrays, path, staging)
+
+
+def _json_bytes(arrays: dict[str, Any]) -> bytes:
+    """The JSON export: every key of the npz, arrays as nested lists, the JSON members as objects."""
+    doc: dict[str, Any] = {}
+    for k, val in arrays.items():
+        if k in ("spec_json", "actions_json", "report_json"):
+            doc[k[: -len("_json")]] = json.loads(str(val))
+        else:
+            val = np.asarray(val)
+            doc[k] = val.tolist() if val.ndim else val.item()
+    return json.dumps(doc, default=json_default).encode("utf-8")
+
+
+def _stage_csv(motion: MotionFile, arrays: dict[str, Any], path: Path, staging: Staging) -> list[Path]:
+    """The CSV export: the plan's knots in ``path``, the execution's ticks in its ``.exec.csv``."""
     written = [path]
     plan = motion.plan
     names = csv_columns(motion)
