@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -160,6 +160,88 @@ def momentum_rates(lay: DynamicData, x_kin: Any, pm: Any, row_index: np.ndarray 
     return r + ca.mtimes(J, x_kin), J
 
 
+def _lifted_com_selection(N: int) -> ca.DM:
+    """The selection ``vec(C) (3 (N + 1)) <- c (3 (N - 2))`` of the lifted CoM: knots 2..N-1 are
+    variables, knot N copies knot N-1 (knots 0 and 1, at the standing CoM, select nothing)."""
+    n = N - 2
+    rows, cols = [], []
+    for k in range(2, N + 1):
+        j = min(k, N - 1) - 2
+        rows += [3 * k + i for i in range(3)]
+        cols += [3 * j + i for i in range(3)]
+    return ca.DM(ca.Sparsity.triplet(3 * (N + 1), 3 * n, rows, cols), 1.0)
+
+
+def _centroidal_functions(cf: CentroidalFunction, N: int) -> tuple[ca.Function, ca.Function, ca.Function,
+                                                                    ca.Function, int]:
+    """The centroidal rows ``g`` and cost ``f`` as SX functions of ``(C, u, p, dt)``: their values,
+    their first derivatives w.r.t. ``(vec C, u)`` and the Hessian of ``sigma f + lam . g``; and the
+    number of rows."""
+    Cs = ca.SX.sym("C", 3, N + 1)
+    Us = ca.SX.sym("u", cf.terms.n_variables)
+    Ps = ca.SX.sym("p", cf.terms.parameter_values.size)
+    dts = ca.SX.sym("dt")
+    gs, fs = cf.function(Cs, Us, Ps, dts)
+    n_c = gs.numel()
+    ls = ca.SX.sym("lam", n_c)
+    sig = ca.SX.sym("sigma")
+    w = ca.vertcat(ca.vec(Cs), Us)
+    lag = sig * fs + ca.dot(ls, gs)
+    g0 = ca.Function("dyn_centroidal_g", [Cs, Us, Ps, dts], [gs])
+    f0 = ca.Function("dyn_centroidal_f", [Cs, Us, Ps, dts], [fs])
+    d1 = ca.Function("dyn_centroidal_d1", [Cs, Us, Ps, dts], [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w)])
+    d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.hessian(lag, w)[0]])
+    return g0, f0, d1, d2, n_c
+
+
+def _swing_corner_selection(robot: Any, cf: CentroidalFunction, n: int) -> ca.DM:
+    """The rows of the swinging soles' corner heights, picked from ``vec(Z)`` (8 corners a knot)."""
+    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
+    zr = [(k - 2) * 8 + feet.index(fid) * 4 + i for k, fid, i in cf.corner_rows]
+    return ca.DM(ca.Sparsity.triplet(len(zr), 8 * n, list(range(len(zr))), zr), 1.0)
+
+
+class _MomentumBlocks(NamedTuple):
+    n_l: int  # lifted moment variables (0: not lifted)
+    add_c: Any  # added to the centroidal rows: + l_k (lifted), + dh/dt of the body, or None
+    f_l: Any
+    grad_l: Any
+    hess_ll: Any
+    g_r: Any  # the rows rate_k(x) - l_k (lifted only)
+    jac_rx: Any
+    jac_l: Any
+    jac_cx: Any  # d(centroidal rows)/dx (the body's dh/dt, not lifted)
+
+
+def _momentum_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, dt: Any, lam_f: Any, pm: Any,
+                     moment: Any, n_c: int, n_rest: int) -> _MomentumBlocks:
+    """Euler for the whole body: the rows ``-Ldot_k`` of the centroidal function get ``+ l_k`` (the
+    lifted moments, with their own rows ``rate_k(x) = l_k`` and cost) or ``+ dh/dt`` of the body
+    (linearized about ``pm``); nothing without whole-body momentum rows."""
+    from planner.trajopt.centroidal.pattern import momentum_row_index
+
+    nv, n = lay.robot.nv, lay.N - 2
+    idx = momentum_row_index(cf.terms.constraints)
+    n_l = moment_rows(lay)
+    out = _MomentumBlocks(n_l, None, ca.MX(0), ca.MX(0, 1), ca.MX(0, 0), ca.MX(0, 1), ca.MX(0, nv * n),
+                          ca.MX(n_c + n_rest, 0), ca.MX(n_c, nv * n))
+    if not len(idx):
+        return out
+    if pm is None:
+        raise ValueError("dynamic_blocks: whole-body momentum rows need their linearization parameters pm")
+    if n_l == 0:
+        rates, jac_cx = momentum_rates(lay, x_kin, pm, idx, n_c)
+        return out._replace(add_c=rates, jac_cx=jac_cx)
+    if moment is None or moment.numel() != n_l or len(idx) != n_l:
+        raise ValueError("dynamic_blocks: the lifted moment needs 3 variables per dynamics knot")
+    S = ca.DM(ca.Sparsity.triplet(n_c, n_l, idx.tolist(), list(range(n_l))), 1.0)
+    rates, jac_rx = momentum_rates(lay, x_kin, pm)
+    w_l = 2 * lay.centroidal_settings.angular_momentum_weight * dt
+    return out._replace(add_c=ca.mtimes(S, moment), f_l=0.5 * w_l * ca.sumsqr(moment), grad_l=w_l * moment,
+                        hess_ll=ca.MX(ca.Sparsity.diag(n_l), ca.repmat(lam_f * w_l, n_l, 1)),
+                        g_r=rates - moment, jac_rx=jac_rx, jac_l=ca.vertcat(ca.MX(S), ca.MX(n_rest, n_l)))
+
+
 def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any, c: Any, q_ref: Any, p: Any, dt: Any,
                    lam_f: Any, lam: Any, *, kinematic_hessian: bool = True, pm: Any = None,
                    moment: Any = None) -> DynamicBlocks:
@@ -206,28 +288,8 @@ def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any,
     c0 = values(ca.MX.zeros(nv), q_ref)[0]
     Cv = ca.reshape(c, 3, n)
     C = ca.horzcat(c0, c0, Cv, Cv[:, n - 1])
-    # selection E: vec(C) (3(N+1)) <- c (3n); knot N copies knot N-1
-    rows, cols = [], []
-    for k in range(2, N + 1):
-        j = min(k, N - 1) - 2
-        rows += [3 * k + i for i in range(3)]
-        cols += [3 * j + i for i in range(3)]
-    E = ca.DM(ca.Sparsity.triplet(3 * (N + 1), 3 * n, rows, cols), 1.0)
-    # centroidal function derivatives w.r.t. (vec C, u)
-    Cs = ca.SX.sym("C", 3, N + 1)
-    Us = ca.SX.sym("u", cf.terms.n_variables)
-    Ps = ca.SX.sym("p", cf.terms.parameter_values.size)
-    dts = ca.SX.sym("dt")
-    gs, fs = cf.function(Cs, Us, Ps, dts)
-    n_c = gs.numel()
-    ls = ca.SX.sym("lam", n_c)
-    sig = ca.SX.sym("sigma")
-    w = ca.vertcat(ca.vec(Cs), Us)
-    lag = sig * fs + ca.dot(ls, gs)
-    g0 = ca.Function("dyn_centroidal_g", [Cs, Us, Ps, dts], [gs])
-    f0 = ca.Function("dyn_centroidal_f", [Cs, Us, Ps, dts], [fs])
-    d1 = ca.Function("dyn_centroidal_d1", [Cs, Us, Ps, dts], [gs, fs, ca.jacobian(gs, w), ca.gradient(fs, w)])
-    d2 = ca.Function("dyn_centroidal_d2", [Cs, Us, Ps, dts, sig, ls], [ca.hessian(lag, w)[0]])
+    E = _lifted_com_selection(N)
+    g0, f0, d1, d2, n_c = _centroidal_functions(cf, N)
     n_m = 3 * n
     lam_c, lam_m = lam[:n_c], lam[n_c:n_c + n_m]
     g_c, f_c = g0(C, u, p, dt), f0(C, u, p, dt)
@@ -237,11 +299,8 @@ def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any,
     J_C, J_U = J_w[:, :m], J_w[:, m:]
     G_C, G_U = G_w[:m], G_w[m:]
     H_CC, H_CU, H_UU = H_w[:m, :m], H_w[:m, m:], H_w[m:, m:]
-    # swinging sole corners: rows picked from Z (8 x n)
-    feet = [robot.frame_id(f"{s}_foot") for s in ("left", "right")]
-    zr = [(k - 2) * 8 + feet.index(fid) * 4 + i for k, fid, i in cf.corner_rows]
-    n_z = len(zr)
-    Sz = ca.DM(ca.Sparsity.triplet(n_z, 8 * n, list(range(n_z)), zr), 1.0)
+    Sz = _swing_corner_selection(robot, cf, n)
+    n_z = Sz.size1()
     lam_z = lam[n_c + n_m:n_c + n_m + n_z]
     g_z = ca.mtimes(Sz, ca.vec(Z))
     g_zd = ca.mtimes(Sz, ca.vec(Z_d))
@@ -250,32 +309,11 @@ def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any,
     nu = -ca.reshape(lam_m, 3, n)
     HK = second.map(n)(X, Qr, nu, eta) if kinematic_hessian else None
     n_u = cf.terms.n_variables
-    jac_cx = ca.MX(n_c, nv * n)
-    from planner.trajopt.centroidal.pattern import momentum_row_index
-
-    idx = momentum_row_index(cf.terms.constraints)
-    n_l = moment_rows(lay)
-    lifted = n_l > 0
-    f_l, grad_l, hess_ll = ca.MX(0), ca.MX(0, 1), ca.MX(0, 0)
-    g_r, g_rd, jac_rx, jac_l = ca.MX(0, 1), ca.MX(0, 1), ca.MX(0, nv * n), ca.MX(n_c + n_m + n_z, 0)
-    if len(idx):  # Euler for the whole body: the rows -Ldot_k get + l_k (lifted) or + dh/dt of the body
-        if pm is None:
-            raise ValueError("dynamic_blocks: whole-body momentum rows need their linearization parameters pm")
-        if lifted:
-            if moment is None or moment.numel() != n_l or len(idx) != n_l:
-                raise ValueError("dynamic_blocks: the lifted moment needs 3 variables per dynamics knot")
-            S = ca.DM(ca.Sparsity.triplet(n_c, n_l, idx.tolist(), list(range(n_l))), 1.0)
-            g_c, g_cd = g_c + ca.mtimes(S, moment), g_cd + ca.mtimes(S, moment)
-            rates, jac_rx = momentum_rates(lay, x_kin, pm)
-            g_r = g_rd = rates - moment
-            w_l = 2 * lay.centroidal_settings.angular_momentum_weight * dt
-            f_l = 0.5 * w_l * ca.sumsqr(moment)
-            grad_l = w_l * moment
-            hess_ll = ca.MX(ca.Sparsity.diag(n_l), ca.repmat(lam_f * w_l, n_l, 1))
-            jac_l = ca.vertcat(ca.MX(S), ca.MX(n_m + n_z, n_l))
-        else:
-            rates, jac_cx = momentum_rates(lay, x_kin, pm, idx, n_c)
-            g_c, g_cd = g_c + rates, g_cd + rates
+    mb = _momentum_blocks(lay, cf, x_kin, dt, lam_f, pm, moment, n_c, n_m + n_z)
+    n_l, f_l, grad_l, hess_ll = mb.n_l, mb.f_l, mb.grad_l, mb.hess_ll
+    g_r, g_rd, jac_rx, jac_l, jac_cx = mb.g_r, mb.g_r, mb.jac_rx, mb.jac_l, mb.jac_cx
+    if mb.add_c is not None:
+        g_c, g_cd = g_c + mb.add_c, g_cd + mb.add_c
     return DynamicBlocks(
         f=f_c + f_l,
         g=ca.vertcat(g_c, c - ca.vec(Ck), g_z, g_r),

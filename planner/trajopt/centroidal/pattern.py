@@ -5,8 +5,8 @@ its numbers, :class:`CentroidalPattern`), and the CasADi terms (:func:`build_cen
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -295,6 +295,143 @@ def centroidal_pattern(contacts: Sequence[Sequence[ContactGeometry]], mass: floa
     )
 
 
+class _ContactBlock(NamedTuple):
+    u: Any  # the force variables (b per point)
+    prm: Any  # the contact's parameters: points, rotation, friction, ankle levers
+    rows: list[ConstraintBlock]  # friction (without edges) and ankle torque rows
+    points: list[Any]  # contact points (world) [m]
+    forces: list[Any]  # their forces [body weights]
+
+
+def _contact_block(c: ContactGeometry, bound: np.ndarray, k: int, settings: CentroidalSettings,
+                   symbol: type[ca.SX] | type[ca.MX]) -> _ContactBlock:
+    """One active contact at knot ``k``: its force variables and parameters, the force at each of
+    its points (pyramid edges or a 3D force), its friction rows and the torque rows of the ankle
+    axes it loads (``bound``: their limits)."""
+    edges = settings.friction_edges
+    b = 4 if edges else 3
+    m = c.n_points
+    n_a = len(bound)
+    u = symbol.sym(f"u_{c.frame}_{k}", b * m)
+    prm = symbol.sym(f"contact_{c.frame}_{k}", 3 * m + 10 + 3 * m * n_a)
+    R = ca.reshape(prm[3 * m : 3 * m + 9], 3, 3)
+    E = pyramid_edges(R, prm[3 * m + 9], inner=settings.inner_pyramid) if edges else None
+    E_local = pyramid_edges(ca.DM.eye(3), prm[3 * m + 9], inner=settings.inner_pyramid) if edges and n_a else None
+    rows, points, forces = [], [], []
+    for i in range(m):
+        if edges:
+            f_i = ca.mtimes(E, u[4 * i : 4 * i + 4])
+        else:
+            f_i = u[3 * i : 3 * i + 3]
+            rows.append(friction_pyramid(f_i, R, prm[3 * m + 9], inner=settings.inner_pyramid))
+        points.append(prm[3 * i : 3 * i + 3])
+        forces.append(f_i)
+    blocks = []
+    if rows:
+        expr = ca.vertcat(*rows)
+        blocks.append(ConstraintBlock(
+            name=f"friction {c.frame}", knot=k, expr=expr,
+            lower=np.zeros(expr.shape[0]), upper=np.full(expr.shape[0], np.inf),
+        ))
+    if n_a:
+        # moment of the corner forces about each ankle axis, in the sole frame: sum_i l_ji . R^T f_i
+        # with the levers l_ji = a_j x (r_i - o_j) as parameters (fixed per robot and foot)
+        levers = prm[3 * m + 10:]
+        if edges:
+            local = [ca.mtimes(E_local, u[4 * i: 4 * i + 4]) for i in range(m)]
+        else:
+            local = [ca.mtimes(R.T, f) for f in forces]
+        expr = ca.vertcat(*[sum(ca.dot(levers[3 * (j * m + i): 3 * (j * m + i) + 3], local[i])
+                                for i in range(m)) for j in range(n_a)])
+        blocks.append(ConstraintBlock(name=f"ankle torque {c.frame}", knot=k, expr=expr,
+                                      lower=-bound, upper=bound))
+    return _ContactBlock(u, prm, blocks, points, forces)
+
+
+def _euler_rows(com_k: Any, points: list[Any], forces: list[Any], k: int, dt: Any,
+                settings: CentroidalSettings) -> tuple[list[ConstraintBlock], Any]:
+    """Euler at knot ``k``: the rows ``-Ldot_k = 0`` of the forces' moment about the CoM (with
+    whole-body momentum) and its cost (without, or None)."""
+    ldot = angular_momentum_rate(com_k, points, forces) if forces else ca.DM.zeros(3)  # [m x body weights]
+    rows = []
+    if settings.whole_body_momentum:
+        # -Ldot_k here; the NLP adds the whole body's momentum rate (h_{k+1/2} - h_{k-1/2}) / dt
+        # to these rows (planner.trajopt.centroidal.momentum): zero when Euler's law holds. With
+        # settings.lifts_moment it adds a variable Ldot_k instead, penalized and tied to the rate
+        # by rows of its own (planner.trajopt.centroidal.nlp): no cost on the moment here
+        rows.append(ConstraintBlock(name="angular momentum", knot=k, expr=-ldot, lower=np.zeros(3), upper=np.zeros(3)))
+    if forces and settings.angular_momentum_weight > 0.0 and not settings.lifts_moment:
+        return rows, settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
+    return rows, None
+
+
+def _cat(xs: list) -> np.ndarray:
+    return np.concatenate(xs) if xs else np.zeros(0)
+
+
+@dataclass
+class _Collected:
+    """What :func:`build_centroidal` collects over the knots, in the order of the variables."""
+
+    T: int
+    syms: list[Any] = field(default_factory=list)
+    psyms: list[Any] = field(default_factory=list)
+    pvals: list[np.ndarray] = field(default_factory=list)
+    lower: list[np.ndarray] = field(default_factory=list)
+    upper: list[np.ndarray] = field(default_factory=list)
+    initial: list[np.ndarray] = field(default_factory=list)
+    blocks: list[ConstraintBlock] = field(default_factory=list)
+    frames: list[str] = field(default_factory=list)
+    structure: list[tuple] = field(default_factory=list)
+    dyn_knots: list[int] = field(default_factory=list)
+    cost: Any = 0
+    n: int = 0
+    index: list[dict[str, np.ndarray]] = field(init=False)
+    gens: list[dict[str, np.ndarray]] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.index = [{} for _ in range(self.T)]
+        self.gens = [{} for _ in range(self.T)]
+
+    def add(self, c: ContactGeometry, k: int, block: _ContactBlock, b: int, box: tuple, values: np.ndarray,
+            generator: np.ndarray) -> None:
+        """A contact's variables (``b`` per point), bounds, guess, parameters and rows at knot ``k``."""
+        if c.frame not in self.frames:
+            self.frames.append(c.frame)
+        m = c.n_points
+        self.syms.append(block.u)
+        self.psyms.append(block.prm)
+        self.pvals.append(values)
+        self.index[k][c.frame] = np.arange(self.n, self.n + b * m).reshape(m, b)
+        self.gens[k][c.frame] = generator
+        self.n += b * m
+        lo, hi, guess = box
+        self.lower.append(lo)
+        self.upper.append(hi)
+        self.initial.append(guess)
+        self.blocks += block.rows
+
+    def terms(self, symbol: type[ca.SX] | type[ca.MX], weight: float,
+              contacts: Sequence[Sequence[ContactGeometry]], settings: CentroidalSettings) -> CentroidalTerms:
+        return CentroidalTerms(
+            variables=ca.vertcat(*self.syms) if self.syms else symbol(0, 1),
+            lower=_cat(self.lower),
+            upper=_cat(self.upper),
+            initial=_cat(self.initial),
+            parameters=ca.vertcat(*self.psyms) if self.psyms else symbol(0, 1),
+            parameter_values=_cat(self.pvals),
+            constraints=tuple(self.blocks),
+            cost=self.cost,
+            weight=weight,
+            contacts=tuple(tuple(c) for c in contacts),
+            force_index=tuple(self.index),
+            generators=tuple(self.gens),
+            frames=tuple(self.frames),
+            dynamics_knots=tuple(self.dyn_knots),
+            structure=_structure(settings, self.structure),
+        )
+
+
 def build_centroidal(
     com: Sequence[Any],
     dt: Any,
@@ -334,20 +471,7 @@ def build_centroidal(
     g_norm = float(np.linalg.norm(gravity))
     weight = float(mass * g_norm)
     g_unit = np.asarray(gravity, dtype=float) / g_norm
-    syms: list[Any] = []
-    psyms: list[Any] = []
-    pvals: list[np.ndarray] = []
-    lower: list[np.ndarray] = []
-    upper: list[np.ndarray] = []
-    initial: list[np.ndarray] = []
-    blocks: list[ConstraintBlock] = []
-    index: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
-    gens: list[dict[str, np.ndarray]] = [{} for _ in range(T)]
-    frames: list[str] = []
-    structure: list[tuple] = []
-    cost = 0
-    n = 0
-    dyn_knots = []
+    grid = _Collected(T)
     edges = settings.friction_edges
     b = 4 if edges else 3
     # edges: 4 |u_p|^2 equals |f|^2 for a force along the normal split evenly over the edges
@@ -356,92 +480,28 @@ def build_centroidal(
         active = contacts[k]
         n_points = sum(c.n_points for c in active)
         ankle = [_ankle_bounds(c, settings, weight) for c in active]
-        structure.append((k, tuple((c.frame, c.n_points, len(a)) for c, a in zip(active, ankle, strict=True))))
+        grid.structure.append((k, tuple((c.frame, c.n_points, len(a)) for c, a in zip(active, ankle, strict=True))))
         total = ca.DM.zeros(3)
         points, forces = [], []
         for c, bound in zip(active, ankle, strict=True):
-            if c.frame not in frames:
-                frames.append(c.frame)
-            m = c.n_points
-            n_a = len(bound)
-            u = symbol.sym(f"u_{c.frame}_{k}", b * m)
-            prm = symbol.sym(f"contact_{c.frame}_{k}", 3 * m + 10 + 3 * m * n_a)
-            syms.append(u)
-            psyms.append(prm)
-            pvals.append(_geometry_values(c, ankle=n_a > 0))
-            index[k][c.frame] = np.arange(n, n + b * m).reshape(m, b)
-            gens[k][c.frame] = _generator(c, settings)
-            n += b * m
-            lo, hi, guess = _force_box(c, n_points, settings)
-            lower.append(lo)
-            upper.append(hi)
-            initial.append(guess)
-            R = ca.reshape(prm[3 * m : 3 * m + 9], 3, 3)
-            E = pyramid_edges(R, prm[3 * m + 9], inner=settings.inner_pyramid) if edges else None
-            E_local = pyramid_edges(ca.DM.eye(3), prm[3 * m + 9], inner=settings.inner_pyramid) if edges and n_a else None
-            rows = []
-            for i in range(m):
-                if edges:
-                    f_i = ca.mtimes(E, u[4 * i : 4 * i + 4])
-                else:
-                    f_i = u[3 * i : 3 * i + 3]
-                    rows.append(friction_pyramid(f_i, R, prm[3 * m + 9], inner=settings.inner_pyramid))
+            block = _contact_block(c, bound, k, settings, symbol)
+            grid.add(c, k, block, b, _force_box(c, n_points, settings), _geometry_values(c, ankle=len(bound) > 0),
+                     _generator(c, settings))
+            for f_i in block.forces:
                 total = total + f_i
-                points.append(prm[3 * i : 3 * i + 3])
-                forces.append(f_i)
-            if rows:
-                expr = ca.vertcat(*rows)
-                blocks.append(ConstraintBlock(
-                    name=f"friction {c.frame}", knot=k, expr=expr,
-                    lower=np.zeros(expr.shape[0]), upper=np.full(expr.shape[0], np.inf),
-                ))
-            if n_a:
-                # moment of the corner forces about each ankle axis, in the sole frame: sum_i l_ji . R^T f_i
-                # with the levers l_ji = a_j x (r_i - o_j) as parameters (fixed per robot and foot)
-                levers = prm[3 * m + 10:]
-                if edges:
-                    local = [ca.mtimes(E_local, u[4 * i: 4 * i + 4]) for i in range(m)]
-                else:
-                    local = [ca.mtimes(R.T, f) for f in forces[-m:]]
-                expr = ca.vertcat(*[sum(ca.dot(levers[3 * (j * m + i): 3 * (j * m + i) + 3], local[i])
-                                        for i in range(m)) for j in range(n_a)])
-                blocks.append(ConstraintBlock(name=f"ankle torque {c.frame}", knot=k, expr=expr,
-                                              lower=-bound, upper=bound))
-            cost = cost + force_weight * dt * ca.sumsqr(u)
+            points += block.points
+            forces += block.forces
+            grid.cost = grid.cost + force_weight * dt * ca.sumsqr(block.u)
         acc = com_acceleration(com[k - 1], com[k], com[k + 1], dt)
         residual = (acc / g_norm - ca.DM(g_unit)) - total  # normalized Newton: (c'' - g)/|g| = sum u
-        blocks.append(ConstraintBlock(name="CoM dynamics", knot=k, expr=residual, lower=np.zeros(3), upper=np.zeros(3)))
-        dyn_knots.append(k)
-        ldot = angular_momentum_rate(com[k], points, forces) if forces else ca.DM.zeros(3)  # [m x body weights]
-        if settings.whole_body_momentum:
-            # -Ldot_k here; the NLP adds the whole body's momentum rate (h_{k+1/2} - h_{k-1/2}) / dt
-            # to these rows (planner.trajopt.centroidal.momentum): zero when Euler's law holds. With
-            # settings.lifts_moment it adds a variable Ldot_k instead, penalized and tied to the rate
-            # by rows of its own (planner.trajopt.centroidal.nlp): no cost on the moment here
-            blocks.append(ConstraintBlock(name="angular momentum", knot=k, expr=-ldot, lower=np.zeros(3),
-                                          upper=np.zeros(3)))
-        if forces and settings.angular_momentum_weight > 0.0 and not settings.lifts_moment:
-            cost = cost + settings.angular_momentum_weight * dt * ca.sumsqr(ldot)
-    def cat(xs: list) -> np.ndarray:
-        return np.concatenate(xs) if xs else np.zeros(0)
-
-    return CentroidalTerms(
-        variables=ca.vertcat(*syms) if syms else symbol(0, 1),
-        lower=cat(lower),
-        upper=cat(upper),
-        initial=cat(initial),
-        parameters=ca.vertcat(*psyms) if psyms else symbol(0, 1),
-        parameter_values=cat(pvals),
-        constraints=tuple(blocks),
-        cost=cost,
-        weight=weight,
-        contacts=tuple(tuple(c) for c in contacts),
-        force_index=tuple(index),
-        generators=tuple(gens),
-        frames=tuple(frames),
-        dynamics_knots=tuple(dyn_knots),
-        structure=_structure(settings, structure),
-    )
+        grid.blocks.append(ConstraintBlock(name="CoM dynamics", knot=k, expr=residual, lower=np.zeros(3),
+                                           upper=np.zeros(3)))
+        grid.dyn_knots.append(k)
+        momentum_rows, momentum_cost = _euler_rows(com[k], points, forces, k, dt, settings)
+        grid.blocks += momentum_rows
+        if momentum_cost is not None:
+            grid.cost = grid.cost + momentum_cost
+    return grid.terms(symbol, weight, contacts, settings)
 
 
 def build_centroidal_for_spec(
