@@ -124,46 +124,10 @@ def _log3_quat(q, q_ref, out):
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
 def tick_kernel(
-    M,
-    h,
-    J,
-    drift,
-    v,
-    q,
-    q_ref,
-    dq_post,
-    hom,
-    ref_pos,
-    ref_rot,
-    feedforward,
-    anchor_pos,
-    anchor_rot,
-    frame_active,
-    kp_rows,
-    kd_rows,
-    w_rows,
-    post_feedforward,
-    kp_post,
-    kd_post,
-    diag_a,
-    diag_a_total,
-    g0s,
-    stance,
-    force_reg,
-    mu,
-    tau_max,
-    tol,
-    try_fast,
-    max_active_iters,
-    pos,
-    rots,
-    Ha,
-    ga,
-    S,
-    a_des,
-    x,
-    tau,
-    info,
+    M, h, J, drift, v, q, q_ref, dq_post, hom, ref_pos, ref_rot, feedforward, anchor_pos, anchor_rot,
+    frame_active, kp_rows, kd_rows, w_rows, post_feedforward, kp_post, kd_post, diag_a, diag_a_total, g0s,
+    stance, force_reg, mu, tau_max, tol, try_fast, max_active_iters, pos, rots, Ha, ga, S, a_des, x, tau,
+    info
 ):
     """One tick's assembly and (when feasible) solve; see the module docstring.
 
@@ -211,12 +175,31 @@ def tick_kernel(
         always ``FAST_INEQUALITY`` when ``try_fast`` is false.
     """
     nv = M.shape[0]
+    _task_accelerations(J, drift, v, hom, ref_pos, ref_rot, feedforward, anchor_pos, anchor_rot, frame_active,
+                        kp_rows, kd_rows, pos, rots, a_des)
+    if q.shape[0] == nv + 1:  # posture error on the manifold (free flyer + 1-dof joints)
+        for j in range(3):
+            dq_post[j] = 0.0  # the base position has no posture weight
+        _log3_quat(q, q_ref, dq_post[3:6])
+        for j in range(6, nv):
+            dq_post[j] = q_ref[j + 1] - q[j + 1]
+    _least_squares(J, w_rows, a_des, v, dq_post, post_feedforward, kp_post, kd_post, diag_a, diag_a_total, Ha, ga)
+    _force_map(J, rots, g0s, stance, S)
+    if not try_fast:
+        return FAST_INEQUALITY
+    return _solve_tick(M, h, J, a_des, stance, S, Ha, ga, g0s.shape[0], force_reg, mu, tau_max, tol,
+                       max_active_iters, x, tau, info)
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _task_accelerations(J, drift, v, hom, ref_pos, ref_rot, feedforward, anchor_pos, anchor_rot, frame_active,
+                        kp_rows, kd_rows, pos, rots, a_des):
+    """The frames' placements (into ``pos[1:]``, ``rots``), the task errors (CoM, positions,
+    small-angle orientations, world-aligned; a stance sole's against its anchor) and the desired
+    task accelerations ``a_des``."""
+    nv = J.shape[1]
     nrow = J.shape[0]
     nf = rots.shape[0]
-    nc = g0s.shape[0]
-    ns = stance.shape[0]
-
-    # ---- placements, task errors (CoM, positions, small-angle orientations), world-aligned
     err = np.zeros(nrow)  # rows after the frames' (the angular momentum) have no position error
     for j in range(3):
         err[j] = ref_pos[0, j] - pos[0, j]
@@ -253,15 +236,13 @@ def tick_kernel(
             jv += J[r, c] * v[c]
         a_des[r] = feedforward[r] + kp_rows[r] * err[r] - kd_rows[r] * jv - drift[r]
 
-    # ---- posture error on the manifold (free flyer + 1-dof joints)
-    if q.shape[0] == nv + 1:
-        for j in range(3):
-            dq_post[j] = 0.0  # the base position has no posture weight
-        _log3_quat(q, q_ref, dq_post[3:6])
-        for j in range(6, nv):
-            dq_post[j] = q_ref[j + 1] - q[j + 1]
 
-    # ---- least squares on the weighted task rows (stance rows have weight 0 and are skipped)
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _least_squares(J, w_rows, a_des, v, dq_post, post_feedforward, kp_post, kd_post, diag_a, diag_a_total, Ha, ga):
+    """The Hessian block ``Ha`` and gradient ``ga`` of the weighted task rows and the posture
+    (stance rows have weight 0 and are skipped)."""
+    nv = J.shape[1]
+    nrow = J.shape[0]
     m = 0
     for r in range(nrow):
         if w_rows[r] != 0.0:
@@ -285,10 +266,14 @@ def tick_kernel(
         a_post = post_feedforward[c] + kp_post[c] * dq_post[c] - kd_post[c] * v[c]
         ga[c] = -acc - diag_a[c] * a_post
 
-    # ---- contact force map S = J_c^T G (world-aligned Jacobian, G rotated from the sole frame)
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _force_map(J, rots, g0s, stance, S):
+    """The contact force map ``S = J_c^T G`` (world-aligned Jacobian, ``G`` rotated from the sole
+    frame; zero columns for swing contacts)."""
     S[:, :] = 0.0
     G = np.empty((6, 12))
-    for si in range(ns):
+    for si in range(stance.shape[0]):
         i = stance[si]
         R = rots[i]
         g0 = g0s[i]
@@ -301,10 +286,13 @@ def tick_kernel(
                     G[3 * blk + a, c] = acc
         Si = J[3 + 6 * i : 9 + 6 * i].T @ G
         S[:, 12 * i : 12 * i + 12] = Si
-    if not try_fast:
-        return FAST_INEQUALITY
 
-    # ---- the equality-only QP, then (if rows are violated) the active-set continuation
+
+@njit(cache=True, nogil=True, fastmath=_FAST)
+def _solve_tick(M, h, J, a_des, stance, S, Ha, ga, nc, force_reg, mu, tau_max, tol, max_active_iters, x, tau, info):
+    """The equality-only QP, then (if rows are violated) the active-set continuation."""
+    nv = M.shape[0]
+    ns = stance.shape[0]
     L = Ha.copy()
     if not _cholesky(L, nv):
         return FAST_SINGULAR
@@ -339,7 +327,6 @@ def tick_kernel(
             info[1] = Ba.shape[0] - first
             return FAST_SOLVED if it == 0 else ACTIVE_SET_SOLVED
     return FAST_INEQUALITY
-
 
 @njit(cache=True, nogil=True, fastmath=_FAST)
 def _rows(M, h, J, a_des, stance, S, mu, tau_max, off, facet, t_up, t_lo):
