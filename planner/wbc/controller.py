@@ -613,8 +613,7 @@ class WholeBodyController:
         if k >= self._n_ref - 1:
             return
         ts = np.arange(self._n_ref - k) / self._inv_dt
-        b, pos, vel, acc = landing_blend(ts, self._pos[0], self._J[:3] @ v, self._ref_pos[k:, 0], self._ref_vel[k:, :3],
-                                         self._ref_acc[k:, :3])
+        b, pos, vel, acc = landing_blend(ts, self._pos[0], self._J[:3] @ v, self._ref_pos[k:, 0], self._ref_vel[k:, :3])
         end = k + b
         self._ref_pos[k : end + 1, 0] = pos
         self._ref_vel[k : end + 1, :3] = vel

@@ -348,26 +348,24 @@ class PlanReference:
 
 
 FLIGHT_BLEND = 0.15  # [s] push-off and landing blends around a ballistic flight (the landing's at least)
-LANDING_BRAKE = 1.0  # [g] the landing blend first stops the CoM's fall at this upward acceleration at least ...
-LANDING_DIP_MAX = 0.03  # [m] ... and more if the fall would go deeper than this (G1: 2 cm took its CoM 28.6 mm off the plan, 3 cm 39 mm; 25.8 mm before)
+LANDING_BRAKE = 1.0  # [g] the landing blend first stops the CoM's fall at this upward acceleration (the soles carry 2 x the weight)
 LANDING_UNLOAD = 0.3  # [g] then it decelerates the CoM downwards at most this much: the soles keep 70 % of the weight
 LANDING_BLEND_MAX = 0.6  # [s] the longest landing blend
 _LANDING_STEP = 0.01  # [s] the landing blend's lengths tried
 _G = 9.81  # [m/s^2]
 
 
-def landing_blend(ts: np.ndarray, p1: np.ndarray, v1: np.ndarray, ref_pos: np.ndarray, ref_vel: np.ndarray,
-                  ref_acc: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+def landing_blend(ts: np.ndarray, p1: np.ndarray, v1: np.ndarray, ref_pos: np.ndarray,
+                  ref_vel: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     r"""The CoM after a touch-down, from ``(p1, v1)`` back onto the reference: ``(b, pos, vel, acc)``
     for the samples ``0..b`` of ``ts`` (times from the touch-down, ``ts[0] = 0``; ``ref_pos``,
-    ``ref_vel``, ``ref_acc`` (n, 3) the reference on them).
+    ``ref_vel`` (n, 3) the reference on them).
 
-    Vertically, the fall first stops at a constant upward acceleration of ``LANDING_BRAKE`` g (more
-    if it would sink deeper than ``LANDING_DIP_MAX``), then a cubic Hermite from rest at that bottom
-    rejoins the reference at sample ``b``: the shortest blend (at least ``FLIGHT_BLEND``, at most
-    ``LANDING_BLEND_MAX``, in 10 ms steps) whose downward acceleration (linear on a cubic: extreme
-    at its ends) stays within ``LANDING_UNLOAD`` g, so the soles stay loaded. Horizontally one
-    cubic Hermite over ``FLIGHT_BLEND``, then the reference.
+    Vertically, the fall first stops at a constant upward acceleration of ``LANDING_BRAKE`` g, then
+    a cubic Hermite from rest at that bottom rejoins the reference at sample ``b``: the shortest
+    blend (at least ``FLIGHT_BLEND``, at most ``LANDING_BLEND_MAX``, in 10 ms steps) whose
+    downward acceleration (linear on a cubic: extreme at its ends) stays within ``LANDING_UNLOAD``
+    g, so the soles stay loaded. Horizontally one cubic Hermite over ``[0, ts[b]]``.
 
     A single 0.15 s Hermite from talos's 0.72 m/s touch-down of a 5 cm jump to the plan's knots,
     already 3 cm higher, asked for +2.4 g at touch-down and -1.3 g at its end: the soles cannot
@@ -375,14 +373,13 @@ def landing_blend(ts: np.ndarray, p1: np.ndarray, v1: np.ndarray, ref_pos: np.nd
     touch-down on a floor at 0.7 x mu, the right sole rolled 7 degrees onto its edge and slid 10 mm.
     """
     n = len(ts)
+    brake = LANDING_BRAKE * _G
     vz1 = float(v1[2])
-    brake = max(LANDING_BRAKE * _G, vz1 * vz1 / (2.0 * LANDING_DIP_MAX))
     t_stop = max(-vz1, 0.0) / brake
     z_bottom = float(p1[2]) + vz1 * t_stop + 0.5 * brake * t_stop**2
     v_start = max(vz1, 0.0)
     dt = float(ts[1] - ts[0]) if n > 1 else _LANDING_STEP
     step = max(1, int(round(_LANDING_STEP / dt)))
-    bh = min(int(np.searchsorted(ts, FLIGHT_BLEND - 1e-9)), n - 1)
     first = min(int(np.searchsorted(ts, max(FLIGHT_BLEND, t_stop + _LANDING_STEP) - 1e-9)), n - 1)
     last = min(int(np.searchsorted(ts, LANDING_BLEND_MAX + 1e-9)), n - 1)
     b = last
@@ -395,12 +392,8 @@ def landing_blend(ts: np.ndarray, p1: np.ndarray, v1: np.ndarray, ref_pos: np.nd
         if min(a_start, a_end) >= -LANDING_UNLOAD * _G:
             b = k
             break
-    b = max(b, bh)
     tt = ts[: b + 1]
-    pos, vel, acc = ref_pos[: b + 1].copy(), ref_vel[: b + 1].copy(), ref_acc[: b + 1].copy()
-    if bh > 0:
-        hp, hv, ha = _hermite(0.0, float(ts[bh]), p1[:2], v1[:2], ref_pos[bh, :2], ref_vel[bh, :2], tt[: bh + 1])
-        pos[: bh + 1, :2], vel[: bh + 1, :2], acc[: bh + 1, :2] = hp, hv, ha
+    pos, vel, acc = _hermite(0.0, float(ts[b]), p1, v1, ref_pos[b], ref_vel[b], tt)
     braking = tt < t_stop
     pos[braking, 2] = float(p1[2]) + vz1 * tt[braking] + 0.5 * brake * tt[braking] ** 2
     vel[braking, 2] = vz1 + brake * tt[braking]
@@ -557,7 +550,7 @@ def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, d
             com[seg], dcom[seg], ddcom[seg] = _hermite(times[b0], times[it], com[b0], dcom[b0], com[it],
                                                        dcom[it], times[seg])
         if i1 < n - 1:
-            b, pos, vel, acc = landing_blend(times[i1:] - t1, c1, v_land, com[i1:], dcom[i1:], ddcom[i1:])
+            b, pos, vel, acc = landing_blend(times[i1:] - t1, c1, v_land, com[i1:], dcom[i1:])
             seg = slice(i1, i1 + b + 1)
             com[seg], dcom[seg], ddcom[seg] = pos, vel, acc
 
