@@ -365,7 +365,8 @@ def landing_blend(ts: np.ndarray, p1: np.ndarray, v1: np.ndarray, ref_pos: np.nd
     a cubic Hermite from rest at that bottom rejoins the reference at sample ``b``: the shortest
     blend (at least ``FLIGHT_BLEND``, at most ``LANDING_BLEND_MAX``, in 10 ms steps) whose
     downward acceleration (linear on a cubic: extreme at its ends) stays within ``LANDING_UNLOAD``
-    g, so the soles stay loaded. Horizontally one cubic Hermite over ``[0, ts[b]]``.
+    g, so the soles stay loaded. Horizontally one cubic Hermite over ``[0, ts[b]]`` (over 0.15 s
+    only, with the dip capped at 2-3 cm, G1's forward hops slipped 10.4 mm: docs/control.md).
 
     A single 0.15 s Hermite from talos's 0.72 m/s touch-down of a 5 cm jump to the plan's knots,
     already 3 cm higher, asked for +2.4 g at touch-down and -1.3 g at its end: the soles cannot
