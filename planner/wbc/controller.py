@@ -43,7 +43,7 @@ import proxsuite
 from planner.exceptions import ControllerError
 from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
-from planner.wbc.reference import FLIGHT_BLEND, PlanReference, _hermite, flight_spans
+from planner.wbc.reference import PlanReference, flight_spans, landing_blend
 from planner.wbc.settings import WbcSettings
 from robots import Robot, pyramid_coefficient, pyramid_facets, sole_corners
 
@@ -642,18 +642,16 @@ class WholeBodyController:
         return -1 - sum(1 << i for i, d in enumerate(down) if d)
 
     def _absorb_landing(self, k: int, touch: int, v: np.ndarray) -> None:
-        """After an early touch-down at sample ``k``: the CoM reference from the measured CoM
-        and its velocity to the plan's ``FLIGHT_BLEND`` after the planned touch-down (a cubic
-        Hermite, as the reference's own landing blend), instead of falling ballistically onto
-        the sole until the planned touch-down and then braking at once (a step of ~20 m/s^2 in
-        the asked CoM acceleration, which rolled and slid G1's hopping foot)."""
-        end = min(touch + int(round(FLIGHT_BLEND * self._inv_dt)), self._n_ref - 1)
-        if end <= k:
+        """After an early touch-down at sample ``k``: the CoM reference from the measured CoM and
+        its velocity back onto the plan's (:func:`planner.wbc.reference.landing_blend`: the fall
+        stopped at a bounded acceleration, the soles kept loaded), instead of falling ballistically
+        onto the sole until the planned touch-down and then braking at once (a step of ~20 m/s^2
+        in the asked CoM acceleration, which rolled and slid G1's hopping foot)."""
+        if k >= self._n_ref - 1:
             return
-        dt = 1.0 / self._inv_dt
-        ts = dt * np.arange(end - k + 1)
-        pos, vel, acc = _hermite(0.0, float(ts[-1]), self._pos[0], self._J[:3] @ v, self._ref_pos[end, 0],
-                                 self._ref_vel[end, :3], ts)
+        ts = np.arange(self._n_ref - k) / self._inv_dt
+        b, pos, vel, acc = landing_blend(ts, self._pos[0], self._J[:3] @ v, self._ref_pos[k:, 0], self._ref_vel[k:, :3])
+        end = k + b
         self._ref_pos[k : end + 1, 0] = pos
         self._ref_vel[k : end + 1, :3] = vel
         self._ref_acc[k : end + 1, :3] = acc

@@ -347,7 +347,63 @@ class PlanReference:
         return 0 if k < 0 else (self.n - 1 if k >= self.n else k)
 
 
-FLIGHT_BLEND = 0.15  # [s] push-off and landing blends around a ballistic flight
+FLIGHT_BLEND = 0.15  # [s] push-off and landing blends around a ballistic flight (the landing's at least)
+LANDING_BRAKE = 1.0  # [g] the landing blend first stops the CoM's fall at this upward acceleration (the soles carry 2 x the weight)
+LANDING_UNLOAD = 0.3  # [g] then it decelerates the CoM downwards at most this much: the soles keep 70 % of the weight
+LANDING_BLEND_MAX = 0.6  # [s] the longest landing blend
+_LANDING_STEP = 0.01  # [s] the landing blend's lengths tried
+_G = 9.81  # [m/s^2]
+
+
+def landing_blend(ts: np.ndarray, p1: np.ndarray, v1: np.ndarray, ref_pos: np.ndarray,
+                  ref_vel: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    r"""The CoM after a touch-down, from ``(p1, v1)`` back onto the reference: ``(b, pos, vel, acc)``
+    for the samples ``0..b`` of ``ts`` (times from the touch-down, ``ts[0] = 0``; ``ref_pos``,
+    ``ref_vel`` (n, 3) the reference on them).
+
+    Vertically, the fall first stops at a constant upward acceleration of ``LANDING_BRAKE`` g, then
+    a cubic Hermite from rest at that bottom rejoins the reference at sample ``b``: the shortest
+    blend (at least ``FLIGHT_BLEND``, at most ``LANDING_BLEND_MAX``, in 10 ms steps) whose
+    downward acceleration (linear on a cubic: extreme at its ends) stays within ``LANDING_UNLOAD``
+    g, so the soles stay loaded. Horizontally one cubic Hermite over ``[0, ts[b]]`` (over 0.15 s
+    only, with the dip capped at 2-3 cm, G1's forward hops slipped 10.4 mm: docs/control.md).
+
+    A single 0.15 s Hermite from talos's 0.72 m/s touch-down of a 5 cm jump to the plan's knots,
+    already 3 cm higher, asked for +2.4 g at touch-down and -1.3 g at its end: the soles cannot
+    pull, both unloaded to 4 % of the weight 0.15 s after landing, and pushed 20 N s at the
+    touch-down on a floor at 0.7 x mu, the right sole rolled 7 degrees onto its edge and slid 10 mm.
+    """
+    n = len(ts)
+    brake = LANDING_BRAKE * _G
+    vz1 = float(v1[2])
+    t_stop = max(-vz1, 0.0) / brake
+    z_bottom = float(p1[2]) + vz1 * t_stop + 0.5 * brake * t_stop**2
+    v_start = max(vz1, 0.0)
+    dt = float(ts[1] - ts[0]) if n > 1 else _LANDING_STEP
+    step = max(1, int(round(_LANDING_STEP / dt)))
+    first = min(int(np.searchsorted(ts, max(FLIGHT_BLEND, t_stop + _LANDING_STEP) - 1e-9)), n - 1)
+    last = min(int(np.searchsorted(ts, LANDING_BLEND_MAX + 1e-9)), n - 1)
+    b = last
+    for k in range(first, last + 1, step):
+        h = float(ts[k]) - t_stop
+        rise = float(ref_pos[k, 2]) - z_bottom
+        vb = float(ref_vel[k, 2])
+        a_start = 6.0 * rise / h**2 - (4.0 * v_start + 2.0 * vb) / h
+        a_end = -6.0 * rise / h**2 + (2.0 * v_start + 4.0 * vb) / h
+        if min(a_start, a_end) >= -LANDING_UNLOAD * _G:
+            b = k
+            break
+    tt = ts[: b + 1]
+    pos, vel, acc = _hermite(0.0, float(ts[b]), p1, v1, ref_pos[b], ref_vel[b], tt)
+    braking = tt < t_stop
+    pos[braking, 2] = float(p1[2]) + vz1 * tt[braking] + 0.5 * brake * tt[braking] ** 2
+    vel[braking, 2] = vz1 + brake * tt[braking]
+    acc[braking, 2] = brake
+    rest = ~braking
+    if rest.any() and float(ts[b]) > t_stop:
+        zp, zv, za = _hermite(t_stop, float(ts[b]), [z_bottom], [v_start], ref_pos[b, 2:3], ref_vel[b, 2:3], tt[rest])
+        pos[rest, 2], vel[rest, 2], acc[rest, 2] = zp[:, 0], zv[:, 0], za[:, 0]
+    return b, pos, vel, acc
 
 
 def solve_tridiagonal(ab: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -494,10 +550,10 @@ def _ballistic_flights(times: np.ndarray, active: np.ndarray, com: np.ndarray, d
             seg = slice(b0, it)  # ends where the flight starts (same position and velocity)
             com[seg], dcom[seg], ddcom[seg] = _hermite(times[b0], times[it], com[b0], dcom[b0], com[it],
                                                        dcom[it], times[seg])
-        b1 = min(int(np.searchsorted(times, t1 + FLIGHT_BLEND)), n - 1)
-        if b1 > i1:
-            seg = slice(i1, b1 + 1)
-            com[seg], dcom[seg], ddcom[seg] = _hermite(t1, times[b1], c1, v_land, com[b1], dcom[b1], times[seg])
+        if i1 < n - 1:
+            b, pos, vel, acc = landing_blend(times[i1:] - t1, c1, v_land, com[i1:], dcom[i1:])
+            seg = slice(i1, i1 + b + 1)
+            com[seg], dcom[seg], ddcom[seg] = pos, vel, acc
 
 
 def support_polygons(

@@ -61,6 +61,33 @@ def test_flight_reference_is_ballistic_and_reaches_take_off_speed(jump_plan, tal
     np.testing.assert_allclose(ref.zmp[air], ref.plan_com[air, :2])
 
 
+def test_landing_blend_brakes_then_keeps_the_soles_loaded(jump_plan, talos):
+    """After the touch-down the CoM reference first stops the fall at LANDING_BRAKE g, then rejoins
+    the spline without asking the soles to pull: its vertical acceleration (second differences of
+    the 1 ms positions, not the blend's own formula) never goes below -LANDING_UNLOAD g. Before,
+    one 0.15 s Hermite asked for -1.3 g at its end (the soles unloaded to 4 % of the weight).
+    Fast twin of tests/sim/test_faults.py's long pushed-jump test."""
+    from planner.wbc.reference import FLIGHT_BLEND, LANDING_BLEND_MAX, LANDING_BRAKE, LANDING_UNLOAD
+
+    ref = PlanReference(jump_plan, talos, dt=0.001)
+    touch = int(_flight(ref)[-1]) + 1
+    v_land = ref.com_velocity[touch - 1, 2]
+    assert v_land < -0.5  # [m/s] a real fall to stop
+    end = touch + int(round(LANDING_BLEND_MAX / ref.dt))
+    z = ref.com[touch - 1 : end + 2, 2]
+    acc = (z[2:] - 2 * z[1:-1] + z[:-2]) / ref.dt**2  # at samples touch .. end
+    n_brake = int(-v_land / (LANDING_BRAKE * G) / ref.dt)
+    assert n_brake > 40  # [ms] talos: 0.72 m/s at 1 g, 74 ms
+    np.testing.assert_allclose(acc[1 : n_brake - 1], LANDING_BRAKE * G, atol=0.05)
+    assert acc[1:].min() >= -LANDING_UNLOAD * G - 0.05
+    np.testing.assert_allclose(ref.com_velocity[touch + n_brake + 1, 2], 0.0, atol=0.02)  # the fall stopped
+    # the blend rejoins the spline within LANDING_BLEND_MAX, and no later than needed: it ends
+    # after FLIGHT_BLEND and its last 10 ms step was the first that kept the soles loaded
+    acc_all = np.diff(ref.com[:, 2], 2) / ref.dt**2
+    assert np.abs(acc_all[end + 5 : end + 200]).max() < 3.0  # [m/s^2] back on the plan's gentle spline
+    assert LANDING_BLEND_MAX > FLIGHT_BLEND
+
+
 def test_jump_5cm_is_certified_with_a_real_flight(jump_plan, talos):
     """Tracked in MuJoCo: passes every check, both soles leave the floor, apex within 5 cm."""
     ex = simulate(jump_plan, talos)
