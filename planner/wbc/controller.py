@@ -489,6 +489,43 @@ class WholeBodyController:
         k = 0 if k < 0 else (self._n_ref - 1 if k >= self._n_ref else k)
 
         J, drift, pos, hom = self._J, self._drift, self._pos, self._hom
+        self._task_kinematics(q, v)
+        self._contact_pattern(k, v, ref)
+        if self._near_flight[k] != self._mom_near or self._near_any_flight[k] != self._com_near:
+            self._flight_weights(k)
+        q_ref = ref.q[k]
+        dq_post = self._dq_post
+        if not self._simple_joints:
+            dq_post[:] = pin.difference(model, q, q_ref)
+        # data.M.T: symmetric (computeAllTerms fills it whole): the C-ordered view is faster
+        status = tick_kernel(
+            data.M.T, data.nle, J, drift, v, q, q_ref, dq_post, hom, self._ref_pos[k], self._ref_rot[k],
+            self._feedforward[k], self._anchor_pos, self._anchor_rot, self._frame_active, self._kp_rows,
+            self._kd_rows, self._w_rows, self._post_feedforward[k], self._kp_post, self._kd_post, self._diag_a,
+            self._diag_a_total, self._g0_arr, self._stance, self._force_reg, self._mu, self.torque_limits,
+            self._tol, self._fast_path, self._active_iters, pos, self._rots, self._Ha, self._ga, self._S,
+            self._a_des, self._xbuf, self._taubuf, self._info,
+        )
+        if status == FAST_SOLVED or status == ACTIVE_SET_SOLVED:
+            tau = self._taubuf.copy()
+            self._prev_tau = tau
+            self._x = self._xbuf.copy()
+            self._last_rots = self._rots.copy()
+            if status == FAST_SOLVED:
+                self.fast_ticks += 1
+                self.last = _FAST_TICK
+            else:
+                self.active_set_ticks += 1
+                its, n_rows = int(self._info[0]), int(self._info[1])
+                self.last = TickInfo(True, its, f"solved with {n_rows} inequality rows active")
+            return tau
+        return self._full_qp()
+
+    def _task_kinematics(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Pinocchio's part of a tick: the mass matrix and nonlinear effects, and the task rows'
+        Jacobians and drifts (CoM, momentum, frames), the CoM and the frames' placements."""
+        model, data = self.model, self.data
+        J, drift, pos, hom = self._J, self._drift, self._pos, self._hom
         mom = self._mom_rows
         if mom is not None:  # angular rows of A_g and dA_g v
             dmom = self._data_mom
@@ -510,6 +547,10 @@ class WholeBodyController:
             J[rows] = pin.getFrameJacobian(model, data, fid, _LWA)
             drift[rows] = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
             hom[i] = data.oMf[fid].homogeneous
+
+    def _contact_pattern(self, k: int, v: np.ndarray, ref: PlanReference) -> None:
+        """The stance soles at sample ``k`` (an early touch-down included); a sole that touches down
+        is held where it touched."""
         pattern = self._patterns[k]
         landing = self._landings.get(k)
         if landing is None:
@@ -523,70 +564,14 @@ class WholeBodyController:
             was = self._active_flags
             for i, a in enumerate(active):
                 if a and not (was is not None and was[i]):
-                    self._anchor_pos[i] = hom[i, :3, 3]  # the sole is held where it touched down
-                    self._anchor_rot[i] = hom[i, :3, :3]
+                    self._anchor_pos[i] = self._hom[i, :3, 3]  # the sole is held where it touched down
+                    self._anchor_rot[i] = self._hom[i, :3, :3]
             self._set_active(active, pattern, ref)
-        if self._near_flight[k] != self._mom_near or self._near_any_flight[k] != self._com_near:
-            self._flight_weights(k)
-        q_ref = ref.q[k]
-        dq_post = self._dq_post
-        if not self._simple_joints:
-            dq_post[:] = pin.difference(model, q, q_ref)
-        status = tick_kernel(
-            data.M.T,  # symmetric (computeAllTerms fills it whole): the C-ordered view is faster
-            data.nle,
-            J,
-            drift,
-            v,
-            q,
-            q_ref,
-            dq_post,
-            hom,
-            self._ref_pos[k],
-            self._ref_rot[k],
-            self._feedforward[k],
-            self._anchor_pos,
-            self._anchor_rot,
-            self._frame_active,
-            self._kp_rows,
-            self._kd_rows,
-            self._w_rows,
-            self._post_feedforward[k],
-            self._kp_post,
-            self._kd_post,
-            self._diag_a,
-            self._diag_a_total,
-            self._g0_arr,
-            self._stance,
-            self._force_reg,
-            self._mu,
-            self.torque_limits,
-            self._tol,
-            self._fast_path,
-            self._active_iters,
-            pos,
-            self._rots,
-            self._Ha,
-            self._ga,
-            self._S,
-            self._a_des,
-            self._xbuf,
-            self._taubuf,
-            self._info,
-        )
-        if status == FAST_SOLVED or status == ACTIVE_SET_SOLVED:
-            tau = self._taubuf.copy()
-            self._prev_tau = tau
-            self._x = self._xbuf.copy()
-            self._last_rots = self._rots.copy()
-            if status == FAST_SOLVED:
-                self.fast_ticks += 1
-                self.last = _FAST_TICK
-            else:
-                self.active_set_ticks += 1
-                its, n_rows = int(self._info[0]), int(self._info[1])
-                self.last = TickInfo(True, its, f"solved with {n_rows} inequality rows active")
-            return tau
+
+    def _full_qp(self) -> np.ndarray:
+        """The full QP (proxsuite), when the compiled equality-only solve and its active set did not
+        solve the tick; on a failure the last torques are held (and counted)."""
+        data = self.data
         rots = self._rots
         nv = self.nv
         M, h = data.M, data.nle
