@@ -87,16 +87,26 @@ class MotionFileError(CliError):
         super().__init__(message, code)
 
 
-class CorrectionError(ValueError, WbmpError):
-    """``wbmp serve``: a correction that cannot act on the last motion's actions (one line, for the page)."""
+class CorrectionError(CliError, ValueError):
+    """``wbmp serve``: a correction that cannot act on the last motion's actions (one line, for the
+    page; exit code 2)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, ExitCode.USAGE)
 
 
-class Busy(WbmpError):  # noqa: N818 - a state, not a failure
-    """``wbmp serve``: the queue is full (HTTP 429)."""
+class Busy(CliError):  # noqa: N818 - a state, not a failure
+    """``wbmp serve``: the queue is full (HTTP 429; exit code 2)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, ExitCode.USAGE)
 
 
-class Unavailable(WbmpError):  # noqa: N818
-    """``wbmp serve``: the planning process cannot take jobs (HTTP 503)."""
+class Unavailable(CliError):  # noqa: N818
+    """``wbmp serve``: the planning process cannot take jobs (HTTP 503; exit code 1)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, ExitCode.INTERNAL)
 
 
 #: Longest error message printed [characters]; longer ones are cut in the middle.
