@@ -61,6 +61,13 @@ SENTENCES: dict[str, tuple[str, ...]] = {
     "stomp": ("stomp your right foot",),
     "balance": ("balance on your left foot",),
     "lunge": ("lunge forward",),
+    "reach": ("reach forward with your left hand",),
+    "cross_arms": ("cross your arms",),
+    "arm_circles": ("do arm circles",),
+    "shrug": ("shrug your shoulders",),
+    "stretch": ("stretch your arms up",),
+    "walk_arc": ("walk in a circle",),
+    "jog": ("run forward",),
 }
 
 
@@ -114,10 +121,32 @@ def com_axis(axis: int) -> Callable[[Sim], tuple[bool, str]]:
     return check
 
 
+def held_com_shift(s: Sim) -> tuple[float, float]:
+    """(achieved, planned) horizontal CoM shift of the spec's held (HARD, windowed) CoM target [m],
+    the certificate's definition measured here: from where its action begins (the start of the
+    action's first phase), the plan's mean shift over the hold window gives the direction ``u``
+    and the size; the simulation's shift along ``u``, its median over the window, is what was
+    achieved. Pinocchio CoM of the plan's knots and of the simulated configurations every 20 ms."""
+    held = [c for c in s.spec.com_targets if c.window is not None and c.priority.name == "HARD"]
+    target = held[0]
+    number = target.name.split(" ", 1)[0]
+    starts = s.spec.phase_start_times()
+    t0 = min(float(t) for ph, t in zip(s.spec.phases, starts, strict=True) if ph.name.split(" ", 1)[0] == number)
+    lo, hi = target.window
+    pt, p = np.asarray(s.plan.t), _com(s.robot, s.plan.q)[:, :2]
+    step = max(1, int(round(0.02 / s.execution.timestep)))
+    xt, x = np.asarray(s.execution.t)[::step], _com(s.robot, _every(s))[:, :2]
+    pin_p, pin_x = (pt >= lo - 1e-9) & (pt <= hi + 1e-9), (xt >= lo - 1e-9) & (xt <= hi + 1e-9)
+    mean = (p[pin_p] - p[int(np.argmin(np.abs(pt - t0)))]).mean(axis=0)
+    size = float(np.linalg.norm(mean))
+    achieved = float(np.median((x[pin_x] - x[int(np.argmin(np.abs(xt - t0)))]) @ (mean / size)))
+    return achieved, size
+
+
 def lean(s: Sim) -> tuple[bool, str]:
-    p, x = _com(s.robot, s.plan.q)[:, :2], _com(s.robot, _every(s))[:, :2]
-    r = float(np.max(np.linalg.norm(x - x[0], axis=1)) / np.max(np.linalg.norm(p - p[0], axis=1)))
-    return r >= 0.8, f"CoM horizontal shift {100 * r:.0f} % of the plan's"
+    achieved, planned = held_com_shift(s)
+    r = achieved / planned
+    return r >= 0.8, f"CoM held {1000 * achieved:.0f} mm, {100 * r:.0f} % of the plan's {1000 * planned:.0f} mm"
 
 
 def frame_turn(role: str) -> Callable[[Sim], tuple[bool, str]]:
@@ -176,6 +205,56 @@ def hands_follow(s: Sim) -> tuple[bool, str]:
         x = _fk(s.robot, s.execution.q[idx], role)[:, :, 3]
         worst = max(worst, float(np.max(np.linalg.norm(p - x, axis=1))))
     return worst <= 0.05, f"hands within {worst:.3f} m of the planned hands"
+
+
+def hand_moves(s: Sim) -> tuple[bool, str]:
+    """The hand the plan moves (farthest from where it started, 3 cm or more) goes at least 80 % as
+    far from its start in the simulation (peak), and both hands stay within 5 cm of the plan's
+    hands (:func:`hands_follow`): the gesture's size and its path."""
+    worst = math.inf
+    for role in ("left_hand", "right_hand"):
+        p = _fk(s.robot, s.plan.q, role)[:, :, 3]
+        x = _fk(s.robot, _every(s), role)[:, :, 3]
+        far = float(np.max(np.linalg.norm(p - p[0], axis=1)))
+        if far >= 0.03:
+            worst = min(worst, float(np.max(np.linalg.norm(x - x[0], axis=1))) / far)
+    follow, words = hands_follow(s)
+    if not math.isfinite(worst):
+        return follow, f"no hand planned to move 3 cm; {words}"
+    return worst >= 0.8 and follow, f"hand moved {100 * worst:.0f} % as far as planned; {words}"
+
+
+def hands_crossed(s: Sim) -> tuple[bool, str]:
+    """Both hands on the other side of the body's midline (the start base's x-z plane) at once."""
+    qs = _every(s)
+    base = _fk(s.robot, qs[:1], "torso")[0] if s.robot.has_role("torso") else None
+    R = np.eye(3) if base is None else base[:, :3]
+    mid = qs[0, :3] if base is None else base[:, 3]
+    left = (_fk(s.robot, qs, "left_hand")[:, :, 3] - mid) @ R[:, 1]
+    right = (_fk(s.robot, qs, "right_hand")[:, :, 3] - mid) @ R[:, 1]
+    across = float(np.max(np.minimum(-left, right)))  # > 0: the left hand right of the midline and the right hand left
+    return across > 0.0, f"both hands {1000 * across:.0f} mm past the midline at the most"
+
+
+def base_arc(s: Sim) -> tuple[bool, str]:
+    """The base's yaw, unwrapped along the motion (a full circle is 360 deg, not 0): turned at
+    least 80 % of the plan's, and moved at least 80 % as far from where it started (peak)."""
+    def yaw(qs):
+        x, y, z, w = qs[:, 3], qs[:, 4], qs[:, 5], qs[:, 6]
+        return np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    qp, qx = s.plan.q, _every(s)
+    turned_p, turned_x = abs(yaw(qp)[-1] - yaw(qp)[0]), abs(yaw(qx)[-1] - yaw(qx)[0])
+    far_p = float(np.max(np.linalg.norm(qp[:, :2] - qp[0, :2], axis=1)))
+    far_x = float(np.max(np.linalg.norm(qx[:, :2] - qx[0, :2], axis=1)))
+    ok = turned_x >= 0.8 * turned_p and far_x >= 0.8 * far_p
+    return ok, (f"base turned {math.degrees(turned_x):.0f} deg of the plan's {math.degrees(turned_p):.0f}, "
+                f"went {far_x:.2f} m of {far_p:.2f} m out")
+
+
+def jog(s: Sim) -> tuple[bool, str]:
+    """A run: flights (:func:`feet_flight`) and the distance (:func:`base_travel`)."""
+    (a, wa), (b, wb) = feet_flight(s), base_travel(s)
+    return a and b, f"{wa}; {wb}"
 
 
 def _mesh_gap(s: Sim, a: str, b: str, qs: np.ndarray) -> float:
@@ -248,7 +327,8 @@ INDEPENDENT: dict[str, Callable[[Sim], tuple[bool, str]]] = {
     "wave": hands_follow, "punch": hands_follow, "touch": hand_at_head, "hands_on_hips": hands_follow,
     "arms_out": hands_follow, "step": base_travel, "walk": base_travel, "turn": base_yaw, "jump": feet_flight,
     "hop": feet_flight, "kick": sole_rise, "march": sole_rise, "stomp": sole_rise, "balance": sole_rise,
-    "lunge": base_travel,
+    "lunge": base_travel, "reach": hand_moves, "cross_arms": hands_crossed, "arm_circles": hand_moves,
+    "shrug": hand_moves, "stretch": hand_moves, "walk_arc": base_arc, "jog": jog,
 }
 
 
