@@ -762,3 +762,25 @@ def test_walks_and_hops_hold_the_upper_arms_out(robot_name, request):
             pin.framesForwardKinematics(robot.model, data, q)
             ys.append(sign * data.oMf[robot.frame_id(f"{side}_hand")].translation[1])
         assert ys[1] > ys[0] + 0.01, (joint, ys)
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_every_walking_action_holds_the_upper_arms_out(robot_name, request):
+    """Steps, turns and walks in a circle hold both shoulders' roll ``UPPER_ARM_OUT`` out like the
+    walk (G1's "walk in a circle" grazed the torso's meshes in 14 simulation samples); the values are
+    those of :func:`upper_arm_out_angle` (checked against FK in the test above)."""
+    from tasks.primitives.arms import UPPER_ARM_OUT, upper_arm_out_angle
+
+    robot = request.getfixturevalue(robot_name)
+    want = {robot.model.names[arm_joint]: upper_arm_out_angle(robot, side, UPPER_ARM_OUT)
+            for side in ("left", "right") for arm_joint in [_roll_joint(robot, side)]}
+    for name, params in (("step", {"count": 2}), ("turn", {}), ("walk_arc", {})):
+        spec = compile_actions([Action(name=name, params=params)], robot)
+        held = {t.joint: t.value for t in spec.joint_targets if "upper arm out of the torso" in t.name}
+        assert held == pytest.approx(want), name
+
+
+def _roll_joint(robot, side):
+    from tasks.primitives.bodymap import arm_joints
+
+    return arm_joints(robot, side)[1]
