@@ -6,7 +6,10 @@ targets' positions reached, the CoM ground projection pulled towards where it st
 smallest change from the standing posture. Between these keyframes (and the rest at both ends)
 the tangent displacements are blended with a smoothstep. The result is only an initial guess:
 the NLP enforces everything; when the inverse kinematics does not converge the standing posture
-is used instead for that keyframe.
+is used instead for that keyframe. A keyframe whose frame ends more than :data:`ROT_SEED_ANGLE`
+from a HARD orientation target at that knot is solved again with the orientation too
+(:func:`_rotation_goals`): G1's "touch your head" put the hand turned by pi from its target, where
+the NLP's orientation rows (sines) vanish, and stayed INFEASIBLE there.
 
 With a scene, the keyframes also keep the robot's sphere sets :data:`SCENE_CLEARANCE` away from
 its objects (but in planned contacts, and not in motions that grasp or touch an object): a
@@ -40,6 +43,10 @@ REGULARIZATION = 1e-2  # pull towards the standing posture, per iteration
 ROT_WEIGHT = 0.3  # [m/rad] an orientation error of the hands holding one object against a position error
 SCENE_CLEARANCE = 0.02  # [m] keyframe spheres are pushed this far from scene objects (margin + 1 cm)
 SCENE_WEIGHT = 1.0  # a scene row's weight against a target's position error
+#: [rad] a keyframe whose frame ends farther than this from its HARD orientation target is solved
+#: again with the orientation (the NLP's trace row keeps a target within 90 deg, and its sine rows
+#: vanish at pi: a guess turned by pi stays there).
+ROT_SEED_ANGLE = 0.25
 
 
 def _keyframe_tasks(lay: LayoutData) -> dict[int, list]:
@@ -182,8 +189,11 @@ def nominal_motion(lay: LayoutData) -> np.ndarray:
     if not tasks:
         return dq
     keys: list[tuple[int, np.ndarray]] = [(1, np.zeros(nv))]
+    rotations = _rotation_goals(lay)
     for k in sorted(tasks):
         q = solve_ik(lay, k, tasks[k])
+        if q is not None and k in rotations:
+            q = _with_rotations(lay, k, tasks[k], rotations[k], q)
         keys.append((k, np.zeros(nv) if q is None else configuration_to_chart(lay.robot.model, lay.q_ref, q)))
     if keys[-1][0] < N - 1:
         keys.append((N - 1, np.zeros(nv)))
@@ -195,6 +205,28 @@ def nominal_motion(lay: LayoutData) -> np.ndarray:
     dq[:2] = 0.0
     dq[N] = dq[N - 1]
     return dq
+
+
+def _rotation_goals(lay: LayoutData) -> dict[int, list]:
+    """Knot -> ``("rot", fid, rotation, None)`` IK tasks of the HARD orientation targets."""
+    out: dict[int, list] = {}
+    for t in lay.terms:
+        if isinstance(t, FrameOrientationTerm) and t.hard:
+            out.setdefault(t.knot, []).append(("rot", t.frame_id, np.array(t.params[:9]).reshape(3, 3).T, None))
+    return out
+
+
+def _with_rotations(lay: LayoutData, knot: int, tasks: list, rotations: list, q: np.ndarray) -> np.ndarray:
+    """``q`` (the keyframe from positions), or when a frame there is more than
+    :data:`ROT_SEED_ANGLE` from its orientation target, the keyframe solved with the orientations
+    too (from the standing posture; ``q`` if that does not converge)."""
+    model, data = lay.robot.model, lay.robot.data()
+    pin.framesForwardKinematics(model, data, q)
+    worst = max(float(np.linalg.norm(pin.log3(R.T @ data.oMf[fid].rotation))) for _, fid, R, _ in rotations)
+    if worst <= ROT_SEED_ANGLE:
+        return q
+    turned = solve_ik(lay, knot, [*tasks, *rotations], iterations=3 * IK_ITERATIONS)
+    return q if turned is None else turned
 
 
 def _carry_between(lay: LayoutData, dq: np.ndarray, tasks: dict[int, list]) -> None:

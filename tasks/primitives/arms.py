@@ -48,11 +48,17 @@ POSE_TOLERANCE = 0.02  # [m] held hand poses and rhythmic targets
 GUARD_TOLERANCE = 0.03  # [m] punch guard / clap apart / shrug low positions
 MEET_TOLERANCE = 0.002  # [m] hands that meet (clap, touch the other hand): the planner leaves their pairs out there
 MEET_ORIENTATION = 0.02  # [rad] ... and their orientation at the meeting point within this
+#: [m], [rad] a part a hand meets (the head) stays this close to where it stands: G1's head is on its
+#: torso, and held within the hand's tolerances the touch at the temple left the forearm no room
+#: from the torso (IPOPT: infeasible, every target at its bound).
+PART_STILL_TOLERANCE = 0.005
+PART_STILL_ORIENTATION = 0.05
 RAISE_TIME = 0.8  # [s] from rest to the first pose of a rhythmic gesture
 LOWER_TIME = 0.8  # [s] from the last pose back to rest
 TORSO_TOLERANCE = 0.05  # [rad] stretch lean
 
 SIGN = {"left": 1.0, "right": -1.0}
+UPPER_ARM_OUT = 0.1  # [rad] shoulder roll away from the body in walks and hops (hold_upper_arms)
 X, Y, Z = np.eye(3)
 
 
@@ -127,8 +133,8 @@ def _hold(b: FragmentBuilder, what: str, points: dict[str, np.ndarray], phase: s
         # the part stays where the hand meets it (Talos leant its torso back 13 deg, the head 12 cm off the salute)
         g = standing_geometry(b.robot)
         b.frame_target(f"{role} still for the hand", role, position=b.world(g.position(role)),
-                       rpy=b.world_rotation(g.rotation(role)), window=window, tolerance=MEET_TOLERANCE,
-                       orientation_tolerance=MEET_ORIENTATION)
+                       rpy=b.world_rotation(g.rotation(role)), window=window, tolerance=PART_STILL_TOLERANCE,
+                       orientation_tolerance=PART_STILL_ORIENTATION)
     rest_targets(b, [f"{s}_hand" for s in points], tau=T)
     b.phase(phase, T)
     return b.finish(parts)
@@ -156,21 +162,41 @@ BOTH_ARMS = _arm_parts(("left", "right"))
 UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding a shoulder's roll at its standing angle (clap, salute)
 
 
-def hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...]) -> None:
+def hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...], out: float = 0.0) -> None:
     """The ``sides`` shoulders' roll joint (the arm's second, which swings the upper arm in to the
-    body) held at its standing angle over the whole gesture (a cost): a clap's hands come together
+    body) held at its standing angle over the whole gesture (a cost), turned ``out`` [rad] away
+    from the body (:func:`upper_arm_out_angle`): a clap's hands come together
     by the shoulders' yaw and the elbows. The planner does not see the upper arm against the torso
     (their meshes are 9 mm apart standing, too close to keep its 1 cm margin: "touching at rest"),
     and G1's plan swung the right upper arm into the torso's meshes (coal) to bring the hands in;
     in its salute, the left arm, which stays down; in its hops and one-foot balances, an arm that
-    swung for balance."""
-    q = b.robot.q_standing
+    swung for balance. Walks, steps, turns and hops hold them ``UPPER_ARM_OUT`` out: planned at
+    standing, G1's simulated upper arm still grazed the torso (3 samples of "walk forward", 1 of a
+    hop), the few millimetres the controller lets an untargeted arm swing."""
     for side in sides:
         j = arm_joints(b.robot, side)[1]
         name = b.robot.model.names[j]
         b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
-                                           value=float(q[b.robot.model.joints[j].idx_q]), window=b.window(0.0, T),
+                                           value=upper_arm_out_angle(b.robot, side, out), window=b.window(0.0, T),
                                            weight=UPPER_ARM_WEIGHT))
+
+
+def upper_arm_out_angle(robot: Robot, side: str, out: float) -> float:
+    """The ``side`` shoulder roll's standing angle turned ``out`` [rad] in the sense that takes the
+    hand away from the body's midline (Pinocchio FK at standing), within the joint's limits."""
+    model, q = robot.model, robot.q_standing.copy()
+    j = arm_joints(robot, side)[1]
+    i = model.joints[j].idx_q
+    standing = float(q[i])
+    if out == 0.0:
+        return standing
+    data, fid = model.createData(), robot.frame_id(f"{side}_hand")
+    pin.framesForwardKinematics(model, data, q)
+    y0 = SIGN[side] * data.oMf[fid].translation[1]
+    q[i] = standing + 0.05
+    pin.framesForwardKinematics(model, data, q)
+    sense = 1.0 if SIGN[side] * data.oMf[fid].translation[1] > y0 else -1.0
+    return float(np.clip(standing + sense * out, model.lowerPositionLimit[i], model.upperPositionLimit[i]))
 
 
 # --- punch ---------------------------------------------------------------------------------
@@ -565,4 +591,5 @@ __all__ = [
     "shoulder",
     "shrug_points",
     "stretch_points",
+    "upper_arm_out_angle",
 ]

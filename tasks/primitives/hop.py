@@ -53,7 +53,7 @@ import numpy as np
 
 from robots import Robot
 from tasks.exceptions import BeyondCapability, TaskDefinitionError
-from tasks.primitives.arms import hold_upper_arms
+from tasks.primitives.arms import UPPER_ARM_OUT, hold_upper_arms
 from tasks.primitives.base import DEFAULT_DT, Fragment, FragmentBuilder, Primitive
 from tasks.primitives.gait import (
     OTHER,
@@ -277,7 +277,7 @@ def _build_hop(b: FragmentBuilder) -> Fragment:
     home = b.end_stance.transform_from_standing(robot).act(g.com)
     b.com_target("CoM back between the feet", (float(home[0]), float(home[1]), None), time=tau(b, bounds[-1]),
                  tolerance=COM_TOLERANCE)
-    hold_upper_arms(b, b.nominal, ("left", "right"))  # G1's right upper arm went into the torso's meshes
+    hold_upper_arms(b, b.nominal, ("left", "right"), out=UPPER_ARM_OUT)  # G1's right upper arm went into the torso's meshes
     return b.finish(PARTS, dynamic=True)
 
 

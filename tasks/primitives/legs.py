@@ -32,7 +32,7 @@ import numpy as np
 from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import lateral_step_max, step_width
-from tasks.primitives.arms import hold_upper_arms
+from tasks.primitives.arms import UPPER_ARM_OUT, hold_upper_arms
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.gait import (
     OTHER,
@@ -329,6 +329,7 @@ def _build_arc(b: FragmentBuilder) -> Fragment:
     bounds = write_segments(b, segs)
     b.end_stance = stance_from(end)
     _com_home(b, b.end_stance, tau(b, bounds[-1]))
+    hold_upper_arms(b, b.nominal, ("left", "right"), out=UPPER_ARM_OUT)  # G1's left upper arm grazed the torso
     return b.finish(PARTS, dynamic=True)
 
 

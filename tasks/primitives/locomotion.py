@@ -21,6 +21,7 @@ from tasks.footsteps import (
     turn,
     walk,
 )
+from tasks.primitives.arms import UPPER_ARM_OUT, hold_upper_arms
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance, standing_geometry
 
@@ -70,6 +71,8 @@ def _primitive(name: str) -> Primitive:
         b.com_target("CoM back over the feet", (float(home[0]), float(home[1]), None), time=seq.duration,
                      tolerance=END_TOLERANCE)
         b.end_stance = end
+        # the upper arms held a little out (a cost): G1's grazed the torso's meshes in MuJoCo
+        hold_upper_arms(b, seq.duration, ("left", "right"), out=UPPER_ARM_OUT)
         return b.finish(PARTS, dynamic=True)
 
     def size_limits(params: dict, robot: Robot) -> dict[str, float]:

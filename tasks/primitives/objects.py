@@ -43,7 +43,15 @@ from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.footsteps import ContactSequence, turn, walk
 from tasks.grounding import Grounded, ground
-from tasks.primitives.arms import OUT_REACH, POSE_TOLERANCE, arm_length, reach_gap, shoulder
+from tasks.primitives.arms import (
+    OUT_REACH,
+    POSE_TOLERANCE,
+    UPPER_ARM_OUT,
+    arm_length,
+    hold_upper_arms,
+    reach_gap,
+    shoulder,
+)
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
 from tasks.primitives.bodymap import body_map, to_heading, to_standing
 from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
@@ -344,6 +352,8 @@ def build_walk_to(b: FragmentBuilder) -> Fragment:
     b.com_target(f"CoM over the feet at the {g.obj.name}", (float(home[0]), float(home[1]), None), time=total,
                  tolerance=END_TOLERANCE)
     b.end_stance = end
+    # the upper arms held a little out, as in a walk (G1's left upper arm grazed the torso's meshes)
+    hold_upper_arms(b, total, ("left", "right"), out=UPPER_ARM_OUT)
     return b.finish(LEG_PARTS, dynamic=True)
 
 

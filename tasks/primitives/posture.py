@@ -26,7 +26,6 @@ from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, arms_of,
 from tasks.primitives.geometry import (
     SIDE_SIGN,
     neck_range,
-    ray_exit_distance,
     require_role,
     standing_geometry,
 )
@@ -43,8 +42,6 @@ ORIENTATION_TOLERANCE = 0.05  # [rad] bow and turn_head
 LEAN_TOLERANCE = 0.01  # [m]
 LEAN_RAMP = (0.25, 0.5, 0.75)  # [-] fractions of the way out (and back) given a soft CoM waypoint ...
 LEAN_RAMP_WEIGHT = 100.0  # ... of this weight, on a cosine profile
-LEAN_ZMP_MARGIN = 0.02  # [m] a lean whose smooth ZMP comes this close to the soles' edge is planned dynamically
-G = 9.81  # [m/s^2]
 
 
 def _duration(params: dict, robot: Robot) -> float:
@@ -212,34 +209,20 @@ def limits_lean(robot: Robot) -> dict[str, str]:
     return {"amount": f"at most [m]: {ranges} on {robot.name}"}
 
 
-def lean_zmp_shift(robot: Robot, amount: float, duration: float) -> float:
-    r"""Farthest the ZMP of a smooth lean goes from the standing CoM [m]: the CoM-only ZMP
-    :math:`c - z\ddot c / g` of a quintic (rest-to-rest) shift by ``amount`` over ``OUT_FRACTION``
-    of ``duration``, at the standing CoM height ``z``: braking into the held lean puts it
-    beyond the CoM."""
-    ramp = OUT_FRACTION * duration
-    k = float(standing_geometry(robot).com[2]) / (G * ramp * ramp)
-    tau = np.linspace(0.0, 1.0, 201)
-    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-    s2 = 60.0 * tau - 180.0 * tau**2 + 120.0 * tau**3
-    return amount * float(np.max(s - k * s2))
-
-
-def lean_needs_dynamics(robot: Robot, direction: str, amount: float, duration: float) -> bool:
-    """Whether a lean is planned with the centroidal dynamics (contact forces, the centre of
-    pressure inside the soles): when even a smooth shift's ZMP (:func:`lean_zmp_shift`) comes within
-    ``LEAN_ZMP_MARGIN`` of the soles' edge. A kinematic plan bounds the CoM, not the ZMP: "lean to
-    the left a lot" (8 cm in 2 s on Talos) rushed the CoM into the hold, its full-dynamics ZMP left
-    the feet by 0.185 m and the simulated CoM missed its target by 4.7 cm; planned with the
-    dynamics it passes. Smaller leans stay kinematic (faster, and certified: "lean forward",
-    "raise your hands while leaning forward", whose arms the dynamic plan could not raise)."""
-    g = standing_geometry(robot)
-    edge = ray_exit_distance(g.support_polygon, g.com[:2], g.heading_axis(direction)[:2], 0.0)
-    return lean_zmp_shift(robot, amount, duration) > edge - LEAN_ZMP_MARGIN
-
-
 def build_lean(b: FragmentBuilder) -> Fragment:
-    """CoM shift held, then back over the standing point."""
+    """CoM shift held, then back over the standing point, planned with the centroidal dynamics
+    (contact forces, the centre of pressure inside the soles; ``dynamic=True``), whatever its size.
+
+    Why every lean: the controller keeps a kinematic plan's ZMP inside the support polygon scaled by
+    0.35 about its centre (``PlanReference(zmp_scale=0.35)``) wherever the plan's CoM is inside it,
+    and re-solves the CoM path from that. A kinematic lean's ZMP swings far beyond its CoM between
+    knots (Talos "lean to your right": up to 15 cm, with the ramp waypoints), so the CoM reference
+    the robot follows fell short of the plan's: 79 % of the planned shift at the hold's peak,
+    "lean forward" 82 %, "raise your hands while leaning forward" 63 %. A dynamic plan's ZMP is
+    inside the soles by construction and the controller takes its CoM as it is: 100 %, 96 % and
+    85 % (PlanReference, Talos; G1's lean 92 % -> 100 %). Planning takes 2-7 s instead of 1-5 s.
+    The earlier rule (dynamic only when a smooth shift's ZMP came within 2 cm of the soles' edge)
+    left every default lean kinematic."""
     check_lean(b.params, b.robot)
     T = b.params["duration"]
     g = b.geometry
@@ -257,8 +240,7 @@ def build_lean(b: FragmentBuilder) -> Fragment:
                      time=T - f * (1.0 - HOLD_END_FRACTION) * T, priority=Priority.SOFT, weight=LEAN_RAMP_WEIGHT)
     b.com_target("CoM back over the feet", (home[0], home[1], None), time=T, tolerance=LEAN_TOLERANCE)
     b.phase(f"lean {b.params['direction']}", T)
-    return b.finish(frozenset({"com", "legs"}), dynamic=lean_needs_dynamics(b.robot, b.params["direction"],
-                                                                             b.params["amount"], T * b.scale))
+    return b.finish(frozenset({"com", "legs"}), dynamic=True)
 
 
 LEAN = Primitive(name="lean", nominal_duration=_duration, build=build_lean,

@@ -221,12 +221,12 @@ def test_talos_jump_survives_a_push_at_its_touch_down_on_a_slippery_floor(talos)
     slip under its 10 mm line (10.1 mm, a FAIL, with the 0.15 s landing blend), and MuJoCo's
     floor forces keep more than half the weight on the soles in the 0.5 s after the touch-down
     (they fell to 4 % of it)."""
-    from planner import PlannerSettings, plan
+    from planner import CacheSettings, PlannerSettings, plan
     from tasks.actions import Action
     from tasks.compose import compile_actions
 
     spec = compile_actions([Action(name="jump", params={"height": 0.05})], talos, dt=0.075)
-    p = plan(spec, talos, settings=PlannerSettings(compile=False))
+    p = plan(spec, talos, settings=PlannerSettings(cache=CacheSettings(compile=False)))
     t_mid = 0.5 * float(p.t[-1])
     ex = simulate(p, talos, faults=faults_from_dict(
         {"pushes": [{"t": t_mid, "impulse": 20.0, "direction": [1, 0, 0]}], "friction_scale": 0.7}))

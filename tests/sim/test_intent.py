@@ -270,9 +270,10 @@ def test_a_salute_at_the_forehead_passes_on_the_meshes(talos, monkeypatch):
 @pytest.mark.slow
 def test_a_lean_reaches_its_planned_shift(talos, monkeypatch):
     """Talos leans right 4 cm (3.3 cm planned at the CoM): the simulated CoM, recomputed with
-    Pinocchio on the recorded configurations, is shifted at least 80 % of the plan's shift over
-    the hold (median, from where the lean begins; 2.8 cm measured), and the intent line says the same (it reached 44 % before the lean's ramp
-    waypoints, tasks/primitives/posture.py LEAN_RAMP)."""
+    Pinocchio on the recorded configurations, is shifted at least 90 % of the plan's shift over
+    the hold (median, from where the lean begins), and the intent line says the same (it reached
+    44 % before the lean's ramp waypoints, tasks/primitives/posture.py LEAN_RAMP, and 85 % while
+    leans were planned kinematically: the controller's ZMP filter cut them)."""
     from tasks.actions import Action
 
     spec, ex, run = _sentence_run(talos, [Action(name="lean", params={"direction": "right", "amount": 0.04})],
@@ -288,7 +289,7 @@ def test_a_lean_reaches_its_planned_shift(talos, monkeypatch):
     plan_y = run.ref.plan_com[[run.ref.index(float(ex.t[n])) for n in ticks], 1]
     planned = float(np.median(run.ref.plan_com[run.ref.index(float(ex.t[k0])), 1] - plan_y))  # the plan's own (3.4 cm)
     assert 0.02 < planned < 0.045
-    assert shift >= AMPLITUDE_FRACTION * planned
+    assert shift >= 0.9 * planned
     assert line.value / 100 == pytest.approx(shift / planned, abs=0.05)
 
 

@@ -735,3 +735,52 @@ def test_leg_motions_hold_the_shoulders_roll_at_standing(g1, name, params):
         (jt,) = [t for t in spec.joint_targets if t.joint == joint and t.window is not None]
         assert jt.value == pytest.approx(g1.q_standing[model.joints[model.getJointId(joint)].idx_q])
         assert jt.window[0] <= start + 1e-9 and jt.window[1] >= end - 1e-9, (jt.window, start, end)
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_walks_and_hops_hold_the_upper_arms_out(robot_name, request):
+    """A walk holds each shoulder's roll ``UPPER_ARM_OUT`` away from the body (a cost): G1's upper
+    arm grazed the torso's meshes walking. Reference: Pinocchio FK, the hand farther from the
+    midline with the roll at the held angle than standing."""
+    from tasks.primitives.arms import UPPER_ARM_OUT, upper_arm_out_angle
+
+    robot = request.getfixturevalue(robot_name)
+    spec = compile_actions([Action(name="walk", params={"distance": 0.3})], robot)
+    held = {t.joint: t.value for t in spec.joint_targets if "upper arm out of the torso" in t.name}
+    assert len(held) == 2
+    data = robot.model.createData()
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        joint = robot.model.names[robot.model.frames[robot.frame_id(f"{side}_hand")].parentJoint]
+        (name,) = [j for j in held if j.startswith(side) or f"_{side}_" in j]
+        q = robot.q_standing.copy()
+        i = robot.model.joints[robot.model.getJointId(name)].idx_q
+        assert abs(held[name] - q[i]) == pytest.approx(UPPER_ARM_OUT, abs=1e-9)
+        assert held[name] == upper_arm_out_angle(robot, side, UPPER_ARM_OUT)
+        ys = []
+        for value in (q[i], held[name]):
+            q[i] = value
+            pin.framesForwardKinematics(robot.model, data, q)
+            ys.append(sign * data.oMf[robot.frame_id(f"{side}_hand")].translation[1])
+        assert ys[1] > ys[0] + 0.01, (joint, ys)
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_every_walking_action_holds_the_upper_arms_out(robot_name, request):
+    """Steps, turns and walks in a circle hold both shoulders' roll ``UPPER_ARM_OUT`` out like the
+    walk (G1's "walk in a circle" grazed the torso's meshes in 14 simulation samples); the values are
+    those of :func:`upper_arm_out_angle` (checked against FK in the test above)."""
+    from tasks.primitives.arms import UPPER_ARM_OUT, upper_arm_out_angle
+
+    robot = request.getfixturevalue(robot_name)
+    want = {robot.model.names[arm_joint]: upper_arm_out_angle(robot, side, UPPER_ARM_OUT)
+            for side in ("left", "right") for arm_joint in [_roll_joint(robot, side)]}
+    for name, params in (("step", {"count": 2}), ("turn", {}), ("walk_arc", {})):
+        spec = compile_actions([Action(name=name, params=params)], robot)
+        held = {t.joint: t.value for t in spec.joint_targets if "upper arm out of the torso" in t.name}
+        assert held == pytest.approx(want), name
+
+
+def _roll_joint(robot, side):
+    from tasks.primitives.bodymap import arm_joints
+
+    return arm_joints(robot, side)[1]
