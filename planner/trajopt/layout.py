@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, NamedTuple, Self
 
 import numpy as np
@@ -61,9 +62,10 @@ INF = math.inf
 MIN_INTERVALS = 4  # the rest constraints use two knots at each end
 
 
+@dataclass(frozen=True, eq=False)
 class Layout(LayoutData):
-    """The kinematic formulation of one spec on one robot: its data (:class:`LayoutData`) and the
-    formulation protocol's methods (:class:`planner.trajopt.formulation.Formulation`)."""
+    """The kinematic formulation of one spec on one robot: its data (:class:`LayoutData`, frozen) and
+    the formulation protocol's methods (:class:`planner.trajopt.formulation.Formulation`)."""
 
     # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
     # The kinematic formulation: no variables, rows or parameters beyond the chart's; the
@@ -180,8 +182,7 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
     for joint_target in spec.joint_targets:
         joint_target_terms(lay, joint_target)
     closed_chain_terms(lay)
-    lay.frame_ids = sorted({f for t in lay.terms for f in t.frames()})
-    return lay
+    return replace(lay, frame_ids=sorted({f for t in lay.terms for f in t.frames()}))
 
 
 def _use(lay: Layout, k: int) -> bool:
@@ -313,9 +314,10 @@ def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
     """The phases of ``lay.spec`` with soles, in order: their time spans and sole polygons,
     computed once per layout and spec (:func:`support_polygon` asks for them at every knot,
     several times over a plan)."""
-    cached = lay.__dict__.get("_phase_polygons")
-    if cached is not None and cached[0] is lay.spec and cached[1] is lay.robot:
-        return cached[2]
+    return lay.memo("phase_polygons", lambda: _build_phase_polygons(lay))
+
+
+def _build_phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
     spec, robot = lay.spec, lay.robot
     out: list[_PhasePolygon] = []
     for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
@@ -334,7 +336,6 @@ def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
             for a in (hull, *(planes or ())):
                 a.setflags(write=False)  # shared by every knot of the phase
             out.append(_PhasePolygon(start, start + phase.duration, hull, _polygon_area(hull), planes))
-    lay.__dict__["_phase_polygons"] = (spec, robot, out)
     return out
 
 
