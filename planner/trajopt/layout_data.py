@@ -15,7 +15,7 @@ what the fields say.
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Self, TypeVar
 
@@ -42,7 +42,7 @@ class LayoutData:
         phase_of_knot: Phase index per knot (the later phase at a boundary).
         contacts_at: Per knot, the contacts active there (frame id -> (spec frame, placement)).
         frame_ids: Frame ids the terms use, in a fixed order.
-        terms: Every term.
+        terms: Every term (a tuple: a layout's terms change only in a new layout, :meth:`with_terms`).
         q_ref: Reference (= start) configuration (nq,).
     """
 
@@ -54,7 +54,7 @@ class LayoutData:
     phase_of_knot: list[int]
     contacts_at: list[dict[int, tuple[str, pin.SE3]]]
     frame_ids: list[int]
-    terms: list[Term]
+    terms: tuple[Term, ...]
     q_ref: np.ndarray
     _memo: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
 
@@ -93,10 +93,10 @@ class LayoutData:
             tuple((t.knot, t.structure, len(t.params), t.n_rows) for t in self.terms),
         )
 
-    def with_terms(self, terms: list[Term]) -> Self:
+    def with_terms(self, terms: Iterable[Term]) -> Self:
         """A copy of this layout (the same class, its cached parts shared) with ``terms`` instead of
         its own; this one is not changed (the collision rounds build their layouts this way)."""
-        return self._changed(terms=list(terms))
+        return self._changed(terms=tuple(terms))
 
     def phase_name(self, k: int) -> str:
         """Name of the phase at knot ``k``."""

@@ -122,5 +122,5 @@ def to_dynamic_layout(lay: Layout, settings: CentroidalSettings = CentroidalSett
     import dataclasses
 
     fields = {f.name: getattr(lay, f.name) for f in dataclasses.fields(lay) if f.init}
-    fields["terms"] = [t for t in lay.terms if not isinstance(t, SupportPolygonTerm) or t.knot == lay.N - 1]
+    fields["terms"] = tuple(t for t in lay.terms if not isinstance(t, SupportPolygonTerm) or t.knot == lay.N - 1)
     return DynamicLayout(**fields, centroidal_settings=settings)

@@ -147,7 +147,7 @@ def layout(talos) -> Layout:
     scene_rows = SceneRows(spheres={i: set(arm) for i in range(len(obs))},
                            knots={i: {COLLISION_KNOT} for i in range(len(obs))})
     lay = with_scene_terms(lay, sets, obs, scene_rows, list(range(len(obs))), MARGIN)
-    return lay.with_terms(kinematic + lay.terms)
+    return lay.with_terms([*kinematic, *lay.terms])
 
 
 # -- independent numpy/Pinocchio forms ------------------------------------------------------------
