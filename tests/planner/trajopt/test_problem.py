@@ -1,5 +1,8 @@
-"""A layout is frozen: its fields cannot be assigned, a changed layout is a new one, and what it
-builds lazily (the support polygons, the dynamic parts) neither shows as a field nor changes one."""
+"""Build, then solve: a layout is frozen (its fields cannot be assigned, a changed layout is a new one,
+and what it builds lazily neither shows as a field nor changes one); :func:`planner.formulate` builds
+the frozen :class:`planner.Problem` of (spec, robot, settings), :func:`planner.solve` solves it from an
+explicit warm start or its own guess, leaving it unchanged; :class:`planner.PlanningFailed` carries
+the problem and the solver's record."""
 
 from __future__ import annotations
 
@@ -8,9 +11,21 @@ import dataclasses
 import numpy as np
 import pytest
 
+from planner import (
+    CacheSettings,
+    PlannerSettings,
+    PlanningFailed,
+    Problem,
+    SolveStatus,
+    formulate,
+    plan,
+    solve,
+)
 from planner.trajopt.centroidal.layout import to_dynamic_layout
 from planner.trajopt.layout import make_layout, support_polygon
-from tests.planner.planning_cases import squat_spec
+from tests.planner.planning_cases import reach_spec, squat_spec
+
+SETTINGS = PlannerSettings(cache=CacheSettings(compile=False))
 
 
 @pytest.fixture(scope="module")
@@ -54,3 +69,44 @@ def test_a_dynamic_layouts_momentum_point_is_a_field_of_a_new_layout(squat_layou
     np.testing.assert_array_equal(moved.momentum_point(), point)
     assert moved.momentum_residual == 0.02 and np.isnan(dyn.momentum_residual)
     assert dyn.momentum_point() is guess and moved.pattern() is pattern  # built before the copy: shared
+
+
+@pytest.fixture(scope="module")
+def squat_solved(talos):
+    """A 10 cm squat's problem, its guess before the solve, and its solution from its own guess."""
+    problem = formulate(squat_spec(talos, 0.1), talos, SETTINGS)
+    guess = problem.guess.copy()
+    return problem, guess, solve(problem)
+
+
+def test_solve_is_plan_and_leaves_its_problem_unchanged(talos, squat_solved):
+    """``solve(formulate(...))`` gives the plan ``plan()`` gives (the same bytes), and the problem it
+    was given keeps its guess; a problem's fields cannot be assigned."""
+    problem, guess, solved = squat_solved
+    assert isinstance(problem, Problem) and solved.plan.ok, solved.plan.summary()
+    np.testing.assert_array_equal(problem.guess, guess)
+    planned = plan(squat_spec(talos, 0.1), talos, settings=SETTINGS)
+    assert planned.q.tobytes() == solved.plan.q.tobytes()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        problem.layout = solved.problem.layout  # type: ignore[misc]
+
+
+def test_a_previous_solution_as_warm_start_converges_to_it_sooner(squat_solved):
+    """Solved again from its own solution (``Solution.warm_start()``), the squat stops in fewer
+    iterations at the same motion (1e-4 rad), and the stats name the warm start."""
+    problem, _, solved = squat_solved
+    again = solve(problem, warm_start=solved.warm_start())
+    assert again.plan.ok, again.plan.summary()
+    assert again.stats.iterations < solved.stats.iterations
+    assert again.stats.seed == "previous solution"
+    assert np.max(np.abs(again.dq - solved.dq)) < 1e-4
+
+
+def test_a_failure_carries_its_problem_and_the_solvers_record(talos):
+    """A target before the robot can move is refused before any solve: the exception carries the
+    problem (its layout has that target's spec) and the solver's record (not run)."""
+    spec = reach_spec(talos, (0.1, 0.0, 0.0), time=0.0)
+    with pytest.raises(PlanningFailed, match="comes before the robot") as failed:
+        plan(spec, talos, settings=SETTINGS)
+    assert isinstance(failed.value.problem, Problem) and failed.value.problem.layout.spec is spec
+    assert failed.value.stats.status is SolveStatus.NOT_RUN and failed.value.stats is failed.value.plan.stats
