@@ -87,10 +87,11 @@ class Problem:
             rows its own guess asks for.
         settings: The settings its solves use (a dynamic problem's add the centroidal IPOPT
             options and its cache switches to the caller's).
-        guess: The solver's start from the task alone (all variables): the nominal motion
-            (kinematic, with ``warm_start="nominal"``) or the heading guess (dynamic).
+        guess: The solver's start from the task alone (all variables, read-only): the nominal
+            motion (kinematic, with ``warm_start="nominal"``) or the heading guess (dynamic).
         deferred: The self-collision rows screening left out for idle pairs (added when a solve
-            fails or a solution brings a pair within the margin; planner/trajopt/collision.py).
+            fails or a solution brings a pair within the margin; planner/trajopt/collision.py; a
+            solve works on a copy).
     """
 
     layout: Layout
@@ -203,6 +204,7 @@ def formulate(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> Proble
     """
     lay, settings = _formulation(spec, robot, settings)
     lay, guess, deferred = _screened_guess(lay, settings)
+    guess.setflags(write=False)  # the problem's, shared by every solve of it
     return Problem(lay, settings, guess, deferred)
 
 

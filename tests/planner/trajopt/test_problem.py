@@ -81,7 +81,7 @@ def squat_solved(talos):
 
 def test_solve_is_plan_and_leaves_its_problem_unchanged(talos, squat_solved):
     """``solve(formulate(...))`` gives the plan ``plan()`` gives (the same bytes), and the problem it
-    was given keeps its guess; a problem's fields cannot be assigned."""
+    was given keeps its guess; a problem's fields cannot be assigned, nor its guess written."""
     problem, guess, solved = squat_solved
     assert isinstance(problem, Problem) and solved.plan.ok, solved.plan.summary()
     np.testing.assert_array_equal(problem.guess, guess)
@@ -89,6 +89,8 @@ def test_solve_is_plan_and_leaves_its_problem_unchanged(talos, squat_solved):
     assert planned.q.tobytes() == solved.plan.q.tobytes()
     with pytest.raises(dataclasses.FrozenInstanceError):
         problem.layout = solved.problem.layout  # type: ignore[misc]
+    with pytest.raises(ValueError, match="read-only"):
+        problem.guess[0] = 1.0
 
 
 def test_a_previous_solution_as_warm_start_converges_to_it_sooner(squat_solved):
