@@ -6,7 +6,9 @@ cheap: CasADi, numba and proxsuite load only when a name that needs them is used
     from planner import plan, PlannerSettings, Plan
 
 * :func:`plan` (:mod:`planner.trajopt.api`) turns a ``TaskSpec`` into a :class:`Plan`;
-  :class:`PlannerSettings` configures it.
+  :class:`PlannerSettings` configures it. Its steps are public too: :func:`formulate` builds the
+  frozen :class:`Problem` of (spec, robot, settings), :func:`solve` solves it from an explicit
+  :class:`WarmStart` (or its own guess) into a :class:`Solution`.
 * :class:`Plan`, :class:`SolverStats`, :class:`SolveStatus`, :class:`Check` and :class:`CheckKind`
   (:mod:`planner.results`) report it (``ConstraintCheck`` is :class:`Check`'s former name).
 * :class:`WholeBodyController` and :class:`WbcSettings` (:mod:`planner.wbc`) track it.
@@ -39,7 +41,7 @@ if TYPE_CHECKING:
         UnsupportedModel,
     )
     from planner.results import Check, CheckKind, ConstraintCheck, Plan, SolverStats, SolveStatus
-    from planner.trajopt.api import plan
+    from planner.trajopt.api import Problem, Solution, WarmStart, formulate, plan, solve
     from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN, build_status, describe_build
     from planner.trajopt.cache import clear_memory_cache
     from planner.trajopt.centroidal.settings import CentroidalSettings
@@ -93,6 +95,11 @@ _EXPORTS = {  # public name -> module that defines it
     "full_dynamics_wrench": "planner.trajopt.centroidal.zmp",
     "kernel_ready": "planner.wbc.kernel",
     "plan": "planner.trajopt.api",
+    "Problem": "planner.trajopt.api",
+    "Solution": "planner.trajopt.api",
+    "WarmStart": "planner.trajopt.api",
+    "formulate": "planner.trajopt.api",
+    "solve": "planner.trajopt.api",
     "support_excursion": "planner.trajopt.centroidal.zmp",
     "support_heights": "planner.trajopt.centroidal.zmp",
     "zmp_of_wrenches": "planner.trajopt.centroidal.zmp",
@@ -116,6 +123,8 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "PlannerError",
     "PlannerSettings",
     "PlanningFailed",
+    "Problem",
+    "Solution",
     "SolveStatus",
     "SolverSettings",
     "SolverStats",
@@ -123,15 +132,18 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "StagewiseUnsupported",
     "Tolerances",
     "UnsupportedModel",
+    "WarmStart",
     "WbcSettings",
     "WholeBodyController",
     "build_status",
     "clear_memory_cache",
     "default_cache_dir",
     "describe_build",
+    "formulate",
     "full_dynamics_wrench",
     "kernel_ready",
     "plan",
+    "solve",
     "support_excursion",
     "support_heights",
     "zmp_of_wrenches",

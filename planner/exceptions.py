@@ -31,12 +31,21 @@ class PlanningFailed(PlannerError):
     Attributes:
         plan: The (failed) Plan at the returned point, when there is one.
         diagnosis: e.g. "right_hand target 'reach' is 0.21 m beyond reach at t = 1.50 s".
+        problem: The problem last solved (``planner.trajopt.api.Problem``: its layout with the rows
+            the collision rounds added, and the settings its solves used), when there is one.
     """
 
-    def __init__(self, diagnosis: str, plan: Any = None) -> None:
+    def __init__(self, diagnosis: str, plan: Any = None, *, problem: Any = None) -> None:
         self.diagnosis = diagnosis
         self.plan = plan
+        self.problem = problem
         super().__init__(diagnosis)
+
+    @property
+    def stats(self) -> Any:
+        """The solver's record (:class:`planner.results.SolverStats`: status, iterations, times, the
+        warm start's origin), None without a plan."""
+        return None if self.plan is None else self.plan.stats
 
 
 class StagewiseUnsupported(PlannerError):

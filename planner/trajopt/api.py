@@ -22,6 +22,7 @@ The NLP (docs/planner.md), for knots ``k = 0..N`` on a uniform grid:
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from collections.abc import Callable
@@ -51,7 +52,6 @@ from planner.trajopt.diagnose import diagnose_failure
 from planner.trajopt.layout import Layout, make_layout
 from planner.trajopt.library import (
     EscalationRows,
-    Seed,
     find_escalation,
     find_seed,
     has_seeds,
@@ -76,8 +76,84 @@ from tasks import TaskSpec
 L = TypeVar("L", bound=Layout)  # a layout, kinematic or dynamic: the functions hand back the same class
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class Problem:
+    """One spec on one robot, built and ready to solve (:func:`formulate`); frozen: a changed problem
+    is a new one (:meth:`with_layout`), and solving it changes nothing in it.
+
+    Attributes:
+        layout: The terms on the knot grid (:class:`Layout`, or the dynamic
+            ``planner.trajopt.centroidal.layout.DynamicLayout``), with the self-collision and scene
+            rows its own guess asks for.
+        settings: The settings its solves use (a dynamic problem's add the centroidal IPOPT
+            options and its cache switches to the caller's).
+        guess: The solver's start from the task alone (all variables, read-only): the nominal
+            motion (kinematic, with ``warm_start="nominal"``) or the heading guess (dynamic).
+        deferred: The self-collision rows screening left out for idle pairs (added when a solve
+            fails or a solution brings a pair within the margin; planner/trajopt/collision.py; a
+            solve works on a copy).
+    """
+
+    layout: Layout
+    settings: PlannerSettings
+    guess: np.ndarray
+    deferred: Rows
+
+    def with_layout(self, layout: Layout) -> Problem:
+        """This problem with ``layout`` instead of its own (a collision round's rows, a
+        re-linearization, the rows earlier plans needed); this one is not changed."""
+        return dataclasses.replace(self, layout=layout)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class WarmStart:
+    """Where a solve starts instead of its problem's own guess (an explicit argument of :func:`solve`).
+
+    Attributes:
+        x: All variables, of the problem's sizes.
+        dq: Chart displacements (N+1, nv) of that solution: a dynamic problem's whole-body momentum
+            rows are linearized about them (None: about the problem's own guess).
+        multipliers: ``(lam_x, lam_g)`` of the same structure's solve (None: IPOPT's own).
+        origin: What it is, for :attr:`SolverStats.seed` (``"library (distance 0.0123)"``).
+        what: What it is, in a sentence (``"stored solution"``).
+    """
+
+    x: np.ndarray
+    dq: np.ndarray | None = None
+    multipliers: tuple[np.ndarray, np.ndarray] | None = None
+    origin: str = "previous solution"
+    what: str = "previous solution"
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Solution:
+    """A solve's outcome (:func:`solve`): the plan and what a diagnosis of a failure needs.
+
+    Attributes:
+        problem: The problem as last solved: with the rows its collision rounds added and its
+            momentum rows re-linearized (the one given to :func:`solve` is not changed).
+        dq: Chart displacements (N+1, nv).
+        stats: The solver's record, adding up every solve (rounds, a failed warm start).
+        raw: The solver's raw output of the last solve (``x``, ``lam_x``, ``lam_g``, ``g``, bounds).
+        forces: The contact-force variables (None: the kinematic formulation has none).
+        plan: The plan, checked (not yet with the held objects' torques).
+    """
+
+    problem: Problem
+    dq: np.ndarray
+    stats: SolverStats
+    raw: dict
+    forces: np.ndarray | None
+    plan: Plan
+
+    def warm_start(self) -> WarmStart:
+        """This solution as the warm start of another solve of a problem of the same variables (its
+        rows may differ: the multipliers are left out)."""
+        return WarmStart(x=np.array(self.raw["x"]), dq=np.array(self.dq))
+
+
 def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = None, throw: bool = True,
-         progress: Callable[[str], None] | None = None) -> Plan:
+         progress: Callable[[str], None] | None = None, warm_start: WarmStart | None = None) -> Plan:
     """Plan a whole-body motion for ``spec`` on ``robot``, starting and ending at rest.
 
     The motion starts at ``spec.start`` (else ``robot.q_standing``). Frames in the spec are role names
@@ -90,6 +166,8 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         throw: Raise :class:`PlanningFailed` when the solve fails or a constraint group is
             violated; with False, return the (failed) plan with its ``diagnosis``.
         progress: Called with short messages ("building solver", "solving").
+        warm_start: Where the solve starts (a previous solution, :meth:`Solution.warm_start`;
+            None: the solution library's seed when the settings use it, else the task's own guess).
 
     Returns:
         The plan, on the uniform knot grid, with solver stats and the constraint report.
@@ -97,77 +175,100 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
     Raises:
         robots.FrameNotFound: the spec names a frame the robot does not have.
         UnsupportedModel: the robot has joints the planner cannot model.
-        PlanningFailed: the problem is infeasible or the solver failed (with ``throw``).
+        PlanningFailed: the problem is infeasible or the solver failed (with ``throw``; it carries
+            the problem last solved and the solver's record).
     """
-    given = settings or PlannerSettings()
-    lay, settings = _formulation(spec, robot, given)  # 1. formulate: the layout of terms and the settings it needs
-    refusal = precheck(lay)  # 2. refuse what needs no solve to see (a target out of every reach, ...)
+    problem = formulate(spec, robot, settings or PlannerSettings())  # 1. build the problem
+    refusal = precheck(problem.layout)  # 2. refuse what needs no solve to see (a target out of every reach, ...)
     if refusal:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
-        return _failed(make_plan(lay, np.zeros((lay.N + 1, robot.nv)), stats, settings, diagnosis=refusal), throw)
-    solved = _solve(spec, robot, given, lay, settings, progress)  # 3. solve: guess, seed, collision rounds
+        dq = np.zeros((problem.layout.N + 1, robot.nv))
+        return _failed(problem, make_plan(problem.layout, dq, stats, problem.settings, diagnosis=refusal), throw)
+    solved = _solve_with_library(problem, warm_start, progress)  # 3. solve, with what earlier plans stored
     result, too_heavy = _with_payload(solved.plan, robot, spec)  # 4. the held objects' torques, on the plan
     if too_heavy:  # an object too heavy for an arm: the cause, no other diagnosis
-        return _failed(result, throw)
+        return _failed(solved.problem, result, throw)
     if result.ok:
         return result
-    return _failed(_diagnosed(solved, result, spec, progress), throw)  # 5. say why, in task terms
+    return _failed(solved.problem, _diagnosed(solved, result, spec, progress), throw)  # 5. say why, in task terms
 
 
-@dataclasses.dataclass(frozen=True)
-class _Solved:
-    """Step 3's outcome: the plan and what step 5 needs to diagnose a failure."""
+def formulate(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> Problem:
+    """Build the problem of ``spec`` on ``robot``: its layout (kinematic, or dynamic: CoM dynamics
+    with contact forces, docs/dynamic.md) with the collision rows its own guess asks for, the
+    settings its solves use, and that guess. Reads nothing on disk.
 
-    lay: Layout
-    settings: PlannerSettings
-    dq: np.ndarray
-    stats: SolverStats
-    raw: dict
-    forces: np.ndarray | None
-    plan: Plan
+    Raises:
+        robots.FrameNotFound: the spec names a frame the robot does not have.
+        SpecNotForRobot: the spec names a joint the robot does not have, or its start state does not fit.
+    """
+    lay, settings = _formulation(spec, robot, settings)
+    lay, guess, deferred = _screened_guess(lay, settings)
+    guess.setflags(write=False)  # the problem's, shared by every solve of it
+    return Problem(lay, settings, guess, deferred)
 
 
-def _failed(result: Plan, throw: bool) -> Plan:
-    """A failed plan, raised as :class:`PlanningFailed` (with ``throw``) or returned."""
+def solve(problem: Problem, warm_start: WarmStart | None = None,
+          progress: Callable[[str], None] | None = None) -> Solution:
+    """Solve ``problem`` from ``warm_start`` (None: from its own guess), with its collision rounds
+    and re-linearizations (each a new problem, :func:`collision_round`); a solve from a warm start
+    that fails is done again from the problem's own guess (a warm start never costs a plan). Reads
+    and writes nothing on disk but the solver cache; ``problem`` is not changed."""
+    x0, lam0, lay = problem.guess, None, problem.layout
+    if warm_start is not None:
+        x0, lam0 = warm_start.x, warm_start.multipliers
+        if warm_start.dq is not None and isinstance(lay, DynamicLayout):
+            lay = lay.with_momentum_point(warm_start.dq)
+    deferred = copy.deepcopy(problem.deferred)
+    lay, dq, stats, raw = _solve_with_collisions(lay, problem.settings, progress, x0, deferred, lam0)
+    if warm_start is not None:
+        stats = dataclasses.replace(stats, seed=warm_start.origin)
+    solution = _solution(problem.with_layout(lay), dq, stats, raw)
+    if warm_start is None or solution.plan.ok:
+        return solution
+    if progress:
+        progress(f"the solve from the {warm_start.what} failed: solving from the task's own guess")
+    again = solve(problem, progress=progress)
+    tried = solution.stats
+    stats = dataclasses.replace(
+        again.stats, iterations=tried.iterations + again.stats.iterations,
+        build_time=tried.build_time + again.stats.build_time, solve_time=tried.solve_time + again.stats.solve_time,
+        seed=f"{tried.seed} failed: solved again from the task's own guess")
+    return _solution(again.problem, again.dq, stats, again.raw)
+
+
+def _solution(problem: Problem, dq: np.ndarray, stats: SolverStats, raw: dict) -> Solution:
+    """A solve's outcome with its plan."""
+    forces = problem.layout.forces_of(raw["x"])
+    result = make_plan(problem.layout, dq, stats, problem.settings, forces=forces)
+    return Solution(problem, dq, stats, raw, forces, result)
+
+
+def _failed(problem: Problem, result: Plan, throw: bool) -> Plan:
+    """A failed plan, raised as :class:`PlanningFailed` (with ``throw``: carrying ``problem`` and the
+    solver's record, ``result.stats``) or returned."""
     if throw:
-        raise PlanningFailed(result.diagnosis, result)
+        raise PlanningFailed(result.diagnosis, result, problem=problem)
     return result
 
 
-def _solve(spec: TaskSpec, robot: Robot, given: PlannerSettings, lay: Layout, settings: PlannerSettings,
-           progress: Callable[[str], None] | None) -> _Solved:
-    """Step 3: the screened guess, the escalation record, the solution library's seed (a dynamic
-    plan), the solve with its collision rounds; a seeded solve that fails is done again from the
-    task's own guess (a seed never costs a plan); a plan that succeeded goes into the library."""
-    lay, x0, deferred = _screened_guess(lay, settings)
-    lay, key0, escalation = _escalate(lay, settings, deferred, progress)
-    seed, loaded = _library_seed(lay, settings, x0, progress)
-    start, lam0 = (x0, None) if seed is None else (seed.start(x0), (seed.lam_x, seed.lam_g))
-    if seed is not None:
-        assert isinstance(lay, DynamicLayout)  # only dynamic layouts get seeds (_library_seed)
-        lay = lay.with_momentum_point(seed.dq)
-    lay, dq, stats, raw = _solve_with_collisions(lay, settings, progress, start, deferred, lam0)
-    stats = _with_load(stats, loaded)
-    if seed is not None:
-        stats = dataclasses.replace(stats, seed=f"library (distance {seed.distance:.4f})")
-    forces = lay.forces_of(raw["x"])
-    result = make_plan(lay, dq, stats, settings, forces=forces)
-    if seed is not None and not result.ok:  # a seed never costs a plan: the task's own guess, as without it
-        if progress:
-            progress("the solve from the stored solution failed: solving from the task's own guess")
-        tried = stats
-        lay, settings = _formulation(spec, robot, given)
-        lay, x0, deferred = _screened_guess(lay, settings)
-        lay, dq, stats, raw = _solve_with_collisions(lay, settings, progress, x0, deferred)
-        stats = dataclasses.replace(
-            stats, iterations=tried.iterations + stats.iterations, build_time=tried.build_time + stats.build_time,
-            solve_time=tried.solve_time + stats.solve_time,
-            seed=f"{tried.seed} failed: solved again from the task's own guess")
-        forces = lay.forces_of(raw["x"])
-        result = make_plan(lay, dq, stats, settings, forces=forces)
-    if result.ok:
-        _library_store(lay, settings, x0, raw, dq, key0, escalation)
-    return _Solved(lay, settings, dq, stats, raw, forces, result)
+def _solve_with_library(problem: Problem, warm_start: WarmStart | None,
+                        progress: Callable[[str], None] | None) -> Solution:
+    """Step 3: the solve, with what the solution library holds for the problem's structure
+    (:mod:`planner.trajopt.library`, a dynamic problem when the settings use it): the self-collision
+    rows earlier plans of the structure came to need, and, unless ``warm_start`` is given, its
+    nearest stored solution as the warm start; a plan that succeeded goes into the library."""
+    recalled, key0, escalation = _escalate(problem, progress)
+    loaded = None
+    if warm_start is None:
+        warm_start, loaded = _library_seed(recalled, progress)
+    solved = solve(recalled, warm_start, progress)
+    if loaded is not None:
+        stats = dataclasses.replace(solved.stats, build_time=solved.stats.build_time + loaded[0], cache=loaded[1])
+        solved = dataclasses.replace(solved, stats=stats, plan=dataclasses.replace(solved.plan, stats=stats))
+    if solved.plan.ok:
+        _library_store(solved, problem.guess, key0, escalation)
+    return solved
 
 
 def _with_payload(result: Plan, robot: Robot, spec: TaskSpec) -> tuple[Plan, bool]:
@@ -183,13 +284,13 @@ def _with_payload(result: Plan, robot: Robot, spec: TaskSpec) -> tuple[Plan, boo
     return dataclasses.replace(result, diagnosis=heavy.message), True
 
 
-def _diagnosed(solved: _Solved, result: Plan, spec: TaskSpec, progress: Callable[[str], None] | None) -> Plan:
+def _diagnosed(solved: Solution, result: Plan, spec: TaskSpec, progress: Callable[[str], None] | None) -> Plan:
     """Step 5: why a solve failed, in task terms: a target out of reach first (its relaxed solve
     converges), then the scene's and the body's collision rows, then the layout's own reading of
     the violated rows."""
     if progress:
         progress("the solve failed: diagnosing")
-    lay, settings, raw = solved.lay, solved.settings, solved.raw
+    lay, settings, raw = solved.problem.layout, solved.problem.settings, solved.raw
     diagnosis = ""
     collision = settings.collision
     asked = settings.diagnose and not spec.dynamic and (collision.scene_collision or collision.self_collision)
@@ -270,8 +371,7 @@ def planned_layout(spec: TaskSpec, robot: Robot, settings: PlannerSettings | Non
     """The layout :func:`plan` solves first (kinematic or dynamic, with the screened collision rows;
     without the rows the solution library may remember for its structure): what keys its solver
     in the cache."""
-    lay, settings = _formulation(spec, robot, settings or PlannerSettings())
-    return _screened_guess(lay, settings)[0]
+    return formulate(spec, robot, settings or PlannerSettings()).layout
 
 
 def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tuple[Layout, PlannerSettings]:
@@ -290,20 +390,14 @@ def _formulation(spec: TaskSpec, robot: Robot, settings: PlannerSettings) -> tup
     return lay, settings
 
 
-def _with_load(stats: SolverStats, loaded: tuple[float, str] | None) -> SolverStats:
-    """``stats`` with the solver's fetch before the solve (``loaded``: seconds and origin, from
-    :func:`_library_seed`; the solve itself then found it in memory)."""
-    if loaded is None:
-        return stats
-    return dataclasses.replace(stats, build_time=stats.build_time + loaded[0], cache=loaded[1])
-
-
-def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
-                  progress: Callable[[str], None] | None) -> tuple[Seed | None, tuple[float, str] | None]:
-    """The nearest stored solution of a dynamic layout's structure (:mod:`planner.trajopt.library`),
-    when the settings use the library, it holds one that fits, and its start (:meth:`Seed.start`)
-    violates the constraints less (summed) than the layout's own initial guess ``guess``; and, when
-    it fetched the solver for that, the seconds and origin of the fetch (for the stats)."""
+def _library_seed(problem: Problem, progress: Callable[[str], None] | None,
+                  ) -> tuple[WarmStart | None, tuple[float, str] | None]:
+    """The warm start from the nearest stored solution of a dynamic problem's structure
+    (:mod:`planner.trajopt.library`), when the settings use the library, it holds one that fits, and
+    its start (:meth:`Seed.start`) violates the constraints less (summed) than the problem's own
+    guess; and, when it fetched the solver for that, the seconds and origin of the fetch (for the
+    stats)."""
+    lay, settings, guess = problem.layout, problem.settings, problem.guess
     if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library != "off"):
         return None, None
     key = solver_key(lay, settings)
@@ -331,15 +425,16 @@ def _library_seed(lay: Layout, settings: PlannerSettings, guess: np.ndarray,
         return None, loaded
     if progress:
         progress(f"starting from a stored solution of this task structure (distance {seed.distance:.3g})")
-    return seed, loaded
+    return WarmStart(x=seed.start(guess), dq=seed.dq, multipliers=(seed.lam_x, seed.lam_g),
+                     origin=f"library (distance {seed.distance:.4f})", what="stored solution"), loaded
 
 
-def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, raw: dict, dq: np.ndarray,
-                   key0: str | None, escalation: EscalationRows | None) -> None:
-    """Keep a successful dynamic plan's solution (and its layout's own initial guess ``guess``) as a
+def _library_store(solved: Solution, guess: np.ndarray, key0: str | None, escalation: EscalationRows | None) -> None:
+    """Keep a successful dynamic plan's solution (and its problem's own guess ``guess``) as a
     seed of its structure (``solution_library="on"``); when collision rounds changed the structure
     the plan started with (``key0``, before any ``escalation`` record was applied), remember the
     self-collision rows it ended with for the next plan of ``key0``."""
+    lay, settings, raw, dq = solved.problem.layout, solved.problem.settings, solved.raw, solved.dq
     if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library == "on"):
         return
     key = solver_key(lay, settings)
@@ -353,22 +448,24 @@ def _library_store(lay: Layout, settings: PlannerSettings, guess: np.ndarray, ra
         store_escalation(key0, named, settings.cache.cache_dir)
 
 
-def _escalate(lay: L, settings: PlannerSettings, deferred: Rows,
-              progress: Callable[[str], None] | None) -> tuple[L, str | None, EscalationRows | None]:
-    """Give a dynamic layout the self-collision rows that earlier plans of its structure came to
+def _escalate(problem: Problem, progress: Callable[[str], None] | None,
+              ) -> tuple[Problem, str | None, EscalationRows | None]:
+    """Give a dynamic problem the self-collision rows that earlier plans of its structure came to
     need (:func:`planner.trajopt.library.find_escalation`) before its first solve: it then has their
     final structure, and their seeds, instead of a collision round that builds another solver
     and solves again. A record that names a pair, sphere pair or knot this layout does not have is
-    not used. Returns the layout with those rows (a copy; ``lay`` is not changed), the structure's key
-    before (None: the library is not used) and the record; the rows added leave ``deferred``."""
+    not used. Returns the problem with those rows (a new one: ``problem`` is not changed; the rows
+    added leave its ``deferred``), the structure's key before (None: the library is not used) and the
+    record."""
+    lay, settings = problem.layout, problem.settings
     cache = settings.cache
     if not (isinstance(lay, DynamicLayout) and cache.use_cache and cache.solution_library != "off"
             and settings.collision.self_collision):
-        return lay, None, None
+        return problem, None, None
     key0 = solver_key(lay, settings)
     record = find_escalation(key0, settings.cache.cache_dir)
     if record is None:
-        return lay, key0, None
+        return problem, key0, None
     sets = sphere_sets(lay.robot)
     index = {"/".join(name): pi for pi, name in enumerate(sets.pair_names)}
     ends = np.append(sets.starts[1:], len(sets.sa))
@@ -376,19 +473,21 @@ def _escalate(lay: L, settings: PlannerSettings, deferred: Rows,
     for name, (spheres, knots) in record.items():
         pi = index.get(name)
         if pi is None or max(spheres) >= ends[pi] - sets.starts[pi] or min(knots) < 2 or max(knots) > lay.N - 1:
-            return lay, key0, None
+            return problem, key0, None
         extra.spheres[pi], extra.knots[pi] = set(spheres), set(knots)
     rows = collision_rows_of(lay, sets)
     changed = rows.merge(extra)
-    if changed:
-        lay = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
-        for pi in changed:
-            deferred.spheres.pop(pi, None)
-            deferred.knots.pop(pi, None)
-        if progress:
-            progress(f"adding the collision rows of {len(changed)} link pair(s) that earlier plans of this "
-                     "task structure needed")
-    return lay, key0, record
+    if not changed:
+        return problem, key0, record
+    deferred = copy.deepcopy(problem.deferred)
+    for pi in changed:
+        deferred.spheres.pop(pi, None)
+        deferred.knots.pop(pi, None)
+    if progress:
+        progress(f"adding the collision rows of {len(changed)} link pair(s) that earlier plans of this "
+                 "task structure needed")
+    layout = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
+    return dataclasses.replace(problem, layout=layout, deferred=deferred), key0, record
 
 
 def collision_round(lay: L, settings: PlannerSettings, dq: np.ndarray, sets: SphereSets | None, rows: Rows | None,

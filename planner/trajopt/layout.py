@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, NamedTuple, Self
 
 import numpy as np
@@ -48,7 +49,7 @@ from planner.trajopt.kinds import (
     target_mode,
 )
 from planner.trajopt.layout_data import LayoutData
-from planner.trajopt.term import knots_of
+from planner.trajopt.term import Term, knots_of
 from robots import Robot, halfplanes, sole_corners_in_world
 from robots import support_polygon as polygon_of_soles
 from tasks import CoMBounds, CoMTarget, Contact, FrameTarget, Grasp, JointTarget, Priority, TaskSpec
@@ -61,9 +62,10 @@ INF = math.inf
 MIN_INTERVALS = 4  # the rest constraints use two knots at each end
 
 
+@dataclass(frozen=True, eq=False)
 class Layout(LayoutData):
-    """The kinematic formulation of one spec on one robot: its data (:class:`LayoutData`) and the
-    formulation protocol's methods (:class:`planner.trajopt.formulation.Formulation`)."""
+    """The kinematic formulation of one spec on one robot: its data (:class:`LayoutData`, frozen) and
+    the formulation protocol's methods (:class:`planner.trajopt.formulation.Formulation`)."""
 
     # -- the formulation protocol (planner.trajopt.formulation.Formulation) ------------------
     # The kinematic formulation: no variables, rows or parameters beyond the chart's; the
@@ -166,22 +168,19 @@ def make_layout(spec: TaskSpec, robot: Robot) -> Layout:
                 for c in ph.contacts:
                     active[robot.frame_id(c.frame)] = (c.frame, placement_of(c.placement))
         contacts_at.append(active)
-    lay = Layout(robot=robot, spec=spec, N=N, dt=dt, t=t, phase_of_knot=phase_of_knot,
-                 contacts_at=contacts_at, frame_ids=[], terms=[], q_ref=start_configuration(spec, robot))
-    contact_terms(lay)
-    swing_terms(lay)
-    regularization_terms(lay)
+    grid = Layout(robot=robot, spec=spec, N=N, dt=dt, t=t, phase_of_knot=phase_of_knot,
+                  contacts_at=contacts_at, frame_ids=[], terms=(), q_ref=start_configuration(spec, robot))
+    terms = [*contact_terms(grid), *swing_terms(grid), *regularization_terms(grid)]
     for bounds in spec.com_bounds:
-        balance_terms(lay, bounds)
+        terms += balance_terms(grid, bounds)
     for target in spec.targets:
-        frame_target_terms(lay, target)
+        terms += frame_target_terms(grid, target)
     for com_target in spec.com_targets:
-        com_target_terms(lay, com_target)
+        terms += com_target_terms(grid, com_target)
     for joint_target in spec.joint_targets:
-        joint_target_terms(lay, joint_target)
-    closed_chain_terms(lay)
-    lay.frame_ids = sorted({f for t in lay.terms for f in t.frames()})
-    return lay
+        terms += joint_target_terms(grid, joint_target)
+    terms += closed_chain_terms(grid.with_terms(terms))  # reads the targets' terms
+    return replace(grid, terms=tuple(terms), frame_ids=sorted({f for t in terms for f in t.frames()}))
 
 
 def _use(lay: Layout, k: int) -> bool:
@@ -189,8 +188,9 @@ def _use(lay: Layout, k: int) -> bool:
     return 2 <= k <= lay.N - 1
 
 
-def contact_terms(lay: Layout) -> None:
+def contact_terms(lay: Layout) -> list[Term]:
     """Stance soles fixed in 6D to their placement: 3 position rows [m] + 3 rotation rows [rad]."""
+    out: list[Term] = []
     for k in range(lay.N + 1):
         if not _use(lay, k):
             continue
@@ -198,7 +198,8 @@ def contact_terms(lay: Layout) -> None:
             near = 6 if lay.robot.foot_side(lay.robot.model.frames[fid].name) else min(
                 (_chain_joints(lay.robot, fid, other) for other in lay.contacts_at[k] if other != fid), default=6)
             kind = ContactPositionTerm if near < 6 else ContactTerm  # a sole keeps its 6 rows
-            lay.terms.append(kind.at(k, fid, frame, M, lay.phase_name(k)))
+            out.append(kind.at(k, fid, frame, M, lay.phase_name(k)))
+    return out
 
 
 def _chain_joints(robot: Robot, a: int, b: int) -> int:
@@ -209,8 +210,9 @@ def _chain_joints(robot: Robot, a: int, b: int) -> int:
     return sum(model.joints[j].nv == 1 for j in sa ^ sb)
 
 
-def swing_terms(lay: Layout) -> None:
+def swing_terms(lay: Layout) -> list[Term]:
     """Feet off the ground stay above it; at a phase's middle they clear ``swing_height`` [m]."""
+    out: list[Term] = []
     spec, robot = lay.spec, lay.robot
     contact_frames = {robot.frame_id(f): f for f in spec.contact_frames()}
     starts = spec.phase_start_times()
@@ -218,21 +220,22 @@ def swing_terms(lay: Layout) -> None:
         for k in range(lay.N + 1):
             if not _use(lay, k) or fid in lay.contacts_at[k]:
                 continue
-            lay.terms.append(ClearanceTerm.at(k, fid, 0.0, f"{frame} above ground", lay.phase_name(k)))
+            out.append(ClearanceTerm.at(k, fid, 0.0, f"{frame} above ground", lay.phase_name(k)))
         for i, ph in enumerate(spec.phases):
             if any(robot.frame_id(c.frame) == fid for c in ph.contacts) or ph.swing_height <= 0:
                 continue
             k = int(round((starts[i] + 0.5 * ph.duration) / lay.dt))
             if not _use(lay, k) or fid in lay.contacts_at[k]:
                 continue
-            lay.terms.append(ClearanceTerm.at(k, fid, ph.swing_height, f"{frame} swing clearance", ph.name))
+            out.append(ClearanceTerm.at(k, fid, ph.swing_height, f"{frame} swing clearance", ph.name))
+    return out
 
 
 COM_CENTERING_WEIGHT = 20.0  # [1/m^2 per s]: CoM ground projection towards the support centre
 BASE_UPRIGHT_WEIGHT = 2.0  # [1/rad^2 per s]: base orientation towards upright, yaw of the feet
 
 
-def regularization_terms(lay: Layout) -> None:
+def regularization_terms(lay: Layout) -> list[Term]:
     """Soft terms that pick the natural motion among the many the constraints allow.
 
     The posture cost acts on the joints only, so without these the floating base is free, and a
@@ -246,6 +249,7 @@ def regularization_terms(lay: Layout) -> None:
     Both are weighted per second of motion, so they do not depend on the knot spacing; hard
     targets (a CoM shift for ``lean``, one-foot balance) override them.
     """
+    out: list[Term] = []
     robot = lay.robot
     base = robot.frame_id("base")
     base_rotation = _standing_base_rotation(lay)  # the same at every knot
@@ -253,7 +257,7 @@ def regularization_terms(lay: Layout) -> None:
         hull = support_polygon(lay, k)
         if len(hull) >= 3:
             centre = hull.mean(axis=0)
-            lay.terms.append(CoMPositionTerm.at(k, (True, True, False), [centre[0], centre[1], 0.0], "soft",
+            out.append(CoMPositionTerm.at(k, (True, True, False), [centre[0], centre[1], 0.0], "soft",
                                                 COM_CENTERING_WEIGHT * lay.dt, np.zeros(0), "CoM centring (cost)",
                                                 lay.phase_name(k)))
         yaws = [math.atan2(M.rotation[1, 0], M.rotation[0, 0]) for M in
@@ -261,8 +265,9 @@ def regularization_terms(lay: Layout) -> None:
         if yaws:
             yaw = math.atan2(sum(math.sin(y) for y in yaws), sum(math.cos(y) for y in yaws))
             R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ base_rotation
-            lay.terms.append(FrameOrientationTerm.at(k, base, R, "soft", BASE_UPRIGHT_WEIGHT * lay.dt, 0.0,
+            out.append(FrameOrientationTerm.at(k, base, R, "soft", BASE_UPRIGHT_WEIGHT * lay.dt, 0.0,
                                                      "base upright (cost)", lay.phase_name(k)))
+    return out
 
 
 def _standing_base_rotation(lay: Layout) -> np.ndarray:
@@ -313,9 +318,10 @@ def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
     """The phases of ``lay.spec`` with soles, in order: their time spans and sole polygons,
     computed once per layout and spec (:func:`support_polygon` asks for them at every knot,
     several times over a plan)."""
-    cached = lay.__dict__.get("_phase_polygons")
-    if cached is not None and cached[0] is lay.spec and cached[1] is lay.robot:
-        return cached[2]
+    return lay.memo("phase_polygons", lambda: _build_phase_polygons(lay))
+
+
+def _build_phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
     spec, robot = lay.spec, lay.robot
     out: list[_PhasePolygon] = []
     for start, phase in zip(spec.phase_start_times(), spec.phases, strict=True):
@@ -334,7 +340,6 @@ def _phase_polygons(lay: LayoutData) -> list[_PhasePolygon]:
             for a in (hull, *(planes or ())):
                 a.setflags(write=False)  # shared by every knot of the phase
             out.append(_PhasePolygon(start, start + phase.duration, hull, _polygon_area(hull), planes))
-    lay.__dict__["_phase_polygons"] = (spec, robot, out)
     return out
 
 
@@ -358,8 +363,9 @@ def _polygon_area(hull: np.ndarray) -> float:
 POLYGON_ROWS = {1: 4, 2: 8}  # padded number of rows by number of active soles
 
 
-def balance_terms(lay: Layout, bounds: CoMBounds) -> None:
+def balance_terms(lay: Layout, bounds: CoMBounds) -> list[Term]:
     """CoM ground projection inside the support polygon shrunk by the margin, plus the box."""
+    out: list[Term] = []
     ks = range(lay.N + 1) if bounds.window is None else knots_of(lay.t, None, bounds.window, lay.N)
     axes = tuple(lo is not None or hi is not None for lo, hi in zip(bounds.lower, bounds.upper, strict=True))
     for k in ks:
@@ -371,13 +377,15 @@ def balance_terms(lay: Layout, bounds: CoMBounds) -> None:
                 A, b = planes
                 n_feet = sum(1 for fid in lay.contacts_at[k] if lay.robot.foot_side(lay.robot.model.frames[fid].name))
                 rows = max(POLYGON_ROWS.get(n_feet, 4 * n_feet), len(A))
-                lay.terms.append(SupportPolygonTerm.at(k, A, b, rows, bounds, lay.phase_name(k)))
+                out.append(SupportPolygonTerm.at(k, A, b, rows, bounds, lay.phase_name(k)))
         if any(axes):
-            lay.terms.append(CoMBoxTerm.at(k, bounds, axes, lay.phase_name(k)))
+            out.append(CoMBoxTerm.at(k, bounds, axes, lay.phase_name(k)))
+    return out
 
 
-def frame_target_terms(lay: Layout, target: FrameTarget) -> None:
+def frame_target_terms(lay: Layout, target: FrameTarget) -> list[Term]:
     """Frame position/orientation targets at their knots, hard (ball constraint) or soft (cost)."""
+    out: list[Term] = []
     fid = lay.robot.frame_id(target.frame)
     ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
     for kk in ks:
@@ -386,25 +394,29 @@ def frame_target_terms(lay: Layout, target: FrameTarget) -> None:
             continue  # fixed start knots: checked in the report only
         scale = 1.0 / len(ks)
         if target.position is not None:
-            lay.terms.append(FramePositionTerm.at(kk, fid, target, scale, lay.phase_name(k)))
+            out.append(FramePositionTerm.at(kk, fid, target, scale, lay.phase_name(k)))
         if target.rpy is not None:
             mode = _mode(target.priority, target.orientation_tolerance)
-            lay.terms.append(FrameOrientationTerm.at(
+            out.append(FrameOrientationTerm.at(
                 kk, fid, pin.rpy.rpyToMatrix(*target.rpy), mode, target.weight * scale, target.orientation_tolerance,
                 f"{target.frame} orientation target {target.name!r}", lay.phase_name(k), item=target))
+    return out
 
 
-def com_target_terms(lay: Layout, target: CoMTarget) -> None:
+def com_target_terms(lay: Layout, target: CoMTarget) -> list[Term]:
     """CoM position targets (per axis) at their knots, hard or soft."""
+    out: list[Term] = []
     ks = sorted({lay.free_knot(k) for k in knots_of(lay.t, target.time, target.window, lay.N)})
     for kk in ks:
         if kk < 2:
             continue
-        lay.terms.append(CoMPositionTerm.of_target(kk, target, len(ks), lay.phase_name(kk)))
+        out.append(CoMPositionTerm.of_target(kk, target, len(ks), lay.phase_name(kk)))
+    return out
 
 
-def joint_target_terms(lay: Layout, target: JointTarget) -> None:
+def joint_target_terms(lay: Layout, target: JointTarget) -> list[Term]:
     """Joint angle targets as weighted costs."""
+    out: list[Term] = []
     model = lay.robot.model
     if not model.existJointName(target.joint):
         raise SpecNotForRobot(
@@ -418,7 +430,8 @@ def joint_target_terms(lay: Layout, target: JointTarget) -> None:
     for kk in ks:
         if kk < 2:
             continue
-        lay.terms.append(JointTargetTerm.at(kk, iv, target, len(ks), lay.phase_name(kk)))
+        out.append(JointTargetTerm.at(kk, iv, target, len(ks), lay.phase_name(kk)))
+    return out
 
 
 def held_together(spec: TaskSpec) -> list[tuple[Grasp, Grasp]]:
@@ -443,14 +456,15 @@ def grasp_relative_rotation(lay: Layout, a: Grasp, b: Grasp) -> np.ndarray | Non
     return rot[a.frame].T @ rot[b.frame]
 
 
-def closed_chain_terms(lay: Layout) -> None:
-    """Two hands holding one object form a closed chain: at every knot of the shared hold, the
+def closed_chain_terms(lay: Layout) -> list[Term]:
+    """(``lay``: the layout with every other term.) Two hands holding one object form a closed chain: at every knot of the shared hold, the
     object's centre as placed by one hand (its grasp offset) is where the other places it (3 rows
     [m]), and the hands' relative orientation stays what their targets give at the grasp (3 rows,
     when both have one there). Stage-wise: both frames at the same knot. A knot where both hands
     already have HARD position and orientation targets (the press, the lift, the put-down: placed
     in the chain by the grasp) gets none: its rows would repeat the targets' (a degenerate NLP that
     IPOPT left infeasible); the chain holds the hands between them."""
+    out: list[Term] = []
     posed: dict[int, set[tuple[str, int]]] = {}
     for t in lay.terms:
         if (isinstance(t, FrameOrientationTerm) or (isinstance(t, FramePositionTerm) and all(t.axes))) and t.hard:
@@ -464,7 +478,8 @@ def closed_chain_terms(lay: Layout) -> None:
         for k in ks:
             if not _use(lay, k) or (R_rel is not None and targeted <= posed.get(k, set())):
                 continue
-            lay.terms.append(ClosedChainTerm.at(k, fa, fb, a, b, R_rel, lay.phase_name(k)))
+            out.append(ClosedChainTerm.at(k, fa, fb, a, b, R_rel, lay.phase_name(k)))
+    return out
 
 
 def _mode(priority: Priority, tolerance: float) -> str:

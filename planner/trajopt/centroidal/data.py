@@ -4,12 +4,14 @@ sole-corner rows, the centroidal function, the momentum linearization point).
 The centroidal modules (``nlp``, ``guess``, ``momentum``, ``checks``, ``zmp``, ``diagnose``) take a
 :class:`DynamicData`; the formulation, :class:`planner.trajopt.centroidal.layout.DynamicLayout`,
 adds the formulation protocol on top and imports them, never the other way round. The parts are
-built on first use from the layout's data alone (``contacts``, ``pattern``, ``heading``).
+built on first use from the layout's data alone (``contacts``, ``pattern``, ``heading``) and kept in
+the layout's memo (:meth:`planner.trajopt.layout_data.LayoutData.memo`): a dynamic layout is frozen
+like every layout.
 """
 
 from __future__ import annotations
 
-import copy
+from dataclasses import dataclass
 from typing import Self
 
 import numpy as np
@@ -27,48 +29,45 @@ from planner.trajopt.centroidal.settings import CentroidalSettings
 from planner.trajopt.layout_data import LayoutData
 
 
+@dataclass(frozen=True, eq=False)
 class DynamicData(LayoutData):
     """A :class:`planner.trajopt.layout_data.LayoutData` with the parts of its CoM dynamics.
 
     Attributes:
         centroidal_settings: Weights and options of the dynamic terms.
+        linearized_about: Chart displacements (N+1, nv) given to :meth:`with_momentum_point` (None:
+            the initial guess's, :meth:`momentum_point`).
         momentum_residual: Euler's law / (m g) [m] at the solution the momentum rows were last
             re-linearized about (nan before).
     """
 
-    centroidal_settings: CentroidalSettings
-    _cf: CentroidalFunction | None
-    _pattern: CentroidalPattern | None
-    _momentum_point: np.ndarray | None
+    centroidal_settings: CentroidalSettings = CentroidalSettings()
+    linearized_about: np.ndarray | None = None
     momentum_residual: float = float("nan")  # Euler's law at the momentum point / (m g) [m]
 
     def momentum_point(self) -> np.ndarray:
         """Chart displacements (N+1, nv) the whole-body momentum rows are linearized about: the
         solution given to :meth:`with_momentum_point`, else the initial guess's."""
-        if self._momentum_point is None:
-            self._momentum_point = heading_guess(self)
-        return self._momentum_point
+        if self.linearized_about is not None:
+            return self.linearized_about
+        return self.memo("heading", lambda: heading_guess(self))
 
     def with_momentum_point(self, dq: np.ndarray, residual: float = float("nan")) -> Self:
         """A copy of this layout whose whole-body momentum rows are linearized about ``dq`` (N+1, nv)
         (``residual``: Euler's law there, for the record); this one is not changed."""
-        out = copy.copy(self)
-        out._momentum_point = np.array(dq, dtype=float)
-        out.momentum_residual = residual
-        return out
+        return self._changed(linearized_about=np.array(dq, dtype=float), momentum_residual=residual)
 
     def centroidal(self) -> CentroidalFunction:
         """The centroidal function of this layout (CasADi; built once, only to build a solver)."""
-        if self._cf is None:
-            self._cf = centroidal_function(self, settings=self.centroidal_settings)
-        return self._cf
+        return self.memo("centroidal", lambda: centroidal_function(self, settings=self.centroidal_settings))
 
     def pattern(self) -> CentroidalPattern:
         """The numbers of the centroidal terms (no CasADi; what a cached solver needs)."""
-        if self._pattern is None:
+        def build() -> CentroidalPattern:
             contacts = layout_contacts(self, cop_margin=self.centroidal_settings.cop_margin)
-            self._pattern = centroidal_pattern(contacts, self.robot.mass, settings=self.centroidal_settings)
-        return self._pattern
+            return centroidal_pattern(contacts, self.robot.mass, settings=self.centroidal_settings)
+
+        return self.memo("pattern", build)
 
     def corner_rows(self) -> tuple[tuple[int, int, int], ...]:
         """(knot, foot frame id, corner) of the sole-corner rows (feet not in contact)."""

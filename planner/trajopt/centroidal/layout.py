@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Self
 
 import numpy as np
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
 DYNAMIC_FORMULATION = "lifted-com-3-momentum-affine-ankle-lifted-moment"  # part of a dynamic layout's structure (solver cache key)
 
 
+@dataclass(frozen=True, eq=False)
 class DynamicLayout(DynamicData, Layout):
     """A :class:`planner.trajopt.layout.Layout` with CoM dynamics and contact forces: the data
     (:class:`planner.trajopt.centroidal.data.DynamicData`) and the formulation protocol.
@@ -119,11 +121,6 @@ def to_dynamic_layout(lay: Layout, settings: CentroidalSettings = CentroidalSett
     """
     import dataclasses
 
-    fields = {f.name: getattr(lay, f.name) for f in dataclasses.fields(lay)}
-    fields["terms"] = [t for t in lay.terms if not isinstance(t, SupportPolygonTerm) or t.knot == lay.N - 1]
-    out = DynamicLayout(**fields)
-    out.centroidal_settings = settings
-    out._cf = None
-    out._pattern = None
-    out._momentum_point = None
-    return out
+    fields = {f.name: getattr(lay, f.name) for f in dataclasses.fields(lay) if f.init}
+    fields["terms"] = tuple(t for t in lay.terms if not isinstance(t, SupportPolygonTerm) or t.knot == lay.N - 1)
+    return DynamicLayout(**fields, centroidal_settings=settings)

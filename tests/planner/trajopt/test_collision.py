@@ -66,8 +66,7 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
     """The stage function's collision rows equal |c_i - c_j|^2 from Pinocchio's placements, and their
     Jacobian matches central finite differences, at random chart displacements."""
     spec = _reach_spec(talos, "reach right with your left hand 40 cm")
-    lay = make_layout(spec, talos)
-    lay.terms = []
+    lay = make_layout(spec, talos).with_terms([])
     sets = sphere_sets(talos)
     pairs = {("arm_left_5_link", "base_link"), ("gripper_left_base_link", "leg_right_3_link")}
     index = [i for i, p in enumerate(sets.pair_names) if p in pairs]

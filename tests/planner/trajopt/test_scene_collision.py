@@ -92,8 +92,7 @@ def test_scene_rows_match_numpy_and_finite_differences(talos):
     Pinocchio's joint placements, and their Jacobian matches central finite differences."""
     scene = _shapes_scene()
     spec = _spec(talos, "reach forward 30 cm with your right hand", scene)
-    lay = make_layout(spec, talos)
-    lay.terms = []
+    lay = make_layout(spec, talos).with_terms([])
     sets = scene_sets(talos)
     obs = obstacles(scene)
     arm = [s for s in range(len(sets.sphere_radius))

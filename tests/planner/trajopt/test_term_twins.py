@@ -25,7 +25,6 @@ until it has a twin here).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 from typing import NamedTuple
@@ -134,7 +133,7 @@ def layout(talos) -> Layout:
     kinematic.append(ContactPositionTerm.at(COLLISION_KNOT, thigh, "leg_left_3_link",
                                             pin.SE3(np.eye(3), np.array([-0.22, 0.085, 0.37])), "twin"))
     sets = sphere_sets(talos)
-    lay.terms = []
+    lay = lay.with_terms([])
     rows = Rows()
     index = [i for i, name in enumerate(sets.pair_names) if name in COLLISION_PAIRS]
     assert len(index) == len(COLLISION_PAIRS)
@@ -148,8 +147,7 @@ def layout(talos) -> Layout:
     scene_rows = SceneRows(spheres={i: set(arm) for i in range(len(obs))},
                            knots={i: {COLLISION_KNOT} for i in range(len(obs))})
     lay = with_scene_terms(lay, sets, obs, scene_rows, list(range(len(obs))), MARGIN)
-    lay.terms = kinematic + lay.terms
-    return lay
+    return lay.with_terms([*kinematic, *lay.terms])
 
 
 # -- independent numpy/Pinocchio forms ------------------------------------------------------------
@@ -475,7 +473,7 @@ def test_a_new_term_kind_is_one_class(layout, talos):
         term = BaseHeight(knot=COLLISION_KNOT, structure=("test_base_height",), params=np.array([0.9]),
                           lower=np.zeros(1), upper=np.array([np.inf]))
         ids = [i for i, t in enumerate(layout.terms) if t.knot == COLLISION_KNOT and not t.is_cost][:3]
-        lay = dataclasses.replace(layout, terms=[*(layout.terms[i] for i in ids), term])
+        lay = layout.with_terms([*(layout.terms[i] for i in ids), term])
         fn = stage_function(lay, list(range(len(lay.terms))), "twin_new_kind")
         dq = np.random.default_rng(SEED).normal(scale=DQ_SCALE, size=talos.nv)
         kin = NumericKinematics(talos.model, chart_to_configuration(talos.model, layout.q_ref, dq))
