@@ -192,3 +192,43 @@ def test_the_shoulders_are_held_out_away_from_the_torso(name):
 
 def talos_or_g1(name: str):
     return load_robot(name)
+
+
+def test_a_swinging_foot_is_tracked_from_its_placement_onto_the_next():
+    """swing_target on a synthetic swing: at the stance knots it is the placements, in between the
+    smoothstep blend between them plus the source's own lift above the same blend of its ends."""
+    from tasks.mocap.retarget import swing_target
+
+    n = 7  # knots 0 and 6 in stance, 1-5 swinging
+    src = np.zeros((n, 3))
+    src[:, 0] = np.linspace(1.0, 0.6, n)  # the source foot drifts backwards (the stride scale)
+    src[:, 2] = [0.0, 0.03, 0.06, 0.08, 0.06, 0.03, 0.0]
+    held = np.full((n + 1, 3), np.nan)
+    held[0], held[6] = [0.1, 0.1, 0.0], [0.4, 0.1, 0.0]
+    held[7] = [0.4, 0.1, 0.0]
+    first = np.zeros(3)
+    for k in range(n):
+        s = (k / 6) ** 2 * (3 - 2 * k / 6)
+        want = held[0] + s * (held[6] - held[0]) + (src[k] - (src[0] + s * (src[6] - src[0])))
+        got = swing_target(src, held, k, first) if np.isnan(held[k, 0]) else held[k]
+        assert np.allclose(got, want, atol=1e-12)
+    assert swing_target(src, held, 3, first)[2] == pytest.approx(0.08)  # the lift kept
+
+
+def test_a_walks_swinging_feet_are_tracked_onto_their_placements(talos):
+    """Talos's walk: the source's foot a knot before touch-down was 0.17-0.22 m from the placement it
+    lands on (the stride scale pulls the source's stances back; the labels begin late); the tracked
+    target now moves no more than a knot's worth of the step onto it."""
+    _, _, spec, ref = _spec("12_01_walk.bvh", talos)
+    starts = spec.phase_start_times()
+    for side in ("left", "right"):
+        frame = talos.frame(f"{side}_foot")
+        targets = sorted((t for t in spec.targets if t.name.startswith(f"track {side}_foot")), key=lambda t: t.time)
+        assert len(targets) >= 10
+        for t0, phase in zip(starts, spec.phases, strict=True):
+            here = [c for c in phase.contacts if c.frame == frame]
+            before = [t for t in targets if t0 - 1.5 * spec.dt < t.time < t0 - 1e-9]
+            if not here or not before or t0 < ref.lead_in + 1e-9:
+                continue
+            gap = np.linalg.norm(np.array(before[-1].position[:2]) - np.array(here[0].placement.position[:2]))
+            assert gap < 0.05, (side, t0, gap)  # talos steps <= 0.3 m; a smoothstep's last of 5 knots ~ 0.1 of it
