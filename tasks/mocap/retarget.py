@@ -66,7 +66,8 @@ SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x
 # the tracking error among the figures; a robot's proportions keep it centimetres away).
 TRACK_TOLERANCE = 0.25
 STRIDE_STEPS = 2.0  # [-] the longest stride asked, in the robot's longest steps (stride_scale)
-MIN_SWING = 0.5  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
+MIN_SWING = 1.0  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
+LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot before touch-down (swing_target)
 SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
@@ -513,6 +514,13 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray) -
     s = _smoothstep((k - a) / (b - a))
     sa, sb = src[max(a, 0)], src[min(b, len(src) - 1)]
     p = left + s * (held[b] - left) + (src[k] - (sa + s * (sb - sa)))
+    if LAND_VERTICALLY:
+        # over the placement a knot before touch-down: the last knot only comes down (a foot that
+        # also moved across in it touched the floor early, short of the placement, and stopped there)
+        s_xy = _smoothstep((k - a) / max(1, b - 1 - a))
+        p[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
+        if k < b - 1:
+            p[:2] += src[k, :2] - (sa[:2] + s * (sb[:2] - sa[:2]))
     p[2] = max(float(p[2]), 0.0)
     return p
 
