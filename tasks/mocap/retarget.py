@@ -517,9 +517,12 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray) -
     if LAND_VERTICALLY:
         # over the placement a knot before touch-down: the last knot only comes down (a foot that
         # also moved across in it touched the floor early, short of the placement, and stopped there)
-        s_xy = _smoothstep((k - a) / max(1, b - 1 - a))
+        # and, on a swing of three knots or more, still over the placement it left at its first
+        # knot (the first knot only goes up: the certificate holds a stance to its last knot)
+        lo = a + 1 if b - a >= 4 else a
+        s_xy = _smoothstep(max(0.0, (k - lo) / max(1, b - 1 - lo)))
         p[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
-        if k < b - 1:
+        if lo < k < b - 1:
             p[:2] += src[k, :2] - (sa[:2] + s * (sb[:2] - sa[:2]))
     p[2] = max(float(p[2]), 0.0)
     return p
