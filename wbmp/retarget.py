@@ -18,6 +18,7 @@ from wbmp.pipeline import Progress, SolveResult, _silent
 #: default is 0.02 s): a harder floor, on which a loaded sole sinks and creeps by a fraction of a
 #: millimetre instead of 3-14 mm (docs/retarget.md, "The floor").
 FLOOR_TIMECONST = 0.005
+START_ON_BOTH_FEET = 0.5  # [s] a clip (no --start) that starts mid-step begins at its first double support within this
 
 
 @dataclass(kw_only=True)
@@ -74,6 +75,8 @@ class RetargetResult(SolveResult):
 
 def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):
     """(robot, spec, reference, skeleton name, clip info) of a request; ClipError (exit 3) for a bad clip."""
+    import numpy as np
+
     from robots import load_robot
     from tasks import (
         check_joints,
@@ -92,12 +95,24 @@ def build_retarget_spec(request: RetargetRequest, progress: Progress = _silent):
     window = clip.window(request.start, request.end)
     motion = human_motion(window, skeleton)
     labels = label_contacts(motion)
+    start = request.start or 0.0
+    if request.start is None:
+        # a clip that starts mid-step begins at its first double support (within START_ON_BOTH_FEET s):
+        # the robot stands still before it, and a first step taken straight out of the lead-in landed
+        # 22-40 mm off its placement (talos's and g1's walks)
+        both = np.asarray(labels["left"], dtype=bool) & np.asarray(labels["right"], dtype=bool)
+        first = int(np.argmax(both)) if both.any() else 0
+        if 0 < first and first * window.frame_time <= START_ON_BOTH_FEET:
+            start = first * window.frame_time
+            window = clip.window(start, request.end)
+            motion = human_motion(window, skeleton)
+            labels = label_contacts(motion)
     robot = load_robot(request.robot)
     spec, ref = retarget_spec(motion, labels, robot, dt=request.dt, name=f"retarget {clip.source}",
-                              description=f"retarget {clip.source} [{request.start or 0:g}, "
+                              description=f"retarget {clip.source} [{start:g}, "
                                           f"{'end' if request.end is None else format(request.end, 'g')}] s")
     info = {"clip": clip.source, "frames": window.n_frames, "frame_time_s": window.frame_time,
-            "start_s": request.start or 0.0, "duration_s": window.duration,
+            "start_s": start, "duration_s": window.duration,
             "contact_fraction": {s: float(labels[s].mean()) for s in labels}}
     return robot, spec, ref, skeleton.name, info
 

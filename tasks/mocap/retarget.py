@@ -66,7 +66,9 @@ SWING_CLEARANCE = (0.01, 0.08)  # [m] mid-swing clearance asked of a foot: 0.8 x
 # the tracking error among the figures; a robot's proportions keep it centimetres away).
 TRACK_TOLERANCE = 0.25
 STRIDE_STEPS = 2.0  # [-] the longest stride asked, in the robot's longest steps (stride_scale)
-MIN_SWING = 0.5  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
+MIN_SWING = 1.0  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
+LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot before touch-down (swing_target)
+SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
 #: [-] of the robot's standing base height: the lowest the base is asked to go. A deeper human squat
@@ -406,7 +408,12 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     phases.append(Phase(name="lead-out (both feet down)", duration=LEAD_OUT,
                         contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
     clip_horizon = sum(p.duration for p in phases[1:-1])
-    targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon)
+    held = {side: np.full((n + 2, 3), np.nan) for side in SIDES}  # per knot: the sole's placement (row n+1: lead-out)
+    for side in SIDES:
+        for a, b, pose in stance_pose[side]:
+            held[side][a:min(b, n + 1)] = pose.position
+        held[side][n + 1] = last[side].position
+    targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
     dynamic = True if dynamic is None else dynamic
     horizon = sum(p.duration for p in phases)
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
@@ -484,9 +491,47 @@ def _smoothstep(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
+def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray) -> np.ndarray:
+    """Where a swinging foot is tracked at knot ``k``: from the placement it left to the one it lands on.
+
+    ``src`` (knots, 3) is the scaled source foot per knot, ``held`` (knots + 1, 3) its placement per
+    knot (NaN in a swing; the last row, the lead-out's), ``first`` the lead-in's. The source's own stances do not stand still
+    (the stride scale pulls them back with the body's shortened travel; the heel rolls) and its
+    contact labels begin late, so that its foot can be 0.2 m from the placement a knot before
+    touch-down: tracked as it is, the plan lunges onto the placement in the last knot. Here the
+    target goes from the placement left (knot a) to the next one (knot b) by a smoothstep, plus the
+    source's own deviation from the same blend between its positions at a and b (its lift above all).
+    """
+    a = k
+    while a >= 0 and np.isnan(held[a, 0]):
+        a -= 1
+    b = k
+    while b < len(held) - 1 and np.isnan(held[b, 0]):
+        b += 1
+    if np.isnan(held[b, 0]):
+        return src[k]
+    left = held[a] if a >= 0 else first  # a swing from the clip's first knot leaves the lead-in's placement
+    s = _smoothstep((k - a) / (b - a))
+    sa, sb = src[max(a, 0)], src[min(b, len(src) - 1)]
+    p = left + s * (held[b] - left) + (src[k] - (sa + s * (sb - sa)))
+    if LAND_VERTICALLY:
+        # over the placement a knot before touch-down: the last knot only comes down (a foot that
+        # also moved across in it touched the floor early, short of the placement, and stopped there)
+        # and, on a swing of three knots or more, still over the placement it left at its first
+        # knot (the first knot only goes up: the certificate holds a stance to its last knot)
+        lo = a + 1 if b - a >= 4 else a
+        s_xy = _smoothstep(max(0.0, (k - lo) / max(1, b - 1 - lo)))
+        p[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
+        if lo < k < b - 1:
+            p[:2] += src[k, :2] - (sa[:2] + s * (sb[:2] - sa[:2]))
+    p[2] = max(float(p[2]), 0.0)
+    return p
+
+
 def _tracking_targets(ref: Reference, robot: Robot, code: np.ndarray, frames: np.ndarray, dt: float, n: int,
-                      horizon: float) -> list[FrameTarget]:
+                      horizon: float, held: dict[str, np.ndarray] | None = None) -> list[FrameTarget]:
     out = []
+    src = {side: ref.points[f"{side}_foot"][frames] for side in SIDES}
     base_rotation = standing_geometry(robot).placements["base"].rotation
     g = standing_geometry(robot)
     n_in = int(round(ref.lead_in / dt))
@@ -502,6 +547,9 @@ def _tracking_targets(ref: Reference, robot: Robot, code: np.ndarray, frames: np
                 if k < 0 or (code[k] >> (1 - i)) & 1:
                     continue  # a stance foot is held by its contact
             p = g.placements[role].translation + blend * (ref.points[role][f] - g.placements[role].translation)
+            if role.endswith("_foot") and held is not None and SWING_TO_PLACEMENTS:
+                p = swing_target(src[role.split("_")[0]], held[role.split("_")[0]], k,
+                                 g.placements[role].translation * [1.0, 1.0, 0.0])
             out.append(FrameTarget(name=f"track {role} {t:.3f}", frame=robot.frame(role),
                                    position=(float(p[0]), float(p[1]), float(p[2])), time=round(t, 9),
                                    priority=Priority.SOFT, weight=WEIGHTS[role] * dt, tolerance=TRACK_TOLERANCE))

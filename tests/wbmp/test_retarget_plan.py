@@ -97,3 +97,22 @@ def test_the_reported_tracking_error_is_the_distance_to_the_scaled_source(planne
     t_low = plan.t[int(np.argmin(base_z))]
     low = ref.t[ref.raised > 0] if ref.raised.max() > 0 else ref.t[[int(np.argmin(ref.points["base"][:, 2]))]]
     assert low[0] - 0.2 < t_low < low[-1] + 0.2
+
+
+def test_a_clip_that_starts_mid_step_begins_at_its_first_double_support():
+    """The walk's first frame has the right foot in the air (its first step straight out of the
+    lead-in landed 22-40 mm off on both robots): without --start it begins at the first frame whose
+    contact labels have both feet down (0.18 s); with --start, and for the squat, as asked."""
+    from wbmp.retarget import RetargetRequest, build_retarget_spec
+
+    clip = read_bvh(MOCAP / "12_01_walk.bvh")
+    labels = label_contacts(human_motion(clip.window(None, None), recognize_skeleton(clip.names)))
+    assert labels["left"][0] and not labels["right"][0]
+    both = np.nonzero(labels["left"] & labels["right"])[0]
+    _, spec, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "12_01_walk.bvh"), robot="talos"))
+    assert info["start_s"] == pytest.approx(both[0] * clip.frame_time) and 0.1 < info["start_s"] < 0.3
+    assert len(spec.phases[1].contacts) == 2  # the clip's first phase: both feet down
+    _, _, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "12_01_walk.bvh"), robot="talos", start=0.0))
+    assert info["start_s"] == 0.0
+    _, _, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "13_29_squat.bvh"), robot="talos"))
+    assert info["start_s"] == 0.0

@@ -192,3 +192,53 @@ def test_the_shoulders_are_held_out_away_from_the_torso(name):
 
 def talos_or_g1(name: str):
     return load_robot(name)
+
+
+def test_a_swinging_foot_is_tracked_from_its_placement_onto_the_next():
+    """swing_target on a synthetic swing (knots 0 and 6 in stance): it first only goes up, keeps the
+    source's lift, is over the next placement a knot before touch-down (then only comes down), and
+    its path across runs from one placement to the other although the source foot drifts
+    backwards (as the stride scale makes a walk's source feet do)."""
+    from tasks.mocap.retarget import swing_target
+
+    n = 7
+    src = np.zeros((n, 3))
+    src[:, 0] = np.linspace(1.0, 0.6, n)  # the source foot drifts backwards
+    src[:, 2] = [0.0, 0.03, 0.06, 0.08, 0.06, 0.03, 0.0]
+    held = np.full((n + 1, 3), np.nan)
+    held[0], held[6], held[7] = [0.1, 0.1, 0.0], [0.4, 0.1, 0.0], [0.4, 0.1, 0.0]
+    path = np.array([swing_target(src, held, k, np.zeros(3)) for k in range(1, 6)])
+    assert np.allclose(path[:, 2], src[1:6, 2])  # the lift is the source's (its ends are on the floor)
+    assert np.allclose(path[-1, :2], held[6, :2])  # over the placement a knot before touch-down
+    assert np.allclose(path[0, :2], held[0, :2])  # and over the one it left at the first swinging knot
+    # across: onwards (the source's steady drift against the smoothstep can leave a knot up to ~1 cm
+    # back of the blend), never sideways
+    assert np.all(np.diff(path[:, 0]) > -0.01) and path[3, 0] > path[1, 0] and np.allclose(path[:, 1], 0.1)
+    assert 0.1 < path[1, 0] < path[3, 0] < 0.4
+    # a swing from the clip's first knot leaves the lead-in's placement
+    held0 = held.copy()
+    held0[0] = np.nan
+    first = np.array([0.0, 0.1, 0.0])  # 1 m from the source foot's first position
+    assert np.linalg.norm(swing_target(src, held0, 0, first)[:2] - first[:2]) < 0.07  # a knot's worth of the step
+
+
+def test_a_walks_swinging_feet_are_tracked_onto_their_placements(talos):
+    """Talos's walk: the source's foot a knot before touch-down was 0.17-0.22 m from the placement it
+    lands on (the stride scale pulls the source's stances back; the labels begin late), so the plan
+    lunged onto it in the last knot; the tracked target is now over the placement there."""
+    _, _, spec, ref = _spec("12_01_walk.bvh", talos)
+    starts = spec.phase_start_times()
+    landings = 0
+    for side in ("left", "right"):
+        frame = talos.frame(f"{side}_foot")
+        targets = sorted((t for t in spec.targets if t.name.startswith(f"track {side}_foot")), key=lambda t: t.time)
+        assert len(targets) >= 10
+        for t0, phase in zip(starts, spec.phases, strict=True):
+            here = [c for c in phase.contacts if c.frame == frame]
+            before = [t for t in targets if t0 - 1.5 * spec.dt < t.time < t0 - 1e-9]
+            if not here or not before or t0 < ref.lead_in + 1e-9:
+                continue
+            gap = np.linalg.norm(np.array(before[-1].position[:2]) - np.array(here[0].placement.position[:2]))
+            assert gap < 1e-6, (side, t0, gap)
+            landings += 1
+    assert landings >= 6
