@@ -720,8 +720,11 @@ def test_meeting_gestures_hold_the_shoulders_roll_at_standing(robot_name):
                                               ("stomp", {}), ("march", {})])
 def test_leg_motions_hold_the_shoulders_roll_at_standing(g1, name, params):
     """G1's hop, balance and kick swung an upper arm into the torso's meshes (coal), a pair the
-    planner does not check: both shoulders' roll joints (the URDF's names) are held at their
-    standing angle (a cost) from the motion's start to its end."""
+    planner does not check: both shoulders' roll joints (the URDF's names) are held (a cost) from
+    the motion's start to its end: at their standing angle, or for a hop ``UPPER_ARM_OUT`` out like
+    a walk (its angle checked against FK in the walk's test below)."""
+    from tasks.primitives.arms import UPPER_ARM_OUT, upper_arm_out_angle
+
     spec = _spec(g1, name, **params)
     model = g1.model
     t, span = 0.0, []
@@ -733,7 +736,10 @@ def test_leg_motions_hold_the_shoulders_roll_at_standing(g1, name, params):
     for side in ("left", "right"):
         joint = f"{side}_shoulder_roll_joint"
         (jt,) = [t for t in spec.joint_targets if t.joint == joint and t.window is not None]
-        assert jt.value == pytest.approx(g1.q_standing[model.joints[model.getJointId(joint)].idx_q])
+        standing = g1.q_standing[model.joints[model.getJointId(joint)].idx_q]
+        want = upper_arm_out_angle(g1, side, UPPER_ARM_OUT) if name == "hop" else standing
+        assert jt.value == pytest.approx(want)
+        assert (jt.value != pytest.approx(standing)) is (name == "hop")
         assert jt.window[0] <= start + 1e-9 and jt.window[1] >= end - 1e-9, (jt.window, start, end)
 
 
