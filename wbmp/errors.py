@@ -174,12 +174,14 @@ class ExitRule(NamedTuple):
     why: str
 
 
+_R = ExitRule  # the rows below, one per line
+
+
 def _root_rows() -> tuple[ExitRule, ...]:
     """The root of the project's errors and the layers' bases without a code of their own."""
     from robots import WbmpError
     from viz import VizError
 
-    _R = ExitRule
     return (
         _R(WbmpError, None, "the root of the project's errors: a class without a row of its own is a bug"),
         _R(VizError, None, "the viz layer's base: each of its errors has a row of its own"),
@@ -188,7 +190,6 @@ def _root_rows() -> tuple[ExitRule, ...]:
 
 def _cli_rows() -> tuple[ExitRule, ...]:
     """The CLI itself."""
-    _R = ExitRule
     return (
         _R(CliError, OWN, "a refused input of the CLI, with the code it names"),
         _R(MotionFileError, OWN, "a missing or damaged motion file (exit 2; 3: times beyond 3600 s)"),
@@ -216,7 +217,6 @@ def _language_rows() -> tuple[ExitRule, ...]:
         VocabularyError,
     )
 
-    _R = ExitRule
     return (
         _R(LanguageError, ExitCode.USAGE, "the instruction is not understood"),
         _R(EmptyInstruction, ExitCode.USAGE, "an empty instruction"),
@@ -248,7 +248,6 @@ def _spec_rows() -> tuple[ExitRule, ...]:
         UnknownAction,
     )
 
-    _R = ExitRule
     return (
         _R(RobotError, ExitCode.INVALID_SPEC, "a robot that cannot be loaded"),
         _R(RobotNotFound, ExitCode.INVALID_SPEC, "an unknown robot name"),
@@ -277,7 +276,6 @@ def _planner_rows() -> tuple[ExitRule, ...]:
         UnsupportedModel,
     )
 
-    _R = ExitRule
     return (
         _R(PlannerError, ExitCode.INFEASIBLE, "the planner failed"),
         _R(PlanningFailed, ExitCode.INFEASIBLE, "no plan: infeasible or the solver failed"),
@@ -292,7 +290,6 @@ def _store_rows() -> tuple[ExitRule, ...]:
     """The stores and the file readers: caught inside the layer that raised them."""
     from robots import EntryDamaged, EntryStale, FileTooLarge, NotRegularFile, PathEscapes
 
-    _R = ExitRule
     return (
         _R(EntryDamaged, None, "caught inside the solver, robot, MuJoCo and HTML mesh caches"),
         _R(EntryStale, None, "caught inside the robot and HTML mesh caches"),
@@ -307,7 +304,6 @@ def _sim_rows() -> tuple[ExitRule, ...]:
     from planner import ControllerError
     from sim import FaultsError, PushParseError, SimError, SimModelError
 
-    _R = ExitRule
     return (
         _R(ControllerError, ExitCode.SIM_FAILED,
            "the whole-body controller cannot be set up (settings, QP backend): no simulation check"),
@@ -322,7 +318,6 @@ def _output_rows() -> tuple[ExitRule, ...]:
     """Outputs and viewers."""
     from viz import OutputError, OutputPathError, OutputWriteError, ViewerError, VizInputError
 
-    _R = ExitRule
     return (
         _R(OutputError, ExitCode.USAGE, "an output file refused or not written"),
         _R(OutputPathError, ExitCode.USAGE, "a bad output path"),
@@ -335,7 +330,6 @@ def _output_rows() -> tuple[ExitRule, ...]:
 
 def _serve_rows() -> tuple[ExitRule, ...]:
     """``wbmp serve``: shown on the page as one line with this code (HTTP 400, 429, 503)."""
-    _R = ExitRule
     return (
         _R(CorrectionError, ExitCode.USAGE, "a correction that changes nothing of the last motion"),
         _R(Busy, ExitCode.USAGE, "wbmp serve's queue is full (HTTP 429)"),

@@ -28,8 +28,6 @@ from wbmp.pipeline import _REQUEST_KEYS, Progress, SolveResult, _silent, result_
 # input file. The writers (viz.Staging, viz.atomic_write) then write through temporary files
 # renamed into place: nothing half-written.
 
-TMP_SUFFIX = ".tmp"
-
 
 def _show(path: str | os.PathLike) -> str:
     return repr(os.fspath(path))
@@ -41,7 +39,7 @@ def _why(err: OSError) -> str:
 
 def _probe_folder(folder: Path) -> str | None:
     """None if a file can be created in ``folder``, else the reason (also right for root)."""
-    probe = folder / f".wbmp-probe-{secrets.token_hex(4)}{TMP_SUFFIX}"
+    probe = folder / f".wbmp-probe-{secrets.token_hex(4)}.tmp"  # named like viz.Staging's temporaries
     # Ctrl-C or SIGTERM wait until the probe is gone: an interrupt between creating and removing it
     # would leave it in the user's folder.
     with signals_held():
