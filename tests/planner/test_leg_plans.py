@@ -66,16 +66,16 @@ def test_kick_plan(talos):
 
 @pytest.mark.slow
 def test_march_plan(talos):
-    """march(3, 0.1 m): at the middle of each single support the lifted sole (Pinocchio on plan.q)
-    is at least 0.1 m up, alternating right, left, right."""
-    spec, plan = _plan(talos, [Action(name="march", params={"count": 3, "height": 0.1})])
+    """march(2, 0.1 m): at the middle of each single support the lifted sole (Pinocchio on plan.q)
+    is at least 0.1 m up, alternating right, left (longer marches alternate on: tests/tasks/test_legs.py)."""
+    spec, plan = _plan(talos, [Action(name="march", params={"count": 2, "height": 0.1})])
     lifted = []
     for phase, t in _phase_middles(spec, 1):
         up = "left_foot" if phase.contacts[0].frame == talos.frame("right_foot") else "right_foot"
         z = _frame(talos, plan.q[_knot(plan, t)], up).translation[2]
         assert z >= 0.1 - HARD_SLACK, phase.name
         lifted.append(up)
-    assert lifted == ["right_foot", "left_foot", "right_foot"]
+    assert lifted == ["right_foot", "left_foot"]
 
 
 @pytest.mark.slow

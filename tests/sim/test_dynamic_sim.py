@@ -133,8 +133,12 @@ def test_talos_four_steps_forward_is_certified(talos):
 @pytest.mark.parametrize(("action", "advance"), [
     (Action(name="step", params={"direction": "forward", "length": 0.15, "count": 4}), (0.6, 0.0)),
     (Action(name="turn", params={"angle": np.pi / 2}), (0.0, 0.0)),
-    (Action(name="walk", params={"direction": "backward", "distance": 0.4}), (-0.4, 0.0)),
-    (Action(name="walk", params={"direction": "left", "distance": 0.2}), (0.0, 0.2)),
+    # make test-long (~6 s of CPU each, the 2-core suite's budget); twins: four steps forward and
+    # the turn above, the same walking controller and certificate
+    pytest.param(Action(name="walk", params={"direction": "backward", "distance": 0.4}), (-0.4, 0.0),
+                 marks=pytest.mark.long),
+    pytest.param(Action(name="walk", params={"direction": "left", "distance": 0.2}), (0.0, 0.2),
+                 marks=pytest.mark.long),
 ], ids=["four_steps_forward", "turn_90_deg", "walk_backward", "walk_left"])
 def test_g1_walk_and_turn_are_certified(g1, action, advance):
     """G1 with whole-body angular momentum in the plan: certified in MuJoCo, and the simulated

@@ -50,6 +50,9 @@ def test_standing_on_one_foot_passes_on_g1(g1):
     assert over and all(c.ok for c in over)
 
 
+@pytest.mark.long  # ~16 s of CPU: make test-long keeps the 2-core suite under 10 min. Twins in make test:
+# tests/sim/test_intent.py (the contact-event line: a sole lifts and lands when planned, measured
+# from MuJoCo's forces) and tests/sim/test_dynamic_sim.py's certified g1 jump (a real flight)
 def test_hop_on_one_foot_is_certified_on_g1(g1):
     """G1 hops once on its right foot (the shortest flight: 2 knots, 0.74 m/s, 0.24 of one leg's
     static push, tasks/primitives/hop.py ONE_LEG_MARGIN): certified, with a real flight (the
