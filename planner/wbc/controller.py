@@ -213,6 +213,11 @@ class WholeBodyController:
         model, nv = self.model, self.nv
         self._contacts = list(ref.contact_frames)
         nc = len(self._contacts)
+        # the pyramids: the profile's friction, or a region contact's lower one (hands on a table: 0.3)
+        mu = min([self.robot.profile.friction_coefficient, *(c.friction_coefficient for p in ref.plan.spec.phases
+                                                               for c in p.contacts if c.region and c.friction_coefficient)])
+        self._mu_contact = mu * s.friction_scale
+        self._mu = float(pyramid_coefficient(self._mu_contact))
         self.n = nv + 12 * nc
         self.n_eq = 6 + 6 * nc
         self.n_in = 16 * nc + self.nu

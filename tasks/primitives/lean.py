@@ -9,17 +9,20 @@ its near edge ahead of where the hand hangs, with the soles where they stand and
 over them; it is found by damped least squares on the whole body (Pinocchio), the hands keeping
 their hanging orientation as far as the reach allows. Each hand then holds a contact on the table,
 a :class:`~tasks.specs.Contact` on the hand frame with its **support region** (the rectangle under
-its vertices within ``REGION_BAND`` of the lowest, :func:`tasks.primitives.seat.support_region`), the
-table's upward normal and the table's friction: the same machinery as a thigh on a seat. The hands
+its vertices within ``REGION_BAND`` of the lowest, at least ``REGION_MIN`` each way: talos's is one
+fingertip, :func:`hand_region`), the table's upward normal and the table's friction: the same
+machinery as a thigh on a seat. The hands
 may touch the table from half-way down (``touch`` targets); every other body part keeps its margin.
 
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): no table top within
 reach ahead (``REACH`` of the arm's length beyond the hanging hands), a top above the hanging
-hands' lowest point (a lean presses down on it), and one lower than the hands reach down to.
+hands' lowest point (a lean presses down on it), one lower than the hands reach down to, and one so
+low that the base would drop more than ``MAX_DROP`` (a squat, not a lean).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -32,7 +35,6 @@ from tasks.grounding import Grounded
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance
 from tasks.primitives.objects import grounded
-from tasks.primitives.seat import support_region
 from tasks.scene import SceneObject, on_top, rotation
 from tasks.specs import Contact, FrameTarget, Pose, Vec3
 
@@ -42,13 +44,25 @@ HOLD = 2.0  # [s] nominal: leaning on it
 UP = 2.0  # [s] nominal: back to standing
 INSET = 0.10  # [m] the hands' lowest points this far inside the table's near edge
 REACH = 1.0  # [arm lengths] the near edge at most this far ahead of the hanging hands
-REGION_BAND = 0.005  # [m] a hand's support region: its collision vertices this close to its lowest one
+REGION_BAND = 0.002  # [m] a hand's support region: its collision vertices this close to its lowest one (talos:
+#   one fingertip; at 5 mm the band took in a second finger 2.4 mm higher, 5 x 10 cm away, that did not bear in
+#   MuJoCo: the controller asked the wrist for the moment such a region allows, held talos's arm_7 at 97 % of its
+#   torque and the hands crept 2 to 3 cm over the lean)
+REGION_MIN = 0.01  # [m] a region at least this long and wide (a fingertip's pad), about its centre
+MAX_DROP = 0.12  # [m] the base at most this much lower than standing (a lean bends at the hips, not a squat)
 TOLERANCE = 0.002  # [m] the IK: soles, and the hands' lowest points on the top
 XY_TOLERANCE = 0.01  # [m] the IK: the hands' lowest points where asked on the table
 SIDES = ("left", "right")
 APPROACH = 0.5  # the hands may touch the table from this fraction of the way down (and up to it on the way up)
 TOUCH_TOLERANCE = 1.0  # [m] the touch targets only open the table to the hands: a ball wider than the motion
 SCAN = 0.005  # [m] the search for the near edge ahead of each hand
+COM_FORWARD = 0.02  # [m] while leaning the CoM this far ahead of where it stands: a share of the weight on the
+#   hands. Left free, the plan put it 0.27 m ahead, over the table, the hands pushing back at the edge of their
+#   friction cone: they slid 4 cm in MuJoCo. At 0.04 +- 0.02 m each hand carried 44 N and held talos's wrist
+#   (arm_7, 6.6 N m: the fingertips 0.15 m from it) at 97 % of its torque: the hands crept 1.2 to 1.6 cm.
+COM_TOLERANCE = 0.01  # [m]
+HAND_FRICTION = 0.5  # the hands' contacts use this share of the table's friction: they press nearly straight down
+#   (the controller's pyramids take the lowest friction of the spec's contacts)
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,7 +118,8 @@ def _standing(robot: Robot) -> tuple[dict[str, np.ndarray], float]:
 
 def _solve(robot: Robot, goals: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Whole-body damped least squares (standing frame): soles fixed, CoM over them, each hand's
-    lowest point at ``goals[side]``; returns q and the hands' lowest points reached."""
+    lowest point at ``goals[side]``, the hands turned as they hang standing as far as the reach
+    allows; returns q and the hands' lowest points reached."""
     model, data = robot.model, robot.model.createData()
     q0 = np.asarray(robot.q_standing, dtype=float)
     pin.framesForwardKinematics(model, data, q0)
@@ -165,6 +180,41 @@ def _ahead(table: SceneObject, T: pin.SE3, start: np.ndarray, reach: float) -> n
     return None
 
 
+def _touching_link(robot: Robot, side: str, q: np.ndarray) -> str:
+    """The link of the hand whose collision mesh holds the hand's lowest vertex at ``q`` (talos: a
+    fingertip, its origin 3.4 cm from the contact; the hand frame is 16 cm above it).
+
+    **Why the contact is on that link, not the hand frame:** the controller tracks a region contact's
+    frame origin as a stiff position task with its orientation free: on the hand frame, 16 cm above a
+    fingertip it pivots about, that task fought the contact, held talos's wrist (arm_7) at 97 % of its
+    torque and the hands crept 1.3 cm over the lean."""
+    model, data = robot.model, robot.model.createData()
+    cdata = robot.collision_model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    pin.updateGeometryPlacements(model, data, robot.collision_model, cdata, q)
+    lowest, name = math.inf, robot.frame(f"{side}_hand")
+    for i in _hand_geoms(robot, side):
+        g = robot.collision_model.geometryObjects[i]
+        z = float((np.asarray(g.geometry.vertices(), dtype=float).reshape(-1, 3) @ cdata.oMg[i].rotation.T
+                   + cdata.oMg[i].translation)[:, 2].min())
+        if z < lowest:
+            lowest, name = z, model.frames[g.parentFrame].name
+    return name
+
+
+def hand_region(verts: np.ndarray, table: SceneObject) -> np.ndarray:
+    """Corners (4, 3) of a hand's support region (world): the rectangle, in the table's frame, of its
+    vertices within ``REGION_BAND`` of the lowest one, at least ``REGION_MIN`` each way."""
+    R, c = np.asarray(rotation(table.rpy)), np.asarray(table.position)
+    z = float(verts[:, 2].min())
+    low = (verts[verts[:, 2] <= z + REGION_BAND] - c) @ R
+    lo, hi = low[:, :2].min(axis=0), low[:, :2].max(axis=0)
+    mid, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, REGION_MIN / 2)
+    lo, hi = mid - half, mid + half
+    local = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    return np.column_stack([local, np.zeros(4)]) @ R.T + np.array([c[0], c[1], z])
+
+
 def leaning(robot: Robot, stance: Stance, table: SceneObject) -> Leaning:
     """The robot leaning on ``table`` with both hands, its feet at ``stance`` (module docstring).
 
@@ -192,6 +242,10 @@ def leaning(robot: Robot, stance: Stance, table: SceneObject) -> Leaning:
         deepest = max(float(r[2]) for r in reached.values())
         raise BeyondCapability(f"lean on: the {table.name}'s top at {top:.2f} m is below where {robot.name}'s hands "
                                f"reach down to {float(goals['left'][0]):.2f} m ahead ({deepest:.2f} m): choose a higher table")
+    drop = float(robot.q_standing[2] - q[2])
+    if drop > MAX_DROP:
+        raise BeyondCapability(f"lean on: the {table.name}'s top at {top:.2f} m is too low for {robot.name} to lean on: its "
+                               f"base would drop {drop:.2f} m (more than {MAX_DROP:.2f} m, a squat); choose a higher table")
     model, data = robot.model, robot.model.createData()
     q[:7] = pin.SE3ToXYZQUAT(T * pin.XYZQUATToSE3(q[:7]))
     pin.framesForwardKinematics(model, data, q)
@@ -199,11 +253,12 @@ def leaning(robot: Robot, stance: Stance, table: SceneObject) -> Leaning:
     verts = hand_vertices(robot, q)
     contacts = []
     for s in SIDES:
-        world = support_region(verts[s], table)
-        M = data.oMf[robot.frame_id(f"{s}_hand")]
-        contacts.append(Contact(frame=robot.frame(f"{s}_hand"), placement=Pose(position=_vec(M.translation),
+        world = hand_region(verts[s], table)
+        frame = _touching_link(robot, s, q)
+        M = data.oMf[model.getFrameId(frame)]
+        contacts.append(Contact(frame=frame, placement=Pose(position=_vec(M.translation),
                                                                                 rpy=_vec(pin.rpy.matrixToRpy(M.rotation))),
-                                friction_coefficient=table.friction, region=tuple(_vec(M.actInv(c)) for c in world),
+                                friction_coefficient=HAND_FRICTION * table.friction, region=tuple(_vec(M.actInv(c)) for c in world),
                                 normal=_vec(normal)))
     return Leaning(q=q, contacts=tuple(contacts), table=table)
 
@@ -224,8 +279,10 @@ def build_lean_on(b: FragmentBuilder) -> Fragment:
     b.phase("hands down", DOWN)
     b.phase("leaning", DOWN + HOLD, (*b.contacts(), *s.contacts))
     b.phase("back up", DOWN + HOLD + UP)
-    model, data = b.robot.model, b.robot.model.createData()
-    pin.framesForwardKinematics(model, data, s.q)
+    com = pin.centerOfMass(b.robot.model, b.robot.model.createData(), np.asarray(b.robot.q_standing, dtype=float))
+    ahead = b.world(com + np.array([COM_FORWARD, 0.0, 0.0]))
+    b.com_target("CoM over the front of the soles", (ahead[0], ahead[1], None), window=(DOWN, DOWN + HOLD),
+                 tolerance=COM_TOLERANCE)
     for c in s.contacts:
         what = f"{c.frame} on the {s.table.name}"
         b.targets.append(FrameTarget(name=b.name(what), frame=c.frame, position=c.placement.position,

@@ -129,7 +129,7 @@ def _vec(v) -> Vec3:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def support_region(verts: np.ndarray, seat: SceneObject) -> np.ndarray:
+def _region(verts: np.ndarray, seat: SceneObject) -> np.ndarray:
     """Corners (4, 3) of a thigh's support region (world): the rectangle, in the seat's frame, of its
     vertices within ``REGION_BAND`` of the lowest one, cut to the seat's top ``REGION_INSET`` inside its edges."""
     R, c = np.asarray(rotation(seat.rpy)), np.asarray(seat.position)
@@ -180,7 +180,7 @@ def sitting(robot: Robot, stance: Stance, seat: SceneObject) -> Sitting:
     normal = np.asarray(rotation(seat.rpy))[:, 2]
     contacts = []
     for side, leg in _legs(robot).items():
-        world = support_region(verts[side] @ T.rotation.T + T.translation, seat)
+        world = _region(verts[side] @ T.rotation.T + T.translation, seat)
         M = data.oMf[robot.frame_id(leg.thigh)]
         for corner in world:
             if not on_top(seat, corner, tolerance=SEAT_TOLERANCE):
