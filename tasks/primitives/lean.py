@@ -61,7 +61,7 @@ COM_FORWARD = 0.02  # [m] while leaning the CoM this far ahead of where it stand
 #   friction cone: they slid 4 cm in MuJoCo. At 0.04 +- 0.02 m each hand carried 44 N and held talos's wrist
 #   (arm_7, 6.6 N m: the fingertips 0.15 m from it) at 97 % of its torque: the hands crept 1.2 to 1.6 cm.
 COM_TOLERANCE = 0.01  # [m]
-HAND_FRICTION = 0.5  # the hands' contacts use this share of the table's friction: they press nearly straight down
+HAND_FRICTION = 0.3  # the hands' contacts use this share of the table's friction: they press nearly straight down
 #   (the controller's pyramids take the lowest friction of the spec's contacts)
 
 
