@@ -61,8 +61,8 @@ COM_FORWARD = 0.02  # [m] while leaning the CoM this far ahead of where it stand
 #   friction cone: they slid 4 cm in MuJoCo. At 0.04 +- 0.02 m each hand carried 44 N and held talos's wrist
 #   (arm_7, 6.6 N m: the fingertips 0.15 m from it) at 97 % of its torque: the hands crept 1.2 to 1.6 cm.
 COM_TOLERANCE = 0.01  # [m]
-HAND_FRICTION = 0.3  # the hands' contacts use this share of the table's friction: they press nearly straight down
-#   (the controller's pyramids take the lowest friction of the spec's contacts)
+SETTLE = 0.5  # [s] nominal: the CoM in place this long before the hands touch down and after they lift off (the
+#   plan's hand forces jumped to 2.7 times the lean's at the touch-down and lift-off knots with the CoM arriving)
 
 
 @dataclass(frozen=True, slots=True)
@@ -258,7 +258,7 @@ def leaning(robot: Robot, stance: Stance, table: SceneObject) -> Leaning:
         M = data.oMf[model.getFrameId(frame)]
         contacts.append(Contact(frame=frame, placement=Pose(position=_vec(M.translation),
                                                                                 rpy=_vec(pin.rpy.matrixToRpy(M.rotation))),
-                                friction_coefficient=HAND_FRICTION * table.friction, region=tuple(_vec(M.actInv(c)) for c in world),
+                                friction_coefficient=table.friction, region=tuple(_vec(M.actInv(c)) for c in world),
                                 normal=_vec(normal)))
     return Leaning(q=q, contacts=tuple(contacts), table=table)
 
@@ -281,11 +281,15 @@ def build_lean_on(b: FragmentBuilder) -> Fragment:
     b.phase("back up", DOWN + HOLD + UP)
     com = pin.centerOfMass(b.robot.model, b.robot.model.createData(), np.asarray(b.robot.q_standing, dtype=float))
     ahead = b.world(com + np.array([COM_FORWARD, 0.0, 0.0]))
-    b.com_target("CoM over the front of the soles", (ahead[0], ahead[1], None), window=(DOWN, DOWN + HOLD),
+    b.com_target("CoM over the front of the soles", (ahead[0], ahead[1], None), window=(DOWN - SETTLE, DOWN + HOLD + SETTLE),
                  tolerance=COM_TOLERANCE)
-    for c in s.contacts:
-        what = f"{c.frame} on the {s.table.name}"
-        b.targets.append(FrameTarget(name=b.name(what), frame=c.frame, position=c.placement.position,
+    model, data = b.robot.model, b.robot.model.createData()
+    pin.framesForwardKinematics(model, data, s.q)
+    for c in s.contacts:  # the wrist link too (one joint up): g1's hangs 3 mm above the table by its hand's edge
+        wrist = int(model.parents[model.frames[b.robot.frame_id(c.frame)].parentJoint])
+        frame = next(f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == wrist)
+        what = f"{frame} at the {s.table.name}"
+        b.targets.append(FrameTarget(name=b.name(what), frame=frame, position=_vec(data.oMf[model.getFrameId(frame)].translation),
                                      window=b.window(APPROACH * DOWN, DOWN + HOLD + (1 - APPROACH) * UP),
                                      tolerance=TOUCH_TOLERANCE, touch=s.table.name))
     return b.finish(PARTS, dynamic=True)

@@ -68,7 +68,7 @@ def test_the_leaning_hands_rest_on_the_table_top_by_forward_kinematics(talos, ta
         assert np.all(corners[:, 0] > NEAR) and np.all(corners[:, 0] < FAR) and np.all(np.abs(corners[:, 1]) < HALF_WIDTH)
         assert np.ptp(corners[:, 0]) >= 0.01 - 1e-9 and np.ptp(corners[:, 1]) >= 0.01 - 1e-9  # a pad, not a point
         assert np.linalg.norm(corners.mean(axis=0) - M.translation) < 0.05  # the link's origin near its contact
-        assert c.normal == (0.0, 0.0, 1.0) and c.friction_coefficient == pytest.approx(0.3 * 0.6)  # of the table's
+        assert c.normal == (0.0, 0.0, 1.0) and c.friction_coefficient == pytest.approx(0.6)  # the table's
     meshes = _meshes(talos, leant.q)
     for side, sign in (("left", 1.0), ("right", -1.0)):
         joint = model.frames[talos.frame_id(f"{side}_hand")].parentJoint
@@ -97,7 +97,7 @@ def test_lean_on_the_table_compiles_to_hand_contacts_and_touches(talos, table, l
     for t in (t for t in spec.targets if t.touch):  # the hands may touch from before the touch-down to after the lift-off
         assert t.window[0] < start and t.window[1] > end
     com = [c for c in spec.com_targets if "CoM over" in c.name]
-    assert len(com) == 1 and com[0].window == pytest.approx((start, end))
+    assert len(com) == 1 and com[0].window[0] < start and com[0].window[1] > end  # in place before and after
 
 
 def test_leaning_is_refused_in_task_terms(talos, table):
