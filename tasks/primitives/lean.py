@@ -2,17 +2,18 @@
 come back up.
 
 The table is a scene object with a top face (a static upright box: :func:`tasks.scene.on_top`);
-with no object said, the nearest such object ahead (:func:`tasks.compose.ground_actions`). The
+with no object said, the scene's one nearest the origin (:func:`tasks.compose.ground_actions`). The
 leaning posture (:func:`leaning`) puts each hand's lowest points (the collision meshes of the hand
 link and the links below it: talos's gripper, g1's rubber hand) on the table top, ``INSET`` inside
 its near edge ahead of where the hand hangs, with the soles where they stand and the centre of mass
 over them; it is found by damped least squares on the whole body (Pinocchio), the hands keeping
 their hanging orientation as far as the reach allows. Each hand then holds a contact on the table,
-a :class:`~tasks.specs.Contact` on the hand frame with its **support region** (the rectangle under
-its vertices within ``REGION_BAND`` of the lowest, at least ``REGION_MIN`` each way: talos's is one
-fingertip, :func:`hand_region`), the table's upward normal and the table's friction: the same
-machinery as a thigh on a seat. The hands
-may touch the table from half-way down (``touch`` targets); every other body part keeps its margin.
+a :class:`~tasks.specs.Contact` on the hand's link that touches (talos: a fingertip) with its
+**support region** (the rectangle under its vertices within ``REGION_BAND`` of the lowest, at least
+``REGION_MIN`` each way, :func:`hand_region`), the table's upward normal and the table's friction:
+the same machinery as a thigh on a seat. While leaning the CoM is held ``COM_FORWARD`` ahead of
+where it stands. The hands and their wrist links may touch the table from half-way down to
+half-way up (``touch`` targets); every other body part keeps its margin.
 
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): no table top within
 reach ahead (``REACH`` of the arm's length beyond the hanging hands), a top above the hanging
@@ -45,9 +46,8 @@ UP = 2.0  # [s] nominal: back to standing
 INSET = 0.10  # [m] the hands' lowest points this far inside the table's near edge
 REACH = 1.0  # [arm lengths] the near edge at most this far ahead of the hanging hands
 REGION_BAND = 0.002  # [m] a hand's support region: its collision vertices this close to its lowest one (talos:
-#   one fingertip; at 5 mm the band took in a second finger 2.4 mm higher, 5 x 10 cm away, that did not bear in
-#   MuJoCo: the controller asked the wrist for the moment such a region allows, held talos's arm_7 at 97 % of its
-#   torque and the hands crept 2 to 3 cm over the lean)
+#   one fingertip; at 5 mm the band took in a second finger 2.4 mm higher, 5 x 10 cm away, that does not bear: a
+#   region the planner and the controller would take for a support it is not)
 REGION_MIN = 0.01  # [m] a region at least this long and wide (a fingertip's pad), about its centre
 MAX_DROP = 0.12  # [m] the base at most this much lower than standing (a lean bends at the hips, not a squat)
 TOLERANCE = 0.002  # [m] the IK: soles, and the hands' lowest points on the top
@@ -57,9 +57,8 @@ APPROACH = 0.5  # the hands may touch the table from this fraction of the way do
 TOUCH_TOLERANCE = 1.0  # [m] the touch targets only open the table to the hands: a ball wider than the motion
 SCAN = 0.005  # [m] the search for the near edge ahead of each hand
 COM_FORWARD = 0.02  # [m] while leaning the CoM this far ahead of where it stands: a share of the weight on the
-#   hands. Left free, the plan put it 0.27 m ahead, over the table, the hands pushing back at the edge of their
-#   friction cone: they slid 4 cm in MuJoCo. At 0.04 +- 0.02 m each hand carried 44 N and held talos's wrist
-#   (arm_7, 6.6 N m: the fingertips 0.15 m from it) at 97 % of its torque: the hands crept 1.2 to 1.6 cm.
+#   hands (talos: 32 to 45 N per hand planned). Left free, the plan put it 0.27 m ahead, over the table, the hands
+#   pushing back at the edge of their friction cone: they slid 4 cm in MuJoCo.
 COM_TOLERANCE = 0.01  # [m]
 SETTLE = 0.5  # [s] nominal: the CoM in place this long before the hands touch down and after they lift off (the
 #   plan's hand forces jumped to 2.7 times the lean's at the touch-down and lift-off knots with the CoM arriving)
@@ -184,10 +183,8 @@ def _touching_link(robot: Robot, side: str, q: np.ndarray) -> str:
     """The link of the hand whose collision mesh holds the hand's lowest vertex at ``q`` (talos: a
     fingertip, its origin 3.4 cm from the contact; the hand frame is 16 cm above it).
 
-    **Why the contact is on that link, not the hand frame:** the controller tracks a region contact's
-    frame origin as a stiff position task with its orientation free: on the hand frame, 16 cm above a
-    fingertip it pivots about, that task fought the contact, held talos's wrist (arm_7) at 97 % of its
-    torque and the hands crept 1.3 cm over the lean."""
+    **Why that link:** the contact's region then lies next to its frame (talos: 3.4 cm; 16 cm below the
+    hand frame), and MuJoCo reports the touch on that link."""
     model, data = robot.model, robot.model.createData()
     cdata = robot.collision_model.createData()
     pin.framesForwardKinematics(model, data, q)
