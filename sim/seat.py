@@ -143,7 +143,11 @@ def hip_links(run: RunRecord, frame: str, regions: tuple[str, ...] = ()) -> set[
 
 
 def _hands(run: RunRecord, regions: dict[str, tuple[np.ndarray, str]]) -> bool:
-    return any(run.robot.frame(f"{s}_hand") in regions for s in ("left", "right") if run.robot.has_role(f"{s}_hand"))
+    """A region contact on a hand (its frame's link or one below it: talos's fingertip)."""
+    model = run.robot.model
+    hands = {int(j) for s in ("left", "right") if run.robot.has_role(f"{s}_hand")
+             for j in model.subtrees[model.frames[run.robot.frame_id(f"{s}_hand")].parentJoint]}
+    return any(int(model.frames[run.robot.frame_id(f)].parentJoint) in hands for f in regions)
 
 
 def _others_check(run: RunRecord, regions: dict[str, tuple[np.ndarray, str]],

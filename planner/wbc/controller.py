@@ -214,7 +214,7 @@ class WholeBodyController:
         model, nv = self.model, self.nv
         self._contacts = list(ref.contact_frames)
         nc = len(self._contacts)
-        # the pyramids: the profile's friction, or a region contact's lower one (hands on a table: 0.3)
+        # the pyramids: the profile's friction, or a region contact's lower one (a 0.6 table under talos's 0.7)
         mu = min([self.robot.profile.friction_coefficient, *(c.friction_coefficient for p in ref.plan.spec.phases
                                                                for c in p.contacts if c.region and c.friction_coefficient)])
         self._mu_contact = mu * s.friction_scale
