@@ -62,8 +62,9 @@ def seat_checks(run: RunRecord) -> list[Check]:
     ts, s, ref = run.t, run.settings, run.ref
     knots = np.array([ref.index(t) for t in ts])
     touching: dict[tuple[str, str], set[int]] = {}
+    owner = _owners(run, list(regions))
     for tick, link, obj, _ in run.scene_contacts:
-        touching.setdefault((link, obj), set()).add(int(tick))
+        touching.setdefault((owner.get(link, link), obj), set()).add(int(tick))
     out: list[Check] = []
     for frame, (corners, obj) in regions.items():
         fid = run.robot.frame_id(frame)
@@ -97,6 +98,22 @@ def seat_checks(run: RunRecord) -> list[Check]:
     return out
 
 
+def _owners(run: RunRecord, frames: list[str]) -> dict[str, str]:
+    """Link name -> the region contact frame it belongs to: the frame's link and the links below it
+    that carry no other contact of the spec (a hand's fingers and gripper links hold the hand's
+    contact; a thigh's shin and foot, which carry the sole, are not the thigh's)."""
+    model = run.robot.model
+    spec = run.ref.plan.spec
+    others = {int(model.frames[run.robot.frame_id(c.frame)].parentJoint) for p in spec.phases for c in p.contacts}
+    out: dict[str, str] = {}
+    for frame in frames:
+        joint = int(model.frames[run.robot.frame_id(frame)].parentJoint)
+        below = {int(j) for o in others - {joint} for j in model.supports[o]} - {joint}
+        mine = set(model.subtrees[joint]) - below
+        out.update({f.name: frame for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint in mine})
+    return out
+
+
 def _time_check(run: RunRecord, frame: str, obj: str, on: np.ndarray, ticks: set[int]) -> Check:
     """The fraction of the planned contact's samples (after SEAT_SETTLE) the link touched the object,
     and no touch outside the planned time (SEAT_PADDING)."""
@@ -113,24 +130,35 @@ def _time_check(run: RunRecord, frame: str, obj: str, on: np.ndarray, ticks: set
                  limit=SEAT_TIME_FRACTION, unit="", ok=ok, time=when, upper=False, message="" if ok else msg)
 
 
-def hip_links(run: RunRecord, frame: str) -> set[str]:
+def hip_links(run: RunRecord, frame: str, regions: tuple[str, ...] = ()) -> set[str]:
     """The links between the base and a contact frame's link (a thigh's hip links: talos's
-    ``leg_left_1_link`` and ``leg_left_2_link`` hang 5.7 mm above the sitting thigh's lowest point)."""
+    ``leg_left_1_link`` and ``leg_left_2_link`` hang 5.7 mm above the sitting thigh's lowest point;
+    a hand's arm links), but those that also carry another region contact of ``regions`` (the torso
+    above both hands)."""
     model = run.robot.model
     joint = model.frames[run.robot.frame_id(frame)].parentJoint
-    chain = {int(j) for j in model.supports[joint]} - {0, 1, int(joint)}
+    others = [model.frames[run.robot.frame_id(f)].parentJoint for f in regions if f != frame]
+    chain = {int(j) for j in model.supports[joint] if not any(o in model.subtrees[j] for o in others)} - {0, 1, int(joint)}
     return {f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint in chain}
+
+
+def _hands(run: RunRecord, regions: dict[str, tuple[np.ndarray, str]]) -> bool:
+    """A region contact on a hand (its frame's link or one below it: talos's fingertip)."""
+    model = run.robot.model
+    hands = {int(j) for s in ("left", "right") if run.robot.has_role(f"{s}_hand")
+             for j in model.subtrees[model.frames[run.robot.frame_id(f"{s}_hand")].parentJoint]}
+    return any(int(model.frames[run.robot.frame_id(f)].parentJoint) in hands for f in regions)
 
 
 def _others_check(run: RunRecord, regions: dict[str, tuple[np.ndarray, str]],
                   touching: dict[tuple[str, str], set[int]]) -> Check:
     """No link but the planned ones (and their hip links, :func:`hip_links`) touches a sat-on object."""
     seats = {obj for _, obj in regions.values()}
-    allowed = set(regions).union(*(hip_links(run, f) for f in regions))
+    allowed = set(regions).union(*(hip_links(run, f, tuple(regions)) for f in regions))
     others = sorted((min(ticks), link, obj) for (link, obj), ticks in touching.items()
                     if obj in seats and link not in allowed)
     ok = not others
     tick, link, obj = others[0] if others else (0, "", "")
-    return Check(name="only the planned links (and their hips) touch the seat", kind=CheckKind.SEAT_CONTACT, subject="others",
+    return Check(name=f"only the planned links (and their {'arms' if _hands(run, regions) else 'hips'}) touch the {'/'.join(sorted(seats))}", kind=CheckKind.SEAT_CONTACT, subject="others",
                  value=float(len(others)), limit=0.0, unit="links", ok=ok, time=float(run.t[tick]),
                  message="" if ok else f"{link} touched the {obj} at t = {run.t[tick]:.2f} s (not planned)")

@@ -539,6 +539,11 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="object", kind="object", default=None,
                   description="the seat it sits on (default: the one it sat down on)"),
         )),
+        ActionSchema(name="lean_on", summary="Lean on a table ahead with both hands (the feet staying where they "
+                     "are), then come back up.", body="whole", dynamic=True, params=(
+            Param(name="object", kind="object", default=None,
+                  description="the table to lean on, as said (\"the table\"; default: the scene's table)"),
+        )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(
             _object("the object to look at"),

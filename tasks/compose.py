@@ -58,7 +58,7 @@ from tasks.primitives import (
 )
 from tasks.primitives.base import fit_defaults
 from tasks.primitives.grasp import CARRY_WEIGHT, carry_posture
-from tasks.scene import Scene, SceneObject
+from tasks.scene import Scene, SceneObject, rotation
 from tasks.specs import (
     CoMBounds,
     CoMTarget,
@@ -433,6 +433,8 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
             a = Action(name="stand_up", params={}, overlay=a.overlay)
         if a.name in SEAT_ACTIONS:
             a = _seated(a, scene, out[-1] if out else None, _where(i, a, len(actions)))
+        if a.name == "lean_on":
+            a = _table(a, scene, _where(i, a, len(actions)))
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
             out.append(a)
@@ -492,6 +494,22 @@ def _seated(a: Action, scene: Scene | None, before: Action | None, where: str) -
             raise BeyondCapability(f"{where}sit down: the {obj.name} is not a seat (give the scene a chair or a "
                                    'bench: an object with "seat": true)')
     return a
+
+
+def _table(a: Action, scene: Scene | None, where: str) -> Action:
+    """``lean_on`` with its table: the one said, or the scene's static upright box (not a seat, not a
+    walkable tread) nearest the origin (BeyondCapability: none; the primitive checks the reach)."""
+    if a.params.get("object") is not None:
+        return a
+    tables = sorted((o for o in (scene.objects if scene is not None else ()) if o.shape == "box" and not o.movable
+                     and not o.seat and not o.walkable and np.asarray(rotation(o.rpy))[2, 2] > 0.996),
+                    key=lambda o: float(np.hypot(o.position[0], o.position[1])))
+    if not tables:
+        raise BeyondCapability(f"{where}lean on: there is no table in the scene (a static box with a top to lean on); "
+                               "give a scene with one, e.g. --scene examples/scenes/table.json")
+    return Action(name=a.name, params={**a.params, "object": Grounded(reference=tables[0].name, obj=tables[0],
+                                                                     scene=cast(Scene, scene))},
+                  overlay=a.overlay, defaulted=a.defaulted)
 
 
 def pick_up_first(actions: Sequence[Action], robot: Robot) -> list[Action]:

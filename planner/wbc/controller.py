@@ -57,6 +57,7 @@ EARLY_TOUCHDOWN_HEIGHT = 0.0005  # [m] a landing sole this close to its planned 
 FLIGHT_TRAVEL = 0.005  # [m] a landing sole that moves more than this in a flight (a forward hop) gets:
 FLIGHT_WINDOW = 0.3  # [s] before that flight and after its touch-down, the momentum task's flight_momentum_weight
 EARLY_TOUCHDOWN_FRACTION = 0.25  # not in the first quarter of a flight (the sole is leaving then)
+HAND_FORCE_UNIT = 0.25  # a hand contact's force variables in this share of the others' unit (leaning on a table)
 
 
 def _flight_landings(active: np.ndarray) -> dict[int, tuple[int, int]]:
@@ -213,6 +214,11 @@ class WholeBodyController:
         model, nv = self.model, self.nv
         self._contacts = list(ref.contact_frames)
         nc = len(self._contacts)
+        # the pyramids: the profile's friction, or a region contact's lower one (a 0.6 table under talos's 0.7)
+        mu = min([self.robot.profile.friction_coefficient, *(c.friction_coefficient for p in ref.plan.spec.phases
+                                                               for c in p.contacts if c.region and c.friction_coefficient)])
+        self._mu_contact = mu * s.friction_scale
+        self._mu = float(pyramid_coefficient(self._mu_contact))
         self.n = nv + 12 * nc
         self.n_eq = 6 + 6 * nc
         self.n_in = 16 * nc + self.nu
@@ -223,7 +229,14 @@ class WholeBodyController:
         # forces act at its corners, its position is tracked as a stiff task, its orientation is free
         self._position_only = [i for i, name in enumerate(self._contacts)
                                if self.robot.foot_side(name) is None and name in regions]
-        for name in self._contacts:
+        hands = {int(j) for r in ("left_hand", "right_hand") if self.robot.has_role(r)
+                 for j in model.subtrees[model.frames[self.robot.frame_id(r)].parentJoint]}
+        # a hand's force unit is HAND_FORCE_UNIT of the others': the regularization (alike for every
+        # corner force) costs its newtons 1 / HAND_FORCE_UNIT^2 times more, so the weight stays on the feet
+        self._f_scales = np.array([self._f_scale * (HAND_FORCE_UNIT if self.robot.foot_side(name) is None
+                                                    and model.frames[model.getFrameId(name)].parentJoint in hands else 1.0)
+                                   for name in self._contacts])
+        for name, unit in zip(self._contacts, self._f_scales, strict=True):
             foot = self.robot.foot_side(name)
             corners = sole_corners(self.robot.profile.sole, foot or "left", margin=s.cop_margin)
             cone = np.eye(3)  # the corner forces' frame in the contact frame (a sole: the same)
@@ -233,7 +246,7 @@ class WholeBodyController:
             for k, c in enumerate(corners):
                 g0[:3, 3 * k : 3 * k + 3] = cone
                 g0[3:, 3 * k : 3 * k + 3] = pin.skew(c) @ cone
-            g0s.append(g0 * self._f_scale)
+            g0s.append(g0 * unit)
         self._g0_arr = np.array(g0s).reshape(nc, 6, 12)  # the kernel's corner-force -> wrench maps
         # frames: contact frames first (stance rows), then hands and spec target frames
         hand_names = [
@@ -684,7 +697,7 @@ class WholeBodyController:
     def corner_forces(self) -> dict[str, np.ndarray]:
         """Corner forces (4, 3) of every contact frame in its sole frame, last QP solution [N]."""
         assert self._x is not None, "no tick yet"
-        f = self._x[self.nv :] * self._f_scale
+        f = self._x[self.nv :] * np.repeat(self._f_scales, 12)
         return {
             name: f[12 * i : 12 * i + 12].reshape(4, 3).copy()
             for i, name in enumerate(self._contacts)
@@ -692,14 +705,14 @@ class WholeBodyController:
 
     def contact_jacobian_transpose(self) -> np.ndarray:
         """:math:`J_c^\\top` mapping the stacked corner forces to generalized forces, last tick (nv, 12 nc)."""
-        return self._S / self._f_scale
+        return self._S / np.repeat(self._f_scales, 12)
 
     def contact_forces(self) -> dict[str, np.ndarray]:
         """Net force of each stance contact in the world from the last tick's QP (3,) [N]."""
         out: dict[str, np.ndarray] = {}
         if self._x is None:
             return out
-        f = self._x[self.nv :] * self._f_scale
+        f = self._x[self.nv :] * np.repeat(self._f_scales, 12)
         for i in self._stance.tolist():
             out[self._contacts[i]] = self._last_rots[i] @ f[12 * i : 12 * i + 12].reshape(4, 3).sum(
                 axis=0

@@ -28,6 +28,7 @@ from tasks.primitives import (
     head,
     hop,
     jump,
+    lean,
     legs,
     locomotion,
     meet,
@@ -83,6 +84,7 @@ PRIMITIVES: dict[str, Primitive] = {
         *push.PRIMITIVES,
         *terrain.PRIMITIVES,
         *seat.PRIMITIVES,
+        *lean.PRIMITIVES,
     )
 }
 
