@@ -59,6 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.trajopt.layout import Layout
+from planner.trajopt.solver_output import SolverOutput
 from robots import FileTooLarge, NotRegularFile, read_npz, read_text, trim_cache, write_text_atomic
 
 FOLDER = "seeds"  # below the cache folder (robots.store.CACHE_FOLDERS)
@@ -212,12 +213,13 @@ def find_seed(lay: Layout, key: str, n_x: int, n_g: int, cache_dir: str) -> Seed
     return best
 
 
-def store_seed(lay: Layout, key: str, guess: np.ndarray, raw: dict, dq: np.ndarray, cache_dir: str) -> None:
-    """Keep a solution of structure ``key`` (``raw``: the solve's ``x``, ``lam_x``, ``lam_g``;
+def store_seed(lay: Layout, key: str, guess: np.ndarray, output: SolverOutput, dq: np.ndarray,
+               cache_dir: str) -> None:
+    """Keep a solution of structure ``key`` (``output``: the solve's, its ``x``, ``lam_x``, ``lam_g``;
     ``guess``: the layout's own initial guess) in memory and in its folder (atomically; the oldest
     files beyond :data:`ENTRIES` removed). A folder that cannot be written keeps it in memory only."""
-    seed = Seed(descriptor(lay), np.array(guess, dtype=float), np.array(raw["x"], dtype=float), np.array(raw["lam_x"], dtype=float),
-                np.array(raw["lam_g"], dtype=float), np.array(dq, dtype=float))
+    seed = Seed(descriptor(lay), np.array(guess, dtype=float), np.array(output.x, dtype=float),
+                np.array(output.lam_x, dtype=float), np.array(output.lam_g, dtype=float), np.array(dq, dtype=float))
     seeds = _seeds_of(key, cache_dir)
     with _LOCK:
         seeds.pop(seed.digest, None)  # the newest last
