@@ -9,6 +9,8 @@ switch it on in their own cache folders.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -121,7 +123,8 @@ def test_a_seeded_solve_that_fails_is_done_again_from_the_guess(g1, tmp_path):
                             solver=SolverSettings(max_iterations=2), diagnose=False)
     lay, full, _ = _layout(g1, _side(g1, 0.06), short)  # another solver key: the options differ
     library.store_seed(lay8, solver_key(lay, full), stored.guess,
-                       {"x": stored.x, "lam_x": stored.lam_x, "lam_g": stored.lam_g}, stored.dq, str(tmp_path))
+                       dataclasses.replace(_output(stored.x, stored.lam_g), lam_x=stored.lam_x), stored.dq,
+                       str(tmp_path))
     said: list[str] = []
     p = plan_with_library(_side(g1, 0.06), g1, settings=short, throw=False, progress=said.append)
     assert not p.ok
