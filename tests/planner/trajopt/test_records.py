@@ -60,3 +60,37 @@ def test_a_solvers_output_is_read_only_and_its_own():
     with pytest.raises(dataclasses.FrozenInstanceError):
         out.x = x  # type: ignore[misc]
     assert out.x_stagewise is None
+
+
+def test_a_stage_hessian_is_built_once_per_structure_and_equals_a_fresh_build(g1):
+    """The dynamic NLP's per-stage Hessian functions come from a per-process cache keyed by the
+    robot and the terms' structure (a collision round's second build reuses the stage types it
+    did not change): the same structure with other values gets the same function, another
+    structure its own (named after its key), and a cached function evaluates as one built afresh."""
+    import casadi as ca
+
+    from planner.trajopt.centroidal import nlp
+    from planner.trajopt.layout import make_layout
+    from tasks import Action, compile_actions
+
+    lay = make_layout(compile_actions([Action(name="squat", params={"depth": 0.1})], g1), g1)
+    by_knot: dict[int, list] = {}
+    for t in lay.terms:
+        by_knot.setdefault(t.knot, []).append(t)
+    mid = by_knot[lay.N // 2][:3]  # a few terms: a small Hessian to build
+    assert len(mid) == 3
+    fn, n_p, n_g = nlp._stage_hessian(g1, mid)
+    assert n_p == sum(len(t.params) for t in mid) and n_g == sum(t.n_rows for t in mid)
+    moved = [dataclasses.replace(t, params=np.asarray(t.params) + 0.01) for t in mid]
+    assert nlp._stage_hessian(g1, moved)[0] is fn  # values are parameters: the same function
+    fewer, _, _ = nlp._stage_hessian(g1, mid[1:])
+    assert fewer is not fn and fewer.name() != fn.name()
+    key = next(k for k, v in nlp._STAGE_HESSIANS.items() if v[0] is fn)
+    del nlp._STAGE_HESSIANS[key]
+    fresh, _, _ = nlp._stage_hessian(g1, mid)
+    assert fresh is not fn
+    rng = np.random.default_rng(3)
+    args = [rng.normal(0.0, 0.2, fn.size_in(i)) for i in range(fn.n_in())]
+    args[1] = g1.q_standing  # a valid reference configuration (unit quaternion)
+    np.testing.assert_array_equal(np.asarray(fn(*args)), np.asarray(fresh(*args)))
+    assert isinstance(fn, ca.Function)
