@@ -620,12 +620,17 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
                 reason = (f"{len(round_.changed)} more link pair(s) and {len(round_.objects)} object(s) came "
                           "within the collision margin")
         lam0 = None
-        relinearized_lay = None if reason else lay.relinearized(dq, out.x, relinearized)
+        # A round's new layout is re-linearized about this solution too (not counted against
+        # momentum_iterations): its solution is near this one, so its momentum rows are then near
+        # exact and the solve a re-linearization would add after it is not needed (the kitchen
+        # sentence: one solve fewer); when they are not, that solve still comes.
+        relinearized_lay = lay.relinearized(dq, out.x, relinearized)
         if relinearized_lay is not None:
             lay = relinearized_lay
-            relinearized += 1
-            reason = "re-linearized about the solution"
-            lam0 = (out.lam_x, out.lam_g)  # same structure: the multipliers warm-start it too
+            if not reason:
+                relinearized += 1
+                reason = "re-linearized about the solution"
+                lam0 = (out.lam_x, out.lam_g)  # same structure: the multipliers warm-start it too
         if not reason:
             return lay, dq, total, out
         if progress:
