@@ -193,9 +193,10 @@ def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
 
 @pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~24 s)
 def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_first_solve(talos, tmp_path):
-    """Talos "walk forward two steps then wave your right hand": the first plan solves three
-    times (82 iterations: its right gripper comes within the margin of its right thigh, and a
-    collision round adds 17 link pairs' rows, then the momentum rows are re-linearized). The
+    """Talos "walk forward two steps then wave your right hand": the first plan solves more than
+    once (82 iterations in three solves on 2026-11-24: its right gripper comes within the margin of
+    its right thigh, and a collision round adds 17 link pairs' rows; since 2026-11-29 the round's
+    layout is re-linearized in the same step, so no third solve when that suffices). The
     library remembers the rows; the 12 cm variant gets them before its first solve, has the first
     plan's final structure, and starts from its solution (14 iterations, 2026-11-24)."""
     from wbmp.pipeline import SolveRequest, build_spec
