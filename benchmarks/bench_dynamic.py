@@ -97,7 +97,7 @@ def neighbour_library(robot, task: str, settings) -> tuple[str, list[str]]:
     import tempfile
     from dataclasses import replace
 
-    from planner import plan
+    from planner import plan_with_library
     from tasks.compose import compile_actions
 
     folder = tempfile.mkdtemp(prefix="wbmp-bench-library-")
@@ -105,7 +105,7 @@ def neighbour_library(robot, task: str, settings) -> tuple[str, list[str]]:
     _, actions = TASKS[task]
     for values in NEIGHBOURS[task]:
         neighbour = [{"action": actions[0]["action"], "params": {**actions[0]["params"], **values}}]
-        p = plan(compile_actions(neighbour, robot), robot, throw=False,
+        p = plan_with_library(compile_actions(neighbour, robot), robot, throw=False,
                  settings=replace(settings,
                                   cache=replace(settings.cache, cache_dir=folder, solution_library="on")))
         planned.append(f"{values} ({'stored' if p.ok else 'failed'})")
@@ -113,15 +113,16 @@ def neighbour_library(robot, task: str, settings) -> tuple[str, list[str]]:
 
 
 def run_task(robot, actions, *, repeat: int, settings) -> dict:
-    """Plan one task ``repeat + 1`` times; the first run builds or loads the solver."""
-    from planner import plan
+    """Plan one task ``repeat + 1`` times; the first run builds or loads the solver (with the solution
+    library the settings name: ``plan_with_library``; ``"off"``: ``plan`` itself)."""
+    from planner import plan_with_library
     from tasks.compose import compile_actions
 
     spec = compile_actions(actions, robot)
     runs = []
     for _ in range(repeat + 1):
         t0, c0 = time.perf_counter(), time.process_time()
-        p = plan(spec, robot, settings=settings, throw=False)
+        p = plan_with_library(spec, robot, settings=settings, throw=False)
         runs.append({
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
             "build_s": p.stats.build_time, "solve_s": p.stats.solve_time, "cache": p.stats.cache,

@@ -41,7 +41,15 @@ if TYPE_CHECKING:
         UnsupportedModel,
     )
     from planner.results import Check, CheckKind, ConstraintCheck, Plan, SolverStats, SolveStatus
-    from planner.trajopt.api import Problem, Solution, WarmStart, formulate, plan, solve
+    from planner.trajopt.api import (
+        Problem,
+        Solution,
+        WarmStart,
+        formulate,
+        plan,
+        plan_with_library,
+        solve,
+    )
     from planner.trajopt.builds import BUILD_MEMORY, MEMORY_MARGIN, build_status, describe_build
     from planner.trajopt.cache import clear_memory_cache
     from planner.trajopt.centroidal.settings import CentroidalSettings
@@ -95,6 +103,7 @@ _EXPORTS = {  # public name -> module that defines it
     "full_dynamics_wrench": "planner.trajopt.centroidal.zmp",
     "kernel_ready": "planner.wbc.kernel",
     "plan": "planner.trajopt.api",
+    "plan_with_library": "planner.trajopt.api",
     "Problem": "planner.trajopt.api",
     "Solution": "planner.trajopt.api",
     "WarmStart": "planner.trajopt.api",
@@ -143,6 +152,7 @@ __all__ = [  # what `from ... import *` and the TYPE_CHECKING imports above cove
     "full_dynamics_wrench",
     "kernel_ready",
     "plan",
+    "plan_with_library",
     "solve",
     "support_excursion",
     "support_heights",

@@ -346,12 +346,13 @@ def plan_spec(spec: TaskSpec, robot: Robot, progress: Progress, *, library: bool
     background, solution library, build memory). Without the motion cache (``library`` False,
     ``--no-cache``) there is no solution library either: the result of the request alone, whatever
     was planned before (planner/trajopt/library.py)."""
-    from planner import plan as plan_motion
+    from planner import plan, plan_with_library
     from wbmp.environment import planner_settings
 
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name}")
-    settings = planner_settings() if library else planner_settings(cache={"solution_library": "off"})
-    return plan_motion(spec, robot, progress=progress, settings=settings)
+    if library:  # the one planner call that reads the solution library (plan() reads nothing on disk)
+        return plan_with_library(spec, robot, progress=progress, settings=planner_settings())
+    return plan(spec, robot, progress=progress, settings=planner_settings(cache={"solution_library": "off"}))
 
 
 def simulate_plan(plan: Plan, robot: Robot, request: SolveRequest, inputs: SimInputs, progress: Progress) -> Execution:

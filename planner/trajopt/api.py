@@ -22,11 +22,10 @@ The NLP (docs/planner.md), for knots ``k = 0..N`` on a uniform grid:
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Generic, TypeVar
 
 import numpy as np
 
@@ -69,6 +68,7 @@ from planner.trajopt.scene_collision import (
 )
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.solve import solve_layout
+from planner.trajopt.solver_output import SolverOutput
 from planner.trajopt.transcription import bounds, parameter_values
 from robots import Robot
 from tasks import TaskSpec
@@ -91,7 +91,7 @@ class Problem:
             motion (kinematic, with ``warm_start="nominal"``) or the heading guess (dynamic).
         deferred: The self-collision rows screening left out for idle pairs (added when a solve
             fails or a solution brings a pair within the margin; planner/trajopt/collision.py; a
-            solve works on a copy).
+            frozen record).
     """
 
     layout: Layout
@@ -134,7 +134,8 @@ class Solution:
             momentum rows re-linearized (the one given to :func:`solve` is not changed).
         dq: Chart displacements (N+1, nv).
         stats: The solver's record, adding up every solve (rounds, a failed warm start).
-        raw: The solver's raw output of the last solve (``x``, ``lam_x``, ``lam_g``, ``g``, bounds).
+        output: What the last solve returned beside the motion (:class:`SolverOutput`: variables,
+            multipliers, rows and bounds).
         forces: The contact-force variables (None: the kinematic formulation has none).
         plan: The plan, checked (not yet with the held objects' torques).
     """
@@ -142,19 +143,24 @@ class Solution:
     problem: Problem
     dq: np.ndarray
     stats: SolverStats
-    raw: dict
+    output: SolverOutput
     forces: np.ndarray | None
     plan: Plan
 
     def warm_start(self) -> WarmStart:
         """This solution as the warm start of another solve of a problem of the same variables (its
         rows may differ: the multipliers are left out)."""
-        return WarmStart(x=np.array(self.raw["x"]), dq=np.array(self.dq))
+        return WarmStart(x=np.array(self.output.x), dq=np.array(self.dq))
 
 
 def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = None, throw: bool = True,
-         progress: Callable[[str], None] | None = None, warm_start: WarmStart | None = None) -> Plan:
+         progress: Callable[[str], None] | None = None, warm_start: WarmStart | None = None,
+         collision_rows: EscalationRows | None = None) -> Plan:
     """Plan a whole-body motion for ``spec`` on ``robot``, starting and ending at rest.
+
+    Reads no solution library, whatever ``settings.cache.solution_library`` says: the same arguments
+    give the same plan whatever is on disk (:func:`plan_with_library` recalls the library's seed
+    and rows and passes them here as ``warm_start`` and ``collision_rows``).
 
     The motion starts at ``spec.start`` (else ``robot.q_standing``). Frames in the spec are role names
     (``right_hand``) or Pinocchio frame names.
@@ -166,8 +172,12 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         throw: Raise :class:`PlanningFailed` when the solve fails or a constraint group is
             violated; with False, return the (failed) plan with its ``diagnosis``.
         progress: Called with short messages ("building solver", "solving").
-        warm_start: Where the solve starts (a previous solution, :meth:`Solution.warm_start`;
-            None: the solution library's seed when the settings use it, else the task's own guess).
+        warm_start: Where the solve starts (a previous solution, :meth:`Solution.warm_start`, or
+            the library's seed; None: the task's own guess).
+        collision_rows: Self-collision rows to add before the first solve, per link pair named
+            ``"link_a/link_b"``: ``(sphere pairs, knots)`` (the library's record of the rows
+            earlier plans of the structure came to need; not used when a name or index does not
+            fit this problem, or without self-collision rows).
 
     Returns:
         The plan, on the uniform knot grid, with solver stats and the constraint report.
@@ -179,12 +189,32 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
             the problem last solved and the solver's record).
     """
     problem = formulate(spec, robot, settings or PlannerSettings())  # 1. build the problem
+    return _plan_problem(problem, spec, robot, throw, progress, warm_start, collision_rows)
+
+
+def plan_with_library(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = None, throw: bool = True,
+                      progress: Callable[[str], None] | None = None) -> Plan:
+    """:func:`plan` with the solution library in ``settings.cache`` (``solution_library``: ``on``,
+    ``read``; ``off``: :func:`plan` itself; :mod:`planner.trajopt.library`): a dynamic problem gets
+    the self-collision rows earlier plans of its structure came to need and starts from the
+    nearest stored solution when that starts nearer to feasibility; with ``on`` a plan that
+    succeeded is stored. The one planner entry that reads the library."""
+    problem = formulate(spec, robot, settings or PlannerSettings())
+    return _plan_problem(problem, spec, robot, throw, progress, None, None, library=True)
+
+
+def _plan_problem(problem: Problem, spec: TaskSpec, robot: Robot, throw: bool, progress: Callable[[str], None] | None,
+                  warm_start: WarmStart | None, collision_rows: EscalationRows | None, library: bool = False) -> Plan:
+    """Steps 2-5 of :func:`plan` on a formulated ``problem`` (``library``: with the solution library)."""
     refusal = precheck(problem.layout)  # 2. refuse what needs no solve to see (a target out of every reach, ...)
     if refusal:
         stats = SolverStats(status=SolveStatus.NOT_RUN)
         dq = np.zeros((problem.layout.N + 1, robot.nv))
         return _failed(problem, make_plan(problem.layout, dq, stats, problem.settings, diagnosis=refusal), throw)
-    solved = _solve_with_library(problem, warm_start, progress)  # 3. solve, with what earlier plans stored
+    if library:  # 3. solve (with what earlier plans stored)
+        solved = _solve_with_library(problem, progress)
+    else:
+        solved = solve(_with_recorded_rows(problem, collision_rows, progress)[0], warm_start, progress)
     result, too_heavy = _with_payload(solved.plan, robot, spec)  # 4. the held objects' torques, on the plan
     if too_heavy:  # an object too heavy for an arm: the cause, no other diagnosis
         return _failed(solved.problem, result, throw)
@@ -219,11 +249,10 @@ def solve(problem: Problem, warm_start: WarmStart | None = None,
         x0, lam0 = warm_start.x, warm_start.multipliers
         if warm_start.dq is not None and isinstance(lay, DynamicLayout):
             lay = lay.with_momentum_point(warm_start.dq)
-    deferred = copy.deepcopy(problem.deferred)
-    lay, dq, stats, raw = _solve_with_collisions(lay, problem.settings, progress, x0, deferred, lam0)
+    lay, dq, stats, output = _solve_with_collisions(lay, problem.settings, progress, x0, problem.deferred, lam0)
     if warm_start is not None:
         stats = dataclasses.replace(stats, seed=warm_start.origin)
-    solution = _solution(problem.with_layout(lay), dq, stats, raw)
+    solution = _solution(problem.with_layout(lay), dq, stats, output)
     if warm_start is None or solution.plan.ok:
         return solution
     if progress:
@@ -234,14 +263,14 @@ def solve(problem: Problem, warm_start: WarmStart | None = None,
         again.stats, iterations=tried.iterations + again.stats.iterations,
         build_time=tried.build_time + again.stats.build_time, solve_time=tried.solve_time + again.stats.solve_time,
         seed=f"{tried.seed} failed: solved again from the task's own guess")
-    return _solution(again.problem, again.dq, stats, again.raw)
+    return _solution(again.problem, again.dq, stats, again.output)
 
 
-def _solution(problem: Problem, dq: np.ndarray, stats: SolverStats, raw: dict) -> Solution:
+def _solution(problem: Problem, dq: np.ndarray, stats: SolverStats, output: SolverOutput) -> Solution:
     """A solve's outcome with its plan."""
-    forces = problem.layout.forces_of(raw["x"])
+    forces = problem.layout.forces_of(output.x)
     result = make_plan(problem.layout, dq, stats, problem.settings, forces=forces)
-    return Solution(problem, dq, stats, raw, forces, result)
+    return Solution(problem, dq, stats, output, forces, result)
 
 
 def _failed(problem: Problem, result: Plan, throw: bool) -> Plan:
@@ -252,16 +281,13 @@ def _failed(problem: Problem, result: Plan, throw: bool) -> Plan:
     return result
 
 
-def _solve_with_library(problem: Problem, warm_start: WarmStart | None,
-                        progress: Callable[[str], None] | None) -> Solution:
-    """Step 3: the solve, with what the solution library holds for the problem's structure
-    (:mod:`planner.trajopt.library`, a dynamic problem when the settings use it): the self-collision
-    rows earlier plans of the structure came to need, and, unless ``warm_start`` is given, its
-    nearest stored solution as the warm start; a plan that succeeded goes into the library."""
+def _solve_with_library(problem: Problem, progress: Callable[[str], None] | None) -> Solution:
+    """Step 3 of :func:`plan_with_library`: the solve, with what the solution library holds for the
+    problem's structure (:mod:`planner.trajopt.library`, a dynamic problem when the settings use
+    it): the self-collision rows earlier plans of the structure came to need and its nearest stored
+    solution as the warm start; a plan that succeeded goes into the library."""
     recalled, key0, escalation = _escalate(problem, progress)
-    loaded = None
-    if warm_start is None:
-        warm_start, loaded = _library_seed(recalled, progress)
+    warm_start, loaded = _library_seed(recalled, progress)
     solved = solve(recalled, warm_start, progress)
     if loaded is not None:
         stats = dataclasses.replace(solved.stats, build_time=solved.stats.build_time + loaded[0], cache=loaded[1])
@@ -290,7 +316,7 @@ def _diagnosed(solved: Solution, result: Plan, spec: TaskSpec, progress: Callabl
     the violated rows."""
     if progress:
         progress("the solve failed: diagnosing")
-    lay, settings, raw = solved.problem.layout, solved.problem.settings, solved.raw
+    lay, settings = solved.problem.layout, solved.problem.settings
     diagnosis = ""
     collision = settings.collision
     asked = settings.diagnose and not spec.dynamic and (collision.scene_collision or collision.self_collision)
@@ -298,13 +324,13 @@ def _diagnosed(solved: Solution, result: Plan, spec: TaskSpec, progress: Callabl
         # A target out of reach is the cause whatever the collision rows say, and the relaxed solve
         # that finds it converges: asked first, it spares the collision-free re-solve, which runs to
         # the iteration limit when the target is out of reach anyway.
-        diagnosis = diagnose_failure(lay, result, settings, raw, targets_only=True)
+        diagnosis = diagnose_failure(lay, result, settings, targets_only=True)
     if not diagnosis and settings.collision.scene_collision and settings.diagnose:
         diagnosis = scene_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
     if not diagnosis and settings.collision.self_collision and settings.diagnose:
         diagnosis = collision_diagnosis(lay, settings, lambda free: _solve_uncompiled(free, settings))
     if not diagnosis:
-        diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, raw, relax=not asked))
+        diagnosis = lay.diagnose(result, lambda: diagnose_failure(lay, result, settings, relax=not asked))
     return make_plan(lay, solved.dq, solved.stats, settings, diagnosis=diagnosis, checks=result.checks,
                      forces=solved.forces)
 
@@ -361,9 +387,7 @@ def add_screened_collision_terms(lay: L, settings: PlannerSettings, x0: np.ndarr
     distances = exempt_distances(lay, sets, sphere_pair_distances(robot, sets, q0, within=settings.collision.screening))
     rows = select(lay, sets, distances, settings.collision.screening)
     idle = idle_pairs(lay, sets, distances, settings.collision.margin)
-    deferred = Rows()
-    for pi in [pi for pi in rows.spheres if idle[pi]]:
-        deferred.spheres[pi], deferred.knots[pi] = rows.spheres.pop(pi), rows.knots.pop(pi)
+    rows, deferred = rows.split(pi for pi in rows.spheres if idle[pi])
     return with_collision_terms(lay, sets, rows, sorted(rows.spheres), settings.collision.margin), deferred
 
 
@@ -434,11 +458,11 @@ def _library_store(solved: Solution, guess: np.ndarray, key0: str | None, escala
     seed of its structure (``solution_library="on"``); when collision rounds changed the structure
     the plan started with (``key0``, before any ``escalation`` record was applied), remember the
     self-collision rows it ended with for the next plan of ``key0``."""
-    lay, settings, raw, dq = solved.problem.layout, solved.problem.settings, solved.raw, solved.dq
+    lay, settings, dq = solved.problem.layout, solved.problem.settings, solved.dq
     if not (isinstance(lay, DynamicLayout) and settings.cache.use_cache and settings.cache.solution_library == "on"):
         return
     key = solver_key(lay, settings)
-    store_seed(lay, key, guess, raw, dq, settings.cache.cache_dir)
+    store_seed(lay, key, guess, solved.output, dq, settings.cache.cache_dir)
     if key0 is None or key == key0 or not settings.collision.self_collision:
         return
     sets = sphere_sets(lay.robot)
@@ -466,61 +490,94 @@ def _escalate(problem: Problem, progress: Callable[[str], None] | None,
     record = find_escalation(key0, settings.cache.cache_dir)
     if record is None:
         return problem, key0, None
+    recalled, fits = _with_recorded_rows(problem, record, progress)
+    return recalled, key0, record if fits else None
+
+
+def _with_recorded_rows(problem: Problem, record: EscalationRows | None, progress: Callable[[str], None] | None,
+                        ) -> tuple[Problem, bool]:
+    """``problem`` with the self-collision rows of ``record`` (``"link_a/link_b"``: (sphere pairs,
+    knots); a new problem: ``problem`` is not changed; the rows added leave its ``deferred``), and
+    whether the record fits it (a record that names a pair, sphere pair or knot the problem does
+    not have is not used; nor is any without self-collision rows)."""
+    lay, settings = problem.layout, problem.settings
+    if record is None or not settings.collision.self_collision:
+        return problem, record is None
     sets = sphere_sets(lay.robot)
     index = {"/".join(name): pi for pi, name in enumerate(sets.pair_names)}
     ends = np.append(sets.starts[1:], len(sets.sa))
-    extra = Rows()
+    extra_spheres: dict[int, set[int]] = {}
+    extra_knots: dict[int, set[int]] = {}
     for name, (spheres, knots) in record.items():
         pi = index.get(name)
         if pi is None or max(spheres) >= ends[pi] - sets.starts[pi] or min(knots) < 2 or max(knots) > lay.N - 1:
-            return problem, key0, None
-        extra.spheres[pi], extra.knots[pi] = set(spheres), set(knots)
-    rows = collision_rows_of(lay, sets)
-    changed = rows.merge(extra)
+            return problem, False
+        extra_spheres[pi], extra_knots[pi] = set(spheres), set(knots)
+    rows, changed = collision_rows_of(lay, sets).merged(Rows(extra_spheres, extra_knots))
     if not changed:
-        return problem, key0, record
-    deferred = copy.deepcopy(problem.deferred)
-    for pi in changed:
-        deferred.spheres.pop(pi, None)
-        deferred.knots.pop(pi, None)
+        return problem, True
+    deferred, _ = problem.deferred.split(changed)
     if progress:
         progress(f"adding the collision rows of {len(changed)} link pair(s) that earlier plans of this "
                  "task structure needed")
     layout = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
-    return dataclasses.replace(problem, layout=layout, deferred=deferred), key0, record
+    return dataclasses.replace(problem, layout=layout, deferred=deferred), True
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CollisionRound(Generic[L]):
+    """One collision round's outcome (:func:`collision_round`): new records, the ones it was given
+    unchanged.
+
+    Attributes:
+        layout: The layout to solve next (the round's input itself when no rows changed).
+        rows: The self-collision rows it has (None: no self-collision rows).
+        scene_rows: The scene rows it has (None: no scene rows).
+        deferred: The idle pairs' rows still left out (None: added, or none).
+        changed: The link pairs whose rows changed.
+        objects: The scene objects whose rows changed.
+    """
+
+    layout: L
+    rows: Rows | None
+    scene_rows: SceneRows | None
+    deferred: Rows | None
+    changed: tuple[int, ...]
+    objects: tuple[int, ...]
 
 
 def collision_round(lay: L, settings: PlannerSettings, dq: np.ndarray, sets: SphereSets | None, rows: Rows | None,
-                    scene_rows: SceneRows | None, deferred: Rows | None) -> tuple[L, list[int], list[int], Rows | None]:
+                    scene_rows: SceneRows | None, deferred: Rows | None) -> CollisionRound[L]:
     """One collision round after a solve ``dq`` (N+1, nv): the link pairs (``sets``, ``rows``; None:
     no self-collision rows) and the (sphere, object) pairs (``scene_rows``; None: no scene rows) that
     the solution brings within the margin without rows get them, and when a link pair came close the
     rows ``deferred`` for idle pairs too.
 
-    Returns the layout to solve next (a new one with the rows; ``lay`` itself when none changed:
-    ``lay`` is never changed), the link pairs and the objects whose rows changed, and the deferred
-    rows left. ``rows`` and ``scene_rows``, the record of the rows the layout has, are updated."""
+    Returns the round's :class:`CollisionRound`: the layout to solve next (a new one with the rows;
+    ``lay`` itself when none changed) and the records of the rows it has, as new records; ``lay``,
+    ``rows``, ``scene_rows`` and ``deferred`` are not changed."""
     q = configurations(lay, dq)
     changed: list[int] = []
     if sets is not None and rows is not None:
         distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision.screening)
         more = missing_rows(lay, sets, rows, distances, settings.collision.margin, settings.collision.screening)
-        changed = rows.merge(more)
+        rows, changed = rows.merged(more)
         if changed and deferred is not None:  # a pair came close: the idle ones' rows too
-            changed = sorted(set(changed) | set(rows.merge(deferred)))
+            rows, idle = rows.merged(deferred)
+            changed = sorted(set(changed) | set(idle))
             deferred = None
         if changed:
             lay = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
     objects: list[int] = []
     if scene_rows is not None:
-        lay, objects = missing_scene_rows(lay, scene_rows, q, settings)
-    return lay, changed, objects, deferred
+        lay, scene_rows, objects = missing_scene_rows(lay, scene_rows, q, settings)
+    return CollisionRound(lay, rows, scene_rows, deferred, tuple(changed), tuple(objects))
 
 
 def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable[[str], None] | None,
                            x0: np.ndarray, deferred: Rows | None = None,
                            lam0: tuple[np.ndarray, np.ndarray] | None = None,
-                           ) -> tuple[L, np.ndarray, SolverStats, dict]:
+                           ) -> tuple[L, np.ndarray, SolverStats, SolverOutput]:
     """Solve, then again from the solution while the solution asks for it: a link pair, or a robot
     sphere and a scene object, within the collision margin without rows gets them (at most
     ``settings.collision.rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
@@ -531,7 +588,7 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
     ``lam0``: the first solve's initial multipliers (a seed's, :mod:`planner.trajopt.library`).
     Returns the layout last solved (each round's rows make a new one, :func:`collision_round`;
     ``lay`` is not changed by them), the solution and stats (adding up the iterations and times of
-    every solve) and the solver's raw output."""
+    every solve) and the last solve's :class:`SolverOutput`."""
     guess = x0
     sets = sphere_sets(lay.robot) if settings.collision.self_collision else None
     rows = collision_rows_of(lay, sets) if sets is not None else None
@@ -539,15 +596,16 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
     total: SolverStats | None = None
     rounds = relinearized = 0
     while True:
-        dq, stats, raw = solve_layout(lay, settings, progress, x0=x0, lam0=lam0)
+        dq, stats, out = solve_layout(lay, settings, progress, x0=x0, lam0=lam0)
         total = stats if total is None else dataclasses.replace(
             stats, iterations=total.iterations + stats.iterations, build_time=total.build_time + stats.build_time,
             cache=total.cache, solve_time=total.solve_time + stats.solve_time)
         if not stats.status.ok:
             if (sets is None or rows is None or deferred is None or not deferred.spheres
                     or stats.status not in (SolveStatus.MAX_ITERATIONS, SolveStatus.NUMERICAL_ERROR)):
-                return lay, dq, total, raw
-            lay = with_collision_terms(lay, sets, rows, rows.merge(deferred), settings.collision.margin)
+                return lay, dq, total, out
+            rows, idle = rows.merged(deferred)
+            lay = with_collision_terms(lay, sets, rows, idle, settings.collision.margin)
             deferred = None
             if progress:
                 progress("the solve failed: solving again with the idle pairs' rows")
@@ -555,20 +613,26 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
             continue
         reason = ""
         if rounds < settings.collision.rounds and (sets is not None or scene_rows is not None):
-            lay, changed, objects, deferred = collision_round(lay, settings, dq, sets, rows, scene_rows, deferred)
-            if changed or objects:
+            round_ = collision_round(lay, settings, dq, sets, rows, scene_rows, deferred)
+            lay, rows, scene_rows, deferred = round_.layout, round_.rows, round_.scene_rows, round_.deferred
+            if round_.changed or round_.objects:
                 rounds += 1
-                reason = (f"{len(changed)} more link pair(s) and {len(objects)} object(s) came within the "
-                          "collision margin")
+                reason = (f"{len(round_.changed)} more link pair(s) and {len(round_.objects)} object(s) came "
+                          "within the collision margin")
         lam0 = None
-        relinearized_lay = None if reason else lay.relinearized(dq, raw["x"], relinearized)
+        # A round's new layout is re-linearized about this solution too (not counted against
+        # momentum_iterations): its solution is near this one, so its momentum rows are then near
+        # exact and the solve a re-linearization would add after it is not needed (the kitchen
+        # sentence: one solve fewer); when they are not, that solve still comes.
+        relinearized_lay = lay.relinearized(dq, out.x, relinearized)
         if relinearized_lay is not None:
             lay = relinearized_lay
-            relinearized += 1
-            reason = "re-linearized about the solution"
-            lam0 = (raw["lam_x"], raw["lam_g"])  # same structure: the multipliers warm-start it too
+            if not reason:
+                relinearized += 1
+                reason = "re-linearized about the solution"
+                lam0 = (out.lam_x, out.lam_g)  # same structure: the multipliers warm-start it too
         if not reason:
-            return lay, dq, total, raw
+            return lay, dq, total, out
         if progress:
             progress(f"{reason}: solving again")
-        x0 = raw["x"]
+        x0 = out.x

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar, TypeVar
 
 import numpy as np
@@ -30,6 +30,7 @@ import pinocchio as pin
 
 from planner.results import Check, CheckKind
 from planner.trajopt.layout_data import LayoutData
+from planner.trajopt.rows import PairRows
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots import CollisionModel, Robot, body_part, collision_model
@@ -292,37 +293,23 @@ class SelfCollisionTerm(Term):
         return [self_collision_check(ctx.lay, ctx.q, ctx.settings)] if ctx.settings.collision.self_collision else []
 
 
-@dataclass
-class Rows:
+class Rows(PairRows):
     """The collision rows of a layout, per checked link pair: the sphere pairs (indices into the
-    pair's block) and the knots that carry rows."""
-
-    spheres: dict[int, set[int]] = field(default_factory=dict)
-    knots: dict[int, set[int]] = field(default_factory=dict)
-
-    def merge(self, other: Rows) -> list[int]:
-        """Add ``other``'s rows; returns the pairs whose rows changed."""
-        changed = []
-        for pi in other.spheres:
-            s0, k0 = self.spheres.get(pi, set()), self.knots.get(pi, set())
-            s1, k1 = s0 | other.spheres[pi], k0 | other.knots[pi]
-            if (s1, k1) != (s0, k0):
-                self.spheres[pi], self.knots[pi] = s1, k1
-                changed.append(pi)
-        return changed
+    pair's block) and the knots that carry rows (frozen: :meth:`PairRows.merged` returns a new one)."""
 
 
 def collision_rows_of(lay: LayoutData, sets: SphereSets) -> Rows:
     """The :class:`Rows` of the ``collision`` terms already in a layout."""
     index = {name: i for i, name in enumerate(sets.pair_names)}
-    rows = Rows()
+    spheres: dict[int, set[int]] = {}
+    knots: dict[int, set[int]] = {}
     for t in lay.terms:
         if not isinstance(t, SelfCollisionTerm) or t.item not in index:
             continue
         pi = index[t.item]
-        rows.spheres.setdefault(pi, set()).update(i * t.n_b + j for i, j in t.sphere_pairs)
-        rows.knots.setdefault(pi, set()).add(t.knot)
-    return rows
+        spheres.setdefault(pi, set()).update(i * t.n_b + j for i, j in t.sphere_pairs)
+        knots.setdefault(pi, set()).add(t.knot)
+    return Rows(spheres, knots)
 
 
 def select(lay: LayoutData, sets: SphereSets, distances: np.ndarray, threshold: float,
@@ -334,9 +321,8 @@ def select(lay: LayoutData, sets: SphereSets, distances: np.ndarray, threshold: 
     a marked entry. All close sphere pairs, not only the closest: a solve that pushes one sphere
     pair apart slides the limb onto its neighbour, and each such round builds a solver and solves
     again (docs/collisions.md)."""
-    rows = Rows()
     if len(sets.starts) == 0:
-        return rows
+        return Rows()
     ex = meet_exemptions(lay, sets)
     d = exempt_distances(lay, sets, distances).copy()
     d[:2] = np.inf
@@ -349,6 +335,8 @@ def select(lay: LayoutData, sets: SphereSets, distances: np.ndarray, threshold: 
         only[lay.N:] = False
         close_pairs &= np.add.reduceat(only.any(axis=0), sets.starts) > 0
     ends = np.append(sets.starts[1:], len(sets.sa))
+    rows_spheres: dict[int, set[int]] = {}
+    rows_knots: dict[int, set[int]] = {}
     for pi in np.flatnonzero(close_pairs):
         a, b = sets.starts[pi], ends[pi]
         block = d[:, a:b]
@@ -361,9 +349,9 @@ def select(lay: LayoutData, sets: SphereSets, distances: np.ndarray, threshold: 
             knots.update(range(max(2, int(k) - KNOT_PADDING), min(lay.N - 1, int(k) + KNOT_PADDING) + 1))
         if ex is not None:  # no rows where the pair is a planned self-contact
             knots -= {int(k) for k in np.flatnonzero(ex[:, pi])}
-        rows.spheres[int(pi)] = spheres
-        rows.knots[int(pi)] = knots
-    return rows
+        rows_spheres[int(pi)] = spheres
+        rows_knots[int(pi)] = knots
+    return Rows(rows_spheres, rows_knots)
 
 
 IDLE_TOLERANCE = 0.005  # [m] a pair whose guess comes no closer than its rest distance less this is idle

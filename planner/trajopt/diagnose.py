@@ -16,8 +16,7 @@ from tasks import Priority
 RELAXED_WEIGHT = 1e4  # [1/m^2] weight of a hard target turned into a cost while diagnosing
 
 
-def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, raw: dict,
-                     targets_only: bool = False, relax: bool = True) -> str:
+def diagnose_failure(lay: Layout, failed: Plan, settings: PlannerSettings, targets_only: bool = False, relax: bool = True) -> str:
     """Explain a failed solve in task terms (which item, when, by how much): a hard target the
     relaxed problem (targets as heavy costs, no collision or scene rows) cannot reach, else the
     worst violated group of ``failed`` (with ``targets_only``: else an empty string; without

@@ -18,7 +18,7 @@ its solution moved by the difference of the two layouts' initial guesses (:meth:
 
 A seed only chooses where IPOPT starts; the plan is checked as always. A seeded solve that fails
 (or whose plan fails a check) is done again from the task's own guess
-(:func:`planner.trajopt.api.plan`), so a seed never turns a plan that would succeed into a failure.
+(:func:`planner.trajopt.api.solve`), so a seed never turns a plan that would succeed into a failure.
 It can change *which* local optimum a plan finds (another seed, another start): a history-free
 result comes with ``solution_library="off"`` (``$WBMP_SOLUTION_LIBRARY=off``, ``wbmp solve
 --no-cache``).
@@ -28,6 +28,7 @@ solver key, ``<cache_dir>/seeds/<key>/``, with at most :data:`ENTRIES` files
 ``<descriptor digest>.npz`` (the oldest go first); the cache's size cap and ``wbmp cache`` treat
 the folder as one entry. A file is read with ``allow_pickle=False`` and used only when its arrays
 have the shapes of this structure and are finite; anything else is removed, never trusted.
+Read and written by :func:`planner.plan_with_library` only (:func:`planner.plan` reads no library).
 Modes (:attr:`planner.PlannerSettings.solution_library`): ``on`` (use and store), ``read`` (use,
 store nothing: benchmarks of a fixed library), ``off``.
 
@@ -36,7 +37,7 @@ structure than it started with, so the next plan of the starting structure would
 (they are stored under the final one) and pay the round again. The library remembers the
 self-collision rows the plan ended with, in the starting structure's folder (``escalation.json``:
 link pair ``"a/b"`` -> sphere pairs and knots); the next plan gets them before its first solve
-(:func:`planner.trajopt.api.plan`) and so has the final structure and its seeds. Talos "walk
+(:func:`planner.trajopt.api.plan_with_library`) and so has the final structure and its seeds. Talos "walk
 forward two steps then wave your right hand": 82 iterations in three solves; the 12 cm variant
 after it, 14 in one. A record that is not one is removed; one that names a pair, sphere pair or
 knot the layout does not have is not used. Rows only ever add constraints the check after each
@@ -59,6 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.trajopt.layout import Layout
+from planner.trajopt.solver_output import SolverOutput
 from robots import FileTooLarge, NotRegularFile, read_npz, read_text, trim_cache, write_text_atomic
 
 FOLDER = "seeds"  # below the cache folder (robots.store.CACHE_FOLDERS)
@@ -212,12 +214,13 @@ def find_seed(lay: Layout, key: str, n_x: int, n_g: int, cache_dir: str) -> Seed
     return best
 
 
-def store_seed(lay: Layout, key: str, guess: np.ndarray, raw: dict, dq: np.ndarray, cache_dir: str) -> None:
-    """Keep a solution of structure ``key`` (``raw``: the solve's ``x``, ``lam_x``, ``lam_g``;
+def store_seed(lay: Layout, key: str, guess: np.ndarray, output: SolverOutput, dq: np.ndarray,
+               cache_dir: str) -> None:
+    """Keep a solution of structure ``key`` (``output``: the solve's, its ``x``, ``lam_x``, ``lam_g``;
     ``guess``: the layout's own initial guess) in memory and in its folder (atomically; the oldest
     files beyond :data:`ENTRIES` removed). A folder that cannot be written keeps it in memory only."""
-    seed = Seed(descriptor(lay), np.array(guess, dtype=float), np.array(raw["x"], dtype=float), np.array(raw["lam_x"], dtype=float),
-                np.array(raw["lam_g"], dtype=float), np.array(dq, dtype=float))
+    seed = Seed(descriptor(lay), np.array(guess, dtype=float), np.array(output.x, dtype=float),
+                np.array(output.lam_x, dtype=float), np.array(output.lam_g, dtype=float), np.array(dq, dtype=float))
     seeds = _seeds_of(key, cache_dir)
     with _LOCK:
         seeds.pop(seed.digest, None)  # the newest last

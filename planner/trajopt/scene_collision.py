@@ -50,7 +50,7 @@ import dataclasses
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar, TypeVar
 
 import numpy as np
@@ -60,6 +60,7 @@ from planner.exceptions import PlannerError
 from planner.results import Check, CheckKind
 from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets, sphere_sets
 from planner.trajopt.layout_data import LayoutData
+from planner.trajopt.rows import PairRows
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots import Capsule, Robot, body_part, fit_capsule, link_points
@@ -413,38 +414,20 @@ def values(lay: LayoutData, sets: SphereSets, obs: list[Obstacle], q: np.ndarray
 # -- rows --------------------------------------------------------------------------------------
 
 
-@dataclass
-class SceneRows:
-    """Per object index: the spheres with rows and the knots that carry them."""
-
-    spheres: dict[int, set[int]] = field(default_factory=dict)
-    knots: dict[int, set[int]] = field(default_factory=dict)
-
-    def merge(self, other: SceneRows) -> list[int]:
-        """Add ``other``'s rows; returns the objects whose rows changed."""
-        changed = []
-        for oi in other.spheres:
-            s0, k0 = self.spheres.get(oi, set()), self.knots.get(oi, set())
-            s1, k1 = s0 | other.spheres[oi], k0 | other.knots[oi]
-            if (s1, k1) != (s0, k0):
-                self.spheres[oi], self.knots[oi] = s1, k1
-                changed.append(oi)
-        return changed
-
-    @property
-    def empty(self) -> bool:
-        """No rows."""
-        return not self.spheres
+class SceneRows(PairRows):
+    """Per object index: the spheres with rows and the knots that carry them (frozen:
+    :meth:`PairRows.merged` returns a new one)."""
 
 
 def scene_rows_of(lay: LayoutData) -> SceneRows:
     """The :class:`SceneRows` of the ``scene`` terms already in a layout (spheres found by joint and
     centre, which the terms' structure and parameters hold)."""
     obs = obstacles(lay.spec.scene)
-    rows = SceneRows()
     if not obs:
-        return rows
+        return SceneRows()
     index = {ob.key: i for i, ob in enumerate(obs)}
+    by_object: dict[int, set[int]] = {}
+    knots: dict[int, set[int]] = {}
     sets = scene_sets(lay.robot)
     sphere_joint = sets.joints[sets.sphere_owner]
     for t in lay.terms:
@@ -453,18 +436,19 @@ def scene_rows_of(lay: LayoutData) -> SceneRows:
         oi = index[str(t.item)]
         joints = t.joints
         local = t.params[12:].reshape(len(joints), 6)[:, :3]
-        spheres = rows.spheres.setdefault(oi, set())
+        spheres = by_object.setdefault(oi, set())
         for j, c in zip(joints, local, strict=True):
             match = np.flatnonzero((sphere_joint == j) & np.all(np.abs(sets.sphere_local - c) < 1e-12, axis=1))
             spheres.update(int(m) for m in match)
-        rows.knots.setdefault(oi, set()).add(t.knot)
-    return rows
+        knots.setdefault(oi, set()).add(t.knot)
+    return SceneRows(by_object, knots)
 
 
 def select(lay: LayoutData, close: np.ndarray) -> SceneRows:
     """Rows for the (sphere, object) pairs marked in ``close`` (T, S, O) at a variable knot: per
     object, the union of its marked spheres, on their knots widened by ``KNOT_PADDING``."""
-    rows = SceneRows()
+    by_object: dict[int, set[int]] = {}
+    by_knot: dict[int, set[int]] = {}
     mark = close.copy()
     mark[:2] = False
     mark[lay.N:] = False
@@ -473,8 +457,8 @@ def select(lay: LayoutData, close: np.ndarray) -> SceneRows:
         knots: set[int] = set()
         for k in np.flatnonzero(mark[:, :, oi].any(axis=1)):
             knots.update(range(max(2, int(k) - KNOT_PADDING), min(lay.N - 1, int(k) + KNOT_PADDING) + 1))
-        rows.spheres[int(oi)], rows.knots[int(oi)] = spheres, knots
-    return rows
+        by_object[int(oi)], by_knot[int(oi)] = spheres, knots
+    return SceneRows(by_object, by_knot)
 
 
 def with_scene_terms(lay: L, sets: SphereSets, obs: list[Obstacle], rows: SceneRows, objects: list[int],
@@ -569,14 +553,16 @@ def add_screened_scene_terms(lay: L, settings: PlannerSettings, q0: np.ndarray) 
     return with_scene_terms(lay, sets, obs, rows, sorted(rows.spheres), settings.collision.margin), rows
 
 
-def missing_scene_rows(lay: L, rows: SceneRows, q: np.ndarray, settings: PlannerSettings) -> tuple[L, list[int]]:
+def missing_scene_rows(lay: L, rows: SceneRows, q: np.ndarray, settings: PlannerSettings,
+                       ) -> tuple[L, SceneRows, list[int]]:
     """After a solve: pairs within the margin (less ``CHECK_TOLERANCE``) at a knot without their row
-    get rows (pairs within the screening distance of those objects, there, merged into ``rows``);
+    get rows (pairs within the screening distance of those objects, there, added to ``rows``);
     returns the layout with them (a copy with those objects' terms rewritten; ``lay`` itself when
-    none changed; ``lay`` is not changed) and the objects whose rows changed."""
+    none changed), the rows it has (a new record; ``rows`` itself when none changed) and the
+    objects whose rows changed. Neither ``lay`` nor ``rows`` is changed."""
     obs = obstacles(lay.spec.scene)
     if not obs:
-        return lay, []
+        return lay, rows, []
     sets = scene_sets(lay.robot)
     world = sphere_centres(lay.robot, sets, q)
     violated = values(lay, sets, obs, q, settings.collision.margin - CHECK_TOLERANCE, world) < 1.0
@@ -587,15 +573,15 @@ def missing_scene_rows(lay: L, rows: SceneRows, q: np.ndarray, settings: Planner
     violated[:2] = False
     violated[lay.N:] = False
     if not violated.any():
-        return lay, []
+        return lay, rows, []
     near = values(lay, sets, obs, q, settings.collision.screening, world) < 1.0
     bad_knots = np.asarray(violated.any(axis=1))  # (T, O)
     bad_spheres = np.asarray(violated.any(axis=0))  # (S, O)
     near &= bad_knots[:, None, :] | bad_spheres[None, :, :]
-    changed = rows.merge(select(lay, near | violated))
+    rows, changed = rows.merged(select(lay, near | violated))
     if changed:
-        return with_scene_terms(lay, sets, obs, rows, changed, settings.collision.margin), changed
-    return lay, changed
+        return with_scene_terms(lay, sets, obs, rows, changed, settings.collision.margin), rows, changed
+    return lay, rows, changed
 
 
 def strip_scene_terms(lay: L) -> L:

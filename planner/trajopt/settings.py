@@ -131,7 +131,8 @@ class CacheSettings:
             (:mod:`planner.trajopt.library`): ``"on"`` (use the nearest, store each successful
             plan's), ``"read"`` (use, store nothing), ``"off"`` (every solve from the task's own
             guess: the same result whatever was planned before: the default; the command line's
-            is ``$WBMP_SOLUTION_LIBRARY``, else ``"on"``); needs ``use_cache``.
+            is ``$WBMP_SOLUTION_LIBRARY``, else ``"on"``); needs ``use_cache``. Read by
+            :func:`planner.plan_with_library` only: :func:`planner.plan` reads no library.
     """
 
     use_cache: bool = True

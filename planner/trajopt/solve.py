@@ -13,13 +13,15 @@ from planner.trajopt.cache import get_solver
 from planner.trajopt.ipopt import _STATUS
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.solver_output import SolverOutput
 from planner.trajopt.transcription import bounds, parameter_values
 
 
 def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None = None,
                  x0: np.ndarray | None = None,
-                 lam0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, SolverStats, dict]:
-    """Fetch/build the solver of a layout, solve, return (dq per knot (N+1, nv), stats, raw).
+                 lam0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, SolverStats, SolverOutput]:
+    """Fetch/build the solver of a layout, solve, return (dq per knot (N+1, nv), stats, the solver's
+    output :class:`SolverOutput`).
 
     ``lam0``: initial multipliers ``(lam_x, lam_g)`` of the same structure's previous solve (IPOPT
     uses them with its ``warm_start_init_point`` option, which dynamic plans set).
@@ -56,5 +58,5 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
         solve_time=solve_time, cache=solver.origin, objective=float(sol["f"]),
         n_variables=nl.n_x, n_constraints=nl.n_g, raw_status=raw,
     )
-    return dq, stats, {"x": x, "lam_x": np.asarray(sol["lam_x"]).ravel(), "lam_g": np.asarray(sol["lam_g"]).ravel(), "g": np.asarray(sol["g"]).ravel(),
-                       "lbg": lbg, "ubg": ubg, "nlp_layout": nl}
+    return dq, stats, SolverOutput(x=x, lam_x=np.asarray(sol["lam_x"]), lam_g=np.asarray(sol["lam_g"]),
+                                   g=np.asarray(sol["g"]), lbg=lbg, ubg=ubg, nlp_layout=nl)

@@ -48,6 +48,7 @@ from planner.results import SolverStats, SolveStatus
 from planner.trajopt.ipopt import _STATUS, ipopt_options
 from planner.trajopt.layout import Layout
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.solver_output import SolverOutput
 from planner.trajopt.symbolic import model_hash
 from planner.trajopt.terms import stage_groups
 from planner.trajopt.transcription import (
@@ -478,13 +479,13 @@ def _status(backend: str, stats: dict) -> tuple[SolveStatus, str]:
 
 
 def solve_stagewise(lay: Layout, settings: PlannerSettings, progress: Callable[[str], None] | None = None,
-                    x0: np.ndarray | None = None, backend: str | None = None) -> tuple[np.ndarray, SolverStats, dict]:
+                    x0: np.ndarray | None = None, backend: str | None = None) -> tuple[np.ndarray, SolverStats, SolverOutput]:
     """Solve a kinematic layout with the stage-wise transcription: what
-    :func:`planner.trajopt.solve.solve_layout` returns, (dq per knot (N+1, nv), stats, raw).
+    :func:`planner.trajopt.solve.solve_layout` returns, (dq per knot (N+1, nv), stats, output).
 
     ``x0`` is in the current transcription's variables (``dq_2 .. dq_{N-1}``, as
-    :meth:`Layout.initial_guess` gives), and so is ``raw["x"]`` (a collision round starts the next
-    solve from it); ``raw["x_stagewise"]`` holds the stage-wise solution, ``raw["lam_g"]`` its
+    :meth:`Layout.initial_guess` gives), and so is the output's ``x`` (a collision round starts the next
+    solve from it); its ``x_stagewise`` holds the stage-wise solution, its ``lam_g`` the
     multipliers in stage order.
 
     Raises:
@@ -528,7 +529,6 @@ def solve_stagewise(lay: Layout, settings: PlannerSettings, progress: Callable[[
         status=status, iterations=int(st.get("iter_count", 0)), build_time=build_time, solve_time=solve_time,
         cache=origin, objective=float(sol["f"]) / solver.objective_scale, n_variables=sl.n_x, n_constraints=sl.n_g,
         backend=f"{backend} (stage-wise)", raw_status=raw_status)
-    raw = {"x": dq[2:N].ravel(), "x_stagewise": xs, "lam_x": np.asarray(sol["lam_x"]).ravel(),
-           "lam_g": np.asarray(sol["lam_g"]).ravel(), "g": np.asarray(sol["g"]).ravel(), "lbg": lbg, "ubg": ubg,
-           "nlp_layout": sl}
-    return dq, stats, raw
+    out = SolverOutput(x=dq[2:N].ravel(), x_stagewise=xs, lam_x=np.asarray(sol["lam_x"]), lam_g=np.asarray(sol["lam_g"]),
+                       g=np.asarray(sol["g"]), lbg=lbg, ubg=ubg, nlp_layout=sl)
+    return dq, stats, out

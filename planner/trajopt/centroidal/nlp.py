@@ -3,6 +3,8 @@ kinematic NLP of :mod:`planner.trajopt.transcription` (variables, derivatives, b
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -278,7 +280,8 @@ def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any,
     """
     robot, N = lay.robot, lay.N
     nv, n = robot.nv, lay.N - 2
-    first, second, values = _kinematic_functions(lay)
+    # built once per layout and shared by its copies (a collision round's layout builds its NLP again)
+    first, second, values = lay.memo("kinematic_functions", lambda: _kinematic_functions(lay))
     X = ca.reshape(x_kin, nv, n)
     Qr = ca.repmat(q_ref, 1, n)
     # values and derivatives from separate functions: a call computes all its outputs, and the
@@ -289,7 +292,8 @@ def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any,
     Cv = ca.reshape(c, 3, n)
     C = ca.horzcat(c0, c0, Cv, Cv[:, n - 1])
     E = _lifted_com_selection(N)
-    g0, f0, d1, d2, n_c = _centroidal_functions(cf, N)
+    g0, f0, d1, d2, n_c = (lay.memo("centroidal_functions", lambda: _centroidal_functions(cf, N))
+                           if cf is lay.centroidal() else _centroidal_functions(cf, N))
     n_m = 3 * n
     lam_c, lam_m = lam[:n_c], lam[n_c:n_c + n_m]
     g_c, f_c = g0(C, u, p, dt), f0(C, u, p, dt)
@@ -338,6 +342,74 @@ def dynamic_blocks(lay: DynamicData, cf: CentroidalFunction, x_kin: Any, u: Any,
     )
 
 
+STAGE_HESSIAN_CACHE_SIZE = 256
+_STAGE_HESSIANS: OrderedDict[tuple, tuple[ca.Function, int, int]] = OrderedDict()
+
+
+def _stage_hessian(robot: Robot, terms: list) -> tuple[ca.Function, int, int]:
+    """The SX function of one stage type's chart Hessian (:func:`stage_hessians`), its parameter
+    count and its row count, from a per-process cache keyed by the robot and the terms' structure
+    (as the kinematic stages, :func:`planner.trajopt.transcription.stage`): a collision round's
+    NLP builds only the stage types it changed. Named after the key (generated C never holds two
+    functions of one name)."""
+    from planner.trajopt.kinds import ClosedChainTerm, CoMPositionTerm
+    from planner.trajopt.symbolic import SymbolicKinematics, model_hash
+    from planner.trajopt.term import StageKinematics
+
+    key = (robot.name, model_hash(robot.model),
+           tuple((type(t).__name__, t.kind, t.structure, len(t.params), t.n_rows, getattr(t, "hard", None))
+                 for t in terms))
+    hit = _STAGE_HESSIANS.get(key)
+    if hit is not None:
+        _STAGE_HESSIANS.move_to_end(key)
+        return hit
+    name = "dyn_stage_hess_" + hashlib.sha256(repr(key).encode()).hexdigest()[:16]
+    nq, nv = robot.nq, robot.nv
+    kin = SymbolicKinematics(robot.model)
+    dq = ca.SX.sym("dq", nv)
+    qr = ca.SX.sym("q_ref", nq)
+    oMi = kin.joint_placements(qr, dq)
+    # a closed chain's frames come from the joint placements its term builds (as before the kinds were classes)
+    frame_ids = sorted({f for t in terms if not isinstance(t, ClosedChainTerm) for f in t.frames()})
+    com = kin.com(oMi)
+    stage = StageKinematics(robot, qr, dq, com, {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids})
+    ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
+    sigma = ca.SX.sym("sigma")
+    rows, cost, offset = [], 0, 0
+    # soft CoM targets w |S (c - c*)|^2: Hessian 2 w (J^T S^T S J + sum_i e_i hess c_i), the
+    # second part folded into the CoM multiplier (AD of the square costs ~5x more)
+    nu_cost = ca.SX.zeros(3)
+    gauss_newton = ca.SX.zeros(nv, nv)
+    for t in terms:
+        pt = ps[offset: offset + len(t.params)]
+        offset += len(t.params)
+        if isinstance(t, CoMPositionTerm) and not t.hard:
+            sel = [i for i, a in enumerate(t.axes) if a]
+            e = (com - pt[0:3])[sel]
+            J = ca.jacobian(com[sel], dq)
+            gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
+            nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
+            continue
+        r, cst = t.expression(pt, stage)
+        cost = cost + cst
+        if r is not None:
+            rows.append(r)
+    g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
+    lam = ca.SX.sym("lam", g.numel())
+    nu_s = ca.SX.sym("nu", 3)
+    eta_s = ca.SX.sym("eta", 8)
+    nu_all = ca.SX.sym("nu_all", 3)
+    z = sole_corner_heights(kin, oMi, robot)
+    lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
+    hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
+    fn = ca.Function(name, [dq, qr, ps, sigma, lam, nu_s, eta_s], [hess])
+    out = (fn, int(ps.numel()), int(g.numel()))
+    _STAGE_HESSIANS[key] = out
+    while len(_STAGE_HESSIANS) > STAGE_HESSIAN_CACHE_SIZE:
+        _STAGE_HESSIANS.popitem(last=False)
+    return out
+
+
 def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
                    eta: Any) -> Any:
     """Block-diagonal chart Hessian of a dynamic NLP's Lagrangian, one SX function per stage type.
@@ -362,63 +434,21 @@ def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: 
         The (nv (N-2), nv (N-2)) block-diagonal Hessian (MX, both triangles), without the
         constant quadratic costs.
     """
-    from planner.trajopt.kinds import ClosedChainTerm, CoMPositionTerm
-    from planner.trajopt.symbolic import SymbolicKinematics
-    from planner.trajopt.term import StageKinematics
     from planner.trajopt.terms import stage_groups
 
     robot = lay.robot
     nq, nv, n = robot.nq, robot.nv, lay.N - 2
     X = ca.reshape(x_kin, nv, n)
-    kin = SymbolicKinematics(robot.model)
     blocks: dict[int, Any] = {}
     p_offset, g_offset = nq + 3, 0
-    for gi, (_sig, knots, term_lists) in enumerate(stage_groups(lay)):
-        terms = [lay.terms[i] for i in term_lists[0]]
-        dq = ca.SX.sym("dq", nv)
-        qr = ca.SX.sym("q_ref", nq)
-        oMi = kin.joint_placements(qr, dq)
-        # a closed chain's frames come from the joint placements its term builds (as before the kinds were classes)
-        frame_ids = sorted({f for t in terms if not isinstance(t, ClosedChainTerm) for f in t.frames()})
-        com = kin.com(oMi)
-        stage = StageKinematics(robot, qr, dq, com, {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids})
-        ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
-        sigma = ca.SX.sym("sigma")
-        rows, cost, offset = [], 0, 0
-        # soft CoM targets w |S (c - c*)|^2: Hessian 2 w (J^T S^T S J + sum_i e_i hess c_i), the
-        # second part folded into the CoM multiplier (AD of the square costs ~5x more)
-        nu_cost = ca.SX.zeros(3)
-        gauss_newton = ca.SX.zeros(nv, nv)
-        for t in terms:
-            pt = ps[offset: offset + len(t.params)]
-            offset += len(t.params)
-            if isinstance(t, CoMPositionTerm) and not t.hard:
-                sel = [i for i, a in enumerate(t.axes) if a]
-                e = (com - pt[0:3])[sel]
-                J = ca.jacobian(com[sel], dq)
-                gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
-                nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
-                continue
-            r, cst = t.expression(pt, stage)
-            cost = cost + cst
-            if r is not None:
-                rows.append(r)
-        g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
-        lam = ca.SX.sym("lam", g.numel())
-        nu_s = ca.SX.sym("nu", 3)
-        eta_s = ca.SX.sym("eta", 8)
-        nu_all = ca.SX.sym("nu_all", 3)
-        z = sole_corner_heights(kin, oMi, robot)
-        lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
-        hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
-        fn = ca.Function(f"dyn_stage_hess{gi}", [dq, qr, ps, sigma, lam, nu_s, eta_s], [hess])
+    for _sig, knots, term_lists in stage_groups(lay):
+        fn, n_p, n_g = _stage_hessian(robot, [lay.terms[i] for i in term_lists[0]])
         m = len(knots)
         cols = [kk - 2 for kk in knots]
-        n_p = ps.numel()
         Pg = ca.reshape(p_kin[p_offset: p_offset + n_p * m], n_p, m)
         p_offset += n_p * m
-        L = ca.reshape(lam_kin[g_offset: g_offset + g.numel() * m], g.numel(), m)
-        g_offset += g.numel() * m
+        L = ca.reshape(lam_kin[g_offset: g_offset + n_g * m], n_g, m)
+        g_offset += n_g * m
         HS = fn.map(m)(X[:, cols], ca.repmat(q_ref, 1, m), Pg, ca.repmat(lam_f, 1, m), L, nu[:, cols], eta[:, cols])
         for kk, block in zip(knots, ca.horzsplit(HS, nv), strict=True):
             blocks[kk] = block

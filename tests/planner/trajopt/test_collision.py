@@ -71,11 +71,11 @@ def test_collision_rows_match_numpy_and_finite_differences(talos):
     pairs = {("arm_left_5_link", "base_link"), ("gripper_left_base_link", "leg_right_3_link")}
     index = [i for i, p in enumerate(sets.pair_names) if p in pairs]
     assert len(index) == 2
-    rows = Rows()
+    spheres = {}
     for pi in index:
         n = (sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa)) - sets.starts[pi]
-        rows.spheres[pi] = set(range(n))
-        rows.knots[pi] = {5}
+        spheres[pi] = set(range(n))
+    rows = Rows(spheres, {pi: {5} for pi in index})
     lay = with_collision_terms(lay, sets, rows, index, 0.01)
     fn = stage_function(lay, list(range(len(lay.terms))), "collision_stage")
     p = np.concatenate([t.params for t in lay.terms])

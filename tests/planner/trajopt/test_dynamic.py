@@ -325,17 +325,17 @@ def test_relinearized_resolve_is_warm_started(g1):
     dq, stats, raw = solve_layout(lay, settings, x0=lay.initial_guess(settings))
     assert stats.status.ok
     point = lay.momentum_point().copy()
-    relinearized = lay.relinearized(dq, raw["x"], 0)  # the push-off folds the legs far from the warm start
+    relinearized = lay.relinearized(dq, raw.x, 0)  # the push-off folds the legs far from the warm start
     assert relinearized is not None
     np.testing.assert_array_equal(lay.momentum_point(), point)  # the layout solved: unchanged
     lay, first = relinearized, relinearized.momentum_residual
-    warm_dq, warm, warm_raw = solve_layout(lay, settings, x0=raw["x"], lam0=(raw["lam_x"], raw["lam_g"]))
-    cold_dq, cold, _ = solve_layout(lay, settings, x0=raw["x"])
+    warm_dq, warm, warm_raw = solve_layout(lay, settings, x0=raw.x, lam0=(raw.lam_x, raw.lam_g))
+    cold_dq, cold, _ = solve_layout(lay, settings, x0=raw.x)
     assert warm.status.ok and cold.status.ok
     assert warm.iterations + 3 <= cold.iterations, (warm.iterations, cold.iterations)
     assert warm.objective == pytest.approx(cold.objective, rel=1e-6)
     np.testing.assert_allclose(warm_dq, cold_dq, atol=1e-4)
-    after = euler_residual(lay, warm_dq, lay.forces_of(warm_raw["x"]))
+    after = euler_residual(lay, warm_dq, lay.forces_of(warm_raw.x))
     assert after < CentroidalSettings().momentum_tolerance < first
 
 

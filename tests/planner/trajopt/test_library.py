@@ -9,13 +9,16 @@ switch it on in their own cache folders.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from planner import CacheSettings, PlannerSettings, SolverSettings, plan
+from planner import CacheSettings, PlannerSettings, SolverSettings, plan, plan_with_library
 from planner.trajopt import library
 from planner.trajopt.api import _formulation, add_screened_terms
 from planner.trajopt.cache import clear_memory_cache, solver_key
+from planner.trajopt.solver_output import SolverOutput
 from tasks.compose import compile_actions
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
@@ -42,6 +45,12 @@ def cold(g1):
     return plan(_side(g1, 0.06), g1, settings=PlannerSettings(cache=CacheSettings(solution_library="off")))
 
 
+def _output(x, lam_g) -> SolverOutput:
+    """A solve's output with these variables and row multipliers (zero bound multipliers)."""
+    return SolverOutput(x=x, lam_x=np.zeros_like(x), lam_g=lam_g, g=np.zeros_like(lam_g), lbg=np.zeros_like(lam_g),
+                        ubg=np.zeros_like(lam_g), nlp_layout=None)
+
+
 def _layout(g1, spec, settings):
     lay, settings = _formulation(spec, g1, settings)
     guess = lay.initial_guess(settings)
@@ -50,14 +59,14 @@ def _layout(g1, spec, settings):
 
 
 def test_a_neighbour_seeds_the_solve_and_read_mode_stores_nothing(g1, cold, tmp_path):
-    source = plan(_side(g1, 0.08), g1,
+    source = plan_with_library(_side(g1, 0.08), g1,
                   settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on")))
     assert source.stats.seed == ""  # an empty library
     files = _files(tmp_path)
     assert len(files) == 1
     library.clear_memory()  # another process: read from the folder, and build the solver again
     clear_memory_cache()
-    seeded = plan(_side(g1, 0.06), g1,
+    seeded = plan_with_library(_side(g1, 0.06), g1,
                   settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read")))
     assert seeded.stats.seed.startswith("library (distance ")
     # the solver was fetched to test the seed: its build is in the stats, not the solve's memory hit
@@ -66,7 +75,7 @@ def test_a_neighbour_seeds_the_solve_and_read_mode_stores_nothing(g1, cold, tmp_
     assert seeded.stats.iterations <= cold.stats.iterations - 5, (seeded.stats.iterations, cold.stats.iterations)
     assert abs(seeded.stats.objective - cold.stats.objective) <= 0.01 * abs(cold.stats.objective)
     assert _files(tmp_path) == files  # "read" stored nothing
-    off = plan(_side(g1, 0.06), g1,
+    off = plan_with_library(_side(g1, 0.06), g1,
                settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="off")))
     assert off.stats.seed == "" and off.stats.iterations == cold.stats.iterations
     np.testing.assert_array_equal(off.q, cold.q)  # off: the history-free result
@@ -82,7 +91,7 @@ def test_damaged_and_foreign_files_are_removed_not_used(g1, cold, tmp_path):
     wrong = library.Seed(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros((2, 2)))
     np.savez(folder / f"{wrong.digest}.npz", descriptor=wrong.descriptor, guess=wrong.guess, x=wrong.x,
              lam_x=wrong.lam_x, lam_g=wrong.lam_g, dq=wrong.dq)  # well-formed, the wrong sizes
-    p = plan(_side(g1, 0.06), g1, settings=settings)
+    p = plan_with_library(_side(g1, 0.06), g1, settings=settings)
     assert p.stats.seed == "" and p.stats.iterations == cold.stats.iterations
     assert [f.name for f in _files(tmp_path)] == [f"{library.Seed(library.descriptor(lay), *[np.zeros(0)] * 5).digest}.npz"]
     assert p.ok
@@ -94,10 +103,10 @@ def test_a_seed_that_starts_farther_from_feasibility_than_the_guess_is_not_used(
     key = solver_key(lay, full)
     rng = np.random.default_rng(0)
     far = guess + rng.normal(0.0, 0.5, guess.shape)  # half a radian / metre of noise everywhere
-    raw = {"x": far, "lam_x": np.zeros_like(far), "lam_g": np.zeros(cold.stats.n_constraints)}
+    raw = _output(far, np.zeros(cold.stats.n_constraints))
     library.store_seed(lay, key, guess, raw, np.zeros((lay.N + 1, g1.nv)), str(tmp_path))
     assert library.has_seeds(key, str(tmp_path))
-    p = plan(_side(g1, 0.06), g1,
+    p = plan_with_library(_side(g1, 0.06), g1,
              settings=PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read")))
     assert p.stats.seed == "" and p.stats.iterations == cold.stats.iterations
     np.testing.assert_array_equal(p.q, cold.q)
@@ -107,16 +116,17 @@ def test_a_seeded_solve_that_fails_is_done_again_from_the_guess(g1, tmp_path):
     """A seed that is accepted but whose solve stops at the iteration limit: the task's own guess
     is solved next, and the stats say both."""
     source = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
-    plan(_side(g1, 0.08), g1, settings=source)
+    plan_with_library(_side(g1, 0.08), g1, settings=source)
     lay8, full8, _ = _layout(g1, _side(g1, 0.08), source)
     stored = next(iter(library._seeds_of(solver_key(lay8, full8), str(tmp_path)).values()))
     short = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="read"),
                             solver=SolverSettings(max_iterations=2), diagnose=False)
     lay, full, _ = _layout(g1, _side(g1, 0.06), short)  # another solver key: the options differ
     library.store_seed(lay8, solver_key(lay, full), stored.guess,
-                       {"x": stored.x, "lam_x": stored.lam_x, "lam_g": stored.lam_g}, stored.dq, str(tmp_path))
+                       dataclasses.replace(_output(stored.x, stored.lam_g), lam_x=stored.lam_x), stored.dq,
+                       str(tmp_path))
     said: list[str] = []
-    p = plan(_side(g1, 0.06), g1, settings=short, throw=False, progress=said.append)
+    p = plan_with_library(_side(g1, 0.06), g1, settings=short, throw=False, progress=said.append)
     assert not p.ok
     assert any(m.startswith("starting from a stored solution") for m in said)
     assert "the solve from the stored solution failed: solving from the task's own guess" in said
@@ -167,7 +177,7 @@ def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
     settings = PlannerSettings(cache=CacheSettings(cache_dir=str(tmp_path), solution_library="on"))
     lay, full, guess = _layout(g1, _side(g1, 0.06), settings)
     key = solver_key(lay, full)
-    raw = {"x": guess, "lam_x": np.zeros_like(guess), "lam_g": np.zeros(3)}
+    raw = _output(guess, np.zeros(3))
     dq = np.zeros((lay.N + 1, g1.nv))
     digests = []
     for i in range(library.ENTRIES + 3):
@@ -183,9 +193,10 @@ def test_a_structure_keeps_its_newest_seeds_only(g1, tmp_path, monkeypatch):
 
 @pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~24 s)
 def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_first_solve(talos, tmp_path):
-    """Talos "walk forward two steps then wave your right hand": the first plan solves three
-    times (82 iterations: its right gripper comes within the margin of its right thigh, and a
-    collision round adds 17 link pairs' rows, then the momentum rows are re-linearized). The
+    """Talos "walk forward two steps then wave your right hand": the first plan solves more than
+    once (82 iterations in three solves on 2026-11-24: its right gripper comes within the margin of
+    its right thigh, and a collision round adds 17 link pairs' rows; since 2026-11-29 the round's
+    layout is re-linearized in the same step, so no third solve when that suffices). The
     library remembers the rows; the 12 cm variant gets them before its first solve, has the first
     plan's final structure, and starts from its solution (14 iterations, 2026-11-24)."""
     from wbmp.pipeline import SolveRequest, build_spec
@@ -196,7 +207,7 @@ def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_firs
         return build_spec(SolveRequest(instruction=sentence, robot="talos", simulate=False), lambda _m: None)[1]
 
     said: list[str] = []
-    first = plan(spec_of("walk forward two steps then wave your right hand"), talos, settings=settings,
+    first = plan_with_library(spec_of("walk forward two steps then wave your right hand"), talos, settings=settings,
                  progress=said.append)
     assert first.ok
     assert any("came within the collision margin: solving again" in m for m in said)
@@ -204,7 +215,7 @@ def test_a_structure_that_needed_a_collision_round_gets_its_rows_before_the_firs
     assert len(records) == 1
     library.clear_memory()  # another process: read from the folder
     said.clear()
-    variant = plan(spec_of("walk forward 2 steps 12 cm then wave your right hand"), talos, settings=settings,
+    variant = plan_with_library(spec_of("walk forward 2 steps 12 cm then wave your right hand"), talos, settings=settings,
                    progress=said.append)
     assert variant.ok  # every check, the self-collision check on the collision model among them
     assert any(m.startswith("adding the collision rows of") for m in said)
@@ -225,7 +236,7 @@ def test_an_escalation_record_that_does_not_fit_is_not_used(g1, cold, tmp_path):
         record.write_text(text)
         library.clear_memory()
         said: list[str] = []
-        p = plan(_side(g1, 0.06), g1, settings=settings, progress=said.append)
+        p = plan_with_library(_side(g1, 0.06), g1, settings=settings, progress=said.append)
         assert not any(m.startswith("adding the collision rows") for m in said)
         assert p.stats.n_constraints == cold.stats.n_constraints and p.stats.iterations == cold.stats.iterations
         assert record.exists() == text.startswith('{"format": 1, "rows": {"no_link')  # not a record: removed
@@ -241,7 +252,15 @@ def test_an_escalation_record_adds_its_rows(g1, cold, tmp_path):
     library.store_escalation(solver_key(lay, full), {name: ({0}, {10, 11, 12})}, str(tmp_path))
     library.clear_memory()
     said: list[str] = []
-    p = plan(_side(g1, 0.06), g1, settings=settings, progress=said.append)
+    p = plan_with_library(_side(g1, 0.06), g1, settings=settings, progress=said.append)
     assert "adding the collision rows of 1 link pair(s) that earlier plans of this task structure needed" in said
     assert p.stats.n_constraints == cold.stats.n_constraints + 3  # one sphere pair at three knots
     assert p.ok
+    # plan() reads no library, whatever the settings say: the plan from the task alone, byte for byte
+    said.clear()
+    pure = plan(_side(g1, 0.06), g1, settings=settings, progress=said.append)
+    assert not any(m.startswith("adding the collision rows") for m in said)
+    assert pure.stats.n_constraints == cold.stats.n_constraints and np.array_equal(pure.q, cold.q)
+    # ... and the record passed in is the library's, explicitly: the library's plan, byte for byte
+    given = plan(_side(g1, 0.06), g1, settings=settings, collision_rows={name: ({0}, {10, 11, 12})})
+    assert given.stats.n_constraints == p.stats.n_constraints and np.array_equal(given.q, p.q)

@@ -301,12 +301,16 @@ def test_a_collision_round_returns_a_new_layout_and_leaves_its_input_unchanged(t
     dq[2:lay.N] = x0.reshape(lay.N - 2, talos.nv)
     dq[lay.N] = dq[lay.N - 1]
     rows, scene_rows = Rows(), SceneRows()
-    new, pairs, objects, _ = collision_round(lay, settings, dq, sphere_sets(talos), rows, scene_rows, None)
+    first = collision_round(lay, settings, dq, sphere_sets(talos), rows, scene_rows, None)
+    new, objects = first.layout, first.objects
     assert objects and {obstacles(spec.scene)[o].name for o in objects} == {"table"}  # pieces of it
     assert type(new) is type(lay)
     assert any(t.kind == "scene" for t in new.terms) and new.structure() != structure
     assert lay.terms is terms and lay.structure() == structure  # the input: untouched
     assert not any(t.kind in ("scene", "collision") for t in lay.terms)
     assert all(np.array_equal(t.params, p) for t, p in zip(lay.terms, params, strict=True))
-    again, pairs2, objects2, _ = collision_round(new, settings, dq, sphere_sets(talos), rows, scene_rows, None)
-    assert again is new and pairs2 == [] and objects2 == []
+    assert rows.empty and scene_rows.empty  # the records given: untouched too (the round's are new)
+    assert first.scene_rows is not None and set(first.scene_rows.spheres) == set(objects)
+    second = collision_round(new, settings, dq, sphere_sets(talos), first.rows, first.scene_rows, None)
+    assert second.layout is new and second.changed == () and second.objects == ()
+    assert second.rows is first.rows and second.scene_rows is first.scene_rows

@@ -134,13 +134,11 @@ def layout(talos) -> Layout:
                                             pin.SE3(np.eye(3), np.array([-0.22, 0.085, 0.37])), "twin"))
     sets = sphere_sets(talos)
     lay = lay.with_terms([])
-    rows = Rows()
     index = [i for i, name in enumerate(sets.pair_names) if name in COLLISION_PAIRS]
     assert len(index) == len(COLLISION_PAIRS)
-    for pi in index:
-        end = sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa)
-        rows.spheres[pi] = set(range(end - sets.starts[pi]))
-        rows.knots[pi] = {COLLISION_KNOT}
+    ends = [sets.starts[pi + 1] if pi + 1 < len(sets.starts) else len(sets.sa) for pi in index]
+    rows = Rows({pi: set(range(end - sets.starts[pi])) for pi, end in zip(index, ends, strict=True)},
+                {pi: {COLLISION_KNOT} for pi in index})
     lay = with_collision_terms(lay, sets, rows, index, MARGIN)
     obs = obstacles(SCENE)
     arm = {s for s in range(len(sets.sphere_radius)) if sets.links[sets.sphere_owner[s]].startswith(SCENE_LINKS)}
