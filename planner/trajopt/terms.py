@@ -35,7 +35,7 @@ def stage_groups(lay: LayoutData) -> list[tuple[tuple, list[int], list[list[int]
 #: :data:`planner.trajopt.centroidal.nlp._HESSIANS`): the collision round's second build rebuilds
 #: only the stages whose terms changed.
 _STAGES: dict[tuple, tuple[Any, tuple[Any, ...]]] = {}
-MAX_STAGES = 256
+MAX_STAGES = 64
 
 
 def stage_function(lay: LayoutData, term_ids: list[int], name: str) -> ca.Function:

@@ -394,7 +394,7 @@ def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: 
 #: expression (``planner.trajopt.term.Term.structure``), so the collision round's second build (the
 #: same stages plus a few collision rows) differentiates only the stages that changed.
 _HESSIANS: dict[tuple, tuple[Any, tuple[tuple[Any, ...], Any]]] = {}
-MAX_HESSIANS = 256
+MAX_HESSIANS = 64  # stage types of a few builds (the stairs climb: 11 before its collision rows)
 
 
 def _stage_hessian(robot: Any, terms: list) -> tuple[tuple[Any, ...], Any]:
