@@ -5,8 +5,6 @@ kinds (:func:`term_kinds`)."""
 
 from __future__ import annotations
 
-from typing import Any
-
 import casadi as ca
 
 import planner.trajopt.collision
@@ -31,40 +29,27 @@ def stage_groups(lay: LayoutData) -> list[tuple[tuple, list[int], list[list[int]
     return [(sig, knots, terms) for sig, (knots, terms) in groups.items()]
 
 
-#: The stage functions' SX expressions by (robot, term structures) (as
-#: :data:`planner.trajopt.centroidal.nlp._HESSIANS`): the collision round's second build rebuilds
-#: only the stages whose terms changed.
-_STAGES: dict[tuple, tuple[Any, tuple[Any, ...]]] = {}
-MAX_STAGES = 64
-
-
 def stage_function(lay: LayoutData, term_ids: list[int], name: str) -> ca.Function:
     """SX function ``(dq[nv], q_ref[nq], p) -> (g, cost)`` of the terms at one knot."""
     robot = lay.robot
+    kin = SymbolicKinematics(robot.model)
+    dq = ca.SX.sym("dq", robot.nv)
+    q_ref = ca.SX.sym("q_ref", robot.nq)
     terms = [lay.terms[i] for i in term_ids]
-    key = (id(robot), tuple((t.structure, len(t.params), t.n_rows) for t in terms))
-    if key not in _STAGES:
-        if len(_STAGES) >= MAX_STAGES:
-            _STAGES.clear()
-        kin = SymbolicKinematics(robot.model)
-        dq = ca.SX.sym("dq", robot.nv)
-        q_ref = ca.SX.sym("q_ref", robot.nq)
-        frame_ids = sorted({f for t in terms for f in t.frames()})
-        oMi = kin.joint_placements(q_ref, dq)
-        stage = StageKinematics(robot, q_ref, dq, kin.com(oMi),
-                                {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, oMi)
-        n_p = sum(len(t.params) for t in terms)
-        p = ca.SX.sym("p", n_p)
-        rows, cost, offset = [], 0, 0
-        for t in terms:
-            r, c = t.expression(p[offset: offset + len(t.params)], stage)
-            offset += len(t.params)
-            cost = cost + c
-            if r is not None:
-                rows.append(r)
-        g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
-        _STAGES[key] = (robot, (dq, q_ref, p, g, cost))
-    dq, q_ref, p, g, cost = _STAGES[key][1]
+    frame_ids = sorted({f for t in terms for f in t.frames()})
+    oMi = kin.joint_placements(q_ref, dq)
+    stage = StageKinematics(robot, q_ref, dq, kin.com(oMi),
+                            {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids}, oMi)
+    n_p = sum(len(t.params) for t in terms)
+    p = ca.SX.sym("p", n_p)
+    rows, cost, offset = [], 0, 0
+    for t in terms:
+        r, c = t.expression(p[offset: offset + len(t.params)], stage)
+        offset += len(t.params)
+        cost = cost + c
+        if r is not None:
+            rows.append(r)
+    g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
     return ca.Function(name, [dq, q_ref, p], [g, cost], ["dq", "q_ref", "p"], ["g", "cost"])
 
 

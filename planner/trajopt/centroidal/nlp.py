@@ -362,86 +362,67 @@ def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: 
         The (nv (N-2), nv (N-2)) block-diagonal Hessian (MX, both triangles), without the
         constant quadratic costs.
     """
+    from planner.trajopt.kinds import ClosedChainTerm, CoMPositionTerm
+    from planner.trajopt.symbolic import SymbolicKinematics
+    from planner.trajopt.term import StageKinematics
     from planner.trajopt.terms import stage_groups
 
     robot = lay.robot
     nq, nv, n = robot.nq, robot.nv, lay.N - 2
     X = ca.reshape(x_kin, nv, n)
+    kin = SymbolicKinematics(robot.model)
     blocks: dict[int, Any] = {}
     p_offset, g_offset = nq + 3, 0
-    for gi, (sig, knots, term_lists) in enumerate(stage_groups(lay)):
-        key = (id(robot), sig)
-        if key not in _HESSIANS:
-            if len(_HESSIANS) >= MAX_HESSIANS:
-                _HESSIANS.clear()
-            _HESSIANS[key] = (robot, _stage_hessian(robot, [lay.terms[i] for i in term_lists[0]]))
-        args, hess = _HESSIANS[key][1]
-        fn = ca.Function(f"dyn_stage_hess{gi}", list(args), [hess])
+    for gi, (_sig, knots, term_lists) in enumerate(stage_groups(lay)):
+        terms = [lay.terms[i] for i in term_lists[0]]
+        dq = ca.SX.sym("dq", nv)
+        qr = ca.SX.sym("q_ref", nq)
+        oMi = kin.joint_placements(qr, dq)
+        # a closed chain's frames come from the joint placements its term builds (as before the kinds were classes)
+        frame_ids = sorted({f for t in terms if not isinstance(t, ClosedChainTerm) for f in t.frames()})
+        com = kin.com(oMi)
+        stage = StageKinematics(robot, qr, dq, com, {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids})
+        ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
+        sigma = ca.SX.sym("sigma")
+        rows, cost, offset = [], 0, 0
+        # soft CoM targets w |S (c - c*)|^2: Hessian 2 w (J^T S^T S J + sum_i e_i hess c_i), the
+        # second part folded into the CoM multiplier (AD of the square costs ~5x more)
+        nu_cost = ca.SX.zeros(3)
+        gauss_newton = ca.SX.zeros(nv, nv)
+        for t in terms:
+            pt = ps[offset: offset + len(t.params)]
+            offset += len(t.params)
+            if isinstance(t, CoMPositionTerm) and not t.hard:
+                sel = [i for i, a in enumerate(t.axes) if a]
+                e = (com - pt[0:3])[sel]
+                J = ca.jacobian(com[sel], dq)
+                gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
+                nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
+                continue
+            r, cst = t.expression(pt, stage)
+            cost = cost + cst
+            if r is not None:
+                rows.append(r)
+        g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
+        lam = ca.SX.sym("lam", g.numel())
+        nu_s = ca.SX.sym("nu", 3)
+        eta_s = ca.SX.sym("eta", 8)
+        nu_all = ca.SX.sym("nu_all", 3)
+        z = sole_corner_heights(kin, oMi, robot)
+        lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
+        hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
+        fn = ca.Function(f"dyn_stage_hess{gi}", [dq, qr, ps, sigma, lam, nu_s, eta_s], [hess])
         m = len(knots)
         cols = [kk - 2 for kk in knots]
-        n_p, n_g = args[2].numel(), args[4].numel()
+        n_p = ps.numel()
         Pg = ca.reshape(p_kin[p_offset: p_offset + n_p * m], n_p, m)
         p_offset += n_p * m
-        L = ca.reshape(lam_kin[g_offset: g_offset + n_g * m], n_g, m)
-        g_offset += n_g * m
+        L = ca.reshape(lam_kin[g_offset: g_offset + g.numel() * m], g.numel(), m)
+        g_offset += g.numel() * m
         HS = fn.map(m)(X[:, cols], ca.repmat(q_ref, 1, m), Pg, ca.repmat(lam_f, 1, m), L, nu[:, cols], eta[:, cols])
         for kk, block in zip(knots, ca.horzsplit(HS, nv), strict=True):
             blocks[kk] = block
     return ca.diagcat(*[blocks[kk] for kk in range(2, lay.N)])
-
-
-#: The stage Hessians' SX expressions by (robot, term structures): a term's structure fixes its
-#: expression (``planner.trajopt.term.Term.structure``), so the collision round's second build (the
-#: same stages plus a few collision rows) differentiates only the stages that changed.
-_HESSIANS: dict[tuple, tuple[Any, tuple[tuple[Any, ...], Any]]] = {}
-MAX_HESSIANS = 64  # stage types of a few builds (the stairs climb: 11 before its collision rows)
-
-
-def _stage_hessian(robot: Any, terms: list) -> tuple[tuple[Any, ...], Any]:
-    """((dq, q_ref, p, sigma, lam, nu, eta), Hessian) of one stage's Lagrangian w.r.t. ``dq`` (SX)."""
-    from planner.trajopt.kinds import ClosedChainTerm, CoMPositionTerm
-    from planner.trajopt.symbolic import SymbolicKinematics
-    from planner.trajopt.term import StageKinematics
-
-    nq, nv = robot.nq, robot.nv
-    kin = SymbolicKinematics(robot.model)
-    dq = ca.SX.sym("dq", nv)
-    qr = ca.SX.sym("q_ref", nq)
-    oMi = kin.joint_placements(qr, dq)
-    # a closed chain's frames come from the joint placements its term builds (as before the kinds were classes)
-    frame_ids = sorted({f for t in terms if not isinstance(t, ClosedChainTerm) for f in t.frames()})
-    com = kin.com(oMi)
-    stage = StageKinematics(robot, qr, dq, com, {f: kin.frame_placement(oMi, f)[::-1] for f in frame_ids})
-    ps = ca.SX.sym("p", sum(len(t.params) for t in terms))
-    sigma = ca.SX.sym("sigma")
-    rows, cost, offset = [], 0, 0
-    # soft CoM targets w |S (c - c*)|^2: Hessian 2 w (J^T S^T S J + sum_i e_i hess c_i), the
-    # second part folded into the CoM multiplier (AD of the square costs ~5x more)
-    nu_cost = ca.SX.zeros(3)
-    gauss_newton = ca.SX.zeros(nv, nv)
-    for t in terms:
-        pt = ps[offset: offset + len(t.params)]
-        offset += len(t.params)
-        if isinstance(t, CoMPositionTerm) and not t.hard:
-            sel = [i for i, a in enumerate(t.axes) if a]
-            e = (com - pt[0:3])[sel]
-            J = ca.jacobian(com[sel], dq)
-            gauss_newton = gauss_newton + 2 * pt[3] * ca.mtimes(J.T, J)
-            nu_cost[sel] = nu_cost[sel] + 2 * pt[3] * e
-            continue
-        r, cst = t.expression(pt, stage)
-        cost = cost + cst
-        if r is not None:
-            rows.append(r)
-    g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
-    lam = ca.SX.sym("lam", g.numel())
-    nu_s = ca.SX.sym("nu", 3)
-    eta_s = ca.SX.sym("eta", 8)
-    nu_all = ca.SX.sym("nu_all", 3)
-    z = sole_corner_heights(kin, oMi, robot)
-    lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
-    hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
-    return (dq, qr, ps, sigma, lam, nu_s, eta_s), hess
 
 
 def dynamic_sizes(lay: DynamicData) -> tuple[int, int]:

@@ -698,34 +698,3 @@ def test_lifted_moment_reaches_the_same_plan(talos):
     for frame in a.extras["corner_forces"]:
         np.testing.assert_allclose(a.extras["corner_forces"][frame], b.extras["corner_forces"][frame],
                                    atol=1e-3 * talos.mass * 9.81)
-
-
-def test_a_second_build_reuses_the_stage_derivatives_and_gives_the_same_hessian(talos, rng):
-    """The collision round's second build (same stages) takes the stage functions and Hessians'
-    expressions from the first (planner.trajopt.terms._STAGES, centroidal.nlp._HESSIANS: no new
-    entry) and its Lagrangian Hessian is the first build's, number for number; a stage with one more
-    term (a CoM target at the last knot) is differentiated anew."""
-    from planner.trajopt import terms as stage_terms
-    from planner.trajopt.centroidal import initial_guess, to_dynamic_layout
-    from planner.trajopt.centroidal import nlp as dyn_nlp
-    from planner.trajopt.layout import make_layout
-    from planner.trajopt.transcription import build_nlp, parameter_values
-    from tasks.specs import CoMTarget
-
-    feet = _feet(talos)
-    phases = (Phase(name="both", duration=0.2, contacts=feet), Phase(name="left", duration=0.1, contacts=feet[:1]))
-    lay = to_dynamic_layout(make_layout(TaskSpec(robot="talos", phases=phases, dt=0.1, dynamic=True), talos))
-    first = build_nlp(lay)
-    sizes = (len(stage_terms._STAGES), len(dyn_nlp._HESSIANS))
-    second = build_nlp(lay)
-    assert (len(stage_terms._STAGES), len(dyn_nlp._HESSIANS)) == sizes
-    nl = first[2]
-    xv = initial_guess(lay) + np.concatenate([rng.normal(size=nl.n_x_kin) * 0.03, np.zeros(nl.n_x - nl.n_x_kin)])
-    pv, lv = parameter_values(lay, nl), rng.normal(size=nl.n_g)
-    h1, h2 = (np.array(ca.densify(b[1]["hess_lag"](xv, pv, 0.8, lv))) for b in (first, second))
-    np.testing.assert_array_equal(h1, h2)
-    assert np.abs(h1).max() > 1.0
-    target = CoMTarget(name="c", position=(0.0, 0.0, None), time=0.3, tolerance=0.05)
-    spec = TaskSpec(robot="talos", phases=phases, dt=0.1, dynamic=True, com_targets=(target,))
-    build_nlp(to_dynamic_layout(make_layout(spec, talos)))
-    assert len(dyn_nlp._HESSIANS) > sizes[1]
