@@ -149,3 +149,13 @@ def test_a_grid_file_is_read_from_npy_and_csv_and_refused_when_missing_or_ragged
         with pytest.raises(TaskDefinitionError, match=None) as err:
             load_scene(path)
         assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_ground_too_rough_for_a_flat_sole_is_refused_in_task_terms(talos):
+    from tasks.exceptions import BeyondCapability
+
+    rough = np.random.default_rng(5).uniform(0.0, 0.03, size=(11, 15))  # 2 cm cells: no flat place a sole long
+    scene = Scene(heightmaps=(HeightMap(name="rubble", heights=tuple(map(tuple, rough.tolist())), cell=0.02,
+                                        origin=(0.15, -0.1)),))
+    with pytest.raises(BeyondCapability, match="the ground of the rubble has no place flat enough for talos's soles"):
+        compile_actions([Action(name="step_up", params={"object": "the rubble"})], talos, scene=scene)
