@@ -562,7 +562,14 @@ def scene_collision_check(run: RunRecord) -> Check:
     planned (a hand touching the object of a ``touch`` target in its window, :func:`planned_touch`,
     is planned; any other fails). MuJoCo contacts at every tick, distances from the samples."""
     ts = run.t
-    planned = [planned_touch(run, c[0], c[1], c[2]) for c in run.scene_contacts]
+    memo: dict[tuple, bool] = {}  # MuJoCo gives several contacts a tick per link and object (a height field: many)
+
+    def is_planned(tick: int, link: str, obj: str) -> bool:
+        if (tick, link, obj) not in memo:
+            memo[(tick, link, obj)] = planned_touch(run, tick, link, obj)
+        return memo[(tick, link, obj)]
+
+    planned = [is_planned(c[0], c[1], c[2]) for c in run.scene_contacts]
     touches = [c for c, p in zip(run.scene_contacts, planned, strict=True) if p]
     touched = ""
     if touches:
@@ -571,7 +578,7 @@ def scene_collision_check(run: RunRecord) -> Check:
         # every contact equal to a planned one is planned too (planned_touch reads only its tick,
         # link and object): dropped by its flag, not by a search of the list (quadratic: 6 min on the stairs)
         run = replace(run, scene_contacts=tuple(c for c, p in zip(run.scene_contacts, planned, strict=True) if not p),
-                      scene_samples=tuple(x for x in run.scene_samples if not planned_touch(run, *x[:3])))
+                      scene_samples=tuple(x for x in run.scene_samples if not is_planned(*x[:3])))
     horizon = run.settings.scene_distance_horizon
     if not run.object_names:  # reported at the horizon: a finite number survives the JSON report
         return Check(
