@@ -3,7 +3,7 @@ heights in a CSV file), certified in MuJoCo, where the ground is a height field 
 
 The foot placements are recomputed independently of the planner and of ``tasks.terrain``: Pinocchio
 forward kinematics of the planned and of the executed configurations, every sole corner against the
-example's ground by hand (4 cm over 0.4 m from x = 0.15, then flat; the floor around it). The fast
+example's ground by hand (4 cm over 0.4 m from x = 0.15, then 0.25 m flat; the floor around it). The fast
 twins: ``tests/tasks/test_heightmap.py`` (the ground's height and normal, the compiled footsteps flat
 on it) and ``tests/sim/test_heightfield.py`` (MuJoCo's height field under the grid).
 """
@@ -29,7 +29,7 @@ TILTED_PLACEMENT = 0.008  # [m] an executed sole's origin from its placement on 
 
 def _ground(p: np.ndarray) -> float:
     """The example's ground under a point, by hand."""
-    inside = 0.15 <= p[0] <= 0.85 and -0.5 <= p[1] <= 0.5
+    inside = 0.15 <= p[0] <= 0.80 and -0.5 <= p[1] <= 0.5
     return float(min(max(0.1 * (p[0] - 0.15), 0.0), 0.04)) if inside else 0.0
 
 

@@ -72,7 +72,7 @@ def test_the_ground_is_the_bilinear_grid_and_its_normal_the_gradient():
 def test_the_example_file_reads_as_its_ramp_and_a_scene_round_trips():
     scene = load_scene(EXAMPLE)
     (hm,) = scene.heightmaps
-    assert len(hm.heights) == 21 and len(hm.heights[0]) == 15 and hm.size == pytest.approx((0.7, 1.0))
+    assert len(hm.heights) == 21 and len(hm.heights[0]) == 14 and hm.size == pytest.approx((0.65, 1.0))
     obj = scene.get("ramp")
     assert obj.shape == "heightfield" and obj.walkable and scene.get("土坡") is obj
     for x in (0.15, 0.3, 0.5, 0.55, 0.8):  # 4 cm over 0.4 m from x = 0.15, then flat: a plane by hand
