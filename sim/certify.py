@@ -522,24 +522,39 @@ def _stands_on(run: RunRecord, t: float, link: str, obj: str) -> bool:
     :func:`tasks.surface_at`) around time ``t`` (:data:`TOUCH_PADDING`), and ``link`` is that foot's
     link or one below it: a step onto a tread is a planned contact with it (the last phase's feet
     stay there after the motion's end)."""
+    model = run.robot.model
+    for start, end, joint, name in _stances(run):
+        if name == obj and start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
+            if model.existFrame(link) and model.frames[model.getFrameId(link)].parentJoint in model.subtrees[joint]:
+                return True
+    return False
+
+
+_STANCES: list[tuple[object, list[tuple[float, float, int, str]]]] = []  # the last spec's feet on objects
+
+
+def _stances(run: RunRecord) -> list[tuple[float, float, int, str]]:
+    """Each foot contact of the plan placed on a walkable object: (its phase's start, end [s] (the
+    last: to infinity), the foot's joint, the object), worked out once per spec (:func:`_stands_on`
+    asks for every MuJoCo contact and distance sample: ~10^5 times on the stairs)."""
     from tasks import surface_at
 
     spec = run.ref.plan.spec
-    model = run.robot.model
+    if _STANCES and _STANCES[0][0] is spec:
+        return _STANCES[0][1]
+    out: list[tuple[float, float, int, str]] = []
     start = 0.0
     for i, phase in enumerate(spec.phases):
         end = math.inf if i == len(spec.phases) - 1 else start + phase.duration  # the robot stays on it
-        if start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
-            for c in phase.contacts:
-                x, y, z = c.placement.position
-                under = surface_at(spec.scene, x, y)
-                if run.robot.foot_side(c.frame) is None or under.name != obj or abs(under.height - z) > 0.01:
-                    continue
-                joint = model.frames[run.robot.frame_id(c.frame)].parentJoint
-                if model.existFrame(link) and model.frames[model.getFrameId(link)].parentJoint in model.subtrees[joint]:
-                    return True
+        for c in phase.contacts:
+            x, y, z = c.placement.position
+            under = surface_at(spec.scene, x, y)
+            if run.robot.foot_side(c.frame) is None or under.name is None or abs(under.height - z) > 0.01:
+                continue
+            out.append((start, end, run.robot.model.frames[run.robot.frame_id(c.frame)].parentJoint, under.name))
         start += phase.duration
-    return False
+    _STANCES[:] = [(spec, out)]
+    return out
 
 
 def scene_collision_check(run: RunRecord) -> Check:
@@ -547,13 +562,23 @@ def scene_collision_check(run: RunRecord) -> Check:
     planned (a hand touching the object of a ``touch`` target in its window, :func:`planned_touch`,
     is planned; any other fails). MuJoCo contacts at every tick, distances from the samples."""
     ts = run.t
-    touches = [c for c in run.scene_contacts if planned_touch(run, c[0], c[1], c[2])]
+    memo: dict[tuple, bool] = {}  # MuJoCo gives several contacts a tick per link and object (a height field: many)
+
+    def is_planned(tick: int, link: str, obj: str) -> bool:
+        if (tick, link, obj) not in memo:
+            memo[(tick, link, obj)] = planned_touch(run, tick, link, obj)
+        return memo[(tick, link, obj)]
+
+    planned = [is_planned(c[0], c[1], c[2]) for c in run.scene_contacts]
+    touches = [c for c, p in zip(run.scene_contacts, planned, strict=True) if p]
     touched = ""
     if touches:
         tick, link, obj, _ = touches[0]
         touched = f"; planned touch: {body_part(run.robot, link)} / {obj!r} at t = {ts[tick]:.2f} s"
-        run = replace(run, scene_contacts=tuple(c for c in run.scene_contacts if c not in touches),
-                      scene_samples=tuple(x for x in run.scene_samples if not planned_touch(run, *x[:3])))
+        # every contact equal to a planned one is planned too (planned_touch reads only its tick,
+        # link and object): dropped by its flag, not by a search of the list (quadratic: 6 min on the stairs)
+        run = replace(run, scene_contacts=tuple(c for c, p in zip(run.scene_contacts, planned, strict=True) if not p),
+                      scene_samples=tuple(x for x in run.scene_samples if not is_planned(*x[:3])))
     horizon = run.settings.scene_distance_horizon
     if not run.object_names:  # reported at the horizon: a finite number survives the JSON report
         return Check(

@@ -647,8 +647,29 @@ def _shape(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, obj: SceneObject) -> None:
         mesh.scale = size
         geom.type = mujoco.mjtGeom.mjGEOM_MESH
         geom.meshname = mesh.name
+    elif obj.shape == "heightfield":
+        _height_field(spec, geom, obj)
     else:
         raise SimModelError(f"scene object {obj.name!r}: unknown shape {obj.shape!r}")
+
+
+HFIELD_BASE = 0.01  # [m] a height field's solid base below its lowest point
+
+
+def _height_field(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, obj: SceneObject) -> None:
+    """A height map (``heightfield`` object) as a MuJoCo height field over the same grid: ``nrow`` rows
+    along y (row 0 at the lowest y), ``ncol`` columns along x, its lowest point at the geom's height
+    and its span the elevation (MuJoCo collides with two triangles per cell)."""
+    h = np.asarray(obj.heights, dtype=float)
+    lo, span = float(h.min()), float(h.max() - h.min())
+    field = spec.add_hfield()
+    field.name = f"{OBJECT_PREFIX}{obj.name}_hfield"
+    field.nrow, field.ncol = int(h.shape[0]), int(h.shape[1])
+    field.size = [0.5 * obj.size[0], 0.5 * obj.size[1], max(span, 1e-6), HFIELD_BASE]
+    field.userdata = ((h - lo) / span if span > 0 else np.zeros_like(h)).ravel().tolist()
+    geom.type = mujoco.mjtGeom.mjGEOM_HFIELD
+    geom.hfieldname = field.name
+    geom.pos = [float(obj.position[0]), float(obj.position[1]), lo]
 
 
 def _add_self_collision(

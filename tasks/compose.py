@@ -604,13 +604,17 @@ def fit_actions(actions: Sequence[Action], robot: Robot) -> list[Action]:
     return [fit_defaults(get_primitive(a.name), a, robot) for a in actions]
 
 
-def _group_duration(group: list[tuple[int, Action]], robot: Robot, n: int) -> float:
-    """Duration [s] of a group of actions played together: its longest action's nominal one."""
-    durations = []
+def _group_duration(group: list[tuple[int, Action]], robot: Robot, n: int, placed: bool = True) -> float:
+    """Duration [s] of a group of actions played together: its longest action's nominal one. Not
+    ``placed`` (a later group: where the robot will stand is not known yet), an action about a scene
+    object that cannot be measured from the standing stance counts 0 s (its compilation decides)."""
+    durations = [0.0]
     for i, a in group:
         try:
             durations.append(nominal_duration(a, robot))
         except TaskDefinitionError as e:
+            if not placed and any(isinstance(v, Grounded) for v in a.params.values()):
+                continue
             raise type(e)(f"{_where(i, a, n)}{e}") from None
     return max(durations)
 
@@ -623,7 +627,7 @@ def _check_horizon(groups: list[list[tuple[int, Action]]], robot: Robot, n: int,
     for j, group in enumerate(groups):
         if j == 0:
             group = [(i, _standing_at(a, stance)) for i, a in group]
-        k += int(-(-round(_group_duration(group, robot, n) / dt, 6) // 1))
+        k += int(-(-round(_group_duration(group, robot, n, placed=j == 0) / dt, 6) // 1))
     if k * dt > MAX_HORIZON + 1e-9:
         raise TaskDefinitionError(horizon_message(k * dt, "split the instruction into several shorter ones"))
 

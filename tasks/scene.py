@@ -7,7 +7,9 @@ world frame (z up, ground at z = 0, SI units):
 * ``box``: ``size = (sx, sy, sz)``, full edge lengths [m], centred on ``position``;
 * ``cylinder``: ``size = (radius, length)`` [m], axis along the object's z, centred on ``position``;
 * ``sphere``: ``size = (radius,)`` [m];
-* ``mesh``: ``mesh`` is a file path (STL/OBJ/DAE) and ``size = (sx, sy, sz)`` its scale.
+* ``mesh``: ``mesh`` is a file path (STL/OBJ/DAE) and ``size = (sx, sy, sz)`` its scale;
+* ``heightfield``: a height map's ground (:mod:`tasks.heightmap`): ``heights`` the grid [m],
+  ``size = (sx, sy, top)`` its extent and highest point, ``position`` its box's centre (from the floor).
 
 ``rpy`` is roll-pitch-yaw [rad] with ``R = Rz(y) Ry(p) Rx(r)`` (Pinocchio's convention). A static
 object never moves (mass ignored); a movable one is a free body with ``mass`` [kg] and
@@ -30,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from tasks.exceptions import TaskDefinitionError
+from tasks.heightmap import HeightMap, check_grid, grid_surface, load_heightmaps
 from tasks.limits import (
     GROUND_TOLERANCE,
     MAX_ANGLE,
@@ -42,14 +45,15 @@ from tasks.limits import (
 )
 
 SCENE_VERSION = 1
-SHAPES = ("box", "cylinder", "sphere", "mesh")
-SIZE_LENGTHS = {"box": 3, "cylinder": 2, "sphere": 1, "mesh": 3}
+SHAPES = ("box", "cylinder", "sphere", "mesh", "heightfield")
+SIZE_LENGTHS = {"box": 3, "cylinder": 2, "sphere": 1, "mesh": 3, "heightfield": 3}
 #: What ``size`` holds, per shape, for messages and docs.
 SIZE_MEANING = {
     "box": "3 positive lengths [m] (sx, sy, sz)",
     "cylinder": "2 positive lengths [m] (radius, length)",
     "sphere": "1 positive radius [m]",
     "mesh": "3 positive scale factors (sx, sy, sz)",
+    "heightfield": "3 positive lengths [m] (sx, sy, top)",
 }
 #: The planner's clearance from every object [m]: a hand target or a footstep closer than this
 #: to an object (or inside it) is refused before planning.
@@ -112,6 +116,8 @@ class SceneObject:
             stair treads, a box to step onto); :func:`tasks.terrain.surface_at` finds it.
         seat: Its top face is a seat (a chair's, a bench's): ``sit_down`` sits on it (a static
             upright box; None, left out of the JSON, is false).
+        heights: The grid of a ``heightfield`` [m] (rows along +y, columns along +x, spanning
+            ``size[:2]`` centred on ``position``; None, left out of the JSON, for other shapes).
     """
 
     name: str
@@ -127,6 +133,7 @@ class SceneObject:
     mesh: str | None = None
     walkable: bool = False
     seat: bool | None = field(default=None, metadata={"omit_none": True})
+    heights: tuple[tuple[float, ...], ...] | None = field(default=None, metadata={"omit_none": True})
 
     def __post_init__(self) -> None:
         _name("name", self.name)
@@ -166,11 +173,20 @@ class SceneObject:
             raise _field_error("mesh", f"only a mesh object has a mesh file; this one is a {self.shape}")
         if not isinstance(self.walkable, bool):
             raise _field_error("walkable", f"must be true or false, got {_show(self.walkable)}")
-        if self.walkable and (self.shape not in ("box", "cylinder") or self.movable):
+        if self.walkable and (self.shape not in ("box", "cylinder", "heightfield") or self.movable):
             raise _field_error("walkable", f"only a static box or cylinder has a top to walk on; this one is a "
                                            f"{'movable ' if self.movable else ''}{self.shape}")
         if self.seat is not None and not isinstance(self.seat, bool):
             raise _field_error("seat", f"must be true or false, got {_show(self.seat)}")
+        if (self.shape == "heightfield") != (self.heights is not None):
+            raise _field_error("heights", "a heightfield needs its grid of heights, and only a heightfield has one")
+        if self.heights is not None:
+            object.__setattr__(self, "heights", check_grid(self.heights))
+            cells = (self.size[0] / (len(self.heights[0]) - 1), self.size[1] / (len(self.heights) - 1))
+            if (self.movable or not self.walkable or any(self.rpy) or abs(cells[0] - cells[1]) > 1e-6
+                    or abs(self.position[2] - self.size[2] / 2) > 1e-6):
+                raise _field_error("heights", "a heightfield is static, walkable, not rotated, on the floor, with "
+                                              "square cells (write it as a scene's heightmaps element)")
         if self.seat and (self.shape != "box" or self.movable or rotation(self.rpy)[2][2] < math.cos(math.radians(5))):
             raise _field_error("seat", f"only a static upright box has a top to sit on; this one is a "
                                        f"{'movable ' if self.movable else ''}{self.shape}"
@@ -334,6 +350,26 @@ def slope_objects(slope: Slope) -> tuple[SceneObject, ...]:
     return ramp, top
 
 
+def heightmap_object(hm: HeightMap) -> SceneObject:
+    """The map as one walkable static ``heightfield`` object: its box from the floor to the map's top
+    (at least 1 mm), centred over the grid, the grid in ``heights``."""
+    sx, sy = hm.size
+    top = max(max(max(r) for r in hm.heights), 1e-3)
+    return SceneObject(name=hm.name, shape="heightfield", size=(sx, sy, top),
+                       position=(hm.origin[0] + sx / 2, hm.origin[1] + sy / 2, top / 2), colour=hm.colour,
+                       friction=hm.friction, aliases=hm.aliases, walkable=True, heights=hm.heights)
+
+
+def field_surface(obj: SceneObject, x: float, y: float) -> tuple[float, tuple[float, float, float]] | None:
+    """Height [m] and upward normal of a ``heightfield`` object's ground over (x, y) (bilinear in its
+    cell, :func:`tasks.heightmap.grid_surface`), None outside its grid or for another shape."""
+    if obj.heights is None:
+        return None
+    cell = obj.size[0] / (len(obj.heights[0]) - 1)
+    origin = (obj.position[0] - obj.size[0] / 2, obj.position[1] - obj.size[1] / 2)
+    return grid_surface(obj.heights, cell, origin, x, y)
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Scene:
     """A floor plus named objects.
@@ -346,6 +382,8 @@ class Scene:
             an object equal to a tread is that tread, so a scene written out and read back is
             the same scene).
         slopes: Ramps; each adds its ramp and landing to ``objects`` (:func:`slope_objects`, likewise).
+        heightmaps: Grids of ground heights; each adds a walkable ``heightfield`` object
+            (:func:`heightmap_object`, likewise).
     """
 
     name: str = ""
@@ -353,6 +391,7 @@ class Scene:
     floor_friction: float = 0.8
     stairs: tuple[Stairs, ...] = ()
     slopes: tuple[Slope, ...] = ()
+    heightmaps: tuple[HeightMap, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or len(self.name) > MAX_TEXT_LENGTH:
@@ -365,6 +404,9 @@ class Scene:
             raise _field_error("slopes", "must be a list of slopes")
         treads = tuple(o for st in self.stairs for o in stairs_objects(st))
         treads += tuple(o for sl in self.slopes for o in slope_objects(sl))
+        if not isinstance(self.heightmaps, tuple) or not all(isinstance(h, HeightMap) for h in self.heightmaps):
+            raise _field_error("heightmaps", "must be a list of height maps")
+        treads += tuple(heightmap_object(h) for h in self.heightmaps)
         if treads:
             object.__setattr__(self, "objects", tuple(o for o in self.objects if o not in treads) + treads)
         if len(self.objects) > MAX_OBJECTS:
@@ -415,12 +457,18 @@ def to_local(obj: SceneObject, point: Iterable[float]) -> tuple[float, float, fl
 def signed_distance(obj: SceneObject, point: Iterable[float]) -> float | None:
     """Distance from a world point to the object's surface [m], negative inside.
 
-    Exact for boxes, cylinders and spheres; None for meshes (their geometry is not read here).
+    Exact for boxes, cylinders and spheres; None for meshes (their geometry is not read here); over
+    a height field the height above its ground (below: negative), elsewhere the distance to its box.
     """
+    if obj.shape == "heightfield":
+        p = tuple(point)
+        under = field_surface(obj, p[0], p[1])
+        if under is not None:
+            return p[2] - under[0]
     x, y, z = to_local(obj, point)
     if obj.shape == "sphere":
         return math.sqrt(x * x + y * y + z * z) - obj.size[0]
-    if obj.shape == "box":
+    if obj.shape in ("box", "heightfield"):
         q = [abs(c) - s / 2 for c, s in zip((x, y, z), obj.size, strict=True)]
         outside = math.sqrt(sum(max(c, 0.0) ** 2 for c in q))
         return outside + min(max(q), 0.0)
@@ -437,7 +485,7 @@ def extent(obj: SceneObject) -> tuple[tuple[float, float, float], tuple[float, f
         r = obj.size[0]
         half = (r, r, r)
     else:
-        local = obj.size if obj.shape == "box" else (2 * obj.size[0], 2 * obj.size[0], obj.size[1])
+        local = obj.size if obj.shape in ("box", "heightfield") else (2 * obj.size[0], 2 * obj.size[0], obj.size[1])
         if obj.shape == "mesh":
             local = (0.0, 0.0, 0.0)
         R = rotation(obj.rpy)
@@ -450,6 +498,10 @@ def extent(obj: SceneObject) -> tuple[tuple[float, float, float], tuple[float, f
 def on_top(obj: SceneObject, point: Iterable[float], *, tolerance: float = GROUND_TOLERANCE) -> bool:
     """The point lies on the upward top face of an upright box or cylinder (a support surface), or
     of a walkable one tilted by at most :data:`MAX_SLOPE` (a slope)."""
+    if obj.shape == "heightfield":
+        p = tuple(point)
+        under = field_surface(obj, p[0], p[1])
+        return under is not None and abs(p[2] - under[0]) <= tolerance
     steepest = MAX_SLOPE if obj.walkable else math.radians(5)
     if obj.shape not in ("box", "cylinder") or rotation(obj.rpy)[2][2] < math.cos(steepest) - 1e-12:
         return False
@@ -533,7 +585,7 @@ def scene_from_dict(data: Any, *, base: str | Path | None = None) -> Scene:
 
     if not isinstance(data, dict):
         raise TaskDefinitionError(f"scene: expected a JSON object ({{...}}) at the top level, got {_kind(data)}")
-    data = dict(data)
+    data = load_heightmaps(dict(data), base)
     version = data.pop("version", SCENE_VERSION)
     if isinstance(version, bool) or version != SCENE_VERSION:
         raise TaskDefinitionError(f"version: {_show(version)} is not supported (expected {SCENE_VERSION})")
@@ -612,6 +664,8 @@ __all__ = [
     "check_scene_meshes",
     "closest_object",
     "extent",
+    "field_surface",
+    "heightmap_object",
     "load_scene",
     "on_top",
     "rotation",

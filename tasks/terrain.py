@@ -14,6 +14,10 @@ A ``slopes`` element (:class:`Slope`: angle, length, width, position, yaw, landi
 walkable box tilted by its angle (its top face the inclined plane, from its bottom edge on the
 floor) named ``<name>``, and a flat walkable landing ``<name>.top`` at the top edge's height.
 
+A ``heightmaps`` element (:class:`tasks.heightmap.HeightMap`: a grid of heights in a file) becomes
+a walkable ``heightfield`` object; over it the surface is the grid's bilinear interpolation, its
+normal the interpolation's gradient (:func:`tasks.scene.field_surface`).
+
 :func:`surface_at` is the height query the footstep primitives use: the highest walkable top face
 (of an upright box or cylinder) over a point, or the floor (z = 0), with its upward normal.
 """
@@ -23,6 +27,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from tasks.heightmap import HeightMap
 from tasks.scene import (
     MAX_SLOPE,
     MAX_STEPS,
@@ -30,6 +35,7 @@ from tasks.scene import (
     SceneObject,
     Slope,
     Stairs,
+    field_surface,
     rotation,
     slope_objects,
     stairs_objects,
@@ -60,6 +66,8 @@ class Surface:
 def top_height(obj: SceneObject) -> float | None:
     """Height of the top face's centre of an upright box or cylinder, or of a walkable one tilted by
     at most :data:`~tasks.scene.MAX_SLOPE` (a slope) [m] (None: no top to stand on)."""
+    if obj.shape == "heightfield":
+        return obj.size[2]
     R = rotation(obj.rpy)
     if obj.shape not in ("box", "cylinder") or R[2][2] < (SLOPE_COS if obj.walkable else UPRIGHT_COS):
         return None
@@ -69,6 +77,9 @@ def top_height(obj: SceneObject) -> float | None:
 
 def _over(obj: SceneObject, x: float, y: float) -> float | None:
     """Height of the object's top face above (x, y), or None when (x, y) is not over it."""
+    if obj.shape == "heightfield":
+        under = field_surface(obj, x, y)
+        return None if under is None else under[0]
     top = top_height(obj)
     if top is None:
         return None
@@ -86,7 +97,10 @@ def _over(obj: SceneObject, x: float, y: float) -> float | None:
 
 
 def is_slope(obj: SceneObject) -> bool:
-    """A walkable top tilted by more than 5 deg (a ramp: walked up in strides, the soles tilted)."""
+    """A walkable top tilted by more than 5 deg (a ramp: walked up in strides, the soles tilted), or a
+    height map's ground (walked in strides, each sole on the ground under it)."""
+    if obj.shape == "heightfield":
+        return True
     return obj.walkable and top_height(obj) is not None and rotation(obj.rpy)[2][2] < UPRIGHT_COS
 
 
@@ -118,11 +132,13 @@ def surface_at(scene: Scene | None, x: float, y: float) -> Surface:
         if not obj.walkable:
             continue
         z = _over(obj, x, y)
-        if z is not None and z > best.height:
+        if z is not None and (z > best.height or (best.name is None and z >= best.height - 1e-9)):
+            under = field_surface(obj, x, y)
             R = rotation(obj.rpy)
-            best = Surface(float(z), (R[0][2], R[1][2], R[2][2]), obj.name, obj.friction)
+            normal = under[1] if under is not None else (R[0][2], R[1][2], R[2][2])
+            best = Surface(float(z), normal, obj.name, obj.friction)
     return best
 
 
-__all__ = ["MAX_SLOPE", "MAX_STEPS", "Slope", "Stairs", "Surface", "is_slope", "slope_objects", "sole_rpy",
+__all__ = ["MAX_SLOPE", "MAX_STEPS", "HeightMap", "Slope", "Stairs", "Surface", "is_slope", "slope_objects", "sole_rpy",
            "stairs_objects", "surface_at", "top_height"]

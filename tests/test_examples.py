@@ -68,7 +68,7 @@ def test_action_pictures_refuses_an_unknown_action(tmp_path, capsys):
     assert not any(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("name", ["table", "box_on_floor", "narrow_passage"])
+@pytest.mark.parametrize("name", ["table", "box_on_floor", "narrow_passage", "heightmap"])
 def test_example_scenes_load(name):
     """Each example scene file loads, and its objects stand on the floor (none below z = 0)."""
     from tasks.scene import extent, load_scene

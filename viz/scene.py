@@ -352,6 +352,20 @@ def object_transform(obj) -> np.ndarray:
 _UPRIGHT = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]])  # meshcat y axis -> z
 
 
+def _ground_mesh(obj) -> mg.Geometry:
+    """A height map's ground (``heightfield`` object) as two triangles per cell, in its box's frame."""
+    h = np.asarray(obj.heights, dtype=float)
+    nrow, ncol = h.shape
+    xs = np.linspace(-obj.size[0] / 2, obj.size[0] / 2, ncol)
+    ys = np.linspace(-obj.size[1] / 2, obj.size[1] / 2, nrow)
+    X, Y = np.meshgrid(xs, ys)
+    vertices = np.column_stack([X.ravel(), Y.ravel(), h.ravel() - obj.size[2] / 2]).astype(np.float32)
+    i, j = np.meshgrid(np.arange(nrow - 1), np.arange(ncol - 1), indexing="ij")
+    a = (i * ncol + j).ravel()
+    faces = np.vstack([np.column_stack([a, a + 1, a + ncol + 1]), np.column_stack([a, a + ncol + 1, a + ncol])])
+    return mg.TriangularMeshGeometry(vertices, faces.astype(np.uint32))
+
+
 def _object_geometry(obj) -> tuple[mg.Geometry | None, np.ndarray]:
     """(meshcat geometry, static transform of the shape node) of a scene object."""
     size = [float(v) for v in obj.size]
@@ -361,6 +375,8 @@ def _object_geometry(obj) -> tuple[mg.Geometry | None, np.ndarray]:
         return mg.Sphere(size[0]), np.eye(4)
     if obj.shape == "cylinder":
         return mg.Cylinder(size[1], radius=size[0]), _UPRIGHT  # meshcat's cylinders run along y
+    if obj.shape == "heightfield":
+        return _ground_mesh(obj), np.eye(4)
     path = str(obj.mesh or "")
     suffix = path.rsplit(".", 1)[-1].lower()
     geometry: mg.Geometry | None = None
@@ -406,7 +422,7 @@ def footprint(obj, *, segments: int = 48) -> np.ndarray | None:
     if obj.shape == "mesh":
         return None
     T = object_transform(obj)
-    if obj.shape == "box":
+    if obj.shape in ("box", "heightfield"):
         hx, hy, hz = (v / 2 for v in size)
         local = np.array([[sx * hx, sy * hy, sz * hz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     else:

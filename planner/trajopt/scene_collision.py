@@ -154,7 +154,7 @@ def whole_obstacles(scene: Scene | None) -> list[Obstacle]:
     for obj in scene.objects:
         R = pin.rpy.rpyToMatrix(*obj.rpy)
         p = np.array(obj.position, dtype=float)
-        if obj.shape == "box":
+        if obj.shape in ("box", "heightfield"):  # a height map: its box, from the floor to its top
             whole.append(Obstacle(obj.name, "box", p, R, 0.5 * np.array(obj.size, dtype=float)))
         elif obj.shape == "cylinder":
             radius, length = obj.size

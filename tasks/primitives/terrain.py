@@ -14,7 +14,9 @@ the CoM ends over the final feet (HARD, ``END_TOLERANCE``).
 
 A slope (a walkable top tilted by more than 5 deg, :func:`tasks.terrain.is_slope`) is climbed at
 several stations (:func:`stations`), each sole flat on the inclined plane (its rpy from the
-surface normal, :func:`tasks.terrain.sole_rpy`). ``step_down`` walks the walkable surfaces ahead
+surface normal, :func:`tasks.terrain.sole_rpy`). A height map's ground (a ``heightfield``) is walked
+in strides too, at the places where the ground under each whole sole is flat within
+``LEVEL_TOLERANCE`` (:func:`field_stations`). ``step_down`` walks the walkable surfaces ahead
 that lie lower than the last (:func:`descent`), then the floor, with the same gait.
 
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): a rise above the
@@ -135,6 +137,11 @@ def descent(scene: Scene, named: SceneObject, stance: Stance, count: int | None)
             break  # it goes up again: the descent ends before it
         chain.append(obj)
         level = far
+    if named not in chain and here.name is not None and _along(named, mid, u) < 0:
+        raise BeyondCapability(
+            f"step_down: the {named.name} is behind the robot (it stands on the {here.name}, facing away from it) "
+            "and it neither turns around on a tread nor walks down backwards: walk down from where the way down "
+            "lies ahead (a spec's start facing it), or ask for the climb and the descent separately")
     if named not in chain:
         raise TaskDefinitionError(
             f"step_down: the {named.name} is not below the robot straight ahead ("
@@ -182,8 +189,52 @@ def _extent(obj: SceneObject, mid: np.ndarray, u: np.ndarray) -> tuple[float, fl
     return min(ends), max(ends)
 
 
+FIELD_STEP = 0.01  # [m] the candidate stations on a height map, this far apart along the heading
+
+
+def _fits(robot: Robot, tread: SceneObject, xy: np.ndarray, yaw: float, side: str) -> bool:
+    try:
+        _placement(robot, Scene(objects=(tread,)), side, xy, yaw, tread)
+    except BeyondCapability:
+        return False
+    return True
+
+
+def field_stations(robot: Robot, tread: SceneObject, mid: np.ndarray, u: np.ndarray, last: float,
+                   feet: dict[str, float]) -> list[float]:
+    """Stations on a height map (the soles' centre along ``u`` from ``mid``) [m]: the farthest place
+    within ``REACH`` strides of the last one where both soles (at their lateral offsets ``feet``) lie
+    flat on the ground under them, again and again up to the last such place on the map."""
+    prof = robot.profile
+    half = (prof.sole.x_max - prof.sole.x_min) / 2
+    sole_mid = np.array([(prof.sole.x_min + prof.sole.x_max) / 2, 0.0])
+    yaw = math.atan2(u[1], u[0])
+    side_axis = np.array([-u[1], u[0]])
+    lo, hi = _extent(tread, mid, u)
+    n = int(math.floor((hi - lo - 2 * (EDGE + half)) / FIELD_STEP + 1e-9))
+    places = [lo + EDGE + half + k * FIELD_STEP for k in range(max(n + 1, 0))]
+    fit = [s for s in places if all(
+        _fits(robot, tread, mid[:2] + s * u + lat * side_axis - rz(yaw)[:2, :2] @ sole_mid, yaw, side)
+        for side, lat in feet.items())]
+    if not fit:
+        raise BeyondCapability(f"step_up: the ground of the {tread.name} has no place flat enough for "
+                               f"{robot.name}'s soles (within {LEVEL_TOLERANCE * 1000:.0f} mm under every corner)")
+    out: list[float] = []
+    reach = REACH * stride(robot)
+    while not out or out[-1] < fit[-1]:
+        here = out[-1] if out else last
+        ahead = [s for s in fit if here < s <= here + reach + 1e-9]
+        if not ahead:
+            raise BeyondCapability(
+                f"step_up: no place flat enough for a sole on the {tread.name} within {reach:.2f} m of "
+                f"{robot.name}'s last step ({here - last:.2f} m along it): the ground is too uneven to walk on")
+        out.append(ahead[-1])
+    return out
+
+
 def stations(robot: Robot, chain: list[SceneObject | None], mid: np.ndarray, u: np.ndarray,
-             start: float, down: bool = False) -> list[tuple[SceneObject | None, float]]:
+             start: float, down: bool = False,
+             feet: dict[str, float] | None = None) -> list[tuple[SceneObject | None, float]]:
     """Where both soles stand in turn: (surface, the soles' centre along ``u`` from ``mid``) [m].
 
     A flat tread: one station, centred on it, or (up) back from its front edge by ``TOE_CLEARANCE``, or
@@ -201,7 +252,9 @@ def stations(robot: Robot, chain: list[SceneObject | None], mid: np.ndarray, u: 
             break
         lo, hi = _extent(tread, mid, u)
         edge = hi
-        if is_slope(tread):
+        if tread.shape == "heightfield":
+            out += [(tread, s) for s in field_stations(robot, tread, mid, u, last, feet or {"left": 0.0})]
+        elif is_slope(tread):
             first, final = lo + EDGE + half, hi - EDGE - half
             n = max(1, math.ceil((final - first) / reach - 1e-9) + 1) if final > first else 1
             out += [(tread, first + (final - first) * i / max(n - 1, 1)) for i in range(n)]
@@ -218,6 +271,13 @@ def _top(robot: Robot, side: str, pose: Pose) -> float:
     """The highest sole corner of a placement [m] (a tilted sole's toe on a slope)."""
     R = np.array(rotation(pose.rpy))
     return float(max((np.asarray(pose.position) + R @ c)[2] for c in sole_corners(robot.profile.sole, side)))
+
+
+def _ground_between(scene: Scene, chain: list[SceneObject | None], a: np.ndarray, b: np.ndarray) -> float:
+    """The highest height-map ground on the line from ``a`` to ``b`` (a bump between two steps) [m]."""
+    if not any(t is not None and t.shape == "heightfield" for t in chain):
+        return 0.0
+    return max(surface_at(scene, *(a[:2] + f * (b[:2] - a[:2]))).height for f in np.linspace(0.0, 1.0, 21))
 
 
 @dataclass(frozen=True, slots=True)
@@ -248,7 +308,10 @@ def plan_steps(robot: Robot, g: Grounded, count: int | None, stance: Stance | No
     segs = [Segment(name="shift weight", duration=settle, contacts=both(robot, where))]
     cur = dict(where)
     swings: list[Swing] = []
-    plan = stations(robot, chain, mid, u, float(sole_mid[0]), down)
+    side_axis = np.array([-u[1], u[0]])
+    feet = {side: float(np.dot(np.asarray(p.position[:2]) + rz(yaw)[:2, :2] @ sole_mid - mid[:2], side_axis))
+            for side, p in where.items()}
+    plan = stations(robot, chain, mid, u, float(sole_mid[0]), down, feet)
     for i, (tread, s) in enumerate(plan):
         for side in (LEAD, OTHER[LEAD]):
             here = np.asarray(cur[side].position)
@@ -267,7 +330,8 @@ def plan_steps(robot: Robot, g: Grounded, count: int | None, stance: Stance | No
                 raise BeyondCapability(
                     f"step_{'down' if down else 'up'}: the {side} foot would step {length:.2f} m onto the "
                     f"{_words(tread)}, beyond {robot.name}'s {stride(robot):.2f} m step: {hint}")
-            height = max(_top(robot, side, cur[side]), _top(robot, side, target)) + SWING_CLEARANCE
+            height = max(_top(robot, side, cur[side]), _top(robot, side, target),
+                         _ground_between(g.scene, chain, here, np.asarray(target.position))) + SWING_CLEARANCE
             swings.append(Swing(len(segs), side, cur[side].position, target.position, height))
             segs.append(Segment(name=f"step {i + 1}: {side} foot onto the {_words(tread)}", duration=prof.step_duration,
                                 contacts=(contact(robot, OTHER[side], cur[OTHER[side]]),), swing_height=height))
@@ -322,4 +386,4 @@ STEP_DOWN = Primitive(name="step_down", nominal_duration=lambda p, r: sequence_d
 
 PRIMITIVES = (STEP_UP, STEP_DOWN)
 
-__all__ = ["PRIMITIVES", "STEP_DOWN", "STEP_UP", "SWING_CLEARANCE", "descent", "plan_steps", "stations", "treads"]
+__all__ = ["PRIMITIVES", "STEP_DOWN", "STEP_UP", "SWING_CLEARANCE", "descent", "field_stations", "plan_steps", "stations", "treads"]
