@@ -65,6 +65,7 @@ class RetargetResult(SolveResult):
             section["time_scale"] = self.reference.time_scale
             section["raised_m"] = self.reference.raised_max()
             section["arm_moved_m"] = self.reference.arm_moved_max()
+            section["kept_out_m"] = self.reference.kept_out_max()
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:

@@ -37,6 +37,7 @@ import pinocchio as pin
 
 from robots import Robot
 from tasks.exceptions import ClipError
+from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
@@ -76,6 +77,7 @@ SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is n
 #: 0.55 m) its thigh meshes pass into its pelvis (coal), a pair its capsule model cannot keep apart
 #: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
 MIN_BASE_HEIGHT = 0.6
+KEEP_OUT = True  # hand targets kept off the robot's pelvis and thighs, feet apart (tasks.mocap.keepout)
 #: [rad] how far out from standing a soft posture term holds each shoulder's joint (the joint carrying
 #: the robot's shoulder frame: the roll on talos and G1), and its weight: the planner's capsules do
 #: not keep the upper arm off the torso (they touch at rest), so an arm brought in to the chest
@@ -111,6 +113,8 @@ class Reference:
         arm_moved: Hand side -> per frame, how far the hand target was brought in sideways so
             that the arm's weight stays within its shoulder's torque limits (F,) [m]
             (:func:`arm_reach`: talos cannot hold its arm out sideways).
+        kept_out: Role (hands, feet) -> per frame, how far its target was moved out of the
+            robot's own body (F,) [m] (:mod:`tasks.mocap.keepout`).
     """
 
     t: np.ndarray
@@ -125,6 +129,7 @@ class Reference:
     time_scale: float = 1.0
     raised: np.ndarray | None = None
     arm_moved: dict[str, np.ndarray] | None = None
+    kept_out: dict[str, np.ndarray] | None = None
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -134,6 +139,11 @@ class Reference:
         """Hand side -> how far its target was brought in sideways at most (its shoulder's torque
         limits) [m]."""
         return {side: float(np.max(v)) if len(v) else 0.0 for side, v in (self.arm_moved or {}).items()}
+
+    def kept_out_max(self) -> dict[str, float]:
+        """Role (hand or foot) -> how far its target was moved out of the robot's body at most
+        (:mod:`tasks.mocap.keepout`: hands off the pelvis and thighs, feet apart) [m]."""
+        return {role: float(np.max(v)) if len(v) else 0.0 for role, v in (self.kept_out or {}).items()}
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -215,6 +225,13 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         most = arm_reach(robot, side) * g.arm_length[side]
         points[f"{side}_hand"] = _hold_arm(hand, points[f"{side}_shoulder"], R, most)
         arm_moved[side] = np.linalg.norm(points[f"{side}_hand"] - hand, axis=1)
+    kept_out: dict[str, np.ndarray] = {}
+    if KEEP_OUT:  # the hands off the robot's pelvis, hips and thighs (tasks.mocap.keepout)
+        hands, moved = keep_hands_out({side: points[f"{side}_hand"] for side in SIDES}, points["base"], R, robot)
+        for side in SIDES:
+            points[f"{side}_hand"] = hands[side]
+            kept_out[f"{side}_hand"] = moved[side]
+    soles: dict[str, np.ndarray] = {}
     for side in SIDES:
         # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
         # over the labelled stances) becomes the robot's standing one
@@ -223,6 +240,12 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         d_y = (stand[f"{side}_foot"][1] - stand["base"][1]) - float(np.median(lateral[stance]))
         sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
         sole[:, 2] = np.maximum(sole[:, 2], 0.0)
+        soles[side] = sole
+    if KEEP_OUT:  # the feet at least FOOT_GAP of the robot's standing gap apart (tasks.mocap.keepout)
+        soles, moved = keep_feet_apart(soles, contact, feet_yaw(motion), robot)
+        kept_out.update({f"{side}_foot": moved[side] for side in SIDES})
+    for side in SIDES:
+        sole = soles[side]
         points[f"{side}_foot"] = sole
         contact[side] = drop_shuffles(contact[side], sole)
         fixed = np.full_like(sole, np.nan)
@@ -234,7 +257,7 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         placements[side] = fixed
     return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
                      heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised,
-                     arm_moved=arm_moved)
+                     arm_moved=arm_moved, kept_out=kept_out)
 
 
 def arm_reach(robot: Robot, side: str) -> float:
