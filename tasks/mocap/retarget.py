@@ -37,6 +37,7 @@ import pinocchio as pin
 
 from robots import Robot
 from tasks.exceptions import ClipError
+from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
@@ -439,6 +440,11 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
     dynamic = True if dynamic is None else dynamic
     horizon = sum(p.duration for p in phases)
+    if len(targets) + 2 * len(SIDES) + 1 > MAX_ITEMS:  # + the shoulders' joint targets and the CoM bound
+        slowed = (f", slowed {slow:.2f} x (its quickest foot swing, {MIN_SWING * robot.profile.step_duration / slow:.2f} s, "
+                  f"to the robot's step of {MIN_SWING * robot.profile.step_duration:.2f} s)") if slow > 1.0 else ""
+        raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}: {len(targets)} tracking targets, more than "
+                        f"the {MAX_ITEMS} wbmp plans at a time: cut it with --start/--end")
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
                     joint_targets=shoulders_out(robot, horizon),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),

@@ -242,3 +242,16 @@ def test_a_walks_swinging_feet_are_tracked_onto_their_placements(talos):
             assert gap < 1e-6, (side, t0, gap)
             landings += 1
     assert landings >= 6
+
+
+def test_a_clip_slowed_beyond_the_planners_bound_is_refused_naming_its_quickest_swing(talos, monkeypatch):
+    """A clip whose quickest swing slows it so much that its tracking targets exceed what wbmp plans
+    at once is refused with one line naming the slowdown, that swing and the fix (was: the spec's
+    own 'split it into several specs', which a retarget user cannot do). The wave, its swings asked
+    to last 4 of talos's steps: 2.4 s -> ~43 s."""
+    from tasks.exceptions import ClipError
+    from tasks.mocap import retarget as rt
+
+    monkeypatch.setattr(rt, "MIN_SWING", 4.0)
+    with pytest.raises(ClipError, match=r"slowed \d+\.\d+ x \(its quickest foot swing, 0\.\d+ s.*--start/--end"):
+        _spec("13_26_wave.bvh", talos)
