@@ -72,6 +72,7 @@ MIN_SWING = 1.0  # [-] of the robot's step duration: the shortest swing it is as
 LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot before touch-down (swing_target)
 SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
+GROUNDED_TRAVEL = 0.3  # [m] a clip that jumps and travels less than this is made with its feet down (ground_jumps)
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
 #: [-] of the robot's standing base height: the lowest the base is asked to go. A deeper human squat
 #: is raised as a whole (base, torso, head, arms) to this: at talos's hip pitch of -1.9 rad (base
@@ -116,6 +117,8 @@ class Reference:
             (:func:`arm_reach`: talos cannot hold its arm out sideways).
         kept_out: Role (hands, feet) -> per frame, how far its target was moved out of the
             robot's own body (F,) [m] (:mod:`tasks.mocap.keepout`).
+        grounded_s: Seconds of the source's flights (both feet up) the robot makes with both feet
+            down instead (:func:`ground_jumps`; 0: none).
     """
 
     t: np.ndarray
@@ -131,6 +134,7 @@ class Reference:
     raised: np.ndarray | None = None
     arm_moved: dict[str, np.ndarray] | None = None
     kept_out: dict[str, np.ndarray] | None = None
+    grounded_s: float = 0.0
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -316,6 +320,25 @@ def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot)
     return 1.0 if shortest >= least else least / shortest
 
 
+def ground_jumps(motion: HumanMotion, labels: dict[str, np.ndarray],
+                 robot: Robot) -> tuple[dict[str, np.ndarray], float]:
+    """(contact labels, seconds of flight grounded): the labels unchanged, or, for a clip that jumps
+    (frames with both feet up) in place (the pelvis ends less than :data:`GROUNDED_TRAVEL` from
+    where it began) and has to be slowed for the robot's steps (:func:`time_scale` > 1), both
+    feet down throughout. A flight cannot be slowed: its duration is set by its height (a 0.2 s
+    flight slowed 4.6 x is a 1 m jump); a jumping jack becomes its arms and body over feet that stay
+    where they stood (the gap named in the report: ``grounded_s``). A jump that travels is left
+    to the planner (and refused when the robot cannot make it)."""
+    up = ~np.asarray(labels["left"], dtype=bool) & ~np.asarray(labels["right"], dtype=bool)
+    if not up.any() or time_scale(motion, labels, robot) <= 1.0:
+        return labels, 0.0
+    travel = float(np.linalg.norm(motion.points["pelvis"][-1, :2] - motion.points["pelvis"][0, :2]))
+    if travel > GROUNDED_TRAVEL:
+        return labels, 0.0
+    down = np.ones(len(up), dtype=bool)
+    return {side: down.copy() for side in SIDES}, float(up.sum() * motion.frame_time)
+
+
 def drop_shuffles(contact: np.ndarray, sole: np.ndarray) -> np.ndarray:
     """The contact labels with the shuffles filled in: a swing in which the sole rises less than
     :data:`SHUFFLE_LIFT` and lands less than :data:`SHUFFLE_STEP` from where it left (a weight shift,
@@ -354,6 +377,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                   description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
     """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
     where = motion.source or "clip"
+    labels, grounded = ground_jumps(motion, labels, robot)
     slow = time_scale(motion, labels, robot)
     if slow > 1.0:
         motion = dataclasses.replace(motion, t=motion.t * slow)
@@ -363,7 +387,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}; wbmp retargets at most {MAX_CLIP:g} s "
                         "at a time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with "
                         "--start/--end")
-    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow)
+    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow, grounded_s=grounded)
     g = standing_geometry(robot)
     stand_pose = Stance.standing(robot)
     stand_yaw = {side: float(stand_pose.sole(side).rpy[2]) for side in SIDES}
@@ -440,17 +464,25 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
     dynamic = True if dynamic is None else dynamic
     horizon = sum(p.duration for p in phases)
-    if len(targets) + 2 * len(SIDES) + 1 > MAX_ITEMS:  # + the shoulders' joint targets and the CoM bound
-        slowed = (f", slowed {slow:.2f} x (its quickest foot swing, {MIN_SWING * robot.profile.step_duration / slow:.2f} s, "
-                  f"to the robot's step of {MIN_SWING * robot.profile.step_duration:.2f} s)") if slow > 1.0 else ""
-        raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}: {len(targets)} tracking targets, more than "
-                        f"the {MAX_ITEMS} wbmp plans at a time: cut it with --start/--end")
+    _check_items(where, duration, slow, len(targets), robot)
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
                     joint_targets=shoulders_out(robot, horizon),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
     return spec, ref
+
+
+def _check_items(where: str, duration: float, slow: float, n_targets: int, robot: Robot) -> None:
+    """ClipError when a clip's tracking targets (with the shoulders' joint targets and the CoM bound)
+    exceed what wbmp plans at a time (a clip slowed for its quickest swing), naming the fix."""
+    if n_targets + 2 * len(SIDES) + 1 <= MAX_ITEMS:
+        return
+    step = MIN_SWING * robot.profile.step_duration
+    slowed = (f", slowed {slow:.2f} x (its quickest foot swing, {step / slow:.2f} s, to the robot's step of "
+              f"{step:.2f} s)") if slow > 1.0 else ""
+    raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}: {n_targets} tracking targets, more than "
+                    f"the {MAX_ITEMS} wbmp plans at a time: cut it with --start/--end")
 
 
 def shoulders_out(robot: Robot, horizon: float) -> tuple[JointTarget, ...]:
