@@ -18,6 +18,8 @@ from wbmp.pipeline import Progress, SolveResult, _silent
 #: default is 0.02 s): a harder floor, on which a loaded sole sinks and creeps by a fraction of a
 #: millimetre instead of 3-14 mm (docs/retarget.md, "The floor").
 FLOOR_TIMECONST = 0.005
+#: The planner's IPOPT iteration limit per solve for a retarget (None: the planner's default, 150).
+MAX_ITERATIONS: int | None = None
 START_ON_BOTH_FEET = 0.5  # [s] a clip (no --start) that starts mid-step begins at its first double support within this
 
 
@@ -153,7 +155,12 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
             return _cached_result(request, hit, robot, spec, ref, skeleton, info, timings, t0)
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name} ({len(spec.phases)} contact phases)")
     t0 = time.perf_counter()
-    plan = plan_motion(spec, robot, progress=progress)
+    settings = None
+    if MAX_ITERATIONS is not None:
+        from planner import PlannerSettings, SolverSettings
+
+        settings = PlannerSettings(solver=SolverSettings(max_iterations=MAX_ITERATIONS))
+    plan = plan_motion(spec, robot, progress=progress, settings=settings)
     check_signals()
     timings["plan"] = time.perf_counter() - t0
     execution = None
