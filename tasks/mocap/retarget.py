@@ -73,6 +73,10 @@ LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot befo
 SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 GROUNDED_TRAVEL = 0.3  # [m] a clip that jumps and travels less than this is made with its feet down (ground_jumps)
+#: [-] how much slower than the human a grounded clip is made: its arms and body keep the tempo of the
+#: jumps (talos's jumping jacks at the human's speed: its wrist at its 6.6 N m limit, a fall; at half
+#: the speed: certified, as on g1)
+GROUNDED_SLOW = 2.0
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
 #: [-] of the robot's standing base height: the lowest the base is asked to go. A deeper human squat
 #: is raised as a whole (base, torso, head, arms) to this: at talos's hip pitch of -1.9 rad (base
@@ -327,7 +331,8 @@ def ground_jumps(motion: HumanMotion, labels: dict[str, np.ndarray],
     where it began) and has to be slowed for the robot's steps (:func:`time_scale` > 1), both
     feet down throughout. A flight cannot be slowed: its duration is set by its height (a 0.2 s
     flight slowed 4.6 x is a 1 m jump); a jumping jack becomes its arms and body over feet that stay
-    where they stood (the gap named in the report: ``grounded_s``). A jump that travels is left
+    where they stood (the gap named in the report: ``grounded_s``), made :data:`GROUNDED_SLOW`
+    times slower than the human instead of for steps it no longer takes. A jump that travels is left
     to the planner (and refused when the robot cannot make it)."""
     up = ~np.asarray(labels["left"], dtype=bool) & ~np.asarray(labels["right"], dtype=bool)
     if not up.any() or time_scale(motion, labels, robot) <= 1.0:
@@ -379,6 +384,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     where = motion.source or "clip"
     labels, grounded = ground_jumps(motion, labels, robot)
     slow = time_scale(motion, labels, robot)
+    if grounded > 0.0:
+        slow = max(slow, GROUNDED_SLOW)
     if slow > 1.0:
         motion = dataclasses.replace(motion, t=motion.t * slow)
     duration = float(motion.t[-1])
