@@ -18,6 +18,11 @@ from wbmp.pipeline import Progress, SolveResult, _silent
 #: default is 0.02 s): a harder floor, on which a loaded sole sinks and creeps by a fraction of a
 #: millimetre instead of 3-14 mm (docs/retarget.md, "The floor").
 FLOOR_TIMECONST = 0.005
+#: The planner's IPOPT iteration limit per solve for a retarget (None: the planner's default, 150).
+#: A long clip's solve needs more: talos's bend (5.8 s, 73 knots) was refused at the limit (its
+#: diagnosis: a hand through a thigh) and plans in 238 iterations with 500. A solve that converges
+#: within 150 follows the same iterates either way (the certified clips' plans are unchanged).
+MAX_ITERATIONS: int | None = 500
 START_ON_BOTH_FEET = 0.5  # [s] a clip (no --start) that starts mid-step begins at its first double support within this
 
 
@@ -65,6 +70,8 @@ class RetargetResult(SolveResult):
             section["time_scale"] = self.reference.time_scale
             section["raised_m"] = self.reference.raised_max()
             section["arm_moved_m"] = self.reference.arm_moved_max()
+            section["kept_out_m"] = self.reference.kept_out_max()
+            section["grounded_s"] = self.reference.grounded_s
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:
@@ -151,7 +158,12 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
             return _cached_result(request, hit, robot, spec, ref, skeleton, info, timings, t0)
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name} ({len(spec.phases)} contact phases)")
     t0 = time.perf_counter()
-    plan = plan_motion(spec, robot, progress=progress)
+    settings = None
+    if MAX_ITERATIONS is not None:
+        from planner import PlannerSettings, SolverSettings
+
+        settings = PlannerSettings(solver=SolverSettings(max_iterations=MAX_ITERATIONS))
+    plan = plan_motion(spec, robot, progress=progress, settings=settings)
     check_signals()
     timings["plan"] = time.perf_counter() - t0
     execution = None

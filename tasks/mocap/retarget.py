@@ -37,6 +37,8 @@ import pinocchio as pin
 
 from robots import Robot
 from tasks.exceptions import ClipError
+from tasks.limits import MAX_ITEMS
+from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
@@ -70,12 +72,18 @@ MIN_SWING = 1.0  # [-] of the robot's step duration: the shortest swing it is as
 LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot before touch-down (swing_target)
 SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
+GROUNDED_TRAVEL = 0.3  # [m] a clip that jumps and travels less than this is made with its feet down (ground_jumps)
+#: [-] how much slower than the human a grounded clip is made: its arms and body keep the tempo of the
+#: jumps (talos's jumping jacks at the human's speed: its wrist at its 6.6 N m limit, a fall; at half
+#: the speed: certified, as on g1)
+GROUNDED_SLOW = 2.0
 SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is no step (drop_shuffles)
 #: [-] of the robot's standing base height: the lowest the base is asked to go. A deeper human squat
 #: is raised as a whole (base, torso, head, arms) to this: at talos's hip pitch of -1.9 rad (base
 #: 0.55 m) its thigh meshes pass into its pelvis (coal), a pair its capsule model cannot keep apart
 #: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
 MIN_BASE_HEIGHT = 0.6
+KEEP_OUT = True  # hand targets kept off the robot's pelvis and thighs, feet apart (tasks.mocap.keepout)
 #: [rad] how far out from standing a soft posture term holds each shoulder's joint (the joint carrying
 #: the robot's shoulder frame: the roll on talos and G1), and its weight: the planner's capsules do
 #: not keep the upper arm off the torso (they touch at rest), so an arm brought in to the chest
@@ -111,6 +119,10 @@ class Reference:
         arm_moved: Hand side -> per frame, how far the hand target was brought in sideways so
             that the arm's weight stays within its shoulder's torque limits (F,) [m]
             (:func:`arm_reach`: talos cannot hold its arm out sideways).
+        kept_out: Role (hands, feet) -> per frame, how far its target was moved out of the
+            robot's own body (F,) [m] (:mod:`tasks.mocap.keepout`).
+        grounded_s: Seconds of the source's flights (both feet up) the robot makes with both feet
+            down instead (:func:`ground_jumps`; 0: none).
     """
 
     t: np.ndarray
@@ -125,6 +137,8 @@ class Reference:
     time_scale: float = 1.0
     raised: np.ndarray | None = None
     arm_moved: dict[str, np.ndarray] | None = None
+    kept_out: dict[str, np.ndarray] | None = None
+    grounded_s: float = 0.0
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -134,6 +148,11 @@ class Reference:
         """Hand side -> how far its target was brought in sideways at most (its shoulder's torque
         limits) [m]."""
         return {side: float(np.max(v)) if len(v) else 0.0 for side, v in (self.arm_moved or {}).items()}
+
+    def kept_out_max(self) -> dict[str, float]:
+        """Role (hand or foot) -> how far its target was moved out of the robot's body at most
+        (:mod:`tasks.mocap.keepout`: hands off the pelvis and thighs, feet apart) [m]."""
+        return {role: float(np.max(v)) if len(v) else 0.0 for role, v in (self.kept_out or {}).items()}
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -215,6 +234,13 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         most = arm_reach(robot, side) * g.arm_length[side]
         points[f"{side}_hand"] = _hold_arm(hand, points[f"{side}_shoulder"], R, most)
         arm_moved[side] = np.linalg.norm(points[f"{side}_hand"] - hand, axis=1)
+    kept_out: dict[str, np.ndarray] = {}
+    if KEEP_OUT:  # the hands off the robot's pelvis, hips and thighs (tasks.mocap.keepout)
+        hands, moved = keep_hands_out({side: points[f"{side}_hand"] for side in SIDES}, points["base"], R, robot)
+        for side in SIDES:
+            points[f"{side}_hand"] = hands[side]
+            kept_out[f"{side}_hand"] = moved[side]
+    soles: dict[str, np.ndarray] = {}
     for side in SIDES:
         # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
         # over the labelled stances) becomes the robot's standing one
@@ -223,6 +249,12 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         d_y = (stand[f"{side}_foot"][1] - stand["base"][1]) - float(np.median(lateral[stance]))
         sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
         sole[:, 2] = np.maximum(sole[:, 2], 0.0)
+        soles[side] = sole
+    if KEEP_OUT:  # the feet at least FOOT_GAP of the robot's standing gap apart (tasks.mocap.keepout)
+        soles, moved = keep_feet_apart(soles, contact, feet_yaw(motion), robot)
+        kept_out.update({f"{side}_foot": moved[side] for side in SIDES})
+    for side in SIDES:
+        sole = soles[side]
         points[f"{side}_foot"] = sole
         contact[side] = drop_shuffles(contact[side], sole)
         fixed = np.full_like(sole, np.nan)
@@ -234,7 +266,7 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         placements[side] = fixed
     return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
                      heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised,
-                     arm_moved=arm_moved)
+                     arm_moved=arm_moved, kept_out=kept_out)
 
 
 def arm_reach(robot: Robot, side: str) -> float:
@@ -292,6 +324,26 @@ def time_scale(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot)
     return 1.0 if shortest >= least else least / shortest
 
 
+def ground_jumps(motion: HumanMotion, labels: dict[str, np.ndarray],
+                 robot: Robot) -> tuple[dict[str, np.ndarray], float]:
+    """(contact labels, seconds of flight grounded): the labels unchanged, or, for a clip that jumps
+    (frames with both feet up) in place (the pelvis ends less than :data:`GROUNDED_TRAVEL` from
+    where it began) and has to be slowed for the robot's steps (:func:`time_scale` > 1), both
+    feet down throughout. A flight cannot be slowed: its duration is set by its height (a 0.2 s
+    flight slowed 4.6 x is a 1 m jump); a jumping jack becomes its arms and body over feet that stay
+    where they stood (the gap named in the report: ``grounded_s``), made :data:`GROUNDED_SLOW`
+    times slower than the human instead of for steps it no longer takes. A jump that travels is left
+    to the planner (and refused when the robot cannot make it)."""
+    up = ~np.asarray(labels["left"], dtype=bool) & ~np.asarray(labels["right"], dtype=bool)
+    if not up.any() or time_scale(motion, labels, robot) <= 1.0:
+        return labels, 0.0
+    travel = float(np.linalg.norm(motion.points["pelvis"][-1, :2] - motion.points["pelvis"][0, :2]))
+    if travel > GROUNDED_TRAVEL:
+        return labels, 0.0
+    down = np.ones(len(up), dtype=bool)
+    return {side: down.copy() for side in SIDES}, float(up.sum() * motion.frame_time)
+
+
 def drop_shuffles(contact: np.ndarray, sole: np.ndarray) -> np.ndarray:
     """The contact labels with the shuffles filled in: a swing in which the sole rises less than
     :data:`SHUFFLE_LIFT` and lands less than :data:`SHUFFLE_STEP` from where it left (a weight shift,
@@ -330,7 +382,10 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                   description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
     """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
     where = motion.source or "clip"
+    labels, grounded = ground_jumps(motion, labels, robot)
     slow = time_scale(motion, labels, robot)
+    if grounded > 0.0:
+        slow = max(slow, GROUNDED_SLOW)
     if slow > 1.0:
         motion = dataclasses.replace(motion, t=motion.t * slow)
     duration = float(motion.t[-1])
@@ -339,7 +394,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}; wbmp retargets at most {MAX_CLIP:g} s "
                         "at a time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with "
                         "--start/--end")
-    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow)
+    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow, grounded_s=grounded)
     g = standing_geometry(robot)
     stand_pose = Stance.standing(robot)
     stand_yaw = {side: float(stand_pose.sole(side).rpy[2]) for side in SIDES}
@@ -416,12 +471,25 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
     dynamic = True if dynamic is None else dynamic
     horizon = sum(p.duration for p in phases)
+    _check_items(where, duration, slow, len(targets), robot)
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
                     joint_targets=shoulders_out(robot, horizon),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
     return spec, ref
+
+
+def _check_items(where: str, duration: float, slow: float, n_targets: int, robot: Robot) -> None:
+    """ClipError when a clip's tracking targets (with the shoulders' joint targets and the CoM bound)
+    exceed what wbmp plans at a time (a clip slowed for its quickest swing), naming the fix."""
+    if n_targets + 2 * len(SIDES) + 1 <= MAX_ITEMS:
+        return
+    step = MIN_SWING * robot.profile.step_duration
+    slowed = (f", slowed {slow:.2f} x (its quickest foot swing, {step / slow:.2f} s, to the robot's step of "
+              f"{step:.2f} s)") if slow > 1.0 else ""
+    raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}: {n_targets} tracking targets, more than "
+                    f"the {MAX_ITEMS} wbmp plans at a time: cut it with --start/--end")
 
 
 def shoulders_out(robot: Robot, horizon: float) -> tuple[JointTarget, ...]:

@@ -114,6 +114,14 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
         if moved > 0.005:
             print(f"retarget: the {side} hand brought in sideways up to {moved:.3f} m: the human holds the "
                   "arm out further than the robot's shoulder can carry")
+    if ref.grounded_s > 0:
+        print(f"retarget: both feet kept down through the human's {ref.grounded_s:.2f} s of jumps: the robot is "
+              "slowed for its steps, and a slowed flight is a far higher jump")
+    for role, moved in ref.kept_out_max().items():
+        if moved > 0.005:
+            what = "out of its pelvis and thighs" if role.endswith("hand") else "apart from the other foot"
+            print(f"retarget: the {role.replace('_', ' ')} moved {what} up to {moved:.3f} m: the human's "
+                  "would pass through the robot's body")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:
         cert = result.execution.certificate

@@ -242,3 +242,44 @@ def test_a_walks_swinging_feet_are_tracked_onto_their_placements(talos):
             assert gap < 1e-6, (side, t0, gap)
             landings += 1
     assert landings >= 6
+
+
+def test_a_clip_slowed_beyond_the_planners_bound_is_refused_naming_its_quickest_swing(talos, monkeypatch):
+    """A clip whose quickest swing slows it so much that its tracking targets exceed what wbmp plans
+    at once is refused with one line naming the slowdown, that swing and the fix (was: the spec's
+    own 'split it into several specs', which a retarget user cannot do). The wave, its swings asked
+    to last 4 of talos's steps: 2.4 s -> ~43 s."""
+    from tasks.exceptions import ClipError
+    from tasks.mocap import retarget as rt
+
+    monkeypatch.setattr(rt, "MIN_SWING", 4.0)
+    with pytest.raises(ClipError, match=r"slowed \d+\.\d+ x \(its quickest foot swing, 0\.\d+ s.*--start/--end"):
+        _spec("13_26_wave.bvh", talos)
+
+
+def test_a_jump_in_place_that_must_be_slowed_is_made_with_both_feet_down(talos):
+    """A flight cannot be slowed (its duration is its height): the wave (it travels 4 cm and is
+    slowed 4.4 x for talos's steps) given a made-up 0.1 s flight keeps both feet down throughout,
+    is slowed GROUNDED_SLOW x instead, and names the grounded flight; the walk (it travels 3.9 m) given the same
+    flight keeps its labels (a jump that travels is left to the planner)."""
+    from tasks.mocap.retarget import GROUNDED_SLOW, ground_jumps, time_scale
+
+    for name, grounded in (("13_26_wave.bvh", True), ("12_01_walk.bvh", False)):
+        clip = read_bvh(EXAMPLES / name).window(0.0, None)
+        motion = human_motion(clip, recognize_skeleton(clip.names))
+        labels = label_contacts(motion)
+        assert time_scale(motion, labels, talos) > 1.0
+        jumped = {s: np.asarray(v, dtype=bool).copy() for s, v in labels.items()}
+        mid = len(motion.t) // 2
+        for s in jumped:
+            jumped[s][mid:mid + 12] = False
+        out, seconds = ground_jumps(motion, jumped, talos)
+        if not grounded:
+            assert seconds == 0.0 and all(np.array_equal(out[s], jumped[s]) for s in out)
+            continue
+        assert seconds == pytest.approx(12 * motion.frame_time)
+        assert all(out[s].all() for s in out)
+        spec, ref = retarget_spec(motion, jumped, talos)
+        assert ref.grounded_s == pytest.approx(seconds) and ref.time_scale == GROUNDED_SLOW
+        assert all(len(p.contacts) == 2 for p in spec.phases)
+        assert spec.horizon == pytest.approx(GROUNDED_SLOW * motion.t[-1] + 0.8 + 1.0, abs=0.1)
