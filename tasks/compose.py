@@ -485,9 +485,7 @@ def _seated(a: Action, scene: Scene | None, before: Action | None, where: str) -
         if not seats:
             raise BeyondCapability(f"{where}sit down: there is no seat in the scene (a chair or a bench: an object "
                                    'with "seat": true); give a scene with one, e.g. --scene examples/scenes/chair.json')
-        return Action(name=a.name, params={**a.params, "object": Grounded(reference=seats[0].name, obj=seats[0],
-                                                                         scene=cast(Scene, scene))},
-                      overlay=a.overlay, defaulted=a.defaulted)
+        return _with_object(a, seats[0], scene)
     if not isinstance(said, Grounded) and scene is not None:
         obj = ground(said, scene, action=a.name)
         if not obj.seat:
@@ -507,7 +505,12 @@ def _table(a: Action, scene: Scene | None, where: str) -> Action:
     if not tables:
         raise BeyondCapability(f"{where}lean on: there is no table in the scene (a static box with a top to lean on); "
                                "give a scene with one, e.g. --scene examples/scenes/table.json")
-    return Action(name=a.name, params={**a.params, "object": Grounded(reference=tables[0].name, obj=tables[0],
+    return _with_object(a, tables[0], scene)
+
+
+def _with_object(a: Action, obj: SceneObject, scene: Scene | None) -> Action:
+    """``a`` with its ``object`` grounded to ``obj`` of ``scene`` (an object the sentence left unsaid)."""
+    return Action(name=a.name, params={**a.params, "object": Grounded(reference=obj.name, obj=obj,
                                                                      scene=cast(Scene, scene))},
                   overlay=a.overlay, defaulted=a.defaulted)
 
