@@ -56,9 +56,12 @@ from tasks.primitives.arms import (
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
 from tasks.primitives.bodymap import (
     ARM_IK_TOLERANCE,
+    CLEARANCE,
+    PLANNER_MARGIN,
     arm_configuration,
     body_map,
     reach_error,
+    sphere_clearance,
     to_heading,
     to_standing,
 )
@@ -82,6 +85,8 @@ TOUCH_DEPTH = 0.003  # [m] the hand target this far past where the posed hand's 
 TOUCH_GAP_TOLERANCE = 0.001  # [m] the posed hand's meshes within this of the surface: they reach it
 TOUCH_ROUNDS = 20  # moves along the approach line when placing the posed hand at the surface
 TOUCH_SEARCH = 0.15  # [m] the posed hand moves at most this far along the line from its first estimate
+TOUCH_STEP = 0.03  # [m] a touched point too close to the body: the nearest to a point this much further ahead
+TOUCH_CANDIDATES = 6
 TOUCH_TOLERANCE = 0.005  # [m] hand frame to its touch target
 BEHIND = math.radians(100)  # an object farther than this from the heading cannot be pointed or looked at
 
@@ -511,17 +516,28 @@ def touching_hand(params: dict, robot: Robot, stance: Stance | None = None) -> s
 
 
 def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_touch_target`, computed once per robot, stance, object and hand (the pre-check and the build ask)."""
+    point, hand = _touch_target(robot, stance, obj, side)
+    return np.array(point), np.array(hand)
+
+
+@functools.cache
+def _touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """(point touched on the object's surface, hand frame target) in the world [m]: the surface point
     nearest to the shoulder; the hand frame on the shoulder-to-point line where, with the arm posed
     there (:func:`tasks.primitives.bodymap.arm_configuration`, the posture the planner's warm start
     takes), the hand's collision meshes reach the object's surface (coal), then :data:`TOUCH_DEPTH`
-    further in. When the arm alone does not reach there (a touch that bends at the hips), the hand
-    frame is back from the point by the hand's extent in front of its frame (standing orientation)
-    less :data:`TOUCH_DEPTH`.
+    further in. When the posed arm's spheres come closer to the body than the planner keeps them
+    (``bodymap.CLEARANCE``: G1's wrist 3 cm into its torso at a box 0.16 m from its chest), the
+    surface point nearest to the point above it (level with the shoulder) :data:`TOUCH_STEP` further
+    ahead is tried, up to :data:`TOUCH_CANDIDATES` times. When the arm alone does not reach there (a touch that bends at
+    the hips), the hand frame is back from the point by the hand's extent in front of its frame
+    (standing orientation) less :data:`TOUCH_DEPTH`.
 
     Raises:
         TaskDefinitionError: the point is beyond the hand's reach even bending at the hips (walk to
-            the object first), or the object is a mesh.
+            the object first), the arm touches it only through the body (step back), or the object
+            is a mesh.
     """
     T = stance.transform_from_standing(robot)
     H = stance.heading()
@@ -534,15 +550,31 @@ def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> t
             f'stands: walk to it first ("walk to the {obj.name} and touch it")')
     u = (surface - sh) / np.linalg.norm(surface - sh)
     front = hand_front(robot, side, H.rotation.T @ u)
-    first = surface - front * u
     M = T.inverse() * pin.SE3(np.array(rotation(obj.rpy)), np.asarray(obj.position, dtype=float))
-    posed = _posed_touch(robot, side, _key(to_heading(robot, T.actInv(first))),
-                         _key(to_heading(robot, T.inverse().rotation @ u)), _shape_key(obj), _key(M.rotation.ravel()),
-                         _key(M.translation))
-    if posed is None:
-        return surface, surface - (front - TOUCH_DEPTH) * u
-    return surface, np.asarray(T.act(to_standing(robot, np.asarray(posed) + TOUCH_DEPTH * to_heading_axis(robot, T, u))),
-                               dtype=float)
+    closest = -math.inf
+    fwd = H.rotation[:, 0]
+    ahead = max(0.0, float(fwd @ (surface - sh)))
+    for k in range(TOUCH_CANDIDATES):
+        ref = sh + (ahead + k * TOUCH_STEP) * fwd if k else sh
+        if k and (signed_distance(obj, ref) or 0.0) <= 0.0:
+            break
+        point = nearest_surface_point(obj, ref)
+        way = (point - sh) / np.linalg.norm(point - sh)
+        posed = _posed_touch(robot, side, _key(to_heading(robot, T.actInv(point - front * way))),
+                             _key(to_heading_axis(robot, T, way)), _shape_key(obj), _key(M.rotation.ravel()),
+                             _key(M.translation))
+        if posed is None:
+            break
+        hand = np.asarray(posed) + TOUCH_DEPTH * to_heading_axis(robot, T, way)
+        clear = sphere_clearance(robot, arm_configuration(robot, {side: hand}, natural=True), side, other_arm=False)[0]
+        if clear >= CLEARANCE:
+            return _key(point), _key(T.act(to_standing(robot, hand)))
+        closest = max(closest, clear)
+    if math.isfinite(closest):
+        raise TaskDefinitionError(
+            f"touch_object: the {obj.name} is too close to the body for the {side} hand to touch it: the arm "
+            f"would come {PLANNER_MARGIN - closest:.2f} m nearer to the body than the planner lets it; step back first")
+    return _key(surface), _key(surface - (front - TOUCH_DEPTH) * u)
 
 
 def to_heading_axis(robot: Robot, T: pin.SE3, u: np.ndarray) -> np.ndarray:

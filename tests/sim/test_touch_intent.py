@@ -1,13 +1,13 @@
 """The certificate's touch_object line (sim/intent.py ``object_touch_checks``): the touching hand's
 collision meshes at the object it touches, the median over the held window, checked on recorded
-configurations made here (no simulation: the arm posed at the touch target, or standing) against
+configurations made here (no simulation: standing, a box placed at or away from the hand) against
 coal distances computed independently with Pinocchio's geometry functions. The full Talos run
 (planned, simulated, certified and the hand at the red box in MuJoCo) is
 tests/sim/test_objects_sim.py::test_talos_touches_the_red_box_on_the_counter (long)."""
 
 from __future__ import annotations
 
-from pathlib import Path
+import dataclasses
 from types import SimpleNamespace
 
 import coal
@@ -15,24 +15,27 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from language import parse
 from planner.results import CheckKind
 from sim.intent import OBJECT_TOUCH_DISTANCE, object_touch_checks
-from tasks.compose import compile_actions
-from tasks.primitives.bodymap import arm_configuration, to_heading
-from tasks.scene import load_scene
-
-SCENE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_counter.json"
+from tasks.scene import Scene, SceneObject
+from tasks.specs import FrameTarget, Phase, TaskSpec
 
 
 @pytest.fixture(scope="module")
 def touch(talos):
-    scene = load_scene(SCENE)
-    spec = compile_actions(parse("touch the red box").actions, talos, scene=scene)
-    (target,) = [t for t in spec.targets if t.touch is not None]
-    side = "left" if target.frame == talos.frame("left_hand") else "right"
-    posed = arm_configuration(talos, {side: to_heading(talos, np.asarray(target.position))}, natural=True)
-    return spec, target, side, posed, scene.get("red box")
+    """A red box (0.2 x 0.2 x 0.15 m, as in examples/scenes/box_on_counter.json) centred on the
+    standing left hand frame, and a touch_object target there over 1-2 s of a 3 s spec: the hand's
+    meshes are in the box."""
+    data = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, data, talos.q_standing)
+    hand = data.oMf[talos.frame_id("left_hand")].translation.copy()
+    box = SceneObject(name="red box", shape="box", size=(0.2, 0.2, 0.15), position=tuple(float(x) for x in hand),
+                      movable=True, mass=0.5)
+    target = FrameTarget(name="1 touch_object: left hand touching the red box", frame=talos.frame("left_hand"),
+                         position=tuple(float(x) for x in hand), window=(1.0, 2.0), touch="red box")
+    spec = TaskSpec(phases=(Phase(name="1 touch_object: touch the red box", duration=3.0),), targets=(target,),
+                    scene=Scene(name="a box at the hand", objects=(box,)))
+    return spec, target, "left", talos.q_standing, box
 
 
 def _run(robot, spec, q):
@@ -45,9 +48,8 @@ def _run(robot, spec, q):
 def _coal_gap(robot, side, q, position) -> float:
     """Independent: the box added to the collision model, every hand geometry paired with it."""
     model, gm = robot.model, robot.collision_model.copy()
-    obj = load_scene(SCENE).get("red box")
     box = gm.addGeometryObject(pin.GeometryObject("red box", 0, 0, pin.SE3(np.eye(3), np.asarray(position, float)),
-                                                  coal.Box(*obj.size)))
+                                                  coal.Box(0.2, 0.2, 0.15)))
     sub = set(model.subtrees[model.frames[robot.frame_id(f"{side}_hand")].parentJoint])
     for i, o in enumerate(gm.geometryObjects):
         if o.parentJoint in sub:
@@ -58,23 +60,26 @@ def _coal_gap(robot, side, q, position) -> float:
 
 
 def test_the_hand_at_the_box_passes_and_short_of_it_fails_in_the_actions_words(talos, touch):
-    """Posed at the touch target, the hand's meshes are in the red box: the line passes at 0 m.
-    Standing, the hand is far from it: the line fails, "touch object (action 1): the left hand
-    stayed ... m from the red box", its value the coal distance. The box recorded 8 cm farther
-    from the hand (where MuJoCo had it) is measured where it was: the hand is then short of it."""
+    """The hand's meshes in the red box: the line passes at 0 m. The box 0.3 m ahead of the hand:
+    the line fails, "touch object (action 1): the left hand stayed ... m from the red box", its
+    value the coal distance. The box recorded 0.3 m to the left (where MuJoCo had it: knocked aside) is
+    measured where it was: the hand is then short of it."""
     spec, target, side, posed, obj = touch
     (line,) = object_touch_checks(_run(talos, spec, posed), {})
+    assert line.name == "intent: touch object (action 1): the left hand at the red box"
     assert line.kind is CheckKind.INTENT_WORDS and line.ok and line.value == pytest.approx(
         _coal_gap(talos, side, posed, obj.position), abs=1e-4)
     assert line.value <= 0.001
-    (far,) = object_touch_checks(_run(talos, spec, talos.q_standing), {})
-    want = _coal_gap(talos, side, talos.q_standing, obj.position)
+    away = np.asarray(obj.position) + np.array([0.3, 0.0, 0.0])
+    far_box = dataclasses.replace(obj, position=tuple(float(x) for x in away))
+    far_spec = dataclasses.replace(spec, scene=Scene(name="a box ahead", objects=(far_box,)))
+    (far,) = object_touch_checks(_run(talos, far_spec, posed), {})
+    want = _coal_gap(talos, side, posed, away)
     assert not far.ok and far.value == pytest.approx(want, abs=1e-4) and want > 3 * OBJECT_TOUCH_DISTANCE
     assert far.message.startswith(f"touch object (action 1): the {side} hand stayed {want:.3f} m from the red box")
     run = _run(talos, spec, posed)
-    away_from_hand = np.asarray(obj.position) - np.asarray(target.position)
-    moved = np.asarray(obj.position) + 0.08 * away_from_hand / np.linalg.norm(away_from_hand)
+    moved = np.asarray(obj.position) + np.array([0.0, 0.3, 0.0])
     poses = {"red box": (np.tile(moved, (len(run.t), 1)), np.tile([0.0, 0.0, 0.0, 1.0], (len(run.t), 1)))}
-    (away,) = object_touch_checks(run, poses)
-    assert away.value == pytest.approx(_coal_gap(talos, side, posed, moved), abs=1e-4)
-    assert away.value > 2 * OBJECT_TOUCH_DISTANCE and not away.ok
+    (fallen,) = object_touch_checks(run, poses)
+    assert fallen.value == pytest.approx(_coal_gap(talos, side, posed, moved), abs=1e-4)
+    assert fallen.value > 2 * OBJECT_TOUCH_DISTANCE and not fallen.ok
