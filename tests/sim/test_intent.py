@@ -24,9 +24,9 @@ def _record(plan, robot, monkeypatch):
     seen = {}
     certify = loop.certify
 
-    def keep(run):
+    def keep(run, objects=None):
         seen["run"] = run
-        return certify(run)
+        return certify(run, objects)
 
     monkeypatch.setattr(loop, "certify", keep)
     ex = simulate(plan, robot, settings=SimSettings(settle_time=0.2))
