@@ -648,6 +648,7 @@ def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
     b.phase(f"lower the {name}", LOWER_TIME)
     b.phase(f"let go of the {name}", let_go)
     b.phase(f"retreat from the {name}", PUT_DURATION_BOTH)
+    hold_upper_arms(b, PUT_DURATION_BOTH, ("left", "right"), out=UPPER_ARM_OUT)  # as when picking it up (G1)
     return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
