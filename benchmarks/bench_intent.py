@@ -75,16 +75,45 @@ SENTENCES: dict[str, tuple[str, ...]] = {
 #: the neck's range and not too close to point at: the box on the counter is 0.81 rad down).
 _BOX = {"talos": "examples/scenes/box_on_counter.json", "g1": "examples/scenes/box_on_low_table.json"}
 _KITCHEN = {"talos": "examples/scenes/kitchen.json", "g1": "examples/scenes/kitchen.json"}
+#: A cup and a box on a table placed for each robot's reach (benchmarks/scenes): the box's near face
+#: room for the hand in front of it (in the box scenes above it is 0.37 m / 0.16 m from the feet:
+#: the pushing hand's approach point was at Talos's chest, inside G1's), the cup for one hand.
+_TABLE = {"talos": "benchmarks/scenes/table_talos.json", "g1": "benchmarks/scenes/table_g1.json"}
+_STAIRS = {"talos": "examples/scenes/stairs.json", "g1": "examples/scenes/stairs.json"}
 #: action -> ((sentence, robot -> scene file), ...): the actions on scene objects.
 SCENE_SENTENCES: dict[str, tuple[tuple[str, dict[str, str]], ...]] = {
     "pick_up": (("pick up the red box with both hands", _BOX),),
     "put_down": (("pick up the red box with both hands, then put it down", _BOX),),
-    "push": (("push the red box gently", _BOX),),
+    "push": (("push the red box gently", _TABLE),),
+    "hand_over": (("pick up the cup and hand it to me", _TABLE),),
+    "step_up": (("walk up the stairs", _STAIRS),),
+    "step_down": (("walk down the stairs", _STAIRS),),
     "touch_object": (("touch the red box", _BOX),),
     "look_at": (("look at the cup", _KITCHEN),),
     "point_at": (("point at the cup", _KITCHEN),),
     "walk_to": (("walk to the table", _KITCHEN),),
 }
+
+
+#: action -> where its sentence starts (feet centre x, height, yaw), for a sentence that cannot start
+#: standing at the origin: on the top tread of examples/scenes/stairs.json, facing down (the place
+#: tests/sim/test_slope_walk.py starts from).
+STARTS: dict[str, tuple[float, float, float]] = {"step_down": (0.7695, 0.3, math.pi)}
+
+
+def start_state(robot, x: float, height: float, yaw: float):
+    """A ``StartState`` standing at rest with the feet centred on (x, 0) at ``height``, facing ``yaw``."""
+    import pinocchio as pin
+
+    from tasks.specs import StartState
+
+    q = np.array(robot.q_standing, dtype=float)
+    R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+    q[:2] = np.array([x, 0.0]) + R[:2, :2] @ q[:2]
+    q[2] += height
+    quat = pin.Quaternion(R @ pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix())
+    q[3:7] = [quat.x, quat.y, quat.z, quat.w]
+    return StartState(q=tuple(float(v) for v in q))
 
 
 @dataclass
@@ -312,6 +341,40 @@ def object_pushed(s: Sim) -> tuple[bool, str]:
     return moved >= 0.8 * want, f"{obj.name} moved {1000 * moved:.0f} mm of the asked {1000 * want:.0f} mm"
 
 
+def object_held_out(s: Sim) -> tuple[bool, str]:
+    """A hand-over: over the hold-out window the object's MuJoCo centre is at least 0.15 m above
+    where it stood, 0.25-0.7 m ahead of the feet's middle (simulated soles, Pinocchio) along the
+    way the robot faces, and still (within 2 cm of its median)."""
+    (g,) = [g for g in s.spec.grasps if g.offer is not None]
+    t = np.asarray(s.execution.t)
+    obj = np.asarray(s.execution.objects[g.object])
+    rows = (t >= g.offer_window[0]) & (t <= g.offer_window[1])
+    mid = np.median(obj[rows], axis=0)
+    q = s.execution.q[int(np.flatnonzero(rows)[0])]
+    feet = [_fk(s.robot, q[None], role)[0] for role in ("left_foot", "right_foot")]
+    centre = 0.5 * (feet[0][:3, 3] + feet[1][:3, 3])
+    forward = feet[0][:3, 0] + feet[1][:3, 0]
+    forward[2] = 0.0
+    ahead = float((mid - centre) @ (forward / np.linalg.norm(forward)))
+    up = float(mid[2] - obj[0, 2])
+    still = float(np.linalg.norm(obj[rows] - mid, axis=1).max())
+    ok = up >= 0.15 and 0.25 <= ahead <= 0.7 and still <= 0.02
+    return ok, f"{g.object} held out {ahead:.2f} m ahead, {up:.2f} m above where it stood, still within {1000 * still:.0f} mm"
+
+
+def soles_at_height(s: Sim) -> tuple[bool, str]:
+    """Up (down) stairs or a slope: both soles (simulated, Pinocchio) end within 1 cm of the height
+    of the top (the floor), computed from the scene's numbers."""
+    scene = s.spec.scene
+    top = (scene.stairs[0].rise * scene.stairs[0].count if scene.stairs
+           else scene.slopes[0].length * math.tan(scene.slopes[0].angle))
+    want = top if any(a.name == "step_up" for a in s.actions.actions) else 0.0
+    soles = [_fk(s.robot, s.execution.q[-1:], role)[0][2, 3] for role in ("left_foot", "right_foot")]
+    stand = _fk(s.robot, s.robot.q_standing[None], "left_foot")[0][2, 3]
+    off = max(abs(z - stand - want) for z in soles)
+    return off <= 0.01, f"soles end {1000 * off:.0f} mm from the {'top' if want else 'floor'} ({want:.2f} m)"
+
+
 def hand_at_object(s: Sim) -> tuple[bool, str]:
     """A hand's collision meshes (every link below its frame's joint) within 1 cm of the object's
     box (coal; the box where MuJoCo has it, a movable one's centre from the run) at some instant
@@ -451,7 +514,8 @@ INDEPENDENT: dict[str, Callable[[Sim], tuple[bool, str]]] = {
     "lunge": base_travel, "reach": hand_moves, "cross_arms": hands_crossed, "arm_circles": hand_moves,
     "shrug": hand_moves, "stretch": hand_moves, "walk_arc": base_arc, "jog": jog,
     "pick_up": object_lifted, "put_down": object_lifted, "push": object_pushed, "touch_object": hand_at_object,
-    "look_at": looks_at, "point_at": points_at, "walk_to": base_travel,
+    "look_at": looks_at, "point_at": points_at, "walk_to": base_travel, "hand_over": object_held_out,
+    "step_up": soles_at_height, "step_down": soles_at_height,
 }
 
 
@@ -503,7 +567,10 @@ def run_one(robot_name: str, action: str, sentence: str, scene: str | None = Non
         row["scene"] = Path(scene).name
     t0 = time.perf_counter()
     try:
-        robot, spec, actions = build_spec(SolveRequest(instruction=sentence, robot=robot_name,
+        from robots import load_robot
+
+        start = start_state(load_robot(robot_name), *STARTS[action]) if action in STARTS else None
+        robot, spec, actions = build_spec(SolveRequest(instruction=sentence, robot=robot_name, start=start,
                                                        scene_path=str(ROOT / scene) if scene else None))
     except (TaskError, LanguageError) as e:  # a refusal is a result: reported with its reason
         row.update(status="refused", reason=str(e).splitlines()[0])

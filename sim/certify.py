@@ -19,7 +19,7 @@ import pinocchio as pin
 from planner import Check, CheckKind
 from robots import body_part
 from sim.collisions import MeshDistance
-from sim.intent import intent_checks
+from sim.intent import ObjectPoses, intent_checks
 from sim.meshcheck import mesh_self_collision_check
 from sim.recording import RunRecord, tilt, torque_fraction
 from sim.seat import seat_checks
@@ -53,8 +53,9 @@ class Measured:
     target_rot: dict[int, np.ndarray]
 
 
-def certify(run: RunRecord) -> tuple[Check, ...]:
-    """Every check of the certificate, in its fixed order."""
+def certify(run: RunRecord, objects: ObjectPoses | None = None) -> tuple[Check, ...]:
+    """Every check of the certificate, in its fixed order (``objects``: the movable objects' poses
+    over the run, for the intent lines of actions on them)."""
     meas = measure(run)
     return (
         *fall_checks(run),
@@ -70,7 +71,7 @@ def certify(run: RunRecord) -> tuple[Check, ...]:
         self_collision_check(run),
         mesh_self_collision_check(run),
         scene_collision_check(run),
-        *intent_checks(run),
+        *intent_checks(run, objects),
     )
 
 

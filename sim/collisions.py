@@ -59,3 +59,29 @@ class MeshDistance:
                 dist = pin.computeDistance(self._gmodel, self._gdata, k).min_distance
                 best = min(best, max(float(dist), 0.0))
         return best
+
+    def to_shape(self, q: np.ndarray, links, shape, placement: pin.SE3) -> float:
+        """Smallest distance [m] from the meshes of ``links`` at ``q`` to a coal ``shape`` (a scene
+        object's box, cylinder or sphere) at world ``placement``; 0 when they intersect."""
+        import coal  # type: ignore[import-untyped]
+
+        self._place(q)
+        at = coal.Transform3s(placement.rotation, placement.translation)
+        best = np.inf
+        for link in links:
+            for i in self._by_link.get(link, ()):
+                M = self._gdata.oMg[i]
+                dist = coal.distance(self._gmodel.geometryObjects[i].geometry, coal.Transform3s(M.rotation, M.translation),
+                                     shape, at, coal.DistanceRequest(), coal.DistanceResult())
+                best = min(best, max(float(dist), 0.0))
+        return best
+
+
+def object_shape(shape: str, size) -> object:
+    """The coal shape of a scene object (box: sides; cylinder: radius, length along its z; sphere:
+    radius), None for a mesh."""
+    import coal
+
+    size = [float(v) for v in size]
+    return {"box": lambda: coal.Box(*size), "cylinder": lambda: coal.Cylinder(*size),
+            "sphere": lambda: coal.Sphere(*size)}.get(shape, lambda: None)()

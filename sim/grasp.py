@@ -216,6 +216,10 @@ class GraspRig:
         h.pinched = any(float(a @ b) <= PINCH_COSINE for i, a in enumerate(normals) for b in normals[i + 1:])
         return h.pinched or abs(float(d.qpos[gr.qpos]) - gr.closed_angle) <= CLOSED_MARGIN
 
+    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Movable object -> (centre positions (T', 3) [m], orientations (T', 4) as (x, y, z, w)) so far."""
+        return {name: (self.pos[: self.n, i], self.quat[: self.n, i]) for i, name in enumerate(self.names)}
+
     def tick(self, t: float, d: mujoco.MjData) -> None:
         """Close the grippers and engage or release the welds at time ``t`` [s], then record the objects."""
         if not self.held and not len(self.bodies):  # nothing to grasp or record (most runs): only the tick count

@@ -41,7 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner import Check, CheckKind
-from sim.collisions import MeshDistance
+from sim.collisions import MeshDistance, object_shape
 from sim.recording import RunRecord
 from tasks import Priority
 
@@ -66,6 +66,9 @@ MIN_TURN = 0.05
 #: [m] a step may always fall this much short (a landing's precision: G1's 3 cm forward hops land
 #: 7 mm short, 77 %; the placement line allows 2 cm).
 STEP_SLACK = 0.01
+#: [rad] a turn may always fall this much short (1.7 deg, which nobody watching sees: G1's hand
+#: turned 0.04 rad of a planned 0.06 rad as it let go of a box it put down).
+TURN_SLACK = 0.03
 #: [m] the hands' meshes this close meet (a clap).
 MEET_DISTANCE = 0.01
 #: [m] the saluting hand's meshes this close to the head's.
@@ -99,8 +102,15 @@ def label_of(name: str) -> Label | None:
     return Label(int(m["n"]), m["action"], m["what"]) if m else None
 
 
-def intent_checks(run: RunRecord) -> list[Check]:
-    """Every intent line of the run (see the module docstring), in the order of their actions."""
+#: Object -> (its centre's positions (T', 3) [m], its orientations (T', 4) as (x, y, z, w)) over the
+#: run's ticks (MuJoCo; the movable objects), as :class:`sim.grasp.GraspRig` records them.
+ObjectPoses = dict[str, tuple[np.ndarray, np.ndarray]]
+
+
+def intent_checks(run: RunRecord, objects: ObjectPoses | None = None) -> list[Check]:
+    """Every intent line of the run (see the module docstring), in the order of their actions.
+    ``objects``: where the movable scene objects were (a fixed one, or one not given, stays where
+    the scene puts it)."""
     if len(run.t) == 0:
         return []
     frames = _Frames(run)
@@ -110,6 +120,7 @@ def intent_checks(run: RunRecord) -> list[Check]:
     out += amplitude_checks(run, frames)
     out += step_checks(run, frames)
     out += word_checks(run, frames)
+    out += object_touch_checks(run, objects or {})
     return out
 
 
@@ -381,7 +392,8 @@ def amplitude_checks(run: RunRecord, frames: _Frames) -> list[Check]:
             if size >= MIN_ROTATION:
                 u = mean_plan / size
                 turned = np.array([pin.log3(sim_rot[k0].T @ r) @ u for r in sim_rot[mask]])
-                out.append(_ratio_line(lab, target.name, "turn", _achieved(turned, held), size, "rad", ts, mask))
+                out.append(_ratio_line(lab, target.name, "turn", _achieved(turned, held), size, "rad", ts, mask,
+                                       slack=TURN_SLACK))
         if target.position is not None:
             axes = np.array(target.axes, dtype=float)
             shift_plan = (track[0][mask] - track[0][k0]) * axes
@@ -406,13 +418,14 @@ def _worst_per_action(lines: list[Check]) -> list[Check]:
 
 
 def _ratio_line(lab: Label | None, name: str, what: str, achieved: float, planned: float, unit: str,
-                ts: np.ndarray, mask: np.ndarray) -> Check:
+                ts: np.ndarray, mask: np.ndarray, *, slack: float = 0.0) -> Check:
+    """``achieved`` at least :data:`AMPLITUDE_FRACTION` of ``planned``, or short of it by at most ``slack``."""
     frac = achieved / planned
     words = lab.what if lab is not None else name
     t_at = float(ts[np.flatnonzero(mask)[0]])
     fmt = ".3f" if unit == "m" else ".2f"
     return _line(CheckKind.INTENT_AMPLITUDE, lab, name, f"{words}: {what}", 100 * frac, 100 * AMPLITUDE_FRACTION,
-                 "%", frac >= AMPLITUDE_FRACTION, t_at,
+                 "%", frac >= AMPLITUDE_FRACTION or planned - achieved <= slack, t_at,
                  f"{words}: the {what} reached {achieved:{fmt}} {unit} of the planned {planned:{fmt}} {unit} "
                  f"({100 * frac:.0f} %) at t = {t_at:.2f} s")
 
@@ -597,6 +610,50 @@ def word_checks(run: RunRecord, frames: _Frames) -> list[Check]:
                          MEET_DISTANCE, "m", worst <= MEET_DISTANCE, t_worst,
                          f"the hands never met at t = {t_worst:.2f} s: their meshes stayed {worst:.3f} m apart "
                          f"(a clap closes to {MEET_DISTANCE:.2f} m)", upper=True))
+    return out
+
+
+#: [m] the hand's meshes this close to the object it touches (touch_object: coal, median over the hold).
+OBJECT_TOUCH_DISTANCE = 0.01
+
+
+def _object_placement(obj, poses: ObjectPoses, tick: int) -> pin.SE3:
+    """Where ``obj`` is at ``tick``: its recorded pose, else where the scene puts it."""
+    if obj.name in poses and len(poses[obj.name][0]):
+        pos, quat = poses[obj.name]
+        k = min(tick, len(pos) - 1)
+        x, y, z, w = (float(v) for v in quat[k])
+        return pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), np.asarray(pos[k], dtype=float))
+    return pin.SE3(pin.rpy.rpyToMatrix(*(float(v) for v in obj.rpy)), np.asarray(obj.position, dtype=float))
+
+
+def object_touch_checks(run: RunRecord, poses: ObjectPoses) -> list[Check]:
+    """touch_object: the touching hand's collision meshes (every link below its frame's joint) at
+    the object's box, cylinder or sphere (coal, where MuJoCo has the object), the median over the
+    held window within :data:`OBJECT_TOUCH_DISTANCE`."""
+    spec, ts = run.ref.plan.spec, run.t
+    scene = {o.name: o for o in spec.scene.objects} if spec.scene is not None else {}
+    mesh: MeshDistance | None = None
+    out: list[Check] = []
+    for target in spec.targets:
+        lab = label_of(target.name)
+        obj = scene.get(target.touch or "")
+        if lab is None or lab.action != "touch_object" or obj is None:
+            continue
+        shape = object_shape(obj.shape, obj.size)
+        mask, _ = _mask(ts, target.time, target.window, run.ref.duration)
+        if shape is None or not mask.any():
+            continue
+        mesh = mesh or MeshDistance(run.robot)
+        hand = _subtree_links(run, target.frame, mesh)
+        ticks = np.flatnonzero(mask)[:: max(1, int(np.count_nonzero(mask) // 8))]
+        gaps = [mesh.to_shape(run.q[n], hand, shape, _object_placement(obj, poses, int(n))) for n in ticks]
+        gap = float(np.median(gaps))
+        side = "left" if lab.what.startswith("left") else "right"
+        out.append(_line(CheckKind.INTENT_WORDS, lab, f"touch the {obj.name}", f"the {side} hand at the {obj.name}",
+                         gap, OBJECT_TOUCH_DISTANCE, "m", gap <= OBJECT_TOUCH_DISTANCE, float(ts[ticks[0]]),
+                         f"the {side} hand stayed {gap:.3f} m from the {obj.name} (a touch comes within "
+                         f"{OBJECT_TOUCH_DISTANCE:.2f} m)", upper=True))
     return out
 
 

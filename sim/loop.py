@@ -107,7 +107,7 @@ def simulate(
                         if h.sunk else ""))
                for h in rig.held if h.engaged_at is not None]
     events.sort(key=lambda e: e.time)
-    checks = certify(run) + tuple(rig.checks())
+    checks = certify(run, rig.poses()) + tuple(rig.checks())
     if stop is not None:
         checks += (_estop_check(stop),)
     certificate = _with_plan_zmp(Certificate.from_checks(checks), events, robot, plan)

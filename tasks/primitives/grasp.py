@@ -31,7 +31,7 @@ import pinocchio as pin
 from robots import Robot
 from tasks.exceptions import TaskDefinitionError
 from tasks.grounding import Grounded
-from tasks.primitives.arms import POSE_TOLERANCE, reach_gap
+from tasks.primitives.arms import POSE_TOLERANCE, UPPER_ARM_OUT, hold_upper_arms, reach_gap
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
 from tasks.primitives.bodymap import body_map, to_heading, to_standing
 from tasks.primitives.geometry import Stance, standing_geometry
@@ -351,6 +351,8 @@ def _build_both(b: FragmentBuilder, g: Grounded) -> Fragment:
     b.phase(f"press the {name}", t_close)
     b.phase(f"lift the {name}", t_lift)
     b.phase(f"hold the {name}", DURATION)
+    # G1's upper arms pressed into the torso's meshes holding the box (plan 19 knots, sim up to 39)
+    hold_upper_arms(b, DURATION, ("left", "right"), out=UPPER_ARM_OUT)
     return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 
@@ -646,6 +648,7 @@ def _put_down_both(b: FragmentBuilder, g: Grounded) -> Fragment:
     b.phase(f"lower the {name}", LOWER_TIME)
     b.phase(f"let go of the {name}", let_go)
     b.phase(f"retreat from the {name}", PUT_DURATION_BOTH)
+    hold_upper_arms(b, PUT_DURATION_BOTH, ("left", "right"), out=UPPER_ARM_OUT)  # as when picking it up (G1)
     return b.finish(frozenset({"left_arm", "right_arm", "torso"}))
 
 

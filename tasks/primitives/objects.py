@@ -36,6 +36,7 @@ import functools
 import math
 from dataclasses import dataclass
 
+import coal  # type: ignore[import-untyped]
 import numpy as np
 import pinocchio as pin
 
@@ -53,7 +54,17 @@ from tasks.primitives.arms import (
     shoulder,
 )
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive, rest_targets
-from tasks.primitives.bodymap import body_map, to_heading, to_standing
+from tasks.primitives.bodymap import (
+    ARM_IK_TOLERANCE,
+    CLEARANCE,
+    PLANNER_MARGIN,
+    arm_configuration,
+    body_map,
+    reach_error,
+    sphere_clearance,
+    to_heading,
+    to_standing,
+)
 from tasks.primitives.geometry import Stance, neck_range, require_role, standing_geometry
 from tasks.primitives.posture import HOLD_END_FRACTION, OUT_FRACTION, head_turn_axis
 from tasks.primitives.route import clearance_radius, plan_route, segment_clear
@@ -70,7 +81,12 @@ END_TOLERANCE = 0.02  # [m] CoM over the final feet
 LOOK_TOLERANCE = 0.05  # [rad] head orientation
 POINT_CLEARANCE = 0.1  # [m] pointing hand to any object
 POINT_MIN = 0.5  # [L] a hand closer than this fraction of the arm to the shoulder is no pointing
-TOUCH_DEPTH = 0.02  # [m] the hand's meshes (standing orientation) this far into the touched surface
+TOUCH_DEPTH = 0.0  # [m] the hand target this far past where the posed hand's meshes reach the surface (3 mm moved Talos's red box 2.8 cm planned at dt 0.1 s; 1 cm pushed it 8.7 cm)
+TOUCH_GAP_TOLERANCE = 0.001  # [m] the posed hand's meshes within this of the surface: they reach it
+TOUCH_ROUNDS = 20  # moves along the approach line when placing the posed hand at the surface
+TOUCH_SEARCH = 0.15  # [m] the posed hand moves at most this far along the line from its first estimate
+TOUCH_STEP = 0.03  # [m] a touched point too close to the body: the nearest to a point this much further ahead
+TOUCH_CANDIDATES = 6
 TOUCH_TOLERANCE = 0.005  # [m] hand frame to its touch target
 BEHIND = math.radians(100)  # an object farther than this from the heading cannot be pointed or looked at
 
@@ -500,13 +516,28 @@ def touching_hand(params: dict, robot: Robot, stance: Stance | None = None) -> s
 
 
 def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_touch_target`, computed once per robot, stance, object and hand (the pre-check and the build ask)."""
+    point, hand = _touch_target(robot, stance, obj, side)
+    return np.array(point), np.array(hand)
+
+
+@functools.cache
+def _touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """(point touched on the object's surface, hand frame target) in the world [m]: the surface point
-    nearest to the shoulder, the hand frame back from it along the shoulder-to-point line by the
-    hand's extent in front of its frame less :data:`TOUCH_DEPTH` (the hand's box just into the surface).
+    nearest to the shoulder; the hand frame on the shoulder-to-point line where, with the arm posed
+    there (:func:`tasks.primitives.bodymap.arm_configuration`, the posture the planner's warm start
+    takes), the hand's collision meshes reach the object's surface (coal), then :data:`TOUCH_DEPTH`
+    further in. When the posed arm's spheres come closer to the body than the planner keeps them
+    (``bodymap.CLEARANCE``: G1's wrist 3 cm into its torso at a box 0.16 m from its chest), the
+    surface point nearest to the point above it (level with the shoulder) :data:`TOUCH_STEP` further
+    ahead is tried, up to :data:`TOUCH_CANDIDATES` times. When the arm alone does not reach there (a touch that bends at
+    the hips), the hand frame is back from the point by the hand's extent in front of its frame
+    (standing orientation) less :data:`TOUCH_DEPTH`.
 
     Raises:
         TaskDefinitionError: the point is beyond the hand's reach even bending at the hips (walk to
-            the object first), or the object is a mesh.
+            the object first), the arm touches it only through the body (step back), or the object
+            is a mesh.
     """
     T = stance.transform_from_standing(robot)
     H = stance.heading()
@@ -519,7 +550,91 @@ def touch_target(robot: Robot, stance: Stance, obj: SceneObject, side: str) -> t
             f'stands: walk to it first ("walk to the {obj.name} and touch it")')
     u = (surface - sh) / np.linalg.norm(surface - sh)
     front = hand_front(robot, side, H.rotation.T @ u)
-    return surface, surface - (front - TOUCH_DEPTH) * u
+    M = T.inverse() * pin.SE3(np.array(rotation(obj.rpy)), np.asarray(obj.position, dtype=float))
+    closest = -math.inf
+    fwd = H.rotation[:, 0]
+    ahead = max(0.0, float(fwd @ (surface - sh)))
+    for k in range(TOUCH_CANDIDATES):
+        ref = sh + (ahead + k * TOUCH_STEP) * fwd if k else sh
+        if k and (signed_distance(obj, ref) or 0.0) <= 0.0:
+            break
+        point = nearest_surface_point(obj, ref)
+        way = (point - sh) / np.linalg.norm(point - sh)
+        posed = _posed_touch(robot, side, _key(to_heading(robot, T.actInv(point - front * way))),
+                             _key(to_heading_axis(robot, T, way)), _shape_key(obj), _key(M.rotation.ravel()),
+                             _key(M.translation))
+        if posed is None:
+            break
+        hand = np.asarray(posed) + TOUCH_DEPTH * to_heading_axis(robot, T, way)
+        clear = sphere_clearance(robot, arm_configuration(robot, {side: hand}, natural=True), side, other_arm=False)[0]
+        if clear >= CLEARANCE:
+            return _key(point), _key(T.act(to_standing(robot, hand)))
+        closest = max(closest, clear)
+    if math.isfinite(closest):
+        raise TaskDefinitionError(
+            f"touch_object: the {obj.name} is too close to the body for the {side} hand to touch it: the arm "
+            f"would come {PLANNER_MARGIN - closest:.2f} m nearer to the body than the planner lets it; step back first")
+    return _key(surface), _key(surface - (front - TOUCH_DEPTH) * u)
+
+
+def to_heading_axis(robot: Robot, T: pin.SE3, u: np.ndarray) -> np.ndarray:
+    """A world direction (3,) as a heading-frame direction of the standing robot ``T`` carries to the stance."""
+    return np.asarray(standing_geometry(robot).heading.rotation.T @ (T.rotation.T @ u), dtype=float)
+
+
+def _key(x) -> tuple[float, ...]:
+    return tuple(round(float(v), 9) for v in np.asarray(x, dtype=float).ravel())
+
+
+def _shape_key(obj: SceneObject) -> tuple:
+    if obj.shape not in ("box", "cylinder", "sphere"):
+        raise TaskDefinitionError(f"touch_object: the {obj.name} is a mesh; wbmp touches boxes, cylinders and spheres")
+    return (obj.shape, *(float(v) for v in obj.size))
+
+
+def object_shape(key: tuple) -> coal.ShapeBase:
+    """The coal shape of a scene object's ``(shape, *size)`` (box sides; cylinder radius, length along z; sphere radius)."""
+    kind, *size = key
+    return {"box": lambda: coal.Box(*size), "cylinder": lambda: coal.Cylinder(*size),
+            "sphere": lambda: coal.Sphere(*size)}[kind]()
+
+
+def posed_object_gap(robot: Robot, side: str, q: np.ndarray, shape: coal.ShapeBase, placement: pin.SE3) -> float:
+    """Smallest coal distance [m] from the ``side`` hand's collision meshes at configuration ``q``
+    (standing world) to ``shape`` at ``placement`` (standing world); <= 0 when they touch."""
+    cm = robot.collision_model
+    data, gdata = robot.data(), pin.GeometryData(cm)
+    pin.framesForwardKinematics(robot.model, data, q)
+    pin.updateGeometryPlacements(robot.model, data, cm, gdata, q)
+    at = coal.Transform3s(placement.rotation, placement.translation)
+    return float(min(coal.distance(cm.geometryObjects[i].geometry, coal.Transform3s(gdata.oMg[i].rotation,
+                                   gdata.oMg[i].translation), shape, at, coal.DistanceRequest(), coal.DistanceResult())
+                     for i in body_map(robot).hand_geometries[side]))
+
+
+@functools.cache
+def _posed_touch(robot: Robot, side: str, first: tuple, u: tuple, shape: tuple, rot: tuple,
+                 pos: tuple) -> tuple[float, ...] | None:
+    """The heading-frame hand point on the line ``first + s u`` where the posed hand's meshes reach
+    the object (within :data:`TOUCH_GAP_TOLERANCE`, from outside), or None when the arm alone does
+    not bring the hand there (within ``TOUCH_SEARCH``)."""
+    p0, u_ = np.array(first), np.array(u)
+    placement = pin.SE3(np.array(rot).reshape(3, 3), np.array(pos))
+    geometry = object_shape(shape)
+    s, outside = 0.0, None
+    for _ in range(TOUCH_ROUNDS):
+        p = p0 + s * u_
+        q = arm_configuration(robot, {side: p}, natural=True)
+        if reach_error(robot, q, side, p) > ARM_IK_TOLERANCE or abs(s) > TOUCH_SEARCH:
+            return None
+        d = posed_object_gap(robot, side, q, geometry, placement)
+        if 0.0 < d <= TOUCH_GAP_TOLERANCE:
+            return tuple(float(x) for x in p)
+        if d > 0.0:  # outside: on by the distance (the meshes move about as far as the hand frame)
+            outside, s = s, s + d
+        else:  # in it: halfway back to the last point outside (or 2 cm back)
+            s = 0.5 * (outside + s) if outside is not None else s - 0.02
+    return None
 
 
 @functools.cache

@@ -35,6 +35,7 @@ import numpy as np
 from robots import Robot, sole_corners
 from tasks.exceptions import BeyondCapability, TaskDefinitionError
 from tasks.grounding import Grounded
+from tasks.primitives.arms import UPPER_ARM_OUT, hold_upper_arms
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.gait import (
     OTHER,
@@ -368,6 +369,8 @@ def _build(b: FragmentBuilder, down: bool = False) -> Fragment:
     home = b.end_stance.transform_from_standing(b.robot).act(standing_geometry(b.robot).com)
     b.com_target(f"CoM over the feet on the last {'step' if down else 'tread'}", (float(home[0]), float(home[1]), None),
                  time=tau(b, bounds[-1]), tolerance=END_TOLERANCE)
+    # as in walks: G1's left upper arm went into the torso's meshes climbing the stairs (16 samples)
+    hold_upper_arms(b, b.nominal, ("left", "right"), out=UPPER_ARM_OUT)
     return b.finish(PARTS, dynamic=True)
 
 

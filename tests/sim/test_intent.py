@@ -24,9 +24,9 @@ def _record(plan, robot, monkeypatch):
     seen = {}
     certify = loop.certify
 
-    def keep(run):
+    def keep(run, objects=None):
         seen["run"] = run
-        return certify(run)
+        return certify(run, objects)
 
     monkeypatch.setattr(loop, "certify", keep)
     ex = simulate(plan, robot, settings=SimSettings(settle_time=0.2))
@@ -309,3 +309,19 @@ def test_the_head_a_hand_touches_is_its_own_link_on_the_torso(talos, g1):
         assert set(links) == want, robot.name
     hand = _subtree_links(SimpleNamespace(robot=g1), g1.frame("right_hand"), MeshDistance(g1))
     assert hand == ["right_wrist_yaw_link"]
+
+
+def test_a_turn_short_by_less_than_the_slack_passes_and_a_larger_miss_fails():
+    """The turn line: at least AMPLITUDE_FRACTION of the planned turn, or short of it by at most
+    TURN_SLACK (G1's hand turned 0.04 rad of 0.06 rad letting go of a box: 65 %, 1.1 deg short, a
+    failed put-down); a bow that turned 0.30 rad of 0.50 rad (60 %, 11 deg short) still fails."""
+    from sim.intent import TURN_SLACK, _ratio_line
+
+    ts = np.linspace(0.0, 1.0, 11)
+    mask = ts >= 0.5
+    small = _ratio_line(label_of("2 put_down: right hand off the red box"), "t", "turn", 0.04, 0.06, "rad", ts, mask,
+                        slack=TURN_SLACK)
+    assert small.ok and small.value == pytest.approx(100 * 0.04 / 0.06)
+    bow = _ratio_line(label_of("1 bow: torso bowed"), "t", "turn", 0.30, 0.50, "rad", ts, mask, slack=TURN_SLACK)
+    assert not bow.ok and bow.message.startswith("bow (action 1): torso bowed: the turn reached 0.30 rad of the planned 0.50 rad (60 %)")
+    assert 0.01 < TURN_SLACK < 0.2 * 0.5  # below a fifth of a bow's turn: it only matters for small turns

@@ -26,9 +26,9 @@ def standing_run(talos):
     seen = {}
     certify = loop.certify
 
-    def keep(run):
+    def keep(run, objects=None):
         seen["run"] = run
-        return certify(run)
+        return certify(run, objects)
 
     loop.certify = keep
     try:

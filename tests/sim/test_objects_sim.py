@@ -4,6 +4,8 @@ clear, and the touching hand really touches the box (MuJoCo contacts) while noth
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -65,3 +67,42 @@ def test_talos_touches_the_box_certified_in_mujoco():
     assert cert.ok, cert.reason
     (scene_check,) = [c for c in cert.checks if c.kind == CheckKind.SCENE_COLLISION]
     assert "planned touch" in scene_check.name and "'box'" in scene_check.name, scene_check.name
+
+
+@pytest.mark.long  # minutes on 2 cores (a plan and its run); fast twins: tests/sim/test_touch_intent.py (the
+# certificate's line on made-up configurations) and tests/tasks/test_touch_object.py (the posed hand reaches the box)
+def test_talos_touches_the_red_box_on_the_counter():
+    """"touch the red box" (examples/scenes/box_on_counter.json; issue 37: certified while the hand's
+    meshes stopped 47 mm short of the box). Now certified with its touch_object line, and
+    independently: the left hand's meshes (every link below the hand frame's joint) within 1 cm
+    of the box over the held window (coal, the box where MuJoCo has it; median), and the box moved
+    less than 1 cm (a touch, not a push)."""
+    import coal
+    import pinocchio as pin
+
+    from tasks.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_counter.json")
+    # at the default knot spacing (0.075 s, as wbmp solve and bench_intent plan it); at 0.1 s the hand
+    # moved the box 2.2 cm between knots (the certificate's "objects not held" line failed)
+    robot, spec, _, ex = _run("touch the red box", "talos", scene, dt=0.075)
+    assert ex.certificate.ok, ex.certificate.reason
+    (line,) = [c for c in ex.certificate.checks if c.name.startswith("intent: touch object")]
+    (target,) = [t for t in spec.targets if t.touch == "red box"]
+    box = scene.get("red box")
+    model, gm = robot.model, robot.collision_model
+    sub = set(model.subtrees[model.frames[robot.frame_id(target.frame)].parentJoint])
+    geoms = [i for i, o in enumerate(gm.geometryObjects) if o.parentJoint in sub]
+    data, gd = model.createData(), pin.GeometryData(gm)
+    t, where = np.asarray(ex.t), np.asarray(ex.objects["red box"])
+    rows = np.flatnonzero((t >= target.window[0]) & (t <= target.window[1]))[::25]
+    gaps = []
+    for n in rows:
+        pin.updateGeometryPlacements(model, data, gm, gd, ex.q[n])
+        at = coal.Transform3s(np.eye(3), where[n])
+        gaps.append(min(max(0.0, coal.distance(gm.geometryObjects[i].geometry,
+                                               coal.Transform3s(gd.oMg[i].rotation, gd.oMg[i].translation),
+                                               coal.Box(*box.size), at, coal.DistanceRequest(), coal.DistanceResult()))
+                        for i in geoms))
+    assert float(np.median(gaps)) <= 0.01 and line.ok
+    assert np.linalg.norm(where[-1] - np.asarray(box.position)) < 0.01

@@ -784,6 +784,21 @@ def test_every_walking_action_holds_the_upper_arms_out(robot_name, request):
         spec = compile_actions([Action(name=name, params=params)], robot)
         held = {t.joint: t.value for t in spec.joint_targets if "upper arm out of the torso" in t.name}
         assert held == pytest.approx(want), name
+    if robot_name == "g1":  # up the stairs too (G1's left upper arm grazed the torso's meshes, 16 samples)
+        from pathlib import Path
+
+        from tasks.scene import load_scene
+
+        stairs = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "stairs.json")
+        spec = compile_actions([Action(name="step_up", params={"object": "the stairs"})], robot, scene=stairs)
+        held = {t.joint: t.value for t in spec.joint_targets if "upper arm out of the torso" in t.name}
+        assert held == pytest.approx(want), "step_up"
+        # and holding a box with both hands (G1's upper arms pressed into the torso's meshes: plan 19 knots)
+        box = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_low_table.json")
+        spec = compile_actions([Action(name="pick_up", params={"object": "the red box", "arm": "both"})], robot,
+                               scene=box)
+        held = {t.joint: t.value for t in spec.joint_targets if "upper arm out of the torso" in t.name}
+        assert held == pytest.approx(want), "pick_up with both hands"
 
 
 def _roll_joint(robot, side):

@@ -5,6 +5,7 @@ and the refusals."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -16,7 +17,8 @@ from language import parse
 from robots import load_robot
 from tasks.compose import compile_actions
 from tasks.exceptions import TaskDefinitionError
-from tasks.primitives.objects import TOUCH_DEPTH, hand_front
+from tasks.primitives.bodymap import arm_configuration, to_heading
+from tasks.primitives.objects import TOUCH_DEPTH
 from tasks.scene import Scene, SceneObject, load_scene, signed_distance
 from tasks.serialize import spec_from_json, spec_to_json
 from tasks.specs import FrameTarget, Phase, TaskSpec
@@ -67,10 +69,28 @@ def test_the_hand_goes_to_the_boxs_surface_point_nearest_to_the_shoulder(talos, 
     to_near, to_hand = near - sh, hand - sh
     cos = float(to_near @ to_hand) / (np.linalg.norm(to_near) * np.linalg.norm(to_hand))
     assert math.acos(min(1.0, cos)) < 0.02
-    front = hand_front(talos, side, to_near / np.linalg.norm(to_near))  # standing: heading = world axes
-    d = signed_distance(BOX, hand)
-    assert d == pytest.approx(front - TOUCH_DEPTH, abs=0.005), (d, front)
     assert np.linalg.norm(hand - near) < np.linalg.norm(sh - near)
+    u = to_near / np.linalg.norm(to_near)
+    assert _posed_gap(talos, side, hand) <= 0.001
+    assert _posed_gap(talos, side, hand - (TOUCH_DEPTH + 0.01) * u) > 0.002
+
+
+def _posed_gap(robot, side, point, obj=BOX) -> float:
+    """Coal distance between the box ``obj`` and the hand's meshes (every link below the hand
+    frame's joint) with the arm posed at world ``point`` (the robot stands at the origin)."""
+    import coal
+
+    model, gm = robot.model, robot.collision_model.copy()
+    box = gm.addGeometryObject(pin.GeometryObject("box", 0, 0, pin.SE3(np.eye(3), np.asarray(obj.position)),
+                                                  coal.Box(*obj.size)))
+    sub = set(model.subtrees[model.frames[robot.frame_id(f"{side}_hand")].parentJoint])
+    for i, o in enumerate(gm.geometryObjects):
+        if o.parentJoint in sub:
+            gm.addCollisionPair(pin.CollisionPair(i, box))
+    q = arm_configuration(robot, {side: to_heading(robot, point)}, natural=True)
+    gd = gm.createData()
+    pin.computeDistances(model, model.createData(), gm, gd, q)
+    return min(r.min_distance for r in gd.distanceResults)
 
 
 def test_walk_to_the_red_box_and_touch_it(talos):
@@ -125,3 +145,30 @@ def test_the_planner_leaves_out_only_the_touching_hand_and_box_in_the_window(tal
     knots, sph, _ = np.nonzero(out)
     assert set(sph.tolist()) == spheres
     assert min(knots) == max(0, min(ks) - CONTACT_PADDING) and max(knots) == min(lay.N, max(ks) + CONTACT_PADDING)
+
+
+def test_a_box_against_the_chest_is_touched_farther_out_or_refused(g1):
+    """G1 and the low table's box (examples/scenes/box_on_low_table.json, its near edge 0.16 m
+    ahead): posed at the box's point nearest to the shoulder, the wrist's spheres are 3 cm into
+    the torso's, which the planner cannot plan (MAX_ITERATIONS). The touched point moves ahead on
+    the box's top until the posed arm clears the body by bodymap.CLEARANCE in the planner's sphere
+    model; the posed hand's meshes still reach the box (coal). A box whose every point is that close
+    (against the chest) is refused, naming the object and "step back first"."""
+    from tasks.primitives.bodymap import CLEARANCE, sphere_clearance
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "examples" / "scenes" / "box_on_low_table.json")
+    box = scene.get("red box")
+    spec = compile_actions(parse("touch the red box").actions, g1, scene=scene)
+    target = _touch(spec)
+    side = "right" if target.frame == g1.frame("right_hand") else "left"
+    q = arm_configuration(g1, {side: to_heading(g1, np.asarray(target.position))}, natural=True)
+    assert sphere_clearance(g1, q, side, other_arm=False)[0] >= CLEARANCE - 1e-6
+    assert target.position[0] > box.position[0] - 0.5 * box.size[0] + 0.05  # not at the near edge
+    assert _posed_gap(g1, side, np.asarray(target.position), box) <= 0.001
+    close = SceneObject(name="red box", shape="box", size=(0.16, 0.16, 0.12), position=(0.16, 0.0, 0.76), movable=True,
+                         mass=0.4)
+    table = scene.get("table")
+    near = dataclasses.replace(table, position=(0.33, 0.0, 0.35))
+    with pytest.raises(TaskDefinitionError, match=r"touch_object: the red box is too close to the body for the \w+ "
+                                                  r"hand to touch it: .* step back first"):
+        compile_actions(parse("touch the red box").actions, g1, scene=Scene(name="close", objects=(near, close)))
