@@ -369,8 +369,11 @@ def _build(b: FragmentBuilder, down: bool = False) -> Fragment:
     home = b.end_stance.transform_from_standing(b.robot).act(standing_geometry(b.robot).com)
     b.com_target(f"CoM over the feet on the last {'step' if down else 'tread'}", (float(home[0]), float(home[1]), None),
                  time=tau(b, bounds[-1]), tolerance=END_TOLERANCE)
-    # as in walks: G1's left upper arm went into the torso's meshes climbing the stairs (16 samples)
-    hold_upper_arms(b, b.nominal, ("left", "right"), out=UPPER_ARM_OUT)
+    # as in walks: G1's left upper arm went into the torso's meshes climbing the stairs (16 samples).
+    # Not on a height map: with the shoulders held out, talos's ramp walk (examples/scenes/
+    # heightmap.json) landed its last right step 32 mm off its placement (the certificate's 20 mm)
+    if not any(o.shape == "heightfield" for o in grounded(b.params, "step_down" if down else "step_up").scene.objects):
+        hold_upper_arms(b, b.nominal, ("left", "right"), out=UPPER_ARM_OUT)
     return b.finish(PARTS, dynamic=True)
 
 
