@@ -451,8 +451,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             runs.append((a, b, pose))
         stance_pose[side] = runs
     stance_pose = _placements_apart(stance_pose, ref.heading[frames], robot)
-    # the lead-out stands each foot where it last was; a foot in the air at the end lands beside the
-    # other one as at standing (or, in a flight, where the source's is)
+    # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
     last: dict[str, Pose] = {}
     for side in SIDES:
         if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
