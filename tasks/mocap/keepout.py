@@ -27,6 +27,11 @@ SIDES = ("left", "right")
 HAND_KEEP_OUT = ("pelvis", "left hip", "right hip", "left thigh", "right thigh")
 HAND_CLEARANCE = 0.04  # [m] beyond the body's capsule and the hand's own radius
 FOOT_GAP = 0.85  # [-] of the standing lateral distance between the soles: the least kept
+#: [-] The knees lie about halfway between the hips and the feet, so a lunge's knees are about half as
+#: far apart as its feet: the feet are kept apart sideways while its knees are near (the feet within
+#: KNEE_REACH x a sole's length), not only while the feet are (g1's punch: its stepping lunges
+#: crossed the legs above the feet, a thigh through the other shin).
+KNEE_REACH = 2.0
 
 
 def body_capsules(robot: Robot, parts: tuple[str, ...] = HAND_KEEP_OUT) -> list[tuple[np.ndarray, np.ndarray, float]]:
@@ -115,13 +120,14 @@ def keep_feet_apart(soles: dict[str, np.ndarray], contact: dict[str, np.ndarray]
                     robot: Robot) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The sole targets (side -> (F, 3)) moved apart sideways to at least :data:`FOOT_GAP` x the
     robot's standing gap, sideways in the feet's own frame (``yaw`` (F,): :func:`feet_yaw`), where
-    they are less than a sole's length (or the standing gap, if longer) apart, fading to no
-    requirement at twice that (feet that far apart cannot meet, whichever side each is on: a
-    lunge's); and side -> how far
+    they are less than :data:`KNEE_REACH` x a sole's length (or the standing gap, if longer) apart
+    (where the knees, about halfway down the legs, are that near), fading to no requirement at
+    twice that (legs that far apart cannot meet, whichever side each foot is on: a long lunge's);
+    and side -> how far
     each frame's sole was moved (F,) [m]. ``contact``: side -> labelled contact per frame (F,); the
     swinging foot is moved, both half each when both are down or both up."""
     sole = robot.profile.sole
-    length = max(float(sole.x_max - sole.x_min), standing_gap(robot))
+    length = KNEE_REACH * max(float(sole.x_max - sole.x_min), standing_gap(robot))
     least = FOOT_GAP * standing_gap(robot)
     left, right = np.asarray(soles["left"], dtype=float), np.asarray(soles["right"], dtype=float)
     yaw = np.asarray(yaw, dtype=float)

@@ -251,8 +251,12 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         sole[:, 2] = np.maximum(sole[:, 2], 0.0)
         soles[side] = sole
     if KEEP_OUT:  # the feet at least FOOT_GAP of the robot's standing gap apart (tasks.mocap.keepout)
-        soles, moved = keep_feet_apart(soles, contact, feet_yaw(motion), robot)
-        kept_out.update({f"{side}_foot": moved[side] for side in SIDES})
+        # in the feet's own frame, then in the hips' (the legs hang from the hips: a boxer's stance,
+        # feet turned from the pelvis, has them apart in their own frame but in line under the hips)
+        before = {side: soles[side].copy() for side in SIDES}
+        soles, _ = keep_feet_apart(soles, contact, feet_yaw(motion), robot)
+        soles, _ = keep_feet_apart(soles, contact, heading, robot)
+        kept_out.update({f"{side}_foot": np.linalg.norm(soles[side] - before[side], axis=1) for side in SIDES})
     for side in SIDES:
         sole = soles[side]
         points[f"{side}_foot"] = sole
@@ -373,6 +377,31 @@ def stride_scale(P: dict[str, np.ndarray], labels: dict[str, np.ndarray], robot:
     return 1.0 if longest <= limit else limit / longest
 
 
+def _placements_apart(stance_pose: dict[str, list[tuple[int, int, Pose]]], heading: np.ndarray,
+                      robot: Robot) -> dict[str, list[tuple[int, int, Pose]]]:
+    """The stance placements (side -> runs (first knot, end knot, pose)) kept apart as the source's
+    feet are (:func:`keepout.keep_feet_apart`, in the hips' frame: ``heading`` per knot), each
+    against the other foot's stances it overlaps that began no later: a placement is the median of a
+    stance over which a boxer's foot pivots (CMU 135_09: 0.14 m), so two placements can be in line
+    under the hips though the source's feet never were at once. The foot placed later moves."""
+    out = {side: list(runs) for side, runs in stance_pose.items()}
+    for i, side in enumerate(SIDES):
+        other = SIDES[1 - i]
+        for j, (a, b, pose) in enumerate(out[side]):
+            for oa, ob, opose in out[other]:
+                if a == 0 or oa > a or ob <= a:
+                    continue  # the standing one, or no overlap, or the other foot placed later
+                mine = np.array([pose.position])
+                soles = {side: mine, other: np.array([opose.position])}
+                contact = {side: np.array([False]), other: np.array([True])}
+                kept, _ = keep_feet_apart(soles, contact, np.array([float(np.median(heading[a:min(b, ob)]))]), robot)
+                if np.any(kept[side] != mine):
+                    x, y, z = (float(v) for v in kept[side][0])
+                    pose = dataclasses.replace(pose, position=(x, y, z))
+                    out[side][j] = (a, b, pose)
+    return out
+
+
 def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: float) -> float:
     yaw = motion.foot_yaw(side)
     return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
@@ -421,8 +450,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                             rpy=(0.0, 0.0, _foot_yaw_at(motion, side, fa, fb, stand_yaw[side])))
             runs.append((a, b, pose))
         stance_pose[side] = runs
-    # the lead-out stands each foot where it last was; a foot in the air at the end lands beside the
-    # other one as at standing (or, in a flight, where the source's is)
+    stance_pose = _placements_apart(stance_pose, ref.heading[frames], robot)
+    # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
     last: dict[str, Pose] = {}
     for side in SIDES:
         if stance_pose[side] and stance_pose[side][-1][1] == n + 1:

@@ -13,6 +13,8 @@ import pytest
 from robots import body_part, collision_model, load_robot
 from tasks.mocap import keepout
 
+#: The hip pitch and knee joints ({} the side).
+KNEE_JOINTS = {"talos": ("leg_{}_3_joint", "leg_{}_4_joint"), "g1": ("{}_hip_pitch_joint", "{}_knee_joint")}
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "motions"
 
 
@@ -91,14 +93,40 @@ def test_feet_that_would_meet_are_moved_apart_until_their_meshes_clear(robot):
 
 
 def test_feet_far_apart_lengthwise_are_not_pushed_apart(robot):
-    """A lunge: one foot two soles' lengths (or standing gaps) ahead of the other, on the same line:
-    not moved."""
+    """A long lunge: one foot 2 x KNEE_REACH soles' lengths (or standing gaps) ahead of the other, on
+    the same line: not moved."""
     sole = robot.profile.sole
-    ahead = 2.0 * max(sole.x_max - sole.x_min, keepout.standing_gap(robot))
+    ahead = 2.0 * keepout.KNEE_REACH * max(sole.x_max - sole.x_min, keepout.standing_gap(robot))
     soles = {"left": np.array([[ahead, 0.0, 0.0]]), "right": np.array([[0.0, 0.0, 0.0]])}
     contact = {"left": np.array([True]), "right": np.array([True])}
     _, moved = keepout.keep_feet_apart(soles, contact, np.zeros(1), robot)
     assert moved["left"][0] == 0.0 and moved["right"][0] == 0.0
+
+
+def test_a_lunge_whose_knees_would_meet_is_pushed_apart(robot):
+    """The knees lie about halfway between the hips and the soles (Pinocchio FK at standing: the
+    premise of KNEE_REACH; 1 would fail), so a lunge with one foot 0.9 x KNEE_REACH soles' lengths ahead of the
+    other, the two on one line, has its knees within a sole's length: the feet are moved apart
+    sideways to FOOT_GAP x the standing gap, the swinging foot alone; in the hips' frame (yaw 90 deg:
+    the lunge along the world's y axis) too."""
+    model, data, _, _ = _standing(robot)
+    for side in ("left", "right"):
+        names = KNEE_JOINTS[robot.name]
+        z = {k: data.oMi[model.getJointId(n.format(side))].translation[2] for k, n in zip(("hip", "knee"), names)}
+        sole_z = data.oMf[robot.frame_id(robot.frame(f"{side}_foot"))].translation[2]
+        f = (z["knee"] - sole_z) / (z["hip"] - sole_z)  # the knee's height up the leg
+        # the hips over each other, the knees are (1 - f) as far apart as the feet: KNEE_REACH ~ 1 / (1 - f)
+        assert 0.7 < keepout.KNEE_REACH * (1.0 - f) < 1.3, f
+    sole = robot.profile.sole
+    ahead = 0.9 * keepout.KNEE_REACH * max(sole.x_max - sole.x_min, keepout.standing_gap(robot))
+    least = keepout.FOOT_GAP * keepout.standing_gap(robot)
+    for yaw in (0.0, np.pi / 2):
+        fwd, left_axis = np.array([np.cos(yaw), np.sin(yaw), 0.0]), np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        soles = {"left": (ahead * fwd)[None], "right": np.zeros((1, 3))}
+        contact = {"left": np.array([False]), "right": np.array([True])}
+        out, moved = keepout.keep_feet_apart(soles, contact, np.array([yaw]), robot)
+        assert (out["left"][0] - out["right"][0]) @ left_axis == pytest.approx(least, abs=1e-9)
+        assert moved["right"][0] == 0.0 and moved["left"][0] == pytest.approx(least, abs=1e-9)
 
 
 def test_a_hand_inside_the_pelvis_or_a_thigh_is_moved_out_of_the_meshes(robot):

@@ -283,3 +283,55 @@ def test_a_jump_in_place_that_must_be_slowed_is_made_with_both_feet_down(talos):
         assert ref.grounded_s == pytest.approx(seconds) and ref.time_scale == GROUNDED_SLOW
         assert all(len(p.contacts) == 2 for p in spec.phases)
         assert spec.horizon == pytest.approx(GROUNDED_SLOW * motion.t[-1] + 0.8 + 1.0, abs=0.1)
+
+
+PUNCH = Path("/work/shared/mocap/135_09_punch.bvh")
+
+
+# ~25 s (the whole clip and g1's collision model): long; its fast twin is
+# tests/tasks/mocap/test_keepout.py::test_a_lunge_whose_knees_would_meet_is_pushed_apart
+@pytest.mark.long
+@pytest.mark.skipif(not PUNCH.exists(), reason="the shared CMU clips are not on this machine")
+def test_a_boxers_stance_has_its_feet_apart_under_the_hips():
+    """CMU 135_09 (a boxer's stepping lunges, feet turned from the pelvis): kept apart in the feet's
+    own frame only, the feet came in line under g1's hips (0.5 mm apart sideways, 0.4 m fore and aft)
+    and the plan crossed a thigh through the other shin; now, in the hips' frame (the base target's
+    heading), wherever the feet are within KNEE_REACH soles' lengths they are at least FOOT_GAP
+    standing gaps apart sideways (the long tests certify it: test_retarget_certified.py)."""
+    from tasks.mocap import keepout
+
+    g1 = load_robot("g1")
+    clip = read_bvh(PUNCH)
+    motion = human_motion(clip, recognize_skeleton(clip.names))
+    _, ref = retarget_spec(motion, label_contacts(motion), g1)
+    h = ref.heading
+    d = ref.points["left_foot"] - ref.points["right_foot"]
+    lateral = d[:, 0] * -np.sin(h) + d[:, 1] * np.cos(h)
+    sole = g1.profile.sole
+    near = np.linalg.norm(d[:, :2], axis=1) < keepout.KNEE_REACH * max(sole.x_max - sole.x_min, keepout.standing_gap(g1))
+    assert near.sum() > 100  # the clip's stances and passing feet
+    assert lateral[near].min() >= keepout.FOOT_GAP * keepout.standing_gap(g1) - 1e-9
+    assert 0.1 < max(ref.kept_out_max().values()) < 0.6
+
+
+def test_stance_placements_in_line_under_the_hips_are_moved_apart(talos):
+    """Two overlapping stances whose placements (the medians of pivoting feet) are in line under
+    the hips (heading 90 deg: the left foot 0.1 m ahead along y of the right, no sideways gap): the
+    foot placed later (the left) is moved sideways in the hips' frame (-x here) to FOOT_GAP x the
+    standing gap; the earlier one and a pair already apart are not moved."""
+    from tasks.mocap import keepout
+    from tasks.mocap.retarget import _placements_apart
+    from tasks.specs import Pose
+
+    least = keepout.FOOT_GAP * keepout.standing_gap(talos)
+    heading = np.full(40, np.pi / 2)
+    for gap, moved in ((0.0, True), (2.0 * least, False)):
+        runs = {"right": [(0, 5, Pose(position=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0))),
+                          (6, 40, Pose(position=(0.3, 0.0, 0.0), rpy=(0.0, 0.0, np.pi / 2)))],
+                "left": [(10, 30, Pose(position=(0.3 - gap, 0.1, 0.0), rpy=(0.0, 0.0, np.pi / 2)))]}
+        out = _placements_apart(runs, heading, talos)
+        assert out["right"] == runs["right"]
+        left = np.array(out["left"][0][2].position)
+        lateral = -(left[0] - 0.3)  # the hips' left axis is -x at heading 90 deg
+        assert lateral == pytest.approx(least if moved else gap, abs=1e-9)
+        assert left[1] == pytest.approx(0.1, abs=1e-12) and left[2] == 0.0
