@@ -492,8 +492,15 @@ def build_arm_circles(b: FragmentBuilder) -> Fragment:
                 _put(b, f"{side} hand circle #{c + 1} point {k + 1}", side, p,
                      time=RAISE_TIME + (c + k / CIRCLE_POINTS) * d)
         _put(b, f"{side} hand circle end", side, pts[0], time=RAISE_TIME + n * d)
-    rest_targets(b, [f"{s}_hand" for s in sides], tau=_rhythm_duration(b.params, b.robot))
-    b.phase("arm circles", _rhythm_duration(b.params, b.robot))
+    T = _rhythm_duration(b.params, b.robot)
+    rest_targets(b, [f"{s}_hand" for s in sides], tau=T)
+    for side in sides:  # leave and come back to rest with the upper arm out: G1's wound in, into the torso's meshes
+        j = b.robot.model.names[arm_joints(b.robot, side)[1]]
+        out = upper_arm_out_angle(b.robot, side, UPPER_ARM_OUT)
+        for tau in (0.0, T):
+            b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso at {tau:g} s"), joint=j,
+                                               value=out, time=b.t(tau), weight=UPPER_ARM_WEIGHT))
+    b.phase("arm circles", T)
     return b.finish(_arm_parts(sides))
 
 

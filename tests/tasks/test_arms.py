@@ -805,3 +805,24 @@ def _roll_joint(robot, side):
     from tasks.primitives.bodymap import arm_joints
 
     return arm_joints(robot, side)[1]
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_arm_circles_leave_and_return_to_rest_with_the_upper_arm_out(robot_name, request):
+    """The circling arm's shoulder roll is asked ``UPPER_ARM_OUT`` out at the gesture's first knot
+    and when the hand is back at rest (a cost at each time), no other time: G1's shoulder wound
+    0.05 rad inwards in the stand phases around the gesture and its upper arm met the torso's
+    meshes (coal, bench_intent: plan 2 knots, simulation 1 sample; none since). The values are
+    :func:`upper_arm_out_angle`'s (checked against FK above); the times bracket the circles'
+    targets."""
+    from tasks.primitives.arms import UPPER_ARM_OUT, upper_arm_out_angle
+
+    robot = request.getfixturevalue(robot_name)
+    spec = _spec(robot, "arm_circles", arm="left")
+    held = [t for t in spec.joint_targets if "upper arm out of the torso" in t.name]
+    assert len(held) == 2 and all(t.window is None for t in held), held
+    assert {t.joint for t in held} == {robot.model.names[_roll_joint(robot, "left")]}
+    assert all(t.value == pytest.approx(upper_arm_out_angle(robot, "left", UPPER_ARM_OUT)) for t in held)
+    circle = [t.time for t in _targets(spec, "left hand circle")]
+    first, last = sorted(t.time for t in held)
+    assert first < min(circle) and last > max(circle), (first, last, min(circle), max(circle))
