@@ -17,6 +17,15 @@ class TaskDefinitionError(TaskError, ValueError):
     """A spec or action parameter is invalid (out of range, wrong type, unknown frame...)."""
 
 
+def field_error(field: str, message: str) -> TaskDefinitionError:
+    """A TaskDefinitionError about ``field`` of a file (``field`` and ``reason`` set):
+    :func:`tasks.jsonio.from_plain` names its path."""
+    err = TaskDefinitionError(f"{field}: {message}")
+    err.field = field  # type: ignore[attr-defined]
+    err.reason = message  # type: ignore[attr-defined]
+    return err
+
+
 class UnknownAction(TaskDefinitionError):
     """An action name is not in the registry."""
 

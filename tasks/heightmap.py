@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import TaskDefinitionError, field_error
 from tasks.limits import MAX_DISTANCE, MAX_FRICTION, MAX_NAME_LENGTH, MAX_TEXT_LENGTH
 
 MAX_GRID = 256  # grid points along a side
@@ -35,13 +35,6 @@ MAX_GRID_BYTES = 16 * 1024 * 1024  # a grid file (256 x 256 float64 .npy: 0.5 MB
 Grid = tuple[tuple[float, ...], ...]
 
 
-def _error(where: str, message: str) -> TaskDefinitionError:
-    err = TaskDefinitionError(f"{where}: {message}")
-    err.field = where  # type: ignore[attr-defined]
-    err.reason = message  # type: ignore[attr-defined]
-    return err
-
-
 def _number(v: Any) -> bool:
     return not isinstance(v, bool) and isinstance(v, (int, float))
 
@@ -51,23 +44,23 @@ def check_grid(heights: Any, where: str = "heights") -> Grid:
     not a list of rows, fewer than 2 or more than :data:`MAX_GRID` points a side, a ragged row, a
     height that is not a finite number in [0, :data:`MAX_HEIGHT`] m."""
     if not isinstance(heights, (tuple, list)) or not all(isinstance(r, (tuple, list)) for r in heights):
-        raise _error(where, "must be a grid: a list of rows of heights [m]")
+        raise field_error(where, "must be a grid: a list of rows of heights [m]")
     if not 2 <= len(heights) <= MAX_GRID:
-        raise _error(where, f"has {len(heights)} row(s); a height map needs 2 to {MAX_GRID} rows")
+        raise field_error(where, f"has {len(heights)} row(s); a height map needs 2 to {MAX_GRID} rows")
     width = len(heights[0])
     for i, row in enumerate(heights):
         if len(row) != width:
-            raise _error(where, f"row {i} has {len(row)} heights, row 0 has {width}: the grid must be "
+            raise field_error(where, f"row {i} has {len(row)} heights, row 0 has {width}: the grid must be "
                                 "rectangular (every row as long)")
     if not 2 <= width <= MAX_GRID:
-        raise _error(where, f"has {width} column(s); a height map needs 2 to {MAX_GRID} columns")
+        raise field_error(where, f"has {width} column(s); a height map needs 2 to {MAX_GRID} columns")
     for i, row in enumerate(heights):
         for j, h in enumerate(row):
             if not _number(h) or not math.isfinite(h):
-                raise _error(where, f"row {i}, column {j} is {h!r}, not a number: every grid point needs a "
+                raise field_error(where, f"row {i}, column {j} is {h!r}, not a number: every grid point needs a "
                                     "finite height [m]")
             if not 0.0 <= h <= MAX_HEIGHT:
-                raise _error(where, f"row {i}, column {j} is {h:g} m; heights are in [0, {MAX_HEIGHT:g}] m "
+                raise field_error(where, f"row {i}, column {j} is {h:g} m; heights are in [0, {MAX_HEIGHT:g}] m "
                                     "(the map rises from the floor: no pits)")
     return tuple(tuple(float(h) for h in row) for row in heights)
 
@@ -78,12 +71,12 @@ def read_grid(path: str | Path, where: str = "file") -> Grid:
 
     p = Path(path)
     if p.suffix.lower() not in GRID_SUFFIXES:
-        raise _error(where, f"{str(path)!r} is not a .npy or .csv file of heights")
+        raise field_error(where, f"{str(path)!r} is not a .npy or .csv file of heights")
     try:
         if not p.is_file():
-            raise _error(where, f"the grid file {str(path)!r} does not exist (a path is relative to the scene file)")
+            raise field_error(where, f"the grid file {str(path)!r} does not exist (a path is relative to the scene file)")
         if p.stat().st_size > MAX_GRID_BYTES:
-            raise _error(where, f"{str(path)!r} is larger than {MAX_GRID_BYTES // 2**20} MB; "
+            raise field_error(where, f"{str(path)!r} is larger than {MAX_GRID_BYTES // 2**20} MB; "
                                 f"a grid holds at most {MAX_GRID} x {MAX_GRID} heights")
         if p.suffix.lower() == ".npy":
             array = np.load(p, allow_pickle=False)
@@ -94,11 +87,11 @@ def read_grid(path: str | Path, where: str = "file") -> Grid:
     except TaskDefinitionError:
         raise
     except (OSError, ValueError, UnicodeDecodeError) as e:
-        raise _error(where, f"cannot read the grid in {str(path)!r} ({str(e).splitlines()[0][:80]}): "
+        raise field_error(where, f"cannot read the grid in {str(path)!r} ({str(e).splitlines()[0][:80]}): "
                             "give a 2-D .npy array or a .csv of comma-separated heights") from None
     if isinstance(array, np.ndarray):
         if array.ndim != 2 or array.dtype.kind not in "fiu":
-            raise _error(where, f"{str(path)!r} holds a {array.ndim}-D {array.dtype} array; give a 2-D array "
+            raise field_error(where, f"{str(path)!r} holds a {array.ndim}-D {array.dtype} array; give a 2-D array "
                                 "of heights [m]")
         array = array.tolist()
     return check_grid(array, where)
@@ -150,34 +143,34 @@ class HeightMap:
     def __post_init__(self) -> None:
         if (not isinstance(self.name, str) or not self.name.strip() or len(self.name) > MAX_NAME_LENGTH
                 or self.name != self.name.strip()):
-            raise _error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH} characters")
+            raise field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH} characters")
         if self.file is not None and (not isinstance(self.file, str) or len(self.file) > MAX_TEXT_LENGTH
                                       or "\x00" in self.file):
-            raise _error("file", "must be the path of a .npy or .csv file of heights")
+            raise field_error("file", "must be the path of a .npy or .csv file of heights")
         if not self.heights:
-            raise _error("heights", 'a height map needs its grid: "file": a .npy or .csv of heights [m] '
+            raise field_error("heights", 'a height map needs its grid: "file": a .npy or .csv of heights [m] '
                                     '(or "heights": a list of rows)')
         object.__setattr__(self, "heights", check_grid(self.heights))
         if not (_number(self.cell) and MIN_CELL <= self.cell <= MAX_CELL):
-            raise _error("cell", f"must be a spacing in [{MIN_CELL:g}, {MAX_CELL:g}] m, got {self.cell!r}")
+            raise field_error("cell", f"must be a spacing in [{MIN_CELL:g}, {MAX_CELL:g}] m, got {self.cell!r}")
         if (not isinstance(self.origin, tuple) or len(self.origin) != 2
                 or not all(_number(v) and math.isfinite(v) and abs(v) <= MAX_DISTANCE for v in self.origin)):
-            raise _error("origin", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {self.origin!r}")
+            raise field_error("origin", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {self.origin!r}")
         size = self.size
         if self.extent is not None and (
                 not isinstance(self.extent, tuple) or len(self.extent) != 2
                 or not all(_number(v) and abs(v - s) <= 1e-6 for v, s in zip(self.extent, size, strict=True))):
-            raise _error("extent", f"is {self.extent!r} but {len(self.heights[0])} x {len(self.heights)} points "
+            raise field_error("extent", f"is {self.extent!r} but {len(self.heights[0])} x {len(self.heights)} points "
                                    f"{self.cell:g} m apart span [{size[0]:g}, {size[1]:g}] m: fix the cell or the extent")
         if max(abs(self.origin[0]) + size[0], abs(self.origin[1]) + size[1]) > MAX_DISTANCE:
-            raise _error("extent", f"the grid reaches beyond {MAX_DISTANCE:g} m from the origin")
+            raise field_error("extent", f"the grid reaches beyond {MAX_DISTANCE:g} m from the origin")
         if (not isinstance(self.colour, tuple) or len(self.colour) != 4
                 or not all(_number(v) and 0 <= v <= 1 for v in self.colour)):
-            raise _error("colour", "must be 4 numbers (red, green, blue, opacity) in [0, 1]")
+            raise field_error("colour", "must be 4 numbers (red, green, blue, opacity) in [0, 1]")
         if not (_number(self.friction) and 0 < self.friction <= MAX_FRICTION):
-            raise _error("friction", f"must be in (0, {MAX_FRICTION:g}], got {self.friction!r}")
+            raise field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {self.friction!r}")
         if not isinstance(self.aliases, tuple) or not all(isinstance(a, str) and a.strip() for a in self.aliases):
-            raise _error("aliases", "must be a list of names")
+            raise field_error("aliases", "must be a list of names")
 
     @property
     def size(self) -> tuple[float, float]:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tasks.exceptions import TaskDefinitionError
+from tasks.exceptions import TaskDefinitionError, field_error
 from tasks.heightmap import HeightMap, check_grid, grid_surface, load_heightmaps
 from tasks.limits import (
     GROUND_TOLERANCE,
@@ -61,14 +61,6 @@ SCENE_MARGIN = 0.01
 MAX_STEPS = 50  # treads of one stairs element
 
 
-def _field_error(field: str, message: str) -> TaskDefinitionError:
-    """A TaskDefinitionError about ``field``: :func:`tasks.jsonio.from_plain` names its path."""
-    err = TaskDefinitionError(f"{field}: {message}")
-    err.field = field  # type: ignore[attr-defined]
-    err.reason = message  # type: ignore[attr-defined]
-    return err
-
-
 def _show(value: Any) -> str:
     if isinstance(value, tuple) and len(value) <= 6 and all(isinstance(v, (int, float)) for v in value):
         return "[" + ", ".join(f"{v:g}" if isinstance(v, float) else repr(v) for v in value) + "]"
@@ -84,16 +76,16 @@ def _finite(v: Any) -> bool:
 
 def _name(field: str, value: Any) -> None:
     if not isinstance(value, str) or not value.strip():
-        raise _field_error(field, f"must be a non-empty name, got {_show(value)}")
+        raise field_error(field, f"must be a non-empty name, got {_show(value)}")
     if len(value) > MAX_NAME_LENGTH:
-        raise _field_error(field, f"has {len(value)} characters; at most {MAX_NAME_LENGTH}")
+        raise field_error(field, f"has {len(value)} characters; at most {MAX_NAME_LENGTH}")
     if value != value.strip():
-        raise _field_error(field, f"{value!r} starts or ends with a space: write {value.strip()!r}")
+        raise field_error(field, f"{value!r} starts or ends with a space: write {value.strip()!r}")
 
 
 def _triple(field: str, value: Any, *, bound: float, unit: str) -> None:
     if not isinstance(value, tuple) or len(value) != 3 or not all(_finite(v) and -bound <= v <= bound for v in value):
-        raise _field_error(field, f"must be 3 finite numbers in [{-bound:g}, {bound:g}] {unit}, got {_show(value)}")
+        raise field_error(field, f"must be 3 finite numbers in [{-bound:g}, {bound:g}] {unit}, got {_show(value)}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -138,57 +130,57 @@ class SceneObject:
     def __post_init__(self) -> None:
         _name("name", self.name)
         if self.shape not in SHAPES:
-            raise _field_error("shape", f"must be one of {', '.join(SHAPES)}, got {_show(self.shape)}")
+            raise field_error("shape", f"must be one of {', '.join(SHAPES)}, got {_show(self.shape)}")
         n = SIZE_LENGTHS[self.shape]
         if (not isinstance(self.size, tuple) or len(self.size) != n
                 or not all(_finite(v) and 0 < v <= MAX_DISTANCE for v in self.size)):
-            raise _field_error("size", f"a {self.shape} needs {SIZE_MEANING[self.shape]}, each at most "
+            raise field_error("size", f"a {self.shape} needs {SIZE_MEANING[self.shape]}, each at most "
                                        f"{MAX_DISTANCE:g}, got {_show(self.size)}")
         _triple("position", self.position, bound=MAX_DISTANCE, unit="m")
         _triple("rpy", self.rpy, bound=MAX_ANGLE, unit="rad")
         if (not isinstance(self.colour, tuple) or len(self.colour) != 4
                 or not all(_finite(v) and 0 <= v <= 1 for v in self.colour)):
-            raise _field_error("colour", f"must be 4 numbers (red, green, blue, opacity) in [0, 1], "
+            raise field_error("colour", f"must be 4 numbers (red, green, blue, opacity) in [0, 1], "
                                          f"got {_show(self.colour)}")
         if not isinstance(self.aliases, tuple):
-            raise _field_error("aliases", f"must be a list of names, got {_show(self.aliases)}")
+            raise field_error("aliases", f"must be a list of names, got {_show(self.aliases)}")
         for i, alias in enumerate(self.aliases):
             _name(f"aliases[{i}]", alias)
             if alias == self.name or alias in self.aliases[:i]:
-                raise _field_error(f"aliases[{i}]", f"{alias!r} is already a name of this object")
+                raise field_error(f"aliases[{i}]", f"{alias!r} is already a name of this object")
         if not isinstance(self.movable, bool):
-            raise _field_error("movable", f"must be true or false, got {_show(self.movable)}")
+            raise field_error("movable", f"must be true or false, got {_show(self.movable)}")
         if not (_finite(self.mass) and 0 <= self.mass <= MAX_MASS):
-            raise _field_error("mass", f"must be a number in [0, {MAX_MASS:g}] kg, got {_show(self.mass)}")
+            raise field_error("mass", f"must be a number in [0, {MAX_MASS:g}] kg, got {_show(self.mass)}")
         if self.movable and not self.mass > 0:
-            raise _field_error("mass", "a movable object needs a mass > 0 kg (or set movable to false)")
+            raise field_error("mass", "a movable object needs a mass > 0 kg (or set movable to false)")
         if not (_finite(self.friction) and 0 < self.friction <= MAX_FRICTION):
-            raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {_show(self.friction)}")
+            raise field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {_show(self.friction)}")
         if self.shape == "mesh":
             if not isinstance(self.mesh, str) or not self.mesh.strip():
-                raise _field_error("mesh", "a mesh object needs the mesh file's path (STL, OBJ or DAE)")
+                raise field_error("mesh", "a mesh object needs the mesh file's path (STL, OBJ or DAE)")
             if len(self.mesh) > MAX_TEXT_LENGTH or "\x00" in self.mesh:
-                raise _field_error("mesh", f"is not a usable file path: {_show(self.mesh)}")
+                raise field_error("mesh", f"is not a usable file path: {_show(self.mesh)}")
         elif self.mesh is not None:
-            raise _field_error("mesh", f"only a mesh object has a mesh file; this one is a {self.shape}")
+            raise field_error("mesh", f"only a mesh object has a mesh file; this one is a {self.shape}")
         if not isinstance(self.walkable, bool):
-            raise _field_error("walkable", f"must be true or false, got {_show(self.walkable)}")
+            raise field_error("walkable", f"must be true or false, got {_show(self.walkable)}")
         if self.walkable and (self.shape not in ("box", "cylinder", "heightfield") or self.movable):
-            raise _field_error("walkable", f"only a static box or cylinder has a top to walk on; this one is a "
+            raise field_error("walkable", f"only a static box or cylinder has a top to walk on; this one is a "
                                            f"{'movable ' if self.movable else ''}{self.shape}")
         if self.seat is not None and not isinstance(self.seat, bool):
-            raise _field_error("seat", f"must be true or false, got {_show(self.seat)}")
+            raise field_error("seat", f"must be true or false, got {_show(self.seat)}")
         if (self.shape == "heightfield") != (self.heights is not None):
-            raise _field_error("heights", "a heightfield needs its grid of heights, and only a heightfield has one")
+            raise field_error("heights", "a heightfield needs its grid of heights, and only a heightfield has one")
         if self.heights is not None:
             object.__setattr__(self, "heights", check_grid(self.heights))
             cells = (self.size[0] / (len(self.heights[0]) - 1), self.size[1] / (len(self.heights) - 1))
             if (self.movable or not self.walkable or any(self.rpy) or abs(cells[0] - cells[1]) > 1e-6
                     or abs(self.position[2] - self.size[2] / 2) > 1e-6):
-                raise _field_error("heights", "a heightfield is static, walkable, not rotated, on the floor, with "
+                raise field_error("heights", "a heightfield is static, walkable, not rotated, on the floor, with "
                                               "square cells (write it as a scene's heightmaps element)")
         if self.seat and (self.shape != "box" or self.movable or rotation(self.rpy)[2][2] < math.cos(math.radians(5))):
-            raise _field_error("seat", f"only a static upright box has a top to sit on; this one is a "
+            raise field_error("seat", f"only a static upright box has a top to sit on; this one is a "
                                        f"{'movable ' if self.movable else ''}{self.shape}"
                                        f"{' tilted by more than 5 deg' if self.shape == 'box' else ''}")
 
@@ -201,18 +193,18 @@ class SceneObject:
 def _check_terrain_name(name: object) -> None:
     """A stairs' or a slope's name (its parts are named ``<name>.<part>``)."""
     if not isinstance(name, str) or not name.strip() or len(name) > MAX_NAME_LENGTH - 4:
-        raise _field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
+        raise field_error("name", f"must be a non-empty name of at most {MAX_NAME_LENGTH - 4} characters")
 
 
 def _check_terrain_placement(position: object, yaw: float, friction: float) -> None:
     """A stairs' or a slope's place on the floor, heading and friction."""
     if (not isinstance(position, tuple) or len(position) != 2
             or not all(_finite(v) and abs(v) <= MAX_DISTANCE for v in position)):
-        raise _field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {position!r}")
+        raise field_error("position", f"must be 2 numbers (x, y) within {MAX_DISTANCE:g} m, got {position!r}")
     if not (_finite(yaw) and abs(yaw) <= MAX_ANGLE):
-        raise _field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {yaw!r}")
+        raise field_error("yaw", f"must be an angle within {MAX_ANGLE:g} rad, got {yaw!r}")
     if not (_finite(friction) and 0 < friction <= MAX_FRICTION):
-        raise _field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {friction!r}")
+        raise field_error("friction", f"must be in (0, {MAX_FRICTION:g}], got {friction!r}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -246,11 +238,11 @@ class Stairs:
     def __post_init__(self) -> None:
         _check_terrain_name(self.name)
         if isinstance(self.count, bool) or not isinstance(self.count, int) or not 1 <= self.count <= MAX_STEPS:
-            raise _field_error("count", f"must be a whole number of steps in [1, {MAX_STEPS}], got {self.count!r}")
+            raise field_error("count", f"must be a whole number of steps in [1, {MAX_STEPS}], got {self.count!r}")
         for key in ("rise", "run", "width"):
             v = getattr(self, key)
             if not (_finite(v) and 0 < v <= MAX_DISTANCE):
-                raise _field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {v!r}")
+                raise field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {v!r}")
         _check_terrain_placement(self.position, self.yaw, self.friction)
 
     def tread_name(self, i: int) -> str:
@@ -309,14 +301,14 @@ class Slope:
     def __post_init__(self) -> None:
         _check_terrain_name(self.name)
         if not (_finite(self.angle) and 0 < self.angle <= MAX_SLOPE + 1e-12):
-            raise _field_error("angle", f"must be an inclination in (0, {MAX_SLOPE:.4f}] rad (25 deg), got "
+            raise field_error("angle", f"must be an inclination in (0, {MAX_SLOPE:.4f}] rad (25 deg), got "
                                         f"{_show(self.angle)}")
         for key in ("length", "width"):
             v = getattr(self, key)
             if not (_finite(v) and 0 < v <= MAX_DISTANCE):
-                raise _field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {_show(v)}")
+                raise field_error(key, f"must be a length in (0, {MAX_DISTANCE:g}] m, got {_show(v)}")
         if not (_finite(self.landing) and 0 <= self.landing <= MAX_DISTANCE):
-            raise _field_error("landing", f"must be a length in [0, {MAX_DISTANCE:g}] m, got {_show(self.landing)}")
+            raise field_error("landing", f"must be a length in [0, {MAX_DISTANCE:g}] m, got {_show(self.landing)}")
         _check_terrain_placement(self.position, self.yaw, self.friction)
 
     @property
@@ -395,33 +387,33 @@ class Scene:
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or len(self.name) > MAX_TEXT_LENGTH:
-            raise _field_error("name", f"must be a string of at most {MAX_TEXT_LENGTH} characters")
+            raise field_error("name", f"must be a string of at most {MAX_TEXT_LENGTH} characters")
         if not isinstance(self.objects, tuple) or not all(isinstance(o, SceneObject) for o in self.objects):
-            raise _field_error("objects", "must be a list of objects")
+            raise field_error("objects", "must be a list of objects")
         if not isinstance(self.stairs, tuple) or not all(isinstance(st, Stairs) for st in self.stairs):
-            raise _field_error("stairs", "must be a list of stairs")
+            raise field_error("stairs", "must be a list of stairs")
         if not isinstance(self.slopes, tuple) or not all(isinstance(sl, Slope) for sl in self.slopes):
-            raise _field_error("slopes", "must be a list of slopes")
+            raise field_error("slopes", "must be a list of slopes")
         treads = tuple(o for st in self.stairs for o in stairs_objects(st))
         treads += tuple(o for sl in self.slopes for o in slope_objects(sl))
         if not isinstance(self.heightmaps, tuple) or not all(isinstance(h, HeightMap) for h in self.heightmaps):
-            raise _field_error("heightmaps", "must be a list of height maps")
+            raise field_error("heightmaps", "must be a list of height maps")
         treads += tuple(heightmap_object(h) for h in self.heightmaps)
         if treads:
             object.__setattr__(self, "objects", tuple(o for o in self.objects if o not in treads) + treads)
         if len(self.objects) > MAX_OBJECTS:
-            raise _field_error("objects", f"{len(self.objects)} objects; a scene holds at most {MAX_OBJECTS}")
+            raise field_error("objects", f"{len(self.objects)} objects; a scene holds at most {MAX_OBJECTS}")
         owner: dict[str, int] = {}
         for i, obj in enumerate(self.objects):
             for k, word in enumerate(obj.names):
                 if word in owner:
                     field = f"objects[{i}].name" if k == 0 else f"objects[{i}].aliases[{k - 1}]"
-                    raise _field_error(field, f"{word!r} already names objects[{owner[word]}] "
+                    raise field_error(field, f"{word!r} already names objects[{owner[word]}] "
                                               f"({self.objects[owner[word]].name!r}); names and aliases "
                                               "are unique in a scene")
                 owner[word] = i
         if not (_finite(self.floor_friction) and 0 < self.floor_friction <= MAX_FRICTION):
-            raise _field_error("floor_friction", f"must be in (0, {MAX_FRICTION:g}], got {_show(self.floor_friction)}")
+            raise field_error("floor_friction", f"must be in (0, {MAX_FRICTION:g}], got {_show(self.floor_friction)}")
 
     def get(self, name: str) -> SceneObject:
         """The object called ``name`` or with that alias (KeyError otherwise)."""
