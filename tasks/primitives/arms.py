@@ -162,7 +162,8 @@ BOTH_ARMS = _arm_parts(("left", "right"))
 UPPER_ARM_WEIGHT = 10.0  # joint-target weight holding a shoulder's roll at its standing angle (clap, salute)
 
 
-def hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...], out: float = 0.0) -> None:
+def hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...], out: float = 0.0,
+                    at: tuple[float, ...] = ()) -> None:
     """The ``sides`` shoulders' roll joint (the arm's second, which swings the upper arm in to the
     body) held at its standing angle over the whole gesture (a cost), turned ``out`` [rad] away
     from the body (:func:`upper_arm_out_angle`): a clap's hands come together
@@ -172,13 +173,17 @@ def hold_upper_arms(b: FragmentBuilder, T: float, sides: tuple[str, ...], out: f
     in its salute, the left arm, which stays down; in its hops and one-foot balances, an arm that
     swung for balance. Walks, steps, turns and hops hold them ``UPPER_ARM_OUT`` out: planned at
     standing, G1's simulated upper arm still grazed the torso (3 samples of "walk forward", 1 of a
-    hop), the few millimetres the controller lets an untargeted arm swing."""
+    hop), the few millimetres the controller lets an untargeted arm swing. With ``at``: asked at
+    those nominal times [s] only (``T`` unused), not held over the gesture."""
     for side in sides:
         j = arm_joints(b.robot, side)[1]
-        name = b.robot.model.names[j]
-        b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
-                                           value=upper_arm_out_angle(b.robot, side, out), window=b.window(0.0, T),
-                                           weight=UPPER_ARM_WEIGHT))
+        name, value = b.robot.model.names[j], upper_arm_out_angle(b.robot, side, out)
+        if not at:
+            b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso"), joint=name,
+                                               value=value, window=b.window(0.0, T), weight=UPPER_ARM_WEIGHT))
+        for tau in at:
+            b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso at {tau:g} s"),
+                                               joint=name, value=value, time=b.t(tau), weight=UPPER_ARM_WEIGHT))
 
 
 def upper_arm_out_angle(robot: Robot, side: str, out: float) -> float:
@@ -494,12 +499,8 @@ def build_arm_circles(b: FragmentBuilder) -> Fragment:
         _put(b, f"{side} hand circle end", side, pts[0], time=RAISE_TIME + n * d)
     T = _rhythm_duration(b.params, b.robot)
     rest_targets(b, [f"{s}_hand" for s in sides], tau=T)
-    for side in sides:  # leave and come back to rest with the upper arm out: G1's wound in, into the torso's meshes
-        j = b.robot.model.names[arm_joints(b.robot, side)[1]]
-        out = upper_arm_out_angle(b.robot, side, UPPER_ARM_OUT)
-        for tau in (0.0, T):
-            b.joint_targets.append(JointTarget(name=b.name(f"{side} upper arm out of the torso at {tau:g} s"), joint=j,
-                                               value=out, time=b.t(tau), weight=UPPER_ARM_WEIGHT))
+    # leave and come back to rest with the upper arm out: G1's wound in, into the torso's meshes
+    hold_upper_arms(b, T, sides, out=UPPER_ARM_OUT, at=(0.0, T))
     b.phase("arm circles", T)
     return b.finish(_arm_parts(sides))
 
