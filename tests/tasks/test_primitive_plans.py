@@ -300,13 +300,23 @@ def test_reach_out_of_range_is_explained_by_the_planner(talos):
     assert "reach: right hand at the reach point" in plan.diagnosis and "beyond reach" in plan.diagnosis
 
 
-@pytest.mark.slow
-def test_squat_at_the_profile_maximum_is_feasible(robot, solve):
-    """The deepest squat the profile allows (Talos 0.35 m, G1 0.25 m) plans, reaching its depth."""
+def _deepest_squat_reaches_its_depth(robot, solve):
     depth = robot.profile.squat_depth_max
     spec, plan = solve(robot, [Action(name="squat", params={"depth": depth})])
     z0 = standing_geometry(robot).com[2]
     assert plan.com[:, 2].min() <= z0 - depth + 0.01 + HARD_SLACK
+
+
+@pytest.mark.slow
+def test_squat_at_the_profile_maximum_is_feasible(talos, solve):
+    """The deepest squat Talos's profile allows (0.35 m) plans, reaching its depth."""
+    _deepest_squat_reaches_its_depth(talos, solve)
+
+
+@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~12 s); twin: the Talos case above
+def test_squat_at_the_profile_maximum_is_feasible_on_g1(g1, solve):
+    """The deepest squat G1's profile allows (0.25 m) plans, reaching its depth."""
+    _deepest_squat_reaches_its_depth(g1, solve)
 
 
 @pytest.mark.slow
