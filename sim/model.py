@@ -6,8 +6,9 @@ tag keeps every body (``fusestatic="false"``), and the root link hangs from a ne
 link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
 :class:`mujoco.MjSpec` we then add
 
-* a floor plane (z = 0) with the profile's friction coefficient, told as the contact model of
-  :mod:`robots.contact` says (elliptic cone, ``condim`` 3),
+* a floor plane (z = 0) with the scene's ``floor_friction`` (without a scene: the profile's
+  friction coefficient), told as the contact model of :mod:`robots.contact` says (elliptic
+  cone, ``condim`` 3),
 * one thin box per sole, the profile's sole rectangle with its bottom face on the sole frame
   (the foot meshes stop colliding, so the feet touch the floor exactly where the controller's
   contact model says they do),
@@ -22,6 +23,11 @@ link through a ``floating`` joint, which MuJoCo turns into a free joint. Through
 * the scene's objects (:class:`tasks.scene.Scene`): static ones as geoms of the world body,
   movable ones as free bodies with their mass and friction, each with an inactive weld to each
   hand (:func:`grasp_weld_name`; :mod:`sim.grasp` engages it when the closed hand holds the object).
+
+Friction per surface: the floor's and the objects' geoms have a higher MuJoCo ``priority`` than the
+robot's, so a contact of the robot with the world takes the surface's own friction coefficient (MuJoCo
+would otherwise take the larger of the two geoms'): an icy slope is icy in the simulation, as in the
+plan (:func:`tasks.terrain.with_surface_friction`). Two objects touching take the larger of theirs.
 
 Joints are matched to Pinocchio by name, so either joint order works. Conventions: MuJoCo's free joint stores the
 quaternion ``(w, x, y, z)`` and the base linear velocity in the world frame; Pinocchio stores
@@ -57,6 +63,7 @@ SOLE_THICKNESS = 0.01  # [m] sole boxes: bottom face on the sole frame, 1 cm thi
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # robot geoms collide with the floor (and objects) only
 FLOOR_CONTYPE, FLOOR_CONAFFINITY = 1, 2
 OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 7  # objects collide with the robot, the feet, the floor, each other
+WORLD_PRIORITY = 1  # the floor and the objects: a robot-world contact takes the surface's friction (module docstring)
 FOOT_CONTYPE, FOOT_CONAFFINITY = 4, 0  # foot meshes (replaced by sole boxes on the floor) touch objects only
 OBJECT_PREFIX = "wbmp_object_"
 GRASP_PREFIX = "wbmp_grasp_"
@@ -349,7 +356,8 @@ def _build(robot: Robot, timestep: float, joint_friction: bool, scene: Scene | N
     floor.name = FLOOR
     floor.type = mujoco.mjtGeom.mjGEOM_PLANE
     floor.size = [0.0, 0.0, 0.05]
-    set_contact_friction(floor, mu)
+    set_contact_friction(floor, mu if scene is None else float(scene.floor_friction))
+    floor.priority = WORLD_PRIORITY
     floor.contype, floor.conaffinity = FLOOR_CONTYPE, FLOOR_CONAFFINITY
 
     bodies = {b.name: b for b in spec.bodies}
@@ -502,6 +510,7 @@ def _add_scene(spec: mujoco.MjSpec, scene: Scene | None) -> None:
         _shape(spec, geom, obj)
         geom.rgba = list(obj.colour)
         set_contact_friction(geom, float(obj.friction))
+        geom.priority = WORLD_PRIORITY
         geom.contype, geom.conaffinity = OBJECT_CONTYPE, OBJECT_CONAFFINITY
 
 

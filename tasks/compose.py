@@ -71,6 +71,7 @@ from tasks.specs import (
     StartState,
     TaskSpec,
 )
+from tasks.terrain import with_surface_friction
 
 STAND_TIME = 0.6  # [s] standing still at the start and at the end
 TRANSITION_TIME = 0.3  # [s] standing between two groups of actions
@@ -300,7 +301,7 @@ def _spec(robot: Robot, phases: list[Phase], fragments: list[Fragment], still_ta
     grasps = _grasps(fragments, horizon)
     return TaskSpec(
         robot=robot.name,
-        phases=tuple(phases),
+        phases=with_surface_friction(phases, scene, robot.profile.friction_coefficient, robot.name),
         targets=_held_targets(fragments, horizon),
         com_targets=tuple(t for f in fragments for t in f.com_targets) + tuple(still_targets),
         com_bounds=bounds + tuple(b for f in fragments for b in f.com_bounds),

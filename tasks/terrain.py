@@ -24,9 +24,12 @@ normal the interpolation's gradient (:func:`tasks.scene.field_surface`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+from tasks.exceptions import SceneConflict
 from tasks.heightmap import HeightMap
 from tasks.scene import (
     MAX_SLOPE,
@@ -41,6 +44,7 @@ from tasks.scene import (
     stairs_objects,
     to_local,
 )
+from tasks.specs import Phase
 
 UPRIGHT_COS = math.cos(math.radians(5))  # a top face tilted more than 5 deg is not flat (a step's top)
 SLOPE_COS = math.cos(MAX_SLOPE) - 1e-12  # a walkable top face tilted more than MAX_SLOPE is no surface
@@ -140,5 +144,38 @@ def surface_at(scene: Scene | None, x: float, y: float) -> Surface:
     return best
 
 
+def with_surface_friction(phases: Sequence[Phase], scene: Scene | None, robot_friction: float,
+                          robot_name: str = "the robot") -> tuple[Phase, ...]:
+    """The phases with each sole contact (a contact without a region or a friction of its own) on a
+    surface less grippy than the robot's soles given that surface's friction coefficient: the
+    planner's friction cones and the controller's then use it (MuJoCo takes the surface's own,
+    :mod:`sim.model`). Contacts on surfaces at least as grippy are left as they are (the profile's).
+
+    Raises:
+        SceneConflict: a sole placed on a surface too slippery to stand on at its incline (Coulomb:
+            ``friction < tan(incline)``), named with the incline and the friction it would need.
+    """
+    if scene is None:
+        return tuple(phases)
+    out = []
+    for phase in phases:
+        contacts = []
+        for c in phase.contacts:
+            if c.region is None and c.friction_coefficient is None:
+                under = surface_at(scene, float(c.placement.position[0]), float(c.placement.position[1]))
+                incline = math.acos(max(-1.0, min(1.0, under.normal[2])))
+                if under.friction < math.tan(incline):
+                    where = "the floor" if under.name is None else f"the {under.name}"
+                    raise SceneConflict(
+                        f"{where} is too slippery for {robot_name} to stand on at its {math.degrees(incline):.1f} deg "
+                        f"incline: that needs a friction coefficient of at least {math.tan(incline):.2f}, it has "
+                        f"{under.friction:g}; give the surface more friction or a gentler slope", under.name or "floor")
+                if under.friction < robot_friction:
+                    c = dataclasses.replace(c, friction_coefficient=float(under.friction))
+            contacts.append(c)
+        out.append(dataclasses.replace(phase, contacts=tuple(contacts)) if contacts != list(phase.contacts) else phase)
+    return tuple(out)
+
+
 __all__ = ["MAX_SLOPE", "MAX_STEPS", "HeightMap", "Slope", "Stairs", "Surface", "is_slope", "slope_objects", "sole_rpy",
-           "stairs_objects", "surface_at", "top_height"]
+           "stairs_objects", "surface_at", "top_height", "with_surface_friction"]

@@ -214,9 +214,10 @@ class WholeBodyController:
         model, nv = self.model, self.nv
         self._contacts = list(ref.contact_frames)
         nc = len(self._contacts)
-        # the pyramids: the profile's friction, or a region contact's lower one (a 0.6 table under talos's 0.7)
+        # the pyramids: the profile's friction, or a contact's lower one (a 0.6 table under talos's 0.7, a sole
+        # on an icy slope: tasks.terrain.with_surface_friction)
         mu = min([self.robot.profile.friction_coefficient, *(c.friction_coefficient for p in ref.plan.spec.phases
-                                                               for c in p.contacts if c.region and c.friction_coefficient)])
+                                                               for c in p.contacts if c.friction_coefficient)])
         self._mu_contact = mu * s.friction_scale
         self._mu = float(pyramid_coefficient(self._mu_contact))
         self.n = nv + 12 * nc
