@@ -214,8 +214,11 @@ def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
                 d = min(x for x in dists if x is not None)
                 if d >= margin or all(on_top(obj, p) for p in points):
                     continue
+                said = obj.name.split(".")[0]  # a flight's tread stairs.2: "the stairs"; a slope's landing: "the slope"
+                fix = (f"climb onto it: 'walk up the {said}' or 'step onto the {said}'"
+                       if obj.walkable else f"move the {obj.name} in the scene")
                 raise SceneConflict(
                     f"the {label(contact.frame)} placement {_point(contact.placement.position)} in phase "
                     f"{phase.name!r} puts the sole {_relation(d)} the {obj.name} ({_where(obj)}; the robot keeps "
-                    f"{margin:g} m away from objects): step elsewhere, or move the {obj.name} in the scene",
+                    f"{margin:g} m away from objects): step elsewhere, or {fix}",
                     obj.name)

@@ -18,6 +18,7 @@ import pytest
 from language import parse
 from tasks.compose import compile_actions
 from tasks.exceptions import SceneConflict
+from tasks.robot_check import check_spec_in_scene_for_robot
 from tasks.scene import load_scene
 from tests.badinput.conftest import run_cli
 
@@ -64,3 +65,20 @@ def test_a_slope_too_slippery_to_stand_on_is_refused_in_task_terms(talos, tmp_pa
     assert outcome.code == 4 and len(lines) == 1 and "too slippery" in lines[0], outcome.err
     ok = _scene(tmp_path, slope_mu=round(need + 0.03, 2), floor_mu=0.8)  # just grippy enough: compiled
     assert _soles(compile_actions(list(parse(SENTENCE).actions), talos, scene=load_scene(ok)))
+
+
+@pytest.mark.parametrize(("scene", "walk", "climb"), [
+    ("stairs.json", "walk forward 0.5 m", "walk up the stairs"),
+    ("slope.json", "walk forward 0.6 m", "walk up the slope"),
+])
+def test_a_walk_into_a_walkable_surface_is_refused_with_the_words_that_climb_it(talos, scene, walk, climb):
+    """A plain walk keeps its soles on the floor: one that would put a sole into stairs or a slope is
+    refused (exit 4) naming the sentence that climbs them, and that sentence compiles with every sole
+    on the surface under it (heights by hand: above the floor where the walk's were inside)."""
+    path = SLOPE.parent / scene
+    spec = compile_actions(list(parse(walk).actions), talos, scene=load_scene(path))
+    with pytest.raises(SceneConflict) as e:
+        check_spec_in_scene_for_robot(spec, talos)
+    assert f"'{climb}'" in str(e.value), e.value
+    up = compile_actions(list(parse(climb).actions), talos, scene=load_scene(path))
+    assert max(c.placement.position[2] for c in _soles(up)) > 0.08  # the stairs' second tread, the slope's landing
