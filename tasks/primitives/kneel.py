@@ -48,17 +48,19 @@ SHIFT = 1.0  # [s] nominal: the weight onto the standing foot (both soles down),
 DOWN = 2.5  # [s] nominal: the knee down to the floor, on one foot
 HOLD = 2.0  # [s] nominal: kneeling (the standing sole and the knee in contact)
 UP = 2.5  # [s] nominal: the knee up and the foot back down, on one foot
-KNEE_BACK = 0.25  # [m] the knee's lowest point this far behind the soles' centres (under the hip)
-KNEE_BEND = 1.9  # [rad] the kneeling knee's bend: the shin tilted up backwards, the lifted foot off the floor
+KNEE_BACK = 0.30  # [m] the knee's lowest point this far behind the soles' centres (under the hip)
+KNEE_BEND = 1.7  # [rad] the kneeling knee's bend: the shin tilted up backwards, the lifted foot off the floor
 ANKLE = 0.5  # [rad] the kneeling leg's ankle pitch (toes pointed back: the lifted foot clears the floor)
 COM_SHARE = 0.3  # the kneeling CoM this share of the way from the standing sole's centre to the knee
 REGION_BAND = 0.005  # [m] the knee's support region: the shin's vertices this close to its lowest one
 REGION_MIN = 0.02  # [m] a region at least this long and wide
 TOLERANCE = 0.002  # [m] the IK: the standing sole, and the knee's lowest point on the floor
 XY_TOLERANCE = 0.01  # [m] the IK: the knee where asked, the CoM where asked
+FOOT_LIFT = 0.05  # [m] the kneeling leg's sole clears the floor this much half-way down and up (at 0 it dragged on
+#   the floor 0.12 s after the lift-off in MuJoCo)
 FOOT_CLEARANCE = 0.02  # [m] the lifted foot's lowest point at least this far above the floor
 BODY_CLEARANCE = 0.03  # [m] every other link (but the standing foot and the kneeling shin) this far above the floor
-THIGH_CLEARANCE = 0.008  # [m] the kneeling leg's links above the knee (talos's thigh: 13 mm above the floor)
+THIGH_CLEARANCE = 0.005  # [m] the kneeling leg's links above the knee (talos's thigh: 7 mm above the floor, around the knee)
 OBJECT_MARGIN = 0.05  # [m] no scene object this close to the knee's region or the lifted foot (horizontally)
 COM_TOLERANCE = 0.02  # [m] the CoM over the standing sole while on one foot
 KNEEL_COM_TOLERANCE = 0.03  # [m] the CoM where the kneeling posture has it, while kneeling
@@ -142,7 +144,12 @@ def _solve(robot: Robot, side: str, knee_goal: np.ndarray) -> tuple[np.ndarray, 
     leg = legs[side]
     q[leg.knee] = leg.sign * KNEE_BEND  # start bent: the IK keeps the knee's side of its limits
     lo, hi = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
-    vk, va, vh = (model.joints[_joint(robot, i)].idx_v for i in (leg.knee, leg.ankle, leg.hip))
+    chain = [int(j) for j in model.supports[model.frames[robot.frame_id(f"{side}_foot")].parentJoint]
+             if model.joints[j].nq == 1]  # the kneeling leg: all straight but the knee and the ankle pitch
+    want = {model.joints[j].idx_q: 0.0 for j in chain} | {leg.knee: leg.sign * KNEE_BEND, leg.ankle: leg.sign * ANKLE}
+    sel = np.zeros((len(chain), model.nv))
+    for i, j in enumerate(chain):
+        sel[i, model.joints[j].idx_v] = 1.0
     offset = np.zeros(3)
     low = knee_goal
     for _ in range(5):  # the lowest point moves on the shin as it turns: re-aim the frame
@@ -156,14 +163,12 @@ def _solve(robot: Robot, side: str, knee_goal: np.ndarray) -> tuple[np.ndarray, 
             fs = robot.frame_id(f"{stand}_foot")
             J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
             Jb = pin.getJointJacobian(model, data, 1, pin.LOCAL_WORLD_ALIGNED)[3:]
-            sel = np.zeros((3, model.nv))
-            sel[0, vk], sel[1, va], sel[2, vh] = 1.0, 1.0, 1.0
             rows = [pin.getFrameJacobian(model, data, fs, pin.LOCAL), J, Jb, pin.jacobianCenterOfMass(model, data, q)[:2], sel]
             base = pin.log3(data.oMi[1].rotation)
             errs = [pin.log6(data.oMf[fs].actInv(foot)).vector, knee_goal + offset - data.oMf[fid].translation,
                     -base, com_goal[:2] - data.com[0][:2],
-                    np.array([leg.sign * KNEE_BEND - q[leg.knee], leg.sign * ANKLE - q[leg.ankle], -q[leg.hip]])]
-            W = np.asarray([10.0] * 6 + [5.0] * 3 + [1.0] * 3 + [3.0] * 2 + [0.3] * 3)
+                    np.array([want[model.joints[j].idx_q] - q[model.joints[j].idx_q] for j in chain])]
+            W = np.asarray([10.0] * 6 + [5.0] * 3 + [1.0] * 3 + [10.0] * 2 + [0.5] * len(chain))
             A, b = np.vstack(rows) * W[:, None], np.concatenate(errs) * W
             H = A.T @ A + 1e-2 * np.eye(model.nv)
             dv = np.linalg.solve(H, A.T @ b + 1e-3 * pin.difference(model, q, q0))
@@ -276,9 +281,9 @@ def build(b: FragmentBuilder) -> Fragment:
     t1, t2, t3, t4 = SHIFT, SHIFT + DOWN, SHIFT + DOWN + HOLD, SHIFT + DOWN + HOLD + UP
     one = b.contacts((stand,))
     b.phase(f"shift onto the {stand} foot", t1)
-    b.phase(f"{side} knee down", t2, one, swing_height=0.0)
+    b.phase(f"{side} knee down", t2, one, swing_height=FOOT_LIFT)
     b.phase(f"kneel on the {side} knee", t3, (*one, k.contact))
-    b.phase(f"{side} knee up", t4, one, swing_height=0.0)
+    b.phase(f"{side} knee up", t4, one, swing_height=FOOT_LIFT)
     b.phase("both feet down", nominal_duration(b.params, b.robot))
     b.com_target(f"CoM over the {stand} sole", (sole[0], sole[1], None), window=(t1, t2), tolerance=COM_TOLERANCE)
     b.com_target(f"CoM over the {stand} sole again", (sole[0], sole[1], None), window=(t3, t4), tolerance=COM_TOLERANCE)

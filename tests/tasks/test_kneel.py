@@ -78,14 +78,14 @@ def test_the_knee_rests_on_the_floor_and_nothing_else_but_the_standing_foot_by_f
     assert np.allclose(data.oMf[sole].translation, standing.oMf[sole].translation, atol=2e-3)  # the left foot stays
     assert np.linalg.norm(pin.log3(data.oMf[sole].rotation.T @ standing.oMf[sole].rotation)) < 5e-3
     # the knee behind the feet, on the right foot's line
-    assert corners[:, 0].mean() == pytest.approx(-0.25, abs=0.02)
+    assert corners[:, 0].mean() == pytest.approx(-kneel_module.KNEE_BACK, abs=0.02)
     assert corners[:, 1].mean() == pytest.approx(standing.oMf[talos.frame_id("right_foot")].translation[1], abs=0.02)
     left = set(model.subtrees[model.frames[sole].parentJoint]) | {model.frames[sole].parentJoint}
     thigh = model.parents[shin]
     for j, v in _meshes(talos, knelt.q):
         if j in left or j == shin:
             continue
-        assert v[:, 2].min() > (0.005 if j == thigh else 0.02), model.names[j]  # nothing else on the floor
+        assert v[:, 2].min() > (0.004 if j == thigh else 0.02), model.names[j]  # nothing else on the floor
     sole_corners = talos.sole_corners_in_world(knelt.q, "left")
     com = pin.centerOfMass(model, data, knelt.q)
     assert _inside(com[:2], np.vstack([sole_corners[:, :2], corners[:, :2]]))  # statically balanced on foot and knee
