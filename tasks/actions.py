@@ -545,7 +545,7 @@ REGISTRY: dict[str, ActionSchema] = {
                   description="the table to lean on, as said (\"the table\"; default: the scene's table)"),
         )),
         ActionSchema(name="kneel", summary="Kneel down on one knee on the floor (the other foot staying where it "
-                     "stands), hold, then get up again.", body="whole", params=(
+                     "stands), hold, then get up again.", body="whole", dynamic=True, params=(
             _choice("knee", SIDES, "right", "which knee goes down on the floor"),
         )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",

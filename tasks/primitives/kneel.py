@@ -231,8 +231,9 @@ def _posture(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
         limit = FOOT_CLEARANCE if j in set(model.subtrees[jk]) else THIGH_CLEARANCE if j in set(model.supports[jk]) \
             else BODY_CLEARANCE
         if z < limit:
-            raise BeyondCapability(f"kneel: kneeling on its {side} knee, {robot.name}'s {link} would come "
-                                   f"{z:.3f} m above the floor: its legs do not fold that way")
+            where = f"{-z:.3f} m into the floor" if z < 0 else f"within {z:.3f} m of the floor"
+            raise BeyondCapability(f"kneel: kneeling on its {side} knee, {robot.name}'s {link} would go {where}: "
+                                   "its legs do not fold that way")
     return q, low, com
 
 
@@ -302,7 +303,7 @@ def build(b: FragmentBuilder) -> Fragment:
     for what, tau in ((f"{side} knee half-way down", t1 + WAYPOINT * DOWN), (f"{side} knee half-way up", t4 - WAYPOINT * UP)):
         b.targets.append(FrameTarget(name=b.name(what), frame=name, position=_vec(0.5 * (up + down) + [0.0, 0.0, LIFT]),
                                      time=b.t(tau), tolerance=WAYPOINT_TOLERANCE))
-    return b.finish(PARTS)
+    return b.finish(PARTS, dynamic=True)
 
 
 def _check(params: dict, robot: Robot) -> None:
