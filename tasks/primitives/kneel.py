@@ -268,6 +268,11 @@ def kneeling(robot: Robot, stance: Stance, side: str = "right", objects: tuple[S
     return Kneeling(q=q, contact=contact, side=side)
 
 
+@lru_cache(maxsize=16)
+def _cached(robot: Robot, stance: Stance, side: str) -> Kneeling:
+    return kneeling(robot, stance, side)
+
+
 def nominal_duration(params: dict, robot: Robot) -> float:
     """Shift, down, kneel, up, shift back [s]."""
     return SHIFT + DOWN + HOLD + UP + SHIFT
@@ -277,7 +282,7 @@ def build(b: FragmentBuilder) -> Fragment:
     """Onto the standing foot, the knee down, kneel, the knee up, both feet down."""
     side = b.params.get("knee", "right")
     stand = OTHER[side]
-    k = kneeling(b.robot, b.stance, side)
+    k = _cached(b.robot, b.stance, side)
     sole = b.world(b.geometry.sole_centers[stand])
     t1, t2, t3, t4 = SHIFT, SHIFT + DOWN, SHIFT + DOWN + HOLD, SHIFT + DOWN + HOLD + UP
     one = b.contacts((stand,))
@@ -307,7 +312,7 @@ def build(b: FragmentBuilder) -> Fragment:
 
 
 def _check(params: dict, robot: Robot) -> None:
-    kneeling(robot, Stance.standing(robot), params.get("knee", "right"))
+    _cached(robot, Stance.standing(robot), params.get("knee", "right"))
 
 
 KNEEL = Primitive(name="kneel", nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,

@@ -124,6 +124,22 @@ def test_refused_when_an_object_stands_where_the_knee_goes(talos):
     assert kneeling(talos, Stance.standing(talos), "right", (far,)).side == "right"
 
 
+def test_a_sentence_kneeling_onto_a_crate_is_refused_before_planning_naming_the_leg_and_the_crate(talos):
+    """What ``wbmp solve "跪下" --scene crate.json`` prints (exit 4, one line): the spec's binding
+    refuses the knee's contact inside the crate (``tasks.robot_check``), no solver built; the CLI maps
+    a SceneConflict to exit 4 (``wbmp.errors``)."""
+    from tasks import bind
+    from tasks.exceptions import SceneConflict
+    from tasks.scene import Scene, SceneObject
+
+    crate = Scene(objects=(SceneObject(name="crate", shape="box", size=(0.3, 0.3, 0.2), position=(-0.3, -0.09, 0.1)),))
+    spec = compile_actions(parse("跪下").actions, talos, scene=crate)
+    with pytest.raises(SceneConflict, match=r"the right leg's leg_right_4_link placement .* in phase '1 kneel: kneel on the right knee' "
+                                            r"puts it inside the crate") as e:
+        bind(spec, talos)
+    assert e.value.object_name == "crate"
+
+
 @pytest.mark.parametrize(("sentence", "knee"), [("kneel down", "right"), ("kneel on your left knee", "left"),
                                                 ("go down on one knee", "right"), ("跪下", "right"), ("单膝跪下", "right")])
 def test_the_words(sentence, knee):
