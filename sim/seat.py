@@ -76,7 +76,8 @@ def seat_checks(run: RunRecord) -> list[Check]:
     owner = _owners(run, list(regions))
     for tick, link, obj, _ in run.scene_contacts:
         touching.setdefault((owner.get(link, link), obj), set()).add(int(tick))
-    for t, link in run.other_contacts:  # on the floor
+    floor = any(obj == FLOOR for _, obj in regions.values())
+    for t, link in run.other_contacts if floor else ():  # MuJoCo's floor contacts (a knee on the floor)
         touching.setdefault((owner.get(link, link), FLOOR), set()).add(int(np.searchsorted(ts, t - 1e-9)))
     out: list[Check] = []
     for frame, (corners, obj) in regions.items():

@@ -231,7 +231,7 @@ def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
                     continue
                 raise SceneConflict(
                     f"the {label(contact.frame)} placement {_point(contact.placement.position)} in phase "
-                    f"{phase.name!r} puts {'the sole' if contact_points and contact.frame in contact_points else 'it'} "
+                    f"{phase.name!r} puts {'it' if contact.region is not None else 'the sole'} "
                     f"{_relation(d)} the {obj.name} ({_where(obj)}; the robot keeps "
                     f"{margin:g} m away from objects): step elsewhere, or move the {obj.name} in the scene",
                     obj.name)

@@ -48,17 +48,21 @@ SHIFT = 1.0  # [s] nominal: the weight onto the standing foot (both soles down),
 DOWN = 2.5  # [s] nominal: the knee down to the floor, on one foot
 HOLD = 2.0  # [s] nominal: kneeling (the standing sole and the knee in contact)
 UP = 2.5  # [s] nominal: the knee up and the foot back down, on one foot
-KNEE_BACK = 0.30  # [m] the knee's lowest point this far behind the soles' centres (under the hip)
+KNEE_BACK = 0.30  # [m] the knee's lowest point at most this far behind the soles' centres (under the hip)
+KNEE_BACK_FRACTION = 0.295  # ... and at most this fraction of the base's standing height (talos 1.02 m: 0.30 m;
+#   g1 0.78 m: 0.23 m, its shorter legs reach no farther)
 KNEE_BEND = 1.7  # [rad] the kneeling knee's bend: the shin tilted up backwards, the lifted foot off the floor
 ANKLE = 0.5  # [rad] the kneeling leg's ankle pitch (toes pointed back: the lifted foot clears the floor)
 COM_SHARE = 0.3  # the kneeling CoM this share of the way from the standing sole's centre to the knee
 REGION_BAND = 0.005  # [m] the knee's support region: the shin's vertices this close to its lowest one
 REGION_MIN = 0.02  # [m] a region at least this long and wide
 TOLERANCE = 0.002  # [m] the IK: the standing sole, and the knee's lowest point on the floor
-XY_TOLERANCE = 0.01  # [m] the IK: the knee where asked, the CoM where asked
+XY_TOLERANCE = 0.01  # [m] the IK: the knee where asked
+COM_IK_TOLERANCE = 0.02  # [m] the IK: the CoM where asked (g1: 1.5 cm short)
 FOOT_LIFT = 0.05  # [m] the kneeling leg's sole clears the floor this much half-way down and up (at 0 it dragged on
 #   the floor 0.12 s after the lift-off in MuJoCo)
 FOOT_CLEARANCE = 0.02  # [m] the lifted foot's lowest point at least this far above the floor
+STANCE_CLEARANCE = 0.01  # [m] the standing leg's links this far above the floor (g1's ankle and shin: 2.4 cm)
 BODY_CLEARANCE = 0.03  # [m] every other link (but the standing foot and the kneeling shin) this far above the floor
 THIGH_CLEARANCE = 0.005  # [m] the kneeling leg's links above the knee (talos's thigh: 7 mm above the floor, around the knee)
 OBJECT_MARGIN = 0.05  # [m] no scene object this close to the knee's region or the lifted foot (horizontally)
@@ -208,7 +212,8 @@ def _posture(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     if bend < KNEE_BEND - 1e-9:
         raise BeyondCapability(f"kneel: {robot.name}'s knees bend at most {bend:.2f} rad ({robot.model.names[jk]}); "
                                f"kneeling needs {KNEE_BEND:.2f} rad")
-    g = np.array([-KNEE_BACK, 0.0, 0.0])
+    back = min(KNEE_BACK, KNEE_BACK_FRACTION * float(robot.q_standing[2]))
+    g = np.array([-back, 0.0, 0.0])
     pin_data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, pin_data, np.asarray(robot.q_standing, dtype=float))
     g[1] = float(pin_data.oMf[robot.frame_id(f"{side}_foot")].translation[1])
@@ -217,19 +222,20 @@ def _posture(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     sole = pin_data.oMf[robot.frame_id(f"{stand}_foot")].translation
     want = sole + COM_SHARE * (g - sole)
     if abs(float(low[2])) > TOLERANCE or float(np.linalg.norm(low[:2] - g[:2])) > XY_TOLERANCE \
-            or float(np.linalg.norm(com[:2] - want[:2])) > XY_TOLERANCE:
+            or float(np.linalg.norm(com[:2] - want[:2])) > COM_IK_TOLERANCE:
         raise BeyondCapability(f"kneel: {robot.name} cannot reach a kneeling posture with its {side} knee on the floor "
-                               f"{KNEE_BACK:.2f} m behind its feet (the knee reaches {low[0]:.2f}, {low[1]:.2f}, {low[2]:.3f} m)")
+                               f"{back:.2f} m behind its feet (the knee reaches {low[0]:.2f}, {low[1]:.2f}, {low[2]:.3f} m)")
     lows = lowest_points(robot, q)
     shin_name, _ = shin(robot, side)
     model = robot.model
-    stand_joints = set(model.supports[model.frames[robot.frame_id(f"{stand}_foot")].parentJoint][-1:])
+    stand_chain = [int(j) for j in model.supports[model.frames[robot.frame_id(f"{stand}_foot")].parentJoint]]
+    stand_joints = set(stand_chain[-1:])
     for link, z in lows.items():
         j = model.frames[robot.frame_id(link)].parentJoint
         if link == shin_name or j in stand_joints:
             continue
         limit = FOOT_CLEARANCE if j in set(model.subtrees[jk]) else THIGH_CLEARANCE if j in set(model.supports[jk]) \
-            else BODY_CLEARANCE
+            else STANCE_CLEARANCE if j in stand_chain[2:] else BODY_CLEARANCE
         if z < limit:
             where = f"{-z:.3f} m into the floor" if z < 0 else f"within {z:.3f} m of the floor"
             raise BeyondCapability(f"kneel: kneeling on its {side} knee, {robot.name}'s {link} would go {where}: "
@@ -316,7 +322,7 @@ def _check(params: dict, robot: Robot) -> None:
 
 
 KNEEL = Primitive(name="kneel", nominal_duration=nominal_duration, build=build, parts=lambda p: PARTS,
-                  check=lambda p, r: _check(p, r))
+                  check=lambda p, r: _check(p, r), dynamic=True)
 
 PRIMITIVES = (KNEEL,)
 
