@@ -546,7 +546,8 @@ REGISTRY: dict[str, ActionSchema] = {
         )),
         ActionSchema(name="kneel", summary="Kneel down on one knee on the floor (the other foot staying where it "
                      "stands), hold, then get up again.", body="whole", dynamic=True, params=(
-            _choice("knee", SIDES, "right", "which knee goes down on the floor"),
+            _choice("knee", ARMS, "right", "which knee goes down on the floor (both: refused, one knee at a time is "
+                    "not planned yet)"),
         )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(

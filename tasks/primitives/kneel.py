@@ -318,6 +318,9 @@ def build(b: FragmentBuilder) -> Fragment:
 
 
 def _check(params: dict, robot: Robot) -> None:
+    if params.get("knee") == "both":
+        raise BeyondCapability(f"kneel: {robot.name} kneels on one knee only (both knees come down one at a time, each "
+                               "foot turning onto its toes, which is not planned yet): say \"kneel on one knee\"")
     _cached(robot, Stance.standing(robot), params.get("knee", "right"))
 
 

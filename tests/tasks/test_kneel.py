@@ -155,3 +155,11 @@ def test_get_up_after_a_kneel_is_its_own_rise_and_stand_up_after_a_sit_is_unchan
         alone = compile_actions([Action(name="kneel", params={})], talos)
         assert sum(p.duration for p in spec.phases) == pytest.approx(sum(p.duration for p in alone.phases))  # no second stand
     assert [a.name for a in parse("sit down then stand up").actions] == ["sit_down", "stand"]
+
+
+@pytest.mark.parametrize("sentence", ["kneel on both knees", "双膝跪下"])
+def test_both_knees_are_refused_in_task_terms(talos, sentence):
+    actions = parse(sentence).actions
+    assert actions[0].params["knee"] == "both"
+    with pytest.raises(BeyondCapability, match=r"kneel: talos kneels on one knee only .*: say \"kneel on one knee\""):
+        compile_actions(actions, talos)
