@@ -2,7 +2,8 @@
 staying where it stands.
 
 The kneeling posture (:func:`kneeling`) keeps the standing foot's sole where it is and puts the
-kneeling leg's shin on the floor ``KNEE_BACK`` behind the soles, under its hip: the lowest points
+kneeling leg's shin on the floor ``KNEE_BACK`` behind the soles (at most ``KNEE_BACK_FRACTION`` of the
+base's standing height), under its hip: the lowest points
 of the shin's collision meshes (the front of the knee) on the floor, the shin tilted up
 backwards (the knee bent ``KNEE_BEND``) so the lifted foot clears the floor, the base upright and
 the centre of mass ``COM_SHARE`` of the way from the standing sole's centre towards the knee. It
@@ -17,11 +18,16 @@ standing foot (both soles down), lower the kneeling knee to the floor on one foo
 over the standing sole), kneel (the standing sole and the knee in contact), lift the knee and put
 the foot back down (one foot again), and stand. ``kneel`` always comes back up (like ``lean_on``):
 the controller and the certificate know no posture ending on a knee. "get up" after a kneel in the
-same sentence is the kneel's own rise (``language``), not ``stand_up`` from a seat.
+same sentence is the kneel's own rise (:func:`tasks.compose.ground_actions` drops that ``stand``),
+not ``stand_up`` from a seat. One knee only: both knees come down one at a time, each foot turning
+onto its toes, and the planner holds a contact fixed at its frame (a toe pivot needs a frame at the
+toe); ``knee="both"`` is refused.
 
-Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): a knee that cannot
-bend ``KNEE_BEND``, a kneeling posture the legs cannot reach, a scene object where the knee or the
-lifted foot would go.
+Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): both knees, a knee that
+cannot bend ``KNEE_BEND``, a kneeling posture the legs cannot reach, a link that would go into the
+floor, and (``objects`` of :func:`kneeling`) a scene object where the knee or the lifted foot would
+go; a sentence's scene is checked by the spec's scene check (:mod:`tasks.robot_check`: the knee's
+contact inside an object, a ``SceneConflict``, exit 4 too).
 """
 
 from __future__ import annotations
