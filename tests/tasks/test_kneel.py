@@ -58,11 +58,14 @@ def _inside(p, pts) -> bool:
     return all(_cross(np.subtract(b, a), np.subtract(p, a)) > 0 for a, b in zip(hull, hull[1:] + hull[:1], strict=True))
 
 
-def test_the_knee_rests_on_the_floor_and_nothing_else_but_the_standing_foot_by_forward_kinematics(talos, knelt):
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_the_knee_rests_on_the_floor_and_nothing_else_but_the_standing_foot_by_forward_kinematics(talos, knelt, side):
+    other = "left" if side == "right" else "right"
+    knelt = knelt if side == "right" else kneeling(talos, Stance.standing(talos), "left")
     model, data = talos.model, talos.model.createData()
     pin.framesForwardKinematics(model, data, knelt.q)
     c = knelt.contact
-    assert c.frame == "leg_right_4_link" and c.normal == (0.0, 0.0, 1.0)
+    assert c.frame == f"leg_{side}_4_link" and c.normal == (0.0, 0.0, 1.0)
     M = data.oMf[talos.frame_id(c.frame)]
     corners = np.asarray(c.region) @ M.rotation.T + M.translation
     assert np.allclose(corners[:, 2], 0.0, atol=1e-3)  # the region on the floor
@@ -74,19 +77,19 @@ def test_the_knee_rests_on_the_floor_and_nothing_else_but_the_standing_foot_by_f
     assert abs(low) < 2e-3  # the shin's lowest vertex on the floor
     standing = talos.data()
     pin.framesForwardKinematics(model, standing, np.asarray(talos.q_standing))
-    sole = talos.frame_id("left_foot")
-    assert np.allclose(data.oMf[sole].translation, standing.oMf[sole].translation, atol=2e-3)  # the left foot stays
+    sole = talos.frame_id(f"{other}_foot")
+    assert np.allclose(data.oMf[sole].translation, standing.oMf[sole].translation, atol=2e-3)  # the standing foot stays
     assert np.linalg.norm(pin.log3(data.oMf[sole].rotation.T @ standing.oMf[sole].rotation)) < 5e-3
-    # the knee behind the feet, on the right foot's line
+    # the knee behind the feet, on the kneeling foot's line
     assert corners[:, 0].mean() == pytest.approx(-kneel_module.KNEE_BACK, abs=0.02)
-    assert corners[:, 1].mean() == pytest.approx(standing.oMf[talos.frame_id("right_foot")].translation[1], abs=0.02)
-    left = set(model.subtrees[model.frames[sole].parentJoint]) | {model.frames[sole].parentJoint}
+    assert corners[:, 1].mean() == pytest.approx(standing.oMf[talos.frame_id(f"{side}_foot")].translation[1], abs=0.02)
+    stands = set(model.subtrees[model.frames[sole].parentJoint]) | {model.frames[sole].parentJoint}
     thigh = model.parents[shin]
     for j, v in _meshes(talos, knelt.q):
-        if j in left or j == shin:
+        if j in stands or j == shin:
             continue
         assert v[:, 2].min() > (0.004 if j == thigh else 0.02), model.names[j]  # nothing else on the floor
-    sole_corners = talos.sole_corners_in_world(knelt.q, "left")
+    sole_corners = talos.sole_corners_in_world(knelt.q, other)
     com = pin.centerOfMass(model, data, knelt.q)
     assert _inside(com[:2], np.vstack([sole_corners[:, :2], corners[:, :2]]))  # statically balanced on foot and knee
     assert knelt.q[model.joints[shin].idx_q] == pytest.approx(kneel_module.KNEE_BEND, abs=0.05)
