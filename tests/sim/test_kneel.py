@@ -1,4 +1,5 @@
-"""Talos kneels on its right knee on the floor and gets up ("kneel down then get up"): the plan's
+"""Talos kneels on its right knee on the floor and gets up ("kneel down then get up"), and on its left
+knee ("kneel on your left knee"): the plan's
 knee contact recomputed independently of the planner and of :mod:`tasks.primitives.kneel`, and the
 motion certified in MuJoCo (the region-contact lines of :mod:`sim.seat` for the floor among the
 certificate's, and the unplanned-contact line: no other body part on the floor).
@@ -22,18 +23,20 @@ from sim import simulate
 from tasks.compose import compile_actions
 
 
-@pytest.mark.long  # a dynamic plan (30 to 80 s), then 9.6 s of MuJoCo and the certificate (40 to 100 s)
-def test_kneeling_on_one_knee_and_getting_up_planned_and_certified(talos):
-    spec = compile_actions(parse("kneel down then get up").actions, talos)
+@pytest.mark.long  # a dynamic plan (30 to 80 s), then 9.6 s of MuJoCo and the certificate (40 to 100 s), per knee
+@pytest.mark.parametrize(("sentence", "side"), [("kneel down then get up", "right"), ("kneel on your left knee", "left")])
+def test_kneeling_on_one_knee_and_getting_up_planned_and_certified(talos, sentence, side):
+    spec = compile_actions(parse(sentence).actions, talos)
     p = plan(spec, talos, settings=PlannerSettings())
     assert p.ok
     i, phase = next((i, ph) for i, ph in enumerate(spec.phases) if any(c.region for c in ph.contacts))
     t0 = sum(ph.duration for ph in spec.phases[:i])
     knee = next(c for c in phase.contacts if c.region)
+    assert knee.frame == f"leg_{side}_4_link"
     model, data = talos.model, talos.model.createData()
     cdata = talos.collision_model.createData()
     shin = model.frames[talos.frame_id(knee.frame)].parentJoint
-    sole = talos.frame_id("left_foot")
+    sole = talos.frame_id(f"{'left' if side == 'right' else 'right'}_foot")
     foot = {int(j) for j in model.subtrees[model.frames[sole].parentJoint]}
     held = 0
     for k, tk in enumerate(p.t):
