@@ -25,7 +25,7 @@ toe); ``knee="both"`` is refused.
 
 Refused in task terms (exit 4, :class:`~tasks.exceptions.BeyondCapability`): both knees, a knee that
 cannot bend ``KNEE_BEND``, a kneeling posture the legs cannot reach, a link that would go into the
-floor, and (``objects`` of :func:`kneeling`) a scene object where the knee or the lifted foot would
+floor, links that would overlap (the collision model's capsules: g1's thigh and torso), and (``objects`` of :func:`kneeling`) a scene object where the knee or the lifted foot would
 go; a sentence's scene is checked by the spec's scene check (:mod:`tasks.robot_check`: the knee's
 contact inside an object, a ``SceneConflict``, exit 4 too).
 """
@@ -38,7 +38,7 @@ from functools import lru_cache
 import numpy as np
 import pinocchio as pin
 
-from robots import Robot
+from robots import Robot, body_part, collision_model, pair_sphere_distance
 from tasks.exceptions import BeyondCapability
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance
@@ -248,7 +248,30 @@ def _posture(robot: Robot, side: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
             where = f"{-z:.3f} m into the floor" if z < 0 else f"within {z:.3f} m of the floor"
             raise BeyondCapability(f"kneel: kneeling on its {side} knee, {robot.name}'s {link} would go {where}: "
                                    "its legs do not fold that way")
+    _apart(robot, q, side)
     return q, low, com
+
+
+def _apart(robot: Robot, q: np.ndarray, side: str) -> None:
+    """Refuse a kneeling posture whose legs and trunk overlap in the robot's collision model (the
+    capsules the planner keeps apart): g1's standing thigh, its hip flexed 1.4 rad, passes 2.6 cm into
+    its torso, and its plan failed on that pair after 70 s. The arms are left out: the plan moves them
+    (at talos's posture the hanging left forearm's capsule is in the pelvis's; planned, 34 mm apart)."""
+    model = robot.model
+    hands = [set(model.supports[model.frames[robot.frame_id(f"{s}_hand")].parentJoint]) for s in SIDES
+             if robot.has_role(f"{s}_hand")]
+    arms = {int(j) for mine in hands for j in mine if sum(j in h for h in hands) == 1}  # one hand's chain, not the torso
+    arms |= {int(k) for j in arms for k in model.subtrees[j]}
+    joint = {model.frames[g.parentFrame].name: int(g.parentJoint) for g in robot.collision_model.geometryObjects}
+    cm = collision_model(robot)
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    worst = min(((pair_sphere_distance(cm, a, b, data), a, b) for a, b in cm.pairs
+                 if joint.get(a) not in arms and joint.get(b) not in arms), default=None)
+    if worst is not None and worst[0] < 0.0:
+        d, a, b = worst
+        raise BeyondCapability(f"kneel: kneeling on its {side} knee, {robot.name}'s {body_part(robot, a)} would pass "
+                               f"{-d:.3f} m into its {body_part(robot, b)}: its body does not fold that way")
 
 
 def kneeling(robot: Robot, stance: Stance, side: str = "right", objects: tuple[SceneObject, ...] = ()) -> Kneeling:

@@ -166,3 +166,12 @@ def test_both_knees_are_refused_in_task_terms(talos, sentence):
     assert actions[0].params["knee"] == "both"
     with pytest.raises(BeyondCapability, match=r"kneel: talos kneels on one knee only .*: say \"kneel on one knee\""):
         compile_actions(actions, talos)
+
+
+def test_g1_is_refused_its_thigh_would_pass_into_its_torso(g1):
+    """g1's kneeling posture exists (the knee 0.23 m behind its feet) but its standing thigh meets its
+    torso in the planner's collision model: refused in task terms (its plan failed on that pair)."""
+    kneel_module._posture.cache_clear()
+    with pytest.raises(BeyondCapability, match=r"kneel: kneeling on its right knee, g1's left hip would pass 0\.0\d\d m "
+                                               r"into its torso"):
+        kneeling(g1, Stance.standing(g1), "right")
