@@ -22,7 +22,7 @@ from sim.collisions import MeshDistance
 from sim.intent import ObjectPoses, intent_checks
 from sim.meshcheck import mesh_self_collision_check
 from sim.recording import RunRecord, tilt, torque_fraction
-from sim.seat import seat_checks
+from sim.seat import floor_touch_planned, seat_checks
 
 #: Ticks of a pair whose MuJoCo contact is deeper than the limit that coal checks on the meshes.
 CONFIRM_TICKS = 5
@@ -143,7 +143,8 @@ def fall_checks(run: RunRecord) -> tuple[Check, Check]:
 
 
 def unplanned_contacts_check(run: RunRecord, meas: Measured) -> Check:
-    """No body touches the floor but the soles of planned stances (a landing within 0.1 s counts)."""
+    """No body touches the floor but the soles of planned stances (a landing within 0.1 s counts) and
+    the links of planned region contacts on the floor (a knee: :func:`sim.seat.floor_touch_planned`)."""
     ref, ts = run.ref, run.t
     planned = np.zeros_like(run.contact_flags)
     for i, frame in enumerate(run.foot_frames):
@@ -154,8 +155,9 @@ def unplanned_contacts_check(run: RunRecord, meas: Measured) -> Check:
             grown = np.convolve(act.astype(float), np.ones(2 * w + 1), mode="same") > 0
             planned[i] = grown[meas.knots]
     stray = run.contact_flags & ~planned
-    bad_times = [t for t, _ in run.other_contacts]
-    names = [b for _, b in run.other_contacts]
+    held = floor_touch_planned(run)  # a knee on the floor where and when the plan holds it
+    bad_times = [t for (t, _), h in zip(run.other_contacts, held, strict=True) if not h]
+    names = [b for (_, b), h in zip(run.other_contacts, held, strict=True) if not h]
     for i, frame in enumerate(run.foot_frames):
         for j in np.nonzero(stray[i])[0][:1]:
             bad_times.append(float(ts[j]))

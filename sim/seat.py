@@ -18,6 +18,12 @@ plan holds it (``PlanReference.active``):
   (a thigh's hip links, 5.7 mm above the seat on talos, touch it when the thigh sinks into MuJoCo's
   soft contact). The rest of the world (the floor, other
   objects) is the unplanned-contact and scene-collision lines' (:mod:`sim.certify`).
+
+The **floor** is a surface too (a knee on it: ``kneel``): a region whose corners lie at the floor's
+height (0, within 1 cm) and on no scene object is on the ``floor``; its touches are MuJoCo's floor
+contacts of the link (``RunRecord.other_contacts``), and :func:`floor_touch_planned` tells the
+unplanned-contact line which of them the plan holds (the link and the links between it and the base,
+over its planned time and ``SEAT_PADDING``): any other body part on the floor fails that line.
 """
 
 from __future__ import annotations
@@ -31,6 +37,8 @@ from sim.recording import RunRecord
 SEAT_TIME_FRACTION = 0.9  # of the planned contact's samples after SEAT_SETTLE
 SEAT_SETTLE = 0.3  # [s] after the planned touch-down: the thigh may settle onto the seat
 SEAT_PADDING = 0.3  # [s] a touch this much before the planned touch-down (or after the lift-off) counts as planned
+FLOOR = "floor"  # the object a region on the floor is on (no scene object)
+FLOOR_TOLERANCE = 0.01  # [m] a region corner this close to z = 0 lies on the floor
 
 
 def _region_contacts(run: RunRecord) -> dict[str, tuple[np.ndarray, str]]:
@@ -42,12 +50,15 @@ def _region_contacts(run: RunRecord) -> dict[str, tuple[np.ndarray, str]]:
     out: dict[str, tuple[np.ndarray, str]] = {}
     for phase in spec.phases:
         for c in phase.contacts:
-            if c.region is None or spec.scene is None:
+            if c.region is None:
                 continue
             M = pin.SE3(pin.rpy.rpyToMatrix(*c.placement.rpy), np.asarray(c.placement.position, dtype=float))
             corners = np.asarray(c.region, dtype=float)
             world = corners @ M.rotation.T + M.translation
-            obj = next((o.name for o in spec.scene.objects if all(on_top(o, p, tolerance=0.01) for p in world)), None)
+            objects = spec.scene.objects if spec.scene is not None else ()
+            obj = next((o.name for o in objects if all(on_top(o, p, tolerance=0.01) for p in world)), None)
+            if obj is None and bool(np.all(np.abs(world[:, 2]) <= FLOOR_TOLERANCE)):
+                obj = FLOOR
             if obj is not None:
                 out[model.frames[run.robot.frame_id(c.frame)].name] = (corners, obj)
     return out
@@ -65,6 +76,9 @@ def seat_checks(run: RunRecord) -> list[Check]:
     owner = _owners(run, list(regions))
     for tick, link, obj, _ in run.scene_contacts:
         touching.setdefault((owner.get(link, link), obj), set()).add(int(tick))
+    floor = any(obj == FLOOR for _, obj in regions.values())
+    for t, link in run.other_contacts if floor else ():  # MuJoCo's floor contacts (a knee on the floor)
+        touching.setdefault((owner.get(link, link), FLOOR), set()).add(int(np.searchsorted(ts, t - 1e-9)))
     out: list[Check] = []
     for frame, (corners, obj) in regions.items():
         fid = run.robot.frame_id(frame)
@@ -94,8 +108,29 @@ def seat_checks(run: RunRecord) -> list[Check]:
                          time=float(ts[on[j]]), message="" if drift[j] <= s.slip_limit else f"{frame} slipped {drift[j]:.3f} m on the {obj} "
                          f"(> {s.slip_limit:.3f} m) by t = {ts[on[j]]:.2f} s"))
         out.append(_time_check(run, frame, obj, on, touching.get((frame, obj), set())))
-    out.append(_others_check(run, regions, touching))
+    if any(obj != FLOOR for _, obj in regions.values()):  # the floor's others: the unplanned-contact line
+        out.append(_others_check(run, {f: r for f, r in regions.items() if r[1] != FLOOR}, touching))
     return out
+
+
+def floor_touch_planned(run: RunRecord) -> list[bool]:
+    """Per floor touch of ``run.other_contacts``: True when a region contact on the floor holds its
+    link (or the link is between that contact's link and the base: :func:`hip_links`) within
+    ``SEAT_PADDING`` of the planned time."""
+    floor = [f for f, (_, obj) in _region_contacts(run).items() if obj == FLOOR]
+    if not floor:
+        return [False] * len(run.other_contacts)
+    ref = run.ref
+    owner = _owners(run, floor)
+    spans: dict[str, list[tuple[float, float]]] = {}
+    for frame in floor:
+        act = ref.active[:, ref.contact_frames.index(frame)]
+        on = np.nonzero(act)[0]
+        t0 = float(ref.plan.t[0])
+        span = (t0 + on[0] * ref.dt - SEAT_PADDING, t0 + on[-1] * ref.dt + SEAT_PADDING) if len(on) else (1.0, 0.0)
+        for link in {frame, *hip_links(run, frame, tuple(floor)), *(k for k, v in owner.items() if v == frame)}:
+            spans.setdefault(link, []).append(span)
+    return [any(a <= t <= b for a, b in spans.get(link, ())) for t, link in run.other_contacts]
 
 
 def _owners(run: RunRecord, frames: list[str]) -> dict[str, str]:

@@ -544,6 +544,11 @@ REGISTRY: dict[str, ActionSchema] = {
             Param(name="object", kind="object", default=None,
                   description="the table to lean on, as said (\"the table\"; default: the scene's table)"),
         )),
+        ActionSchema(name="kneel", summary="Kneel down on one knee on the floor (the other foot staying where it "
+                     "stands), hold, then get up again.", body="whole", dynamic=True, params=(
+            _choice("knee", ARMS, "right", "which knee goes down on the floor (both: refused, one knee at a time is "
+                    "not planned yet)"),
+        )),
         ActionSchema(name="look_at", summary="Turn the head towards an object of the scene (robots with a neck).",
                      body="upper", params=(
             _object("the object to look at"),

@@ -432,6 +432,8 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
     for i, a in enumerate(actions):
         if a.name == "stand" and out and out[-1].name == "sit_down":  # "sit down, then stand up": rise first
             a = Action(name="stand_up", params={}, overlay=a.overlay)
+        if a.name == "stand" and out and out[-1].name == "kneel" and set(a.params) <= set(a.defaulted):
+            continue  # "kneel down, then get up": the kneel's own rise (it always comes back up)
         if a.name in SEAT_ACTIONS:
             a = _seated(a, scene, out[-1] if out else None, _where(i, a, len(actions)))
         if a.name == "lean_on":

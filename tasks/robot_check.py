@@ -87,14 +87,29 @@ def check_spec_in_scene_for_robot(spec: TaskSpec, robot: Robot, *, margin: float
 
     roles = {robot.frame_id(f"{side}_{part}"): (side, part) for side in ("left", "right") for part in ("foot", "hand")}
     points, labels = {}, {}
+    regions = {c.frame for p in spec.phases for c in p.contacts if c.region is not None}
     for frame in {*spec.contact_frames(), *(t.frame for t in spec.targets)}:
         side_part = roles.get(robot.frame_id(frame))
         if side_part is None:
+            if frame in regions:  # a knee on the floor: "the right leg's leg_right_4_link placement ... puts it inside"
+                labels[frame] = _limb(robot, frame)
             continue
         labels[frame] = f"{side_part[0]} {side_part[1]}"
         if side_part[1] == "foot":
             points[frame] = sole_corners(robot.profile.sole, side_part[0])
     check_spec_in_scene(spec, margin=margin, contact_points=points, labels=labels)
+
+
+def _limb(robot: Robot, frame: str) -> str:
+    """``right leg's leg_right_4_link``: the limb (a foot's or a hand's chain) that holds a frame."""
+    model = robot.model
+    name = model.frames[robot.frame_id(frame)].name
+    joint = model.frames[robot.frame_id(frame)].parentJoint
+    for side in ("left", "right"):
+        for role, limb in (("foot", "leg"), ("hand", "arm")):
+            if robot.has_role(f"{side}_{role}") and joint in model.supports[model.frames[robot.frame_id(f"{side}_{role}")].parentJoint]:
+                return f"{side} {limb}'s {name}"
+    return name
 
 
 def _frame_id(robot: Robot, frame: str, where: str) -> int:
@@ -216,9 +231,10 @@ def check_spec_in_scene(spec: TaskSpec, *, margin: float = SCENE_MARGIN,
                     continue
                 said = obj.name.split(".")[0]  # a flight's tread stairs.2: "the stairs"; a slope's landing: "the slope"
                 fix = (f"climb onto it: 'walk up the {said}' or 'step onto the {said}'"
-                       if obj.walkable else f"move the {obj.name} in the scene")
+                       if obj.walkable and contact.region is None else f"move the {obj.name} in the scene")
                 raise SceneConflict(
                     f"the {label(contact.frame)} placement {_point(contact.placement.position)} in phase "
-                    f"{phase.name!r} puts the sole {_relation(d)} the {obj.name} ({_where(obj)}; the robot keeps "
+                    f"{phase.name!r} puts {'it' if contact.region is not None else 'the sole'} "
+                    f"{_relation(d)} the {obj.name} ({_where(obj)}; the robot keeps "
                     f"{margin:g} m away from objects): step elsewhere, or {fix}",
                     obj.name)

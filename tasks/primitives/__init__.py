@@ -12,7 +12,8 @@ hand meets the body: clap, touch, salute; body parts from :mod:`.bodymap`), :mod
 ones, :mod:`.locomotion` (step, walk, turn) and :mod:`.jump`; the leg motions :mod:`.legs` (kick,
 march, walk_arc, lunge, stomp) and :mod:`.hop` (hop, jog), with their shared :mod:`.gait`; the actions
 on scene objects without a grasp :mod:`.objects` (walk_to, look_at, point_at); holding one :mod:`.grasp` (pick_up);
-handing it over :mod:`.handover` (hand_over); pushing one :mod:`.push` (push).
+handing it over :mod:`.handover` (hand_over); pushing one :mod:`.push` (push); kneeling on the floor
+:mod:`.kneel` (kneel, and getting up from it).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from tasks.primitives import (
     head,
     hop,
     jump,
+    kneel,
     lean,
     legs,
     locomotion,
@@ -85,6 +87,7 @@ PRIMITIVES: dict[str, Primitive] = {
         *terrain.PRIMITIVES,
         *seat.PRIMITIVES,
         *lean.PRIMITIVES,
+        *kneel.PRIMITIVES,
     )
 }
 

@@ -199,14 +199,17 @@ def _touching_link(robot: Robot, side: str, q: np.ndarray) -> str:
     return name
 
 
-def hand_region(verts: np.ndarray, table: SceneObject) -> np.ndarray:
-    """Corners (4, 3) of a hand's support region (world): the rectangle, in the table's frame, of its
-    vertices within ``REGION_BAND`` of the lowest one, at least ``REGION_MIN`` each way."""
+def hand_region(verts: np.ndarray, table: SceneObject, *, band: float = REGION_BAND,
+                minimum: float = REGION_MIN) -> np.ndarray:
+    """Corners (4, 3) of a body part's support region on a surface (world): the rectangle, in the
+    surface's frame, of its vertices within ``band`` of the lowest one (a hand: ``REGION_BAND``), at
+    least ``minimum`` each way (``REGION_MIN``) about its centre. A knee on the floor
+    (:mod:`tasks.primitives.kneel`) takes its own band."""
     R, c = np.asarray(rotation(table.rpy)), np.asarray(table.position)
     z = float(verts[:, 2].min())
-    low = (verts[verts[:, 2] <= z + REGION_BAND] - c) @ R
+    low = (verts[verts[:, 2] <= z + band] - c) @ R
     lo, hi = low[:, :2].min(axis=0), low[:, :2].max(axis=0)
-    mid, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, REGION_MIN / 2)
+    mid, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, minimum / 2)
     lo, hi = mid - half, mid + half
     local = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
     return np.column_stack([local, np.zeros(4)]) @ R.T + np.array([c[0], c[1], z])
