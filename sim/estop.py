@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from planner import Plan, PlanReference, SolverStats, SolveStatus
 from robots import Robot
@@ -204,6 +203,9 @@ def stand_reference(robot: Robot, ref: PlanReference, k: int, q: np.ndarray, *, 
     (configuration ``q``) and the planned ones, so that the CoM is held over the feet where they
     really are (a push or a slip moves them away from the plan).
     """
+    import pinocchio as pin  # here, not at the top: `wbmp solve` makes a StopRequest before its
+    # motion-cache read, and a repeated request answered from the cache never imports pinocchio
+
     plan = ref.plan
     spec = plan.spec
     t_plan = float(ref.times[k])
