@@ -497,11 +497,11 @@ def recorded_rows(lay: Layout, settings: PlannerSettings) -> EscalationRows:
 
 def _escalate(problem: Problem, progress: Callable[[str], None] | None,
               ) -> tuple[Problem, str | None, EscalationRows | None]:
-    """Give a dynamic problem the self-collision rows that earlier plans of its structure came to
-    need (:func:`planner.trajopt.library.find_escalation`) before its first solve: it then has their
-    final structure, and their seeds, instead of a collision round that builds another solver
-    and solves again. A record that names a pair, sphere pair or knot this layout does not have is
-    not used. Returns the problem with those rows (a new one: ``problem`` is not changed; the rows
+    """Give a dynamic problem the collision rows (link pairs and scene objects) that earlier plans of
+    its structure came to need (:func:`planner.trajopt.library.find_escalation`) before its first
+    solve: it then has their final structure, and their seeds, instead of a collision round that
+    builds another solver and solves again. A record that names a pair, object, sphere or knot this
+    layout does not have is not used. Returns the problem with those rows (a new one: ``problem`` is not changed; the rows
     added leave its ``deferred``), the structure's key before (None: the library is not used) and the
     record."""
     lay, settings = problem.layout, problem.settings
