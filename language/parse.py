@@ -6,7 +6,6 @@ from typing import Any
 
 from language.exceptions import BackendError
 from language.plan import ActionPlan
-from language.rules import rules_plan
 
 BACKENDS = ("rules", "llm")
 
@@ -31,6 +30,10 @@ def parse(text: str, *, backend: str = "rules", **llm_options: Any) -> ActionPla
     if backend == "rules":
         if llm_options:
             raise BackendError(f"the rules parser takes no options, got {', '.join(sorted(llm_options))}")
+        # on first use: the face (``language.ActionPlan``, ``LanguageError``) then loads without the
+        # lexicon, as `wbmp solve` reading a repeated request's actions from the motion cache does
+        from language.rules import rules_plan
+
         return rules_plan(text)
     if backend == "llm":
         from language.llm import OPTIONS, parse_llm

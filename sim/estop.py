@@ -30,14 +30,15 @@ import math
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pinocchio as pin
 
-from planner import Plan, PlanReference, SolverStats, SolveStatus
-from robots import Robot
 from sim.exceptions import SimError
-from tasks import Phase, TaskSpec
+
+if TYPE_CHECKING:
+    from planner import PlanReference
+    from robots import Robot
 
 #: The triggers, as named in the certificate, the events and docs/safety.md.
 TRIGGERS = ("request", "tilt", "qp_failure", "torque_limit", "nan")
@@ -204,6 +205,14 @@ def stand_reference(robot: Robot, ref: PlanReference, k: int, q: np.ndarray, *, 
     (configuration ``q``) and the planned ones, so that the CoM is held over the feet where they
     really are (a push or a slip moves them away from the plan).
     """
+    # imported here, not at the top: `wbmp solve` makes a StopRequest before its motion-cache read,
+    # and a repeated request answered from the cache imports neither pinocchio nor the planner's
+    # controller reference
+    import pinocchio as pin
+
+    from planner import Plan, PlanReference, SolverStats, SolveStatus
+    from tasks import Phase, TaskSpec
+
     plan = ref.plan
     spec = plan.spec
     t_plan = float(ref.times[k])

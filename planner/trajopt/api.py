@@ -63,8 +63,11 @@ from planner.trajopt.scene_collision import (
     SceneRows,
     add_screened_scene_terms,
     missing_scene_rows,
+    obstacles,
     scene_diagnosis,
     scene_rows_of,
+    scene_sets,
+    with_scene_terms,
 )
 from planner.trajopt.settings import PlannerSettings
 from planner.trajopt.solve import solve_layout
@@ -174,10 +177,11 @@ def plan(spec: TaskSpec, robot: Robot, *, settings: PlannerSettings | None = Non
         progress: Called with short messages ("building solver", "solving").
         warm_start: Where the solve starts (a previous solution, :meth:`Solution.warm_start`, or
             the library's seed; None: the task's own guess).
-        collision_rows: Self-collision rows to add before the first solve, per link pair named
-            ``"link_a/link_b"``: ``(sphere pairs, knots)`` (the library's record of the rows
-            earlier plans of the structure came to need; not used when a name or index does not
-            fit this problem, or without self-collision rows).
+        collision_rows: Collision rows to add before the first solve (:func:`recorded_rows`), per
+            link pair named ``"link_a/link_b"``: ``(sphere pairs, knots)``, per scene object piece
+            ``"scene:<key>"``: ``(robot spheres, knots)`` (the library's record of the rows earlier
+            plans of the structure came to need; not used when a name or index does not fit this
+            problem, or names rows its settings switch off).
 
     Returns:
         The plan, on the uniform knot grid, with solver stats and the constraint report.
@@ -463,28 +467,47 @@ def _library_store(solved: Solution, guess: np.ndarray, key0: str | None, escala
         return
     key = solver_key(lay, settings)
     store_seed(lay, key, guess, solved.output, dq, settings.cache.cache_dir)
-    if key0 is None or key == key0 or not settings.collision.self_collision:
+    if key0 is None or key == key0:
         return
-    sets = sphere_sets(lay.robot)
-    rows = collision_rows_of(lay, sets)
-    named = {"/".join(sets.pair_names[pi]): (set(rows.spheres[pi]), set(rows.knots[pi])) for pi in rows.spheres}
-    if named != escalation:
+    named = recorded_rows(lay, settings)
+    if named and named != escalation:
         store_escalation(key0, named, settings.cache.cache_dir)
+
+
+SCENE_ROWS = "scene:"  # a record's name of a scene object's rows: "scene:" + the piece's key ("table#3")
+
+
+def recorded_rows(lay: Layout, settings: PlannerSettings) -> EscalationRows:
+    """The collision rows ``lay`` has, as a record of the solution library (and ``plan``'s
+    ``collision_rows``): per link pair ``"link_a/link_b"`` its sphere pairs and knots (with
+    ``settings.collision.self_collision``), per scene object piece ``"scene:<key>"`` its robot
+    spheres and knots (with ``scene_collision``)."""
+    named: EscalationRows = {}
+    if settings.collision.self_collision:
+        sets = sphere_sets(lay.robot)
+        rows = collision_rows_of(lay, sets)
+        named.update({"/".join(sets.pair_names[pi]): (set(rows.spheres[pi]), set(rows.knots[pi]))
+                      for pi in rows.spheres})
+    if settings.collision.scene_collision:
+        obs = obstacles(lay.spec.scene)
+        scene = scene_rows_of(lay)
+        named.update({SCENE_ROWS + obs[oi].key: (set(scene.spheres[oi]), set(scene.knots[oi])) for oi in scene.spheres})
+    return named
 
 
 def _escalate(problem: Problem, progress: Callable[[str], None] | None,
               ) -> tuple[Problem, str | None, EscalationRows | None]:
-    """Give a dynamic problem the self-collision rows that earlier plans of its structure came to
-    need (:func:`planner.trajopt.library.find_escalation`) before its first solve: it then has their
-    final structure, and their seeds, instead of a collision round that builds another solver
-    and solves again. A record that names a pair, sphere pair or knot this layout does not have is
-    not used. Returns the problem with those rows (a new one: ``problem`` is not changed; the rows
+    """Give a dynamic problem the collision rows (link pairs and scene objects) that earlier plans of
+    its structure came to need (:func:`planner.trajopt.library.find_escalation`) before its first
+    solve: it then has their final structure, and their seeds, instead of a collision round that
+    builds another solver and solves again. A record that names a pair, object, sphere or knot this
+    layout does not have is not used. Returns the problem with those rows (a new one: ``problem`` is not changed; the rows
     added leave its ``deferred``), the structure's key before (None: the library is not used) and the
     record."""
     lay, settings = problem.layout, problem.settings
     cache = settings.cache
     if not (isinstance(lay, DynamicLayout) and cache.use_cache and cache.solution_library != "off"
-            and settings.collision.self_collision):
+            and (settings.collision.self_collision or settings.collision.scene_collision)):
         return problem, None, None
     key0 = solver_key(lay, settings)
     record = find_escalation(key0, settings.cache.cache_dir)
@@ -496,32 +519,76 @@ def _escalate(problem: Problem, progress: Callable[[str], None] | None,
 
 def _with_recorded_rows(problem: Problem, record: EscalationRows | None, progress: Callable[[str], None] | None,
                         ) -> tuple[Problem, bool]:
-    """``problem`` with the self-collision rows of ``record`` (``"link_a/link_b"``: (sphere pairs,
-    knots); a new problem: ``problem`` is not changed; the rows added leave its ``deferred``), and
-    whether the record fits it (a record that names a pair, sphere pair or knot the problem does
-    not have is not used; nor is any without self-collision rows)."""
+    """``problem`` with the collision rows of ``record`` (:func:`recorded_rows`: ``"link_a/link_b"``
+    -> (sphere pairs, knots), ``"scene:<key>"`` -> (robot spheres, knots); a new problem: ``problem``
+    is not changed; the self-collision rows added leave its ``deferred``), and whether the record
+    fits it (a record that names a pair, object, sphere or knot the problem does not have, or rows
+    its settings switch off, is not used). The pairs and objects are added in index order, as a
+    collision round adds them, so that a record of one round gives that round's structure."""
     lay, settings = problem.layout, problem.settings
-    if record is None or not settings.collision.self_collision:
-        return problem, record is None
+    if record is None:
+        return problem, True
+    self_part = {name: rows for name, rows in record.items() if not name.startswith(SCENE_ROWS)}
+    scene_part = {name[len(SCENE_ROWS):]: rows for name, rows in record.items() if name.startswith(SCENE_ROWS)}
+    if (self_part and not settings.collision.self_collision) or (scene_part and not settings.collision.scene_collision):
+        return problem, False
+    extra = _recorded_pair_rows(lay, self_part)
+    scene_extra = _recorded_scene_rows(lay, scene_part)
+    if extra is None or scene_extra is None:
+        return problem, False
+    deferred, layout = problem.deferred, lay
+    changed: list[int] = []
+    objects: list[int] = []
+    if extra.spheres:
+        sets = sphere_sets(lay.robot)
+        rows, changed = collision_rows_of(lay, sets).merged(extra)
+        if changed:
+            deferred, _ = deferred.split(changed)
+            layout = with_collision_terms(layout, sets, rows, sorted(changed), settings.collision.margin)
+    if scene_extra.spheres:
+        scene, objects = scene_rows_of(lay).merged(scene_extra)
+        if objects:
+            layout = with_scene_terms(layout, scene_sets(lay.robot), obstacles(lay.spec.scene), scene, sorted(objects),
+                                      settings.collision.margin)
+    if not (changed or objects):
+        return problem, True
+    if progress:
+        what = " and ".join(f"{n} {unit}" for n, unit in ((len(changed), "link pair(s)"), (len(objects), "object(s)")) if n)
+        progress(f"adding the collision rows of {what} that earlier plans of this task structure needed")
+    return dataclasses.replace(problem, layout=layout, deferred=deferred), True
+
+
+def _recorded_pair_rows(lay: Layout, record: EscalationRows) -> Rows | None:
+    """A record's self-collision rows by pair index, or None when one does not fit ``lay``."""
+    if not record:
+        return Rows()
     sets = sphere_sets(lay.robot)
     index = {"/".join(name): pi for pi, name in enumerate(sets.pair_names)}
     ends = np.append(sets.starts[1:], len(sets.sa))
-    extra_spheres: dict[int, set[int]] = {}
-    extra_knots: dict[int, set[int]] = {}
-    for name, (spheres, knots) in record.items():
+    spheres: dict[int, set[int]] = {}
+    knots: dict[int, set[int]] = {}
+    for name, (sp, ks) in record.items():
         pi = index.get(name)
-        if pi is None or max(spheres) >= ends[pi] - sets.starts[pi] or min(knots) < 2 or max(knots) > lay.N - 1:
-            return problem, False
-        extra_spheres[pi], extra_knots[pi] = set(spheres), set(knots)
-    rows, changed = collision_rows_of(lay, sets).merged(Rows(extra_spheres, extra_knots))
-    if not changed:
-        return problem, True
-    deferred, _ = problem.deferred.split(changed)
-    if progress:
-        progress(f"adding the collision rows of {len(changed)} link pair(s) that earlier plans of this "
-                 "task structure needed")
-    layout = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
-    return dataclasses.replace(problem, layout=layout, deferred=deferred), True
+        if pi is None or max(sp) >= ends[pi] - sets.starts[pi] or min(ks) < 2 or max(ks) > lay.N - 1:
+            return None
+        spheres[pi], knots[pi] = set(sp), set(ks)
+    return Rows(spheres, knots)
+
+
+def _recorded_scene_rows(lay: Layout, record: EscalationRows) -> SceneRows | None:
+    """A record's scene rows by object piece index, or None when one does not fit ``lay``."""
+    if not record:
+        return SceneRows()
+    index = {ob.key: oi for oi, ob in enumerate(obstacles(lay.spec.scene))}
+    n_spheres = len(scene_sets(lay.robot).sphere_radius)
+    spheres: dict[int, set[int]] = {}
+    knots: dict[int, set[int]] = {}
+    for key, (sp, ks) in record.items():
+        oi = index.get(key)
+        if oi is None or max(sp) >= n_spheres or min(ks) < 2 or max(ks) > lay.N - 1:
+            return None
+        spheres[oi], knots[oi] = set(sp), set(ks)
+    return SceneRows(spheres, knots)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

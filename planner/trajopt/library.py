@@ -35,8 +35,11 @@ store nothing: benchmarks of a fixed library), ``off``.
 Escalations. A plan whose collision round added rows after its first solve ends with another
 structure than it started with, so the next plan of the starting structure would find no seeds
 (they are stored under the final one) and pay the round again. The library remembers the
-self-collision rows the plan ended with, in the starting structure's folder (``escalation.json``:
-link pair ``"a/b"`` -> sphere pairs and knots); the next plan gets them before its first solve
+collision rows the plan ended with, in the starting structure's folder (``escalation.json``:
+link pair ``"a/b"`` -> sphere pairs and knots; scene object piece ``"scene:<key>"`` -> robot
+spheres and knots, since session 17: the kitchen pick-up's round adds a table piece, and a record
+of its link pairs alone left that round, and its second solve from no seed, to every later plan of
+the structure); the next plan gets them before its first solve
 (:func:`planner.trajopt.api.plan_with_library`) and so has the final structure and its seeds. Talos "walk
 forward two steps then wave your right hand": 82 iterations in three solves; the 12 cm variant
 after it, 14 in one. A record that is not one is removed; one that names a pair, sphere pair or
@@ -254,7 +257,8 @@ def store_seed(lay: Layout, key: str, guess: np.ndarray, output: SolverOutput, d
 
 ESCALATION = "escalation.json"  # in a structure's folder
 _MAX_ESCALATION_BYTES = 1 << 20
-EscalationRows = dict[str, tuple[set[int], set[int]]]  # link pair "a/b" -> (sphere pairs, knots)
+# link pair "a/b" -> (sphere pairs, knots); scene object piece "scene:<key>" -> (robot spheres, knots)
+EscalationRows = dict[str, tuple[set[int], set[int]]]
 _ESCALATIONS: OrderedDict[str, EscalationRows | None] = OrderedDict()
 
 
@@ -303,9 +307,9 @@ def find_escalation(key: str, cache_dir: str) -> EscalationRows | None:
 
 
 def store_escalation(key: str, rows: EscalationRows, cache_dir: str) -> None:
-    """Remember that plans of structure ``key`` needed the self-collision ``rows`` (link pair
-    ``"a/b"`` -> (sphere pairs, knots)): the next plan of that structure gets them before its first
-    solve, so that it has the structure of the earlier plans' final solve (and their seeds)."""
+    """Remember that plans of structure ``key`` needed the collision ``rows`` (link pair ``"a/b"``
+    -> (sphere pairs, knots); scene object piece ``"scene:<key>"`` -> (spheres, knots)): the next
+    plan of that structure gets them before its first solve, so that it has the structure of the earlier plans' final solve (and their seeds)."""
     with _LOCK:
         _ESCALATIONS[key] = rows
     text = json.dumps({"format": 1, "rows": {name: {"spheres": sorted(s), "knots": sorted(k)}

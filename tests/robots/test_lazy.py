@@ -31,3 +31,16 @@ def test_importing_the_faces_loads_no_heavy_library():
             "print(sorted(m for m in ('casadi', 'mujoco', 'pinocchio', 'proxsuite') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
     assert out.stdout.strip() == "[]", out.stdout + out.stderr
+
+
+def test_what_a_motion_cache_hit_imports_loads_no_heavy_library():
+    """``wbmp solve`` answering a repeated request from the motion cache makes a StopRequest (SIGUSR1)
+    and reads the stored actions (``language.ActionPlan``) before anything is planned: neither may load
+    pinocchio, the planner's or simulation's libraries, or the rules parser's lexicon (~0.5 s of a
+    0.7 s repeat, docs/performance.md). The parser still works afterwards."""
+    code = ("import sys; from sim import StopRequest; StopRequest(); "
+            "from language import ActionPlan, LanguageError, parse; import wbmp.pipeline, wbmp.motioncache; "
+            "print(sorted(m for m in ('casadi', 'mujoco', 'pinocchio', 'language.rules', 'language.lexicon') "
+            "if m in sys.modules)); print(parse('squat').actions[0].name)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+    assert out.stdout.split() == ["[]", "squat"], out.stdout + out.stderr

@@ -57,3 +57,25 @@ def test_npz_copy_declines_what_it_cannot_copy():
     with zipfile.ZipFile(Sink(), "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("q.npy", b"x" * 1000)
     assert _npz_replacing(raw.getvalue(), {"spec_json": np.array("{}")}) is None
+
+
+def test_arrays_that_hardly_compress_are_stored_and_read_back_equal(rng):
+    """``savez_fast`` stores a member whose bytes deflate by less than 10 % (random doubles: a 1 kHz
+    execution's joint data) and deflates the rest (a smooth or constant array, text); numpy and the
+    motion file reader read every one back equal, and a kept stored member is copied by ``--out``."""
+    from wbmp.motionfile import npz_bytes, read_npz_bytes
+
+    arrays = {"exec_q": rng.normal(size=(4000, 39)), "exec_object_pose": np.zeros((4000, 7)),
+              "t": np.linspace(0.0, 4.0, 4000), "spec_json": np.array('{"a": 1}'), "few": rng.normal(size=5)}
+    data = npz_bytes(arrays)
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        kinds = {i.filename: i.compress_type for i in zf.infolist()}
+        assert zf.testzip() is None
+    assert kinds["exec_q.npy"] == zipfile.ZIP_STORED
+    assert kinds["exec_object_pose.npy"] == kinds["t.npy"] == kinds["spec_json.npy"] == zipfile.ZIP_DEFLATED
+    assert kinds["few.npy"] == zipfile.ZIP_DEFLATED  # too small to be worth a sample
+    for read in (dict(np.load(io.BytesIO(data))), read_npz_bytes(data, "test")):
+        assert read.keys() == arrays.keys()
+        assert all(np.array_equal(read[k], arrays[k]) for k in arrays)
+    copied = _npz_replacing(data, {"spec_json": np.array('{"a": 2}')})
+    assert copied is not None and np.array_equal(np.load(io.BytesIO(copied))["exec_q"], arrays["exec_q"])

@@ -122,7 +122,6 @@ def _stop_on_sigusr1(request) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from language import LanguageError
     from viz import make_progress
     from wbmp.outputs import check_inputs_exist, check_outputs, write_outputs
     from wbmp.pipeline import solve
@@ -140,11 +139,13 @@ def run(args: argparse.Namespace) -> int:
     # afresh (and stored), never read
     try:
         result = solve(request, progress, cache=not args.no_cache, cache_read=args.plots is None)
-    except LanguageError:
+    except Exception as e:  # the language package only when it failed: a motion-cache hit never imports it
+        from language import LanguageError
+
+        if not isinstance(e, LanguageError) or not args.motions or not request.instruction:
+            raise
         from wbmp.motions import retarget_from_library
 
-        if not args.motions or not request.instruction:
-            raise
         result = retarget_from_library(request.instruction, args.motions, robot=args.robot,
                                        simulate=not args.no_sim, progress=progress,
                                        cache=not args.no_cache and args.plots is None)

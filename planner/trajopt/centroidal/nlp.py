@@ -347,11 +347,18 @@ _STAGE_HESSIANS: OrderedDict[tuple, tuple[ca.Function, int, int]] = OrderedDict(
 
 
 def _stage_hessian(robot: Robot, terms: list) -> tuple[ca.Function, int, int]:
-    """The SX function of one stage type's chart Hessian (:func:`stage_hessians`), its parameter
-    count and its row count, from a per-process cache keyed by the robot and the terms' structure
-    (as the kinematic stages, :func:`planner.trajopt.transcription.stage`): a collision round's
-    NLP builds only the stage types it changed. Named after the key (generated C never holds two
-    functions of one name)."""
+    """The SX function of one stage type's part of the chart Hessian (:func:`stage_hessians`), its
+    parameter count and its row count, from a per-process cache keyed by the robot and the terms'
+    structure (as the kinematic stages, :func:`planner.trajopt.transcription.stage`): a collision
+    round's NLP builds only the stage types it changed. Named after the key (generated C never holds
+    two functions of one name).
+
+    ``fn(dq, q_ref, p, sigma, lam) -> (H, nu_cost)``: ``H`` the Hessian of ``sigma cost + lam . g``
+    of the terms (with the Gauss-Newton part of the soft CoM targets), ``nu_cost`` (3,) what the soft
+    CoM targets add to the CoM multiplier (per unit ``sigma``). The CoM and sole-corner part, the
+    same at every knot, is :func:`_robot_hessian`'s: differentiated once per robot, not per stage
+    type, and no substitution of the CoM multiplier into each stage's Hessian (that took ~40 % of
+    a stairs climb's stage Hessians)."""
     from planner.trajopt.kinds import ClosedChainTerm, CoMPositionTerm
     from planner.trajopt.symbolic import SymbolicKinematics, model_hash
     from planner.trajopt.term import StageKinematics
@@ -396,13 +403,8 @@ def _stage_hessian(robot: Robot, terms: list) -> tuple[ca.Function, int, int]:
             rows.append(r)
     g = ca.vertcat(*rows) if rows else ca.SX.zeros(0)
     lam = ca.SX.sym("lam", g.numel())
-    nu_s = ca.SX.sym("nu", 3)
-    eta_s = ca.SX.sym("eta", 8)
-    nu_all = ca.SX.sym("nu_all", 3)
-    z = sole_corner_heights(kin, oMi, robot)
-    lag = sigma * cost + ca.dot(lam, g) + ca.dot(nu_all, com) + ca.dot(eta_s, z)
-    hess = ca.substitute(ca.hessian(lag, dq)[0], nu_all, nu_s + sigma * nu_cost) + sigma * gauss_newton
-    fn = ca.Function(name, [dq, qr, ps, sigma, lam, nu_s, eta_s], [hess])
+    hess = ca.hessian(sigma * cost + ca.dot(lam, g), dq)[0] + sigma * gauss_newton
+    fn = ca.Function(name, [dq, qr, ps, sigma, lam], [hess, nu_cost])
     out = (fn, int(ps.numel()), int(g.numel()))
     _STAGE_HESSIANS[key] = out
     while len(_STAGE_HESSIANS) > STAGE_HESSIAN_CACHE_SIZE:
@@ -410,15 +412,42 @@ def _stage_hessian(robot: Robot, terms: list) -> tuple[ca.Function, int, int]:
     return out
 
 
+_ROBOT_HESSIANS: dict[tuple, ca.Function] = {}
+
+
+def _robot_hessian(robot: Robot) -> ca.Function:
+    """The SX function of the chart Hessian of ``nu . com + eta . z`` (the CoM rows' and the
+    sole-corner rows' part of every knot's Lagrangian Hessian): ``fn(dq, q_ref, nu, eta)``; one per
+    robot and process."""
+    from planner.trajopt.symbolic import SymbolicKinematics, model_hash
+
+    key = (robot.name, model_hash(robot.model))
+    hit = _ROBOT_HESSIANS.get(key)
+    if hit is not None:
+        return hit
+    kin = SymbolicKinematics(robot.model)
+    dq = ca.SX.sym("dq", robot.nv)
+    qr = ca.SX.sym("q_ref", robot.nq)
+    oMi = kin.joint_placements(qr, dq)
+    nu = ca.SX.sym("nu", 3)
+    eta = ca.SX.sym("eta", 8)
+    lag = ca.dot(nu, kin.com(oMi)) + ca.dot(eta, sole_corner_heights(kin, oMi, robot))
+    name = "dyn_robot_hess_" + hashlib.sha256(repr(key).encode()).hexdigest()[:16]
+    fn = ca.Function(name, [dq, qr, nu, eta], [ca.hessian(lag, dq)[0]])
+    _ROBOT_HESSIANS[key] = fn
+    return fn
+
+
 def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: Any, lam_kin: Any, nu: Any,
                    eta: Any) -> Any:
     """Block-diagonal chart Hessian of a dynamic NLP's Lagrangian, one SX function per stage type.
 
     For the knots of each stage group of :func:`planner.trajopt.stage_groups`, one mapped SX
-    function gives the Hessian of ``lam_f cost_k + lam_k . g_k + nu_k . com_k + eta_k . z_k``
-    w.r.t. ``dq_k``: the kinematic terms and the CoM and sole-corner rows of the dynamics share
-    one forward-kinematics pass, and the blocks are laid out in knot order with one ``diagcat``
-    (no sparse products with selection matrices). Parameters and multipliers are read in the
+    function gives the Hessian of ``lam_f cost_k + lam_k . g_k`` w.r.t. ``dq_k``; one SX function
+    of the robot (:func:`_robot_hessian`), mapped over every knot, adds that of ``nu_k . com_k +
+    eta_k . z_k`` (the CoM and sole-corner rows of the dynamics, and the soft CoM targets'
+    second-order part on the CoM multiplier); the blocks are laid out in knot order with one
+    ``diagcat`` each (no sparse products with selection matrices). Parameters and multipliers are read in the
     order :func:`planner.trajopt.transcription.build_nlp` gives them.
 
     Args:
@@ -440,6 +469,7 @@ def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: 
     nq, nv, n = robot.nq, robot.nv, lay.N - 2
     X = ca.reshape(x_kin, nv, n)
     blocks: dict[int, Any] = {}
+    nu_costs: dict[int, Any] = {}
     p_offset, g_offset = nq + 3, 0
     for _sig, knots, term_lists in stage_groups(lay):
         fn, n_p, n_g = _stage_hessian(robot, [lay.terms[i] for i in term_lists[0]])
@@ -449,10 +479,14 @@ def stage_hessians(lay: DynamicData, x_kin: Any, q_ref: Any, p_kin: Any, lam_f: 
         p_offset += n_p * m
         L = ca.reshape(lam_kin[g_offset: g_offset + n_g * m], n_g, m)
         g_offset += n_g * m
-        HS = fn.map(m)(X[:, cols], ca.repmat(q_ref, 1, m), Pg, ca.repmat(lam_f, 1, m), L, nu[:, cols], eta[:, cols])
-        for kk, block in zip(knots, ca.horzsplit(HS, nv), strict=True):
-            blocks[kk] = block
-    return ca.diagcat(*[blocks[kk] for kk in range(2, lay.N)])
+        HS, NC = fn.map(m)(X[:, cols], ca.repmat(q_ref, 1, m), Pg, ca.repmat(lam_f, 1, m), L)
+        for kk, block, nc in zip(knots, ca.horzsplit(HS, nv), ca.horzsplit(NC, 1), strict=True):
+            blocks[kk], nu_costs[kk] = block, nc
+    # the CoM and sole-corner rows' part, one function mapped over every knot; the soft CoM
+    # targets' second-order part rides on the CoM multiplier
+    nu_all = nu + lam_f * ca.horzcat(*[nu_costs[kk] for kk in range(2, lay.N)])
+    HR = _robot_hessian(robot).map(n)(X, ca.repmat(q_ref, 1, n), nu_all, eta)
+    return ca.diagcat(*[blocks[kk] for kk in range(2, lay.N)]) + ca.diagcat(*ca.horzsplit(HR, nv))
 
 
 def dynamic_sizes(lay: DynamicData) -> tuple[int, int]:

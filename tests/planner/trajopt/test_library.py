@@ -264,3 +264,38 @@ def test_an_escalation_record_adds_its_rows(g1, cold, tmp_path):
     # ... and the record passed in is the library's, explicitly: the library's plan, byte for byte
     given = plan(_side(g1, 0.06), g1, settings=settings, collision_rows={name: ({0}, {10, 11, 12})})
     assert given.stats.n_constraints == p.stats.n_constraints and np.array_equal(given.q, p.q)
+
+
+def test_a_record_holds_scene_rows_and_gives_them_back(g1):
+    """A record names a scene object's rows ``"scene:<piece key>"`` beside the link pairs: applied, the
+    layout has SceneCollisionTerms for exactly that sphere of that piece at those knots (read back from
+    the terms, not from the record), ``recorded_rows`` of it holds the record; a record naming a
+    piece the scene does not have is not used. (The kitchen pick-up's round adds a table piece:
+    without it in the record the round, and a second solve from no seed, came back every time.)"""
+    from pathlib import Path
+
+    from planner.trajopt.api import Problem, _with_recorded_rows, recorded_rows
+    from planner.trajopt.collision import Rows, sphere_sets
+    from planner.trajopt.scene_collision import SceneCollisionTerm, obstacles
+    from tasks.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[3] / "examples" / "scenes" / "kitchen.json")
+    spec = dataclasses.replace(_side(g1, 0.06), scene=scene)
+    lay, settings = _formulation(spec, g1, PlannerSettings())  # no guess, no screening: only the rows given
+    problem = Problem(lay, settings, np.zeros(0), Rows())
+    assert not any(isinstance(t, SceneCollisionTerm) for t in problem.layout.terms)
+    table = next(ob for ob in obstacles(scene) if ob.name == "table")
+    pair = "/".join(sphere_sets(g1).pair_names[0])
+    record = {f"scene:{table.key}": ({3}, {10, 11, 12}), pair: ({0}, {10, 11})}
+    said: list[str] = []
+    recalled, fits = _with_recorded_rows(problem, record, said.append)
+    assert fits and said == ["adding the collision rows of 1 link pair(s) and 1 object(s) that earlier plans of this "
+                             "task structure needed"]
+    terms = [t for t in recalled.layout.terms if isinstance(t, SceneCollisionTerm)]
+    assert sorted(t.knot for t in terms) == [10, 11, 12] and {t.item for t in terms} == {table.key}
+    assert all(len(t.lower) == 1 for t in terms)  # one sphere, one row
+    back = recorded_rows(recalled.layout, recalled.settings)
+    assert back[f"scene:{table.key}"] == ({3}, {10, 11, 12}) and back[pair] == ({0}, {10, 11})
+    assert problem.layout.terms is not recalled.layout.terms  # the problem given is not changed
+    stranger, fits = _with_recorded_rows(problem, {"scene:no_such_piece": ({0}, {10})}, None)
+    assert not fits and stranger is problem
