@@ -40,6 +40,7 @@ from tasks.exceptions import ClipError
 from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.source import SIDES, HumanMotion, segments
+from tasks.mocap.splay import keep_splay
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
     CoMBounds,
@@ -123,6 +124,8 @@ class Reference:
             robot's own body (F,) [m] (:mod:`tasks.mocap.keepout`).
         grounded_s: Seconds of the source's flights (both feet up) the robot makes with both feet
             down instead (:func:`ground_jumps`; 0: none).
+        splay_turned: How far a stance placement was turned at most so that the feet's relative
+            yaw stays within the robot's hip yaw range [rad] (:mod:`tasks.mocap.splay`).
     """
 
     t: np.ndarray
@@ -139,6 +142,7 @@ class Reference:
     arm_moved: dict[str, np.ndarray] | None = None
     kept_out: dict[str, np.ndarray] | None = None
     grounded_s: float = 0.0
+    splay_turned: float = 0.0
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -451,6 +455,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             runs.append((a, b, pose))
         stance_pose[side] = runs
     stance_pose = _placements_apart(stance_pose, ref.heading[frames], robot)
+    stance_pose, turned = keep_splay(stance_pose, stand_yaw, robot)  # the hips' yaw range (a pivot turn's toe-in)
+    ref = dataclasses.replace(ref, splay_turned=turned)
     # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
     last: dict[str, Pose] = {}
     for side in SIDES:
