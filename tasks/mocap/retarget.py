@@ -454,9 +454,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                             rpy=(0.0, 0.0, _foot_yaw_at(motion, side, fa, fb, stand_yaw[side])))
             runs.append((a, b, pose))
         stance_pose[side] = runs
-    stance_pose = _placements_apart(stance_pose, ref.heading[frames], robot)
-    stance_pose, turned = keep_splay(stance_pose, stand_yaw, robot)  # the hips' yaw range (a pivot turn's toe-in)
-    ref = dataclasses.replace(ref, splay_turned=turned)
+    stance_pose, turned = keep_splay(_placements_apart(stance_pose, ref.heading[frames], robot), stand_yaw, robot)
     # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
     last: dict[str, Pose] = {}
     for side in SIDES:
@@ -504,15 +502,14 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             held[side][a:min(b, n + 1)] = pose.position
         held[side][n + 1] = last[side].position
     targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
-    dynamic = True if dynamic is None else dynamic
     horizon = sum(p.duration for p in phases)
     _check_items(where, duration, slow, len(targets), robot)
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
                     joint_targets=shoulders_out(robot, horizon),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
-                    dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
+                    dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
-    return spec, ref
+    return spec, dataclasses.replace(ref, splay_turned=turned)  # splay: the hips' yaw range (a pivot turn's toe-in)
 
 
 def _check_items(where: str, duration: float, slow: float, n_targets: int, robot: Robot) -> None:
