@@ -351,7 +351,7 @@ def target_checks(run: RunRecord, meas: Measured) -> list[Check]:
         if target.rpy is not None:
             r_t = pin.rpy.rpyToMatrix(*target.rpy)
             # only where the target applies (the rest is masked out below): a retarget's heading
-            # targets each hold at one knot, and log3 at every tick of each was 4 s of a 5 s clip's CPU
+            # targets each hold at one tick, and log3 at every tick of each took 2.2 s of g1 squat's 29 s of CPU
             rots = meas.target_rot[fid]
             for i in np.flatnonzero(mask):
                 rot_err[i] = np.linalg.norm(pin.log3(r_t.T @ rots[i]))
