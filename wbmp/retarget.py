@@ -7,6 +7,7 @@ pipeline's writers (motion file, HTML replay) take as they take a solve's result
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -72,6 +73,7 @@ class RetargetResult(SolveResult):
             section["arm_moved_m"] = self.reference.arm_moved_max()
             section["kept_out_m"] = self.reference.kept_out_max()
             section["grounded_s"] = self.reference.grounded_s
+            section["splay_turned_deg"] = math.degrees(self.reference.splay_turned)
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from robots import Robot
+from robots import Robot, sole_corners_in_world
 from tasks.mocap.retarget import TRACKED, Reference
 from tasks.mocap.source import SIDES
 from tasks.specs import TaskSpec
@@ -123,13 +123,14 @@ def tracks(robot: Robot, t: np.ndarray, q: np.ndarray, ref: Reference) -> Tracks
     pos = {role: np.empty((len(t), 3)) for role in TRACKED}
     soles = {side: np.empty((len(t), 3)) for side in SIDES}
     corners = {side: np.empty((len(t), 4, 3)) for side in SIDES}
+    sole = robot.profile.sole
     for i, qi in enumerate(q):
         pin.framesForwardKinematics(model, data, qi)
         for role, fid in fids.items():
             pos[role][i] = data.oMf[fid].translation
         for side in SIDES:
             soles[side][i] = data.oMf[feet[side]].translation
-            corners[side][i] = robot.sole_corners_in_world(qi, side)
+            corners[side][i] = sole_corners_in_world(sole, side, data.oMf[feet[side]])  # this FK's (no new Data)
     inside = (t >= clip0 - 1e-9) & (t <= clip1 + 1e-9)
     frame_of = np.clip(np.round((t - clip0) / (ref.t[1] - ref.t[0])).astype(int), 0, len(ref.t) - 1)
     source = {role: ref.points[role][frame_of] for role in TRACKED}

@@ -40,6 +40,7 @@ from tasks.exceptions import ClipError
 from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.source import SIDES, HumanMotion, segments
+from tasks.mocap.splay import keep_splay
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
     CoMBounds,
@@ -123,6 +124,8 @@ class Reference:
             robot's own body (F,) [m] (:mod:`tasks.mocap.keepout`).
         grounded_s: Seconds of the source's flights (both feet up) the robot makes with both feet
             down instead (:func:`ground_jumps`; 0: none).
+        splay_turned: How far a stance placement was turned at most so that the feet's relative
+            yaw stays within the robot's hip yaw range [rad] (:mod:`tasks.mocap.splay`).
     """
 
     t: np.ndarray
@@ -139,6 +142,7 @@ class Reference:
     arm_moved: dict[str, np.ndarray] | None = None
     kept_out: dict[str, np.ndarray] | None = None
     grounded_s: float = 0.0
+    splay_turned: float = 0.0
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -450,7 +454,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                             rpy=(0.0, 0.0, _foot_yaw_at(motion, side, fa, fb, stand_yaw[side])))
             runs.append((a, b, pose))
         stance_pose[side] = runs
-    stance_pose = _placements_apart(stance_pose, ref.heading[frames], robot)
+    stance_pose, turned = keep_splay(_placements_apart(stance_pose, ref.heading[frames], robot), stand_yaw, robot)
     # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
     last: dict[str, Pose] = {}
     for side in SIDES:
@@ -498,15 +502,14 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             held[side][a:min(b, n + 1)] = pose.position
         held[side][n + 1] = last[side].position
     targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
-    dynamic = True if dynamic is None else dynamic
     horizon = sum(p.duration for p in phases)
     _check_items(where, duration, slow, len(targets), robot)
     spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
                     joint_targets=shoulders_out(robot, horizon),
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
-                    dt=dt, dynamic=dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
+                    dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
-    return spec, ref
+    return spec, dataclasses.replace(ref, splay_turned=turned)  # splay: the hips' yaw range (a pivot turn's toe-in)
 
 
 def _check_items(where: str, duration: float, slow: float, n_targets: int, robot: Robot) -> None:

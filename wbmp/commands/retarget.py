@@ -122,6 +122,9 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
             what = "out of its pelvis and thighs" if role.endswith("hand") else "apart from the other foot"
             print(f"retarget: the {role.replace('_', ' ')} moved {what} up to {moved:.3f} m: the human's "
                   "would pass through the robot's body")
+    if ref.splay_turned > 0:
+        print(f"retarget: a foot turned up to {math.degrees(ref.splay_turned):.0f} deg: the human stands with the feet "
+              "turned further apart or together than the robot's hips turn")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:
         cert = result.execution.certificate
