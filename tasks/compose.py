@@ -58,7 +58,7 @@ from tasks.primitives import (
 )
 from tasks.primitives.base import fit_defaults
 from tasks.primitives.grasp import CARRY_WEIGHT, carry_posture
-from tasks.scene import Scene, SceneObject, rotation
+from tasks.scene import Scene, SceneObject, rotation, slope_objects, stairs_objects
 from tasks.specs import (
     CoMBounds,
     CoMTarget,
@@ -438,6 +438,8 @@ def ground_actions(actions: Sequence[Action], scene: Scene | None) -> list[Actio
             a = _seated(a, scene, out[-1] if out else None, _where(i, a, len(actions)))
         if a.name == "lean_on":
             a = _table(a, scene, _where(i, a, len(actions)))
+        if a.name in CLIMB_ACTIONS:
+            a = _climbed(a, scene, _where(i, a, len(actions)))
         refs = {k: v for k, v in a.params.items() if get_action(a.name).param(k).kind == "object" and v is not None}
         if not refs:
             out.append(a)
@@ -509,6 +511,30 @@ def _table(a: Action, scene: Scene | None, where: str) -> Action:
         raise BeyondCapability(f"{where}lean on: there is no table in the scene (a static box with a top to lean on); "
                                "give a scene with one, e.g. --scene examples/scenes/table.json")
     return _with_object(a, tables[0], scene)
+
+
+CLIMB_ACTIONS = ("step_up", "step_down")
+
+
+def _climbed(a: Action, scene: Scene | None, where: str) -> Action:
+    """``step_up``/``step_down`` with what they climb: the object said, or the scene's one flight of
+    stairs or slope ("walk up the three steps", "go down two steps": the surfaces, not the steps'
+    word) (BeyondCapability: no stairs or slope; GroundingError: several, name one)."""
+    if a.params.get("object") is not None:
+        return a
+    verb = a.name.replace("_", " ")
+    if scene is None:
+        raise GroundingError(f"{where}{verb}: there is nothing to climb without a scene; give one with stairs or a "
+                             "slope, e.g. --scene examples/scenes/stairs.json", verb)
+    flights = [stairs_objects(st)[0] for st in scene.stairs] + [slope_objects(sl)[0] for sl in scene.slopes]
+    if not flights:
+        raise BeyondCapability(f"{where}{verb}: the scene has no stairs or slope; name what to climb "
+                               '("step onto the box") or give a scene with some, e.g. --scene examples/scenes/stairs.json')
+    if len(flights) > 1:
+        names = ", ".join(f.name.split(".")[0] for f in flights)
+        raise GroundingError(f'{where}{verb}: the scene has several to climb ({names}): name one ("{verb} the '
+                             f'{flights[0].name.split(".")[0]}")', verb, tuple(f.name for f in flights))
+    return _with_object(a, flights[0], scene)
 
 
 def _with_object(a: Action, obj: SceneObject, scene: Scene | None) -> Action:

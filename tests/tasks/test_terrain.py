@@ -155,6 +155,43 @@ def test_the_words_climb_the_example_stairs(talos, text):
     assert [c.placement.position[2] for c in spec.phases[-1].contacts] == pytest.approx([0.3, 0.3])
 
 
+@pytest.mark.parametrize(("text", "top"), [("walk up the three steps", 0.3), ("go up two steps", 0.2),
+                                         ("climb one step", 0.1)])
+def test_a_count_of_steps_climbs_that_many_treads_of_the_scenes_stairs(talos, text, top):
+    """The issue's own sentences: "steps" after a climbing verb are the treads climbed (step_up absorbs
+    step), and an unnamed flight is the scene's one flight (each tread 0.1 m: the top by hand)."""
+    from language import parse
+
+    actions = parse(text).actions
+    assert [a.name for a in actions] == ["step_up"]
+    spec = compile_actions(list(actions), talos, scene=load_scene(STAIRS))
+    assert [c.placement.position[2] for c in spec.phases[-1].contacts] == pytest.approx([top, top])
+
+
+def test_going_down_steps_names_the_flight_the_robot_stands_on(talos):
+    from language import parse
+
+    actions = parse("go down two steps").actions
+    assert [a.name for a in actions] == ["step_down"] and actions[0].params["count"] == 2
+
+
+@pytest.mark.parametrize(("scene", "error", "words"), [
+    (None, "GroundingError", "nothing to climb without a scene"),
+    (Scene(), "BeyondCapability", "no stairs or slope"),
+    ("two", "GroundingError", "several to climb"),
+])
+def test_steps_with_nothing_or_several_to_climb_are_refused_in_words(talos, scene, error, words):
+    from language import parse
+
+    if scene == "two":
+        flight = load_scene(STAIRS).stairs[0]
+        scene = Scene(stairs=(flight, dataclasses.replace(flight, name="back stairs", aliases=(), position=(-2.0, 0.0),
+                                                          yaw=math.pi)))
+    with pytest.raises(TaskDefinitionError) as e:
+        compile_actions(list(parse("walk up the three steps").actions), talos, scene=scene)
+    assert type(e.value).__name__ == error and words in str(e.value), e.value
+
+
 def test_step_onto_the_box_in_words(talos):
     from language import parse
 
