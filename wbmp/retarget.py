@@ -71,6 +71,8 @@ class RetargetResult(SolveResult):
             section["raised_m"] = self.reference.raised_max()
             section["arm_moved_m"] = self.reference.arm_moved_max()
             section["kept_out_m"] = self.reference.kept_out_max()
+            section["arm_held_m"] = self.reference.arm_held_max()
+            section["gaps"] = [g.to_dict() for g in self.reference.gaps]
             section["grounded_s"] = self.reference.grounded_s
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()

@@ -122,6 +122,8 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
             what = "out of its pelvis and thighs" if role.endswith("hand") else "apart from the other foot"
             print(f"retarget: the {role.replace('_', ' ')} moved {what} up to {moved:.3f} m: the human's "
                   "would pass through the robot's body")
+    for gap in ref.gaps:  # each target's largest move from the human, and why, in body terms
+        print(f"retarget: gap: {gap.text()}")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:
         cert = result.execution.certificate
