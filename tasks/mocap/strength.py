@@ -182,6 +182,7 @@ class _Ik:
         nv = model.nv
         w_post = np.sqrt(POSTURE_WEIGHT) * np.ones(nv)
         w_post[:6] = 0.0
+        posture, damping = np.diag(w_post), DAMPING * np.eye(nv)
         for _ in range(steps):
             pin.computeJointJacobians(model, data, q)
             pin.updateFramePlacements(model, data)
@@ -197,7 +198,7 @@ class _Ik:
             Jb = pin.getFrameJacobian(model, data, self.base, pin.LOCAL_WORLD_ALIGNED)[3:]
             rows.append(np.sqrt(HEADING_WEIGHT) * Jb)
             errs.append(np.sqrt(HEADING_WEIGHT) * pin.log3(R_goal @ M.rotation.T))
-            rows.append(np.diag(w_post))
+            rows.append(posture)
             errs.append(w_post * pin.difference(model, q, self.q_stand))
             if strain:
                 cols = [model.joints[j].idx_v for j in strain]
@@ -208,7 +209,7 @@ class _Ik:
                 errs.append(-w * g)
             J = np.vstack(rows)
             e = np.concatenate(errs)
-            dq = np.linalg.solve(J.T @ J + DAMPING * np.eye(nv), J.T @ e)
+            dq = np.linalg.solve(J.T @ J + damping, J.T @ e)
             q = pin.integrate(model, q, dq)
             q = np.clip(q, self.lo, self.hi)
         return q
@@ -235,13 +236,14 @@ def arm_torques(robot: Robot, q: np.ndarray, joints: list[int], accel: np.ndarra
     hand's) taken as an added gravity (- accel: the arm in the frame of its accelerating hand; its
     rotation neglected). An arm carries no contact, so its joints' torques are its own weight's
     and motion's, free of the unknown contact forces."""
-    model = pin.Model(robot.model)
+    model = robot.model if accel is None else pin.Model(robot.model)  # a copy: its gravity is changed
     data = model.createData()
     cols = [model.joints[j].idx_v for j in joints]
     g0 = model.gravity.linear.copy()
     out = np.empty((len(q), len(joints)))
     for i, qi in enumerate(q):
-        model.gravity.linear = g0 - (accel[i] if accel is not None else 0.0)
+        if accel is not None:
+            model.gravity.linear = g0 - accel[i]
         out[i] = pin.computeGeneralizedGravity(model, data, qi)[cols]
     return out
 
