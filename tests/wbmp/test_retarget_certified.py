@@ -158,7 +158,7 @@ def test_the_bend_is_certified_on_talos_its_raised_arms_within_the_shoulders_str
     hand 0.35 m below its plan at 3.86 s, arm_right_2_joint at 21.7 of 22.3 N m; the plan's own pose
     asked 1.19 of that limit). Each hand brought in towards its shoulder's vertical where the pose
     asks more than 0.65 of a joint's limit (tasks.mocap.strength), the gap named with the joint;
-    certified (measured 2.5 / 0.9 / 0.2 mm skate / penetration / float, 40 s CPU). Fast twin:
+    certified (measured 2.4 / 0.7 / 0.2 mm skate / penetration / float, 48 s CPU). Fast twin:
     tests/tasks/mocap/test_strength.py::test_a_hand_held_out_is_brought_in_to_a_pose_the_shoulder_holds."""
     result = retarget(RetargetRequest(clip="/work/shared/mocap/13_29_bend.bvh", robot="talos"))
     assert result.reference.arm_held_max()["right"] > 0.1

@@ -128,3 +128,17 @@ def test_a_gap_is_named_in_the_heading_frame():
     after[10, 1] = 0.2  # world +y; facing +y (heading 90 deg) that is ahead
     assert "0.20 m ahead of it" in strength.gaps_of("base", before, after, t, np.full(41, np.pi / 2), "c").direction
     assert strength.gaps_of("base", before, before + 0.001, t, np.zeros(41), "c") is None  # under 5 mm: none
+
+
+def test_a_run_of_knots_that_never_asks_more_than_the_trigger_is_not_moved(talos, monkeypatch):
+    """The same hand held out (its pose asks more than the roll's limit) with the trigger set above
+    what it asks: nothing is moved (a swing that only brushes past the margin is left to the
+    controller: talos's march)."""
+    pts, t = _standing_points(talos, 0.5)
+    shoulder = pts["right_shoulder"][0]
+    pts["right_hand"] = np.tile(shoulder + [0.0, -0.6, 0.0], (len(t), 1))
+    _, moved, gaps = strength.hold_within_strength(talos, pts, np.zeros(len(t)), t)
+    assert moved["right"].max() > 0.1 and gaps
+    monkeypatch.setattr(strength, "ARM_STRENGTH_TRIGGER", 10.0)
+    hands, moved, gaps = strength.hold_within_strength(talos, pts, np.zeros(len(t)), t)
+    assert hands["right"] is pts["right_hand"] and moved["right"].max() == 0.0 and gaps == []
