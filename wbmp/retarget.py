@@ -72,6 +72,8 @@ class RetargetResult(SolveResult):
             section["raised_m"] = self.reference.raised_max()
             section["arm_moved_m"] = self.reference.arm_moved_max()
             section["kept_out_m"] = self.reference.kept_out_max()
+            section["arm_held_m"] = self.reference.arm_held_max()
+            section["gaps"] = [g.to_dict() for g in self.reference.gaps]
             section["grounded_s"] = self.reference.grounded_s
             section["splay_turned_deg"] = math.degrees(self.reference.splay_turned)
         if self.figures is not None:

@@ -41,6 +41,7 @@ from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.mocap.splay import keep_splay
+from tasks.mocap.strength import Gap, gaps_of, hold_within_strength
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
     CoMBounds,
@@ -85,6 +86,7 @@ SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is n
 #: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
 MIN_BASE_HEIGHT = 0.6
 KEEP_OUT = True  # hand targets kept off the robot's pelvis and thighs, feet apart (tasks.mocap.keepout)
+ARM_STRENGTH = True  # hand targets within what the arms' joints hold (tasks.mocap.strength)
 #: [rad] how far out from standing a soft posture term holds each shoulder's joint (the joint carrying
 #: the robot's shoulder frame: the roll on talos and G1), and its weight: the planner's capsules do
 #: not keep the upper arm off the torso (they touch at rest), so an arm brought in to the chest
@@ -126,6 +128,11 @@ class Reference:
             down instead (:func:`ground_jumps`; 0: none).
         splay_turned: How far a stance placement was turned at most so that the feet's relative
             yaw stays within the robot's hip yaw range [rad] (:mod:`tasks.mocap.splay`).
+        arm_held: Hand side -> per frame, how far the hand target was brought in towards its
+            shoulder's vertical so that the robot's pose for it is within its arm joints' torque
+            limits (F,) [m] (:func:`tasks.mocap.strength.hold_within_strength`).
+        gaps: Each target's largest move away from the scaled source, and why, in body terms
+            (:class:`tasks.mocap.strength.Gap`).
     """
 
     t: np.ndarray
@@ -143,6 +150,8 @@ class Reference:
     kept_out: dict[str, np.ndarray] | None = None
     grounded_s: float = 0.0
     splay_turned: float = 0.0
+    arm_held: dict[str, np.ndarray] | None = None
+    gaps: tuple[Gap, ...] = ()
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -157,6 +166,10 @@ class Reference:
         """Role (hand or foot) -> how far its target was moved out of the robot's body at most
         (:mod:`tasks.mocap.keepout`: hands off the pelvis and thighs, feet apart) [m]."""
         return {role: float(np.max(v)) if len(v) else 0.0 for role, v in (self.kept_out or {}).items()}
+
+    def arm_held_max(self) -> dict[str, float]:
+        """Hand side -> how far its target was brought in at most for its arm joints' torques [m]."""
+        return {side: float(np.max(v)) if len(v) else 0.0 for side, v in (self.arm_held or {}).items()}
 
 
 def _rot(yaw: np.ndarray | float) -> np.ndarray:
@@ -210,12 +223,77 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
     # head, shoulders and hands are placed from the base below
     raised = np.maximum(0.0, MIN_BASE_HEIGHT * stand["base"][2] - points["base"][:, 2])
     points["base"][:, 2] += raised
+    t = motion.t + lead_in
+    gaps: list[Gap | None] = [gaps_of("base", points["base"] - raised[:, None] * [0.0, 0.0, 1.0], points["base"], t,
+                                      heading, f"the robot's lowest base ({MIN_BASE_HEIGHT:g} of its standing height)")]
     for key, role in (("torso", "torso"), ("head", "head"), ("left_shoulder", "left_shoulder"),
                       ("right_shoulder", "right_shoulder")):
         robot_rel = stand[role] - stand["base"]  # standing: heading 0
         human_rel = np.einsum("fba,fb->fa", R, P[key] - P["pelvis"])  # in the heading frame
         offset = robot_rel - np.median(human_rel, axis=0)
         points[role] = points["base"] + (P[key] - P["pelvis"]) + np.einsum("fab,b->fa", R, offset)
+    arm_moved = _place_hands(points, P, R, stand, s_arm, robot, t, heading, gaps)
+    arm_held: dict[str, np.ndarray] = {}
+    if ARM_STRENGTH:  # the hands within what the arms' joints hold (tasks.mocap.strength)
+        hands, arm_held, held = hold_within_strength(robot, points, heading, t)
+        points.update({f"{side}_hand": hands[side] for side in SIDES})
+        gaps += held
+    kept_out: dict[str, np.ndarray] = {}
+    if KEEP_OUT:  # the hands off the robot's pelvis, hips and thighs (tasks.mocap.keepout)
+        hands, moved = keep_hands_out({side: points[f"{side}_hand"] for side in SIDES}, points["base"], R, robot)
+        for side in SIDES:
+            gaps.append(gaps_of(f"{side}_hand", points[f"{side}_hand"], hands[side], t, heading,
+                                "the robot's pelvis and thighs (the hand kept out of them)"))
+            points[f"{side}_hand"] = hands[side]
+            kept_out[f"{side}_hand"] = moved[side]
+    soles: dict[str, np.ndarray] = {}
+    for side in SIDES:
+        # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
+        # over the labelled stances) becomes the robot's standing one
+        lateral = np.einsum("fba,fb->fa", R, foot[side] - P["pelvis"])[:, 1]
+        stance = contact[side] if contact[side].any() else np.ones(len(lateral), dtype=bool)
+        d_y = (stand[f"{side}_foot"][1] - stand["base"][1]) - float(np.median(lateral[stance]))
+        sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
+        sole[:, 2] = np.maximum(sole[:, 2], 0.0)
+        soles[side] = sole
+    if KEEP_OUT:  # the feet at least FOOT_GAP of the robot's standing gap apart (tasks.mocap.keepout)
+        # in the feet's own frame, then in the hips' (the legs hang from the hips: a boxer's stance,
+        # feet turned from the pelvis, has them apart in their own frame but in line under the hips)
+        before = {side: soles[side].copy() for side in SIDES}
+        soles, _ = keep_feet_apart(soles, contact, feet_yaw(motion), robot)
+        soles, _ = keep_feet_apart(soles, contact, heading, robot)
+        kept_out.update({f"{side}_foot": np.linalg.norm(soles[side] - before[side], axis=1) for side in SIDES})
+        gaps += [gaps_of(f"{side}_foot", before[side], soles[side], t, heading,
+                         "the other foot (the feet kept apart)") for side in SIDES]
+    for side in SIDES:
+        sole = soles[side]
+        points[f"{side}_foot"] = sole
+        contact[side] = drop_shuffles(contact[side], sole)
+        fixed = np.full_like(sole, np.nan)
+        for a, b, down in segments(contact[side]):
+            if not down:
+                continue
+            where = stand[f"{side}_foot"] if a == 0 else np.array([*np.median(sole[a:b, :2], axis=0), 0.0])
+            fixed[a:b] = where
+        placements[side] = fixed
+    return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
+                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised,
+                     arm_moved=arm_moved, kept_out=kept_out, arm_held=arm_held,
+                     gaps=tuple(g for g in gaps if g is not None))
+
+
+def _shoulder_joint(robot: Robot, side: str) -> str:
+    """The name of the joint that carries the robot's ``side`` shoulder frame."""
+    return str(robot.model.names[int(robot.model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint)])
+
+
+def _place_hands(points: dict[str, np.ndarray], P: dict[str, np.ndarray], R: np.ndarray,  # noqa: N803
+                 stand: dict[str, np.ndarray], s_arm: float, robot: Robot, t: np.ndarray, heading: np.ndarray,
+                 gaps: list[Gap | None]) -> dict[str, np.ndarray]:
+    """The hand targets (into ``points``) from the tracked shoulders with the arm ratio ``s_arm``, as
+    the robot's arms hang and reach (see :func:`reference`); returns how far each was brought in
+    sideways per frame (:func:`arm_reach`), its gap appended to ``gaps``."""
+    g = standing_geometry(robot)
     arm_moved: dict[str, np.ndarray] = {}
     for side in SIDES:
         arm = s_arm * (P[f"{side}_hand"] - P[f"{side}_shoulder"])
@@ -238,43 +316,9 @@ def reference(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, 
         most = arm_reach(robot, side) * g.arm_length[side]
         points[f"{side}_hand"] = _hold_arm(hand, points[f"{side}_shoulder"], R, most)
         arm_moved[side] = np.linalg.norm(points[f"{side}_hand"] - hand, axis=1)
-    kept_out: dict[str, np.ndarray] = {}
-    if KEEP_OUT:  # the hands off the robot's pelvis, hips and thighs (tasks.mocap.keepout)
-        hands, moved = keep_hands_out({side: points[f"{side}_hand"] for side in SIDES}, points["base"], R, robot)
-        for side in SIDES:
-            points[f"{side}_hand"] = hands[side]
-            kept_out[f"{side}_hand"] = moved[side]
-    soles: dict[str, np.ndarray] = {}
-    for side in SIDES:
-        # the robot's stance width: the foot's sideways offset from the pelvis (heading frame, median
-        # over the labelled stances) becomes the robot's standing one
-        lateral = np.einsum("fba,fb->fa", R, foot[side] - P["pelvis"])[:, 1]
-        stance = contact[side] if contact[side].any() else np.ones(len(lateral), dtype=bool)
-        d_y = (stand[f"{side}_foot"][1] - stand["base"][1]) - float(np.median(lateral[stance]))
-        sole = foot[side] + np.einsum("fab,b->fa", R, np.array([0.0, d_y, 0.0]))
-        sole[:, 2] = np.maximum(sole[:, 2], 0.0)
-        soles[side] = sole
-    if KEEP_OUT:  # the feet at least FOOT_GAP of the robot's standing gap apart (tasks.mocap.keepout)
-        # in the feet's own frame, then in the hips' (the legs hang from the hips: a boxer's stance,
-        # feet turned from the pelvis, has them apart in their own frame but in line under the hips)
-        before = {side: soles[side].copy() for side in SIDES}
-        soles, _ = keep_feet_apart(soles, contact, feet_yaw(motion), robot)
-        soles, _ = keep_feet_apart(soles, contact, heading, robot)
-        kept_out.update({f"{side}_foot": np.linalg.norm(soles[side] - before[side], axis=1) for side in SIDES})
-    for side in SIDES:
-        sole = soles[side]
-        points[f"{side}_foot"] = sole
-        contact[side] = drop_shuffles(contact[side], sole)
-        fixed = np.full_like(sole, np.nan)
-        for a, b, down in segments(contact[side]):
-            if not down:
-                continue
-            where = stand[f"{side}_foot"] if a == 0 else np.array([*np.median(sole[a:b, :2], axis=0), 0.0])
-            fixed[a:b] = where
-        placements[side] = fixed
-    return Reference(t=motion.t + lead_in, points=points, contact=contact, placements=placements,
-                     heading=heading, scale=s, arm_scale=s_arm, lead_in=lead_in, stride_scale=stride, raised=raised,
-                     arm_moved=arm_moved, kept_out=kept_out)
+        gaps.append(gaps_of(f"{side}_hand", hand, points[f"{side}_hand"], t, heading,
+                            f"{_shoulder_joint(robot, side)}'s torque limit (the arm held out sideways)"))
+    return arm_moved
 
 
 def arm_reach(robot: Robot, side: str) -> float:

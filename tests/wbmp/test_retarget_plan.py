@@ -116,3 +116,20 @@ def test_a_clip_that_starts_mid_step_begins_at_its_first_double_support():
     assert info["start_s"] == 0.0
     _, _, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "13_29_squat.bvh"), robot="talos"))
     assert info["start_s"] == 0.0
+
+
+def test_the_report_names_each_moved_target_in_body_terms(planned):
+    """The squat's base, raised to talos's lowest base, is named in the motion file's report: how
+    far (the reference's own lift, rebuilt here from the clip), when (where that lift is largest),
+    which way (above the source) and why."""
+    talos = load_robot("talos")
+    clip = read_bvh(MOCAP / "13_29_squat.bvh").window(0.0, 1.5)
+    motion = human_motion(clip, recognize_skeleton(clip.names))
+    ref = reference(motion, label_contacts(motion), talos, lead_in=planned.report["retarget"]["lead_in_s"])
+    gaps = {g["role"]: g for g in planned.report["retarget"]["gaps"]}
+    base = gaps["base"]
+    assert base["m"] == pytest.approx(float(ref.raised.max()), abs=1e-9)
+    assert base["m"] > 0.05
+    assert base["time_s"] == pytest.approx(float(ref.t[int(np.argmax(ref.raised))]), abs=1e-9)
+    assert base["text"] == (f"base {base['m']:.2f} m from the source at {base['time_s']:.2f} s, mostly "
+                            f"{base['m']:.2f} m above it: the robot's lowest base (0.6 of its standing height)")

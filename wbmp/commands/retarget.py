@@ -125,6 +125,8 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if ref.splay_turned > 0:
         print(f"retarget: a foot turned up to {math.degrees(ref.splay_turned):.0f} deg: the human stands with the feet "
               "turned further apart or together than the robot's hips turn")
+    for gap in ref.gaps:  # each target's largest move from the human, and why, in body terms
+        print(f"retarget: gap: {gap.text()}")
     print("planned: " + result.figures.summary().replace("\n", "\n         "))
     if result.execution is not None:
         cert = result.execution.certificate
