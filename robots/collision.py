@@ -311,6 +311,22 @@ def _from_json(data: dict, robot: Robot) -> CollisionModel:
     return model
 
 
+def write_bundled_fit(robot: Robot) -> Path:
+    """Fit ``robot``'s collision model now and store it in :data:`BUNDLED` under its current key
+    (run after a change to the URDF, the profile's collision table or the fit:
+    ``python -c "from robots.collision import write_bundled_fit; import robots;
+    write_bundled_fit(robots.load_robot('talos'))"``); older
+    fits of the robot there are removed. Returns the file."""
+    path = BUNDLED / f"{robot.name}-{cache_key(robot)}.json"
+    text = json.dumps(_to_json(_build(robot)), indent=0, sort_keys=True) + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for old in path.parent.glob(f"{robot.name}-*.json"):
+        if old != path:
+            old.unlink()
+    write_text_atomic(path, text)
+    return path
+
+
 def _write_atomic(path: Path, text: str) -> None:
     """Store a fit; a cache folder that cannot be written only costs the speed-up."""
     with contextlib.suppress(OSError):
@@ -319,10 +335,23 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 _MEMORY: dict[tuple[int, str], CollisionModel] = {}
+BUNDLED = Path(__file__).with_name("fits")  # fits shipped with the package: <robot>-<cache_key>.json
+
+
+def _read_fit(path: Path, robot: Robot) -> CollisionModel | None:
+    """The model stored at ``path``; None when there is none or it is damaged or stale."""
+    try:
+        if path.is_file():  # a regular file of at most 8 MiB (a FIFO or a device is damaged)
+            return _from_json(read_json(path, 8 << 20), robot)
+    except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, RecursionError):
+        pass  # damaged, stale or removed meanwhile: rebuilt
+    return None
 
 
 def collision_model(robot: Robot) -> CollisionModel:
-    """The collision model of ``robot``: from memory, the disk cache, or fitted now (~1 s)."""
+    """The collision model of ``robot``: from memory, the disk cache, the fit shipped in
+    :data:`BUNDLED` for the same key (a URDF, profile or fit version that changed has another key),
+    or fitted now (Talos: ~7 s of CPU); the last two are stored in the disk cache."""
     from robots.store import mark_used, trim_cache
 
     key = cache_key(robot)
@@ -330,15 +359,11 @@ def collision_model(robot: Robot) -> CollisionModel:
     if mem is not None:
         return mem
     path = cache_dir() / f"{robot.name}-{key}.json"
-    cm = None
-    try:
-        if path.is_file():  # a regular file of at most 8 MiB (a FIFO or a device is damaged)
-            cm = _from_json(read_json(path, 8 << 20), robot)
-            mark_used(path)
-    except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError, RecursionError):
-        cm = None  # damaged, stale or removed meanwhile: rebuilt below
-    if cm is None:
-        cm = _build(robot)
+    cm = _read_fit(path, robot)
+    if cm is not None:
+        mark_used(path)
+    else:
+        cm = _read_fit(BUNDLED / path.name, robot) or _build(robot)
         _write_atomic(path, json.dumps(_to_json(cm)))
         trim_cache(path.parent)
     _MEMORY[(id(robot), key)] = cm

@@ -179,7 +179,7 @@ def test_bad_collision_tables_are_named(tmp_path, collisions, message):
     assert "mytalos.json" in str(e.value)
 
 
-@pytest.mark.long  # in make test-long: the 2-core suite stays under 10 minutes (~20 s: two collision fits); twin:
+@pytest.mark.long  # in make test-long (it fitted twice, ~20 s; now the rebuild copies robots/fits); twin:
 # tests/robots/test_robot_cache.py::test_robot_cache_damaged_entry_is_rebuilt_with_one_warning
 def test_damaged_cache_file_is_rebuilt(tmp_path, monkeypatch, talos):
     import robots.collision as rc
