@@ -22,22 +22,12 @@ from tasks.exceptions import BeyondCapability
 from tasks.primitives import kneel as kneel_module
 from tasks.primitives.geometry import Stance
 from tasks.primitives.kneel import kneeling
+from tests.meshes import collision_meshes
 
 
 @pytest.fixture(scope="module")
 def knelt(talos):
     return kneeling(talos, Stance.standing(talos), "right")
-
-
-def _meshes(robot, q):
-    """(link joint, world vertices) of every collision mesh at q."""
-    model, data = robot.model, robot.model.createData()
-    cdata = robot.collision_model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    pin.updateGeometryPlacements(model, data, robot.collision_model, cdata, q)
-    return [(g.parentJoint, np.asarray(g.geometry.vertices(), dtype=float).reshape(-1, 3) @ cdata.oMg[i].rotation.T
-             + cdata.oMg[i].translation)
-            for i, g in enumerate(robot.collision_model.geometryObjects) if hasattr(g.geometry, "num_vertices")]
 
 
 def _cross(a, b) -> float:
@@ -73,7 +63,7 @@ def test_the_knee_rests_on_the_floor_and_nothing_else_but_the_standing_foot_by_f
     size = np.ptp(corners[:, :2], axis=0)
     assert size.min() >= 0.02 - 1e-9 and size.max() < 0.10  # a knee's pad, not a shin
     shin = model.frames[talos.frame_id(c.frame)].parentJoint
-    low = min(v[:, 2].min() for j, v in _meshes(talos, knelt.q) if j == shin)
+    low = min(v[:, 2].min() for j, v in collision_meshes(talos, knelt.q) if j == shin)
     assert abs(low) < 2e-3  # the shin's lowest vertex on the floor
     standing = talos.data()
     pin.framesForwardKinematics(model, standing, np.asarray(talos.q_standing))
@@ -85,7 +75,7 @@ def test_the_knee_rests_on_the_floor_and_nothing_else_but_the_standing_foot_by_f
     assert corners[:, 1].mean() == pytest.approx(standing.oMf[talos.frame_id(f"{side}_foot")].translation[1], abs=0.02)
     stands = set(model.subtrees[model.frames[sole].parentJoint]) | {model.frames[sole].parentJoint}
     thigh = model.parents[shin]
-    for j, v in _meshes(talos, knelt.q):
+    for j, v in collision_meshes(talos, knelt.q):
         if j in stands or j == shin:
             continue
         assert v[:, 2].min() > (0.004 if j == thigh else 0.02), model.names[j]  # nothing else on the floor

@@ -23,6 +23,7 @@ from tasks.exceptions import BeyondCapability
 from tasks.primitives.geometry import Stance
 from tasks.primitives.lean import leaning
 from tasks.scene import load_scene
+from tests.meshes import collision_meshes
 
 TABLE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "table.json"
 TOP, NEAR, FAR, HALF_WIDTH = 0.62, 0.35, 0.95, 0.6  # the table by hand [m]
@@ -36,17 +37,6 @@ def table():
 @pytest.fixture(scope="module")
 def leant(talos, table):
     return leaning(talos, Stance.standing(talos), table.objects[0])
-
-
-def _meshes(robot, q):
-    """(link joint, world vertices) of every collision mesh at q."""
-    model, data = robot.model, robot.model.createData()
-    cdata = robot.collision_model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    pin.updateGeometryPlacements(model, data, robot.collision_model, cdata, q)
-    return [(g.parentJoint, np.asarray(g.geometry.vertices(), dtype=float).reshape(-1, 3) @ cdata.oMg[i].rotation.T
-             + cdata.oMg[i].translation)
-            for i, g in enumerate(robot.collision_model.geometryObjects) if hasattr(g.geometry, "num_vertices")]
 
 
 def test_the_leaning_hands_rest_on_the_table_top_by_forward_kinematics(talos, table, leant):
@@ -69,7 +59,7 @@ def test_the_leaning_hands_rest_on_the_table_top_by_forward_kinematics(talos, ta
         assert np.ptp(corners[:, 0]) >= 0.01 - 1e-9 and np.ptp(corners[:, 1]) >= 0.01 - 1e-9  # a pad, not a point
         assert np.linalg.norm(corners.mean(axis=0) - M.translation) < 0.05  # the link's origin near its contact
         assert c.normal == (0.0, 0.0, 1.0) and c.friction_coefficient == pytest.approx(0.6)  # the table's
-    meshes = _meshes(talos, leant.q)
+    meshes = collision_meshes(talos, leant.q)
     for side, sign in (("left", 1.0), ("right", -1.0)):
         joint = model.frames[talos.frame_id(f"{side}_hand")].parentJoint
         v = np.vstack([w for j, w in meshes if j in model.subtrees[joint]])
