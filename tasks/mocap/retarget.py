@@ -39,6 +39,7 @@ from robots import Robot
 from tasks.exceptions import ClipError
 from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
+from tasks.mocap.legs import land_softly, no_higher_than_standing, quick_shuffles, steps_for_flights
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
@@ -71,6 +72,7 @@ STRIDE_STEPS = 2.0  # [-] the longest stride asked, in the robot's longest steps
 MIN_SWING = 1.0  # [-] of the robot's step duration: the shortest swing it is asked for (time_scale)
 LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot before touch-down (swing_target)
 SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
+LAND_SOFTLY = True  # ... and comes onto it no faster than legs.LAND_SPEED (swing_target)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 GROUNDED_TRAVEL = 0.3  # [m] a clip that jumps and travels less than this is made with its feet down (ground_jumps)
 #: [-] how much slower than the human a grounded clip is made: its arms and body keep the tempo of the
@@ -83,6 +85,8 @@ SHUFFLE_STEP = 0.08  # [m] ... that lands closer than this to where it left is n
 #: 0.55 m) its thigh meshes pass into its pelvis (coal), a pair its capsule model cannot keep apart
 #: (they touch at rest); at 0.6 they stay 19 mm apart. The report names the lift (``raised_m``).
 MIN_BASE_HEIGHT = 0.6
+QUICK_SHUFFLES = True  # quick low swings on the spot are no steps (legs.quick_shuffles)
+STEPS_FOR_FLIGHTS = True  # a travelling jump that must be slowed is made as steps (legs.steps_for_flights)
 KEEP_OUT = True  # hand targets kept off the robot's pelvis and thighs, feet apart (tasks.mocap.keepout)
 #: [rad] how far out from standing a soft posture term holds each shoulder's joint (the joint carrying
 #: the robot's shoulder frame: the roll on talos and G1), and its weight: the planner's capsules do
@@ -123,6 +127,8 @@ class Reference:
             robot's own body (F,) [m] (:mod:`tasks.mocap.keepout`).
         grounded_s: Seconds of the source's flights (both feet up) the robot makes with both feet
             down instead (:func:`ground_jumps`; 0: none).
+        stepped_s: Seconds of the source's flights the robot makes as steps, a foot down
+            (:func:`tasks.mocap.legs.steps_for_flights`: a travelling jump; 0: none).
     """
 
     t: np.ndarray
@@ -139,6 +145,7 @@ class Reference:
     arm_moved: dict[str, np.ndarray] | None = None
     kept_out: dict[str, np.ndarray] | None = None
     grounded_s: float = 0.0
+    stepped_s: float = 0.0
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -411,7 +418,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                   description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
     """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
     where = motion.source or "clip"
-    labels, grounded = ground_jumps(motion, labels, robot)
+    motion, labels, grounded, stepped = _steps(motion, labels, robot)
     slow = time_scale(motion, labels, robot)
     if grounded > 0.0:
         slow = max(slow, GROUNDED_SLOW)
@@ -423,7 +430,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         raise ClipError(f"{where}: the window lasts {duration:.1f} s{slowed}; wbmp retargets at most {MAX_CLIP:g} s "
                         "at a time (the planner's 60 s work bound, less the lead-in and lead-out): cut it with "
                         "--start/--end")
-    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow, grounded_s=grounded)
+    ref = dataclasses.replace(reference(motion, labels, robot), time_scale=slow, grounded_s=grounded, stepped_s=stepped)
     g = standing_geometry(robot)
     stand_pose = Stance.standing(robot)
     stand_yaw = {side: float(stand_pose.sole(side).rpy[2]) for side in SIDES}
@@ -509,6 +516,25 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     return spec, ref
 
 
+def _steps(motion: HumanMotion, labels: dict[str, np.ndarray],
+           robot: Robot) -> tuple[HumanMotion, dict[str, np.ndarray], float, float]:
+    """(motion, contact labels, seconds of flight grounded, seconds of flight made as steps): the
+    steps the robot makes of the source's: quick low swings on the spot are none
+    (:func:`tasks.mocap.legs.quick_shuffles`), a jump in place is made with both feet down
+    (:func:`ground_jumps`) and a travelling one that must be slowed as steps, its body no higher than
+    standing (:func:`tasks.mocap.legs.steps_for_flights`)."""
+    if QUICK_SHUFFLES:
+        labels = quick_shuffles(motion, labels, body_scale(motion, robot)[0], MIN_SWING * robot.profile.step_duration,
+                                SHUFFLE_STEP)
+    labels, grounded = ground_jumps(motion, labels, robot)
+    stepped = 0.0
+    if STEPS_FOR_FLIGHTS and grounded == 0.0 and time_scale(motion, labels, robot) > 1.0:
+        before = labels
+        labels, stepped = steps_for_flights(labels, motion.frame_time)
+        motion = no_higher_than_standing(motion, before) if stepped else motion
+    return motion, labels, grounded, stepped
+
+
 def _check_items(where: str, duration: float, slow: float, n_targets: int, robot: Robot) -> None:
     """ClipError when a clip's tracking targets (with the shoulders' joint targets and the CoM bound)
     exceed what wbmp plans at a time (a clip slowed for its quickest swing), naming the fix."""
@@ -588,7 +614,7 @@ def _smoothstep(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
-def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray) -> np.ndarray:
+def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, dt: float = DT) -> np.ndarray:
     """Where a swinging foot is tracked at knot ``k``: from the placement it left to the one it lands on.
 
     ``src`` (knots, 3) is the scaled source foot per knot, ``held`` (knots + 1, 3) its placement per
@@ -621,6 +647,11 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray) -
         p[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
         if lo < k < b - 1:
             p[:2] += src[k, :2] - (sa[:2] + s * (sb[:2] - sa[:2]))
+    if LAND_SOFTLY:  # onto the placement no faster than legs.LAND_SPEED (a march stamps down at 2 m/s)
+        plain = left + s * (held[b] - left)
+        if LAND_VERTICALLY:
+            plain[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
+        p = plain + land_softly(p - plain, (b - k) * dt)
     p[2] = max(float(p[2]), 0.0)
     return p
 
@@ -646,7 +677,7 @@ def _tracking_targets(ref: Reference, robot: Robot, code: np.ndarray, frames: np
             p = g.placements[role].translation + blend * (ref.points[role][f] - g.placements[role].translation)
             if role.endswith("_foot") and held is not None and SWING_TO_PLACEMENTS:
                 p = swing_target(src[role.split("_")[0]], held[role.split("_")[0]], k,
-                                 g.placements[role].translation * [1.0, 1.0, 0.0])
+                                 g.placements[role].translation * [1.0, 1.0, 0.0], dt)
             out.append(FrameTarget(name=f"track {role} {t:.3f}", frame=robot.frame(role),
                                    position=(float(p[0]), float(p[1]), float(p[2])), time=round(t, 9),
                                    priority=Priority.SOFT, weight=WEIGHTS[role] * dt, tolerance=TRACK_TOLERANCE))
