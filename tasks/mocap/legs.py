@@ -15,6 +15,8 @@ import dataclasses
 
 import numpy as np
 
+from robots import Robot
+from tasks.mocap.keepout import keep_feet_apart
 from tasks.mocap.source import SIDES, HumanMotion, segments
 
 #: [m/s] the fastest a swinging foot's target comes onto its placement (the source's departure from
@@ -163,3 +165,16 @@ def no_higher_than_standing(motion: HumanMotion, labels: dict[str, np.ndarray]) 
     down = np.maximum(0.0, z - standing)[:, None] * np.array([0.0, 0.0, 1.0])
     points = {k: v - down if k in BODY else v for k, v in motion.points.items()}
     return dataclasses.replace(motion, points=points)
+
+
+def apart_from_stance(target: np.ndarray, side: str, stance: np.ndarray, yaw: float, robot: Robot) -> np.ndarray:
+    """A swinging foot's target (3,) moved sideways away from the other foot's stance placement
+    ``stance`` (3,) as :func:`tasks.mocap.keepout.keep_feet_apart` keeps the source's soles apart
+    (in the hips' frame, ``yaw``): the target is a blend between placements plus the source's
+    departure from its own, and a marching human's raised foot swings in across the other's line
+    (talos: 0.03 m beside the standing foot, its shin through the other foot on the meshes)."""
+    other = SIDES[1 - SIDES.index(side)]
+    soles = {side: np.asarray(target, dtype=float)[None], other: np.asarray(stance, dtype=float)[None]}
+    contact = {side: np.array([False]), other: np.array([True])}
+    kept, _ = keep_feet_apart(soles, contact, np.array([yaw]), robot)
+    return kept[side][0]

@@ -39,7 +39,13 @@ from robots import Robot
 from tasks.exceptions import ClipError
 from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
-from tasks.mocap.legs import land_softly, no_higher_than_standing, quick_shuffles, steps_for_flights
+from tasks.mocap.legs import (
+    apart_from_stance,
+    land_softly,
+    no_higher_than_standing,
+    quick_shuffles,
+    steps_for_flights,
+)
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
@@ -73,6 +79,7 @@ MIN_SWING = 1.0  # [-] of the robot's step duration: the shortest swing it is as
 LAND_VERTICALLY = True  # a swinging foot is over its next placement a knot before touch-down (swing_target)
 SWING_TO_PLACEMENTS = True  # a swinging foot is tracked from its placement to its next (swing_target)
 LAND_SOFTLY = True  # ... and comes onto it no faster than legs.LAND_SPEED (swing_target)
+SWING_APART = True  # ... and is kept apart sideways from the standing foot (legs.apart_from_stance)
 SHUFFLE_LIFT = 0.05  # [m] a swing lower than this ...
 GROUNDED_TRAVEL = 0.3  # [m] a clip that jumps and travels less than this is made with its feet down (ground_jumps)
 #: [-] how much slower than the human a grounded clip is made: its arms and body keep the tempo of the
@@ -676,8 +683,11 @@ def _tracking_targets(ref: Reference, robot: Robot, code: np.ndarray, frames: np
                     continue  # a stance foot is held by its contact
             p = g.placements[role].translation + blend * (ref.points[role][f] - g.placements[role].translation)
             if role.endswith("_foot") and held is not None and SWING_TO_PLACEMENTS:
-                p = swing_target(src[role.split("_")[0]], held[role.split("_")[0]], k,
-                                 g.placements[role].translation * [1.0, 1.0, 0.0], dt)
+                side = role.split("_")[0]
+                p = swing_target(src[side], held[side], k, g.placements[role].translation * [1.0, 1.0, 0.0], dt)
+                stance = held[SIDES[1 - SIDES.index(side)]][k]
+                if SWING_APART and KEEP_OUT and not np.isnan(stance[0]):  # off the standing foot's line
+                    p = apart_from_stance(p, side, stance, float(ref.heading[f]), robot)
             out.append(FrameTarget(name=f"track {role} {t:.3f}", frame=robot.frame(role),
                                    position=(float(p[0]), float(p[1]), float(p[2])), time=round(t, 9),
                                    priority=Priority.SOFT, weight=WEIGHTS[role] * dt, tolerance=TRACK_TOLERANCE))
