@@ -1,10 +1,13 @@
 """Rules for the legs of a retarget: how a swinging foot lands, and which of the source's swings
 and flights the robot makes as steps (docs/retarget.md, "Session 17").
 
-* :func:`land_softly`: a swinging foot's target comes onto its placement no faster than
-  :data:`LAND_SPEED`. The target is a blend between the placement left and the next one plus the
-  source's own departure from that blend (its lift, a kick's excursion); near touch-down that
-  departure is capped to what :data:`LAND_SPEED` covers in the time left. A marching human stamps
+* :func:`land_softly`: a swinging foot's target comes onto its placement (and leaves the one it
+  left) no faster than :data:`LAND_SPEED`. The target is a blend between the placement left and
+  the next one plus the source's own departure from that blend (its lift, a kick's excursion); near
+  touch-down (and lift-off) that departure is capped to what :data:`LAND_SPEED` covers in the time
+  left (since). A march's foot also leaves forwards at 2 m/s (its knee raised): the plan's first
+  swinging knot was 0.1 m across, and a foot that leaves a few milliseconds early is that far off
+  its placement while the certificate still holds its stance. A marching human stamps
   down from 0.2 m in two knots (2 m/s): the plan, smoothing it, was still 20-53 mm off its placement
   and 5-7 cm up a knot before touch-down, and the simulated foot, lagging it, landed 8-27 mm off.
 """

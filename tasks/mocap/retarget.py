@@ -654,11 +654,11 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
         p[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
         if lo < k < b - 1:
             p[:2] += src[k, :2] - (sa[:2] + s * (sb[:2] - sa[:2]))
-    if LAND_SOFTLY:  # onto the placement no faster than legs.LAND_SPEED (a march stamps down at 2 m/s)
+    if LAND_SOFTLY:  # off and onto the placements no faster than legs.LAND_SPEED (a march stamps at 2 m/s)
         plain = left + s * (held[b] - left)
         if LAND_VERTICALLY:
             plain[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
-        p = plain + land_softly(p - plain, (b - k) * dt)
+        p = plain + land_softly(p - plain, min(b - k, k - a) * dt)
     p[2] = max(float(p[2]), 0.0)
     return p
 

@@ -21,14 +21,14 @@ from tasks.mocap.source import HumanMotion, segments
 DT = 0.08
 
 
-def _stamp(n: int = 12, lift: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+def _stamp(n: int = 16, lift: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """A march's swing on the knot grid: the source's foot up to ``lift`` and stamped down from
-    0.2 m in its last two knots (2.5 m/s), landing where it left (marching on the spot: its
+    0.2 m in its last knot (2.5 m/s), landing where it left (marching on the spot: its
     placements at knots 0 and n are the same; held: NaN in the swing)."""
     src = np.zeros((n + 1, 3))
     src[:, 0] = 0.1 + 0.05 * np.sin(np.linspace(0.0, np.pi, n + 1))  # the knee raised forward
     src[1:n, 2] = lift * np.sin(np.linspace(0.0, np.pi, n + 1)[1:n]) ** 0.3
-    src[n - 1, 2], src[n - 2, 2] = 0.2, 0.4
+    src[n - 1, 2], src[n - 2, 2] = 0.2, 0.28
     held = np.full((n + 2, 3), np.nan)
     held[0] = held[n] = held[n + 1] = [0.1, 0.1, 0.0]
     return src, held
@@ -43,13 +43,15 @@ def _path(src: np.ndarray, held: np.ndarray, monkeypatch, soft: bool) -> np.ndar
 
 def test_a_stamping_foot_comes_onto_its_placement_no_faster_than_the_landing_speed(monkeypatch):
     """A march stamps down at 2.5 m/s: without the rule the target is 0.2 m above its placement a
-    knot before touch-down; with it, every knot's target is within LAND_SPEED x the time left of the
-    placement (the distance measured here, not read from the rule), its lift kept where that allows."""
+    knot before touch-down; with it, every knot's target is within LAND_SPEED x the time to
+    touch-down (or from lift-off, whichever is less) of the placement (the distance measured here,
+    not read from the rule), its lift kept where that allows."""
     src, held = _stamp()
     n = len(src) - 1
     hard = _path(src, held, monkeypatch, soft=False)
     soft = _path(src, held, monkeypatch, soft=True)
-    left = (n - np.arange(1, n)) * DT  # time to touch-down per knot
+    k = np.arange(1, n)
+    left = np.minimum(n - k, k) * DT  # time to touch-down (or from lift-off) per knot
     hard_d = np.linalg.norm(hard - held[n], axis=1)
     soft_d = np.linalg.norm(soft - held[n], axis=1)
     assert hard_d[-1] > 0.15 and np.any(hard_d > 1.5 * LAND_SPEED * left)  # the stamp, unruled
@@ -58,7 +60,7 @@ def test_a_stamping_foot_comes_onto_its_placement_no_faster_than_the_landing_spe
     assert soft_d[-1] / DT <= LAND_SPEED + 1e-9 < hard_d[-1] / DT
     # where the source is within that (early in the swing, far from touch-down) its lift is kept
     keep = hard_d <= LAND_SPEED * left
-    assert keep.sum() >= 1 and np.allclose(soft[keep], hard[keep]) and soft[:, 2].max() > 0.3
+    assert keep.sum() >= 1 and np.allclose(soft[keep], hard[keep]) and soft[:, 2].max() > 0.25
 
 
 def test_a_swing_that_lands_slowly_is_not_changed(monkeypatch):
@@ -158,3 +160,36 @@ def test_a_jump_made_as_steps_does_not_rise_into_its_flight():
     assert np.allclose(out.points["pelvis"][:, 2], 0.9)
     assert np.allclose(out.points["left_hand"][:, 2], 0.0)
     assert np.array_equal(out.points["left_toe"], m.points["left_toe"])
+
+
+@pytest.fixture(scope="module")
+def talos():
+    from robots import load_robot
+
+    return load_robot("talos")
+
+
+@pytest.mark.parametrize("yaw", [0.0, 1.2])
+def test_a_raised_foot_swinging_in_beside_the_standing_one_is_kept_apart(talos, yaw):
+    """The march's raised right foot 0.17 m ahead and 0.03 m beside the standing left one (talos:
+    its shin through the other foot on the meshes): moved out sideways (the hips' frame, ``yaw``)
+    to FOOT_GAP x the soles' gap at standing (Pinocchio FK), only sideways; a target a long stride
+    ahead is not moved."""
+    import pinocchio as pin
+
+    from tasks.mocap.keepout import FOOT_GAP, KNEE_REACH
+    from tasks.mocap.legs import apart_from_stance
+
+    model, data = talos.model, talos.model.createData()
+    pin.framesForwardKinematics(model, data, np.asarray(talos.q_standing, dtype=float))
+    gap = abs(data.oMf[talos.frame_id(talos.frame("left_foot"))].translation[1]
+              - data.oMf[talos.frame_id(talos.frame("right_foot"))].translation[1])
+    c, s = np.cos(yaw), np.sin(yaw)
+    fwd, lat = np.array([c, s, 0.0]), np.array([-s, c, 0.0])
+    stance = np.array([0.3, -0.2, 0.0])
+    near = stance + 0.17 * fwd - 0.03 * lat + [0.0, 0.0, 0.25]
+    moved = apart_from_stance(near, "right", stance, yaw, talos)
+    assert float((stance - moved) @ lat) == pytest.approx(FOOT_GAP * gap, abs=1e-6)
+    assert float((moved - near) @ fwd) == pytest.approx(0.0, abs=1e-9) and moved[2] == near[2]
+    far = stance + 2.5 * KNEE_REACH * 0.3 * fwd - 0.03 * lat
+    assert np.array_equal(apart_from_stance(far, "right", stance, yaw, talos), far)
