@@ -72,6 +72,7 @@ class RetargetResult(SolveResult):
             section["arm_moved_m"] = self.reference.arm_moved_max()
             section["kept_out_m"] = self.reference.kept_out_max()
             section["grounded_s"] = self.reference.grounded_s
+            section["stepped_s"] = self.reference.stepped_s
         if self.figures is not None:
             section["plan"] = self.figures.to_dict()
         if self.exec_figures is not None:
