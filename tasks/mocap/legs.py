@@ -27,6 +27,14 @@ from tasks.mocap.source import SIDES, HumanMotion, segments
 #: certified clips' swings come in slower (0.4 already changed G1's walks' targets; 0.5 changes none
 #: of them: their tasks stay byte for byte), a march's at 1.5 to 2.5 m/s.
 LAND_SPEED = 0.5
+#: [m] a swing whose source foot rises higher than this (at the robot's scale) comes down a knot
+#: early: its target is on the placement, on the floor, a knot before the stance begins. The
+#: simulated foot lags its plan by 20-40 ms at touch-down; a foot still 1-2 cm up when its stance
+#: began was held there and skidded 7-13 mm as it met the floor (talos's march, 10.6 mm of slip; a
+#: knot early: none). A walk's swings stay below it (talos 0.073-0.105 m, g1 0.055-0.080: their
+#: tasks unchanged), a march's knee raise (0.33-0.64 m) and a forward jump's tucked feet (0.10-0.22)
+#: do not.
+HIGH_SWING = 0.11
 
 
 def land_softly(departure: np.ndarray, time_left: float, speed: float = LAND_SPEED) -> np.ndarray:
