@@ -32,9 +32,12 @@ LAND_SPEED = 0.5
 #: simulated foot lags its plan by 20-40 ms at touch-down; a foot still 1-2 cm up when its stance
 #: began was held there and skidded 7-13 mm as it met the floor (talos's march, 10.6 mm of slip; a
 #: knot early: none). A walk's swings stay below it (talos 0.073-0.105 m, g1 0.055-0.080: their
-#: tasks unchanged), a march's knee raise (0.33-0.64 m) and a forward jump's tucked feet (0.10-0.22)
-#: do not.
+#: tasks unchanged), a march's knee raise (0.33-0.64 m) does not.
 HIGH_SWING = 0.11
+#: [m] ... if it lands less than this from where it left (a march on the spot, its steps 0.01-0.22 m
+#: on talos): a long step set down a knot early scuffed the floor still moving across (g1's forward
+#: jumps made as 0.31-0.37 m steps: a foot touched 0.1 s early, tripped and fell).
+EARLY_STEP = 0.25
 
 
 def land_softly(departure: np.ndarray, time_left: float, speed: float = LAND_SPEED) -> np.ndarray:

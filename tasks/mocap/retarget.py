@@ -40,6 +40,7 @@ from tasks.exceptions import ClipError
 from tasks.limits import MAX_ITEMS
 from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.legs import (
+    EARLY_STEP,
     HIGH_SWING,
     apart_from_stance,
     land_softly,
@@ -659,7 +660,8 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
         plain = left + s * (held[b] - left)
         if LAND_VERTICALLY:
             plain[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
-        early = int(b - a >= 4 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING)  # a high swing: down a knot early
+        early = int(b - a >= 4 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING  # high and short: down a knot early
+                    and float(np.linalg.norm(held[b, :2] - left[:2])) < EARLY_STEP)
         p = plain + land_softly(p - plain, min(b - k - early, k - a) * dt)
     p[2] = max(float(p[2]), 0.0)
     return p
