@@ -196,3 +196,17 @@ def test_a_raised_foot_swinging_in_beside_the_standing_one_is_kept_apart(talos, 
     assert float((moved - near) @ fwd) == pytest.approx(0.0, abs=1e-9) and moved[2] == near[2]
     far = stance + 2.5 * KNEE_REACH * 0.3 * fwd - 0.03 * lat
     assert np.array_equal(apart_from_stance(far, "right", stance, yaw, talos), far)
+
+
+def test_a_high_long_step_is_not_set_down_early(monkeypatch):
+    """The same high swing as a 0.4 m step (longer than EARLY_STEP: a forward jump made as steps,
+    which scuffed the floor and fell when set down a knot early): a knot before touch-down its
+    target is still off the floor (LAND_SPEED x a knot up, the source being higher), not on it."""
+    from tasks.mocap.legs import EARLY_STEP
+
+    src, held = _stamp()
+    n = len(src) - 1
+    held[n] = held[n + 1] = held[0] + [0.4, 0.0, 0.0]
+    assert 0.4 > EARLY_STEP
+    soft = _path(src, held, monkeypatch, soft=True)
+    assert soft[-1, 2] == pytest.approx(LAND_SPEED * DT, rel=0.05)
