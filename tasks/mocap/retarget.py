@@ -632,7 +632,9 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
     contact labels begin late, so that its foot can be 0.2 m from the placement a knot before
     touch-down: tracked as it is, the plan lunges onto the placement in the last knot. Here the
     target goes from the placement left (knot a) to the next one (knot b) by a smoothstep, plus the
-    source's own deviation from the same blend between its positions at a and b (its lift above all).
+    source's own deviation from the same blend between its positions at a and b (its lift above all),
+    capped near the placements (:func:`tasks.mocap.legs.land_softly`; ``dt``: the knots' spacing [s])
+    and, on a high swing that lands near where it left, gone a knot before touch-down (``HIGH_SWING``).
     """
     a = k
     while a >= 0 and np.isnan(held[a, 0]):
