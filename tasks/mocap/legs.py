@@ -36,7 +36,12 @@ LAND_SPEED = 0.5
 HIGH_SWING = 0.11
 #: [m] ... if it lands less than this from where it left (a march on the spot, its steps 0.01-0.22 m
 #: on talos): a long step set down a knot early scuffed the floor still moving across (g1's forward
-#: jumps made as 0.31-0.37 m steps: a foot touched 0.1 s early, tripped and fell).
+#: jumps made as 0.31-0.37 m steps: a foot touched 0.1 s early, tripped and fell). A high swing
+#: that is a longer step leaves a knot late instead: its first swinging knot is on the placement it
+#: leaves (and its second over it). The plan's knots are not the phases' times (talos's forward jumps: 0.0797 s apart), and
+#: such a step's plan moved the foot 33 mm across between its last stance knot and its first
+#: swinging one, which the certificate, reading the plan between them while the stance still
+#: held, counted as the stance's placement error (26-29 mm).
 EARLY_STEP = 0.25
 
 

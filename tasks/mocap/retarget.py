@@ -648,12 +648,15 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
     s = _smoothstep((k - a) / (b - a))
     sa, sb = src[max(a, 0)], src[min(b, len(src) - 1)]
     p = left + s * (held[b] - left) + (src[k] - (sa + s * (sb - sa)))
+    high = LAND_SOFTLY and b - a >= 5 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING
+    short = float(np.linalg.norm(held[b, :2] - left[:2])) < EARLY_STEP
+    early, late = int(high and short), int(high and not short)  # down a knot early / up a knot late
     if LAND_VERTICALLY:
         # over the placement a knot before touch-down: the last knot only comes down (a foot that
         # also moved across in it touched the floor early, short of the placement, and stopped there)
         # and, on a swing of three knots or more, still over the placement it left at its first
         # knot (the first knot only goes up: the certificate holds a stance to its last knot)
-        lo = a + 1 if b - a >= 4 else a
+        lo = a + 1 + late if b - a >= 4 else a
         s_xy = _smoothstep(max(0.0, (k - lo) / max(1, b - 1 - lo)))
         p[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
         if lo < k < b - 1:
@@ -662,9 +665,7 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
         plain = left + s * (held[b] - left)
         if LAND_VERTICALLY:
             plain[:2] = left[:2] + s_xy * (held[b, :2] - left[:2])
-        early = int(b - a >= 4 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING  # high and short: down a knot early
-                    and float(np.linalg.norm(held[b, :2] - left[:2])) < EARLY_STEP)
-        p = plain + land_softly(p - plain, min(b - k - early, k - a) * dt)
+        p = plain + land_softly(p - plain, min(b - k - early, k - a - late) * dt)
     p[2] = max(float(p[2]), 0.0)
     return p
 

@@ -201,7 +201,8 @@ def test_a_raised_foot_swinging_in_beside_the_standing_one_is_kept_apart(talos, 
 def test_a_high_long_step_is_not_set_down_early(monkeypatch):
     """The same high swing as a 0.4 m step (longer than EARLY_STEP: a forward jump made as steps,
     which scuffed the floor and fell when set down a knot early): a knot before touch-down its
-    target is still off the floor (LAND_SPEED x a knot up, the source being higher), not on it."""
+    target is still off the floor (LAND_SPEED x a knot up, the source being higher), not on it;
+    it leaves a knot late instead."""
     from tasks.mocap.legs import EARLY_STEP
 
     src, held = _stamp()
@@ -210,3 +211,8 @@ def test_a_high_long_step_is_not_set_down_early(monkeypatch):
     assert 0.4 > EARLY_STEP
     soft = _path(src, held, monkeypatch, soft=True)
     assert soft[-1, 2] == pytest.approx(LAND_SPEED * DT, rel=0.05)
+    # it leaves a knot late instead: its first swinging knot is still on the placement it leaves
+    # (the plan moved such a step's foot 33 mm across between its last stance knot and its first
+    # swinging one, which the certificate read as the stance's placement error)
+    assert np.allclose(soft[0], held[0]) and soft[1, 2] > 0.0
+    assert np.allclose(soft[1, :2], held[0, :2])  # and then only goes up (a knot later than a walk's)
