@@ -93,7 +93,7 @@ def run_ours(path: Path, row: dict, robot: str) -> tuple[dict, object]:
         "time_scale": res.reference.time_scale, "stride_scale": res.reference.stride_scale,
         "raised_m": res.reference.raised_max(), "arm_moved_m": res.reference.arm_moved_max(),
         "kept_out_m": res.reference.kept_out_max(),
-        "grounded_s": res.reference.grounded_s,
+        "grounded_s": res.reference.grounded_s, "stepped_s": res.reference.stepped_s,
         "planned": bool(res.plan.ok), "plan_status": res.plan.stats.status.value,
         "iterations": int(res.plan.stats.iterations), "diagnosis": res.plan.diagnosis[:300],
         "certified": bool(res.execution is not None and res.execution.ok),

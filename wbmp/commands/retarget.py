@@ -117,6 +117,9 @@ def print_result(result, written: dict[str, str], *, as_json: bool) -> None:
     if ref.grounded_s > 0:
         print(f"retarget: both feet kept down through the human's {ref.grounded_s:.2f} s of jumps: the robot is "
               "slowed for its steps, and a slowed flight is a far higher jump")
+    if ref.stepped_s > 0:
+        print(f"retarget: the human's {ref.stepped_s:.2f} s of travelling jumps made as steps (a foot always down): "
+              "the robot is slowed for its steps, and a slowed flight is a far higher jump")
     for role, moved in ref.kept_out_max().items():
         if moved > 0.005:
             what = "out of its pelvis and thighs" if role.endswith("hand") else "apart from the other foot"

@@ -11,7 +11,7 @@ import pytest
 from robots import load_robot
 from tasks.mocap import human_motion, label_contacts, read_bvh, recognize_skeleton
 from tasks.mocap.retarget import retarget_spec
-from tasks.primitives.geometry import Stance
+from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import Priority
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "motions"
@@ -262,13 +262,16 @@ def test_a_clip_slowed_beyond_the_planners_bound_is_refused_naming_its_quickest_
         _spec("13_26_wave.bvh", talos)
 
 
-def test_a_jump_in_place_that_must_be_slowed_is_made_with_both_feet_down(talos):
+def test_a_jump_in_place_that_must_be_slowed_is_made_with_both_feet_down(talos, monkeypatch):
     """A flight cannot be slowed (its duration is its height): the wave (it travels 4 cm and is
     slowed 4.4 x for talos's steps) given a made-up 0.1 s flight keeps both feet down throughout,
     is slowed GROUNDED_SLOW x instead, and names the grounded flight; the walk (it travels 3.9 m) given the same
     flight keeps its labels (a jump that travels is left to the planner)."""
+    from tasks.mocap import retarget as rt
     from tasks.mocap.retarget import GROUNDED_SLOW, ground_jumps, time_scale
 
+    # the made-up flight's feet do not rise: quick_shuffles would rightly call it no flight at all
+    monkeypatch.setattr(rt, "QUICK_SHUFFLES", False)
     for name, grounded in (("13_26_wave.bvh", True), ("12_01_walk.bvh", False)):
         clip = read_bvh(EXAMPLES / name).window(0.0, None)
         motion = human_motion(clip, recognize_skeleton(clip.names))
@@ -340,3 +343,28 @@ def test_stance_placements_in_line_under_the_hips_are_moved_apart(talos):
         lateral = -(left[0] - 0.3)  # the hips' left axis is -x at heading 90 deg
         assert lateral == pytest.approx(least if moved else gap, abs=1e-9)
         assert left[1] == pytest.approx(0.1, abs=1e-12) and left[2] == 0.0
+
+
+KICK = Path("/work/shared/mocap/10_02_kick.bvh")
+JUMPS = Path("/work/shared/mocap/01_01_jump_forward.bvh")
+
+
+# ~10 s (two whole clips): long; its fast twins are tests/tasks/mocap/test_legs.py's
+# test_quick_low_swings_on_the_spot_are_no_steps and test_a_two_footed_jump_becomes_a_step_of_each_foot
+@pytest.mark.long
+@pytest.mark.skipif(not (KICK.exists() and JUMPS.exists()), reason="the shared CMU clips are not on this machine")
+def test_the_kick_and_the_forward_jumps_become_steps_the_robot_can_make(talos):
+    """The kick was refused (its 0.11 s swing on the spot slowed it 7.4 x to 36 s, past the 3000
+    items wbmp plans at once): its quick swings on the spot are no steps and its leap is a running
+    step, so it is slowed for its real steps only (talos: 0.25 s -> 0.8 s, 3.2 x) and has no flight.
+    The forward jumps (0.37-0.47 s flights, 0.9 m each) become a step of each foot per jump: no
+    flight either, slowed less than 2.5 x, the base never asked above its standing height."""
+    for path, most in ((KICK, 3.3), (JUMPS, 2.5)):
+        clip = read_bvh(path).window(0.0, None)
+        motion = human_motion(clip, recognize_skeleton(clip.names))
+        spec, ref = retarget_spec(motion, label_contacts(motion), talos)
+        assert 1.0 < ref.time_scale <= most and ref.stepped_s > 0.2
+        assert all(len(p.contacts) >= 1 for p in spec.phases)
+        stand_z = float(standing_geometry(talos).placements["base"].translation[2])
+        base_z = max(t.position[2] for t in spec.targets if t.name.startswith("track base "))
+        assert base_z <= stand_z + 0.02
