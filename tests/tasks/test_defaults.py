@@ -42,6 +42,9 @@ CANNOT = {
     ("g1", "shake_head"): "no neck joint",
     **{(r, "hop"): "cannot hop on one foot" for r in ("talos", "romeo", "icub")},  # g1 hops (certified in MuJoCo)
     **{(r, "jog"): "cannot jog or run" for r in ("talos", "g1", "romeo", "icub")},
+    ("g1", "kneel"): "into its torso: its body does not fold that way",  # tests/tasks/test_kneel.py: the posture
+    ("romeo", "kneel"): "into the floor: its legs do not fold that way",
+    ("icub", "kneel"): "cannot reach a kneeling posture",
 }
 
 
