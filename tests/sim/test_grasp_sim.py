@@ -260,7 +260,8 @@ def test_pick_up_and_put_down_a_box_with_both_hands_in_mujoco(talos, text):
     assert np.linalg.norm(held_box[-1] - np.asarray(box.position)) <= PLACE_TOLERANCE, held_box[-1]
 
 
-@pytest.mark.slow
+@pytest.mark.long  # ~18 s (a whole plan, checked after the solve); fast twin: tests/planner/trajopt/test_payload.py::
+#   test_a_held_object_too_heavy_is_refused_naming_it_its_mass_and_the_joint (the check and its message on a held pose)
 def test_a_cup_too_heavy_for_the_arm_is_refused_at_planning(tmp_path, capsys):
     """A 40 kg cup: wbmp solve exits 4 with one line naming the cup, its mass and the joint."""
     import json

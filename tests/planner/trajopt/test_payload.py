@@ -45,3 +45,35 @@ def test_supporting_joints_are_the_torso_and_the_arm(talos):
     names = [talos.joint_names[j] for j in supporting_joints(talos, talos.frame("right_hand"))]
     assert names[0].startswith("torso") and names[-1] == "arm_right_7_joint"
     assert not any(n.startswith(("leg", "arm_left")) for n in names)
+
+
+def test_a_held_object_too_heavy_is_refused_naming_it_its_mass_and_the_joint(talos):
+    """The payload check on a held 40 kg cup (the fast twin of tests/sim/test_grasp_sim.py's
+    CLI refusal, a long test): the spec of "pick up the cup" and a motion that holds the standing
+    posture; the check fails at the joint whose |torque| / limit is largest, computed here from
+    payload_torques (itself against RNEA above), and its message names the cup, its mass and that
+    joint; the real 0.25 kg cup passes."""
+    from language import parse
+    from planner.trajopt.payload import PAYLOAD_TORQUE_FRACTION, payload_checks
+    from tasks.compose import compile_actions
+    from tasks.scene import Scene, SceneObject
+
+    def check(mass: float):
+        cup = SceneObject(name="cup", shape="cylinder", size=(0.04, 0.1), position=(0.52, -0.2, 0.77), movable=True,
+                          mass=mass)
+        table = SceneObject(name="table", shape="box", size=(0.6, 1.0, 0.72), position=(0.75, 0.0, 0.36))
+        spec = compile_actions(list(parse("pick up the cup").actions), talos, scene=Scene(objects=(table, cup)))
+        t = np.arange(0.0, spec.horizon + 1e-9, spec.dt)
+        q = np.tile(np.asarray(talos.q_standing, dtype=float), (len(t), 1))
+        (c,) = payload_checks(talos, spec, t, q)
+        (g,) = spec.grasps
+        joints = supporting_joints(talos, g.frame)
+        tau = payload_torques(talos, q[0], g.frame, np.asarray(g.offset), mass)[joints]
+        frac = np.abs(tau) / np.asarray(talos.torque_limits, dtype=float)[joints]
+        return c, talos.joint_names[int(joints[int(np.argmax(frac))])], 100.0 * float(frac.max())
+
+    heavy, joint, percent = check(40.0)
+    assert not heavy.ok and heavy.value == pytest.approx(percent, rel=1e-9) and percent > 100 * PAYLOAD_TORQUE_FRACTION
+    assert heavy.message.startswith("the cup (40 kg) is too heavy to hold") and f" N m at {joint} " in heavy.message
+    light, _, percent = check(0.25)
+    assert light.ok and light.value == pytest.approx(percent, rel=1e-9)
