@@ -42,7 +42,7 @@ from robots import Robot, body_part, collision_model, pair_sphere_distance
 from tasks.exceptions import BeyondCapability
 from tasks.primitives.base import Fragment, FragmentBuilder, Primitive
 from tasks.primitives.geometry import Stance
-from tasks.primitives.lean import hand_region
+from tasks.primitives.lean import hand_region, ik_step
 from tasks.primitives.seat import _legs
 from tasks.scene import SceneObject, extent, rotation
 from tasks.specs import Contact, FrameTarget, Pose, Vec3
@@ -181,12 +181,8 @@ def _solve(robot: Robot, side: str, knee_goal: np.ndarray) -> tuple[np.ndarray, 
                     -base, com_goal[:2] - data.com[0][:2],
                     np.array([want[model.joints[j].idx_q] - q[model.joints[j].idx_q] for j in chain])]
             W = np.asarray([10.0] * 6 + [5.0] * 3 + [1.0] * 3 + [10.0] * 2 + [0.5] * len(chain))
-            A, b = np.vstack(rows) * W[:, None], np.concatenate(errs) * W
-            H = A.T @ A + 1e-2 * np.eye(model.nv)
-            dv = np.linalg.solve(H, A.T @ b + 1e-3 * pin.difference(model, q, q0))
-            q = pin.integrate(model, q, 0.5 * dv)
-            q[7:] = np.clip(q[7:], lo, hi)
-            if float(np.linalg.norm(dv)) < 1e-7:
+            q, step = ik_step(model, q, q0, rows, errs, W, damping=1e-2, pull=1e-3, lo=lo, hi=hi)
+            if step < 1e-7:
                 break
     verts = _vertices(robot, q, geoms)
     low = verts[np.argmin(verts[:, 2])]

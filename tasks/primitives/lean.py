@@ -150,13 +150,8 @@ def _solve(robot: Robot, goals: dict[str, np.ndarray]) -> tuple[np.ndarray, dict
             rows.append(pin.jacobianCenterOfMass(model, data, q)[:2])
             errs.append(com0[:2] - data.com[0][:2])
             w += [5.0] * 2
-            W = np.asarray(w)
-            A, b = np.vstack(rows) * W[:, None], np.concatenate(errs) * W
-            H = A.T @ A + 1.1e-2 * np.eye(model.nv)
-            dv = np.linalg.solve(H, A.T @ b + 1e-2 * pin.difference(model, q, q0))
-            q = pin.integrate(model, q, 0.5 * dv)
-            q[7:] = np.clip(q[7:], lo, hi)
-            if float(np.linalg.norm(dv)) < 1e-6:
+            q, step = ik_step(model, q, q0, rows, errs, np.asarray(w), damping=1.1e-2, pull=1e-2, lo=lo, hi=hi)
+            if step < 1e-6:
                 break
         verts = hand_vertices(robot, q)
         reached = {s: v[np.argmin(v[:, 2])] for s, v in verts.items()}
@@ -197,6 +192,20 @@ def _touching_link(robot: Robot, side: str, q: np.ndarray) -> str:
         if z < lowest:
             lowest, name = z, model.frames[g.parentFrame].name
     return name
+
+
+def ik_step(model: pin.Model, q: np.ndarray, q0: np.ndarray, rows: list[np.ndarray], errs: list[np.ndarray],
+            weights: np.ndarray, *, damping: float, pull: float, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """One half step of a damped, weighted least-squares inverse kinematics (lean's and kneel's postures):
+    the task rows ``rows`` (Jacobians) and errors ``errs`` weighted by ``weights``, Levenberg damping
+    ``damping``, a pull of strength ``pull`` towards ``q0``, the joints clipped to ``[lo, hi]``.
+    Returns the new configuration and the full step's norm."""
+    A, b = np.vstack(rows) * weights[:, None], np.concatenate(errs) * weights
+    H = A.T @ A + damping * np.eye(model.nv)
+    dv = np.linalg.solve(H, A.T @ b + pull * pin.difference(model, q, q0))
+    q = pin.integrate(model, q, 0.5 * dv)
+    q[7:] = np.clip(q[7:], lo, hi)
+    return q, float(np.linalg.norm(dv))
 
 
 def hand_region(verts: np.ndarray, table: SceneObject, *, band: float = REGION_BAND,
@@ -305,4 +314,4 @@ LEAN_ON = Primitive(name="lean_on", nominal_duration=lambda p, r: DOWN + HOLD + 
 
 PRIMITIVES = (LEAN_ON,)
 
-__all__ = ["LEAN_ON", "PRIMITIVES", "Leaning", "hand_vertices", "leaning"]
+__all__ = ["LEAN_ON", "PRIMITIVES", "Leaning", "hand_vertices", "ik_step", "leaning"]
