@@ -22,6 +22,7 @@ from language.lexicon import (
     FILLER,
     LR,
     NEARMISS,
+    NUM,
     OVERLAY,
     PUNCTUATION,
     REF,
@@ -152,6 +153,9 @@ def references(items: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
     return _pronouns(_borrow_references(out, lx))
 
 
+TREAD_CLASSIFIERS = ("级",)  # 三级台阶: three treads of the stairs
+
+
 def _reference_run(run: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
     """The words of ``run`` (after an action word, or before it, reversed) that name an object:
     up to a word that is a slot of its own, with at least one word the vocabulary does not know
@@ -162,6 +166,9 @@ def _reference_run(run: list[Item], lx: Lexicon, normalized: str) -> list[Item]:
     while skip < len(run) and ((run[skip].kind == ADV and run[skip].value not in SIZE_ADVERBS)
                                or (run[skip].kind == FILLER and run[skip].text in ("一下", "下"))):
         skip += 1  # "walk slowly to the table": the adverb is a slot of its own
+    if skip + 2 < len(run) and run[skip].kind == NUM and run[skip + 1].kind == CLASSIFIER \
+            and run[skip + 1].text in TREAD_CLASSIFIERS:
+        skip += 2  # 走上三级台阶: the treads' count is a slot of its own, the stairs the object
     run = run[skip:]
     for k, it in enumerate(run):
         if it.text in PRONOUNS and not taken:

@@ -35,6 +35,7 @@ from language.lexicon import (
     Lexicon,
 )
 from language.objects import head_noun
+from language.references import TREAD_CLASSIFIERS
 from tasks import MAX_REPEAT, REGISTRY, ActionSchema
 
 MAX_COPIES = MAX_REPEAT  # "jump 3 times" repeats an action without a count parameter at most this often
@@ -144,6 +145,9 @@ class _SlotReader:
             return True
         if nxt is not None and _trigger_follows(items, nxt_i):
             self.counts.append((it.value, it))  # "3 squats", "三步", "two big steps"
+        elif nxt is not None and nxt.kind == REF and any(c.kind == CLASSIFIER and c.text in TREAD_CLASSIFIERS
+                                                        for c in items[items.index(it) + 1:nxt_i]):
+            self.counts.append((it.value, it))  # 走上三级台阶: three treads (language.references)
         elif nxt is not None and nxt.kind == BODY and it.value in (1, 2):
             if it.value == 2:
                 self.sides.append(("both", it))  # "two hands", "两只手"

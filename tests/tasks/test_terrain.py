@@ -156,7 +156,7 @@ def test_the_words_climb_the_example_stairs(talos, text):
 
 
 @pytest.mark.parametrize(("text", "top"), [("walk up the three steps", 0.3), ("go up two steps", 0.2),
-                                         ("climb one step", 0.1)])
+                                         ("climb one step", 0.1), ("走上三级台阶", 0.3), ("爬上两级楼梯", 0.2)])
 def test_a_count_of_steps_climbs_that_many_treads_of_the_scenes_stairs(talos, text, top):
     """The issue's own sentences: "steps" after a climbing verb are the treads climbed (step_up absorbs
     step), and an unnamed flight is the scene's one flight (each tread 0.1 m: the top by hand)."""
