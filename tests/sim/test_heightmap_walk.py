@@ -13,7 +13,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from planner import PlannerSettings, plan
@@ -21,6 +20,7 @@ from sim import simulate
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.scene import load_scene
+from tests.sim.soles import check_soles_on_the_ground
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "heightmap.json"
 PLACEMENT_TARGET = 0.005  # [m] the target for the executed soles on the ground
@@ -42,26 +42,7 @@ def test_talos_walks_up_the_height_map_certified_with_the_soles_on_the_ground(ta
     execution = simulate(result, talos)
     assert execution.certificate.ok, execution.certificate.reason
 
-    model, data = talos.model, talos.data()
-    t_exec = np.asarray(execution.t) - float(execution.t[0])
-    t0, heights = 0.0, set()
-    for phase in spec.phases:
-        middle = t0 + 0.5 * phase.duration
-        t0 += phase.duration
-        k_plan = int(np.argmin(np.abs(result.t - middle)))
-        k_exec = int(np.argmin(np.abs(t_exec - middle)))
-        for contact in phase.contacts:
-            side = "left" if contact.frame.startswith("left") else "right"
-            tilted = abs(contact.placement.rpy[1]) > 1e-3
-            for q, tolerance, along in ((result.q[k_plan], 1e-3, 1e-3),
-                                        (execution.q[k_exec], PLACEMENT_TARGET,
-                                         TILTED_PLACEMENT if tilted else PLACEMENT_TARGET)):
-                pin.framesForwardKinematics(model, data, q)
-                corners = talos.sole_corners_in_world(q, side)
-                gaps = [float(c[2] - _ground(np.asarray(c))) for c in corners]
-                assert max(abs(g) for g in gaps) < tolerance, f"{contact.frame} at t = {middle:.2f} s: {gaps}"
-                M = data.oMf[talos.frame_id(contact.frame)]
-                off = float(np.linalg.norm(M.translation - np.array(contact.placement.position)))
-                assert off < along, f"{contact.frame} at t = {middle:.2f} s: {off * 1e3:.1f} mm from its placement"
-            heights.add(round(float(contact.placement.position[2]), 3))
+    soles = check_soles_on_the_ground(talos, spec, result, execution, _ground, executed=PLACEMENT_TARGET,
+                                      tilted=TILTED_PLACEMENT)
+    heights = {round(float(contact.placement.position[2]), 3) for contact, _ in soles}
     assert 0.0 in heights and 0.04 in heights and len(heights) >= 3  # the floor, the incline, the top

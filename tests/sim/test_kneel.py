@@ -21,6 +21,7 @@ from language import parse
 from planner import CheckKind, PlannerSettings, plan
 from sim import simulate
 from tasks.compose import compile_actions
+from tests.meshes import collision_meshes, region_phase
 
 
 @pytest.mark.long  # a dynamic plan (30 to 80 s), then 9.6 s of MuJoCo and the certificate (40 to 100 s), per knee
@@ -29,12 +30,10 @@ def test_kneeling_on_one_knee_and_getting_up_planned_and_certified(talos, senten
     spec = compile_actions(parse(sentence).actions, talos)
     p = plan(spec, talos, settings=PlannerSettings())
     assert p.ok
-    i, phase = next((i, ph) for i, ph in enumerate(spec.phases) if any(c.region for c in ph.contacts))
-    t0 = sum(ph.duration for ph in spec.phases[:i])
+    t0, phase = region_phase(spec)
     knee = next(c for c in phase.contacts if c.region)
     assert knee.frame == f"leg_{side}_4_link"
     model, data = talos.model, talos.model.createData()
-    cdata = talos.collision_model.createData()
     shin = model.frames[talos.frame_id(knee.frame)].parentJoint
     sole = talos.frame_id(f"{'left' if side == 'right' else 'right'}_foot")
     foot = {int(j) for j in model.subtrees[model.frames[sole].parentJoint]}
@@ -48,16 +47,12 @@ def test_kneeling_on_one_knee_and_getting_up_planned_and_certified(talos, senten
         corners = np.asarray(knee.region) @ M.rotation.T + M.translation
         assert np.allclose(corners[:, 2], 0.0, atol=1e-3)  # the region on the floor
         assert np.allclose(M.translation, knee.placement.position, atol=2e-3)  # held where planned
-        pin.updateGeometryPlacements(model, data, talos.collision_model, cdata, p.q[k])
-        for g, geom in enumerate(talos.collision_model.geometryObjects):
-            if not hasattr(geom.geometry, "num_vertices"):
-                continue
-            low = float((np.asarray(geom.geometry.vertices(), dtype=float).reshape(-1, 3) @ cdata.oMg[g].rotation.T
-                         + cdata.oMg[g].translation)[:, 2].min())
-            if geom.parentJoint == shin:
+        for joint, vertices in collision_meshes(talos, p.q[k]):
+            low = float(vertices[:, 2].min())
+            if joint == shin:
                 assert abs(low) < 3e-3  # the shin's lowest vertex on the floor
-            elif geom.parentJoint not in foot and geom.parentJoint != model.parents[shin]:
-                assert low > 0.02, model.names[geom.parentJoint]  # nothing else near the floor
+            elif joint not in foot and joint != model.parents[shin]:
+                assert low > 0.02, model.names[joint]  # nothing else near the floor
     assert held >= 15
     execution = simulate(p, talos)
     assert execution.certificate.ok, execution.certificate.reason

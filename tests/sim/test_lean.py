@@ -22,6 +22,7 @@ from sim import simulate
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.scene import load_scene
+from tests.meshes import collision_meshes, region_phase
 
 TABLE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "table.json"
 TOP, X_RANGE, Y_HALF = 0.62, (0.35, 0.95), 0.6  # the table's top face, by hand from table.json
@@ -58,9 +59,7 @@ def _planned_on_the_top(talos, spec, p) -> tuple[float, float]:
     the hands' lowest mesh vertices on it (2 mm), no other mesh but the wrist's (g1's hangs 3 mm above
     it) reaching down to 1 cm above it over the table."""
     model, data = talos.model, talos.model.createData()
-    cdata = talos.collision_model.createData()
-    i, phase = next((i, ph) for i, ph in enumerate(spec.phases) if any(c.region for c in ph.contacts))
-    t0 = sum(ph.duration for ph in spec.phases[:i])
+    t0, phase = region_phase(spec)
     hands = [c for c in phase.contacts if c.region]
     assert len(hands) == 2
     mine = {int(j) for side in ("left", "right") for j in model.subtrees[model.frames[talos.frame_id(f"{side}_hand")].parentJoint]}
@@ -77,15 +76,11 @@ def _planned_on_the_top(talos, spec, p) -> tuple[float, float]:
             corners = np.asarray(c.region) @ M.rotation.T + M.translation
             assert np.allclose(corners[:, 2], TOP, atol=1e-3)
             assert np.all((corners[:, 0] > X_RANGE[0]) & (corners[:, 0] < X_RANGE[1]) & (np.abs(corners[:, 1]) < Y_HALF))
-        pin.updateGeometryPlacements(model, data, talos.collision_model, cdata, p.q[k])
         low, rest = [], []
-        for gi, g in enumerate(talos.collision_model.geometryObjects):
-            if not hasattr(g.geometry, "num_vertices"):
-                continue
-            v = np.asarray(g.geometry.vertices(), dtype=float).reshape(-1, 3) @ cdata.oMg[gi].rotation.T + cdata.oMg[gi].translation
-            if g.parentJoint in mine:
+        for joint, v in collision_meshes(talos, p.q[k]):
+            if joint in mine:
                 low.append(v)
-            elif g.parentJoint not in wrists:
+            elif joint not in wrists:
                 rest.append(v)
         assert np.vstack(low)[:, 2].min() == pytest.approx(TOP, abs=2e-3)
         rest_v = np.vstack(rest)

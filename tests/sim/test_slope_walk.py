@@ -17,7 +17,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from planner import PlannerSettings, plan
@@ -25,6 +24,7 @@ from sim import simulate
 from tasks.actions import Action
 from tasks.compose import compile_actions
 from tasks.scene import load_scene
+from tests.sim.soles import check_soles_on_the_ground
 from tests.tasks.test_slope import start_on
 
 SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
@@ -66,26 +66,9 @@ def test_the_slope_and_the_stairs_up_and_down_certified_with_the_soles_on_the_su
     execution = simulate(result, robot)
     assert execution.certificate.ok, execution.certificate.reason
 
-    model, data = robot.model, robot.data()
-    t_exec = np.asarray(execution.t) - float(execution.t[0])
-    t0, seen = 0.0, set()
-    for phase in spec.phases:
-        middle = t0 + 0.5 * phase.duration
-        t0 += phase.duration
-        k_plan = int(np.argmin(np.abs(result.t - middle)))
-        k_exec = int(np.argmin(np.abs(t_exec - middle)))
-        for contact in phase.contacts:
-            side = "left" if contact.frame.startswith("left") else "right"
-            tilted = abs(contact.placement.rpy[1]) > 1e-3
-            for q, tolerance, along in ((result.q[k_plan], 1e-3, 1e-3),
-                                        (execution.q[k_exec], PLACEMENT_TARGET, SLOPE_PLACEMENT if tilted else PLACEMENT_TARGET)):
-                pin.framesForwardKinematics(model, data, q)
-                corners = robot.sole_corners_in_world(q, side)
-                gaps = [float(c[2] - _surface(scene, np.asarray(c))) for c in corners]
-                assert max(abs(g) for g in gaps) < tolerance, f"{contact.frame} at t = {middle:.2f} s: {gaps}"
-                M = data.oMf[robot.frame_id(contact.frame)]
-                off = float(np.linalg.norm(M.translation - np.array(contact.placement.position)))
-                assert off < along, f"{contact.frame} at t = {middle:.2f} s: {off * 1e3:.1f} mm from its placement"
-            heights = {round(_surface(scene, np.asarray(c)), 6) for c in corners}
-            seen.add("slope" if len(heights) > 1 else heights.pop())
+    seen = set()
+    for _, corners in check_soles_on_the_ground(robot, spec, result, execution, lambda p: _surface(scene, p),
+                                                executed=PLACEMENT_TARGET, tilted=SLOPE_PLACEMENT):
+        heights = {round(_surface(scene, np.asarray(c)), 6) for c in corners}
+        seen.add("slope" if len(heights) > 1 else heights.pop())
     assert seen == {round(h, 6) if isinstance(h, float) else h for h in expected}

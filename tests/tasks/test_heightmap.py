@@ -16,7 +16,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from scipy.interpolate import RegularGridInterpolator
 
@@ -26,6 +25,7 @@ from tasks.exceptions import TaskDefinitionError
 from tasks.heightmap import HeightMap
 from tasks.scene import Scene, load_scene, scene_from_dict, scene_to_dict, signed_distance
 from tasks.terrain import surface_at
+from tests.meshes import placed_sole_corners
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "heightmap.json"
 GRID = np.array([[0.00, 0.02, 0.05, 0.03],
@@ -83,15 +83,6 @@ def test_the_example_file_reads_as_its_ramp_and_a_scene_round_trips():
     assert back == scene
 
 
-def _corners(robot, contact) -> np.ndarray:
-    sole = robot.profile.sole
-    side = robot.foot_side(robot.model.frames[robot.frame_id(contact.frame)].name)
-    ys = (sole.y_min, sole.y_max) if side == "left" else (-sole.y_max, -sole.y_min)
-    local = np.array([[x, y, 0.0] for x in (sole.x_min, sole.x_max) for y in ys])
-    R = pin.rpy.rpyToMatrix(*contact.placement.rpy)
-    return np.asarray(contact.placement.position) + local @ R.T
-
-
 def test_walking_up_the_ramp_puts_each_sole_flat_on_the_map(talos):
     scene = load_scene(EXAMPLE)
     spec = compile_actions([Action(name="step_up", params={"object": "the ramp"})], talos, scene=scene)
@@ -99,7 +90,7 @@ def test_walking_up_the_ramp_puts_each_sole_flat_on_the_map(talos):
     on_map = 0
     for phase in spec.phases:
         for c in phase.contacts:
-            corners = _corners(talos, c)
+            corners = placed_sole_corners(talos, c)
             for p in corners:
                 assert p[2] == pytest.approx(plane(p[0]), abs=1e-3)
             on_map += bool(corners[:, 0].min() >= 0.15)

@@ -32,6 +32,7 @@ from tasks.scene import (
 )
 from tasks.specs import StartState
 from tasks.terrain import sole_rpy, surface_at
+from tests.meshes import placed_sole_corners
 
 SLOPE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "slope.json"
 STAIRS = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "stairs.json"
@@ -112,22 +113,13 @@ def test_sole_rpy_puts_the_sole_z_on_the_normal_and_its_x_on_the_heading(yaw, no
     assert float(R[:, 0] @ h) > 0.9  # forward
 
 
-def _corners(robot, contact) -> np.ndarray:
-    sole = robot.profile.sole
-    side = robot.foot_side(robot.model.frames[robot.frame_id(contact.frame)].name)
-    ys = (sole.y_min, sole.y_max) if side == "left" else (-sole.y_max, -sole.y_min)
-    local = np.array([[x, y, 0.0] for x in (sole.x_min, sole.x_max) for y in ys])
-    R = pin.rpy.rpyToMatrix(*contact.placement.rpy)
-    return local @ R.T + np.array(contact.placement.position)
-
-
 def _check_soles_on(robot, spec, slope: Slope) -> set[str]:
     """Every sole corner of every contact on the plane, the landing or the floor (by hand)."""
     where = set()
     top = slope.length * math.tan(slope.angle)
     for phase in spec.phases:
         for c in phase.contacts:
-            corners = _corners(robot, c)
+            corners = placed_sole_corners(robot, c)
             d = [_plane(slope, p[0], p[1])[2] for p in corners]
             if all(0 < x < slope.length for x in d):
                 z = [_plane(slope, p[0], p[1])[0] for p in corners]
@@ -204,7 +196,7 @@ def test_g1_climbs_the_stairs_with_its_climb_stride_and_is_refused_without_it(g1
     tops = set()
     for phase in spec.phases:
         for c in phase.contacts:
-            corners = _corners(g1, c)
+            corners = placed_sole_corners(g1, c)
             steps = {int(np.floor((x - flight.position[0]) / flight.run)) + 1 for x in corners[:, 0]}
             assert len(steps) == 1  # every corner over one tread (or the floor)
             step = min(max(steps.pop(), 0), flight.count)
