@@ -145,8 +145,8 @@ class _SlotReader:
             return True
         if nxt is not None and _trigger_follows(items, nxt_i):
             self.counts.append((it.value, it))  # "3 squats", "三步", "two big steps"
-        elif nxt is not None and nxt.kind == REF and any(c.kind == CLASSIFIER and c.text in TREAD_CLASSIFIERS
-                                                        for c in items[items.index(it) + 1:nxt_i]):
+        elif nxt is not None and nxt.kind == REF and items[nxt_i - 1].kind == CLASSIFIER \
+                and items[nxt_i - 1].text in TREAD_CLASSIFIERS:
             self.counts.append((it.value, it))  # 走上三级台阶: three treads (language.references)
         elif nxt is not None and nxt.kind == BODY and it.value in (1, 2):
             if it.value == 2:
