@@ -529,15 +529,32 @@ def _stands_on(run: RunRecord, t: float, link: str, obj: str) -> bool:
     :func:`tasks.surface_at`) around time ``t`` (:data:`TOUCH_PADDING`), and ``link`` is that foot's
     link or one below it: a step onto a tread is a planned contact with it (the last phase's feet
     stay there after the motion's end)."""
+    spans = _stance_spans(run).get((link, obj))
+    if spans is None:
+        spans = _link_spans(run, link, obj)
+    return any(start - TOUCH_PADDING <= t <= end + TOUCH_PADDING for start, end in spans)
+
+
+def _link_spans(run: RunRecord, link: str, obj: str) -> list[tuple[float, float]]:
+    """The stance spans (start, end [s]) of :func:`_stances` on ``obj`` whose foot holds ``link``
+    (that foot's link or one below it), remembered with the spec's stances."""
     model = run.robot.model
-    for start, end, joint, name in _stances(run):
-        if name == obj and start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
-            if model.existFrame(link) and model.frames[model.getFrameId(link)].parentJoint in model.subtrees[joint]:
-                return True
-    return False
+    spans: list[tuple[float, float]] = []
+    if model.existFrame(link):
+        parent = model.frames[model.getFrameId(link)].parentJoint
+        spans = [(start, end) for start, end, joint, name in _stances(run)
+                 if name == obj and parent in model.subtrees[joint]]
+    _stance_spans(run)[(link, obj)] = spans
+    return spans
 
 
-_STANCES: list[tuple[object, list[tuple[float, float, int, str]]]] = []  # the last spec's feet on objects
+# the last spec's feet on objects, per (link, object) their spans (asked ~10^5 times on the stairs), the model
+_STANCES: list[tuple[object, list[tuple[float, float, int, str]], dict[tuple[str, str], list[tuple[float, float]]], object]] = []
+
+
+def _stance_spans(run: RunRecord) -> dict[tuple[str, str], list[tuple[float, float]]]:
+    _stances(run)
+    return _STANCES[0][2]
 
 
 def _stances(run: RunRecord) -> list[tuple[float, float, int, str]]:
@@ -547,7 +564,7 @@ def _stances(run: RunRecord) -> list[tuple[float, float, int, str]]:
     from tasks import surface_at
 
     spec = run.ref.plan.spec
-    if _STANCES and _STANCES[0][0] is spec:
+    if _STANCES and _STANCES[0][0] is spec and _STANCES[0][3] is run.robot.model:
         return _STANCES[0][1]
     out: list[tuple[float, float, int, str]] = []
     start = 0.0
@@ -560,7 +577,7 @@ def _stances(run: RunRecord) -> list[tuple[float, float, int, str]]:
                 continue
             out.append((start, end, run.robot.model.frames[run.robot.frame_id(c.frame)].parentJoint, under.name))
         start += phase.duration
-    _STANCES[:] = [(spec, out)]
+    _STANCES[:] = [(spec, out, {}, run.robot.model)]
     return out
 
 
