@@ -83,6 +83,7 @@ if TYPE_CHECKING:
         trim_cache,
         write_text_atomic,
     )
+    from robots.urdfmeshes import urdf_mesh_files
 
 _EXPORTS = {  # public name -> module that defines it
     "CACHE_FOLDERS": "robots.store",
@@ -152,6 +153,7 @@ _EXPORTS = {  # public name -> module that defines it
     "sole_corners_in_world": "robots.contact",
     "store_entry": "robots.store",
     "stored_mesh_files": "robots.cache",
+    "urdf_mesh_files": "robots.urdfmeshes",
     "support_polygon": "robots.contact",
     "trim_cache": "robots.store",
     "write_text_atomic": "robots.store",
@@ -229,6 +231,7 @@ __all__ = [
     "support_polygon",
     "sweep_stale",
     "trim_cache",
+    "urdf_mesh_files",
     "write_text_atomic",
 ]
 

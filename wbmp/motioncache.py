@@ -147,11 +147,15 @@ def _digest(obj: Any) -> str:
 
 def _visual_meshes(robot) -> list[str]:
     """The visual model's mesh files: from the robot cache's manifest when it holds the visual
-    geometry (loading the visual model costs ~0.16 s of CPU for Talos, and a solve never needs
-    it), else from the model itself."""
-    from robots import mesh_files, stored_mesh_files
+    geometry (loading the visual model costs ~0.16 s of CPU for Talos from that cache, ~1 s from
+    the meshes, and a solve never needs it), else from the URDF's mesh names resolved as Pinocchio
+    does (:func:`robots.urdf_mesh_files`, checked against the loaded collision model), else from
+    the model itself."""
+    from robots import mesh_files, stored_mesh_files, urdf_mesh_files
 
     listed = stored_mesh_files(robot.urdf_path, robot.package_dirs, "visual")
+    if listed is None:
+        listed = urdf_mesh_files(robot.urdf_path, robot.package_dirs, "visual", robot.collision_model)
     return listed if listed is not None else mesh_files(robot.visual_model)
 
 

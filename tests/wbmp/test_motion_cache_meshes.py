@@ -1,5 +1,6 @@
 """The motion cache hashes a robot's visual meshes without loading its visual model (the robot
-cache's manifest lists them), and an edited mesh file still misses.
+cache's manifest lists them, or the URDF's mesh names resolved as Pinocchio does), and an edited
+mesh file still misses.
 
 A one-link URDF written here, with an STL visual mesh and an STL collision mesh, loaded by
 Pinocchio through the real robot cache (``WBMP_CACHE_DIR`` in ``tmp_path``).
@@ -13,6 +14,7 @@ import hashlib
 import numpy as np
 import pinocchio as pin
 
+import robots
 from robots import load_robot
 from robots.cache import mesh_files
 from robots.model import Robot, _geometry, _Lazy
@@ -62,17 +64,23 @@ def test_visual_meshes_come_from_the_robot_cache_and_an_edit_misses(tmp_path, mo
 
     loads: list[str] = []
     first = robot_of(str(urdf), root, loads)
-    files = robot_files(first)  # no visual entry in the robot cache yet: the model is loaded (and stored)
-    assert loads == ["visual"]
+    files = robot_files(first)  # no visual entry in the robot cache yet: listed from the URDF (robots.urdf_mesh_files)
+    assert loads == []
     looks, hull = str((package / "looks.stl").resolve()), str((package / "hull.stl").resolve())
     assert {looks, hull, str(urdf)} <= set(files)
-    assert mesh_files(first.visual_model) == [str(package / "looks.stl")]
+    assert mesh_files(first.visual_model) == [str(package / "looks.stl")]  # loaded (and stored) here
+    assert loads == ["visual"]
     assert files[looks] == hashlib.sha256((package / "looks.stl").read_bytes()).hexdigest()
 
     loads.clear()
     second = robot_of(str(urdf), root, loads)
-    assert robot_files(second) == files  # the same files and hashes, listed by the cache's manifest
-    assert loads == []  # ... without loading the visual model
+    with monkeypatch.context() as patch:
+        patch.setattr(robots, "urdf_mesh_files", lambda *args: None)  # the manifest alone answers now
+        assert robot_files(second) == files  # the same files and hashes, listed by the cache's manifest
+        assert loads == []  # ... without loading the visual model
+        patch.setattr(robots, "stored_mesh_files", lambda *args: None)  # neither answers: the model is loaded
+        assert robot_files(robot_of(str(urdf), root, loads)) == files and loads == ["visual"]
+    loads.clear()
 
     cache = MotionCache(tmp_path / "cache" / "motions")
     key = "a" * 64
