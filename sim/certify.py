@@ -529,10 +529,17 @@ def _stands_on(run: RunRecord, t: float, link: str, obj: str) -> bool:
     :func:`tasks.surface_at`) around time ``t`` (:data:`TOUCH_PADDING`), and ``link`` is that foot's
     link or one below it: a step onto a tread is a planned contact with it (the last phase's feet
     stay there after the motion's end)."""
-    spans = _stance_spans(run).get((link, obj))
+    memo = _STANCES[0] if _STANCES else None
+    if memo is None or memo[0] is not run.ref.plan.spec or memo[3] is not run.robot.model:
+        _stances(run)
+        memo = _STANCES[0]
+    spans = memo[2].get((link, obj))
     if spans is None:
         spans = _link_spans(run, link, obj)
-    return any(start - TOUCH_PADDING <= t <= end + TOUCH_PADDING for start, end in spans)
+    for start, end in spans:
+        if start - TOUCH_PADDING <= t <= end + TOUCH_PADDING:
+            return True
+    return False
 
 
 def _link_spans(run: RunRecord, link: str, obj: str) -> list[tuple[float, float]]:
@@ -544,17 +551,12 @@ def _link_spans(run: RunRecord, link: str, obj: str) -> list[tuple[float, float]
         parent = model.frames[model.getFrameId(link)].parentJoint
         spans = [(start, end) for start, end, joint, name in _stances(run)
                  if name == obj and parent in model.subtrees[joint]]
-    _stance_spans(run)[(link, obj)] = spans
+    _STANCES[0][2][(link, obj)] = spans
     return spans
 
 
 # the last spec's feet on objects, per (link, object) their spans (asked ~10^5 times on the stairs), the model
 _STANCES: list[tuple[object, list[tuple[float, float, int, str]], dict[tuple[str, str], list[tuple[float, float]]], object]] = []
-
-
-def _stance_spans(run: RunRecord) -> dict[tuple[str, str], list[tuple[float, float]]]:
-    _stances(run)
-    return _STANCES[0][2]
 
 
 def _stances(run: RunRecord) -> list[tuple[float, float, int, str]]:

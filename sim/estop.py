@@ -238,6 +238,12 @@ def stand_reference(robot: Robot, ref: PlanReference, k: int, q: np.ndarray, *, 
     return PlanReference(stand, robot, dt=ref.dt)
 
 
+def finite(a: np.ndarray) -> bool:
+    """Whether every entry of ``a`` is finite: a finite sum proves it (a NaN or an infinity makes the
+    sum so), the entries are looked at only when the sum is not (~3 times quicker a tick)."""
+    return math.isfinite(a.sum()) or bool(np.isfinite(a).all())
+
+
 def roll_pitch(q: np.ndarray) -> tuple[float, float]:
     """The base's roll and pitch [rad] of a configuration (quaternion x, y, z, w at 3:7)."""
     x, y, z, w = (float(c) for c in q[3:7])
@@ -303,7 +309,7 @@ class EStop:
 
     def check_state(self, t: float, q: np.ndarray, v: np.ndarray) -> tuple[str, str] | None:
         """Triggers seen in the measured state before the controller runs: (trigger, detail) or None."""
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        if not (finite(q) and finite(v)):
             return "nan", "the measured state is not finite"
         why = self._requested(t)
         if why is not None:
@@ -316,7 +322,7 @@ class EStop:
 
     def check_output(self, t: float, tau: np.ndarray, failures: int) -> tuple[str, str] | None:
         """Triggers seen in the controller's output: a NaN torque, failed QPs, a torque held at its cap."""
-        if not np.all(np.isfinite(tau)):
+        if not finite(tau):
             return "nan", "the controller's torque is not finite"
         if not self.s.automatic:
             return None

@@ -35,7 +35,7 @@ from planner import (
 from robots import Robot
 from sim.certificate import Certificate
 from sim.certify import certify, planned_touch
-from sim.estop import EStop, EStopSettings, Stop
+from sim.estop import EStop, EStopSettings, Stop, finite
 from sim.execution import Event, Execution
 from sim.faults import Faults, apply_to_model, body_id
 from sim.figures import figures
@@ -239,7 +239,7 @@ class _Drive:
         else:
             ref, tr = self.ref, t
         tau = self.ctrl.compute(tr, q, v, ref)
-        if self.friction.active and np.all(np.isfinite(tau)):  # the URDF's joint friction, which the QP lacks
+        if self.friction.active and finite(tau):  # the URDF's joint friction, which the QP lacks
             k = ref.index(tr)
             tau = self.friction.add(tau, q, v, ref.q[k], ref.v[k], self.limits)
         return tau

@@ -12,7 +12,7 @@ import pytest
 
 from planner.wbc import WbcSettings, WholeBodyController
 from sim import SimSettings, simulate
-from sim.estop import EStopSettings, damping_gains, damping_torque
+from sim.estop import EStopSettings, damping_gains, damping_torque, finite
 from sim.faults import faults_from_dict
 from sim.handmade import squat_plan, standing_plan
 
@@ -233,3 +233,15 @@ def test_g1_stops_and_stands(g1):
     ref = WholeBodyController(g1).reference_for(plan)
     planned = ref.com[ref.index(0.5), 2]
     assert abs(ex.com[-1, 2] - planned) < 0.015
+
+
+def test_the_tick_finiteness_test_agrees_with_numpy_entry_by_entry():
+    rng = np.random.default_rng(3)
+    cases = [np.zeros(0), rng.normal(size=40), np.array([1e308, 1e308, -5.0]),  # a sum that overflows: still finite
+             np.array([-1e308, -1e308]), np.array([np.inf, -np.inf, 1.0]), np.array([1e308, 1e308, np.nan])]
+    for bad in (np.nan, np.inf, -np.inf):
+        x = rng.normal(size=40)
+        x[17] = bad
+        cases.append(x)
+    for a in cases:
+        assert finite(a) == bool(np.all(np.isfinite(a))), a
