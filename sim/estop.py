@@ -239,9 +239,9 @@ def stand_reference(robot: Robot, ref: PlanReference, k: int, q: np.ndarray, *, 
 
 
 def finite(a: np.ndarray) -> bool:
-    """Whether every entry of ``a`` is finite: a finite sum proves it (a NaN or an infinity makes the
-    sum so), the entries are looked at only when the sum is not (~3 times quicker a tick)."""
-    return math.isfinite(a.sum()) or bool(np.isfinite(a).all())
+    """Whether every entry of ``a`` is finite (``np.all(np.isfinite(a))`` without the function
+    wrapper: half the time, and the tick asks 3 to 4 times)."""
+    return bool(np.isfinite(a).all())
 
 
 def roll_pitch(q: np.ndarray) -> tuple[float, float]:
