@@ -51,6 +51,7 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar, TypeVar
 
 import numpy as np
@@ -62,6 +63,7 @@ from planner.trajopt.collision import CHECK_TOLERANCE, KNOT_PADDING, SphereSets,
 from planner.trajopt.layout_data import LayoutData
 from planner.trajopt.rows import PairRows
 from planner.trajopt.settings import PlannerSettings
+from planner.trajopt.shipped_slabs import shipped_slabs, write_shipped_slabs
 from planner.trajopt.term import NumericKinematics, ReportContext, StageKinematics, Term, knots_of
 from robots import Capsule, Robot, body_part, fit_capsule, link_points
 from tasks import Scene, SceneObject, on_top
@@ -289,6 +291,25 @@ def slab_capsules(points: np.ndarray, slab: float) -> list[tuple[pin.SE3, float,
 _SCENE_SETS: dict[int, tuple[Robot, SphereSets]] = {}
 
 
+def _leg_joints(robot: Robot) -> set[int]:
+    """The legs' joints above the feet (the links whose scene cover is cut into slabs)."""
+    model = robot.model
+    feet = [robot.frame_id(f"{side}_foot") for side in ("left", "right")]
+    return {j for fid in feet for j in supporting_joints(robot, fid)} - {int(model.frames[f].parentJoint) for f in feet}
+
+
+def _slab_links(sets: SphereSets, legs: set[int], points: dict[str, tuple[int, np.ndarray]]) -> list[str]:
+    """The leg links whose scene cover is cut into slabs (the links of ``legs`` with a hull)."""
+    return [link for i, link in enumerate(sets.links[: len(sets.model.links)])
+            if int(sets.joints[i]) in legs and link in points and len(points[link][1]) >= 8]
+
+
+def write_slabs(robot: Robot) -> Path:
+    """Store ``robot``'s leg slab capsules (:mod:`planner.trajopt.shipped_slabs`) under its current key."""
+    sets = sphere_sets(robot)
+    return write_shipped_slabs(robot, LEG_SLAB, _slab_links(sets, _leg_joints(robot), link_points(robot)), slab_capsules)
+
+
 def scene_sets(robot: Robot) -> SphereSets:
     """The spheres kept from scene objects: the links' own sphere sets
     (:func:`planner.trajopt.collision.sphere_sets`), but for the legs above the feet, whose one or
@@ -305,16 +326,17 @@ def scene_sets(robot: Robot) -> SphereSets:
     if hit is not None and hit[0] is robot:
         return hit[1]
     sets = sphere_sets(robot)
-    model = robot.model
-    feet = [robot.frame_id(f"{side}_foot") for side in ("left", "right")]
-    legs = {j for fid in feet for j in supporting_joints(robot, fid)} - {int(model.frames[f].parentJoint) for f in feet}
     points = link_points(robot)
+    cut = _slab_links(sets, _leg_joints(robot), points)
+    shipped = shipped_slabs(robot, LEG_SLAB) if cut else None  # the fit shipped for this robot's key
+    if shipped is not None and set(shipped) != set(cut):
+        shipped = None
     owner, local, radius = [], [], []
     for i, link in enumerate(sets.links[: len(sets.model.links)]):
         mine = sets.sphere_owner == i
-        joint = int(sets.joints[i])
-        if joint in legs and link in points and len(points[link][1]) >= 8:
-            for M, length, r in slab_capsules(points[link][1], LEG_SLAB):
+        if link in cut:
+            joint = int(sets.joints[i])
+            for M, length, r in shipped[link] if shipped is not None else slab_capsules(points[link][1], LEG_SLAB):
                 c, rr = Capsule(link, joint, M, length, r).spheres()
                 owner.append(np.full(len(c), i))
                 local.append(c)
