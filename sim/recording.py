@@ -25,8 +25,10 @@ from sim.settings import SimSettings
 
 #: MuJoCo body of the floating base (body 0 is the world).
 BASE_BODY = 1
-#: Bit of :meth:`Recorder._contact_codes` for a contact that the record keeps beyond the soles.
-_NOTABLE = 1 << 40
+#: Bits of :meth:`Recorder._contact_codes` for the contacts the record keeps beyond the soles: a robot
+#: geom other than a sole on the floor; a collision pair in contact or a robot-object touch not planned.
+_ON_FLOOR = 1 << 40
+_COLLISION = 1 << 41
 
 
 def tilt(quat_xyzw: np.ndarray) -> np.ndarray:
@@ -157,11 +159,11 @@ class Recorder:
 
     def _contact_codes(self, sm: SimModel) -> np.ndarray:
         """(ngeom, ngeom) table of what a contact between two geoms means for the record: bit ``j``
-        for sole ``j`` on the floor, :data:`_NOTABLE` for anything else the record keeps (another
-        robot geom on the floor, a collision pair, a robot-object touch that is not planned), 0 for
-        what it ignores (an object on the floor, a planned touch). A tick whose contacts carry no
-        ``_NOTABLE`` bit (almost every tick: soles on the floor) costs one look-up instead of the
-        dozen array operations of :meth:`_record_contacts` (same record)."""
+        for sole ``j`` on the floor, :data:`_ON_FLOOR` for another robot geom on the floor,
+        :data:`_COLLISION` for a collision pair or a robot-object touch that is not planned, 0 for
+        what it ignores (an object on the floor, a planned touch). A tick's contacts cost one
+        look-up; the array operations of the floor's other contacts and of the collisions run only
+        on the ticks that have them (the stairs: a sole on a tread is a robot-object touch)."""
         ngeom = sm.model.ngeom
         geoms = np.arange(ngeom)
         other = np.full((ngeom, ngeom), -1)  # the geom touching the floor, -1: no floor in the pair
@@ -173,8 +175,8 @@ class Recorder:
         c = self._collisions
         a, b = geoms[:, None], geoms[None, :]
         touch = ((c._is_object[a] & c._is_robot[b]) | (c._is_robot[a] & c._is_object[b])) & ~c._planned[a, b]
-        notable = (labels == -1) | (c._pair_of[:ngeom, :ngeom] >= 0) | touch
-        codes[notable] |= _NOTABLE
+        codes[labels == -1] |= _ON_FLOOR
+        codes[(c._pair_of[:ngeom, :ngeom] >= 0) | touch] |= _COLLISION
         return codes
 
     @property
@@ -194,32 +196,25 @@ class Recorder:
         if d.ncon:
             geom = d.contact.geom
             seen = int(np.bitwise_or.reduce(self._codes[geom[:, 0], geom[:, 1]]))
-            if seen & _NOTABLE:
-                self._record_contacts(i, t, d)
+            for j in range(self._n_soles):  # the soles on the floor
+                self.contact_flags[j, i] = bool(seen >> j & 1)
+            if seen & _ON_FLOOR:
+                self._record_floor_contacts(t, d)
+            mujoco.mj_rnePostConstraint(self._model, d)  # net contact force per body in cfrc_ext
+            self.forces[:, i] = d.cfrc_ext[self._foot_bodies, 3:]
+            if seen & _COLLISION:
                 self._collisions.contacts(i, d)
-            else:  # only soles on the floor (and what the record ignores): the flags and the forces
-                for j in range(self._n_soles):
-                    self.contact_flags[j, i] = bool(seen >> j & 1)
-                mujoco.mj_rnePostConstraint(self._model, d)
-                self.forces[:, i] = d.cfrc_ext[self._foot_bodies, 3:]
         self._collisions.sample(i, t, d)
         self.n = i + 1
 
-    def _record_contacts(self, i: int, t: float, d: mujoco.MjData) -> None:
-        """Contacts of the current state (vectorized: a Python loop over contacts costs ~0.2 ms)."""
+    def _record_floor_contacts(self, t: float, d: mujoco.MjData) -> None:
+        """The robot's geoms other than the soles on the floor at time ``t``."""
         geom = d.contact.geom
         g1, g2 = geom[:, 0], geom[:, 1]
         other = np.where(g1 == self._floor, g2, np.where(g2 == self._floor, g1, -1))
-        # what touches the floor: sole j -> j, another robot geom -> -1, no floor -> -2
-        labels = self._geom_label[other]
-        touching = set(labels.tolist())
-        for j in range(self._n_soles):
-            self.contact_flags[j, i] = j in touching
-        if -1 in touching:
-            for g in other[labels == -1].tolist():
-                self.other_contacts.append((t, self._body_names[g]))
-        mujoco.mj_rnePostConstraint(self._model, d)  # net contact force per body in cfrc_ext
-        self.forces[:, i] = d.cfrc_ext[self._foot_bodies, 3:]
+        labels = self._geom_label[other]  # what touches the floor: sole j -> j, another robot geom -> -1, no floor -> -2
+        for g in other[labels == -1].tolist():
+            self.other_contacts.append((t, self._body_names[g]))
 
     def finish(self, *, robot: Robot, ref: PlanReference, settings: SimSettings,
                qp_failure_times: list[float], torque_limits: np.ndarray, fall_height: float,
