@@ -93,8 +93,8 @@ class Problem:
         guess: The solver's start from the task alone (all variables, read-only): the nominal
             motion (kinematic, with ``warm_start="nominal"``) or the heading guess (dynamic).
         deferred: The self-collision rows screening left out for idle pairs (added when a solve
-            fails or a solution brings a pair within the margin; planner/trajopt/collision.py; a
-            frozen record).
+            fails; an idle pair a solution brings within the margin gets its rows in the round;
+            planner/trajopt/collision.py; a frozen record).
     """
 
     layout: Layout
@@ -617,8 +617,10 @@ def collision_round(lay: L, settings: PlannerSettings, dq: np.ndarray, sets: Sph
                     scene_rows: SceneRows | None, deferred: Rows | None) -> CollisionRound[L]:
     """One collision round after a solve ``dq`` (N+1, nv): the link pairs (``sets``, ``rows``; None:
     no self-collision rows) and the (sphere, object) pairs (``scene_rows``; None: no scene rows) that
-    the solution brings within the margin without rows get them, and when a link pair came close the
-    rows ``deferred`` for idle pairs too.
+    the solution brings within the margin without rows get them; the idle pairs' rows (``deferred``)
+    stay left out unless the solution brings one of them within the margin (before session 18 a
+    round added them all whenever any pair came close: the kitchen pick-up's round 2,135 rows
+    instead of 506, 1,629 of them idle leg pairs at every knot that no solve needed).
 
     Returns the round's :class:`CollisionRound`: the layout to solve next (a new one with the rows;
     ``lay`` itself when none changed) and the records of the rows it has, as new records; ``lay``,
@@ -628,11 +630,7 @@ def collision_round(lay: L, settings: PlannerSettings, dq: np.ndarray, sets: Sph
     if sets is not None and rows is not None:
         distances = sphere_pair_distances(lay.robot, sets, q, within=settings.collision.screening)
         more = missing_rows(lay, sets, rows, distances, settings.collision.margin, settings.collision.screening)
-        rows, changed = rows.merged(more)
-        if changed and deferred is not None:  # a pair came close: the idle ones' rows too
-            rows, idle = rows.merged(deferred)
-            changed = sorted(set(changed) | set(idle))
-            deferred = None
+        rows, changed = rows.merged(more)  # an idle pair only when it came close itself: it stays deferred
         if changed:
             lay = with_collision_terms(lay, sets, rows, changed, settings.collision.margin)
     objects: list[int] = []
@@ -659,8 +657,8 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
     ``settings.collision.rounds`` times, planner/trajopt/collision.py, scene_collision.py), and a
     layout whose linearized rows are off at the solution re-linearizes them (the whole-body momentum rows, planner/trajopt/centroidal/momentum.py).
     ``deferred``: the rows screening left out for idle pairs; they are added when a solve fails
-    (and the problem is solved again from ``x0``, as it would have been with them from the start)
-    or when the solution brings some pair within the margin without rows.
+    (and the problem is solved again from ``x0``, as it would have been with them from the start);
+    a round gives an idle pair rows only when the solution brings that pair within the margin.
     ``lam0``: the first solve's initial multipliers (a seed's, :mod:`planner.trajopt.library`).
     Returns the layout last solved (each round's rows make a new one, :func:`collision_round`;
     ``lay`` is not changed by them), the solution and stats (adding up the iterations and times of
