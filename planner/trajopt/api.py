@@ -662,8 +662,10 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
     scene_rows = scene_rows_of(lay) if settings.collision.scene_collision else None
     total: SolverStats | None = None
     rounds = relinearized = 0
+    carry = None
     while True:
-        dq, stats, out = solve_layout(lay, settings, progress, x0=x0, lam0=lam0)
+        dq, stats, out = solve_layout(lay, settings, progress, x0=x0, lam0=lam0, carry=carry)
+        carry = None
         total = stats if total is None else dataclasses.replace(
             stats, iterations=total.iterations + stats.iterations, build_time=total.build_time + stats.build_time,
             cache=total.cache, solve_time=total.solve_time + stats.solve_time)
@@ -680,10 +682,13 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
             continue
         reason = ""
         if rounds < settings.collision.rounds and (sets is not None or scene_rows is not None):
+            lay_before = lay
             round_ = collision_round(lay, settings, dq, sets, rows, scene_rows, deferred)
             lay, rows, scene_rows, deferred = round_.layout, round_.rows, round_.scene_rows, round_.deferred
             if round_.changed or round_.objects:
                 rounds += 1
+                if settings.collision.warm_rounds:
+                    carry = (lay_before, out)  # the multipliers of the rows it had (solve.carried_multipliers)
                 reason = (f"{len(round_.changed)} more link pair(s) and {len(round_.objects)} object(s) came "
                           "within the collision margin")
         lam0 = None

@@ -170,6 +170,10 @@ class CollisionSettings:
         screening: Pairs closer than this on the initial guess get distance rows [m].
         rounds: Re-solves allowed when the solution brings an unscreened pair within the margin
             (each adds its rows and starts from the previous solution).
+        warm_rounds: A round's re-solve also starts from the previous solution's multipliers (the
+            rows it had keep theirs, the new rows start at zero; IPOPT's warm start, which dynamic
+            plans use): g1's retargeted squat re-solved in 16 iterations instead of 46. Off: the
+            multipliers start as in a first solve (every plan but a retarget's).
     """
 
     self_collision: bool = True
@@ -177,6 +181,7 @@ class CollisionSettings:
     margin: float = 0.01
     screening: float = 0.03
     rounds: int = 3
+    warm_rounds: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.margin <= 0.5 or not self.screening >= self.margin:

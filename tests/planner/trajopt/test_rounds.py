@@ -7,6 +7,7 @@ docs/performance.md. Pure Python, no solve."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Any, cast
 
 import numpy as np
@@ -16,7 +17,9 @@ from planner import CollisionSettings, PlannerSettings
 from planner.results import SolverStats, SolveStatus
 from planner.trajopt import api
 from planner.trajopt.scene_collision import SceneRows
+from planner.trajopt.solve import carried_multipliers
 from planner.trajopt.solver_output import SolverOutput
+from planner.trajopt.transcription import NlpLayout
 
 
 class _Layout:
@@ -35,13 +38,17 @@ class _Layout:
         return out
 
 
-def _run(monkeypatch, first: _Layout, after_round: _Layout | None) -> list[tuple[str, bool]]:
+def _run(monkeypatch, first: _Layout, after_round: _Layout | None, warm_rounds: bool = False,
+         carried: list | None = None) -> list[tuple[str, bool]]:
     """Solve ``first``; the first collision round gives ``after_round`` (None: no round adds
-    rows). Returns (layout solved, started with multipliers) per solve."""
+    rows). Returns (layout solved, started with multipliers) per solve; ``carried`` gets each
+    solve's ``carry`` as (layout name, the x of the output) or None."""
     solved: list[tuple[str, bool]] = []
 
-    def solve_layout(lay, settings, progress=None, x0=None, lam0=None):
+    def solve_layout(lay, settings, progress=None, x0=None, lam0=None, carry=None):
         solved.append((lay.name, lam0 is not None))
+        if carried is not None:
+            carried.append(None if carry is None else (carry[0].name, float(carry[1].x[0])))
         n = len(solved)
         out = SolverOutput(x=np.full(3, float(n)), lam_x=np.zeros(3), lam_g=np.zeros(2), g=np.zeros(2),
                            lbg=np.zeros(2), ubg=np.zeros(2), nlp_layout=None)
@@ -55,7 +62,8 @@ def _run(monkeypatch, first: _Layout, after_round: _Layout | None) -> list[tuple
     monkeypatch.setattr(api, "solve_layout", solve_layout)
     monkeypatch.setattr(api, "collision_round", collision_round)
     monkeypatch.setattr(api, "scene_rows_of", lambda _lay: SceneRows())
-    settings = PlannerSettings(collision=CollisionSettings(self_collision=False, scene_collision=True))
+    settings = PlannerSettings(collision=CollisionSettings(self_collision=False, scene_collision=True,
+                                                           warm_rounds=warm_rounds))
     lay, _, _, _ = api._solve_with_collisions(cast(Any, first), settings, None, np.zeros(3))
     solved.append((f"returned {lay.name}", False))
     return solved
@@ -86,3 +94,39 @@ def test_without_a_round_the_relinearization_is_as_before(monkeypatch, relineari
     solved = _run(monkeypatch, first, None)
     expected = [("first", False), ("first, linearized", True)] if relinearizes else [("first", False)]
     assert solved == [*expected, (f"returned {expected[-1][0]}", False)]
+
+
+@pytest.mark.parametrize("warm_rounds", [False, True])
+def test_a_rounds_re_solve_carries_the_solved_layout_and_its_output_with_warm_rounds(monkeypatch, warm_rounds):
+    """With ``warm_rounds`` the re-solve after a round is given the layout solved before it and that
+    solve's output (whose multipliers it starts from); without, nothing, as before. A
+    re-linearization's own solve gets the multipliers themselves (same rows), never a carry."""
+    carried: list = []
+    again = _Layout("round, linearized twice")
+    after = _Layout("round", relinearizes_to=_Layout("round, linearized", relinearizes_to=again))
+    solved = _run(monkeypatch, _Layout("first"), after, warm_rounds=warm_rounds, carried=carried)
+    assert [name for name, _ in solved] == ["first", "round, linearized", "round, linearized twice",
+                                            "returned round, linearized twice"]
+    assert carried == [None, ("first", 1.0) if warm_rounds else None, None]
+
+
+class _Term:
+    def __init__(self, rows: int) -> None:
+        self.lower = np.zeros(rows)
+
+
+def test_carried_multipliers_keep_each_kept_terms_rows_and_start_new_ones_at_zero():
+    """Rows of the terms both layouts share get their multipliers wherever the new row order puts
+    them; a new term's rows (and a changed one, another object) zero; the rows after the terms'
+    (velocities, dynamics) and the bound multipliers as they were."""
+    a, b, c, new = _Term(2), _Term(1), _Term(3), _Term(2)
+    old_lay = SimpleNamespace(terms=(a, b, c))
+    old_nl = NlpLayout(n_x=4, n_g=8, row_order=[0, 1, 2], groups=[], velocity_joints=np.zeros(0))
+    lam_g = np.arange(1.0, 9.0)  # a: 1 2, b: 3, c: 4 5 6, tail: 7 8
+    out = SolverOutput(x=np.zeros(4), lam_x=np.array([0.5, -0.5, 0.0, 2.0]), lam_g=lam_g, g=np.zeros(8),
+                       lbg=np.zeros(8), ubg=np.zeros(8), nlp_layout=old_nl)
+    new_lay = SimpleNamespace(terms=(c, new, a, _Term(1)))  # b replaced by a changed term of one row
+    nl = NlpLayout(n_x=4, n_g=10, row_order=[2, 1, 0, 3], groups=[], velocity_joints=np.zeros(0))
+    lam_x, lam = carried_multipliers(cast(Any, old_lay), out, cast(Any, new_lay), nl)
+    assert np.array_equal(lam_x, out.lam_x)
+    assert np.array_equal(lam, [1.0, 2.0, 0.0, 0.0, 4.0, 5.0, 6.0, 0.0, 7.0, 8.0])
