@@ -56,7 +56,8 @@ class RetargetRequest:
         start, end: The clip's window [s] (None: its start, its end).
         skeleton: A skeleton mapping file (TOML), or None to recognise the skeleton by its joint names.
         simulate: Run the controller in MuJoCo and certify the motion.
-        dt: Knot spacing of the plan [s].
+        dt: Knot spacing of the plan [s]; None: 0.08 s, or 0.1 s for a clip slowed at least 1.25 x
+            for the robot (``tasks.mocap.retarget.COARSE_DT``).
     """
 
     clip: str
@@ -65,7 +66,7 @@ class RetargetRequest:
     end: float | None = None
     skeleton: str | None = None
     simulate: bool = True
-    dt: float = 0.08
+    dt: float | None = None
 
 
 @dataclass(kw_only=True)
