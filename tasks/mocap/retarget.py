@@ -69,7 +69,7 @@ DT = 0.08  # [s] knot spacing
 #: [s] The knot spacing of a clip slowed for the robot by at least COARSE_DT / DT (1.25 x): its knots
 #: then sample the human's motion no more coarsely than DT of the human's time, as an unslowed
 #: clip's do, with a fifth fewer of them (talos's wave, slowed 4.4 x: 143 -> 115 knots, 35 -> 30 s
-#: of CPU, certified). A divisor of the lead-in and lead-out.
+#: of CPU, certified). A divisor of the lead-in.
 COARSE_DT = 0.1
 MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
 MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
