@@ -66,11 +66,15 @@ from tasks.specs import (
 LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
 LEAD_OUT = 1.0  # [s] both feet down after it (coming to rest)
 DT = 0.08  # [s] knot spacing
-#: [s] The knot spacing of a clip slowed for the robot by at least COARSE_DT / DT (1.25 x): its knots
-#: then sample the human's motion no more coarsely than DT of the human's time, as an unslowed
-#: clip's do, with a fifth fewer of them (talos's wave, slowed 4.4 x: 143 -> 115 knots, 35 -> 30 s
-#: of CPU, certified). A divisor of the lead-in.
+#: [s] The knot spacing of a clip slowed for the robot by at least COARSE_SLOW: its knots then sample
+#: the human's motion at most every 0.04 s of the human's time (half an unslowed clip's DT), with a
+#: fifth fewer of them (talos's wave, slowed 4.4 x: 143 -> 115 knots, 35 -> 30 s of CPU, certified).
+#: A divisor of the lead-in.
 COARSE_DT = 0.1
+#: [-] From 1.25 x (COARSE_DT / DT) talos's walk (1.88 x) and g1's certified too, but talos's
+#: forward jumps (made as steps, 2.23 x) did not: its right hand 53 mm off its plan (> 50 mm) at
+#: 10.25 s, certified on 0.08 s knots.
+COARSE_SLOW = 2.5
 MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
 MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
 # Cost weights per second of tracked motion [1/m^2 s]; a knot's weight is this times dt.
@@ -478,8 +482,8 @@ def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: floa
 
 def knot_spacing(slow: float) -> float:
     """The knots' spacing [s] of a clip slowed ``slow`` times for the robot: :data:`COARSE_DT` from
-    ``COARSE_DT / DT`` (1.25) times, else :data:`DT` (each knot spans at most DT of the human's time)."""
-    return COARSE_DT if slow >= COARSE_DT / DT - 1e-9 else DT
+    :data:`COARSE_SLOW` times, else :data:`DT` (a knot spans at most DT of the human's time)."""
+    return COARSE_DT if slow >= COARSE_SLOW - 1e-9 else DT
 
 
 def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
