@@ -42,6 +42,7 @@ from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.legs import (
     EARLY_STEP,
     HIGH_SWING,
+    LATE_STEP,
     apart_from_stance,
     land_softly,
     no_higher_than_standing,
@@ -696,8 +697,8 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
     sa, sb = src[max(a, 0)], src[min(b, len(src) - 1)]
     p = left + s * (held[b] - left) + (src[k] - (sa + s * (sb - sa)))
     high = LAND_SOFTLY and b - a >= 5 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING
-    short = float(np.linalg.norm(held[b, :2] - left[:2])) < EARLY_STEP
-    early, late = int(high and short), int(high and not short)  # down a knot early / up a knot late
+    step = float(np.linalg.norm(held[b, :2] - left[:2]))
+    early, late = int(high and step < EARLY_STEP), int(high and step >= LATE_STEP)  # down a knot early / up a knot late
     if LAND_VERTICALLY:
         # over the placement a knot before touch-down: the last knot only comes down (a foot that
         # also moved across in it touched the floor early, short of the placement, and stopped there)
