@@ -472,6 +472,20 @@ def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: floa
     return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
 
 
+def _lead_out(stepped: float, dt: float) -> float:
+    """The lead-out [s]: ``LEAD_OUT``, or the whole knots within it on a clip made as steps.
+
+    On a clip whose flights are made as steps (``stepped`` [s] of them) the lead-out is the whole
+    knots (``dt`` [s]) within ``LEAD_OUT``, so that the planner's knots, spread evenly over the
+    horizon, fall on the phases' times. With 12.5 knots the knots were 0.0797 s apart and a stance
+    that began between two (G1's forward jumps at 2.56 s: knots at 2.552 and 2.632 s) began, in
+    the plan, at the later one: its sole was still 15 mm up and 12 mm short at the planned switch,
+    and the certificate, holding the stance from the phase's time, counted that as slip.
+    Every other clip keeps its task (the same misalignment, up to half a knot at the end).
+    """
+    return LEAD_OUT if stepped <= 0.0 else math.floor(LEAD_OUT / dt + 1e-9) * dt
+
+
 def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
                   description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
     """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
@@ -554,7 +568,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
                             duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
     phases = [p for p in phases if p.duration > 1e-9]
-    phases.append(Phase(name="lead-out (both feet down)", duration=LEAD_OUT,
+    phases.append(Phase(name="lead-out (both feet down)", duration=_lead_out(stepped, dt),
                         contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
     clip_horizon = sum(p.duration for p in phases[1:-1])
     held = {side: np.full((n + 2, 3), np.nan) for side in SIDES}  # per knot: the sole's placement (row n+1: lead-out)
