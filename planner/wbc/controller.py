@@ -24,8 +24,6 @@ Contacts switch at the plan's times, except at the end of a flight (no planned c
 that reaches its landing height early is a stance sole from then on, and the CoM reference brakes
 from the measured state; and in a flight the soles' references replay the plan's path from the
 lift-off knot over the controller's (half a knot shorter) flight (``WbcSettings.early_touchdown``).
-Mirrored: a stance that begins while its sole is still up waits for the touch, the sole tracking
-the plan's meanwhile (``WbcSettings.touch_wait``, :mod:`planner.wbc.touch`).
 
 Numerics per tick: one ``computeAllTerms`` (mass matrix, nonlinear effects, joint Jacobians,
 CoM Jacobian and the velocity-product accelerations), one ``centerOfMass`` at zero
@@ -45,9 +43,8 @@ import proxsuite
 from planner.exceptions import ControllerError
 from planner.results import Plan
 from planner.wbc.kernel import ACTIVE_SET_SOLVED, FAST_SOLVED, tick_kernel
-from planner.wbc.reference import PlanReference, landing_blend
+from planner.wbc.reference import PlanReference, flight_spans, landing_blend
 from planner.wbc.settings import WbcSettings
-from planner.wbc.touch import flight_landings, flight_window, late_soles
 from robots import Robot, pyramid_coefficient, pyramid_facets, sole_corners
 
 INFINITY = 1e20  # proxsuite treats bounds this large as absent
@@ -61,6 +58,29 @@ FLIGHT_TRAVEL = 0.005  # [m] a landing sole that moves more than this in a fligh
 FLIGHT_WINDOW = 0.3  # [s] before that flight and after its touch-down, the momentum task's flight_momentum_weight
 EARLY_TOUCHDOWN_FRACTION = 0.25  # not in the first quarter of a flight (the sole is leaving then)
 HAND_FORCE_UNIT = 0.25  # a hand contact's force variables in this share of the others' unit (leaning on a table)
+
+
+def _flight_landings(active: np.ndarray) -> dict[int, tuple[int, int]]:
+    """Sample -> (first sample, touch-down sample) of the flight it lies in (no active contact,
+    between two stances)."""
+    out: dict[int, tuple[int, int]] = {}
+    flags = np.asarray(active, dtype=bool)
+    air = [bool(flags.shape[1]) and not row.any() for row in flags]
+    for a, k in flight_spans(air):
+        for j in range(a, k):
+            out[j] = (a, k)
+    return out
+
+
+def _flight_window(active: np.ndarray, span: int) -> np.ndarray:
+    """Samples (n,) within ``span`` samples of a flight (no active contact, between two stances):
+    from ``span`` before its first sample to ``span`` after its touch-down sample."""
+    flags = np.asarray(active, dtype=bool)
+    air = [bool(flags.shape[1]) and not row.any() for row in flags]
+    out = np.zeros(len(flags), dtype=bool)
+    for a, touch in flight_spans(air):
+        out[max(a - span, 0) : touch + span + 1] = True
+    return out
 
 
 def _regions(ref: PlanReference, robot: Robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -291,11 +311,8 @@ class WholeBodyController:
         flags, inverse = np.unique(ref.active, axis=0, return_inverse=True)
         self._patterns = [int(p) for p in np.asarray(inverse).reshape(-1)]
         self._pattern_flags = [tuple(bool(a) for a in row) for row in flags]
-        self._landings = flight_landings(ref.active) if s.early_touchdown else {}
+        self._landings = _flight_landings(ref.active) if s.early_touchdown else {}
         self._early: tuple[bool, ...] | None = None  # soles already down in the current flight
-        self._since = np.full(len(self._contacts), -1, dtype=np.int64)  # a late sole's wait began (planner.wbc.touch)
-        self._max_wait = int(round(s.touch_wait * self._inv_dt))
-        self.touch_waits = 0  # stances that waited for their sole's touch
         # stacked references on the dense grid (n, ...): positions (CoM first), rotations, velocities, accelerations
         self._ref_pos = np.concatenate(
             [ref.com[:, None, :]] + [ref.frames[nm].position[:, None, :] for nm in self._frames],
@@ -328,7 +345,7 @@ class WholeBodyController:
         self._mom_near: bool | None = None
         # every flight (a jump, a hop): FLIGHT_WINDOW before it and after its touch-down, the CoM rows
         # weigh flight_com_weight (the push-off and the landing follow the plan's momentum, not the CoM)
-        self._near_any_flight = flight_window(ref.active, span)
+        self._near_any_flight = _flight_window(ref.active, span)
         self._com_near: bool | None = None
         self._tick_k = 0
 
@@ -555,30 +572,15 @@ class WholeBodyController:
         else:
             pattern = self._touchdown(k, landing, v, pattern)
         self._tick_k = k
-        active = self._pattern_flags[pattern] if pattern >= 0 else self._early
-        assert active is not None
-        if self._max_wait and self._active_flags is not None and active != self._active_flags:
-            pattern, active = self._wait_for_touch(k, pattern, active)
         if pattern != self._active_key:
+            active = self._pattern_flags[pattern] if pattern >= 0 else self._early
+            assert active is not None
             was = self._active_flags
             for i, a in enumerate(active):
                 if a and not (was is not None and was[i]):
                     self._anchor_pos[i] = self._hom[i, :3, 3]  # the sole is held where it touched down
                     self._anchor_rot[i] = self._hom[i, :3, :3]
             self._set_active(active, pattern, ref)
-
-    def _wait_for_touch(self, k: int, pattern: int, active: tuple[bool, ...]) -> tuple[int, tuple[bool, ...]]:
-        """The pattern and stance soles at sample ``k`` when a stance that begins waits for its sole's
-        touch (:mod:`planner.wbc.touch`); a waiting sole tracks the plan's sole meanwhile."""
-        nc = len(active)
-        fresh = self._since < 0
-        planned = self._ref_pos[k : k + self._max_wait + 1, 1 : 1 + nc, 2].min(axis=0)  # the stance's height
-        late = late_soles(active, self._active_flags, self._hom[:nc, 2, 3] - planned, self._since, k, self._max_wait)
-        if not any(late):
-            return pattern, active
-        self.touch_waits += int(np.count_nonzero(np.array(late) & fresh))
-        active = tuple(a and not w for a, w in zip(active, late, strict=True))
-        return -1 - sum(1 << i for i, a in enumerate(active) if a), active
 
     def _full_qp(self) -> np.ndarray:
         """The full QP (proxsuite), when the compiled equality-only solve and its active set did not

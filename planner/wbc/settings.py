@@ -71,11 +71,6 @@ class WbcSettings:
         flight_com_weight: The CoM task's weight around every flight (``FLIGHT_WINDOW`` before it
             and after its touch-down) [-]: G1's 5 cm jump falls at its push-off with ``com_weight``
             50 and passes with 10.
-        touch_wait: The longest a stance that begins while its sole is still up (more than 3 mm above
-            its planned height) waits for the touch [s]: meanwhile the sole is a swing sole tracking
-            the plan's (:mod:`planner.wbc.touch`). Long steps' soles landed 20-40 ms late, were held
-            1-2 cm up at the switch, and skidded 7-24 mm. 0: the stance begins at the planned time
-            wherever the sole is.
         active_set_iterations: When that solution violates friction or torque rows, this many
             active-set iterations on the same reduced system (violated rows held as equalities,
             rows with wrong-signed multipliers released) before proxsuite is called; a result is
@@ -115,7 +110,6 @@ class WbcSettings:
     flight_foot_kp: float = 800.0
     flight_momentum_weight: float = 10.0
     flight_com_weight: float = 10.0
-    touch_wait: float = 0.08
 
     def __post_init__(self) -> None:
         for name in (
@@ -139,7 +133,6 @@ class WbcSettings:
             "flight_foot_kp",
             "flight_momentum_weight",
             "flight_com_weight",
-            "touch_wait",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):

@@ -182,7 +182,7 @@ def test_balance_filter_moves_the_com_only_where_the_zmp_moved(talos, arm):
 def test_flight_landings_map_each_flight_sample_to_its_touchdown():
     """Samples of a flight (no active contact between two stances) know the flight's first sample
     and its touch-down sample; stances and a flight that never lands are not flights to land."""
-    from planner.wbc.touch import flight_landings as _flight_landings
+    from planner.wbc.controller import _flight_landings
 
     active = np.array([[1, 1], [0, 1], [0, 0], [0, 0], [0, 1], [1, 1], [0, 0], [0, 0]], dtype=bool)
     assert _flight_landings(active) == {2: (2, 4), 3: (2, 4)}
@@ -192,7 +192,7 @@ def test_flight_landings_map_each_flight_sample_to_its_touchdown():
 def test_flight_window_weighs_the_com_as_flight_com_weight_around_each_flight(g1):
     """The window of flight_com_weight: from `span` samples before a flight to `span` after its
     touch-down (none without a flight); away from flights a tick weighs the CoM rows com_weight."""
-    from planner.wbc.touch import flight_window as _flight_window
+    from planner.wbc.controller import _flight_window
 
     active = np.array([[1, 1]] * 5 + [[0, 0]] * 3 + [[1, 1]] * 6 + [[0, 1]] * 2, dtype=bool)
     window = _flight_window(active, 2)
