@@ -472,18 +472,20 @@ def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: floa
     return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
 
 
-def _lead_out(stepped: float, dt: float) -> float:
-    """The lead-out [s]: ``LEAD_OUT``, or the whole knots within it on a clip made as steps.
+def _lead_out(high: bool, dt: float) -> float:
+    """The lead-out [s]: ``LEAD_OUT``, or the whole knots within it on a clip with high swings.
 
-    On a clip whose flights are made as steps (``stepped`` [s] of them) the lead-out is the whole
-    knots (``dt`` [s]) within ``LEAD_OUT``, so that the planner's knots, spread evenly over the
-    horizon, fall on the phases' times. With 12.5 knots the knots were 0.0797 s apart and a stance
-    that began between two (G1's forward jumps at 2.56 s: knots at 2.552 and 2.632 s) began, in
-    the plan, at the later one: its sole was still 15 mm up and 12 mm short at the planned switch,
-    and the certificate, holding the stance from the phase's time, counted that as slip.
-    Every other clip keeps its task (the same misalignment, up to half a knot at the end).
+    On a clip whose swings rise above ``HIGH_SWING`` (a march, a kick) or whose flights are made as
+    steps (``high``) the lead-out is the whole knots (``dt`` [s]) within ``LEAD_OUT``, so that the
+    planner's knots, spread evenly over the horizon, fall on the phases' times. With 12.5 knots
+    they were 0.0797 s apart and a stance that began between two (G1's forward jumps at 2.56 s:
+    knots at 2.552 and 2.632 s) began, in the plan, at the later one: its sole was still 15 mm up
+    and 12 mm short at the planned switch, moving at 0.25 m/s, and the certificate, holding the
+    stance from the phase's time, counted that as slip (12-24 mm); G1's march landed hard on a
+    bent knee (139 N m) and fell. Every other clip keeps its task (the same misalignment, up to
+    half a knot at the end, its swings low and slow).
     """
-    return LEAD_OUT if stepped <= 0.0 else math.floor(LEAD_OUT / dt + 1e-9) * dt
+    return math.floor(LEAD_OUT / dt + 1e-9) * dt if high else LEAD_OUT
 
 
 def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
@@ -568,7 +570,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
                             duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
     phases = [p for p in phases if p.duration > 1e-9]
-    phases.append(Phase(name="lead-out (both feet down)", duration=_lead_out(stepped, dt),
+    high = stepped > 0.0 or any(p.swing_height > HIGH_SWING for p in phases)
+    phases.append(Phase(name="lead-out (both feet down)", duration=_lead_out(high, dt),
                         contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
     clip_horizon = sum(p.duration for p in phases[1:-1])
     held = {side: np.full((n + 2, 3), np.nan) for side in SIDES}  # per knot: the sole's placement (row n+1: lead-out)

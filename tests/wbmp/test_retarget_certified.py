@@ -196,7 +196,7 @@ def test_the_forward_jumps_are_certified_on_g1_made_as_steps():
     late (LATE_STEP) it fell. With the lead-out in whole knots and its steps leaving at once:
     certified (measured, skate / penetration / float: 5.4 / 2.4 / 0.6 mm, slips 3.5 / 5.4 mm;
     103 s CPU). Fast twins: tests/tasks/mocap/test_retarget_spec.py::
-    test_a_clip_made_as_steps_ends_on_a_whole_knot_so_the_planners_knots_fall_on_its_phases,
+    test_a_clip_with_high_swings_ends_on_a_whole_knot_so_the_planners_knots_fall_on_its_phases,
     tests/tasks/mocap/test_legs.py::test_a_high_step_shorter_than_late_step_leaves_its_placement_at_once."""
     result = retarget(RetargetRequest(clip="/work/shared/mocap/01_01_jump_forward.bvh", robot="g1"))
     assert result.reference.stepped_s > 1.0 and result.reference.grounded_s == 0.0

@@ -293,24 +293,24 @@ def test_a_jump_in_place_that_must_be_slowed_is_made_with_both_feet_down(talos, 
         assert spec.horizon == pytest.approx(GROUNDED_SLOW * motion.t[-1] + 0.8 + 1.0, abs=0.1)
 
 
-def test_a_clip_made_as_steps_ends_on_a_whole_knot_so_the_planners_knots_fall_on_its_phases():
+def test_a_clip_with_high_swings_ends_on_a_whole_knot_so_the_planners_knots_fall_on_its_phases():
     """G1's forward jumps made as steps (13.28 s of clip, 166 knots): with a 1.0 s lead-out (12.5
     knots) the planner's grid (planner.trajopt.layout.knot_grid) put its knots 0.0797 s apart, off
     the phases' starts (2.56 s fell between knots at 2.552 and 2.632 s: the plan's foot was still
-    up there); with the lead-out in whole knots every phase starts on a knot. A clip not made as
-    steps keeps LEAD_OUT (its task unchanged)."""
+    up there); with the lead-out in whole knots every phase starts on a knot. A clip without high
+    swings keeps LEAD_OUT (its task unchanged)."""
     from types import SimpleNamespace
 
     from planner.trajopt.layout import knot_grid
     from tasks.mocap.retarget import DT, LEAD_IN, LEAD_OUT, _lead_out
 
     starts = LEAD_IN + DT * np.array([0, 13, 22, 24, 34, 166])  # phase starts; the last: the lead-out's
-    for stepped, aligned in ((1.74, True), (0.0, False)):
-        horizon = float(starts[-1]) + _lead_out(stepped, DT)
+    for high in (True, False):
+        horizon = float(starts[-1]) + _lead_out(high, DT)
         _, _, times = knot_grid(SimpleNamespace(horizon=horizon, dt=DT))
         off = np.abs(starts[:, None] - times[None, :]).min(axis=1)
-        assert (off.max() < 1e-9) == aligned, off
-    assert _lead_out(0.0, DT) == LEAD_OUT and abs(_lead_out(1.74, DT) - LEAD_OUT) < DT
+        assert (off.max() < 1e-9) == high, off
+    assert _lead_out(False, DT) == LEAD_OUT and abs(_lead_out(True, DT) - LEAD_OUT) < DT
 
 
 PUNCH = Path("/work/shared/mocap/135_09_punch.bvh")
