@@ -570,7 +570,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
                             duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
     phases = [p for p in phases if p.duration > 1e-9]
-    high = stepped > 0.0 or any(p.swing_height > HIGH_SWING for p in phases)
+    high = stepped > 0.0 or max(float(ref.points[f"{s}_foot"][frames][:, 2].max()) for s in SIDES) > HIGH_SWING
     phases.append(Phase(name="lead-out (both feet down)", duration=_lead_out(high, dt),
                         contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
     clip_horizon = sum(p.duration for p in phases[1:-1])
