@@ -149,6 +149,9 @@ class Reference:
             (:class:`tasks.mocap.strength.Gap`).
         stepped_s: Seconds of the source's flights the robot makes as steps, a foot down
             (:func:`tasks.mocap.legs.steps_for_flights`: a travelling jump; 0: none).
+        high_swing: A source foot rises above ``HIGH_SWING`` (a march, a kick) or a flight is made
+            as steps: the lead-out is whole knots (:func:`_lead_out`) and the simulation holds
+            the plan's posture more firmly (``wbmp.retarget.HIGH_SWING_POSTURE_WEIGHT``).
     """
 
     t: np.ndarray
@@ -169,6 +172,7 @@ class Reference:
     arm_held: dict[str, np.ndarray] | None = None
     gaps: tuple[Gap, ...] = ()
     stepped_s: float = 0.0
+    high_swing: bool = False
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -587,7 +591,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
-    return spec, dataclasses.replace(ref, splay_turned=turned)  # splay: the hips' yaw range (a pivot turn's toe-in)
+    return spec, dataclasses.replace(ref, splay_turned=turned, high_swing=high)  # splay: the hips' yaw range
 
 
 def _steps(motion: HumanMotion, labels: dict[str, np.ndarray],

@@ -49,6 +49,8 @@ def test_walk_phases_follow_the_labels_and_stand_on_the_floor(talos):
     assert agree / total >= 0.9  # the knot grid merges only the shortest runs
     assert sum(1 for p in spec.phases if len(p.contacts) == 1) >= 5  # single supports, alternating
     assert not any(len(p.contacts) == 0 for p in spec.phases)  # a walk has no flight
+    # its swings are low (talos's 0.073-0.105 m < HIGH_SWING): the 1.0 s lead-out kept, the task unchanged
+    assert not ref.high_swing and last.duration == pytest.approx(1.0)
 
 
 def test_strides_fit_the_robot(talos):
