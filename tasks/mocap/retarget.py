@@ -51,7 +51,7 @@ from tasks.mocap.legs import (
 )
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.mocap.splay import keep_splay
-from tasks.mocap.strength import Gap, gaps_of, hold_within_strength
+from tasks.mocap.strength import Gap, gaps_of, hold_within_strength, strained_joints
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
     CoMBounds,
@@ -151,7 +151,12 @@ class Reference:
             (:func:`tasks.mocap.legs.steps_for_flights`: a travelling jump; 0: none).
         high_swing: A source foot rises above ``HIGH_SWING`` (a march, a kick) or a flight is made
             as steps: the lead-out is whole knots (:func:`_lead_out`) and the simulation holds
-            the plan's posture more firmly (``wbmp.retarget.HIGH_SWING_POSTURE_WEIGHT``).
+            the plan's posture more firmly (``wbmp.retarget.HIGH_SWING_POSTURE_WEIGHT``) if
+            ``hold_posture``.
+        hold_posture: A clip with high swings on a robot none of whose arm joints its own
+            stretched arm can strain (:func:`tasks.mocap.strength.strained_joints`: G1, not talos):
+            its simulation holds the plan's posture more firmly. On talos the pull took the
+            march's saturated left arm off its hand (58.9 mm > 50 with 1e-2, certified with 1e-3).
     """
 
     t: np.ndarray
@@ -173,6 +178,7 @@ class Reference:
     gaps: tuple[Gap, ...] = ()
     stepped_s: float = 0.0
     high_swing: bool = False
+    hold_posture: bool = False
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -591,7 +597,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
-    return spec, dataclasses.replace(ref, splay_turned=turned, high_swing=high)  # splay: the hips' yaw range
+    return spec, dataclasses.replace(ref, splay_turned=turned, high_swing=high,  # splay: the hips' yaw range
+                                     hold_posture=high and not any(strained_joints(robot, s) for s in SIDES))
 
 
 def _steps(motion: HumanMotion, labels: dict[str, np.ndarray],
