@@ -597,8 +597,15 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
-    return spec, dataclasses.replace(ref, splay_turned=turned, high_swing=high,  # splay: the hips' yaw range
-                                     hold_posture=high and not any(strained_joints(robot, s) for s in SIDES))
+    return spec, _found(ref, robot, turned, high)
+
+
+def _found(ref: Reference, robot: Robot, turned: float, high: bool) -> Reference:
+    """``ref`` with what building its spec found: the stances' splay turned (the hips' yaw range),
+    high swings, and whether the simulation holds the plan's posture (high swings, and no arm joint
+    its stretched arm can strain)."""
+    hold = high and not any(strained_joints(robot, s) for s in SIDES)
+    return dataclasses.replace(ref, splay_turned=turned, high_swing=high, hold_posture=hold)
 
 
 def _steps(motion: HumanMotion, labels: dict[str, np.ndarray],
