@@ -177,7 +177,7 @@ def test_the_forward_jumps_are_certified_on_talos_made_as_steps():
     planner (sessions 13-16); made as a step of each foot per jump (a flight cannot be slowed),
     2.2 x slower, landing at 0.5 m/s at most and each high long step leaving a knot late: certified
     (measured, skate / penetration / float: 7.7 / 3.2 / 4.5 mm; 146 s CPU; session 18, the lead-out in whole
-    knots and HIGH_SWING_POSTURE_WEIGHT: 8.8 / 1.8 / 0.8 mm). Fast twins:
+    knots: 6.3 / 2.2 / 0.8 mm, 78 s CPU). Fast twins:
     tests/tasks/mocap/test_legs.py::test_a_two_footed_jump_becomes_a_step_of_each_foot,
     tests/tasks/mocap/test_legs.py::test_a_high_long_step_is_not_set_down_early."""
     result = retarget(RetargetRequest(clip="/work/shared/mocap/01_01_jump_forward.bvh", robot="talos"))
