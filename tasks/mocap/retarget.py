@@ -42,6 +42,7 @@ from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.legs import (
     EARLY_STEP,
     HIGH_SWING,
+    LATE_STEP,
     apart_from_stance,
     land_softly,
     no_higher_than_standing,
@@ -50,7 +51,7 @@ from tasks.mocap.legs import (
 )
 from tasks.mocap.source import SIDES, HumanMotion, segments
 from tasks.mocap.splay import keep_splay
-from tasks.mocap.strength import Gap, gaps_of, hold_within_strength
+from tasks.mocap.strength import Gap, gaps_of, hold_within_strength, strained_joints
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
     CoMBounds,
@@ -157,6 +158,14 @@ class Reference:
             (:class:`tasks.mocap.strength.Gap`).
         stepped_s: Seconds of the source's flights the robot makes as steps, a foot down
             (:func:`tasks.mocap.legs.steps_for_flights`: a travelling jump; 0: none).
+        high_swing: A source foot rises above ``HIGH_SWING`` (a march, a kick) or a flight is made
+            as steps: the lead-out is whole knots (:func:`_lead_out`) and the simulation holds
+            the plan's posture more firmly (``wbmp.retarget.HIGH_SWING_POSTURE_WEIGHT``) if
+            ``hold_posture``.
+        hold_posture: A clip with high swings on a robot none of whose arm joints its own
+            stretched arm can strain (:func:`tasks.mocap.strength.strained_joints`: G1, not talos):
+            its simulation holds the plan's posture more firmly. On talos the pull took the
+            march's saturated left arm off its hand (58.9 mm > 50 with 1e-2, certified with 1e-3).
     """
 
     t: np.ndarray
@@ -177,6 +186,8 @@ class Reference:
     arm_held: dict[str, np.ndarray] | None = None
     gaps: tuple[Gap, ...] = ()
     stepped_s: float = 0.0
+    high_swing: bool = False
+    hold_posture: bool = False
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -486,6 +497,15 @@ def knot_spacing(slow: float) -> float:
     return COARSE_DT if slow >= COARSE_SLOW - 1e-9 else DT
 
 
+def _lead_out(high: bool, dt: float) -> float:
+    """The lead-out [s]: ``LEAD_OUT``, or on a clip with high swings or flights made as steps
+    (``high``) the whole knots (``dt`` [s]) within it, so that the planner's evenly spread knots fall
+    on the phases' times (with 12.5 knots a stance that began between two began, in the plan, at
+    the later one, and the certificate counted the still moving sole as slip: G1's forward jumps
+    12-24 mm; docs/retarget.md, "Session 18"). Other clips keep their tasks (their swings low and slow)."""
+    return math.floor(LEAD_OUT / dt + 1e-9) * dt if high else LEAD_OUT
+
+
 def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
                   description: str = "", dt: float | None = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
     """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule (``dt`` None: :func:`knot_spacing`)."""
@@ -569,7 +589,8 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
                             duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
     phases = [p for p in phases if p.duration > 1e-9]
-    phases.append(Phase(name="lead-out (both feet down)", duration=LEAD_OUT,
+    high = stepped > 0.0 or max(float(ref.points[f"{s}_foot"][frames][:, 2].max()) for s in SIDES) > HIGH_SWING
+    phases.append(Phase(name="lead-out (both feet down)", duration=_lead_out(high, dt),
                         contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
     clip_horizon = sum(p.duration for p in phases[1:-1])
     held = {side: np.full((n + 2, 3), np.nan) for side in SIDES}  # per knot: the sole's placement (row n+1: lead-out)
@@ -585,7 +606,15 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                     com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
                     dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
-    return spec, dataclasses.replace(ref, splay_turned=turned)  # splay: the hips' yaw range (a pivot turn's toe-in)
+    return spec, _found(ref, robot, turned, high)
+
+
+def _found(ref: Reference, robot: Robot, turned: float, high: bool) -> Reference:
+    """``ref`` with what building its spec found: the stances' splay turned (the hips' yaw range),
+    high swings, and whether the simulation holds the plan's posture (high swings, and no arm joint
+    its stretched arm can strain)."""
+    hold = high and not any(strained_joints(robot, s) for s in SIDES)
+    return dataclasses.replace(ref, splay_turned=turned, high_swing=high, hold_posture=hold)
 
 
 def _steps(motion: HumanMotion, labels: dict[str, np.ndarray],
@@ -712,8 +741,8 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
     sa, sb = src[max(a, 0)], src[min(b, len(src) - 1)]
     p = left + s * (held[b] - left) + (src[k] - (sa + s * (sb - sa)))
     high = LAND_SOFTLY and b - a >= 5 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING
-    short = float(np.linalg.norm(held[b, :2] - left[:2])) < EARLY_STEP
-    early, late = int(high and short), int(high and not short)  # down a knot early / up a knot late
+    step = float(np.linalg.norm(held[b, :2] - left[:2]))
+    early, late = int(high and step < EARLY_STEP), int(high and step >= LATE_STEP)  # down a knot early / up a knot late
     if LAND_VERTICALLY:
         # over the placement a knot before touch-down: the last knot only comes down (a foot that
         # also moved across in it touched the floor early, short of the placement, and stopped there)

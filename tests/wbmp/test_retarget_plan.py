@@ -148,3 +148,19 @@ def test_the_report_names_each_moved_target_in_body_terms(planned):
     assert base["time_s"] == pytest.approx(float(ref.t[int(np.argmax(ref.raised))]), abs=1e-9)
     assert base["text"] == (f"base {base['m']:.2f} m from the source at {base['time_s']:.2f} s, mostly "
                             f"{base['m']:.2f} m above it: the robot's lowest base (0.6 of its standing height)")
+
+
+def test_a_clip_with_high_swings_is_simulated_holding_its_posture():
+    """The simulation's settings of a retarget: the harder floor always; the controller's posture
+    weight HIGH_SWING_POSTURE_WEIGHT (10 x the default) only on a clip with high swings on a robot
+    whose arms are never strained (g1's march: its shoulder yaw drifted 0.65 rad off the plan and
+    its upper arm into the torso with the default), so every other clip's execution is unchanged."""
+    from types import SimpleNamespace
+
+    from planner import WbcSettings
+    from wbmp.retarget import FLOOR_TIMECONST, HIGH_SWING_POSTURE_WEIGHT, sim_settings
+
+    high, low = sim_settings(SimpleNamespace(hold_posture=True)), sim_settings(SimpleNamespace(hold_posture=False))
+    assert high.floor_timeconst == low.floor_timeconst == FLOOR_TIMECONST
+    assert high.wbc.posture_weight == HIGH_SWING_POSTURE_WEIGHT == 10 * WbcSettings().posture_weight
+    assert low.wbc == WbcSettings()
