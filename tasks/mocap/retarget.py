@@ -49,7 +49,7 @@ from tasks.mocap.legs import (
     quick_shuffles,
     steps_for_flights,
 )
-from tasks.mocap.source import SIDES, HumanMotion, segments
+from tasks.mocap.source import SIDES, HumanMotion, merge_short, segments, segments_of
 from tasks.mocap.splay import keep_splay
 from tasks.mocap.strength import Gap, gaps_of, hold_within_strength, strained_joints
 from tasks.primitives.geometry import Stance, standing_geometry
@@ -532,7 +532,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     frames = np.clip(np.round(np.arange(n + 1) * dt / motion.frame_time).astype(int), 0, len(motion.t) - 1)
     state = np.array([[ref.contact[s][f] for s in SIDES] for f in frames])  # (n+1, 2)
     code = state[:, 0].astype(int) * 2 + state[:, 1].astype(int)
-    code = _merge_short(code, MIN_PHASE_KNOTS)
+    code = merge_short(code, MIN_PHASE_KNOTS)
     # stances of each foot on the knot grid -> one placement each
     stance_pose: dict[str, list[tuple[int, int, Pose]]] = {}
     for i, side in enumerate(SIDES):
@@ -551,26 +551,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             runs.append((a, b, pose))
         stance_pose[side] = runs
     stance_pose, turned = keep_splay(_placements_apart(stance_pose, ref.heading[frames], robot), stand_yaw, robot)
-    # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
-    last: dict[str, Pose] = {}
-    for side in SIDES:
-        if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
-            last[side] = stance_pose[side][-1][2]
-    for side in SIDES:
-        other = SIDES[1 - SIDES.index(side)]
-        if side in last:
-            continue
-        if other in last:
-            o = last[other]
-            R0 = pin.rpy.rpyToMatrix(0.0, 0.0, o.rpy[2] - stand_yaw[other])
-            rel = np.array(stand_pose.sole(side).position) - np.array(stand_pose.sole(other).position)
-            xy = np.array(o.position) + R0 @ rel
-            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
-                              rpy=(0.0, 0.0, float(o.rpy[2] - stand_yaw[other] + stand_yaw[side])))
-        else:
-            xy = ref.points[f"{side}_foot"][-1, :2]
-            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
-                              rpy=(0.0, 0.0, _foot_yaw_at(motion, side, len(motion.t) - 5, len(motion.t), stand_yaw[side])))
+    last = _lead_out_placements(stance_pose, n, ref, motion, stand_pose, stand_yaw)
     frames_of = {side: robot.frame(f"{side}_foot") for side in SIDES}
 
     def contacts_at(k: int) -> tuple[Contact, ...]:
@@ -607,6 +588,32 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
                     dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
                     description=description)
     return spec, _found(ref, robot, turned, high)
+
+
+def _lead_out_placements(stance_pose: dict[str, list[tuple[int, int, Pose]]], n: int, ref: Reference,
+                         motion: HumanMotion, stand_pose: Stance, stand_yaw: dict[str, float]) -> dict[str, Pose]:
+    """The lead-out's soles: each foot where it last was, or beside the other as at standing (a
+    flight: the source's)."""
+    last: dict[str, Pose] = {}
+    for side in SIDES:
+        if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
+            last[side] = stance_pose[side][-1][2]
+    for side in SIDES:
+        other = SIDES[1 - SIDES.index(side)]
+        if side in last:
+            continue
+        if other in last:
+            o = last[other]
+            R0 = pin.rpy.rpyToMatrix(0.0, 0.0, o.rpy[2] - stand_yaw[other])
+            rel = np.array(stand_pose.sole(side).position) - np.array(stand_pose.sole(other).position)
+            xy = np.array(o.position) + R0 @ rel
+            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                              rpy=(0.0, 0.0, float(o.rpy[2] - stand_yaw[other] + stand_yaw[side])))
+        else:
+            xy = ref.points[f"{side}_foot"][-1, :2]
+            last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
+                              rpy=(0.0, 0.0, _foot_yaw_at(motion, side, len(motion.t) - 5, len(motion.t), stand_yaw[side])))
+    return last
 
 
 def _found(ref: Reference, robot: Robot, turned: float, high: bool) -> Reference:
@@ -675,29 +682,6 @@ def shoulders_out(robot: Robot, horizon: float) -> tuple[JointTarget, ...]:
         out.append(JointTarget(name=f"{side} shoulder out", joint=model.names[joint], value=value,
                                window=(0.0, horizon), weight=SHOULDER_WEIGHT))
     return tuple(out)
-
-
-def segments_of(code: np.ndarray) -> list[tuple[int, int, int]]:
-    """Runs of equal contact codes on the knot grid: (first knot, last knot + 1, code)."""
-    edges = np.flatnonzero(np.diff(code)) + 1
-    starts = np.concatenate([[0], edges]).astype(int)
-    ends = np.concatenate([edges, [len(code)]]).astype(int)
-    return [(int(a), int(b), int(code[a])) for a, b in zip(starts, ends, strict=True)]
-
-
-def _merge_short(code: np.ndarray, min_knots: int) -> np.ndarray:
-    """A run shorter than ``min_knots`` (not the first or last) takes the code of its longer neighbour."""
-    code = code.copy()
-    for _ in range(len(code)):
-        runs = segments_of(code)
-        short = [(b - a, i) for i, (a, b, _) in enumerate(runs) if b - a < min_knots and 0 < i < len(runs) - 1]
-        if not short:
-            break
-        _, i = min(short)
-        a, b, _ = runs[i]
-        left, right = runs[i - 1], runs[i + 1]
-        code[a:b] = left[2] if left[1] - left[0] >= right[1] - right[0] else right[2]
-    return code
 
 
 def _lift(ref: Reference, code: np.ndarray, a: int, b: int, frames: np.ndarray, n: int) -> float:
