@@ -42,15 +42,16 @@ from tasks.mocap.keepout import feet_yaw, keep_feet_apart, keep_hands_out
 from tasks.mocap.legs import (
     EARLY_STEP,
     HIGH_SWING,
+    LATE_STEP,
     apart_from_stance,
     land_softly,
     no_higher_than_standing,
     quick_shuffles,
     steps_for_flights,
 )
-from tasks.mocap.source import SIDES, HumanMotion, segments
+from tasks.mocap.source import SIDES, HumanMotion, merge_short, segments, segments_of
 from tasks.mocap.splay import keep_splay
-from tasks.mocap.strength import Gap, gaps_of, hold_within_strength
+from tasks.mocap.strength import Gap, gaps_of, hold_within_strength, strained_joints
 from tasks.primitives.geometry import Stance, standing_geometry
 from tasks.specs import (
     CoMBounds,
@@ -66,6 +67,15 @@ from tasks.specs import (
 LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
 LEAD_OUT = 1.0  # [s] both feet down after it (coming to rest)
 DT = 0.08  # [s] knot spacing
+#: [s] The knot spacing of a clip slowed for the robot by at least COARSE_SLOW: its knots then sample
+#: the human's motion at most every 0.04 s of the human's time (half an unslowed clip's DT), with a
+#: fifth fewer of them (talos's wave, slowed 4.4 x: 143 -> 115 knots, 35 -> 30 s of CPU, certified).
+#: A divisor of the lead-in.
+COARSE_DT = 0.1
+#: [-] From 1.25 x (COARSE_DT / DT) talos's walk (1.88 x) and g1's certified too, but talos's
+#: forward jumps (made as steps, 2.23 x) did not: its right hand 53 mm off its plan (> 50 mm) at
+#: 10.25 s, certified on 0.08 s knots.
+COARSE_SLOW = 2.5
 MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
 MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
 # Cost weights per second of tracked motion [1/m^2 s]; a knot's weight is this times dt.
@@ -148,6 +158,14 @@ class Reference:
             (:class:`tasks.mocap.strength.Gap`).
         stepped_s: Seconds of the source's flights the robot makes as steps, a foot down
             (:func:`tasks.mocap.legs.steps_for_flights`: a travelling jump; 0: none).
+        high_swing: A source foot rises above ``HIGH_SWING`` (a march, a kick) or a flight is made
+            as steps: the lead-out is whole knots (:func:`_lead_out`) and the simulation holds
+            the plan's posture more firmly (``wbmp.retarget.HIGH_SWING_POSTURE_WEIGHT``) if
+            ``hold_posture``.
+        hold_posture: A clip with high swings on a robot none of whose arm joints its own
+            stretched arm can strain (:func:`tasks.mocap.strength.strained_joints`: G1, not talos):
+            its simulation holds the plan's posture more firmly. On talos the pull took the
+            march's saturated left arm off its hand (58.9 mm > 50 with 1e-2, certified with 1e-3).
     """
 
     t: np.ndarray
@@ -168,6 +186,8 @@ class Reference:
     arm_held: dict[str, np.ndarray] | None = None
     gaps: tuple[Gap, ...] = ()
     stepped_s: float = 0.0
+    high_swing: bool = False
+    hold_posture: bool = False
 
     def raised_max(self) -> float:
         """How far the body was raised at most to keep the base at its lowest (a deep squat's gap) [m]."""
@@ -471,9 +491,24 @@ def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: floa
     return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
 
 
+def knot_spacing(slow: float) -> float:
+    """The knots' spacing [s] of a clip slowed ``slow`` times for the robot: :data:`COARSE_DT` from
+    :data:`COARSE_SLOW` times, else :data:`DT` (a knot spans at most DT of the human's time)."""
+    return COARSE_DT if slow >= COARSE_SLOW - 1e-9 else DT
+
+
+def _lead_out(high: bool, dt: float) -> float:
+    """The lead-out [s]: ``LEAD_OUT``, or on a clip with high swings or flights made as steps
+    (``high``) the whole knots (``dt`` [s]) within it, so that the planner's evenly spread knots fall
+    on the phases' times (with 12.5 knots a stance that began between two began, in the plan, at
+    the later one, and the certificate counted the still moving sole as slip: G1's forward jumps
+    12-24 mm; docs/retarget.md, "Session 18"). Other clips keep their tasks (their swings low and slow)."""
+    return math.floor(LEAD_OUT / dt + 1e-9) * dt if high else LEAD_OUT
+
+
 def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
-                  description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
-    """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
+                  description: str = "", dt: float | None = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
+    """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule (``dt`` None: :func:`knot_spacing`)."""
     where = motion.source or "clip"
     motion, labels, grounded, stepped = _steps(motion, labels, robot)
     slow = time_scale(motion, labels, robot)
@@ -481,6 +516,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         slow = max(slow, GROUNDED_SLOW)
     if slow > 1.0:
         motion = dataclasses.replace(motion, t=motion.t * slow)
+    dt = knot_spacing(slow) if dt is None else dt
     duration = float(motion.t[-1])
     if duration > MAX_CLIP:
         slowed = f" ({duration / slow:.1f} s slowed {slow:.2f} x for the robot's steps)" if slow > 1.0 else ""
@@ -496,7 +532,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
     frames = np.clip(np.round(np.arange(n + 1) * dt / motion.frame_time).astype(int), 0, len(motion.t) - 1)
     state = np.array([[ref.contact[s][f] for s in SIDES] for f in frames])  # (n+1, 2)
     code = state[:, 0].astype(int) * 2 + state[:, 1].astype(int)
-    code = _merge_short(code, MIN_PHASE_KNOTS)
+    code = merge_short(code, MIN_PHASE_KNOTS)
     # stances of each foot on the knot grid -> one placement each
     stance_pose: dict[str, list[tuple[int, int, Pose]]] = {}
     for i, side in enumerate(SIDES):
@@ -515,7 +551,49 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             runs.append((a, b, pose))
         stance_pose[side] = runs
     stance_pose, turned = keep_splay(_placements_apart(stance_pose, ref.heading[frames], robot), stand_yaw, robot)
-    # the lead-out: each foot where it last was, or beside the other as at standing (a flight: the source's)
+    last = _lead_out_placements(stance_pose, n, ref, motion, stand_pose, stand_yaw)
+    frames_of = {side: robot.frame(f"{side}_foot") for side in SIDES}
+
+    def contacts_at(k: int) -> tuple[Contact, ...]:
+        out = []
+        for i, side in enumerate(SIDES):
+            if (code[k] >> (1 - i)) & 1:
+                pose = next(p for a, b, p in stance_pose[side] if a <= k < b)
+                out.append(Contact(frame=frames_of[side], placement=pose))
+        return tuple(out)
+
+    phases = [Phase(name="lead-in (standing)", duration=LEAD_IN,
+                    contacts=tuple(Contact(frame=frames_of[s], placement=stand_pose.sole(s)) for s in SIDES))]
+    names = {3: "double support", 2: "left support", 1: "right support", 0: "flight"}
+    for a, b, _ in segments_of(code):
+        lift = _lift(ref, code, a, b, frames, n)
+        phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
+                            duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
+    phases = [p for p in phases if p.duration > 1e-9]
+    high = stepped > 0.0 or max(float(ref.points[f"{s}_foot"][frames][:, 2].max()) for s in SIDES) > HIGH_SWING
+    phases.append(Phase(name="lead-out (both feet down)", duration=_lead_out(high, dt),
+                        contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
+    clip_horizon = sum(p.duration for p in phases[1:-1])
+    held = {side: np.full((n + 2, 3), np.nan) for side in SIDES}  # per knot: the sole's placement (row n+1: lead-out)
+    for side in SIDES:
+        for a, b, pose in stance_pose[side]:
+            held[side][a:min(b, n + 1)] = pose.position
+        held[side][n + 1] = last[side].position
+    targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
+    horizon = sum(p.duration for p in phases)
+    _check_items(where, duration, slow, len(targets), robot)
+    spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
+                    joint_targets=shoulders_out(robot, horizon),
+                    com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
+                    dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
+                    description=description)
+    return spec, _found(ref, robot, turned, high)
+
+
+def _lead_out_placements(stance_pose: dict[str, list[tuple[int, int, Pose]]], n: int, ref: Reference,
+                         motion: HumanMotion, stand_pose: Stance, stand_yaw: dict[str, float]) -> dict[str, Pose]:
+    """The lead-out's soles: each foot where it last was, or beside the other as at standing (a
+    flight: the source's)."""
     last: dict[str, Pose] = {}
     for side in SIDES:
         if stance_pose[side] and stance_pose[side][-1][1] == n + 1:
@@ -535,41 +613,15 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
             xy = ref.points[f"{side}_foot"][-1, :2]
             last[side] = Pose(position=(float(xy[0]), float(xy[1]), 0.0),
                               rpy=(0.0, 0.0, _foot_yaw_at(motion, side, len(motion.t) - 5, len(motion.t), stand_yaw[side])))
-    frames_of = {side: robot.frame(f"{side}_foot") for side in SIDES}
+    return last
 
-    def contacts_at(k: int) -> tuple[Contact, ...]:
-        out = []
-        for i, side in enumerate(SIDES):
-            if (code[k] >> (1 - i)) & 1:
-                pose = next(p for a, b, p in stance_pose[side] if a <= k < b)
-                out.append(Contact(frame=frames_of[side], placement=pose))
-        return tuple(out)
 
-    phases = [Phase(name="lead-in (standing)", duration=LEAD_IN,
-                    contacts=tuple(Contact(frame=frames_of[s], placement=stand_pose.sole(s)) for s in SIDES))]
-    names = {3: "double support", 2: "left support", 1: "right support", 0: "flight"}
-    for a, b, _ in segments_of(code):
-        lift = _lift(ref, code, a, b, frames, n)
-        phases.append(Phase(name=f"{names[int(code[a])]} {a * dt:.2f}-{min(b, n) * dt:.2f} s",
-                            duration=max(min(b, n) - a, 0) * dt, contacts=contacts_at(a), swing_height=lift))
-    phases = [p for p in phases if p.duration > 1e-9]
-    phases.append(Phase(name="lead-out (both feet down)", duration=LEAD_OUT,
-                        contacts=tuple(Contact(frame=frames_of[s], placement=last[s]) for s in SIDES)))
-    clip_horizon = sum(p.duration for p in phases[1:-1])
-    held = {side: np.full((n + 2, 3), np.nan) for side in SIDES}  # per knot: the sole's placement (row n+1: lead-out)
-    for side in SIDES:
-        for a, b, pose in stance_pose[side]:
-            held[side][a:min(b, n + 1)] = pose.position
-        held[side][n + 1] = last[side].position
-    targets = _tracking_targets(ref, robot, code, frames, dt, n, clip_horizon, held)
-    horizon = sum(p.duration for p in phases)
-    _check_items(where, duration, slow, len(targets), robot)
-    spec = TaskSpec(robot=robot.name, phases=tuple(phases), targets=tuple(targets),
-                    joint_targets=shoulders_out(robot, horizon),
-                    com_bounds=(CoMBounds(name="balance", support_polygon=True, margin=g.support_margin),),
-                    dt=dt, dynamic=True if dynamic is None else dynamic, smoothness_weight=SMOOTHNESS, name=name or f"retarget {where}",
-                    description=description)
-    return spec, dataclasses.replace(ref, splay_turned=turned)  # splay: the hips' yaw range (a pivot turn's toe-in)
+def _found(ref: Reference, robot: Robot, turned: float, high: bool) -> Reference:
+    """``ref`` with what building its spec found: the stances' splay turned (the hips' yaw range),
+    high swings, and whether the simulation holds the plan's posture (high swings, and no arm joint
+    its stretched arm can strain)."""
+    hold = high and not any(strained_joints(robot, s) for s in SIDES)
+    return dataclasses.replace(ref, splay_turned=turned, high_swing=high, hold_posture=hold)
 
 
 def _steps(motion: HumanMotion, labels: dict[str, np.ndarray],
@@ -632,29 +684,6 @@ def shoulders_out(robot: Robot, horizon: float) -> tuple[JointTarget, ...]:
     return tuple(out)
 
 
-def segments_of(code: np.ndarray) -> list[tuple[int, int, int]]:
-    """Runs of equal contact codes on the knot grid: (first knot, last knot + 1, code)."""
-    edges = np.flatnonzero(np.diff(code)) + 1
-    starts = np.concatenate([[0], edges]).astype(int)
-    ends = np.concatenate([edges, [len(code)]]).astype(int)
-    return [(int(a), int(b), int(code[a])) for a, b in zip(starts, ends, strict=True)]
-
-
-def _merge_short(code: np.ndarray, min_knots: int) -> np.ndarray:
-    """A run shorter than ``min_knots`` (not the first or last) takes the code of its longer neighbour."""
-    code = code.copy()
-    for _ in range(len(code)):
-        runs = segments_of(code)
-        short = [(b - a, i) for i, (a, b, _) in enumerate(runs) if b - a < min_knots and 0 < i < len(runs) - 1]
-        if not short:
-            break
-        _, i = min(short)
-        a, b, _ = runs[i]
-        left, right = runs[i - 1], runs[i + 1]
-        code[a:b] = left[2] if left[1] - left[0] >= right[1] - right[0] else right[2]
-    return code
-
-
 def _lift(ref: Reference, code: np.ndarray, a: int, b: int, frames: np.ndarray, n: int) -> float:
     """Mid-swing clearance asked in a phase: 0.8 x the source's highest swinging sole, within SWING_CLEARANCE."""
     fa, fb = frames[a], frames[min(b, n)] + 1
@@ -696,8 +725,8 @@ def swing_target(src: np.ndarray, held: np.ndarray, k: int, first: np.ndarray, d
     sa, sb = src[max(a, 0)], src[min(b, len(src) - 1)]
     p = left + s * (held[b] - left) + (src[k] - (sa + s * (sb - sa)))
     high = LAND_SOFTLY and b - a >= 5 and float(src[max(a, 0):b, 2].max()) > HIGH_SWING
-    short = float(np.linalg.norm(held[b, :2] - left[:2])) < EARLY_STEP
-    early, late = int(high and short), int(high and not short)  # down a knot early / up a knot late
+    step = float(np.linalg.norm(held[b, :2] - left[:2]))
+    early, late = int(high and step < EARLY_STEP), int(high and step >= LATE_STEP)  # down a knot early / up a knot late
     if LAND_VERTICALLY:
         # over the placement a knot before touch-down: the last knot only comes down (a foot that
         # also moved across in it touched the floor early, short of the placement, and stopped there)

@@ -145,3 +145,26 @@ def segments(flags: np.ndarray) -> list[tuple[int, int, bool]]:
     starts = np.concatenate([[0], edges]).astype(int)
     ends = np.concatenate([edges, [len(flags)]]).astype(int)
     return [(int(a), int(b), bool(flags[a])) for a, b in zip(starts, ends, strict=True)]
+
+
+def segments_of(code: np.ndarray) -> list[tuple[int, int, int]]:
+    """Runs of equal contact codes on the knot grid: (first knot, last knot + 1, code)."""
+    edges = np.flatnonzero(np.diff(code)) + 1
+    starts = np.concatenate([[0], edges]).astype(int)
+    ends = np.concatenate([edges, [len(code)]]).astype(int)
+    return [(int(a), int(b), int(code[a])) for a, b in zip(starts, ends, strict=True)]
+
+
+def merge_short(code: np.ndarray, min_knots: int) -> np.ndarray:
+    """A run shorter than ``min_knots`` (not the first or last) takes the code of its longer neighbour."""
+    code = code.copy()
+    for _ in range(len(code)):
+        runs = segments_of(code)
+        short = [(b - a, i) for i, (a, b, _) in enumerate(runs) if b - a < min_knots and 0 < i < len(runs) - 1]
+        if not short:
+            break
+        _, i = min(short)
+        a, b, _ = runs[i]
+        left, right = runs[i - 1], runs[i + 1]
+        code[a:b] = left[2] if left[1] - left[0] >= right[1] - right[0] else right[2]
+    return code

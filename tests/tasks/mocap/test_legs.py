@@ -199,16 +199,16 @@ def test_a_raised_foot_swinging_in_beside_the_standing_one_is_kept_apart(talos, 
 
 
 def test_a_high_long_step_is_not_set_down_early(monkeypatch):
-    """The same high swing as a 0.4 m step (longer than EARLY_STEP: a forward jump made as steps,
+    """The same high swing as a 0.45 m step (longer than EARLY_STEP: a forward jump made as steps,
     which scuffed the floor and fell when set down a knot early): a knot before touch-down its
     target is still off the floor (LAND_SPEED x a knot up, the source being higher), not on it;
-    it leaves a knot late instead."""
-    from tasks.mocap.legs import EARLY_STEP
+    being at least LATE_STEP long (talos's 0.45-0.55 m), it leaves a knot late instead."""
+    from tasks.mocap.legs import EARLY_STEP, LATE_STEP
 
     src, held = _stamp()
     n = len(src) - 1
-    held[n] = held[n + 1] = held[0] + [0.4, 0.0, 0.0]
-    assert 0.4 > EARLY_STEP
+    held[n] = held[n + 1] = held[0] + [0.45, 0.0, 0.0]
+    assert 0.45 > LATE_STEP > EARLY_STEP
     soft = _path(src, held, monkeypatch, soft=True)
     assert soft[-1, 2] == pytest.approx(LAND_SPEED * DT, rel=0.05)
     # it leaves a knot late instead: its first swinging knot is still on the placement it leaves
@@ -216,3 +216,23 @@ def test_a_high_long_step_is_not_set_down_early(monkeypatch):
     # swinging one, which the certificate read as the stance's placement error)
     assert np.allclose(soft[0], held[0]) and soft[1, 2] > 0.0
     assert np.allclose(soft[1, :2], held[0, :2])  # and then only goes up (a knot later than a walk's)
+
+
+def test_a_high_step_shorter_than_late_step_leaves_its_placement_at_once(monkeypatch):
+    """The same high swing as a 0.35 m step (between EARLY_STEP and LATE_STEP: G1's forward jumps made
+    as 0.31-0.37 m steps, which fell when their feet left a knot late): neither set down early (a
+    knot before touch-down still LAND_SPEED x a knot up) nor left late (its first swinging knot
+    already up, its second moving towards the placement it lands on, as a walk's)."""
+    from tasks.mocap.legs import EARLY_STEP, LATE_STEP
+
+    src, held = _stamp()
+    n = len(src) - 1
+    held[n] = held[n + 1] = held[0] + [0.35, 0.0, 0.0]
+    assert EARLY_STEP < 0.35 < LATE_STEP
+    soft = _path(src, held, monkeypatch, soft=True)
+    assert soft[-1, 2] == pytest.approx(LAND_SPEED * DT, rel=0.05)
+    # up at its first swinging knot (over the placement it leaves), across from its second
+    assert soft[0, 2] > 0.0 and soft[1, 0] - held[0, 0] > 1e-3
+    held[n] = held[n + 1] = held[0] + [LATE_STEP + 0.01, 0.0, 0.0]  # a step just over LATE_STEP: late
+    late = _path(src, held, monkeypatch, soft=True)
+    assert np.allclose(late[0], held[0]) and np.allclose(late[1, :2], held[0, :2])

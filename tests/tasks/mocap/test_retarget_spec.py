@@ -49,6 +49,8 @@ def test_walk_phases_follow_the_labels_and_stand_on_the_floor(talos):
     assert agree / total >= 0.9  # the knot grid merges only the shortest runs
     assert sum(1 for p in spec.phases if len(p.contacts) == 1) >= 5  # single supports, alternating
     assert not any(len(p.contacts) == 0 for p in spec.phases)  # a walk has no flight
+    # its swings are low (talos's 0.073-0.105 m < HIGH_SWING): the 1.0 s lead-out kept, the task unchanged
+    assert not ref.high_swing and last.duration == pytest.approx(1.0)
 
 
 def test_strides_fit_the_robot(talos):
@@ -291,6 +293,26 @@ def test_a_jump_in_place_that_must_be_slowed_is_made_with_both_feet_down(talos, 
         assert ref.grounded_s == pytest.approx(seconds) and ref.time_scale == GROUNDED_SLOW
         assert all(len(p.contacts) == 2 for p in spec.phases)
         assert spec.horizon == pytest.approx(GROUNDED_SLOW * motion.t[-1] + 0.8 + 1.0, abs=0.1)
+
+
+def test_a_clip_with_high_swings_ends_on_a_whole_knot_so_the_planners_knots_fall_on_its_phases():
+    """G1's forward jumps made as steps (13.28 s of clip, 166 knots): with a 1.0 s lead-out (12.5
+    knots) the planner's grid (planner.trajopt.layout.knot_grid) put its knots 0.0797 s apart, off
+    the phases' starts (2.56 s fell between knots at 2.552 and 2.632 s: the plan's foot was still
+    up there); with the lead-out in whole knots every phase starts on a knot. A clip without high
+    swings keeps LEAD_OUT (its task unchanged)."""
+    from types import SimpleNamespace
+
+    from planner.trajopt.layout import knot_grid
+    from tasks.mocap.retarget import DT, LEAD_IN, LEAD_OUT, _lead_out
+
+    starts = LEAD_IN + DT * np.array([0, 13, 22, 24, 34, 166])  # phase starts; the last: the lead-out's
+    for high in (True, False):
+        horizon = float(starts[-1]) + _lead_out(high, DT)
+        _, _, times = knot_grid(SimpleNamespace(horizon=horizon, dt=DT))
+        off = np.abs(starts[:, None] - times[None, :]).min(axis=1)
+        assert (off.max() < 1e-9) == high, off
+    assert _lead_out(False, DT) == LEAD_OUT and abs(_lead_out(True, DT) - LEAD_OUT) < DT
 
 
 PUNCH = Path("/work/shared/mocap/135_09_punch.bvh")
