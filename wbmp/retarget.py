@@ -24,6 +24,7 @@ FLOOR_TIMECONST = 0.005
 #: diagnosis: a hand through a thigh) and plans in 238 iterations with 500. A solve that converges
 #: within 150 follows the same iterates either way (the certified clips' plans are unchanged).
 MAX_ITERATIONS: int | None = 500
+ARM_TORQUE_MARGIN: float | None = 0.85  # of the strained arm joints' limits in the plan (None: no rows)
 START_ON_BOTH_FEET = 0.5  # [s] a clip (no --start) that starts mid-step begins at its first double support within this
 
 
@@ -163,11 +164,7 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
             return _cached_result(request, hit, robot, spec, ref, skeleton, info, timings, t0)
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name} ({len(spec.phases)} contact phases)")
     t0 = time.perf_counter()
-    settings = None
-    if MAX_ITERATIONS is not None:
-        from planner import PlannerSettings, SolverSettings
-
-        settings = PlannerSettings(solver=SolverSettings(max_iterations=MAX_ITERATIONS))
+    settings = _plan_settings(robot)
     plan = plan_motion(spec, robot, progress=progress, settings=settings)
     check_signals()
     timings["plan"] = time.perf_counter() - t0
@@ -190,6 +187,24 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
         motions.store(key, result_arrays(result), spec)  # only a success: a failure is worth re-checking
         result.cache_key = key
     return result
+
+
+def _plan_settings(robot: Any) -> Any:
+    """The planner's settings for a retarget: :data:`MAX_ITERATIONS` per solve, and the arm joints
+    that could not hold their stretched arm (``tasks.arm_torque_joints``) kept within
+    :data:`ARM_TORQUE_MARGIN` of their torque limits by the plan (talos's march swung its shoulder
+    roll at 0.96-1.02 of its limit, the hand 50.1 mm off its plan in MuJoCo; G1: no such joint)."""
+    from planner import CentroidalSettings, PlannerSettings, SolverSettings
+    from tasks import arm_torque_joints
+
+    joints = arm_torque_joints(robot) if ARM_TORQUE_MARGIN is not None else ()
+    if MAX_ITERATIONS is None and not joints:
+        return None
+    solver = SolverSettings() if MAX_ITERATIONS is None else SolverSettings(max_iterations=MAX_ITERATIONS)
+    centroidal = CentroidalSettings()
+    if joints and ARM_TORQUE_MARGIN is not None:
+        centroidal = CentroidalSettings(torque_joints=joints, torque_margin=ARM_TORQUE_MARGIN)
+    return PlannerSettings(solver=solver, centroidal=centroidal)
 
 
 def _figures(robot, spec, ref, plan, execution) -> tuple[Any, Any]:
