@@ -21,6 +21,7 @@ from planner.trajopt.centroidal.nlp import (
     extend_parameters,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
+from planner.trajopt.centroidal.torque import torque_margin_terms
 from planner.trajopt.kinds import SupportPolygonTerm
 from planner.trajopt.layout import Layout
 
@@ -102,8 +103,6 @@ class DynamicLayout(DynamicData, Layout):
             if residual > s.momentum_tolerance:
                 out = self.with_momentum_point(dq, residual)
         if round_ < s.torque_rounds:
-            from planner.trajopt.centroidal.torque import torque_margin_terms
-
             terms = torque_margin_terms(self, dq)
             if terms is not None:
                 out = (out or self).with_terms(terms)
