@@ -21,7 +21,7 @@ from planner.trajopt.centroidal.nlp import (
     extend_parameters,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
-from planner.trajopt.centroidal.torque import torque_margin_terms
+from planner.trajopt.centroidal.torque import TorqueMarginTerm, torque_margin_terms
 from planner.trajopt.kinds import SupportPolygonTerm
 from planner.trajopt.layout import Layout
 
@@ -96,7 +96,9 @@ class DynamicLayout(DynamicData, Layout):
         ``torque_rounds`` rounds)."""
         s = self.centroidal_settings
         out = None
-        if s.whole_body_momentum and round_ < s.momentum_iterations:
+        # the torque rows move the motion after the momentum rows' own rounds: theirs come on top
+        bounded = any(isinstance(t, TorqueMarginTerm) for t in self.terms)
+        if s.whole_body_momentum and round_ < s.momentum_iterations + (s.torque_rounds if bounded else 0):
             from planner.trajopt.centroidal.momentum import euler_residual
 
             residual = euler_residual(self, dq, self.forces_of(x))
