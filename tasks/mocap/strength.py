@@ -126,26 +126,11 @@ def _subtree(model: pin.Model, j: int) -> list[int]:
     return out
 
 
-def strained_torso_joints(robot: Robot, margin: float = ARM_STRENGTH_MARGIN) -> list[int]:
-    """The joints between the base and both shoulders (the torso's) whose upper body beyond,
-    stretched, could load them beyond ``margin`` of their torque limit (as :func:`strained_joints`;
-    talos: ``torso_1_joint``, ``torso_2_joint``, 78 N m under a 40 kg upper body; G1's waist:
-    none)."""
-    model = robot.model
-    data = model.createData()
-    pin.forwardKinematics(model, data, np.asarray(robot.q_standing, dtype=float))
-    chains = [_chain(model, robot.frame_id(f"{side}_shoulder")) for side in SIDES]
-    common = [j for j in chains[0] if j in chains[1]]
-    return _strained(model, data, common, margin)
-
-
 def arm_torque_joints(robot: Robot) -> tuple[str, ...]:
-    """Names of the torso's and both arms' strained joints (:func:`strained_torso_joints`, then
-    :func:`strained_joints` left and right): the joints whose torques a retarget's plan keeps
-    within a margin of their limits (``CentroidalSettings.torque_joints``; talos: ``torso_1_joint``,
-    ``torso_2_joint``, ``arm_*_1_joint`` to ``arm_*_5_joint``; G1: none)."""
-    joints = [*strained_torso_joints(robot), *(j for side in SIDES for j in strained_joints(robot, side))]
-    return tuple(str(robot.model.names[j]) for j in joints)
+    """Names of both arms' :func:`strained_joints` (left, then right): the joints whose torques a
+    retarget's plan keeps within a margin of their limits (``CentroidalSettings.torque_joints``;
+    talos: ``arm_*_1_joint`` to ``arm_*_5_joint``, G1: none)."""
+    return tuple(str(robot.model.names[j]) for side in SIDES for j in strained_joints(robot, side))
 
 
 def strained_joints(robot: Robot, side: str, margin: float = ARM_STRENGTH_MARGIN) -> list[int]:
@@ -159,14 +144,8 @@ def strained_joints(robot: Robot, side: str, margin: float = ARM_STRENGTH_MARGIN
     shoulder = int(model.frames[robot.frame_id(f"{side}_shoulder")].parentJoint)
     chain = _chain(model, robot.frame_id(f"{side}_hand"))
     first = chain.index(shoulder) - 1 if shoulder in chain else 0
-    return _strained(model, data, chain[max(first, 0):], margin)
-
-
-def _strained(model: pin.Model, data: pin.Data, joints: list[int], margin: float) -> list[int]:
-    """Of ``joints``, those whose subtree, stretched, could load them beyond ``margin`` of their
-    torque limit (``data``: forward kinematics at standing)."""
     out = []
-    for j in joints:
+    for j in chain[max(first, 0):]:
         sub = _subtree(model, j)
         mass = sum(model.inertias[k].mass for k in sub)
         if mass <= 0.0:
