@@ -8,12 +8,16 @@ the hand missed its plan by 50.1 mm). For the joints named in
 torque the planned motion needs is Pinocchio's RNEA on the knots (central differences, as the
 full-dynamics checks, :func:`planner.trajopt.centroidal.zmp.central_velocities`).
 
-Rows, per variable knot and joint: :math:`(g_j(q_k) + d_{k,j}) / \tau_j^{max} \in [-m, m]`
+Rows, per variable knot and joint: :math:`(g_j(q_k) + \max(d_{k,j}, 0)) / \tau_j^{max} \le m`
+and :math:`(g_j(q_k) + \min(d_{k,j}, 0)) / \tau_j^{max} \ge -m`
 (:attr:`CentroidalSettings.torque_margin` ``m``), where :math:`g_j` is the joint's gravity torque
 (exact, symbolic: :math:`g_j = \sum_{i \in subtree(j)} m_i g_0\, a_j \cdot ((c_i - o_j) \times
 e_z)`, the axis :math:`a_j` and origin :math:`o_j` of the joint, the bodies' CoMs :math:`c_i`)
 and :math:`d_{k,j}` the rest of the RNEA torque (velocities and accelerations), frozen at the
-last solution (a parameter). The rows are added only after a solve whose RNEA torque exceeds
+last solution (a parameter). Together they keep :math:`|g_j + d_{k,j}|` and :math:`|g_j|` within
+the margin: a frozen rest that relieves the joint is not counted on (with one row
+:math:`|g + d| \le m`, talos's bend held its arm up on a frozen deceleration, its gravity torque
+0.99 of the limit, and the next solve's RNEA asked 1.14). The rows are added only after a solve whose RNEA torque exceeds
 the margin (``+ TORQUE_TRIGGER``) somewhere, then their :math:`d` re-linearized after each solve
 that still exceeds it, at most :attr:`CentroidalSettings.torque_rounds` solves
 (:meth:`planner.trajopt.centroidal.layout.DynamicLayout.relinearized`): a plan within the
@@ -81,9 +85,10 @@ def gravity_torques(kin: StageKinematics, joints: tuple[int, ...]) -> Any:
 
 @dataclass(eq=False)
 class TorqueMarginTerm(Term):
-    """Joints' torques (gravity, exact, + the rest of RNEA frozen) over their limits at one knot,
-    within ``[-margin, margin]``. Structure ``("torque_margin", joint ids)``; parameters the
-    frozen rest :math:`d` per joint [N m]."""
+    """Joints' torques (gravity, exact, + the rest of RNEA frozen) over their limits at one knot:
+    rows ``(g + max(d, 0)) / limit <= margin`` for each joint, then ``(g + min(d, 0)) / limit >=
+    -margin``. Structure ``("torque_margin", joint ids)``; parameters the frozen rest :math:`d`
+    per joint [N m]."""
 
     kind: ClassVar[str] = "torque_margin"
 
@@ -93,7 +98,8 @@ class TorqueMarginTerm(Term):
         """The term at ``knot`` with the frozen rest ``rest`` (len(joints),) [N m]."""
         n = len(joints)
         return cls(knot=knot, structure=(cls.kind, joints), params=np.asarray(rest, dtype=float).copy(),
-                   lower=-margin * np.ones(n), upper=margin * np.ones(n), phase=phase,
+                   lower=np.concatenate([np.full(n, -np.inf), np.full(n, -margin)]),
+                   upper=np.concatenate([np.full(n, margin), np.full(n, np.inf)]), phase=phase,
                    label="torque margin of " + ", ".join(robot.model.names[j] for j in joints))
 
     @property
@@ -106,15 +112,18 @@ class TorqueMarginTerm(Term):
 
     def expression(self, p, kin: StageKinematics) -> tuple:
         """(rows, cost) in CasADi (:meth:`Term.expression`)."""
-        limits = self._limits(kin.robot.model)
-        return (gravity_torques(kin, self.joints) + p) / ca.DM(limits), 0
+        limits = ca.DM(self._limits(kin.robot.model))
+        g = gravity_torques(kin, self.joints)
+        return ca.vertcat((g + ca.fmax(p, 0)) / limits, (g + ca.fmin(p, 0)) / limits), 0
 
     def residual(self, kin: NumericKinematics) -> np.ndarray:
         """The rows in numpy (:meth:`Term.residual`)."""
         model = kin.model
         g = pin.computeGeneralizedGravity(model, kin.data, kin.q)
         idx = [model.joints[j].idx_v for j in self.joints]
-        return (g[idx] + self.params) / self._limits(model)
+        limits = self._limits(model)
+        return np.concatenate([(g[idx] + np.maximum(self.params, 0)) / limits,
+                               (g[idx] + np.minimum(self.params, 0)) / limits])
 
 
 def plan_torques(robot: Robot, q: np.ndarray, dt: float, joints: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:

@@ -258,11 +258,14 @@ def support_polygon_centre(lay: Layout, k: int) -> np.ndarray:
 
 
 def _torque_margin_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
-    """Pinocchio's RNEA at rest (the gravity torques), plus the frozen rest, over the limits."""
+    """Pinocchio's RNEA at rest (the gravity torques), plus the frozen rest where it loads the joint
+    (upper rows) or where it pulls the other way (lower rows), over the limits."""
     model = kin.model
     idx = [model.joints[j].idx_v for j in term.structure[1]]
-    tau = pin.rnea(model, model.createData(), kin.q, np.zeros(model.nv), np.zeros(model.nv))
-    return (tau[idx] + term.params) / model.effortLimit[idx]
+    tau = pin.rnea(model, model.createData(), kin.q, np.zeros(model.nv), np.zeros(model.nv))[idx]
+    rest = term.params
+    limits = model.effortLimit[idx]
+    return np.concatenate([(tau + np.where(rest > 0, rest, 0.0)) / limits, (tau + np.where(rest < 0, rest, 0.0)) / limits])
 
 
 def _joint_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:

@@ -67,12 +67,16 @@ def test_a_motion_beyond_the_margin_gets_rows_with_the_rest_of_rnea_frozen(talos
     for t in rows:
         k = t.knot
         assert t.structure == ("torque_margin", joint_ids(talos, JOINTS)) and t.phase == f"phase {k // 10}"
-        np.testing.assert_allclose(t.upper, 0.85) and np.testing.assert_allclose(t.lower, -0.85)
-        # the row at the solution is RNEA over the limit: gravity (exact) + the frozen rest
+        n = len(JOINTS)  # upper rows (a load up to +margin), then lower rows (down to -margin)
+        assert list(t.upper) == [0.85] * n + [np.inf] * n and list(t.lower) == [-np.inf] * n + [-0.85] * n
+        # at the solution: gravity (exact) + the frozen rest is RNEA
         gravity = pin.computeGeneralizedGravity(model, model.createData(), q[k])[idx]
-        np.testing.assert_allclose(gravity + t.params, _rnea(talos, q, k, idx), atol=1e-6)
-        np.testing.assert_allclose(t.residual(SimpleNamespace(model=model, data=model.createData(), q=q[k])),
-                                   _rnea(talos, q, k, idx) / limits, atol=1e-8)
+        rnea = _rnea(talos, q, k, idx)
+        np.testing.assert_allclose(gravity + t.params, rnea, atol=1e-6)
+        rows = t.residual(SimpleNamespace(model=model, data=model.createData(), q=q[k]))
+        # each row is RNEA or gravity alone, whichever is further out on its side
+        np.testing.assert_allclose(rows[:n], np.maximum(rnea, gravity) / limits, atol=1e-8)
+        np.testing.assert_allclose(rows[n:], np.minimum(rnea, gravity) / limits, atol=1e-8)
     # re-linearized: the rows replaced, not added twice
     again = torque_margin_terms(SimpleNamespace(**{**vars(lay), "terms": terms}), dq)
     assert again is not None and len(again) == len(terms)
