@@ -212,3 +212,21 @@ def test_the_march_is_certified_on_talos_its_arm_swing_within_the_shoulders_torq
     hands = [c.value for c in result.execution.certificate.checks if c.name == "left_hand tracking error"]
     assert hands and hands[0] < 0.05
     assert result.exec_figures.skate <= 10.0 and result.exec_figures.float_ <= 10.0
+
+
+@pytest.mark.long
+@pytest.mark.skipif(not Path("/work/shared/mocap/13_26_arms_raised.bvh").exists(),
+                    reason="the shared CMU clips are not on this machine")
+def test_the_arms_raised_clip_is_certified_on_talos():
+    """Talos's arms raised (8.7 s planned, two steps): fell in session 15, then its right foot landed
+    25 mm from its placement (limit 20) in session 17's arms branch; on main after session 17's merges
+    (among them the landing rules, tasks/mocap/legs.py, and the stance splay, tasks/mocap/splay.py,
+    which turns one of its stances 22 deg), certified (measured
+    1.6 / 1.9 / 0.7 mm skate / penetration / float executed, 64 s CPU; its plan's arm joints ask at
+    most 0.69 of their limits: no torque margin rows). Fast twins: tests/tasks/mocap/test_legs.py,
+    tests/tasks/mocap/test_splay.py."""
+    result = retarget(RetargetRequest(clip="/work/shared/mocap/13_26_arms_raised.bvh", robot="talos"))
+    assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
+    landings = [c.value for c in result.execution.certificate.checks if c.name.endswith("placement error")]
+    assert len(landings) >= 2  # its steps, each landed within the certificate's 20 mm
+    assert result.exec_figures.skate <= 5.0 and result.exec_figures.float_ <= 5.0
