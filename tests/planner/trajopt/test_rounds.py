@@ -95,4 +95,5 @@ def test_a_relinearization_that_adds_rows_starts_without_the_multipliers(monkeyp
     more = _Layout("first, with torque rows")
     more.terms = ("a torque row",)
     first = _Layout("first", relinearizes_to=more)
-    assert _run(monkeypatch, first, None) == [("first", False), ("first, with torque rows", False)]
+    assert _run(monkeypatch, first, None) == [("first", False), ("first, with torque rows", False),
+                                              ("returned first, with torque rows", False)]
