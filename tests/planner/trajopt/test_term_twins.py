@@ -6,7 +6,8 @@ until it has a twin here).
 
 * Kinematic kinds (contact, swing clearance, support polygon, CoM box, frame position and
   orientation targets hard and soft, base upright, CoM targets and centring, joint target, closed
-  chain, self-collision, scene collision per shape): one term of a layout built from a small real
+  chain, self-collision, scene collision per shape, the joint torque margin against RNEA at rest):
+  one term of a layout built from a small real
   Talos spec (stand, lift the right foot, stand; hand targets, CoM target and bounds, a joint
   target, two hands holding one box, a scene), through
   :func:`planner.trajopt.terms.stage_function`, at seeded random chart displacements ``dq``; the
