@@ -134,7 +134,10 @@ def test_a_sentence_kneeling_onto_a_crate_is_refused_before_planning_naming_the_
 
 
 @pytest.mark.parametrize(("sentence", "knee"), [("kneel down", "right"), ("kneel on your left knee", "left"),
-                                                ("go down on one knee", "right"), ("跪下", "right"), ("单膝跪下", "right")])
+                                                ("go down on one knee", "right"), ("跪下", "right"), ("单膝跪下", "right"),
+                                                # the motion starts standing: getting up from a kneel is the kneel's own rise
+                                                ("get up from kneeling", "right"), ("stand up from kneeling on your left knee", "left"),
+                                                ("从跪姿站起来", "right")])
 def test_the_words(sentence, knee):
     actions = parse(sentence).actions
     assert [a.name for a in actions] == ["kneel"] and actions[0].params["knee"] == knee
