@@ -64,7 +64,7 @@ _SOURCES = (  # relative to planner/trajopt/: the files that determine the compi
     "symbolic.py", "layout_data.py", "layout.py", "term.py", "terms.py", "kinds.py", "collision.py", "scene_collision.py",
     "transcription.py", "ipopt.py", "cache.py",
     "centroidal/settings.py", "centroidal/physics.py", "centroidal/contacts.py", "centroidal/pattern.py",
-    "centroidal/heading.py", "centroidal/data.py", "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
+    "centroidal/heading.py", "centroidal/tracking.py", "centroidal/data.py", "centroidal/nlp.py", "centroidal/layout.py", "cache_disk.py",
 )
 
 

@@ -24,7 +24,8 @@ def solve_layout(lay: Layout, settings: PlannerSettings, progress: Callable[[str
     output :class:`SolverOutput`).
 
     ``lam0``: initial multipliers ``(lam_x, lam_g)`` of the same structure's previous solve (IPOPT
-    uses them with its ``warm_start_init_point`` option, which dynamic plans set).
+    uses them with its ``warm_start_init_point`` option, which dynamic plans set; a collision
+    round's are carried by :func:`planner.trajopt.solver_output.carried_multipliers`).
 
     ``settings.transcription == "stagewise"`` solves a kinematic layout with the stage-wise
     transcription (:mod:`planner.trajopt.stagewise`, fatrop or IPOPT); a dynamic one keeps this one."""

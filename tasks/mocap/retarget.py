@@ -66,6 +66,15 @@ from tasks.specs import (
 LEAD_IN = 0.8  # [s] from standing into the clip's first pose (the targets blend over it)
 LEAD_OUT = 1.0  # [s] both feet down after it (coming to rest)
 DT = 0.08  # [s] knot spacing
+#: [s] The knot spacing of a clip slowed for the robot by at least COARSE_SLOW: its knots then sample
+#: the human's motion at most every 0.04 s of the human's time (half an unslowed clip's DT), with a
+#: fifth fewer of them (talos's wave, slowed 4.4 x: 143 -> 115 knots, 35 -> 30 s of CPU, certified).
+#: A divisor of the lead-in.
+COARSE_DT = 0.1
+#: [-] From 1.25 x (COARSE_DT / DT) talos's walk (1.88 x) and g1's certified too, but talos's
+#: forward jumps (made as steps, 2.23 x) did not: its right hand 53 mm off its plan (> 50 mm) at
+#: 10.25 s, certified on 0.08 s knots.
+COARSE_SLOW = 2.5
 MIN_PHASE_KNOTS = 2  # a contact phase shorter than this many knot intervals joins its neighbour
 MAX_CLIP = 60.0 - LEAD_IN - LEAD_OUT  # [s] the planner's work bound (tasks.limits.MAX_HORIZON) less lead-in/out
 # Cost weights per second of tracked motion [1/m^2 s]; a knot's weight is this times dt.
@@ -471,9 +480,15 @@ def _foot_yaw_at(motion: HumanMotion, side: str, a: int, b: int, stand_yaw: floa
     return stand_yaw + float(np.median(yaw[a:b]) - yaw[0])
 
 
+def knot_spacing(slow: float) -> float:
+    """The knots' spacing [s] of a clip slowed ``slow`` times for the robot: :data:`COARSE_DT` from
+    :data:`COARSE_SLOW` times, else :data:`DT` (a knot spans at most DT of the human's time)."""
+    return COARSE_DT if slow >= COARSE_SLOW - 1e-9 else DT
+
+
 def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Robot, *, name: str = "",
-                  description: str = "", dt: float = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
-    """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule, and the reference it tracks."""
+                  description: str = "", dt: float | None = DT, dynamic: bool | None = None) -> tuple[TaskSpec, Reference]:
+    """The TaskSpec that tracks ``motion`` on ``robot`` with its contact schedule (``dt`` None: :func:`knot_spacing`)."""
     where = motion.source or "clip"
     motion, labels, grounded, stepped = _steps(motion, labels, robot)
     slow = time_scale(motion, labels, robot)
@@ -481,6 +496,7 @@ def retarget_spec(motion: HumanMotion, labels: dict[str, np.ndarray], robot: Rob
         slow = max(slow, GROUNDED_SLOW)
     if slow > 1.0:
         motion = dataclasses.replace(motion, t=motion.t * slow)
+    dt = knot_spacing(slow) if dt is None else dt
     duration = float(motion.t[-1])
     if duration > MAX_CLIP:
         slowed = f" ({duration / slow:.1f} s slowed {slow:.2f} x for the robot's steps)" if slow > 1.0 else ""

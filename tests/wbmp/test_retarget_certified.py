@@ -177,7 +177,8 @@ def test_the_forward_jumps_are_certified_on_talos_made_as_steps():
     """The forward jumps (6.9 s, four 0.9 m two-footed jumps, 0.37-0.47 s flights): refused by the
     planner (sessions 13-16); made as a step of each foot per jump (a flight cannot be slowed),
     2.2 x slower, landing at 0.5 m/s at most and each high long step leaving a knot late: certified
-    (measured, skate / penetration / float: 7.7 / 3.2 / 4.5 mm; 146 s CPU). Fast twins:
+    (measured, skate / penetration / float: 7.7 / 3.2 / 4.5 mm; 146 s CPU; 67 s in session 18: the
+    tracking guess and warm rounds, docs/retarget.md). Fast twins:
     tests/tasks/mocap/test_legs.py::test_a_two_footed_jump_becomes_a_step_of_each_foot,
     tests/tasks/mocap/test_legs.py::test_a_high_long_step_is_not_set_down_early."""
     result = retarget(RetargetRequest(clip="/work/shared/mocap/01_01_jump_forward.bvh", robot="talos"))

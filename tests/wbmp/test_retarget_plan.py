@@ -112,10 +112,25 @@ def test_a_clip_that_starts_mid_step_begins_at_its_first_double_support():
     _, spec, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "12_01_walk.bvh"), robot="talos"))
     assert info["start_s"] == pytest.approx(both[0] * clip.frame_time) and 0.1 < info["start_s"] < 0.3
     assert len(spec.phases[1].contacts) == 2  # the clip's first phase: both feet down
+    assert spec.dt == 0.08  # slowed 1.88 x for talos's steps: below the coarser knots' 2.5 x (knot_spacing)
     _, _, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "12_01_walk.bvh"), robot="talos", start=0.0))
     assert info["start_s"] == 0.0
-    _, _, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "13_29_squat.bvh"), robot="talos"))
-    assert info["start_s"] == 0.0
+    _, squat, _, _, info = build_retarget_spec(RetargetRequest(clip=str(MOCAP / "13_29_squat.bvh"), robot="talos"))
+    assert info["start_s"] == 0.0 and squat.dt == 0.08  # not slowed
+
+
+def test_a_clip_slowed_for_the_robot_gets_the_coarser_knots_each_spanning_no_more_of_the_human():
+    """tasks.mocap.retarget.knot_spacing: 0.1 s knots from a slowdown of 2.5 x, where each spans at
+    most 0.04 s of the human's time, else 0.08 s (at most 0.08 s of it); both divide the lead-in.
+    The walk on talos (slowed 1.88 x) keeps 0.08 s knots, as the squat (not slowed) does."""
+    from tasks.mocap.retarget import COARSE_DT, DT, LEAD_IN, knot_spacing
+
+    assert [knot_spacing(s) for s in (1.0, 1.88, 2.23, 2.5, 4.4)] == [DT, DT, DT, COARSE_DT, COARSE_DT]
+    for slow in np.linspace(1.0, 6.0, 51):
+        assert knot_spacing(slow) / slow <= DT + 1e-12
+        assert slow < 2.5 or knot_spacing(slow) / slow <= DT / 2 + 1e-12
+    for dt in (DT, COARSE_DT):  # the lead-in's targets blend over whole knots
+        assert abs(LEAD_IN / dt - round(LEAD_IN / dt)) < 1e-9
 
 
 def test_the_report_names_each_moved_target_in_body_terms(planned):

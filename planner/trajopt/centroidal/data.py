@@ -29,6 +29,19 @@ from planner.trajopt.centroidal.settings import CentroidalSettings
 from planner.trajopt.layout_data import LayoutData
 
 
+def chart_guess(lay: DynamicData) -> np.ndarray:
+    """The initial guess's chart displacements (N+1, nv) on a floor: each knot's pose for its soft
+    targets when the settings ask for it and the spec tracks a motion
+    (:func:`planner.trajopt.centroidal.tracking.tracking_guess`), else the heading guess."""
+    if lay.centroidal_settings.tracking_guess:
+        from planner.trajopt.centroidal.tracking import tracking_guess
+
+        tracked = tracking_guess(lay)
+        if tracked is not None:
+            return tracked
+    return heading_guess(lay)
+
+
 @dataclass(frozen=True, eq=False)
 class DynamicData(LayoutData):
     """A :class:`planner.trajopt.layout_data.LayoutData` with the parts of its CoM dynamics.
@@ -50,7 +63,11 @@ class DynamicData(LayoutData):
         solution given to :meth:`with_momentum_point`, else the initial guess's."""
         if self.linearized_about is not None:
             return self.linearized_about
-        return self.memo("heading", lambda: heading_guess(self))
+        return self.guessed_chart()
+
+    def guessed_chart(self) -> np.ndarray:
+        """The initial guess's chart displacements (N+1, nv) on a floor (:func:`chart_guess`; built once)."""
+        return self.memo("guess", lambda: chart_guess(self))
 
     def with_momentum_point(self, dq: np.ndarray, residual: float = float("nan")) -> Self:
         """A copy of this layout whose whole-body momentum rows are linearized about ``dq`` (N+1, nv)

@@ -1,5 +1,5 @@
-"""Initial guess of a dynamic plan: the base along the feet's heading (:mod:`.heading`), the weight on
-the corners."""
+"""Initial guess of a dynamic plan: the base along the feet's heading (:mod:`.heading`; a tracked
+motion: each knot's pose for its targets, :mod:`.tracking`), the weight on the corners."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ import numpy as np
 import pinocchio as pin
 
 from planner.trajopt.centroidal.data import DynamicData
-from planner.trajopt.centroidal.heading import heading_guess
 
 
 def initial_guess(lay: DynamicData) -> np.ndarray:
@@ -20,7 +19,7 @@ def initial_guess(lay: DynamicData) -> np.ndarray:
     from planner.trajopt.symbolic import chart_to_configuration
 
     stepped = stepping_guess(lay)  # a climb: every knot by inverse kinematics (None on a floor)
-    dq = heading_guess(lay) if stepped is None else stepped
+    dq = lay.guessed_chart() if stepped is None else stepped  # the tracking or the heading guess (memo)
     model, data = lay.robot.model, lay.robot.data()
     N = lay.N
     com = np.array([pin.centerOfMass(model, data, chart_to_configuration(model, lay.q_ref, dq[min(k, N - 1)]))

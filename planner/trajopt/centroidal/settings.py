@@ -76,6 +76,10 @@ class CentroidalSettings:
             kitchen pick-up's solves spent 10-14 iterations each on short steps at an objective
             already converged to 8 digits (58 -> 49 iterations in its first solve; the solution
             within 1e-8 of the objective).
+        tracking_guess: Start a spec that tracks a motion (a soft frame target at most knots: a
+            retarget) from each knot's pose for its own targets, and linearize the momentum rows
+            about it (:mod:`planner.trajopt.centroidal.tracking`), instead of the heading guess
+            (the joints at standing). g1's squat: 74 + 32 iterations in two solves -> 27 + 46.
     """
 
     force_weight: float = 1e-2
@@ -97,6 +101,7 @@ class CentroidalSettings:
     ipopt_options: tuple[tuple[str, float | int | str], ...] = (
         ("constr_mult_init_max", 0.0), ("first_hessian_perturbation", 10.0), ("warm_start_init_point", "yes"),
         ("mu_min", 1e-9))
+    tracking_guess: bool = False
 
     @property
     def lifts_moment(self) -> bool:

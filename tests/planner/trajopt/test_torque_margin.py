@@ -90,10 +90,12 @@ def test_no_joints_named_no_rows_and_an_unknown_joint_is_named(talos):
 
 
 def test_retargets_bound_talos_strained_arm_joints_and_leave_g1_s_settings_alone(talos, g1):
-    from wbmp.retarget import ARM_TORQUE_MARGIN, MAX_ITERATIONS, _plan_settings
+    from wbmp.retarget import ARM_TORQUE_MARGIN, MAX_ITERATIONS, TRACKING_GUESS, retarget_settings
 
-    s = _plan_settings(talos)
+    s = retarget_settings(talos)
     assert s.centroidal.torque_joints == tuple(f"arm_{side}_{i}_joint" for side in ("left", "right")
                                                for i in range(1, 6))
     assert s.centroidal.torque_margin == ARM_TORQUE_MARGIN and s.solver.max_iterations == MAX_ITERATIONS
-    assert _plan_settings(g1).centroidal == CentroidalSettings()  # G1's shoulders hold their arms
+    # G1's shoulders hold their arms: its settings are those without a robot
+    assert retarget_settings(g1).centroidal == retarget_settings().centroidal == CentroidalSettings(
+        tracking_guess=TRACKING_GUESS)
