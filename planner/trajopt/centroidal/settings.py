@@ -58,6 +58,9 @@ class CentroidalSettings:
             RNEA torques exceed the margin. For joints no contact force passes through (arms):
             the rows do not count the contact forces. Empty (the default): no rows.
         torque_margin: That fraction of each joint's effort limit [-].
+        torque_trigger: The rows come only after a solve whose RNEA torque of one of those joints
+            exceeds this fraction of its limit (1.0: a plan asking more than the actuator gives;
+            once there, they are re-linearized while it exceeds ``torque_margin + 0.02``) [-].
         torque_rounds: Solves with the rows re-linearized at most (after the solve that added
             them, each re-solve freezes the RNEA rest again) [-].
         max_force: Upper bound of one corner's normal force, in body weights [-].
@@ -95,6 +98,7 @@ class CentroidalSettings:
     ankle_torque_margin: float | None = 0.9
     torque_joints: tuple[str, ...] = ()
     torque_margin: float = 0.85
+    torque_trigger: float = 1.0
     torque_rounds: int = 3
     max_force: float = 10.0
     force_tolerance: float = 1e-3

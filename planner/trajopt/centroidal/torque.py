@@ -18,8 +18,8 @@ last solution (a parameter). Together they keep :math:`|g_j + d_{k,j}|` and :mat
 the margin: a frozen rest that relieves the joint is not counted on (with one row
 :math:`|g + d| \le m`, talos's bend held its arm up on a frozen deceleration, its gravity torque
 0.99 of the limit, and the next solve's RNEA asked 1.14). The rows are added only after a solve whose RNEA torque exceeds
-the margin (``+ TORQUE_TRIGGER``) somewhere, then their :math:`d` re-linearized after each solve
-that still exceeds it, at most :attr:`CentroidalSettings.torque_rounds` solves
+:attr:`CentroidalSettings.torque_trigger` (1.0: more than the actuator gives) somewhere, then their
+:math:`d` re-linearized after each solve that still exceeds the margin (``+ TORQUE_TRIGGER``), at most :attr:`CentroidalSettings.torque_rounds` solves
 (:meth:`planner.trajopt.centroidal.layout.DynamicLayout.relinearized`): a plan within the
 margin is the plan without the rows, bit for bit.
 """
@@ -141,8 +141,8 @@ def plan_torques(robot: Robot, q: np.ndarray, dt: float, joints: tuple[int, ...]
 def torque_margin_terms(lay: DynamicData, dq: np.ndarray) -> tuple[Term, ...] | None:
     """The layout's terms with the torque margin rows added or re-linearized about the solution
     ``dq`` (N+1, nv), or None: the solution's RNEA torques of the settings' ``torque_joints`` are
-    within ``torque_margin + TORQUE_TRIGGER`` of their limits at every variable knot (or none
-    is named)."""
+    within ``torque_trigger`` of their limits at every variable knot (a layout without the rows) or
+    within ``torque_margin + TORQUE_TRIGGER`` (a layout with them), or no joint is named."""
     from planner.trajopt.symbolic import chart_to_configuration
 
     s = lay.centroidal_settings
@@ -154,9 +154,10 @@ def torque_margin_terms(lay: DynamicData, dq: np.ndarray) -> tuple[Term, ...] | 
     tau, grav = plan_torques(robot, q, float(lay.dt), joints)
     limits = np.array([robot.model.effortLimit[robot.model.joints[j].idx_v] for j in joints])
     knots = range(2, lay.N)
-    if max(float(np.max(np.abs(tau[k]) / limits)) for k in knots) <= s.torque_margin + TORQUE_TRIGGER:
-        return None
     kept = tuple(t for t in lay.terms if not isinstance(t, TorqueMarginTerm))
+    bound = s.torque_margin + TORQUE_TRIGGER if len(kept) < len(lay.terms) else max(s.torque_trigger, s.torque_margin)
+    if max(float(np.max(np.abs(tau[k]) / limits)) for k in knots) <= bound:
+        return None
     added = tuple(TorqueMarginTerm.at(k, robot, joints, s.torque_margin, tau[k] - grav[k], lay.phase_name(k))
                   for k in knots)
     return kept + added

@@ -14,7 +14,6 @@ import pytest
 
 from planner import CentroidalSettings
 from planner.trajopt.centroidal.torque import (
-    TORQUE_TRIGGER,
     TorqueMarginTerm,
     joint_ids,
     torque_margin_terms,
@@ -59,7 +58,7 @@ def test_a_motion_beyond_the_margin_gets_rows_with_the_rest_of_rnea_frozen(talos
     idx = [model.joints[model.getJointId(n)].idx_v for n in JOINTS]
     limits = model.effortLimit[idx]
     worst = max(float(np.max(np.abs(_rnea(talos, q, k, idx)) / limits)) for k in range(2, N))
-    assert worst > 0.85 + TORQUE_TRIGGER + 0.05  # the swing asks more than the margin (not a knife edge)
+    assert worst > 1.05  # the swing asks more than the joint gives (the trigger, 1.0; not a knife edge)
     terms = torque_margin_terms(lay, dq)
     assert terms is not None and terms[0] == "a kept term"
     rows = [t for t in terms if isinstance(t, TorqueMarginTerm)]
@@ -99,3 +98,23 @@ def test_retargets_bound_talos_strained_arm_joints_and_leave_g1_s_settings_alone
     # G1's shoulders hold their arms: its settings are those without a robot
     assert retarget_settings(g1).centroidal == retarget_settings().centroidal == CentroidalSettings(
         tracking_guess=TRACKING_GUESS)
+
+
+def test_a_plan_between_the_margin_and_the_trigger_gets_no_rows_but_keeps_rows_it_has(talos):
+    """Rows come only when a plan asks more than the joint gives (``torque_trigger`` 1.0); a layout
+    that has them re-linearizes them while the plan asks more than the margin (0.85 + 0.02)."""
+    model = talos.model
+    idx = [model.joints[model.getJointId(n)].idx_v for n in JOINTS]
+    for amplitude in (0.9, 1.0, 1.1, 1.2, 1.3):  # the first swing asking between 0.9 and 0.98 of a limit
+        lay, dq = _layout(talos, amplitude=amplitude, period=1.2)
+        q = np.array([chart_to_configuration(model, lay.q_ref, d) for d in dq])
+        worst = max(float(np.max(np.abs(_rnea(talos, q, k, idx)) / model.effortLimit[idx])) for k in range(2, N))
+        if 0.9 < worst < 0.98:
+            break
+    else:
+        pytest.fail("no swing between 0.9 and 0.98 of the limit")
+    assert torque_margin_terms(lay, dq) is None
+    with_rows = SimpleNamespace(**{**vars(lay), "terms": ("a kept term", TorqueMarginTerm.at(
+        5, talos, joint_ids(talos, JOINTS), 0.85, np.zeros(len(JOINTS)), "p"))})
+    again = torque_margin_terms(with_rows, dq)
+    assert again is not None and len([t for t in again if isinstance(t, TorqueMarginTerm)]) == N - 2
