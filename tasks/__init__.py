@@ -54,6 +54,7 @@ if TYPE_CHECKING:
     from tasks.mocap.figures import Tracks, contact_windows, motion_figures, torque_cause, tracks
     from tasks.mocap.retarget import retarget_spec
     from tasks.mocap.skeleton import check_joints
+    from tasks.mocap.strength import arm_torque_joints
     from tasks.primitives import PRIMITIVES
     from tasks.robot_check import check_spec_for_robot, check_spec_in_scene_for_robot
     from tasks.scene import on_top
@@ -73,6 +74,7 @@ _LAZY = {  # public name -> module
     "REGISTRY": "tasks.actions",
     "Vec3": "tasks.specs",
     "actions_json_schema": "tasks.actions",
+    "arm_torque_joints": "tasks.mocap.strength",
     "check_joints": "tasks.mocap.skeleton",
     "check_spec_for_robot": "tasks.robot_check",
     "check_spec_in_scene_for_robot": "tasks.robot_check",
@@ -129,6 +131,7 @@ __all__ = [
     "UnknownAction",
     "Vec3",
     "actions_json_schema",
+    "arm_torque_joints",
     "bind",
     "check_joints",
     "check_spec_for_robot",

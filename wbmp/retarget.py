@@ -24,6 +24,7 @@ FLOOR_TIMECONST = 0.005
 #: diagnosis: a hand through a thigh) and plans in 238 iterations with 500. A solve that converges
 #: within 150 follows the same iterates either way (the certified clips' plans are unchanged).
 MAX_ITERATIONS: int | None = 500
+ARM_TORQUE_MARGIN: float | None = 0.85  # of the strained arm joints' limits in the plan (None: no rows)
 #: Start the plan from each knot's pose for its tracking targets (Pinocchio inverse kinematics,
 #: :mod:`planner.trajopt.centroidal.tracking`) instead of the heading guess (joints at standing):
 #: the clip is a guess of the whole motion. g1's squat: 106 -> 73 iterations, the first solve's
@@ -41,14 +42,25 @@ HIGH_SWING_POSTURE_WEIGHT = 0.01
 START_ON_BOTH_FEET = 0.5  # [s] a clip (no --start) that starts mid-step begins at its first double support within this
 
 
-def retarget_settings() -> Any:
+def retarget_settings(robot: Any = None) -> Any:
     """The planner's settings of a retarget: :data:`MAX_ITERATIONS` per solve; with
     :data:`TRACKING_GUESS` the solve started from each knot's pose for its tracking targets (a
-    collision round's re-solve starts from the solution's multipliers in every plan)."""
+    collision round's re-solve starts from the solution's multipliers in every plan); for ``robot``
+    (a :class:`robots.Robot`), the arm joints that could not hold their stretched arm
+    (``tasks.arm_torque_joints``) kept within :data:`ARM_TORQUE_MARGIN` of their torque limits by
+    the plan (talos's march swung its shoulder roll at 0.96-1.02 of its limit, the hand 50.1 mm off
+    its plan in MuJoCo; G1: no such joint)."""
     from planner import CentroidalSettings, PlannerSettings, SolverSettings
+    from tasks import arm_torque_joints
 
     solver = SolverSettings() if MAX_ITERATIONS is None else SolverSettings(max_iterations=MAX_ITERATIONS)
-    return PlannerSettings(solver=solver, centroidal=CentroidalSettings(tracking_guess=TRACKING_GUESS))
+    joints = arm_torque_joints(robot) if robot is not None and ARM_TORQUE_MARGIN is not None else ()
+    if joints and ARM_TORQUE_MARGIN is not None:
+        centroidal = CentroidalSettings(tracking_guess=TRACKING_GUESS, torque_joints=joints,
+                                        torque_margin=ARM_TORQUE_MARGIN)
+    else:
+        centroidal = CentroidalSettings(tracking_guess=TRACKING_GUESS)
+    return PlannerSettings(solver=solver, centroidal=centroidal)
 
 
 @dataclass(kw_only=True)
@@ -188,7 +200,7 @@ def retarget(request: RetargetRequest, progress: Progress = _silent, *, cache: b
             return _cached_result(request, hit, robot, spec, ref, skeleton, info, timings, t0)
     progress(f"planning {spec.horizon:.1f} s of motion for {robot.name} ({len(spec.phases)} contact phases)")
     t0 = time.perf_counter()
-    plan = plan_motion(spec, robot, progress=progress, settings=retarget_settings())
+    plan = plan_motion(spec, robot, progress=progress, settings=retarget_settings(robot))
     check_signals()
     timings["plan"] = time.perf_counter() - t0
     execution = None

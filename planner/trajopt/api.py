@@ -701,11 +701,13 @@ def _solve_with_collisions(lay: L, settings: PlannerSettings, progress: Callable
         # sentence: one solve fewer); when they are not, that solve still comes.
         relinearized_lay = lay.relinearized(dq, out.x, relinearized)
         if relinearized_lay is not None:
+            same_rows = len(relinearized_lay.terms) == len(lay.terms)  # the torque margin's rows may come
             lay = relinearized_lay
             if not reason:
                 relinearized += 1
                 reason = "re-linearized about the solution"
-                lam0 = (out.lam_x, out.lam_g)  # same structure: the multipliers warm-start it too
+                if same_rows:
+                    lam0 = (out.lam_x, out.lam_g)  # same structure: the multipliers warm-start it too
         if not reason:
             return lay, dq, total, out
         if lam0 is None:  # a round: the rows both layouts have keep their multipliers, new rows start at 0

@@ -126,6 +126,13 @@ def _subtree(model: pin.Model, j: int) -> list[int]:
     return out
 
 
+def arm_torque_joints(robot: Robot) -> tuple[str, ...]:
+    """Names of both arms' :func:`strained_joints` (left, then right): the joints whose torques a
+    retarget's plan keeps within a margin of their limits (``CentroidalSettings.torque_joints``;
+    talos: ``arm_*_1_joint`` to ``arm_*_5_joint``, G1: none)."""
+    return tuple(str(robot.model.names[j]) for side in SIDES for j in strained_joints(robot, side))
+
+
 def strained_joints(robot: Robot, side: str, margin: float = ARM_STRENGTH_MARGIN) -> list[int]:
     """The joints of ``side``'s arm (from its shoulder frame's parent joint out) whose arm beyond,
     stretched, could load them beyond ``margin`` of their torque limit: its mass x g x the

@@ -21,6 +21,7 @@ from planner.trajopt.centroidal.nlp import (
     extend_parameters,
 )
 from planner.trajopt.centroidal.settings import CentroidalSettings
+from planner.trajopt.centroidal.torque import TorqueMarginTerm, torque_margin_terms
 from planner.trajopt.kinds import SupportPolygonTerm
 from planner.trajopt.layout import Layout
 
@@ -89,16 +90,25 @@ class DynamicLayout(DynamicData, Layout):
     def relinearized(self, dq: np.ndarray, x: np.ndarray, round_: int) -> Self | None:
         """This layout with the whole-body momentum rows linearized about the solution ``dq`` again
         (a copy; this one is not changed), when Euler's law with the exact :math:`A_g` is off by more
-        than ``CentroidalSettings.momentum_tolerance``, for at most ``momentum_iterations`` rounds."""
+        than ``CentroidalSettings.momentum_tolerance``, for at most ``momentum_iterations`` rounds;
+        and with the torque margin rows added or re-linearized when the solution's RNEA torques of
+        ``torque_joints`` exceed ``torque_margin`` (:mod:`planner.trajopt.centroidal.torque`, at most
+        ``torque_rounds`` rounds)."""
         s = self.centroidal_settings
-        if not s.whole_body_momentum or round_ >= s.momentum_iterations:
-            return None
-        from planner.trajopt.centroidal.momentum import euler_residual
+        out = None
+        # the torque rows move the motion after the momentum rows' own rounds: theirs come on top
+        bounded = any(isinstance(t, TorqueMarginTerm) for t in self.terms)
+        if s.whole_body_momentum and round_ < s.momentum_iterations + (s.torque_rounds if bounded else 0):
+            from planner.trajopt.centroidal.momentum import euler_residual
 
-        residual = euler_residual(self, dq, self.forces_of(x))
-        if residual <= s.momentum_tolerance:
-            return None
-        return self.with_momentum_point(dq, residual)
+            residual = euler_residual(self, dq, self.forces_of(x))
+            if residual > s.momentum_tolerance:
+                out = self.with_momentum_point(dq, residual)
+        if round_ < s.torque_rounds:
+            terms = torque_margin_terms(self, dq)
+            if terms is not None:
+                out = (out or self).with_terms(terms)
+        return out
 
     def diagnose(self, failed: Plan, relaxed: Callable[[], str]) -> str:
         """The worst violated group of the failed plan (no relaxed solve)."""

@@ -52,6 +52,17 @@ class CentroidalSettings:
             sole rectangle alone let G1 plans put a foot's whole load on the toe, 0.12 m ahead of
             an ankle that gives 0.107 x its weight; with Talos's stronger ankles the rows do not
             bind. None: no such rows [-].
+        torque_joints: One-dof joints (names) whose torques the plan keeps within ``torque_margin``
+            of their limits (:mod:`planner.trajopt.centroidal.torque`): rows of the gravity torque
+            plus the rest of RNEA frozen at the last solution, added only after a solve whose
+            RNEA torques exceed the margin. For joints no contact force passes through (arms):
+            the rows do not count the contact forces. Empty (the default): no rows.
+        torque_margin: That fraction of each joint's effort limit [-].
+        torque_trigger: The rows come only after a solve whose RNEA torque of one of those joints
+            exceeds this fraction of its limit (1.0: a plan asking more than the actuator gives;
+            once there, they are re-linearized while it exceeds ``torque_margin + 0.02``) [-].
+        torque_rounds: Solves with the rows re-linearized at most (after the solve that added
+            them, each re-solve freezes the RNEA rest again) [-].
         max_force: Upper bound of one corner's normal force, in body weights [-].
         force_tolerance: Accepted violation of the force checks in the report, as a fraction of
             the body weight [-].
@@ -85,6 +96,10 @@ class CentroidalSettings:
     zmp_tolerance: float = 0.01
     cop_margin: float = 0.005
     ankle_torque_margin: float | None = 0.9
+    torque_joints: tuple[str, ...] = ()
+    torque_margin: float = 0.85
+    torque_trigger: float = 1.0
+    torque_rounds: int = 3
     max_force: float = 10.0
     force_tolerance: float = 1e-3
     ipopt_options: tuple[tuple[str, float | int | str], ...] = (

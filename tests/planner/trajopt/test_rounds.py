@@ -28,6 +28,7 @@ class _Layout:
         self.name, self.relinearizes_to = name, relinearizes_to
         self.about: tuple[float, int] | None = None
         self.robot = None
+        self.terms: tuple = ()  # a re-linearization keeps the rows (the multipliers then warm-start it)
 
     def relinearized(self, dq, x, round_):
         if self.relinearizes_to is None:
@@ -88,6 +89,17 @@ def test_without_a_round_the_relinearization_is_as_before(monkeypatch, relineari
     solved = _run(monkeypatch, first, None)
     expected = [("first", False), ("first, linearized", True)] if relinearizes else [("first", False)]
     assert solved == [*expected, (f"returned {expected[-1][0]}", False)]
+
+
+def test_a_relinearization_that_adds_rows_starts_without_the_multipliers(monkeypatch):
+    """The torque margin's first round adds rows (planner/trajopt/centroidal/torque.py): the last
+    solve's constraint multipliers no longer fit as they are: that solve does not take them whole (it
+    starts as a round's does, from the carried ones, or cold: the stand-ins have no NlpLayout)."""
+    more = _Layout("first, with torque rows")
+    more.terms = ("a torque row",)
+    first = _Layout("first", relinearizes_to=more)
+    assert _run(monkeypatch, first, None) == [("first", False), ("first, with torque rows", False),
+                                              ("returned first, with torque rows", False)]
 
 
 class _Term:

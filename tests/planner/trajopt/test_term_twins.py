@@ -6,7 +6,8 @@ until it has a twin here).
 
 * Kinematic kinds (contact, swing clearance, support polygon, CoM box, frame position and
   orientation targets hard and soft, base upright, CoM targets and centring, joint target, closed
-  chain, self-collision, scene collision per shape): one term of a layout built from a small real
+  chain, self-collision, scene collision per shape, the joint torque margin against RNEA at rest):
+  one term of a layout built from a small real
   Talos spec (stand, lift the right foot, stand; hand targets, CoM target and bounds, a joint
   target, two hands holding one box, a scene), through
   :func:`planner.trajopt.terms.stage_function`, at seeded random chart displacements ``dq``; the
@@ -42,6 +43,7 @@ from planner.trajopt.centroidal.physics import (
     com_dynamics_residual,
     friction_pyramid,
 )
+from planner.trajopt.centroidal.torque import TorqueMarginTerm, joint_ids
 from planner.trajopt.collision import Rows, sphere_sets, with_collision_terms
 from planner.trajopt.kinds import ContactPositionTerm
 from planner.trajopt.layout import Layout, make_layout, support_halfplanes, support_polygon
@@ -121,6 +123,7 @@ def _spec() -> TaskSpec:
 COLLISION_PAIRS = {("arm_left_5_link", "base_link"), ("gripper_left_base_link", "leg_right_3_link")}
 SCENE_LINKS = ("arm_right_5", "arm_right_7", "gripper_right_base")
 COLLISION_KNOT = 5
+TORQUE_JOINTS = ("arm_left_2_joint", "arm_left_4_joint", "arm_right_1_joint", "torso_2_joint")
 
 
 @pytest.fixture(scope="module")
@@ -145,6 +148,8 @@ def layout(talos) -> Layout:
     scene_rows = SceneRows(spheres={i: set(arm) for i in range(len(obs))},
                            knots={i: {COLLISION_KNOT} for i in range(len(obs))})
     lay = with_scene_terms(lay, sets, obs, scene_rows, list(range(len(obs))), MARGIN)
+    arms = joint_ids(talos, TORQUE_JOINTS)  # a torque margin term, with a frozen rest of RNEA [N m]
+    kinematic.append(TorqueMarginTerm.at(COLLISION_KNOT, talos, arms, 0.85, np.linspace(-3.0, 2.0, len(arms)), "twin"))
     return lay.with_terms([*kinematic, *lay.terms])
 
 
@@ -253,6 +258,17 @@ def support_polygon_centre(lay: Layout, k: int) -> np.ndarray:
     return support_polygon(lay, k).mean(axis=0)
 
 
+def _torque_margin_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
+    """Pinocchio's RNEA at rest (the gravity torques), plus the frozen rest where it loads the joint
+    (upper rows) or where it pulls the other way (lower rows), over the limits."""
+    model = kin.model
+    idx = [model.joints[j].idx_v for j in term.structure[1]]
+    tau = pin.rnea(model, model.createData(), kin.q, np.zeros(model.nv), np.zeros(model.nv))[idx]
+    rest = term.params
+    limits = model.effortLimit[idx]
+    return np.concatenate([(tau + np.where(rest > 0, rest, 0.0)) / limits, (tau + np.where(rest < 0, rest, 0.0)) / limits])
+
+
 def _joint_ref(lay: Layout, term: Term, kin: Kinematics) -> np.ndarray:
     target = term.item
     jid = kin.model.getJointId(target.joint)
@@ -330,6 +346,7 @@ KINDS: dict[str, Kind] = {
     "joint target": Kind(_named("joint"), _joint_ref, cost=True),
     "closed chain (two hands)": Kind(lambda t: t.kind == "frame_rel" and t.structure[3], _frame_rel_ref),
     "self-collision spheres": Kind(_named("collision"), _collision_ref),
+    "torque margin (arms, torso)": Kind(_named("torque_margin"), _torque_margin_ref),
     "scene collision (box)": Kind(lambda t: t.kind == "scene" and t.structure[1] == "box", _scene_ref),
     "scene collision (cylinder)": Kind(lambda t: t.kind == "scene" and t.structure[1] == "cylinder", _scene_ref),
     "scene collision (sphere)": Kind(lambda t: t.kind == "scene" and t.structure[1] == "sphere", _scene_ref),
