@@ -185,11 +185,7 @@ def test_the_forward_jumps_are_certified_on_talos_made_as_steps():
     knots: 6.3 / 2.2 / 0.8 mm, 78 s CPU; the tracking guess: 67 s, docs/retarget.md). Fast twins:
     tests/tasks/mocap/test_legs.py::test_a_two_footed_jump_becomes_a_step_of_each_foot,
     tests/tasks/mocap/test_legs.py::test_a_high_long_step_is_not_set_down_early."""
-    result = retarget(RetargetRequest(clip="/work/shared/mocap/01_01_jump_forward.bvh", robot="talos"))
-    assert result.reference.stepped_s > 1.0 and result.reference.grounded_s == 0.0
-    assert all(len(p.contacts) >= 1 for p in result.spec.phases)  # no flight
-    assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
-    assert result.exec_figures.skate <= 10.0 and result.exec_figures.float_ <= 10.0
+    _check_the_forward_jumps_made_as_steps("talos")
 
 
 @pytest.mark.long
@@ -204,7 +200,12 @@ def test_the_forward_jumps_are_certified_on_g1_made_as_steps():
     103 s CPU). Fast twins: tests/tasks/mocap/test_retarget_spec.py::
     test_a_clip_with_high_swings_ends_on_a_whole_knot_so_the_planners_knots_fall_on_its_phases,
     tests/tasks/mocap/test_legs.py::test_a_high_step_shorter_than_late_step_leaves_its_placement_at_once."""
-    result = retarget(RetargetRequest(clip="/work/shared/mocap/01_01_jump_forward.bvh", robot="g1"))
+    _check_the_forward_jumps_made_as_steps("g1")
+
+
+def _check_the_forward_jumps_made_as_steps(robot: str) -> None:
+    """The forward jumps retargeted on ``robot``: made as steps (no flight), planned and certified."""
+    result = retarget(RetargetRequest(clip="/work/shared/mocap/01_01_jump_forward.bvh", robot=robot))
     assert result.reference.stepped_s > 1.0 and result.reference.grounded_s == 0.0
     assert all(len(p.contacts) >= 1 for p in result.spec.phases)  # no flight
     assert result.plan.ok and result.execution.certificate.ok, result.execution.certificate.reason
