@@ -104,9 +104,9 @@ def test_forward_hops_are_certified_on_g1(g1):
     Each landing falls short (the real flight is 45-65 ms of the planned 0.15 s, docs/control.md),
     and the second hop starts from where the first landed: measured 4.7 and 11.4 mm at the two
     landings, 11.5 mm (hopping sole) and 1.3 mm (the other) at the end; the base 1.3 mm past the
-    plan's 60.1 mm. Since session 17's friction per surface (MuJoCo's floor takes its own
-    coefficient, not the larger of the two): 12.3 and 18.7 mm at the landings, 17.9 and 4.0 mm at
-    the end (measured in session 18 on its start and on its end alike). 4 cm x 2 fell, 3 cm x 3 landed 2.5 cm off (docs/primitives.md, "hop").
+    plan's 60.1 mm. Measured in session 18, on its start and its end alike: 12.3 and 18.7 mm at
+    the landings, 17.9 and 4.0 mm at the end (the change came in session 17, which among others
+    gave MuJoCo's floor its own friction coefficient; not traced further). 4 cm x 2 fell, 3 cm x 3 landed 2.5 cm off (docs/primitives.md, "hop").
     About 25 s of CPU."""
     import pinocchio as pin
 
