@@ -259,7 +259,7 @@ class _Drive:
             if trig is not None:
                 es.fire(t, *trig, q)
         elif es.mode in ("runon", "stand"):  # the stand fails on a state that is not finite or a tilt
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            if not (finite(q) and finite(v)):
                 es.escalate("the measured state is not finite")
             else:
                 tilted = es.tilted(q)
@@ -282,12 +282,12 @@ class _Drive:
             if es.mode == "runon" and es.stand_due(t) is not None:
                 self._stand(t, q, v)
                 tau = self._controller(t, q, v)
-                if self.ctrl.failures == 0 and np.all(np.isfinite(tau)):
+                if self.ctrl.failures == 0 and finite(tau):
                     return tau
                 es.escalate("the controller could not hold the posture")
             elif es.mode == "runon":
                 # running on to a double-support posture: this tick's controller torque stands unless it failed
-                if trig[0] != "qp_failure" and np.all(np.isfinite(tau)):
+                if trig[0] != "qp_failure" and finite(tau):
                     return tau
                 es.escalate("the controller failed while running on to a double-support posture")
         else:
